@@ -1,0 +1,16 @@
+//! # physid-core — the shared vocabulary
+//!
+//! Every other physid crate speaks these types:
+//!
+//! * [`ParamSet`] — named parameters with nominal values, and [`FreeSet`], the view that says
+//!   which of them are estimated (*free*) and which are held at their nominal values (*fixed*).
+//!   The identifiability step chooses the free subset; an estimator works on that view, never on
+//!   a new model (DESIGN.md, "The seams").
+//! * [`Recording`] — named channels with SI units on a time or crank-angle basis (DESIGN.md,
+//!   "A recording is columns with units").
+
+pub mod params;
+pub mod recording;
+
+pub use params::{FreeSet, ParamError, ParamSet};
+pub use recording::{Basis, Channel, Recording, RecordingError};

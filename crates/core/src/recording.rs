@@ -1,0 +1,165 @@
+//! A recording: named channels with SI units on a time or crank-angle basis.
+//!
+//! Every producer (simulator, file reader) and consumer (estimators, applications) speaks this
+//! type; file formats are adapters at the edge (`physid-io`).
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// What the samples of a recording are indexed by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Basis {
+    /// Samples in time (a `t` channel in seconds, usually).
+    #[default]
+    Time,
+    /// One sample per crank-angle increment (`cycle`, `crank_deg` channels).
+    CrankAngle,
+}
+
+/// One named channel: its unit (SI string such as `"rad/s"`, `"N*m"`, or `""` when unknown) and
+/// its samples.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Channel {
+    /// Channel name (DESIGN.md channel table, or the user's own name).
+    pub name: String,
+    /// Unit as an SI string; empty when the source did not say.
+    pub unit: String,
+    /// The samples.
+    pub values: Vec<f64>,
+}
+
+/// Errors about a recording's shape or contents.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RecordingError {
+    /// A channel that the recording does not have.
+    #[error("no channel '{name}'; the channels are: {available}")]
+    MissingChannel {
+        /// The name asked for.
+        name: String,
+        /// The channels there are, comma separated.
+        available: String,
+    },
+    /// Channels of different lengths.
+    #[error("channel '{name}' has {len} samples but the recording has {expected}")]
+    LengthMismatch {
+        /// Channel name.
+        name: String,
+        /// Its length.
+        len: usize,
+        /// The recording's length.
+        expected: usize,
+    },
+    /// Two channels with one name.
+    #[error("channel '{0}' appears twice")]
+    DuplicateChannel(String),
+}
+
+/// Named channels of equal length on one basis, with free-form metadata.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct Recording {
+    /// Time or crank-angle basis.
+    pub basis: Basis,
+    channels: Vec<Channel>,
+    /// Free-form metadata (source file, scenario, …).
+    pub meta: BTreeMap<String, String>,
+}
+
+impl Recording {
+    /// An empty recording on a basis.
+    pub fn new(basis: Basis) -> Self {
+        Self {
+            basis,
+            channels: Vec::new(),
+            meta: BTreeMap::new(),
+        }
+    }
+
+    /// Add a channel; its length must equal the recording's, its name must be new.
+    pub fn push(&mut self, channel: Channel) -> Result<(), RecordingError> {
+        if self.channels.iter().any(|c| c.name == channel.name) {
+            return Err(RecordingError::DuplicateChannel(channel.name));
+        }
+        if let Some(first) = self.channels.first() {
+            if first.values.len() != channel.values.len() {
+                return Err(RecordingError::LengthMismatch {
+                    name: channel.name,
+                    len: channel.values.len(),
+                    expected: first.values.len(),
+                });
+            }
+        }
+        self.channels.push(channel);
+        Ok(())
+    }
+
+    /// Number of samples (0 for a recording without channels).
+    pub fn len(&self) -> usize {
+        self.channels.first().map_or(0, |c| c.values.len())
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// All channels in order.
+    pub fn channels(&self) -> &[Channel] {
+        &self.channels
+    }
+
+    /// The channel names in order.
+    pub fn names(&self) -> Vec<&str> {
+        self.channels.iter().map(|c| c.name.as_str()).collect()
+    }
+
+    /// A channel by name, or an error listing the channels there are.
+    pub fn channel(&self, name: &str) -> Result<&Channel, RecordingError> {
+        self.channels
+            .iter()
+            .find(|c| c.name == name)
+            .ok_or_else(|| RecordingError::MissingChannel {
+                name: name.to_string(),
+                available: self.names().join(", "),
+            })
+    }
+
+    /// The samples of a channel by name.
+    pub fn values(&self, name: &str) -> Result<&[f64], RecordingError> {
+        self.channel(name).map(|c| c.values.as_slice())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ch(name: &str, v: Vec<f64>) -> Channel {
+        Channel {
+            name: name.into(),
+            unit: "rad".into(),
+            values: v,
+        }
+    }
+
+    #[test]
+    fn channels_by_name_and_errors() {
+        let mut r = Recording::new(Basis::Time);
+        r.push(ch("t", vec![0.0, 1.0])).unwrap();
+        r.push(ch("x", vec![2.0, 3.0])).unwrap();
+        assert_eq!(r.len(), 2);
+        assert_eq!(r.values("x").unwrap(), &[2.0, 3.0]);
+        assert_eq!(
+            r.values("y").unwrap_err().to_string(),
+            "no channel 'y'; the channels are: t, x"
+        );
+        assert!(matches!(
+            r.push(ch("z", vec![1.0])),
+            Err(RecordingError::LengthMismatch { .. })
+        ));
+        assert!(matches!(
+            r.push(ch("x", vec![1.0, 2.0])),
+            Err(RecordingError::DuplicateChannel(_))
+        ));
+    }
+}

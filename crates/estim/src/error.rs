@@ -1,0 +1,52 @@
+//! Errors of the estimators. Every error leaves the estimator's state as it was.
+
+/// What went wrong in building or updating an estimator.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EstimError {
+    /// Configuration that no estimator can run with (λ outside (0, 1], a negative variance, …).
+    #[error("invalid configuration: {0}")]
+    InvalidConfig(String),
+    /// A matrix or vector of the wrong size.
+    #[error("{what}: expected {expected}, got {got}")]
+    DimensionMismatch {
+        /// What had the wrong size.
+        what: &'static str,
+        /// The size expected.
+        expected: usize,
+        /// The size given.
+        got: usize,
+    },
+    /// A covariance given at construction that is not positive definite.
+    #[error("{what} is not positive definite")]
+    NotPositiveDefinite {
+        /// Which matrix.
+        what: &'static str,
+    },
+    /// A sample containing NaN or ±inf; the sample was refused and the state is unchanged.
+    #[error("sample {sample}: {what} is not finite ({value})")]
+    NonFinite {
+        /// Index of the sample (0-based count of samples offered so far).
+        sample: u64,
+        /// Which entry: `"y"` or `"phi[3]"` style.
+        what: String,
+        /// The value.
+        value: f64,
+    },
+    /// The update would have made the covariance lose positive definiteness (or overflow); the
+    /// sample was refused and the state is unchanged.
+    #[error("sample {sample}: covariance lost positive definiteness ({detail}); sample refused, state unchanged")]
+    LostPositiveDefiniteness {
+        /// Index of the sample.
+        sample: u64,
+        /// What was seen.
+        detail: String,
+    },
+    /// A statistic that needs more samples than have been seen.
+    #[error("not enough samples: {needed} needed, {seen} seen")]
+    NotEnoughData {
+        /// Samples needed.
+        needed: usize,
+        /// Samples seen (effective count under forgetting).
+        seen: usize,
+    },
+}

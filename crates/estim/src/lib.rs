@@ -1,0 +1,28 @@
+//! # physid-estim — recursive estimators (thesis §5.3)
+//!
+//! Every estimator here has one shape: it is built from plain data ([`EstimatorConfig`], serde),
+//! a [`ParamSet`](physid_core::ParamSet) and a [`FreeSet`](physid_core::FreeSet) view (the
+//! parameters it estimates; the others stay at their nominal values), and it is fed one sample at
+//! a time by [`LinearEstimator::update`], which returns a [`Step`] or an [`EstimError`] — never a
+//! NaN, never a corrupted state, never a heap allocation.
+//!
+//! * [`linear`] — models linear in the parameters, `y = φᵀϑ + ε` (Eq. 5.14): RLS (Alg. 5.2),
+//!   RLS with constant or time-varying forgetting (Alg. 5.3, Eq. 5.24), RLS with vector
+//!   forgetting (Alg. 5.4), the Kalman filter for random-walk parameters (Eq. 5.19) and the DSFC
+//!   square-root filter (Alg. 5.5).
+//! * [`metrics`] — NMSE (Eq. 6.4), NRMSE, fit %.
+//! * [`detect`] — the relative-error change detector (Eq. 6.3) with a dwell, and the CUSUM test
+//!   of the recursive residuals (Brown, Durbin & Evans 1975).
+//!
+//! This crate knows nothing of engines.
+
+pub mod detect;
+pub mod error;
+pub mod linear;
+pub mod metrics;
+
+pub use detect::{Alarm, Cusum, CusumLevel, RelativeErrorDetector};
+pub use error::EstimError;
+pub use linear::{
+    CovSpec, EstimatorConfig, GuardAction, LinearEstimator, Method, Step, VfVariant, WindupGuard,
+};

@@ -1,0 +1,785 @@
+//! Recursive estimators for models linear in the parameters, `y(t) = φ(t)ᵀϑ + ε(t)` (Eq. 5.14).
+//!
+//! One engine serves all of them. For the covariance-form methods a step is
+//!
+//! ```text
+//! e   = y − φᵀϑ                          a-priori prediction error
+//! φ̃   = D_pre·φ                          (vector forgetting, symmetric variant only)
+//! u   = P·φ̃,   d = r + φ̃ᵀu               gain numerator and denominator
+//! ϑ  += D_pre·u/d · e                    (K = D_pre·u/d)
+//! P   = D_post·(P − u·uᵀ/d)·D_post + Q
+//! ```
+//!
+//! | method | `r` | `D_pre` | `D_post` | `Q` | thesis |
+//! |---|---|---|---|---|---|
+//! | RLS | 1 | I | I | 0 | Alg. 5.2 |
+//! | RLSF, constant λ | λ | I | λ^(−1/2)·I | 0 | Alg. 5.3 |
+//! | RLSF, time-varying λ(t) = λ0·λ(t−1) + 1 − λ0 | λ(t) | I | λ(t)^(−1/2)·I | 0 | Eq. 5.24 |
+//! | vector forgetting, published | 1 | I | Λ⁻¹ | 0 | Alg. 5.4 (Vahidi et al. 2005) |
+//! | vector forgetting, symmetric | 1 | Λ^(−1/2) | Λ^(−1/2) | 0 | SPEC §5.1 note |
+//! | Kalman, random-walk parameters | R2 | I | I | R1 | Eq. 5.19 |
+//!
+//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically; only the upper triangle is computed and mirrored,
+//! so P stays exactly symmetric. The symmetric vector-forgetting variant is Alg. 5.3 with the
+//! discount applied per parameter before the gain (`M = Λ^(−1/2)PΛ^(−1/2)`); with `Λ = λI` it is
+//! exactly RLSF(λ). The published variant discounts by `Λ⁻¹·…·Λ⁻¹`, i.e. by λ² per step when
+//! `Λ = λI`: it then equals RLSF(λ²) started from `P0·λ²`.
+//!
+//! DSFC (Alg. 5.5, Isermann's square-root filter in covariance form) keeps `S` with `P = S·Sᵀ`:
+//! `f = Sᵀφ`, `a = 1/(fᵀf + λ)`, `γ = a·S·f`, `ϑ += γ·e`, `S = (S − g·γ·fᵀ)/√λ`,
+//! `g = 1/(1 + √(λa))`. P is positive semi-definite by construction.
+//!
+//! ## Noise scale and standard errors
+//! The RLS family's P is in units of the noise variance σ² (the implied `R2 = 1`): the
+//! innovation variance it reports is `d/r` in those units, and σ² is estimated from the
+//! standardised recursive residuals `w = e/√(d/r)` as `σ̂² = Σρ^k w² / (Σρ^k − p)`, ρ the
+//! forgetting factor (1 for RLS: then `σ̂²` is the residual sum of squares of the regularised
+//! least-squares problem over `n − p`). Standard errors are `√(σ̂²·P_ii)` — exact for λ = 1, the
+//! conventional approximation under forgetting (it overstates the spread of an exponentially
+//! weighted estimate by up to √(1+λ)). The Kalman filter's P is absolute (R1, R2 are given):
+//! its standard errors are `√P_ii`.
+
+use crate::EstimError;
+use nalgebra::{DMatrix, DVector};
+use physid_core::{FreeSet, ParamSet};
+use serde::{Deserialize, Serialize};
+
+/// Which recursive estimator, and its tuning.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Method {
+    /// Recursive least squares (Alg. 5.2).
+    Rls,
+    /// RLS with a constant forgetting factor λ ∈ (0, 1] (Alg. 5.3).
+    Rlsf {
+        /// Forgetting factor.
+        lambda: f64,
+    },
+    /// RLS with time-varying forgetting `λ(t) = λ0·λ(t−1) + (1 − λ0)` (Eq. 5.24), tending to 1.
+    RlsfTv {
+        /// The rate λ0 ∈ (0, 1] at which λ(t) approaches 1.
+        lambda0: f64,
+        /// λ(0) ∈ (0, 1].
+        lambda_init: f64,
+    },
+    /// RLS with one forgetting factor per free parameter (Alg. 5.4).
+    Rlsvf {
+        /// λ_i ∈ (0, 1] for each free parameter, in the parameter set's order.
+        lambdas: Vec<f64>,
+        /// Published (thesis) or symmetric form.
+        #[serde(default)]
+        variant: VfVariant,
+    },
+    /// Kalman filter for random-walk parameters (Eq. 5.19).
+    Kalman {
+        /// Parameter random-walk covariance R1 (positive semi-definite).
+        r1: CovSpec,
+        /// Measurement noise variance R2 > 0.
+        r2: f64,
+    },
+    /// DSFC square-root filter with forgetting λ ∈ (0, 1] (Alg. 5.5).
+    Dsfc {
+        /// Forgetting factor.
+        lambda: f64,
+    },
+}
+
+impl Method {
+    /// Short name used on the command line and in benchmark output.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Rls => "rls",
+            Method::Rlsf { .. } | Method::RlsfTv { .. } => "rlsf",
+            Method::Rlsvf { .. } => "rlsvf",
+            Method::Kalman { .. } => "kf",
+            Method::Dsfc { .. } => "dsfc",
+        }
+    }
+}
+
+/// The two forms of vector forgetting (SPEC §5.1 note).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum VfVariant {
+    /// `P = Λ⁻¹(P − KφᵀP)Λ⁻¹` as published (Vahidi, Stefanopoulou & Peng 2005; thesis Alg. 5.4):
+    /// with `Λ = λI` it discounts by λ² per step.
+    #[default]
+    Published,
+    /// `M = Λ^(−1/2)PΛ^(−1/2)` before the gain: with `Λ = λI` exactly Alg. 5.3.
+    Symmetric,
+}
+
+/// A covariance matrix given as `c·I`, a diagonal, or in full (rows).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CovSpec {
+    /// `c·I`.
+    Scaled(f64),
+    /// `diag(v)`.
+    Diagonal(Vec<f64>),
+    /// Full symmetric matrix, row by row.
+    Full(Vec<Vec<f64>>),
+}
+
+impl CovSpec {
+    /// The matrix of size `n`, checked finite and symmetric.
+    pub fn to_matrix(&self, n: usize, what: &'static str) -> Result<DMatrix<f64>, EstimError> {
+        let m = match self {
+            CovSpec::Scaled(c) => DMatrix::from_diagonal_element(n, n, *c),
+            CovSpec::Diagonal(v) => {
+                if v.len() != n {
+                    return Err(EstimError::DimensionMismatch {
+                        what,
+                        expected: n,
+                        got: v.len(),
+                    });
+                }
+                DMatrix::from_diagonal(&DVector::from_column_slice(v))
+            }
+            CovSpec::Full(rows) => {
+                if rows.len() != n {
+                    return Err(EstimError::DimensionMismatch {
+                        what,
+                        expected: n,
+                        got: rows.len(),
+                    });
+                }
+                for r in rows {
+                    if r.len() != n {
+                        return Err(EstimError::DimensionMismatch {
+                            what,
+                            expected: n,
+                            got: r.len(),
+                        });
+                    }
+                }
+                DMatrix::from_fn(n, n, |i, j| rows[i][j])
+            }
+        };
+        if m.iter().any(|v| !v.is_finite()) {
+            return Err(EstimError::InvalidConfig(format!(
+                "{what} has a non-finite entry"
+            )));
+        }
+        for i in 0..n {
+            for j in 0..i {
+                let (a, b) = (m[(i, j)], m[(j, i)]);
+                if (a - b).abs() > 1e-12 * (a.abs() + b.abs()) {
+                    return Err(EstimError::InvalidConfig(format!(
+                        "{what} is not symmetric: entry ({i},{j}) = {a} but ({j},{i}) = {b}"
+                    )));
+                }
+            }
+        }
+        Ok(m)
+    }
+}
+
+/// What the wind-up guard does when trace(P) exceeds its bound.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum GuardAction {
+    /// Scale P down so that trace(P) equals the bound (direction information kept).
+    #[default]
+    Scale,
+    /// Reset P to P0 (covariance resetting).
+    Reset,
+}
+
+/// Protection against covariance wind-up when excitation is poor: under forgetting, the
+/// directions the regressor does not excite grow by 1/λ per step without bound.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WindupGuard {
+    /// Bound on trace(P) (in P's units).
+    pub max_trace: f64,
+    /// What to do beyond it.
+    #[serde(default)]
+    pub action: GuardAction,
+}
+
+fn default_p0() -> CovSpec {
+    CovSpec::Scaled(1000.0)
+}
+
+/// Everything needed to build an estimator, as plain data (TOML, JSON, CLI flags and tests all
+/// build it the same way).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorConfig {
+    /// Method and its tuning.
+    pub method: Method,
+    /// Initial covariance `P(0)` over the free parameters (default `1000·I`, SPEC §5.1; for DSFC
+    /// `S(0)` is its Cholesky factor, `√c·I` for `c·I`).
+    #[serde(default = "default_p0")]
+    pub p0: CovSpec,
+    /// Optional wind-up guard.
+    #[serde(default)]
+    pub guard: Option<WindupGuard>,
+}
+
+impl EstimatorConfig {
+    /// A configuration with `P0 = 1000·I` and no guard.
+    pub fn new(method: Method) -> Self {
+        Self {
+            method,
+            p0: default_p0(),
+            guard: None,
+        }
+    }
+}
+
+/// What one update produced.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Step {
+    /// A-priori prediction error `e = y − φᵀϑ(t−1)`.
+    pub prediction_error: f64,
+    /// Innovation variance `Var(e)`: in units of the noise variance σ² for the RLS family and
+    /// DSFC (multiply by [`LinearEstimator::noise_variance`]), absolute for the Kalman filter.
+    pub innovation_variance: f64,
+    /// Standardised recursive residual `e/√innovation_variance`.
+    pub standardized_residual: f64,
+}
+
+/// The method with its per-step constants resolved.
+#[derive(Debug, Clone)]
+enum Kind {
+    Rls,
+    Rlsf { lambda: f64 },
+    RlsfTv { lambda0: f64 },
+    Vf { symmetric: bool, min_lambda: f64 },
+    Kalman { r1: DMatrix<f64>, r2: f64 },
+    Dsfc { lambda: f64 },
+}
+
+/// A recursive estimator for a model linear in the parameters: RLS, RLSF (constant or
+/// time-varying λ), vector forgetting, Kalman or DSFC, over a free subset of a parameter set.
+#[derive(Debug, Clone)]
+pub struct LinearEstimator {
+    method: Method,
+    kind: Kind,
+    params: ParamSet,
+    free: FreeSet,
+    /// Free-parameter estimates.
+    theta: DVector<f64>,
+    /// P, or S for DSFC.
+    cov: DMatrix<f64>,
+    /// Scratch of the same size as `cov`; swapped in on a successful step.
+    work: DMatrix<f64>,
+    /// P0 (or S0 for DSFC), for covariance resetting.
+    cov0: DMatrix<f64>,
+    /// Pφ̃, or f = Sᵀφ for DSFC.
+    u: DVector<f64>,
+    /// DSFC: γ. Covariance form: the gain K.
+    k: DVector<f64>,
+    /// φ of the free parameters.
+    phi: Vec<f64>,
+    /// D_pre (vector forgetting, symmetric).
+    pre: Vec<f64>,
+    /// D_post diagonal.
+    post: Vec<f64>,
+    /// Current forgetting factor λ(t) of the time-varying method (1 otherwise).
+    lambda_t: f64,
+    noise_num: f64,
+    noise_den: f64,
+    samples: u64,
+    guard: Option<WindupGuard>,
+    guard_activations: u64,
+    last: Option<Step>,
+}
+
+fn check_lambda(name: &str, l: f64) -> Result<f64, EstimError> {
+    if l.is_finite() && l > 0.0 && l <= 1.0 {
+        Ok(l)
+    } else {
+        Err(EstimError::InvalidConfig(format!(
+            "{name} = {l} is outside (0, 1]"
+        )))
+    }
+}
+
+impl LinearEstimator {
+    /// Build an estimator of the `free` parameters of `params`, the others held at their nominal
+    /// values; the estimate starts at the nominal values (ϑ0).
+    pub fn new(
+        config: &EstimatorConfig,
+        params: &ParamSet,
+        free: &FreeSet,
+    ) -> Result<Self, EstimError> {
+        if free.full_len() != params.len() {
+            return Err(EstimError::DimensionMismatch {
+                what: "free/fixed view",
+                expected: params.len(),
+                got: free.full_len(),
+            });
+        }
+        let p = free.free().len();
+        let p0 = config.p0.to_matrix(p, "P0")?;
+        let chol = p0
+            .clone()
+            .cholesky()
+            .ok_or(EstimError::NotPositiveDefinite { what: "P0" })?;
+        let mut post = vec![1.0; p];
+        let mut pre = vec![1.0; p];
+        let mut lambda_t = 1.0;
+        let kind = match &config.method {
+            Method::Rls => Kind::Rls,
+            Method::Rlsf { lambda } => {
+                let l = check_lambda("λ", *lambda)?;
+                post.fill(l.sqrt().recip());
+                Kind::Rlsf { lambda: l }
+            }
+            Method::RlsfTv {
+                lambda0,
+                lambda_init,
+            } => {
+                let l0 = check_lambda("λ0", *lambda0)?;
+                lambda_t = check_lambda("λ(0)", *lambda_init)?;
+                Kind::RlsfTv { lambda0: l0 }
+            }
+            Method::Rlsvf { lambdas, variant } => {
+                if lambdas.len() != p {
+                    return Err(EstimError::DimensionMismatch {
+                        what: "vector forgetting factors (one per free parameter)",
+                        expected: p,
+                        got: lambdas.len(),
+                    });
+                }
+                let mut min_lambda: f64 = 1.0;
+                for (i, &l) in lambdas.iter().enumerate() {
+                    let l = check_lambda(&format!("λ_{}", i + 1), l)?;
+                    min_lambda = min_lambda.min(l);
+                    match variant {
+                        VfVariant::Published => post[i] = l.recip(),
+                        VfVariant::Symmetric => {
+                            post[i] = l.sqrt().recip();
+                            pre[i] = post[i];
+                        }
+                    }
+                }
+                Kind::Vf {
+                    symmetric: *variant == VfVariant::Symmetric,
+                    min_lambda,
+                }
+            }
+            Method::Kalman { r1, r2 } => {
+                if !(r2.is_finite() && *r2 > 0.0) {
+                    return Err(EstimError::InvalidConfig(format!(
+                        "R2 = {r2} must be a positive variance"
+                    )));
+                }
+                let r1 = r1.to_matrix(p, "R1")?;
+                let eig = r1.clone().symmetric_eigenvalues();
+                let scale = r1.amax().max(f64::MIN_POSITIVE);
+                if eig.iter().any(|&v| v < -1e-12 * scale) {
+                    return Err(EstimError::InvalidConfig(
+                        "R1 is not positive semi-definite".into(),
+                    ));
+                }
+                Kind::Kalman { r1, r2: *r2 }
+            }
+            Method::Dsfc { lambda } => Kind::Dsfc {
+                lambda: check_lambda("λ", *lambda)?,
+            },
+        };
+        let cov0 = match kind {
+            Kind::Dsfc { .. } => chol.l(),
+            _ => p0,
+        };
+        if let Some(g) = &config.guard {
+            if !(g.max_trace.is_finite() && g.max_trace > 0.0) {
+                return Err(EstimError::InvalidConfig(format!(
+                    "wind-up guard bound {} must be positive",
+                    g.max_trace
+                )));
+            }
+        }
+        let mut theta = DVector::zeros(p);
+        for (t, &i) in theta.iter_mut().zip(free.free()) {
+            *t = params.nominal()[i];
+        }
+        Ok(Self {
+            method: config.method.clone(),
+            kind,
+            params: params.clone(),
+            free: free.clone(),
+            theta,
+            cov: cov0.clone(),
+            work: cov0.clone(),
+            cov0,
+            u: DVector::zeros(p),
+            k: DVector::zeros(p),
+            phi: vec![0.0; p],
+            pre,
+            post,
+            lambda_t,
+            noise_num: 0.0,
+            noise_den: 0.0,
+            samples: 0,
+            guard: config.guard,
+            guard_activations: 0,
+            last: None,
+        })
+    }
+
+    /// Process one sample: `phi` is the regressor over the *full* parameter set, `y` the
+    /// measured output. A non-finite or wrong-length sample, or a step that would break the
+    /// covariance, returns an error and leaves the state untouched. Allocation-free.
+    pub fn update(&mut self, phi: &[f64], y: f64) -> Result<Step, EstimError> {
+        let n = self.params.len();
+        if phi.len() != n {
+            return Err(EstimError::DimensionMismatch {
+                what: "regressor φ",
+                expected: n,
+                got: phi.len(),
+            });
+        }
+        if !y.is_finite() {
+            return Err(EstimError::NonFinite {
+                sample: self.samples,
+                what: "y".into(),
+                value: y,
+            });
+        }
+        if let Some(i) = phi.iter().position(|v| !v.is_finite()) {
+            return Err(EstimError::NonFinite {
+                sample: self.samples,
+                what: format!("phi[{i}] ({})", self.params.names()[i]),
+                value: phi[i],
+            });
+        }
+        let y = if self.free.is_all_free() {
+            self.phi.copy_from_slice(phi);
+            y
+        } else {
+            self.free.gather(phi, &mut self.phi);
+            y - self.free.fixed_contribution(phi, self.params.nominal())
+        };
+        let step = match self.kind {
+            Kind::Dsfc { lambda } => self.step_sqrt(y, lambda)?,
+            _ => self.step_cov(y)?,
+        };
+        self.samples += 1;
+        self.last = Some(step);
+        Ok(step)
+    }
+
+    /// Covariance-form step (see the module table). Writes the new P into `work`, checks it and
+    /// only then commits.
+    fn step_cov(&mut self, y: f64) -> Result<Step, EstimError> {
+        let p = self.phi.len();
+        let e = y - dot(&self.phi, self.theta.as_slice());
+        // λ(t) of this step (time-varying method), committed only on success.
+        let (r, lambda_now, rho) = match &self.kind {
+            Kind::Rls => (1.0, 1.0, 1.0),
+            Kind::Rlsf { lambda } => (*lambda, *lambda, *lambda),
+            Kind::RlsfTv { lambda0 } => {
+                let l = lambda0 * self.lambda_t + (1.0 - lambda0);
+                (l, l, l)
+            }
+            Kind::Vf { min_lambda, .. } => (1.0, 1.0, *min_lambda),
+            Kind::Kalman { r2, .. } => (*r2, 1.0, 1.0),
+            Kind::Dsfc { .. } => unreachable!("DSFC uses step_sqrt"),
+        };
+        let symmetric_vf = matches!(self.kind, Kind::Vf { symmetric: true, .. });
+        // φ̃ = D_pre φ (kept in k as scratch), u = P φ̃ by columns (P symmetric).
+        let phit = self.k.as_mut_slice();
+        for i in 0..p {
+            phit[i] = self.pre[i] * self.phi[i];
+        }
+        let pm = self.cov.as_slice();
+        let u = self.u.as_mut_slice();
+        u.fill(0.0);
+        for (j, &fj) in phit.iter().enumerate() {
+            let col = &pm[j * p..(j + 1) * p];
+            for (ui, &c) in u.iter_mut().zip(col) {
+                *ui += c * fj;
+            }
+        }
+        let d = r + dot(phit, u);
+        if !(d.is_finite() && d > 0.0) {
+            return Err(lost_pd(self.samples, format!("innovation denominator r + φᵀPφ = {d}")));
+        }
+        let dinv = d.recip();
+        // New P, upper triangle mirrored: P_ij = s_i s_j (P_ij − u_i u_j / d) + Q_ij.
+        let post_scale = if let Kind::RlsfTv { .. } = self.kind {
+            lambda_now.sqrt().recip()
+        } else {
+            1.0
+        };
+        let wm = self.work.as_mut_slice();
+        let mut acc = 0.0;
+        for j in 0..p {
+            let uj = u[j] * dinv;
+            let sj = self.post[j] * post_scale;
+            for i in 0..=j {
+                let mut v = self.post[i] * post_scale * sj * (pm[j * p + i] - u[i] * uj);
+                if let Kind::Kalman { r1, .. } = &self.kind {
+                    v += r1[(i, j)];
+                }
+                wm[j * p + i] = v;
+                wm[i * p + j] = v;
+                acc += v;
+            }
+        }
+        if !acc.is_finite() {
+            return Err(lost_pd(self.samples, "covariance update overflowed or produced NaN".into()));
+        }
+        if let Some(i) = (0..p).find(|&i| wm[i * p + i] <= 0.0) {
+            return Err(lost_pd(self.samples, format!(
+                "diagonal entry P[{i}][{i}] = {} after the update",
+                wm[i * p + i]
+            )));
+        }
+        // Gain K = D_pre u / d.
+        let k = self.k.as_mut_slice();
+        for i in 0..p {
+            k[i] = if symmetric_vf { self.pre[i] } else { 1.0 } * u[i] * dinv;
+        }
+        if !k.iter().all(|v| (v * e).is_finite()) {
+            return Err(lost_pd(self.samples, "gain times prediction error is not finite".into()));
+        }
+        self.apply_guard_cov();
+        std::mem::swap(&mut self.cov, &mut self.work);
+        for (t, &ki) in self.theta.iter_mut().zip(self.k.iter()) {
+            *t += ki * e;
+        }
+        if let Kind::RlsfTv { .. } = self.kind {
+            self.lambda_t = lambda_now;
+        }
+        let s = if let Kind::Kalman { .. } = self.kind {
+            d
+        } else {
+            d / r
+        };
+        Ok(self.record(e, s, rho))
+    }
+
+    /// DSFC step (Alg. 5.5).
+    fn step_sqrt(&mut self, y: f64, lambda: f64) -> Result<Step, EstimError> {
+        let p = self.phi.len();
+        let e = y - dot(&self.phi, self.theta.as_slice());
+        let sm = self.cov.as_slice();
+        // f = Sᵀφ: f_j = column j of S · φ.
+        let f = self.u.as_mut_slice();
+        for (j, fj) in f.iter_mut().enumerate() {
+            *fj = dot(&sm[j * p..(j + 1) * p], &self.phi);
+        }
+        let a = (dot(f, f) + lambda).recip();
+        if !(a.is_finite() && a > 0.0) {
+            return Err(lost_pd(self.samples, format!("a = 1/(fᵀf + λ) = {a}")));
+        }
+        // γ = a S f.
+        let gamma = self.k.as_mut_slice();
+        gamma.fill(0.0);
+        for (j, &fj) in f.iter().enumerate() {
+            let afj = a * fj;
+            for (gi, &s) in gamma.iter_mut().zip(&sm[j * p..(j + 1) * p]) {
+                *gi += s * afj;
+            }
+        }
+        let g = (1.0 + (lambda * a).sqrt()).recip();
+        let inv_sqrt_l = lambda.sqrt().recip();
+        let wm = self.work.as_mut_slice();
+        let mut acc = 0.0;
+        for j in 0..p {
+            let gfj = g * f[j];
+            let (wcol, scol) = (&mut wm[j * p..(j + 1) * p], &sm[j * p..(j + 1) * p]);
+            for ((w, &s), &gi) in wcol.iter_mut().zip(scol).zip(gamma.iter()) {
+                *w = (s - gi * gfj) * inv_sqrt_l;
+                acc += *w;
+            }
+        }
+        if !acc.is_finite() {
+            return Err(lost_pd(self.samples, "square-root update overflowed or produced NaN".into()));
+        }
+        if !gamma.iter().all(|v| (v * e).is_finite()) {
+            return Err(lost_pd(self.samples, "gain times prediction error is not finite".into()));
+        }
+        self.apply_guard_sqrt();
+        std::mem::swap(&mut self.cov, &mut self.work);
+        for (t, &gi) in self.theta.iter_mut().zip(self.k.iter()) {
+            *t += gi * e;
+        }
+        // Innovation variance in σ² units: (fᵀf + λ)/λ = 1/(aλ).
+        Ok(self.record(e, (a * lambda).recip(), lambda))
+    }
+
+    fn record(&mut self, e: f64, s: f64, rho: f64) -> Step {
+        let w = e / s.sqrt();
+        self.noise_num = rho * self.noise_num + w * w;
+        self.noise_den = rho * self.noise_den + 1.0;
+        Step {
+            prediction_error: e,
+            innovation_variance: s,
+            standardized_residual: w,
+        }
+    }
+
+    /// Wind-up guard on the candidate P in `work`.
+    fn apply_guard_cov(&mut self) {
+        let Some(g) = self.guard else { return };
+        let tr = self.work.trace();
+        if tr > g.max_trace {
+            self.guard_activations += 1;
+            match g.action {
+                GuardAction::Scale => self.work *= g.max_trace / tr,
+                GuardAction::Reset => self.work.copy_from(&self.cov0),
+            }
+        }
+    }
+
+    /// Wind-up guard on the candidate S in `work` (trace P = ‖S‖²_F).
+    fn apply_guard_sqrt(&mut self) {
+        let Some(g) = self.guard else { return };
+        let tr = self.work.norm_squared();
+        if tr > g.max_trace {
+            self.guard_activations += 1;
+            match g.action {
+                GuardAction::Scale => self.work *= (g.max_trace / tr).sqrt(),
+                GuardAction::Reset => self.work.copy_from(&self.cov0),
+            }
+        }
+    }
+
+    /// The method and its tuning.
+    pub fn method(&self) -> &Method {
+        &self.method
+    }
+
+    /// The parameter set (all parameters, free and fixed).
+    pub fn params(&self) -> &ParamSet {
+        &self.params
+    }
+
+    /// The free/fixed view.
+    pub fn free_set(&self) -> &FreeSet {
+        &self.free
+    }
+
+    /// Names of the free parameters, in order.
+    pub fn free_names(&self) -> Vec<&str> {
+        self.free
+            .free()
+            .iter()
+            .map(|&i| self.params.names()[i].as_str())
+            .collect()
+    }
+
+    /// Estimates of the free parameters.
+    pub fn estimate(&self) -> &[f64] {
+        self.theta.as_slice()
+    }
+
+    /// The full parameter vector: free estimates, fixed parameters at their nominal values.
+    pub fn estimate_full(&self) -> Vec<f64> {
+        let mut full = self.params.nominal().to_vec();
+        self.free.scatter(self.theta.as_slice(), &mut full);
+        full
+    }
+
+    /// Covariance P of the free parameters (DSFC: `S·Sᵀ`). In σ² units for the RLS family.
+    pub fn covariance(&self) -> DMatrix<f64> {
+        match self.kind {
+            Kind::Dsfc { .. } => &self.cov * self.cov.transpose(),
+            _ => self.cov.clone(),
+        }
+    }
+
+    /// DSFC's square root S (`P = S·Sᵀ`); `None` for the covariance-form methods.
+    pub fn sqrt_covariance(&self) -> Option<&DMatrix<f64>> {
+        match self.kind {
+            Kind::Dsfc { .. } => Some(&self.cov),
+            _ => None,
+        }
+    }
+
+    /// trace(P), without forming P.
+    pub fn covariance_trace(&self) -> f64 {
+        match self.kind {
+            Kind::Dsfc { .. } => self.cov.norm_squared(),
+            _ => self.cov.trace(),
+        }
+    }
+
+    /// Estimated measurement-noise variance σ̂² (see the module docs); the Kalman filter's is
+    /// its given R2.
+    pub fn noise_variance(&self) -> Result<f64, EstimError> {
+        if let Kind::Kalman { r2, .. } = self.kind {
+            return Ok(r2);
+        }
+        let p = self.phi.len() as f64;
+        if self.noise_den <= p {
+            return Err(EstimError::NotEnoughData {
+                needed: self.phi.len() + 1,
+                seen: self.noise_den.floor() as usize,
+            });
+        }
+        Ok(self.noise_num / (self.noise_den - p))
+    }
+
+    /// Standard errors of the free estimates, written into `out` (allocation-free):
+    /// `√(σ̂²·P_ii)`, or `√P_ii` for the Kalman filter.
+    pub fn std_errors_into(&self, out: &mut [f64]) -> Result<(), EstimError> {
+        let p = self.phi.len();
+        if out.len() != p {
+            return Err(EstimError::DimensionMismatch {
+                what: "standard-error buffer",
+                expected: p,
+                got: out.len(),
+            });
+        }
+        let scale = match self.kind {
+            Kind::Kalman { .. } => 1.0,
+            _ => self.noise_variance()?,
+        };
+        for (i, o) in out.iter_mut().enumerate() {
+            let pii = match self.kind {
+                Kind::Dsfc { .. } => self.cov.row(i).norm_squared(),
+                _ => self.cov[(i, i)],
+            };
+            *o = (scale * pii).sqrt();
+        }
+        Ok(())
+    }
+
+    /// Standard errors of the free estimates.
+    pub fn std_errors(&self) -> Result<Vec<f64>, EstimError> {
+        let mut v = vec![0.0; self.phi.len()];
+        self.std_errors_into(&mut v)?;
+        Ok(v)
+    }
+
+    /// Current forgetting factor: λ(t) for the time-varying method, the constant λ for RLSF and
+    /// DSFC, 1 for RLS and Kalman, the smallest λ_i for vector forgetting.
+    pub fn lambda(&self) -> f64 {
+        match &self.kind {
+            Kind::Rlsf { lambda } | Kind::Dsfc { lambda } => *lambda,
+            Kind::RlsfTv { .. } => self.lambda_t,
+            Kind::Vf { min_lambda, .. } => *min_lambda,
+            Kind::Rls | Kind::Kalman { .. } => 1.0,
+        }
+    }
+
+    /// Number of samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// How many times the wind-up guard acted.
+    pub fn guard_activations(&self) -> u64 {
+        self.guard_activations
+    }
+
+    /// The last accepted step.
+    pub fn last_step(&self) -> Option<Step> {
+        self.last
+    }
+}
+
+fn lost_pd(sample: u64, detail: String) -> EstimError {
+    EstimError::LostPositiveDefiniteness { sample, detail }
+}
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
