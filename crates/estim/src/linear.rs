@@ -391,6 +391,16 @@ impl LinearEstimator {
                     g.max_trace
                 )));
             }
+            let tr0 = match kind {
+                Kind::Dsfc { .. } => cov0.norm_squared(),
+                _ => cov0.trace(),
+            };
+            if g.action == GuardAction::Reset && g.max_trace <= tr0 {
+                return Err(EstimError::InvalidConfig(format!(
+                    "covariance resetting to P0 (trace {tr0}) needs a bound above it, got {}",
+                    g.max_trace
+                )));
+            }
         }
         let mut theta = DVector::zeros(p);
         for (t, &i) in theta.iter_mut().zip(free.free()) {
@@ -638,6 +648,13 @@ impl LinearEstimator {
                 GuardAction::Reset => self.work.copy_from(&self.cov0),
             }
         }
+    }
+
+    /// Covariance resetting: P (or S) back to P0, keeping the estimate. The way out after a
+    /// [`EstimError::LostPositiveDefiniteness`] — which on nearly collinear data is the
+    /// covariance form reaching its numerical limit: DSFC is the method for such data.
+    pub fn reset_covariance(&mut self) {
+        self.cov.copy_from(&self.cov0);
     }
 
     /// The method and its tuning.

@@ -1,0 +1,81 @@
+//! `update` never touches the heap: a counting global allocator sees no allocation across
+//! 10 000 updates of every method, with all parameters free and with a fixed subset, with and
+//! without the wind-up guard, and for the detectors.
+// A global allocator can only be written with `unsafe impl GlobalAlloc`; it forwards to `System`.
+#![allow(unsafe_code)]
+
+mod common;
+
+use physid_core::ParamSet;
+use physid_estim::{
+    CovSpec, Cusum, EstimatorConfig, GuardAction, LinearEstimator, Method, RelativeErrorDetector,
+    VfVariant, WindupGuard,
+};
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: forwards every call unchanged to `System`, only counting.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn updates_do_not_allocate() {
+    let (rows, y, _) = common::regression(10_000, 4, 0.1, 1);
+    let params = ParamSet::zeros(["a", "b", "c", "d"]).unwrap();
+    let subset = params.free(&["a", "c", "d"]).unwrap();
+    let methods = |p: usize| {
+        vec![
+            Method::Rls,
+            Method::Rlsf { lambda: 0.98 },
+            Method::RlsfTv { lambda0: 0.99, lambda_init: 0.95 },
+            Method::Rlsvf { lambdas: vec![0.98; p], variant: VfVariant::Published },
+            Method::Rlsvf { lambdas: vec![0.98; p], variant: VfVariant::Symmetric },
+            Method::Kalman { r1: CovSpec::Scaled(1e-5), r2: 0.01 },
+            Method::Dsfc { lambda: 0.98 },
+        ]
+    };
+    for (free, p) in [(params.all_free(), 4), (subset, 3)] {
+        for method in methods(p) {
+            for guard in [None, Some(WindupGuard { max_trace: 10.0, action: GuardAction::Scale })] {
+                let cfg = EstimatorConfig { method: method.clone(), p0: CovSpec::Scaled(1000.0), guard };
+                let built = ALLOCS.load(Ordering::SeqCst);
+                let mut est = LinearEstimator::new(&cfg, &params, &free).unwrap();
+                // the counter is live: construction allocates
+                assert!(ALLOCS.load(Ordering::SeqCst) > built);
+                let mut se = vec![0.0; p];
+                let before = ALLOCS.load(Ordering::SeqCst);
+                for (r, &yt) in rows.iter().zip(&y) {
+                    est.update(r, yt).unwrap();
+                    est.std_errors_into(&mut se).unwrap_or(());
+                }
+                let after = ALLOCS.load(Ordering::SeqCst);
+                assert_eq!(after - before, 0, "{} allocated {} times", method.name(), after - before);
+            }
+        }
+    }
+    let mut det = RelativeErrorDetector::new(vec!["K".into(), "B".into()], vec![1.0, 1.0], vec![0.5, 0.5], 3).unwrap();
+    let mut cusum = Cusum::new(2);
+    let before = ALLOCS.load(Ordering::SeqCst);
+    for i in 0..10_000 {
+        det.update(&[1.0 + 1e-5 * i as f64, 1.0]).unwrap();
+        cusum.push((i as f64).sin());
+    }
+    assert_eq!(ALLOCS.load(Ordering::SeqCst) - before, 0);
+}
