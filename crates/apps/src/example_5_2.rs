@@ -120,9 +120,11 @@ pub fn example_5_2(cfg: &Example52Config) -> Result<Example52, EstimError> {
         out.x.push(x);
         out.y.push(y);
         out.a_true.push(a);
-        out.z.push(a * x.sin() + b_true * y * y + cfg.noise_std * noise);
+        out.z
+            .push(a * x.sin() + b_true * y * y + cfg.noise_std * noise);
     }
-    let params = ParamSet::zeros(["A", "B"]).map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+    let params =
+        ParamSet::zeros(["A", "B"]).map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
     let methods = [
         Method::Rls,
         Method::Rlsf { lambda: cfg.lambda },
@@ -132,7 +134,11 @@ pub fn example_5_2(cfg: &Example52Config) -> Result<Example52, EstimError> {
         },
     ];
     for method in methods {
-        let mut est = LinearEstimator::new(&EstimatorConfig::new(method.clone()), &params, &params.all_free())?;
+        let mut est = LinearEstimator::new(
+            &EstimatorConfig::new(method.clone()),
+            &params,
+            &params.all_free(),
+        )?;
         let mut track = Track {
             method: method.name().to_string(),
             a: Vec::with_capacity(n),

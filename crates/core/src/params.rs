@@ -218,7 +218,10 @@ mod tests {
     fn errors_name_the_problem() {
         let p = ParamSet::zeros(["A", "B"]).unwrap();
         let e = p.free(&["C"]).unwrap_err();
-        assert_eq!(e.to_string(), "unknown parameter 'C'; the parameters are: A, B");
+        assert_eq!(
+            e.to_string(),
+            "unknown parameter 'C'; the parameters are: A, B"
+        );
         assert_eq!(p.free::<&str>(&[]).unwrap_err(), ParamError::NoneFree);
         assert!(matches!(
             ParamSet::zeros(["A", "A"]),

@@ -73,7 +73,9 @@ impl RelativeErrorDetector {
             }
         }
         if dwell == 0 {
-            return Err(EstimError::InvalidConfig("dwell must be at least 1 sample".into()));
+            return Err(EstimError::InvalidConfig(
+                "dwell must be at least 1 sample".into(),
+            ));
         }
         Ok(Self {
             names,
@@ -107,8 +109,8 @@ impl RelativeErrorDetector {
             });
         }
         let mut raised = 0;
-        for i in 0..estimate.len() {
-            let e = (self.healthy[i] - estimate[i]) / self.healthy[i];
+        for (i, &est) in estimate.iter().enumerate() {
+            let e = (self.healthy[i] - est) / self.healthy[i];
             self.last_error[i] = e;
             if e.abs() > self.bounds[i] {
                 self.run[i] += 1;
@@ -255,7 +257,9 @@ mod tests {
         )
         .unwrap();
         // K at 1150 (e = −0.15) from sample 2; B stays at 0.9 (e = 0.1 < 0.2).
-        let seq = [1000.0, 1000.0, 1150.0, 1150.0, 1150.0, 1150.0, 1000.0, 1200.0];
+        let seq = [
+            1000.0, 1000.0, 1150.0, 1150.0, 1150.0, 1150.0, 1000.0, 1200.0,
+        ];
         let mut raised = vec![];
         for &k in &seq {
             raised.push(d.update(&[k, 0.9]).unwrap());

@@ -11,6 +11,7 @@
 //!   forgetting (Alg. 5.4), the Kalman filter for random-walk parameters (Eq. 5.19) and the DSFC
 //!   square-root filter (Alg. 5.5).
 //! * [`metrics`] — NMSE (Eq. 6.4), NRMSE, fit %.
+//! * [`workload`] — the standard benchmark workloads (criterion and `physid bench`).
 //! * [`detect`] — the relative-error change detector (Eq. 6.3) with a dwell, and the CUSUM test
 //!   of the recursive residuals (Brown, Durbin & Evans 1975).
 //!
@@ -20,6 +21,7 @@ pub mod detect;
 pub mod error;
 pub mod linear;
 pub mod metrics;
+pub mod workload;
 
 pub use detect::{Alarm, Cusum, CusumLevel, RelativeErrorDetector};
 pub use error::EstimError;

@@ -489,11 +489,17 @@ impl LinearEstimator {
             Kind::Kalman { r2, .. } => (*r2, 1.0, 1.0),
             Kind::Dsfc { .. } => unreachable!("DSFC uses step_sqrt"),
         };
-        let symmetric_vf = matches!(self.kind, Kind::Vf { symmetric: true, .. });
+        let symmetric_vf = matches!(
+            self.kind,
+            Kind::Vf {
+                symmetric: true,
+                ..
+            }
+        );
         // φ̃ = D_pre φ (kept in k as scratch), u = P φ̃ by columns (P symmetric).
         let phit = self.k.as_mut_slice();
-        for i in 0..p {
-            phit[i] = self.pre[i] * self.phi[i];
+        for ((t, &d), &f) in phit.iter_mut().zip(&self.pre).zip(&self.phi) {
+            *t = d * f;
         }
         let pm = self.cov.as_slice();
         let u = self.u.as_mut_slice();
@@ -506,7 +512,10 @@ impl LinearEstimator {
         }
         let d = r + dot(phit, u);
         if !(d.is_finite() && d > 0.0) {
-            return Err(lost_pd(self.samples, format!("innovation denominator r + φᵀPφ = {d}")));
+            return Err(lost_pd(
+                self.samples,
+                format!("innovation denominator r + φᵀPφ = {d}"),
+            ));
         }
         let dinv = d.recip();
         // New P, upper triangle mirrored: P_ij = s_i s_j (P_ij − u_i u_j / d) + Q_ij.
@@ -531,21 +540,30 @@ impl LinearEstimator {
             }
         }
         if !acc.is_finite() {
-            return Err(lost_pd(self.samples, "covariance update overflowed or produced NaN".into()));
+            return Err(lost_pd(
+                self.samples,
+                "covariance update overflowed or produced NaN".into(),
+            ));
         }
         if let Some(i) = (0..p).find(|&i| wm[i * p + i] <= 0.0) {
-            return Err(lost_pd(self.samples, format!(
-                "diagonal entry P[{i}][{i}] = {} after the update",
-                wm[i * p + i]
-            )));
+            return Err(lost_pd(
+                self.samples,
+                format!(
+                    "diagonal entry P[{i}][{i}] = {} after the update",
+                    wm[i * p + i]
+                ),
+            ));
         }
         // Gain K = D_pre u / d.
         let k = self.k.as_mut_slice();
-        for i in 0..p {
-            k[i] = if symmetric_vf { self.pre[i] } else { 1.0 } * u[i] * dinv;
+        for ((ki, &ui), &d) in k.iter_mut().zip(u.iter()).zip(&self.pre) {
+            *ki = if symmetric_vf { d } else { 1.0 } * ui * dinv;
         }
         if !k.iter().all(|v| (v * e).is_finite()) {
-            return Err(lost_pd(self.samples, "gain times prediction error is not finite".into()));
+            return Err(lost_pd(
+                self.samples,
+                "gain times prediction error is not finite".into(),
+            ));
         }
         self.apply_guard_cov();
         std::mem::swap(&mut self.cov, &mut self.work);
@@ -599,10 +617,16 @@ impl LinearEstimator {
             }
         }
         if !acc.is_finite() {
-            return Err(lost_pd(self.samples, "square-root update overflowed or produced NaN".into()));
+            return Err(lost_pd(
+                self.samples,
+                "square-root update overflowed or produced NaN".into(),
+            ));
         }
         if !gamma.iter().all(|v| (v * e).is_finite()) {
-            return Err(lost_pd(self.samples, "gain times prediction error is not finite".into()));
+            return Err(lost_pd(
+                self.samples,
+                "gain times prediction error is not finite".into(),
+            ));
         }
         self.apply_guard_sqrt();
         std::mem::swap(&mut self.cov, &mut self.work);

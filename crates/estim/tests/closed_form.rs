@@ -1,5 +1,7 @@
 //! The estimators against closed forms: regularised and exponentially weighted least squares
 //! solved from the normal equations, and the exact equivalences between the methods.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -32,7 +34,13 @@ impl NormalEquations {
         self.b = &self.b * lambda + &f * y;
     }
     fn solve(&self) -> Vec<f64> {
-        self.a.clone().cholesky().unwrap().solve(&self.b).as_slice().to_vec()
+        self.a
+            .clone()
+            .cholesky()
+            .unwrap()
+            .solve(&self.b)
+            .as_slice()
+            .to_vec()
     }
 }
 
@@ -66,7 +74,12 @@ fn rls_is_regularised_least_squares_at_every_step() {
             .zip(&y)
             .map(|(r, yt)| (yt - r.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>()).powi(2))
             .sum();
-        j_min += theta.iter().zip(&theta0).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / c;
+        j_min += theta
+            .iter()
+            .zip(&theta0)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            / c;
         assert!((sum_w2 - j_min).abs() < 1e-9 * j_min, "{sum_w2} vs {j_min}");
         let se = est.std_errors().unwrap();
         for i in 0..4 {
@@ -141,12 +154,20 @@ fn exact_equivalences_between_methods() {
     let (rows, y, _) = regression(500, 3, 0.3, 11);
     let l = 0.97;
     let rlsf = run(Method::Rlsf { lambda: l }, 1000.0, &rows, &y);
-    assert_same_path(&run(Method::Dsfc { lambda: l }, 1000.0, &rows, &y), &rlsf, "DSFC vs RLSF");
+    assert_same_path(
+        &run(Method::Dsfc { lambda: l }, 1000.0, &rows, &y),
+        &rlsf,
+        "DSFC vs RLSF",
+    );
     let vf = |variant| Method::Rlsvf {
         lambdas: vec![l; 3],
         variant,
     };
-    assert_same_path(&run(vf(VfVariant::Symmetric), 1000.0, &rows, &y), &rlsf, "VF symmetric vs RLSF");
+    assert_same_path(
+        &run(vf(VfVariant::Symmetric), 1000.0, &rows, &y),
+        &rlsf,
+        "VF symmetric vs RLSF",
+    );
     assert_same_path(
         &run(vf(VfVariant::Published), 1000.0, &rows, &y),
         &run(Method::Rlsf { lambda: l * l }, 1000.0 * l * l, &rows, &y),
@@ -156,7 +177,11 @@ fn exact_equivalences_between_methods() {
         r1: CovSpec::Scaled(0.0),
         r2: 1.0,
     };
-    assert_same_path(&run(kf, 1000.0, &rows, &y), &run(Method::Rls, 1000.0, &rows, &y), "KF vs RLS");
+    assert_same_path(
+        &run(kf, 1000.0, &rows, &y),
+        &run(Method::Rls, 1000.0, &rows, &y),
+        "KF vs RLS",
+    );
     // DSFC's P = S·Sᵀ equals RLSF's P.
     let mut a = estimator(Method::Dsfc { lambda: l }, 1000.0, &[0.0; 3]);
     let mut b = estimator(Method::Rlsf { lambda: l }, 1000.0, &[0.0; 3]);

@@ -1,4 +1,6 @@
 //! Helpers shared by the integration tests (data generation, builders).
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 #![allow(dead_code)]
 
 use physid_core::ParamSet;
@@ -9,14 +11,27 @@ use rand_distr::StandardNormal;
 
 /// A well-conditioned regression: n rows of p regressors (N(0,1) plus a constant), and y with
 /// noise `sigma`. Returns (rows, y, true θ).
-pub fn regression(n: usize, p: usize, sigma: f64, seed: u64) -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
+pub fn regression(
+    n: usize,
+    p: usize,
+    sigma: f64,
+    seed: u64,
+) -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let theta: Vec<f64> = (0..p).map(|i| 1.0 + i as f64 * 0.5 * if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    let theta: Vec<f64> = (0..p)
+        .map(|i| 1.0 + i as f64 * 0.5 * if i % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
     let mut rows = Vec::with_capacity(n);
     let mut y = Vec::with_capacity(n);
     for _ in 0..n {
         let row: Vec<f64> = (0..p)
-            .map(|j| if j == 0 { 1.0 } else { rng.sample::<f64, _>(StandardNormal) })
+            .map(|j| {
+                if j == 0 {
+                    1.0
+                } else {
+                    rng.sample::<f64, _>(StandardNormal)
+                }
+            })
             .collect();
         let noise: f64 = rng.sample(StandardNormal);
         y.push(row.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>() + sigma * noise);
@@ -39,7 +54,12 @@ pub fn estimator(method: Method, p0: f64, theta0: &[f64]) -> LinearEstimator {
 
 /// ‖a − b‖ / max(‖b‖, floor).
 pub fn rel_err(a: &[f64], b: &[f64], floor: f64) -> f64 {
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>().sqrt();
+    let num: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt();
     let den: f64 = b.iter().map(|y| y * y).sum::<f64>().sqrt();
     num / den.max(floor)
 }

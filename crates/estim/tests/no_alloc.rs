@@ -1,6 +1,8 @@
 //! `update` never touches the heap: a counting global allocator sees no allocation across
 //! 10 000 updates of every method, with all parameters free and with a fixed subset, with and
 //! without the wind-up guard, and for the detectors.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 // A global allocator can only be written with `unsafe impl GlobalAlloc`; it forwards to `System`.
 #![allow(unsafe_code)]
 
@@ -44,17 +46,39 @@ fn updates_do_not_allocate() {
         vec![
             Method::Rls,
             Method::Rlsf { lambda: 0.98 },
-            Method::RlsfTv { lambda0: 0.99, lambda_init: 0.95 },
-            Method::Rlsvf { lambdas: vec![0.98; p], variant: VfVariant::Published },
-            Method::Rlsvf { lambdas: vec![0.98; p], variant: VfVariant::Symmetric },
-            Method::Kalman { r1: CovSpec::Scaled(1e-5), r2: 0.01 },
+            Method::RlsfTv {
+                lambda0: 0.99,
+                lambda_init: 0.95,
+            },
+            Method::Rlsvf {
+                lambdas: vec![0.98; p],
+                variant: VfVariant::Published,
+            },
+            Method::Rlsvf {
+                lambdas: vec![0.98; p],
+                variant: VfVariant::Symmetric,
+            },
+            Method::Kalman {
+                r1: CovSpec::Scaled(1e-5),
+                r2: 0.01,
+            },
             Method::Dsfc { lambda: 0.98 },
         ]
     };
     for (free, p) in [(params.all_free(), 4), (subset, 3)] {
         for method in methods(p) {
-            for guard in [None, Some(WindupGuard { max_trace: 10.0, action: GuardAction::Scale })] {
-                let cfg = EstimatorConfig { method: method.clone(), p0: CovSpec::Scaled(1000.0), guard };
+            for guard in [
+                None,
+                Some(WindupGuard {
+                    max_trace: 10.0,
+                    action: GuardAction::Scale,
+                }),
+            ] {
+                let cfg = EstimatorConfig {
+                    method: method.clone(),
+                    p0: CovSpec::Scaled(1000.0),
+                    guard,
+                };
                 let built = ALLOCS.load(Ordering::SeqCst);
                 let mut est = LinearEstimator::new(&cfg, &params, &free).unwrap();
                 // the counter is live: construction allocates
@@ -66,11 +90,23 @@ fn updates_do_not_allocate() {
                     est.std_errors_into(&mut se).unwrap_or(());
                 }
                 let after = ALLOCS.load(Ordering::SeqCst);
-                assert_eq!(after - before, 0, "{} allocated {} times", method.name(), after - before);
+                assert_eq!(
+                    after - before,
+                    0,
+                    "{} allocated {} times",
+                    method.name(),
+                    after - before
+                );
             }
         }
     }
-    let mut det = RelativeErrorDetector::new(vec!["K".into(), "B".into()], vec![1.0, 1.0], vec![0.5, 0.5], 3).unwrap();
+    let mut det = RelativeErrorDetector::new(
+        vec!["K".into(), "B".into()],
+        vec![1.0, 1.0],
+        vec![0.5, 0.5],
+        3,
+    )
+    .unwrap();
     let mut cusum = Cusum::new(2);
     let before = ALLOCS.load(Ordering::SeqCst);
     for i in 0..10_000 {

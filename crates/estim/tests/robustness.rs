@@ -1,4 +1,6 @@
 //! Bad input, bad configuration and numerical stress: errors instead of NaN, state untouched.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 
@@ -53,7 +55,14 @@ fn bad_samples_are_refused_and_leave_the_state_untouched() {
         for (phi, yt) in bad {
             let err = est.update(phi, yt).unwrap_err();
             match (&err, phi.len()) {
-                (EstimError::DimensionMismatch { expected: 3, got: 2, .. }, 2) => {}
+                (
+                    EstimError::DimensionMismatch {
+                        expected: 3,
+                        got: 2,
+                        ..
+                    },
+                    2,
+                ) => {}
                 (EstimError::NonFinite { sample, .. }, 3) => assert_eq!(*sample, 50),
                 _ => panic!("{}: unexpected error {err}", m.name()),
             }
@@ -61,7 +70,10 @@ fn bad_samples_are_refused_and_leave_the_state_untouched() {
             assert_eq!(est.covariance(), p, "{}", m.name());
             assert_eq!(est.samples(), n);
         }
-        let msg = est.update(&[1.0, f64::NAN, 0.0], 1.0).unwrap_err().to_string();
+        let msg = est
+            .update(&[1.0, f64::NAN, 0.0], 1.0)
+            .unwrap_err()
+            .to_string();
         assert_eq!(msg, "sample 50: phi[1] (p2) is not finite (NaN)");
     }
 }
@@ -84,10 +96,18 @@ fn invalid_configuration_is_an_error_at_construction() {
         assert!(build(Method::Dsfc { lambda }, ok.clone()).is_err());
     }
     assert!(build(Method::Rlsf { lambda: 1.0 }, ok.clone()).is_ok());
-    let e = build(Method::Rls, CovSpec::Full(vec![vec![1.0, 2.0], vec![2.0, 1.0]])).unwrap_err();
+    let e = build(
+        Method::Rls,
+        CovSpec::Full(vec![vec![1.0, 2.0], vec![2.0, 1.0]]),
+    )
+    .unwrap_err();
     assert_eq!(e, EstimError::NotPositiveDefinite { what: "P0" });
     assert!(build(Method::Rls, CovSpec::Scaled(-1.0)).is_err());
-    assert!(build(Method::Rls, CovSpec::Full(vec![vec![1.0, 0.5], vec![0.4, 1.0]])).is_err());
+    assert!(build(
+        Method::Rls,
+        CovSpec::Full(vec![vec![1.0, 0.5], vec![0.4, 1.0]])
+    )
+    .is_err());
     assert!(matches!(
         build(Method::Rls, CovSpec::Diagonal(vec![1.0])),
         Err(EstimError::DimensionMismatch { .. })
@@ -100,7 +120,11 @@ fn invalid_configuration_is_an_error_at_construction() {
             },
             ok.clone()
         ),
-        Err(EstimError::DimensionMismatch { expected: 2, got: 3, .. })
+        Err(EstimError::DimensionMismatch {
+            expected: 2,
+            got: 3,
+            ..
+        })
     ));
     let kf = |r1, r2| Method::Kalman { r1, r2 };
     assert!(build(kf(CovSpec::Scaled(0.0), 0.0), ok.clone()).is_err());
@@ -109,7 +133,13 @@ fn invalid_configuration_is_an_error_at_construction() {
 
 /// The textbook covariance update, exactly as printed (Alg. 5.3), with no symmetrisation:
 /// `K = Pφ/(λ + φᵀPφ)`, `P = (P − K·(φᵀP))/λ`.
-fn textbook_step(p: &mut Matrix2<f64>, theta: &mut Vector2<f64>, phi: Vector2<f64>, y: f64, l: f64) {
+fn textbook_step(
+    p: &mut Matrix2<f64>,
+    theta: &mut Vector2<f64>,
+    phi: Vector2<f64>,
+    y: f64,
+    l: f64,
+) {
     let pphi = *p * phi;
     let k = pphi / (l + phi.dot(&pphi));
     *theta += k * (y - phi.dot(theta));
@@ -170,7 +200,10 @@ fn ill_conditioned_textbook_update_breaks_and_dsfc_does_not() {
     assert!(ours.estimate().iter().all(|v| v.is_finite()));
     ours.reset_covariance();
     assert!(ours.update(&[1.0, 1.0 + 1e-8], 5.0).is_ok());
-    assert!(first_break.is_some(), "textbook update stayed PD (max asymmetry {max_asym:e})");
+    assert!(
+        first_break.is_some(),
+        "textbook update stayed PD (max asymmetry {max_asym:e})"
+    );
     assert!(max_asym > 1e-6);
     assert!(min_dsfc_ratio > 1e-12 && min_dsfc_ratio.is_finite());
     let s: &DMatrix<f64> = dsfc.sqrt_covariance().unwrap();
@@ -199,7 +232,11 @@ fn soak_ten_million_updates_p10() {
     }
     for est in [&rlsf, &dsfc] {
         let c = est.covariance();
-        assert!(c.clone().cholesky().is_some(), "{} lost PD", est.method().name());
+        assert!(
+            c.clone().cholesky().is_some(),
+            "{} lost PD",
+            est.method().name()
+        );
         for (e, t) in est.estimate().iter().zip(&truth) {
             assert!((e - t).abs() < 0.05, "{}: {e} vs {t}", est.method().name());
         }

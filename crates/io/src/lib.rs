@@ -1,1 +1,72 @@
-//! io
+//! # physid-io — recording files
+//!
+//! File formats are adapters at the edge: each reads a file into a
+//! [`Recording`](physid_core::Recording) or writes one out. This version has CSV ([`csv_file`]);
+//! Parquet and MDF4 follow (issue 6).
+//!
+//! Errors name the file, the line and the column, and what was expected — never a panic.
+
+pub mod csv_file;
+
+pub use csv_file::{read_csv, write_csv, CsvOptions};
+
+/// Errors reading or writing recording files.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// The operating system refused (missing file, permissions, …).
+    #[error("{path}: {source}")]
+    Os {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The file has no header or no data rows.
+    #[error("{path}: {what}")]
+    Empty {
+        /// The file.
+        path: String,
+        /// What is missing.
+        what: &'static str,
+    },
+    /// A cell that is not a number.
+    #[error("{path}, line {line}, column '{column}': '{value}' is not a number")]
+    NotNumeric {
+        /// The file.
+        path: String,
+        /// 1-based line in the file.
+        line: u64,
+        /// Column name.
+        column: String,
+        /// The cell's text.
+        value: String,
+    },
+    /// A row with the wrong number of cells.
+    #[error("{path}, line {line}: {got} cells, but the header has {expected}")]
+    Ragged {
+        /// The file.
+        path: String,
+        /// 1-based line in the file.
+        line: u64,
+        /// Cells in the header.
+        expected: usize,
+        /// Cells in this row.
+        got: usize,
+    },
+    /// Malformed CSV (quoting, encoding).
+    #[error("{path}: {detail}")]
+    Malformed {
+        /// The file.
+        path: String,
+        /// The parser's message.
+        detail: String,
+    },
+    /// The columns do not make a valid recording (duplicate names …).
+    #[error("{path}: {source}")]
+    Recording {
+        /// The file.
+        path: String,
+        /// What is wrong.
+        source: physid_core::RecordingError,
+    },
+}

@@ -1,0 +1,5 @@
+//! One module per verb.
+
+pub mod bench;
+pub mod estimate;
+pub mod example;

@@ -1,0 +1,168 @@
+//! SVG line plots (plotters, SVG backend) with an embedded font, so no system fonts are needed.
+
+use miette::{miette, Result};
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+fn register_font() {
+    REGISTER.call_once(|| {
+        // The bytes are a valid TTF shipped with the binary; failure would show as missing text.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// One curve.
+pub struct Series<'a> {
+    /// Legend text.
+    pub name: String,
+    /// Abscissa.
+    pub x: &'a [f64],
+    /// Ordinate.
+    pub y: &'a [f64],
+    /// Colour.
+    pub color: RGBColor,
+    /// Drawn dashed-looking (thicker, lighter) for reference curves such as the truth.
+    pub reference: bool,
+}
+
+/// One panel: a y-axis label and its curves.
+pub struct Panel<'a> {
+    /// Y-axis label.
+    pub ylabel: String,
+    /// Curves.
+    pub series: Vec<Series<'a>>,
+}
+
+/// Colours for successive estimators (colour-blind-safe Okabe–Ito palette).
+pub const PALETTE: [RGBColor; 5] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(230, 159, 0),
+];
+
+/// Keep at most ~2·`buckets` points: the min and max of each bucket, in order, so that short
+/// spikes survive decimation.
+fn decimate(x: &[f64], y: &[f64], buckets: usize) -> Vec<(f64, f64)> {
+    let n = x.len().min(y.len());
+    if n <= 2 * buckets {
+        return x.iter().zip(y).map(|(&a, &b)| (a, b)).collect();
+    }
+    let size = n.div_ceil(buckets);
+    let mut out = Vec::with_capacity(2 * buckets + 1);
+    for start in (0..n).step_by(size) {
+        let end = (start + size).min(n);
+        let (mut lo, mut hi) = (start, start);
+        for i in start..end {
+            if y[i] < y[lo] {
+                lo = i;
+            }
+            if y[i] > y[hi] {
+                hi = i;
+            }
+        }
+        let (a, b) = if lo <= hi { (lo, hi) } else { (hi, lo) };
+        out.push((x[a], y[a]));
+        if b != a {
+            out.push((x[b], y[b]));
+        }
+    }
+    out
+}
+
+fn range(panel: &Panel) -> (f64, f64, f64, f64) {
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for s in &panel.series {
+        for (&a, &b) in s.x.iter().zip(s.y) {
+            if a.is_finite() && b.is_finite() {
+                x0 = x0.min(a);
+                x1 = x1.max(a);
+                y0 = y0.min(b);
+                y1 = y1.max(b);
+            }
+        }
+    }
+    if x0 > x1 {
+        return (0.0, 1.0, 0.0, 1.0);
+    }
+    let pad = ((y1 - y0) * 0.05).max(1e-9 * y1.abs().max(1.0));
+    (x0, x1.max(x0 + 1e-12), y0 - pad, y1 + pad)
+}
+
+/// Stacked panels sharing the x label, written as one SVG file.
+pub fn panels(path: &Path, title: &str, xlabel: &str, panels: &[Panel]) -> Result<()> {
+    register_font();
+    let err = |e: &dyn std::fmt::Display| miette!("writing {}: {e}", path.display());
+    let height = 60 + 300 * panels.len() as u32;
+    let root = SVGBackend::new(path, (960, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (top, body) = root.split_vertically(50);
+    top.titled(title, ("sans-serif", 22)).map_err(|e| err(&e))?;
+    let areas = body.split_evenly((panels.len(), 1));
+    for (area, panel) in areas.iter().zip(panels) {
+        let (x0, x1, y0, y1) = range(panel);
+        let mut chart = ChartBuilder::on(area)
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(xlabel)
+            .y_desc(panel.ylabel.as_str())
+            .label_style(("sans-serif", 14))
+            .draw()
+            .map_err(|e| err(&e))?;
+        for s in &panel.series {
+            let style = if s.reference {
+                ShapeStyle::from(&BLACK.mix(0.55)).stroke_width(3)
+            } else {
+                ShapeStyle::from(&s.color).stroke_width(1)
+            };
+            let color = s.color;
+            chart
+                .draw_series(LineSeries::new(decimate(s.x, s.y, 1500), style))
+                .map_err(|e| err(&e))?
+                .label(s.name.as_str())
+                .legend(move |(x, y)| {
+                    PathElement::new(
+                        vec![(x, y), (x + 20, y)],
+                        ShapeStyle::from(&color).stroke_width(2),
+                    )
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .position(SeriesLabelPosition::LowerLeft)
+            .draw()
+            .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decimation_keeps_spikes_and_order() {
+        let x: Vec<f64> = (0..10_000).map(|i| i as f64).collect();
+        let mut y = vec![0.0; 10_000];
+        y[5003] = 7.0;
+        y[7001] = -3.0;
+        let d = decimate(&x, &y, 100);
+        assert!(d.len() <= 201);
+        assert!(d.contains(&(5003.0, 7.0)) && d.contains(&(7001.0, -3.0)));
+        assert!(d.windows(2).all(|w| w[0].0 < w[1].0));
+    }
+}

@@ -1,0 +1,246 @@
+//! End-to-end tests of the `physid` command: run the binary, check its output and exit code.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn physid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args(args)
+        .output()
+        .expect("run physid")
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("physid-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).to_string()
+}
+
+/// A noise-free regression y = 2·a − 3·b + 0.5·c on 2000 exciting samples.
+fn regression_csv(d: &std::path::Path, bad_line: Option<usize>) -> PathBuf {
+    let mut s = String::from("t,a,b,c,y\n");
+    for i in 0..2000 {
+        let t = i as f64 * 1e-3;
+        let (a, b, c) = (
+            (37.0 * t).sin(),
+            (11.0 * t).cos() + 0.3 * (91.0 * t).sin(),
+            1.0,
+        );
+        let y = 2.0 * a - 3.0 * b + 0.5 * c;
+        if bad_line == Some(i + 2) {
+            s.push_str(&format!("{t},{a},NaN,{c},{y}\n"));
+        } else {
+            s.push_str(&format!("{t},{a},{b},{c},{y}\n"));
+        }
+    }
+    let p = d.join("reg.csv");
+    std::fs::write(&p, s).unwrap();
+    p
+}
+
+#[test]
+fn estimate_json_recovers_the_parameters() {
+    let d = dir("est");
+    let csv = regression_csv(&d, None);
+    let out_csv = d.join("track.csv");
+    for method in ["rls", "rlsf", "rlsvf", "kf", "dsfc"] {
+        let o = physid(&[
+            "estimate",
+            "--data",
+            csv.to_str().unwrap(),
+            "--y",
+            "y",
+            "--phi",
+            "a,b,c",
+            "--method",
+            method,
+            "--p0",
+            "1e6",
+            "--json",
+            "--out",
+            out_csv.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["method"], method);
+        assert_eq!(v["samples"], 2000);
+        // Noise-free data: the truth is the least-squares solution.
+        for (k, truth) in [("a", 2.0), ("b", -3.0), ("c", 0.5)] {
+            let est = v["params"][k].as_f64().unwrap();
+            assert!((est - truth).abs() < 1e-4, "{method} {k}: {est}");
+            assert!(v["std_err"][k].as_f64().unwrap() >= 0.0);
+        }
+        assert!(v["nmse"].as_f64().unwrap() >= 0.0);
+        let track = std::fs::read_to_string(&out_csv).unwrap();
+        assert!(
+            track.starts_with("y_predicted,prediction_error,a,b,c,a_std_err,b_std_err,c_std_err")
+        );
+        assert_eq!(track.lines().count(), 2001);
+    }
+    // A fixed subset: c held at its nominal 0.5, a and b estimated.
+    let o = physid(&[
+        "estimate",
+        "--data",
+        csv.to_str().unwrap(),
+        "--y",
+        "y",
+        "--phi",
+        "a,b,c",
+        "--method",
+        "rls",
+        "--theta0",
+        "0,0,0.5",
+        "--free",
+        "a,b",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["params"]["c"], 0.5);
+    assert!(v["std_err"].get("c").is_none());
+    assert!((v["params"]["a"].as_f64().unwrap() - 2.0).abs() < 1e-4);
+}
+
+#[test]
+fn estimate_errors_name_the_problem() {
+    let d = dir("err");
+    let csv = regression_csv(&d, Some(17));
+    let c = csv.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["--y", "torque", "--phi", "a,b"],
+            "no channel 'torque'; the channels are: t, a, b, c, y",
+        ),
+        (
+            vec!["--y", "y", "--phi", "a,b,c"],
+            "line 17 (sample 15): phi[1] (b) is not finite (NaN)",
+        ),
+        (
+            vec!["--y", "y", "--phi", "a", "--lambda", "1.5"],
+            "λ = 1.5 is outside (0, 1]",
+        ),
+        (
+            vec!["--y", "y", "--phi", "a", "--method", "lms"],
+            "unknown method 'lms'",
+        ),
+        (
+            vec![
+                "--y",
+                "y",
+                "--phi",
+                "a,b",
+                "--method",
+                "rlsvf",
+                "--lambdas",
+                "0.9",
+            ],
+            "expected 2, got 1",
+        ),
+        (
+            vec!["--y", "y", "--phi", "a", "--free", "q"],
+            "unknown parameter 'q'",
+        ),
+    ];
+    for (extra, expect) in cases {
+        let mut args = vec!["estimate", "--data", c];
+        args.extend(extra);
+        let o = physid(&args);
+        assert!(!o.status.success());
+        assert!(
+            stderr(&o).contains(expect),
+            "expected '{expect}' in:\n{}",
+            stderr(&o)
+        );
+        assert!(!stderr(&o).contains("panicked"));
+    }
+    // Skipping the bad sample instead.
+    let o = physid(&[
+        "estimate", "--data", c, "--y", "y", "--phi", "a,b,c", "--on-bad", "skip", "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        (v["samples"].as_u64(), v["skipped"].as_u64()),
+        (Some(1999), Some(1))
+    );
+    // Not a number, empty file.
+    let bad = d.join("text.csv");
+    std::fs::write(&bad, "a,y\n1,2\n3,abc\n").unwrap();
+    let o = physid(&[
+        "estimate",
+        "--data",
+        bad.to_str().unwrap(),
+        "--y",
+        "y",
+        "--phi",
+        "a",
+    ]);
+    assert!(
+        stderr(&o).contains("line 3, column 'y': 'abc' is not a number"),
+        "{}",
+        stderr(&o)
+    );
+    let empty = d.join("empty.csv");
+    std::fs::write(&empty, "").unwrap();
+    let o = physid(&[
+        "estimate",
+        "--data",
+        empty.to_str().unwrap(),
+        "--y",
+        "y",
+        "--phi",
+        "a",
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("no header row"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn example_5_2_writes_csv_and_svg() {
+    let d = dir("ex");
+    let o = physid(&["example", "5.2", "--out", d.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // At t = 10 s: RLS has not tracked the step (A between the regimes), vector forgetting has.
+    let last = |m: &str| {
+        v["estimates"][m]
+            .as_array()
+            .unwrap()
+            .last()
+            .unwrap()
+            .clone()
+    };
+    assert!(last("rls")["A"].as_f64().unwrap() > 4.8);
+    assert!((last("rlsvf")["A"].as_f64().unwrap() - 4.0).abs() < 0.08);
+    let svg = std::fs::read_to_string(d.join("example-5.2.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("vector forgetting"));
+    let csv = std::fs::read_to_string(d.join("example-5.2.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 2 + 10_001);
+    let o = physid(&["example", "9.9"]);
+    assert!(!o.status.success() && stderr(&o).contains("no example '9.9'"));
+}
+
+#[test]
+fn bench_json_has_the_documented_shape() {
+    let o = physid(&["bench", "--json", "--seconds", "0.02"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["machine"].as_str().unwrap().contains("cores"));
+    let r = v["results"].as_array().unwrap();
+    assert_eq!(r.len(), 15);
+    for name in ["rls", "rlsf", "rlsvf", "kf", "dsfc"] {
+        for p in [2, 6, 20] {
+            let e = r.iter().find(|e| e["name"] == name && e["p"] == p).unwrap();
+            assert!(e["updates_per_s"].as_f64().unwrap() > 0.0);
+        }
+    }
+}
