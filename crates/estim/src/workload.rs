@@ -104,3 +104,25 @@ impl Workload {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stream equals the Python implementation in `bench/peers/peers.py`
+    /// (`splitmix_data(3, 2)` printed these values).
+    #[test]
+    fn same_data_as_the_python_peer_script() {
+        let (rows, y) = data(3, 2);
+        let expect_rows = [
+            -0.9223025306056296,
+            -0.3343977825211404,
+            -0.2706362872437236,
+            -0.906655420095253,
+            -0.26001057979516085,
+            -0.6763666929871486,
+        ];
+        assert_eq!(rows, expect_rows);
+        assert_eq!(y, [-2.40419268518543, -3.464328400969659]);
+    }
+}
