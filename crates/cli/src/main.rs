@@ -3,6 +3,7 @@
 //! Thin verbs over the library crates: argument parsing, tables, JSON, CSV and plots.
 
 mod cmd;
+mod out;
 mod plot;
 
 use clap::{Parser, Subcommand};

@@ -235,8 +235,14 @@ pub struct Step {
     /// Innovation variance `Var(e)`: in units of the noise variance σ² for the RLS family and
     /// DSFC (multiply by [`LinearEstimator::noise_variance`]), absolute for the Kalman filter.
     pub innovation_variance: f64,
-    /// Standardised recursive residual `e/√innovation_variance`.
-    pub standardized_residual: f64,
+}
+
+impl Step {
+    /// Standardised recursive residual `w = e/√innovation_variance` (computed on demand: the
+    /// square root is kept off the update's critical path).
+    pub fn standardized_residual(&self) -> f64 {
+        self.prediction_error / self.innovation_variance.sqrt()
+    }
 }
 
 /// The method with its per-step constants resolved.
@@ -456,17 +462,24 @@ impl LinearEstimator {
                 value: phi[i],
             });
         }
-        let y = if self.free.is_all_free() {
-            self.phi.copy_from_slice(phi);
-            y
+        // The free regressor: the caller's slice itself, or gathered into our buffer (taken out
+        // of `self` for the step — a pointer swap, no allocation).
+        let mut buf = std::mem::take(&mut self.phi);
+        let (phi_free, y): (&[f64], f64) = if self.free.is_all_free() {
+            (phi, y)
         } else {
-            self.free.gather(phi, &mut self.phi);
-            y - self.free.fixed_contribution(phi, self.params.nominal())
+            self.free.gather(phi, &mut buf);
+            (
+                &buf,
+                y - self.free.fixed_contribution(phi, self.params.nominal()),
+            )
         };
-        let step = match self.kind {
-            Kind::Dsfc { lambda } => self.step_sqrt(y, lambda)?,
-            _ => self.step_cov(y)?,
+        let result = match self.kind {
+            Kind::Dsfc { lambda } => self.step_sqrt(phi_free, y, lambda),
+            _ => self.step_cov(phi_free, y),
         };
+        self.phi = buf;
+        let step = result?;
         self.samples += 1;
         self.last = Some(step);
         Ok(step)
@@ -474,9 +487,9 @@ impl LinearEstimator {
 
     /// Covariance-form step (see the module table). Writes the new P into `work`, checks it and
     /// only then commits.
-    fn step_cov(&mut self, y: f64) -> Result<Step, EstimError> {
-        let p = self.phi.len();
-        let e = y - dot(&self.phi, self.theta.as_slice());
+    fn step_cov(&mut self, phi: &[f64], y: f64) -> Result<Step, EstimError> {
+        let p = phi.len();
+        let e = y - dot(phi, self.theta.as_slice());
         // λ(t) of this step (time-varying method), committed only on success.
         let (r, lambda_now, rho) = match &self.kind {
             Kind::Rls => (1.0, 1.0, 1.0),
@@ -498,17 +511,14 @@ impl LinearEstimator {
         );
         // φ̃ = D_pre φ (kept in k as scratch), u = P φ̃ by columns (P symmetric).
         let phit = self.k.as_mut_slice();
-        for ((t, &d), &f) in phit.iter_mut().zip(&self.pre).zip(&self.phi) {
+        for ((t, &d), &f) in phit.iter_mut().zip(&self.pre).zip(phi) {
             *t = d * f;
         }
         let pm = self.cov.as_slice();
         let u = self.u.as_mut_slice();
-        u.fill(0.0);
-        for (j, &fj) in phit.iter().enumerate() {
-            let col = &pm[j * p..(j + 1) * p];
-            for (ui, &c) in u.iter_mut().zip(col) {
-                *ui += c * fj;
-            }
+        // P is symmetric: row i of P·φ̃ is column i · φ̃ (contiguous).
+        for (i, ui) in u.iter_mut().enumerate() {
+            *ui = dot(&pm[i * p..(i + 1) * p], phit);
         }
         let d = r + dot(phit, u);
         if !(d.is_finite() && d > 0.0) {
@@ -530,13 +540,15 @@ impl LinearEstimator {
             let uj = u[j] * dinv;
             let sj = self.post[j] * post_scale;
             for i in 0..=j {
-                let mut v = self.post[i] * post_scale * sj * (pm[j * p + i] - u[i] * uj);
-                if let Kind::Kalman { r1, .. } = &self.kind {
-                    v += r1[(i, j)];
-                }
+                let v = self.post[i] * post_scale * sj * (pm[j * p + i] - u[i] * uj);
                 wm[j * p + i] = v;
                 wm[i * p + j] = v;
                 acc += v;
+            }
+        }
+        if let Kind::Kalman { r1, .. } = &self.kind {
+            for (w, q) in wm.iter_mut().zip(r1.as_slice()) {
+                *w += q; // R1 symmetric: P stays symmetric
             }
         }
         if !acc.is_finite() {
@@ -573,23 +585,24 @@ impl LinearEstimator {
         if let Kind::RlsfTv { .. } = self.kind {
             self.lambda_t = lambda_now;
         }
-        let s = if let Kind::Kalman { .. } = self.kind {
-            d
+        // Innovation variance: d (Kalman, absolute), d/r in σ² units otherwise; 1/s = r/d.
+        let (s, s_inv) = if let Kind::Kalman { .. } = self.kind {
+            (d, dinv)
         } else {
-            d / r
+            (d / r, r * dinv)
         };
-        Ok(self.record(e, s, rho))
+        Ok(self.record(e, s, s_inv, rho))
     }
 
     /// DSFC step (Alg. 5.5).
-    fn step_sqrt(&mut self, y: f64, lambda: f64) -> Result<Step, EstimError> {
-        let p = self.phi.len();
-        let e = y - dot(&self.phi, self.theta.as_slice());
+    fn step_sqrt(&mut self, phi: &[f64], y: f64, lambda: f64) -> Result<Step, EstimError> {
+        let p = phi.len();
+        let e = y - dot(phi, self.theta.as_slice());
         let sm = self.cov.as_slice();
         // f = Sᵀφ: f_j = column j of S · φ.
         let f = self.u.as_mut_slice();
         for (j, fj) in f.iter_mut().enumerate() {
-            *fj = dot(&sm[j * p..(j + 1) * p], &self.phi);
+            *fj = dot(&sm[j * p..(j + 1) * p], phi);
         }
         let a = (dot(f, f) + lambda).recip();
         if !(a.is_finite() && a > 0.0) {
@@ -634,17 +647,17 @@ impl LinearEstimator {
             *t += gi * e;
         }
         // Innovation variance in σ² units: (fᵀf + λ)/λ = 1/(aλ).
-        Ok(self.record(e, (a * lambda).recip(), lambda))
+        let s_inv = a * lambda;
+        Ok(self.record(e, s_inv.recip(), s_inv, lambda))
     }
 
-    fn record(&mut self, e: f64, s: f64, rho: f64) -> Step {
-        let w = e / s.sqrt();
-        self.noise_num = rho * self.noise_num + w * w;
+    /// Noise-scale statistics from `w² = e²/s`, and the step.
+    fn record(&mut self, e: f64, s: f64, s_inv: f64, rho: f64) -> Step {
+        self.noise_num = rho * self.noise_num + e * e * s_inv;
         self.noise_den = rho * self.noise_den + 1.0;
         Step {
             prediction_error: e,
             innovation_variance: s,
-            standardized_residual: w,
         }
     }
 

@@ -58,7 +58,7 @@ fn rls_is_regularised_least_squares_at_every_step() {
         let mut sum_w2 = 0.0;
         for (row, &yt) in rows.iter().zip(&y) {
             let s = est.update(row, yt).unwrap();
-            sum_w2 += s.standardized_residual.powi(2);
+            sum_w2 += s.standardized_residual().powi(2);
             ne.add(1.0, row, yt);
             let cf = ne.solve();
             let err = rel_err(est.estimate(), &cf, 1e-300);

@@ -55,7 +55,7 @@ fn rls_equals_statsmodels_recursive_ls_and_its_cusum() {
     for (t, (row, &yt)) in x.iter().zip(&y).enumerate() {
         let step = est.update(row, yt).unwrap();
         worst = worst.max(rel_err(est.estimate(), &filtered[t], 1.0));
-        if cusum.push(step.standardized_residual).is_some() || cusum.count() > 0 {
+        if cusum.push(step.standardized_residual()).is_some() || cusum.count() > 0 {
             path.push(cusum.cumulative_sum());
         }
     }

@@ -1,6 +1,7 @@
 //! `physid bench`: updates per second of every estimator on one core, against the real-time
 //! need of 108 000 samples/s (thesis Eq. 4.1: 9000 rpm at one sample per crank degree).
 
+use crate::out::outln;
 use miette::{IntoDiagnostic, Result};
 use physid_estim::workload::{standard_methods, Workload};
 use serde_json::json;
@@ -59,11 +60,14 @@ pub fn run(args: &Args) -> Result<()> {
     let budget = Duration::from_secs_f64(args.seconds.clamp(0.01, 60.0));
     let mut results = Vec::new();
     if !args.json {
-        println!("machine: {}", machine());
-        println!("real-time need: {REALTIME_SAMPLES_PER_S:.0} samples/s (thesis Eq. 4.1)\n");
-        println!(
+        outln!("machine: {}", machine());
+        outln!("real-time need: {REALTIME_SAMPLES_PER_S:.0} samples/s (thesis Eq. 4.1)\n");
+        outln!(
             "{:<8} {:>4} {:>16} {:>14}",
-            "method", "p", "updates/s", "× real time"
+            "method",
+            "p",
+            "updates/s",
+            "× real time"
         );
     }
     for p in [2usize, 6, 20] {
@@ -72,7 +76,7 @@ pub fn run(args: &Args) -> Result<()> {
             let mut w = Workload::new(method, p, 4096).into_diagnostic()?;
             let r = rate(&mut w, budget)?;
             if !args.json {
-                println!(
+                outln!(
                     "{name:<8} {p:>4} {r:>16.0} {:>14.0}",
                     r / REALTIME_SAMPLES_PER_S
                 );
@@ -82,7 +86,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if args.json {
         let out = json!({"machine": machine(), "results": results});
-        println!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
+        outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
     }
     Ok(())
 }

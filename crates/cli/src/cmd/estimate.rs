@@ -1,5 +1,6 @@
 //! `physid estimate`: recursive estimation of a linear regression `y = φᵀϑ` from a CSV file.
 
+use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
 use physid_estim::{
@@ -253,10 +254,10 @@ pub fn run(args: &Args) -> Result<()> {
             "nrmse": nrmse,
             "fit_percent": fit,
         });
-        println!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
+        outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
         return Ok(());
     }
-    println!(
+    outln!(
         "{} on {file}: {} samples{}",
         cfg.method.name(),
         est.samples(),
@@ -266,18 +267,20 @@ pub fn run(args: &Args) -> Result<()> {
             String::new()
         }
     );
-    println!(
+    outln!(
         "{:<16} {:>16} {:>14}",
-        "parameter", "estimate", "std. error"
+        "parameter",
+        "estimate",
+        "std. error"
     );
     for (j, nm) in names.iter().enumerate() {
         let s = std_err
             .as_ref()
             .map_or("-".to_string(), |s| format!("{:.6e}", s[j]));
-        println!("{nm:<16} {:>16.8e} {s:>14}", theta[j]);
+        outln!("{nm:<16} {:>16.8e} {s:>14}", theta[j]);
     }
     for i in free.fixed() {
-        println!(
+        outln!(
             "{:<16} {:>16.8e} {:>14}",
             params.names()[*i],
             params.nominal()[*i],
@@ -285,7 +288,7 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     let show = |v: Option<f64>| v.map_or("undefined".to_string(), |v| format!("{v:.4e}"));
-    println!(
+    outln!(
         "one-step prediction: NMSE {} (Eq. 6.4), NRMSE {}, fit {}",
         show(nmse),
         show(nrmse),

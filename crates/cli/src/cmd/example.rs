@@ -1,5 +1,6 @@
 //! `physid example 5.2`: thesis Example 5.2 — CSV of the estimates and a plot like Fig. 5.6.
 
+use crate::out::{out, outln};
 use crate::plot::{self, Panel, Series, PALETTE};
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_apps::example_5_2::{example_5_2, Example52, Example52Config};
@@ -60,30 +61,30 @@ fn run_5_2(args: &Args) -> Result<()> {
         }
         let out = serde_json::json!({"example": "5.2", "estimates": methods,
             "csv": csv.display().to_string(), "svg": svg.display().to_string()});
-        println!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
+        outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
         return Ok(());
     }
-    println!("Thesis Example 5.2: z = A(t)·sin(x) + B·y², A steps 10 → 4 at t = 5 s, B = 0.5");
-    println!("(1 kHz, noise σ = 0.01, ϑ0 = 0, P0 = 1000·I; RLSF λ = 0.97; vector forgetting Λ = diag(0.97, 1))\n");
-    print!("{:<8}", "method");
+    outln!("Thesis Example 5.2: z = A(t)·sin(x) + B·y², A steps 10 → 4 at t = 5 s, B = 0.5");
+    outln!("(1 kHz, noise σ = 0.01, ϑ0 = 0, P0 = 1000·I; RLSF λ = 0.97; vector forgetting Λ = diag(0.97, 1))\n");
+    out!("{:<8}", "method");
     for t in times {
-        print!("  {:>17}", format!("A, B at {t} s"));
+        out!("  {:>17}", format!("A, B at {t} s"));
     }
-    println!();
+    outln!();
     for tr in &r.tracks {
-        print!("{:<8}", tr.method);
+        out!("{:<8}", tr.method);
         for t in times {
             let k = at(t);
-            print!("  {:>8.3} {:>8.4}", tr.a[k], tr.b[k]);
+            out!("  {:>8.3} {:>8.4}", tr.a[k], tr.b[k]);
         }
-        println!();
+        outln!();
     }
-    print!("{:<8}", "truth");
+    out!("{:<8}", "truth");
     for t in times {
-        print!("  {:>8.3} {:>8.4}", r.a_true[at(t)], r.b_true);
+        out!("  {:>8.3} {:>8.4}", r.a_true[at(t)], r.b_true);
     }
-    println!();
-    println!("\nwrote {} and {}", csv.display(), svg.display());
+    outln!();
+    outln!("\nwrote {} and {}", csv.display(), svg.display());
     Ok(())
 }
 
