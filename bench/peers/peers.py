@@ -10,6 +10,7 @@ FilterRLS(mu=0.98).run() (RLS with forgetting lambda = 0.98, P0 = 1000 I), per s
 rates, best of 3.
 """
 import json
+from importlib.metadata import version
 import os
 import platform
 import time
@@ -71,7 +72,7 @@ def main():
                         "updates_per_s": best_rate(run_padasip, nn)})
     out = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
-        "versions": {"statsmodels": statsmodels.__version__, "padasip": pa.__version__,
+        "versions": {"statsmodels": statsmodels.__version__, "padasip": version("padasip"),
                      "numpy": np.__version__, "python": platform.python_version()},
         "results": results,
     }

@@ -40,7 +40,7 @@
 //! its standard errors are `√P_ii`.
 
 use crate::EstimError;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{Const, DMatrix, DVector, Dim, Dyn};
 use physid_core::{FreeSet, ParamSet};
 use serde::{Deserialize, Serialize};
 
@@ -249,7 +249,7 @@ impl Step {
 #[derive(Debug, Clone)]
 enum Kind {
     Rls,
-    Rlsf { lambda: f64 },
+    Rlsf { lambda: f64, inv_lambda: f64 },
     RlsfTv { lambda0: f64 },
     Vf { symmetric: bool, min_lambda: f64 },
     Kalman { r1: DMatrix<f64>, r2: f64 },
@@ -331,7 +331,10 @@ impl LinearEstimator {
             Method::Rlsf { lambda } => {
                 let l = check_lambda("λ", *lambda)?;
                 post.fill(l.sqrt().recip());
-                Kind::Rlsf { lambda: l }
+                Kind::Rlsf {
+                    lambda: l,
+                    inv_lambda: l.recip(),
+                }
             }
             Method::RlsfTv {
                 lambda0,
@@ -474,32 +477,56 @@ impl LinearEstimator {
                 y - self.free.fixed_contribution(phi, self.params.nominal()),
             )
         };
-        let result = match self.kind {
-            Kind::Dsfc { lambda } => self.step_sqrt(phi_free, y, lambda),
-            _ => self.step_cov(phi_free, y),
-        };
+        let result = self.step_sized(phi_free, y);
         self.phi = buf;
-        let step = result?;
+        let step = result.map_err(|b| EstimError::LostPositiveDefiniteness {
+            sample: self.samples,
+            detail: format!("{} = {}", b.what, b.value),
+        })?;
         self.samples += 1;
         self.last = Some(step);
         Ok(step)
     }
 
+    /// Run the step with the dimension known at compile time for p ≤ 8 — the same source,
+    /// monomorphised, so the small loops unroll and lose their bounds checks — and at run time
+    /// beyond.
+    fn step_sized(&mut self, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
+        macro_rules! sized {
+            ($($n:literal)*) => {
+                match phi.len() {
+                    $($n => self.step_dim(Const::<$n>, phi, y),)*
+                    p => self.step_dim(Dyn(p), phi, y),
+                }
+            };
+        }
+        sized!(1 2 3 4 5 6 7 8)
+    }
+
+    fn step_dim<D: Dim>(&mut self, dim: D, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
+        match self.kind {
+            Kind::Dsfc { lambda } => self.step_sqrt(dim, phi, y, lambda),
+            _ => self.step_cov(dim, phi, y),
+        }
+    }
+
     /// Covariance-form step (see the module table). Writes the new P into `work`, checks it and
     /// only then commits.
-    fn step_cov(&mut self, phi: &[f64], y: f64) -> Result<Step, EstimError> {
-        let p = phi.len();
-        let e = y - dot(phi, self.theta.as_slice());
-        // λ(t) of this step (time-varying method), committed only on success.
-        let (r, lambda_now, rho) = match &self.kind {
-            Kind::Rls => (1.0, 1.0, 1.0),
-            Kind::Rlsf { lambda } => (*lambda, *lambda, *lambda),
+    fn step_cov<D: Dim>(&mut self, dim: D, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
+        let p = dim.value();
+        let phi = &phi[..p];
+        let e = y - dot(phi, &self.theta.as_slice()[..p]);
+        // (r, 1/r for the innovation variance in σ² units, λ(t), noise-scale decay ρ);
+        // λ(t) of the time-varying method is committed only on success.
+        let (r, r_inv, lambda_now, rho) = match &self.kind {
+            Kind::Rls => (1.0, 1.0, 1.0, 1.0),
+            Kind::Rlsf { lambda, inv_lambda } => (*lambda, *inv_lambda, *lambda, *lambda),
             Kind::RlsfTv { lambda0 } => {
                 let l = lambda0 * self.lambda_t + (1.0 - lambda0);
-                (l, l, l)
+                (l, l.recip(), l, l)
             }
-            Kind::Vf { min_lambda, .. } => (1.0, 1.0, *min_lambda),
-            Kind::Kalman { r2, .. } => (*r2, 1.0, 1.0),
+            Kind::Vf { min_lambda, .. } => (1.0, 1.0, 1.0, *min_lambda),
+            Kind::Kalman { r2, .. } => (*r2, 1.0, 1.0, 1.0),
             Kind::Dsfc { .. } => unreachable!("DSFC uses step_sqrt"),
         };
         let symmetric_vf = matches!(
@@ -509,23 +536,22 @@ impl LinearEstimator {
                 ..
             }
         );
-        // φ̃ = D_pre φ (kept in k as scratch), u = P φ̃ by columns (P symmetric).
-        let phit = self.k.as_mut_slice();
-        for ((t, &d), &f) in phit.iter_mut().zip(&self.pre).zip(phi) {
+        let pre = &self.pre[..p];
+        let post = &self.post[..p];
+        // φ̃ = D_pre φ (kept in k as scratch), u = P φ̃.
+        let phit = &mut self.k.as_mut_slice()[..p];
+        for ((t, &d), &f) in phit.iter_mut().zip(pre).zip(phi) {
             *t = d * f;
         }
-        let pm = self.cov.as_slice();
-        let u = self.u.as_mut_slice();
+        let pm = &self.cov.as_slice()[..p * p];
+        let u = &mut self.u.as_mut_slice()[..p];
         // P is symmetric: row i of P·φ̃ is column i · φ̃ (contiguous).
-        for (i, ui) in u.iter_mut().enumerate() {
-            *ui = dot(&pm[i * p..(i + 1) * p], phit);
+        for (ui, col) in u.iter_mut().zip(pm.chunks_exact(p)) {
+            *ui = dot(col, phit);
         }
         let d = r + dot(phit, u);
         if !(d.is_finite() && d > 0.0) {
-            return Err(lost_pd(
-                self.samples,
-                format!("innovation denominator r + φᵀPφ = {d}"),
-            ));
+            return Err(breakdown("innovation denominator r + φᵀPφ", d));
         }
         let dinv = d.recip();
         // New P, upper triangle mirrored: P_ij = s_i s_j (P_ij − u_i u_j / d) + Q_ij.
@@ -534,13 +560,13 @@ impl LinearEstimator {
         } else {
             1.0
         };
-        let wm = self.work.as_mut_slice();
+        let wm = &mut self.work.as_mut_slice()[..p * p];
         let mut acc = 0.0;
         for j in 0..p {
             let uj = u[j] * dinv;
-            let sj = self.post[j] * post_scale;
-            for i in 0..=j {
-                let v = self.post[i] * post_scale * sj * (pm[j * p + i] - u[i] * uj);
+            let sj = post[j] * post_scale;
+            for i in 0..j + 1 {
+                let v = post[i] * post_scale * sj * (pm[j * p + i] - u[i] * uj);
                 wm[j * p + i] = v;
                 wm[i * p + j] = v;
                 acc += v;
@@ -552,34 +578,33 @@ impl LinearEstimator {
             }
         }
         if !acc.is_finite() {
-            return Err(lost_pd(
-                self.samples,
-                "covariance update overflowed or produced NaN".into(),
+            return Err(breakdown(
+                "sum of the updated covariance (overflow or NaN)",
+                acc,
             ));
         }
         if let Some(i) = (0..p).find(|&i| wm[i * p + i] <= 0.0) {
-            return Err(lost_pd(
-                self.samples,
-                format!(
-                    "diagonal entry P[{i}][{i}] = {} after the update",
-                    wm[i * p + i]
-                ),
+            return Err(breakdown(
+                "a diagonal entry of the updated P",
+                wm[i * p + i],
             ));
         }
         // Gain K = D_pre u / d.
-        let k = self.k.as_mut_slice();
-        for ((ki, &ui), &d) in k.iter_mut().zip(u.iter()).zip(&self.pre) {
-            *ki = if symmetric_vf { d } else { 1.0 } * ui * dinv;
+        let k = &mut self.k.as_mut_slice()[..p];
+        let mut ke = 0.0;
+        for ((ki, &ui), &dp) in k.iter_mut().zip(u.iter()).zip(pre) {
+            *ki = if symmetric_vf { dp } else { 1.0 } * ui * dinv;
+            ke += (*ki * e).abs();
         }
-        if !k.iter().all(|v| (v * e).is_finite()) {
-            return Err(lost_pd(
-                self.samples,
-                "gain times prediction error is not finite".into(),
-            ));
+        if !ke.is_finite() {
+            return Err(breakdown("gain times prediction error", ke));
         }
         self.apply_guard_cov();
         std::mem::swap(&mut self.cov, &mut self.work);
-        for (t, &ki) in self.theta.iter_mut().zip(self.k.iter()) {
+        for (t, &ki) in self.theta.as_mut_slice()[..p]
+            .iter_mut()
+            .zip(&self.k.as_slice()[..p])
+        {
             *t += ki * e;
         }
         if let Kind::RlsfTv { .. } = self.kind {
@@ -589,61 +614,68 @@ impl LinearEstimator {
         let (s, s_inv) = if let Kind::Kalman { .. } = self.kind {
             (d, dinv)
         } else {
-            (d / r, r * dinv)
+            (d * r_inv, r * dinv)
         };
         Ok(self.record(e, s, s_inv, rho))
     }
 
     /// DSFC step (Alg. 5.5).
-    fn step_sqrt(&mut self, phi: &[f64], y: f64, lambda: f64) -> Result<Step, EstimError> {
-        let p = phi.len();
-        let e = y - dot(phi, self.theta.as_slice());
-        let sm = self.cov.as_slice();
+    fn step_sqrt<D: Dim>(
+        &mut self,
+        dim: D,
+        phi: &[f64],
+        y: f64,
+        lambda: f64,
+    ) -> Result<Step, Breakdown> {
+        let p = dim.value();
+        let phi = &phi[..p];
+        let e = y - dot(phi, &self.theta.as_slice()[..p]);
+        let sm = &self.cov.as_slice()[..p * p];
         // f = Sᵀφ: f_j = column j of S · φ.
-        let f = self.u.as_mut_slice();
-        for (j, fj) in f.iter_mut().enumerate() {
-            *fj = dot(&sm[j * p..(j + 1) * p], phi);
+        let f = &mut self.u.as_mut_slice()[..p];
+        for (fj, col) in f.iter_mut().zip(sm.chunks_exact(p)) {
+            *fj = dot(col, phi);
         }
         let a = (dot(f, f) + lambda).recip();
         if !(a.is_finite() && a > 0.0) {
-            return Err(lost_pd(self.samples, format!("a = 1/(fᵀf + λ) = {a}")));
+            return Err(breakdown("a = 1/(fᵀf + λ)", a));
         }
         // γ = a S f.
-        let gamma = self.k.as_mut_slice();
+        let gamma = &mut self.k.as_mut_slice()[..p];
         gamma.fill(0.0);
-        for (j, &fj) in f.iter().enumerate() {
+        for (&fj, col) in f.iter().zip(sm.chunks_exact(p)) {
             let afj = a * fj;
-            for (gi, &s) in gamma.iter_mut().zip(&sm[j * p..(j + 1) * p]) {
+            for (gi, &s) in gamma.iter_mut().zip(col) {
                 *gi += s * afj;
             }
         }
         let g = (1.0 + (lambda * a).sqrt()).recip();
         let inv_sqrt_l = lambda.sqrt().recip();
-        let wm = self.work.as_mut_slice();
+        let wm = &mut self.work.as_mut_slice()[..p * p];
         let mut acc = 0.0;
-        for j in 0..p {
-            let gfj = g * f[j];
-            let (wcol, scol) = (&mut wm[j * p..(j + 1) * p], &sm[j * p..(j + 1) * p]);
+        for ((wcol, scol), &fj) in wm.chunks_exact_mut(p).zip(sm.chunks_exact(p)).zip(f.iter()) {
+            let gfj = g * fj;
             for ((w, &s), &gi) in wcol.iter_mut().zip(scol).zip(gamma.iter()) {
                 *w = (s - gi * gfj) * inv_sqrt_l;
                 acc += *w;
             }
         }
         if !acc.is_finite() {
-            return Err(lost_pd(
-                self.samples,
-                "square-root update overflowed or produced NaN".into(),
+            return Err(breakdown(
+                "sum of the updated square root (overflow or NaN)",
+                acc,
             ));
         }
-        if !gamma.iter().all(|v| (v * e).is_finite()) {
-            return Err(lost_pd(
-                self.samples,
-                "gain times prediction error is not finite".into(),
-            ));
+        let ke: f64 = gamma.iter().map(|v| (v * e).abs()).sum();
+        if !ke.is_finite() {
+            return Err(breakdown("gain times prediction error", ke));
         }
         self.apply_guard_sqrt();
         std::mem::swap(&mut self.cov, &mut self.work);
-        for (t, &gi) in self.theta.iter_mut().zip(self.k.iter()) {
+        for (t, &gi) in self.theta.as_mut_slice()[..p]
+            .iter_mut()
+            .zip(&self.k.as_slice()[..p])
+        {
             *t += gi * e;
         }
         // Innovation variance in σ² units: (fᵀf + λ)/λ = 1/(aλ).
@@ -662,6 +694,7 @@ impl LinearEstimator {
     }
 
     /// Wind-up guard on the candidate P in `work`.
+    #[inline]
     fn apply_guard_cov(&mut self) {
         let Some(g) = self.guard else { return };
         let tr = self.work.trace();
@@ -675,6 +708,7 @@ impl LinearEstimator {
     }
 
     /// Wind-up guard on the candidate S in `work` (trace P = ‖S‖²_F).
+    #[inline]
     fn apply_guard_sqrt(&mut self) {
         let Some(g) = self.guard else { return };
         let tr = self.work.norm_squared();
@@ -806,7 +840,7 @@ impl LinearEstimator {
     /// DSFC, 1 for RLS and Kalman, the smallest λ_i for vector forgetting.
     pub fn lambda(&self) -> f64 {
         match &self.kind {
-            Kind::Rlsf { lambda } | Kind::Dsfc { lambda } => *lambda,
+            Kind::Rlsf { lambda, .. } | Kind::Dsfc { lambda } => *lambda,
             Kind::RlsfTv { .. } => self.lambda_t,
             Kind::Vf { min_lambda, .. } => *min_lambda,
             Kind::Rls | Kind::Kalman { .. } => 1.0,
@@ -829,8 +863,16 @@ impl LinearEstimator {
     }
 }
 
-fn lost_pd(sample: u64, detail: String) -> EstimError {
-    EstimError::LostPositiveDefiniteness { sample, detail }
+/// Why a step was refused — small and `Copy`, so the success path carries no `String`; it
+/// becomes an [`EstimError::LostPositiveDefiniteness`] only when it happens.
+#[derive(Debug, Clone, Copy)]
+struct Breakdown {
+    what: &'static str,
+    value: f64,
+}
+
+fn breakdown(what: &'static str, value: f64) -> Breakdown {
+    Breakdown { what, value }
 }
 
 #[inline]
