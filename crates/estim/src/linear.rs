@@ -171,7 +171,8 @@ impl CovSpec {
                 }
             }
         }
-        Ok(m)
+        // Exactly symmetric from here on ((a + b)/2 is the same for both halves).
+        Ok((&m + m.transpose()) * 0.5)
     }
 }
 
@@ -491,6 +492,7 @@ impl LinearEstimator {
     /// Run the step with the dimension known at compile time for p ≤ 8 — the same source,
     /// monomorphised, so the small loops unroll and lose their bounds checks — and at run time
     /// beyond.
+    #[inline]
     fn step_sized(&mut self, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
         macro_rules! sized {
             ($($n:literal)*) => {
@@ -554,21 +556,25 @@ impl LinearEstimator {
             return Err(breakdown("innovation denominator r + φᵀPφ", d));
         }
         let dinv = d.recip();
-        // New P, upper triangle mirrored: P_ij = s_i s_j (P_ij − u_i u_j / d) + Q_ij.
-        let post_scale = if let Kind::RlsfTv { .. } = self.kind {
-            lambda_now.sqrt().recip()
+        // New P = s_i s_j (P_ij − u_i u_j / d) + Q_ij, column by column. Every product is formed
+        // as (a_i·a_j), which IEEE arithmetic makes bit-identical for (i, j) and (j, i): a
+        // symmetric P stays exactly symmetric without mirroring.
+        let scale = if let Kind::RlsfTv { .. } = self.kind {
+            r_inv // 1/λ(t)
         } else {
             1.0
         };
         let wm = &mut self.work.as_mut_slice()[..p * p];
         let mut acc = 0.0;
-        for j in 0..p {
-            let uj = u[j] * dinv;
-            let sj = post[j] * post_scale;
-            for i in 0..j + 1 {
-                let v = post[i] * post_scale * sj * (pm[j * p + i] - u[i] * uj);
-                wm[j * p + i] = v;
-                wm[i * p + j] = v;
+        for (((wcol, pcol), &uj), &sj) in wm
+            .chunks_exact_mut(p)
+            .zip(pm.chunks_exact(p))
+            .zip(u.iter())
+            .zip(post)
+        {
+            for (((w, &pij), &ui), &si) in wcol.iter_mut().zip(pcol).zip(u.iter()).zip(post) {
+                let v = (si * sj) * scale * (pij - (ui * uj) * dinv);
+                *w = v;
                 acc += v;
             }
         }
@@ -694,7 +700,7 @@ impl LinearEstimator {
     }
 
     /// Wind-up guard on the candidate P in `work`.
-    #[inline]
+    #[inline(always)]
     fn apply_guard_cov(&mut self) {
         let Some(g) = self.guard else { return };
         let tr = self.work.trace();
@@ -708,7 +714,7 @@ impl LinearEstimator {
     }
 
     /// Wind-up guard on the candidate S in `work` (trace P = ‖S‖²_F).
-    #[inline]
+    #[inline(always)]
     fn apply_guard_sqrt(&mut self) {
         let Some(g) = self.guard else { return };
         let tr = self.work.norm_squared();

@@ -243,3 +243,37 @@ fn soak_ten_million_updates_p10() {
     }
     assert!(common::rel_err(rlsf.estimate(), dsfc.estimate(), 1.0) < 1e-9);
 }
+
+/// P stays exactly (bitwise) symmetric through every covariance-form method, including a Kalman
+/// R1 given with a round-off asymmetry, and without any mirroring.
+#[test]
+fn covariance_stays_exactly_symmetric() {
+    let (rows, y, _) = regression(2000, 5, 0.1, 21);
+    let mut methods = all_methods(5);
+    methods.push(Method::Kalman {
+        r1: CovSpec::Full(
+            (0..5)
+                .map(|i| {
+                    (0..5)
+                        .map(|j| {
+                            if i == j {
+                                1e-4
+                            } else {
+                                1e-5 * (1.0 + 1e-15 * (i > j) as u8 as f64)
+                            }
+                        })
+                        .collect()
+                })
+                .collect(),
+        ),
+        r2: 0.01,
+    });
+    for m in methods {
+        let mut est = estimator(m.clone(), 1000.0, &[0.0; 5]);
+        for (r, &yt) in rows.iter().zip(&y) {
+            est.update(r, yt).unwrap();
+            let p = est.covariance();
+            assert_eq!(p, p.transpose(), "{} lost exact symmetry", m.name());
+        }
+    }
+}
