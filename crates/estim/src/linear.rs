@@ -19,8 +19,9 @@
 //! | vector forgetting, symmetric | 1 | Λ^(−1/2) | Λ^(−1/2) | 0 | SPEC §5.1 note |
 //! | Kalman, random-walk parameters | R2 | I | I | R1 | Eq. 5.19 |
 //!
-//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically; only the upper triangle is computed and mirrored,
-//! so P stays exactly symmetric. The symmetric vector-forgetting variant is Alg. 5.3 with the
+//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically, and every entry is formed from commutative
+//! products `(a_i·a_j)`, so P stays bit-for-bit symmetric. For p ≤ 8 the step is compiled for the
+//! exact size (one source, generic over nalgebra's `Dim`), which unrolls its small loops. The symmetric vector-forgetting variant is Alg. 5.3 with the
 //! discount applied per parameter before the gain (`M = Λ^(−1/2)PΛ^(−1/2)`); with `Λ = λI` it is
 //! exactly RLSF(λ). The published variant discounts by `Λ⁻¹·…·Λ⁻¹`, i.e. by λ² per step when
 //! `Λ = λI`: it then equals RLSF(λ²) started from `P0·λ²`.
