@@ -262,3 +262,32 @@ fn windup_guard_bounds_the_covariance() {
     assert!((2000.0..=5000.0).contains(&tr), "trace after resets {tr}");
     assert_eq!(scaled.estimate(), &theta[..]);
 }
+
+/// A configuration written as data (here JSON; TOML maps the same way) builds the same estimator
+/// as one built in code: same estimates on the same data.
+#[test]
+fn configuration_as_plain_data() {
+    let text = r#"{"method": {"kind": "rlsvf", "lambdas": [0.97, 1.0], "variant": "symmetric"},
+                  "p0": {"diagonal": [1000.0, 500.0]},
+                  "guard": {"max_trace": 1e6, "action": "scale"}}"#;
+    let from_data: EstimatorConfig = serde_json::from_str(text).unwrap();
+    let in_code = EstimatorConfig {
+        method: Method::Rlsvf {
+            lambdas: vec![0.97, 1.0],
+            variant: VfVariant::Symmetric,
+        },
+        p0: CovSpec::Diagonal(vec![1000.0, 500.0]),
+        guard: Some(WindupGuard {
+            max_trace: 1e6,
+            action: GuardAction::Scale,
+        }),
+    };
+    assert_eq!(from_data, in_code);
+    let minimal: EstimatorConfig = serde_json::from_str(r#"{"method": {"kind": "rls"}}"#).unwrap();
+    assert_eq!(minimal, EstimatorConfig::new(Method::Rls)); // P0 = 1000·I, no guard by default
+    let bad = serde_json::from_str::<EstimatorConfig>(r#"{"method": {"kind": "lms"}}"#);
+    assert!(bad
+        .unwrap_err()
+        .to_string()
+        .contains("unknown variant `lms`"));
+}
