@@ -6,11 +6,16 @@
 //!   which of them are estimated (*free*) and which are held at their nominal values (*fixed*).
 //!   The identifiability step chooses the free subset; an estimator works on that view, never on
 //!   a new model (DESIGN.md, "The seams").
+//! * [`ParamModel`] and [`Scalar`] — models written once, generic over the scalar, so that the
+//!   same code gives values (`f64`) and exact gradients ([`GradientEngine`], forward-mode dual
+//!   numbers).
 //! * [`Recording`] — named channels with SI units on a time or crank-angle basis (DESIGN.md,
 //!   "A recording is columns with units").
 
+pub mod model;
 pub mod params;
 pub mod recording;
 
+pub use model::{GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
 pub use params::{FreeSet, ParamError, ParamSet};
 pub use recording::{Basis, Channel, Recording, RecordingError};
