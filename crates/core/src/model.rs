@@ -12,7 +12,12 @@ use num_dual::{Derivative, DualNum, DualSVec64};
 /// A number a model can be evaluated with: `f64`, or a `num-dual` dual number. Arithmetic with
 /// `Self` and with `f64`, `From<f64>`, and the elementary functions (`sin`, `exp`, `ln`, `sqrt`,
 /// `powf`, `powd`, `abs`, …) come from [`DualNum`].
-pub trait Scalar: DualNum<Primitive = f64> + Copy {}
+pub trait Scalar: DualNum<Primitive = f64> + Copy {
+    /// The plain value (the real part of a dual number).
+    fn value(&self) -> f64 {
+        self.re()
+    }
+}
 
 impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {}
 

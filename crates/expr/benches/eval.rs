@@ -1,0 +1,93 @@
+//! Expression model vs the same model written in Rust: values and exact gradients
+//! (thesis Example 5.1's model, six parameters, two inputs).
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use physid_core::{GradientEngine, ParamModel, Scalar};
+use physid_expr::ExprModel;
+use std::hint::black_box;
+
+const EX51: &str = "sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 + D*y^2 + E*x/y + F*2*x/y";
+
+/// Example 5.1 written in Rust, as a model author would.
+struct Native {
+    params: Vec<String>,
+    inputs: Vec<String>,
+}
+
+impl ParamModel for Native {
+    fn param_names(&self) -> &[String] {
+        &self.params
+    }
+    fn input_names(&self) -> &[String] {
+        &self.inputs
+    }
+    fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
+        let (x, y) = (u[0], u[1]);
+        p[0].sin() * x
+            + p[1] * p[1] * (y * x.cos())
+            + p[2].sqrt() * (x * x)
+            + p[3] * (y * y)
+            + p[4] * (x / y)
+            + p[5] * (2.0 * x / y)
+    }
+}
+
+const N: usize = 1024;
+
+fn bench(c: &mut Criterion) {
+    let names = ["A", "B", "C", "D", "E", "F"];
+    let expr = match ExprModel::parse(EX51, &names) {
+        Ok(m) => m,
+        Err(e) => panic!("{e}"),
+    };
+    let native = Native {
+        params: names.iter().map(|s| s.to_string()).collect(),
+        inputs: vec!["x".into(), "y".into()],
+    };
+    let data: Vec<[f64; 2]> = (0..N)
+        .map(|i| {
+            [
+                (i as f64 * 0.01).sin() + 1.2,
+                1.0 + (i as f64 * 0.003).cos() * 0.5,
+            ]
+        })
+        .collect();
+    let p = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+    let free: Vec<usize> = (0..6).collect();
+    let mut g = c.benchmark_group("model_eval");
+    g.throughput(Throughput::Elements(N as u64));
+    g.bench_function("native_value", |b| {
+        b.iter(|| {
+            data.iter()
+                .map(|u| native.eval::<f64>(black_box(u), &p))
+                .sum::<f64>()
+        })
+    });
+    g.bench_function("expr_value", |b| {
+        b.iter(|| {
+            data.iter()
+                .map(|u| expr.eval::<f64>(black_box(u), &p))
+                .sum::<f64>()
+        })
+    });
+    let mut engine = GradientEngine::new(6);
+    let mut grad = [0.0; 6];
+    g.bench_function("native_gradient", |b| {
+        b.iter(|| {
+            data.iter()
+                .map(|u| engine.value_and_gradient(&native, black_box(u), &p, &free, &mut grad))
+                .sum::<f64>()
+        })
+    });
+    g.bench_function("expr_gradient", |b| {
+        b.iter(|| {
+            data.iter()
+                .map(|u| engine.value_and_gradient(&expr, black_box(u), &p, &free, &mut grad))
+                .sum::<f64>()
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,85 @@
+//! Evaluation through the model seam: one generic evaluator for values (`f64`) and exact
+//! gradients (dual numbers).
+
+use crate::parse::{ExprModel, Func, Node};
+use physid_core::{ParamModel, Scalar};
+
+impl ExprModel {
+    /// Evaluate node `i`. With `LIFT`, a subtree that does not depend on any parameter is
+    /// evaluated once in plain `f64` and promoted — what a hand-written model does with its
+    /// data-only terms — instead of carrying zero derivatives through every operation.
+    fn ev<T: Scalar, const LIFT: bool>(&self, i: u32, u: &[f64], p: &[T]) -> T {
+        let iu = i as usize;
+        if LIFT && !self.dep[iu] {
+            return T::from(self.ev::<f64, false>(i, u, &[]));
+        }
+        match self.nodes[iu] {
+            Node::Num(v) => T::from(v),
+            Node::Param(k) => p[k],
+            Node::Input(k) => T::from(u[k]),
+            Node::Neg(a) => -self.ev::<T, LIFT>(a, u, p),
+            Node::Add(a, b) => self.ev::<T, LIFT>(a, u, p) + self.ev::<T, LIFT>(b, u, p),
+            Node::Sub(a, b) => self.ev::<T, LIFT>(a, u, p) - self.ev::<T, LIFT>(b, u, p),
+            Node::Mul(a, b) => self.ev::<T, LIFT>(a, u, p) * self.ev::<T, LIFT>(b, u, p),
+            Node::Div(a, b) => self.ev::<T, LIFT>(a, u, p) / self.ev::<T, LIFT>(b, u, p),
+            Node::Pow(a, b) => {
+                let base = self.ev::<T, LIFT>(a, u, p);
+                if self.dep[b as usize] {
+                    base.powd(self.ev::<T, LIFT>(b, u, p))
+                } else {
+                    match self.nodes[b as usize] {
+                        // x^2, x^-1: exact integer powers.
+                        Node::Num(n) if n.fract() == 0.0 && n.abs() <= 64.0 => base.powi(n as i32),
+                        _ => base.powf(self.ev::<f64, false>(b, u, &[])),
+                    }
+                }
+            }
+            Node::Call(f, a) => {
+                let x = self.ev::<T, LIFT>(a, u, p);
+                match f {
+                    Func::Sqrt => x.sqrt(),
+                    Func::Exp => x.exp(),
+                    Func::Ln => x.ln(),
+                    Func::Log10 => x.log10(),
+                    Func::Sin => x.sin(),
+                    Func::Cos => x.cos(),
+                    Func::Tan => x.tan(),
+                    Func::Asin => x.asin(),
+                    Func::Acos => x.acos(),
+                    Func::Atan => x.atan(),
+                    Func::Abs => x.abs(),
+                }
+            }
+            Node::Min(a, b) => {
+                let (x, y) = (self.ev::<T, LIFT>(a, u, p), self.ev::<T, LIFT>(b, u, p));
+                if y.value() < x.value() {
+                    y
+                } else {
+                    x
+                }
+            }
+            Node::Max(a, b) => {
+                let (x, y) = (self.ev::<T, LIFT>(a, u, p), self.ev::<T, LIFT>(b, u, p));
+                if y.value() > x.value() {
+                    y
+                } else {
+                    x
+                }
+            }
+        }
+    }
+}
+
+impl ParamModel for ExprModel {
+    fn param_names(&self) -> &[String] {
+        self.params()
+    }
+
+    fn input_names(&self) -> &[String] {
+        self.inputs()
+    }
+
+    fn eval<T: Scalar>(&self, inputs: &[f64], params: &[T]) -> T {
+        self.ev::<T, true>(self.root, inputs, params)
+    }
+}

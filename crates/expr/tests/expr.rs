@@ -1,0 +1,211 @@
+//! The expression language: values against the same formulas written in Rust, exact gradients
+//! against central differences, precedence, round trips, and the error messages.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_core::{GradientEngine, ParamModel};
+use physid_expr::{ExprError, ExprModel};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Thesis Example 5.1 (SPEC §4).
+const EX51: &str = "sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 + D*y^2 + E*x/y + F*2*x/y";
+
+fn ex51_rust(x: f64, y: f64, p: &[f64]) -> f64 {
+    p[0].sin() * x
+        + p[1] * p[1] * y * x.cos()
+        + p[2].sqrt() * x * x
+        + p[3] * y * y
+        + p[4] * x / y
+        + p[5] * 2.0 * x / y
+}
+
+/// Every function and operator, with a hand-written twin.
+const ALL: &str = "exp(a*x)/10 + ln(b) * log10(y) - tan(a/4) + asin(a/3) * acos(b/4) + atan(x*b) \
+                   + abs(x - b) + pow(b, a) + min(a*x, b) - max(x, a) + b^-2 + (x - a)^3 - -a";
+
+fn all_rust(x: f64, y: f64, p: &[f64]) -> f64 {
+    let (a, b) = (p[0], p[1]);
+    (a * x).exp() / 10.0 + b.ln() * y.log10() - (a / 4.0).tan()
+        + (a / 3.0).asin() * (b / 4.0).acos()
+        + (x * b).atan()
+        + (x - b).abs()
+        + b.powf(a)
+        + (a * x).min(b)
+        - x.max(a)
+        + b.powi(-2)
+        + (x - a).powi(3)
+        + a
+}
+
+/// An expression, its parameter names, and the same formula in Rust.
+type Case = (
+    &'static str,
+    &'static [&'static str],
+    fn(f64, f64, &[f64]) -> f64,
+);
+
+fn fd<M: ParamModel>(m: &M, u: &[f64], p: &[f64], j: usize) -> f64 {
+    let h = 1e-6 * p[j].abs().max(1e-3);
+    let (mut a, mut b) = (p.to_vec(), p.to_vec());
+    a[j] += h;
+    b[j] -= h;
+    (m.eval::<f64>(u, &a) - m.eval::<f64>(u, &b)) / (2.0 * h)
+}
+
+#[test]
+fn values_equal_the_rust_formulas_and_gradients_the_differences() {
+    let mut rng = ChaCha8Rng::seed_from_u64(51);
+    let cases: [Case; 2] = [
+        (EX51, &["A", "B", "C", "D", "E", "F"], ex51_rust),
+        (ALL, &["a", "b"], all_rust),
+    ];
+    for (text, names, rust) in cases {
+        let m = ExprModel::parse(text, names).unwrap();
+        assert_eq!(m.inputs(), &["x".to_string(), "y".to_string()]);
+        let n = names.len();
+        let mut engine = GradientEngine::new(n);
+        let free: Vec<usize> = (0..n).collect();
+        for _ in 0..300 {
+            let (x, y) = (rng.random_range(0.1..1.5), rng.random_range(0.5..2.0));
+            let p: Vec<f64> = (0..n).map(|_| rng.random_range(0.3..1.4)).collect();
+            let v = m.eval::<f64>(&[x, y], &p);
+            let r = rust(x, y, &p);
+            assert!(
+                (v - r).abs() <= 1e-13 * r.abs().max(1.0),
+                "{text}: {v} vs {r}"
+            );
+            let mut g = vec![0.0; n];
+            let vd = engine.value_and_gradient(&m, &[x, y], &p, &free, &mut g);
+            assert!((vd - v).abs() <= 1e-13 * v.abs().max(1.0));
+            for (j, &gj) in g.iter().enumerate() {
+                let f = fd(&m, &[x, y], &p, j);
+                assert!(
+                    (gj - f).abs() <= 1e-6 * f.abs().max(1.0),
+                    "{text} ∂/∂{}: {gj} vs {f}",
+                    names[j]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn precedence_and_associativity() {
+    let v = |t: &str| {
+        ExprModel::parse::<&str>(t, &[])
+            .unwrap()
+            .eval::<f64>(&[3.0], &[])
+    };
+    assert_eq!(v("-x^2"), -9.0);
+    assert_eq!(v("2^3^2"), 512.0);
+    assert_eq!(v("(2^3)^2"), 64.0);
+    assert_eq!(v("2*x^2"), 18.0);
+    assert_eq!(v("x - 1 - 1"), 1.0);
+    assert_eq!(v("12 / 2 / 3"), 2.0);
+    assert_eq!(v("2^-1"), 0.5);
+    assert_eq!(v("-2^2"), -4.0);
+    assert_eq!(v("--x"), 3.0);
+    assert_eq!(v("+x*-2"), -6.0);
+    assert_eq!(v("1.5e1 + .5 + 2E-1"), 15.7);
+}
+
+#[test]
+fn round_trips_print_and_reparse_to_the_same_model() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    for text in [
+        EX51,
+        ALL,
+        "-x^2",
+        "2^3^2",
+        "(2^3)^2",
+        "(-x)^2",
+        "a - (b - x)",
+        "a/(b*x)",
+        "-(a + x)*b",
+        "x^-a",
+        "min(a, max(b, x)) - -a",
+        "1e-7*a + 123456789.125*b*x",
+    ] {
+        let names: &[&str] = if text == EX51 {
+            &["A", "B", "C", "D", "E", "F"]
+        } else {
+            &["a", "b"]
+        };
+        let names: Vec<&str> = names.iter().copied().filter(|n| text.contains(n)).collect();
+        let m = ExprModel::parse(text, &names).unwrap();
+        let printed = m.to_string();
+        let again = ExprModel::parse(&printed, &names).unwrap();
+        assert_eq!(again.to_string(), printed, "{text} → {printed}");
+        let u: Vec<f64> = (0..m.inputs().len())
+            .map(|_| rng.random_range(0.5..1.5))
+            .collect();
+        let p: Vec<f64> = names.iter().map(|_| rng.random_range(0.5..1.5)).collect();
+        assert_eq!(
+            m.eval::<f64>(&u, &p),
+            again.eval::<f64>(&u, &p),
+            "{text} → {printed}"
+        );
+    }
+    assert_eq!(
+        ExprModel::parse::<&str>("-x^2", &[]).unwrap().to_string(),
+        "-x^2"
+    );
+    assert_eq!(
+        ExprModel::parse::<&str>("(-x)^2", &[]).unwrap().to_string(),
+        "(-x)^2"
+    );
+    assert_eq!(
+        ExprModel::parse::<&str>("((a))-(b-c)", &[])
+            .unwrap()
+            .to_string(),
+        "a - (b - c)"
+    );
+}
+
+#[test]
+fn errors_point_at_the_column() {
+    let err = |t: &str, p: &[&str]| ExprModel::parse(t, p).unwrap_err().to_string();
+    assert!(err("x + sine(A)", &["A"]).starts_with("unknown function 'sine' at column 5"));
+    assert_eq!(
+        err("x + (A", &["A"]),
+        "unexpected end of the expression: expected ')'"
+    );
+    assert_eq!(
+        err("x + * A", &["A"]),
+        "expected a number, a name or '(' at column 5, found '*'"
+    );
+    assert_eq!(
+        err("x A", &["A"]),
+        "expected an operator or the end at column 3, found 'A'"
+    );
+    assert_eq!(err("x $ A", &["A"]), "unexpected character '$' at column 3");
+    assert_eq!(err("x + 1e", &[]), "bad number '1e' at column 5");
+    assert_eq!(err("x*1e999", &[]), "bad number '1e999' at column 3");
+    assert_eq!(
+        err("pow(x)", &[]),
+        "function 'pow' at column 1 takes 2 argument(s), got 1"
+    );
+    assert_eq!(
+        err("sin(x, x)", &[]),
+        "function 'sin' at column 1 takes 1 argument(s), got 2"
+    );
+    assert_eq!(err("  ", &[]), "the expression is empty");
+    assert_eq!(
+        err("A*x", &["A", "G"]),
+        "parameter 'G' does not appear in the expression"
+    );
+    assert_eq!(err("A*x", &["A", "A"]), "parameter 'A' is given twice");
+    let deep = format!("{}x{}", "(".repeat(300), ")".repeat(300));
+    assert!(matches!(
+        ExprModel::parse::<&str>(&deep, &[]),
+        Err(ExprError::TooDeep { .. })
+    ));
+    // Inputs are checked against the data's columns.
+    let m = ExprModel::parse("A*x + z", &["A"]).unwrap();
+    assert_eq!(
+        m.check_inputs(&["x", "y"]).unwrap_err().to_string(),
+        "name 'z' at column 7 is neither a parameter nor a data column (parameters: A; columns: x, y)"
+    );
+    assert!(m.check_inputs(&["z", "x"]).is_ok());
+}
