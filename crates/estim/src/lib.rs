@@ -10,6 +10,9 @@
 //!   RLS with constant or time-varying forgetting (Alg. 5.3, Eq. 5.24), RLS with vector
 //!   forgetting (Alg. 5.4), the Kalman filter for random-walk parameters (Eq. 5.19) and the DSFC
 //!   square-root filter (Alg. 5.5).
+//! * [`nonlinear`] — models non-linear in the parameters (Eq. 5.29–5.32), any
+//!   [`ParamModel`](physid_core::ParamModel): EKF (Alg. 5.6) with exact Jacobians, UKF (Alg. 5.7)
+//!   with covariance repair, scaled coordinates and bounds.
 //! * [`metrics`] — NMSE (Eq. 6.4), NRMSE, fit %.
 //! * [`workload`] — the standard benchmark workloads (criterion and `physid bench`).
 //! * [`detect`] — the relative-error change detector (Eq. 6.3) with a dwell, and the CUSUM test
@@ -21,6 +24,7 @@ pub mod detect;
 pub mod error;
 pub mod linear;
 pub mod metrics;
+pub mod nonlinear;
 pub mod workload;
 
 pub use detect::{Alarm, Cusum, CusumLevel, RelativeErrorDetector};
@@ -28,3 +32,4 @@ pub use error::EstimError;
 pub use linear::{
     CovSpec, EstimatorConfig, GuardAction, LinearEstimator, Method, Step, VfVariant, WindupGuard,
 };
+pub use nonlinear::{NlConfig, NlMethod, NonlinearEstimator, SigmaPoints};

@@ -479,8 +479,44 @@ impl LinearEstimator {
                 y - self.free.fixed_contribution(phi, self.params.nominal()),
             )
         };
-        let result = self.step_sized(phi_free, y);
+        let e = y - dot(phi_free, self.theta.as_slice());
+        let result = self.step_sized(phi_free, e);
         self.phi = buf;
+        self.commit(result)
+    }
+
+    /// One step of a *linearised* model (the EKF's use, Alg. 5.6): `j` is the regressor over
+    /// the free parameters only — the exact Jacobian `∇h` at the current estimate — and
+    /// `innovation` the prediction error `y − h(φ, ϑ̂)`. Same checks and guarantees as
+    /// [`update`](Self::update).
+    pub fn update_linearized(&mut self, j: &[f64], innovation: f64) -> Result<Step, EstimError> {
+        let p = self.theta.len();
+        if j.len() != p {
+            return Err(EstimError::DimensionMismatch {
+                what: "Jacobian over the free parameters",
+                expected: p,
+                got: j.len(),
+            });
+        }
+        if !innovation.is_finite() {
+            return Err(EstimError::NonFinite {
+                sample: self.samples,
+                what: "innovation".into(),
+                value: innovation,
+            });
+        }
+        if let Some(i) = j.iter().position(|v| !v.is_finite()) {
+            return Err(EstimError::NonFinite {
+                sample: self.samples,
+                what: format!("Jacobian[{i}]"),
+                value: j[i],
+            });
+        }
+        let result = self.step_sized(j, innovation);
+        self.commit(result)
+    }
+
+    fn commit(&mut self, result: Result<Step, Breakdown>) -> Result<Step, EstimError> {
         let step = result.map_err(|b| EstimError::LostPositiveDefiniteness {
             sample: self.samples,
             detail: format!("{} = {}", b.what, b.value),
@@ -494,31 +530,30 @@ impl LinearEstimator {
     /// monomorphised, so the small loops unroll and lose their bounds checks — and at run time
     /// beyond.
     #[inline]
-    fn step_sized(&mut self, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
+    fn step_sized(&mut self, phi: &[f64], e: f64) -> Result<Step, Breakdown> {
         macro_rules! sized {
             ($($n:literal)*) => {
                 match phi.len() {
-                    $($n => self.step_dim(Const::<$n>, phi, y),)*
-                    p => self.step_dim(Dyn(p), phi, y),
+                    $($n => self.step_dim(Const::<$n>, phi, e),)*
+                    p => self.step_dim(Dyn(p), phi, e),
                 }
             };
         }
         sized!(1 2 3 4 5 6 7 8)
     }
 
-    fn step_dim<D: Dim>(&mut self, dim: D, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
+    fn step_dim<D: Dim>(&mut self, dim: D, phi: &[f64], e: f64) -> Result<Step, Breakdown> {
         match self.kind {
-            Kind::Dsfc { lambda } => self.step_sqrt(dim, phi, y, lambda),
-            _ => self.step_cov(dim, phi, y),
+            Kind::Dsfc { lambda } => self.step_sqrt(dim, phi, e, lambda),
+            _ => self.step_cov(dim, phi, e),
         }
     }
 
     /// Covariance-form step (see the module table). Writes the new P into `work`, checks it and
     /// only then commits.
-    fn step_cov<D: Dim>(&mut self, dim: D, phi: &[f64], y: f64) -> Result<Step, Breakdown> {
+    fn step_cov<D: Dim>(&mut self, dim: D, phi: &[f64], e: f64) -> Result<Step, Breakdown> {
         let p = dim.value();
         let phi = &phi[..p];
-        let e = y - dot(phi, &self.theta.as_slice()[..p]);
         // (r, 1/r for the innovation variance in σ² units, λ(t), noise-scale decay ρ);
         // λ(t) of the time-varying method is committed only on success.
         let (r, r_inv, lambda_now, rho) = match &self.kind {
@@ -631,12 +666,11 @@ impl LinearEstimator {
         &mut self,
         dim: D,
         phi: &[f64],
-        y: f64,
+        e: f64,
         lambda: f64,
     ) -> Result<Step, Breakdown> {
         let p = dim.value();
         let phi = &phi[..p];
-        let e = y - dot(phi, &self.theta.as_slice()[..p]);
         let sm = &self.cov.as_slice()[..p * p];
         // f = Sᵀφ: f_j = column j of S · φ.
         let f = &mut self.u.as_mut_slice()[..p];
@@ -762,6 +796,12 @@ impl LinearEstimator {
     /// Estimates of the free parameters.
     pub fn estimate(&self) -> &[f64] {
         self.theta.as_slice()
+    }
+
+    /// Mutable access to the free estimates, for projection onto bounds by a wrapping
+    /// estimator (the covariance is left as it is).
+    pub fn estimate_mut(&mut self) -> &mut [f64] {
+        self.theta.as_mut_slice()
     }
 
     /// The full parameter vector: free estimates, fixed parameters at their nominal values.

@@ -1,0 +1,653 @@
+//! Estimators for models non-linear in the parameters (thesis §5.3.2, Eq. 5.29–5.32):
+//! random-walk parameters `ϑ(t) = ϑ(t−1) + w`, `w ~ N(0, R1)`, observed through
+//! `y = h(φ(t), ϑ(t)) + ε`, `ε ~ N(0, R2)`, for any [`ParamModel`].
+//!
+//! * **EKF** (Alg. 5.6) — the Kalman filter of Eq. 5.19 ([`LinearEstimator`]) fed with the
+//!   exact Jacobian `J = ∇_ϑ h(φ, ϑ̂)` (forward-mode dual numbers, [`GradientEngine`]) as its
+//!   regressor and `y − h(φ, ϑ̂)` as its innovation: `K = PJᵀ/(R2 + JPJᵀ)`, `ϑ += K·e`,
+//!   `P = P − KJP + R1`. On a linear model it *is* the Kalman filter.
+//! * **UKF** (Alg. 5.7, Julier; Wan & van der Merwe) — `2l+1` sigma points from the prior
+//!   covariance `P + R1`:
+//!   `ζ = α²(l + κ) − l`, `W0m = ζ/(l+ζ)`, `W0c = W0m + 1 − α² + β`, `Wi = 1/(2(l+ζ))`
+//!   (SPEC fix: the text prints `ζ/(2l+ζ)`); thesis defaults α = 1, β = 2, κ = 3 − l.
+//!
+//! Both keep P as the *prior* of the next sample, as Eq. 5.19 does (`P = P − KJP + R1`): `P0` is
+//! the prior of the first sample. So on a linear model EKF, UKF and the Kalman filter agree.
+//!
+//! **Repairs.** With the thesis defaults `W0 < 0` for l > 3, so the unscented covariance can
+//! lose definiteness. The filter does not fail; it repairs by a fixed rule and counts:
+//! (1) if the prior P has no Cholesky factor, it is symmetrised and `ε·I` is added with
+//! `ε = 1e-12·(trace/l)`, ×10 per try, up to 12 tries; (2) if the predicted output variance
+//! `S = Σ Wc_i (Y_i − ŷ)² + R2` is not positive, it is recomputed without the negative centre
+//! weight. Anything beyond that refuses the sample (state untouched) with an error.
+//!
+//! **Scaled coordinates.** With [`NlConfig::scaled`], the filter estimates `x` with
+//! `ϑ = ϑ0·(1 + x)`, so one covariance scale fits parameters of very different magnitudes
+//! (thesis Table 8.2 mixes 1e-9 and 88 mm); estimates and standard errors are reported in
+//! physical units. **Bounds** (e.g. a mass stays positive) are enforced by projection after each
+//! update and counted.
+
+use crate::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, Step};
+use nalgebra::{DMatrix, DVector};
+use physid_core::{FreeSet, GradientEngine, ParamModel, ParamSet};
+use serde::{Deserialize, Serialize};
+
+/// Sigma-point settings of the UKF.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SigmaPoints {
+    /// Spread α (thesis: 1).
+    pub alpha: f64,
+    /// Prior-knowledge β (thesis: 2, Gaussian).
+    pub beta: f64,
+    /// κ; `None` = the thesis's 3 − l.
+    pub kappa: Option<f64>,
+}
+
+impl Default for SigmaPoints {
+    fn default() -> Self {
+        Self {
+            alpha: 1.0,
+            beta: 2.0,
+            kappa: None,
+        }
+    }
+}
+
+/// Which non-linear estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum NlMethod {
+    /// Extended Kalman filter (Alg. 5.6).
+    Ekf,
+    /// Unscented Kalman filter (Alg. 5.7).
+    Ukf(SigmaPoints),
+}
+
+impl NlMethod {
+    /// Short name (`ekf`, `ukf`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            NlMethod::Ekf => "ekf",
+            NlMethod::Ukf(_) => "ukf",
+        }
+    }
+}
+
+fn default_p0() -> CovSpec {
+    CovSpec::Scaled(100.0)
+}
+fn default_r1() -> CovSpec {
+    CovSpec::Scaled(0.0)
+}
+fn default_r2() -> f64 {
+    1.0
+}
+
+/// Configuration of a non-linear estimator, as plain data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NlConfig {
+    /// EKF or UKF.
+    pub method: NlMethod,
+    /// Initial covariance over the free parameters (in scaled coordinates when `scaled`);
+    /// default `100·I` (thesis ch. 8).
+    #[serde(default = "default_p0")]
+    pub p0: CovSpec,
+    /// Random-walk covariance R1 (default 0).
+    #[serde(default = "default_r1")]
+    pub r1: CovSpec,
+    /// Measurement-noise variance R2 (default 1).
+    #[serde(default = "default_r2")]
+    pub r2: f64,
+    /// Estimate `x` with `ϑ = ϑ0·(1 + x)` (needs non-zero nominal values).
+    #[serde(default)]
+    pub scaled: bool,
+    /// Bounds `(name, low, high)` enforced by projection.
+    #[serde(default)]
+    pub bounds: Vec<(String, f64, f64)>,
+}
+
+impl NlConfig {
+    /// Defaults: P0 = 100·I, R1 = 0, R2 = 1, physical coordinates, no bounds.
+    pub fn new(method: NlMethod) -> Self {
+        Self {
+            method,
+            p0: default_p0(),
+            r1: default_r1(),
+            r2: default_r2(),
+            scaled: false,
+            bounds: Vec::new(),
+        }
+    }
+}
+
+/// The UKF's state and preallocated work space.
+#[derive(Debug, Clone)]
+struct Ukf {
+    x: DVector<f64>,
+    p: DMatrix<f64>,
+    r1: DMatrix<f64>,
+    r2: f64,
+    /// (l+ζ)·P (P the prior), then its Cholesky factor in place.
+    chol: DMatrix<f64>,
+    wm0: f64,
+    wc0: f64,
+    wi: f64,
+    /// Outputs of the 2l+1 sigma points.
+    ys: Vec<f64>,
+    /// Cross-covariance / gain.
+    pxy: DVector<f64>,
+    /// Candidate state.
+    x_new: DVector<f64>,
+}
+
+#[derive(Debug, Clone)]
+enum Engine {
+    Ekf(Box<LinearEstimator>),
+    Ukf(Box<Ukf>),
+}
+
+/// EKF or UKF over the free parameters of a [`ParamModel`].
+#[derive(Debug, Clone)]
+pub struct NonlinearEstimator<M: ParamModel> {
+    model: M,
+    method: NlMethod,
+    params: ParamSet,
+    free: FreeSet,
+    engine: Engine,
+    gradient: GradientEngine,
+    /// Full physical parameter vector at the current estimate.
+    theta: Vec<f64>,
+    /// Jacobian over the free parameters (state coordinates).
+    jac: Vec<f64>,
+    /// ϑ0 of the free parameters (the scale of scaled coordinates).
+    scale: Vec<f64>,
+    scaled: bool,
+    bounds: Vec<Option<(f64, f64)>>,
+    repairs: u64,
+    projections: u64,
+    samples: u64,
+}
+
+fn cholesky_in_place(a: &mut DMatrix<f64>) -> bool {
+    // Lower-triangular Cholesky factor written over `a` (upper part zeroed); false if `a` is
+    // not positive definite. Allocation-free.
+    let n = a.nrows();
+    for j in 0..n {
+        let mut d = a[(j, j)];
+        for k in 0..j {
+            d -= a[(j, k)] * a[(j, k)];
+        }
+        if !(d > 0.0 && d.is_finite()) {
+            return false;
+        }
+        let d = d.sqrt();
+        a[(j, j)] = d;
+        for i in j + 1..n {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / d;
+        }
+        for i in 0..j {
+            a[(i, j)] = 0.0;
+        }
+    }
+    true
+}
+
+impl<M: ParamModel> NonlinearEstimator<M> {
+    /// Build an estimator of the `free` parameters of `model`, starting from `params`' nominal
+    /// values (which hold the fixed ones).
+    pub fn new(
+        model: M,
+        params: &ParamSet,
+        free: &FreeSet,
+        config: &NlConfig,
+    ) -> Result<Self, EstimError> {
+        if params.names() != model.param_names() {
+            return Err(EstimError::InvalidConfig(format!(
+                "parameter set ({}) does not match the model's parameters ({})",
+                params.names().join(", "),
+                model.param_names().join(", ")
+            )));
+        }
+        if free.full_len() != params.len() {
+            return Err(EstimError::DimensionMismatch {
+                what: "free/fixed view",
+                expected: params.len(),
+                got: free.full_len(),
+            });
+        }
+        let l = free.free().len();
+        let scale: Vec<f64> = free.free().iter().map(|&i| params.nominal()[i]).collect();
+        if config.scaled {
+            if let Some(k) = scale.iter().position(|&s| s == 0.0) {
+                return Err(EstimError::InvalidConfig(format!(
+                    "scaled coordinates ϑ = ϑ0·(1 + x) need a non-zero nominal value for '{}'",
+                    params.names()[free.free()[k]]
+                )));
+            }
+        }
+        let mut bounds = vec![None; l];
+        for (name, lo, hi) in &config.bounds {
+            let i = params
+                .index_of(name)
+                .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+            let k = free.free().iter().position(|&f| f == i).ok_or_else(|| {
+                EstimError::InvalidConfig(format!("bound on '{name}', which is not free"))
+            })?;
+            if lo.is_nan() || hi.is_nan() || lo >= hi {
+                return Err(EstimError::InvalidConfig(format!(
+                    "bound on '{name}': low {lo} must be below high {hi}"
+                )));
+            }
+            bounds[k] = Some((*lo, *hi));
+        }
+        // State coordinates: x = 0 (scaled) or ϑ0.
+        let x0: Vec<f64> = if config.scaled {
+            vec![0.0; l]
+        } else {
+            scale.clone()
+        };
+        let engine = match config.method {
+            NlMethod::Ekf => {
+                let names: Vec<String> = (0..l).map(|k| format!("x{k}")).collect();
+                let inner_params = ParamSet::new(names, x0)
+                    .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+                let cfg = EstimatorConfig {
+                    method: Method::Kalman {
+                        r1: config.r1.clone(),
+                        r2: config.r2,
+                    },
+                    p0: config.p0.clone(),
+                    guard: None,
+                };
+                Engine::Ekf(Box::new(LinearEstimator::new(
+                    &cfg,
+                    &inner_params,
+                    &inner_params.all_free(),
+                )?))
+            }
+            NlMethod::Ukf(sp) => {
+                // Validate R1, R2 and P0 as the Kalman filter does.
+                let probe = ParamSet::zeros((0..l).map(|k| format!("x{k}")))
+                    .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+                LinearEstimator::new(
+                    &EstimatorConfig {
+                        method: Method::Kalman {
+                            r1: config.r1.clone(),
+                            r2: config.r2,
+                        },
+                        p0: config.p0.clone(),
+                        guard: None,
+                    },
+                    &probe,
+                    &probe.all_free(),
+                )?;
+                let lf = l as f64;
+                let kappa = sp.kappa.unwrap_or(3.0 - lf);
+                let zeta = sp.alpha * sp.alpha * (lf + kappa) - lf;
+                if !(sp.alpha > 0.0 && lf + zeta > 0.0 && zeta.is_finite() && sp.beta.is_finite()) {
+                    return Err(EstimError::InvalidConfig(format!(
+                        "sigma points need α > 0 and l + ζ > 0 (α = {}, κ = {kappa}, l = {l})",
+                        sp.alpha
+                    )));
+                }
+                let wm0 = zeta / (lf + zeta);
+                Engine::Ukf(Box::new(Ukf {
+                    x: DVector::from_vec(x0),
+                    p: config.p0.to_matrix(l, "P0")?,
+                    r1: config.r1.to_matrix(l, "R1")?,
+                    r2: config.r2,
+                    chol: DMatrix::zeros(l, l),
+                    wm0,
+                    wc0: wm0 + 1.0 - sp.alpha * sp.alpha + sp.beta,
+                    wi: 1.0 / (2.0 * (lf + zeta)),
+                    ys: vec![0.0; 2 * l + 1],
+                    pxy: DVector::zeros(l),
+                    x_new: DVector::zeros(l),
+                }))
+            }
+        };
+        Ok(Self {
+            gradient: GradientEngine::new(params.len()),
+            theta: params.nominal().to_vec(),
+            jac: vec![0.0; l],
+            model,
+            method: config.method,
+            params: params.clone(),
+            free: free.clone(),
+            engine,
+            scale,
+            scaled: config.scaled,
+            bounds,
+            repairs: 0,
+            projections: 0,
+            samples: 0,
+        })
+    }
+
+    fn state(&self) -> &[f64] {
+        match &self.engine {
+            Engine::Ekf(kf) => kf.estimate(),
+            Engine::Ukf(u) => u.x.as_slice(),
+        }
+    }
+
+    /// Physical value of free parameter `k` for state coordinate `x`.
+    fn physical(&self, k: usize, x: f64) -> f64 {
+        if self.scaled {
+            self.scale[k] * (1.0 + x)
+        } else {
+            x
+        }
+    }
+
+    /// Write the full physical parameter vector for a state into `self.theta`.
+    fn load(theta: &mut [f64], free: &[usize], scale: &[f64], scaled: bool, x: &[f64]) {
+        for (k, (&i, &xk)) in free.iter().zip(x).enumerate() {
+            theta[i] = if scaled { scale[k] * (1.0 + xk) } else { xk };
+        }
+    }
+
+    /// Process one sample: `inputs` in the model's input order, `y` the measured output.
+    /// Bad samples, a model that returns NaN, or a step that cannot be repaired return an error
+    /// and leave the state untouched. Allocation-free.
+    pub fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
+        let n_in = self.model.input_names().len();
+        if inputs.len() != n_in {
+            return Err(EstimError::DimensionMismatch {
+                what: "model inputs φ",
+                expected: n_in,
+                got: inputs.len(),
+            });
+        }
+        if !y.is_finite() {
+            return Err(EstimError::NonFinite {
+                sample: self.samples,
+                what: "y".into(),
+                value: y,
+            });
+        }
+        if let Some(i) = inputs.iter().position(|v| !v.is_finite()) {
+            return Err(EstimError::NonFinite {
+                sample: self.samples,
+                what: format!("input '{}'", self.model.input_names()[i]),
+                value: inputs[i],
+            });
+        }
+        let step = match &mut self.engine {
+            Engine::Ekf(kf) => {
+                Self::load(
+                    &mut self.theta,
+                    self.free.free(),
+                    &self.scale,
+                    self.scaled,
+                    kf.estimate(),
+                );
+                let h = self.gradient.value_and_gradient(
+                    &self.model,
+                    inputs,
+                    &self.theta,
+                    self.free.free(),
+                    &mut self.jac,
+                );
+                if !h.is_finite() {
+                    return Err(EstimError::NonFinite {
+                        sample: self.samples,
+                        what: "model output h(φ, ϑ̂)".into(),
+                        value: h,
+                    });
+                }
+                if self.scaled {
+                    for (j, s) in self.jac.iter_mut().zip(&self.scale) {
+                        *j *= s; // ∂h/∂x = ∂h/∂ϑ · ϑ0
+                    }
+                }
+                kf.update_linearized(&self.jac, y - h)?
+            }
+            Engine::Ukf(u) => {
+                let (step, repaired) = Self::ukf_step(
+                    u,
+                    &self.model,
+                    &mut self.theta,
+                    self.free.free(),
+                    &self.scale,
+                    self.scaled,
+                    inputs,
+                    y,
+                    self.samples,
+                )?;
+                self.repairs += repaired;
+                step
+            }
+        };
+        self.project();
+        self.samples += 1;
+        Ok(step)
+    }
+
+    /// One UKF step (Alg. 5.7); returns the step and the number of repairs it needed.
+    #[allow(clippy::too_many_arguments)]
+    fn ukf_step(
+        u: &mut Ukf,
+        model: &M,
+        theta: &mut [f64],
+        free: &[usize],
+        scale: &[f64],
+        scaled: bool,
+        inputs: &[f64],
+        y: f64,
+        sample: u64,
+    ) -> Result<(Step, u64), EstimError> {
+        let l = u.x.len();
+        let lf = l as f64;
+        let gamma2 = 1.0 / (2.0 * u.wi); // l + ζ
+        let mut repairs = 0;
+        // (l+ζ)·P (the prior) and its Cholesky factor, repaired if needed.
+        let mut eps = 0.0;
+        let mut tries = 0;
+        loop {
+            for j in 0..l {
+                for i in 0..l {
+                    let v = 0.5 * (u.p[(i, j)] + u.p[(j, i)]) + if i == j { eps } else { 0.0 };
+                    u.chol[(i, j)] = gamma2 * v;
+                }
+            }
+            if cholesky_in_place(&mut u.chol) {
+                break;
+            }
+            tries += 1;
+            if tries > 12 {
+                return Err(EstimError::LostPositiveDefiniteness {
+                    sample,
+                    detail: "the prior covariance has no Cholesky factor after 12 jitter repairs"
+                        .into(),
+                });
+            }
+            let tr = u.p.trace().abs() / lf;
+            eps = if eps == 0.0 {
+                1e-12 * tr.max(f64::MIN_POSITIVE)
+            } else {
+                eps * 10.0
+            };
+            repairs = 1;
+        }
+        // Outputs of the sigma points x, x ± column k of the factor.
+        let mut point = |sign: f64, k: Option<usize>| -> f64 {
+            for (idx, &i) in free.iter().enumerate() {
+                let xk = u.x[idx] + k.map_or(0.0, |c| sign * u.chol[(idx, c)]);
+                theta[i] = if scaled { scale[idx] * (1.0 + xk) } else { xk };
+            }
+            model.eval::<f64>(inputs, theta)
+        };
+        u.ys[0] = point(0.0, None);
+        for k in 0..l {
+            u.ys[1 + k] = point(1.0, Some(k));
+            u.ys[1 + l + k] = point(-1.0, Some(k));
+        }
+        if let Some(i) = u.ys.iter().position(|v| !v.is_finite()) {
+            return Err(EstimError::NonFinite {
+                sample,
+                what: format!("model output at sigma point {i}"),
+                value: u.ys[i],
+            });
+        }
+        let y_hat = u.wm0 * u.ys[0] + u.wi * u.ys[1..].iter().sum::<f64>();
+        let spread: f64 = u.ys[1..].iter().map(|v| (v - y_hat) * (v - y_hat)).sum();
+        let centre = (u.ys[0] - y_hat) * (u.ys[0] - y_hat);
+        let mut s = u.wc0 * centre + u.wi * spread + u.r2;
+        if s.is_nan() || s <= 0.0 {
+            s = u.wi * spread + u.r2; // repair (2): drop the negative centre weight
+            repairs += 1;
+        }
+        // Cross-covariance: the centre point has zero deviation in x.
+        for idx in 0..l {
+            let mut c = 0.0;
+            for k in 0..l {
+                let d = u.chol[(idx, k)];
+                c += d * (u.ys[1 + k] - y_hat) - d * (u.ys[1 + l + k] - y_hat);
+            }
+            u.pxy[idx] = u.wi * c;
+        }
+        let e = y - y_hat;
+        // K = Pxy/S; x += K e; next prior P = P − K S Kᵀ + R1 = P − Pxy Pxyᵀ/S + R1
+        // (symmetric products keep P exactly symmetric).
+        let sinv = 1.0 / s;
+        for idx in 0..l {
+            u.x_new[idx] = u.x[idx] + u.pxy[idx] * sinv * e;
+        }
+        if !u.x_new.iter().all(|v| v.is_finite()) {
+            return Err(EstimError::LostPositiveDefiniteness {
+                sample,
+                detail: "non-finite state after the update".into(),
+            });
+        }
+        for j in 0..l {
+            for i in 0..l {
+                u.p[(i, j)] += u.r1[(i, j)] - (u.pxy[i] * u.pxy[j]) * sinv;
+            }
+        }
+        std::mem::swap(&mut u.x, &mut u.x_new);
+        Ok((
+            Step {
+                prediction_error: e,
+                innovation_variance: s,
+            },
+            repairs,
+        ))
+    }
+
+    /// Project the estimate into its bounds.
+    fn project(&mut self) {
+        if self.bounds.iter().all(Option::is_none) {
+            return;
+        }
+        let mut hits = 0;
+        let (scale, scaled) = (&self.scale, self.scaled);
+        let state: &mut [f64] = match &mut self.engine {
+            Engine::Ekf(kf) => kf.estimate_mut(),
+            Engine::Ukf(u) => u.x.as_mut_slice(),
+        };
+        for (k, b) in self.bounds.iter().enumerate() {
+            if let Some((lo, hi)) = *b {
+                let phys = if scaled {
+                    scale[k] * (1.0 + state[k])
+                } else {
+                    state[k]
+                };
+                let clamped = phys.clamp(lo, hi);
+                if clamped != phys {
+                    hits += 1;
+                    state[k] = if scaled {
+                        clamped / scale[k] - 1.0
+                    } else {
+                        clamped
+                    };
+                }
+            }
+        }
+        self.projections += hits;
+    }
+
+    /// The method.
+    pub fn method(&self) -> NlMethod {
+        self.method
+    }
+
+    /// The model.
+    pub fn model(&self) -> &M {
+        &self.model
+    }
+
+    /// Names of the free parameters.
+    pub fn free_names(&self) -> Vec<&str> {
+        self.free
+            .free()
+            .iter()
+            .map(|&i| self.params.names()[i].as_str())
+            .collect()
+    }
+
+    /// The free parameters' estimates, physical units.
+    pub fn estimate(&self) -> Vec<f64> {
+        self.state()
+            .iter()
+            .enumerate()
+            .map(|(k, &x)| self.physical(k, x))
+            .collect()
+    }
+
+    /// The full parameter vector (fixed ones at nominal), physical units.
+    pub fn estimate_full(&self) -> Vec<f64> {
+        let mut full = self.params.nominal().to_vec();
+        Self::load(
+            &mut full,
+            self.free.free(),
+            &self.scale,
+            self.scaled,
+            self.state(),
+        );
+        full
+    }
+
+    /// Covariance of the state (scaled coordinates when `scaled`).
+    pub fn covariance(&self) -> DMatrix<f64> {
+        match &self.engine {
+            Engine::Ekf(kf) => kf.covariance(),
+            Engine::Ukf(u) => u.p.clone(),
+        }
+    }
+
+    /// Standard errors of the free parameters in physical units: `√P_ii` (times `|ϑ0_i|` in
+    /// scaled coordinates). R1 and R2 are taken as given (absolute).
+    pub fn std_errors(&self) -> Vec<f64> {
+        let p = self.covariance();
+        (0..self.scale.len())
+            .map(|k| {
+                let s = p[(k, k)].max(0.0).sqrt();
+                if self.scaled {
+                    s * self.scale[k].abs()
+                } else {
+                    s
+                }
+            })
+            .collect()
+    }
+
+    /// How many covariance repairs the UKF needed (see the module docs).
+    pub fn repairs(&self) -> u64 {
+        self.repairs
+    }
+
+    /// How many times a bound was enforced.
+    pub fn projections(&self) -> u64 {
+        self.projections
+    }
+
+    /// Samples accepted.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+}
