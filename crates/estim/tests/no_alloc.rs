@@ -10,8 +10,8 @@ mod common;
 
 use physid_core::ParamSet;
 use physid_estim::{
-    CovSpec, Cusum, EstimatorConfig, GuardAction, LinearEstimator, Method, RelativeErrorDetector,
-    VfVariant, WindupGuard,
+    CovSpec, Cusum, EstimatorConfig, GuardAction, LinearEstimator, Method, NlConfig, NlMethod,
+    NonlinearEstimator, RelativeErrorDetector, SigmaPoints, VfVariant, WindupGuard,
 };
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -99,6 +99,28 @@ fn updates_do_not_allocate() {
                 );
             }
         }
+    }
+    // EKF and UKF through an expression model (exact gradients via dual numbers).
+    for method in [NlMethod::Ekf, NlMethod::Ukf(SigmaPoints::default())] {
+        let model =
+            physid_expr::ExprModel::parse("A*exp(-B*x) + C*x^2 + sin(D)*y", &["A", "B", "C", "D"])
+                .unwrap();
+        let params = ParamSet::new(["A", "B", "C", "D"], vec![1.0, 0.5, 0.2, 0.3]).unwrap();
+        let cfg = NlConfig {
+            r1: CovSpec::Scaled(1e-6),
+            ..NlConfig::new(method)
+        };
+        let mut est = NonlinearEstimator::new(model, &params, &params.all_free(), &cfg).unwrap();
+        let before = ALLOCS.load(Ordering::SeqCst);
+        for (r, &yt) in rows.iter().zip(&y) {
+            est.update(&[r[1], r[2]], yt).unwrap();
+        }
+        assert_eq!(
+            ALLOCS.load(Ordering::SeqCst) - before,
+            0,
+            "{} allocated",
+            method.name()
+        );
     }
     let mut det = RelativeErrorDetector::new(
         vec!["K".into(), "B".into()],
