@@ -14,6 +14,12 @@
 //! Both keep P as the *prior* of the next sample, as Eq. 5.19 does (`P = P − KJP + R1`): `P0` is
 //! the prior of the first sample. So on a linear model EKF, UKF and the Kalman filter agree.
 //!
+//! * **SR-UKF** (van der Merwe & Wan 2001) — the UKF carrying `S`, the lower Cholesky factor of
+//!   the prior P: sigma points `x ± √(l+ζ)·S`, the update `S Sᵀ − U Uᵀ` with `U = Pxy/√S_y`
+//!   as a rank-one Cholesky downdate, and R1 added as rank-one updates by its square-root
+//!   columns. P stays positive semi-definite by construction; a downdate that fails numerically
+//!   is repaired by re-factoring `SSᵀ − UUᵀ` with the jitter rule (1) and counted.
+//!
 //! **Repairs.** With the thesis defaults `W0 < 0` for l > 3, so the unscented covariance can
 //! lose definiteness. The filter does not fail; it repairs by a fixed rule and counts:
 //! (1) if the prior P has no Cholesky factor, it is symmetrised and `ε·I` is added with
@@ -61,6 +67,9 @@ pub enum NlMethod {
     Ekf,
     /// Unscented Kalman filter (Alg. 5.7).
     Ukf(SigmaPoints),
+    /// Square-root UKF (van der Merwe & Wan 2001): the same filter carrying the Cholesky factor
+    /// of P, updated by rank-one updates and downdates — the robust option.
+    Srukf(SigmaPoints),
 }
 
 impl NlMethod {
@@ -69,6 +78,7 @@ impl NlMethod {
         match self {
             NlMethod::Ekf => "ekf",
             NlMethod::Ukf(_) => "ukf",
+            NlMethod::Srukf(_) => "srukf",
         }
     }
 }
@@ -138,6 +148,35 @@ struct Ukf {
     pxy: DVector<f64>,
     /// Candidate state.
     x_new: DVector<f64>,
+    /// Square-root form: `p` holds S (lower Cholesky factor of the prior) instead of P.
+    sqrt: bool,
+    /// Square-root columns of R1 (SR-UKF): R1 = Σ c cᵀ.
+    r1_cols: Vec<DVector<f64>>,
+    /// Work matrix and vector of the rank-one updates.
+    work: DMatrix<f64>,
+    v: DVector<f64>,
+}
+
+/// Rank-one update (`sign` = 1) or downdate (`sign` = −1) of a lower Cholesky factor in place:
+/// `L Lᵀ ± x xᵀ` (`x` is overwritten). False if the result is not positive definite (then `l`
+/// is partly modified: work on a copy). Allocation-free.
+fn chol_rank_one(l: &mut DMatrix<f64>, x: &mut DVector<f64>, sign: f64) -> bool {
+    let n = l.nrows();
+    for k in 0..n {
+        let lkk = l[(k, k)];
+        let r2 = lkk * lkk + sign * x[k] * x[k];
+        if r2.is_nan() || r2 <= 0.0 || lkk == 0.0 {
+            return false;
+        }
+        let r = r2.sqrt();
+        let (c, s) = (r / lkk, x[k] / lkk);
+        l[(k, k)] = r;
+        for i in k + 1..n {
+            l[(i, k)] = (l[(i, k)] + sign * s * x[i]) / c;
+            x[i] = c * x[i] - s * l[(i, k)];
+        }
+    }
+    true
 }
 
 #[derive(Debug, Clone)]
@@ -269,7 +308,8 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                     &inner_params.all_free(),
                 )?))
             }
-            NlMethod::Ukf(sp) => {
+            NlMethod::Ukf(sp) | NlMethod::Srukf(sp) => {
+                let sqrt = matches!(config.method, NlMethod::Srukf(_));
                 // Validate R1, R2 and P0 as the Kalman filter does.
                 let probe = ParamSet::zeros((0..l).map(|k| format!("x{k}")))
                     .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
@@ -295,10 +335,28 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                     )));
                 }
                 let wm0 = zeta / (lf + zeta);
+                let p0 = config.p0.to_matrix(l, "P0")?;
+                let r1 = config.r1.to_matrix(l, "R1")?;
+                // SR-UKF: S0 = chol(P0); R1 = V Λ Vᵀ → columns √λ_k v_k.
+                let (p, r1_cols) = if sqrt {
+                    let s0 = p0
+                        .clone()
+                        .cholesky()
+                        .ok_or(EstimError::NotPositiveDefinite { what: "P0" })?
+                        .l();
+                    let eig = r1.clone().symmetric_eigen();
+                    let cols = (0..l)
+                        .filter(|&k| eig.eigenvalues[k] > 0.0)
+                        .map(|k| eig.eigenvectors.column(k) * eig.eigenvalues[k].sqrt())
+                        .collect();
+                    (s0, cols)
+                } else {
+                    (p0, Vec::new())
+                };
                 Engine::Ukf(Box::new(Ukf {
                     x: DVector::from_vec(x0),
-                    p: config.p0.to_matrix(l, "P0")?,
-                    r1: config.r1.to_matrix(l, "R1")?,
+                    p,
+                    r1,
                     r2: config.r2,
                     chol: DMatrix::zeros(l, l),
                     wm0,
@@ -307,6 +365,10 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                     ys: vec![0.0; 2 * l + 1],
                     pxy: DVector::zeros(l),
                     x_new: DVector::zeros(l),
+                    sqrt,
+                    r1_cols,
+                    work: DMatrix::zeros(l, l),
+                    v: DVector::zeros(l),
                 }))
             }
         };
@@ -445,10 +507,19 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         let lf = l as f64;
         let gamma2 = 1.0 / (2.0 * u.wi); // l + ζ
         let mut repairs = 0;
-        // (l+ζ)·P (the prior) and its Cholesky factor, repaired if needed.
+        // The factor of (l+ζ)·P (P the prior): γ·S directly in the square-root form; else a
+        // Cholesky factorisation, repaired if needed.
         let mut eps = 0.0;
         let mut tries = 0;
-        loop {
+        if u.sqrt {
+            let g = gamma2.sqrt();
+            for j in 0..l {
+                for i in 0..l {
+                    u.chol[(i, j)] = g * u.p[(i, j)];
+                }
+            }
+        }
+        while !u.sqrt {
             for j in 0..l {
                 for i in 0..l {
                     let v = 0.5 * (u.p[(i, j)] + u.p[(j, i)]) + if i == j { eps } else { 0.0 };
@@ -524,9 +595,13 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 detail: "non-finite state after the update".into(),
             });
         }
-        for j in 0..l {
-            for i in 0..l {
-                u.p[(i, j)] += u.r1[(i, j)] - (u.pxy[i] * u.pxy[j]) * sinv;
+        if u.sqrt {
+            repairs += Self::sqrt_update(u, sinv, sample)?;
+        } else {
+            for j in 0..l {
+                for i in 0..l {
+                    u.p[(i, j)] += u.r1[(i, j)] - (u.pxy[i] * u.pxy[j]) * sinv;
+                }
             }
         }
         std::mem::swap(&mut u.x, &mut u.x_new);
@@ -537,6 +612,59 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             },
             repairs,
         ))
+    }
+
+    /// SR-UKF covariance update: `S ← chol(S Sᵀ − U Uᵀ + R1)`, `U = Pxy·√(1/S_y²)`, by a rank-one
+    /// downdate and rank-one updates with R1's square-root columns, in `work` (committed on
+    /// success). A failed downdate is repaired by re-factoring with jitter; returns the repairs.
+    fn sqrt_update(u: &mut Ukf, sinv: f64, sample: u64) -> Result<u64, EstimError> {
+        let l = u.x.len();
+        let mut repairs = 0;
+        u.work.copy_from(&u.p);
+        u.v.copy_from(&u.pxy);
+        u.v *= sinv.sqrt();
+        if !chol_rank_one(&mut u.work, &mut u.v, -1.0) {
+            // Repair: P = S Sᵀ − U Uᵀ formed explicitly, symmetrised, jittered, re-factored.
+            repairs += 1;
+            let mut eps = 0.0;
+            let mut ok = false;
+            for _ in 0..13 {
+                for j in 0..l {
+                    for i in 0..l {
+                        let sst: f64 = (0..l).map(|k| u.p[(i, k)] * u.p[(j, k)]).sum();
+                        u.work[(i, j)] =
+                            sst - (u.pxy[i] * u.pxy[j]) * sinv + if i == j { eps } else { 0.0 };
+                    }
+                }
+                if cholesky_in_place(&mut u.work) {
+                    ok = true;
+                    break;
+                }
+                let tr = (0..l).map(|i| u.p.row(i).norm_squared()).sum::<f64>() / l as f64;
+                eps = if eps == 0.0 {
+                    1e-12 * tr.max(f64::MIN_POSITIVE)
+                } else {
+                    eps * 10.0
+                };
+            }
+            if !ok {
+                return Err(EstimError::LostPositiveDefiniteness {
+                    sample,
+                    detail: "square-root downdate could not be repaired".into(),
+                });
+            }
+        }
+        for c in &u.r1_cols {
+            u.v.copy_from(c);
+            if !chol_rank_one(&mut u.work, &mut u.v, 1.0) {
+                return Err(EstimError::LostPositiveDefiniteness {
+                    sample,
+                    detail: "rank-one update with R1 failed".into(),
+                });
+            }
+        }
+        std::mem::swap(&mut u.p, &mut u.work);
+        Ok(repairs)
     }
 
     /// Project the estimate into its bounds.
@@ -616,6 +744,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     pub fn covariance(&self) -> DMatrix<f64> {
         match &self.engine {
             Engine::Ekf(kf) => kf.covariance(),
+            Engine::Ukf(u) if u.sqrt => &u.p * u.p.transpose(),
             Engine::Ukf(u) => u.p.clone(),
         }
     }
@@ -649,5 +778,91 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     /// Samples accepted.
     pub fn samples(&self) -> u64 {
         self.samples
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use physid_core::Scalar;
+
+    #[derive(Debug, Clone)]
+    struct Lin2 {
+        p: Vec<String>,
+        u: Vec<String>,
+    }
+
+    impl ParamModel for Lin2 {
+        fn param_names(&self) -> &[String] {
+            &self.p
+        }
+        fn input_names(&self) -> &[String] {
+            &self.u
+        }
+        fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
+            p[0] * u[0] + p[1] * u[1]
+        }
+    }
+
+    fn ukf(method: NlMethod) -> NonlinearEstimator<Lin2> {
+        let m = Lin2 {
+            p: vec!["a".into(), "b".into()],
+            u: vec!["x".into(), "y".into()],
+        };
+        let params = ParamSet::zeros(["a", "b"]).unwrap();
+        NonlinearEstimator::new(m, &params, &params.all_free(), &NlConfig::new(method)).unwrap()
+    }
+
+    #[test]
+    fn in_place_cholesky_and_rank_one_updates_match_nalgebra() {
+        let a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
+        let mut l = a.clone();
+        assert!(cholesky_in_place(&mut l));
+        let reference = a.clone().cholesky().unwrap().l();
+        assert!((&l - &reference).norm() < 1e-14);
+        let x = DVector::from_vec(vec![0.3, -0.2, 0.5]);
+        for sign in [1.0, -1.0] {
+            let mut l2 = l.clone();
+            let mut w = x.clone();
+            assert!(chol_rank_one(&mut l2, &mut w, sign));
+            let expect = (&a + &x * x.transpose() * sign).cholesky().unwrap().l();
+            assert!((&l2 - &expect).norm() < 1e-13, "sign {sign}");
+        }
+        // L Lᵀ − x xᵀ indefinite: refused.
+        let mut l3 = l.clone();
+        let mut big = DVector::from_vec(vec![3.0, 0.0, 0.0]);
+        assert!(!chol_rank_one(&mut l3, &mut big, -1.0));
+        let mut semi = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        assert!(!cholesky_in_place(&mut semi));
+    }
+
+    /// Repair (1): a prior with no Cholesky factor (here singular, P = v vᵀ) is jittered until
+    /// it has one; the step succeeds and the repair is counted.
+    #[test]
+    fn singular_prior_is_repaired_and_counted() {
+        let mut est = ukf(NlMethod::Ukf(SigmaPoints::default()));
+        if let Engine::Ukf(u) = &mut est.engine {
+            u.p = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        }
+        est.update(&[1.0, 0.5], 2.0).unwrap();
+        assert_eq!(est.repairs(), 1);
+        assert!(est.estimate().iter().all(|v| v.is_finite()));
+    }
+
+    /// The square-root downdate `S Sᵀ − U Uᵀ` that is exactly singular fails as a rank-one
+    /// downdate and is repaired by re-factoring with jitter.
+    #[test]
+    fn failed_square_root_downdate_is_repaired() {
+        let mut est = ukf(NlMethod::Srukf(SigmaPoints::default()));
+        let Engine::Ukf(u) = &mut est.engine else {
+            panic!("SR-UKF engine")
+        };
+        u.p = DMatrix::identity(2, 2);
+        u.pxy = DVector::from_vec(vec![1.0, 0.0]);
+        // S Sᵀ − U Uᵀ with U = Pxy·√(1/S_y²), S_y² = 1: I − e1 e1ᵀ, singular.
+        let repairs = NonlinearEstimator::<Lin2>::sqrt_update(u, 1.0, 0).unwrap();
+        assert_eq!(repairs, 1);
+        let p = &u.p * u.p.transpose();
+        assert!(p[(0, 0)] > 0.0 && p[(0, 0)] < 1e-9 && (p[(1, 1)] - 1.0).abs() < 1e-9);
     }
 }

@@ -118,11 +118,18 @@ fn nonlinear<M: ParamModel>(
     NonlinearEstimator::new(model, &params, &params.all_free(), &cfg).unwrap()
 }
 
-/// Issue 3, verification 3: the UKF equals filterpy 2.0's UnscentedKalmanFilter
+/// Issue 3, verification 3: the UKF and the square-root UKF equal filterpy 2.0's
+/// UnscentedKalmanFilter
 /// (MerweScaledSigmaPoints, thesis defaults α = 1, β = 2, κ = 3 − l, l = 10) at every one of
 /// 600 steps to rtol 1e-9, and its final covariance too.
 #[test]
-fn ukf_equals_filterpy() {
+fn ukf_and_srukf_equal_filterpy() {
+    for sqrt in [false, true] {
+        ukf_vs_filterpy(sqrt);
+    }
+}
+
+fn ukf_vs_filterpy(sqrt: bool) {
     let g = load("filterpy_ukf.json");
     let phi = mat(&g["phi"]);
     let y: Vec<f64> = g["y"]
@@ -138,11 +145,18 @@ fn ukf_equals_filterpy() {
     };
     let params = ParamSet::zeros(model.param_names().to_vec()).unwrap();
     let cfg = NlConfig {
-        method: NlMethod::Ukf(SigmaPoints {
-            alpha: g["alpha"].as_f64().unwrap(),
-            beta: g["beta"].as_f64().unwrap(),
-            kappa: None, // the thesis default 3 − l, as the script's kappa
-        }),
+        method: {
+            let sp = SigmaPoints {
+                alpha: g["alpha"].as_f64().unwrap(),
+                beta: g["beta"].as_f64().unwrap(),
+                kappa: None, // the thesis default 3 − l, as the script's kappa
+            };
+            if sqrt {
+                NlMethod::Srukf(sp)
+            } else {
+                NlMethod::Ukf(sp)
+            }
+        },
         p0: CovSpec::Scaled(g["p0_scale"].as_f64().unwrap()),
         r1: CovSpec::Full(mat(&g["r1"])),
         r2: g["r2"].as_f64().unwrap(),
@@ -157,7 +171,7 @@ fn ukf_equals_filterpy() {
     }
     assert!(
         worst < 1e-9,
-        "UKF vs filterpy: worst relative error {worst:e}"
+        "sqrt = {sqrt}: vs filterpy, worst relative error {worst:e}"
     );
     // filterpy's final P is the posterior; ours is the next sample's prior, posterior + R1.
     let p_ref = mat(&g["final_p"]);
@@ -196,6 +210,13 @@ fn ekf_and_ukf_on_a_linear_model_equal_the_kalman_filter() {
     let (rows, y, _) = common::regression(500, 4, 0.1, 13);
     let mut kf = kalman(4, 1e-5, 0.01, 10.0);
     let mut ekf = nonlinear(Linear::new(4), NlMethod::Ekf, 1e-5, 0.01, 10.0);
+    let mut srukf = nonlinear(
+        Linear::new(4),
+        NlMethod::Srukf(SigmaPoints::default()),
+        1e-5,
+        0.01,
+        10.0,
+    );
     let mut ukf = nonlinear(
         Linear::new(4),
         NlMethod::Ukf(SigmaPoints::default()),
@@ -208,6 +229,8 @@ fn ekf_and_ukf_on_a_linear_model_equal_the_kalman_filter() {
         let a = kf.update(r, yt).unwrap();
         let b = ekf.update(r, yt).unwrap();
         ukf.update(r, yt).unwrap();
+        srukf.update(r, yt).unwrap();
+        worst = worst.max(common::rel_err(&srukf.estimate(), kf.estimate(), 1.0));
         assert_eq!(a, b);
         assert_eq!(kf.estimate(), &ekf.estimate()[..]);
         worst = worst.max(common::rel_err(&ukf.estimate(), kf.estimate(), 1.0));
@@ -216,6 +239,7 @@ fn ekf_and_ukf_on_a_linear_model_equal_the_kalman_filter() {
     assert!(worst < 1e-9, "UKF vs KF: {worst:e}");
     let (pk, pu) = (kf.covariance(), ukf.covariance());
     assert!((&pk - &pu).norm() < 1e-9 * pk.norm());
+    assert!((&pk - &srukf.covariance()).norm() < 1e-9 * pk.norm());
     assert_eq!(kf.std_errors().unwrap(), ekf.std_errors());
 }
 
@@ -250,7 +274,11 @@ fn scaled_coordinates_are_the_same_filter() {
 
 #[test]
 fn bad_input_is_refused_and_configuration_checked() {
-    for method in [NlMethod::Ekf, NlMethod::Ukf(SigmaPoints::default())] {
+    for method in [
+        NlMethod::Ekf,
+        NlMethod::Ukf(SigmaPoints::default()),
+        NlMethod::Srukf(SigmaPoints::default()),
+    ] {
         let mut est = nonlinear(Linear::new(2), method, 0.0, 1.0, 10.0);
         est.update(&[1.0, 2.0], 3.0).unwrap();
         let (x, p) = (est.estimate(), est.covariance());
@@ -379,7 +407,11 @@ fn coverage(method: NlMethod, p0: f64) -> f64 {
 /// ±3σ in ≥ 95 % of 100 Monte-Carlo runs.
 #[test]
 fn monte_carlo_consistency_of_the_reported_uncertainty() {
-    for method in [NlMethod::Ekf, NlMethod::Ukf(SigmaPoints::default())] {
+    for method in [
+        NlMethod::Ekf,
+        NlMethod::Ukf(SigmaPoints::default()),
+        NlMethod::Srukf(SigmaPoints::default()),
+    ] {
         let c = coverage(method, 0.01);
         println!(
             "{}: {:.1} % within ±3σ (σ0 = 0.1)",
