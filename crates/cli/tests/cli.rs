@@ -265,3 +265,99 @@ fn closed_pipe_ends_the_run_without_a_panic() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("panicked"));
 }
+
+/// y = A·exp(−B·x) + C·x on 3000 noise-free samples: EKF, UKF and SR-UKF from a model given
+/// as an expression recover A, B, C; the JSON carries repairs and timing.
+#[test]
+fn estimate_nonlinear_expression_models() {
+    let d = dir("nl");
+    let mut s = String::from("x,y\n");
+    for i in 0..3000 {
+        let x = 3.0 * ((i as f64 * 0.618).fract());
+        s.push_str(&format!("{x},{}\n", 2.0 * (-0.7 * x).exp() + 0.5 * x));
+    }
+    let csv = d.join("nl.csv");
+    std::fs::write(&csv, s).unwrap();
+    for method in ["ekf", "ukf", "srukf"] {
+        let o = physid(&[
+            "estimate",
+            "--data",
+            csv.to_str().unwrap(),
+            "--y",
+            "y",
+            "--method",
+            method,
+            "--expr",
+            "A*exp(-B*x) + C*x",
+            "--params",
+            "A=1.5,B=0.5,C=0.3",
+            "--p0",
+            "1",
+            "--r2",
+            "1e-6",
+            "--json",
+        ]);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["method"], method);
+        for (k, truth) in [("A", 2.0), ("B", 0.7), ("C", 0.5)] {
+            let est = v["params"][k].as_f64().unwrap();
+            assert!((est - truth).abs() < 1e-3, "{method} {k}: {est}");
+        }
+        assert_eq!(v["repairs"], 0);
+        assert!(v["timing"]["updates_per_s"].as_f64().unwrap() > 0.0);
+    }
+    // Only B free, A and C fixed at their (true) values; scaled coordinates.
+    let o = physid(&[
+        "estimate",
+        "--data",
+        csv.to_str().unwrap(),
+        "--y",
+        "y",
+        "--method",
+        "ekf",
+        "--expr",
+        "A*exp(-B*x) + C*x",
+        "--params",
+        "A=2,B=0.5,C=0.5",
+        "--free",
+        "B",
+        "--scaled",
+        "--p0",
+        "0.5",
+        "--r2",
+        "1e-6",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (b, se) = (
+        v["params"]["B"].as_f64().unwrap(),
+        v["std_err"]["B"].as_f64().unwrap(),
+    );
+    assert!((b - 0.7).abs() < 3.0 * se && se < 1e-4, "B = {b} ± {se}");
+    assert_eq!(v["params"]["A"], 2.0);
+    assert!(v["std_err"].get("A").is_none());
+    // Errors point at the problem.
+    let c = csv.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--method", "ekf", "--expr", "A*sine(x)", "--params", "A=1"], "unknown function 'sine' at column 3"),
+        (vec!["--method", "ekf", "--expr", "A*z", "--params", "A=1"], "name 'z' at column 3 is neither a parameter nor a data column (parameters: A; columns: x, y)"),
+        (vec!["--method", "ekf", "--expr", "A*x", "--params", "A"], "--params 'A': expected NAME=VALUE"),
+        (vec!["--method", "ukf", "--params", "A=1"], "needs a model: --expr"),
+        (vec!["--method", "rls", "--expr", "A*x", "--phi", "x"], "--expr needs --method ekf, ukf or srukf"),
+        (vec!["--method", "rls"], "needs the regressor columns: --phi"),
+        (vec!["--method", "ekf", "--expr", "A*x", "--params", "A=1", "--bound", "A=3"], "expected NAME=LOW:HIGH"),
+    ];
+    for (extra, expect) in cases {
+        let mut args = vec!["estimate", "--data", c, "--y", "y"];
+        args.extend(extra);
+        let o = physid(&args);
+        assert!(!o.status.success());
+        assert!(
+            stderr(&o).contains(expect),
+            "expected '{expect}' in:\n{}",
+            stderr(&o)
+        );
+    }
+}

@@ -1,14 +1,17 @@
-//! `physid estimate`: recursive estimation of a linear regression `y = φᵀϑ` from a CSV file.
+//! `physid estimate`: recursive estimation from a CSV file — a linear regression `y = φᵀϑ`
+//! (rls, rlsf, rlsvf, kf, dsfc) or a model from an expression (ekf, ukf, srukf).
 
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
 use physid_estim::{
-    metrics, CovSpec, EstimError, EstimatorConfig, GuardAction, LinearEstimator, Method, VfVariant,
-    WindupGuard,
+    metrics, CovSpec, EstimError, EstimatorConfig, GuardAction, LinearEstimator, Method, NlConfig,
+    NlMethod, NonlinearEstimator, SigmaPoints, Step, VfVariant, WindupGuard,
 };
+use physid_expr::ExprModel;
 use serde_json::json;
 use std::path::PathBuf;
+use std::time::Instant;
 
 /// Arguments of `physid estimate`.
 #[derive(clap::Args)]
@@ -22,10 +25,18 @@ pub struct Args {
     /// Column of the measured output y.
     #[arg(long)]
     pub y: String,
-    /// Columns of the regressor φ, comma separated; they name the parameters.
-    #[arg(long, value_delimiter = ',', required = true)]
+    /// Linear methods: columns of the regressor φ, comma separated; they name the parameters.
+    #[arg(long, value_delimiter = ',')]
     pub phi: Vec<String>,
-    /// Estimator: rls, rlsf (constant or, with --lambda0, time-varying λ), rlsvf, kf, dsfc.
+    /// Non-linear methods: the model, e.g. 'A*exp(-B*x) + C*x'; names not in --params are
+    /// data columns.
+    #[arg(long)]
+    pub expr: Option<String>,
+    /// Non-linear methods: parameters with their initial (nominal) values, e.g. A=1,B=0.5.
+    #[arg(long, value_delimiter = ',')]
+    pub params: Vec<String>,
+    /// Estimator: rls, rlsf (constant or, with --lambda0, time-varying λ), rlsvf, kf, dsfc;
+    /// ekf, ukf, srukf for --expr models.
     #[arg(long, default_value = "rlsf")]
     pub method: String,
     /// Forgetting factor λ ∈ (0, 1] (rlsf, dsfc; with --lambda0 it is λ(0)) [default: 0.98].
@@ -40,22 +51,38 @@ pub struct Args {
     /// Vector-forgetting form: published (thesis Alg. 5.4) or symmetric.
     #[arg(long, default_value = "published")]
     pub vf_variant: String,
-    /// Initial covariance P0 = C·I.
-    #[arg(long, default_value_t = 1000.0)]
-    pub p0: f64,
-    /// Initial (nominal) values, in --phi order [default: all 0].
+    /// Initial covariance P0 = C·I [default: 1000 for linear methods, 100 for ekf/ukf/srukf].
+    #[arg(long)]
+    pub p0: Option<f64>,
+    /// Linear methods: initial (nominal) values, in --phi order [default: all 0].
     #[arg(long, value_delimiter = ',')]
     pub theta0: Option<Vec<f64>>,
-    /// Estimate only these parameters; the others stay at their --theta0 values.
+    /// Estimate only these parameters; the others stay at their initial values.
     #[arg(long, value_delimiter = ',')]
     pub free: Option<Vec<String>>,
-    /// Kalman: parameter random-walk variance, R1 = X·I.
+    /// Kalman-type methods (kf, ekf, ukf, srukf): parameter random-walk variance, R1 = X·I.
     #[arg(long, default_value_t = 0.0)]
     pub r1: f64,
-    /// Kalman: measurement noise variance R2.
+    /// Kalman-type methods: measurement noise variance R2.
     #[arg(long, default_value_t = 1.0)]
     pub r2: f64,
-    /// Wind-up guard: bound on trace(P).
+    /// UKF sigma points: α [default: 1, the thesis's].
+    #[arg(long, default_value_t = 1.0)]
+    pub alpha: f64,
+    /// UKF sigma points: β [default: 2].
+    #[arg(long, default_value_t = 2.0)]
+    pub beta: f64,
+    /// UKF sigma points: κ [default: 3 − l, the thesis's].
+    #[arg(long)]
+    pub kappa: Option<f64>,
+    /// Non-linear methods: estimate in scaled coordinates ϑ = ϑ0·(1 + x) (P0 then in relative
+    /// units).
+    #[arg(long)]
+    pub scaled: bool,
+    /// Non-linear methods: bound a parameter, NAME=LOW:HIGH (repeatable).
+    #[arg(long)]
+    pub bound: Vec<String>,
+    /// Wind-up guard (linear methods): bound on trace(P).
     #[arg(long)]
     pub max_trace: Option<f64>,
     /// Wind-up guard action beyond the bound: scale or reset.
@@ -72,7 +99,68 @@ pub struct Args {
     pub json: bool,
 }
 
-fn method(args: &Args, p: usize) -> Result<Method> {
+/// What the command needs of a recursive estimator, whichever kind it is.
+trait Online {
+    /// Feed sample `i` of the recording.
+    fn update(&mut self, i: usize) -> Result<Step, EstimError>;
+    /// Free-parameter estimates.
+    fn free_estimate(&self) -> Vec<f64>;
+    /// Their standard errors, when they can be estimated yet.
+    fn std_errors(&self) -> Option<Vec<f64>>;
+    /// Covariance repairs so far (the UKFs; `None` where the method has none).
+    fn repairs(&self) -> Option<u64> {
+        None
+    }
+}
+
+struct LinearRun<'a> {
+    est: LinearEstimator,
+    cols: Vec<&'a [f64]>,
+    y: &'a [f64],
+    phi: Vec<f64>,
+}
+
+impl Online for LinearRun<'_> {
+    fn update(&mut self, i: usize) -> Result<Step, EstimError> {
+        for (f, c) in self.phi.iter_mut().zip(&self.cols) {
+            *f = c[i];
+        }
+        self.est.update(&self.phi, self.y[i])
+    }
+    fn free_estimate(&self) -> Vec<f64> {
+        self.est.estimate().to_vec()
+    }
+    fn std_errors(&self) -> Option<Vec<f64>> {
+        self.est.std_errors().ok()
+    }
+}
+
+struct NonlinearRun<'a> {
+    est: NonlinearEstimator<ExprModel>,
+    cols: Vec<&'a [f64]>,
+    y: &'a [f64],
+    u: Vec<f64>,
+}
+
+impl Online for NonlinearRun<'_> {
+    fn update(&mut self, i: usize) -> Result<Step, EstimError> {
+        for (f, c) in self.u.iter_mut().zip(&self.cols) {
+            *f = c[i];
+        }
+        self.est.update(&self.u, self.y[i])
+    }
+    fn free_estimate(&self) -> Vec<f64> {
+        self.est.estimate()
+    }
+    fn std_errors(&self) -> Option<Vec<f64>> {
+        Some(self.est.std_errors())
+    }
+    fn repairs(&self) -> Option<u64> {
+        Some(self.est.repairs())
+    }
+}
+
+fn linear_method(args: &Args, p: usize) -> Result<Method> {
     let lambda = args.lambda.unwrap_or(0.98);
     Ok(match args.method.as_str() {
         "rls" => Method::Rls,
@@ -105,10 +193,36 @@ fn method(args: &Args, p: usize) -> Result<Method> {
         "dsfc" => Method::Dsfc { lambda },
         m => {
             return Err(miette!(
-                "unknown method '{m}'; the methods are: rls, rlsf, rlsvf, kf, dsfc"
+                "unknown method '{m}'; the methods are: rls, rlsf, rlsvf, kf, dsfc, ekf, ukf, srukf"
             ))
         }
     })
+}
+
+/// `NAME=VALUE,…` into names and values.
+fn named_values(items: &[String], flag: &str) -> Result<(Vec<String>, Vec<f64>)> {
+    let mut names = Vec::new();
+    let mut values = Vec::new();
+    for item in items {
+        let (n, v) = item
+            .split_once('=')
+            .ok_or_else(|| miette!("{flag} '{item}': expected NAME=VALUE"))?;
+        let v: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| miette!("{flag} '{item}': '{v}' is not a number"))?;
+        names.push(n.trim().to_string());
+        values.push(v);
+    }
+    Ok((names, values))
+}
+
+/// The free/fixed view from --free.
+fn free_set(args: &Args, params: &ParamSet) -> Result<physid_core::FreeSet> {
+    match &args.free {
+        Some(names) => params.free(names).into_diagnostic(),
+        None => Ok(params.all_free()),
+    }
 }
 
 /// Run the estimation.
@@ -124,62 +238,145 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let rec = physid_io::read_csv(&args.data, &opts).into_diagnostic()?;
     let file = args.data.display().to_string();
-    let y = rec.values(&args.y).map_err(|e| miette!("{file}: {e}"))?;
-    let cols: Vec<&[f64]> = args
-        .phi
-        .iter()
-        .map(|c| rec.values(c).map_err(|e| miette!("{file}: {e}")))
-        .collect::<Result<_>>()?;
-    let p = cols.len();
-    let theta0 = args.theta0.clone().unwrap_or_else(|| vec![0.0; p]);
-    let params = ParamSet::new(args.phi.clone(), theta0).into_diagnostic()?;
-    let free = match &args.free {
-        Some(names) => params.free(names).into_diagnostic()?,
-        None => params.all_free(),
-    };
-    let guard = match args.max_trace {
-        None => None,
-        Some(max_trace) => Some(WindupGuard {
-            max_trace,
-            action: match args.guard.as_str() {
-                "scale" => GuardAction::Scale,
-                "reset" => GuardAction::Reset,
-                v => return Err(miette!("--guard '{v}': expected scale or reset")),
+    let column = |c: &str| rec.values(c).map_err(|e| miette!("{file}: {e}"));
+    let y = column(&args.y)?;
+    let nonlinear = matches!(args.method.as_str(), "ekf" | "ukf" | "srukf");
+
+    let (mut online, params, free, method_name): (Box<dyn Online>, ParamSet, _, &str) = if nonlinear
+    {
+        let text = args.expr.as_deref().ok_or_else(|| {
+            miette!(
+                "--method {} needs a model: --expr '…' --params NAME=VALUE,…",
+                args.method
+            )
+        })?;
+        if !args.phi.is_empty() {
+            return Err(miette!("--phi is for the linear methods; with --expr the data columns are the names in the expression"));
+        }
+        let (names, values) = named_values(&args.params, "--params")?;
+        let model = ExprModel::parse(text, &names).map_err(|e| miette!("--expr: {e}"))?;
+        model
+            .check_inputs(&rec.names())
+            .map_err(|e| miette!("--expr: {e} (in {file})"))?;
+        let cols: Vec<&[f64]> = model
+            .inputs()
+            .iter()
+            .map(|c| column(c))
+            .collect::<Result<_>>()?;
+        let params = ParamSet::new(names, values).into_diagnostic()?;
+        let free = free_set(args, &params)?;
+        let sp = SigmaPoints {
+            alpha: args.alpha,
+            beta: args.beta,
+            kappa: args.kappa,
+        };
+        let mut bounds = Vec::new();
+        for b in &args.bound {
+            let (n, range) = b
+                .split_once('=')
+                .ok_or_else(|| miette!("--bound '{b}': expected NAME=LOW:HIGH"))?;
+            let (lo, hi) = range
+                .split_once(':')
+                .and_then(|(l, h)| Some((l.trim().parse().ok()?, h.trim().parse().ok()?)))
+                .ok_or_else(|| miette!("--bound '{b}': expected NAME=LOW:HIGH with numbers"))?;
+            bounds.push((n.trim().to_string(), lo, hi));
+        }
+        let cfg = NlConfig {
+            method: match args.method.as_str() {
+                "ekf" => NlMethod::Ekf,
+                "ukf" => NlMethod::Ukf(sp),
+                _ => NlMethod::Srukf(sp),
             },
-        }),
+            p0: CovSpec::Scaled(args.p0.unwrap_or(100.0)),
+            r1: CovSpec::Scaled(args.r1),
+            r2: args.r2,
+            scaled: args.scaled,
+            bounds,
+        };
+        let name = cfg.method.name();
+        let est = NonlinearEstimator::new(model, &params, &free, &cfg).into_diagnostic()?;
+        let u = vec![0.0; cols.len()];
+        (
+            Box::new(NonlinearRun { est, cols, y, u }),
+            params,
+            free,
+            name,
+        )
+    } else {
+        if args.phi.is_empty() {
+            return Err(miette!(
+                "--method {} needs the regressor columns: --phi COL,COL,…",
+                args.method
+            ));
+        }
+        if args.expr.is_some() {
+            return Err(miette!("--expr needs --method ekf, ukf or srukf"));
+        }
+        let cols: Vec<&[f64]> = args.phi.iter().map(|c| column(c)).collect::<Result<_>>()?;
+        let p = cols.len();
+        let theta0 = args.theta0.clone().unwrap_or_else(|| vec![0.0; p]);
+        let params = ParamSet::new(args.phi.clone(), theta0).into_diagnostic()?;
+        let free = free_set(args, &params)?;
+        let guard = match args.max_trace {
+            None => None,
+            Some(max_trace) => Some(WindupGuard {
+                max_trace,
+                action: match args.guard.as_str() {
+                    "scale" => GuardAction::Scale,
+                    "reset" => GuardAction::Reset,
+                    v => return Err(miette!("--guard '{v}': expected scale or reset")),
+                },
+            }),
+        };
+        let cfg = EstimatorConfig {
+            method: linear_method(args, free.free().len())?,
+            p0: CovSpec::Scaled(args.p0.unwrap_or(1000.0)),
+            guard,
+        };
+        let name = cfg.method.name();
+        let est = LinearEstimator::new(&cfg, &params, &free).into_diagnostic()?;
+        (
+            Box::new(LinearRun {
+                est,
+                cols,
+                y,
+                phi: vec![0.0; p],
+            }),
+            params,
+            free,
+            name,
+        )
     };
-    let cfg = EstimatorConfig {
-        method: method(args, free.free().len())?,
-        p0: CovSpec::Scaled(args.p0),
-        guard,
-    };
-    let mut est = LinearEstimator::new(&cfg, &params, &free).into_diagnostic()?;
-    let nfree = free.free().len();
+    let names: Vec<String> = free
+        .free()
+        .iter()
+        .map(|&i| params.names()[i].clone())
+        .collect();
+    let nfree = names.len();
 
     // Line of sample i in the file: header, optional units row, 1-based.
     let line = |i: usize| i + 2 + usize::from(args.units_row);
     let n = y.len();
-    let mut phi = vec![0.0; p];
     let mut measured = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);
     let mut track: Vec<Vec<f64>> = vec![Vec::new(); 2 * nfree + 2];
-    let mut se = vec![0.0; nfree];
     let mut skipped = 0usize;
+    let mut seconds = 0.0;
     for i in 0..n {
-        for (f, c) in phi.iter_mut().zip(&cols) {
-            *f = c[i];
-        }
-        match est.update(&phi, y[i]) {
+        let t0 = Instant::now();
+        let r = online.update(i);
+        seconds += t0.elapsed().as_secs_f64();
+        match r {
             Ok(step) => {
                 measured.push(y[i]);
                 predicted.push(y[i] - step.prediction_error);
                 if args.out.is_some() {
-                    let ok = est.std_errors_into(&mut se).is_ok();
+                    let se = online.std_errors();
                     track[0].push(y[i] - step.prediction_error);
                     track[1].push(step.prediction_error);
-                    for j in 0..nfree {
-                        track[2 + j].push(est.estimate()[j]);
-                        track[2 + nfree + j].push(if ok { se[j] } else { f64::NAN });
+                    for (j, v) in online.free_estimate().into_iter().enumerate() {
+                        track[2 + j].push(v);
+                        track[2 + nfree + j].push(se.as_ref().map_or(f64::NAN, |s| s[j]));
                     }
                 }
             }
@@ -194,12 +391,15 @@ pub fn run(args: &Args) -> Result<()> {
             Err(e) => return Err(miette!("{file}, line {} (sample {i}): {e}", line(i))),
         }
     }
-    if est.samples() == 0 {
+    let accepted = measured.len();
+    if accepted == 0 {
         return Err(miette!("{file}: no usable samples ({skipped} skipped)"));
     }
-    let names = est.free_names();
-    let theta = est.estimate().to_vec();
-    let std_err = est.std_errors().ok();
+    let theta = online.free_estimate();
+    let std_err = online.std_errors();
+    let mut full = params.nominal().to_vec();
+    free.scatter(&theta, &mut full);
+    let repairs = online.repairs();
     let nmse = metrics::nmse(&measured, &predicted);
     let nrmse = metrics::nrmse(&measured, &predicted);
     let fit = metrics::fit_percent(&measured, &predicted);
@@ -211,7 +411,7 @@ pub fn run(args: &Args) -> Result<()> {
             ("prediction_error".into(), std::mem::take(&mut track[1])),
         ];
         for (j, nm) in names.iter().enumerate() {
-            cols.push(((*nm).to_string(), std::mem::take(&mut track[2 + j])));
+            cols.push((nm.clone(), std::mem::take(&mut track[2 + j])));
         }
         for (j, nm) in names.iter().enumerate() {
             cols.push((
@@ -232,40 +432,45 @@ pub fn run(args: &Args) -> Result<()> {
             .wrap_err("writing --out")?;
     }
 
+    let rate = accepted as f64 / seconds.max(1e-12);
     if args.json {
-        let params: serde_json::Map<_, _> = params
+        let params_json: serde_json::Map<_, _> = params
             .names()
             .iter()
-            .zip(est.estimate_full())
+            .zip(&full)
             .map(|(k, v)| (k.clone(), json!(v)))
             .collect();
         let se: serde_json::Map<_, _> = names
             .iter()
             .enumerate()
-            .map(|(j, k)| (k.to_string(), json!(std_err.as_ref().map(|s| s[j]))))
+            .map(|(j, k)| (k.clone(), json!(std_err.as_ref().map(|s| s[j]))))
             .collect();
-        let out = json!({
-            "method": cfg.method.name(),
-            "samples": est.samples(),
+        let mut out = json!({
+            "method": method_name,
+            "samples": accepted,
             "skipped": skipped,
-            "params": params,
+            "params": params_json,
             "std_err": se,
             "nmse": nmse,
             "nrmse": nrmse,
             "fit_percent": fit,
+            "timing": {"seconds": seconds, "updates_per_s": rate},
         });
+        if let Some(r) = repairs {
+            out["repairs"] = json!(r);
+        }
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
         return Ok(());
     }
     outln!(
-        "{} on {file}: {} samples{}",
-        cfg.method.name(),
-        est.samples(),
+        "{method_name} on {file}: {accepted} samples{} ({:.3} s, {:.0} updates/s)",
         if skipped > 0 {
             format!(", {skipped} skipped (non-finite)")
         } else {
             String::new()
-        }
+        },
+        seconds,
+        rate
     );
     outln!(
         "{:<16} {:>16} {:>14}",
@@ -294,5 +499,8 @@ pub fn run(args: &Args) -> Result<()> {
         show(nrmse),
         fit.map_or("undefined".to_string(), |v| format!("{v:.2} %"))
     );
+    if let Some(r) = repairs {
+        outln!("covariance repairs: {r}");
+    }
     Ok(())
 }
