@@ -362,17 +362,17 @@ pub fn run(args: &Args) -> Result<()> {
     let mut track: Vec<Vec<f64>> = vec![Vec::new(); 2 * nfree + 2];
     let mut skipped = 0usize;
     let mut seconds = 0.0;
-    for i in 0..n {
+    for (i, &yi) in y.iter().enumerate() {
         let t0 = Instant::now();
         let r = online.update(i);
         seconds += t0.elapsed().as_secs_f64();
         match r {
             Ok(step) => {
-                measured.push(y[i]);
-                predicted.push(y[i] - step.prediction_error);
+                measured.push(yi);
+                predicted.push(yi - step.prediction_error);
                 if args.out.is_some() {
                     let se = online.std_errors();
-                    track[0].push(y[i] - step.prediction_error);
+                    track[0].push(yi - step.prediction_error);
                     track[1].push(step.prediction_error);
                     for (j, v) in online.free_estimate().into_iter().enumerate() {
                         track[2 + j].push(v);
