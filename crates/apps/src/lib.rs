@@ -3,7 +3,10 @@
 //! Every function here returns a typed result and prints nothing; the `physid` binary turns
 //! the results into tables, JSON, CSV and plots.
 //!
+//! * [`example_5_1`] — thesis Example 5.1's model in Rust (the reference for the expression
+//!   language).
 //! * [`example_5_2`] — thesis Example 5.2: RLS, RLS with forgetting and RLS with vector
 //!   forgetting tracking a step in one parameter of `z = A(t)·sin(x) + B·y²`.
 
+pub mod example_5_1;
 pub mod example_5_2;

@@ -236,7 +236,23 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    assert_eq!(r.len(), 15);
+    assert_eq!(r.len(), 15 + 3 + 4);
+    for name in ["ekf", "ukf", "srukf"] {
+        let e = r
+            .iter()
+            .find(|e| e["name"] == name && e["p"] == 10)
+            .unwrap();
+        assert!(e["updates_per_s"].as_f64().unwrap() > 0.0);
+    }
+    for name in ["native", "expr"] {
+        for what in ["value", "gradient"] {
+            let e = r
+                .iter()
+                .find(|e| e["name"] == name && e["what"] == what)
+                .unwrap();
+            assert!(e["evals_per_s"].as_f64().unwrap() > 0.0);
+        }
+    }
     for name in ["rls", "rlsf", "rlsvf", "kf", "dsfc"] {
         for p in [2, 6, 20] {
             let e = r.iter().find(|e| e["name"] == name && e["p"] == p).unwrap();

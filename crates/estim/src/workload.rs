@@ -108,6 +108,47 @@ impl Workload {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use physid_core::{GradientEngine, ParamModel};
+
+    /// The benchmark model's exact gradient equals central differences, and every filter runs
+    /// on its workload.
+    #[test]
+    fn bench10_gradient_and_workloads() {
+        let m = Bench10::default();
+        let mut engine = GradientEngine::new(10);
+        let free: Vec<usize> = (0..10).collect();
+        let mut g = [0.0; 10];
+        for k in [0, 37, 500, 9001] {
+            let u = Bench10::inputs_at(k);
+            let p = Bench10::NOMINAL;
+            engine.value_and_gradient(&m, &u, &p, &free, &mut g);
+            for j in 0..10 {
+                let h = 1e-6 * p[j].abs();
+                let (mut a, mut b) = (p, p);
+                a[j] += h;
+                b[j] -= h;
+                let fd = (m.eval::<f64>(&u, &a) - m.eval::<f64>(&u, &b)) / (2.0 * h);
+                // The witness's own round-off: ≈ ε·|y|/h.
+                let y = m.eval::<f64>(&u, &p).abs();
+                let tol = 1e-6 * fd.abs().max(1.0) + 10.0 * f64::EPSILON * y / h;
+                assert!(
+                    (g[j] - fd).abs() <= tol,
+                    "k{}: {} vs {fd} (tol {tol:e})",
+                    j + 1,
+                    g[j]
+                );
+            }
+        }
+        for method in [
+            crate::NlMethod::Ekf,
+            crate::NlMethod::Ukf(crate::SigmaPoints::default()),
+            crate::NlMethod::Srukf(crate::SigmaPoints::default()),
+        ] {
+            let mut w = NonlinearWorkload::new(method, 720).unwrap();
+            w.run(5000).unwrap();
+            assert!(w.estimator.estimate().iter().all(|v| v.is_finite()));
+        }
+    }
 
     /// The stream equals the Python implementation in `bench/peers/peers.py`
     /// (`splitmix_data(3, 2)` printed these values).
@@ -124,5 +165,121 @@ mod tests {
         ];
         assert_eq!(rows, expect_rows);
         assert_eq!(y, [-2.40419268518543, -3.464328400969659]);
+    }
+}
+
+/// A 10-parameter model with the cost profile of the cyclic-torque model (SPEC §9) — square
+/// roots and trigonometry of a slider-crank term plus a polynomial — for benchmarking the
+/// non-linear estimators until that model exists. Inputs: an angle `q`, rates `w`, `a`, a load
+/// `f` and a temperature-like `s`; parameters `k1 … k10`.
+#[derive(Debug, Clone)]
+pub struct Bench10 {
+    params: Vec<String>,
+    inputs: Vec<String>,
+}
+
+impl Default for Bench10 {
+    fn default() -> Self {
+        Self {
+            params: (1..=10).map(|i| format!("k{i}")).collect(),
+            inputs: ["q", "w", "a", "f", "s"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+        }
+    }
+}
+
+impl Bench10 {
+    /// Nominal parameter values.
+    pub const NOMINAL: [f64; 10] = [
+        0.8, 0.054, 0.088, 0.0257, 1.2, -0.3, 0.05, 0.02, -0.01, 0.004,
+    ];
+
+    /// A sample of inputs for step `k` (deterministic).
+    pub fn inputs_at(k: usize) -> [f64; 5] {
+        let q = (k as f64 * 0.0174533) % std::f64::consts::TAU;
+        [
+            q,
+            104.7 + 10.0 * (k as f64 * 1e-3).sin(),
+            5.0 * (k as f64 * 7e-3).cos(),
+            3e5 * (1.0 + q.cos()),
+            0.3 + 0.1 * (k as f64 * 1e-4).sin(),
+        ]
+    }
+}
+
+impl physid_core::ParamModel for Bench10 {
+    fn param_names(&self) -> &[String] {
+        &self.params
+    }
+    fn input_names(&self) -> &[String] {
+        &self.inputs
+    }
+    fn eval<T: physid_core::Scalar>(&self, u: &[f64], k: &[T]) -> T {
+        let (q, w, a, f, s) = (u[0], u[1], u[2], u[3], u[4]);
+        let (m, b, l, r) = (k[0], k[1], k[2], k[3]);
+        // slider-crank: ψ = 1 − (r sin q / L)², G = sin q + √((1−ψ)/ψ)·cos q, written as
+        // |r sin q / L|/√ψ: the same value, but √ of 0 at q = 0 has an infinite derivative
+        // (∞·0 = NaN under automatic differentiation) while this form does not.
+        let rs = r * q.sin() / l;
+        let psi = -(rs * rs) + 1.0;
+        let g = rs.abs() / psi.sqrt() * q.cos() + q.sin();
+        let g1 = r * ((r / l) * q.cos() / (psi * psi.sqrt()) + 1.0) * q.cos();
+        let area = b * b * (std::f64::consts::PI / 4.0);
+        let ind = area * r * g * f;
+        let rec = m * r * g * (g1 * (w * w) + r * g * a);
+        let fric = k[4] + k[5] * w + k[6] * s + k[7] * (w * w) + k[8] * (w * s) + k[9] * (s * s);
+        ind - rec - fric
+    }
+}
+
+/// An estimator of every parameter of [`Bench10`] and its input stream, ready to be timed.
+#[derive(Debug, Clone)]
+pub struct NonlinearWorkload {
+    /// The estimator.
+    pub estimator: crate::NonlinearEstimator<Bench10>,
+    inputs: Vec<[f64; 5]>,
+    y: Vec<f64>,
+    next: usize,
+}
+
+impl NonlinearWorkload {
+    /// `method` at scaled coordinates (P0 = 1e-4·I, i.e. 1 % per parameter), R2 = 1, over `n`
+    /// cycled samples generated from the nominal parameters perturbed by 2 %.
+    pub fn new(method: crate::NlMethod, n: usize) -> Result<Self, EstimError> {
+        use physid_core::ParamModel;
+        let model = Bench10::default();
+        let truth: Vec<f64> = Bench10::NOMINAL.iter().map(|v| v * 1.02).collect();
+        let inputs: Vec<[f64; 5]> = (0..n.max(1)).map(Bench10::inputs_at).collect();
+        let y = inputs
+            .iter()
+            .map(|u| model.eval::<f64>(u, &truth))
+            .collect();
+        let params = ParamSet::new(model.param_names().to_vec(), Bench10::NOMINAL.to_vec())
+            .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+        let cfg = crate::NlConfig {
+            p0: CovSpec::Scaled(1e-4),
+            scaled: true,
+            ..crate::NlConfig::new(method)
+        };
+        let estimator = crate::NonlinearEstimator::new(model, &params, &params.all_free(), &cfg)?;
+        Ok(Self {
+            estimator,
+            inputs,
+            y,
+            next: 0,
+        })
+    }
+
+    /// Run `updates` updates (cycling over the data).
+    pub fn run(&mut self, updates: usize) -> Result<(), EstimError> {
+        let n = self.y.len();
+        for _ in 0..updates {
+            let i = self.next;
+            self.estimator.update(&self.inputs[i], self.y[i])?;
+            self.next = if i + 1 == n { 0 } else { i + 1 };
+        }
+        Ok(())
     }
 }

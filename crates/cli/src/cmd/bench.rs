@@ -3,7 +3,11 @@
 
 use crate::out::outln;
 use miette::{IntoDiagnostic, Result};
-use physid_estim::workload::{standard_methods, Workload};
+use physid_apps::example_5_1::{Model51, EXPRESSION, NOMINAL};
+use physid_core::{GradientEngine, ParamModel};
+use physid_estim::workload::{standard_methods, NonlinearWorkload, Workload};
+use physid_estim::{NlMethod, SigmaPoints};
+use physid_expr::ExprModel;
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -36,22 +40,21 @@ pub fn machine() -> String {
     format!("{cpu}, {cores} cores, {}", std::env::consts::OS)
 }
 
-/// Updates per second of `w`: repeated batches until `budget` has passed; the best of three
-/// rounds (the least disturbed by the rest of the machine).
-fn rate(w: &mut Workload, budget: Duration) -> Result<f64> {
-    const BATCH: usize = 4096;
-    w.run(BATCH).into_diagnostic()?; // warm-up
+/// Operations per second of `batch_fn` (which performs `batch` operations per call): repeated
+/// calls until `budget` has passed; the best of three rounds (the least disturbed by the rest
+/// of the machine).
+fn rate(batch: usize, budget: Duration, mut batch_fn: impl FnMut() -> Result<()>) -> Result<f64> {
+    batch_fn()?; // warm-up
     let mut best: f64 = 0.0;
     for _ in 0..3 {
         let start = Instant::now();
         let mut n = 0usize;
         while start.elapsed() < budget / 3 {
-            w.run(std::hint::black_box(BATCH)).into_diagnostic()?;
-            n += BATCH;
+            batch_fn()?;
+            n += batch;
         }
         best = best.max(n as f64 / start.elapsed().as_secs_f64());
     }
-    std::hint::black_box(w.estimator.estimate());
     Ok(best)
 }
 
@@ -74,7 +77,9 @@ pub fn run(args: &Args) -> Result<()> {
         for method in standard_methods(p) {
             let name = method.name();
             let mut w = Workload::new(method, p, 4096).into_diagnostic()?;
-            let r = rate(&mut w, budget)?;
+            let r = rate(4096, budget, || {
+                w.run(std::hint::black_box(4096)).into_diagnostic()
+            })?;
             if !args.json {
                 outln!(
                     "{name:<8} {p:>4} {r:>16.0} {:>14.0}",
@@ -84,9 +89,109 @@ pub fn run(args: &Args) -> Result<()> {
             results.push(json!({"name": name, "p": p, "updates_per_s": r}));
         }
     }
+    // Non-linear estimators on the 10-parameter benchmark model (the cyclic-torque model's
+    // cost profile), scaled coordinates.
+    for method in [
+        NlMethod::Ekf,
+        NlMethod::Ukf(SigmaPoints::default()),
+        NlMethod::Srukf(SigmaPoints::default()),
+    ] {
+        let name = method.name();
+        let mut w = NonlinearWorkload::new(method, 720).into_diagnostic()?;
+        let r = rate(720, budget, || w.run(720).into_diagnostic())?;
+        if !args.json {
+            outln!(
+                "{name:<8} {:>4} {r:>16.0} {:>14.0}",
+                10,
+                r / REALTIME_SAMPLES_PER_S
+            );
+        }
+        results.push(json!({"name": name, "p": 10, "updates_per_s": r}));
+    }
+    // Model evaluation: Example 5.1's model as an expression and written in Rust, values and
+    // exact gradients (6 parameters).
+    let expr = ExprModel::parse(EXPRESSION, &["A", "B", "C", "D", "E", "F"])
+        .map_err(|e| miette::miette!("{e}"))?;
+    let native = Model51::default();
+    let data: Vec<[f64; 2]> = (0..1024)
+        .map(|i| {
+            [
+                (i as f64 * 0.01).sin() + 1.2,
+                1.0 + 0.5 * (i as f64 * 0.003).cos(),
+            ]
+        })
+        .collect();
+    let free: Vec<usize> = (0..6).collect();
+    let mut engine = GradientEngine::new(6);
+    let mut grad = [0.0; 6];
+    let eval_rate = |m: &dyn Fn(&[f64]) -> f64| {
+        rate(data.len(), budget, || {
+            let s: f64 = data.iter().map(|u| m(std::hint::black_box(u))).sum();
+            std::hint::black_box(s);
+            Ok(())
+        })
+    };
+    let rates = [
+        (
+            "native",
+            "value",
+            eval_rate(&|u| native.eval::<f64>(u, &NOMINAL))?,
+        ),
+        (
+            "expr",
+            "value",
+            eval_rate(&|u| expr.eval::<f64>(u, &NOMINAL))?,
+        ),
+    ];
+    let mut grad_rate = |m: &dyn ParamModelDyn| {
+        rate(data.len(), budget, || {
+            let s: f64 = data
+                .iter()
+                .map(|u| m.value_and_gradient(&mut engine, u, &NOMINAL, &free, &mut grad))
+                .sum();
+            std::hint::black_box(s);
+            Ok(())
+        })
+    };
+    let grad_rates = [
+        ("native", "gradient", grad_rate(&native)?),
+        ("expr", "gradient", grad_rate(&expr)?),
+    ];
+    for (name, what, r) in rates.iter().chain(&grad_rates) {
+        if !args.json {
+            outln!("{name:<8} {what:>9} {r:>11.0} evaluations/s (Example 5.1 model)");
+        }
+        results.push(json!({"name": name, "what": what, "evals_per_s": r}));
+    }
     if args.json {
         let out = json!({"machine": machine(), "results": results});
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
     }
     Ok(())
+}
+
+/// Object-safe access to a model's exact gradient, so that the benchmark loop is written once
+/// for the native and the expression model.
+trait ParamModelDyn {
+    fn value_and_gradient(
+        &self,
+        engine: &mut GradientEngine,
+        u: &[f64],
+        p: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64;
+}
+
+impl<M: ParamModel> ParamModelDyn for M {
+    fn value_and_gradient(
+        &self,
+        engine: &mut GradientEngine,
+        u: &[f64],
+        p: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
+        engine.value_and_gradient(self, u, p, free, grad)
+    }
 }
