@@ -8,6 +8,17 @@ impl ExprModel {
     /// Evaluate node `i`. With `LIFT`, a subtree that does not depend on any parameter is
     /// evaluated once in plain `f64` and promoted — what a hand-written model does with its
     /// data-only terms — instead of carrying zero derivatives through every operation.
+    /// A child: leaves are read directly, without a recursive call.
+    #[inline(always)]
+    fn arg<T: Scalar, const LIFT: bool>(&self, i: u32, u: &[f64], p: &[T]) -> T {
+        match self.nodes[i as usize] {
+            Node::Param(k) => p[k],
+            Node::Input(k) => T::from(u[k]),
+            Node::Num(v) => T::from(v),
+            _ => self.ev::<T, LIFT>(i, u, p),
+        }
+    }
+
     fn ev<T: Scalar, const LIFT: bool>(&self, i: u32, u: &[f64], p: &[T]) -> T {
         let iu = i as usize;
         if LIFT && !self.dep[iu] {
@@ -17,25 +28,29 @@ impl ExprModel {
             Node::Num(v) => T::from(v),
             Node::Param(k) => p[k],
             Node::Input(k) => T::from(u[k]),
-            Node::Neg(a) => -self.ev::<T, LIFT>(a, u, p),
-            Node::Add(a, b) => self.ev::<T, LIFT>(a, u, p) + self.ev::<T, LIFT>(b, u, p),
-            Node::Sub(a, b) => self.ev::<T, LIFT>(a, u, p) - self.ev::<T, LIFT>(b, u, p),
-            Node::Mul(a, b) => self.ev::<T, LIFT>(a, u, p) * self.ev::<T, LIFT>(b, u, p),
-            Node::Div(a, b) => self.ev::<T, LIFT>(a, u, p) / self.ev::<T, LIFT>(b, u, p),
+            Node::Neg(a) => -self.arg::<T, LIFT>(a, u, p),
+            Node::Add(a, b) => self.arg::<T, LIFT>(a, u, p) + self.arg::<T, LIFT>(b, u, p),
+            Node::Sub(a, b) => self.arg::<T, LIFT>(a, u, p) - self.arg::<T, LIFT>(b, u, p),
+            Node::Mul(a, b) => self.arg::<T, LIFT>(a, u, p) * self.arg::<T, LIFT>(b, u, p),
+            Node::Div(a, b) => self.arg::<T, LIFT>(a, u, p) / self.arg::<T, LIFT>(b, u, p),
             Node::Pow(a, b) => {
-                let base = self.ev::<T, LIFT>(a, u, p);
+                let base = self.arg::<T, LIFT>(a, u, p);
                 if self.dep[b as usize] {
-                    base.powd(self.ev::<T, LIFT>(b, u, p))
+                    base.powd(self.arg::<T, LIFT>(b, u, p))
                 } else {
-                    match self.nodes[b as usize] {
-                        // x^2, x^-1: exact integer powers.
-                        Node::Num(n) if n.fract() == 0.0 && n.abs() <= 64.0 => base.powi(n as i32),
-                        _ => base.powf(self.ev::<f64, false>(b, u, &[])),
-                    }
+                    base.powf(self.arg::<f64, false>(b, u, &[]))
+                }
+            }
+            Node::PowI(a, n) => {
+                let base = self.arg::<T, LIFT>(a, u, p);
+                match n {
+                    2 => base * base,
+                    3 => base * base * base,
+                    _ => base.powi(n),
                 }
             }
             Node::Call(f, a) => {
-                let x = self.ev::<T, LIFT>(a, u, p);
+                let x = self.arg::<T, LIFT>(a, u, p);
                 match f {
                     Func::Sqrt => x.sqrt(),
                     Func::Exp => x.exp(),
@@ -51,7 +66,7 @@ impl ExprModel {
                 }
             }
             Node::Min(a, b) => {
-                let (x, y) = (self.ev::<T, LIFT>(a, u, p), self.ev::<T, LIFT>(b, u, p));
+                let (x, y) = (self.arg::<T, LIFT>(a, u, p), self.arg::<T, LIFT>(b, u, p));
                 if y.value() < x.value() {
                     y
                 } else {
@@ -59,7 +74,7 @@ impl ExprModel {
                 }
             }
             Node::Max(a, b) => {
-                let (x, y) = (self.ev::<T, LIFT>(a, u, p), self.ev::<T, LIFT>(b, u, p));
+                let (x, y) = (self.arg::<T, LIFT>(a, u, p), self.arg::<T, LIFT>(b, u, p));
                 if y.value() > x.value() {
                     y
                 } else {

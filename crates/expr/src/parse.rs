@@ -154,6 +154,9 @@ pub(crate) enum Node {
     Mul(u32, u32),
     Div(u32, u32),
     Pow(u32, u32),
+    /// `a^n` with a small integer constant exponent, resolved once after parsing (prints as
+    /// `a^n`).
+    PowI(u32, i32),
     Call(Func, u32),
     Min(u32, u32),
     Max(u32, u32),
@@ -457,13 +460,24 @@ impl ExprModel {
             input_columns,
             ..
         } = parser;
+        // `x^2`, `x^-1`: exact integer powers, decided once here rather than at every evaluation.
+        let mut nodes = nodes;
+        for k in 0..nodes.len() {
+            if let Node::Pow(a, b) = nodes[k] {
+                if let Node::Num(n) = nodes[b as usize] {
+                    if n.fract() == 0.0 && n.abs() <= 64.0 {
+                        nodes[k] = Node::PowI(a, n as i32);
+                    }
+                }
+            }
+        }
         // Children precede parents in the array, so one forward pass settles dependence.
         let mut dep = vec![false; nodes.len()];
         for i in 0..nodes.len() {
             dep[i] = match nodes[i] {
                 Node::Num(_) | Node::Input(_) => false,
                 Node::Param(_) => true,
-                Node::Neg(a) | Node::Call(_, a) => dep[a as usize],
+                Node::Neg(a) | Node::Call(_, a) | Node::PowI(a, _) => dep[a as usize],
                 Node::Add(a, b)
                 | Node::Sub(a, b)
                 | Node::Mul(a, b)
@@ -523,7 +537,7 @@ impl ExprModel {
             Node::Add(..) | Node::Sub(..) => 1,
             Node::Mul(..) | Node::Div(..) => 2,
             Node::Neg(_) => 3,
-            Node::Pow(..) => 4,
+            Node::Pow(..) | Node::PowI(..) => 4,
             _ => 5,
         }
     }
@@ -554,6 +568,10 @@ impl ExprModel {
                 self.write(f, a, 5)?;
                 f.write_str("^")?;
                 self.write(f, b, 3)?;
+            }
+            Node::PowI(a, n) => {
+                self.write(f, a, 5)?;
+                write!(f, "^{n}")?;
             }
             Node::Call(func, a) => {
                 write!(f, "{}(", func.name())?;
