@@ -34,7 +34,7 @@ pub enum EstimError {
     },
     /// The update would have made the covariance lose positive definiteness (or overflow); the
     /// sample was refused and the state is unchanged.
-    #[error("sample {sample}: covariance lost positive definiteness ({detail}); sample refused, state unchanged (reset the covariance, add a wind-up guard, or use the square-root method dsfc)")]
+    #[error("sample {sample}: covariance lost positive definiteness ({detail}); sample refused, state unchanged (reset the covariance, add a wind-up guard, or use a square-root method: dsfc for linear models, srukf for non-linear ones)")]
     LostPositiveDefiniteness {
         /// Index of the sample.
         sample: u64,

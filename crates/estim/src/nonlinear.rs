@@ -155,6 +155,45 @@ struct Ukf {
     /// Work matrix and vector of the rank-one updates.
     work: DMatrix<f64>,
     v: DVector<f64>,
+    /// Deviations of the 2l outer sigma points from the mean, after projection onto bounds.
+    dev: DMatrix<f64>,
+}
+
+/// How state coordinates map to physical parameter values, and the bounds on them.
+struct Coords<'a> {
+    free: &'a [usize],
+    scale: &'a [f64],
+    scaled: bool,
+    bounds: &'a [Option<(f64, f64)>],
+}
+
+impl Coords<'_> {
+    /// Physical value of free parameter `k` at state coordinate `x`.
+    fn physical(&self, k: usize, x: f64) -> f64 {
+        if self.scaled {
+            self.scale[k] * (1.0 + x)
+        } else {
+            x
+        }
+    }
+
+    /// State coordinate `x` of parameter `k` projected onto its bounds (unchanged without one).
+    fn project(&self, k: usize, x: f64) -> f64 {
+        match self.bounds[k] {
+            Some((lo, hi)) => {
+                let phys = self.physical(k, x);
+                let clamped = phys.clamp(lo, hi);
+                if clamped == phys {
+                    x
+                } else if self.scaled {
+                    clamped / self.scale[k] - 1.0
+                } else {
+                    clamped
+                }
+            }
+            None => x,
+        }
+    }
 }
 
 /// Rank-one update (`sign` = 1) or downdate (`sign` = −1) of a lower Cholesky factor in place:
@@ -369,6 +408,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                     r1_cols,
                     work: DMatrix::zeros(l, l),
                     v: DVector::zeros(l),
+                    dev: DMatrix::zeros(l, 2 * l),
                 }))
             }
         };
@@ -470,13 +510,17 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 kf.update_linearized(&self.jac, y - h)?
             }
             Engine::Ukf(u) => {
+                let coords = Coords {
+                    free: self.free.free(),
+                    scale: &self.scale,
+                    scaled: self.scaled,
+                    bounds: &self.bounds,
+                };
                 let (step, repaired) = Self::ukf_step(
                     u,
                     &self.model,
                     &mut self.theta,
-                    self.free.free(),
-                    &self.scale,
-                    self.scaled,
+                    &coords,
                     inputs,
                     y,
                     self.samples,
@@ -490,15 +534,15 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         Ok(step)
     }
 
-    /// One UKF step (Alg. 5.7); returns the step and the number of repairs it needed.
-    #[allow(clippy::too_many_arguments)]
+    /// One UKF step (Alg. 5.7); returns the step and the number of repairs it needed. With
+    /// bounds, the sigma points are projected onto them too (Kandepu, Foss & Imsland 2008) and
+    /// the cross-covariance uses the projected deviations — projecting only the mean leaves
+    /// sigma points where the model may not even be defined.
     fn ukf_step(
         u: &mut Ukf,
         model: &M,
         theta: &mut [f64],
-        free: &[usize],
-        scale: &[f64],
-        scaled: bool,
+        coords: &Coords,
         inputs: &[f64],
         y: f64,
         sample: u64,
@@ -546,17 +590,30 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             repairs = 1;
         }
         // Outputs of the sigma points x, x ± column k of the factor.
-        let mut point = |sign: f64, k: Option<usize>| -> f64 {
-            for (idx, &i) in free.iter().enumerate() {
-                let xk = u.x[idx] + k.map_or(0.0, |c| sign * u.chol[(idx, c)]);
-                theta[i] = if scaled { scale[idx] * (1.0 + xk) } else { xk };
+        // Sigma point `col` (0-based among the 2l outer ones) is x + sign·(column k).
+        let mut moved = false;
+        let mut point = |sign: f64, k: Option<usize>, col: usize| -> f64 {
+            for (idx, &i) in coords.free.iter().enumerate() {
+                let step = k.map_or(0.0, |c| sign * u.chol[(idx, c)]);
+                let raw = u.x[idx] + step;
+                let xk = coords.project(idx, raw);
+                if k.is_some() {
+                    // Exact deviation unless a bound moved the point.
+                    u.dev[(idx, col)] = if xk == raw {
+                        step
+                    } else {
+                        moved = true;
+                        xk - u.x[idx]
+                    };
+                }
+                theta[i] = coords.physical(idx, xk);
             }
             model.eval::<f64>(inputs, theta)
         };
-        u.ys[0] = point(0.0, None);
+        u.ys[0] = point(0.0, None, 0);
         for k in 0..l {
-            u.ys[1 + k] = point(1.0, Some(k));
-            u.ys[1 + l + k] = point(-1.0, Some(k));
+            u.ys[1 + k] = point(1.0, Some(k), k);
+            u.ys[1 + l + k] = point(-1.0, Some(k), l + k);
         }
         if let Some(i) = u.ys.iter().position(|v| !v.is_finite()) {
             return Err(EstimError::NonFinite {
@@ -564,6 +621,11 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 what: format!("model output at sigma point {i}"),
                 value: u.ys[i],
             });
+        }
+        if moved {
+            // The prior as the projected points represent it: P̄ = Wi·Σ d dᵀ (the centre point
+            // has no deviation), factored again in the square-root form.
+            repairs += Self::projected_prior(u, sample)?;
         }
         let y_hat = u.wm0 * u.ys[0] + u.wi * u.ys[1..].iter().sum::<f64>();
         let spread: f64 = u.ys[1..].iter().map(|v| (v - y_hat) * (v - y_hat)).sum();
@@ -577,8 +639,8 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         for idx in 0..l {
             let mut c = 0.0;
             for k in 0..l {
-                let d = u.chol[(idx, k)];
-                c += d * (u.ys[1 + k] - y_hat) - d * (u.ys[1 + l + k] - y_hat);
+                c += u.dev[(idx, k)] * (u.ys[1 + k] - y_hat)
+                    + u.dev[(idx, l + k)] * (u.ys[1 + l + k] - y_hat);
             }
             u.pxy[idx] = u.wi * c;
         }
@@ -612,6 +674,42 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             },
             repairs,
         ))
+    }
+
+    /// Replace the prior by the covariance of the projected sigma points (constrained UKF);
+    /// returns the jitter repairs its factorisation needed (square-root form only).
+    fn projected_prior(u: &mut Ukf, sample: u64) -> Result<u64, EstimError> {
+        let l = u.x.len();
+        for j in 0..l {
+            for i in 0..l {
+                let c: f64 = (0..2 * l).map(|k| u.dev[(i, k)] * u.dev[(j, k)]).sum();
+                u.work[(i, j)] = u.wi * c;
+            }
+        }
+        if !u.sqrt {
+            u.p.copy_from(&u.work);
+            return Ok(0);
+        }
+        let tr = u.work.trace().abs() / l as f64;
+        let mut eps = 0.0;
+        for tries in 0..13 {
+            u.p.copy_from(&u.work);
+            for i in 0..l {
+                u.p[(i, i)] += eps;
+            }
+            if cholesky_in_place(&mut u.p) {
+                return Ok(u64::from(tries > 0));
+            }
+            eps = if eps == 0.0 {
+                1e-12 * tr.max(f64::MIN_POSITIVE)
+            } else {
+                eps * 10.0
+            };
+        }
+        Err(EstimError::LostPositiveDefiniteness {
+            sample,
+            detail: "covariance of the projected sigma points has no Cholesky factor".into(),
+        })
     }
 
     /// SR-UKF covariance update: `S ← chol(S Sᵀ − U Uᵀ + R1)`, `U = Pxy·√(1/S_y²)`, by a rank-one
@@ -672,31 +770,23 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         if self.bounds.iter().all(Option::is_none) {
             return;
         }
-        let mut hits = 0;
-        let (scale, scaled) = (&self.scale, self.scaled);
+        let coords = Coords {
+            free: self.free.free(),
+            scale: &self.scale,
+            scaled: self.scaled,
+            bounds: &self.bounds,
+        };
         let state: &mut [f64] = match &mut self.engine {
             Engine::Ekf(kf) => kf.estimate_mut(),
             Engine::Ukf(u) => u.x.as_mut_slice(),
         };
-        for (k, b) in self.bounds.iter().enumerate() {
-            if let Some((lo, hi)) = *b {
-                let phys = if scaled {
-                    scale[k] * (1.0 + state[k])
-                } else {
-                    state[k]
-                };
-                let clamped = phys.clamp(lo, hi);
-                if clamped != phys {
-                    hits += 1;
-                    state[k] = if scaled {
-                        clamped / scale[k] - 1.0
-                    } else {
-                        clamped
-                    };
-                }
+        for (k, x) in state.iter_mut().enumerate() {
+            let p = coords.project(k, *x);
+            if p != *x {
+                *x = p;
+                self.projections += 1;
             }
         }
-        self.projections += hits;
     }
 
     /// The method.

@@ -139,6 +139,19 @@ mod tests {
                 );
             }
         }
+        // The same model in bench/peers/peers.py (written independently in Python) gives:
+        let py = [
+            (37, 1.0, -170.84784064532332),
+            (500, 1.02, -207.84001031091015),
+        ];
+        for (k, factor, expect) in py {
+            let p: Vec<f64> = Bench10::NOMINAL.iter().map(|v| v * factor).collect();
+            let v = m.eval::<f64>(&Bench10::inputs_at(k), &p);
+            assert!(
+                (v - expect).abs() <= 1e-12 * expect.abs(),
+                "{v} vs {expect}"
+            );
+        }
         for method in [
             crate::NlMethod::Ekf,
             crate::NlMethod::Ukf(crate::SigmaPoints::default()),

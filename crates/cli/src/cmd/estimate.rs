@@ -111,6 +111,10 @@ trait Online {
     fn repairs(&self) -> Option<u64> {
         None
     }
+    /// Times a bound was enforced (non-linear methods with --bound).
+    fn projections(&self) -> Option<u64> {
+        None
+    }
 }
 
 struct LinearRun<'a> {
@@ -157,6 +161,9 @@ impl Online for NonlinearRun<'_> {
     }
     fn repairs(&self) -> Option<u64> {
         Some(self.est.repairs())
+    }
+    fn projections(&self) -> Option<u64> {
+        Some(self.est.projections())
     }
 }
 
@@ -400,6 +407,7 @@ pub fn run(args: &Args) -> Result<()> {
     let mut full = params.nominal().to_vec();
     free.scatter(&theta, &mut full);
     let repairs = online.repairs();
+    let projections = online.projections();
     let nmse = metrics::nmse(&measured, &predicted);
     let nrmse = metrics::nrmse(&measured, &predicted);
     let fit = metrics::fit_percent(&measured, &predicted);
@@ -459,6 +467,9 @@ pub fn run(args: &Args) -> Result<()> {
         if let Some(r) = repairs {
             out["repairs"] = json!(r);
         }
+        if let Some(n) = projections {
+            out["projections"] = json!(n);
+        }
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
         return Ok(());
     }
@@ -501,6 +512,9 @@ pub fn run(args: &Args) -> Result<()> {
     );
     if let Some(r) = repairs {
         outln!("covariance repairs: {r}");
+    }
+    if let Some(n) = projections.filter(|n| *n > 0) {
+        outln!("bounds enforced: {n} times (an estimate is at a bound)");
     }
     Ok(())
 }
