@@ -169,6 +169,7 @@ struct Coords<'a> {
 
 impl Coords<'_> {
     /// Physical value of free parameter `k` at state coordinate `x`.
+    #[inline]
     fn physical(&self, k: usize, x: f64) -> f64 {
         if self.scaled {
             self.scale[k] * (1.0 + x)
@@ -178,6 +179,7 @@ impl Coords<'_> {
     }
 
     /// State coordinate `x` of parameter `k` projected onto its bounds (unchanged without one).
+    #[inline]
     fn project(&self, k: usize, x: f64) -> f64 {
         match self.bounds[k] {
             Some((lo, hi)) => {
@@ -592,18 +594,26 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         // Outputs of the sigma points x, x ± column k of the factor.
         // Sigma point `col` (0-based among the 2l outer ones) is x + sign·(column k).
         let mut moved = false;
+        let bounded = coords.bounds.iter().any(Option::is_some);
+        let (x, chol) = (u.x.as_slice(), u.chol.as_slice());
+        let dev = u.dev.as_mut_slice();
+        // Sigma point x + sign·(column k of the factor), its deviation into column `col` of dev.
         let mut point = |sign: f64, k: Option<usize>, col: usize| -> f64 {
             for (idx, &i) in coords.free.iter().enumerate() {
-                let step = k.map_or(0.0, |c| sign * u.chol[(idx, c)]);
-                let raw = u.x[idx] + step;
-                let xk = coords.project(idx, raw);
+                let step = k.map_or(0.0, |c| sign * chol[c * l + idx]);
+                let raw = x[idx] + step;
+                let xk = if bounded {
+                    coords.project(idx, raw)
+                } else {
+                    raw
+                };
                 if k.is_some() {
                     // Exact deviation unless a bound moved the point.
-                    u.dev[(idx, col)] = if xk == raw {
+                    dev[col * l + idx] = if xk == raw {
                         step
                     } else {
                         moved = true;
-                        xk - u.x[idx]
+                        xk - x[idx]
                     };
                 }
                 theta[i] = coords.physical(idx, xk);
@@ -636,13 +646,14 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             repairs += 1;
         }
         // Cross-covariance: the centre point has zero deviation in x.
-        for idx in 0..l {
+        let dev = u.dev.as_slice();
+        for (idx, pxy) in u.pxy.iter_mut().enumerate() {
             let mut c = 0.0;
             for k in 0..l {
-                c += u.dev[(idx, k)] * (u.ys[1 + k] - y_hat)
-                    + u.dev[(idx, l + k)] * (u.ys[1 + l + k] - y_hat);
+                c += dev[k * l + idx] * (u.ys[1 + k] - y_hat)
+                    + dev[(l + k) * l + idx] * (u.ys[1 + l + k] - y_hat);
             }
-            u.pxy[idx] = u.wi * c;
+            *pxy = u.wi * c;
         }
         let e = y - y_hat;
         // K = Pxy/S; x += K e; next prior P = P − K S Kᵀ + R1 = P − Pxy Pxyᵀ/S + R1
@@ -660,9 +671,15 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         if u.sqrt {
             repairs += Self::sqrt_update(u, sinv, sample)?;
         } else {
-            for j in 0..l {
-                for i in 0..l {
-                    u.p[(i, j)] += u.r1[(i, j)] - (u.pxy[i] * u.pxy[j]) * sinv;
+            let pxy = u.pxy.as_slice();
+            for ((pcol, rcol), &pj) in
+                u.p.as_mut_slice()
+                    .chunks_exact_mut(l)
+                    .zip(u.r1.as_slice().chunks_exact(l))
+                    .zip(pxy)
+            {
+                for ((pij, &rij), &pi) in pcol.iter_mut().zip(rcol).zip(pxy) {
+                    *pij += rij - (pi * pj) * sinv;
                 }
             }
         }
