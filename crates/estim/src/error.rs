@@ -50,3 +50,38 @@ pub enum EstimError {
         seen: usize,
     },
 }
+
+/// Check one sample before it touches any state: `xs` must have `expected` entries, all finite
+/// (entry `i` is named `label(i)` in the error), and the scalar `y` (named `y_name`) finite.
+pub(crate) fn check_sample(
+    sample: u64,
+    what: &'static str,
+    xs: &[f64],
+    expected: usize,
+    y_name: &'static str,
+    y: f64,
+    label: impl Fn(usize) -> String,
+) -> Result<(), EstimError> {
+    if xs.len() != expected {
+        return Err(EstimError::DimensionMismatch {
+            what,
+            expected,
+            got: xs.len(),
+        });
+    }
+    if !y.is_finite() {
+        return Err(EstimError::NonFinite {
+            sample,
+            what: y_name.into(),
+            value: y,
+        });
+    }
+    if let Some(i) = xs.iter().position(|v| !v.is_finite()) {
+        return Err(EstimError::NonFinite {
+            sample,
+            what: label(i),
+            value: xs[i],
+        });
+    }
+    Ok(())
+}

@@ -40,6 +40,7 @@
 //! weighted estimate by up to √(1+λ)). The Kalman filter's P is absolute (R1, R2 are given):
 //! its standard errors are `√P_ii`.
 
+use crate::error::check_sample;
 use crate::EstimError;
 use nalgebra::{Const, DMatrix, DVector, Dim, Dyn};
 use physid_core::{FreeSet, ParamSet};
@@ -445,28 +446,15 @@ impl LinearEstimator {
     /// measured output. A non-finite or wrong-length sample, or a step that would break the
     /// covariance, returns an error and leaves the state untouched. Allocation-free.
     pub fn update(&mut self, phi: &[f64], y: f64) -> Result<Step, EstimError> {
-        let n = self.params.len();
-        if phi.len() != n {
-            return Err(EstimError::DimensionMismatch {
-                what: "regressor φ",
-                expected: n,
-                got: phi.len(),
-            });
-        }
-        if !y.is_finite() {
-            return Err(EstimError::NonFinite {
-                sample: self.samples,
-                what: "y".into(),
-                value: y,
-            });
-        }
-        if let Some(i) = phi.iter().position(|v| !v.is_finite()) {
-            return Err(EstimError::NonFinite {
-                sample: self.samples,
-                what: format!("phi[{i}] ({})", self.params.names()[i]),
-                value: phi[i],
-            });
-        }
+        check_sample(
+            self.samples,
+            "regressor φ",
+            phi,
+            self.params.len(),
+            "y",
+            y,
+            |i| format!("phi[{i}] ({})", self.params.names()[i]),
+        )?;
         // The free regressor: the caller's slice itself, or gathered into our buffer (taken out
         // of `self` for the step — a pointer swap, no allocation).
         let mut buf = std::mem::take(&mut self.phi);
@@ -490,28 +478,15 @@ impl LinearEstimator {
     /// `innovation` the prediction error `y − h(φ, ϑ̂)`. Same checks and guarantees as
     /// [`update`](Self::update).
     pub fn update_linearized(&mut self, j: &[f64], innovation: f64) -> Result<Step, EstimError> {
-        let p = self.theta.len();
-        if j.len() != p {
-            return Err(EstimError::DimensionMismatch {
-                what: "Jacobian over the free parameters",
-                expected: p,
-                got: j.len(),
-            });
-        }
-        if !innovation.is_finite() {
-            return Err(EstimError::NonFinite {
-                sample: self.samples,
-                what: "innovation".into(),
-                value: innovation,
-            });
-        }
-        if let Some(i) = j.iter().position(|v| !v.is_finite()) {
-            return Err(EstimError::NonFinite {
-                sample: self.samples,
-                what: format!("Jacobian[{i}]"),
-                value: j[i],
-            });
-        }
+        check_sample(
+            self.samples,
+            "Jacobian over the free parameters",
+            j,
+            self.theta.len(),
+            "innovation",
+            innovation,
+            |i| format!("Jacobian[{i}]"),
+        )?;
         let result = self.step_sized(j, innovation);
         self.commit(result)
     }

@@ -33,6 +33,7 @@
 //! physical units. **Bounds** (e.g. a mass stays positive) are enforced by projection after each
 //! update and counted.
 
+use crate::error::check_sample;
 use crate::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, Step};
 use nalgebra::{DMatrix, DVector};
 use physid_core::{FreeSet, GradientEngine, ParamModel, ParamSet};
@@ -459,28 +460,16 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     /// Bad samples, a model that returns NaN, or a step that cannot be repaired return an error
     /// and leave the state untouched. Allocation-free.
     pub fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
-        let n_in = self.model.input_names().len();
-        if inputs.len() != n_in {
-            return Err(EstimError::DimensionMismatch {
-                what: "model inputs φ",
-                expected: n_in,
-                got: inputs.len(),
-            });
-        }
-        if !y.is_finite() {
-            return Err(EstimError::NonFinite {
-                sample: self.samples,
-                what: "y".into(),
-                value: y,
-            });
-        }
-        if let Some(i) = inputs.iter().position(|v| !v.is_finite()) {
-            return Err(EstimError::NonFinite {
-                sample: self.samples,
-                what: format!("input '{}'", self.model.input_names()[i]),
-                value: inputs[i],
-            });
-        }
+        let names = self.model.input_names();
+        check_sample(
+            self.samples,
+            "model inputs φ",
+            inputs,
+            names.len(),
+            "y",
+            y,
+            |i| format!("input '{}'", names[i]),
+        )?;
         let step = match &mut self.engine {
             Engine::Ekf(kf) => {
                 Self::load(

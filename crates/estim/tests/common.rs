@@ -4,10 +4,11 @@
 #![allow(dead_code)]
 
 use physid_core::ParamSet;
-use physid_estim::{CovSpec, EstimatorConfig, LinearEstimator, Method};
+use physid_estim::{CovSpec, EstimatorConfig, LinearEstimator, Method, VfVariant};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use serde_json::Value;
 
 /// A well-conditioned regression: n rows of p regressors (N(0,1) plus a constant), and y with
 /// noise `sigma`. Returns (rows, y, true θ).
@@ -62,4 +63,50 @@ pub fn rel_err(a: &[f64], b: &[f64], floor: f64) -> f64 {
         .sqrt();
     let den: f64 = b.iter().map(|y| y * y).sum::<f64>().sqrt();
     num / den.max(floor)
+}
+
+/// Every linear method at typical tuning, for `p` free parameters.
+pub fn all_methods(p: usize) -> Vec<Method> {
+    vec![
+        Method::Rls,
+        Method::Rlsf { lambda: 0.98 },
+        Method::RlsfTv {
+            lambda0: 0.99,
+            lambda_init: 0.95,
+        },
+        Method::Rlsvf {
+            lambdas: vec![0.98; p],
+            variant: VfVariant::Published,
+        },
+        Method::Rlsvf {
+            lambdas: vec![0.98; p],
+            variant: VfVariant::Symmetric,
+        },
+        Method::Kalman {
+            r1: CovSpec::Scaled(1e-4),
+            r2: 0.01,
+        },
+        Method::Dsfc { lambda: 0.98 },
+    ]
+}
+
+/// A golden file of `tests/golden/`.
+pub fn load(name: &str) -> Value {
+    let path = format!("{}/tests/golden/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    serde_json::from_str(&text).unwrap()
+}
+
+/// A JSON array of arrays of numbers.
+pub fn matrix(v: &Value) -> Vec<Vec<f64>> {
+    v.as_array().unwrap().iter().map(vector).collect()
+}
+
+/// A JSON array of numbers.
+pub fn vector(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
 }

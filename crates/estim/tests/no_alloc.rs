@@ -10,8 +10,8 @@ mod common;
 
 use physid_core::ParamSet;
 use physid_estim::{
-    CovSpec, Cusum, EstimatorConfig, GuardAction, LinearEstimator, Method, NlConfig, NlMethod,
-    NonlinearEstimator, RelativeErrorDetector, SigmaPoints, VfVariant, WindupGuard,
+    CovSpec, Cusum, EstimatorConfig, GuardAction, LinearEstimator, NlConfig, NlMethod,
+    NonlinearEstimator, RelativeErrorDetector, SigmaPoints, WindupGuard,
 };
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -55,31 +55,8 @@ fn updates_do_not_allocate() {
     let (rows, y, _) = common::regression(10_000, 4, 0.1, 1);
     let params = ParamSet::zeros(["a", "b", "c", "d"]).unwrap();
     let subset = params.free(&["a", "c", "d"]).unwrap();
-    let methods = |p: usize| {
-        vec![
-            Method::Rls,
-            Method::Rlsf { lambda: 0.98 },
-            Method::RlsfTv {
-                lambda0: 0.99,
-                lambda_init: 0.95,
-            },
-            Method::Rlsvf {
-                lambdas: vec![0.98; p],
-                variant: VfVariant::Published,
-            },
-            Method::Rlsvf {
-                lambdas: vec![0.98; p],
-                variant: VfVariant::Symmetric,
-            },
-            Method::Kalman {
-                r1: CovSpec::Scaled(1e-5),
-                r2: 0.01,
-            },
-            Method::Dsfc { lambda: 0.98 },
-        ]
-    };
     for (free, p) in [(params.all_free(), 4), (subset, 3)] {
-        for method in methods(p) {
+        for method in common::all_methods(p) {
             for guard in [
                 None,
                 Some(WindupGuard {

@@ -10,7 +10,6 @@ use physid_estim::{
     CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, NlConfig, NlMethod,
     NonlinearEstimator, SigmaPoints,
 };
-use serde_json::Value;
 
 /// `y = Σ θ_j φ_j` (linear), summed left to right like the Kalman filter's dot product.
 #[derive(Debug, Clone)]
@@ -67,25 +66,6 @@ impl ParamModel for Golden {
     }
 }
 
-fn load(name: &str) -> Value {
-    let path = format!("{}/tests/golden/{name}", env!("CARGO_MANIFEST_DIR"));
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn mat(v: &Value) -> Vec<Vec<f64>> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|r| {
-            r.as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect()
-}
-
 fn kalman(p: usize, r1: f64, r2: f64, p0: f64) -> LinearEstimator {
     let params = ParamSet::zeros((0..p).map(|i| format!("t{i}"))).unwrap();
     let cfg = EstimatorConfig {
@@ -130,15 +110,15 @@ fn ukf_and_srukf_equal_filterpy() {
 }
 
 fn ukf_vs_filterpy(sqrt: bool) {
-    let g = load("filterpy_ukf.json");
-    let phi = mat(&g["phi"]);
+    let g = common::load("filterpy_ukf.json");
+    let phi = common::matrix(&g["phi"]);
     let y: Vec<f64> = g["y"]
         .as_array()
         .unwrap()
         .iter()
         .map(|v| v.as_f64().unwrap())
         .collect();
-    let states = mat(&g["states"]);
+    let states = common::matrix(&g["states"]);
     let model = Golden {
         params: (0..10).map(|i| format!("t{i}")).collect(),
         inputs: (0..10).map(|i| format!("u{i}")).collect(),
@@ -158,7 +138,7 @@ fn ukf_vs_filterpy(sqrt: bool) {
             }
         },
         p0: CovSpec::Scaled(g["p0_scale"].as_f64().unwrap()),
-        r1: CovSpec::Full(mat(&g["r1"])),
+        r1: CovSpec::Full(common::matrix(&g["r1"])),
         r2: g["r2"].as_f64().unwrap(),
         scaled: false,
         bounds: vec![],
@@ -174,8 +154,8 @@ fn ukf_vs_filterpy(sqrt: bool) {
         "sqrt = {sqrt}: vs filterpy, worst relative error {worst:e}"
     );
     // filterpy's final P is the posterior; ours is the next sample's prior, posterior + R1.
-    let p_ref = mat(&g["final_p"]);
-    let r1 = mat(&g["r1"]);
+    let p_ref = common::matrix(&g["final_p"]);
+    let r1 = common::matrix(&g["r1"]);
     let p = ukf.covariance();
     let scale = p_ref
         .iter()

@@ -5,38 +5,9 @@
 
 mod common;
 
-use common::{estimator, rel_err};
+use common::{estimator, load, matrix, rel_err, vector};
 use physid_core::ParamSet;
 use physid_estim::{CovSpec, Cusum, EstimatorConfig, LinearEstimator, Method};
-use serde_json::Value;
-
-fn load(name: &str) -> Value {
-    let path = format!("{}/tests/golden/{name}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    serde_json::from_str(&text).unwrap()
-}
-
-fn matrix(v: &Value) -> Vec<Vec<f64>> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|r| {
-            r.as_array()
-                .unwrap()
-                .iter()
-                .map(|x| x.as_f64().unwrap())
-                .collect()
-        })
-        .collect()
-}
-
-fn vector(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
 
 /// Issue 2, verification 2: RLS equals statsmodels `RecursiveLS` (known initialisation) at
 /// every step, and the on-line CUSUM equals statsmodels' `cusum`.

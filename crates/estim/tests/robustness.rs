@@ -12,34 +12,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-fn all_methods(p: usize) -> Vec<Method> {
-    vec![
-        Method::Rls,
-        Method::Rlsf { lambda: 0.98 },
-        Method::RlsfTv {
-            lambda0: 0.99,
-            lambda_init: 0.95,
-        },
-        Method::Rlsvf {
-            lambdas: vec![0.98; p],
-            variant: VfVariant::Published,
-        },
-        Method::Rlsvf {
-            lambdas: vec![0.98; p],
-            variant: VfVariant::Symmetric,
-        },
-        Method::Kalman {
-            r1: CovSpec::Scaled(1e-4),
-            r2: 0.01,
-        },
-        Method::Dsfc { lambda: 0.98 },
-    ]
-}
-
 #[test]
 fn bad_samples_are_refused_and_leave_the_state_untouched() {
     let (rows, y, _) = regression(50, 3, 0.1, 3);
-    for m in all_methods(3) {
+    for m in common::all_methods(3) {
         let mut est = estimator(m.clone(), 1000.0, &[0.0; 3]);
         for (r, &yt) in rows.iter().zip(&y) {
             est.update(r, yt).unwrap();
@@ -249,7 +225,7 @@ fn soak_ten_million_updates_p10() {
 #[test]
 fn covariance_stays_exactly_symmetric() {
     let (rows, y, _) = regression(2000, 5, 0.1, 21);
-    let mut methods = all_methods(5);
+    let mut methods = common::all_methods(5);
     methods.push(Method::Kalman {
         r1: CovSpec::Full(
             (0..5)

@@ -2,48 +2,20 @@
 //! (thesis Example 5.1's model, six parameters, two inputs).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use physid_core::{GradientEngine, ParamModel, Scalar};
+use physid_apps::example_5_1::{Model51, EXPRESSION};
+use physid_core::{GradientEngine, ParamModel};
 use physid_expr::ExprModel;
 use std::hint::black_box;
-
-const EX51: &str = "sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 + D*y^2 + E*x/y + F*2*x/y";
-
-/// Example 5.1 written in Rust, as a model author would.
-struct Native {
-    params: Vec<String>,
-    inputs: Vec<String>,
-}
-
-impl ParamModel for Native {
-    fn param_names(&self) -> &[String] {
-        &self.params
-    }
-    fn input_names(&self) -> &[String] {
-        &self.inputs
-    }
-    fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
-        let (x, y) = (u[0], u[1]);
-        p[0].sin() * x
-            + p[1] * p[1] * (y * x.cos())
-            + p[2].sqrt() * (x * x)
-            + p[3] * (y * y)
-            + p[4] * (x / y)
-            + p[5] * (2.0 * x / y)
-    }
-}
 
 const N: usize = 1024;
 
 fn bench(c: &mut Criterion) {
     let names = ["A", "B", "C", "D", "E", "F"];
-    let expr = match ExprModel::parse(EX51, &names) {
+    let expr = match ExprModel::parse(EXPRESSION, &names) {
         Ok(m) => m,
         Err(e) => panic!("{e}"),
     };
-    let native = Native {
-        params: names.iter().map(|s| s.to_string()).collect(),
-        inputs: vec!["x".into(), "y".into()],
-    };
+    let native = Model51::default();
     let data: Vec<[f64; 2]> = (0..N)
         .map(|i| {
             [
