@@ -179,6 +179,13 @@ impl Coords<'_> {
         }
     }
 
+    /// Write the physical values of state `x` into their places of the full vector `theta`.
+    fn load(&self, theta: &mut [f64], x: &[f64]) {
+        for (k, (&i, &xk)) in self.free.iter().zip(x).enumerate() {
+            theta[i] = self.physical(k, xk);
+        }
+    }
+
     /// State coordinate `x` of parameter `k` projected onto its bounds (unchanged without one).
     #[inline]
     fn project(&self, k: usize, x: f64) -> f64 {
@@ -440,19 +447,12 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         }
     }
 
-    /// Physical value of free parameter `k` for state coordinate `x`.
-    fn physical(&self, k: usize, x: f64) -> f64 {
-        if self.scaled {
-            self.scale[k] * (1.0 + x)
-        } else {
-            x
-        }
-    }
-
-    /// Write the full physical parameter vector for a state into `self.theta`.
-    fn load(theta: &mut [f64], free: &[usize], scale: &[f64], scaled: bool, x: &[f64]) {
-        for (k, (&i, &xk)) in free.iter().zip(x).enumerate() {
-            theta[i] = if scaled { scale[k] * (1.0 + xk) } else { xk };
+    fn coords(&self) -> Coords<'_> {
+        Coords {
+            free: self.free.free(),
+            scale: &self.scale,
+            scaled: self.scaled,
+            bounds: &self.bounds,
         }
     }
 
@@ -470,15 +470,16 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             y,
             |i| format!("input '{}'", names[i]),
         )?;
+        // Field by field, so that the engine and the parameter vector can be borrowed mutably.
+        let coords = Coords {
+            free: self.free.free(),
+            scale: &self.scale,
+            scaled: self.scaled,
+            bounds: &self.bounds,
+        };
         let step = match &mut self.engine {
             Engine::Ekf(kf) => {
-                Self::load(
-                    &mut self.theta,
-                    self.free.free(),
-                    &self.scale,
-                    self.scaled,
-                    kf.estimate(),
-                );
+                coords.load(&mut self.theta, kf.estimate());
                 let h = self.gradient.value_and_gradient(
                     &self.model,
                     inputs,
@@ -501,12 +502,6 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 kf.update_linearized(&self.jac, y - h)?
             }
             Engine::Ukf(u) => {
-                let coords = Coords {
-                    free: self.free.free(),
-                    scale: &self.scale,
-                    scaled: self.scaled,
-                    bounds: &self.bounds,
-                };
                 let (step, repaired) = Self::ukf_step(
                     u,
                     &self.model,
@@ -520,7 +515,20 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 step
             }
         };
-        self.project();
+        // Keep the estimate within its bounds.
+        if coords.bounds.iter().any(Option::is_some) {
+            let state: &mut [f64] = match &mut self.engine {
+                Engine::Ekf(kf) => kf.estimate_mut(),
+                Engine::Ukf(u) => u.x.as_mut_slice(),
+            };
+            for (k, x) in state.iter_mut().enumerate() {
+                let p = coords.project(k, *x);
+                if p != *x {
+                    *x = p;
+                    self.projections += 1;
+                }
+            }
+        }
         self.samples += 1;
         Ok(step)
     }
@@ -771,30 +779,6 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         Ok(repairs)
     }
 
-    /// Project the estimate into its bounds.
-    fn project(&mut self) {
-        if self.bounds.iter().all(Option::is_none) {
-            return;
-        }
-        let coords = Coords {
-            free: self.free.free(),
-            scale: &self.scale,
-            scaled: self.scaled,
-            bounds: &self.bounds,
-        };
-        let state: &mut [f64] = match &mut self.engine {
-            Engine::Ekf(kf) => kf.estimate_mut(),
-            Engine::Ukf(u) => u.x.as_mut_slice(),
-        };
-        for (k, x) in state.iter_mut().enumerate() {
-            let p = coords.project(k, *x);
-            if p != *x {
-                *x = p;
-                self.projections += 1;
-            }
-        }
-    }
-
     /// The method.
     pub fn method(&self) -> NlMethod {
         self.method
@@ -816,23 +800,18 @@ impl<M: ParamModel> NonlinearEstimator<M> {
 
     /// The free parameters' estimates, physical units.
     pub fn estimate(&self) -> Vec<f64> {
+        let c = self.coords();
         self.state()
             .iter()
             .enumerate()
-            .map(|(k, &x)| self.physical(k, x))
+            .map(|(k, &x)| c.physical(k, x))
             .collect()
     }
 
     /// The full parameter vector (fixed ones at nominal), physical units.
     pub fn estimate_full(&self) -> Vec<f64> {
         let mut full = self.params.nominal().to_vec();
-        Self::load(
-            &mut full,
-            self.free.free(),
-            &self.scale,
-            self.scaled,
-            self.state(),
-        );
+        self.coords().load(&mut full, self.state());
         full
     }
 
