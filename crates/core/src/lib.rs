@@ -16,6 +16,6 @@ pub mod model;
 pub mod params;
 pub mod recording;
 
-pub use model::{GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
+pub use model::{Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
 pub use params::{FreeSet, ParamError, ParamSet};
 pub use recording::{Basis, Channel, Recording, RecordingError};

@@ -35,7 +35,8 @@ pub trait ParamModel {
 /// per model evaluation (one evaluation for up to 8 free parameters, two for 9–16, …).
 pub const GRADIENT_CHUNK: usize = 8;
 
-type Grad = DualSVec64<GRADIENT_CHUNK>;
+/// The dual number the [`GradientEngine`] evaluates models with (value and 8 partials).
+pub type Grad = DualSVec64<GRADIENT_CHUNK>;
 
 /// Exact gradients of a model with respect to a subset of its parameters, allocation-free
 /// after construction (the dual-number parameter vector is preallocated).

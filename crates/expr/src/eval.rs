@@ -95,6 +95,10 @@ impl ParamModel for ExprModel {
     }
 
     fn eval<T: Scalar>(&self, inputs: &[f64], params: &[T]) -> T {
-        self.ev::<T, true>(self.root, inputs, params)
+        // The compiled closures for f64 and the gradient dual; the tree walk for any other type.
+        match self.compiled.get::<T>() {
+            Some(f) => f(inputs, params),
+            None => self.ev::<T, true>(self.root, inputs, params),
+        }
     }
 }

@@ -25,6 +25,7 @@
 //! Functions: `sqrt exp ln log10 sin cos tan asin acos atan abs` (one argument), `pow min max`
 //! (two). Numbers: `12`, `1.5`, `.5`, `2e-3`, `1.5E+4`. Errors give the 1-based column.
 
+mod compiled;
 mod eval;
 mod parse;
 

@@ -174,6 +174,8 @@ pub struct ExprModel {
     params: Vec<String>,
     inputs: Vec<String>,
     input_columns: Vec<usize>,
+    /// The formula compiled for `f64` and the gradient dual.
+    pub(crate) compiled: crate::compiled::CompiledSet,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -487,7 +489,7 @@ impl ExprModel {
                 | Node::Max(a, b) => dep[a as usize] || dep[b as usize],
             };
         }
-        Ok(Self {
+        let mut model = Self {
             text: text.to_string(),
             nodes,
             dep,
@@ -495,7 +497,10 @@ impl ExprModel {
             params,
             inputs,
             input_columns,
-        })
+            compiled: Default::default(),
+        };
+        model.compiled = crate::compiled::CompiledSet::new(&model);
+        Ok(model)
     }
 
     /// Check that every input of the expression is one of `columns` (the data's channels).
