@@ -85,3 +85,18 @@ pub(crate) fn check_sample(
     }
     Ok(())
 }
+
+/// A free/fixed view must cover exactly the parameter set it is used with.
+pub(crate) fn check_view(
+    params: &physid_core::ParamSet,
+    free: &physid_core::FreeSet,
+) -> Result<(), EstimError> {
+    if free.full_len() != params.len() {
+        return Err(EstimError::DimensionMismatch {
+            what: "free/fixed view",
+            expected: params.len(),
+            got: free.full_len(),
+        });
+    }
+    Ok(())
+}

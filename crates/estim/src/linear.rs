@@ -40,7 +40,7 @@
 //! weighted estimate by up to √(1+λ)). The Kalman filter's P is absolute (R1, R2 are given):
 //! its standard errors are `√P_ii`.
 
-use crate::error::check_sample;
+use crate::error::{check_sample, check_view};
 use crate::EstimError;
 use nalgebra::{Const, DMatrix, DVector, Dim, Dyn};
 use physid_core::{FreeSet, ParamSet};
@@ -313,13 +313,7 @@ impl LinearEstimator {
         params: &ParamSet,
         free: &FreeSet,
     ) -> Result<Self, EstimError> {
-        if free.full_len() != params.len() {
-            return Err(EstimError::DimensionMismatch {
-                what: "free/fixed view",
-                expected: params.len(),
-                got: free.full_len(),
-            });
-        }
+        check_view(params, free)?;
         let p = free.free().len();
         let p0 = config.p0.to_matrix(p, "P0")?;
         let chol = p0

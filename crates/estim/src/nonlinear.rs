@@ -33,7 +33,7 @@
 //! physical units. **Bounds** (e.g. a mass stays positive) are enforced by projection after each
 //! update and counted.
 
-use crate::error::check_sample;
+use crate::error::{check_sample, check_view};
 use crate::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, Step};
 use nalgebra::{DMatrix, DVector};
 use physid_core::{FreeSet, GradientEngine, ParamModel, ParamSet};
@@ -300,13 +300,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 model.param_names().join(", ")
             )));
         }
-        if free.full_len() != params.len() {
-            return Err(EstimError::DimensionMismatch {
-                what: "free/fixed view",
-                expected: params.len(),
-                got: free.full_len(),
-            });
-        }
+        check_view(params, free)?;
         let l = free.free().len();
         let scale: Vec<f64> = free.free().iter().map(|&i| params.nominal()[i]).collect();
         if config.scaled {
