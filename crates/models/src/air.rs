@@ -1,0 +1,124 @@
+//! Thermodynamic properties of air from NASA 7-coefficient polynomials (SPEC §2.2; thesis
+//! app. B.1 "Thermochemistry"; Gordon & McBride 1976).
+//!
+//! Air is 1 kmol O₂ + 79/21 kmol N₂. Per species `cp/R_i = a1 + a2T + a3T² + a4T³ + a5T⁴` and
+//! `h/(R_i T) = a1 + a2T/2 + a3T²/3 + a4T³/4 + a5T⁴/5 + a6/T`; the mixture's molar properties are
+//! the mole-fraction averages, divided by its molar mass for mass-specific values;
+//! `u = h − R·T`, `c_v = c_p − R`. Temperatures in K, energies in J/kg.
+
+/// Universal gas constant [J/(kmol·K)] (SPEC §2.2).
+pub const R_U: f64 = 8314.34;
+/// Molar mass of O₂ [kg/kmol].
+pub const M_O2: f64 = 31.999;
+/// Molar mass of N₂ [kg/kmol].
+pub const M_N2: f64 = 28.013;
+/// Moles of N₂ per mole of O₂ in air.
+pub const N2_PER_O2: f64 = 79.0 / 21.0;
+/// Boundary between the polynomials' low and high ranges [K].
+pub const T_MID: f64 = 1000.0;
+
+/// (a1 … a7) for 300–1000 K and 1000–5000 K (SPEC §2.2 table).
+const O2: [[f64; 7]; 2] = [
+    [
+        3.6255985,
+        -1.8782184e-3,
+        7.0554544e-6,
+        -6.7635137e-9,
+        2.1555993e-12,
+        -1.0475226e3,
+        4.3052778,
+    ],
+    [
+        3.6219535,
+        7.3618264e-4,
+        -1.9652228e-7,
+        3.6201558e-11,
+        -2.8945627e-15,
+        -1.2019825e3,
+        3.6150960,
+    ],
+];
+const N2: [[f64; 7]; 2] = [
+    [
+        3.6748261,
+        -1.2081500e-3,
+        2.3240102e-6,
+        -6.3217559e-10,
+        -2.2577253e-13,
+        -1.0611588e3,
+        2.3580424,
+    ],
+    [
+        2.8963194,
+        1.5154866e-3,
+        -5.7235277e-7,
+        9.9807393e-11,
+        -6.5223555e-15,
+        -9.0586184e2,
+        6.1615148,
+    ],
+];
+
+fn coefficients(species: &[[f64; 7]; 2], t: f64) -> &[f64; 7] {
+    if t < T_MID {
+        &species[0]
+    } else {
+        &species[1]
+    }
+}
+
+fn cp_over_r(a: &[f64; 7], t: f64) -> f64 {
+    a[0] + t * (a[1] + t * (a[2] + t * (a[3] + t * a[4])))
+}
+
+fn h_over_rt(a: &[f64; 7], t: f64) -> f64 {
+    a[0] + t * (a[1] / 2.0 + t * (a[2] / 3.0 + t * (a[3] / 4.0 + t * a[4] / 5.0))) + a[5] / t
+}
+
+/// Mole fractions (O₂, N₂).
+fn fractions() -> (f64, f64) {
+    let total = 1.0 + N2_PER_O2;
+    (1.0 / total, N2_PER_O2 / total)
+}
+
+/// Molar mass of air [kg/kmol].
+pub fn molar_mass() -> f64 {
+    let (xo, xn) = fractions();
+    xo * M_O2 + xn * M_N2
+}
+
+/// Specific gas constant of air R [J/(kg·K)].
+pub fn gas_constant() -> f64 {
+    R_U / molar_mass()
+}
+
+/// Mixture average of a per-species dimensionless property, times `R_U/M`: mass-specific.
+fn mixture(t: f64, f: fn(&[f64; 7], f64) -> f64) -> f64 {
+    let (xo, xn) = fractions();
+    (xo * f(coefficients(&O2, t), t) + xn * f(coefficients(&N2, t), t)) * gas_constant()
+}
+
+/// Specific heat at constant pressure c_p(T) [J/(kg·K)].
+pub fn cp(t: f64) -> f64 {
+    mixture(t, cp_over_r)
+}
+
+/// Specific heat at constant volume c_v(T) = c_p − R [J/(kg·K)].
+pub fn cv(t: f64) -> f64 {
+    cp(t) - gas_constant()
+}
+
+/// Ratio of specific heats γ(T) = c_p/c_v.
+pub fn gamma(t: f64) -> f64 {
+    cp(t) / cv(t)
+}
+
+/// Specific enthalpy h(T) [J/kg] (the polynomials' datum: formation enthalpy of the elements).
+pub fn enthalpy(t: f64) -> f64 {
+    mixture(t, h_over_rt) * t
+}
+
+/// Specific internal energy u(T) = h − R·T [J/kg].
+pub fn internal_energy(t: f64) -> f64 {
+    enthalpy(t) - gas_constant() * t
+}

@@ -1,0 +1,126 @@
+//! Slider-crank kinematics with piston-pin offset (SPEC §2.3; thesis Eq. 3.29–3.32, app. B.4).
+//!
+//! Crank radius `r`, rod `L`, bore `b`, pin offset `δ`, compression ratio `κ` (SI units);
+//! crank angle `θ` in rad from the cylinder axis; TDC is at `θ = φ = asin(δ/(r+L))` (θ = 0 for
+//! δ = 0). With `q = r·sin θ − δ`, `w = √(L² − q²)`:
+//!
+//! ```text
+//! s(θ)   = √((r+L)² − δ²) − r·cos θ − w                       (Eq. 3.29, SPEC fix: − r cos)
+//! s'(θ)  = r·sin θ + q·r·cos θ / w
+//! s''(θ) = r·cos θ + (r²·cos²θ − q·r·sin θ)/w + q²·r²·cos²θ / w³
+//! V(θ)   = V_c + A_p·s(θ),  A_p = π b²/4,  V_c = V_d/(κ−1)
+//! A_w(θ) = π b²/2 + π b·(V_c/A_p + s(θ))                      (Eq. 3.32)
+//! ```
+//!
+//! *(fix)* SPEC §2.3 writes `s` with `θ − φ` inside and `q = δ + r·sin(θ−φ)`; that puts
+//! s(φ) = 0 only when δ = 0. Measured from the cylinder axis as above, s(φ) = 0 exactly
+//! (`√(L² − q²) = L·cos φ` there), which is what SPEC's own verification asks for (tested).
+//!
+//! The thesis's closed forms for the torque (app. B.4) are `ψ = 1 − (q/L)²`,
+//! `G = sin θ + √((1−ψ)/ψ)·cos θ`, `G1`, `G2`. Since `1 − ψ = (q/L)²`, the root there must keep
+//! the sign of `q`: `√((1−ψ)/ψ) → q/(L√ψ)`. Taken literally (unsigned) the forms are wrong
+//! whenever `q < 0` — half of every revolution — and their derivative at TDC is `∞·0`. The
+//! signed forms below equal the virtual-work forms (`r·G = s'`, `G1 = s''`, `G2 = s'` at δ = 0),
+//! which a test checks over the whole cycle.
+
+use physid_core::Scalar;
+
+/// Slider-crank geometry (SI units). Generic so that any of it can be an estimated parameter.
+#[derive(Debug, Clone, Copy)]
+pub struct Crank<T> {
+    /// Crank radius r [m].
+    pub r: T,
+    /// Connecting-rod length L [m].
+    pub l: T,
+    /// Piston-pin offset δ [m].
+    pub delta: T,
+    /// Bore b [m].
+    pub bore: T,
+    /// Compression ratio κ [-].
+    pub kappa: T,
+}
+
+impl<T: Scalar> Crank<T> {
+    /// `φ = asin(δ/(r+L))`: the crank angle of TDC [rad].
+    pub fn phi(&self) -> T {
+        (self.delta / (self.r + self.l)).asin()
+    }
+
+    /// `(q, w)` at crank angle θ.
+    fn parts(&self, theta: f64) -> (T, T) {
+        let q = self.r * theta.sin() - self.delta;
+        let w = (self.l * self.l - q * q).sqrt();
+        (q, w)
+    }
+
+    /// Piston displacement from TDC, s(θ) [m].
+    pub fn s(&self, theta: f64) -> T {
+        let (_, w) = self.parts(theta);
+        let rl = self.r + self.l;
+        (rl * rl - self.delta * self.delta).sqrt() - self.r * theta.cos() - w
+    }
+
+    /// ds/dθ [m/rad].
+    pub fn ds(&self, theta: f64) -> T {
+        let (q, w) = self.parts(theta);
+        self.r * theta.sin() + q * self.r * theta.cos() / w
+    }
+
+    /// d²s/dθ² [m/rad²].
+    pub fn dds(&self, theta: f64) -> T {
+        let (q, w) = self.parts(theta);
+        let (sa, ca) = (theta.sin(), theta.cos());
+        let r = self.r;
+        r * ca + (r * r * ca * ca - q * r * sa) / w + q * q * r * r * ca * ca / (w * w * w)
+    }
+
+    /// Stroke: the distance between TDC and BDC, `√((L+r)² − δ²) − √((L−r)² − δ²)` [m].
+    pub fn stroke(&self) -> T {
+        let (lp, lm) = (self.l + self.r, self.l - self.r);
+        let d2 = self.delta * self.delta;
+        (lp * lp - d2).sqrt() - (lm * lm - d2).sqrt()
+    }
+
+    /// Piston area `π b²/4` [m²].
+    pub fn piston_area(&self) -> T {
+        self.bore * self.bore * (std::f64::consts::PI / 4.0)
+    }
+
+    /// Clearance volume `V_d/(κ−1)` [m³].
+    pub fn clearance_volume(&self) -> T {
+        self.piston_area() * self.stroke() / (self.kappa - 1.0)
+    }
+
+    /// Cylinder volume V(θ) [m³].
+    pub fn volume(&self, theta: f64) -> T {
+        self.clearance_volume() + self.piston_area() * self.s(theta)
+    }
+
+    /// dV/dt = A_p·s'(θ)·ω [m³/s] (Eq. 3.30).
+    pub fn dvolume_dt(&self, theta: f64, omega: f64) -> T {
+        self.piston_area() * self.ds(theta) * omega
+    }
+
+    /// Heat-transfer area: head + piston + liner (Eq. 3.32) [m²].
+    pub fn wall_area(&self, theta: f64) -> T {
+        let pi = std::f64::consts::PI;
+        self.bore * self.bore * (pi / 2.0)
+            + self.bore * pi * (self.clearance_volume() / self.piston_area() + self.s(theta))
+    }
+
+    /// The thesis's closed forms (app. B.4) with the signed root: `(G, G1, G2)` at θ, so that
+    /// `τ_ind = (p − p_crank)·A_p·r·G` and `τ_rec = M_rec·r·G·(G1·ω² + G2·α)`. Written as in the
+    /// thesis, with `a = θ − φ` and `q = δ + r·sin a`; they agree with the virtual-work forms at
+    /// δ = 0 (tested), which is where the thesis used them.
+    pub fn thesis_g(&self, theta: f64) -> (T, T, T) {
+        let a = -self.phi() + theta;
+        let q = self.delta + self.r * a.sin();
+        let psi = -(q / self.l) * (q / self.l) + 1.0;
+        let root = q / (self.l * psi.sqrt()); // √((1−ψ)/ψ) with the sign of q
+        let (sa, ca) = (a.sin(), a.cos());
+        let g = root * theta.cos() + theta.sin();
+        let g1 = self.r * (ca * ((self.r / self.l) * ca / (psi * psi.sqrt()) + 1.0) - root * sa);
+        let g2 = self.r * (root * ca + sa);
+        (g, g1, g2)
+    }
+}

@@ -1,0 +1,12 @@
+//! # physid-models — the physics as parameterised functions
+//!
+//! One implementation of each model, shared by the virtual test cell and the identification
+//! applications. Functions are generic over the [`Scalar`](physid_core::Scalar) where their
+//! arguments are parameters someone may estimate (bore, crank radius, rod, offset), so exact
+//! derivatives come for free; SI units throughout.
+//!
+//! * [`kinematics`] — slider-crank with piston-pin offset (SPEC §2.3, Eq. 3.29–3.32, app. B.4).
+//! * [`air`] — NASA-polynomial thermodynamic properties of air (SPEC §2.2, app. B.1).
+
+pub mod air;
+pub mod kinematics;
