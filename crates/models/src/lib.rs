@@ -6,7 +6,10 @@
 //! derivatives come for free; SI units throughout.
 //!
 //! * [`kinematics`] — slider-crank with piston-pin offset (SPEC §2.3, Eq. 3.29–3.32, app. B.4).
+//! * [`friction`] — mean-value friction (Patton / Sandoval–Heywood as the thesis's code has it)
+//!   and its 20-coefficient regression form (SPEC §2.5, Eq. 7.4–7.9).
 //! * [`air`] — NASA-polynomial thermodynamic properties of air (SPEC §2.2, app. B.1).
 
 pub mod air;
+pub mod friction;
 pub mod kinematics;

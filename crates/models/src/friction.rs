@@ -1,0 +1,276 @@
+//! Mean-value engine friction: Patton / Sandoval–Heywood, as the thesis's code computes it
+//! (SPEC §2.5; thesis Eq. 3.44–3.50, app. B.2–B.3), and its 20-coefficient regression form
+//! (Eq. 7.4–7.9), linear in the coefficients.
+//!
+//! Units *inside* this model follow the correlations: lengths in mm, speed N in rpm, pressures
+//! in kPa, oil temperature in °C, mean piston speed `S_p = 2·(S/1000)·N/60` in m/s, fmep in kPa.
+//! [`Friction::tau_nm`] converts to a torque in N·m: `τ = fmep·1e3·(π(B/1000)²/4)·(r/1000)/(2π)`.
+//!
+//! The design parameters (B, S, κ, Di, De, Lv, Db, Lb, r) are generic over the
+//! [`Scalar`](physid_core::Scalar), so their sensitivities (thesis §7.2) are exact.
+
+use physid_core::Scalar;
+
+/// Oil grades: Vogel constants `μ = k·exp(θ1/(θ2 + T))` [cP, T in °C] and the high-shear factor
+/// `u_uo` (SPEC §2.5 table).
+pub const OIL_GRADES: [(&str, f64, f64, f64, f64); 12] = [
+    ("0W40", 0.01341, 1986.4, 189.7, 0.67),
+    ("5W20", 0.04576, 1224.0, 134.1, 0.94),
+    ("5W40", 0.15, 1018.74, 125.91, 0.8),
+    ("10W30", 0.1403, 869.72, 104.4, 0.76),
+    ("10W50A", 0.0352, 1658.88, 163.54, 0.49),
+    ("10W50B", 0.0507, 1362.4, 129.8, 0.52),
+    ("15W40A", 0.1223, 933.46, 103.89, 0.9),
+    ("15W40B", 0.03435, 1424.3, 137.2, 0.79),
+    ("20W50", 0.0639, 1255.46, 117.7, 0.84),
+    ("SAE10", 0.0258, 1345.42, 144.58, 1.0),
+    ("SAE30", 0.0246, 1432.29, 132.94, 1.0),
+    ("SAE50", 0.0384, 1349.94, 115.16, 1.0),
+];
+
+/// Valvetrains: (Cff, Crf, Coh, Com) (SPEC §2.5 table).
+pub const VALVETRAINS: [(&str, f64, f64, f64, f64); 6] = [
+    ("SOHC_I", 600.0, 0.0227, 0.2, 42.8),
+    ("SOHC_II", 400.0, 0.0151, 0.5, 21.4),
+    ("SOHC_III", 200.0, 0.0076, 0.5, 10.7),
+    ("DOHC_I", 600.0, 0.0227, 0.2, 25.8),
+    ("DOHC_II", 133.0, 0.0050, 0.5, 10.7),
+    ("OHV", 400.0, 0.0151, 0.5, 32.1),
+];
+
+/// Reference oil temperature of the viscosity scaling [°C].
+pub const T_REF_C: f64 = 90.0;
+/// Ring-tension exponent constant K (SPEC fix: 2K = 0.0476).
+const K_RING: f64 = 2.38e-2;
+
+/// An operating point (the correlations' units).
+#[derive(Debug, Clone, Copy)]
+pub struct OperatingPoint {
+    /// Engine speed N [rpm].
+    pub n_rpm: f64,
+    /// Intake manifold pressure [kPa].
+    pub p_int_kpa: f64,
+    /// Ambient pressure [kPa].
+    pub p_atm_kpa: f64,
+    /// Oil temperature [°C].
+    pub t_oil_c: f64,
+}
+
+/// Design parameters (mm; κ dimensionless), generic so that each can be differentiated.
+#[derive(Debug, Clone, Copy)]
+pub struct Design<T> {
+    /// Bore B [mm].
+    pub b: T,
+    /// Stroke S [mm].
+    pub s: T,
+    /// Compression ratio κ.
+    pub kappa: T,
+    /// Intake valve diameter Di [mm].
+    pub di: T,
+    /// Exhaust valve diameter De [mm].
+    pub de: T,
+    /// Valve lift Lv [mm].
+    pub lv: T,
+    /// Main bearing diameter Db [mm].
+    pub db: T,
+    /// Main bearing length Lb [mm].
+    pub lb: T,
+    /// Crank radius r [mm] (for the torque).
+    pub r: T,
+}
+
+/// The discrete choices: oil, valvetrain, counts and ring factors.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// Oil: (k, θ1, θ2, u_uo).
+    pub oil: (f64, f64, f64, f64),
+    /// Valvetrain: (Cff, Crf, Coh, Com).
+    pub valvetrain: (f64, f64, f64, f64),
+    /// Ring tension ratio Ft/Fto.
+    pub ft_fto: f64,
+    /// Conformability factor Cr.
+    pub cr: f64,
+    /// Cylinders nc.
+    pub nc: f64,
+    /// Valves per cylinder nv.
+    pub nv: f64,
+    /// Main bearings nb.
+    pub nb: f64,
+}
+
+/// fmep by component [kPa].
+#[derive(Debug, Clone, Copy)]
+pub struct Fmep<T> {
+    /// Crankshaft.
+    pub cfmep: T,
+    /// Reciprocating (piston, rings, connecting rods).
+    pub rfmep: T,
+    /// Valvetrain.
+    pub vfmep: T,
+    /// Auxiliaries.
+    pub afmep: T,
+    /// Pumping.
+    pub pmep: T,
+}
+
+impl<T: Scalar> Fmep<T> {
+    /// Total fmep including pumping (the whole motoring loss).
+    pub fn total(&self) -> T {
+        self.cfmep + self.rfmep + self.vfmep + self.afmep + self.pmep
+    }
+
+    /// fmep without pumping (for the virtual test cell, where pumping is simulated; SPEC §2.3).
+    pub fn mechanical(&self) -> T {
+        self.cfmep + self.rfmep + self.vfmep + self.afmep
+    }
+}
+
+/// The thesis preset (app. B.2–B.3): 0W40, SOHC_III, Ft/Fto = 1, Cr = 1, nc = 1, nv = 2,
+/// nb = 2, B = 54, S = 51.5, r = 25.7, Db = 52, Lb = 13, Lv = 9, Di = 27, De = 23 mm, κ = 12
+/// (the friction study's value; the engine's is 9.5 — SPEC §2.5).
+pub fn thesis_preset() -> (Design<f64>, Settings) {
+    (
+        Design {
+            b: 54.0,
+            s: 51.5,
+            kappa: 12.0,
+            di: 27.0,
+            de: 23.0,
+            lv: 9.0,
+            db: 52.0,
+            lb: 13.0,
+            r: 25.7,
+        },
+        Settings {
+            oil: (
+                OIL_GRADES[0].1,
+                OIL_GRADES[0].2,
+                OIL_GRADES[0].3,
+                OIL_GRADES[0].4,
+            ),
+            valvetrain: (
+                VALVETRAINS[2].1,
+                VALVETRAINS[2].2,
+                VALVETRAINS[2].3,
+                VALVETRAINS[2].4,
+            ),
+            ft_fto: 1.0,
+            cr: 1.0,
+            nc: 1.0,
+            nv: 2.0,
+            nb: 2.0,
+        },
+    )
+}
+
+/// Oil viscosity `μ(T) = k·exp(θ1/(θ2 + T))` [cP], T in °C (Vogel).
+pub fn viscosity(oil: (f64, f64, f64, f64), t_c: f64) -> f64 {
+    oil.0 * (oil.1 / (oil.2 + t_c)).exp()
+}
+
+/// The viscosity scaling as the thesis's code computes it: `s_μ = √(u_uo·μ(T)/μ(T_ref))`.
+pub fn s_mu(oil: (f64, f64, f64, f64), t_c: f64) -> f64 {
+    (oil.3 * viscosity(oil, t_c) / viscosity(oil, T_REF_C)).sqrt()
+}
+
+/// The 20 nominal coefficients c1 … c20 of the regression form, in the order the constants
+/// appear in the physical form (SPEC §2.5; c14 = 8.32 so that both forms agree exactly).
+pub fn nominal_coefficients(settings: &Settings) -> [f64; 20] {
+    let (cff, crf, coh, com) = settings.valvetrain;
+    [
+        1.22e5, 3.03e-4, 1.35e-10, 294.0, 4.06e4, 3.03e-4, 6.89, 4.12, 244.0, cff, crf, coh, com,
+        8.32, 1.86e-3, 7.45e-7, 1.0, 4.12e-3, 0.178, 4.12e-3,
+    ]
+}
+
+/// The regressors φ1 … φ20 [kPa per unit coefficient]: `fmep = Σ c_i·φ_i` (Eq. 7.4–7.9).
+/// Generic in the design so that a design parameter can be differentiated through them too.
+pub fn regressors<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) -> [T; 20] {
+    let n = op.n_rpm;
+    let (b, s) = (d.b, d.s);
+    let sp = s * (2.0 / 1000.0 * n / 60.0); // mean piston speed [m/s]
+    let smu = s_mu(st.oil, op.t_oil_c);
+    let uuo = st.oil.3;
+    let (nc, nv, nb) = (st.nc, st.nv, st.nb);
+    let bbs = b * b * s * nc; // B²·S·nc
+    let ratio = op.p_int_kpa / op.p_atm_kpa;
+    let db3lb = d.db * d.db * d.db * d.lb;
+    let speed_factor = 1.0 + 500.0 / n;
+    let (ri, re) = (d.di / b, d.de / b);
+    let ring =
+        (d.kappa * 0.088 * smu) + d.kappa.powd(-(sp * (2.0 * K_RING)) + 1.33) * (0.182 * st.ft_fto);
+    let one = T::from(1.0);
+    [
+        d.db / bbs,                                            // c1  crankshaft seals
+        db3lb * (smu * n * nb) / bbs,                          // c2  bearings, hydrodynamic
+        d.db * d.db * (n * n * nb / nc),                       // c3  bearing seals, turbulent
+        sp * smu / b,                                          // c4  piston skirt
+        one * (st.ft_fto * st.cr * speed_factor) / (b * b),    // c5  ring tension
+        db3lb * (uuo * n * nb) / bbs,                          // c6  con-rod bearings
+        ring * ratio,                                          // c7  gas-pressure loading
+        one,                                                   // c8  constant (cam seal)
+        one * (uuo * n * nb) / (b * b * s * nc),               // c9  camshaft bearings
+        one * (speed_factor * nv) / (s * nc),                  // c10 Cff: flat follower
+        one * (n * nv) / (s * nc),                             // c11 Crf: roller follower
+        d.lv.powf(1.5) * (uuo * n.sqrt() * nv) / (b * s * nc), // c12 Coh: oscillating hydrodynamic
+        d.lv * (speed_factor * nv) / (s * nc),                 // c13 Com: oscillating mixed
+        one,                                                   // c14 auxiliaries
+        one * n,                                               // c15
+        one * (n * n),                                         // c16
+        one * (op.p_atm_kpa - op.p_int_kpa),                   // c17 throttling
+        sp * sp * (ratio * ratio) / (ri.powi(4) * (nv * nv)),  // c18 intake valves
+        sp * sp * (ratio * ratio),                             // c19 intake system
+        sp * sp * (ratio * ratio) / (re.powi(4) * (nv * nv)),  // c20 exhaust valves
+    ]
+}
+
+/// The physical form, term by term as SPEC §2.5 writes the thesis's code (app. B.2) — written
+/// independently of [`regressors`], so that their agreement is a check.
+pub fn fmep<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) -> Fmep<T> {
+    let n = op.n_rpm;
+    let (b, s, nc, nv, nb) = (d.b, d.s, st.nc, st.nv, st.nb);
+    let sp = s * 2.0 / 1000.0 * n / 60.0;
+    let smu = s_mu(st.oil, op.t_oil_c);
+    let uuo = st.oil.3;
+    let (cff, crf, coh, com) = st.valvetrain;
+    let pr = op.p_int_kpa / op.p_atm_kpa;
+    let cfmep = d.db * 1.22e5 / (b * b * s * nc)
+        + d.db.powi(3) * d.lb * (3.03e-4 * smu * n * nb) / (b * b * s * nc)
+        + d.db * d.db * (1.35e-10 * n * n * nb / nc);
+    let rfmep = sp * (2.94e2 * smu) / b
+        + T::from(4.06e4 * (st.ft_fto * st.cr) * (1.0 + 500.0 / n)) / (b * b)
+        + d.db.powi(3) * d.lb * (3.03e-4 * uuo * n * nb) / (b * b * s * nc)
+        + (d.kappa * (0.088 * smu)
+            + d.kappa.powd(-(sp * (2.0 * K_RING)) + 1.33) * (0.182 * st.ft_fto))
+            * (6.89 * pr)
+        + 4.12;
+    let vfmep = T::from(244.0 * uuo * n * nb) / (b * b * s * nc)
+        + T::from(cff * (1.0 + 500.0 / n) * nv) / (s * nc)
+        + T::from(crf * n * nv) / (s * nc)
+        + d.lv.powf(1.5) * (coh * uuo * n.powf(0.5) * nv) / (b * s * nc)
+        + d.lv * (com * (1.0 + 500.0 / n) * nv) / (s * nc);
+    let afmep = T::from(8.32 + 1.86e-3 * n + 7.45e-7 * n * n);
+    let (ri, re) = (d.di / b, d.de / b);
+    let pmep = T::from(op.p_atm_kpa - op.p_int_kpa)
+        + sp * sp * (4.12e-3 * pr * pr) / (ri.powi(4) * (nv * nv))
+        + (sp * pr) * (sp * pr) * 0.178
+        + sp * sp * (4.12e-3 * pr * pr) / (re.powi(4) * (nv * nv));
+    Fmep {
+        cfmep,
+        rfmep,
+        vfmep,
+        afmep,
+        pmep,
+    }
+}
+
+/// fmep [kPa] of the regression form: `Σ c_i·φ_i` (Eq. 7.4–7.9).
+pub fn fmep_regression(c: &[f64; 20], phi: &[f64; 20]) -> f64 {
+    c.iter().zip(phi).map(|(c, p)| c * p).sum()
+}
+
+/// Torque from fmep [N·m]: `fmep·1e3 · π(B/1000)²/4 · (r/1000)/(2π)` (Eq. 3.44).
+pub fn tau_nm<T: Scalar>(fmep_kpa: T, d: &Design<T>) -> T {
+    fmep_kpa * 1e3 * (d.b / 1000.0) * (d.b / 1000.0) * (std::f64::consts::PI / 4.0) * (d.r / 1000.0)
+        / (2.0 * std::f64::consts::PI)
+}
