@@ -8,8 +8,12 @@
 //! * [`kinematics`] — slider-crank with piston-pin offset (SPEC §2.3, Eq. 3.29–3.32, app. B.4).
 //! * [`friction`] — mean-value friction (Patton / Sandoval–Heywood as the thesis's code has it)
 //!   and its 20-coefficient regression form (SPEC §2.5, Eq. 7.4–7.9).
+//! * [`cyclic_torque`] — the cyclic engine torque model of the cold test (Eq. 8.2, SPEC §9),
+//!   15 parameters; [`friction_fit`] — its friction cubic fitted to the mean-value model.
 //! * [`air`] — NASA-polynomial thermodynamic properties of air (SPEC §2.2, app. B.1).
 
 pub mod air;
+pub mod cyclic_torque;
 pub mod friction;
+pub mod friction_fit;
 pub mod kinematics;
