@@ -236,7 +236,12 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    assert_eq!(r.len(), 15 + 3 + 4);
+    assert_eq!(r.len(), 15 + 3 + 4 + 1);
+    let ct = r
+        .iter()
+        .find(|e| e["name"] == "cyclic_torque_grad")
+        .unwrap();
+    assert!(ct["evals_per_s"].as_f64().unwrap() > 0.0);
     for name in ["ekf", "ukf", "srukf"] {
         let e = r
             .iter()
