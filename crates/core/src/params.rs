@@ -109,6 +109,14 @@ impl ParamSet {
             })
     }
 
+    /// Names of the parameters a view sets free, in order.
+    pub fn free_names(&self, free: &FreeSet) -> Vec<&str> {
+        free.free()
+            .iter()
+            .map(|&i| self.names[i].as_str())
+            .collect()
+    }
+
     /// The view in which every parameter is free.
     pub fn all_free(&self) -> FreeSet {
         FreeSet {

@@ -755,11 +755,7 @@ impl LinearEstimator {
 
     /// Names of the free parameters, in order.
     pub fn free_names(&self) -> Vec<&str> {
-        self.free
-            .free()
-            .iter()
-            .map(|&i| self.params.names()[i].as_str())
-            .collect()
+        self.params.free_names(&self.free)
     }
 
     /// Estimates of the free parameters.

@@ -785,11 +785,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
 
     /// Names of the free parameters.
     pub fn free_names(&self) -> Vec<&str> {
-        self.free
-            .free()
-            .iter()
-            .map(|&i| self.params.names()[i].as_str())
-            .collect()
+        self.params.free_names(&self.free)
     }
 
     /// The free parameters' estimates, physical units.

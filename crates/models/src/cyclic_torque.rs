@@ -24,6 +24,12 @@ pub const PARAMS: [&str; 15] = [
 /// Input names, in order.
 pub const INPUTS: [&str; 6] = ["theta", "omega", "alpha", "p_cyl", "p_crank", "T_oil"];
 
+/// The engine of SPEC §2.4 in SI units (M_rec 0.8 kg, b 54 mm, L 88 mm, r 25.7 mm, δ 0) with
+/// an illustrative friction cubic of plausible size — for tests and benchmarks, not a fit.
+pub const ILLUSTRATIVE: [f64; 15] = [
+    0.80, 0.054, 0.088, 0.0257, 0.0, 60.0, 0.02, 0.4, 1e-6, 1e-4, 2e-3, 1e-10, 1e-8, 1e-6, 1e-5,
+];
+
 /// The cyclic-torque model.
 #[derive(Debug, Clone)]
 pub struct CyclicTorque {

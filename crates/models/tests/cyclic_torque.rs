@@ -4,18 +4,15 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use physid_core::{GradientEngine, ParamModel};
-use physid_models::cyclic_torque::{fmep_cubic, CyclicTorque};
+use physid_models::cyclic_torque::{fmep_cubic, CyclicTorque, ILLUSTRATIVE};
 use physid_models::friction::thesis_preset;
 use physid_models::friction_fit::{fit_cubic, fit_friction_cubic};
 use physid_models::kinematics::Crank;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-/// Nominal parameters: the engine of SPEC §2.4 (SI) and a friction cubic of plausible size.
 fn nominal() -> [f64; 15] {
-    [
-        0.80, 0.054, 0.088, 0.0257, 0.0, 60.0, 0.02, 0.4, 1e-6, 1e-4, 2e-3, 1e-10, 1e-8, 1e-6, 1e-5,
-    ]
+    ILLUSTRATIVE
 }
 
 /// At δ = 0 the model equals the torque written with the virtual-work forms:

@@ -8,7 +8,7 @@ use physid_core::{GradientEngine, ParamModel};
 use physid_estim::workload::{standard_methods, NonlinearWorkload, Workload};
 use physid_estim::{NlMethod, SigmaPoints};
 use physid_expr::ExprModel;
-use physid_models::cyclic_torque::CyclicTorque;
+use physid_models::cyclic_torque::{CyclicTorque, ILLUSTRATIVE};
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -167,9 +167,7 @@ pub fn run(args: &Args) -> Result<()> {
     // The cyclic-torque model (Eq. 8.2) with its full 15-parameter gradient, one crank degree
     // per sample over two revolutions.
     let torque = CyclicTorque::default();
-    let p15 = [
-        0.80, 0.054, 0.088, 0.0257, 0.0, 60.0, 0.02, 0.4, 1e-6, 1e-4, 2e-3, 1e-10, 1e-8, 1e-6, 1e-5,
-    ];
+    let p15 = ILLUSTRATIVE;
     let samples: Vec<[f64; 6]> = (0..720)
         .map(|k| {
             let th = (k as f64).to_radians();

@@ -354,10 +354,10 @@ pub fn run(args: &Args) -> Result<()> {
             name,
         )
     };
-    let names: Vec<String> = free
-        .free()
-        .iter()
-        .map(|&i| params.names()[i].clone())
+    let names: Vec<String> = params
+        .free_names(&free)
+        .into_iter()
+        .map(String::from)
         .collect();
     let nfree = names.len();
 
