@@ -211,6 +211,7 @@ mod tests {
         let v = p.free(&["off", "K"]).unwrap();
         assert_eq!(v.free(), &[0, 2]);
         assert_eq!(v.fixed(), &[1]);
+        assert_eq!(p.free_names(&v), vec!["K", "off"]);
         let phi = [2.0, 3.0, 1.0];
         let mut red = [0.0; 2];
         v.gather(&phi, &mut red);
