@@ -1,6 +1,7 @@
-//! Mean-value engine friction: Patton / Sandoval–Heywood, as the thesis's code computes it
-//! (SPEC §2.5; thesis Eq. 3.44–3.50, app. B.2–B.3), and its 20-coefficient regression form
-//! (Eq. 7.4–7.9), linear in the coefficients.
+//! Mean-value engine friction: Patton / Sandoval–Heywood (SPEC §2.5; thesis Eq. 3.44–3.50,
+//! app. B.2–B.3), and its 20-coefficient regression form (Eq. 7.4–7.9), linear in the
+//! coefficients. Two variants ([`Variant`]): as the thesis's code computes it, and as the
+//! original (Sandoval 2002) states it; both share every term that they have in common.
 //!
 //! Units *inside* this model follow the correlations: lengths in mm, speed N in rpm, pressures
 //! in kPa, oil temperature in °C, mean piston speed `S_p = 2·(S/1000)·N/60` in m/s, fmep in kPa.
@@ -56,6 +57,18 @@ pub struct OperatingPoint {
     pub t_oil_c: f64,
 }
 
+impl OperatingPoint {
+    /// From SI quantities: speed ω [rad/s], pressures [Pa], oil temperature [K].
+    pub fn from_si(omega_rad_s: f64, p_int_pa: f64, p_atm_pa: f64, t_oil_k: f64) -> Self {
+        Self {
+            n_rpm: omega_rad_s * 30.0 / std::f64::consts::PI,
+            p_int_kpa: p_int_pa / 1e3,
+            p_atm_kpa: p_atm_pa / 1e3,
+            t_oil_c: t_oil_k - 273.15,
+        }
+    }
+}
+
 /// Design parameters (mm; κ dimensionless), generic so that each can be differentiated.
 #[derive(Debug, Clone, Copy)]
 pub struct Design<T> {
@@ -79,9 +92,51 @@ pub struct Design<T> {
     pub r: T,
 }
 
+/// Which statement of the model (SPEC §2.5 note).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// The thesis's code (app. B.2): `s_μ = √(u_uo·μ(T)/μ(T_ref))`, the grade factor `u_uo`
+    /// alone in three hydrodynamic terms, constant 4.12 kPa in rfmep, auxiliaries
+    /// `8.32 + 1.86e-3·N + 7.45e-7·N²`.
+    Thesis,
+    /// The original (Sandoval 2002): `s_μ = √(μ(T)/μ(T_ref))` (1 at T_ref) in every
+    /// hydrodynamic term, the 4.12 kPa cam-seal constant in vfmep, auxiliaries
+    /// `6.23 + 5.22e-3·N − 1.79e-7·N²`.
+    Sandoval2002,
+}
+
+impl Variant {
+    /// Auxiliary-loss constants (a0, a1, a2): `afmep = a0 + a1·N + a2·N²` [kPa, N in rpm].
+    fn auxiliaries(self) -> (f64, f64, f64) {
+        match self {
+            Variant::Thesis => (8.32, 1.86e-3, 7.45e-7),
+            Variant::Sandoval2002 => (6.23, 5.22e-3, -1.79e-7),
+        }
+    }
+}
+
+impl<T: Scalar> Design<T> {
+    /// From lengths in metres (κ dimensionless) to the correlations' millimetres.
+    pub fn from_si(si: Design<T>) -> Self {
+        Self {
+            b: si.b * 1e3,
+            s: si.s * 1e3,
+            kappa: si.kappa,
+            di: si.di * 1e3,
+            de: si.de * 1e3,
+            lv: si.lv * 1e3,
+            db: si.db * 1e3,
+            lb: si.lb * 1e3,
+            r: si.r * 1e3,
+        }
+    }
+}
+
 /// The discrete choices: oil, valvetrain, counts and ring factors.
 #[derive(Debug, Clone, Copy)]
 pub struct Settings {
+    /// Which statement of the model.
+    pub variant: Variant,
     /// Oil: (k, θ1, θ2, u_uo).
     pub oil: (f64, f64, f64, f64),
     /// Valvetrain: (Cff, Crf, Coh, Com).
@@ -125,6 +180,31 @@ impl<T: Scalar> Fmep<T> {
     }
 }
 
+/// The named presets, for the command line.
+pub const PRESETS: [&str; 2] = ["thesis", "sandoval2002"];
+
+/// A preset by name ([`PRESETS`]); `None` for an unknown name.
+pub fn preset(name: &str) -> Option<(Design<f64>, Settings)> {
+    match name {
+        "thesis" => Some(thesis_preset()),
+        "sandoval2002" => Some(sandoval2002_preset()),
+        _ => None,
+    }
+}
+
+/// The original model ([`Variant::Sandoval2002`]) on the thesis's engine and oil: the same
+/// geometry and settings as [`thesis_preset`], so the two differ only in the model statement.
+pub fn sandoval2002_preset() -> (Design<f64>, Settings) {
+    let (d, st) = thesis_preset();
+    (
+        d,
+        Settings {
+            variant: Variant::Sandoval2002,
+            ..st
+        },
+    )
+}
+
 /// The thesis preset (app. B.2–B.3): 0W40, SOHC_III, Ft/Fto = 1, Cr = 1, nc = 1, nv = 2,
 /// nb = 2, B = 54, S = 51.5, r = 25.7, Db = 52, Lb = 13, Lv = 9, Di = 27, De = 23 mm, κ = 12
 /// (the friction study's value; the engine's is 9.5 — SPEC §2.5).
@@ -142,6 +222,7 @@ pub fn thesis_preset() -> (Design<f64>, Settings) {
             r: 25.7,
         },
         Settings {
+            variant: Variant::Thesis,
             oil: (
                 OIL_GRADES[0].1,
                 OIL_GRADES[0].2,
@@ -168,18 +249,35 @@ pub fn viscosity(oil: (f64, f64, f64, f64), t_c: f64) -> f64 {
     oil.0 * (oil.1 / (oil.2 + t_c)).exp()
 }
 
-/// The viscosity scaling as the thesis's code computes it: `s_μ = √(u_uo·μ(T)/μ(T_ref))`.
-pub fn s_mu(oil: (f64, f64, f64, f64), t_c: f64) -> f64 {
-    (oil.3 * viscosity(oil, t_c) / viscosity(oil, T_REF_C)).sqrt()
+/// The viscosity scaling `s_μ` (Eq. 3.45): `√(u_uo·μ(T)/μ(T_ref))` as the thesis's code
+/// computes it (√u_uo at T_ref), `√(μ(T)/μ(T_ref))` in the original (1 at T_ref).
+pub fn s_mu(st: &Settings, t_c: f64) -> f64 {
+    let grade = match st.variant {
+        Variant::Thesis => st.oil.3,
+        Variant::Sandoval2002 => 1.0,
+    };
+    (grade * viscosity(st.oil, t_c) / viscosity(st.oil, T_REF_C)).sqrt()
+}
+
+/// The factor of the three hydrodynamic terms (con-rod bearings, camshaft bearings,
+/// oscillating hydrodynamic valvetrain) that the thesis's code scales by the grade factor
+/// `u_uo` alone and the original by `s_μ`.
+fn hydrodynamic_factor(st: &Settings, smu: f64) -> f64 {
+    match st.variant {
+        Variant::Thesis => st.oil.3,
+        Variant::Sandoval2002 => smu,
+    }
 }
 
 /// The 20 nominal coefficients c1 … c20 of the regression form, in the order the constants
-/// appear in the physical form (SPEC §2.5; c14 = 8.32 so that both forms agree exactly).
+/// appear in the physical form (SPEC §2.5; c8 is the 4.12 kPa constant wherever the variant
+/// puts it, c14–c16 the variant's auxiliary constants), so that both forms agree exactly.
 pub fn nominal_coefficients(settings: &Settings) -> [f64; 20] {
     let (cff, crf, coh, com) = settings.valvetrain;
+    let (a0, a1, a2) = settings.variant.auxiliaries();
     [
         1.22e5, 3.03e-4, 1.35e-10, 294.0, 4.06e4, 3.03e-4, 6.89, 4.12, 244.0, cff, crf, coh, com,
-        8.32, 1.86e-3, 7.45e-7, 1.0, 4.12e-3, 0.178, 4.12e-3,
+        a0, a1, a2, 1.0, 4.12e-3, 0.178, 4.12e-3,
     ]
 }
 
@@ -189,8 +287,8 @@ pub fn regressors<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) 
     let n = op.n_rpm;
     let (b, s) = (d.b, d.s);
     let sp = s * (2.0 / 1000.0 * n / 60.0); // mean piston speed [m/s]
-    let smu = s_mu(st.oil, op.t_oil_c);
-    let uuo = st.oil.3;
+    let smu = s_mu(st, op.t_oil_c);
+    let hydro = hydrodynamic_factor(st, smu);
     let (nc, nv, nb) = (st.nc, st.nv, st.nb);
     let bbs = b * b * s * nc; // B²·S·nc
     let ratio = op.p_int_kpa / op.p_atm_kpa;
@@ -201,26 +299,26 @@ pub fn regressors<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) 
         (d.kappa * 0.088 * smu) + d.kappa.powd(-(sp * (2.0 * K_RING)) + 1.33) * (0.182 * st.ft_fto);
     let one = T::from(1.0);
     [
-        d.db / bbs,                                            // c1  crankshaft seals
-        db3lb * (smu * n * nb) / bbs,                          // c2  bearings, hydrodynamic
-        d.db * d.db * (n * n * nb / nc),                       // c3  bearing seals, turbulent
-        sp * smu / b,                                          // c4  piston skirt
-        one * (st.ft_fto * st.cr * speed_factor) / (b * b),    // c5  ring tension
-        db3lb * (uuo * n * nb) / bbs,                          // c6  con-rod bearings
-        ring * ratio,                                          // c7  gas-pressure loading
-        one,                                                   // c8  constant (cam seal)
-        one * (uuo * n * nb) / (b * b * s * nc),               // c9  camshaft bearings
-        one * (speed_factor * nv) / (s * nc),                  // c10 Cff: flat follower
-        one * (n * nv) / (s * nc),                             // c11 Crf: roller follower
-        d.lv.powf(1.5) * (uuo * n.sqrt() * nv) / (b * s * nc), // c12 Coh: oscillating hydrodynamic
-        d.lv * (speed_factor * nv) / (s * nc),                 // c13 Com: oscillating mixed
-        one,                                                   // c14 auxiliaries
-        one * n,                                               // c15
-        one * (n * n),                                         // c16
-        one * (op.p_atm_kpa - op.p_int_kpa),                   // c17 throttling
-        sp * sp * (ratio * ratio) / (ri.powi(4) * (nv * nv)),  // c18 intake valves
-        sp * sp * (ratio * ratio),                             // c19 intake system
-        sp * sp * (ratio * ratio) / (re.powi(4) * (nv * nv)),  // c20 exhaust valves
+        d.db / bbs,                                              // c1  crankshaft seals
+        db3lb * (smu * n * nb) / bbs,                            // c2  bearings, hydrodynamic
+        d.db * d.db * (n * n * nb / nc),                         // c3  bearing seals, turbulent
+        sp * smu / b,                                            // c4  piston skirt
+        one * (st.ft_fto * st.cr * speed_factor) / (b * b),      // c5  ring tension
+        db3lb * (hydro * n * nb) / bbs,                          // c6  con-rod bearings
+        ring * ratio,                                            // c7  gas-pressure loading
+        one,                                                     // c8  constant (cam seal)
+        one * (hydro * n * nb) / (b * b * s * nc),               // c9  camshaft bearings
+        one * (speed_factor * nv) / (s * nc),                    // c10 Cff: flat follower
+        one * (n * nv) / (s * nc),                               // c11 Crf: roller follower
+        d.lv.powf(1.5) * (hydro * n.sqrt() * nv) / (b * s * nc), // c12 Coh: oscillating hydrodynamic
+        d.lv * (speed_factor * nv) / (s * nc),                   // c13 Com: oscillating mixed
+        one,                                                     // c14 auxiliaries
+        one * n,                                                 // c15
+        one * (n * n),                                           // c16
+        one * (op.p_atm_kpa - op.p_int_kpa),                     // c17 throttling
+        sp * sp * (ratio * ratio) / (ri.powi(4) * (nv * nv)),    // c18 intake valves
+        sp * sp * (ratio * ratio),                               // c19 intake system
+        sp * sp * (ratio * ratio) / (re.powi(4) * (nv * nv)),    // c20 exhaust valves
     ]
 }
 
@@ -230,26 +328,34 @@ pub fn fmep<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) -> Fme
     let n = op.n_rpm;
     let (b, s, nc, nv, nb) = (d.b, d.s, st.nc, st.nv, st.nb);
     let sp = s * 2.0 / 1000.0 * n / 60.0;
-    let smu = s_mu(st.oil, op.t_oil_c);
-    let uuo = st.oil.3;
+    let smu = s_mu(st, op.t_oil_c);
+    let hydro = hydrodynamic_factor(st, smu);
     let (cff, crf, coh, com) = st.valvetrain;
+    // The 4.12 kPa constant: in rfmep in the thesis (Eq. 3.47), a cam-seal term in vfmep in
+    // the original.
+    let (rfmep_const, vfmep_const) = match st.variant {
+        Variant::Thesis => (4.12, 0.0),
+        Variant::Sandoval2002 => (0.0, 4.12),
+    };
     let pr = op.p_int_kpa / op.p_atm_kpa;
     let cfmep = d.db * 1.22e5 / (b * b * s * nc)
         + d.db.powi(3) * d.lb * (3.03e-4 * smu * n * nb) / (b * b * s * nc)
         + d.db * d.db * (1.35e-10 * n * n * nb / nc);
     let rfmep = sp * (2.94e2 * smu) / b
         + T::from(4.06e4 * (st.ft_fto * st.cr) * (1.0 + 500.0 / n)) / (b * b)
-        + d.db.powi(3) * d.lb * (3.03e-4 * uuo * n * nb) / (b * b * s * nc)
+        + d.db.powi(3) * d.lb * (3.03e-4 * hydro * n * nb) / (b * b * s * nc)
         + (d.kappa * (0.088 * smu)
             + d.kappa.powd(-(sp * (2.0 * K_RING)) + 1.33) * (0.182 * st.ft_fto))
             * (6.89 * pr)
-        + 4.12;
-    let vfmep = T::from(244.0 * uuo * n * nb) / (b * b * s * nc)
+        + rfmep_const;
+    let vfmep = T::from(244.0 * hydro * n * nb) / (b * b * s * nc)
         + T::from(cff * (1.0 + 500.0 / n) * nv) / (s * nc)
         + T::from(crf * n * nv) / (s * nc)
-        + d.lv.powf(1.5) * (coh * uuo * n.powf(0.5) * nv) / (b * s * nc)
-        + d.lv * (com * (1.0 + 500.0 / n) * nv) / (s * nc);
-    let afmep = T::from(8.32 + 1.86e-3 * n + 7.45e-7 * n * n);
+        + d.lv.powf(1.5) * (coh * hydro * n.powf(0.5) * nv) / (b * s * nc)
+        + d.lv * (com * (1.0 + 500.0 / n) * nv) / (s * nc)
+        + vfmep_const;
+    let (a0, a1, a2) = st.variant.auxiliaries();
+    let afmep = T::from(a0 + a1 * n + a2 * n * n);
     let (ri, re) = (d.di / b, d.de / b);
     let pmep = T::from(op.p_atm_kpa - op.p_int_kpa)
         + sp * sp * (4.12e-3 * pr * pr) / (ri.powi(4) * (nv * nv))

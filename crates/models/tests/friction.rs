@@ -4,8 +4,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use physid_models::friction::{
-    fmep, fmep_regression, nominal_coefficients, regressors, s_mu, tau_nm, thesis_preset,
-    viscosity, OperatingPoint, OIL_GRADES, T_REF_C,
+    fmep, fmep_regression, nominal_coefficients, preset, regressors, s_mu, sandoval2002_preset,
+    tau_nm, thesis_preset, viscosity, Design, OperatingPoint, Settings, Variant, OIL_GRADES,
+    PRESETS, T_REF_C,
 };
 
 fn grid() -> Vec<OperatingPoint> {
@@ -30,7 +31,14 @@ fn grid() -> Vec<OperatingPoint> {
 /// (zeroing coefficient i removes exactly c_i·φ_i from the physical total).
 #[test]
 fn regression_form_equals_physical_form() {
-    let (d, st) = thesis_preset();
+    for name in PRESETS {
+        let (d, st) = preset(name).unwrap();
+        regression_equals_physical(&d, &st);
+    }
+}
+
+fn regression_equals_physical(d: &Design<f64>, st: &Settings) {
+    let (d, st) = (*d, *st);
     let c = nominal_coefficients(&st);
     for op in grid() {
         let phys = fmep(&d, &st, &op).total();
@@ -55,12 +63,17 @@ fn regression_form_equals_physical_form() {
     }
 }
 
-/// Issue 5, verification 5: the Vogel form with the table's constants for every grade; the
-/// thesis code's scaling √(u_uo·μ/μ_ref) is √u_uo at T_ref (1 only for u_uo = 1 grades).
+/// Issue 5, verification 5: the Vogel form with the table's constants for every grade;
+/// `s_μ = 1` at T_ref in the original model, while the thesis code's scaling √(u_uo·μ/μ_ref)
+/// is √u_uo there (1 only for u_uo = 1 grades).
 #[test]
 fn viscosity_of_every_grade() {
+    let (_, thesis) = thesis_preset();
+    let (_, original) = sandoval2002_preset();
     for (name, k, t1, t2, uuo) in OIL_GRADES {
         let oil = (k, t1, t2, uuo);
+        let thesis = Settings { oil, ..thesis };
+        let original = Settings { oil, ..original };
         let mu90 = viscosity(oil, 90.0);
         assert!(
             (mu90 - k * (t1 / (t2 + 90.0)).exp()).abs() < 1e-12 * mu90,
@@ -70,8 +83,93 @@ fn viscosity_of_every_grade() {
             viscosity(oil, 20.0) > viscosity(oil, 90.0),
             "{name}: thinner when hot"
         );
-        assert!((s_mu(oil, T_REF_C) - uuo.sqrt()).abs() < 1e-15, "{name}");
+        assert!(
+            (s_mu(&thesis, T_REF_C) - uuo.sqrt()).abs() < 1e-15,
+            "{name}"
+        );
+        assert!((s_mu(&original, T_REF_C) - 1.0).abs() < 1e-15, "{name}");
+        let t = 40.0;
+        let expect = (k * (t1 / (t2 + t)).exp() / (k * (t1 / (t2 + T_REF_C)).exp())).sqrt();
+        assert!(
+            (s_mu(&original, t) - expect).abs() < 1e-13 * expect,
+            "{name}"
+        );
     }
+}
+
+/// The two variants differ exactly where SPEC §2.5 says: at T_ref with a u_uo = 1 grade the
+/// hydrodynamic terms agree, so the totals differ by the auxiliary polynomials alone, and the
+/// 4.12 kPa constant moves from rfmep to vfmep.
+#[test]
+fn variants_differ_where_the_spec_says() {
+    let (d, thesis) = thesis_preset();
+    let sae30 = OIL_GRADES.iter().find(|g| g.0 == "SAE30").unwrap();
+    let oil = (sae30.1, sae30.2, sae30.3, sae30.4);
+    let thesis = Settings { oil, ..thesis };
+    let original = Settings {
+        variant: Variant::Sandoval2002,
+        ..thesis
+    };
+    for n in [1000.0, 3000.0, 5000.0] {
+        let op = OperatingPoint {
+            n_rpm: n,
+            p_int_kpa: 55.0,
+            p_atm_kpa: 100.1,
+            t_oil_c: T_REF_C,
+        };
+        let (a, b) = (fmep(&d, &thesis, &op), fmep(&d, &original, &op));
+        let aux_a = 8.32 + 1.86e-3 * n + 7.45e-7 * n * n;
+        let aux_b = 6.23 + 5.22e-3 * n - 1.79e-7 * n * n;
+        assert!((a.afmep - aux_a).abs() < 1e-12 && (b.afmep - aux_b).abs() < 1e-12);
+        assert!(((a.rfmep - 4.12) - b.rfmep).abs() < 1e-12);
+        assert!(((b.vfmep - 4.12) - a.vfmep).abs() < 1e-12);
+        assert!((a.cfmep - b.cfmep).abs() < 1e-12 && (a.pmep - b.pmep).abs() < 1e-12);
+        assert!(((a.total() - b.total()) - (aux_a - aux_b)).abs() < 1e-10);
+    }
+    // Away from T_ref, the original scales the three hydrodynamic terms by s_μ: colder oil,
+    // more friction than the thesis code's constant grade factor.
+    let cold = OperatingPoint {
+        n_rpm: 3000.0,
+        p_int_kpa: 55.0,
+        p_atm_kpa: 100.1,
+        t_oil_c: 20.0,
+    };
+    assert!(fmep(&d, &original, &cold).vfmep > fmep(&d, &thesis, &cold).vfmep);
+    assert!(preset("sandoval2002").is_some() && preset("nope").is_none());
+}
+
+/// Issue 5, verification 6: the same torque from the correlations' units (mm, rpm, kPa, °C)
+/// and from SI inputs (m, rad/s, Pa, K) written independently.
+#[test]
+fn si_inputs_give_the_same_torque() {
+    let (d, st) = thesis_preset();
+    let op = OperatingPoint {
+        n_rpm: 2400.0,
+        p_int_kpa: 55.0,
+        p_atm_kpa: 100.1,
+        t_oil_c: 35.0,
+    };
+    let si = Design {
+        b: 0.054,
+        s: 0.0515,
+        kappa: 12.0,
+        di: 0.027,
+        de: 0.023,
+        lv: 0.009,
+        db: 0.052,
+        lb: 0.013,
+        r: 0.0257,
+    };
+    let op_si = OperatingPoint::from_si(
+        2400.0 * 2.0 * std::f64::consts::PI / 60.0,
+        55e3,
+        100.1e3,
+        308.15,
+    );
+    let d_si = Design::from_si(si);
+    let a = tau_nm(fmep(&d, &st, &op).total(), &d);
+    let b = tau_nm(fmep(&d_si, &st, &op_si).total(), &d_si);
+    assert!((a - b).abs() < 1e-12 * a.abs(), "{a} vs {b}");
 }
 
 /// Torque: τ = fmep·V_d/(4π) for a four-stroke (Eq. 3.44), with V_d = π B²/4 · 2r in SI units —
