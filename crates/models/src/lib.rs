@@ -10,6 +10,7 @@
 //!   and its 20-coefficient regression form (SPEC §2.5, Eq. 7.4–7.9).
 //! * [`cyclic_torque`] — the cyclic engine torque model of the cold test (Eq. 8.2, SPEC §9),
 //!   15 parameters; [`friction_fit`] — its friction cubic fitted to the mean-value model.
+//! * [`shaft`] — the coupling shaft, linear in K, B and an optional torque offset (Eq. 6.1).
 //! * [`air`] — NASA-polynomial thermodynamic properties of air (SPEC §2.2, app. B.1).
 
 pub mod air;
@@ -17,3 +18,4 @@ pub mod cyclic_torque;
 pub mod friction;
 pub mod friction_fit;
 pub mod kinematics;
+pub mod shaft;
