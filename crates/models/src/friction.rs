@@ -10,7 +10,7 @@
 //! The design parameters (B, S, κ, Di, De, Lv, Db, Lb, r) are generic over the
 //! [`Scalar`](physid_core::Scalar), so their sensitivities (thesis §7.2) are exact.
 
-use physid_core::Scalar;
+use physid_core::{ParamModel, Scalar};
 
 /// Oil grades: Vogel constants `μ = k·exp(θ1/(θ2 + T))` [cP, T in °C] and the high-shear factor
 /// `u_uo` (SPEC §2.5 table).
@@ -379,4 +379,97 @@ pub fn fmep_regression(c: &[f64; 20], phi: &[f64; 20]) -> f64 {
 pub fn tau_nm<T: Scalar>(fmep_kpa: T, d: &Design<T>) -> T {
     fmep_kpa * 1e3 * (d.b / 1000.0) * (d.b / 1000.0) * (std::f64::consts::PI / 4.0) * (d.r / 1000.0)
         / (2.0 * std::f64::consts::PI)
+}
+
+/// Names of the design parameters, in [`Design`] order (thesis app. B.2: `rc` is κ).
+pub const DESIGN_PARAMS: [&str; 9] = ["B", "S", "kappa", "Di", "De", "Lv", "Db", "Lb", "r"];
+
+impl<T: Scalar> Design<T> {
+    /// The design from values in [`DESIGN_PARAMS`] order.
+    pub fn from_array(v: [T; 9]) -> Self {
+        let [b, s, kappa, di, de, lv, db, lb, r] = v;
+        Self {
+            b,
+            s,
+            kappa,
+            di,
+            de,
+            lv,
+            db,
+            lb,
+            r,
+        }
+    }
+
+    /// The values in [`DESIGN_PARAMS`] order.
+    pub fn to_array(&self) -> [T; 9] {
+        [
+            self.b, self.s, self.kappa, self.di, self.de, self.lv, self.db, self.lb, self.r,
+        ]
+    }
+}
+
+/// The friction torque `τ_fri` [N·m] as a model of its design parameters ([`DESIGN_PARAMS`],
+/// mm and κ) through the seam, so that their sensitivities are exact (thesis §7.2, app. B.2).
+/// Inputs: `n_rpm`, `p_int_kpa`, `p_atm_kpa`, `t_oil_c`. The fmep includes pumping, as the
+/// thesis's ranking code has it, unless built [`without_pumping`](Self::without_pumping).
+#[derive(Debug, Clone)]
+pub struct FrictionTorque {
+    settings: Settings,
+    pumping: bool,
+    params: Vec<String>,
+    inputs: Vec<String>,
+}
+
+impl FrictionTorque {
+    /// Input names, in order.
+    pub const INPUTS: [&'static str; 4] = ["n_rpm", "p_int_kpa", "p_atm_kpa", "t_oil_c"];
+
+    /// The model for the given discrete settings (oil, valvetrain, counts, variant).
+    pub fn new(settings: Settings) -> Self {
+        Self {
+            settings,
+            pumping: true,
+            params: DESIGN_PARAMS.iter().map(|s| s.to_string()).collect(),
+            inputs: Self::INPUTS.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    /// The mechanical friction alone (pumping excluded; SPEC §2.3).
+    pub fn without_pumping(mut self) -> Self {
+        self.pumping = false;
+        self
+    }
+
+    /// The model's inputs for an operating point.
+    pub fn inputs(op: &OperatingPoint) -> [f64; 4] {
+        [op.n_rpm, op.p_int_kpa, op.p_atm_kpa, op.t_oil_c]
+    }
+}
+
+impl ParamModel for FrictionTorque {
+    fn param_names(&self) -> &[String] {
+        &self.params
+    }
+
+    fn input_names(&self) -> &[String] {
+        &self.inputs
+    }
+
+    fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
+        let d = Design::from_array([p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]]);
+        let op = OperatingPoint {
+            n_rpm: u[0],
+            p_int_kpa: u[1],
+            p_atm_kpa: u[2],
+            t_oil_c: u[3],
+        };
+        let f = fmep(&d, &self.settings, &op);
+        let total = if self.pumping {
+            f.total()
+        } else {
+            f.mechanical()
+        };
+        tau_nm(total, &d)
+    }
 }
