@@ -15,16 +15,9 @@ use thiserror::Error;
 /// What can go wrong in the ranking.
 #[derive(Debug, Error, PartialEq)]
 pub enum RankError {
-    /// A grid value is unusable.
-    #[error("{what} = {value}: {expected}")]
-    BadGrid {
-        /// Which grid quantity.
-        what: &'static str,
-        /// The value given.
-        value: f64,
-        /// What was expected.
-        expected: &'static str,
-    },
+    /// An operating point outside the model's domain, or an empty grid.
+    #[error("{0}")]
+    BadGrid(String),
     /// A parameter name is not a design parameter.
     #[error("'{0}' is not a design parameter; they are {list}", list = DESIGN_PARAMS.join(", "))]
     UnknownParameter(String),
@@ -89,43 +82,16 @@ impl RankGrid {
     }
 
     fn check(&self) -> Result<(), RankError> {
-        let bad = |what, value: f64, expected| RankError::BadGrid {
-            what,
-            value,
-            expected,
-        };
-        let positive = "expected a finite value > 0";
-        for &n in &self.n_rpm {
-            if !(n.is_finite() && n > 0.0) {
-                return Err(bad("engine speed [rpm]", n, positive));
-            }
-        }
-        for &p in &self.p_int_kpa {
-            if !(p.is_finite() && p >= 0.0) {
-                return Err(bad(
-                    "manifold pressure [kPa]",
-                    p,
-                    "expected a finite value ≥ 0",
-                ));
-            }
-        }
-        for &t in &self.t_oil_c {
-            // The Vogel form has a pole at T = −θ2 (about −100 to −190 °C): stay well above.
-            if !(t.is_finite() && (-50.0..=200.0).contains(&t)) {
-                return Err(bad("oil temperature [°C]", t, "expected −50 … 200 °C"));
-            }
-        }
-        if !(self.p_atm_kpa.is_finite() && self.p_atm_kpa > 0.0) {
-            return Err(bad("ambient pressure [kPa]", self.p_atm_kpa, positive));
-        }
         if self.n_rpm.is_empty() || self.p_int_kpa.is_empty() || self.t_oil_c.is_empty() {
-            return Err(bad(
-                "grid size",
-                0.0,
-                "expected at least one value per quantity",
+            return Err(RankError::BadGrid(
+                "the grid needs at least one speed, one manifold pressure and one oil temperature"
+                    .into(),
             ));
         }
-        Ok(())
+        self.points()
+            .iter()
+            .try_for_each(OperatingPoint::validate)
+            .map_err(RankError::BadGrid)
     }
 }
 

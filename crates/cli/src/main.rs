@@ -30,6 +30,10 @@ enum Command {
     /// Example: physid estimate --data shaft.csv --y torque_shaft --phi dtheta,domega
     /// --method rlsf --lambda 0.98 --json
     Estimate(cmd::estimate::Args),
+    /// The mean-value friction model: evaluate it, rank its design parameters.
+    ///
+    /// Example: physid friction eval --n 1000 --p-int 100 --t-oil 35
+    Friction(cmd::friction::Args),
     /// Measure this machine's real-time capability: estimator updates per second.
     ///
     /// Example: physid bench --json
@@ -46,5 +50,6 @@ fn main() -> miette::Result<()> {
         Command::Example(a) => cmd::example::run(&a),
         Command::Estimate(a) => cmd::estimate::run(&a),
         Command::Bench(a) => cmd::bench::run(&a),
+        Command::Friction(a) => cmd::friction::run(&a),
     }
 }

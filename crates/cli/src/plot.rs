@@ -150,6 +150,70 @@ pub fn panels(path: &Path, title: &str, xlabel: &str, panels: &[Panel]) -> Resul
     Ok(())
 }
 
+/// A heat map of ranks (1 = darkest), one row per test and one column per parameter, with
+/// the rank written in each cell — the layout of the thesis's Fig. 7.1.
+pub fn rank_heatmap(
+    path: &Path,
+    title: &str,
+    rows: &[String],
+    columns: &[String],
+    ranks: &[Vec<usize>],
+) -> Result<()> {
+    register_font();
+    let err = |e: &dyn std::fmt::Display| miette!("writing {}: {e}", path.display());
+    let (cell_w, cell_h, left, top) = (64u32, 22u32, 230u32, 90u32);
+    let width = left + cell_w * columns.len() as u32 + 20;
+    let height = top + cell_h * rows.len() as u32 + 20;
+    let root = SVGBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let text = |s: &str, x: u32, y: u32, size: u32, color: &RGBColor| {
+        Text::new(
+            s.to_string(),
+            (x as i32, y as i32),
+            ("sans-serif", size).into_font().color(color),
+        )
+    };
+    root.draw(&text(title, 10, 12, 20, &BLACK))
+        .map_err(|e| err(&e))?;
+    let max_rank = columns.len().max(2) as f64;
+    for (j, c) in columns.iter().enumerate() {
+        let x = left + cell_w * j as u32 + cell_w / 2 - 4 * c.len() as u32;
+        root.draw(&text(c, x, top - 24, 15, &BLACK))
+            .map_err(|e| err(&e))?;
+    }
+    for (i, (label, row)) in rows.iter().zip(ranks).enumerate() {
+        let y = top + cell_h * i as u32;
+        root.draw(&text(label, 10, y + 4, 13, &BLACK))
+            .map_err(|e| err(&e))?;
+        for (j, &rank) in row.iter().enumerate() {
+            // Rank 1 dark blue, the last rank near white.
+            let f = (rank as f64 - 1.0) / (max_rank - 1.0);
+            let shade = |dark: f64| (dark + (250.0 - dark) * f) as u8;
+            let fill = RGBColor(shade(8.0), shade(48.0), shade(107.0));
+            let x = left + cell_w * j as u32;
+            root.draw(&Rectangle::new(
+                [
+                    (x as i32, y as i32),
+                    ((x + cell_w) as i32, (y + cell_h) as i32),
+                ],
+                ShapeStyle::from(&fill).filled(),
+            ))
+            .map_err(|e| err(&e))?;
+            let ink = if f < 0.5 { WHITE } else { BLACK };
+            root.draw(&text(
+                &rank.to_string(),
+                x + cell_w / 2 - 4,
+                y + 4,
+                13,
+                &ink,
+            ))
+            .map_err(|e| err(&e))?;
+        }
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -440,3 +440,140 @@ fn estimate_nonlinear_expression_models() {
         );
     }
 }
+
+/// `friction eval --json` has the documented shape; components add up; the torque is
+/// fmep·V_d/(4π) (four-stroke) and equals sympy's value at the thesis grid's test 25
+/// (1000 rpm, 100 kPa, 90 °C; crates/apps/tests/golden/friction_rank.json).
+#[test]
+fn friction_eval_json() {
+    let o = physid(&[
+        "friction", "eval", "--n", "1000", "--p-int", "100", "--t-oil", "90", "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let f = &j["fmep_kpa"];
+    let parts: f64 = ["cfmep", "rfmep", "vfmep", "afmep", "pmep"]
+        .iter()
+        .map(|k| f[k].as_f64().unwrap())
+        .sum();
+    let total = f["total"].as_f64().unwrap();
+    assert!((parts - total).abs() < 1e-9 * total);
+    let tau = j["tau_fri_nm"].as_f64().unwrap();
+    let vd = std::f64::consts::PI / 4.0 * 0.054f64.powi(2) * 2.0 * 0.0257;
+    assert!((tau - total * 1e3 * vd / (4.0 * std::f64::consts::PI)).abs() < 1e-12 * tau);
+    let golden: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../apps/tests/golden/friction_rank.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    let t25 = &golden["tests"][24];
+    assert_eq!(t25["n_rpm"], 1000);
+    assert_eq!(t25["t_oil_c"], 90);
+    assert_eq!(t25["p_int_kpa"], 100);
+    assert!((tau - t25["tau_nm"].as_f64().unwrap()).abs() < 1e-12 * tau);
+
+    // --set changes the design; the other preset changes the model.
+    let o2 = physid(&[
+        "friction",
+        "eval",
+        "--n",
+        "1000",
+        "--p-int",
+        "100",
+        "--t-oil",
+        "90",
+        "--set",
+        "B=60",
+        "--preset",
+        "sandoval2002",
+        "--json",
+    ]);
+    assert!(o2.status.success(), "{}", stderr(&o2));
+    let j2: serde_json::Value = serde_json::from_slice(&o2.stdout).unwrap();
+    assert_ne!(j2["tau_fri_nm"], j["tau_fri_nm"]);
+}
+
+#[test]
+fn friction_rank_json_table_and_heatmap() {
+    let d = dir("rank");
+    let o = physid(&["friction", "rank", "--json", "--out", d.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let params = j["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), 9);
+    let tests = j["tests"].as_array().unwrap();
+    assert_eq!(tests.len(), 27);
+    for t in tests {
+        assert!(t["n_rpm"].is_number() && t["p_int_kpa"].is_number() && t["t_oil_c"].is_number());
+        let mut r: Vec<&str> = t["ranking"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_str().unwrap())
+            .collect();
+        r.sort();
+        let mut p: Vec<&str> = params.iter().map(|v| v.as_str().unwrap()).collect();
+        p.sort();
+        assert_eq!(r, p, "each test ranks every parameter once");
+    }
+    let svg = std::fs::read_to_string(d.join("rank.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("kappa"));
+
+    // The human table: a header and 27 rows; a chosen grid and parameter list.
+    let o = physid(&[
+        "friction", "rank", "--n", "2000", "--p-int", "40,80", "--t-oil", "60", "--params",
+        "B,r,Lv",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| l.contains(" 2000 ")).count(),
+        2,
+        "{text}"
+    );
+    assert!(text.contains("Lv") && !text.contains("kappa"));
+}
+
+#[test]
+fn friction_errors_name_the_problem() {
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &[
+                "friction", "eval", "--n", "0", "--p-int", "50", "--t-oil", "90",
+            ],
+            "engine speed [rpm] = 0",
+        ),
+        (
+            &[
+                "friction", "eval", "--n", "1000", "--p-int", "50", "--t-oil", "90", "--preset",
+                "x",
+            ],
+            "presets are thesis, sandoval2002",
+        ),
+        (
+            &[
+                "friction", "eval", "--n", "1000", "--p-int", "50", "--t-oil", "90", "--set", "B",
+            ],
+            "expected NAME=VALUE",
+        ),
+        (
+            &[
+                "friction", "eval", "--n", "1000", "--p-int", "50", "--t-oil", "90", "--set",
+                "oil=5W31",
+            ],
+            "the grades are",
+        ),
+        (
+            &["friction", "rank", "--params", "B,bore"],
+            "'bore' is not a design parameter",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = physid(args);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+    }
+}

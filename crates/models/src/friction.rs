@@ -58,6 +58,39 @@ pub struct OperatingPoint {
 }
 
 impl OperatingPoint {
+    /// Whether the point is inside the model's domain: speed > 0, pressures ≥ 0 (ambient > 0),
+    /// oil temperature −50 … 200 °C (the Vogel form has a pole near −θ2 ≈ −100 … −190 °C).
+    /// The error names the quantity, its value and what was expected.
+    pub fn validate(&self) -> Result<(), String> {
+        let checks = [
+            ("engine speed [rpm]", self.n_rpm, self.n_rpm > 0.0, "> 0"),
+            (
+                "manifold pressure [kPa]",
+                self.p_int_kpa,
+                self.p_int_kpa >= 0.0,
+                "≥ 0",
+            ),
+            (
+                "ambient pressure [kPa]",
+                self.p_atm_kpa,
+                self.p_atm_kpa > 0.0,
+                "> 0",
+            ),
+            (
+                "oil temperature [°C]",
+                self.t_oil_c,
+                (-50.0..=200.0).contains(&self.t_oil_c),
+                "in −50 … 200",
+            ),
+        ];
+        for (what, v, ok, expected) in checks {
+            if !(v.is_finite() && ok) {
+                return Err(format!("{what} = {v}: expected a finite value {expected}"));
+            }
+        }
+        Ok(())
+    }
+
     /// From SI quantities: speed ω [rad/s], pressures [Pa], oil temperature [K].
     pub fn from_si(omega_rad_s: f64, p_int_pa: f64, p_atm_pa: f64, t_oil_k: f64) -> Self {
         Self {
@@ -472,4 +505,68 @@ impl ParamModel for FrictionTorque {
         };
         tau_nm(total, &d)
     }
+}
+
+/// Names accepted by [`set_by_name`] besides [`DESIGN_PARAMS`].
+pub const SETTING_NAMES: [&str; 7] = ["oil", "valvetrain", "ft_fto", "cr", "nc", "nv", "nb"];
+
+/// Set one design parameter (mm; κ) or setting by name from its text — `B=56`, `oil=5W30`,
+/// `valvetrain=DOHC_I`, `nb=5` — for `--set` on the command line. The error says what was
+/// expected.
+pub fn set_by_name(
+    d: &mut Design<f64>,
+    st: &mut Settings,
+    name: &str,
+    value: &str,
+) -> Result<(), String> {
+    let number = || -> Result<f64, String> {
+        match value.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+            _ => Err(format!("{name}={value}: expected a finite number > 0")),
+        }
+    };
+    if let Some(j) = DESIGN_PARAMS.iter().position(|&p| p == name) {
+        let mut a = d.to_array();
+        a[j] = number()?;
+        *d = Design::from_array(a);
+        return Ok(());
+    }
+    match name {
+        "oil" => {
+            let g = OIL_GRADES
+                .iter()
+                .find(|g| g.0.eq_ignore_ascii_case(value.trim()))
+                .ok_or_else(|| {
+                    let list: Vec<&str> = OIL_GRADES.iter().map(|g| g.0).collect();
+                    format!("oil={value}: the grades are {}", list.join(", "))
+                })?;
+            st.oil = (g.1, g.2, g.3, g.4);
+        }
+        "valvetrain" => {
+            let v = VALVETRAINS
+                .iter()
+                .find(|v| v.0.eq_ignore_ascii_case(value.trim()))
+                .ok_or_else(|| {
+                    let list: Vec<&str> = VALVETRAINS.iter().map(|v| v.0).collect();
+                    format!(
+                        "valvetrain={value}: the valvetrains are {}",
+                        list.join(", ")
+                    )
+                })?;
+            st.valvetrain = (v.1, v.2, v.3, v.4);
+        }
+        "ft_fto" => st.ft_fto = number()?,
+        "cr" => st.cr = number()?,
+        "nc" => st.nc = number()?,
+        "nv" => st.nv = number()?,
+        "nb" => st.nb = number()?,
+        _ => {
+            return Err(format!(
+                "'{name}' is not a friction parameter; they are {}, {}",
+                DESIGN_PARAMS.join(", "),
+                SETTING_NAMES.join(", ")
+            ))
+        }
+    }
+    Ok(())
 }

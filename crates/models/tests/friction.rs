@@ -190,3 +190,23 @@ fn torque_units_and_magnitude() {
     assert!((tau_nm(f, &d) - tau).abs() < 1e-12 * tau);
     assert!((100.0..300.0).contains(&f), "fmep {f} kPa");
 }
+
+#[test]
+fn set_by_name_changes_one_thing_and_explains_mistakes() {
+    use physid_models::friction::set_by_name;
+    let (mut d, mut st) = thesis_preset();
+    set_by_name(&mut d, &mut st, "B", "56").unwrap();
+    set_by_name(&mut d, &mut st, "oil", "sae30").unwrap();
+    set_by_name(&mut d, &mut st, "valvetrain", "DOHC_I").unwrap();
+    set_by_name(&mut d, &mut st, "nb", "5").unwrap();
+    assert_eq!((d.b, d.s), (56.0, 51.5));
+    assert_eq!(st.oil, (0.0246, 1432.29, 132.94, 1.0));
+    assert_eq!(st.valvetrain.0, 600.0);
+    assert_eq!(st.nb, 5.0);
+    let e = set_by_name(&mut d, &mut st, "oil", "5W31").unwrap_err();
+    assert!(e.contains("0W40") && e.contains("SAE50"), "{e}");
+    let e = set_by_name(&mut d, &mut st, "S", "-3").unwrap_err();
+    assert!(e.contains("S=-3") && e.contains("> 0"), "{e}");
+    let e = set_by_name(&mut d, &mut st, "stroke", "3").unwrap_err();
+    assert!(e.contains("'stroke'") && e.contains("kappa"), "{e}");
+}

@@ -3,3 +3,4 @@
 pub mod bench;
 pub mod estimate;
 pub mod example;
+pub mod friction;
