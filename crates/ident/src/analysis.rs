@@ -1,0 +1,373 @@
+//! Batch identifiability of a [`ParamModel`] over a recording: one streaming pass folds the
+//! scaled sensitivity rows into the triangular factor that the ranking needs, and the unscaled
+//! rows (with the output residual when the output is measured) into a second one for the
+//! quantitative results — O(p²) memory for any number of rows.
+
+use crate::fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, Quantitative};
+use crate::ranking::{rank, Cutoff, Ranking};
+use crate::sensitivity::{output_levels, Data, OutputLevels, RowScaler, Scaling};
+use crate::triangular::TriangularFactor;
+use crate::wu::{wu_criterion, WuCriterion};
+use crate::IdentError;
+use nalgebra::DMatrix;
+use physid_core::{GradientEngine, ParamModel};
+use serde::{Deserialize, Serialize};
+
+/// How to analyse.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct IdentConfig {
+    /// Sensitivity scaling.
+    pub scaling: Scaling,
+    /// Thesis-scaling guard `g`: rows with `|y| < g·rms(y)` are divided by `±g·rms(y)`.
+    pub guard: f64,
+    /// Subtract each column's mean first (Eq. 5.9 as printed; the thesis's code and Yao et al.
+    /// do not).
+    pub centre: bool,
+}
+
+impl Default for IdentConfig {
+    fn default() -> Self {
+        Self {
+            scaling: Scaling::Thesis,
+            guard: 1e-3,
+            centre: false,
+        }
+    }
+}
+
+/// The batch analysis: the ranking, and what the quantitative results are computed from.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    /// Names of the analysed parameters (the free subset), in their order.
+    pub names: Vec<String>,
+    /// Their indices in the model's parameter list.
+    pub free: Vec<usize>,
+    /// The nominal values of all the model's parameters.
+    pub theta0: Vec<f64>,
+    /// Data rows.
+    pub rows: usize,
+    /// The scaling used.
+    pub config: IdentConfig,
+    /// Rows where the thesis scaling's guard replaced `y_i`.
+    pub guarded_rows: usize,
+    /// Output level statistics.
+    pub levels: OutputLevels,
+    /// The orthogonal ranking (every analysed parameter, selection order).
+    pub ranking: Ranking,
+    z: TriangularFactor,
+    /// `[J | r]`: unscaled sensitivities and, with a measured output, `r = y − h(ϑ0)`.
+    j: TriangularFactor,
+    has_y: bool,
+}
+
+/// Analyse `model` at `theta0` over `data`, for the parameters `free` (indices; all if empty).
+pub fn analyse<M: ParamModel>(
+    model: &M,
+    data: &Data,
+    theta0: &[f64],
+    free: &[usize],
+    config: IdentConfig,
+) -> Result<Analysis, IdentError> {
+    let names_all = model.param_names();
+    if theta0.len() != names_all.len() {
+        return Err(IdentError::Invalid(format!(
+            "{} nominal values for {} parameters ({})",
+            theta0.len(),
+            names_all.len(),
+            names_all.join(", ")
+        )));
+    }
+    if let Some((j, v)) = theta0.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(IdentError::Invalid(format!(
+            "nominal value of {} is {v}",
+            names_all[j]
+        )));
+    }
+    let free: Vec<usize> = if free.is_empty() {
+        (0..names_all.len()).collect()
+    } else {
+        free.to_vec()
+    };
+    if let Some(&j) = free.iter().find(|&&j| j >= names_all.len()) {
+        return Err(IdentError::Invalid(format!(
+            "parameter index {j} out of range"
+        )));
+    }
+    if !(config.guard.is_finite() && config.guard > 0.0) {
+        return Err(IdentError::Invalid(format!(
+            "guard {}: expected a finite value > 0",
+            config.guard
+        )));
+    }
+    let n = data.rows(model)?;
+    let p = free.len();
+    let levels = output_levels(model, data, theta0)?;
+    let theta_free: Vec<f64> = free.iter().map(|&j| theta0[j]).collect();
+    let scaler = RowScaler::new(
+        config.scaling,
+        &theta_free,
+        levels.level(config.scaling, config.guard),
+    )?;
+    let has_y = data.y.is_some();
+    let mut fz = TriangularFactor::new(p);
+    let mut fj = TriangularFactor::new(p + usize::from(has_y));
+    let mut engine = GradientEngine::new(theta0.len());
+    let mut u = vec![0.0; model.input_names().len()];
+    let mut g = vec![0.0; p];
+    let mut z = vec![0.0; p];
+    let mut jr = vec![0.0; p + usize::from(has_y)];
+    let mut sums = vec![0.0; p];
+    let mut guarded = 0;
+    for i in 0..n {
+        data.row(model, i, &mut u)?;
+        let h = engine.value_and_gradient(model, &u, theta0, &free, &mut g);
+        if let Some(k) = g.iter().position(|v| !v.is_finite()) {
+            return Err(IdentError::BadValue {
+                row: i,
+                column: format!("∂h/∂{}", names_all[free[k]]),
+                value: g[k],
+            });
+        }
+        let y = data.y_at(i)?;
+        guarded += usize::from(scaler.scale(&g, y.unwrap_or(h), &mut z));
+        fz.add_row(&z);
+        for (s, v) in sums.iter_mut().zip(&z) {
+            *s += v;
+        }
+        jr[..p].copy_from_slice(&g);
+        if let Some(y) = y {
+            jr[p] = y - h;
+        }
+        fj.add_row(&jr);
+    }
+    if config.centre {
+        // ZᵀZ − n·m·mᵀ: remove the row √n·m.
+        let row: Vec<f64> = sums.iter().map(|s| s / (n as f64).sqrt()).collect();
+        fz.remove_row(&row).map_err(|_| IdentError::Singular {
+            what: "centred sensitivity matrix (a constant column)",
+        })?;
+    }
+    let ranking = rank(&fz.r());
+    Ok(Analysis {
+        names: free.iter().map(|&j| names_all[j].clone()).collect(),
+        free,
+        theta0: theta0.to_vec(),
+        rows: n,
+        config,
+        guarded_rows: guarded,
+        levels,
+        ranking,
+        z: fz,
+        j: fj,
+        has_y,
+    })
+}
+
+fn sub_gram(f: &TriangularFactor, subset: &[usize]) -> DMatrix<f64> {
+    let r = f.r();
+    let cols = r.select_columns(subset);
+    cols.transpose() * cols
+}
+
+impl Analysis {
+    /// The estimable count K for a cut-off.
+    pub fn estimable(&self, cutoff: Cutoff) -> usize {
+        self.ranking.estimable(cutoff)
+    }
+
+    /// Indices (into [`names`](Self::names)) of the first `k` ranked parameters.
+    pub fn top(&self, k: usize) -> Vec<usize> {
+        self.ranking.steps.iter().take(k).map(|s| s.param).collect()
+    }
+
+    /// The scaled Gram matrix `ZᵀZ` of a subset (indices into [`names`](Self::names)).
+    pub fn gram_scaled(&self, subset: &[usize]) -> DMatrix<f64> {
+        sub_gram(&self.z, subset)
+    }
+
+    /// The unscaled Gram matrix `JᵀJ` of a subset.
+    pub fn gram(&self, subset: &[usize]) -> DMatrix<f64> {
+        sub_gram(&self.j, subset)
+    }
+
+    /// Collinearity index γ_K of a subset, on the scaled sensitivities.
+    pub fn collinearity(&self, subset: &[usize]) -> f64 {
+        collinearity_index(&self.gram_scaled(subset))
+    }
+
+    /// Residual sum of squares of the output after a linearised (one Gauss–Newton step) fit of
+    /// the subset from `ϑ0`; `None` without a measured output.
+    pub fn linearised_rss(&self, subset: &[usize]) -> Option<f64> {
+        if !self.has_y {
+            return None;
+        }
+        let p = self.free.len();
+        let mut cols = subset.to_vec();
+        cols.push(p);
+        let m = self.j.r().select_columns(&cols);
+        let r = m.qr().r();
+        let k = subset.len();
+        Some(r[(k, k)].powi(2))
+    }
+
+    /// Precision of a subset at `ϑ0` with noise variance `sigma2` (design-based, Eq. 5.12).
+    pub fn quantify(&self, subset: &[usize], sigma2: f64) -> Result<Quantitative, IdentError> {
+        let theta: Vec<f64> = subset.iter().map(|&i| self.theta0[self.free[i]]).collect();
+        quantify(&self.gram(subset), sigma2, &theta, self.rows)
+    }
+
+    /// D-, A-, E-, modified-E criteria of a subset's Fisher information with noise variance
+    /// `sigma2`.
+    pub fn design_criteria(&self, subset: &[usize], sigma2: f64) -> DesignCriteria {
+        design_criteria(&(self.gram(subset) / sigma2))
+    }
+}
+
+/// A Gauss–Newton least-squares fit of a parameter subset (indices into the model's parameter
+/// list), the rest held at `theta0`; needs the measured output.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// All parameters, the subset fitted.
+    pub theta: Vec<f64>,
+    /// Residual sum of squares at `theta`.
+    pub rss: f64,
+    /// `JᵀJ` of the subset at `theta`.
+    pub gram: DMatrix<f64>,
+    /// Gauss–Newton iterations taken.
+    pub iterations: usize,
+}
+
+/// Fit `subset` (model parameter indices) by Gauss–Newton with step halving, streaming the rows
+/// (`[J | r]` folded into a triangular factor each iteration), at most `max_iter` iterations.
+pub fn fit_subset<M: ParamModel>(
+    model: &M,
+    data: &Data,
+    theta0: &[f64],
+    subset: &[usize],
+    max_iter: usize,
+) -> Result<Fit, IdentError> {
+    if data.y.is_none() {
+        return Err(IdentError::Invalid(
+            "fitting needs the measured output column".into(),
+        ));
+    }
+    let n = data.rows(model)?;
+    let k = subset.len();
+    let mut theta = theta0.to_vec();
+    let mut engine = GradientEngine::new(theta0.len());
+    let mut u = vec![0.0; model.input_names().len()];
+    let mut g = vec![0.0; k];
+    let mut row = vec![0.0; k + 1];
+    let mut factor = TriangularFactor::new(k + 1);
+    // One pass: the factor of [J | r] at `theta`, and the rss.
+    let mut pass = |theta: &[f64], factor: &mut TriangularFactor| -> Result<f64, IdentError> {
+        factor.clear();
+        let mut rss = 0.0;
+        for i in 0..n {
+            data.row(model, i, &mut u)?;
+            let h = engine.value_and_gradient(model, &u, theta, subset, &mut g);
+            let y = data.y_at(i)?.unwrap_or(h);
+            row[..k].copy_from_slice(&g);
+            row[k] = y - h;
+            rss += row[k] * row[k];
+            factor.add_row(&row);
+        }
+        Ok(rss)
+    };
+    let rss_at = |theta: &[f64]| -> Result<f64, IdentError> {
+        let mut u = vec![0.0; model.input_names().len()];
+        let mut rss = 0.0;
+        for i in 0..n {
+            data.row(model, i, &mut u)?;
+            let h = model.eval::<f64>(&u, theta);
+            let y = data.y_at(i)?.unwrap_or(h);
+            rss += (y - h) * (y - h);
+        }
+        Ok(rss)
+    };
+    let mut rss = pass(&theta, &mut factor)?;
+    let mut iterations = 0;
+    for _ in 0..max_iter {
+        let r = factor.r();
+        let rmax = (0..k).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+        // Back substitution; a negligible pivot (an unidentifiable direction) takes no step.
+        let mut delta = vec![0.0; k];
+        for i in (0..k).rev() {
+            if r[(i, i)].abs() <= rmax * 1e-10 {
+                continue;
+            }
+            let mut s = r[(i, k)];
+            for j in i + 1..k {
+                s -= r[(i, j)] * delta[j];
+            }
+            delta[i] = s / r[(i, i)];
+        }
+        let mut alpha = 1.0;
+        let mut trial = theta.clone();
+        let mut rss_try = f64::INFINITY;
+        while alpha > 1e-6 {
+            for (idx, &j) in subset.iter().enumerate() {
+                trial[j] = theta[j] + alpha * delta[idx];
+            }
+            rss_try = rss_at(&trial)?;
+            if rss_try.is_finite() && rss_try <= rss {
+                break;
+            }
+            alpha *= 0.5;
+        }
+        if !(rss_try.is_finite() && rss_try <= rss) {
+            break;
+        }
+        iterations += 1;
+        let small = rss - rss_try <= 1e-12 * rss.max(f64::MIN_POSITIVE);
+        theta = trial;
+        rss = pass(&theta, &mut factor)?;
+        if small {
+            break;
+        }
+    }
+    let r = factor.r();
+    let jk = r.view((0, 0), (k, k)).into_owned();
+    Ok(Fit {
+        theta,
+        rss,
+        gram: jk.transpose() * jk,
+        iterations,
+    })
+}
+
+/// The Wu et al. (2011) criterion along a ranking: fit the top K parameters for K = 1 … p
+/// ([`fit_subset`], at most `max_iter` Gauss–Newton iterations each), `J_K = rss_K/σ²` with
+/// `σ² = sigma2` if given, else `rss_p/(n − p)`.
+pub fn wu_along_ranking<M: ParamModel>(
+    model: &M,
+    data: &Data,
+    analysis: &Analysis,
+    sigma2: Option<f64>,
+    max_iter: usize,
+) -> Result<(WuCriterion, Vec<f64>), IdentError> {
+    let p = analysis.free.len();
+    let mut rss = Vec::with_capacity(p);
+    for k in 1..=p {
+        let subset: Vec<usize> = analysis.top(k).iter().map(|&i| analysis.free[i]).collect();
+        rss.push(fit_subset(model, data, &analysis.theta0, &subset, max_iter)?.rss);
+    }
+    let n = analysis.rows;
+    let s2 = match sigma2 {
+        Some(s) => s,
+        None if n > p => rss[p - 1] / (n - p) as f64,
+        None => {
+            return Err(IdentError::Invalid(format!(
+                "{n} rows for {p} parameters: give the noise variance"
+            )))
+        }
+    };
+    if !(s2.is_finite() && s2 > 0.0) {
+        return Err(IdentError::Invalid(format!(
+            "noise variance {s2}: the full model fits exactly; give the noise variance"
+        )));
+    }
+    let j: Vec<f64> = rss.iter().map(|r| r / s2).collect();
+    let wu = wu_criterion(&j, n).ok_or_else(|| IdentError::Invalid("no parameters".into()))?;
+    Ok((wu, j))
+}
