@@ -116,7 +116,7 @@ pub fn analyse<M: ParamModel>(
     let mut g = vec![0.0; p];
     let mut z = vec![0.0; p];
     let mut jr = vec![0.0; p + usize::from(has_y)];
-    let mut sums = vec![0.0; p];
+    let mut mean = vec![0.0; p];
     let mut guarded = 0;
     for i in 0..n {
         data.row(model, i, &mut u)?;
@@ -130,22 +130,28 @@ pub fn analyse<M: ParamModel>(
         }
         let y = data.y_at(i)?;
         guarded += usize::from(scaler.scale(&g, y.unwrap_or(h), &mut z));
-        fz.add_row(&z);
-        for (s, v) in sums.iter_mut().zip(&z) {
-            *s += v;
+        if config.centre {
+            // Centred scatter without cancellation (Welford's update as a rank-one row):
+            // S_k = S_{k−1} + (k−1)/k·(z − m_{k−1})(z − m_{k−1})ᵀ.
+            let k = (i + 1) as f64;
+            let w = ((k - 1.0) / k).sqrt();
+            for (zj, mj) in z.iter_mut().zip(mean.iter_mut()) {
+                let d = *zj - *mj;
+                *mj += d / k;
+                *zj = w * d;
+            }
         }
+        fz.add_row(&z);
         jr[..p].copy_from_slice(&g);
         if let Some(y) = y {
             jr[p] = y - h;
         }
         fj.add_row(&jr);
     }
-    if config.centre {
-        // ZᵀZ − n·m·mᵀ: remove the row √n·m.
-        let row: Vec<f64> = sums.iter().map(|s| s / (n as f64).sqrt()).collect();
-        fz.remove_row(&row).map_err(|_| IdentError::Singular {
-            what: "centred sensitivity matrix (a constant column)",
-        })?;
+    if !(fz.is_finite() && fj.is_finite()) {
+        return Err(IdentError::Invalid(
+            "the sensitivities overflow (sums of squares beyond 1e308): rescale the parameters or use --scaling thesis/sigma".into(),
+        ));
     }
     let ranking = rank(&fz.r());
     Ok(Analysis {
@@ -315,16 +321,13 @@ pub fn fit_subset<M: ParamModel>(
             }
             alpha *= 0.5;
         }
-        if !(rss_try.is_finite() && rss_try <= rss) {
+        // Converged: no decrease beyond rounding (then the step is not taken).
+        if !(rss_try.is_finite() && rss - rss_try > 1e-12 * rss) {
             break;
         }
         iterations += 1;
-        let small = rss - rss_try <= 1e-12 * rss.max(f64::MIN_POSITIVE);
         theta = trial;
         rss = pass(&theta, &mut factor)?;
-        if small {
-            break;
-        }
     }
     let r = factor.r();
     let jk = r.view((0, 0), (k, k)).into_owned();

@@ -11,7 +11,8 @@
 //!   index, D/A/E/modified-E criteria (Eq. 5.12–5.13);
 //! * [`analysis`] — the batch analysis of a model over a recording, and least-squares fits of
 //!   subsets;
-//! * [`online`] — the recursive (on-line) ranking with forgetting or a sliding window.
+//! * [`online`] — the recursive (on-line) ranking with forgetting or a sliding window;
+//! * [`workload`] — reproducible benchmark workloads.
 
 pub mod analysis;
 pub mod fisher;
@@ -19,6 +20,7 @@ pub mod online;
 pub mod ranking;
 pub mod sensitivity;
 pub mod triangular;
+pub mod workload;
 pub mod wu;
 
 pub use analysis::{analyse, fit_subset, wu_along_ranking, Analysis, Fit, IdentConfig};

@@ -40,7 +40,7 @@ pub struct Ranking {
 #[serde(rename_all = "snake_case", tag = "kind", content = "value")]
 pub enum Cutoff {
     /// The thesis's code: stop when the next column would repeat one already chosen — its
-    /// residual is zero to rounding (relative residual norm ≤ 1e3·ε of its own column).
+    /// residual is zero to rounding (residual norm ≤ 1e3·ε of the largest column's norm).
     #[default]
     Repeat,
     /// Stop when the residual sum of squares falls below this value.
@@ -99,13 +99,11 @@ pub fn rank(r: &DMatrix<f64>) -> Ranking {
 impl Ranking {
     /// How many parameters (the first K steps) the cut-off declares estimable.
     pub fn estimable(&self, cutoff: Cutoff) -> usize {
+        let first = self.steps.first().map_or(0.0, |s| s.residual_ss);
         self.steps
             .iter()
             .take_while(|s| match cutoff {
-                Cutoff::Repeat => {
-                    let own = self.column_ss[s.param];
-                    own > 0.0 && s.residual_ss > own * (1e3 * f64::EPSILON).powi(2)
-                }
+                Cutoff::Repeat => s.residual_ss > first * (1e3 * f64::EPSILON).powi(2),
                 Cutoff::Absolute(x) => s.residual_ss > x,
                 Cutoff::Relative(x) => s.relative > x,
             })

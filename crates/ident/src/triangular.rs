@@ -75,7 +75,9 @@ impl TriangularFactor {
             }
             let row = &mut self.r[k * p..(k + 1) * p];
             let a = row[k];
-            let h = a.hypot(b);
+            // √(a² + b²): `hypot` would guard against overflow beyond ~1e154 at twice the cost
+            // of the whole sweep; users of the factor check that it is finite.
+            let h = (a * a + b * b).sqrt();
             let (c, s) = (a / h, b / h);
             row[k] = h;
             for (rkj, wj) in row[k + 1..].iter_mut().zip(&mut w[k + 1..]) {
@@ -134,6 +136,11 @@ impl TriangularFactor {
     /// `R` as a matrix (p × p, upper triangular).
     pub fn r(&self) -> DMatrix<f64> {
         DMatrix::from_row_slice(self.p, self.p, &self.r)
+    }
+
+    /// Whether every entry is finite (false after an overflow or a non-finite row).
+    pub fn is_finite(&self) -> bool {
+        self.r.iter().all(|v| v.is_finite())
     }
 
     /// Entry `R[i, j]`.
