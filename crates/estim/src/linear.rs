@@ -264,6 +264,10 @@ enum Kind {
 #[derive(Debug, Clone)]
 pub struct LinearEstimator {
     method: Method,
+    /// The configuration as built, over `universe` (for [`set_free`](Self::set_free)).
+    config: EstimatorConfig,
+    /// The free set the estimator was built with: what `set_free` may choose from.
+    universe: FreeSet,
     kind: Kind,
     params: ParamSet,
     free: FreeSet,
@@ -414,6 +418,8 @@ impl LinearEstimator {
         }
         Ok(Self {
             method: config.method.clone(),
+            config: config.clone(),
+            universe: free.clone(),
             kind,
             params: params.clone(),
             free: free.clone(),
@@ -736,6 +742,94 @@ impl LinearEstimator {
     /// covariance form reaching its numerical limit: DSFC is the method for such data.
     pub fn reset_covariance(&mut self) {
         self.cov.copy_from(&self.cov0);
+    }
+
+    /// Change which parameters are estimated, among those the estimator was built with:
+    /// parameters leaving the free set are frozen at their current estimates; parameters
+    /// entering it start from their frozen value with their P0 variance and no correlation;
+    /// the covariance block of parameters that stay free is kept. This is how an estimator
+    /// stops a parameter that has lost excitation from winding up (the on-line identifiability
+    /// signal decides which), and releases it when excitation returns. Allocates (an event,
+    /// not a per-sample operation).
+    pub fn set_free(&mut self, free: &FreeSet) -> Result<(), EstimError> {
+        if free.free() == self.free.free() {
+            return Ok(());
+        }
+        let universe = self.universe.free();
+        if free.full_len() != self.params.len() {
+            return Err(EstimError::DimensionMismatch {
+                what: "free set over the parameters",
+                expected: self.params.len(),
+                got: free.full_len(),
+            });
+        }
+        let pos: Vec<usize> = free
+            .free()
+            .iter()
+            .map(|j| {
+                universe.iter().position(|u| u == j).ok_or_else(|| {
+                    EstimError::InvalidConfig(format!(
+                        "parameter {} was fixed when the estimator was built; it cannot be freed",
+                        self.params.names()[*j]
+                    ))
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        let names = self.params.names().to_vec();
+        let params = ParamSet::new(names, self.estimate_full())
+            .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+        let n = universe.len();
+        let subset = |spec: &CovSpec, what: &'static str| -> Result<CovSpec, EstimError> {
+            let m = spec.to_matrix(n, what)?;
+            Ok(CovSpec::Full(
+                pos.iter()
+                    .map(|&a| pos.iter().map(|&b| m[(a, b)]).collect())
+                    .collect(),
+            ))
+        };
+        let mut config = self.config.clone();
+        config.p0 = subset(&self.config.p0, "P0")?;
+        match &mut config.method {
+            Method::Rlsvf { lambdas, .. } => *lambdas = pos.iter().map(|&a| lambdas[a]).collect(),
+            Method::Kalman { r1, .. } => *r1 = subset(r1, "R1")?,
+            _ => {}
+        }
+        let mut next = LinearEstimator::new(&config, &params, free)?;
+        // Covariance: entering parameters at P0 (diagonal block, no cross terms), staying ones
+        // keep their block.
+        let old = self.covariance();
+        let was: Vec<Option<usize>> = free
+            .free()
+            .iter()
+            .map(|j| self.free.free().iter().position(|f| f == j))
+            .collect();
+        let p0 = next.covariance();
+        let k = pos.len();
+        let cov = DMatrix::from_fn(k, k, |a, b| match (was[a], was[b]) {
+            (Some(i), Some(j)) => old[(i, j)],
+            (None, None) => p0[(a, b)],
+            _ => 0.0,
+        });
+        next.cov = match next.kind {
+            Kind::Dsfc { .. } => cov
+                .cholesky()
+                .ok_or(EstimError::NotPositiveDefinite {
+                    what: "covariance after changing the free set",
+                })?
+                .l(),
+            _ => cov,
+        };
+        next.work = next.cov.clone();
+        next.config = self.config.clone();
+        next.universe = self.universe.clone();
+        next.lambda_t = self.lambda_t;
+        next.noise_num = self.noise_num;
+        next.noise_den = self.noise_den;
+        next.samples = self.samples;
+        next.guard_activations = self.guard_activations;
+        next.last = self.last;
+        *self = next;
+        Ok(())
     }
 
     /// The method and its tuning.
