@@ -7,9 +7,12 @@
 //!   language).
 //! * [`example_5_2`] — thesis Example 5.2: RLS, RLS with forgetting and RLS with vector
 //!   forgetting tracking a step in one parameter of `z = A(t)·sin(x) + B·y²`.
+//! * [`excitation`] — on-line identifiability freezing the parameters an estimator's recent
+//!   data no longer supports (no wind-up), and the lost-excitation demonstration.
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
 
 pub mod example_5_1;
 pub mod example_5_2;
+pub mod excitation;
 pub mod friction_rank;

@@ -268,6 +268,8 @@ pub struct LinearEstimator {
     config: EstimatorConfig,
     /// The free set the estimator was built with: what `set_free` may choose from.
     universe: FreeSet,
+    /// Per parameter (full set): its variance when `set_free` last froze it (NaN: never).
+    frozen_variance: Vec<f64>,
     kind: Kind,
     params: ParamSet,
     free: FreeSet,
@@ -420,6 +422,7 @@ impl LinearEstimator {
             method: config.method.clone(),
             config: config.clone(),
             universe: free.clone(),
+            frozen_variance: vec![f64::NAN; params.len()],
             kind,
             params: params.clone(),
             free: free.clone(),
@@ -746,8 +749,9 @@ impl LinearEstimator {
 
     /// Change which parameters are estimated, among those the estimator was built with:
     /// parameters leaving the free set are frozen at their current estimates; parameters
-    /// entering it start from their frozen value with their P0 variance and no correlation;
-    /// the covariance block of parameters that stay free is kept. This is how an estimator
+    /// entering it start from their frozen value with the variance they had when frozen (their
+    /// P0 variance if never estimated) and no correlation — nothing was learnt about them
+    /// meanwhile; the covariance block of parameters that stay free is kept. This is how an estimator
     /// stops a parameter that has lost excitation from winding up (the on-line identifiability
     /// signal decides which), and releases it when excitation returns. Allocates (an event,
     /// not a per-sample operation).
@@ -803,11 +807,24 @@ impl LinearEstimator {
             .iter()
             .map(|j| self.free.free().iter().position(|f| f == j))
             .collect();
+        let mut frozen_variance = self.frozen_variance.clone();
+        for (i, &j) in self.free.free().iter().enumerate() {
+            if !free.free().contains(&j) {
+                frozen_variance[j] = old[(i, i)];
+            }
+        }
         let p0 = next.covariance();
         let k = pos.len();
         let cov = DMatrix::from_fn(k, k, |a, b| match (was[a], was[b]) {
             (Some(i), Some(j)) => old[(i, j)],
-            (None, None) => p0[(a, b)],
+            (None, None) if a == b => {
+                let v = frozen_variance[free.free()[a]];
+                if v.is_finite() {
+                    v
+                } else {
+                    p0[(a, a)]
+                }
+            }
             _ => 0.0,
         });
         next.cov = match next.kind {
@@ -822,6 +839,7 @@ impl LinearEstimator {
         next.work = next.cov.clone();
         next.config = self.config.clone();
         next.universe = self.universe.clone();
+        next.frozen_variance = frozen_variance;
         next.lambda_t = self.lambda_t;
         next.noise_num = self.noise_num;
         next.noise_den = self.noise_den;
