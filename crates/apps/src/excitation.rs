@@ -126,7 +126,7 @@ impl ExcitationSupervisor {
         }
         self.ident.update(&self.row)?;
         self.samples += 1;
-        if self.samples % self.config.check_every.max(1) == 0 {
+        if self.samples.is_multiple_of(self.config.check_every.max(1)) {
             self.steer()?;
         }
         Ok(())
