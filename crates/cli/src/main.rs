@@ -30,6 +30,12 @@ enum Command {
     /// Example: physid estimate --data shaft.csv --y torque_shaft --phi dtheta,domega
     /// --method rlsf --lambda 0.98 --json
     Estimate(cmd::estimate::Args),
+    /// Which parameters of a model a recording can resolve: the orthogonal ranking (Alg. 5.1),
+    /// cut-offs, Fisher information, confidence intervals; several --data compare experiments.
+    ///
+    /// Example: physid identify --data ex51.csv --expr 'sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 +
+    /// D*y^2 + E*x/y + F*2*x/y' --params A=1,B=2,C=3,D=4,E=5,F=6
+    Identify(cmd::identify::Args),
     /// The mean-value friction model: evaluate it, rank its design parameters.
     ///
     /// Example: physid friction eval --n 1000 --p-int 100 --t-oil 35
@@ -51,5 +57,6 @@ fn main() -> miette::Result<()> {
         Command::Estimate(a) => cmd::estimate::run(&a),
         Command::Bench(a) => cmd::bench::run(&a),
         Command::Friction(a) => cmd::friction::run(&a),
+        Command::Identify(a) => cmd::identify::run(&a),
     }
 }

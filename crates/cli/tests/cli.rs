@@ -236,7 +236,14 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    assert_eq!(r.len(), 15 + 3 + 4 + 1);
+    assert_eq!(r.len(), 15 + 3 + 4 + 1 + 3);
+    for name in ["ident_batch", "ident_cyclic_torque", "ident_online"] {
+        let e = r
+            .iter()
+            .find(|e| e["name"] == name && e["p"] == 15)
+            .unwrap();
+        assert!(e["rows_per_s"].as_f64().unwrap() > 0.0, "{name}");
+    }
     let ct = r
         .iter()
         .find(|e| e["name"] == "cyclic_torque_grad")
@@ -569,6 +576,158 @@ fn friction_errors_name_the_problem() {
         (
             &["friction", "rank", "--params", "B,bore"],
             "'bore' is not a design parameter",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = physid(args);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+    }
+}
+
+const EX51: &str = "sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 + D*y^2 + E*x/y + F*2*x/y";
+
+fn names_of(v: &serde_json::Value, key: &str) -> Vec<String> {
+    v[key]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| {
+            s.get("param")
+                .and_then(|p| p.as_str())
+                .or_else(|| s.as_str())
+                .unwrap()
+                .to_string()
+        })
+        .collect()
+}
+
+/// Issue 4, verification 1: `physid example 5.1 --json` prints estimable [D, C, B, A, F] and
+/// unidentifiable [E]; the same through `physid identify --expr` on the CSV it wrote.
+#[test]
+fn example_5_1_and_identify_agree() {
+    let d = dir("ex51");
+    let o = physid(&["example", "5.1", "--json", "--out", d.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(names_of(&j, "ranking"), ["D", "C", "B", "A", "F"]);
+    assert_eq!(names_of(&j, "unidentifiable"), ["E"]);
+    assert_eq!(j["scaling"], "thesis");
+    for key in ["fim", "std_err", "ci95", "collinearity"] {
+        assert!(!j[key].is_null(), "{key}");
+    }
+    let csv = d.join("example-5.1.csv");
+    let o = physid(&[
+        "identify",
+        "--data",
+        csv.to_str().unwrap(),
+        "--units-row",
+        "--expr",
+        EX51,
+        "--params",
+        "A=1,B=2,C=3,D=4,E=5,F=6",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let k: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(names_of(&k, "ranking"), ["D", "C", "B", "A", "F"]);
+    assert_eq!(names_of(&k, "unidentifiable"), ["E"]);
+    // The formula and the Rust model give the same residuals.
+    for (a, b) in j["ranking"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(k["ranking"].as_array().unwrap())
+    {
+        let (x, y) = (
+            a["residual_ss"].as_f64().unwrap(),
+            b["residual_ss"].as_f64().unwrap(),
+        );
+        assert!((x - y).abs() <= 1e-9 * x, "{x} vs {y}");
+    }
+
+    // Two recordings: the comparison; Wu's criterion with the measured output.
+    let o = physid(&[
+        "identify",
+        "--data",
+        csv.to_str().unwrap(),
+        "--data",
+        csv.to_str().unwrap(),
+        "--units-row",
+        "--model",
+        "example-5.1",
+        "--y",
+        "z",
+        "--cutoff",
+        "wu",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let ex = c["experiments"].as_array().unwrap();
+    assert_eq!(ex.len(), 2);
+    assert_eq!(ex[0]["cutoff"]["kind"], "wu");
+    let k_star = ex[0]["cutoff"]["k_star"].as_u64().unwrap();
+    assert!((1..=6).contains(&k_star));
+    assert_eq!(ex[0]["sigma2_source"], "fit");
+    // The human table of a comparison ends with one line per recording.
+    let o = physid(&[
+        "identify",
+        "--data",
+        csv.to_str().unwrap(),
+        "--data",
+        csv.to_str().unwrap(),
+        "--units-row",
+        "--model",
+        "example-5.1",
+    ]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(text.contains("experiment comparison"), "{text}");
+}
+
+#[test]
+fn identify_errors_name_the_problem() {
+    let d = dir("identerr");
+    let csv = regression_csv(&d, None);
+    let c = csv.to_str().unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["identify", "--data", c, "--expr", "A*q", "--params", "A=1"],
+            "name 'q' at column 3 is neither a parameter nor a data column",
+        ),
+        (
+            &["identify", "--data", c, "--model", "shaft"],
+            "the model needs column 'theta_dy'",
+        ),
+        (
+            &["identify", "--data", c, "--model", "warp"],
+            "no built-in model 'warp'",
+        ),
+        (
+            &[
+                "identify", "--data", c, "--expr", "A*a", "--params", "A=1", "--cutoff", "wu",
+            ],
+            "needs the measured output",
+        ),
+        (
+            &[
+                "identify",
+                "--data",
+                c,
+                "--expr",
+                "A*a",
+                "--params",
+                "A=1",
+                "--scaling",
+                "log",
+            ],
+            "expected thesis, sigma or none",
+        ),
+        (
+            &[
+                "identify", "--data", c, "--expr", "A*a", "--params", "A=1", "--free", "Z",
+            ],
+            "--free Z: the parameters are A",
         ),
     ];
     for (args, want) in cases {

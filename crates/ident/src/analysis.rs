@@ -50,6 +50,9 @@ pub struct Analysis {
     pub config: IdentConfig,
     /// Rows where the thesis scaling's guard replaced `y_i`.
     pub guarded_rows: usize,
+    /// Analysed parameters (indices into [`names`](Self::names)) whose nominal value is 0, so
+    /// that their column was scaled by 1 instead of `ϑ0` (thesis and sigma scalings).
+    pub unit_scaled: Vec<usize>,
     /// Output level statistics.
     pub levels: OutputLevels,
     /// The orthogonal ranking (every analysed parameter, selection order).
@@ -161,6 +164,11 @@ pub fn analyse<M: ParamModel>(
         rows: n,
         config,
         guarded_rows: guarded,
+        unit_scaled: if config.scaling == Scaling::None {
+            Vec::new()
+        } else {
+            (0..p).filter(|&i| theta_free[i] == 0.0).collect()
+        },
         levels,
         ranking,
         z: fz,

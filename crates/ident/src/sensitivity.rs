@@ -7,6 +7,9 @@
 //! | mode | `Z_ij` | note |
 //! |---|---|---|
 //! | `thesis` | `J_ij·ϑ0_j / y_i` | Eq. 5.11; `y_i` guarded away from 0 (below) |
+//!
+//! (A parameter whose nominal value is 0 has no relative sensitivity; its column uses 1 in
+//! place of `ϑ0_j`.)
 //! | `sigma` | `J_ij·ϑ0_j / σ_y` | one scale for every row: no division by `y ≈ 0` |
 //! | `none` | `J_ij` | |
 //!
@@ -154,9 +157,14 @@ impl RowScaler {
                 scaling.name()
             )));
         }
+        // A zero nominal value has no relative sensitivity: its column is scaled by 1
+        // (absolute) instead of vanishing — `Analysis::unit_scaled` names such parameters.
         let column = match scaling {
             Scaling::None => vec![1.0; theta0_free.len()],
-            _ => theta0_free.to_vec(),
+            _ => theta0_free
+                .iter()
+                .map(|&t| if t == 0.0 { 1.0 } else { t })
+                .collect(),
         };
         Ok(Self {
             scaling,

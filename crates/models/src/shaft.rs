@@ -16,6 +16,10 @@ use physid_core::{ParamModel, Scalar};
 
 /// Input channel names, in order.
 pub const INPUTS: [&str; 4] = ["theta_dy", "theta_en", "omega_dy", "omega_en"];
+/// Nominal K [N·m/rad] and B [N·m·s/rad]: the yellow spider of thesis Table 6.1, the default
+/// of its app. B.1 (SPEC §2.1).
+pub const NOMINAL: [f64; 2] = [1250.0, 0.95];
+
 /// The measured output channel.
 pub const OUTPUT: &str = "torque_shaft";
 

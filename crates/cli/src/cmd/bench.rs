@@ -196,6 +196,54 @@ pub fn run(args: &Args) -> Result<()> {
         outln!("cyclic_torque_grad {r:>11.0} evaluations/s with the 15-parameter gradient");
     }
     results.push(json!({"name": "cyclic_torque_grad", "p": 15, "evals_per_s": r}));
+    // Identifiability: the batch ranking of precomputed sensitivity rows (stream into the
+    // triangular factor, then Alg. 5.1 on it), the full analysis of the cyclic-torque model
+    // over a recording (exact sensitivities, both factors, ranking), and the on-line update
+    // over a 720-row window — all at p = 15.
+    let rows = physid_ident::workload::rows(100_000, 15);
+    let r = rate(100_000, budget, || {
+        std::hint::black_box(physid_ident::workload::rank_rows(&rows, 15));
+        Ok(())
+    })?;
+    if !args.json {
+        outln!("ident_batch {r:>14.0} rows/s ranked (p = 15)");
+    }
+    results.push(json!({"name": "ident_batch", "p": 15, "rows_per_s": r}));
+    let cols: Vec<Vec<f64>> = (0..6)
+        .map(|c| (0..7200).map(|k| samples[k % 720][c]).collect())
+        .collect();
+    let data = physid_ident::Data {
+        inputs: cols.iter().map(|c| c.as_slice()).collect(),
+        y: None,
+    };
+    let r = rate(7200, budget, || {
+        physid_ident::analyse(
+            &torque,
+            &data,
+            &p15,
+            &[],
+            physid_ident::IdentConfig::default(),
+        )
+        .map(|a| std::hint::black_box(a.ranking.steps.len()))
+        .map_err(|e| miette::miette!("{e}"))?;
+        Ok(())
+    })?;
+    if !args.json {
+        outln!("ident_cyclic_torque {r:>6.0} rows/s analysed (Eq. 8.2, 15 parameters)");
+    }
+    results.push(json!({"name": "ident_cyclic_torque", "p": 15, "rows_per_s": r}));
+    let mut w = physid_ident::workload::OnlineWorkload::new(15, 720, 10_000)
+        .map_err(|e| miette::miette!("{e}"))?;
+    let r = rate(4096, budget, || {
+        w.run(4096).map_err(|e| miette::miette!("{e}"))
+    })?;
+    if !args.json {
+        outln!(
+            "ident_online {r:>13.0} rows/s (p = 15, 720-row window) {:>8.0}× real time",
+            r / REALTIME_SAMPLES_PER_S
+        );
+    }
+    results.push(json!({"name": "ident_online", "p": 15, "rows_per_s": r}));
     if args.json {
         let out = json!({"machine": machine(), "results": results});
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);

@@ -1,6 +1,7 @@
 //! `physid estimate`: recursive estimation from a CSV file — a linear regression `y = φᵀϑ`
 //! (rls, rlsf, rlsvf, kf, dsfc) or a model from an expression (ekf, ukf, srukf).
 
+use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
@@ -204,24 +205,6 @@ fn linear_method(args: &Args, p: usize) -> Result<Method> {
             ))
         }
     })
-}
-
-/// `NAME=VALUE,…` into names and values.
-fn named_values(items: &[String], flag: &str) -> Result<(Vec<String>, Vec<f64>)> {
-    let mut names = Vec::new();
-    let mut values = Vec::new();
-    for item in items {
-        let (n, v) = item
-            .split_once('=')
-            .ok_or_else(|| miette!("{flag} '{item}': expected NAME=VALUE"))?;
-        let v: f64 = v
-            .trim()
-            .parse()
-            .map_err(|_| miette!("{flag} '{item}': '{v}' is not a number"))?;
-        names.push(n.trim().to_string());
-        values.push(v);
-    }
-    Ok((names, values))
 }
 
 /// The free/fixed view from --free.

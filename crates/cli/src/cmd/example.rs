@@ -3,6 +3,7 @@
 use crate::out::{out, outln};
 use crate::plot::{self, Panel, Series, PALETTE};
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_apps::example_5_1::example_5_1_data;
 use physid_apps::example_5_2::{example_5_2, Example52, Example52Config};
 use physid_core::{Basis, Channel, Recording};
 use std::path::PathBuf;
@@ -10,7 +11,8 @@ use std::path::PathBuf;
 /// Arguments of `physid example`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Which example: 5.2 (RLS, RLSF and vector forgetting tracking a parameter step).
+    /// Which example: 5.1 (which parameters are estimable: the orthogonal ranking) or 5.2
+    /// (RLS, RLSF and vector forgetting tracking a parameter step).
     pub id: String,
     /// Directory for the CSV and SVG [default: physid-out/example-<id>].
     #[arg(long)]
@@ -23,11 +25,66 @@ pub struct Args {
 /// Run the example.
 pub fn run(args: &Args) -> Result<()> {
     match args.id.as_str() {
+        "5.1" => run_5_1(args),
         "5.2" => run_5_2(args),
         other => Err(miette!(
-            "no example '{other}'; the examples are: 5.2 (5.1 comes with identifiability)"
+            "no example '{other}'; the examples are: 5.1 (identifiability), 5.2 (tracking)"
         )),
     }
+}
+
+/// Example 5.1: write the generated data as CSV, then analyse it exactly as
+/// `physid identify --data <csv> --model example-5.1` does.
+fn run_5_1(args: &Args) -> Result<()> {
+    let d = example_5_1_data(51);
+    let dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("physid-out/example-5.1"));
+    std::fs::create_dir_all(&dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    let csv = dir.join("example-5.1.csv");
+    let mut rec = Recording::new(Basis::Time);
+    for (name, v) in [("t", &d.t), ("x", &d.x), ("y", &d.y), ("z", &d.z)] {
+        rec.push(Channel {
+            name: name.into(),
+            unit: if name == "t" {
+                "s".into()
+            } else {
+                String::new()
+            },
+            values: v.clone(),
+        })
+        .into_diagnostic()?;
+    }
+    physid_io::write_csv(&csv, &rec).into_diagnostic()?;
+    if !args.json {
+        outln!("Thesis Example 5.1: z = sin(A)·x + B²·y·cos(x) + sqrt(C)·x² + D·y² + E·x/y + F·2x/y, A…F = 1…6");
+        outln!(
+            "(x = 30·sin(0.7t), y = 30 + 3·cos(0.45t), each plus unit white noise; 100 Hz, 20 s)\n"
+        );
+    }
+    super::identify::run(&super::identify::Args {
+        data: vec![csv.clone()],
+        expr: None,
+        params: Vec::new(),
+        model: Some("example-5.1".into()),
+        y: None,
+        scaling: "thesis".into(),
+        guard: 1e-3,
+        centre: false,
+        cutoff: "repeat".into(),
+        cutoff_rel: None,
+        free: Vec::new(),
+        sigma: None,
+        units_row: true, // write_csv wrote the units row
+        json: args.json,
+    })?;
+    if !args.json {
+        outln!("\nwrote {}", csv.display());
+    }
+    Ok(())
 }
 
 fn run_5_2(args: &Args) -> Result<()> {

@@ -1,0 +1,510 @@
+//! `physid identify`: which parameters of a model a recording can resolve (thesis §5.2,
+//! Alg. 5.1), with their precision; several recordings compare experiments (Table 8.1).
+
+use super::named_values;
+use crate::out::outln;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::example_5_1::{Model51, NOMINAL as NOMINAL_51};
+use physid_core::{ParamModel, Recording};
+use physid_expr::ExprModel;
+use physid_ident::{
+    analyse, fit_subset, wu_along_ranking, Analysis, Cutoff, Data, IdentConfig, RankStep, Scaling,
+};
+use physid_models::cyclic_torque::{CyclicTorque, ILLUSTRATIVE};
+use physid_models::shaft::{Shaft, NOMINAL as NOMINAL_SHAFT};
+use serde_json::{json, Map, Value};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `physid identify`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Recording (CSV); give several to compare experiments.
+    #[arg(long, required = true)]
+    pub data: Vec<PathBuf>,
+    /// The model as a formula; its data columns are the names that are not parameters.
+    #[arg(long, conflicts_with = "model")]
+    pub expr: Option<String>,
+    /// Nominal values NAME=VALUE,… (all parameters with --expr; overrides with --model).
+    #[arg(long, value_delimiter = ',')]
+    pub params: Vec<String>,
+    /// A built-in model: example-5.1, shaft, shaft-offset, cyclic-torque.
+    #[arg(long)]
+    pub model: Option<String>,
+    /// The measured output column: thesis scaling then divides by it, and the precision comes
+    /// from a least-squares fit (without it: the model's output at the nominal values).
+    #[arg(long)]
+    pub y: Option<String>,
+    /// Sensitivity scaling: thesis (ϑ0/y, Eq. 5.11), sigma (ϑ0/σ_y) or none.
+    #[arg(long, default_value = "thesis")]
+    pub scaling: String,
+    /// Thesis-scaling guard: rows with |y| below this fraction of rms(y) divide by it instead.
+    #[arg(long, default_value_t = 1e-3)]
+    pub guard: f64,
+    /// Subtract each sensitivity column's mean first (Eq. 5.9 as printed).
+    #[arg(long)]
+    pub centre: bool,
+    /// Cut-off: repeat (the thesis's: stop when a column repeats), a number (absolute residual
+    /// sum of squares), or wu (the MSE criterion of Wu et al. 2011; needs --y).
+    #[arg(long, default_value = "repeat", conflicts_with = "cutoff_rel")]
+    pub cutoff: String,
+    /// Cut-off relative to the first residual.
+    #[arg(long)]
+    pub cutoff_rel: Option<f64>,
+    /// Analyse only these parameters (the rest held at their nominal values).
+    #[arg(long, value_delimiter = ',')]
+    pub free: Vec<String>,
+    /// Measurement noise standard deviation for the Fisher information [output units]
+    /// (default: estimated from the fit with --y; otherwise 1).
+    #[arg(long)]
+    pub sigma: Option<f64>,
+    /// The CSV's second row holds units.
+    #[arg(long)]
+    pub units_row: bool,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The chosen model.
+enum Model {
+    Expr(ExprModel),
+    Ex51(Model51),
+    Shaft(Shaft),
+    Cyclic(CyclicTorque),
+}
+
+/// Call `$f` with the concrete model.
+macro_rules! with_model {
+    ($m:expr, $f:ident ( $($a:expr),* )) => {
+        match $m {
+            Model::Expr(m) => $f(m, $($a),*),
+            Model::Ex51(m) => $f(m, $($a),*),
+            Model::Shaft(m) => $f(m, $($a),*),
+            Model::Cyclic(m) => $f(m, $($a),*),
+        }
+    };
+}
+
+/// The model and its nominal values.
+fn build(args: &Args) -> Result<(Model, Vec<f64>)> {
+    let (names, values) = named_values(&args.params, "--params")?;
+    if let Some(text) = &args.expr {
+        if names.is_empty() {
+            return Err(miette!(
+                "--expr needs the parameters and their nominal values: --params A=1,B=2,…"
+            ));
+        }
+        let m = ExprModel::parse(text, &names).map_err(|e| miette!("--expr: {e}"))?;
+        return Ok((Model::Expr(m), values));
+    }
+    let name = args.model.as_deref().ok_or_else(|| {
+        miette!("a model is needed: --expr 'FORMULA' --params A=…, or --model example-5.1|shaft|shaft-offset|cyclic-torque")
+    })?;
+    let (model, mut nominal) = match name {
+        "example-5.1" => (Model::Ex51(Model51::default()), NOMINAL_51.to_vec()),
+        "shaft" => (Model::Shaft(Shaft::new(false)), NOMINAL_SHAFT.to_vec()),
+        "shaft-offset" => (
+            Model::Shaft(Shaft::new(true)),
+            vec![NOMINAL_SHAFT[0], NOMINAL_SHAFT[1], 0.0],
+        ),
+        "cyclic-torque" => (
+            Model::Cyclic(CyclicTorque::default()),
+            ILLUSTRATIVE.to_vec(),
+        ),
+        other => {
+            return Err(miette!(
+            "no built-in model '{other}'; they are example-5.1, shaft, shaft-offset, cyclic-torque"
+        ))
+        }
+    };
+    let pnames = with_model!(&model, param_names_of());
+    for (n, v) in names.iter().zip(values) {
+        let j = pnames.iter().position(|p| p == n).ok_or_else(|| {
+            miette!(
+                "--params {n}: model '{name}' has the parameters {}",
+                pnames.join(", ")
+            )
+        })?;
+        nominal[j] = v;
+    }
+    Ok((model, nominal))
+}
+
+fn param_names_of<M: ParamModel>(m: &M) -> Vec<String> {
+    m.param_names().to_vec()
+}
+
+/// What the cut-off resolved to.
+enum CutoffChoice {
+    Rule(Cutoff),
+    Wu,
+}
+
+fn cutoff(args: &Args) -> Result<CutoffChoice> {
+    if let Some(r) = args.cutoff_rel {
+        if !(r.is_finite() && r >= 0.0) {
+            return Err(miette!("--cutoff-rel {r}: expected a fraction ≥ 0"));
+        }
+        return Ok(CutoffChoice::Rule(Cutoff::Relative(r)));
+    }
+    match args.cutoff.as_str() {
+        "repeat" => Ok(CutoffChoice::Rule(Cutoff::Repeat)),
+        "wu" => {
+            if args.y.is_none() {
+                return Err(miette!("--cutoff wu fits the top-ranked parameters: it needs the measured output, --y COL"));
+            }
+            Ok(CutoffChoice::Wu)
+        }
+        s => s
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .map(|v| CutoffChoice::Rule(Cutoff::Absolute(v)))
+            .ok_or_else(|| {
+                miette!("--cutoff '{s}': expected repeat, wu, or an absolute residual ≥ 0")
+            }),
+    }
+}
+
+/// Run `physid identify`.
+pub fn run(args: &Args) -> Result<()> {
+    let (model, nominal) = build(args)?;
+    let scaling = Scaling::parse(&args.scaling).ok_or_else(|| {
+        miette!(
+            "--scaling '{}': expected thesis, sigma or none",
+            args.scaling
+        )
+    })?;
+    let config = IdentConfig {
+        scaling,
+        guard: args.guard,
+        centre: args.centre,
+    };
+    let choice = cutoff(args)?;
+    if let Some(s) = args.sigma {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(miette!("--sigma {s}: expected a standard deviation > 0"));
+        }
+    }
+    let mut reports = Vec::new();
+    for path in &args.data {
+        let opts = physid_io::CsvOptions {
+            units_row: args.units_row,
+            ..Default::default()
+        };
+        let rec = physid_io::read_csv(path, &opts).into_diagnostic()?;
+        if let Model::Expr(m) = &model {
+            m.check_inputs(&rec.names())
+                .map_err(|e| miette!("--expr: {e} (in {})", path.display()))?;
+        }
+        let r = with_model!(
+            &model,
+            identify_one(path, &rec, &nominal, args, config, &choice)
+        )?;
+        reports.push(r);
+    }
+    if args.json {
+        let v = if reports.len() == 1 {
+            reports.remove(0)
+        } else {
+            json!({ "experiments": reports })
+        };
+        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        return Ok(());
+    }
+    if reports.len() > 1 {
+        print_comparison(&reports);
+    }
+    Ok(())
+}
+
+/// A number for JSON: ∞ as the string "inf" (JSON has no infinity), NaN as null.
+fn num(x: f64) -> Value {
+    if x.is_infinite() {
+        json!("inf")
+    } else if x.is_nan() {
+        Value::Null
+    } else {
+        json!(x)
+    }
+}
+
+fn step_json(a: &Analysis, s: &RankStep) -> Value {
+    json!({"param": a.names[s.param], "residual_ss": s.residual_ss, "relative": s.relative})
+}
+
+/// Analyse one recording; print the table unless JSON; return the JSON report.
+fn identify_one<M: ParamModel>(
+    model: &M,
+    path: &Path,
+    rec: &Recording,
+    nominal: &[f64],
+    args: &Args,
+    config: IdentConfig,
+    choice: &CutoffChoice,
+) -> Result<Value> {
+    let file = path.display().to_string();
+    let names = model.param_names();
+    let inputs: Vec<&[f64]> = model
+        .input_names()
+        .iter()
+        .map(|c| {
+            rec.values(c)
+                .map_err(|e| miette!("{file}: the model needs column '{c}': {e}"))
+        })
+        .collect::<Result<_>>()?;
+    let y = match &args.y {
+        Some(c) => Some(rec.values(c).map_err(|e| miette!("{file}: {e}"))?),
+        None => None,
+    };
+    let free: Vec<usize> = args
+        .free
+        .iter()
+        .map(|f| {
+            names
+                .iter()
+                .position(|n| n == f)
+                .ok_or_else(|| miette!("--free {f}: the parameters are {}", names.join(", ")))
+        })
+        .collect::<Result<_>>()?;
+    let data = Data { inputs, y };
+    let a = analyse(model, &data, nominal, &free, config).map_err(|e| miette!("{file}: {e}"))?;
+    let (k, cutoff_json) = match choice {
+        CutoffChoice::Rule(c) => (a.estimable(*c), serde_json::to_value(c).into_diagnostic()?),
+        CutoffChoice::Wu => {
+            let s2 = args.sigma.map(|s| s * s);
+            let (wu, j) =
+                wu_along_ranking(model, &data, &a, s2, 30).map_err(|e| miette!("{file}: {e}"))?;
+            (
+                wu.k_star,
+                json!({"kind": "wu", "k_star": wu.k_star, "j": j, "r_c": wu.r_c,
+                       "r_ckub": wu.r_ckub, "r_cc": wu.r_cc}),
+            )
+        }
+    };
+    let selected = a.top(k);
+    // Precision of the selected subset: fitted with a measured output, else at ϑ0.
+    let subset_model: Vec<usize> = selected.iter().map(|&i| a.free[i]).collect();
+    let mut values: Vec<f64> = selected.iter().map(|&i| nominal[a.free[i]]).collect();
+    let (gram, sigma2, sigma_source) = if data.y.is_some() && k > 0 {
+        let fit = fit_subset(model, &data, nominal, &subset_model, 30)
+            .map_err(|e| miette!("{file}: {e}"))?;
+        values = subset_model.iter().map(|&j| fit.theta[j]).collect();
+        let dof = a.rows.saturating_sub(k).max(1) as f64;
+        match args.sigma {
+            Some(s) => (fit.gram, s * s, "given"),
+            None => (fit.gram, fit.rss / dof, "fit"),
+        }
+    } else {
+        let (s2, src) = match args.sigma {
+            Some(s) => (s * s, "given"),
+            None => (1.0, "unit"),
+        };
+        (a.gram(&selected), s2, src)
+    };
+    let quant = if k > 0 {
+        physid_ident::quantify(&gram, sigma2, &values, a.rows).ok()
+    } else {
+        None
+    };
+    let collinearity = if k > 1 {
+        a.collinearity(&selected)
+    } else {
+        1.0
+    };
+    let d_criterion = if k > 0 {
+        physid_ident::design_criteria(&(gram.clone() / sigma2)).d
+    } else {
+        f64::NAN
+    };
+    let sel_names: Vec<&str> = selected.iter().map(|&i| a.names[i].as_str()).collect();
+    let unident: Vec<&str> = a.ranking.steps[k..]
+        .iter()
+        .map(|s| a.names[s.param].as_str())
+        .collect();
+
+    let mut report = json!({
+        "data": file,
+        "rows": a.rows,
+        "ranking": a.ranking.steps[..k].iter().map(|s| step_json(&a, s)).collect::<Vec<_>>(),
+        "unidentifiable": unident,
+        "remainder": a.ranking.steps[k..].iter().map(|s| step_json(&a, s)).collect::<Vec<_>>(),
+        "scaling": config.scaling.name(),
+        "guarded_rows": a.guarded_rows,
+        "unit_scaled": a.unit_scaled.iter().map(|&i| &a.names[i]).collect::<Vec<_>>(),
+        "cutoff": cutoff_json,
+        "sigma2": sigma2,
+        "sigma2_source": sigma_source,
+        "collinearity": num(collinearity),
+        "d_criterion": num(d_criterion),
+    });
+    if let (Some(q), Some(obj)) = (&quant, report.as_object_mut()) {
+        let by_name = |v: &[f64]| -> Map<String, Value> {
+            sel_names
+                .iter()
+                .zip(v)
+                .map(|(n, x)| (n.to_string(), num(*x)))
+                .collect()
+        };
+        let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
+            (0..m.nrows())
+                .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+                .collect()
+        };
+        obj.insert("params".into(), Value::Object(by_name(&values)));
+        obj.insert("fim".into(), json!(rows(&q.fim)));
+        obj.insert("std_err".into(), Value::Object(by_name(&q.std_err)));
+        obj.insert("t_values".into(), Value::Object(by_name(&q.t_values)));
+        obj.insert(
+            "ci95".into(),
+            Value::Object(
+                sel_names
+                    .iter()
+                    .zip(&q.ci95)
+                    .map(|(n, (lo, hi))| (n.to_string(), json!([lo, hi])))
+                    .collect(),
+            ),
+        );
+        obj.insert("correlation".into(), json!(rows(&q.correlation)));
+    }
+    if !args.json {
+        print_report(
+            &a,
+            k,
+            &sel_names,
+            &unident,
+            &values,
+            quant.as_ref(),
+            sigma2,
+            sigma_source,
+            collinearity,
+            d_criterion,
+            &file,
+        );
+    }
+    Ok(report)
+}
+
+/// The residual profile as a bar on a log scale: 1 → full width, 1e-16 → empty.
+fn bar(relative: f64) -> String {
+    let w = 30.0;
+    let f = if relative > 0.0 {
+        (1.0 + relative.log10() / 16.0).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    "█".repeat((w * f).round() as usize)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn print_report(
+    a: &Analysis,
+    k: usize,
+    sel: &[&str],
+    unident: &[&str],
+    values: &[f64],
+    quant: Option<&physid_ident::Quantitative>,
+    sigma2: f64,
+    sigma_source: &str,
+    collinearity: f64,
+    d_criterion: f64,
+    file: &str,
+) {
+    outln!(
+        "{file}: {} rows, {} parameters, scaling {}{}",
+        a.rows,
+        a.names.len(),
+        a.config.scaling.name(),
+        if a.guarded_rows > 0 {
+            format!(" ({} rows hit the |y| guard)", a.guarded_rows)
+        } else {
+            String::new()
+        }
+    );
+    outln!(
+        "{:>4}  {:<10} {:>14} {:>12}  residual profile (log, 1 … 1e-16)",
+        "step",
+        "parameter",
+        "residual SS",
+        "relative"
+    );
+    for (i, s) in a.ranking.steps.iter().enumerate() {
+        outln!(
+            "{:>4}  {:<10} {:>14.6e} {:>12.3e}  {}{}",
+            i + 1,
+            a.names[s.param],
+            s.residual_ss,
+            s.relative,
+            bar(s.relative),
+            if i + 1 == k { "  ← cut-off" } else { "" }
+        );
+    }
+    outln!("estimable ({k}): {}", sel.join(", "));
+    outln!("unidentifiable ({}): {}", unident.len(), unident.join(", "));
+    if !a.unit_scaled.is_empty() {
+        let n: Vec<&str> = a.unit_scaled.iter().map(|&i| a.names[i].as_str()).collect();
+        outln!(
+            "note: nominal value 0, column scaled by 1: {}",
+            n.join(", ")
+        );
+    }
+    if let Some(q) = quant {
+        let src = match sigma_source {
+            "fit" => "from the fit's residuals",
+            "given" => "given",
+            _ => "per unit noise variance (give --sigma or --y)",
+        };
+        outln!("precision of the estimable parameters (σ² = {sigma2:.4e}, {src}):");
+        outln!(
+            "  {:<10} {:>14} {:>12} {:>28} {:>9}",
+            "parameter",
+            "value",
+            "std err",
+            "95 % interval",
+            "t"
+        );
+        for (i, n) in sel.iter().enumerate() {
+            outln!(
+                "  {:<10} {:>14.6e} {:>12.3e} [{:>12.5e}, {:>12.5e}] {:>9.2}",
+                n,
+                values[i],
+                q.std_err[i],
+                q.ci95[i].0,
+                q.ci95[i].1,
+                q.t_values[i]
+            );
+        }
+        outln!(
+            "  collinearity index γ = {collinearity:.4}, D-criterion det(FIM) = {d_criterion:.4e}"
+        );
+    }
+}
+
+fn print_comparison(reports: &[Value]) {
+    outln!();
+    outln!("experiment comparison");
+    outln!(
+        "{:<40} {:>9} {:>14}  estimable",
+        "data",
+        "rows",
+        "D-criterion"
+    );
+    for r in reports {
+        let est: Vec<&str> = r["ranking"]
+            .as_array()
+            .map(|v| v.iter().filter_map(|s| s["param"].as_str()).collect())
+            .unwrap_or_default();
+        let d = match &r["d_criterion"] {
+            Value::Number(n) => format!("{:.4e}", n.as_f64().unwrap_or(f64::NAN)),
+            other => other.to_string(),
+        };
+        outln!(
+            "{:<40} {:>9} {:>14}  {} ({})",
+            r["data"].as_str().unwrap_or(""),
+            r["rows"],
+            d,
+            est.len(),
+            est.join(", ")
+        );
+    }
+}
