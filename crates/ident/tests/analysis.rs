@@ -381,3 +381,33 @@ fn errors_name_the_problem() {
         "{e}"
     );
 }
+
+/// A parameter with nominal value 0 has no relative sensitivity: its column is scaled by 1
+/// (not zeroed, which would call it unidentifiable) and reported.
+#[test]
+fn zero_nominal_is_unit_scaled_and_reported() {
+    let m = ExprModel::parse("A*x + B", &["A", "B"]).unwrap();
+    let x: Vec<f64> = (0..50).map(|i| 1.0 + i as f64 * 0.1).collect();
+    let d = Data {
+        inputs: vec![&x],
+        y: None,
+    };
+    let a = analyse(&m, &d, &[2.0, 0.0], &[], IdentConfig::default()).unwrap();
+    assert_eq!(a.unit_scaled, [1]);
+    assert_eq!(a.estimable(Cutoff::Repeat), 2);
+    // Column B = 1·1/y = 1/(2x): its sum of squares in closed form.
+    let ss_b: f64 = x.iter().map(|x| (0.5 / x).powi(2)).sum();
+    assert!(close(a.ranking.column_ss[1], ss_b, 1e-12));
+    let none = analyse(
+        &m,
+        &d,
+        &[2.0, 0.0],
+        &[],
+        IdentConfig {
+            scaling: Scaling::None,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(none.unit_scaled.is_empty());
+}
