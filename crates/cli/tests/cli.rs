@@ -613,9 +613,10 @@ fn example_5_1_and_identify_agree() {
     assert_eq!(names_of(&j, "ranking"), ["D", "C", "B", "A", "F"]);
     assert_eq!(names_of(&j, "unidentifiable"), ["E"]);
     assert_eq!(j["scaling"], "thesis");
-    for key in ["fim", "std_err", "ci95", "collinearity"] {
+    for key in ["fim", "std_err", "ci95", "collinearity", "design"] {
         assert!(!j[key].is_null(), "{key}");
     }
+    assert_eq!(j["design"]["d"], j["d_criterion"]);
     let csv = d.join("example-5.1.csv");
     let o = physid(&[
         "identify",

@@ -312,11 +312,8 @@ fn identify_one<M: ParamModel>(
     } else {
         1.0
     };
-    let d_criterion = if k > 0 {
-        physid_ident::design_criteria(&(gram.clone() / sigma2)).d
-    } else {
-        f64::NAN
-    };
+    let design = (k > 0).then(|| physid_ident::design_criteria(&(gram.clone() / sigma2)));
+    let d_criterion = design.map_or(f64::NAN, |c| c.d);
     let sel_names: Vec<&str> = selected.iter().map(|&i| a.names[i].as_str()).collect();
     let unident: Vec<&str> = a.ranking.steps[k..]
         .iter()
@@ -337,6 +334,8 @@ fn identify_one<M: ParamModel>(
         "sigma2_source": sigma_source,
         "collinearity": num(collinearity),
         "d_criterion": num(d_criterion),
+        "design": design.map(|c| json!({"d": num(c.d), "a": num(c.a), "e": num(c.e),
+                                         "modified_e": num(c.modified_e)})),
     });
     if let (Some(q), Some(obj)) = (&quant, report.as_object_mut()) {
         let by_name = |v: &[f64]| -> Map<String, Value> {
