@@ -1,0 +1,92 @@
+//! Butterworth design and zero-phase filtering against scipy (`golden/gen_scipy_filters.py`).
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_signal::filter::{butter, Band, FilterError};
+use serde_json::Value;
+
+fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+#[test]
+fn equals_scipy_butter_filtfilt_and_sosfiltfilt() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/scipy_filters.json"
+    ))
+    .unwrap();
+    let g: Value = serde_json::from_str(&text).unwrap();
+    let fs = g["fs"].as_f64().unwrap();
+    let x = floats(&g["x"]);
+    let amp = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for c in g["cases"].as_array().unwrap() {
+        let order = c["order"].as_u64().unwrap() as usize;
+        let wn = floats(&c["wn"]);
+        let band = match c["btype"].as_str().unwrap() {
+            "lowpass" => Band::Lowpass,
+            "highpass" => Band::Highpass,
+            _ => Band::Bandpass,
+        };
+        let label = format!("{band:?} order {order} at {wn:?} Hz");
+        let zpk = butter(order, &wn, band, fs).unwrap();
+        let tf = zpk.to_ba();
+        for (ours, theirs) in [(&tf.b, floats(&c["b"])), (&tf.a, floats(&c["a"]))] {
+            let scale = theirs.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (o, t) in ours.iter().zip(&theirs) {
+                assert!((o - t).abs() <= 1e-12 * scale, "{label}: {o} vs {t}");
+            }
+        }
+        for (o, t) in tf.lfilter_zi().iter().zip(floats(&c["zi"])) {
+            assert!(
+                (o - t).abs() <= 1e-7 * t.abs().max(1.0),
+                "{label}: zi {o} vs {t}"
+            );
+        }
+        let y = tf.filtfilt(&x).unwrap();
+        let ys = zpk.to_sos().sosfiltfilt(&x).unwrap();
+        for (name, ours, theirs) in [
+            ("filtfilt", &y, floats(&c["filtfilt"])),
+            ("sosfiltfilt", &ys, floats(&c["sosfiltfilt"])),
+        ] {
+            let err = ours
+                .iter()
+                .zip(&theirs)
+                .fold(0.0f64, |m, (o, t)| m.max((o - t).abs()));
+            assert!(err <= 1e-10 * amp, "{label} {name}: max error {err:e}");
+        }
+    }
+}
+
+#[test]
+fn design_and_input_errors() {
+    let e = butter(0, &[10.0], Band::Lowpass, 100.0).unwrap_err();
+    assert!(e.to_string().contains("order 0"), "{e}");
+    let e = butter(2, &[60.0], Band::Lowpass, 100.0).unwrap_err();
+    assert!(e.to_string().contains("Nyquist frequency 50 Hz"), "{e}");
+    let e = butter(2, &[10.0], Band::Bandpass, 100.0).unwrap_err();
+    assert!(e.to_string().contains("needs 2 cut-off"), "{e}");
+    let e = butter(2, &[20.0, 10.0], Band::Bandpass, 100.0).unwrap_err();
+    assert!(e.to_string().contains("low < high"), "{e}");
+    let tf = butter(4, &[10.0], Band::Lowpass, 100.0).unwrap().to_ba();
+    assert_eq!(
+        tf.filtfilt(&[1.0; 15]).unwrap_err(),
+        FilterError::TooShort {
+            len: 15,
+            padlen: 15
+        }
+    );
+    let mut x = vec![1.0; 100];
+    x[42] = f64::NAN;
+    assert!(matches!(
+        tf.filtfilt(&x).unwrap_err(),
+        FilterError::NonFinite { index: 42, .. }
+    ));
+    // A constant passes a low-pass unchanged (steady-state initial conditions).
+    let y = tf.filtfilt(&[3.5; 200]).unwrap();
+    assert!(y.iter().all(|v| (v - 3.5).abs() < 1e-12));
+}
