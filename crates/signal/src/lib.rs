@@ -2,4 +2,5 @@
 //!
 //! * [`filter`] — Butterworth design and zero-phase forward–backward filtering, equal to
 //!   scipy's `butter` + `filtfilt` / `sosfiltfilt`.
+pub mod encoder;
 pub mod filter;

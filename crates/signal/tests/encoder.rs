@@ -1,0 +1,104 @@
+//! Encoder decoding on a simulated encoder: exact on ideal counts where it must be, and the
+//! noise of each estimator equal to its closed form (uniform quantisation errors).
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_signal::encoder::{counts_from_angle, first_marker, marker_edges, Encoder};
+use std::f64::consts::TAU;
+
+fn rms(a: &[f64], b: &[f64]) -> f64 {
+    (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+}
+
+/// ω(t) = ω0 + a·sin(2πft), θ = ∫ω; sampled at 1 kHz for 20 s.
+fn simulated(ppr: u32) -> (Vec<f64>, Vec<f64>, Vec<f64>, f64) {
+    let (w0, a, f, dt) = (100.0, 5.0, 1.0, 1e-3);
+    let n = 20_000;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * dt).collect();
+    let theta: Vec<f64> = t
+        .iter()
+        .map(|t| w0 * t + a / (TAU * f) * (1.0 - (TAU * f * t).cos()))
+        .collect();
+    let omega: Vec<f64> = t.iter().map(|t| w0 + a * (TAU * f * t).sin()).collect();
+    let alpha: Vec<f64> = t
+        .iter()
+        .map(|t| a * TAU * f * (TAU * f * t).cos())
+        .collect();
+    let _ = theta.len();
+    (counts_from_angle(&theta, ppr), omega, alpha, dt)
+}
+
+#[test]
+fn speed_noise_matches_the_closed_forms() {
+    for ppr in [360u32, 1024] {
+        let enc = Encoder { ppr };
+        let (c, omega, _, dt) = simulated(ppr);
+        let q = enc.quantum();
+        // Eq. 4.3: backward difference ≈ ω(t − dt/2); the quantisation noise dominates.
+        let w = enc.speed_counts(&c, dt);
+        let r = rms(&w[1..], &omega[1..]);
+        let predicted = q / (dt * 6f64.sqrt());
+        assert!(
+            (r / predicted - 1.0).abs() < 0.05,
+            "ppr {ppr}: {r} vs {predicted}"
+        );
+        // Local fit, h = 10: q/(dt·√(12·Σk²)), Σk² = 770 — measured 22 % (360) and 11 % (1024)
+        // above it: at a few pulses per sample neighbouring quantisation errors are not
+        // independent, which the difference estimator hardly feels but a long fit does.
+        let h = 10;
+        let wf = enc.speed_fit(&c, dt, h);
+        let rf = rms(&wf[h..c.len() - h], &omega[h..c.len() - h]);
+        let pf = q / (dt * (12.0 * 770.0f64).sqrt());
+        assert!((rf / pf - 1.0).abs() < 0.3, "ppr {ppr}: fit {rf} vs {pf}");
+        assert!(r / rf > 25.0, "ppr {ppr}: fit improves {}×", r / rf);
+    }
+}
+
+#[test]
+fn acceleration_estimators() {
+    let enc = Encoder { ppr: 1024 };
+    let (c, _, alpha, dt) = simulated(1024);
+    let q = enc.quantum();
+    // Eq. 4.4: second difference, noise q/dt²·√(6/12)·… — at least it is centred on α.
+    let a = enc.accel_counts(&c, dt);
+    let mean_err = a[2..]
+        .iter()
+        .zip(&alpha[1..])
+        .map(|(x, y)| x - y)
+        .sum::<f64>()
+        / (a.len() - 2) as f64;
+    assert!(mean_err.abs() < 0.5, "{mean_err}");
+    // Second difference of independent uniform errors: variance 6·(1/12) counts².
+    let r = rms(&a[2..], &alpha[1..c.len() - 1]);
+    let predicted = q / (dt * dt) * 0.5f64.sqrt();
+    assert!((r / predicted - 1.0).abs() < 0.05, "{r} vs {predicted}");
+    // The parabola fit over 101 samples: orders of magnitude better.
+    let h = 50;
+    let af = enc.accel_fit(&c, dt, h);
+    let rf = rms(&af[h..c.len() - h], &alpha[h..c.len() - h]);
+    assert!(rf < predicted / 1000.0, "{rf}");
+}
+
+#[test]
+fn exact_on_quadratic_angles_and_markers() {
+    // Counts that are an exact quadratic in the sample index: the fits are exact.
+    let enc = Encoder { ppr: 360 };
+    let dt = 0.01;
+    let c: Vec<f64> = (0..200).map(|i| (3 * i + i * i) as f64).collect();
+    let q = enc.quantum();
+    let w = enc.speed_fit(&c, dt, 5);
+    let a = enc.accel_fit(&c, dt, 5);
+    for i in 5..195 {
+        let exact = q * (3.0 + 2.0 * i as f64) / dt;
+        assert!((w[i] - exact).abs() < 1e-9 * exact, "{i}");
+        assert!((a[i] - q * 2.0 / (dt * dt)).abs() < 1e-6, "{i}: {}", a[i]);
+    }
+    let theta = enc.angle(&c, 10);
+    assert_eq!(theta[10], 0.0);
+    assert!((theta[11] - q * (c[11] - c[10])).abs() < 1e-15);
+    let marker = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+    assert_eq!(first_marker(&marker), Some(2));
+    assert_eq!(marker_edges(&marker), vec![2, 6]);
+    assert_eq!(first_marker(&[1.0, 0.0]), Some(0));
+    assert_eq!(first_marker(&[0.0; 4]), None);
+}
