@@ -2,5 +2,6 @@
 //!
 //! * [`filter`] — Butterworth design and zero-phase forward–backward filtering, equal to
 //!   scipy's `butter` + `filtfilt` / `sosfiltfilt`.
+pub mod crank;
 pub mod encoder;
 pub mod filter;
