@@ -5,3 +5,4 @@
 pub mod crank;
 pub mod encoder;
 pub mod filter;
+pub mod integrity;
