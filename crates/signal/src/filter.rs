@@ -334,7 +334,8 @@ impl TransferFunction {
     /// final state), writing into `y`.
     pub fn lfilter_into(&self, x: &[f64], zi: &mut [f64], y: &mut [f64]) {
         let (b, a) = self.normalised();
-        lfilter_core(&b, &a, x, zi, y);
+        y.copy_from_slice(x);
+        inplace(&b, &a, y, zi, false);
     }
 
     /// Zero-phase filtering (scipy's `filtfilt` with its default padding).
@@ -349,44 +350,69 @@ impl TransferFunction {
         }
         let (b, a) = self.normalised();
         let zi = self.lfilter_zi();
-        let ext = odd_ext(x, padlen);
-        let mut y = vec![0.0; ext.len()];
-        let mut z: Vec<f64> = zi.iter().map(|v| v * ext[0]).collect();
-        lfilter_core(&b, &a, &ext, &mut z, &mut y);
-        y.reverse();
-        let mut z: Vec<f64> = zi.iter().map(|v| v * y[0]).collect();
-        let mut out = vec![0.0; y.len()];
-        lfilter_core(&b, &a, &y, &mut z, &mut out);
-        out.reverse();
-        Ok(out[padlen..padlen + x.len()].to_vec())
+        // One buffer: the padded signal, filtered forwards in place, then backwards in place.
+        let mut buf = odd_ext(x, padlen);
+        let mut z: Vec<f64> = zi.iter().map(|v| v * buf[0]).collect();
+        inplace(&b, &a, &mut buf, &mut z, false);
+        let last = buf[buf.len() - 1];
+        let mut z: Vec<f64> = zi.iter().map(|v| v * last).collect();
+        inplace(&b, &a, &mut buf, &mut z, true);
+        buf.truncate(padlen + x.len());
+        buf.drain(..padlen);
+        Ok(buf)
     }
 }
 
-/// The DF2T recursion with normalised, equal-length `b` and `a`.
-fn lfilter_core(b: &[f64], a: &[f64], x: &[f64], z: &mut [f64], y: &mut [f64]) {
-    let m = z.len();
-    match m {
-        // Monomorphised small orders: the state stays in registers.
-        2 => df2t::<2>(b, a, x, z, y),
-        3 => df2t::<3>(b, a, x, z, y),
-        4 => df2t::<4>(b, a, x, z, y),
-        5 => df2t::<5>(b, a, x, z, y),
-        6 => df2t::<6>(b, a, x, z, y),
-        8 => df2t::<8>(b, a, x, z, y),
+/// The DF2T recursion over `buf` in place, forwards or backwards (the backward pass of
+/// zero-phase filtering without reversing the data).
+fn inplace(b: &[f64], a: &[f64], buf: &mut [f64], z: &mut [f64], backwards: bool) {
+    macro_rules! run {
+        ($m:literal) => {
+            if backwards {
+                df2t_inplace::<$m>(b, a, buf.iter_mut().rev(), z)
+            } else {
+                df2t_inplace::<$m>(b, a, buf.iter_mut(), z)
+            }
+        };
+    }
+    match z.len() {
+        2 => run!(2),
+        3 => run!(3),
+        4 => run!(4),
+        5 => run!(5),
+        6 => run!(6),
+        8 => run!(8),
         _ => {
-            for (xi, yi) in x.iter().zip(y.iter_mut()) {
-                let out = b[0] * xi + z.first().copied().unwrap_or(0.0);
-                for j in 0..m {
-                    let next = if j + 1 < m { z[j + 1] } else { 0.0 };
-                    z[j] = b[j + 1] * xi - a[j + 1] * out + next;
-                }
-                *yi = out;
+            if backwards {
+                df2t_dyn(b, a, buf.iter_mut().rev(), z)
+            } else {
+                df2t_dyn(b, a, buf.iter_mut(), z)
             }
         }
     }
 }
 
-fn df2t<const M: usize>(b: &[f64], a: &[f64], x: &[f64], zs: &mut [f64], y: &mut [f64]) {
+/// Any order, state in a slice (first order and orders without a monomorphised loop).
+fn df2t_dyn<'a>(b: &[f64], a: &[f64], samples: impl Iterator<Item = &'a mut f64>, z: &mut [f64]) {
+    let m = z.len();
+    for v in samples {
+        let xi = *v;
+        let out = b[0] * xi + z.first().copied().unwrap_or(0.0);
+        for j in 0..m {
+            let next = if j + 1 < m { z[j + 1] } else { 0.0 };
+            z[j] = b[j + 1] * xi - a[j + 1] * out + next;
+        }
+        *v = out;
+    }
+}
+
+/// Orders 2–8: the state in an array, so it stays in registers.
+fn df2t_inplace<'a, const M: usize>(
+    b: &[f64],
+    a: &[f64],
+    samples: impl Iterator<Item = &'a mut f64>,
+    zs: &mut [f64],
+) {
     let mut z = [0.0; M];
     z.copy_from_slice(&zs[..M]);
     let mut bb = [0.0; M];
@@ -394,13 +420,14 @@ fn df2t<const M: usize>(b: &[f64], a: &[f64], x: &[f64], zs: &mut [f64], y: &mut
     bb.copy_from_slice(&b[1..=M]);
     aa.copy_from_slice(&a[1..=M]);
     let b0 = b[0];
-    for (xi, yi) in x.iter().zip(y.iter_mut()) {
+    for v in samples {
+        let xi = *v;
         let out = b0 * xi + z[0];
         for j in 0..M - 1 {
             z[j] = bb[j] * xi - aa[j] * out + z[j + 1];
         }
         z[M - 1] = bb[M - 1] * xi - aa[M - 1] * out;
-        *yi = out;
+        *v = out;
     }
     zs[..M].copy_from_slice(&z);
 }
@@ -434,19 +461,7 @@ impl Sos {
     /// The cascade from per-section states `zi` (overwritten), into `y`.
     pub fn sosfilt_into(&self, x: &[f64], zi: &mut [[f64; 2]], y: &mut [f64]) {
         y.copy_from_slice(x);
-        for (s, z) in self.sections.iter().zip(zi.iter_mut()) {
-            let (b0, b1, b2) = (s[0] / s[3], s[1] / s[3], s[2] / s[3]);
-            let (a1, a2) = (s[4] / s[3], s[5] / s[3]);
-            let (mut z0, mut z1) = (z[0], z[1]);
-            for v in y.iter_mut() {
-                let xi = *v;
-                let out = b0 * xi + z0;
-                z0 = b1 * xi - a1 * out + z1;
-                z1 = b2 * xi - a2 * out;
-                *v = out;
-            }
-            *z = [z0, z1];
-        }
+        self.sections_inplace(y, zi, false);
     }
 
     /// Zero-phase filtering with sections (scipy's `sosfiltfilt`).
@@ -460,15 +475,78 @@ impl Sos {
             });
         }
         let zi = self.sosfilt_zi();
-        let ext = odd_ext(x, padlen);
-        let mut y = vec![0.0; ext.len()];
-        let mut z: Vec<[f64; 2]> = zi.iter().map(|s| [s[0] * ext[0], s[1] * ext[0]]).collect();
-        self.sosfilt_into(&ext, &mut z, &mut y);
-        y.reverse();
-        let mut z: Vec<[f64; 2]> = zi.iter().map(|s| [s[0] * y[0], s[1] * y[0]]).collect();
-        let mut out = vec![0.0; y.len()];
-        self.sosfilt_into(&y, &mut z, &mut out);
-        out.reverse();
-        Ok(out[padlen..padlen + x.len()].to_vec())
+        let mut buf = odd_ext(x, padlen);
+        let mut z: Vec<[f64; 2]> = zi.iter().map(|s| [s[0] * buf[0], s[1] * buf[0]]).collect();
+        self.sections_inplace(&mut buf, &mut z, false);
+        let last = buf[buf.len() - 1];
+        let mut z: Vec<[f64; 2]> = zi.iter().map(|s| [s[0] * last, s[1] * last]).collect();
+        self.sections_inplace(&mut buf, &mut z, true);
+        buf.truncate(padlen + x.len());
+        buf.drain(..padlen);
+        Ok(buf)
     }
+
+    /// Every section over `buf` in place, forwards or backwards: up to four sections (order 8)
+    /// fused into one pass with the states in registers, section by section beyond.
+    fn sections_inplace(&self, buf: &mut [f64], zi: &mut [[f64; 2]], backwards: bool) {
+        macro_rules! fused {
+            ($n:literal) => {
+                if backwards {
+                    cascade::<$n>(&self.sections, buf.iter_mut().rev(), zi)
+                } else {
+                    cascade::<$n>(&self.sections, buf.iter_mut(), zi)
+                }
+            };
+        }
+        match self.sections.len() {
+            1 => fused!(1),
+            2 => fused!(2),
+            3 => fused!(3),
+            4 => fused!(4),
+            _ => {
+                for (s, z) in self.sections.iter().zip(zi.iter_mut()) {
+                    let one = std::slice::from_ref(s);
+                    let zs = std::slice::from_mut(z);
+                    if backwards {
+                        cascade::<1>(one, buf.iter_mut().rev(), zs);
+                    } else {
+                        cascade::<1>(one, buf.iter_mut(), zs);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `N` second-order sections (DF2T) in cascade over the samples in place, one pass.
+fn cascade<'a, const N: usize>(
+    sections: &[[f64; 6]],
+    samples: impl Iterator<Item = &'a mut f64>,
+    zs: &mut [[f64; 2]],
+) {
+    let mut c = [[0.0; 5]; N];
+    let mut z = [[0.0; 2]; N];
+    for k in 0..N {
+        let s = &sections[k];
+        c[k] = [
+            s[0] / s[3],
+            s[1] / s[3],
+            s[2] / s[3],
+            s[4] / s[3],
+            s[5] / s[3],
+        ];
+        z[k] = zs[k];
+    }
+    for v in samples {
+        let mut x = *v;
+        for k in 0..N {
+            let [b0, b1, b2, a1, a2] = c[k];
+            let out = b0 * x + z[k][0];
+            z[k][0] = b1 * x - a1 * out + z[k][1];
+            z[k][1] = b2 * x - a2 * out;
+            x = out;
+        }
+        *v = x;
+    }
+    zs[..N].copy_from_slice(&z);
 }

@@ -18,10 +18,13 @@ x = (np.sin(2 * np.pi * 37 * t) + 0.5 * np.sin(2 * np.pi * 810 * t + 0.3)
      + 0.2 * rng.normal(size=n) + 0.8 * t + 2.0)
 
 cases = [
+    {"order": 1, "wn": [300.0], "btype": "lowpass"},
     {"order": 2, "wn": [500.0], "btype": "lowpass"},
+    {"order": 7, "wn": [900.0], "btype": "lowpass"},
     {"order": 4, "wn": [200.0], "btype": "lowpass"},
     {"order": 5, "wn": [1200.0], "btype": "lowpass"},
     {"order": 8, "wn": [2000.0], "btype": "lowpass"},
+    {"order": 10, "wn": [3000.0], "btype": "lowpass"},
     {"order": 3, "wn": [100.0], "btype": "highpass"},
     {"order": 4, "wn": [50.0], "btype": "highpass"},
     {"order": 2, "wn": [20.0, 300.0], "btype": "bandpass"},
