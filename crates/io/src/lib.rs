@@ -7,8 +7,10 @@
 //! Errors name the file, the line and the column, and what was expected — never a panic.
 
 pub mod csv_file;
+pub mod mdf;
 
 pub use csv_file::{read_csv, write_csv, CsvOptions};
+pub use mdf::{read_mdf, write_mdf, MdfCompression};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]

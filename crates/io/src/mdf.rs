@@ -1,0 +1,185 @@
+//! ASAM MDF4 recordings through `falcon_mdf` (DESIGN.md: the crate that reads asammdf's
+//! compressed files and angle masters).
+//!
+//! Reading: one channel group's time base makes one [`Recording`]. With a channel list, the
+//! channels asked for (they must share a master); without, every channel of every group on the
+//! same master as the first group with data (the others are named in `meta["skipped"]`). A time
+//! master (sync type 1) becomes channel `t` [s] on a time basis; an angle master (sync type 2)
+//! becomes `theta` [rad] on a crank-angle basis — MDF4 angle masters are in radians whatever
+//! their unit label says (asammdf labels them "deg"; the label is kept in
+//! `meta["master_unit_label"]`). Values are physical: the channel conversions are applied.
+//! Uncompressed, deflate (DZ) and transposed-deflate data blocks are read.
+//!
+//! Writing: one group, every channel as float64, the time master from the recording's `t`
+//! channel (MDF4 files carry a time master; a crank-angle recording keeps its angle in
+//! `theta`, its `cycle` and `crank_deg` as ordinary channels). Optional deflate or
+//! transposed-deflate compression.
+
+use crate::IoError;
+use falcon_mdf::blocks::channel::SyncType;
+use falcon_mdf::write::WriteCodec;
+use falcon_mdf::{Mf4File, Mf4Writer};
+use physid_core::{Basis, Channel, Recording};
+use std::path::Path;
+
+/// Data-block compression when writing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MdfCompression {
+    /// Plain data blocks.
+    #[default]
+    None,
+    /// Deflate (`##DZ`, zip type 0).
+    Deflate,
+    /// Transposed deflate (zip type 1; asammdf's `compression=2`).
+    TransposedDeflate,
+}
+
+fn mdf_err(path: &str, e: impl std::fmt::Display) -> IoError {
+    IoError::Malformed {
+        path: path.into(),
+        detail: format!("MDF4: {e}"),
+    }
+}
+
+/// Read an MDF4 file (module docs); `channels` selects channels by name.
+pub fn read_mdf(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<Recording, IoError> {
+    let p = path.as_ref().display().to_string();
+    let file = Mf4File::open_buffered(path.as_ref()).map_err(|e| mdf_err(&p, e))?;
+    let data: Vec<&falcon_mdf::model::Channel> = file
+        .channels()
+        .filter(|c| !c.is_master() && c.is_numeric())
+        .collect();
+    let available = || {
+        let mut v: Vec<&str> = data.iter().map(|c| c.name.as_str()).collect();
+        v.sort_unstable();
+        v.dedup();
+        v.join(", ")
+    };
+    let chosen: Vec<&falcon_mdf::model::Channel> = match channels {
+        Some(names) => names
+            .iter()
+            .map(|n| {
+                data.iter()
+                    .copied()
+                    .find(|c| &c.name == n)
+                    .ok_or_else(|| IoError::Recording {
+                        path: p.clone(),
+                        source: physid_core::RecordingError::MissingChannel {
+                            name: n.clone(),
+                            available: available(),
+                        },
+                    })
+            })
+            .collect::<Result<_, _>>()?,
+        None => data.clone(),
+    };
+    let first = chosen.first().ok_or_else(|| IoError::Empty {
+        path: p.clone(),
+        what: "no numeric channels",
+    })?;
+    let group = (first.data_group_index, first.channel_group_index);
+    let master = file.master_channel(group.0, group.1);
+    let axis = file.channel_timestamps(first).map_err(|e| mdf_err(&p, e))?;
+    let mut rec = Recording::new(match master.map(|m| m.sync_type) {
+        Some(SyncType::Angle) => Basis::CrankAngle,
+        _ => Basis::Time,
+    });
+    rec.meta.insert("source".into(), p.clone());
+    let (mname, munit) = match rec.basis {
+        Basis::CrankAngle => ("theta", "rad"),
+        Basis::Time => ("t", "s"),
+    };
+    if let Some(m) = master {
+        rec.meta.insert("master".into(), m.name.clone());
+        rec.meta.insert("master_unit_label".into(), m.unit.clone());
+    }
+    let mut skipped = Vec::new();
+    let mut names_seen: Vec<String> = vec![mname.to_string()];
+    let mut columns = vec![Channel {
+        name: mname.into(),
+        unit: munit.into(),
+        values: axis.clone(),
+    }];
+    for c in &chosen {
+        let same_group = (c.data_group_index, c.channel_group_index) == group;
+        if !same_group {
+            let other = file.channel_timestamps(c).map_err(|e| mdf_err(&p, e))?;
+            if other != axis {
+                if channels.is_some() {
+                    return Err(IoError::Malformed {
+                        path: p,
+                        detail: format!(
+                            "channels '{}' and '{}' are on different time bases ({} and {} samples): read them separately",
+                            first.name,
+                            c.name,
+                            axis.len(),
+                            other.len()
+                        ),
+                    });
+                }
+                skipped.push(c.name.clone());
+                continue;
+            }
+        }
+        if names_seen.contains(&c.name) {
+            skipped.push(format!("{} (duplicate name)", c.name));
+            continue;
+        }
+        let values = file
+            .signal(c)
+            .and_then(|s| s.values_f64())
+            .map_err(|e| mdf_err(&p, format!("channel '{}': {e}", c.name)))?;
+        names_seen.push(c.name.clone());
+        columns.push(Channel {
+            name: c.name.clone(),
+            unit: c.unit.clone(),
+            values,
+        });
+    }
+    if !skipped.is_empty() {
+        rec.meta.insert("skipped".into(), skipped.join(", "));
+    }
+    for ch in columns {
+        rec.push(ch).map_err(|source| IoError::Recording {
+            path: p.clone(),
+            source,
+        })?;
+    }
+    Ok(rec)
+}
+
+/// Write a recording as MDF4 (module docs). `start_time_ns`: the file's start time in
+/// nanoseconds since the Unix epoch (fixed for reproducible files; `None`: now).
+pub fn write_mdf(
+    path: impl AsRef<Path>,
+    rec: &Recording,
+    compression: MdfCompression,
+    start_time_ns: Option<i64>,
+) -> Result<(), IoError> {
+    let p = path.as_ref().display().to_string();
+    let t = rec.values("t").map_err(|_| IoError::Malformed {
+        path: p.clone(),
+        detail: "MDF4 files carry a time master: the recording needs a 't' channel [s]".into(),
+    })?;
+    let mut w = match start_time_ns {
+        Some(ns) => Mf4Writer::with_start_time_ns(ns),
+        None => Mf4Writer::new(),
+    };
+    match compression {
+        MdfCompression::None => {}
+        MdfCompression::Deflate => {
+            w.set_compression(true);
+            w.set_codec(WriteCodec::Deflate);
+        }
+        MdfCompression::TransposedDeflate => {
+            w.set_compression(true);
+            w.set_codec(WriteCodec::TransposedDeflate);
+        }
+    }
+    let g = w.add_group(t).map_err(|e| mdf_err(&p, e))?;
+    for ch in rec.channels().iter().filter(|c| c.name != "t") {
+        g.add_channel(&ch.name, &ch.unit, &ch.values)
+            .map_err(|e| mdf_err(&p, format!("channel '{}': {e}", ch.name)))?;
+    }
+    w.write_to_file(path.as_ref()).map_err(|e| mdf_err(&p, e))
+}

@@ -1,0 +1,203 @@
+//! MDF4 interoperability with asammdf (`golden/mdf/gen_asammdf.py`): files asammdf wrote —
+//! uncompressed, deflate, transposed deflate, an angle master — read with the same values,
+//! names, units and master; a file we write is the committed one that asammdf reads back
+//! (`gen_asammdf.py --check`).
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_core::{Basis, Channel, Recording};
+use physid_io::{read_mdf, write_mdf, MdfCompression};
+use serde_json::Value;
+use std::path::PathBuf;
+
+fn dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden/mdf")
+}
+
+fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+fn expected() -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir().join("expected.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn reads_asammdf_time_files_plain_and_compressed() {
+    let e = &expected()["time"];
+    for name in ["time_plain", "time_deflate", "time_transposed"] {
+        let rec = read_mdf(dir().join(format!("{name}.mf4")), None).unwrap();
+        assert_eq!(rec.basis, Basis::Time, "{name}");
+        assert_eq!(
+            rec.values("t").unwrap(),
+            floats(&e["t"]).as_slice(),
+            "{name}"
+        );
+        for ch in ["omega_en", "torque_shaft", "count_en", "T_oil"] {
+            let got = rec.values(ch).unwrap();
+            let want = floats(&e[ch]);
+            assert_eq!(got.len(), want.len(), "{name} {ch}");
+            for (a, b) in got.iter().zip(&want) {
+                // The linear conversion of T_oil is applied in f64 both sides.
+                assert!(
+                    (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                    "{name} {ch}: {a} vs {b}"
+                );
+            }
+            assert_eq!(rec.channel(ch).unwrap().unit, e["units"][ch], "{name} {ch}");
+        }
+        // A channel list reads only those channels.
+        let sub = read_mdf(
+            dir().join(format!("{name}.mf4")),
+            Some(&["T_oil".to_string()]),
+        )
+        .unwrap();
+        assert_eq!(sub.names(), ["t", "T_oil"]);
+    }
+}
+
+#[test]
+fn reads_an_angle_master_as_crank_angle_data() {
+    let e = &expected()["angle"];
+    let rec = read_mdf(dir().join("angle.mf4"), None).unwrap();
+    assert_eq!(rec.basis, Basis::CrankAngle);
+    for ch in ["theta", "p_cyl", "cycle"] {
+        let (got, want) = (rec.values(ch).unwrap(), floats(&e[ch]));
+        assert_eq!(got.len(), want.len(), "{ch}");
+        let bad = got.iter().zip(&want).position(|(a, b)| a != b);
+        assert!(
+            bad.is_none(),
+            "{ch}: first difference at {bad:?}: {:?} vs {:?}",
+            bad.map(|i| got[i]),
+            bad.map(|i| want[i])
+        );
+    }
+    assert_eq!(rec.channel("theta").unwrap().unit, "rad");
+}
+
+/// The recording the writer test writes (deterministic).
+fn written() -> Recording {
+    let mut r = Recording::new(Basis::Time);
+    let t: Vec<f64> = (0..500).map(|i| i as f64 * 2e-3).collect();
+    let w: Vec<f64> = t.iter().map(|t| 100.0 + 5.0 * (7.0 * t).sin()).collect();
+    let tau: Vec<f64> = t.iter().map(|t| 3.0 * (40.0 * t).cos() - 0.25).collect();
+    for (name, unit, values) in [
+        ("t", "s", t),
+        ("omega_en", "rad/s", w),
+        ("torque_shaft", "N*m", tau),
+    ] {
+        r.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values,
+        })
+        .unwrap();
+    }
+    r
+}
+
+#[test]
+fn writes_the_file_asammdf_reads_back() {
+    let rec = written();
+    let out = std::env::temp_dir().join(format!("physid-mdf-{}.mf4", std::process::id()));
+    write_mdf(
+        &out,
+        &rec,
+        MdfCompression::None,
+        Some(1_700_000_000_000_000_000),
+    )
+    .unwrap();
+    // Our own reader agrees exactly.
+    let back = read_mdf(&out, None).unwrap();
+    for ch in ["t", "omega_en", "torque_shaft"] {
+        assert_eq!(back.values(ch).unwrap(), rec.values(ch).unwrap(), "{ch}");
+        assert_eq!(
+            back.channel(ch).unwrap().unit,
+            rec.channel(ch).unwrap().unit
+        );
+    }
+    // Byte for byte the committed file that `gen_asammdf.py --check` opened in asammdf.
+    let bytes = std::fs::read(&out).unwrap();
+    if std::env::var("PHYSID_BLESS").is_ok() {
+        std::fs::write(dir().join("physid_written.mf4"), &bytes).unwrap();
+        let exp = serde_json::json!({
+            "t": rec.values("t").unwrap(),
+            "channels": {"omega_en": rec.values("omega_en").unwrap(),
+                         "torque_shaft": rec.values("torque_shaft").unwrap()},
+            "units": {"omega_en": "rad/s", "torque_shaft": "N*m"},
+        });
+        std::fs::write(dir().join("expected_physid.json"), exp.to_string()).unwrap();
+    } else {
+        let golden = std::fs::read(dir().join("physid_written.mf4")).unwrap();
+        assert!(
+            bytes == golden,
+            "the writer's output changed: re-run with PHYSID_BLESS=1 and gen_asammdf.py --check"
+        );
+    }
+    // Compressed files read back the same, and are the committed ones asammdf read.
+    for (c, name) in [
+        (MdfCompression::Deflate, "physid_written_deflate.mf4"),
+        (
+            MdfCompression::TransposedDeflate,
+            "physid_written_transposed.mf4",
+        ),
+    ] {
+        write_mdf(&out, &rec, c, Some(1_700_000_000_000_000_000)).unwrap();
+        let back = read_mdf(&out, None).unwrap();
+        assert_eq!(
+            back.values("omega_en").unwrap(),
+            rec.values("omega_en").unwrap()
+        );
+        let bytes = std::fs::read(&out).unwrap();
+        if std::env::var("PHYSID_BLESS").is_ok() {
+            std::fs::write(dir().join(name), &bytes).unwrap();
+        } else {
+            assert!(
+                bytes == std::fs::read(dir().join(name)).unwrap(),
+                "{name} changed"
+            );
+        }
+    }
+    let _ = std::fs::remove_file(&out);
+}
+
+#[test]
+fn errors_name_the_file_and_the_problem() {
+    let e = read_mdf(
+        dir().join("time_plain.mf4"),
+        Some(&["omega_dy".to_string()]),
+    )
+    .unwrap_err();
+    let s = e.to_string();
+    assert!(
+        s.contains("no channel 'omega_dy'") && s.contains("omega_en, torque_shaft")
+            || s.contains("T_oil"),
+        "{s}"
+    );
+    // Truncated file.
+    let bytes = std::fs::read(dir().join("time_plain.mf4")).unwrap();
+    let cut = std::env::temp_dir().join(format!("physid-cut-{}.mf4", std::process::id()));
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let e = read_mdf(&cut, None).unwrap_err().to_string();
+    assert!(e.contains(cut.to_str().unwrap()), "{e}");
+    // Not an MDF file at all.
+    std::fs::write(&cut, b"t,x\n1,2\n").unwrap();
+    let e = read_mdf(&cut, None).unwrap_err().to_string();
+    assert!(e.contains("MDF4"), "{e}");
+    let _ = std::fs::remove_file(&cut);
+    let mut no_t = Recording::new(Basis::Time);
+    no_t.push(Channel {
+        name: "x".into(),
+        unit: String::new(),
+        values: vec![1.0],
+    })
+    .unwrap();
+    let e = write_mdf(&cut, &no_t, MdfCompression::None, None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("needs a 't' channel"), "{e}");
+}
