@@ -1,16 +1,21 @@
 //! # physid-io — recording files
 //!
 //! File formats are adapters at the edge: each reads a file into a
-//! [`Recording`](physid_core::Recording) or writes one out. This version has CSV ([`csv_file`]);
-//! Parquet and MDF4 follow (issue 6).
+//! [`Recording`](physid_core::Recording) or writes one out — CSV ([`csv_file`]), Parquet
+//! ([`parquet_file`]) and ASAM MDF4 ([`mdf`]); [`format`] picks one by extension, checks the
+//! file's first bytes agree, selects channels and applies a channel map.
 //!
 //! Errors name the file, the line and the column, and what was expected — never a panic.
 
 pub mod csv_file;
+pub mod format;
 pub mod mdf;
+pub mod parquet_file;
 
 pub use csv_file::{read_csv, write_csv, CsvOptions};
+pub use format::{detect, read, write, Format, ReadOptions, WriteOptions};
 pub use mdf::{read_mdf, write_mdf, MdfCompression};
+pub use parquet_file::{read_parquet, write_parquet};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]

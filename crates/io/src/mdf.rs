@@ -41,7 +41,8 @@ fn mdf_err(path: &str, e: impl std::fmt::Display) -> IoError {
     }
 }
 
-/// Read an MDF4 file (module docs); `channels` selects channels by name.
+/// Read an MDF4 file (module docs); `channels` selects channels by name (the master comes
+/// with them).
 pub fn read_mdf(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<Recording, IoError> {
     let p = path.as_ref().display().to_string();
     let file = Mf4File::open_buffered(path.as_ref()).map_err(|e| mdf_err(&p, e))?;
@@ -55,9 +56,13 @@ pub fn read_mdf(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<R
         v.dedup();
         v.join(", ")
     };
+    // The master is always read (as `t` or `theta`): asking for it selects nothing more.
+    let is_master_name =
+        |n: &str| n == "t" || n == "theta" || file.channels().any(|c| c.is_master() && c.name == n);
     let chosen: Vec<&falcon_mdf::model::Channel> = match channels {
         Some(names) => names
             .iter()
+            .filter(|n| !is_master_name(n))
             .map(|n| {
                 data.iter()
                     .copied()

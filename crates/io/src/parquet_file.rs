@@ -1,0 +1,196 @@
+//! Parquet recordings (Arrow): one column per channel, the unit in each field's metadata under
+//! `"unit"` (pyarrow: `pa.field(name, pa.float64(), metadata={"unit": "rad/s"})`), the basis in
+//! the schema metadata under `"physid.basis"` (`time` or `crank_angle`).
+//!
+//! Reading projects the columns asked for (memory proportional to them) and converts every
+//! numeric type to f64; nulls are refused with their row. Writing uses float64 columns,
+//! Snappy compression.
+
+use crate::IoError;
+use arrow_array::cast::AsArray;
+use arrow_array::types::{
+    Float32Type, Float64Type, Int16Type, Int32Type, Int64Type, Int8Type, UInt16Type, UInt32Type,
+    UInt64Type, UInt8Type,
+};
+use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch};
+use arrow_schema::{DataType, Field, Schema};
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::arrow::{ArrowWriter, ProjectionMask};
+use parquet::basic::Compression;
+use parquet::file::properties::WriterProperties;
+use physid_core::{Basis, Channel, Recording, RecordingError};
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+const BASIS_KEY: &str = "physid.basis";
+
+fn pq_err(path: &str, e: impl std::fmt::Display) -> IoError {
+    IoError::Malformed {
+        path: path.into(),
+        detail: format!("Parquet: {e}"),
+    }
+}
+
+/// Append an Arrow column to `out` as f64; an error names the first null.
+fn extend_f64(col: &ArrayRef, out: &mut Vec<f64>, name: &str, row0: usize) -> Result<(), String> {
+    if col.null_count() > 0 {
+        let i = (0..col.len()).find(|&i| col.is_null(i)).unwrap_or(0);
+        return Err(format!(
+            "column '{name}' has a null at row {} (expected a number in every row)",
+            row0 + i
+        ));
+    }
+    macro_rules! num {
+        ($t:ty) => {
+            out.extend(col.as_primitive::<$t>().values().iter().map(|&v| v as f64))
+        };
+    }
+    match col.data_type() {
+        DataType::Float64 => out.extend_from_slice(col.as_primitive::<Float64Type>().values()),
+        DataType::Float32 => num!(Float32Type),
+        DataType::Int8 => num!(Int8Type),
+        DataType::Int16 => num!(Int16Type),
+        DataType::Int32 => num!(Int32Type),
+        DataType::Int64 => num!(Int64Type),
+        DataType::UInt8 => num!(UInt8Type),
+        DataType::UInt16 => num!(UInt16Type),
+        DataType::UInt32 => num!(UInt32Type),
+        DataType::UInt64 => num!(UInt64Type),
+        DataType::Boolean => out.extend(
+            col.as_boolean()
+                .iter()
+                .map(|b| f64::from(u8::from(b.unwrap_or(false)))),
+        ),
+        other => return Err(format!("column '{name}' is {other}, not a number")),
+    }
+    Ok(())
+}
+
+/// Read a Parquet file; `channels` selects columns by name (all if `None`).
+pub fn read_parquet(
+    path: impl AsRef<Path>,
+    channels: Option<&[String]>,
+) -> Result<Recording, IoError> {
+    let p = path.as_ref().display().to_string();
+    let file = std::fs::File::open(path.as_ref()).map_err(|source| IoError::Os {
+        path: p.clone(),
+        source,
+    })?;
+    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq_err(&p, e))?;
+    let schema = builder.schema().clone();
+    let names: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
+    let wanted: Vec<usize> = match channels {
+        Some(list) => list
+            .iter()
+            .map(|n| {
+                names
+                    .iter()
+                    .position(|m| m == n)
+                    .ok_or_else(|| IoError::Recording {
+                        path: p.clone(),
+                        source: RecordingError::MissingChannel {
+                            name: n.clone(),
+                            available: names.join(", "),
+                        },
+                    })
+            })
+            .collect::<Result<_, _>>()?,
+        None => (0..names.len()).collect(),
+    };
+    let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
+    let rows = builder.metadata().file_metadata().num_rows().max(0) as usize;
+    let reader = builder
+        .with_projection(mask)
+        .with_batch_size(65_536)
+        .build()
+        .map_err(|e| pq_err(&p, e))?;
+    // The projected batches keep the file's column order; map back to the order asked for.
+    let mut sorted = wanted.clone();
+    sorted.sort_unstable();
+    let mut columns: Vec<Vec<f64>> = sorted.iter().map(|_| Vec::with_capacity(rows)).collect();
+    let mut row0 = 0;
+    for batch in reader {
+        let batch = batch.map_err(|e| pq_err(&p, e))?;
+        for (k, col) in batch.columns().iter().enumerate() {
+            extend_f64(col, &mut columns[k], &names[sorted[k]], row0).map_err(|detail| {
+                IoError::Malformed {
+                    path: p.clone(),
+                    detail,
+                }
+            })?;
+        }
+        row0 += batch.num_rows();
+    }
+    let basis = match schema.metadata().get(BASIS_KEY).map(String::as_str) {
+        Some("crank_angle") => Basis::CrankAngle,
+        _ => Basis::Time,
+    };
+    let mut rec = Recording::new(basis);
+    rec.meta.insert("source".into(), p.clone());
+    let mut taken: Vec<Option<Vec<f64>>> = columns.into_iter().map(Some).collect();
+    for &j in &wanted {
+        let k = sorted.iter().position(|&s| s == j).unwrap_or(0);
+        let values = taken[k].take().unwrap_or_default();
+        let field = schema.field(j);
+        rec.push(Channel {
+            name: field.name().clone(),
+            unit: field.metadata().get("unit").cloned().unwrap_or_default(),
+            values,
+        })
+        .map_err(|source| IoError::Recording {
+            path: p.clone(),
+            source,
+        })?;
+    }
+    Ok(rec)
+}
+
+/// Write a recording as Parquet (float64 columns, units in field metadata, Snappy).
+pub fn write_parquet(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError> {
+    let p = path.as_ref().display().to_string();
+    let fields: Vec<Field> = rec
+        .channels()
+        .iter()
+        .map(|c| {
+            Field::new(&c.name, DataType::Float64, false)
+                .with_metadata(HashMap::from([("unit".to_string(), c.unit.clone())]))
+        })
+        .collect();
+    let basis = match rec.basis {
+        Basis::Time => "time",
+        Basis::CrankAngle => "crank_angle",
+    };
+    let schema = Arc::new(Schema::new_with_metadata(
+        fields,
+        HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]),
+    ));
+    let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
+        path: p.clone(),
+        source,
+    })?;
+    let props = WriterProperties::builder()
+        .set_compression(Compression::SNAPPY)
+        .build();
+    let mut w =
+        ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq_err(&p, e))?;
+    let chunk = 1 << 20;
+    let n = rec.len();
+    let mut start = 0;
+    while start < n || (n == 0 && start == 0) {
+        let end = (start + chunk).min(n);
+        let cols: Vec<ArrayRef> = rec
+            .channels()
+            .iter()
+            .map(|c| Arc::new(Float64Array::from(c.values[start..end].to_vec())) as ArrayRef)
+            .collect();
+        let batch = RecordBatch::try_new(schema.clone(), cols).map_err(|e| pq_err(&p, e))?;
+        w.write(&batch).map_err(|e| pq_err(&p, e))?;
+        if n == 0 {
+            break;
+        }
+        start = end;
+    }
+    w.close().map_err(|e| pq_err(&p, e))?;
+    Ok(())
+}
