@@ -3,6 +3,8 @@
 //! Every function here returns a typed result and prints nothing; the `physid` binary turns
 //! the results into tables, JSON, CSV and plots.
 //!
+//! * [`acquisition`] — the acquisition chain on a recording: inspection and integrity,
+//!   crank-angle conversion, zero-phase filtering (thesis ch. 4).
 //! * [`example_5_1`] — thesis Example 5.1's model in Rust (the reference for the expression
 //!   language).
 //! * [`example_5_2`] — thesis Example 5.2: RLS, RLS with forgetting and RLS with vector
@@ -12,6 +14,7 @@
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
 
+pub mod acquisition;
 pub mod example_5_1;
 pub mod example_5_2;
 pub mod excitation;

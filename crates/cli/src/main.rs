@@ -40,6 +40,18 @@ enum Command {
     ///
     /// Example: physid friction eval --n 1000 --p-int 100 --t-oil 35
     Friction(cmd::friction::Args),
+    /// What is in a recording: channels, units, rate, cycles, and the integrity check.
+    ///
+    /// Example: physid inspect run.mf4 --strict
+    Inspect(cmd::inspect::Args),
+    /// Convert between formats (.csv, .parquet, .mf4) and bases (time, crank angle).
+    ///
+    /// Example: physid convert run.mf4 run-deg.parquet --crank-angle
+    Convert(cmd::convert::Args),
+    /// Zero-phase Butterworth filtering of chosen channels.
+    ///
+    /// Example: physid filter run.csv run-f.csv --lowpass 500 --order 4 --channels torque_shaft
+    Filter(cmd::filter::Args),
     /// Measure this machine's real-time capability: estimator updates per second.
     ///
     /// Example: physid bench --json
@@ -58,5 +70,8 @@ fn main() -> miette::Result<()> {
         Command::Bench(a) => cmd::bench::run(&a),
         Command::Friction(a) => cmd::friction::run(&a),
         Command::Identify(a) => cmd::identify::run(&a),
+        Command::Inspect(a) => cmd::inspect::run(&a),
+        Command::Convert(a) => cmd::convert::run(&a),
+        Command::Filter(a) => cmd::filter::run(&a),
     }
 }

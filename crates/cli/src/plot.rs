@@ -214,6 +214,126 @@ pub fn rank_heatmap(
     Ok(())
 }
 
+/// A cycle-by-crank-angle surface (thesis Fig. 4.8) as a heat map: one row per cycle, one
+/// column per crank-angle bin (1° bins over 0–720°), colour by value (dark blue low, yellow
+/// high), with a colour bar.
+pub fn surface(
+    path: &Path,
+    title: &str,
+    cycle: &[f64],
+    crank_deg: &[f64],
+    x: &[f64],
+) -> Result<()> {
+    register_font();
+    let err = |e: &dyn std::fmt::Display| miette!("writing {}: {e}", path.display());
+    let c0 = cycle
+        .iter()
+        .cloned()
+        .filter(|c| *c >= 0.0)
+        .fold(f64::MAX, f64::min);
+    let c1 = cycle.iter().cloned().fold(f64::MIN, f64::max);
+    if c0 > c1 || c1.is_nan() {
+        return Err(miette!("no cycles to draw in {}", path.display()));
+    }
+    let rows = (c1 - c0) as usize + 1;
+    let mut grid = vec![f64::NAN; rows * 720];
+    for ((&c, &d), &v) in cycle.iter().zip(crank_deg).zip(x) {
+        if c >= c0 && v.is_finite() {
+            let (r, k) = ((c - c0) as usize, (d.floor() as usize).min(719));
+            grid[r * 720 + k] = v;
+        }
+    }
+    let (lo, hi) = grid
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    // A perceptually ordered ramp (viridis end points and middle).
+    let colour = |v: f64| {
+        let f = ((v - lo) / span).clamp(0.0, 1.0);
+        let stops = [
+            (68.0, 1.0, 84.0),
+            (33.0, 145.0, 140.0),
+            (253.0, 231.0, 37.0),
+        ];
+        let (a, b, g) = if f < 0.5 {
+            (stops[0], stops[1], f * 2.0)
+        } else {
+            (stops[1], stops[2], (f - 0.5) * 2.0)
+        };
+        RGBColor(
+            (a.0 + (b.0 - a.0) * g) as u8,
+            (a.1 + (b.1 - a.1) * g) as u8,
+            (a.2 + (b.2 - a.2) * g) as u8,
+        )
+    };
+    let root = SVGBackend::new(path, (960, 540)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (main, bar) = root.split_horizontally(860);
+    let mut chart = ChartBuilder::on(&main)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..720.0, c0..(c1 + 1.0))
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .x_desc("crank angle [deg]")
+        .y_desc("cycle")
+        .label_style(("sans-serif", 14))
+        .disable_mesh()
+        .draw()
+        .map_err(|e| err(&e))?;
+    // Bins of 4° keep the SVG small (180 rectangles per cycle).
+    let bin = 4;
+    let mut rects = Vec::new();
+    for r in 0..rows {
+        for k in (0..720).step_by(bin) {
+            let vals: Vec<f64> = grid[r * 720 + k..r * 720 + k + bin]
+                .iter()
+                .cloned()
+                .filter(|v| v.is_finite())
+                .collect();
+            if vals.is_empty() {
+                continue;
+            }
+            let m = vals.iter().sum::<f64>() / vals.len() as f64;
+            let y = c0 + r as f64;
+            rects.push(Rectangle::new(
+                [(k as f64, y), ((k + bin) as f64, y + 1.0)],
+                ShapeStyle::from(&colour(m)).filled(),
+            ));
+        }
+    }
+    chart.draw_series(rects).map_err(|e| err(&e))?;
+    // Colour bar.
+    let steps = 50;
+    let (_, h) = bar.dim_in_pixel();
+    let top = 60i32;
+    let height = h as i32 - 120;
+    for s in 0..steps {
+        let f = s as f64 / steps as f64;
+        let y0 = top + height - ((s + 1) as f64 / steps as f64 * height as f64) as i32;
+        let y1 = top + height - (f * height as f64) as i32;
+        bar.draw(&Rectangle::new(
+            [(10, y0), (35, y1)],
+            ShapeStyle::from(&colour(lo + f * span)).filled(),
+        ))
+        .map_err(|e| err(&e))?;
+    }
+    for (v, y) in [(hi, top), (lo, top + height)] {
+        bar.draw(&Text::new(
+            format!("{v:.3e}"),
+            (38, y - 6),
+            ("sans-serif", 12).into_font(),
+        ))
+        .map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

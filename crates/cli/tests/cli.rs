@@ -737,3 +737,122 @@ fn identify_errors_name_the_problem() {
         assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
     }
 }
+
+/// A time-basis recording like a test cell's: 2 s at 20 kHz, engine encoder counts (360/rev),
+/// a TDC marker, a pressure that depends on the angle, a noisy torque.
+fn engine_csv(d: &std::path::Path) -> PathBuf {
+    let mut s = String::from("t,count_en,tdc,p_int,torque_shaft\ns,-,-,Pa,N*m\n");
+    let q = std::f64::consts::TAU / 360.0;
+    let mut prev_rev = f64::NEG_INFINITY;
+    for i in 0..40_000 {
+        let t = i as f64 / 20_000.0;
+        let th = 105.0 * t - 0.2;
+        let rev = (th / std::f64::consts::TAU).floor();
+        let marker = u8::from(i > 0 && rev > prev_rev);
+        prev_rev = rev;
+        let p = 1e5 + 1e4 * (th / 2.0).cos();
+        let tq = 12.0 + 3.0 * (th * 2.0).sin() + 0.5 * ((i * 7919 % 1000) as f64 / 1000.0 - 0.5);
+        s.push_str(&format!("{t},{},{marker},{p},{tq}\n", (th / q).floor()));
+    }
+    let path = d.join("engine.csv");
+    std::fs::write(&path, s).unwrap();
+    path
+}
+
+#[test]
+fn inspect_convert_filter_chain() {
+    let d = dir("chain");
+    let csv = engine_csv(&d);
+    let c = csv.to_str().unwrap();
+    let o = physid(&["inspect", c, "--units-row", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["basis"], "time");
+    assert_eq!(j["cycles"], 16);
+    assert!((j["sample_rate_hz"].as_f64().unwrap() - 20_000.0).abs() < 1e-6);
+    assert_eq!(j["channels"].as_array().unwrap().len(), 5);
+    assert_eq!(j["channels"][3]["unit"], "Pa");
+    assert_eq!(j["integrity"]["ok"], false);
+    assert_eq!(j["integrity"]["findings"][0]["kind"], "incomplete_cycle");
+    // --strict fails on the finding.
+    let o = physid(&["inspect", c, "--units-row", "--strict"]);
+    assert!(!o.status.success() && stderr(&o).contains("--strict"));
+
+    // To one sample per degree, as Parquet; then inspect it and draw a surface.
+    let pq = d.join("deg.parquet");
+    let o = physid(&[
+        "convert",
+        c,
+        pq.to_str().unwrap(),
+        "--units-row",
+        "--crank-angle",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = physid(&[
+        "inspect",
+        pq.to_str().unwrap(),
+        "--json",
+        "--out",
+        d.to_str().unwrap(),
+        "--surface",
+        "p_int",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["basis"], "crank_angle");
+    assert_eq!(j["cycles"], 16);
+    let svg = std::fs::read_to_string(d.join("surface-p_int.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("crank angle"));
+
+    // Filter the torque (zero phase) into MDF4 and read it back.
+    let mf = d.join("f.mf4");
+    let o = physid(&[
+        "filter",
+        c,
+        mf.to_str().unwrap(),
+        "--units-row",
+        "--lowpass",
+        "200",
+        "--order",
+        "4",
+        "--channels",
+        "torque_shaft",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = physid(&["inspect", mf.to_str().unwrap(), "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["channels"][0]["name"], "t");
+    assert_eq!(j["channels"].as_array().unwrap().len(), 5);
+    // Errors: no filter chosen; a channel that is not there.
+    let o = physid(&[
+        "filter",
+        c,
+        mf.to_str().unwrap(),
+        "--units-row",
+        "--channels",
+        "torque_shaft",
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("choose a filter"));
+    let o = physid(&[
+        "filter",
+        c,
+        mf.to_str().unwrap(),
+        "--units-row",
+        "--lowpass",
+        "100",
+        "--channels",
+        "x",
+    ]);
+    assert!(stderr(&o).contains("no channel 'x'"), "{}", stderr(&o));
+    // A surface of time-basis data asks for conversion first.
+    let o = physid(&[
+        "inspect",
+        c,
+        "--units-row",
+        "--out",
+        d.to_str().unwrap(),
+        "--surface",
+        "p_int",
+    ]);
+    assert!(stderr(&o).contains("convert first"), "{}", stderr(&o));
+}

@@ -128,6 +128,29 @@ impl Recording {
     pub fn values(&self, name: &str) -> Result<&[f64], RecordingError> {
         self.channel(name).map(|c| c.values.as_slice())
     }
+
+    /// Replace a channel's samples (same length).
+    pub fn replace_values(&mut self, name: &str, values: Vec<f64>) -> Result<(), RecordingError> {
+        let expected = self.len();
+        let available = self.names().join(", ");
+        let ch = self
+            .channels
+            .iter_mut()
+            .find(|c| c.name == name)
+            .ok_or_else(|| RecordingError::MissingChannel {
+                name: name.into(),
+                available,
+            })?;
+        if values.len() != expected {
+            return Err(RecordingError::LengthMismatch {
+                name: name.into(),
+                len: values.len(),
+                expected,
+            });
+        }
+        ch.values = values;
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -160,6 +183,26 @@ mod tests {
         assert!(matches!(
             r.push(ch("x", vec![1.0, 2.0])),
             Err(RecordingError::DuplicateChannel(_))
+        ));
+    }
+
+    #[test]
+    fn replace_values_checks_name_and_length() {
+        let mut r = Recording::new(Basis::Time);
+        r.push(ch("a", vec![1.0, 2.0])).unwrap();
+        r.replace_values("a", vec![3.0, 4.0]).unwrap();
+        assert_eq!(r.values("a").unwrap(), [3.0, 4.0]);
+        assert!(matches!(
+            r.replace_values("a", vec![1.0]),
+            Err(RecordingError::LengthMismatch {
+                len: 1,
+                expected: 2,
+                ..
+            })
+        ));
+        assert!(matches!(
+            r.replace_values("b", vec![1.0, 2.0]),
+            Err(RecordingError::MissingChannel { .. })
         ));
     }
 }

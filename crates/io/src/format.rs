@@ -141,6 +141,16 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
         .channels
         .as_ref()
         .map(|v| v.iter().map(|n| opts.file_name(n).to_string()).collect());
+    // A broken file (often truncated by an interrupted copy or logger) is reported with its
+    // length, so one can see where it ends.
+    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let with_size = |e: IoError| match e {
+        IoError::Malformed { path, detail } => IoError::Malformed {
+            path,
+            detail: format!("{detail} (the file ends at byte {size})"),
+        },
+        other => other,
+    };
     let mut rec = match format {
         Format::Csv => {
             let r = read_csv(
@@ -155,8 +165,8 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
                 None => r,
             }
         }
-        Format::Parquet => read_parquet(path, file_channels.as_deref())?,
-        Format::Mdf4 => read_mdf(path, file_channels.as_deref())?,
+        Format::Parquet => read_parquet(path, file_channels.as_deref()).map_err(with_size)?,
+        Format::Mdf4 => read_mdf(path, file_channels.as_deref()).map_err(with_size)?,
     };
     if !opts.map.is_empty() {
         rec = rename(rec, &opts.map, path)?;

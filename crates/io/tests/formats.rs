@@ -171,6 +171,10 @@ fn detection_and_errors() {
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let e = read(&cut, &ReadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("cut.parquet") && e.contains("Parquet"), "{e}");
+    assert!(
+        e.contains(&format!("the file ends at byte {}", bytes.len() / 2)),
+        "{e}"
+    );
     // A missing channel lists what is there; a map to a missing column says so.
     let e = read(
         &pq,

@@ -17,12 +17,11 @@ use std::time::Instant;
 /// Arguments of `physid estimate`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// CSV file: a header row of column names, then one row per sample.
+    /// Recording (CSV with a header row, Parquet or MDF4).
     #[arg(long)]
     pub data: PathBuf,
-    /// The file's second row holds units.
-    #[arg(long)]
-    pub units_row: bool,
+    #[command(flatten)]
+    pub input: super::InputArgs,
     /// Column of the measured output y.
     #[arg(long)]
     pub y: String,
@@ -222,11 +221,7 @@ pub fn run(args: &Args) -> Result<()> {
         "skip" => true,
         v => return Err(miette!("--on-bad '{v}': expected error or skip")),
     };
-    let opts = physid_io::CsvOptions {
-        units_row: args.units_row,
-        ..Default::default()
-    };
-    let rec = physid_io::read_csv(&args.data, &opts).into_diagnostic()?;
+    let rec = args.input.read(&args.data, None)?;
     let file = args.data.display().to_string();
     let column = |c: &str| rec.values(c).map_err(|e| miette!("{file}: {e}"));
     let y = column(&args.y)?;
@@ -344,8 +339,7 @@ pub fn run(args: &Args) -> Result<()> {
         .collect();
     let nfree = names.len();
 
-    // Line of sample i in the file: header, optional units row, 1-based.
-    let line = |i: usize| i + 2 + usize::from(args.units_row);
+    let line = |i: usize| args.input.locate(&args.data, i);
     let n = y.len();
     let mut measured = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);
@@ -373,12 +367,12 @@ pub fn run(args: &Args) -> Result<()> {
             Err(EstimError::NonFinite { .. }) if skip_bad => skipped += 1,
             Err(EstimError::NonFinite { what, value, .. }) => {
                 return Err(miette!(
-                    "{file}, line {} (sample {i}): {what} is not finite ({value}); \
+                    "{file}, {}: {what} is not finite ({value}); \
                      use --on-bad skip to skip such samples",
                     line(i)
                 ))
             }
-            Err(e) => return Err(miette!("{file}, line {} (sample {i}): {e}", line(i))),
+            Err(e) => return Err(miette!("{file}, {}: {e}", line(i))),
         }
     }
     let accepted = measured.len();

@@ -78,7 +78,10 @@ fn run_5_1(args: &Args) -> Result<()> {
         cutoff_rel: None,
         free: Vec::new(),
         sigma: None,
-        units_row: true, // write_csv wrote the units row
+        input: super::InputArgs {
+            units_row: true, // write_csv wrote the units row
+            ..Default::default()
+        },
         json: args.json,
     })?;
     if !args.json {

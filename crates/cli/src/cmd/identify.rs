@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 /// Arguments of `physid identify`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Recording (CSV); give several to compare experiments.
+    /// Recording (CSV, Parquet or MDF4); give several to compare experiments.
     #[arg(long, required = true)]
     pub data: Vec<PathBuf>,
     /// The model as a formula; its data columns are the names that are not parameters.
@@ -57,9 +57,8 @@ pub struct Args {
     /// (default: estimated from the fit with --y; otherwise 1).
     #[arg(long)]
     pub sigma: Option<f64>,
-    /// The CSV's second row holds units.
-    #[arg(long)]
-    pub units_row: bool,
+    #[command(flatten)]
+    pub input: super::InputArgs,
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
@@ -188,11 +187,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let mut reports = Vec::new();
     for path in &args.data {
-        let opts = physid_io::CsvOptions {
-            units_row: args.units_row,
-            ..Default::default()
-        };
-        let rec = physid_io::read_csv(path, &opts).into_diagnostic()?;
+        let rec = args.input.read(path, None)?;
         if let Model::Expr(m) = &model {
             m.check_inputs(&rec.names())
                 .map_err(|e| miette!("--expr: {e} (in {})", path.display()))?;

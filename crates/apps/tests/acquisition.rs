@@ -1,0 +1,140 @@
+//! The acquisition chain on a simulated recording: encoder counts and a TDC marker at
+//! 20 kHz become one sample per crank degree from the first marker, with every channel at
+//! its value at that angle; inspection counts cycles and finds nothing wrong; filtering needs a
+//! uniform time step.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::acquisition::{
+    filter_channels, inspect, to_crank_angle, to_time_basis, AcquisitionOptions, FilterSpec,
+};
+use physid_core::{Basis, Channel, Recording};
+use physid_signal::encoder::counts_from_angle;
+use physid_signal::filter::{butter, Band};
+use std::f64::consts::{PI, TAU};
+
+/// 2 s at 20 kHz, θ = 105·t − 0.2 rad (1003 rpm), p = 1e5 + 1e4·cos(θ/2): a function of
+/// the angle; the marker is high on the sample where θ passes each multiple of 2π.
+fn recording() -> Recording {
+    let n = 40_000;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 / 20_000.0).collect();
+    let theta: Vec<f64> = t.iter().map(|t| 105.0 * t - 0.2).collect();
+    let marker: Vec<f64> = (0..n)
+        .map(|i| f64::from(i > 0 && (theta[i] / TAU).floor() > (theta[i - 1] / TAU).floor()))
+        .collect();
+    let p: Vec<f64> = theta
+        .iter()
+        .map(|th| 1e5 + 1e4 * (th / 2.0).cos())
+        .collect();
+    let mut r = Recording::new(Basis::Time);
+    for (name, unit, v) in [
+        ("t", "s", t),
+        ("count_en", "-", counts_from_angle(&theta, 360)),
+        ("tdc", "-", marker),
+        ("p_int", "Pa", p),
+    ] {
+        r.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: v,
+        })
+        .unwrap();
+    }
+    r
+}
+
+#[test]
+fn counts_to_one_sample_per_degree() {
+    let rec = recording();
+    let ca = to_crank_angle(&rec, &AcquisitionOptions::default(), 1.0).unwrap();
+    assert_eq!(ca.basis, Basis::CrankAngle);
+    assert_eq!(ca.names(), ["t", "theta", "cycle", "crank_deg", "p_int"]);
+    let (cyc, deg, p, t) = (
+        ca.values("cycle").unwrap(),
+        ca.values("crank_deg").unwrap(),
+        ca.values("p_int").unwrap(),
+        ca.values("t").unwrap(),
+    );
+    assert_eq!((cyc[0], deg[0]), (0.0, 0.0));
+    assert_eq!((cyc[720], deg[720]), (1.0, 0.0));
+    // The first marker is where θ passes 0 (within one sample): p(θ) = 1e5 + 1e4·cos(θ/2)
+    // with θ = crank angle + 720°·cycle.
+    let q = TAU / 360.0;
+    for k in (0..ca.len()).step_by(37) {
+        let th_abs = deg[k].to_radians() + cyc[k] * 4.0 * PI;
+        // The counts quantise the angle to q, the marker to one 20 kHz sample (0.3°).
+        let tol = 1e4 * 0.5 * (q + 105.0 / 20_000.0);
+        assert!(
+            (p[k] - (1e5 + 1e4 * (th_abs / 2.0).cos())).abs() < tol,
+            "{k}"
+        );
+        assert!(
+            (t[k] - (th_abs + 0.2) / 105.0).abs() < (q + 105.0 / 20_000.0) / 105.0,
+            "{k}: {} vs {}",
+            t[k],
+            (th_abs + 0.2) / 105.0
+        );
+    }
+    // And back to a time basis at 10 kHz.
+    let back = to_time_basis(&ca, 10_000.0).unwrap();
+    assert_eq!(back.basis, Basis::Time);
+    let dt = back
+        .values("t")
+        .unwrap()
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(0.0, f64::max);
+    assert!((dt - 1e-4).abs() < 1e-12);
+}
+
+#[test]
+fn inspection_counts_cycles_and_finds_what_is_wrong() {
+    let rec = recording();
+    let i = inspect(&rec, &AcquisitionOptions::default());
+    assert_eq!(i.basis, "time");
+    assert!((i.sample_rate_hz.unwrap() - 20_000.0).abs() < 1e-6);
+    assert!((i.duration_s.unwrap() - 1.99995).abs() < 1e-9);
+    // θ runs from −0.2 to 209.8 rad: 34 markers (at 0, 2π, …, 66π), 16 complete cycles.
+    assert_eq!(i.cycles, Some(16));
+    // The only finding: samples before the first marker.
+    assert_eq!(i.integrity.findings.len(), 1, "{:?}", i.integrity.findings);
+    let ca = to_crank_angle(&rec, &AcquisitionOptions::default(), 1.0).unwrap();
+    let j = inspect(&ca, &AcquisitionOptions::default());
+    assert_eq!(j.basis, "crank_angle");
+    // 16 whole cycles and a partial one at the end, which the check reports.
+    assert_eq!(j.cycles, Some(16));
+    assert_eq!(j.integrity.findings.len(), 1, "{:?}", j.integrity.findings);
+}
+
+#[test]
+fn filtering_channels() {
+    let mut rec = recording();
+    let raw = rec.values("p_int").unwrap().to_vec();
+    let spec = FilterSpec {
+        band: Band::Lowpass,
+        cutoff_hz: vec![100.0],
+        order: 4,
+        transfer_function: false,
+    };
+    filter_channels(&mut rec, &["p_int".into()], &spec).unwrap();
+    let want = butter(4, &[100.0], Band::Lowpass, 20_000.0)
+        .unwrap()
+        .to_sos()
+        .sosfiltfilt(&raw)
+        .unwrap();
+    assert!(rec.values("p_int").unwrap() == want.as_slice());
+    // A gap in time is refused with its place.
+    let mut t = rec.values("t").unwrap().to_vec();
+    for v in &mut t[500..] {
+        *v += 1e-3;
+    }
+    rec.replace_values("t", t).unwrap();
+    let e = filter_channels(&mut rec, &["p_int".into()], &spec)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not uniform at sample"), "{e}");
+    let e = filter_channels(&mut recording(), &["p_cyl".into()], &spec)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no channel 'p_cyl'"), "{e}");
+}

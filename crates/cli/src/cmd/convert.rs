@@ -1,0 +1,104 @@
+//! `physid convert`: between formats (by extension) and bases (time ↔ one sample per crank
+//! degree).
+
+use super::InputArgs;
+use crate::cmd::inspect::acquisition_options;
+use crate::out::outln;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::acquisition::{to_crank_angle, to_time_basis};
+use physid_io::{MdfCompression, WriteOptions};
+use std::path::PathBuf;
+
+/// Arguments of `physid convert`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input recording (CSV, Parquet or MDF4).
+    pub input: PathBuf,
+    /// Output file; its extension picks the format (.csv, .parquet, .mf4).
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub read: InputArgs,
+    /// Only these channels (after --map).
+    #[arg(long, value_delimiter = ',')]
+    pub channels: Vec<String>,
+    /// Resample to one sample every --step-deg crank degrees from the first TDC marker (engine
+    /// angle from `theta_en` or the engine encoder's counts).
+    #[arg(long, conflicts_with = "time_basis")]
+    pub crank_angle: bool,
+    /// Crank-angle step [deg].
+    #[arg(long, default_value_t = 1.0)]
+    pub step_deg: f64,
+    /// Resample a crank-angle recording to a uniform time basis at this rate [Hz].
+    #[arg(long, value_name = "HZ")]
+    pub time_basis: Option<f64>,
+    /// Encoder counter channel and pulses per revolution (repeatable)
+    /// [default: count_en=360, count_dy=1024].
+    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
+    pub encoders: Vec<String>,
+    /// TDC marker channel.
+    #[arg(long, default_value = "tdc")]
+    pub marker: String,
+    /// MDF4 output compression: none, deflate or transposed.
+    #[arg(long, default_value = "none")]
+    pub compression: String,
+}
+
+/// Run `physid convert`.
+pub fn run(args: &Args) -> Result<()> {
+    let compression = match args.compression.as_str() {
+        "none" => MdfCompression::None,
+        "deflate" => MdfCompression::Deflate,
+        "transposed" => MdfCompression::TransposedDeflate,
+        c => {
+            return Err(miette!(
+                "--compression '{c}': expected none, deflate or transposed"
+            ))
+        }
+    };
+    let mut rec = args.read.read(&args.input, None)?;
+    let opts = acquisition_options(&args.encoders, &args.marker)?;
+    if args.crank_angle {
+        rec = to_crank_angle(&rec, &opts, args.step_deg)
+            .map_err(|e| miette!("{}: {e}", args.input.display()))?;
+    }
+    if let Some(rate) = args.time_basis {
+        rec = to_time_basis(&rec, rate).map_err(|e| miette!("{}: {e}", args.input.display()))?;
+    }
+    if !args.channels.is_empty() {
+        let mut keep = physid_core::Recording::new(rec.basis);
+        keep.meta = rec.meta.clone();
+        // The basis channels come along.
+        let basis_channels = ["t", "theta", "cycle", "crank_deg"];
+        for name in basis_channels
+            .iter()
+            .filter(|n| rec.channel(n).is_ok() && !args.channels.iter().any(|c| c == *n))
+            .map(|s| s.to_string())
+            .chain(args.channels.iter().cloned())
+        {
+            let ch = rec
+                .channel(&name)
+                .map_err(|e| miette!("{}: {e}", args.input.display()))?;
+            keep.push(ch.clone()).into_diagnostic()?;
+        }
+        rec = keep;
+    }
+    physid_io::write(
+        &args.output,
+        &rec,
+        &WriteOptions {
+            mdf_compression: compression,
+        },
+    )
+    .into_diagnostic()?;
+    outln!(
+        "wrote {} ({} channels × {} samples, {} basis)",
+        args.output.display(),
+        rec.channels().len(),
+        rec.len(),
+        match rec.basis {
+            physid_core::Basis::Time => "time",
+            physid_core::Basis::CrankAngle => "crank-angle",
+        }
+    );
+    Ok(())
+}

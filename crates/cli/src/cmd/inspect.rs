@@ -1,0 +1,164 @@
+//! `physid inspect`: what is in a recording, and the post-run integrity check (thesis ch. 4).
+
+use super::InputArgs;
+use crate::out::outln;
+use crate::plot;
+use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_apps::acquisition::{inspect, AcquisitionOptions};
+use physid_core::Recording;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `physid inspect`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Recording (CSV, Parquet or MDF4).
+    pub file: PathBuf,
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Encoder counter channel and pulses per revolution (repeatable)
+    /// [default: count_en=360, count_dy=1024].
+    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
+    pub encoders: Vec<String>,
+    /// TDC marker channel.
+    #[arg(long, default_value = "tdc")]
+    pub marker: String,
+    /// Exit with an error when the integrity check finds anything.
+    #[arg(long)]
+    pub strict: bool,
+    /// Directory for cycle-by-crank-angle surface views (thesis Fig. 4.8) of --surface channels.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Channels to draw as surfaces (needs crank-angle data: `cycle` and `crank_deg`).
+    #[arg(long, value_delimiter = ',')]
+    pub surface: Vec<String>,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Encoder options from `CHANNEL=PPR` items (defaults when none).
+pub fn acquisition_options(encoders: &[String], marker: &str) -> Result<AcquisitionOptions> {
+    let mut o = AcquisitionOptions {
+        marker: marker.to_string(),
+        ..Default::default()
+    };
+    if !encoders.is_empty() {
+        o.encoders = encoders
+            .iter()
+            .map(|e| {
+                let (c, p) = e.split_once('=').ok_or_else(|| {
+                    miette!("--encoder '{e}': expected CHANNEL=PPR, e.g. count_en=360")
+                })?;
+                let ppr: u32 =
+                    p.trim().parse().ok().filter(|v| *v > 0).ok_or_else(|| {
+                        miette!("--encoder '{e}': '{p}' is not a pulse count > 0")
+                    })?;
+                Ok((c.trim().to_string(), ppr))
+            })
+            .collect::<Result<_>>()?;
+    }
+    Ok(o)
+}
+
+/// Run `physid inspect`.
+pub fn run(args: &Args) -> Result<()> {
+    let rec = args.input.read(&args.file, None)?;
+    let opts = acquisition_options(&args.encoders, &args.marker)?;
+    let i = inspect(&rec, &opts);
+    let mut written = Vec::new();
+    if let Some(dir) = &args.out {
+        written = surfaces(&rec, &args.surface, dir)?;
+    }
+    if args.json {
+        let mut v = serde_json::to_value(&i).into_diagnostic()?;
+        if let Some(o) = v.as_object_mut() {
+            o.insert("surfaces".into(), serde_json::json!(written));
+        }
+        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+    } else {
+        outln!(
+            "{}: {} basis, {} samples",
+            args.file.display(),
+            i.basis,
+            rec.len()
+        );
+        if let Some(d) = i.duration_s {
+            outln!("duration {d:.6} s");
+        }
+        if let Some(r) = i.sample_rate_hz {
+            outln!("sample rate {r:.3} Hz");
+        }
+        if let Some(c) = i.cycles {
+            outln!("complete cycles (720°): {c}");
+        }
+        outln!("{:<24} {:<10} {:>10}", "channel", "unit", "samples");
+        for c in &i.channels {
+            outln!("{:<24} {:<10} {:>10}", c.name, c.unit, c.samples);
+        }
+        if i.integrity.ok {
+            outln!("integrity: ok");
+        } else {
+            outln!("integrity: {} finding(s)", i.integrity.findings.len());
+            for f in &i.integrity.findings {
+                outln!(
+                    "  sample {:>9}  {:<20} {}",
+                    f.index,
+                    serde_json::to_value(f.kind)
+                        .ok()
+                        .and_then(|v| v.as_str().map(String::from))
+                        .unwrap_or_default(),
+                    f.detail
+                );
+            }
+        }
+        for w in &written {
+            outln!("wrote {w}");
+        }
+    }
+    if args.strict && !i.integrity.ok {
+        return Err(miette!(
+            "{}: the integrity check found {} problem(s) (--strict)",
+            args.file.display(),
+            i.integrity.findings.len()
+        ));
+    }
+    Ok(())
+}
+
+/// One SVG per channel: rows are cycles, columns crank degrees.
+fn surfaces(rec: &Recording, channels: &[String], dir: &Path) -> Result<Vec<String>> {
+    if channels.is_empty() {
+        return Err(miette!(
+            "--out draws surfaces: name the channels with --surface p_cyl,…"
+        ));
+    }
+    let (cycle, deg) = match (rec.values("cycle"), rec.values("crank_deg")) {
+        (Ok(c), Ok(d)) => (c, d),
+        _ => {
+            return Err(miette!(
+                "surfaces need crank-angle data with 'cycle' and 'crank_deg' channels: convert first (physid convert IN OUT --crank-angle)"
+            ))
+        }
+    };
+    std::fs::create_dir_all(dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    let mut written = Vec::new();
+    for name in channels {
+        let x = rec.values(name).map_err(|e| miette!("--surface: {e}"))?;
+        let path = dir.join(format!("surface-{name}.svg"));
+        let unit = rec
+            .channel(name)
+            .map(|c| c.unit.clone())
+            .unwrap_or_default();
+        plot::surface(
+            &path,
+            &format!("{name} [{unit}] by cycle and crank angle"),
+            cycle,
+            deg,
+            x,
+        )?;
+        written.push(path.display().to_string());
+    }
+    Ok(written)
+}
