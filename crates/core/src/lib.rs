@@ -18,4 +18,4 @@ pub mod recording;
 
 pub use model::{Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
 pub use params::{FreeSet, ParamError, ParamSet};
-pub use recording::{Basis, Channel, Recording, RecordingError};
+pub use recording::{standard_unit, Basis, Channel, Recording, RecordingError, CHANNEL_TABLE};

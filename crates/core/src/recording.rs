@@ -6,6 +6,59 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// The channel-name table (DESIGN.md): `(name, SI unit, meaning)`. Producers use these names;
+/// users' own names are mapped onto them (`--map name=column`).
+pub const CHANNEL_TABLE: &[(&str, &str, &str)] = &[
+    ("t", "s", "time"),
+    ("theta_en", "rad", "engine angle, continuous"),
+    ("theta_dy", "rad", "dynamometer angle, continuous"),
+    ("omega_en", "rad/s", "engine speed"),
+    ("omega_dy", "rad/s", "dynamometer speed"),
+    ("alpha_en", "rad/s^2", "engine acceleration"),
+    ("alpha_dy", "rad/s^2", "dynamometer acceleration"),
+    ("torque_shaft", "N*m", "in-line shaft torque"),
+    ("torque_engine", "N*m", "engine torque (mount load cell)"),
+    (
+        "torque_dy",
+        "N*m",
+        "dynamometer electromagnetic torque (simulation)",
+    ),
+    ("p_cyl", "Pa", "cylinder pressure"),
+    ("p_int", "Pa", "intake manifold pressure"),
+    ("p_exh", "Pa", "exhaust pressure"),
+    ("p_crank", "Pa", "crank-case pressure"),
+    ("p_atm", "Pa", "ambient pressure"),
+    ("T_oil", "K", "oil temperature"),
+    ("T_int", "K", "intake temperature"),
+    ("T_exh", "K", "exhaust temperature"),
+    ("throttle", "deg", "throttle angle"),
+    ("speed_demand", "rad/s", "dynamometer speed demand"),
+    ("i_a", "A", "dynamometer phase current a"),
+    ("i_b", "A", "dynamometer phase current b"),
+    ("i_c", "A", "dynamometer phase current c"),
+    ("v_a", "V", "dynamometer phase voltage a"),
+    ("v_b", "V", "dynamometer phase voltage b"),
+    ("v_c", "V", "dynamometer phase voltage c"),
+    ("count_en", "-", "engine encoder, cumulative pulses"),
+    ("count_dy", "-", "dynamometer encoder, cumulative pulses"),
+    ("tdc", "-", "TDC marker (non-zero on its pulse)"),
+    ("cycle", "-", "cycle index (crank-angle basis)"),
+    ("crank_deg", "deg", "crank angle in the cycle"),
+    (
+        "theta",
+        "rad",
+        "crank angle from the first TDC (crank-angle basis)",
+    ),
+];
+
+/// The SI unit the channel table gives a name, if it is in the table.
+pub fn standard_unit(name: &str) -> Option<&'static str> {
+    CHANNEL_TABLE
+        .iter()
+        .find(|(n, _, _)| *n == name)
+        .map(|(_, u, _)| *u)
+}
+
 /// What the samples of a recording are indexed by.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]

@@ -10,6 +10,7 @@
 //! | `pulse_loss` | fewer encoder pulses between two TDC markers than pulses per revolution |
 //! | `extra_pulses` | more (electrical noise) |
 //! | `out_of_sync` | a TDC marker displaced against the encoder count (the next interval compensates) |
+//! | `unit_mismatch` | a channel of the table (DESIGN.md) with another unit than its SI one (`T_oil` in °C) |
 //! | `incomplete_cycle` | data before the first TDC marker or after the last whole revolution (time basis); a cycle with the wrong number of samples (crank-angle basis) |
 
 use crate::encoder::marker_edges;
@@ -36,6 +37,8 @@ pub enum FindingKind {
     OutOfSync,
     /// A partial cycle.
     IncompleteCycle,
+    /// A standard channel in a non-standard unit.
+    UnitMismatch,
 }
 
 /// One finding.
@@ -120,6 +123,18 @@ pub fn check(rec: &Recording, opts: &IntegrityOptions) -> Integrity {
         counts: Vec::new(),
     };
     for ch in rec.channels() {
+        if let Some(unit) = physid_core::standard_unit(&ch.name) {
+            if !ch.unit.is_empty() && ch.unit != unit {
+                c.push(
+                    FindingKind::UnitMismatch,
+                    0,
+                    format!(
+                        "channel '{}' is in '{}'; physid expects '{unit}' (convert it, or map your column to another name)",
+                        ch.name, ch.unit
+                    ),
+                );
+            }
+        }
         if let Some(i) = ch.values.iter().position(|v| !v.is_finite()) {
             let n = ch.values.iter().filter(|v| !v.is_finite()).count();
             c.push(

@@ -142,3 +142,26 @@ fn crank_angle_cycles_and_the_cap() {
     assert_eq!(r.findings.len(), MAX_PER_KIND + 1);
     assert!(r.findings.iter().any(|f| f.detail.contains("500 findings")));
 }
+
+#[test]
+fn units_off_the_table_are_found() {
+    let mut r = Recording::new(Basis::Time);
+    for (name, unit) in [
+        ("T_oil", "degC"),
+        ("omega_en", "rad/s"),
+        ("mine", "furlong"),
+    ] {
+        r.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: vec![1.0, 2.0],
+        })
+        .unwrap();
+    }
+    let i = check(&r, &IntegrityOptions::default());
+    assert_eq!(i.findings.len(), 1, "{:?}", i.findings);
+    assert_eq!(i.findings[0].kind, FindingKind::UnitMismatch);
+    assert!(i.findings[0]
+        .detail
+        .contains("'T_oil' is in 'degC'; physid expects 'K'"));
+}
