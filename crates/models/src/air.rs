@@ -59,11 +59,32 @@ const N2: [[f64; 7]; 2] = [
     ],
 ];
 
-fn coefficients(species: &[[f64; 7]; 2], t: f64) -> &[f64; 7] {
+/// Mole fractions of O₂ and N₂.
+const X_O2: f64 = 1.0 / (1.0 + N2_PER_O2);
+const X_N2: f64 = N2_PER_O2 / (1.0 + N2_PER_O2);
+/// Molar mass of air [kg/kmol].
+const M_AIR: f64 = X_O2 * M_O2 + X_N2 * M_N2;
+/// Specific gas constant of air [J/(kg·K)].
+const R_AIR: f64 = R_U / M_AIR;
+
+/// The mixture's coefficients: the mole-fraction average of the species' (the properties are
+/// linear in the coefficients, so one polynomial serves for the mixture).
+const fn mix(o: &[f64; 7], n: &[f64; 7]) -> [f64; 7] {
+    let mut m = [0.0; 7];
+    let mut i = 0;
+    while i < 7 {
+        m[i] = X_O2 * o[i] + X_N2 * n[i];
+        i += 1;
+    }
+    m
+}
+const AIR: [[f64; 7]; 2] = [mix(&O2[0], &N2[0]), mix(&O2[1], &N2[1])];
+
+fn coefficients(t: f64) -> &'static [f64; 7] {
     if t < T_MID {
-        &species[0]
+        &AIR[0]
     } else {
-        &species[1]
+        &AIR[1]
     }
 }
 
@@ -75,27 +96,19 @@ fn h_over_rt(a: &[f64; 7], t: f64) -> f64 {
     a[0] + t * (a[1] / 2.0 + t * (a[2] / 3.0 + t * (a[3] / 4.0 + t * a[4] / 5.0))) + a[5] / t
 }
 
-/// Mole fractions (O₂, N₂).
-fn fractions() -> (f64, f64) {
-    let total = 1.0 + N2_PER_O2;
-    (1.0 / total, N2_PER_O2 / total)
-}
-
 /// Molar mass of air [kg/kmol].
 pub fn molar_mass() -> f64 {
-    let (xo, xn) = fractions();
-    xo * M_O2 + xn * M_N2
+    M_AIR
 }
 
 /// Specific gas constant of air R [J/(kg·K)].
 pub fn gas_constant() -> f64 {
-    R_U / molar_mass()
+    R_AIR
 }
 
-/// Mixture average of a per-species dimensionless property, times `R_U/M`: mass-specific.
+/// Mixture property: the dimensionless polynomial times `R`.
 fn mixture(t: f64, f: fn(&[f64; 7], f64) -> f64) -> f64 {
-    let (xo, xn) = fractions();
-    (xo * f(coefficients(&O2, t), t) + xn * f(coefficients(&N2, t), t)) * gas_constant()
+    f(coefficients(t), t) * R_AIR
 }
 
 /// Specific heat at constant pressure c_p(T) [J/(kg·K)].
