@@ -46,32 +46,33 @@ impl<T: Scalar> Crank<T> {
         (self.delta / (self.r + self.l)).asin()
     }
 
-    /// `(q, w)` at crank angle θ.
-    fn parts(&self, theta: f64) -> (T, T) {
-        let q = self.r * theta.sin() - self.delta;
+    /// `(s, s', s'')` at θ from one evaluation of the trigonometry: displacement from TDC [m]
+    /// and its first two derivatives [m/rad, m/rad²].
+    pub fn motion(&self, theta: f64) -> (T, T, T) {
+        let (sa, ca) = theta.sin_cos();
+        let r = self.r;
+        let q = r * sa - self.delta;
         let w = (self.l * self.l - q * q).sqrt();
-        (q, w)
+        let rl = r + self.l;
+        let s = (rl * rl - self.delta * self.delta).sqrt() - r * ca - w;
+        let ds = r * sa + q * r * ca / w;
+        let dds = r * ca + (r * r * ca * ca - q * r * sa) / w + q * q * r * r * ca * ca / (w * w * w);
+        (s, ds, dds)
     }
 
     /// Piston displacement from TDC, s(θ) [m].
     pub fn s(&self, theta: f64) -> T {
-        let (_, w) = self.parts(theta);
-        let rl = self.r + self.l;
-        (rl * rl - self.delta * self.delta).sqrt() - self.r * theta.cos() - w
+        self.motion(theta).0
     }
 
     /// ds/dθ [m/rad].
     pub fn ds(&self, theta: f64) -> T {
-        let (q, w) = self.parts(theta);
-        self.r * theta.sin() + q * self.r * theta.cos() / w
+        self.motion(theta).1
     }
 
     /// d²s/dθ² [m/rad²].
     pub fn dds(&self, theta: f64) -> T {
-        let (q, w) = self.parts(theta);
-        let (sa, ca) = (theta.sin(), theta.cos());
-        let r = self.r;
-        r * ca + (r * r * ca * ca - q * r * sa) / w + q * q * r * r * ca * ca / (w * w * w)
+        self.motion(theta).2
     }
 
     /// Stroke: the distance between TDC and BDC, `√((L+r)² − δ²) − √((L−r)² − δ²)` [m].
