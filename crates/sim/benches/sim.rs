@@ -1,0 +1,2 @@
+//! criterion benchmarks of physid-sim.
+fn main() {}

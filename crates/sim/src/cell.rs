@@ -1,0 +1,277 @@
+//! The test cell: engine, coupling shaft, dynamometer and drive, advanced together one crank
+//! step at a time (SPEC §2.1, §2.2 "time step").
+//!
+//! ```text
+//! J_dy·α_dy = τ_dy − τ_sh
+//! (J_en + M_rec·s'²)·α_en = τ_sh + τ_ind − M_rec·s'·s''·ω_en² − τ_fri     (τ_rec's α term solved)
+//! τ_sh = K·(θ_dy − θ_en) + B·(ω_dy − ω_en)
+//! ```
+//!
+//! The step is a fixed crank-angle increment `dt = dθ/ω_en`, clamped to the steps at 500 and
+//! 10 000 rpm, integrated by classical RK4 over the continuous states (gas, driveline, machine
+//! fluxes, frame angle). The drive samples its measurements at the start of each step and
+//! holds its voltages over it; the friction magnitude (a function of speed, manifold pressure
+//! and oil temperature, all slow against one degree) is evaluated once per step. RK4 at one
+//! degree resolves the ≈ 30 Hz shaft mode with 200 steps per period at 1000 rpm: its energy
+//! error over a free oscillation is below 1e-9 per period (`tests/driveline.rs`).
+
+use crate::control::{Demand, Drive};
+use crate::engine::{Engine, EngineOutputs, GasState, Motored, CYL, EXH, INT};
+use crate::machine::{Flux, Machine};
+use crate::params::CellParams;
+use std::f64::consts::PI;
+
+/// Number of continuous states.
+pub const N: usize = 17;
+const TH_DY: usize = 8;
+const W_DY: usize = 9;
+const TH_EN: usize = 10;
+const W_EN: usize = 11;
+const FLUX: usize = 12;
+const TH_SYN: usize = 16;
+
+/// What the cell is asked to do during a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inputs {
+    /// The drive's demand.
+    pub demand: Demand,
+    /// Throttle opening above closed [deg].
+    pub throttle_deg: f64,
+}
+
+/// Everything at one instant (the start of a step): the ground truth the sensors measure.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Sample {
+    /// Time [s].
+    pub t: f64,
+    /// Engine and dynamometer angles [rad].
+    pub theta_en: f64,
+    /// Dynamometer angle [rad].
+    pub theta_dy: f64,
+    /// Engine speed [rad/s].
+    pub omega_en: f64,
+    /// Dynamometer speed [rad/s].
+    pub omega_dy: f64,
+    /// Engine acceleration [rad/s²].
+    pub alpha_en: f64,
+    /// Dynamometer acceleration [rad/s²].
+    pub alpha_dy: f64,
+    /// Shaft torque [N·m].
+    pub torque_shaft: f64,
+    /// Engine torque delivered `τ_ind − τ_rec − τ_fri` [N·m].
+    pub torque_engine: f64,
+    /// Indicated torque [N·m].
+    pub torque_indicated: f64,
+    /// Reciprocating torque [N·m].
+    pub torque_reciprocating: f64,
+    /// Friction torque [N·m].
+    pub torque_friction: f64,
+    /// Machine electromagnetic torque [N·m].
+    pub torque_dy: f64,
+    /// Engine gas outputs.
+    pub gas: EngineOutputs,
+    /// Temperatures `[T_int, T_cyl, T_exh]` [K].
+    pub temperatures: [f64; 3],
+    /// Stator currents `[i_sd, i_sq]` [A] and voltages `[v_sd, v_sq]` [V].
+    pub i_dq: [f64; 2],
+    /// Stator voltages.
+    pub v_dq: [f64; 2],
+    /// Frame angle [rad].
+    pub theta_syn: f64,
+    /// Throttle [deg].
+    pub throttle_deg: f64,
+    /// The drive's demand value (rad/s in speed mode, N·m in torque mode).
+    pub demand: f64,
+    /// The observed rotor flux [Wb].
+    pub flux_est: f64,
+}
+
+/// Quantities held over a step.
+#[derive(Debug, Clone, Copy)]
+struct Held {
+    throttle: f64,
+    throttle_area: f64,
+    v: [f64; 2],
+    w_syn: f64,
+    friction: f64,
+}
+
+/// The virtual test cell.
+#[derive(Debug, Clone)]
+pub struct TestCell {
+    /// The parameters in force (faults change some during a run).
+    pub params: CellParams,
+    engine: Engine,
+    machine: Machine,
+    drive: Drive,
+    x: [f64; N],
+    t: f64,
+    dt_min: f64,
+    dt_max: f64,
+}
+
+impl TestCell {
+    /// A cell at rest at speed `omega0` [rad/s] (both sides), the engine at crank angle
+    /// `theta0` [rad], gas at ambient, the machine magnetised.
+    pub fn new(params: CellParams, omega0: f64, theta0: f64) -> Result<Self, String> {
+        params.validate()?;
+        let engine = Engine::new(&params.engine, &params.ambient);
+        let machine = Machine::new(&params.dyno);
+        let drive = Drive::new(&params.dyno, machine);
+        let mut x = [0.0; N];
+        x[..8].copy_from_slice(&engine.ambient_state(theta0));
+        x[TH_DY] = theta0;
+        x[W_DY] = omega0;
+        x[TH_EN] = theta0;
+        x[W_EN] = omega0;
+        x[FLUX..FLUX + 4].copy_from_slice(&drive.magnetised_flux());
+        let step = params.step_deg.to_radians();
+        let rpm = |n: f64| n * PI / 30.0;
+        Ok(Self {
+            dt_min: step / rpm(10_000.0),
+            dt_max: step / rpm(500.0),
+            params,
+            engine,
+            machine,
+            drive,
+            x,
+            t: 0.0,
+        })
+    }
+
+    /// Time [s].
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+
+    /// The continuous state.
+    pub fn state(&self) -> &[f64; N] {
+        &self.x
+    }
+
+    /// The engine model.
+    pub fn engine(&self) -> &Engine {
+        &self.engine
+    }
+
+    /// The machine.
+    pub fn machine(&self) -> &Machine {
+        &self.machine
+    }
+
+    /// The drive.
+    pub fn drive(&self) -> &Drive {
+        &self.drive
+    }
+
+    /// Re-read the parameters that may change during a run (faults): shaft, reciprocating
+    /// mass, friction scale, oil temperature.
+    pub fn refresh_live_parameters(&mut self) {
+        self.engine.p.m_rec = self.params.engine.m_rec;
+        self.engine.p.friction_scale = self.params.engine.friction_scale;
+        self.engine.p.t_oil = self.params.engine.t_oil;
+    }
+
+    /// Derivatives of the continuous state with the held inputs; also the instant's sample.
+    fn derivatives(&self, x: &[f64; N], h: &Held) -> ([f64; N], Sample) {
+        let mut gas = [0.0; 8];
+        gas.copy_from_slice(&x[..8]);
+        let (th_en, w_en) = (x[TH_EN], x[W_EN]);
+        let (dgas, out): (GasState, EngineOutputs) =
+            self.engine
+                .gas_derivatives(th_en, w_en, h.throttle_area, &gas, &Motored);
+        let tq = self.engine.torque(th_en, w_en, out.p[CYL], h.friction);
+        let mut flux: Flux = [0.0; 4];
+        flux.copy_from_slice(&x[FLUX..FLUX + 4]);
+        let w_r = self.machine.pole_pairs * x[W_DY];
+        let dflux = self.machine.derivatives(&flux, h.v, h.w_syn, w_r);
+        let tau_dy = self.machine.torque(&flux);
+        let sh = &self.params.shaft;
+        let tau_sh = sh.k * (x[TH_DY] - th_en) + sh.b * (x[W_DY] - w_en);
+        let a_dy = (tau_dy - tau_sh) / self.params.dyno.inertia;
+        let a_en = (tau_sh + tq.indicated - tq.rec_velocity - tq.friction)
+            / (self.params.engine.inertia + tq.rec_inertia);
+        let mut d = [0.0; N];
+        d[..8].copy_from_slice(&dgas);
+        d[TH_DY] = x[W_DY];
+        d[W_DY] = a_dy;
+        d[TH_EN] = w_en;
+        d[W_EN] = a_en;
+        d[FLUX..FLUX + 4].copy_from_slice(&dflux);
+        d[TH_SYN] = h.w_syn;
+        let i = self.machine.currents(&flux);
+        let rec = tq.rec_velocity + tq.rec_inertia * a_en;
+        let sample = Sample {
+            t: 0.0,
+            theta_en: th_en,
+            theta_dy: x[TH_DY],
+            omega_en: w_en,
+            omega_dy: x[W_DY],
+            alpha_en: a_en,
+            alpha_dy: a_dy,
+            torque_shaft: tau_sh,
+            torque_engine: tq.indicated - rec - tq.friction,
+            torque_indicated: tq.indicated,
+            torque_reciprocating: rec,
+            torque_friction: tq.friction,
+            torque_dy: tau_dy,
+            gas: out,
+            temperatures: [x[3 + INT], x[3 + CYL], x[3 + EXH]],
+            i_dq: [i[0], i[1]],
+            v_dq: h.v,
+            theta_syn: x[TH_SYN],
+            throttle_deg: h.throttle,
+            demand: 0.0,
+            flux_est: self.drive.flux_est,
+        };
+        (d, sample)
+    }
+
+    /// Advance one crank step with `inputs`, the drive measuring speed `w_meas` [rad/s] (its
+    /// speed sensor's reading of ω_dy; see [`Sensor`](crate::sensors::Sensor)). Returns the
+    /// sample at the start of the step.
+    pub fn step_with(&mut self, inputs: &Inputs, w_meas: f64) -> Sample {
+        let x0 = self.x;
+        let w = x0[W_EN].abs().max(1e-9);
+        let dt = (self.params.step_deg.to_radians() / w).clamp(self.dt_min, self.dt_max);
+        let mut flux: Flux = [0.0; 4];
+        flux.copy_from_slice(&x0[FLUX..FLUX + 4]);
+        let i = self.machine.currents(&flux);
+        let cmd = self.drive.update(w_meas, [i[0], i[1]], inputs.demand, dt);
+        let r = physid_models::air::gas_constant();
+        let p_int = x0[INT] * r * x0[3 + INT] / self.params.engine.v_int;
+        let held = Held {
+            throttle: inputs.throttle_deg,
+            throttle_area: self.engine.throttle_cd_area(inputs.throttle_deg),
+            v: cmd.v,
+            w_syn: cmd.w_syn,
+            friction: self.engine.friction_torque(x0[W_EN], p_int),
+        };
+        let (k1, mut sample) = self.derivatives(&x0, &held);
+        let add = |a: &[f64; N], k: &[f64; N], f: f64| {
+            let mut y = *a;
+            for (yi, ki) in y.iter_mut().zip(k) {
+                *yi += f * ki;
+            }
+            y
+        };
+        let (k2, _) = self.derivatives(&add(&x0, &k1, dt / 2.0), &held);
+        let (k3, _) = self.derivatives(&add(&x0, &k2, dt / 2.0), &held);
+        let (k4, _) = self.derivatives(&add(&x0, &k3, dt), &held);
+        for j in 0..N {
+            self.x[j] = x0[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+        }
+        sample.t = self.t;
+        sample.demand = match inputs.demand {
+            Demand::Speed(v) | Demand::Torque(v) => v,
+        };
+        self.t += dt;
+        sample
+    }
+
+    /// Advance one step with an ideal speed measurement.
+    pub fn step(&mut self, inputs: &Inputs) -> Sample {
+        let w = self.x[W_DY];
+        self.step_with(inputs, w)
+    }
+}

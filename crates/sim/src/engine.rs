@@ -1,0 +1,405 @@
+//! The motored single-cylinder engine (SPEC §2.2–2.5): filling and emptying of three control
+//! volumes — intake manifold, cylinder, exhaust — through the throttle, the valves and the
+//! exhaust orifice, in either direction; Woschni heat transfer; NASA-polynomial air; slider-
+//! crank volume; indicated, reciprocating and friction torque.
+//!
+//! For each volume (Eq. 3.20–3.27), with `h_up` the enthalpy of the gas flowing in:
+//!
+//! ```text
+//! dm/dt       = Σ ṁ_in − Σ ṁ_out
+//! m·c_v·dT/dt = −Q̇_w − p·dV/dt + Σ ṁ_in·(h_up − u) − Σ ṁ_out·R·T
+//! p           = m·R·T/V
+//! ```
+//!
+//! Two more states count the mass exchanged with the ambient (in through the throttle, out
+//! through the exhaust orifice) so that mass conservation is checkable to round-off.
+//!
+//! No combustion (every thesis experiment is motored); [`Combustion`] is the seam where a heat
+//! release model would plug in.
+
+use crate::params::{AmbientParams, EngineParams};
+use physid_models::air;
+use physid_models::friction::{self, Design, OperatingPoint, Settings};
+use physid_models::kinematics::Crank;
+use std::f64::consts::PI;
+
+/// Index of the volumes in the state.
+pub const INT: usize = 0;
+/// Cylinder.
+pub const CYL: usize = 1;
+/// Exhaust.
+pub const EXH: usize = 2;
+
+/// Gas state: masses `[m_int, m_cyl, m_exh]` [kg], temperatures `[T_int, T_cyl, T_exh]` [K],
+/// cumulative mass in from and out to the ambient [kg].
+pub type GasState = [f64; 8];
+
+/// Heat released into the cylinder by combustion [W] at an angle and state — the seam for a
+/// fired engine. The motored engine has none.
+pub trait Combustion {
+    /// Heat release rate [W].
+    fn heat_release(&self, theta_cycle_deg: f64, p_cyl: f64, t_cyl: f64) -> f64;
+}
+
+/// No combustion.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Motored;
+
+impl Combustion for Motored {
+    fn heat_release(&self, _: f64, _: f64, _: f64) -> f64 {
+        0.0
+    }
+}
+
+/// Below this pressure ratio deficit (1 − p_dn/p_up) the orifice flow is linearised in the
+/// pressure difference: the isentropic form has an infinite slope at equal pressures, which
+/// makes the equations stiff for no physical reason.
+const LINEAR_BAND: f64 = 0.02;
+
+/// Isentropic flow function Ψ(pr) (Eq. 3.16): choked below the critical ratio
+/// `pr* = (2/(γ+1))^(γ/(γ−1))`, subsonic above, linear in `1 − pr` in the last
+/// [`LINEAR_BAND`]. Evaluated with logarithms and exponentials (two `ln`, one `exp`): the
+/// powers share `ln(2/(γ+1))` and `a = pr^(1/γ)` gives `pr^((γ−1)/γ) = pr/a`.
+pub fn psi(pr: f64, gamma: f64) -> f64 {
+    let g1 = gamma - 1.0;
+    let ln_c = (2.0 / (gamma + 1.0)).ln();
+    let sub = |pr: f64| {
+        let a = (pr.ln() / gamma).exp();
+        a * (2.0 * gamma / g1 * (1.0 - pr / a)).max(0.0).sqrt()
+    };
+    if pr <= 0.0 || pr.ln() <= gamma / g1 * ln_c {
+        gamma.sqrt() * ((gamma + 1.0) / (2.0 * g1) * ln_c).exp()
+    } else if pr < 1.0 - LINEAR_BAND {
+        sub(pr)
+    } else {
+        sub(1.0 - LINEAR_BAND) * (1.0 - pr).max(0.0) / LINEAR_BAND
+    }
+}
+
+/// Mass flow from side 1 to side 2 [kg/s] (negative: 2 → 1) through an effective area
+/// `cd_a` [m²], and the upstream temperature.
+pub fn orifice(cd_a: f64, p1: f64, t1: f64, p2: f64, t2: f64) -> (f64, f64) {
+    if cd_a <= 0.0 {
+        return (0.0, t1);
+    }
+    let r = air::gas_constant();
+    if p1 >= p2 {
+        let g = air::gamma(t1);
+        (cd_a * p1 / (r * t1).sqrt() * psi(p2 / p1, g), t1)
+    } else {
+        let g = air::gamma(t2);
+        (-cd_a * p2 / (r * t2).sqrt() * psi(p1 / p2, g), t2)
+    }
+}
+
+/// Valve flow area (Eq. 3.33–3.35): curtain area up to the lift where it equals the port area,
+/// the port area beyond.
+pub fn valve_area(lift: f64, d: f64, di: f64, seat_deg: f64) -> f64 {
+    let c = seat_deg.to_radians().cos();
+    let lv = di * di / (2.0 * c * (d + di));
+    if lift <= 0.0 {
+        0.0
+    } else if lift <= lv {
+        PI * (d + di) / 2.0 * lift * c
+    } else {
+        PI * di * di / 4.0
+    }
+}
+
+/// Throttle flow area (Eq. 3.36, Moskwa/Heywood) at opening `thr` [deg] above the closed angle
+/// `psi0`, plus the leakage area.
+pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64) -> f64 {
+    let a = shaft / d;
+    let psi0 = psi0_deg.to_radians();
+    let psi = (psi0_deg + thr_deg.max(0.0)).to_radians();
+    let full = PI * d * d / 4.0;
+    let max = full - d * shaft;
+    let (c, c0) = (psi.cos(), psi0.cos());
+    let area = if c >= a * c0 && psi < PI / 2.0 {
+        full * (1.0 - c / c0
+            + 2.0 / PI
+                * ((a / c) * (c * c - a * a * c0 * c0).max(0.0).sqrt()
+                    + (c / c0) * (a * c0 / c).clamp(-1.0, 1.0).asin()
+                    - a * (1.0 - a * a).sqrt()
+                    - a.asin()))
+    } else {
+        max
+    };
+    area.clamp(0.0, max) + leak
+}
+
+/// Valve lift [m] at `deg` within the cycle for a valve open from `open` to `close` [deg]:
+/// `l_max·sin²(π·x)`, x the fraction of the open duration (SPEC §2.3).
+pub fn lift(deg: f64, open: f64, close: f64, l_max: f64) -> f64 {
+    let dur = (close - open).rem_euclid(720.0);
+    let x = (deg - open).rem_euclid(720.0) / dur;
+    if x >= 1.0 || dur <= 0.0 {
+        0.0
+    } else {
+        let s = (PI * x).sin();
+        l_max * s * s
+    }
+}
+
+/// The torques at one instant (SPEC §2.3), and what the driveline needs to solve for α.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EngineTorque {
+    /// Indicated (gas) torque `(p_cyl − p_crank)·A_p·s'` [N·m].
+    pub indicated: f64,
+    /// The velocity part of the reciprocating torque `M_rec·s'·s''·ω²` [N·m].
+    pub rec_velocity: f64,
+    /// The added inertia `M_rec·s'²` [kg·m²] (its torque `M_rec·s'²·α` is solved, not iterated).
+    pub rec_inertia: f64,
+    /// Friction torque (mechanical fmep, without pumping) [N·m], opposing rotation.
+    pub friction: f64,
+}
+
+/// Instantaneous engine quantities a step reports.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EngineOutputs {
+    /// Pressures `[p_int, p_cyl, p_exh]` [Pa].
+    pub p: [f64; 3],
+    /// Cylinder volume [m³].
+    pub v_cyl: f64,
+    /// Mass flows [kg/s]: throttle (ambient → int), intake valve (int → cyl), exhaust valve
+    /// (cyl → exh), orifice (exh → ambient).
+    pub flows: [f64; 4],
+    /// Wall heat flow out of the cylinder [W].
+    pub q_wall: f64,
+}
+
+/// The engine with its derived constants.
+#[derive(Debug, Clone)]
+pub struct Engine {
+    /// Parameters.
+    pub p: EngineParams,
+    /// Ambient.
+    pub amb: AmbientParams,
+    crank: Crank<f64>,
+    area_p: f64,
+    v_clear: f64,
+    stroke: f64,
+    orifice_area: f64,
+    h_amb: f64,
+    woschni_k: f64,
+    settings: Settings,
+    design: Design<f64>,
+}
+
+impl Engine {
+    /// The engine for these parameters.
+    pub fn new(p: &EngineParams, amb: &AmbientParams) -> Self {
+        let crank = Crank {
+            r: p.crank_radius,
+            l: p.rod,
+            delta: p.pin_offset,
+            bore: p.bore,
+            kappa: p.kappa,
+        };
+        let (_, settings) = friction::thesis_preset();
+        // The friction model on this engine's geometry (mm) with the thesis preset's oil and
+        // valvetrain.
+        let (mut design, _) = friction::thesis_preset();
+        design.b = p.bore * 1e3;
+        design.s = crank.stroke() * 1e3;
+        design.r = p.crank_radius * 1e3;
+        design.kappa = p.kappa;
+        design.lv = p.lift_max * 1e3;
+        design.di = p.iv_d * 1e3;
+        design.de = p.ev_d * 1e3;
+        Self {
+            p: p.clone(),
+            amb: amb.clone(),
+            area_p: crank.piston_area(),
+            v_clear: crank.clearance_volume(),
+            stroke: crank.stroke(),
+            crank,
+            orifice_area: PI * p.exh_orifice * p.exh_orifice / 4.0,
+            h_amb: air::enthalpy(amb.t),
+            woschni_k: 3.26 * p.bore.powf(-0.2),
+            settings,
+            design,
+        }
+    }
+
+    /// The slider-crank.
+    pub fn crank(&self) -> &Crank<f64> {
+        &self.crank
+    }
+
+    /// Displacement volume [m³].
+    pub fn displacement(&self) -> f64 {
+        self.area_p * self.stroke
+    }
+
+    /// Cylinder volume at θ [m³].
+    pub fn volume(&self, theta: f64) -> f64 {
+        self.v_clear + self.area_p * self.crank.motion(theta).0
+    }
+
+    /// All volumes at ambient pressure and temperature, the cylinder at angle θ.
+    pub fn ambient_state(&self, theta: f64) -> GasState {
+        let r = air::gas_constant();
+        let (p, t) = (self.amb.p, self.amb.t);
+        let m = |v: f64| p * v / (r * t);
+        [
+            m(self.p.v_int),
+            m(self.volume(theta)),
+            m(self.p.v_exh),
+            t,
+            t,
+            t,
+            0.0,
+            0.0,
+        ]
+    }
+
+    /// Friction torque magnitude [N·m] at speed ω [rad/s] and manifold pressure [Pa]: the
+    /// mean-value model's mechanical fmep (no pumping — the gas exchange is simulated),
+    /// scaled by `friction_scale`; speeds below 50 rpm use 50 rpm's value (the correlations
+    /// have `1 + 500/N` terms).
+    pub fn friction_torque(&self, omega: f64, p_int: f64) -> f64 {
+        let op = OperatingPoint {
+            n_rpm: (omega.abs() * 30.0 / PI).max(50.0),
+            p_int_kpa: p_int / 1e3,
+            p_atm_kpa: self.amb.p / 1e3,
+            t_oil_c: self.p.t_oil - 273.15,
+        };
+        let f = friction::fmep(&self.design, &self.settings, &op).mechanical();
+        self.p.friction_scale * friction::tau_nm(f, &self.design)
+    }
+
+    /// Torques at θ, ω with cylinder pressure `p_cyl` and the friction magnitude `fric`
+    /// (evaluated once per step by the caller): friction opposes rotation, smoothed through
+    /// zero speed over ±0.5 rad/s.
+    pub fn torque(&self, theta: f64, omega: f64, p_cyl: f64, fric: f64) -> EngineTorque {
+        let (_, ds, dds) = self.crank.motion(theta);
+        let m = self.p.m_rec;
+        EngineTorque {
+            indicated: (p_cyl - self.amb.p) * self.area_p * ds,
+            rec_velocity: m * ds * dds * omega * omega,
+            rec_inertia: m * ds * ds,
+            friction: fric * (omega / 0.5).tanh(),
+        }
+    }
+
+    /// Effective throttle flow area `C_d·A_th` [m²] at an opening [deg] (constant over a step:
+    /// the caller evaluates it once).
+    pub fn throttle_cd_area(&self, throttle_deg: f64) -> f64 {
+        let e = &self.p;
+        e.cd_throttle
+            * throttle_area(
+                throttle_deg,
+                e.throttle_d,
+                e.throttle_shaft,
+                e.throttle_closed,
+                e.throttle_leak,
+            )
+    }
+
+    /// Time derivative of the gas state at crank angle θ [rad], speed ω [rad/s], effective
+    /// throttle area [m²] ([`throttle_cd_area`](Self::throttle_cd_area)); also the pressures
+    /// and flows.
+    pub fn gas_derivatives(
+        &self,
+        theta: f64,
+        omega: f64,
+        a_th: f64,
+        x: &GasState,
+        comb: &impl Combustion,
+    ) -> (GasState, EngineOutputs) {
+        let e = &self.p;
+        let r = air::gas_constant();
+        let (s, ds, _) = self.crank.motion(theta);
+        let v_cyl = self.v_clear + self.area_p * s;
+        let dv_cyl = self.area_p * ds * omega;
+        let vols = [e.v_int, v_cyl, e.v_exh];
+        let t = [x[3], x[4], x[5]];
+        let p = [
+            x[0] * r * t[0] / vols[0],
+            x[1] * r * t[1] / vols[1],
+            x[2] * r * t[2] / vols[2],
+        ];
+        let deg = theta.to_degrees().rem_euclid(720.0);
+        let l_in = lift(deg, e.ivo, e.ivc, e.lift_max);
+        let l_ex = lift(deg, e.evo, e.evc, e.lift_max);
+        let a_in = e.cd_valve * valve_area(l_in, e.iv_d, e.iv_di, e.seat_angle);
+        let a_ex = e.cd_valve * valve_area(l_ex, e.ev_d, e.ev_di, e.seat_angle);
+        let a_or = e.cd_exh * self.orifice_area;
+        let (amb_p, amb_t) = (self.amb.p, self.amb.t);
+        // Flows and the temperature of the gas each carries.
+        let (f_th, t_th) = orifice(a_th, amb_p, amb_t, p[INT], t[INT]);
+        let (f_iv, t_iv) = orifice(a_in, p[INT], t[INT], p[CYL], t[CYL]);
+        let (f_ev, t_ev) = orifice(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]);
+        let (f_or, t_or) = orifice(a_or, p[EXH], t[EXH], amb_p, amb_t);
+        // Woschni (Eq. 3.10–3.12), motored (C2 = 0); p in kPa.
+        let q_wall = if e.heat_transfer != 0.0 {
+            let gas_exchange = l_in > 0.0 || l_ex > 0.0;
+            let c1 = if gas_exchange {
+                e.woschni_c1_gas
+            } else {
+                e.woschni_c1_closed
+            };
+            let w = c1 * self.stroke * omega.abs() / PI;
+            // 3.26·b^−0.2·p^0.8·T^−0.55·w^0.8 with p in kPa, as exp(0.8·ln(p·w) − 0.55·ln T).
+            let hc = if w > 0.0 {
+                self.woschni_k * (0.8 * (p[CYL] / 1e3 * w).ln() - 0.55 * t[CYL].ln()).exp()
+            } else {
+                0.0
+            };
+            let area = PI * e.bore * e.bore / 2.0 + PI * e.bore * (self.v_clear / self.area_p + s);
+            hc * area * (t[CYL] - e.t_wall)
+        } else {
+            0.0
+        };
+        let q_comb = comb.heat_release(deg, p[CYL], t[CYL]);
+        // Each volume: net mass flow, and the enthalpy term Σ in·(h_up − u) − Σ out·R·T.
+        let u = [
+            air::internal_energy(t[0]),
+            air::internal_energy(t[1]),
+            air::internal_energy(t[2]),
+        ];
+        // Contribution of a flow `f` (positive into volume `i`) whose upstream gas has enthalpy
+        // `h_up`: in, `f·(h_up − u_i)`; out (f < 0), the volume's own gas, `f·R·T_i`.
+        let term = |i: usize, f: f64, h_up: f64| -> f64 {
+            if f >= 0.0 {
+                f * (h_up - u[i])
+            } else {
+                f * r * t[i]
+            }
+        };
+        let h_th = if f_th >= 0.0 { self.h_amb } else { air::enthalpy(t_th) };
+        let h_iv = air::enthalpy(t_iv);
+        let h_ev = air::enthalpy(t_ev);
+        let h_or = if f_or < 0.0 { self.h_amb } else { air::enthalpy(t_or) };
+        let e_int = term(INT, f_th, h_th) + term(INT, -f_iv, h_iv);
+        let e_cyl = term(CYL, f_iv, h_iv) + term(CYL, -f_ev, h_ev);
+        let e_exh = term(EXH, f_ev, h_ev) + term(EXH, -f_or, h_or);
+        let cv = |tt: f64| air::cv(tt);
+        let dm = [f_th - f_iv, f_iv - f_ev, f_ev - f_or];
+        let dt = [
+            e_int / (x[0] * cv(t[0])),
+            (e_cyl - q_wall + q_comb - p[CYL] * dv_cyl) / (x[1] * cv(t[1])),
+            e_exh / (x[2] * cv(t[2])),
+        ];
+        (
+            [dm[0], dm[1], dm[2], dt[0], dt[1], dt[2], f_th, f_or],
+            EngineOutputs {
+                p,
+                v_cyl,
+                flows: [f_th, f_iv, f_ev, f_or],
+                q_wall,
+            },
+        )
+    }
+
+    /// Total internal energy of the gas in the three volumes [J] (for conservation checks).
+    pub fn internal_energy(&self, x: &GasState) -> f64 {
+        (0..3).map(|i| x[i] * air::internal_energy(x[3 + i])).sum()
+    }
+
+    /// Enthalpy of ambient air [J/kg].
+    pub fn ambient_enthalpy(&self) -> f64 {
+        self.h_amb
+    }
+}

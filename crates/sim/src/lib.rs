@@ -1,0 +1,13 @@
+//! # physid-sim — the virtual transient engine test cell (thesis ch. 3, SPEC §2–3)
+//!
+//! * [`params`] — every parameter with its unit and source, addressed by dotted paths;
+//! * [`engine`] — the motored engine: filling and emptying, flows, heat transfer, torques;
+//! * [`machine`] — the induction machine in dq, and its per-phase equivalent circuit;
+//! * [`control`] — indirect field-oriented speed (or torque) control;
+//! * [`cell`] — the whole cell advanced one crank step at a time.
+
+pub mod cell;
+pub mod control;
+pub mod engine;
+pub mod machine;
+pub mod params;
