@@ -86,6 +86,20 @@ pub struct Sample {
     pub flux_est: f64,
 }
 
+fn add(a: &[f64; N], k: &[f64; N], f: f64) -> [f64; N] {
+    let mut y = *a;
+    for (yi, ki) in y.iter_mut().zip(k) {
+        *yi += f * ki;
+    }
+    y
+}
+
+fn gas_of(x: &[f64; N]) -> GasState {
+    let mut g = [0.0; 8];
+    g.copy_from_slice(&x[..8]);
+    g
+}
+
 /// Quantities held over a step.
 #[derive(Debug, Clone, Copy)]
 struct Held {
@@ -108,6 +122,7 @@ pub struct TestCell {
     t: f64,
     dt_min: f64,
     dt_max: f64,
+    substeps: u64,
 }
 
 impl TestCell {
@@ -136,7 +151,13 @@ impl TestCell {
             drive,
             x,
             t: 0.0,
+            substeps: 0,
         })
+    }
+
+    /// RK4 sub-steps taken so far (one per step unless the gas flows were stiff).
+    pub fn substeps(&self) -> u64 {
+        self.substeps
     }
 
     /// Time [s].
@@ -174,8 +195,7 @@ impl TestCell {
 
     /// Derivatives of the continuous state with the held inputs; also the instant's sample.
     fn derivatives(&self, x: &[f64; N], h: &Held) -> ([f64; N], Sample) {
-        let mut gas = [0.0; 8];
-        gas.copy_from_slice(&x[..8]);
+        let gas = gas_of(x);
         let (th_en, w_en) = (x[TH_EN], x[W_EN]);
         let (dgas, out): (GasState, EngineOutputs) =
             self.engine
@@ -247,20 +267,29 @@ impl TestCell {
             w_syn: cmd.w_syn,
             friction: self.engine.friction_torque(x0[W_EN], p_int),
         };
-        let (k1, mut sample) = self.derivatives(&x0, &held);
-        let add = |a: &[f64; N], k: &[f64; N], f: f64| {
-            let mut y = *a;
-            for (yi, ki) in y.iter_mut().zip(k) {
-                *yi += f * ki;
+        // Sub-steps where the gas flows are stiff (small volumes, open restrictions near equal
+        // pressures): keep rate·h inside RK4's stability interval (2.78 on the real axis).
+        let rate = self
+            .engine
+            .stiffness(x0[TH_EN], &gas_of(&x0), held.throttle_area);
+        let m = ((rate * dt / 2.5).ceil() as usize).clamp(1, 64);
+        let h = dt / m as f64;
+        let mut sample = Sample::default();
+        let mut x = x0;
+        for sub in 0..m {
+            let (k1, s) = self.derivatives(&x, &held);
+            if sub == 0 {
+                sample = s;
             }
-            y
-        };
-        let (k2, _) = self.derivatives(&add(&x0, &k1, dt / 2.0), &held);
-        let (k3, _) = self.derivatives(&add(&x0, &k2, dt / 2.0), &held);
-        let (k4, _) = self.derivatives(&add(&x0, &k3, dt), &held);
-        for j in 0..N {
-            self.x[j] = x0[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            let (k2, _) = self.derivatives(&add(&x, &k1, h / 2.0), &held);
+            let (k3, _) = self.derivatives(&add(&x, &k2, h / 2.0), &held);
+            let (k4, _) = self.derivatives(&add(&x, &k3, h), &held);
+            for j in 0..N {
+                x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+            }
         }
+        self.x = x;
+        self.substeps += m as u64;
         sample.t = self.t;
         sample.demand = match inputs.demand {
             Demand::Speed(v) | Demand::Torque(v) => v,

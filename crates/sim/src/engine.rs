@@ -128,16 +128,20 @@ pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64)
     area.clamp(0.0, max) + leak
 }
 
+/// Exponent of the cam profile `sinⁿ`.
+pub const LIFT_EXPONENT: i32 = 6;
+
 /// Valve lift [m] at `deg` within the cycle for a valve open from `open` to `close` [deg]:
-/// `l_max·sin²(π·x)`, x the fraction of the open duration (SPEC §2.3).
-pub fn lift(deg: f64, open: f64, close: f64, l_max: f64) -> f64 {
+/// `l_max·sinⁿ(π·x)`, x the fraction of the open duration (SPEC §2.3 suggests n = 2; the
+/// cell's default is 5, see [`EngineParams::lift_exponent`]).
+pub fn lift(deg: f64, open: f64, close: f64, l_max: f64, n: i32) -> f64 {
     let dur = (close - open).rem_euclid(720.0);
     let x = (deg - open).rem_euclid(720.0) / dur;
     if x >= 1.0 || dur <= 0.0 {
         0.0
     } else {
         let s = (PI * x).sin();
-        l_max * s * s
+        l_max * s.powi(n)
     }
 }
 
@@ -321,8 +325,8 @@ impl Engine {
             x[2] * r * t[2] / vols[2],
         ];
         let deg = theta.to_degrees().rem_euclid(720.0);
-        let l_in = lift(deg, e.ivo, e.ivc, e.lift_max);
-        let l_ex = lift(deg, e.evo, e.evc, e.lift_max);
+        let l_in = lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32);
+        let l_ex = lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32);
         let a_in = e.cd_valve * valve_area(l_in, e.iv_d, e.iv_di, e.seat_angle);
         let a_ex = e.cd_valve * valve_area(l_ex, e.ev_d, e.ev_di, e.seat_angle);
         let a_or = e.cd_exh * self.orifice_area;
@@ -391,6 +395,35 @@ impl Engine {
                 q_wall,
             },
         )
+    }
+
+    /// An upper bound on the gas system's fastest rate [1/s] at this state (Gershgorin on the
+    /// linearised flows): for each volume, `γ·√(R·T)·S/V` times the restrictions' `C_d·A`
+    /// (those to other volumes counted twice: diagonal and coupling), `S` the largest slope of Ψ (that of the linear band at equal pressures). The solver
+    /// sub-steps when `rate·dt` would leave RK4's stability interval.
+    pub fn stiffness(&self, theta: f64, x: &GasState, a_throttle: f64) -> f64 {
+        let e = &self.p;
+        let slope = psi(1.0 - LINEAR_BAND, 1.4) / LINEAR_BAND;
+        let r = air::gas_constant();
+        let t_max = x[3].max(x[4]).max(x[5]).max(self.amb.t);
+        let k = 1.4 * (r * t_max).sqrt() * slope;
+        let v_cyl = self.volume(theta);
+        let deg = theta.to_degrees().rem_euclid(720.0);
+        let a_in = e.cd_valve
+            * valve_area(lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32), e.iv_d, e.iv_di, e.seat_angle);
+        let a_ex = e.cd_valve
+            * valve_area(lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32), e.ev_d, e.ev_di, e.seat_angle);
+        let a_or = e.cd_exh * self.orifice_area;
+        // Row sums: diagonal (every restriction of the volume) plus the couplings to the other
+        // volumes (restrictions to the ambient couple to nothing).
+        [
+            (a_throttle + 2.0 * a_in) / e.v_int,
+            2.0 * (a_in + a_ex) / v_cyl,
+            (2.0 * a_ex + a_or) / e.v_exh,
+        ]
+        .into_iter()
+        .fold(0.0, f64::max)
+            * k
     }
 
     /// Total internal energy of the gas in the three volumes [J] (for conservation checks).

@@ -4,10 +4,14 @@
 //! * [`engine`] — the motored engine: filling and emptying, flows, heat transfer, torques;
 //! * [`machine`] — the induction machine in dq, and its per-phase equivalent circuit;
 //! * [`control`] — indirect field-oriented speed (or torque) control;
-//! * [`cell`] — the whole cell advanced one crank step at a time.
+//! * [`cell`] — the whole cell advanced one crank step at a time;
+//! * [`scenario`] — speed/throttle profiles, the named scenarios, TOML files, faults;
+//! * [`run`] — a scenario run into a [`Recording`](physid_core::Recording) through the sensors.
 
 pub mod cell;
 pub mod control;
 pub mod engine;
 pub mod machine;
 pub mod params;
+pub mod run;
+pub mod scenario;

@@ -70,6 +70,13 @@ pub struct EngineParams {
     pub seat_angle: f64,
     /// Maximum valve lift [m].
     pub lift_max: f64,
+    /// Exponent n of the cam profile `l_max·sinⁿ(π·x)`. The thesis's lift curves came from a
+    /// data file not in its text; SPEC §2.3 suggests sin². With sin² the overlap area around
+    /// the gas-exchange TDC is that of a cam without ramps (1.5 mm of lift at TDC): exhaust gas
+    /// flows back into the manifold and the closed-throttle manifold pressure at 1000 rpm
+    /// settles at 70 kPa, where an engine has 20–40 kPa. sin⁵ keeps the timing and l_max, has
+    /// 0.1 mm at TDC, and gives 37 kPa (volumetric efficiency 0.95 at full throttle).
+    pub lift_exponent: f64,
     /// Intake valve opening / closing [deg after firing TDC].
     pub ivo: f64,
     /// Intake valve closing [deg].
@@ -234,6 +241,7 @@ impl Default for CellParams {
                 ev_di: 0.0203,
                 seat_angle: 45.0,
                 lift_max: 0.009,
+                lift_exponent: 5.0,
                 ivo: 320.0,
                 ivc: 616.0,
                 evo: 102.0,
@@ -359,6 +367,7 @@ paths! {
     "engine.ev_di" => engine.ev_di, "m", "Table 4.1";
     "engine.seat_angle" => engine.seat_angle, "deg", "Table 4.1";
     "engine.lift_max" => engine.lift_max, "m", "app. B.2 (Lv); sin² cam profile assumed (SPEC §2.3)";
+    "engine.lift_exponent" => engine.lift_exponent, "-", "assumed: sin⁵ cam (see EngineParams::lift_exponent)";
     "engine.ivo" => engine.ivo, "deg", "app. B.1";
     "engine.ivc" => engine.ivc, "deg", "app. B.1";
     "engine.evo" => engine.evo, "deg", "app. B.1";
@@ -458,7 +467,7 @@ impl CellParams {
         ];
         for p in positive {
             let v = self.get(p).unwrap_or(f64::NAN);
-            if !(v > 0.0) {
+            if v.is_nan() || v <= 0.0 {
                 return Err(format!("{p} = {v}: expected > 0"));
             }
         }
@@ -470,6 +479,12 @@ impl CellParams {
         }
         if self.engine.rod <= self.engine.crank_radius + self.engine.pin_offset.abs() {
             return Err("engine.rod must exceed crank_radius + |pin_offset|".into());
+        }
+        if !(1.0..=12.0).contains(&self.engine.lift_exponent) || self.engine.lift_exponent.fract() != 0.0 {
+            return Err(format!(
+                "engine.lift_exponent = {}: expected a whole number 1 … 12",
+                self.engine.lift_exponent
+            ));
         }
         if self.step_deg > 5.0 {
             return Err(format!(
