@@ -56,7 +56,8 @@ impl<T: Scalar> Crank<T> {
         let rl = r + self.l;
         let s = (rl * rl - self.delta * self.delta).sqrt() - r * ca - w;
         let ds = r * sa + q * r * ca / w;
-        let dds = r * ca + (r * r * ca * ca - q * r * sa) / w + q * q * r * r * ca * ca / (w * w * w);
+        let dds =
+            r * ca + (r * r * ca * ca - q * r * sa) / w + q * q * r * r * ca * ca / (w * w * w);
         (s, ds, dds)
     }
 

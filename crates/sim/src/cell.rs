@@ -106,7 +106,7 @@ struct Held {
     throttle: f64,
     throttle_area: f64,
     v: [f64; 2],
-    w_syn: f64,
+    w_slp: f64,
     friction: f64,
 }
 
@@ -185,6 +185,12 @@ impl TestCell {
         &self.drive
     }
 
+    /// Twist the shaft by `delta` [rad] (the dynamometer side turned forward): an initial
+    /// condition for checks of the driveline's free response.
+    pub fn twist(&mut self, delta: f64) {
+        self.x[TH_DY] += delta;
+    }
+
     /// Re-read the parameters that may change during a run (faults): shaft, reciprocating
     /// mass, friction scale, oil temperature.
     pub fn refresh_live_parameters(&mut self) {
@@ -197,14 +203,20 @@ impl TestCell {
     fn derivatives(&self, x: &[f64; N], h: &Held) -> ([f64; N], Sample) {
         let gas = gas_of(x);
         let (th_en, w_en) = (x[TH_EN], x[W_EN]);
-        let (dgas, out): (GasState, EngineOutputs) =
-            self.engine
-                .gas_derivatives(th_en, w_en, h.throttle_area, &gas, &Motored);
-        let tq = self.engine.torque(th_en, w_en, out.p[CYL], h.friction);
+        let (dgas, out, tq) = if self.params.engine.active != 0.0 {
+            let (dgas, out): (GasState, EngineOutputs) =
+                self.engine
+                    .gas_derivatives(th_en, w_en, h.throttle_area, &gas, &Motored);
+            let tq = self.engine.torque(th_en, w_en, out.p[CYL], h.friction);
+            (dgas, out, tq)
+        } else {
+            ([0.0; 8], EngineOutputs::default(), Default::default())
+        };
         let mut flux: Flux = [0.0; 4];
         flux.copy_from_slice(&x[FLUX..FLUX + 4]);
         let w_r = self.machine.pole_pairs * x[W_DY];
-        let dflux = self.machine.derivatives(&flux, h.v, h.w_syn, w_r);
+        let w_syn = w_r + h.w_slp;
+        let dflux = self.machine.derivatives(&flux, h.v, w_syn, w_r);
         let tau_dy = self.machine.torque(&flux);
         let sh = &self.params.shaft;
         let tau_sh = sh.k * (x[TH_DY] - th_en) + sh.b * (x[W_DY] - w_en);
@@ -218,7 +230,7 @@ impl TestCell {
         d[TH_EN] = w_en;
         d[W_EN] = a_en;
         d[FLUX..FLUX + 4].copy_from_slice(&dflux);
-        d[TH_SYN] = h.w_syn;
+        d[TH_SYN] = w_syn;
         let i = self.machine.currents(&flux);
         let rec = tq.rec_velocity + tq.rec_inertia * a_en;
         let sample = Sample {
@@ -264,14 +276,17 @@ impl TestCell {
             throttle: inputs.throttle_deg,
             throttle_area: self.engine.throttle_cd_area(inputs.throttle_deg),
             v: cmd.v,
-            w_syn: cmd.w_syn,
+            w_slp: cmd.w_slp,
             friction: self.engine.friction_torque(x0[W_EN], p_int),
         };
         // Sub-steps where the gas flows are stiff (small volumes, open restrictions near equal
         // pressures): keep rate·h inside RK4's stability interval (2.78 on the real axis).
-        let rate = self
-            .engine
-            .stiffness(x0[TH_EN], &gas_of(&x0), held.throttle_area);
+        let rate = if self.params.engine.active != 0.0 {
+            self.engine
+                .stiffness(x0[TH_EN], &gas_of(&x0), held.throttle_area)
+        } else {
+            0.0
+        };
         let m = ((rate * dt / 2.5).ceil() as usize).clamp(1, 64);
         let h = dt / m as f64;
         let mut sample = Sample::default();

@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! rotor-flux observer  dλ̂_rd/dt = (L_m·i_sd − λ̂_rd)/τ_r,       τ_r = L_r/R_r
-//! slip                 ω_slp = L_m·i_sq/(τ_r·λ̂_rd),              ω_syn = ω_r + ω_slp
+//! slip                 ω_slp = L_m·i_sq/(τ_r·λ̂_rd) (measured i_sq), ω_syn = ω_r + ω_slp
+//!                      (the frame follows the rotor angle from the encoder plus the slip angle)
 //! torque               τ = (p/2)·(L_m/L_r)·λ̂_rd·i_sq              (Eq. 3.61–3.62, with i_sd fixed)
 //! speed PI → i_sq*,  flux PI → i_sd*,  current PIs → v_sd*, v_sq*
 //! ```
@@ -60,8 +61,9 @@ pub enum Demand {
 pub struct Command {
     /// Stator voltages `[v_sd, v_sq]` [V].
     pub v: [f64; 2],
-    /// Frame speed ω_syn [rad/s].
-    pub w_syn: f64,
+    /// Slip speed ω_slp [rad/s]; the frame turns at `ω_r + ω_slp` with the rotor's angle
+    /// (from the encoder), so it stays on the flux while the speed changes within a step.
+    pub w_slp: f64,
     /// Current references `[i_sd*, i_sq*]` [A].
     pub i_ref: [f64; 2],
 }
@@ -154,23 +156,37 @@ impl Drive {
         let i_sd_ref = self
             .flux
             .update(self.flux_ref - self.flux_est, dt, -self.i_max, self.i_max);
-        let iq_max = (self.i_max * self.i_max - i_sd_ref * i_sd_ref).max(0.0).sqrt();
+        let iq_max = (self.i_max * self.i_max - i_sd_ref * i_sd_ref)
+            .max(0.0)
+            .sqrt();
         let i_sq_ref = match demand {
             Demand::Speed(w_ref) => self.speed.update(w_ref - w_m, dt, -iq_max, iq_max),
             Demand::Torque(t) => (t / self.torque_constant().max(1e-9)).clamp(-iq_max, iq_max),
         };
-        let w_slp = m.lm * i_sq_ref / (tau_r * flux);
+        // Slip from the measured q current (the loops are fast; during current limiting the
+        // command and the current differ, and the measured one keeps the frame on the flux).
+        let w_slp = m.lm * i[1] / (tau_r * flux);
         let w_syn = m.pole_pairs * w_m + w_slp;
         // Current loops with decoupling feed-forward; the voltage vector limited.
         let ff_d = -w_syn * self.sigma_ls * i[1];
         let ff_q = w_syn * (self.sigma_ls * i[0] + m.lm / m.lr * flux);
-        let vd = self.id.update(i_sd_ref - i[0], dt, -self.v_max - ff_d, self.v_max - ff_d) + ff_d;
-        let vq = self.iq.update(i_sq_ref - i[1], dt, -self.v_max - ff_q, self.v_max - ff_q) + ff_q;
+        let vd = self
+            .id
+            .update(i_sd_ref - i[0], dt, -self.v_max - ff_d, self.v_max - ff_d)
+            + ff_d;
+        let vq = self
+            .iq
+            .update(i_sq_ref - i[1], dt, -self.v_max - ff_q, self.v_max - ff_q)
+            + ff_q;
         let mag = (vd * vd + vq * vq).sqrt();
-        let k = if mag > self.v_max { self.v_max / mag } else { 1.0 };
+        let k = if mag > self.v_max {
+            self.v_max / mag
+        } else {
+            1.0
+        };
         Command {
             v: [vd * k, vq * k],
-            w_syn,
+            w_slp,
             i_ref: [i_sd_ref, i_sq_ref],
         }
     }

@@ -372,10 +372,18 @@ impl Engine {
                 f * r * t[i]
             }
         };
-        let h_th = if f_th >= 0.0 { self.h_amb } else { air::enthalpy(t_th) };
+        let h_th = if f_th >= 0.0 {
+            self.h_amb
+        } else {
+            air::enthalpy(t_th)
+        };
         let h_iv = air::enthalpy(t_iv);
         let h_ev = air::enthalpy(t_ev);
-        let h_or = if f_or < 0.0 { self.h_amb } else { air::enthalpy(t_or) };
+        let h_or = if f_or < 0.0 {
+            self.h_amb
+        } else {
+            air::enthalpy(t_or)
+        };
         let e_int = term(INT, f_th, h_th) + term(INT, -f_iv, h_iv);
         let e_cyl = term(CYL, f_iv, h_iv) + term(CYL, -f_ev, h_ev);
         let e_exh = term(EXH, f_ev, h_ev) + term(EXH, -f_or, h_or);
@@ -410,9 +418,19 @@ impl Engine {
         let v_cyl = self.volume(theta);
         let deg = theta.to_degrees().rem_euclid(720.0);
         let a_in = e.cd_valve
-            * valve_area(lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32), e.iv_d, e.iv_di, e.seat_angle);
+            * valve_area(
+                lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32),
+                e.iv_d,
+                e.iv_di,
+                e.seat_angle,
+            );
         let a_ex = e.cd_valve
-            * valve_area(lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32), e.ev_d, e.ev_di, e.seat_angle);
+            * valve_area(
+                lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32),
+                e.ev_d,
+                e.ev_di,
+                e.seat_angle,
+            );
         let a_or = e.cd_exh * self.orifice_area;
         // Row sums: diagonal (every restriction of the volume) plus the couplings to the other
         // volumes (restrictions to the ambient couple to nothing).

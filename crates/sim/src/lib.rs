@@ -6,6 +6,7 @@
 //! * [`control`] — indirect field-oriented speed (or torque) control;
 //! * [`cell`] — the whole cell advanced one crank step at a time;
 //! * [`scenario`] — speed/throttle profiles, the named scenarios, TOML files, faults;
+//! * [`studies`] — the compression check, a converged motored cycle, the torque–speed curve;
 //! * [`run`] — a scenario run into a [`Recording`](physid_core::Recording) through the sensors.
 
 pub mod cell;
@@ -15,3 +16,4 @@ pub mod machine;
 pub mod params;
 pub mod run;
 pub mod scenario;
+pub mod studies;

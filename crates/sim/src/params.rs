@@ -117,6 +117,9 @@ pub struct EngineParams {
     pub friction_scale: f64,
     /// Oil temperature [K].
     pub t_oil: f64,
+    /// 1: the engine model; 0: the engine is a pure inertia (no gas, reciprocating or
+    /// friction torque, gas frozen) — for checks of the driveline and the drive.
+    pub active: f64,
 }
 
 /// Ambient conditions.
@@ -262,6 +265,7 @@ impl Default for CellParams {
                 heat_transfer: 1.0,
                 friction_scale: 1.0,
                 t_oil: 363.15,
+                active: 1.0,
             },
             ambient: AmbientParams {
                 p: 101_325.0,
@@ -349,7 +353,10 @@ fn unknown(path: &str) -> String {
             "no parameter '{path}'; the groups are engine, ambient, shaft, dyno, sensors, solver (physid simulate --params lists them all)"
         )
     } else {
-        format!("no parameter '{path}'; under '{head}' there are: {}", near.join(", "))
+        format!(
+            "no parameter '{path}'; under '{head}' there are: {}",
+            near.join(", ")
+        )
     }
 }
 
@@ -388,6 +395,7 @@ paths! {
     "engine.heat_transfer" => engine.heat_transfer, "-", "switch (1 on, 0 off)";
     "engine.friction_scale" => engine.friction_scale, "-", "1 = the mean-value model (SPEC §2.5)";
     "engine.t_oil" => engine.t_oil, "K", "SPEC §2.4 (90 °C)";
+    "engine.active" => engine.active, "-", "switch (0: the engine is a pure inertia, for checks)";
     "ambient.p" => ambient.p, "Pa", "standard atmosphere";
     "ambient.t" => ambient.t, "K", "assumed";
     "shaft.k" => shaft.k, "N*m/rad", "Table 6.1 (yellow spider, app. B.1)";
@@ -480,7 +488,9 @@ impl CellParams {
         if self.engine.rod <= self.engine.crank_radius + self.engine.pin_offset.abs() {
             return Err("engine.rod must exceed crank_radius + |pin_offset|".into());
         }
-        if !(1.0..=12.0).contains(&self.engine.lift_exponent) || self.engine.lift_exponent.fract() != 0.0 {
+        if !(1.0..=12.0).contains(&self.engine.lift_exponent)
+            || self.engine.lift_exponent.fract() != 0.0
+        {
             return Err(format!(
                 "engine.lift_exponent = {}: expected a whole number 1 … 12",
                 self.engine.lift_exponent

@@ -164,7 +164,11 @@ fn interp(x: &[f64], y: &[f64], at: &[f64]) -> Vec<f64> {
             j += 1;
         }
         let (x0, x1) = (x[j], x[j + 1]);
-        let f = if x1 > x0 { ((a - x0) / (x1 - x0)).clamp(0.0, 1.0) } else { 0.0 };
+        let f = if x1 > x0 {
+            ((a - x0) / (x1 - x0)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         out.push(y[j] + f * (y[j + 1] - y[j]));
     }
     out
@@ -217,7 +221,9 @@ pub fn simulate(
     faults.extend(opts.faults.iter().cloned());
     let duration = opts.duration.unwrap_or(scenario.duration);
     if !(duration.is_finite() && duration > 0.0) {
-        return Err(SimError::Invalid(format!("duration {duration}: expected > 0 s")));
+        return Err(SimError::Invalid(format!(
+            "duration {duration}: expected > 0 s"
+        )));
     }
     let torque_mode = scenario.torque_mode || base.dyno.torque_mode != 0.0;
     let demand_at = |t: f64| {
@@ -255,7 +261,7 @@ pub fn simulate(
         let ss = cell.params.dyno.speed_sensor;
         let w_meas = speed_sensor.measure(&ss, w_true, 0.0, &mut rng);
         let s = cell.step_with(&inputs, w_meas);
-        check(&s)?;
+        check(&s, base.engine.active != 0.0)?;
         if t_rel >= -1e-12 {
             let mut s = s;
             s.t = t_rel;
@@ -272,14 +278,13 @@ pub fn simulate(
 }
 
 /// Catch a state that left the physical domain.
-fn check(s: &Sample) -> Result<(), SimError> {
-    let bad = |what: String| {
-        Err(SimError::Diverged {
-            t: s.t,
-            what,
-        })
-    };
-    for (k, name) in ["intake", "cylinder", "exhaust"].iter().enumerate() {
+fn check(s: &Sample, engine_active: bool) -> Result<(), SimError> {
+    let bad = |what: String| Err(SimError::Diverged { t: s.t, what });
+    for (k, name) in ["intake", "cylinder", "exhaust"]
+        .iter()
+        .enumerate()
+        .filter(|_| engine_active)
+    {
         if !(s.gas.p[k].is_finite() && s.gas.p[k] > 0.0) {
             return bad(format!("{name} pressure {}", s.gas.p[k]));
         }
@@ -311,20 +316,32 @@ fn acquire(
     let t_raw = col("t");
     let th_raw = col("theta_en");
     if t_raw.len() < 2 {
-        return Err(SimError::Invalid("the run produced fewer than 2 samples".into()));
+        return Err(SimError::Invalid(
+            "the run produced fewer than 2 samples".into(),
+        ));
     }
     // Output grid in the raw columns' abscissa.
     let (abscissa, grid): (&[f64], Vec<f64>) = match basis {
         OutputBasis::Time(rate) => {
             if !(rate.is_finite() && rate > 0.0) {
-                return Err(SimError::Invalid(format!("output rate {rate} Hz: expected > 0")));
+                return Err(SimError::Invalid(format!(
+                    "output rate {rate} Hz: expected > 0"
+                )));
             }
             let n = (duration * rate).floor() as usize + 1;
-            (t_raw, (0..n).map(|i| i as f64 / rate).filter(|t| *t <= t_raw[t_raw.len() - 1]).collect())
+            (
+                t_raw,
+                (0..n)
+                    .map(|i| i as f64 / rate)
+                    .filter(|t| *t <= t_raw[t_raw.len() - 1])
+                    .collect(),
+            )
         }
         OutputBasis::Crank(step) => {
             if !(step.is_finite() && step > 0.0) {
-                return Err(SimError::Invalid(format!("crank step {step}°: expected > 0")));
+                return Err(SimError::Invalid(format!(
+                    "crank step {step}°: expected > 0"
+                )));
             }
             if th_raw.windows(2).any(|w| w[1] <= w[0]) {
                 return Err(SimError::Invalid(
@@ -335,7 +352,10 @@ fn acquire(
             let last = th_raw[th_raw.len() - 1];
             let h = step.to_radians();
             let n = ((last - first) / h).floor().max(-1.0) as i64 + 1;
-            (th_raw, (0..n.max(0)).map(|k| first + k as f64 * h).collect())
+            (
+                th_raw,
+                (0..n.max(0)).map(|k| first + k as f64 * h).collect(),
+            )
         }
     };
     let at = |name: &str| interp(abscissa, col(name), &grid);
@@ -345,7 +365,7 @@ fn acquire(
         OutputBasis::Crank(_) => Basis::CrankAngle,
     });
     let mut rng = ChaCha8Rng::seed_from_u64(base.sensors.seed as u64 ^ 0x5e5e);
-    let mut push = |rec: &mut Recording, name: &str, unit: &str, values: Vec<f64>| {
+    let push = |rec: &mut Recording, name: &str, unit: &str, values: Vec<f64>| {
         rec.push(Channel {
             name: name.into(),
             unit: unit.into(),
@@ -357,12 +377,19 @@ fn acquire(
     let theta_en = at("theta_en");
     if let OutputBasis::Crank(_) = basis {
         let first = grid.first().copied().unwrap_or(0.0);
-        push(&mut rec, "theta", "rad", grid.iter().map(|g| g - first).collect())?;
+        push(
+            &mut rec,
+            "theta",
+            "rad",
+            grid.iter().map(|g| g - first).collect(),
+        )?;
         push(
             &mut rec,
             "cycle",
             "-",
-            grid.iter().map(|g| ((g - first) / (4.0 * PI) + 1e-9).floor()).collect(),
+            grid.iter()
+                .map(|g| ((g - first) / (4.0 * PI) + 1e-9).floor())
+                .collect(),
         )?;
         push(
             &mut rec,
@@ -371,7 +398,11 @@ fn acquire(
             grid.iter()
                 .map(|g| {
                     let d = (g - first).to_degrees().rem_euclid(720.0);
-                    if d > 720.0 - 1e-6 { 0.0 } else { d }
+                    if d > 720.0 - 1e-6 {
+                        0.0
+                    } else {
+                        d
+                    }
                 })
                 .collect(),
         )?;
@@ -390,7 +421,11 @@ fn acquire(
         let mut out = Vec::with_capacity(x.len());
         for (k, &xi) in x.iter().enumerate() {
             let dt = if k > 0 { t[k] - t[k - 1] } else { 0.0 };
-            let p = if sensor_faulted { params_at(t[k]) } else { fixed.clone() };
+            let p = if sensor_faulted {
+                params_at(t[k])
+            } else {
+                fixed.clone()
+            };
             out.push(st.measure(&pick(&p), xi, dt, rng));
         }
         out

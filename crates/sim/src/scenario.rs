@@ -120,7 +120,8 @@ impl Segment {
                 phase,
             } => mean + amplitude * (2.0 * PI * frequency * tau + phase.to_radians()).sin(),
             Shape::Steps { values, every } => {
-                let k = ((tau / every.max(f64::MIN_POSITIVE)) as usize).min(values.len().saturating_sub(1));
+                let k = ((tau / every.max(f64::MIN_POSITIVE)) as usize)
+                    .min(values.len().saturating_sub(1));
                 values.get(k).copied().unwrap_or(0.0)
             }
             Shape::Chirp {
@@ -331,7 +332,12 @@ pub const NAMED: &[(&str, &str)] = &[
 
 /// Throttle [deg] that gives ≈ 70 kPa in the manifold at each friction-sweep speed (found by
 /// simulating this engine; see `tests/scenarios.rs`).
-const SWEEP_THROTTLE_END: [(f64, f64); 4] = [(750.0, 1.28), (1000.0, 2.16), (1250.0, 2.94), (1500.0, 3.68)];
+const SWEEP_THROTTLE_END: [(f64, f64); 4] = [
+    (750.0, 1.28),
+    (1000.0, 2.16),
+    (1250.0, 2.94),
+    (1500.0, 3.68),
+];
 
 /// A built-in scenario by name.
 pub fn named(name: &str) -> Option<Scenario> {
@@ -372,7 +378,12 @@ pub fn named(name: &str) -> Option<Scenario> {
                 .then(5.0, c(wot))
                 .then(2.0, c(15.0)),
         ),
-        "shaft-steady" => base(name, 30.0, Profile::constant(1000.0, 30.0), Profile::constant(wot, 30.0)),
+        "shaft-steady" => base(
+            name,
+            30.0,
+            Profile::constant(1000.0, 30.0),
+            Profile::constant(wot, 30.0),
+        ),
         "shaft-ramp" => base(
             name,
             30.0,
@@ -390,7 +401,12 @@ pub fn named(name: &str) -> Option<Scenario> {
             s.set.insert("engine.friction_scale".into(), 0.45);
             s
         }
-        "torque-steady" => base(name, 10.0, Profile::constant(1000.0, 10.0), Profile::constant(wot, 10.0)),
+        "torque-steady" => base(
+            name,
+            10.0,
+            Profile::constant(1000.0, 10.0),
+            Profile::constant(wot, 10.0),
+        ),
         "torque-ramp" => base(
             name,
             5.0,
@@ -400,7 +416,9 @@ pub fn named(name: &str) -> Option<Scenario> {
         "torque-validation" => {
             let mut speed = Profile::default();
             for _ in 0..4 {
-                speed = speed.then(15.0, ramp(800.0, 1400.0)).then(15.0, ramp(1400.0, 800.0));
+                speed = speed
+                    .then(15.0, ramp(800.0, 1400.0))
+                    .then(15.0, ramp(1400.0, 800.0));
             }
             base(name, 120.0, speed, Profile::constant(wot, 120.0))
         }
@@ -412,7 +430,14 @@ pub fn named(name: &str) -> Option<Scenario> {
             let mut prev = 1000.0;
             for (k, (&n, &th)) in levels.iter().zip(&throttles).enumerate() {
                 speed = speed.then(15.0, ramp(prev, n)).then(60.0, c(n));
-                thr = thr.then(15.0 + 60.0, if k % 2 == 0 { c(th) } else { ramp(th, th * 0.5 + 10.0) });
+                thr = thr.then(
+                    15.0 + 60.0,
+                    if k % 2 == 0 {
+                        c(th)
+                    } else {
+                        ramp(th, th * 0.5 + 10.0)
+                    },
+                );
                 prev = n;
             }
             base(name, 600.0, speed, thr)
@@ -436,8 +461,7 @@ impl Scenario {
             ));
         }
         let text = std::fs::read_to_string(path).map_err(|e| format!("{name_or_file}: {e}"))?;
-        let mut s: Scenario =
-            toml::from_str(&text).map_err(|e| format!("{name_or_file}: {e}"))?;
+        let mut s: Scenario = toml::from_str(&text).map_err(|e| format!("{name_or_file}: {e}"))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         for p in [&mut s.speed, &mut s.throttle] {
             for seg in &mut p.segments {
@@ -466,8 +490,11 @@ impl Scenario {
                 return Err(format!("the {what} profile has no segments"));
             }
             for s in &p.segments {
-                if !(s.t1 >= s.t0) {
-                    return Err(format!("{what} segment {}–{} s ends before it starts", s.t0, s.t1));
+                if s.t1 < s.t0 || s.t1.is_nan() || s.t0.is_nan() {
+                    return Err(format!(
+                        "{what} segment {}–{} s ends before it starts",
+                        s.t0, s.t1
+                    ));
                 }
             }
         }
