@@ -248,9 +248,6 @@ pub fn simulate(
     let mut last_report = -1.0;
     loop {
         let t_rel = cell.time() - settle;
-        if t_rel > duration {
-            break;
-        }
         Fault::apply_all(&faults, &base, &mut cell.params, t_rel.max(0.0));
         cell.refresh_live_parameters();
         let inputs = Inputs {
@@ -271,6 +268,10 @@ pub fn simulate(
         if t_rel - last_report >= duration / 100.0 {
             progress((t_rel / duration).clamp(0.0, 1.0));
             last_report = t_rel;
+        }
+        // One sample past the end, so that the output grid reaches it.
+        if t_rel > duration {
+            break;
         }
     }
     progress(1.0);

@@ -6,6 +6,7 @@
 //! name = "my-test"
 //! duration = 20.0          # s, recorded
 //! settle = 1.0             # s, simulated before recording starts
+//! faults = ["shaft.k=1200@5", "shaft.b=1.2@5+2"]
 //! [[speed]]                # rpm (or N·m with torque_mode = true)
 //! t0 = 0.0
 //! t1 = 10.0
@@ -20,7 +21,6 @@
 //! value = 90.0
 //! [set]
 //! "shaft.k" = 1340.0
-//! faults = ["shaft.k=1200@5", "shaft.b=1.2@5+2"]
 //! ```
 //!
 //! Segment fields: `constant` — `value`; `ramp` — `v0`, `v1`; `sine` — `mean`, `amplitude`,

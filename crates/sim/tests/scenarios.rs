@@ -1,0 +1,228 @@
+//! Scenarios, profiles, faults and the recording a run produces.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_core::standard_unit;
+use physid_sim::params::CellParams;
+use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::scenario::{named, Fault, Profile, Scenario, Shape, NAMED};
+use std::f64::consts::PI;
+
+#[test]
+fn every_named_scenario_is_valid() {
+    for (name, _) in NAMED {
+        let s = named(name).unwrap();
+        s.validate().unwrap();
+        assert!(s.duration > 0.0 && !s.description.is_empty(), "{name}");
+        assert!(
+            s.speed.value(0.0) > 0.0 && s.speed.value(s.duration) > 0.0,
+            "{name}"
+        );
+    }
+    assert!(named("nope").is_none());
+    let e = Scenario::load("nope").unwrap_err();
+    assert!(
+        e.contains("shaft-steady") && e.contains("nor a file"),
+        "{e}"
+    );
+}
+
+#[test]
+fn profile_shapes_in_closed_form() {
+    let p = Profile::default()
+        .then(2.0, Shape::Ramp { v0: 1.0, v1: 3.0 })
+        .then(
+            2.0,
+            Shape::Sine {
+                mean: 5.0,
+                amplitude: 2.0,
+                frequency: 0.25,
+                phase: 0.0,
+            },
+        )
+        .then(
+            3.0,
+            Shape::Steps {
+                values: vec![7.0, 8.0, 9.0],
+                every: 1.0,
+            },
+        )
+        .then(
+            2.0,
+            Shape::Chirp {
+                mean: 0.0,
+                amplitude: 1.0,
+                f0: 1.0,
+                f1: 3.0,
+            },
+        );
+    assert_eq!(p.value(1.0), 2.0);
+    assert!((p.value(3.0) - (5.0 + 2.0 * (2.0 * PI * 0.25).sin())).abs() < 1e-12);
+    assert_eq!(p.value(5.5), 8.0);
+    // Chirp: phase 2π(f0τ + (f1−f0)τ²/(2T)); at τ = 0.25: 2π(0.25 + 2·0.0625/4).
+    let want = (2.0 * PI * (0.25 + 0.5 * 1.0 * 0.0625)).sin();
+    assert!((p.value(7.25) - want).abs() < 1e-12);
+    assert_eq!(p.value(-1.0), 1.0);
+    assert!((p.value(100.0) - p.value(9.0)).abs() < 1e-12);
+}
+
+#[test]
+fn toml_files_with_a_recorded_profile() {
+    let d = std::env::temp_dir().join(format!("physid-scn-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    std::fs::write(d.join("speed.csv"), "t,value\n0,900\n1,1100\n2,1000\n").unwrap();
+    let toml = r#"
+name = "custom"
+duration = 3.0
+settle = 0.5
+faults = ["shaft.b=1.2@1+1"]
+[[speed]]
+t0 = 0.0
+t1 = 2.0
+kind = "recorded"
+file = "speed.csv"
+[[speed]]
+t0 = 2.0
+t1 = 3.0
+kind = "constant"
+value = 1000.0
+[[throttle]]
+t0 = 0.0
+t1 = 3.0
+kind = "ramp"
+v0 = 90.0
+v1 = 10.0
+[set]
+"shaft.k" = 1340.0
+"#;
+    let f = d.join("custom.toml");
+    std::fs::write(&f, toml).unwrap();
+    let s = Scenario::load(f.to_str().unwrap()).unwrap();
+    assert_eq!(s.speed.value(0.5), 1000.0);
+    assert_eq!(s.speed.value(2.5), 1000.0);
+    assert_eq!(s.throttle.value(1.5), 50.0);
+    // Mistakes are named.
+    std::fs::write(&f, toml.replace("\"shaft.k\"", "\"shaft.q\"")).unwrap();
+    let e = Scenario::load(f.to_str().unwrap()).unwrap_err();
+    assert!(
+        e.contains("no parameter 'shaft.q'") && e.contains("shaft.k"),
+        "{e}"
+    );
+    std::fs::write(&f, toml.replace("kind = \"ramp\"", "kind = \"zigzag\"")).unwrap();
+    let e = Scenario::load(f.to_str().unwrap()).unwrap_err();
+    assert!(e.contains("zigzag"), "{e}");
+}
+
+#[test]
+fn fault_syntax_and_schedule() {
+    let f = Fault::parse("shaft.k=1200@5").unwrap();
+    assert_eq!((f.value, f.at, f.ramp), (1200.0, 5.0, 0.0));
+    let g = Fault::parse("shaft.b=1.2@5+2").unwrap();
+    let base = CellParams::default();
+    let mut p = base.clone();
+    Fault::apply_all(&[f.clone(), g.clone()], &base, &mut p, 4.9);
+    assert_eq!((p.shaft.k, p.shaft.b), (1250.0, 0.95));
+    Fault::apply_all(&[f.clone(), g.clone()], &base, &mut p, 6.0);
+    assert_eq!(p.shaft.k, 1200.0);
+    assert!((p.shaft.b - (0.95 + 0.5 * 0.25)).abs() < 1e-12);
+    for (spec, want) in [
+        ("shaft.k=1200", "expected PATH=VALUE@T"),
+        ("shaft.k=x@5", "expected PATH=VALUE@T"),
+        ("engine.bore=0.05@1", "cannot change during a run"),
+        ("shaft.x=1@1", "no parameter 'shaft.x'"),
+    ] {
+        let e = Fault::parse(spec).unwrap_err();
+        assert!(e.contains(want), "{spec}: {e}");
+    }
+}
+
+/// A short run: the channel table's names and units, the faults in the truth channels, the
+/// sensors' noise at its configured level, the crank-angle basis.
+#[test]
+fn a_run_produces_the_recording() {
+    let mut s = named("shaft-steady").unwrap();
+    s.settle = 0.5;
+    s.faults.push("shaft.k=1100@0.5".into());
+    let mut opts = RunOptions {
+        duration: Some(1.0),
+        ..Default::default()
+    };
+    opts.params.set("sensors.torque_shaft.noise", 0.2).unwrap();
+    let rec = simulate(&s, &opts, |_| {}).unwrap();
+    for ch in rec.channels() {
+        if let Some(u) = standard_unit(&ch.name) {
+            assert_eq!(ch.unit, u, "{}", ch.name);
+        }
+        assert!(ch.values.iter().all(|v| v.is_finite()), "{}", ch.name);
+    }
+    assert_eq!(rec.len(), 10_001);
+    let k = rec.values("true_shaft_k").unwrap();
+    assert_eq!((k[0], k[10_000]), (1250.0, 1100.0));
+    // Noise: the measured minus the noise-free torque (K·twist + B·Δω from the truth).
+    let (tq, th_dy, th_en, w_dy, w_en) = (
+        rec.values("torque_shaft").unwrap(),
+        rec.values("theta_dy").unwrap(),
+        rec.values("theta_en").unwrap(),
+        rec.values("omega_dy").unwrap(),
+        rec.values("omega_en").unwrap(),
+    );
+    let resid: Vec<f64> = (0..rec.len())
+        .map(|i| tq[i] - (k[i] * (th_dy[i] - th_en[i]) + 0.95 * (w_dy[i] - w_en[i])))
+        .collect();
+    let sd = (resid.iter().map(|r| r * r).sum::<f64>() / resid.len() as f64).sqrt();
+    assert!((sd / 0.2 - 1.0).abs() < 0.05, "{sd}");
+    // Encoders: 360 pulses per revolution on the engine.
+    let c = rec.values("count_en").unwrap();
+    let revs = (th_en[rec.len() - 1] - th_en[0]) / (2.0 * PI);
+    assert!(((c[rec.len() - 1] - c[0]) / 360.0 - revs).abs() < 0.01);
+    let markers = rec
+        .values("tdc")
+        .unwrap()
+        .iter()
+        .filter(|&&m| m == 1.0)
+        .count();
+    assert!((markers as f64 - revs).abs() <= 1.0);
+    // The crank-angle basis: one sample per degree from firing TDC.
+    let crank = simulate(
+        &s,
+        &RunOptions {
+            duration: Some(0.5),
+            basis: OutputBasis::Crank(1.0),
+            ..Default::default()
+        },
+        |_| {},
+    )
+    .unwrap();
+    let (cyc, deg) = (
+        crank.values("cycle").unwrap(),
+        crank.values("crank_deg").unwrap(),
+    );
+    assert_eq!((cyc[0], deg[0]), (0.0, 0.0));
+    assert_eq!((cyc[720], deg[720]), (1.0, 0.0));
+    assert!((deg[100] - 100.0).abs() < 1e-6);
+}
+
+/// A speed-sensor fault makes the drive run at the wrong speed (it holds the reading at the
+/// demand), and leaves the shaft untouched.
+#[test]
+fn speed_sensor_fault_moves_the_drive_not_the_shaft() {
+    let mut s = named("shaft-steady").unwrap();
+    s.settle = 0.5;
+    s.faults.push("dyno.speed_sensor.offset=5@0.5".into());
+    let rec = simulate(
+        &s,
+        &RunOptions {
+            duration: Some(3.0),
+            ..Default::default()
+        },
+        |_| {},
+    )
+    .unwrap();
+    let w = rec.values("omega_dy").unwrap();
+    let n = w.len();
+    let before = w[..4000].iter().sum::<f64>() / 4000.0;
+    let after = w[n - 10000..].iter().sum::<f64>() / 10000.0;
+    assert!((before - after - 5.0).abs() < 0.2, "{before} → {after}");
+    let k = rec.values("true_shaft_k").unwrap();
+    assert!(k.iter().all(|&v| v == 1250.0));
+}
