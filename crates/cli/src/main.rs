@@ -40,6 +40,11 @@ enum Command {
     ///
     /// Example: physid friction eval --n 1000 --p-int 100 --t-oil 35
     Friction(cmd::friction::Args),
+    /// The virtual transient engine test cell: scenario runs into recordings, and the
+    /// compression, motored-cycle and torque–speed checks.
+    ///
+    /// Example: physid simulate --scenario shaft-steady --fault shaft.k=1200@10 --out t01.parquet
+    Simulate(cmd::simulate::Args),
     /// What is in a recording: channels, units, rate, cycles, and the integrity check.
     ///
     /// Example: physid inspect run.mf4 --strict
@@ -71,6 +76,7 @@ fn main() -> miette::Result<()> {
         Command::Friction(a) => cmd::friction::run(&a),
         Command::Identify(a) => cmd::identify::run(&a),
         Command::Inspect(a) => cmd::inspect::run(&a),
+        Command::Simulate(a) => cmd::simulate::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),
         Command::Filter(a) => cmd::filter::run(&a),
     }

@@ -236,7 +236,9 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    assert_eq!(r.len(), 15 + 3 + 4 + 1 + 3);
+    assert_eq!(r.len(), 15 + 3 + 4 + 1 + 3 + 1);
+    let tc = r.iter().find(|e| e["name"] == "testcell").unwrap();
+    assert!(tc["realtime_factor"].as_f64().unwrap() > 0.0);
     for name in ["ident_batch", "ident_cyclic_torque", "ident_online"] {
         let e = r
             .iter()
@@ -855,4 +857,155 @@ fn inspect_convert_filter_chain() {
         "p_int",
     ]);
     assert!(stderr(&o).contains("convert first"), "{}", stderr(&o));
+}
+
+#[test]
+fn simulate_runs_and_studies() {
+    let d = dir("sim");
+    let o = physid(&["simulate", "--list"]);
+    assert!(o.status.success());
+    let text = String::from_utf8(o.stdout).unwrap();
+    for name in [
+        "fig314",
+        "shaft-steady",
+        "friction-sweep",
+        "torque-ramp",
+        "transient-10min",
+    ] {
+        assert!(text.contains(name), "{name}");
+    }
+    let o = physid(&["simulate", "--params", "--set", "shaft.k=1340"]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(text.contains("shaft.k") && text.contains("1340") && text.contains("Table 6.1"));
+    // A short run with a fault, on a crank-angle basis, to Parquet; inspect reads it back.
+    let out = d.join("t01.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "0.5",
+        "--fault",
+        "shaft.k=1200@0.2",
+        "--basis",
+        "crank",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = physid(&["inspect", out.to_str().unwrap(), "--json"]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["basis"], "crank_angle");
+    assert!(j["cycles"].as_u64().unwrap() >= 3);
+    // The studies' JSON shapes.
+    let o = physid(&[
+        "simulate",
+        "dyno-curve",
+        "--speeds",
+        "1400,1465,1490",
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let pts = j["points"].as_array().unwrap();
+    assert_eq!(pts.len(), 3);
+    for key in [
+        "speed_rpm",
+        "slip",
+        "torque_nm",
+        "current_a_rms",
+        "power_factor",
+    ] {
+        assert!(pts[1][key].is_number(), "{key}");
+    }
+    let o = physid(&[
+        "simulate",
+        "motored-cycle",
+        "--rpm",
+        "1000",
+        "--throttle",
+        "90",
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in [
+        "p_max_pa",
+        "theta_p_max_deg",
+        "imep_pa",
+        "pmep_pa",
+        "trapped_mass_kg",
+        "vol_eff",
+    ] {
+        assert!(j[key].is_number(), "{key}");
+    }
+    for key in ["indicated", "reciprocating", "friction"] {
+        assert!(j["torque_mean_nm"][key].is_number(), "{key}");
+    }
+    let o = physid(&[
+        "simulate",
+        "compression",
+        "--p0",
+        "100000",
+        "--t0",
+        "300",
+        "--rpm",
+        "1000",
+        "--no-heat-transfer",
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // Cantera: 22.606 bar, 713.9 K (crates/sim/tests/golden/cantera_compression.json).
+    assert!((j["p_max_pa"].as_f64().unwrap() / 22.606e5 - 1.0).abs() < 0.01);
+    assert!((j["t_max_k"].as_f64().unwrap() / 713.88 - 1.0).abs() < 0.01);
+    // Errors.
+    for (args, want) in [
+        (
+            vec!["simulate", "--scenario", "warp", "--out", "x.csv"],
+            "neither a built-in scenario",
+        ),
+        (vec!["simulate", "--scenario", "shaft-steady"], "--out FILE"),
+        (
+            vec!["simulate", "--scenario", "shaft-steady", "--out", "x.txt"],
+            "the extension picks the format",
+        ),
+        (
+            vec![
+                "simulate",
+                "--scenario",
+                "shaft-steady",
+                "--out",
+                "x.csv",
+                "--fault",
+                "shaft.k=1@x",
+            ],
+            "expected PATH=VALUE@T",
+        ),
+        (
+            vec![
+                "simulate",
+                "--scenario",
+                "shaft-steady",
+                "--out",
+                "x.csv",
+                "--set",
+                "shaft.q=1",
+            ],
+            "no parameter 'shaft.q'",
+        ),
+        (
+            vec![
+                "simulate",
+                "--scenario",
+                "shaft-steady",
+                "--out",
+                "x.csv",
+                "--set",
+                "engine.kappa=0.5",
+            ],
+            "engine.kappa",
+        ),
+    ] {
+        let o = physid(&args);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+    }
 }

@@ -123,7 +123,8 @@ pub fn cv(t: f64) -> f64 {
 
 /// Ratio of specific heats γ(T) = c_p/c_v.
 pub fn gamma(t: f64) -> f64 {
-    cp(t) / cv(t)
+    let c = cp(t);
+    c / (c - R_AIR)
 }
 
 /// Specific enthalpy h(T) [J/kg] (the polynomials' datum: formation enthalpy of the elements).

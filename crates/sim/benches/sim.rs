@@ -1,2 +1,43 @@
-//! criterion benchmarks of physid-sim.
-fn main() {}
+//! criterion benchmarks of physid-sim: the whole test cell (engine, machine, drive,
+//! driveline) stepping one crank degree at a time at 1000 rpm, full throttle and closed
+//! throttle; throughput in simulated seconds per wall second (the real-time factor).
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use physid_sim::cell::{Inputs, TestCell};
+use physid_sim::control::Demand;
+use physid_sim::params::CellParams;
+use std::f64::consts::PI;
+
+fn cell(c: &mut Criterion) {
+    let w = 1000.0 * PI / 30.0;
+    let mut g = c.benchmark_group("testcell");
+    g.sample_size(20);
+    // One simulated second at 1000 rpm: 6000 one-degree steps.
+    g.throughput(Throughput::Elements(6000));
+    for (name, throttle) in [("1000rpm_wot_1s", 90.0), ("1000rpm_closed_1s", 0.0)] {
+        let mut cell = match TestCell::new(CellParams::default(), w, 0.0) {
+            Ok(c) => c,
+            Err(e) => panic!("{e}"),
+        };
+        let input = Inputs {
+            demand: Demand::Speed(w),
+            throttle_deg: throttle,
+        };
+        // Warm up to the periodic state.
+        while cell.time() < 1.0 {
+            cell.step(&input);
+        }
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let t1 = cell.time() + 1.0;
+                while cell.time() < t1 {
+                    std::hint::black_box(cell.step(&input));
+                }
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, cell);
+criterion_main!(benches);

@@ -131,12 +131,22 @@ pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64)
 /// Exponent of the cam profile `sinⁿ`.
 pub const LIFT_EXPONENT: i32 = 6;
 
+/// `x mod 720` in [0, 720) by `floor` (a library `fmod` costs several times more).
+fn wrap720(x: f64) -> f64 {
+    let r = x - 720.0 * (x / 720.0).floor();
+    if r >= 720.0 {
+        0.0
+    } else {
+        r
+    }
+}
+
 /// Valve lift [m] at `deg` within the cycle for a valve open from `open` to `close` [deg]:
 /// `l_max·sinⁿ(π·x)`, x the fraction of the open duration (SPEC §2.3 suggests n = 2; the
 /// cell's default is 5, see [`EngineParams::lift_exponent`]).
 pub fn lift(deg: f64, open: f64, close: f64, l_max: f64, n: i32) -> f64 {
-    let dur = (close - open).rem_euclid(720.0);
-    let x = (deg - open).rem_euclid(720.0) / dur;
+    let dur = wrap720(close - open);
+    let x = wrap720(deg - open) / dur;
     if x >= 1.0 || dur <= 0.0 {
         0.0
     } else {
@@ -324,7 +334,7 @@ impl Engine {
             x[1] * r * t[1] / vols[1],
             x[2] * r * t[2] / vols[2],
         ];
-        let deg = theta.to_degrees().rem_euclid(720.0);
+        let deg = wrap720(theta.to_degrees());
         let l_in = lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32);
         let l_ex = lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32);
         let a_in = e.cd_valve * valve_area(l_in, e.iv_d, e.iv_di, e.seat_angle);
@@ -416,7 +426,7 @@ impl Engine {
         let t_max = x[3].max(x[4]).max(x[5]).max(self.amb.t);
         let k = 1.4 * (r * t_max).sqrt() * slope;
         let v_cyl = self.volume(theta);
-        let deg = theta.to_degrees().rem_euclid(720.0);
+        let deg = wrap720(theta.to_degrees());
         let a_in = e.cd_valve
             * valve_area(
                 lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32),

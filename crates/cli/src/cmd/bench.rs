@@ -244,6 +244,35 @@ pub fn run(args: &Args) -> Result<()> {
         );
     }
     results.push(json!({"name": "ident_online", "p": 15, "rows_per_s": r}));
+    // The virtual test cell at one-degree steps, 1000 rpm, full throttle: simulated seconds
+    // per wall-clock second.
+    let w = 1000.0 * std::f64::consts::PI / 30.0;
+    let mut cell =
+        physid_sim::cell::TestCell::new(physid_sim::params::CellParams::default(), w, 0.0)
+            .map_err(|e| miette::miette!("{e}"))?;
+    let input = physid_sim::cell::Inputs {
+        demand: physid_sim::control::Demand::Speed(w),
+        throttle_deg: 90.0,
+    };
+    while cell.time() < 0.5 {
+        cell.step(&input);
+    }
+    // `rate` counts batches of 600 steps = 0.1 simulated seconds.
+    let steps_per_s = rate(600, budget, || {
+        for _ in 0..600 {
+            std::hint::black_box(cell.step(&input));
+        }
+        Ok(())
+    })?;
+    let realtime = steps_per_s / 6000.0;
+    if !args.json {
+        outln!(
+            "testcell {:>17.0} steps/s at 1000 rpm, 1° steps: {realtime:.0}× real time",
+            steps_per_s
+        );
+    }
+    results
+        .push(json!({"name": "testcell", "realtime_factor": realtime, "steps_per_s": steps_per_s}));
     if args.json {
         let out = json!({"machine": machine(), "results": results});
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);

@@ -8,6 +8,7 @@ pub mod filter;
 pub mod friction;
 pub mod identify;
 pub mod inspect;
+pub mod simulate;
 
 use miette::{miette, IntoDiagnostic, Result};
 use physid_core::Recording;

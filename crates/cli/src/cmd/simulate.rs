@@ -1,0 +1,342 @@
+//! `physid simulate`: the virtual test cell — scenario runs into recordings, and the
+//! engineer's checks (compression, motored cycle, the dynamometer's torque–speed curve).
+
+use crate::out::outln;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_sim::params::CellParams;
+use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::scenario::{Fault, Scenario, NAMED};
+use physid_sim::studies::{compression, dyno_curve, motored_cycle};
+use std::path::PathBuf;
+
+/// Arguments of `physid simulate`.
+#[derive(clap::Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct Args {
+    #[command(subcommand)]
+    study: Option<Study>,
+    /// Scenario: a built-in name (see --list) or a TOML file.
+    #[arg(long)]
+    scenario: Option<String>,
+    /// Recorded duration [s] (default: the scenario's).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Fault PATH=VALUE@T[+RAMP] (repeatable), e.g. --fault shaft.k=1200@5.
+    #[arg(long = "fault", value_name = "SPEC")]
+    faults: Vec<String>,
+    #[command(flatten)]
+    set: SetArgs,
+    /// Output basis: time (uniform at --rate) or crank (one sample per --step-deg).
+    #[arg(long, default_value = "time")]
+    basis: String,
+    /// Output sample rate on a time basis [Hz].
+    #[arg(long, default_value_t = 10_000.0)]
+    rate: f64,
+    /// Output crank-angle step on a crank basis [deg].
+    #[arg(long, default_value_t = 1.0)]
+    step_deg: f64,
+    /// Output file (.parquet, .csv or .mf4).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// List the built-in scenarios.
+    #[arg(long)]
+    list: bool,
+    /// List every parameter with its value, unit and source.
+    #[arg(long)]
+    params: bool,
+}
+
+/// `--set PATH=VALUE`.
+#[derive(clap::Args, Clone, Default)]
+struct SetArgs {
+    /// Set a parameter PATH=VALUE (repeatable), e.g. --set shaft.k=1340 (see --params).
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    set: Vec<String>,
+}
+
+impl SetArgs {
+    fn params(&self) -> Result<CellParams> {
+        let mut p = CellParams::default();
+        for s in &self.set {
+            let (k, v) = s.split_once('=').ok_or_else(|| {
+                miette!("--set {s}: expected PATH=VALUE, e.g. --set shaft.k=1340")
+            })?;
+            let v: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| miette!("--set {s}: '{v}' is not a number"))?;
+            p.set(k.trim(), v).map_err(|e| miette!("--set: {e}"))?;
+        }
+        p.validate().map_err(|e| miette!("{e}"))?;
+        Ok(p)
+    }
+}
+
+#[derive(clap::Subcommand)]
+enum Study {
+    /// The dynamometer machine's steady torque, current and power factor over speed at fixed
+    /// voltage and frequency.
+    ///
+    /// Example: physid simulate dyno-curve --json
+    DynoCurve {
+        /// Line-to-line voltage [V rms].
+        #[arg(long, default_value_t = 400.0)]
+        voltage: f64,
+        /// Frequency [Hz].
+        #[arg(long, default_value_t = 50.0)]
+        freq: f64,
+        /// Speeds [rpm] (default: 0 to synchronous in 50 steps).
+        #[arg(long, value_delimiter = ',')]
+        speeds: Vec<f64>,
+        #[command(flatten)]
+        set: SetArgs,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// One converged motored cycle at constant speed and throttle.
+    ///
+    /// Example: physid simulate motored-cycle --rpm 1000 --throttle 90 --json
+    MotoredCycle {
+        /// Engine speed [rpm].
+        #[arg(long, default_value_t = 1000.0)]
+        rpm: f64,
+        /// Throttle opening above closed [deg] (90: wide open).
+        #[arg(long, default_value_t = 90.0)]
+        throttle: f64,
+        #[command(flatten)]
+        set: SetArgs,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Closed cylinder from BDC with the valves shut: the compression check.
+    ///
+    /// Example: physid simulate compression --p0 100000 --t0 300 --rpm 1000 --json
+    Compression {
+        /// Pressure at BDC [Pa].
+        #[arg(long, default_value_t = 100_000.0)]
+        p0: f64,
+        /// Temperature at BDC [K].
+        #[arg(long, default_value_t = 300.0)]
+        t0: f64,
+        /// Engine speed [rpm].
+        #[arg(long, default_value_t = 1000.0)]
+        rpm: f64,
+        /// Without wall heat transfer (adiabatic).
+        #[arg(long)]
+        no_heat_transfer: bool,
+        #[command(flatten)]
+        set: SetArgs,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Run `physid simulate`.
+pub fn run(args: &Args) -> Result<()> {
+    if let Some(study) = &args.study {
+        return run_study(study);
+    }
+    if args.list {
+        for (name, what) in NAMED {
+            outln!("{name:<20} {what}");
+        }
+        return Ok(());
+    }
+    if args.params {
+        let p = args.set.params()?;
+        outln!("{:<32} {:>14} {:<12} source", "parameter", "value", "unit");
+        for (path, unit, source) in CellParams::TABLE {
+            outln!(
+                "{path:<32} {:>14} {unit:<12} {source}",
+                p.get(path).map_or(String::new(), |v| format!("{v}"))
+            );
+        }
+        return Ok(());
+    }
+    let name = args.scenario.as_deref().ok_or_else(|| {
+        miette!("choose a scenario: --scenario NAME|FILE (physid simulate --list)")
+    })?;
+    let out = args
+        .out
+        .as_ref()
+        .ok_or_else(|| miette!("where to? --out FILE.parquet|.csv|.mf4"))?;
+    if physid_io::Format::from_extension(out).is_none() {
+        return Err(miette!(
+            "--out {}: the extension picks the format: .parquet, .csv or .mf4",
+            out.display()
+        ));
+    }
+    let scenario = Scenario::load(name).map_err(|e| miette!("{e}"))?;
+    let faults: Vec<Fault> = args
+        .faults
+        .iter()
+        .map(|f| Fault::parse(f))
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| miette!("--fault {e}"))?;
+    let basis = match args.basis.as_str() {
+        "time" => OutputBasis::Time(args.rate),
+        "crank" => OutputBasis::Crank(args.step_deg),
+        b => return Err(miette!("--basis '{b}': expected time or crank")),
+    };
+    let opts = RunOptions {
+        params: args.set.params()?,
+        duration: args.duration,
+        faults,
+        basis,
+    };
+    let bar = indicatif::ProgressBar::new(100);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {percent}% ({elapsed})")
+            .into_diagnostic()?
+            .progress_chars("=> "),
+    );
+    bar.set_message(format!("simulating {}", scenario.name));
+    let t0 = std::time::Instant::now();
+    let rec = simulate(&scenario, &opts, |f| bar.set_position((f * 100.0) as u64))
+        .map_err(|e| miette!("{e}"))?;
+    bar.finish_and_clear();
+    let seconds = t0.elapsed().as_secs_f64();
+    physid_io::write(out, &rec, &Default::default()).into_diagnostic()?;
+    let simulated = opts.duration.unwrap_or(scenario.duration) + scenario.settle;
+    outln!(
+        "wrote {} ({} channels × {} samples; {:.1} s simulated in {:.2} s, {:.0}× real time)",
+        out.display(),
+        rec.channels().len(),
+        rec.len(),
+        simulated,
+        seconds,
+        simulated / seconds
+    );
+    Ok(())
+}
+
+fn run_study(study: &Study) -> Result<()> {
+    match study {
+        Study::DynoCurve {
+            voltage,
+            freq,
+            speeds,
+            set,
+            json,
+        } => {
+            let p = set.params()?;
+            let n_sync = 60.0 * freq / (p.dyno.poles / 2.0);
+            let speeds: Vec<f64> = if speeds.is_empty() {
+                (0..=50).map(|k| n_sync * k as f64 / 50.0).collect()
+            } else {
+                speeds.clone()
+            };
+            let pts = dyno_curve(&p, *voltage, *freq, &speeds).map_err(|e| miette!("{e}"))?;
+            if *json {
+                let v = serde_json::json!({ "points": pts });
+                outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+            } else {
+                outln!("dynamometer at {voltage} V, {freq} Hz (synchronous {n_sync:.0} rpm)");
+                outln!(
+                    "{:>10} {:>9} {:>11} {:>12} {:>8}",
+                    "speed rpm",
+                    "slip",
+                    "torque N·m",
+                    "current A",
+                    "cos φ"
+                );
+                for q in &pts {
+                    outln!(
+                        "{:>10.1} {:>9.4} {:>11.2} {:>12.2} {:>8.3}",
+                        q.speed_rpm,
+                        q.slip,
+                        q.torque_nm,
+                        q.current_a_rms,
+                        q.power_factor
+                    );
+                }
+            }
+        }
+        Study::MotoredCycle {
+            rpm,
+            throttle,
+            set,
+            json,
+        } => {
+            let p = set.params()?;
+            let c = motored_cycle(&p, *rpm, *throttle).map_err(|e| miette!("{e}"))?;
+            if *json {
+                let v = serde_json::json!({
+                    "p_max_pa": c.p_max_pa, "theta_p_max_deg": c.theta_p_max_deg,
+                    "imep_pa": c.imep_pa, "pmep_pa": c.pmep_pa,
+                    "trapped_mass_kg": c.trapped_mass_kg, "vol_eff": c.vol_eff,
+                    "p_int_mean_pa": c.p_int_mean_pa,
+                    "torque_mean_nm": c.torque_mean_nm, "cycles": c.cycles,
+                });
+                outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+            } else {
+                outln!(
+                    "motored cycle at {rpm} rpm, throttle {throttle}° ({} cycles to converge)",
+                    c.cycles
+                );
+                outln!(
+                    "  peak cylinder pressure   {:>10.3} bar at {:.1}° after firing TDC",
+                    c.p_max_pa / 1e5,
+                    c.theta_p_max_deg
+                );
+                outln!("  IMEP (net)               {:>10.2} kPa", c.imep_pa / 1e3);
+                outln!("  PMEP                     {:>10.2} kPa", c.pmep_pa / 1e3);
+                outln!(
+                    "  manifold pressure        {:>10.2} kPa",
+                    c.p_int_mean_pa / 1e3
+                );
+                outln!(
+                    "  trapped mass             {:>10.4} g",
+                    c.trapped_mass_kg * 1e3
+                );
+                outln!("  volumetric efficiency    {:>10.3}", c.vol_eff);
+                outln!(
+                    "  mean torque [N·m]: indicated {:.3}, reciprocating {:.2e}, friction {:.3}",
+                    c.torque_mean_nm.indicated,
+                    c.torque_mean_nm.reciprocating,
+                    c.torque_mean_nm.friction
+                );
+            }
+        }
+        Study::Compression {
+            p0,
+            t0,
+            rpm,
+            no_heat_transfer,
+            set,
+            json,
+        } => {
+            let p = set.params()?;
+            let c =
+                compression(&p, *p0, *t0, *rpm, !no_heat_transfer).map_err(|e| miette!("{e}"))?;
+            if *json {
+                let v = serde_json::json!({
+                    "p_max_pa": c.p_max_pa, "t_max_k": c.t_max_k,
+                    "theta_p_max_deg": c.theta_p_max_deg,
+                    "p_end_pa": c.p_end_pa, "t_end_k": c.t_end_k,
+                });
+                outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+            } else {
+                outln!(
+                    "closed cylinder from BDC at {p0} Pa, {t0} K, {rpm} rpm{}:",
+                    if *no_heat_transfer { ", adiabatic" } else { "" }
+                );
+                outln!(
+                    "  peak pressure {:.4} bar at {:.2}°, peak temperature {:.2} K",
+                    c.p_max_pa / 1e5,
+                    c.theta_p_max_deg,
+                    c.t_max_k
+                );
+                outln!(
+                    "  back at BDC: {:.6} bar, {:.4} K",
+                    c.p_end_pa / 1e5,
+                    c.t_end_k
+                );
+            }
+        }
+    }
+    Ok(())
+}
