@@ -13,9 +13,11 @@
 //!   data no longer supports (no wind-up), and the lost-excitation demonstration.
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
+//! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
 
 pub mod acquisition;
 pub mod example_5_1;
 pub mod example_5_2;
 pub mod excitation;
 pub mod friction_rank;
+pub mod shaft_monitor;

@@ -329,12 +329,15 @@ fn acquire(
                     "output rate {rate} Hz: expected > 0"
                 )));
             }
+            // From the first recorded step (within one step of 0) on the rate's grid.
+            let k0 = (t_raw[0] * rate).ceil() as usize;
             let n = (duration * rate).floor() as usize + 1;
+            let last = t_raw[t_raw.len() - 1];
             (
                 t_raw,
-                (0..n)
+                (k0..n)
                     .map(|i| i as f64 / rate)
-                    .filter(|t| *t <= t_raw[t_raw.len() - 1])
+                    .filter(|t| *t <= last)
                     .collect(),
             )
         }
@@ -360,7 +363,10 @@ fn acquire(
         }
     };
     let at = |name: &str| interp(abscissa, col(name), &grid);
-    let t = at("t");
+    let t = match basis {
+        OutputBasis::Time(_) => grid.clone(),
+        OutputBasis::Crank(_) => at("t"),
+    };
     let mut rec = Recording::new(match basis {
         OutputBasis::Time(_) => Basis::Time,
         OutputBasis::Crank(_) => Basis::CrankAngle,

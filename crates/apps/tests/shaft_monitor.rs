@@ -1,0 +1,121 @@
+//! Application 1 on the virtual test cell (issue 8): Table 6.1's three spiders on T01 and T02,
+//! every method within ±5 % of the simulated K and B within 5 s, damping noisier than
+//! stiffness; faults in K and in B raise the right alarm and leave the other estimate inside its
+//! bound; a dynamometer speed-sensor fault raises none.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod};
+use physid_core::Recording;
+use physid_sim::run::{simulate, RunOptions};
+use physid_sim::scenario::named;
+
+fn run(scenario: &str, set: &[(&str, f64)], faults: &[&str], seconds: f64) -> Recording {
+    let mut s = named(scenario).unwrap();
+    s.settle = 0.5;
+    for f in faults {
+        s.faults.push(f.to_string());
+    }
+    let mut opts = RunOptions {
+        duration: Some(seconds),
+        ..Default::default()
+    };
+    for (k, v) in set {
+        opts.params.set(k, *v).unwrap();
+    }
+    simulate(&s, &opts, |_| {}).unwrap()
+}
+
+const METHODS: [MonitorMethod; 3] = [
+    MonitorMethod::Rls,
+    MonitorMethod::Rlsvf,
+    MonitorMethod::Dsfc,
+];
+
+#[test]
+fn three_spiders_on_t01_and_t02() {
+    let spiders = [
+        ("yellow", 1250.0, 0.95),
+        ("red", 1340.0, 0.70),
+        ("green", 1490.0, 0.52),
+    ];
+    for scenario in ["shaft-steady", "shaft-ramp"] {
+        for (name, k, b) in spiders {
+            let rec = run(scenario, &[("shaft.k", k), ("shaft.b", b)], &[], 6.0);
+            for m in METHODS {
+                let cfg = MonitorConfig {
+                    method: m,
+                    healthy: [k, b],
+                    ..Default::default()
+                };
+                let r = monitor_shaft(&rec, &cfg).unwrap();
+                let label = format!("{scenario} {name} {m:?}");
+                let within = r.within_5pct_s.unwrap();
+                assert!(
+                    within[0].unwrap() < 5.0,
+                    "{label}: K within 5 % from {:?}",
+                    within[0]
+                );
+                assert!(
+                    within[1].unwrap() < 5.0,
+                    "{label}: B within 5 % from {:?}",
+                    within[1]
+                );
+                assert!((r.final_estimate[0] / k - 1.0).abs() < 0.05, "{label}");
+                assert!((r.final_estimate[1] / b - 1.0).abs() < 0.05, "{label}");
+                let nmse = r.nmse.unwrap();
+                assert!(nmse[1] > nmse[0], "{label}: damping noisier: {nmse:?}");
+                assert!(r.alarms.is_empty(), "{label}: {:?}", r.alarms);
+            }
+        }
+    }
+}
+
+#[test]
+fn process_faults_are_isolated_and_sensor_faults_ignored() {
+    let cfg = MonitorConfig {
+        theta0: [1250.0, 0.95, 0.0],
+        ..Default::default()
+    };
+    // Stiffness drops 20 % at 3 s: a K alarm, no B alarm.
+    let rec = run("shaft-steady", &[], &["shaft.k=1000@3"], 6.0);
+    let r = monitor_shaft(&rec, &cfg).unwrap();
+    assert!(
+        r.alarms
+            .iter()
+            .any(|a| a.param == "K" && a.t_start_s >= 3.0 && a.t_start_s < 3.5),
+        "{:?}",
+        r.alarms
+    );
+    assert!(r.alarms.iter().all(|a| a.param == "K"), "{:?}", r.alarms);
+    assert!((r.final_estimate[0] / 1000.0 - 1.0).abs() < 0.02);
+    // Damping rises 40 % at 3 s: a B alarm only.
+    let rec = run("shaft-steady", &[], &["shaft.b=1.33@3"], 6.0);
+    let r = monitor_shaft(&rec, &cfg).unwrap();
+    assert!(
+        r.alarms
+            .iter()
+            .any(|a| a.param == "B" && a.t_start_s >= 3.0),
+        "{:?}",
+        r.alarms
+    );
+    assert!(r.alarms.iter().all(|a| a.param == "B"), "{:?}", r.alarms);
+    // The dynamometer's speed sensor reads 5 rad/s high from 3 s: the drive slows, the shaft
+    // is the same shaft — no alarm.
+    let rec = run("shaft-steady", &[], &["dyno.speed_sensor.offset=5@3"], 6.0);
+    let r = monitor_shaft(&rec, &cfg).unwrap();
+    assert!(r.alarms.is_empty(), "{:?}", r.alarms);
+}
+
+#[test]
+fn errors_name_the_problem() {
+    let rec = run("shaft-steady", &[], &[], 0.2);
+    let mut r2 = Recording::new(rec.basis);
+    for ch in rec.channels().iter().filter(|c| c.name != "omega_en") {
+        r2.push(ch.clone()).unwrap();
+    }
+    let e = monitor_shaft(&r2, &MonitorConfig::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no channel 'omega_en'"), "{e}");
+}
