@@ -5,6 +5,7 @@
 //!
 //! * [`acquisition`] — the acquisition chain on a recording: inspection and integrity,
 //!   crank-angle conversion, zero-phase filtering (thesis ch. 4).
+//! * [`demo`] — the chain on the built-in virtual test cell (`physid demo`).
 //! * [`example_5_1`] — thesis Example 5.1's model in Rust (the reference for the expression
 //!   language).
 //! * [`example_5_2`] — thesis Example 5.2: RLS, RLS with forgetting and RLS with vector
@@ -16,6 +17,7 @@
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
 
 pub mod acquisition;
+pub mod demo;
 pub mod example_5_1;
 pub mod example_5_2;
 pub mod excitation;

@@ -5,6 +5,7 @@
 mod cmd;
 mod out;
 mod plot;
+mod report;
 
 use clap::{Parser, Subcommand};
 
@@ -21,6 +22,11 @@ struct Cli {
 #[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum Command {
+    /// The whole chain on the built-in virtual test cell: simulate, monitor the shaft, rank
+    /// the friction model, check the cyclic-torque identifiability; one report.
+    ///
+    /// Example: physid demo --out demo
+    Demo(cmd::demo::Args),
     /// Run a worked example from the thesis.
     ///
     /// Example: physid example 5.2 --out ex52
@@ -45,6 +51,10 @@ enum Command {
     ///
     /// Example: physid simulate --scenario shaft-steady --fault shaft.k=1200@10 --out t01.parquet
     Simulate(cmd::simulate::Args),
+    /// Application 1: coupling-shaft health monitoring (thesis ch. 6).
+    ///
+    /// Example: physid monitor shaft --data t01.parquet --out shaft-report
+    Monitor(cmd::monitor::Args),
     /// What is in a recording: channels, units, rate, cycles, and the integrity check.
     ///
     /// Example: physid inspect run.mf4 --strict
@@ -70,6 +80,7 @@ fn main() -> miette::Result<()> {
     }))?;
     let cli = Cli::parse();
     match cli.command {
+        Command::Demo(a) => cmd::demo::run(&a),
         Command::Example(a) => cmd::example::run(&a),
         Command::Estimate(a) => cmd::estimate::run(&a),
         Command::Bench(a) => cmd::bench::run(&a),
@@ -77,6 +88,7 @@ fn main() -> miette::Result<()> {
         Command::Identify(a) => cmd::identify::run(&a),
         Command::Inspect(a) => cmd::inspect::run(&a),
         Command::Simulate(a) => cmd::simulate::run(&a),
+        Command::Monitor(a) => cmd::monitor::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),
         Command::Filter(a) => cmd::filter::run(&a),
     }

@@ -1009,3 +1009,83 @@ fn simulate_runs_and_studies() {
         assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
     }
 }
+
+/// `physid demo --out DIR` exits 0 and leaves DIR/report.html and DIR/summary.json; the shaft
+/// fault is found and named.
+#[test]
+fn demo_writes_report_and_summary() {
+    let d = dir("demo");
+    let o = physid(&["demo", "--out", d.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("ALARM: K moved"));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
+    let alarms = s["shaft"]["alarms"].as_array().unwrap();
+    assert!(!alarms.is_empty() && alarms.iter().all(|a| a["param"] == "K"));
+    assert!((s["shaft"]["final"]["K"].as_f64().unwrap() / 1100.0 - 1.0).abs() < 0.02);
+    let t = s["torque_identifiability"].as_array().unwrap();
+    assert!(
+        t[1]["estimable"].as_array().unwrap().len() > t[0]["estimable"].as_array().unwrap().len()
+    );
+}
+
+#[test]
+fn monitor_shaft_json_and_errors() {
+    let d = dir("monitor");
+    let f = d.join("t01.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "3",
+        "--fault",
+        "shaft.b=1.4@1.5",
+        "--out",
+        f.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = physid(&[
+        "monitor",
+        "shaft",
+        "--data",
+        f.to_str().unwrap(),
+        "--method",
+        "dsfc",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["method"], "dsfc");
+    for key in ["K", "B"] {
+        assert!(
+            j["final"][key].is_number()
+                && j["std_err"][key].is_number()
+                && j["nmse"][key].is_number()
+        );
+    }
+    let alarms = j["alarms"].as_array().unwrap();
+    assert!(alarms.iter().any(|a| a["param"] == "B"), "{alarms:?}");
+    for a in alarms {
+        assert!(a["t_start_s"].is_number() && a["relative_error"].is_number());
+    }
+    let o = physid(&[
+        "monitor",
+        "shaft",
+        "--data",
+        f.to_str().unwrap(),
+        "--method",
+        "kf",
+    ]);
+    assert!(stderr(&o).contains("expected rls, rlsvf or dsfc"));
+    let o = physid(&[
+        "monitor",
+        "shaft",
+        "--data",
+        f.to_str().unwrap(),
+        "--healthy",
+        "Q=1",
+    ]);
+    assert!(stderr(&o).contains("the parameters are K and B"));
+}

@@ -2,12 +2,14 @@
 
 pub mod bench;
 pub mod convert;
+pub mod demo;
 pub mod estimate;
 pub mod example;
 pub mod filter;
 pub mod friction;
 pub mod identify;
 pub mod inspect;
+pub mod monitor;
 pub mod simulate;
 
 use miette::{miette, IntoDiagnostic, Result};

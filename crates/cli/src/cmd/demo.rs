@@ -1,0 +1,185 @@
+//! `physid demo`: the chain on the built-in virtual test cell — simulate, monitor the shaft,
+//! rank the friction model's design parameters, check which cyclic-torque parameters the
+//! data supports — into one report.
+
+use crate::out::outln;
+use crate::plot;
+use crate::report::Report;
+use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_apps::demo::run_demo;
+use std::path::PathBuf;
+
+/// Arguments of `physid demo`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Directory for report.html and summary.json [default: physid-out/demo].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Run the demo.
+pub fn run(args: &Args) -> Result<()> {
+    let dir = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("physid-out/demo"));
+    std::fs::create_dir_all(&dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    let bar = indicatif::ProgressBar::new(100);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg:40} [{bar:30}] {percent}% ({elapsed})")
+            .into_diagnostic()?
+            .progress_chars("=> "),
+    );
+    let t0 = std::time::Instant::now();
+    let d = run_demo(|stage, f| {
+        bar.set_message(stage.to_string());
+        bar.set_position((f * 100.0) as u64);
+    })
+    .map_err(|e| miette!("{e}"))?;
+    bar.finish_and_clear();
+
+    let mut rep = Report::new(
+        "physid demo — the virtual transient engine test cell",
+        "Simulated data (physid-sim, docs/simulate.md): the truth is known, so every result below is checked against it.",
+    );
+    // 1. Shaft.
+    let (cfg, mon) = &d.shaft;
+    rep.para(
+        &format!(
+            "Scenario T01 (shaft-steady: 1000 rpm, wide-open throttle), 8 s at 10 kHz, with the fault {} injected.",
+            d.fault
+        ),
+        Some("note"),
+    );
+    super::monitor::report_section(&mut rep, mon, cfg, &dir)?;
+    // 2. Friction ranking.
+    rep.section("Friction design-parameter ranking (thesis §7.2, Table 7.1)");
+    rep.para(
+        "Rank of each design parameter by |normalised sensitivity| of the friction torque (1 = most sensitive) at the thesis's 27 operating points (docs/friction.md).",
+        None,
+    );
+    let rows: Vec<String> = d
+        .friction
+        .tests
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            format!(
+                "{:>2}: {} rpm, {} kPa, {} °C",
+                i + 1,
+                x.op.n_rpm,
+                x.op.p_int_kpa,
+                x.op.t_oil_c
+            )
+        })
+        .collect();
+    let ranks: Vec<Vec<usize>> = d.friction.tests.iter().map(|x| x.rank.clone()).collect();
+    let svg = dir.join("friction-rank.svg");
+    plot::rank_heatmap(
+        &svg,
+        "Friction design-parameter ranks (thesis preset)",
+        &rows,
+        &d.friction.parameters,
+        &ranks,
+    )?;
+    rep.svg(&svg)?;
+    // 3. Cyclic torque identifiability.
+    rep.section(
+        "Cyclic engine torque: which parameters can the data resolve? (thesis §8, Table 8.1)",
+    );
+    rep.para(
+        "The parameters of Eq. 8.2 (M_rec, b, L, r, c1…c10; the pin offset δ = 0 is held) ranked by the orthogonal method (Alg. 5.1, thesis scaling) on 3 s of each recording at one sample per crank degree; estimable = residual above 1e-6 of the first (below, the differences come from the oil-temperature sensor's noise). Eq. 8.2 is invariant under r → λr, L → λL, b → b/√λ, M_rec → M_rec/λ², so one of these four is always unidentifiable.",
+        None,
+    );
+    let mut trows = Vec::new();
+    for t in &d.torque {
+        let a = &t.analysis;
+        let names: Vec<&str> = a.ranking.steps[..t.estimable]
+            .iter()
+            .map(|s| a.names[s.param].as_str())
+            .collect();
+        let rest: Vec<&str> = a.ranking.steps[t.estimable..]
+            .iter()
+            .map(|s| a.names[s.param].as_str())
+            .collect();
+        trows.push(vec![
+            t.scenario.clone(),
+            format!("{}", t.estimable),
+            names.join(", "),
+            rest.join(", "),
+        ]);
+    }
+    rep.table(
+        &["recording", "estimable", "ranking", "not estimable"],
+        &trows,
+    );
+    rep.section("Not in this demo yet");
+    rep.para(
+        "Application 2's adaptive friction characterisation (DSFC on the estimable c1…c20), Application 3's EKF/UKF tracking of the cyclic-torque parameters, and the pipeline file (physid run) are the next issue's work.",
+        Some("note"),
+    );
+    rep.write(&dir.join("report.html"))?;
+
+    let summary = serde_json::json!({
+        "shaft": super::monitor::json(mon),
+        "fault": d.fault,
+        "friction_rank": {
+            "parameters": d.friction.parameters,
+            "tests": d.friction.tests.iter().map(|x| serde_json::json!({
+                "n_rpm": x.op.n_rpm, "p_int_kpa": x.op.p_int_kpa, "t_oil_c": x.op.t_oil_c,
+                "ranking": x.order.iter().map(|&j| &d.friction.parameters[j]).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+        },
+        "torque_identifiability": d.torque.iter().map(|t| serde_json::json!({
+            "scenario": t.scenario,
+            "estimable": t.analysis.ranking.steps[..t.estimable].iter().map(|s| &t.analysis.names[s.param]).collect::<Vec<_>>(),
+            "unidentifiable": t.analysis.ranking.steps[t.estimable..].iter().map(|s| &t.analysis.names[s.param]).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
+        "seconds": t0.elapsed().as_secs_f64(),
+    });
+    std::fs::write(
+        dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary).into_diagnostic()?,
+    )
+    .into_diagnostic()?;
+
+    outln!(
+        "physid demo — the virtual test cell, {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
+    outln!(
+        "  shaft (T01, fault {}): K = {:.1} N·m/rad, B = {:.3} N·m·s/rad at the end",
+        d.fault,
+        mon.final_estimate[0],
+        mon.final_estimate[1]
+    );
+    for a in &mon.alarms {
+        outln!(
+            "    ALARM {} from t = {:.2} s ({:+.1} %)",
+            a.param,
+            a.t_start_s,
+            100.0 * a.relative_error
+        );
+    }
+    let first = &d.friction.tests[0];
+    outln!(
+        "  friction ranking at 1000 rpm, 10 kPa, 20 °C: {}",
+        first
+            .order
+            .iter()
+            .map(|&j| d.friction.parameters[j].as_str())
+            .collect::<Vec<_>>()
+            .join(" > ")
+    );
+    for t in &d.torque {
+        outln!(
+            "  cyclic torque on {}: {} of 15 parameters estimable",
+            t.scenario,
+            t.estimable
+        );
+    }
+    outln!("report: {}", dir.join("report.html").display());
+    Ok(())
+}

@@ -1,0 +1,307 @@
+//! `physid monitor shaft`: coupling-shaft health monitoring (thesis ch. 6).
+
+use super::InputArgs;
+use crate::out::outln;
+use crate::plot::{self, Panel, Series, PALETTE};
+use crate::report::Report;
+use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `physid monitor`.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(clap::Subcommand)]
+enum What {
+    /// Track the coupling shaft's stiffness K and damping B and raise alarms when they move.
+    ///
+    /// Example: physid monitor shaft --data t01.parquet --healthy K=1250,B=0.95 --out report
+    Shaft(ShaftArgs),
+}
+
+#[derive(clap::Args)]
+struct ShaftArgs {
+    /// Recording with theta_dy, theta_en, omega_dy, omega_en, torque_shaft on a uniform time
+    /// basis (CSV, Parquet or MDF4).
+    #[arg(long)]
+    data: PathBuf,
+    #[command(flatten)]
+    input: InputArgs,
+    /// Estimator: rls, rlsvf or dsfc.
+    #[arg(long, default_value = "rls")]
+    method: String,
+    /// Forgetting factor.
+    #[arg(long, default_value_t = 0.98)]
+    lambda: f64,
+    /// Healthy values K=…,B=… (the alarms' reference) [default: Table 6.1, 1250 and 0.95].
+    #[arg(long, value_delimiter = ',')]
+    healthy: Vec<String>,
+    /// Start the estimator at the healthy values instead of 0.
+    #[arg(long)]
+    start_healthy: bool,
+    /// Relative-error bound (Eq. 6.3).
+    #[arg(long, default_value_t = 0.1)]
+    bound: f64,
+    /// Estimator samples beyond the bound before an alarm.
+    #[arg(long, default_value_t = 200)]
+    dwell: u64,
+    /// Zero-phase low-pass cut-off before estimation [Hz].
+    #[arg(long, default_value_t = 500.0)]
+    cutoff: f64,
+    /// Estimator rate [Hz].
+    #[arg(long, default_value_t = 2000.0)]
+    rate: f64,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+    /// Directory for the report (report.html, shaft.svg, shaft.json).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Run `physid monitor`.
+pub fn run(args: &Args) -> Result<()> {
+    match &args.what {
+        What::Shaft(a) => shaft(a),
+    }
+}
+
+/// The monitor's configuration from the flags.
+fn config(a: &ShaftArgs) -> Result<MonitorConfig> {
+    let method = MonitorMethod::parse(&a.method)
+        .ok_or_else(|| miette!("--method '{}': expected rls, rlsvf or dsfc", a.method))?;
+    let mut cfg = MonitorConfig {
+        method,
+        lambda: a.lambda,
+        bound: a.bound,
+        dwell: a.dwell,
+        cutoff_hz: a.cutoff,
+        rate_hz: a.rate,
+        ..Default::default()
+    };
+    let (names, values) = super::named_values(&a.healthy, "--healthy")?;
+    for (n, v) in names.iter().zip(values) {
+        match n.as_str() {
+            "K" => cfg.healthy[0] = v,
+            "B" => cfg.healthy[1] = v,
+            other => return Err(miette!("--healthy {other}: the parameters are K and B")),
+        }
+    }
+    if a.start_healthy {
+        cfg.theta0 = [cfg.healthy[0], cfg.healthy[1], 0.0];
+    }
+    Ok(cfg)
+}
+
+/// The JSON of a monitor run.
+pub fn json(r: &ShaftMonitor) -> serde_json::Value {
+    serde_json::json!({
+        "method": r.method,
+        "final": {"K": r.final_estimate[0], "B": r.final_estimate[1], "tau0": r.final_estimate[2]},
+        "std_err": {"K": r.final_std_err[0], "B": r.final_std_err[1], "tau0": r.final_std_err[2]},
+        "alarms": r.alarms,
+        "nmse": r.nmse.map(|n| serde_json::json!({"K": n[0], "B": n[1]})),
+    })
+}
+
+/// Write the shaft section of a report (and its SVG into `dir`).
+pub fn report_section(
+    rep: &mut Report,
+    r: &ShaftMonitor,
+    cfg: &MonitorConfig,
+    dir: &Path,
+) -> Result<()> {
+    rep.section("Coupling-shaft health (thesis ch. 6)");
+    rep.para(
+        &format!(
+            "τ_sh = K·Δθ + B·Δω + τ0 (Eq. 6.1) tracked by {} (λ = {}); alarms when |ϑ_healthy − ϑ̂|/ϑ_healthy > {} for {} samples (Eq. 6.3), healthy K = {}, B = {}.",
+            r.method, cfg.lambda, cfg.bound, cfg.dwell, cfg.healthy[0], cfg.healthy[1]
+        ),
+        None,
+    );
+    rep.table(
+        &["parameter", "final estimate", "std error", "NMSE vs truth"],
+        &[
+            vec![
+                "K [N·m/rad]".into(),
+                format!("{:.2}", r.final_estimate[0]),
+                format!("{:.3e}", r.final_std_err[0]),
+                r.nmse.map_or("—".into(), |n| format!("{:.2e}", n[0])),
+            ],
+            vec![
+                "B [N·m·s/rad]".into(),
+                format!("{:.4}", r.final_estimate[1]),
+                format!("{:.3e}", r.final_std_err[1]),
+                r.nmse.map_or("—".into(), |n| format!("{:.2e}", n[1])),
+            ],
+            vec![
+                "τ0 [N·m]".into(),
+                format!("{:.4}", r.final_estimate[2]),
+                format!("{:.3e}", r.final_std_err[2]),
+                "—".into(),
+            ],
+        ],
+    );
+    if r.alarms.is_empty() {
+        rep.para("No alarm.", Some("ok"));
+    } else {
+        for a in &r.alarms {
+            rep.para(
+                &format!(
+                    "ALARM: {} moved — beyond the bound from t = {:.3} s (raised at {:.3} s), relative error {:+.1} %.",
+                    a.param,
+                    a.t_start_s,
+                    a.t_raised_s,
+                    100.0 * a.relative_error
+                ),
+                Some("alarm"),
+            );
+        }
+    }
+    let svg = dir.join("shaft.svg");
+    plot_tracks(r, &svg)?;
+    rep.svg(&svg)
+}
+
+fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
+    let band = |v: &[f64], k: usize, sign: f64| -> Vec<f64> {
+        v.iter()
+            .zip(&r.std_err)
+            .map(|(x, s)| x + sign * 3.0 * s[k])
+            .collect()
+    };
+    let (k_hi, k_lo, b_hi, b_lo) = (
+        band(&r.k, 0, 1.0),
+        band(&r.k, 0, -1.0),
+        band(&r.b, 1, 1.0),
+        band(&r.b, 1, -1.0),
+    );
+    let mut panels = Vec::new();
+    for (label, est, hi, lo, truth) in [
+        (
+            "K [N·m/rad]",
+            &r.k,
+            &k_hi,
+            &k_lo,
+            r.truth.as_ref().map(|t| &t.0),
+        ),
+        (
+            "B [N·m·s/rad]",
+            &r.b,
+            &b_hi,
+            &b_lo,
+            r.truth.as_ref().map(|t| &t.1),
+        ),
+    ] {
+        let mut series = vec![
+            Series {
+                name: "estimate".into(),
+                x: &r.t,
+                y: est,
+                color: PALETTE[0],
+                reference: false,
+            },
+            Series {
+                name: "+3σ".into(),
+                x: &r.t,
+                y: hi,
+                color: PALETTE[4],
+                reference: false,
+            },
+            Series {
+                name: "−3σ".into(),
+                x: &r.t,
+                y: lo,
+                color: PALETTE[4],
+                reference: false,
+            },
+        ];
+        if let Some(tv) = truth {
+            series.insert(
+                0,
+                Series {
+                    name: "truth".into(),
+                    x: &r.t,
+                    y: tv,
+                    color: PALETTE[1],
+                    reference: true,
+                },
+            );
+        }
+        panels.push(Panel {
+            ylabel: label.into(),
+            series,
+        });
+    }
+    plot::panels(
+        path,
+        "Shaft stiffness and damping, tracked",
+        "time [s]",
+        &panels,
+    )
+}
+
+fn shaft(a: &ShaftArgs) -> Result<()> {
+    let cfg = config(a)?;
+    let rec = a.input.read(&a.data, None)?;
+    let r = monitor_shaft(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
+    let j = json(&r);
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        let mut rep = Report::new("physid — shaft monitor", &format!("{}", a.data.display()));
+        report_section(&mut rep, &r, &cfg, dir)?;
+        rep.write(&dir.join("report.html"))?;
+        std::fs::write(
+            dir.join("shaft.json"),
+            serde_json::to_string_pretty(&j).into_diagnostic()?,
+        )
+        .into_diagnostic()?;
+    }
+    if a.json {
+        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        return Ok(());
+    }
+    outln!(
+        "{}: {} over {} samples",
+        a.data.display(),
+        r.method,
+        r.t.len()
+    );
+    outln!(
+        "  K = {:.2} ± {:.2e} N·m/rad, B = {:.4} ± {:.2e} N·m·s/rad, τ0 = {:.4} N·m",
+        r.final_estimate[0],
+        r.final_std_err[0],
+        r.final_estimate[1],
+        r.final_std_err[1],
+        r.final_estimate[2]
+    );
+    if let Some(n) = r.nmse {
+        outln!(
+            "  NMSE against the recording's truth: K {:.2e}, B {:.2e}",
+            n[0],
+            n[1]
+        );
+    }
+    if r.alarms.is_empty() {
+        outln!("  no alarm");
+    }
+    for al in &r.alarms {
+        outln!(
+            "  ALARM {}: from t = {:.3} s (raised {:.3} s), relative error {:+.1} %",
+            al.param,
+            al.t_start_s,
+            al.t_raised_s,
+            100.0 * al.relative_error
+        );
+    }
+    if let Some(dir) = &a.out {
+        outln!("wrote {}", dir.join("report.html").display());
+    }
+    Ok(())
+}

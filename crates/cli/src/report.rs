@@ -1,0 +1,86 @@
+//! Self-contained HTML reports: text, tables and the SVG plots inlined (no network, no files
+//! beside it needed to open it).
+
+use miette::{miette, Result};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// A report under construction.
+pub struct Report {
+    html: String,
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+impl Report {
+    /// A report with a title and a one-line subtitle.
+    pub fn new(title: &str, subtitle: &str) -> Self {
+        let mut html = String::new();
+        let _ = write!(
+            html,
+            "<!doctype html><html><head><meta charset=\"utf-8\"><title>{t}</title><style>\
+body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222;line-height:1.45}}\
+h1{{font-size:1.6em}}h2{{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}}\
+table{{border-collapse:collapse;margin:.6em 0}}td,th{{border:1px solid #ccc;padding:.25em .6em;text-align:right}}\
+th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.note{{color:#555;font-size:.92em}}\
+.ok{{color:#0a7a3a;font-weight:bold}}.alarm{{color:#b00020;font-weight:bold}}svg{{max-width:100%;height:auto}}\
+</style></head><body><h1>{t}</h1><p class=\"note\">{s}</p>",
+            t = esc(title),
+            s = esc(subtitle)
+        );
+        Self { html }
+    }
+
+    /// A section heading.
+    pub fn section(&mut self, title: &str) {
+        let _ = write!(self.html, "<h2>{}</h2>", esc(title));
+    }
+
+    /// A paragraph (plain text; `class` "ok", "alarm" or "note" to colour it).
+    pub fn para(&mut self, text: &str, class: Option<&str>) {
+        match class {
+            Some(c) => {
+                let _ = write!(self.html, "<p class=\"{c}\">{}</p>", esc(text));
+            }
+            None => {
+                let _ = write!(self.html, "<p>{}</p>", esc(text));
+            }
+        }
+    }
+
+    /// A table.
+    pub fn table(&mut self, header: &[&str], rows: &[Vec<String>]) {
+        self.html.push_str("<table><tr>");
+        for h in header {
+            let _ = write!(self.html, "<th>{}</th>", esc(h));
+        }
+        self.html.push_str("</tr>");
+        for r in rows {
+            self.html.push_str("<tr>");
+            for c in r {
+                let _ = write!(self.html, "<td>{}</td>", esc(c));
+            }
+            self.html.push_str("</tr>");
+        }
+        self.html.push_str("</table>");
+    }
+
+    /// Inline an SVG file written by the plot module.
+    pub fn svg(&mut self, path: &Path) -> Result<()> {
+        let svg = std::fs::read_to_string(path)
+            .map_err(|e| miette!("reading {}: {e}", path.display()))?;
+        let start = svg.find("<svg").unwrap_or(0);
+        self.html.push_str(&svg[start..]);
+        Ok(())
+    }
+
+    /// Write `report.html` to `path`.
+    pub fn write(mut self, path: &Path) -> Result<()> {
+        self.html.push_str("</body></html>\n");
+        std::fs::write(path, self.html).map_err(|e| miette!("writing {}: {e}", path.display()))
+    }
+}
