@@ -259,7 +259,8 @@ pub fn simulate(
         let w_meas = speed_sensor.measure(&ss, w_true, 0.0, &mut rng);
         let s = cell.step_with(&inputs, w_meas);
         check(&s, base.engine.active != 0.0)?;
-        if t_rel >= -1e-12 {
+        // From the step that spans t = 0 on, so that the output grid starts at 0.
+        if cell.time() - settle > 0.0 {
             let mut s = s;
             s.t = t_rel;
             let params = cell.params.clone();
@@ -329,8 +330,8 @@ fn acquire(
                     "output rate {rate} Hz: expected > 0"
                 )));
             }
-            // From the first recorded step (within one step of 0) on the rate's grid.
-            let k0 = (t_raw[0] * rate).ceil() as usize;
+            // On the rate's grid from 0 (the first recorded step starts at or before 0).
+            let k0 = (t_raw[0] * rate).ceil().max(0.0) as usize;
             let n = (duration * rate).floor() as usize + 1;
             let last = t_raw[t_raw.len() - 1];
             (
