@@ -9,7 +9,7 @@
 //!    three of those four are ever identifiable together — the analysis finds that.)
 
 use crate::friction_rank::{friction_rank, RankGrid, RankTable};
-use crate::shaft_monitor::{monitor_shaft, MonitorConfig, ShaftMonitor};
+use crate::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor};
 use physid_core::Recording;
 use physid_ident::{analyse, Analysis, Cutoff, Data, IdentConfig};
 use physid_models::cyclic_torque::CyclicTorque;
@@ -50,8 +50,10 @@ pub struct TorqueIdent {
 pub struct Demo {
     /// The shaft recording (simulated).
     pub shaft_recording: Recording,
-    /// The shaft monitor's configuration and result.
+    /// The shaft monitor's configuration and result (RLS).
     pub shaft: (MonitorConfig, ShaftMonitor),
+    /// The three estimators on the same recording (thesis Fig. 6.9's comparison).
+    pub shaft_methods: Vec<ShaftMonitor>,
     /// The injected fault.
     pub fault: String,
     /// The friction ranking.
@@ -114,6 +116,18 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
     .map_err(|e| err("shaft")(e.to_string()))?;
     let cfg = MonitorConfig::default();
     let mon = monitor_shaft(&rec, &cfg).map_err(|e| err("shaft")(e.to_string()))?;
+    let mut shaft_methods = Vec::new();
+    for method in [
+        MonitorMethod::Rls,
+        MonitorMethod::Rlsvf,
+        MonitorMethod::Dsfc,
+    ] {
+        let c = MonitorConfig {
+            method,
+            ..cfg.clone()
+        };
+        shaft_methods.push(monitor_shaft(&rec, &c).map_err(|e| err("shaft")(e.to_string()))?);
+    }
     progress("friction ranking", 0.45);
     // 2. Friction ranking.
     let (d, st) = thesis_preset();
@@ -156,6 +170,7 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
     Ok(Demo {
         shaft_recording: rec,
         shaft: (cfg, mon),
+        shaft_methods,
         fault,
         friction,
         torque,

@@ -168,6 +168,21 @@ pub fn report_section(
 }
 
 fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
+    // Leave out the estimator's first 0.1 s: from ϑ0 = 0 its start-up spans orders of
+    // magnitude and would flatten everything after it.
+    let start = r.t.iter().position(|&t| t - r.t[0] >= 0.1).unwrap_or(0);
+    let r = &ShaftMonitor {
+        t: r.t[start..].to_vec(),
+        k: r.k[start..].to_vec(),
+        b: r.b[start..].to_vec(),
+        tau0: r.tau0[start..].to_vec(),
+        std_err: r.std_err[start..].to_vec(),
+        truth: r
+            .truth
+            .as_ref()
+            .map(|(k, b)| (k[start..].to_vec(), b[start..].to_vec())),
+        ..r.clone()
+    };
     let band = |v: &[f64], k: usize, sign: f64| -> Vec<f64> {
         v.iter()
             .zip(&r.std_err)
