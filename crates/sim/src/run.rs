@@ -516,14 +516,7 @@ fn acquire(
         tdc[0] = 1.0;
     }
     push(&mut rec, "tdc", "-", tdc)?;
-    for (name, unit) in [
-        ("true_torque_indicated", "N*m"),
-        ("true_torque_reciprocating", "N*m"),
-        ("true_torque_friction", "N*m"),
-        ("true_T_cyl", "K"),
-        ("true_shaft_k", "N*m/rad"),
-        ("true_shaft_b", "N*m*s/rad"),
-    ] {
+    for (name, unit) in RAW.iter().filter(|c| c.0.starts_with("true_")) {
         push(&mut rec, name, unit, at(name))?;
     }
     rec.meta.insert("source".into(), "physid simulate".into());

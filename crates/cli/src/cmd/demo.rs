@@ -3,7 +3,6 @@
 //! data supports — into one report.
 
 use crate::out::outln;
-use crate::plot;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_apps::demo::run_demo;
@@ -83,30 +82,8 @@ pub fn run(args: &Args) -> Result<()> {
         "Rank of each design parameter by |normalised sensitivity| of the friction torque (1 = most sensitive) at the thesis's 27 operating points (docs/friction.md).",
         None,
     );
-    let rows: Vec<String> = d
-        .friction
-        .tests
-        .iter()
-        .enumerate()
-        .map(|(i, x)| {
-            format!(
-                "{:>2}: {} rpm, {} kPa, {} °C",
-                i + 1,
-                x.op.n_rpm,
-                x.op.p_int_kpa,
-                x.op.t_oil_c
-            )
-        })
-        .collect();
-    let ranks: Vec<Vec<usize>> = d.friction.tests.iter().map(|x| x.rank.clone()).collect();
     let svg = dir.join("friction-rank.svg");
-    plot::rank_heatmap(
-        &svg,
-        "Friction design-parameter ranks (thesis preset)",
-        &rows,
-        &d.friction.parameters,
-        &ranks,
-    )?;
+    super::friction::heatmap(&d.friction, "thesis", &svg)?;
     rep.svg(&svg)?;
     // 3. Cyclic torque identifiability.
     rep.section(

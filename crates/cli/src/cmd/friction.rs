@@ -243,7 +243,8 @@ fn rank(a: &RankArgs) -> Result<()> {
     Ok(())
 }
 
-fn heatmap(t: &RankTable, preset: &str, path: &std::path::Path) -> Result<()> {
+/// The heat map of a ranking table (thesis Fig. 7.1) as SVG.
+pub fn heatmap(t: &RankTable, preset: &str, path: &std::path::Path) -> Result<()> {
     let rows: Vec<String> = t
         .tests
         .iter()
