@@ -12,6 +12,8 @@
 //!   forgetting tracking a step in one parameter of `z = A(t)·sin(x) + B·y²`.
 //! * [`excitation`] — on-line identifiability freezing the parameters an estimator's recent
 //!   data no longer supports (no wind-up), and the lost-excitation demonstration.
+//! * [`friction_fit`] — Application 2: adaptive characterisation of engine friction from
+//!   motored cycles (thesis §7.3, Tables 7.3–7.4).
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
@@ -21,5 +23,6 @@ pub mod demo;
 pub mod example_5_1;
 pub mod example_5_2;
 pub mod excitation;
+pub mod friction_fit;
 pub mod friction_rank;
 pub mod shaft_monitor;

@@ -25,7 +25,7 @@ pub struct Series<'a> {
     pub y: &'a [f64],
     /// Colour.
     pub color: RGBColor,
-    /// Drawn dashed-looking (thicker, lighter) for reference curves such as the truth.
+    /// Drawn thicker and lighter, for reference curves such as the truth.
     pub reference: bool,
 }
 
@@ -121,21 +121,19 @@ pub fn panels(path: &Path, title: &str, xlabel: &str, panels: &[Panel]) -> Resul
             .map_err(|e| err(&e))?;
         for s in &panel.series {
             let style = if s.reference {
-                ShapeStyle::from(&BLACK.mix(0.55)).stroke_width(3)
+                ShapeStyle::from(&s.color.mix(0.55)).stroke_width(3)
             } else {
                 ShapeStyle::from(&s.color).stroke_width(1)
             };
-            let color = s.color;
-            chart
+            let drawn = chart
                 .draw_series(LineSeries::new(decimate(s.x, s.y, 1500), style))
-                .map_err(|e| err(&e))?
-                .label(s.name.as_str())
-                .legend(move |(x, y)| {
-                    PathElement::new(
-                        vec![(x, y), (x + 20, y)],
-                        ShapeStyle::from(&color).stroke_width(2),
-                    )
-                });
+                .map_err(|e| err(&e))?;
+            // A series without a name (the second line of a band) stays out of the legend.
+            if !s.name.is_empty() {
+                drawn
+                    .label(s.name.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+            }
         }
         chart
             .configure_series_labels()

@@ -1089,3 +1089,77 @@ fn monitor_shaft_json_and_errors() {
     ]);
     assert!(stderr(&o).contains("the parameters are K and B"));
 }
+
+#[test]
+fn friction_fit_json_report_and_errors() {
+    let d = dir("friction-fit");
+    let f = d.join("sweep.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "friction-sweep",
+        "--duration",
+        "20",
+        "--basis",
+        "crank",
+        "--out",
+        f.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = d.join("report");
+    let o = physid(&[
+        "friction",
+        "fit",
+        "--data",
+        f.to_str().unwrap(),
+        "--preset",
+        "cell",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let estimable = names_of(&j, "estimable");
+    assert!(estimable.contains(&"c1".to_string()), "{estimable:?}");
+    for c in &estimable {
+        assert!(
+            j["params"][c].is_number() && j["std_err"][c].is_number(),
+            "{c}"
+        );
+    }
+    assert_eq!(j["params"].as_object().unwrap().len(), 20);
+    let pe = &j["prediction_error_pct"];
+    assert!(pe["final"].as_f64().unwrap().abs() < 5.0, "{pe}");
+    assert!(pe["max_after_transient"].as_f64().unwrap() < 5.0, "{pe}");
+    assert!(out.join("report.html").exists() && out.join("friction_fit.json").exists());
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("Engine friction characterisation"));
+    // Errors name the problem.
+    let o = physid(&[
+        "friction",
+        "fit",
+        "--data",
+        f.to_str().unwrap(),
+        "--source",
+        "dyno",
+    ]);
+    assert!(
+        stderr(&o).contains("expected engine or shaft"),
+        "{}",
+        stderr(&o)
+    );
+    let o = physid(&[
+        "friction",
+        "fit",
+        "--data",
+        f.to_str().unwrap(),
+        "--cutoff",
+        "most",
+    ]);
+    assert!(stderr(&o).contains("expected repeat, wu"), "{}", stderr(&o));
+    let csv = regression_csv(&d, None);
+    let o = physid(&["friction", "fit", "--data", csv.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no engine angle"), "{}", stderr(&o));
+}

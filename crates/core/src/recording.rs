@@ -106,7 +106,35 @@ pub enum RecordingError {
     /// Two channels with one name.
     #[error("channel '{0}' appears twice")]
     DuplicateChannel(String),
+    /// A channel in a unit that cannot be converted to the one asked for.
+    #[error("channel '{name}' is in '{unit}', which physid cannot convert to '{wanted}' (known: {known})")]
+    Unit {
+        /// Channel name.
+        name: String,
+        /// Its unit.
+        unit: String,
+        /// The unit asked for.
+        wanted: String,
+        /// The units that convert to it.
+        known: String,
+    },
 }
+
+/// Unit conversions `(from, to, scale, offset)`: `to = from·scale + offset`.
+const CONVERSIONS: [(&str, &str, f64, f64); 12] = [
+    ("kPa", "Pa", 1e3, 0.0),
+    ("bar", "Pa", 1e5, 0.0),
+    ("mbar", "Pa", 100.0, 0.0),
+    ("MPa", "Pa", 1e6, 0.0),
+    ("degC", "K", 1.0, 273.15),
+    ("°C", "K", 1.0, 273.15),
+    ("C", "K", 1.0, 273.15),
+    ("rpm", "rad/s", std::f64::consts::PI / 30.0, 0.0),
+    ("deg", "rad", std::f64::consts::PI / 180.0, 0.0),
+    ("kN*m", "N*m", 1e3, 0.0),
+    ("Nm", "N*m", 1.0, 0.0),
+    ("N.m", "N*m", 1.0, 0.0),
+];
 
 /// Named channels of equal length on one basis, with free-form metadata.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -182,6 +210,34 @@ impl Recording {
         self.channel(name).map(|c| c.values.as_slice())
     }
 
+    /// The samples of a channel in `unit`, converted from the channel's own unit when it is a
+    /// known alternative (kPa/bar/mbar/MPa → Pa, degC/°C → K, rpm → rad/s, deg → rad,
+    /// kN·m/Nm → N·m). A channel without a unit is taken to be in `unit` already; any other
+    /// unit is an error naming the channel.
+    pub fn values_in(&self, name: &str, unit: &str) -> Result<Vec<f64>, RecordingError> {
+        let ch = self.channel(name)?;
+        if ch.unit.is_empty() || ch.unit == unit {
+            return Ok(ch.values.clone());
+        }
+        match CONVERSIONS.iter().find(|c| c.0 == ch.unit && c.1 == unit) {
+            Some(&(_, _, scale, offset)) => {
+                Ok(ch.values.iter().map(|v| v * scale + offset).collect())
+            }
+            None => Err(RecordingError::Unit {
+                name: name.into(),
+                unit: ch.unit.clone(),
+                wanted: unit.into(),
+                known: CONVERSIONS
+                    .iter()
+                    .filter(|c| c.1 == unit)
+                    .map(|c| c.0)
+                    .chain([unit])
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            }),
+        }
+    }
+
     /// Replace a channel's samples (same length).
     pub fn replace_values(&mut self, name: &str, values: Vec<f64>) -> Result<(), RecordingError> {
         let expected = self.len();
@@ -216,6 +272,35 @@ mod tests {
             unit: "rad".into(),
             values: v,
         }
+    }
+
+    #[test]
+    fn values_in_converts_known_units_and_names_the_rest() {
+        let mut r = Recording::new(Basis::Time);
+        for (name, unit, v) in [
+            ("p_int", "kPa", 70.0),
+            ("T_oil", "degC", 90.0),
+            ("omega_en", "rpm", 1000.0),
+            ("p_exh", "", 1.5e5),
+            ("torque_shaft", "lbf*ft", 1.0),
+        ] {
+            r.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: vec![v],
+            })
+            .unwrap();
+        }
+        assert_eq!(r.values_in("p_int", "Pa").unwrap(), vec![70e3]);
+        assert_eq!(r.values_in("T_oil", "K").unwrap(), vec![363.15]);
+        // 1000 rpm = 104.719755… rad/s (1000·2π/60).
+        assert!((r.values_in("omega_en", "rad/s").unwrap()[0] - 104.71975511965977).abs() < 1e-12);
+        assert_eq!(r.values_in("p_exh", "Pa").unwrap(), vec![1.5e5]);
+        let e = r.values_in("torque_shaft", "N*m").unwrap_err().to_string();
+        assert!(
+            e.contains("'torque_shaft' is in 'lbf*ft'") && e.contains("kN*m"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -382,3 +382,68 @@ pub fn wu_along_ranking<M: ParamModel>(
     let wu = wu_criterion(&j, n).ok_or_else(|| IdentError::Invalid("no parameters".into()))?;
     Ok((wu, j))
 }
+
+/// The Wu criterion's details when it decided the count: the criterion and `J_K` per K.
+pub type WuDecision = (WuCriterion, Vec<f64>);
+
+/// How many of the ranked parameters to estimate: a cut-off on the ranking's residuals, or
+/// the Wu et al. (2011) criterion (which fits the top-ranked subsets, so it needs the measured
+/// output).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Selection {
+    /// A residual cut-off (repeat, absolute, relative).
+    Rule(Cutoff),
+    /// Wu et al.: `argmin r_CC,K`, with the noise variance if known.
+    Wu {
+        /// Noise variance σ² (`None`: from the full fit).
+        sigma2: Option<f64>,
+    },
+}
+
+impl Selection {
+    /// Parse `repeat`, `wu`, `rel:F` (relative cut-off) or a number (absolute cut-off); the
+    /// error says what was expected.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let bad = || {
+            format!("cut-off '{s}': expected repeat, wu, rel:FRACTION or an absolute residual ≥ 0")
+        };
+        let number = |v: &str| {
+            v.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .ok_or_else(bad)
+        };
+        match s.trim() {
+            "repeat" => Ok(Self::Rule(Cutoff::Repeat)),
+            "wu" => Ok(Self::Wu { sigma2: None }),
+            t => match t.strip_prefix("rel:") {
+                Some(r) => Ok(Self::Rule(Cutoff::Relative(number(r)?))),
+                None => Ok(Self::Rule(Cutoff::Absolute(number(t)?))),
+            },
+        }
+    }
+
+    /// The number of top-ranked parameters to estimate, with the Wu criterion's details when
+    /// it decided.
+    pub fn resolve<M: ParamModel>(
+        &self,
+        model: &M,
+        data: &Data,
+        analysis: &Analysis,
+    ) -> Result<(usize, Option<WuDecision>), IdentError> {
+        match *self {
+            Self::Rule(c) => Ok((analysis.estimable(c), None)),
+            Self::Wu { sigma2 } => {
+                if data.y.is_none() {
+                    return Err(IdentError::Invalid(
+                        "the Wu criterion fits the top-ranked parameters: it needs the measured output"
+                            .into(),
+                    ));
+                }
+                let (wu, j) = wu_along_ranking(model, data, analysis, sigma2, 30)?;
+                Ok((wu.k_star, Some((wu, j))))
+            }
+        }
+    }
+}

@@ -507,6 +507,76 @@ impl ParamModel for FrictionTorque {
     }
 }
 
+/// Names of the regression coefficients c1 … c20, in order.
+pub const REGRESSION_PARAMS: [&str; 20] = [
+    "c1", "c2", "c3", "c4", "c5", "c6", "c7", "c8", "c9", "c10", "c11", "c12", "c13", "c14", "c15",
+    "c16", "c17", "c18", "c19", "c20",
+];
+
+/// The friction torque as the regression form, a model *linear* in c1 … c20 (thesis Eq. 7.4–7.9,
+/// §7.3): `τ_fri = Σ c_i·ψ_i` [N·m] with `ψ_i = tau_nm(φ_i)` — the regressors of
+/// [`regressors`] turned into torque with the design's bore and crank radius (Eq. 3.44). The
+/// design and the discrete settings are fixed; pumping (c17 … c20) is included, as the thesis's
+/// characterisation has it. Inputs as [`FrictionTorque`]: `n_rpm`, `p_int_kpa`, `p_atm_kpa`,
+/// `t_oil_c`.
+#[derive(Debug, Clone)]
+pub struct FrictionRegression {
+    design: Design<f64>,
+    settings: Settings,
+    params: Vec<String>,
+    inputs: Vec<String>,
+}
+
+impl FrictionRegression {
+    /// The regression form of an engine with this design and these settings.
+    pub fn new(design: Design<f64>, settings: Settings) -> Self {
+        Self {
+            design,
+            settings,
+            params: REGRESSION_PARAMS.iter().map(|s| s.to_string()).collect(),
+            inputs: FrictionTorque::INPUTS
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+        }
+    }
+
+    /// The nominal coefficients of this engine's settings ([`nominal_coefficients`]).
+    pub fn nominal(&self) -> [f64; 20] {
+        nominal_coefficients(&self.settings)
+    }
+
+    /// The regressor `ψ` [N·m per unit coefficient] at an operating point.
+    pub fn regressor(&self, op: &OperatingPoint) -> [f64; 20] {
+        let phi = regressors(&self.design, &self.settings, op);
+        let k = tau_nm(1.0, &self.design);
+        phi.map(|v| v * k)
+    }
+}
+
+impl ParamModel for FrictionRegression {
+    fn param_names(&self) -> &[String] {
+        &self.params
+    }
+
+    fn input_names(&self) -> &[String] {
+        &self.inputs
+    }
+
+    fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
+        let op = OperatingPoint {
+            n_rpm: u[0],
+            p_int_kpa: u[1],
+            p_atm_kpa: u[2],
+            t_oil_c: u[3],
+        };
+        self.regressor(&op)
+            .iter()
+            .zip(p)
+            .fold(T::from(0.0), |acc, (&psi, &c)| acc + c * psi)
+    }
+}
+
 /// Names accepted by [`set_by_name`] besides [`DESIGN_PARAMS`].
 pub const SETTING_NAMES: [&str; 7] = ["oil", "valvetrain", "ft_fto", "cr", "nc", "nv", "nb"];
 

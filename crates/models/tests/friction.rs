@@ -210,3 +210,32 @@ fn set_by_name_changes_one_thing_and_explains_mistakes() {
     let e = set_by_name(&mut d, &mut st, "stroke", "3").unwrap_err();
     assert!(e.contains("'stroke'") && e.contains("kappa"), "{e}");
 }
+
+#[test]
+fn regression_model_is_the_torque_of_the_physical_form() {
+    use physid_core::{GradientEngine, ParamModel};
+    use physid_models::friction::{FrictionRegression, FrictionTorque};
+    for name in PRESETS {
+        let (d, st) = preset(name).unwrap();
+        let reg = FrictionRegression::new(d, st);
+        let phys = FrictionTorque::new(st);
+        let c0 = reg.nominal();
+        let mut grad = vec![0.0; 20];
+        let mut engine = GradientEngine::new(20);
+        for op in grid() {
+            let u = FrictionTorque::inputs(&op);
+            let a = reg.eval::<f64>(&u, &c0);
+            let b = phys.eval::<f64>(&u, &d.to_array());
+            assert!(
+                (a - b).abs() <= 1e-12 * b.abs(),
+                "{name} {op:?}: {a} vs {b}"
+            );
+            // Linear in the coefficients: the exact gradient is the regressor.
+            engine.value_and_gradient(&reg, &u, &c0, &(0..20).collect::<Vec<_>>(), &mut grad);
+            let psi = reg.regressor(&op);
+            for j in 0..20 {
+                assert!((grad[j] - psi[j]).abs() <= 1e-15 * psi[j].abs().max(1e-300));
+            }
+        }
+    }
+}

@@ -236,6 +236,12 @@ impl Engine {
         }
     }
 
+    /// The mean-value friction model of this engine (SPEC §2.5): its geometry in mm with the
+    /// thesis preset's oil, valvetrain and counts.
+    pub fn friction_model(&self) -> (Design<f64>, Settings) {
+        (self.design, self.settings)
+    }
+
     /// The slider-crank.
     pub fn crank(&self) -> &Crank<f64> {
         &self.crank

@@ -1,14 +1,18 @@
 //! `physid friction`: the mean-value friction model (SPEC §2.5) — `eval` at an operating point,
-//! `rank` of its design parameters over an operating grid (thesis §7.2, Table 7.1, Fig. 7.1).
+//! `rank` of its design parameters over an operating grid (thesis §7.2, Table 7.1, Fig. 7.1),
+//! `fit` of its regression coefficients to a motored recording (thesis §7.3, Application 2).
 
 use crate::out::outln;
-use crate::plot;
+use crate::plot::{self, Panel, Series, PALETTE};
+use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_apps::friction_fit::{friction_fit, FrictionFit, FrictionFitConfig, TorqueSource};
 use physid_apps::friction_rank::{friction_rank, RankGrid, RankTable};
+use physid_ident::Selection;
 use physid_models::friction::{
-    fmep, preset, set_by_name, tau_nm, Design, OperatingPoint, Settings, PRESETS,
+    fmep, preset, set_by_name, tau_nm, Design, OperatingPoint, Settings, PRESETS, REGRESSION_PARAMS,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `physid friction`.
 #[derive(clap::Args)]
@@ -28,12 +32,19 @@ enum Command {
     ///
     /// Example: physid friction rank --out rank   (table, rank.svg heat map)
     Rank(RankArgs),
+    /// Characterise the engine's friction from a motored recording (thesis §7.3): cycle-mean
+    /// motoring torque, identifiability of the regression coefficients c1 … c20, DSFC on the
+    /// estimable ones, prediction error over time.
+    ///
+    /// Example: physid friction fit --data sweep.parquet --preset cell --out fit
+    Fit(FitArgs),
 }
 
 /// The model: preset and overrides.
 #[derive(clap::Args)]
 struct ModelArgs {
-    /// Model preset: thesis (the thesis's code) or sandoval2002 (the original model).
+    /// Model preset: thesis (the thesis's code), sandoval2002 (the original model) or cell (the
+    /// built-in virtual test cell's engine: its geometry with the thesis's oil and valvetrain).
     #[arg(long, default_value = "thesis")]
     preset: String,
     /// Override a design parameter (B, S, kappa, Di, De, Lv, Db, Lb, r — mm) or a setting
@@ -44,13 +55,18 @@ struct ModelArgs {
 
 impl ModelArgs {
     fn build(&self) -> Result<(Design<f64>, Settings)> {
-        let (mut d, mut st) = preset(&self.preset).ok_or_else(|| {
-            miette!(
-                "no friction preset '{}'; the presets are {}",
-                self.preset,
-                PRESETS.join(", ")
-            )
-        })?;
+        let (mut d, mut st) = if self.preset == "cell" {
+            let p = physid_sim::params::CellParams::default();
+            physid_sim::engine::Engine::new(&p.engine, &p.ambient).friction_model()
+        } else {
+            preset(&self.preset).ok_or_else(|| {
+                miette!(
+                    "no friction preset '{}'; the presets are {}, cell",
+                    self.preset,
+                    PRESETS.join(", ")
+                )
+            })?
+        };
         for s in &self.set {
             let (name, value) = s
                 .split_once('=')
@@ -109,12 +125,324 @@ struct RankArgs {
     out: Option<PathBuf>,
 }
 
+#[derive(clap::Args)]
+struct FitArgs {
+    /// Motored recording: crank-angle basis with `cycle` (or a time basis with the engine
+    /// encoder `count_en` and the TDC marker `tdc`), `omega_en`, `p_int`, `T_oil`, `p_atm` and
+    /// the torque channel.
+    #[arg(long)]
+    data: PathBuf,
+    #[command(flatten)]
+    input: super::InputArgs,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Motoring torque from the engine load cell (−torque_engine) or the shaft transducer
+    /// (+torque_shaft).
+    #[arg(long, default_value = "engine")]
+    source: String,
+    /// How many ranked coefficients to estimate: repeat (the thesis's), wu, rel:FRACTION or an
+    /// absolute residual.
+    #[arg(long, default_value = "repeat")]
+    cutoff: String,
+    /// DSFC initial square-root covariance S0 = s0·I, in relative coordinates c = c0·(1 + x).
+    #[arg(long, default_value_t = 10.0)]
+    s0: f64,
+    /// DSFC forgetting factor λ ∈ (0, 1].
+    #[arg(long, default_value_t = 1.0)]
+    lambda: f64,
+    /// Start-up transient excluded from the maximum error [s].
+    #[arg(long, default_value_t = 5.0)]
+    transient: f64,
+    /// Ambient pressure [kPa] if the recording has no p_atm channel.
+    #[arg(long)]
+    p_atm: Option<f64>,
+    /// Print JSON: {"estimable", "params", "std_err", "prediction_error_pct": {"final",
+    /// "max_after_transient"}, …}.
+    #[arg(long)]
+    json: bool,
+    /// Directory for the report (report.html, friction_fit.svg, friction_fit.json).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
 /// Run `physid friction`.
 pub fn run(args: &Args) -> Result<()> {
     match &args.command {
         Command::Eval(a) => eval(a),
         Command::Rank(a) => rank(a),
+        Command::Fit(a) => fit(a),
     }
+}
+
+fn fit(a: &FitArgs) -> Result<()> {
+    let (d, st) = a.model.build()?;
+    let mut cfg = FrictionFitConfig::new(d, st);
+    cfg.source = TorqueSource::parse(&a.source)
+        .ok_or_else(|| miette!("--source '{}': expected engine or shaft", a.source))?;
+    cfg.selection = Selection::parse(&a.cutoff).map_err(|e| miette!("--cutoff: {e}"))?;
+    cfg.s0 = a.s0;
+    cfg.lambda = a.lambda;
+    cfg.transient_s = a.transient;
+    cfg.p_atm_kpa = a.p_atm;
+    let rec = a.input.read(&a.data, None)?;
+    let r = friction_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
+    let j = fit_json(&r);
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        let mut rep = Report::new("physid — friction fit", &format!("{}", a.data.display()));
+        fit_report_section(&mut rep, &r, &cfg, dir)?;
+        rep.write(&dir.join("report.html"))?;
+        std::fs::write(
+            dir.join("friction_fit.json"),
+            serde_json::to_string_pretty(&j).into_diagnostic()?,
+        )
+        .into_diagnostic()?;
+    }
+    if a.json {
+        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        return Ok(());
+    }
+    outln!(
+        "{}: {} steady cycles ({} skipped as not steady)",
+        a.data.display(),
+        r.data.len(),
+        r.data.skipped_unsteady
+    );
+    outln!("  estimable: {}", r.estimable.join(", "));
+    outln!("  coefficient      nominal        final    change   std error");
+    for name in &r.estimable {
+        let j = coefficient_index(name);
+        outln!(
+            "  {:<8} {:>12.4e} {:>12.4e} {:>8.1} % {:>11.3e}",
+            name,
+            r.nominal[j],
+            r.params[j],
+            100.0 * (r.params[j] - r.nominal[j]) / r.nominal[j],
+            r.std_err[j].unwrap_or(f64::NAN)
+        );
+    }
+    outln!(
+        "  prediction error: final {:+.2} %, max after the {} s transient {:.2} %{}",
+        r.final_error_pct,
+        a.transient,
+        r.max_error_after_transient_pct,
+        r.max_truth_error_after_transient_pct
+            .map_or(String::new(), |t| format!(
+                " (against the simulated truth {t:.2} %)"
+            ))
+    );
+    outln!(
+        "  NMSE (Eq. 6.4): nominal model {:.3e}, fitted {:.3e}",
+        r.nmse_nominal,
+        r.nmse_final
+    );
+    if let Some(dir) = &a.out {
+        outln!("wrote {}", dir.join("report.html").display());
+    }
+    Ok(())
+}
+
+fn coefficient_index(name: &str) -> usize {
+    REGRESSION_PARAMS
+        .iter()
+        .position(|p| *p == name)
+        .unwrap_or(0)
+}
+
+/// The JSON of a friction fit.
+pub fn fit_json(r: &FrictionFit) -> serde_json::Value {
+    let by_name = |v: &dyn Fn(usize) -> serde_json::Value| {
+        REGRESSION_PARAMS
+            .iter()
+            .enumerate()
+            .map(|(j, n)| (n.to_string(), v(j)))
+            .collect::<serde_json::Map<_, _>>()
+    };
+    serde_json::json!({
+        "estimable": r.estimable,
+        "ranking": r.ranking,
+        "params": by_name(&|j| serde_json::json!(r.params[j])),
+        "nominal": by_name(&|j| serde_json::json!(r.nominal[j])),
+        "std_err": r.estimable.iter().map(|n| {
+            let j = coefficient_index(n);
+            (n.clone(), serde_json::json!(r.std_err[j]))
+        }).collect::<serde_json::Map<_, _>>(),
+        "prediction_error_pct": {
+            "final": r.final_error_pct,
+            "max_after_transient": r.max_error_after_transient_pct,
+            "max_after_transient_vs_truth": r.max_truth_error_after_transient_pct,
+        },
+        "nmse": {"nominal": r.nmse_nominal, "fitted": r.nmse_final},
+        "cycles": {"used": r.data.len(), "skipped_unsteady": r.data.skipped_unsteady},
+    })
+}
+
+/// Write the friction-fit section of a report (and its SVG into `dir`).
+pub fn fit_report_section(
+    rep: &mut Report,
+    r: &FrictionFit,
+    cfg: &FrictionFitConfig,
+    dir: &Path,
+) -> Result<()> {
+    rep.section("Engine friction characterisation (thesis §7.3)");
+    rep.para(
+        &format!(
+            "{} steady motored cycles ({} skipped at speed or throttle steps); motoring torque from {}. \
+             Identifiability of the regression coefficients c1 … c20 (Alg. 5.1, thesis scaling), then \
+             DSFC (λ = {}, S0 = {}·I in relative coordinates) on the estimable ones, the rest fixed at \
+             their nominal values.",
+            r.data.len(),
+            r.data.skipped_unsteady,
+            match cfg.source {
+                TorqueSource::Engine => "the engine load cell (−torque_engine)",
+                TorqueSource::Shaft => "the shaft transducer",
+            },
+            cfg.lambda,
+            cfg.s0
+        ),
+        None,
+    );
+    rep.table(
+        &["coefficient", "rank", "relative residual", "estimable"],
+        &r.ranking
+            .iter()
+            .map(|row| {
+                vec![
+                    row.param.clone(),
+                    row.rank.to_string(),
+                    format!("{:.2e}", row.relative_residual),
+                    if row.estimable { "yes" } else { "—" }.into(),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    );
+    rep.table(
+        &["coefficient", "nominal", "final", "change", "std error"],
+        &r.estimable
+            .iter()
+            .map(|n| {
+                let j = coefficient_index(n);
+                vec![
+                    n.clone(),
+                    format!("{:.4e}", r.nominal[j]),
+                    format!("{:.4e}", r.params[j]),
+                    format!(
+                        "{:+.1} %",
+                        100.0 * (r.params[j] - r.nominal[j]) / r.nominal[j]
+                    ),
+                    r.std_err[j].map_or("—".into(), |s| format!("{s:.3e}")),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    );
+    let verdict = r
+        .max_truth_error_after_transient_pct
+        .unwrap_or(r.max_error_after_transient_pct);
+    rep.para(
+        &format!(
+            "Prediction error after the {} s start-up transient: at most {:.2} % (final {:+.2} %); NMSE {:.3e} (nominal) → {:.3e} (fitted).",
+            cfg.transient_s, verdict, r.final_error_pct, r.nmse_nominal, r.nmse_final
+        ),
+        Some(if verdict <= 5.0 { "ok" } else { "alarm" }),
+    );
+    let svg = dir.join("friction_fit.svg");
+    let band_hi = vec![5.0; r.data.len()];
+    let band_lo = vec![-5.0; r.data.len()];
+    let mut torque = vec![
+        Series {
+            name: "measured".into(),
+            x: &r.data.t_s,
+            y: &r.data.tau_nm,
+            color: PALETTE[1],
+            reference: true,
+        },
+        Series {
+            name: "nominal model".into(),
+            x: &r.data.t_s,
+            y: &r.predicted_nominal,
+            color: PALETTE[4],
+            reference: false,
+        },
+        Series {
+            name: "predicted (DSFC)".into(),
+            x: &r.data.t_s,
+            y: &r.predicted,
+            color: PALETTE[0],
+            reference: false,
+        },
+    ];
+    if let Some(tr) = &r.data.truth_nm {
+        torque.push(Series {
+            name: "simulated truth".into(),
+            x: &r.data.t_s,
+            y: tr,
+            color: PALETTE[2],
+            reference: true,
+        });
+    }
+    let errors = vec![
+        Series {
+            name: "prediction error".into(),
+            x: &r.data.t_s,
+            y: &r.error_pct,
+            color: PALETTE[0],
+            reference: false,
+        },
+        Series {
+            name: "±5 %".into(),
+            x: &r.data.t_s,
+            y: &band_hi,
+            color: PALETTE[3],
+            reference: true,
+        },
+        Series {
+            name: "".into(),
+            x: &r.data.t_s,
+            y: &band_lo,
+            color: PALETTE[3],
+            reference: true,
+        },
+    ];
+    let inputs = vec![Series {
+        name: "speed [rpm]".into(),
+        x: &r.data.t_s,
+        y: &r.data.n_rpm,
+        color: PALETTE[2],
+        reference: false,
+    }];
+    let p_int = vec![Series {
+        name: "manifold pressure [kPa]".into(),
+        x: &r.data.t_s,
+        y: &r.data.p_int_kpa,
+        color: PALETTE[4],
+        reference: false,
+    }];
+    plot::panels(
+        &svg,
+        "Cycle-mean friction torque: measured and predicted",
+        "time [s]",
+        &[
+            Panel {
+                ylabel: "friction torque [N·m]".into(),
+                series: torque,
+            },
+            Panel {
+                ylabel: "error [%]".into(),
+                series: errors,
+            },
+            Panel {
+                ylabel: "N [rpm]".into(),
+                series: inputs,
+            },
+            Panel {
+                ylabel: "p_int [kPa]".into(),
+                series: p_int,
+            },
+        ],
+    )?;
+    rep.svg(&svg)
 }
 
 fn eval(a: &EvalArgs) -> Result<()> {

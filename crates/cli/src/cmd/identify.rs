@@ -8,7 +8,7 @@ use physid_apps::example_5_1::{Model51, NOMINAL as NOMINAL_51};
 use physid_core::{ParamModel, Recording};
 use physid_expr::ExprModel;
 use physid_ident::{
-    analyse, fit_subset, wu_along_ranking, Analysis, Cutoff, Data, IdentConfig, RankStep, Scaling,
+    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, RankStep, Scaling, Selection,
 };
 use physid_models::cyclic_torque::{CyclicTorque, ILLUSTRATIVE};
 use physid_models::shaft::{Shaft, NOMINAL as NOMINAL_SHAFT};
@@ -133,35 +133,21 @@ fn param_names_of<M: ParamModel>(m: &M) -> Vec<String> {
     m.param_names().to_vec()
 }
 
-/// What the cut-off resolved to.
-enum CutoffChoice {
-    Rule(Cutoff),
-    Wu,
-}
-
-fn cutoff(args: &Args) -> Result<CutoffChoice> {
+fn cutoff(args: &Args) -> Result<Selection> {
     if let Some(r) = args.cutoff_rel {
         if !(r.is_finite() && r >= 0.0) {
             return Err(miette!("--cutoff-rel {r}: expected a fraction ≥ 0"));
         }
-        return Ok(CutoffChoice::Rule(Cutoff::Relative(r)));
+        return Ok(Selection::Rule(Cutoff::Relative(r)));
     }
-    match args.cutoff.as_str() {
-        "repeat" => Ok(CutoffChoice::Rule(Cutoff::Repeat)),
-        "wu" => {
-            if args.y.is_none() {
-                return Err(miette!("--cutoff wu fits the top-ranked parameters: it needs the measured output, --y COL"));
-            }
-            Ok(CutoffChoice::Wu)
-        }
-        s => s
-            .parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite() && *v >= 0.0)
-            .map(|v| CutoffChoice::Rule(Cutoff::Absolute(v)))
-            .ok_or_else(|| {
-                miette!("--cutoff '{s}': expected repeat, wu, or an absolute residual ≥ 0")
-            }),
+    match Selection::parse(&args.cutoff).map_err(|e| miette!("--cutoff: {e}"))? {
+        Selection::Wu { .. } if args.y.is_none() => Err(miette!(
+            "--cutoff wu fits the top-ranked parameters: it needs the measured output, --y COL"
+        )),
+        Selection::Wu { .. } => Ok(Selection::Wu {
+            sigma2: args.sigma.map(|s| s * s),
+        }),
+        rule => Ok(rule),
     }
 }
 
@@ -236,7 +222,7 @@ fn identify_one<M: ParamModel>(
     nominal: &[f64],
     args: &Args,
     config: IdentConfig,
-    choice: &CutoffChoice,
+    choice: &Selection,
 ) -> Result<Value> {
     let file = path.display().to_string();
     let names = model.param_names();
@@ -264,18 +250,14 @@ fn identify_one<M: ParamModel>(
         .collect::<Result<_>>()?;
     let data = Data { inputs, y };
     let a = analyse(model, &data, nominal, &free, config).map_err(|e| miette!("{file}: {e}"))?;
-    let (k, cutoff_json) = match choice {
-        CutoffChoice::Rule(c) => (a.estimable(*c), serde_json::to_value(c).into_diagnostic()?),
-        CutoffChoice::Wu => {
-            let s2 = args.sigma.map(|s| s * s);
-            let (wu, j) =
-                wu_along_ranking(model, &data, &a, s2, 30).map_err(|e| miette!("{file}: {e}"))?;
-            (
-                wu.k_star,
-                json!({"kind": "wu", "k_star": wu.k_star, "j": j, "r_c": wu.r_c,
-                       "r_ckub": wu.r_ckub, "r_cc": wu.r_cc}),
-            )
-        }
+    let (k, wu) = choice
+        .resolve(model, &data, &a)
+        .map_err(|e| miette!("{file}: {e}"))?;
+    let cutoff_json = match (*choice, wu) {
+        (Selection::Rule(c), _) => serde_json::to_value(c).into_diagnostic()?,
+        (_, Some((wu, j))) => json!({"kind": "wu", "k_star": wu.k_star, "j": j, "r_c": wu.r_c,
+                                     "r_ckub": wu.r_ckub, "r_cc": wu.r_cc}),
+        (_, None) => json!({"kind": "wu"}),
     };
     let selected = a.top(k);
     // Precision of the selected subset: fitted with a measured output, else at ϑ0.
