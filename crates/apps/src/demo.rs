@@ -3,18 +3,27 @@
 //! 1. Shaft monitoring (ch. 6): the T01 scenario with a stiffness fault (1250 → 1100 N·m/rad at
 //!    5 s), tracked by RLS; the alarm must name K.
 //! 2. Friction design ranking (§7.2, Table 7.1) over the thesis's 27 operating points.
-//! 3. Cyclic-torque identifiability (§8, Table 8.1): which of the 15 parameters of Eq. 8.2 the
+//! 3. Friction characterisation (§7.3): the `friction-sweep` tests (the engine has 0.45 of the
+//!    nominal model's mechanical friction) → identifiability of c1 … c20 → DSFC → prediction
+//!    error.
+//! 4. Cyclic-torque identifiability (§8, Table 8.1): which of the 15 parameters of Eq. 8.2 the
 //!    steady-speed (T1) and the ramp (T2) recordings support. (Eq. 8.2 with the thesis's
 //!    closed forms is invariant under r → λr, L → λL, b → b/√λ, M_rec → M_rec/λ²: only
 //!    three of those four are ever identifiable together — the analysis finds that.)
+//! 5. Cyclic-torque estimation (§8): an engine whose reciprocating mass is 5 % above nominal on
+//!    the ramp test, the crank radius known by design, the UKF on the estimable subset.
 
+use crate::friction_fit::{friction_fit, FrictionFit, FrictionFitConfig};
 use crate::friction_rank::{friction_rank, RankGrid, RankTable};
 use crate::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor};
+use crate::torque_fit::{
+    cyclic_torque_nominal, torque_fit, torque_identifiability, TorqueData, TorqueFit,
+    TorqueFitConfig,
+};
 use physid_core::Recording;
-use physid_ident::{analyse, Analysis, Cutoff, Data, IdentConfig};
-use physid_models::cyclic_torque::CyclicTorque;
+use physid_ident::Analysis;
 use physid_models::friction::thesis_preset;
-use physid_models::friction_fit::fit_friction_cubic;
+use physid_sim::engine::Engine;
 use physid_sim::params::CellParams;
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{named, Fault};
@@ -58,45 +67,12 @@ pub struct Demo {
     pub fault: String,
     /// The friction ranking.
     pub friction: RankTable,
+    /// The friction characterisation's configuration and result.
+    pub friction_fit: (FrictionFitConfig, FrictionFit),
     /// Cyclic-torque identifiability on T1 and T2.
     pub torque: Vec<TorqueIdent>,
-}
-
-/// The relative cut-off of the cyclic-torque ranking: residuals below 1e-6 of the first are
-/// at the level of the measured oil temperature's noise (0.1 K on 363 K, squared), which is all
-/// that separates the temperature terms of the friction cubic at a constant oil temperature.
-pub const TORQUE_CUTOFF: f64 = 1e-6;
-
-/// The cyclic-torque model's nominal parameters for this engine: the cell's geometry and
-/// reciprocating mass, the friction cubic fitted to the mean-value model (thesis preset) over
-/// 500–1500 rpm and 20–100 °C.
-pub fn cyclic_torque_nominal(p: &CellParams) -> Result<[f64; 15], String> {
-    let (d, st) = thesis_preset();
-    let n: Vec<f64> = (0..11).map(|k| 500.0 + 100.0 * k as f64).collect();
-    let t: Vec<f64> = (0..9).map(|k| 20.0 + 10.0 * k as f64).collect();
-    let fit = fit_friction_cubic(&d, &st, 101.0, 101.0, &n, &t).map_err(|e| e.to_string())?;
-    let e = &p.engine;
-    let mut v = [0.0; 15];
-    v[..5].copy_from_slice(&[e.m_rec, e.bore, e.rod, e.crank_radius, e.pin_offset]);
-    v[5..].copy_from_slice(&fit.coefficients);
-    Ok(v)
-}
-
-/// The cyclic-torque model's data columns from a crank-angle recording of the cell.
-pub fn torque_data(rec: &Recording) -> Result<(Vec<Vec<f64>>, Vec<f64>), String> {
-    let get = |n: &str| rec.values(n).map(|v| v.to_vec()).map_err(|e| e.to_string());
-    let t_oil_c: Vec<f64> = get("T_oil")?.iter().map(|k| k - 273.15).collect();
-    Ok((
-        vec![
-            get("theta_en")?,
-            get("omega_en")?,
-            get("alpha_en")?,
-            get("p_cyl")?,
-            get("p_crank")?,
-            t_oil_c,
-        ],
-        get("torque_engine")?,
-    ))
+    /// The cyclic-torque fit: configuration, result, and the engine's true M_rec, b, L, r.
+    pub torque_fit: (TorqueFitConfig, TorqueFit, [f64; 4]),
 }
 
 /// Run the demo; `progress(stage, fraction)`.
@@ -133,9 +109,23 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
     let (d, st) = thesis_preset();
     let friction = friction_rank(&d, &st, &RankGrid::default(), &[])
         .map_err(|e| err("friction")(e.to_string()))?;
-    // 3. Cyclic-torque identifiability, T1 vs T2.
-    let nominal = cyclic_torque_nominal(&CellParams::default()).map_err(err("torque"))?;
-    let model = CyclicTorque::default();
+    // 3. Friction characterisation on the four friction-sweep tests.
+    let sweep = named("friction-sweep").ok_or_else(|| err("friction")("no scenario".into()))?;
+    let o = RunOptions {
+        basis: OutputBasis::Crank(1.0),
+        ..Default::default()
+    };
+    let rec_f = simulate(&sweep, &o, |f| {
+        progress("simulating the friction sweep", 0.45 + 0.3 * f)
+    })
+    .map_err(|e| err("friction")(e.to_string()))?;
+    let cell = CellParams::default();
+    let (design, settings) = Engine::new(&cell.engine, &cell.ambient).friction_model();
+    let fcfg = FrictionFitConfig::new(design, settings);
+    let ffit = friction_fit(&rec_f, &fcfg).map_err(|e| err("friction")(e.to_string()))?;
+    // 4. Cyclic-torque identifiability, T1 vs T2.
+    let nominal = cyclic_torque_nominal(&cell).map_err(err("torque"))?;
+    let tcfg = TorqueFitConfig::new(nominal);
     let mut torque = Vec::new();
     for (k, name) in ["torque-steady", "torque-ramp"].iter().enumerate() {
         let mut sc = named(name).ok_or_else(|| err("torque")(format!("no scenario {name}")))?;
@@ -146,26 +136,40 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
             ..Default::default()
         };
         let r = simulate(&sc, &o, |f| {
-            progress(&format!("simulating {name}"), 0.5 + 0.25 * (k as f64 + f))
+            progress(&format!("simulating {name}"), 0.75 + 0.08 * (k as f64 + f))
         })
         .map_err(|e| err("torque")(e.to_string()))?;
-        let (cols, y) = torque_data(&r).map_err(err("torque"))?;
-        let data = Data {
-            inputs: cols.iter().map(|c| c.as_slice()).collect(),
-            y: Some(&y),
-        };
+        let data = TorqueData::from_recording(&r).map_err(|e| err("torque")(e.to_string()))?;
         // δ's nominal value is 0: its relative sensitivity is undefined, and the engine's
         // pin offset is known by design — held fixed.
-        let free: Vec<usize> = (0..15).filter(|&j| j != 4).collect();
-        let a = analyse(&model, &data, &nominal, &free, IdentConfig::default())
-            .map_err(|e| err("torque")(e.to_string()))?;
-        let estimable = a.estimable(Cutoff::Relative(TORQUE_CUTOFF));
+        let (analysis, est) =
+            torque_identifiability(&data, &tcfg.nominal, &tcfg.fixed, &tcfg.selection)
+                .map_err(|e| err("torque")(e.to_string()))?;
         torque.push(TorqueIdent {
             scenario: name.to_string(),
-            analysis: a,
-            estimable,
+            analysis,
+            estimable: est.len(),
         });
     }
+    // 5. Cyclic-torque estimation: an engine 5 % heavier in M_rec on the ramp, r known.
+    let mut sc = named("torque-ramp").ok_or_else(|| err("torque")("no scenario".into()))?;
+    sc.settle = 0.5;
+    let mut o = RunOptions {
+        basis: OutputBasis::Crank(1.0),
+        ..Default::default()
+    };
+    let e = &cell.engine;
+    let truth = [e.m_rec * 1.05, e.bore, e.rod, e.crank_radius];
+    o.params
+        .set("engine.m_rec", truth[0])
+        .map_err(|e| err("torque")(e.to_string()))?;
+    let r = simulate(&sc, &o, |f| {
+        progress("simulating an engine off the line", 0.91 + 0.07 * f)
+    })
+    .map_err(|e| err("torque")(e.to_string()))?;
+    let mut fit_cfg = tcfg.clone();
+    fit_cfg.fixed.push("r".into());
+    let tfit = torque_fit(&r, &fit_cfg).map_err(|e| err("torque")(e.to_string()))?;
     progress("done", 1.0);
     Ok(Demo {
         shaft_recording: rec,
@@ -173,6 +177,8 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
         shaft_methods,
         fault,
         friction,
+        friction_fit: (fcfg, ffit),
         torque,
+        torque_fit: (fit_cfg, tfit, truth),
     })
 }

@@ -26,7 +26,7 @@ use crate::acquisition::{to_crank_angle, AcquisitionError, AcquisitionOptions};
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::metrics::nmse;
 use physid_estim::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method};
-use physid_ident::{analyse, Cutoff, Data, IdentConfig, IdentError, Selection};
+use physid_ident::{analyse, Cutoff, Data, IdentConfig, IdentError, RankedParam, Selection};
 use physid_models::friction::{
     Design, FrictionRegression, OperatingPoint, Settings, REGRESSION_PARAMS,
 };
@@ -311,26 +311,13 @@ pub fn cycle_means(
     Ok(out)
 }
 
-/// One row of the identifiability table (Table 7.3).
-#[derive(Debug, Clone, Serialize)]
-pub struct RankRow {
-    /// Coefficient name.
-    pub param: String,
-    /// Rank in the orthogonal selection (1 = most estimable).
-    pub rank: usize,
-    /// Residual sum of squares at its selection, relative to the first.
-    pub relative_residual: f64,
-    /// Within the estimable subset.
-    pub estimable: bool,
-}
-
 /// The characterisation's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct FrictionFit {
     /// The cycle means the fit used.
     pub data: CycleMeans,
     /// The ranking of all 20 coefficients (selection order).
-    pub ranking: Vec<RankRow>,
+    pub ranking: Vec<RankedParam>,
     /// The estimable coefficients, in rank order.
     pub estimable: Vec<String>,
     /// Nominal coefficients c1 … c20.
@@ -398,20 +385,9 @@ pub fn friction_fit(
     };
     let analysis = analyse(&model, &ident_data, &c0, &free, IdentConfig::default())?;
     let (k, _) = cfg.selection.resolve(&model, &ident_data, &analysis)?;
-    let mut ranking: Vec<RankRow> = analysis
-        .ranking
-        .steps
-        .iter()
-        .enumerate()
-        .map(|(i, s)| RankRow {
-            param: analysis.names[s.param].clone(),
-            rank: i + 1,
-            relative_residual: s.relative,
-            estimable: i < k,
-        })
-        .collect();
+    let mut ranking = analysis.ranked(k);
     for j in (0..20).filter(|j| !free.contains(j)) {
-        ranking.push(RankRow {
+        ranking.push(RankedParam {
             param: REGRESSION_PARAMS[j].into(),
             rank: ranking.len() + 1,
             relative_residual: 0.0,

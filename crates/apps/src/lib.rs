@@ -17,6 +17,8 @@
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
+//! * [`torque_fit`] — Application 3: identifiability and EKF/UKF estimation of the cyclic
+//!   engine torque model (ch. 8).
 
 pub mod acquisition;
 pub mod demo;
@@ -26,3 +28,4 @@ pub mod excitation;
 pub mod friction_fit;
 pub mod friction_rank;
 pub mod shaft_monitor;
+pub mod torque_fit;

@@ -23,7 +23,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// The whole chain on the built-in virtual test cell: simulate, monitor the shaft, rank
-    /// the friction model, check the cyclic-torque identifiability; one report.
+    /// and fit the friction model, identify and estimate the cyclic torque; one report.
     ///
     /// Example: physid demo --out demo
     Demo(cmd::demo::Args),
@@ -42,10 +42,16 @@ enum Command {
     /// Example: physid identify --data ex51.csv --expr 'sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 +
     /// D*y^2 + E*x/y + F*2*x/y' --params A=1,B=2,C=3,D=4,E=5,F=6
     Identify(cmd::identify::Args),
-    /// The mean-value friction model: evaluate it, rank its design parameters.
+    /// The mean-value friction model: evaluate it, rank its design parameters, and fit its
+    /// coefficients to a motored recording (Application 2, thesis ch. 7).
     ///
     /// Example: physid friction eval --n 1000 --p-int 100 --t-oil 35
     Friction(cmd::friction::Args),
+    /// Application 3: the cyclic engine torque model's identifiability and EKF/UKF estimation
+    /// on a motored recording (thesis ch. 8).
+    ///
+    /// Example: physid torque fit --data t2.parquet --fix delta,r --out torque
+    Torque(cmd::torque::Args),
     /// The virtual transient engine test cell: scenario runs into recordings, and the
     /// compression, motored-cycle and torque–speed checks.
     ///
@@ -85,6 +91,7 @@ fn main() -> miette::Result<()> {
         Command::Estimate(a) => cmd::estimate::run(&a),
         Command::Bench(a) => cmd::bench::run(&a),
         Command::Friction(a) => cmd::friction::run(&a),
+        Command::Torque(a) => cmd::torque::run(&a),
         Command::Identify(a) => cmd::identify::run(&a),
         Command::Inspect(a) => cmd::inspect::run(&a),
         Command::Simulate(a) => cmd::simulate::run(&a),

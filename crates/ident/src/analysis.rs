@@ -189,6 +189,22 @@ impl Analysis {
         self.ranking.estimable(cutoff)
     }
 
+    /// The ranking as a table: every analysed parameter in selection order, the first `k`
+    /// marked estimable.
+    pub fn ranked(&self, k: usize) -> Vec<RankedParam> {
+        self.ranking
+            .steps
+            .iter()
+            .enumerate()
+            .map(|(i, s)| RankedParam {
+                param: self.names[s.param].clone(),
+                rank: i + 1,
+                relative_residual: s.relative,
+                estimable: i < k,
+            })
+            .collect()
+    }
+
     /// Indices (into [`names`](Self::names)) of the first `k` ranked parameters.
     pub fn top(&self, k: usize) -> Vec<usize> {
         self.ranking.steps.iter().take(k).map(|s| s.param).collect()
@@ -381,6 +397,19 @@ pub fn wu_along_ranking<M: ParamModel>(
     let j: Vec<f64> = rss.iter().map(|r| r / s2).collect();
     let wu = wu_criterion(&j, n).ok_or_else(|| IdentError::Invalid("no parameters".into()))?;
     Ok((wu, j))
+}
+
+/// One row of a ranking table (thesis Tables 7.3 and 8.1).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RankedParam {
+    /// Parameter name.
+    pub param: String,
+    /// Rank in the orthogonal selection (1 = most estimable).
+    pub rank: usize,
+    /// Residual sum of squares at its selection, relative to the first.
+    pub relative_residual: f64,
+    /// Within the estimable subset.
+    pub estimable: bool,
 }
 
 /// The Wu criterion's details when it decided the count: the criterion and `J_K` per K.

@@ -23,7 +23,10 @@ pub mod triangular;
 pub mod workload;
 pub mod wu;
 
-pub use analysis::{analyse, fit_subset, wu_along_ranking, Analysis, Fit, IdentConfig, Selection};
+pub use analysis::{
+    analyse, fit_subset, wu_along_ranking, Analysis, Fit, IdentConfig, RankedParam, Selection,
+    WuDecision,
+};
 pub use fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, Quantitative};
 pub use online::{Memory, OnlineIdent};
 pub use ranking::{rank, Cutoff, RankStep, Ranking};

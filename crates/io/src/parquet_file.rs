@@ -1,6 +1,7 @@
 //! Parquet recordings (Arrow): one column per channel, the unit in each field's metadata under
 //! `"unit"` (pyarrow: `pa.field(name, pa.float64(), metadata={"unit": "rad/s"})`), the basis in
-//! the schema metadata under `"physid.basis"` (`time` or `crank_angle`).
+//! the schema metadata under `"physid.basis"` (`time` or `crank_angle`), and the recording's
+//! metadata (scenario, parameters and faults of a simulated run, …) under `"physid.meta.KEY"`.
 //!
 //! Reading projects the columns asked for (memory proportional to them) and converts every
 //! numeric type to f64; nulls are refused with their row. Writing uses float64 columns,
@@ -24,6 +25,8 @@ use std::path::Path;
 use std::sync::Arc;
 
 const BASIS_KEY: &str = "physid.basis";
+/// Schema-metadata prefix of the recording's own metadata entries.
+const META_PREFIX: &str = "physid.meta.";
 
 fn pq_err(path: &str, e: impl std::fmt::Display) -> IoError {
     IoError::Malformed {
@@ -127,6 +130,11 @@ pub fn read_parquet(
         _ => Basis::Time,
     };
     let mut rec = Recording::new(basis);
+    for (k, v) in schema.metadata() {
+        if let Some(key) = k.strip_prefix(META_PREFIX) {
+            rec.meta.insert(key.to_string(), v.clone());
+        }
+    }
     rec.meta.insert("source".into(), p.clone());
     let mut taken: Vec<Option<Vec<f64>>> = columns.into_iter().map(Some).collect();
     for &j in &wanted {
@@ -161,10 +169,11 @@ pub fn write_parquet(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoEr
         Basis::Time => "time",
         Basis::CrankAngle => "crank_angle",
     };
-    let schema = Arc::new(Schema::new_with_metadata(
-        fields,
-        HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]),
-    ));
+    let mut meta = HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]);
+    for (k, v) in &rec.meta {
+        meta.insert(format!("{META_PREFIX}{k}"), v.clone());
+    }
+    let schema = Arc::new(Schema::new_with_metadata(fields, meta));
     let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
         path: p.clone(),
         source,

@@ -207,3 +207,26 @@ fn detection_and_errors() {
         .to_string();
     assert!(e.contains("unknown extension"), "{e}");
 }
+
+#[test]
+fn parquet_keeps_the_recordings_metadata() {
+    let mut r = sample(Basis::CrankAngle);
+    r.meta.insert("scenario".into(), "torque-ramp".into());
+    r.meta.insert("param.engine.m_rec".into(), "0.84".into());
+    let f = tmp("meta.parquet");
+    write_parquet(&f, &r).unwrap();
+    let back = read_parquet(&f, None).unwrap();
+    assert_eq!(back.meta["scenario"], "torque-ramp");
+    assert_eq!(back.meta["param.engine.m_rec"], "0.84");
+    assert_eq!(back.basis, Basis::CrankAngle);
+    // pyarrow sees the entries as schema metadata, under a prefix.
+    let file = std::fs::File::open(&f).unwrap();
+    let b = parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder::try_new(file).unwrap();
+    assert_eq!(
+        b.schema()
+            .metadata()
+            .get("physid.meta.scenario")
+            .map(String::as_str),
+        Some("torque-ramp")
+    );
+}

@@ -11,6 +11,7 @@ pub mod identify;
 pub mod inspect;
 pub mod monitor;
 pub mod simulate;
+pub mod torque;
 
 use miette::{miette, IntoDiagnostic, Result};
 use physid_core::Recording;
