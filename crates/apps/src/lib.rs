@@ -16,6 +16,8 @@
 //!   motored cycles (thesis §7.3, Tables 7.3–7.4).
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
+//! * [`model_choice`] — a model by built-in name or formula, with its nominal values.
+//! * [`pipeline`] — the qualitative adaptive identification loop (Fig. 5.7) from a TOML file.
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
 //! * [`torque_fit`] — Application 3: identifiability and EKF/UKF estimation of the cyclic
 //!   engine torque model (ch. 8).
@@ -27,5 +29,7 @@ pub mod example_5_2;
 pub mod excitation;
 pub mod friction_fit;
 pub mod friction_rank;
+pub mod model_choice;
+pub mod pipeline;
 pub mod shaft_monitor;
 pub mod torque_fit;

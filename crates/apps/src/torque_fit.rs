@@ -359,7 +359,7 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, T
         let step = est
             .update(&u, data.y[i])
             .map_err(|source| TorqueFitError::Estim { sample: i, source })?;
-        if i % stride == 0 || i + 1 == n {
+        if i.is_multiple_of(stride) || i + 1 == n {
             out_t.push(data.t[i]);
             measured.push(data.y[i]);
             predicted.push(data.y[i] - step.prediction_error);

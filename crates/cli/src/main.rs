@@ -57,6 +57,12 @@ enum Command {
     ///
     /// Example: physid simulate --scenario shaft-steady --fault shaft.k=1200@10 --out t01.parquet
     Simulate(cmd::simulate::Args),
+    /// The qualitative adaptive identification loop (thesis Fig. 5.7) from a pipeline file:
+    /// identifiability, estimation of the estimable subset, the objective. Exits 1 when the
+    /// objective is not met.
+    ///
+    /// Example: physid run pipelines/torque-ramp.toml --out run
+    Run(cmd::run::Args),
     /// Application 1: coupling-shaft health monitoring (thesis ch. 6).
     ///
     /// Example: physid monitor shaft --data t01.parquet --out shaft-report
@@ -96,6 +102,7 @@ fn main() -> miette::Result<()> {
         Command::Inspect(a) => cmd::inspect::run(&a),
         Command::Simulate(a) => cmd::simulate::run(&a),
         Command::Monitor(a) => cmd::monitor::run(&a),
+        Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),
         Command::Filter(a) => cmd::filter::run(&a),
     }

@@ -1163,3 +1163,51 @@ fn friction_fit_json_report_and_errors() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("no engine angle"), "{}", stderr(&o));
 }
+
+#[test]
+fn run_pipeline_json_report_and_exit_code() {
+    let d = dir("run");
+    let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../pipelines");
+    let out = d.join("report");
+    let o = physid(&[
+        "run",
+        shipped.join("shaft-expr.toml").to_str().unwrap(),
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["objective"]["met"], true);
+    assert!(j["objective"]["value_pct"].as_f64().unwrap() < 5.0);
+    let k = j["params"]["K"].as_f64().unwrap();
+    assert!((k - 1340.0).abs() < 13.4, "K {k}");
+    assert!(j["std_err"]["K"].is_number());
+    assert!(out.join("report.html").exists() && out.join("pipeline.json").exists());
+    // An objective no model meets: the run says so and exits non-zero.
+    let text = std::fs::read_to_string(shipped.join("shaft-expr.toml"))
+        .unwrap()
+        .replace(
+            "prediction_within_pct = 5.0",
+            "prediction_within_pct = 0.0001",
+        )
+        .replace("duration = 10.0", "duration = 2.0");
+    let f = d.join("strict.toml");
+    std::fs::write(&f, text).unwrap();
+    let o = physid(&["run", f.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("NOT met"));
+    assert!(
+        stderr(&o).contains("the objective was not met"),
+        "{}",
+        stderr(&o)
+    );
+    // A bad file names the problem and the file.
+    std::fs::write(&f, "[model]\nbuiltin = \"shaft\"\n").unwrap();
+    let o = physid(&["run", f.to_str().unwrap()]);
+    assert!(
+        stderr(&o).contains("strict.toml") && stderr(&o).contains("output"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -210,27 +210,39 @@ impl Recording {
         self.channel(name).map(|c| c.values.as_slice())
     }
 
-    /// The samples of a channel in `unit`, converted from the channel's own unit when it is a
-    /// known alternative (kPa/bar/mbar/MPa → Pa, degC/°C → K, rpm → rad/s, deg → rad,
-    /// kN·m/Nm → N·m). A channel without a unit is taken to be in `unit` already; any other
+    /// The samples of a channel in `unit`, converted from the channel's own unit when the pair
+    /// is known, either way (kPa/bar/mbar/MPa ↔ Pa, degC/°C ↔ K, rpm ↔ rad/s, deg ↔ rad,
+    /// kN·m/Nm ↔ N·m). A channel without a unit is taken to be in `unit` already; any other
     /// unit is an error naming the channel.
     pub fn values_in(&self, name: &str, unit: &str) -> Result<Vec<f64>, RecordingError> {
         let ch = self.channel(name)?;
         if ch.unit.is_empty() || ch.unit == unit {
             return Ok(ch.values.clone());
         }
-        match CONVERSIONS.iter().find(|c| c.0 == ch.unit && c.1 == unit) {
-            Some(&(_, _, scale, offset)) => {
+        let forward = CONVERSIONS.iter().find(|c| c.0 == ch.unit && c.1 == unit);
+        let inverse = CONVERSIONS.iter().find(|c| c.1 == ch.unit && c.0 == unit);
+        match (forward, inverse) {
+            (Some(&(_, _, scale, offset)), _) => {
                 Ok(ch.values.iter().map(|v| v * scale + offset).collect())
             }
-            None => Err(RecordingError::Unit {
+            (None, Some(&(_, _, scale, offset))) => {
+                Ok(ch.values.iter().map(|v| (v - offset) / scale).collect())
+            }
+            (None, None) => Err(RecordingError::Unit {
                 name: name.into(),
                 unit: ch.unit.clone(),
                 wanted: unit.into(),
                 known: CONVERSIONS
                     .iter()
-                    .filter(|c| c.1 == unit)
-                    .map(|c| c.0)
+                    .filter_map(|c| {
+                        if c.1 == unit {
+                            Some(c.0)
+                        } else if c.0 == unit {
+                            Some(c.1)
+                        } else {
+                            None
+                        }
+                    })
                     .chain([unit])
                     .collect::<Vec<_>>()
                     .join(", "),
@@ -296,6 +308,18 @@ mod tests {
         // 1000 rpm = 104.719755… rad/s (1000·2π/60).
         assert!((r.values_in("omega_en", "rad/s").unwrap()[0] - 104.71975511965977).abs() < 1e-12);
         assert_eq!(r.values_in("p_exh", "Pa").unwrap(), vec![1.5e5]);
+        // And back: K → °C, Pa → kPa.
+        let mut k = Recording::new(Basis::Time);
+        for (name, unit, v) in [("T_oil", "K", 363.15), ("p_cyl", "Pa", 2.5e5)] {
+            k.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: vec![v],
+            })
+            .unwrap();
+        }
+        assert!((k.values_in("T_oil", "degC").unwrap()[0] - 90.0).abs() < 1e-12);
+        assert_eq!(k.values_in("p_cyl", "kPa").unwrap(), vec![250.0]);
         let e = r.values_in("torque_shaft", "N*m").unwrap_err().to_string();
         assert!(
             e.contains("'torque_shaft' is in 'lbf*ft'") && e.contains("kN*m"),

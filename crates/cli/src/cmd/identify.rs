@@ -4,14 +4,12 @@
 use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::example_5_1::{Model51, NOMINAL as NOMINAL_51};
+use physid_apps::model_choice::ModelChoice;
+use physid_apps::with_model;
 use physid_core::{ParamModel, Recording};
-use physid_expr::ExprModel;
 use physid_ident::{
     analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, RankStep, Scaling, Selection,
 };
-use physid_models::cyclic_torque::{CyclicTorque, ILLUSTRATIVE};
-use physid_models::shaft::{Shaft, NOMINAL as NOMINAL_SHAFT};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 
@@ -27,7 +25,7 @@ pub struct Args {
     /// Nominal values NAME=VALUE,… (all parameters with --expr; overrides with --model).
     #[arg(long, value_delimiter = ',')]
     pub params: Vec<String>,
-    /// A built-in model: example-5.1, shaft, shaft-offset, cyclic-torque.
+    /// A built-in model: example-5.1, shaft, shaft-offset, cyclic-torque, friction-regression.
     #[arg(long)]
     pub model: Option<String>,
     /// The measured output column: thesis scaling then divides by it, and the precision comes
@@ -64,73 +62,23 @@ pub struct Args {
     pub json: bool,
 }
 
-/// The chosen model.
-enum Model {
-    Expr(ExprModel),
-    Ex51(Model51),
-    Shaft(Shaft),
-    Cyclic(CyclicTorque),
-}
-
-/// Call `$f` with the concrete model.
-macro_rules! with_model {
-    ($m:expr, $f:ident ( $($a:expr),* )) => {
-        match $m {
-            Model::Expr(m) => $f(m, $($a),*),
-            Model::Ex51(m) => $f(m, $($a),*),
-            Model::Shaft(m) => $f(m, $($a),*),
-            Model::Cyclic(m) => $f(m, $($a),*),
-        }
-    };
-}
-
 /// The model and its nominal values.
-fn build(args: &Args) -> Result<(Model, Vec<f64>)> {
+fn build(args: &Args) -> Result<(ModelChoice, Vec<f64>)> {
     let (names, values) = named_values(&args.params, "--params")?;
-    if let Some(text) = &args.expr {
-        if names.is_empty() {
-            return Err(miette!(
-                "--expr needs the parameters and their nominal values: --params A=1,B=2,…"
-            ));
-        }
-        let m = ExprModel::parse(text, &names).map_err(|e| miette!("--expr: {e}"))?;
-        return Ok((Model::Expr(m), values));
+    if args.expr.is_some() && names.is_empty() {
+        return Err(miette!(
+            "--expr needs the parameters and their nominal values: --params A=1,B=2,…"
+        ));
     }
-    let name = args.model.as_deref().ok_or_else(|| {
-        miette!("a model is needed: --expr 'FORMULA' --params A=…, or --model example-5.1|shaft|shaft-offset|cyclic-torque")
-    })?;
-    let (model, mut nominal) = match name {
-        "example-5.1" => (Model::Ex51(Model51::default()), NOMINAL_51.to_vec()),
-        "shaft" => (Model::Shaft(Shaft::new(false)), NOMINAL_SHAFT.to_vec()),
-        "shaft-offset" => (
-            Model::Shaft(Shaft::new(true)),
-            vec![NOMINAL_SHAFT[0], NOMINAL_SHAFT[1], 0.0],
-        ),
-        "cyclic-torque" => (
-            Model::Cyclic(CyclicTorque::default()),
-            ILLUSTRATIVE.to_vec(),
-        ),
-        other => {
-            return Err(miette!(
-            "no built-in model '{other}'; they are example-5.1, shaft, shaft-offset, cyclic-torque"
-        ))
-        }
-    };
-    let pnames = with_model!(&model, param_names_of());
-    for (n, v) in names.iter().zip(values) {
-        let j = pnames.iter().position(|p| p == n).ok_or_else(|| {
-            miette!(
-                "--params {n}: model '{name}' has the parameters {}",
-                pnames.join(", ")
-            )
-        })?;
-        nominal[j] = v;
-    }
-    Ok((model, nominal))
-}
-
-fn param_names_of<M: ParamModel>(m: &M) -> Vec<String> {
-    m.param_names().to_vec()
+    let params: Vec<(String, f64)> = names.into_iter().zip(values).collect();
+    ModelChoice::build(args.expr.as_deref(), args.model.as_deref(), &params).map_err(|e| {
+        let flag = if args.expr.is_some() {
+            "--expr"
+        } else {
+            "--model"
+        };
+        miette!("{flag}: {e}")
+    })
 }
 
 fn cutoff(args: &Args) -> Result<Selection> {
@@ -174,7 +122,7 @@ pub fn run(args: &Args) -> Result<()> {
     let mut reports = Vec::new();
     for path in &args.data {
         let rec = args.input.read(path, None)?;
-        if let Model::Expr(m) = &model {
+        if let ModelChoice::Expr(m) = &model {
             m.check_inputs(&rec.names())
                 .map_err(|e| miette!("--expr: {e} (in {})", path.display()))?;
         }

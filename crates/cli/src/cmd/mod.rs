@@ -10,6 +10,7 @@ pub mod friction;
 pub mod identify;
 pub mod inspect;
 pub mod monitor;
+pub mod run;
 pub mod simulate;
 pub mod torque;
 

@@ -1,0 +1,569 @@
+//! The qualitative adaptive identification loop of thesis Fig. 5.7 (SPEC §6) from a file:
+//! model → data → identifiability → estimation of the estimable subset (the rest fixed at
+//! their nominal values) → is the objective met?
+//!
+//! ```toml
+//! [model]
+//! builtin = "cyclic-torque"          # or: expr = "K*dth + B*dw", params = { K = 1000, B = 1 }
+//! output = "torque_engine"           # the measured channel the model predicts
+//! inputs = { omega = "omega_en", alpha = "alpha_en", T_oil = "T_oil:degC" }
+//! fixed = ["delta", "r"]             # known by design
+//! params = { M_rec = 0.8 }           # nominal values (override the built-in's)
+//!
+//! [data]
+//! scenario = "torque-ramp"           # or: file = "run.parquet"
+//! basis = "crank"                    # crank (1°) or time (rate_hz)
+//! set = { "engine.m_rec" = 0.84 }
+//!
+//! [identifiability]
+//! cutoff = "rel:1e-6"                # repeat | wu | rel:FRACTION | absolute
+//!
+//! [estimator]
+//! method = "ukf"                     # ekf | ukf | srukf | rls | rlsf | dsfc
+//!
+//! [objective]
+//! prediction_within_pct = 5.0
+//! metric = "nrmse"                   # nrmse | max_relative
+//! after_s = 1.0
+//! ```
+//!
+//! The objective is checked on the one-step-ahead predictions — each sample predicted before
+//! the estimator sees it — after `after_s` seconds: `nrmse` is `100·rms(y − ŷ)/rms(y)` (for
+//! signals that cross zero, such as a cyclic torque), `max_relative` is `max 100·|y − ŷ|/|y|`
+//! (for a signal that keeps its sign, such as a friction torque).
+//!
+//! The linear methods (RLS, RLSF, DSFC) need a model linear in the estimated parameters: its
+//! exact gradient is then the regressor; linearity is checked on the data first.
+
+use crate::model_choice::ModelChoice;
+use crate::with_model;
+use physid_core::{GradientEngine, ParamModel, ParamSet, Recording};
+use physid_estim::{
+    CovSpec, EstimatorConfig, LinearEstimator, Method, NlConfig, NlMethod, NonlinearEstimator,
+    SigmaPoints,
+};
+use physid_ident::{analyse, fit_subset, Data, IdentConfig, RankedParam, Scaling, Selection};
+use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::scenario::{Fault, Scenario};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The model section.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSpec {
+    /// A built-in model's name.
+    pub builtin: Option<String>,
+    /// Or a formula in the expression language.
+    pub expr: Option<String>,
+    /// Nominal parameter values (all of them for a formula; overrides for a built-in).
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
+    /// The measured output channel.
+    pub output: String,
+    /// Model input → `CHANNEL` or `CHANNEL:UNIT` (converted to that unit, e.g. `T_oil:degC`),
+    /// where they differ.
+    #[serde(default)]
+    pub inputs: BTreeMap<String, String>,
+    /// Parameters known by design, never estimated.
+    #[serde(default)]
+    pub fixed: Vec<String>,
+}
+
+/// The data section: a file, or a scenario of the virtual test cell.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataSpec {
+    /// A recording (CSV, Parquet, MDF4); a relative path is relative to the pipeline file.
+    pub file: Option<PathBuf>,
+    /// Or a named scenario, or a scenario TOML file (relative to the pipeline file).
+    pub scenario: Option<String>,
+    /// Simulated duration [s] (default: the scenario's).
+    pub duration: Option<f64>,
+    /// `crank` (one sample per crank degree) or `time`.
+    #[serde(default = "default_basis")]
+    pub basis: String,
+    /// Sample rate of a time basis [Hz].
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// Cell parameters for the simulation.
+    #[serde(default)]
+    pub set: BTreeMap<String, f64>,
+    /// Faults for the simulation (`PATH=VALUE@T[+RAMP]`).
+    #[serde(default)]
+    pub faults: Vec<String>,
+}
+
+fn default_basis() -> String {
+    "time".into()
+}
+fn default_rate() -> f64 {
+    10_000.0
+}
+
+/// The identifiability section.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IdentSpec {
+    /// `repeat`, `wu`, `rel:FRACTION` or an absolute residual.
+    #[serde(default = "default_cutoff")]
+    pub cutoff: String,
+    /// `thesis`, `sigma` or `none`.
+    #[serde(default = "default_scaling")]
+    pub scaling: String,
+}
+
+fn default_cutoff() -> String {
+    "repeat".into()
+}
+fn default_scaling() -> String {
+    "thesis".into()
+}
+
+impl Default for IdentSpec {
+    fn default() -> Self {
+        Self {
+            cutoff: default_cutoff(),
+            scaling: default_scaling(),
+        }
+    }
+}
+
+/// The estimator section.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EstimatorSpec {
+    /// `ekf`, `ukf`, `srukf` (any model) or `rls`, `rlsf`, `dsfc` (linear in the parameters).
+    #[serde(default = "default_method")]
+    pub method: String,
+    /// `P0 = p0·I` (scaled coordinates for the non-linear filters; physical for the linear).
+    pub p0: Option<f64>,
+    /// Measurement-noise variance R2 of the non-linear filters (default: the batch fit's
+    /// residual variance).
+    pub r2: Option<f64>,
+    /// Forgetting factor of RLSF and DSFC.
+    #[serde(default = "one")]
+    pub lambda: f64,
+}
+
+fn default_method() -> String {
+    "ukf".into()
+}
+fn one() -> f64 {
+    1.0
+}
+
+impl Default for EstimatorSpec {
+    fn default() -> Self {
+        Self {
+            method: default_method(),
+            p0: None,
+            r2: None,
+            lambda: 1.0,
+        }
+    }
+}
+
+/// The objective section.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectiveSpec {
+    /// The prediction must be within this many per cent.
+    #[serde(default = "five")]
+    pub prediction_within_pct: f64,
+    /// `nrmse` or `max_relative`.
+    #[serde(default = "default_metric")]
+    pub metric: String,
+    /// Start-up transient left out [s].
+    #[serde(default)]
+    pub after_s: f64,
+}
+
+fn five() -> f64 {
+    5.0
+}
+fn default_metric() -> String {
+    "nrmse".into()
+}
+
+impl Default for ObjectiveSpec {
+    fn default() -> Self {
+        Self {
+            prediction_within_pct: 5.0,
+            metric: default_metric(),
+            after_s: 0.0,
+        }
+    }
+}
+
+/// A pipeline file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pipeline {
+    /// The model.
+    pub model: ModelSpec,
+    /// The data.
+    pub data: DataSpec,
+    /// Identifiability settings.
+    #[serde(default)]
+    pub identifiability: IdentSpec,
+    /// Estimator settings.
+    #[serde(default)]
+    pub estimator: EstimatorSpec,
+    /// The objective.
+    #[serde(default)]
+    pub objective: ObjectiveSpec,
+}
+
+impl Pipeline {
+    /// Parse a pipeline file's text; `base` resolves relative data paths.
+    pub fn parse(text: &str, base: &Path) -> Result<Self, String> {
+        let mut p: Self = toml::from_str(text).map_err(|e| e.to_string())?;
+        if let Some(f) = &p.data.file {
+            if f.is_relative() {
+                p.data.file = Some(base.join(f));
+            }
+        }
+        // A scenario file (not a built-in name) is relative to the pipeline file too.
+        if let Some(s) = &p.data.scenario {
+            let path = Path::new(s);
+            if physid_sim::scenario::named(s).is_none() && path.is_relative() {
+                p.data.scenario = Some(base.join(path).display().to_string());
+            }
+        }
+        Ok(p)
+    }
+
+    /// Read a pipeline file.
+    pub fn load(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::parse(&text, path.parent().unwrap_or(Path::new(".")))
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
+}
+
+/// Whether the objective was met.
+#[derive(Debug, Clone, Serialize)]
+pub struct Objective {
+    /// `nrmse` or `max_relative`.
+    pub metric: String,
+    /// The value reached [%].
+    pub value_pct: f64,
+    /// The limit [%].
+    pub limit_pct: f64,
+    /// Samples evaluated (after the transient).
+    pub samples: usize,
+    /// Met.
+    pub met: bool,
+}
+
+/// The pipeline's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct PipelineResult {
+    /// The model's parameters.
+    pub names: Vec<String>,
+    /// Data rows.
+    pub rows: usize,
+    /// The ranking (fixed parameters excluded).
+    pub ranking: Vec<RankedParam>,
+    /// The estimable parameters, in rank order.
+    pub estimable: Vec<String>,
+    /// The estimator.
+    pub method: String,
+    /// Nominal values.
+    pub nominal: Vec<f64>,
+    /// Final values (non-estimable ones at nominal).
+    pub params: Vec<f64>,
+    /// Standard errors of the estimated ones.
+    pub std_err: Vec<Option<f64>>,
+    /// The objective.
+    pub objective: Objective,
+    /// Times of the plotted samples [s] (decimated to at most ~4000).
+    pub t: Vec<f64>,
+    /// Measured output at [`t`](Self::t).
+    pub measured: Vec<f64>,
+    /// One-step-ahead prediction at [`t`](Self::t).
+    pub predicted: Vec<f64>,
+    /// Estimates of the estimated parameters at [`t`](Self::t), in model order.
+    pub tracks: Vec<(String, Vec<f64>)>,
+}
+
+/// Load (or simulate) the pipeline's recording.
+pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
+    match (&spec.file, &spec.scenario) {
+        (Some(f), None) => physid_io::read(f, &Default::default()).map_err(|e| e.to_string()),
+        (None, Some(name)) => {
+            let mut s = Scenario::load(name)?;
+            for f in &spec.faults {
+                Fault::parse(f)?;
+                s.faults.push(f.clone());
+            }
+            let mut opts = RunOptions {
+                duration: spec.duration,
+                basis: match spec.basis.as_str() {
+                    "crank" => OutputBasis::Crank(1.0),
+                    "time" => OutputBasis::Time(spec.rate_hz),
+                    b => return Err(format!("data.basis '{b}': expected crank or time")),
+                },
+                ..Default::default()
+            };
+            for (k, v) in &spec.set {
+                opts.params.set(k, *v)?;
+            }
+            simulate(&s, &opts, |_| {}).map_err(|e| e.to_string())
+        }
+        _ => Err("[data] needs exactly one of file = \"…\" or scenario = \"…\"".into()),
+    }
+}
+
+/// Run the loop on a recording.
+pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, String> {
+    let params: Vec<(String, f64)> = p
+        .model
+        .params
+        .iter()
+        .map(|(k, v)| (k.clone(), *v))
+        .collect();
+    let (model, nominal) =
+        ModelChoice::build(p.model.expr.as_deref(), p.model.builtin.as_deref(), &params)?;
+    with_model!(&model, run_with(p, rec, nominal))
+}
+
+fn run_with<M: ParamModel + Clone>(
+    model: &M,
+    p: &Pipeline,
+    rec: &Recording,
+    nominal: Vec<f64>,
+) -> Result<PipelineResult, String> {
+    let names = model.param_names().to_vec();
+    // Data columns.
+    let mut cols = Vec::new();
+    for input in model.input_names() {
+        let spec = p.model.inputs.get(input).unwrap_or(input);
+        // `CHANNEL` as recorded, or `CHANNEL:UNIT` converted to the unit the model expects.
+        let col = match spec.split_once(':') {
+            Some((ch, unit)) => rec.values_in(ch.trim(), unit.trim()),
+            None => rec.values(spec).map(|v| v.to_vec()),
+        };
+        cols.push(col.map_err(|e| format!("model input '{input}': {e}"))?);
+    }
+    let y = rec
+        .values(&p.model.output)
+        .map_err(|e| format!("model output: {e}"))?
+        .to_vec();
+    let n = y.len();
+    let t: Vec<f64> = match rec.values("t") {
+        Ok(t) => t.to_vec(),
+        Err(_) => (0..n).map(|i| i as f64).collect(),
+    };
+    for (name, col) in model
+        .input_names()
+        .iter()
+        .zip(&cols)
+        .chain([(&p.model.output, &y)])
+    {
+        if let Some(i) = col.iter().position(|v| !v.is_finite()) {
+            return Err(format!("channel for '{name}' sample {i} is {}", col[i]));
+        }
+    }
+    for f in &p.model.fixed {
+        if !names.contains(f) {
+            return Err(format!(
+                "fixed parameter '{f}': the parameters are {}",
+                names.join(", ")
+            ));
+        }
+    }
+    let free: Vec<usize> = (0..names.len())
+        .filter(|&j| !p.model.fixed.contains(&names[j]))
+        .collect();
+    // 1. Identifiability.
+    let data = Data {
+        inputs: cols.iter().map(|c| c.as_slice()).collect(),
+        y: Some(&y),
+    };
+    let scaling = Scaling::parse(&p.identifiability.scaling).ok_or_else(|| {
+        format!(
+            "identifiability.scaling '{}': expected thesis, sigma or none",
+            p.identifiability.scaling
+        )
+    })?;
+    let config = IdentConfig {
+        scaling,
+        ..IdentConfig::default()
+    };
+    let analysis = analyse(model, &data, &nominal, &free, config).map_err(|e| e.to_string())?;
+    let selection = Selection::parse(&p.identifiability.cutoff)
+        .map_err(|e| format!("identifiability.cutoff: {e}"))?;
+    let (k, _) = selection
+        .resolve(model, &data, &analysis)
+        .map_err(|e| e.to_string())?;
+    let estimable: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
+    if estimable.is_empty() {
+        return Err("no parameter is estimable on this data: another experiment is needed".into());
+    }
+    // 2. Estimation.
+    let set = ParamSet::new(names.clone(), nominal.clone()).map_err(|e| e.to_string())?;
+    let est_names: Vec<&str> = estimable.iter().map(|&j| names[j].as_str()).collect();
+    let free_set = set.free(&est_names).map_err(|e| e.to_string())?;
+    let order = free_set.free().to_vec();
+    let stride = n.div_ceil(4000).max(1);
+    let mut out = PipelineResult {
+        names: names.clone(),
+        rows: n,
+        ranking: analysis.ranked(k),
+        estimable: est_names.iter().map(|s| s.to_string()).collect(),
+        method: p.estimator.method.clone(),
+        nominal: nominal.clone(),
+        params: nominal.clone(),
+        std_err: vec![None; names.len()],
+        objective: Objective {
+            metric: p.objective.metric.clone(),
+            value_pct: f64::NAN,
+            limit_pct: p.objective.prediction_within_pct,
+            samples: 0,
+            met: false,
+        },
+        t: Vec::new(),
+        measured: Vec::new(),
+        predicted: Vec::new(),
+        tracks: order
+            .iter()
+            .map(|&j| (names[j].clone(), Vec::new()))
+            .collect(),
+    };
+    let mut prediction = vec![0.0; n];
+    let mut u = vec![0.0; cols.len()];
+    let keep = |i: usize| i.is_multiple_of(stride) || i + 1 == n;
+    let mut record = |i: usize, yhat: f64, theta: &[f64], out: &mut PipelineResult| {
+        prediction[i] = yhat;
+        if keep(i) {
+            out.t.push(t[i]);
+            out.measured.push(y[i]);
+            out.predicted.push(yhat);
+            for (k, &j) in order.iter().enumerate() {
+                out.tracks[k].1.push(theta[j]);
+            }
+        }
+    };
+    let (final_full, se) = match p.estimator.method.as_str() {
+        "ekf" | "ukf" | "srukf" => {
+            let method = match p.estimator.method.as_str() {
+                "ekf" => NlMethod::Ekf,
+                "ukf" => NlMethod::Ukf(SigmaPoints::default()),
+                _ => NlMethod::Srukf(SigmaPoints::default()),
+            };
+            let scaled = estimable.iter().all(|&j| nominal[j] != 0.0);
+            let r2 = match p.estimator.r2 {
+                Some(v) => v,
+                None => {
+                    let fit = fit_subset(model, &data, &nominal, &estimable, 20)
+                        .map_err(|e| e.to_string())?;
+                    (fit.rss / (n.saturating_sub(estimable.len())).max(1) as f64)
+                        .max(f64::MIN_POSITIVE)
+                }
+            };
+            let nl = NlConfig {
+                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 })),
+                r2,
+                scaled,
+                ..NlConfig::new(method)
+            };
+            let mut est = NonlinearEstimator::new(model.clone(), &set, &free_set, &nl)
+                .map_err(|e| e.to_string())?;
+            for i in 0..n {
+                for (k, c) in cols.iter().enumerate() {
+                    u[k] = c[i];
+                }
+                let step = est
+                    .update(&u, y[i])
+                    .map_err(|e| format!("sample {i}: {e}"))?;
+                // The full estimate is assembled only for the plotted samples.
+                let theta = if keep(i) {
+                    est.estimate_full()
+                } else {
+                    Vec::new()
+                };
+                record(i, y[i] - step.prediction_error, &theta, &mut out);
+            }
+            (est.estimate_full(), est.std_errors())
+        }
+        "rls" | "rlsf" | "dsfc" => {
+            let lambda = p.estimator.lambda;
+            let method = match p.estimator.method.as_str() {
+                "rls" => Method::Rls,
+                "rlsf" => Method::Rlsf { lambda },
+                _ => Method::Dsfc { lambda },
+            };
+            let config = EstimatorConfig {
+                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
+                ..EstimatorConfig::new(method)
+            };
+            let mut est =
+                LinearEstimator::new(&config, &set, &free_set).map_err(|e| e.to_string())?;
+            let all: Vec<usize> = (0..names.len()).collect();
+            let mut engine = GradientEngine::new(names.len());
+            let mut phi = vec![0.0; names.len()];
+            for i in 0..n {
+                for (k, c) in cols.iter().enumerate() {
+                    u[k] = c[i];
+                }
+                let h = engine.value_and_gradient(model, &u, &nominal, &all, &mut phi);
+                let lin: f64 = phi.iter().zip(&nominal).map(|(g, v)| g * v).sum();
+                if (h - lin).abs() > 1e-9 * (h.abs() + lin.abs()).max(1e-300) {
+                    return Err(format!(
+                        "method {}: the model is not linear in its parameters (sample {i}: h = {h}, φᵀϑ = {lin}); use ekf, ukf or srukf",
+                        p.estimator.method
+                    ));
+                }
+                let step = est
+                    .update(&phi, y[i])
+                    .map_err(|e| format!("sample {i}: {e}"))?;
+                let theta = if keep(i) {
+                    est.estimate_full()
+                } else {
+                    Vec::new()
+                };
+                record(i, y[i] - step.prediction_error, &theta, &mut out);
+            }
+            (est.estimate_full(), est.std_errors().unwrap_or_default())
+        }
+        m => {
+            return Err(format!(
+                "estimator.method '{m}': expected ekf, ukf, srukf, rls, rlsf or dsfc"
+            ))
+        }
+    };
+    for (k, &j) in order.iter().enumerate() {
+        out.std_err[j] = se.get(k).copied();
+    }
+    out.params = final_full;
+    // 3. The objective, on the one-step-ahead predictions after the transient.
+    let start = t
+        .iter()
+        .position(|&ti| ti - t[0] >= p.objective.after_s)
+        .unwrap_or(n);
+    let (ys, ps) = (&y[start..], &prediction[start..]);
+    let value = match p.objective.metric.as_str() {
+        "nrmse" => {
+            let e: f64 = ys.iter().zip(ps).map(|(a, b)| (a - b) * (a - b)).sum();
+            let s: f64 = ys.iter().map(|a| a * a).sum();
+            100.0 * (e / s).sqrt()
+        }
+        "max_relative" => ys
+            .iter()
+            .zip(ps)
+            .map(|(a, b)| 100.0 * (a - b).abs() / a.abs())
+            .fold(0.0, f64::max),
+        m => {
+            return Err(format!(
+                "objective.metric '{m}': expected nrmse or max_relative"
+            ))
+        }
+    };
+    out.objective.value_pct = value;
+    out.objective.samples = ys.len();
+    out.objective.met = !ys.is_empty() && value <= p.objective.prediction_within_pct;
+    Ok(out)
+}

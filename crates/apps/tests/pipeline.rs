@@ -1,0 +1,106 @@
+//! The pipeline files shipped in `pipelines/` run and meet their objectives against the
+//! simulated truth; bad files and models are explained.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::pipeline::{load_data, run_pipeline, Pipeline};
+use std::path::{Path, PathBuf};
+
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../pipelines")
+        .join(name)
+}
+
+fn value(r: &physid_apps::pipeline::PipelineResult, name: &str) -> (f64, f64) {
+    let j = r.names.iter().position(|n| n == name).unwrap();
+    (r.params[j], r.std_err[j].unwrap())
+}
+
+#[test]
+fn torque_ramp_pipeline_finds_the_heavier_reciprocating_mass() {
+    let p = Pipeline::load(&shipped("torque-ramp.toml")).unwrap();
+    let rec = load_data(&p.data).unwrap();
+    let r = run_pipeline(&p, &rec).unwrap();
+    assert!(
+        r.estimable.contains(&"M_rec".to_string()),
+        "{:?}",
+        r.estimable
+    );
+    assert!(
+        r.objective.met && r.objective.value_pct < 1.0,
+        "{:?}",
+        r.objective
+    );
+    // The recording's engine has M_rec = 0.84 kg; the rest of the geometry is nominal.
+    for (name, truth) in [("M_rec", 0.84), ("b", 0.054), ("L", 0.088)] {
+        let (v, se) = value(&r, name);
+        assert!(
+            (v - truth).abs() < 3.0 * se,
+            "{name}: {v} ± {se} vs {truth}"
+        );
+    }
+}
+
+#[test]
+fn shaft_formula_pipeline_with_dsfc_recovers_the_red_spider() {
+    let p = Pipeline::load(&shipped("shaft-expr.toml")).unwrap();
+    let rec = load_data(&p.data).unwrap();
+    let r = run_pipeline(&p, &rec).unwrap();
+    assert_eq!(r.method, "dsfc");
+    assert!(r.objective.met, "{:?}", r.objective);
+    let (k, _) = value(&r, "K");
+    let (b, _) = value(&r, "B");
+    assert!((k - 1340.0).abs() < 0.01 * 1340.0, "K {k}");
+    assert!((b - 0.7).abs() < 0.05 * 0.7, "B {b}");
+}
+
+/// The error of a pipeline that must fail (without printing its result when it does not).
+fn error_of(p: &Pipeline) -> String {
+    match run_pipeline(p, &load_data(&p.data).unwrap()) {
+        Ok(r) => panic!("expected an error, got estimable {:?}", r.estimable),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn an_unmet_objective_and_bad_pipelines_are_reported() {
+    let base = Path::new(".");
+    let text = |model: &str, method: &str, limit: f64| {
+        format!(
+            "[model]\n{model}\noutput = \"torque_shaft\"\n[data]\nscenario = \"shaft-steady\"\nduration = 2.0\nrate_hz = 2000.0\n[estimator]\nmethod = \"{method}\"\n[objective]\nprediction_within_pct = {limit}\n"
+        )
+    };
+    let linear = "expr = \"K*(theta_dy - theta_en) + B*(omega_dy - omega_en)\"\nparams = { K = 1250.0, B = 0.95 }";
+    // A limit no model meets.
+    let p = Pipeline::parse(&text(linear, "rls", 1e-6), base).unwrap();
+    let r = run_pipeline(&p, &load_data(&p.data).unwrap()).unwrap();
+    assert!(!r.objective.met && r.objective.value_pct > 1e-6);
+    // A linear method on a model that is not linear in its parameters.
+    let nonlinear = "expr = \"K^2*(theta_dy - theta_en) + B*(omega_dy - omega_en)\"\nparams = { K = 35.0, B = 0.95 }";
+    let p = Pipeline::parse(&text(nonlinear, "dsfc", 5.0), base).unwrap();
+    let e = error_of(&p);
+    assert!(e.contains("not linear in its parameters"), "{e}");
+    // Unknown keys, methods, channels.
+    let e = Pipeline::parse(
+        "[model]\nbuiltin = \"shaft\"\noutput = \"y\"\nmodle = 1\n[data]\n",
+        base,
+    )
+    .unwrap_err();
+    assert!(e.contains("modle"), "{e}");
+    let p = Pipeline::parse(&text(linear, "lms", 5.0), base).unwrap();
+    let e = error_of(&p);
+    assert!(
+        e.contains("expected ekf, ukf, srukf, rls, rlsf or dsfc"),
+        "{e}"
+    );
+    let p = Pipeline::parse(&text("builtin = \"cyclic-torque\"", "ukf", 5.0), base).unwrap();
+    let e = error_of(&p);
+    assert!(e.contains("model input 'theta'"), "{e}");
+    let p = Pipeline::parse(
+        "[model]\nbuiltin = \"shaft\"\noutput = \"y\"\n[data]\n",
+        base,
+    )
+    .unwrap();
+    assert!(load_data(&p.data).unwrap_err().contains("exactly one of"));
+}

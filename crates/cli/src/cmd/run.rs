@@ -1,0 +1,205 @@
+//! `physid run PIPELINE.toml`: the qualitative adaptive identification loop (thesis Fig. 5.7)
+//! from a file — identifiability, estimation of the estimable subset, the objective.
+
+use crate::out::outln;
+use crate::plot::{self, Panel, Series, PALETTE};
+use crate::report::Report;
+use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_apps::pipeline::{load_data, run_pipeline, Pipeline, PipelineResult};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `physid run`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The pipeline file (TOML: [model], [data], [identifiability], [estimator], [objective];
+    /// see docs/pipeline.md).
+    pipeline: PathBuf,
+    /// Print JSON: {"estimable", "params", "std_err", "objective": {"metric", "value_pct",
+    /// "limit_pct", "met"}, …}.
+    #[arg(long)]
+    json: bool,
+    /// Directory for the report (report.html, pipeline.svg, pipeline.json).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// The JSON of a pipeline run.
+pub fn json(r: &PipelineResult) -> serde_json::Value {
+    let by_name = |v: &[f64]| {
+        r.names
+            .iter()
+            .zip(v)
+            .map(|(n, x)| (n.clone(), serde_json::json!(x)))
+            .collect::<serde_json::Map<_, _>>()
+    };
+    serde_json::json!({
+        "rows": r.rows,
+        "ranking": r.ranking,
+        "estimable": r.estimable,
+        "method": r.method,
+        "nominal": by_name(&r.nominal),
+        "params": by_name(&r.params),
+        "std_err": r.names.iter().zip(&r.std_err)
+            .filter_map(|(n, s)| s.map(|s| (n.clone(), serde_json::json!(s))))
+            .collect::<serde_json::Map<_, _>>(),
+        "objective": r.objective,
+    })
+}
+
+fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<()> {
+    let mut rep = Report::new(
+        "physid — qualitative adaptive identification",
+        &format!("{}", file.display()),
+    );
+    rep.section("Identifiability (Alg. 5.1)");
+    rep.para(
+        &format!(
+            "{} rows; scaling {}, cut-off {}; held by design: {}.",
+            r.rows,
+            p.identifiability.scaling,
+            p.identifiability.cutoff,
+            if p.model.fixed.is_empty() {
+                "none".to_string()
+            } else {
+                p.model.fixed.join(", ")
+            }
+        ),
+        None,
+    );
+    rep.table(
+        &["parameter", "rank", "relative residual", "estimable"],
+        &r.ranking
+            .iter()
+            .map(|row| {
+                vec![
+                    row.param.clone(),
+                    row.rank.to_string(),
+                    format!("{:.2e}", row.relative_residual),
+                    if row.estimable { "yes" } else { "—" }.into(),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    );
+    rep.section(&format!("Estimation ({})", r.method));
+    rep.table(
+        &["parameter", "nominal", "final", "std error"],
+        &r.names
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| r.std_err[*j].is_some())
+            .map(|(j, n)| {
+                vec![
+                    n.clone(),
+                    format!("{:.6e}", r.nominal[j]),
+                    format!("{:.6e}", r.params[j]),
+                    format!("{:.2e}", r.std_err[j].unwrap_or(f64::NAN)),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    );
+    let o = &r.objective;
+    rep.para(
+        &format!(
+            "Objective: one-step-ahead prediction {} {:.3} % {} the limit {} % over {} samples after {} s — {}.",
+            o.metric,
+            o.value_pct,
+            if o.met { "within" } else { "beyond" },
+            o.limit_pct,
+            o.samples,
+            p.objective.after_s,
+            if o.met { "MET" } else { "NOT MET: refine — another experiment (more excitation) or another subset" }
+        ),
+        Some(if o.met { "ok" } else { "alarm" }),
+    );
+    let svg = dir.join("pipeline.svg");
+    let mut panels = vec![Panel {
+        ylabel: "output".into(),
+        series: vec![
+            Series {
+                name: "measured".into(),
+                x: &r.t,
+                y: &r.measured,
+                color: PALETTE[1],
+                reference: true,
+            },
+            Series {
+                name: "one-step prediction".into(),
+                x: &r.t,
+                y: &r.predicted,
+                color: PALETTE[0],
+                reference: false,
+            },
+        ],
+    }];
+    for (name, v) in &r.tracks {
+        panels.push(Panel {
+            ylabel: name.clone(),
+            series: vec![Series {
+                name: "estimate".into(),
+                x: &r.t,
+                y: v,
+                color: PALETTE[0],
+                reference: false,
+            }],
+        });
+    }
+    plot::panels(&svg, "Prediction and parameter tracks", "time [s]", &panels)?;
+    rep.svg(&svg)?;
+    rep.write(&dir.join("report.html"))
+}
+
+/// Run `physid run`.
+pub fn run(args: &Args) -> Result<()> {
+    let p = Pipeline::load(&args.pipeline).map_err(|e| miette!("{e}"))?;
+    let rec = load_data(&p.data).map_err(|e| miette!("{}: [data] {e}", args.pipeline.display()))?;
+    let r = run_pipeline(&p, &rec).map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
+    let j = json(&r);
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir)
+            .into_diagnostic()
+            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        report(&r, &p, &args.pipeline, dir)?;
+        std::fs::write(
+            dir.join("pipeline.json"),
+            serde_json::to_string_pretty(&j).into_diagnostic()?,
+        )
+        .into_diagnostic()?;
+    }
+    if args.json {
+        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+    } else {
+        outln!("{}: {} rows", args.pipeline.display(), r.rows);
+        outln!("  estimable: {}", r.estimable.join(", "));
+        for (j, n) in r.names.iter().enumerate() {
+            if let Some(se) = r.std_err[j] {
+                outln!(
+                    "  {n:<10} {:>14.6e} → {:>14.6e} ± {:.2e}",
+                    r.nominal[j],
+                    r.params[j],
+                    se
+                );
+            }
+        }
+        let o = &r.objective;
+        outln!(
+            "  objective: {} {:.3} % (limit {} %) — {}",
+            o.metric,
+            o.value_pct,
+            o.limit_pct,
+            if o.met { "met" } else { "NOT met" }
+        );
+        if let Some(dir) = &args.out {
+            outln!("wrote {}", dir.join("report.html").display());
+        }
+    }
+    if r.objective.met {
+        Ok(())
+    } else {
+        Err(miette!(
+            "the objective was not met ({} {:.3} % > {} %)",
+            r.objective.metric,
+            r.objective.value_pct,
+            r.objective.limit_pct
+        ))
+    }
+}
