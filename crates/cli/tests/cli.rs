@@ -225,6 +225,8 @@ fn example_5_2_writes_csv_and_svg() {
     assert!(svg.starts_with("<svg") && svg.contains("vector forgetting"));
     let csv = std::fs::read_to_string(d.join("example-5.2.csv")).unwrap();
     assert_eq!(csv.lines().count(), 2 + 10_001);
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("truth"));
     let o = physid(&["example", "9.9"]);
     assert!(!o.status.success() && stderr(&o).contains("no example '9.9'"));
 }
@@ -530,6 +532,9 @@ fn friction_rank_json_table_and_heatmap() {
     }
     let svg = std::fs::read_to_string(d.join("rank.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("kappa"));
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("<table>"));
+    assert!(d.join("rank.json").exists());
 
     // The human table: a header and 27 rows; a chosen grid and parameter list.
     let o = physid(&[
@@ -619,6 +624,8 @@ fn example_5_1_and_identify_agree() {
         assert!(!j[key].is_null(), "{key}");
     }
     assert_eq!(j["design"]["d"], j["d_criterion"]);
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(html.contains("Not identifiable: E"), "{html}");
     let csv = d.join("example-5.1.csv");
     let o = physid(&[
         "identify",
@@ -805,6 +812,8 @@ fn inspect_convert_filter_chain() {
     assert_eq!(j["cycles"], 16);
     let svg = std::fs::read_to_string(d.join("surface-p_int.svg")).unwrap();
     assert!(svg.contains("<svg") && svg.contains("crank angle"));
+    let html = std::fs::read_to_string(d.join("report.html")).unwrap();
+    assert!(html.contains("Integrity") && html.contains("<svg"));
 
     // Filter the torque (zero phase) into MDF4 and read it back.
     let mf = d.join("f.mf4");
@@ -1027,6 +1036,23 @@ fn demo_writes_report_and_summary() {
     let t = s["torque_identifiability"].as_array().unwrap();
     assert!(
         t[1]["estimable"].as_array().unwrap().len() > t[0]["estimable"].as_array().unwrap().len()
+    );
+    // Application 2: within ±5 % of the simulated friction after the start-up.
+    let f = &s["friction_fit"];
+    assert!(
+        f["prediction_error_pct"]["max_after_transient_vs_truth"]
+            .as_f64()
+            .unwrap()
+            < 5.0
+    );
+    assert!(names_of(f, "estimable").contains(&"c1".to_string()));
+    // Application 3: the heavier reciprocating mass (0.84 kg) found within 3σ.
+    let tf = &s["torque_fit"];
+    let m = tf["params"]["M_rec"].as_f64().unwrap();
+    let se = tf["std_err"]["M_rec"].as_f64().unwrap();
+    assert!((m - 0.84).abs() < 3.0 * se, "M_rec {m} ± {se}");
+    assert!(
+        html.contains("Engine friction characterisation") && html.contains("Cyclic engine torque")
     );
 }
 

@@ -2,6 +2,7 @@
 
 use crate::out::{out, outln};
 use crate::plot::{self, Panel, Series, PALETTE};
+use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_apps::example_5_1::example_5_1_data;
 use physid_apps::example_5_2::{example_5_2, Example52, Example52Config};
@@ -65,7 +66,7 @@ fn run_5_1(args: &Args) -> Result<()> {
             "(x = 30·sin(0.7t), y = 30 + 3·cos(0.45t), each plus unit white noise; 100 Hz, 20 s)\n"
         );
     }
-    super::identify::run(&super::identify::Args {
+    let reports = super::identify::analyse_files(&super::identify::Args {
         data: vec![csv.clone()],
         expr: None,
         params: Vec::new(),
@@ -84,8 +85,61 @@ fn run_5_1(args: &Args) -> Result<()> {
         },
         json: args.json,
     })?;
-    if !args.json {
-        outln!("\nwrote {}", csv.display());
+    let report = reports.into_iter().next().unwrap_or_default();
+    let mut rep = Report::new(
+        "physid — thesis Example 5.1",
+        "z = sin(A)·x + B²·y·cos(x) + sqrt(C)·x² + D·y² + E·x/y + F·2x/y, A…F = 1…6; x = 30·sin(0.7t), y = 30 + 3·cos(0.45t), each plus unit white noise; 100 Hz, 20 s",
+    );
+    rep.section("Identifiability ranking (Alg. 5.1, thesis scaling, repeat cut-off)");
+    let rows: Vec<Vec<String>> = report["ranking"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    vec![
+                        (i + 1).to_string(),
+                        s["param"].as_str().unwrap_or("").to_string(),
+                        format!("{:.4e}", s["residual_ss"].as_f64().unwrap_or(f64::NAN)),
+                        format!("{:.4e}", s["relative"].as_f64().unwrap_or(f64::NAN)),
+                    ]
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    rep.table(&["rank", "parameter", "residual SS", "relative"], &rows);
+    rep.para(
+        &format!(
+            "Not identifiable: {}. The data: {}.",
+            report["unidentifiable"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .filter_map(|v| v.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default(),
+            csv.display()
+        ),
+        None,
+    );
+    rep.write(&dir.join("report.html"))?;
+    std::fs::write(
+        dir.join("example-5.1.json"),
+        serde_json::to_string_pretty(&report).into_diagnostic()?,
+    )
+    .into_diagnostic()?;
+    if args.json {
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&report).into_diagnostic()?
+        );
+    } else {
+        outln!(
+            "\nwrote {} and {}",
+            csv.display(),
+            dir.join("report.html").display()
+        );
     }
     Ok(())
 }
@@ -103,6 +157,10 @@ fn run_5_2(args: &Args) -> Result<()> {
     physid_io::write_csv(&csv, &recording(&r)).into_diagnostic()?;
     let svg = dir.join("example-5.2.svg");
     plot_5_2(&r, &svg)?;
+    let mut rep = Report::new(
+        "physid — thesis Example 5.2",
+        "z = A(t)·sin(x) + B·y², A steps 10 → 4 at t = 5 s, B = 0.5; 1 kHz, noise σ = 0.01, ϑ0 = 0, P0 = 1000·I; RLSF λ = 0.97; vector forgetting Λ = diag(0.97, 1)",
+    );
 
     let at = |t: f64| {
         r.t.iter()
@@ -110,6 +168,35 @@ fn run_5_2(args: &Args) -> Result<()> {
             .unwrap_or(r.t.len() - 1)
     };
     let times = [4.99, 5.1, 7.0, 10.0];
+    rep.section("Estimates of A and B (cf. thesis Fig. 5.6)");
+    let mut header = vec!["method".to_string()];
+    header.extend(times.iter().map(|t| format!("A, B at {t} s")));
+    let mut rows: Vec<Vec<String>> = r
+        .tracks
+        .iter()
+        .map(|tr| {
+            let mut row = vec![tr.method.clone()];
+            row.extend(
+                times
+                    .iter()
+                    .map(|&t| format!("{:.3}, {:.4}", tr.a[at(t)], tr.b[at(t)])),
+            );
+            row
+        })
+        .collect();
+    let mut truth = vec!["truth".to_string()];
+    truth.extend(
+        times
+            .iter()
+            .map(|&t| format!("{:.3}, {:.4}", r.a_true[at(t)], r.b_true)),
+    );
+    rows.push(truth);
+    rep.table(
+        &header.iter().map(String::as_str).collect::<Vec<_>>(),
+        &rows,
+    );
+    rep.svg(&svg)?;
+    rep.write(&dir.join("report.html"))?;
     if args.json {
         let mut methods = serde_json::Map::new();
         for tr in &r.tracks {
@@ -121,7 +208,9 @@ fn run_5_2(args: &Args) -> Result<()> {
         }
         let out = serde_json::json!({"example": "5.2", "estimates": methods,
             "csv": csv.display().to_string(), "svg": svg.display().to_string()});
-        outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
+        let text = serde_json::to_string_pretty(&out).into_diagnostic()?;
+        std::fs::write(dir.join("example-5.2.json"), &text).into_diagnostic()?;
+        outln!("{text}");
         return Ok(());
     }
     outln!("Thesis Example 5.2: z = A(t)·sin(x) + B·y², A steps 10 → 4 at t = 5 s, B = 0.5");
@@ -144,7 +233,12 @@ fn run_5_2(args: &Args) -> Result<()> {
         out!("  {:>8.3} {:>8.4}", r.a_true[at(t)], r.b_true);
     }
     outln!();
-    outln!("\nwrote {} and {}", csv.display(), svg.display());
+    outln!(
+        "\nwrote {}, {} and {}",
+        csv.display(),
+        svg.display(),
+        dir.join("report.html").display()
+    );
     Ok(())
 }
 

@@ -508,29 +508,60 @@ fn rank(a: &RankArgs) -> Result<()> {
             .wrap_err_with(|| format!("creating {}", dir.display()))?;
         let svg = dir.join("rank.svg");
         heatmap(&t, &a.model.preset, &svg)?;
+        let mut rep = Report::new(
+            "physid — friction design-parameter ranking",
+            &format!(
+                "Mean-value friction model ({} preset), p_atm {} kPa (thesis §7.2, Table 7.1, Fig. 7.1)",
+                a.model.preset, a.p_atm
+            ),
+        );
+        rep.section("Rank of each design parameter (1 = most sensitive)");
+        rep.para("By |normalised sensitivity| (ϑ/τ)·∂τ/∂ϑ of the friction torque, exact derivatives, at each operating point.", None);
+        let mut header = vec![
+            "test",
+            "N [rpm]",
+            "p_int [kPa]",
+            "T_oil [°C]",
+            "τ_fri [N·m]",
+        ];
+        header.extend(t.parameters.iter().map(String::as_str));
+        let rows: Vec<Vec<String>> = t
+            .tests
+            .iter()
+            .enumerate()
+            .map(|(i, x)| {
+                let mut row = vec![
+                    (i + 1).to_string(),
+                    x.op.n_rpm.to_string(),
+                    x.op.p_int_kpa.to_string(),
+                    x.op.t_oil_c.to_string(),
+                    format!("{:.4}", x.tau_nm),
+                ];
+                row.extend(x.rank.iter().map(|r| r.to_string()));
+                row
+            })
+            .collect();
+        rep.table(&header, &rows);
+        rep.svg(&svg)?;
+        rep.write(&dir.join("report.html"))?;
+        std::fs::write(
+            dir.join("rank.json"),
+            serde_json::to_string_pretty(&rank_json(&t)).into_diagnostic()?,
+        )
+        .into_diagnostic()?;
         if !a.json {
-            outln!("wrote {}", svg.display());
+            outln!(
+                "wrote {} and {}",
+                svg.display(),
+                dir.join("report.html").display()
+            );
         }
     }
     if a.json {
-        let tests: Vec<_> = t
-            .tests
-            .iter()
-            .map(|x| {
-                serde_json::json!({
-                    "n_rpm": x.op.n_rpm,
-                    "p_int_kpa": x.op.p_int_kpa,
-                    "t_oil_c": x.op.t_oil_c,
-                    "tau_fri_nm": x.tau_nm,
-                    "ranking": x.order.iter().map(|&j| &t.parameters[j]).collect::<Vec<_>>(),
-                    "sensitivity": t.parameters.iter().zip(&x.sensitivity)
-                        .map(|(p, z)| (p.clone(), serde_json::json!(z)))
-                        .collect::<serde_json::Map<_, _>>(),
-                })
-            })
-            .collect();
-        let j = serde_json::json!({"parameters": t.parameters, "tests": tests});
-        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&rank_json(&t)).into_diagnostic()?
+        );
         return Ok(());
     }
     outln!(
@@ -569,6 +600,27 @@ fn rank(a: &RankArgs) -> Result<()> {
         outln!("{line}");
     }
     Ok(())
+}
+
+/// The JSON of a ranking table.
+fn rank_json(t: &RankTable) -> serde_json::Value {
+    let tests: Vec<_> = t
+        .tests
+        .iter()
+        .map(|x| {
+            serde_json::json!({
+                "n_rpm": x.op.n_rpm,
+                "p_int_kpa": x.op.p_int_kpa,
+                "t_oil_c": x.op.t_oil_c,
+                "tau_fri_nm": x.tau_nm,
+                "ranking": x.order.iter().map(|&j| &t.parameters[j]).collect::<Vec<_>>(),
+                "sensitivity": t.parameters.iter().zip(&x.sensitivity)
+                    .map(|(p, z)| (p.clone(), serde_json::json!(z)))
+                    .collect::<serde_json::Map<_, _>>(),
+            })
+        })
+        .collect();
+    serde_json::json!({"parameters": t.parameters, "tests": tests})
 }
 
 /// The heat map of a ranking table (thesis Fig. 7.1) as SVG.

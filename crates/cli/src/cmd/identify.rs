@@ -101,6 +101,24 @@ fn cutoff(args: &Args) -> Result<Selection> {
 
 /// Run `physid identify`.
 pub fn run(args: &Args) -> Result<()> {
+    let mut reports = analyse_files(args)?;
+    if args.json {
+        let v = if reports.len() == 1 {
+            reports.remove(0)
+        } else {
+            json!({ "experiments": reports })
+        };
+        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        return Ok(());
+    }
+    if reports.len() > 1 {
+        print_comparison(&reports);
+    }
+    Ok(())
+}
+
+/// Analyse every `--data` file (printing each table unless `--json`); the JSON report of each.
+pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
     let (model, nominal) = build(args)?;
     let scaling = Scaling::parse(&args.scaling).ok_or_else(|| {
         miette!(
@@ -132,19 +150,7 @@ pub fn run(args: &Args) -> Result<()> {
         )?;
         reports.push(r);
     }
-    if args.json {
-        let v = if reports.len() == 1 {
-            reports.remove(0)
-        } else {
-            json!({ "experiments": reports })
-        };
-        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
-        return Ok(());
-    }
-    if reports.len() > 1 {
-        print_comparison(&reports);
-    }
-    Ok(())
+    Ok(reports)
 }
 
 /// A number for JSON: ∞ as the string "inf" (JSON has no infinity), NaN as null.

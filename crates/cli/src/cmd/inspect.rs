@@ -3,6 +3,7 @@
 use super::InputArgs;
 use crate::out::outln;
 use crate::plot;
+use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_apps::acquisition::{inspect, AcquisitionOptions};
 use physid_core::Recording;
@@ -68,6 +69,60 @@ pub fn run(args: &Args) -> Result<()> {
     let mut written = Vec::new();
     if let Some(dir) = &args.out {
         written = surfaces(&rec, &args.surface, dir)?;
+        let mut rep = Report::new("physid — inspect", &format!("{}", args.file.display()));
+        rep.section("Channels");
+        rep.para(
+            &format!(
+                "{} basis, {} samples{}{}{}.",
+                i.basis,
+                rec.len(),
+                i.duration_s
+                    .map_or(String::new(), |d| format!(", {d:.6} s")),
+                i.sample_rate_hz
+                    .map_or(String::new(), |r| format!(" at {r:.3} Hz")),
+                i.cycles
+                    .map_or(String::new(), |c| format!(", {c} complete cycles")),
+            ),
+            None,
+        );
+        rep.table(
+            &["channel", "unit", "samples"],
+            &i.channels
+                .iter()
+                .map(|c| vec![c.name.clone(), c.unit.clone(), c.samples.to_string()])
+                .collect::<Vec<_>>(),
+        );
+        rep.section("Integrity");
+        if i.integrity.ok {
+            rep.para("No finding.", Some("ok"));
+        } else {
+            rep.table(
+                &["sample", "kind", "detail"],
+                &i.integrity
+                    .findings
+                    .iter()
+                    .map(|f| {
+                        vec![
+                            f.index.to_string(),
+                            serde_json::to_value(f.kind)
+                                .ok()
+                                .and_then(|v| v.as_str().map(String::from))
+                                .unwrap_or_default(),
+                            f.detail.clone(),
+                        ]
+                    })
+                    .collect::<Vec<_>>(),
+            );
+        }
+        for w in &written {
+            rep.svg(Path::new(w))?;
+        }
+        rep.write(&dir.join("report.html"))?;
+        std::fs::write(
+            dir.join("inspect.json"),
+            serde_json::to_string_pretty(&i).into_diagnostic()?,
+        )
+        .into_diagnostic()?;
     }
     if args.json {
         let mut v = serde_json::to_value(&i).into_diagnostic()?;
@@ -113,6 +168,9 @@ pub fn run(args: &Args) -> Result<()> {
         }
         for w in &written {
             outln!("wrote {w}");
+        }
+        if let Some(dir) = &args.out {
+            outln!("wrote {}", dir.join("report.html").display());
         }
     }
     if args.strict && !i.integrity.ok {
