@@ -78,17 +78,21 @@ impl GradientEngine {
             return model.eval::<f64>(inputs, params);
         }
         let mut value = 0.0;
+        for (d, &p) in self.duals.iter_mut().zip(params) {
+            *d = Grad::from_re(p);
+        }
         for (chunk, out) in free
             .chunks(GRADIENT_CHUNK)
             .zip(grad.chunks_mut(GRADIENT_CHUNK))
         {
-            for (d, &p) in self.duals.iter_mut().zip(params) {
-                *d = Grad::from_re(p);
-            }
             for (k, &j) in chunk.iter().enumerate() {
                 self.duals[j].eps = Derivative::derivative_generic(Const::<GRADIENT_CHUNK>, U1, k);
             }
             let r = model.eval(inputs, &self.duals);
+            // Back to constants for the next chunk.
+            for &j in chunk {
+                self.duals[j].eps = Derivative::none();
+            }
             value = r.re;
             match r.eps.0 {
                 Some(e) => {

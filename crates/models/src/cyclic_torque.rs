@@ -74,12 +74,13 @@ impl ParamModel for CyclicTorque {
             kappa: T::from(10.0), // not used by the torque
         };
         let (g, g1, g2) = crank.thesis_g(theta);
-        let area = crank.piston_area();
         let r = p[3];
-        let ind = area * r * g * (p_cyl - p_crank);
-        let rec = p[0] * r * g * (g1 * (omega * omega) + g2 * alpha);
+        let area_r = crank.piston_area() * r;
         let n = omega * 30.0 / std::f64::consts::PI;
-        let fri = fmep_cubic(&p[5..15], n, t_oil) * area * r * (1e3 / (2.0 * std::f64::consts::PI));
-        ind - rec - fri
+        // τ_ind − τ_fri = A·r·(G·Δp − fmep·1e3/(2π)), shared factor A·r.
+        let fmep = fmep_cubic(&p[5..15], n, t_oil);
+        let ind_fri = area_r * (g * (p_cyl - p_crank) - fmep * (1e3 / (2.0 * std::f64::consts::PI)));
+        let rec = p[0] * r * g * (g1 * (omega * omega) + g2 * alpha);
+        ind_fri - rec
     }
 }

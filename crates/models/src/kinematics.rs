@@ -115,13 +115,23 @@ impl<T: Scalar> Crank<T> {
     /// thesis, with `a = θ − φ` and `q = δ + r·sin a`; they agree with the virtual-work forms at
     /// δ = 0 (tested), which is where the thesis used them.
     pub fn thesis_g(&self, theta: f64) -> (T, T, T) {
-        let a = -self.phi() + theta;
-        let q = self.delta + self.r * a.sin();
-        let psi = -(q / self.l) * (q / self.l) + 1.0;
-        let root = q / (self.l * psi.sqrt()); // √((1−ψ)/ψ) with the sign of q
-        let (sa, ca) = (a.sin(), a.cos());
-        let g = root * theta.cos() + theta.sin();
-        let g1 = self.r * (ca * ((self.r / self.l) * ca / (psi * psi.sqrt()) + 1.0) - root * sa);
+        // Each elementary function once (√ψ, 1/(l·√ψ)): the gradient engine's dual numbers pay
+        // for every operation in every lane.
+        // a = θ − φ with sin φ = δ/(r + l): sin a and cos a by the angle-difference identities
+        // from θ's sine and cosine (no arcsine, no trigonometry of a dual number).
+        let (st, ct) = theta.sin_cos();
+        let s_phi = self.delta / (self.r + self.l);
+        let c_phi = (-(s_phi * s_phi) + 1.0).sqrt();
+        let sa = c_phi * st - s_phi * ct;
+        let ca = c_phi * ct + s_phi * st;
+        let q = self.delta + self.r * sa;
+        let q_l = q / self.l;
+        let psi = -(q_l * q_l) + 1.0;
+        let inv = (self.l * psi.sqrt()).recip(); // 1/(l·√ψ)
+        let root = q * inv; // √((1−ψ)/ψ) with the sign of q
+        let g = root * ct + st;
+        // (r/l)·ca/ψ^(3/2) = r·ca·inv/ψ
+        let g1 = self.r * (ca * (self.r * ca * inv / psi + 1.0) - root * sa);
         let g2 = self.r * (root * ca + sa);
         (g, g1, g2)
     }
