@@ -1,6 +1,7 @@
 //! SVG line plots (plotters, SVG backend) with an embedded font, so no system fonts are needed.
 
 use miette::{miette, Result};
+use physid_ident::RankedParam;
 use plotters::prelude::*;
 use std::path::Path;
 use std::sync::Once;
@@ -207,6 +208,71 @@ pub fn rank_heatmap(
             ))
             .map_err(|e| err(&e))?;
         }
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+/// The residual profile of an identifiability ranking: one bar per parameter in selection
+/// order, its height `log10` of the residual sum of squares relative to the first (Alg. 5.1),
+/// estimable parameters dark, the rest light; the parameter's name under its bar.
+pub fn residual_profile(path: &Path, title: &str, ranked: &[RankedParam]) -> Result<()> {
+    register_font();
+    let err = |e: &dyn std::fmt::Display| miette!("writing {}: {e}", path.display());
+    // Rounding-level residuals (exactly 0 or below 1e-40) sit on the floor.
+    let floor = -40.0;
+    let heights: Vec<f64> = ranked
+        .iter()
+        .map(|r| {
+            if r.relative_residual > 0.0 {
+                r.relative_residual.log10().max(floor)
+            } else {
+                floor
+            }
+        })
+        .collect();
+    let low = heights.iter().cloned().fold(0.0, f64::min).floor() - 1.0;
+    let n = ranked.len().max(1);
+    let root = SVGBackend::new(path, (960, 380)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (top, body) = root.split_vertically(40);
+    top.titled(title, ("sans-serif", 20)).map_err(|e| err(&e))?;
+    let mut chart = ChartBuilder::on(&body)
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..n as f64, low..3.0)
+        .map_err(|e| err(&e))?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(0)
+        .y_desc("log10 relative residual")
+        .x_desc("selection order (estimable dark)")
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|e| err(&e))?;
+    for (i, (r, h)) in ranked.iter().zip(&heights).enumerate() {
+        let color = if r.estimable {
+            PALETTE[0]
+        } else {
+            RGBColor(170, 190, 210)
+        };
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(i as f64 + 0.15, low), (i as f64 + 0.85, *h)],
+                ShapeStyle::from(&color).filled(),
+            )))
+            .map_err(|e| err(&e))?;
+        // The name just above the bar.
+        let label_y = h + (1.0 - low) * 0.06;
+        chart
+            .draw_series(std::iter::once(Text::new(
+                r.param.clone(),
+                (i as f64 + 0.2, label_y),
+                ("sans-serif", 13).into_font(),
+            )))
+            .map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())

@@ -79,7 +79,8 @@ impl ParamModel for CyclicTorque {
         let n = omega * 30.0 / std::f64::consts::PI;
         // τ_ind − τ_fri = A·r·(G·Δp − fmep·1e3/(2π)), shared factor A·r.
         let fmep = fmep_cubic(&p[5..15], n, t_oil);
-        let ind_fri = area_r * (g * (p_cyl - p_crank) - fmep * (1e3 / (2.0 * std::f64::consts::PI)));
+        let ind_fri =
+            area_r * (g * (p_cyl - p_crank) - fmep * (1e3 / (2.0 * std::f64::consts::PI)));
         let rec = p[0] * r * g * (g1 * (omega * omega) + g2 * alpha);
         ind_fri - rec
     }

@@ -318,6 +318,13 @@ pub fn fit_report_section(
             })
             .collect::<Vec<_>>(),
     );
+    let profile = dir.join("friction_fit_residuals.svg");
+    plot::residual_profile(
+        &profile,
+        "Identifiability of c1 … c20: residual profile (Alg. 5.1)",
+        &r.ranking,
+    )?;
+    rep.svg(&profile)?;
     rep.table(
         &["coefficient", "nominal", "final", "change", "std error"],
         &r.estimable

@@ -80,6 +80,9 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<(
             })
             .collect::<Vec<_>>(),
     );
+    let profile = dir.join("pipeline_residuals.svg");
+    plot::residual_profile(&profile, "Residual profile (Alg. 5.1)", &r.ranking)?;
+    rep.svg(&profile)?;
     rep.section(&format!("Estimation ({})", r.method));
     rep.table(
         &["parameter", "nominal", "final", "std error"],

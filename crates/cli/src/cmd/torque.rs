@@ -196,6 +196,13 @@ pub fn report_section(
             })
             .collect::<Vec<_>>(),
     );
+    let profile = dir.join("torque_residuals.svg");
+    plot::residual_profile(
+        &profile,
+        "Identifiability of Eq. 8.2: residual profile (Alg. 5.1)",
+        &r.ranking,
+    )?;
+    rep.svg(&profile)?;
     let mut rows = Vec::new();
     for (k, tr) in r.tracks.iter().enumerate() {
         let j = PARAMS.iter().position(|p| *p == tr.param).unwrap_or(0);
