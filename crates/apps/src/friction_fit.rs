@@ -22,42 +22,17 @@
 //!    predicted before the estimator sees it — against the measured cycle mean, and against
 //!    the simulated truth when the recording carries it.
 
-use crate::acquisition::{to_crank_angle, AcquisitionError, AcquisitionOptions};
+use crate::acquisition::{to_crank_angle, AcquisitionOptions};
+use crate::error::AppError;
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::metrics::nmse;
-use physid_estim::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method};
-use physid_ident::{analyse, Cutoff, Data, IdentConfig, IdentError, RankedParam, Selection};
+use physid_estim::{CovSpec, EstimatorConfig, LinearEstimator, Method};
+use physid_ident::{analyse, Cutoff, Data, IdentConfig, RankedParam, Selection};
 use physid_models::friction::{
     Design, FrictionRegression, OperatingPoint, Settings, REGRESSION_PARAMS,
 };
 use physid_signal::crank::cycle_stats;
 use serde::Serialize;
-use thiserror::Error;
-
-/// Errors of the friction fit.
-#[derive(Debug, Error)]
-pub enum FrictionFitError {
-    /// A missing channel or a channel in an unknown unit.
-    #[error(transparent)]
-    Recording(#[from] physid_core::RecordingError),
-    /// Converting to a crank-angle basis.
-    #[error(transparent)]
-    Acquisition(#[from] AcquisitionError),
-    /// The identifiability analysis.
-    #[error(transparent)]
-    Ident(#[from] IdentError),
-    /// The estimator (a bad sample is reported with its cycle).
-    #[error("cycle {cycle}: {source}")]
-    Estim {
-        /// The cycle index in the recording.
-        cycle: i64,
-        /// The estimator's error.
-        source: EstimError,
-    },
-    /// Anything else, explained.
-    #[error("{0}")]
-    Invalid(String),
-}
 
 /// Where the motoring torque comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -182,10 +157,7 @@ impl CycleMeans {
 }
 
 /// Cycle means of a recording (see the module documentation).
-pub fn cycle_means(
-    rec: &Recording,
-    cfg: &FrictionFitConfig,
-) -> Result<CycleMeans, FrictionFitError> {
+pub fn cycle_means(rec: &Recording, cfg: &FrictionFitConfig) -> Result<CycleMeans, AppError> {
     let converted;
     let rec = if rec.basis == Basis::Time && rec.values("cycle").is_err() {
         converted = to_crank_angle(rec, &AcquisitionOptions::default(), 1.0)?;
@@ -227,7 +199,7 @@ pub fn cycle_means(
         ("p_atm", &p_atm),
     ] {
         if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-            return Err(FrictionFitError::Invalid(format!(
+            return Err(AppError::Invalid(format!(
                 "channel '{name}' sample {i} is {} — the cycle means need finite data",
                 v[i]
             )));
@@ -239,7 +211,7 @@ pub fn cycle_means(
     counts.sort_unstable();
     let per_cycle = counts.get(counts.len() / 2).copied().unwrap_or(0);
     if per_cycle < 8 {
-        return Err(FrictionFitError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "{} complete cycles with {per_cycle} samples each: the fit needs a crank-angle \
              recording with several samples per cycle",
             stats.len()
@@ -302,7 +274,7 @@ pub fn cycle_means(
         }
         .validate()
         .map_err(|e| {
-            FrictionFitError::Invalid(format!(
+            AppError::Invalid(format!(
                 "cycle {} (t = {:.3} s): {e} — the fit needs a motored, turning engine",
                 out.cycle[k], out.t_s[k]
             ))
@@ -350,19 +322,16 @@ pub struct FrictionFit {
 }
 
 /// Run the characterisation on a motored recording.
-pub fn friction_fit(
-    rec: &Recording,
-    cfg: &FrictionFitConfig,
-) -> Result<FrictionFit, FrictionFitError> {
+pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<FrictionFit, AppError> {
     if !(cfg.s0.is_finite() && cfg.s0 > 0.0) {
-        return Err(FrictionFitError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "S0 scale {} must be a positive number",
             cfg.s0
         )));
     }
     let data = cycle_means(rec, cfg)?;
     if data.len() < 20 {
-        return Err(FrictionFitError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "{} steady cycles ({} skipped as not steady): the fit needs at least 20",
             data.len(),
             data.skipped_unsteady
@@ -401,20 +370,19 @@ pub fn friction_fit(
         .collect();
     // DSFC in relative coordinates: y − ψᵀc0 = Σ (c0_i ψ_i)·x_i.
     let rel = ParamSet::new(REGRESSION_PARAMS, vec![0.0; 20])
-        .map_err(|e| FrictionFitError::Invalid(e.to_string()))?;
+        .map_err(|e| AppError::Invalid(e.to_string()))?;
     let free_set = rel
         .free(&estimable)
-        .map_err(|e| FrictionFitError::Invalid(e.to_string()))?;
+        .map_err(|e| AppError::Invalid(e.to_string()))?;
     let config = EstimatorConfig {
         p0: CovSpec::Scaled(cfg.s0 * cfg.s0),
         ..EstimatorConfig::new(Method::Dsfc { lambda: cfg.lambda })
     };
-    let mut est = LinearEstimator::new(&config, &rel, &free_set).map_err(|source| {
-        FrictionFitError::Estim {
-            cycle: data.cycle[0],
+    let mut est =
+        LinearEstimator::new(&config, &rel, &free_set).map_err(|source| AppError::Estim {
+            at: "estimator configuration".into(),
             source,
-        }
-    })?;
+        })?;
     let n = data.len();
     let mut predicted_nominal = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);
@@ -436,10 +404,7 @@ pub fn friction_fit(
         }
         let step = est
             .update(&scaled, data.tau_nm[k] - nominal)
-            .map_err(|source| FrictionFitError::Estim {
-                cycle: data.cycle[k],
-                source,
-            })?;
+            .map_err(AppError::estim(format!("cycle {}", data.cycle[k])))?;
         predicted_nominal.push(nominal);
         predicted.push(data.tau_nm[k] - step.prediction_error);
     }

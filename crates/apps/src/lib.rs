@@ -5,6 +5,7 @@
 //!
 //! * [`acquisition`] — the acquisition chain on a recording: inspection and integrity,
 //!   crank-angle conversion, zero-phase filtering (thesis ch. 4).
+//! * [`error`] — the applications' error type.
 //! * [`demo`] — the chain on the built-in virtual test cell (`physid demo`).
 //! * [`example_5_1`] — thesis Example 5.1's model in Rust (the reference for the expression
 //!   language).
@@ -24,6 +25,7 @@
 
 pub mod acquisition;
 pub mod demo;
+pub mod error;
 pub mod example_5_1;
 pub mod example_5_2;
 pub mod excitation;

@@ -330,6 +330,61 @@ pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, Str
     with_model!(&model, run_with(p, rec, nominal))
 }
 
+/// The estimator of a pipeline: a filter for any model, or a linear one fed with the model's
+/// exact gradient (valid when the model is linear in its parameters, checked every sample).
+enum Estimator<M: ParamModel> {
+    NonLinear(Box<NonlinearEstimator<M>>),
+    Linear {
+        est: Box<LinearEstimator>,
+        engine: GradientEngine,
+        phi: Vec<f64>,
+        all: Vec<usize>,
+    },
+}
+
+impl<M: ParamModel> Estimator<M> {
+    /// One sample; the one-step-ahead prediction error.
+    fn update(&mut self, model: &M, u: &[f64], y: f64, nominal: &[f64]) -> Result<f64, String> {
+        match self {
+            Self::NonLinear(est) => est
+                .update(u, y)
+                .map(|s| s.prediction_error)
+                .map_err(|e| e.to_string()),
+            Self::Linear {
+                est,
+                engine,
+                phi,
+                all,
+            } => {
+                let h = engine.value_and_gradient(model, u, nominal, all, phi);
+                let lin: f64 = phi.iter().zip(nominal).map(|(g, v)| g * v).sum();
+                if (h - lin).abs() > 1e-9 * (h.abs() + lin.abs()).max(1e-300) {
+                    return Err(format!(
+                        "the model is not linear in its parameters (h = {h}, φᵀϑ = {lin}); use ekf, ukf or srukf"
+                    ));
+                }
+                est.update(phi, y)
+                    .map(|s| s.prediction_error)
+                    .map_err(|e| e.to_string())
+            }
+        }
+    }
+
+    fn estimate_full(&self) -> Vec<f64> {
+        match self {
+            Self::NonLinear(est) => est.estimate_full(),
+            Self::Linear { est, .. } => est.estimate_full(),
+        }
+    }
+
+    fn std_errors(&self) -> Vec<f64> {
+        match self {
+            Self::NonLinear(est) => est.std_errors(),
+            Self::Linear { est, .. } => est.std_errors().unwrap_or_default(),
+        }
+    }
+}
+
 fn run_with<M: ParamModel + Clone>(
     model: &M,
     p: &Pipeline,
@@ -433,21 +488,7 @@ fn run_with<M: ParamModel + Clone>(
             .map(|&j| (names[j].clone(), Vec::new()))
             .collect(),
     };
-    let mut prediction = vec![0.0; n];
-    let mut u = vec![0.0; cols.len()];
-    let keep = |i: usize| i.is_multiple_of(stride) || i + 1 == n;
-    let mut record = |i: usize, yhat: f64, theta: &[f64], out: &mut PipelineResult| {
-        prediction[i] = yhat;
-        if keep(i) {
-            out.t.push(t[i]);
-            out.measured.push(y[i]);
-            out.predicted.push(yhat);
-            for (k, &j) in order.iter().enumerate() {
-                out.tracks[k].1.push(theta[j]);
-            }
-        }
-    };
-    let (final_full, se) = match p.estimator.method.as_str() {
+    let mut est = match p.estimator.method.as_str() {
         "ekf" | "ukf" | "srukf" => {
             let method = match p.estimator.method.as_str() {
                 "ekf" => NlMethod::Ekf,
@@ -470,24 +511,10 @@ fn run_with<M: ParamModel + Clone>(
                 scaled,
                 ..NlConfig::new(method)
             };
-            let mut est = NonlinearEstimator::new(model.clone(), &set, &free_set, &nl)
-                .map_err(|e| e.to_string())?;
-            for i in 0..n {
-                for (k, c) in cols.iter().enumerate() {
-                    u[k] = c[i];
-                }
-                let step = est
-                    .update(&u, y[i])
-                    .map_err(|e| format!("sample {i}: {e}"))?;
-                // The full estimate is assembled only for the plotted samples.
-                let theta = if keep(i) {
-                    est.estimate_full()
-                } else {
-                    Vec::new()
-                };
-                record(i, y[i] - step.prediction_error, &theta, &mut out);
-            }
-            (est.estimate_full(), est.std_errors())
+            Estimator::NonLinear(Box::new(
+                NonlinearEstimator::new(model.clone(), &set, &free_set, &nl)
+                    .map_err(|e| e.to_string())?,
+            ))
         }
         "rls" | "rlsf" | "dsfc" => {
             let lambda = p.estimator.lambda;
@@ -500,34 +527,14 @@ fn run_with<M: ParamModel + Clone>(
                 p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
                 ..EstimatorConfig::new(method)
             };
-            let mut est =
-                LinearEstimator::new(&config, &set, &free_set).map_err(|e| e.to_string())?;
-            let all: Vec<usize> = (0..names.len()).collect();
-            let mut engine = GradientEngine::new(names.len());
-            let mut phi = vec![0.0; names.len()];
-            for i in 0..n {
-                for (k, c) in cols.iter().enumerate() {
-                    u[k] = c[i];
-                }
-                let h = engine.value_and_gradient(model, &u, &nominal, &all, &mut phi);
-                let lin: f64 = phi.iter().zip(&nominal).map(|(g, v)| g * v).sum();
-                if (h - lin).abs() > 1e-9 * (h.abs() + lin.abs()).max(1e-300) {
-                    return Err(format!(
-                        "method {}: the model is not linear in its parameters (sample {i}: h = {h}, φᵀϑ = {lin}); use ekf, ukf or srukf",
-                        p.estimator.method
-                    ));
-                }
-                let step = est
-                    .update(&phi, y[i])
-                    .map_err(|e| format!("sample {i}: {e}"))?;
-                let theta = if keep(i) {
-                    est.estimate_full()
-                } else {
-                    Vec::new()
-                };
-                record(i, y[i] - step.prediction_error, &theta, &mut out);
+            Estimator::Linear {
+                est: Box::new(
+                    LinearEstimator::new(&config, &set, &free_set).map_err(|e| e.to_string())?,
+                ),
+                engine: GradientEngine::new(names.len()),
+                phi: vec![0.0; names.len()],
+                all: (0..names.len()).collect(),
             }
-            (est.estimate_full(), est.std_errors().unwrap_or_default())
         }
         m => {
             return Err(format!(
@@ -535,6 +542,28 @@ fn run_with<M: ParamModel + Clone>(
             ))
         }
     };
+    let mut prediction = vec![0.0; n];
+    let mut u = vec![0.0; cols.len()];
+    for i in 0..n {
+        for (k, c) in cols.iter().enumerate() {
+            u[k] = c[i];
+        }
+        let e = est
+            .update(model, &u, y[i], &nominal)
+            .map_err(|e| format!("sample {i}: {e}"))?;
+        prediction[i] = y[i] - e;
+        // The full estimate is assembled only for the plotted samples.
+        if i.is_multiple_of(stride) || i + 1 == n {
+            let theta = est.estimate_full();
+            out.t.push(t[i]);
+            out.measured.push(y[i]);
+            out.predicted.push(prediction[i]);
+            for (k, &j) in order.iter().enumerate() {
+                out.tracks[k].1.push(theta[j]);
+            }
+        }
+    }
+    let (final_full, se) = (est.estimate_full(), est.std_errors());
     for (k, &j) in order.iter().enumerate() {
         out.std_err[j] = se.get(k).copied();
     }

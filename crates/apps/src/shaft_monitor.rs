@@ -7,29 +7,14 @@
 //! of each estimate from its healthy value (Eq. 6.3) raises an alarm when it stays beyond a
 //! bound for a dwell — and names the parameter that moved (isolation).
 
+use crate::error::AppError;
 use physid_core::{ParamSet, Recording};
 use physid_estim::{
-    Alarm, CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector,
-    VfVariant,
+    Alarm, CovSpec, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector, VfVariant,
 };
 use physid_models::shaft::{Shaft, NOMINAL};
 use physid_signal::filter::{butter, Band};
 use serde::Serialize;
-use thiserror::Error;
-
-/// Errors of the shaft monitor.
-#[derive(Debug, Error)]
-pub enum MonitorError {
-    /// A missing channel or a bad recording.
-    #[error(transparent)]
-    Recording(#[from] physid_core::RecordingError),
-    /// From the estimator or detector.
-    #[error(transparent)]
-    Estim(#[from] EstimError),
-    /// Anything else, explained.
-    #[error("{0}")]
-    Invalid(String),
-}
 
 /// The estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -152,7 +137,7 @@ pub struct ShaftMonitor {
 
 /// Run the monitor on a time-basis recording with `theta_dy`, `theta_en`, `omega_dy`,
 /// `omega_en`, `torque_shaft` and `t` (and `true_shaft_k`/`true_shaft_b` if simulated).
-pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonitor, MonitorError> {
+pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonitor, AppError> {
     let t = rec.values("t")?;
     let get = |n: &str| rec.values(n);
     let (thd, the, wd, we, tq) = (
@@ -163,7 +148,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         get("torque_shaft")?,
     );
     if t.len() < 100 {
-        return Err(MonitorError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "{} samples: the monitor needs at least 100",
             t.len()
         )));
@@ -173,7 +158,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         .windows(2)
         .position(|w| ((w[1] - w[0]) - dt).abs() > 1e-3 * dt)
     {
-        return Err(MonitorError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "time step not uniform at sample {} — resample first (physid convert --time-basis HZ)",
             i + 1
         )));
@@ -184,11 +169,11 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
     // Zero-phase prefilter (if the cut-off is below Nyquist).
     let (dth, dw, tq) = if cfg.cutoff_hz < fs / 2.0 {
         let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, fs)
-            .map_err(|e| MonitorError::Invalid(e.to_string()))?
+            .map_err(|e| AppError::Invalid(e.to_string()))?
             .to_sos();
         let f = |x: &[f64]| {
             sos.sosfiltfilt(x)
-                .map_err(|e| MonitorError::Invalid(e.to_string()))
+                .map_err(|e| AppError::Invalid(e.to_string()))
         };
         (f(&dth)?, f(&dw)?, f(tq)?)
     } else {
@@ -196,7 +181,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
     };
     let every = ((fs / cfg.rate_hz).round() as usize).max(1);
     let params = ParamSet::new(["K", "B", "tau0"], cfg.theta0.to_vec())
-        .map_err(|e| MonitorError::Invalid(e.to_string()))?;
+        .map_err(|e| AppError::Invalid(e.to_string()))?;
     let method = match cfg.method {
         MonitorMethod::Rls => Method::Rlsf { lambda: cfg.lambda },
         MonitorMethod::Rlsvf => Method::Rlsvf {
@@ -209,13 +194,15 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         p0: CovSpec::Scaled(cfg.p0),
         ..EstimatorConfig::new(method)
     };
-    let mut est = LinearEstimator::new(&config, &params, &params.all_free())?;
+    let mut est = LinearEstimator::new(&config, &params, &params.all_free())
+        .map_err(AppError::estim("estimator configuration"))?;
     let mut det = RelativeErrorDetector::new(
         vec!["K".into(), "B".into()],
         cfg.healthy.to_vec(),
         vec![cfg.bound, cfg.bound],
         cfg.dwell.max(1),
-    )?;
+    )
+    .map_err(AppError::estim("detector configuration"))?;
     let model = Shaft::new(true);
     let mut phi = [0.0; 3];
     let mut out = ShaftMonitor {
@@ -236,7 +223,8 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
     let mut det_t0 = None;
     for i in (0..t.len()).step_by(every) {
         model.regressor(&[dth[i], 0.0, dw[i], 0.0], &mut phi);
-        est.update(&phi, tq[i])?;
+        est.update(&phi, tq[i])
+            .map_err(AppError::estim(format!("sample {i}")))?;
         let th = est.estimate();
         if est.std_errors_into(&mut se).is_err() {
             se = [f64::NAN; 3];
@@ -250,7 +238,8 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
             if det_t0.is_none() {
                 det_t0 = Some(out.t.len() - 1);
             }
-            det.update(&th[..2])?;
+            det.update(&th[..2])
+                .map_err(AppError::estim(format!("sample {i}")))?;
         }
     }
     let th = est.estimate();

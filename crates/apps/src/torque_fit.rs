@@ -18,44 +18,19 @@
 //!    defines it (Eq. 6.4 — ill-defined for a torque whose mean is near zero, SPEC §5.3), and
 //!    NRMSE.
 
-use crate::acquisition::{to_crank_angle, AcquisitionError, AcquisitionOptions};
+use crate::acquisition::{to_crank_angle, AcquisitionOptions};
+use crate::error::AppError;
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
 use physid_estim::metrics::{nmse, nrmse};
-use physid_estim::{CovSpec, EstimError, NlConfig, NlMethod, NonlinearEstimator};
+use physid_estim::{CovSpec, NlConfig, NlMethod, NonlinearEstimator};
 use physid_ident::{
-    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, IdentError, RankedParam, Selection,
+    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, RankedParam, Selection,
 };
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
 use physid_models::friction::thesis_preset;
 use physid_models::friction_fit::fit_friction_cubic;
 use physid_sim::params::CellParams;
 use serde::Serialize;
-use thiserror::Error;
-
-/// Errors of the cyclic-torque fit.
-#[derive(Debug, Error)]
-pub enum TorqueFitError {
-    /// A missing channel or a channel in an unknown unit.
-    #[error(transparent)]
-    Recording(#[from] physid_core::RecordingError),
-    /// Converting to a crank-angle basis.
-    #[error(transparent)]
-    Acquisition(#[from] AcquisitionError),
-    /// The identifiability analysis.
-    #[error(transparent)]
-    Ident(#[from] IdentError),
-    /// The estimator (a bad sample is reported with its index).
-    #[error("sample {sample}: {source}")]
-    Estim {
-        /// The sample index in the recording.
-        sample: usize,
-        /// The estimator's error.
-        source: EstimError,
-    },
-    /// Anything else, explained.
-    #[error("{0}")]
-    Invalid(String),
-}
 
 /// The relative cut-off of the cyclic-torque ranking: residuals below 1e-6 of the first are
 /// at the level of the measured oil temperature's noise (0.1 K on 363 K, squared), which is all
@@ -94,7 +69,7 @@ impl TorqueData {
     /// `theta` (rad from TDC, as the acquisition chain's crank-angle conversion writes it) or
     /// else `theta_en`; a time-basis recording is first resampled to one sample per crank
     /// degree from its engine encoder and TDC marker.
-    pub fn from_recording(rec: &Recording) -> Result<Self, TorqueFitError> {
+    pub fn from_recording(rec: &Recording) -> Result<Self, AppError> {
         let converted;
         let rec = if rec.basis == Basis::Time {
             converted = to_crank_angle(rec, &AcquisitionOptions::default(), 1.0)?;
@@ -125,7 +100,7 @@ impl TorqueData {
         let names = [theta, "omega_en", "alpha_en", "p_cyl", "p_crank", "T_oil"];
         for (name, col) in names.iter().zip(&inputs).chain([(&"torque_engine", &y)]) {
             if let Some(i) = col.iter().position(|v| !v.is_finite()) {
-                return Err(TorqueFitError::Invalid(format!(
+                return Err(AppError::Invalid(format!(
                     "channel '{name}' sample {i} is {}: the model needs finite data",
                     col[i]
                 )));
@@ -157,10 +132,10 @@ pub fn torque_identifiability(
     nominal: &[f64; 15],
     fixed: &[String],
     selection: &Selection,
-) -> Result<(Analysis, Vec<usize>), TorqueFitError> {
+) -> Result<(Analysis, Vec<usize>), AppError> {
     for f in fixed {
         if !PARAMS.contains(&f.as_str()) {
-            return Err(TorqueFitError::Invalid(format!(
+            return Err(AppError::Invalid(format!(
                 "fixed parameter '{f}': the parameters are {}",
                 PARAMS.join(", ")
             )));
@@ -170,7 +145,7 @@ pub fn torque_identifiability(
         .filter(|&j| !fixed.iter().any(|f| f == PARAMS[j]))
         .collect();
     if free.is_empty() {
-        return Err(TorqueFitError::Invalid(
+        return Err(AppError::Invalid(
             "every parameter is fixed: nothing to analyse".into(),
         ));
     }
@@ -275,16 +250,16 @@ pub struct TorqueFit {
 }
 
 /// Run Application 3 on a crank-angle recording.
-pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, TorqueFitError> {
+pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError> {
     let data = TorqueData::from_recording(rec)?;
     let n = data.y.len();
     if n < 720 {
-        return Err(TorqueFitError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "{n} samples: the fit needs at least one cycle (720 samples at one per crank degree)"
         )));
     }
     if !(cfg.p0.is_finite() && cfg.p0 > 0.0) {
-        return Err(TorqueFitError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "P0 scale {} must be a positive number",
             cfg.p0
         )));
@@ -292,12 +267,12 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, T
     let (analysis, estimable) =
         torque_identifiability(&data, &cfg.nominal, &cfg.fixed, &cfg.selection)?;
     if estimable.is_empty() {
-        return Err(TorqueFitError::Invalid(
+        return Err(AppError::Invalid(
             "no parameter is estimable on this recording".into(),
         ));
     }
     if let Some(&j) = estimable.iter().find(|&&j| cfg.nominal[j] == 0.0) {
-        return Err(TorqueFitError::Invalid(format!(
+        return Err(AppError::Invalid(format!(
             "'{}' has nominal value 0: scaled coordinates ϑ = ϑ0·(1 + x) cannot move it — give it a non-zero nominal value or fix it",
             PARAMS[j]
         )));
@@ -311,11 +286,11 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, T
         }
     };
     let params = ParamSet::new(PARAMS, cfg.nominal.to_vec())
-        .map_err(|e| TorqueFitError::Invalid(e.to_string()))?;
+        .map_err(|e| AppError::Invalid(e.to_string()))?;
     let names: Vec<&str> = estimable.iter().map(|&j| PARAMS[j]).collect();
     let free = params
         .free(&names)
-        .map_err(|e| TorqueFitError::Invalid(e.to_string()))?;
+        .map_err(|e| AppError::Invalid(e.to_string()))?;
     let mut r1 = vec![0.0; free.free().len()];
     for (name, v) in &cfg.track {
         let pos = free
@@ -323,7 +298,7 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, T
             .iter()
             .position(|&j| PARAMS[j] == name.as_str())
             .ok_or_else(|| {
-                TorqueFitError::Invalid(format!(
+                AppError::Invalid(format!(
                     "track {name}: it is not among the estimated parameters ({})",
                     names.join(", ")
                 ))
@@ -339,7 +314,7 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, T
         method: cfg.method,
     };
     let mut est = NonlinearEstimator::new(model.clone(), &params, &free, &nl)
-        .map_err(|source| TorqueFitError::Estim { sample: 0, source })?;
+        .map_err(AppError::estim("estimator configuration"))?;
     let order: Vec<usize> = free.free().to_vec();
     let stride = n.div_ceil(4000).max(1);
     let mut out_t = Vec::with_capacity(n / stride + 1);
@@ -358,7 +333,7 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, T
         data.row(i, &mut u);
         let step = est
             .update(&u, data.y[i])
-            .map_err(|source| TorqueFitError::Estim { sample: i, source })?;
+            .map_err(AppError::estim(format!("sample {i}")))?;
         if i.is_multiple_of(stride) || i + 1 == n {
             out_t.push(data.t[i]);
             measured.push(data.y[i]);

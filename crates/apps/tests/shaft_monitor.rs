@@ -7,23 +7,12 @@
 
 use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod};
 use physid_core::Recording;
-use physid_sim::run::{simulate, RunOptions};
-use physid_sim::scenario::named;
+use physid_sim::run::OutputBasis;
+
+mod common;
 
 fn run(scenario: &str, set: &[(&str, f64)], faults: &[&str], seconds: f64) -> Recording {
-    let mut s = named(scenario).unwrap();
-    s.settle = 0.5;
-    for f in faults {
-        s.faults.push(f.to_string());
-    }
-    let mut opts = RunOptions {
-        duration: Some(seconds),
-        ..Default::default()
-    };
-    for (k, v) in set {
-        opts.params.set(k, *v).unwrap();
-    }
-    simulate(&s, &opts, |_| {}).unwrap()
+    common::simulate_scenario(scenario, set, faults, seconds, OutputBasis::Time(10_000.0))
 }
 
 const METHODS: [MonitorMethod; 3] = [

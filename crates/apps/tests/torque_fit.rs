@@ -11,24 +11,12 @@ use physid_core::Recording;
 use physid_estim::NlMethod;
 use physid_models::cyclic_torque::PARAMS;
 use physid_sim::params::CellParams;
-use physid_sim::run::{parameter_truth, simulate, OutputBasis, RunOptions};
-use physid_sim::scenario::named;
+use physid_sim::run::{parameter_truth, OutputBasis};
+
+mod common;
 
 fn run(scenario: &str, set: &[(&str, f64)], faults: &[&str], seconds: f64) -> Recording {
-    let mut s = named(scenario).unwrap();
-    s.settle = 0.5;
-    for f in faults {
-        s.faults.push(f.to_string());
-    }
-    let mut opts = RunOptions {
-        duration: Some(seconds),
-        basis: OutputBasis::Crank(1.0),
-        ..Default::default()
-    };
-    for (k, v) in set {
-        opts.params.set(k, *v).unwrap();
-    }
-    simulate(&s, &opts, |_| {}).unwrap()
+    common::simulate_scenario(scenario, set, faults, seconds, OutputBasis::Crank(1.0))
 }
 
 fn nominal() -> [f64; 15] {

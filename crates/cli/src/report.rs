@@ -1,7 +1,8 @@
 //! Self-contained HTML reports: text, tables and the SVG plots inlined (no network, no files
 //! beside it needed to open it).
 
-use miette::{miette, Result};
+use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use physid_ident::RankedParam;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -78,9 +79,45 @@ th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.note{{c
         Ok(())
     }
 
+    /// An identifiability ranking (thesis Tables 7.3, 8.1): the table of parameters in
+    /// selection order and the residual profile, drawn into `svg`.
+    pub fn ranking(&mut self, ranked: &[RankedParam], title: &str, svg: &Path) -> Result<()> {
+        self.table(
+            &["parameter", "rank", "relative residual", "estimable"],
+            &ranked
+                .iter()
+                .map(|row| {
+                    vec![
+                        row.param.clone(),
+                        row.rank.to_string(),
+                        format!("{:.2e}", row.relative_residual),
+                        if row.estimable { "yes" } else { "—" }.into(),
+                    ]
+                })
+                .collect::<Vec<_>>(),
+        );
+        crate::plot::residual_profile(svg, title, ranked)?;
+        self.svg(svg)
+    }
+
     /// Write `report.html` to `path`.
     pub fn write(mut self, path: &Path) -> Result<()> {
         self.html.push_str("</body></html>\n");
         std::fs::write(path, self.html).map_err(|e| miette!("writing {}: {e}", path.display()))
     }
+}
+
+/// Create an output directory (`--out DIR`), saying which on failure.
+pub fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .into_diagnostic()
+        .wrap_err_with(|| format!("creating {}", dir.display()))
+}
+
+/// Finish an output directory: `DIR/report.html` and the JSON as `DIR/json_name`.
+pub fn finish(dir: &Path, report: Report, json_name: &str, json: &serde_json::Value) -> Result<()> {
+    report.write(&dir.join("report.html"))?;
+    let path = dir.join(json_name);
+    std::fs::write(&path, serde_json::to_string_pretty(json).into_diagnostic()?)
+        .map_err(|e| miette!("writing {}: {e}", path.display()))
 }

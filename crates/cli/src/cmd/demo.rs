@@ -4,7 +4,7 @@
 
 use crate::out::outln;
 use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::demo::run_demo;
 use std::path::PathBuf;
 
@@ -22,9 +22,7 @@ pub fn run(args: &Args) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("physid-out/demo"));
-    std::fs::create_dir_all(&dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    crate::report::create_dir(&dir)?;
     let bar = indicatif::ProgressBar::new(100);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{msg:40} [{bar:30}] {percent}% ({elapsed})")

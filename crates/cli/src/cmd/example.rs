@@ -3,7 +3,7 @@
 use crate::out::{out, outln};
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::example_5_1::example_5_1_data;
 use physid_apps::example_5_2::{example_5_2, Example52, Example52Config};
 use physid_core::{Basis, Channel, Recording};
@@ -42,9 +42,7 @@ fn run_5_1(args: &Args) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("physid-out/example-5.1"));
-    std::fs::create_dir_all(&dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    crate::report::create_dir(&dir)?;
     let csv = dir.join("example-5.1.csv");
     let mut rec = Recording::new(Basis::Time);
     for (name, v) in [("t", &d.t), ("x", &d.x), ("y", &d.y), ("z", &d.z)] {
@@ -150,9 +148,7 @@ fn run_5_2(args: &Args) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("physid-out/example-5.2"));
-    std::fs::create_dir_all(&dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    crate::report::create_dir(&dir)?;
     let csv = dir.join("example-5.2.csv");
     physid_io::write_csv(&csv, &recording(&r)).into_diagnostic()?;
     let svg = dir.join("example-5.2.svg");

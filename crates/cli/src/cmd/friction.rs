@@ -4,8 +4,8 @@
 
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
-use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use crate::report::{self, Report};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::friction_fit::{friction_fit, FrictionFit, FrictionFitConfig, TorqueSource};
 use physid_apps::friction_rank::{friction_rank, RankGrid, RankTable};
 use physid_ident::Selection;
@@ -188,17 +188,10 @@ fn fit(a: &FitArgs) -> Result<()> {
     let r = friction_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
     let j = fit_json(&r);
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        report::create_dir(dir)?;
         let mut rep = Report::new("physid — friction fit", &format!("{}", a.data.display()));
         fit_report_section(&mut rep, &r, &cfg, dir)?;
-        rep.write(&dir.join("report.html"))?;
-        std::fs::write(
-            dir.join("friction_fit.json"),
-            serde_json::to_string_pretty(&j).into_diagnostic()?,
-        )
-        .into_diagnostic()?;
+        report::finish(dir, rep, "friction_fit.json", &j)?;
     }
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
@@ -304,27 +297,11 @@ pub fn fit_report_section(
         ),
         None,
     );
-    rep.table(
-        &["coefficient", "rank", "relative residual", "estimable"],
-        &r.ranking
-            .iter()
-            .map(|row| {
-                vec![
-                    row.param.clone(),
-                    row.rank.to_string(),
-                    format!("{:.2e}", row.relative_residual),
-                    if row.estimable { "yes" } else { "—" }.into(),
-                ]
-            })
-            .collect::<Vec<_>>(),
-    );
-    let profile = dir.join("friction_fit_residuals.svg");
-    plot::residual_profile(
-        &profile,
-        "Identifiability of c1 … c20: residual profile (Alg. 5.1)",
+    rep.ranking(
         &r.ranking,
+        "Identifiability of c1 … c20: residual profile (Alg. 5.1)",
+        &dir.join("friction_fit_residuals.svg"),
     )?;
-    rep.svg(&profile)?;
     rep.table(
         &["coefficient", "nominal", "final", "change", "std error"],
         &r.estimable
@@ -510,9 +487,7 @@ fn rank(a: &RankArgs) -> Result<()> {
     };
     let t = friction_rank(&d, &st, &grid, &a.params).map_err(|e| miette!("{e}"))?;
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        report::create_dir(dir)?;
         let svg = dir.join("rank.svg");
         heatmap(&t, &a.model.preset, &svg)?;
         let mut rep = Report::new(
@@ -550,12 +525,7 @@ fn rank(a: &RankArgs) -> Result<()> {
             .collect();
         rep.table(&header, &rows);
         rep.svg(&svg)?;
-        rep.write(&dir.join("report.html"))?;
-        std::fs::write(
-            dir.join("rank.json"),
-            serde_json::to_string_pretty(&rank_json(&t)).into_diagnostic()?,
-        )
-        .into_diagnostic()?;
+        report::finish(dir, rep, "rank.json", &rank_json(&t))?;
         if !a.json {
             outln!(
                 "wrote {} and {}",

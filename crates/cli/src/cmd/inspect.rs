@@ -4,7 +4,7 @@ use super::InputArgs;
 use crate::out::outln;
 use crate::plot;
 use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{inspect, AcquisitionOptions};
 use physid_core::Recording;
 use std::path::{Path, PathBuf};
@@ -198,9 +198,7 @@ fn surfaces(rec: &Recording, channels: &[String], dir: &Path) -> Result<Vec<Stri
             ))
         }
     };
-    std::fs::create_dir_all(dir)
-        .into_diagnostic()
-        .wrap_err_with(|| format!("creating {}", dir.display()))?;
+    crate::report::create_dir(dir)?;
     let mut written = Vec::new();
     for name in channels {
         let x = rec.values(name).map_err(|e| miette!("--surface: {e}"))?;

@@ -3,8 +3,8 @@
 use super::InputArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
-use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use crate::report::{self, Report};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor};
 use std::path::{Path, PathBuf};
 
@@ -266,17 +266,10 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     let r = monitor_shaft(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
     let j = json(&r);
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        report::create_dir(dir)?;
         let mut rep = Report::new("physid — shaft monitor", &format!("{}", a.data.display()));
         report_section(&mut rep, &r, &cfg, dir)?;
-        rep.write(&dir.join("report.html"))?;
-        std::fs::write(
-            dir.join("shaft.json"),
-            serde_json::to_string_pretty(&j).into_diagnostic()?,
-        )
-        .into_diagnostic()?;
+        report::finish(dir, rep, "shaft.json", &j)?;
     }
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);

@@ -3,8 +3,8 @@
 
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
-use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use crate::report::{self, Report};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::pipeline::{load_data, run_pipeline, Pipeline, PipelineResult};
 use std::path::{Path, PathBuf};
 
@@ -46,7 +46,7 @@ pub fn json(r: &PipelineResult) -> serde_json::Value {
     })
 }
 
-fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<()> {
+fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<Report> {
     let mut rep = Report::new(
         "physid — qualitative adaptive identification",
         &format!("{}", file.display()),
@@ -66,23 +66,11 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<(
         ),
         None,
     );
-    rep.table(
-        &["parameter", "rank", "relative residual", "estimable"],
-        &r.ranking
-            .iter()
-            .map(|row| {
-                vec![
-                    row.param.clone(),
-                    row.rank.to_string(),
-                    format!("{:.2e}", row.relative_residual),
-                    if row.estimable { "yes" } else { "—" }.into(),
-                ]
-            })
-            .collect::<Vec<_>>(),
-    );
-    let profile = dir.join("pipeline_residuals.svg");
-    plot::residual_profile(&profile, "Residual profile (Alg. 5.1)", &r.ranking)?;
-    rep.svg(&profile)?;
+    rep.ranking(
+        &r.ranking,
+        "Residual profile (Alg. 5.1)",
+        &dir.join("pipeline_residuals.svg"),
+    )?;
     rep.section(&format!("Estimation ({})", r.method));
     rep.table(
         &["parameter", "nominal", "final", "std error"],
@@ -148,7 +136,7 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<(
     }
     plot::panels(&svg, "Prediction and parameter tracks", "time [s]", &panels)?;
     rep.svg(&svg)?;
-    rep.write(&dir.join("report.html"))
+    Ok(rep)
 }
 
 /// Run `physid run`.
@@ -158,15 +146,9 @@ pub fn run(args: &Args) -> Result<()> {
     let r = run_pipeline(&p, &rec).map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
     let j = json(&r);
     if let Some(dir) = &args.out {
-        std::fs::create_dir_all(dir)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("creating {}", dir.display()))?;
-        report(&r, &p, &args.pipeline, dir)?;
-        std::fs::write(
-            dir.join("pipeline.json"),
-            serde_json::to_string_pretty(&j).into_diagnostic()?,
-        )
-        .into_diagnostic()?;
+        report::create_dir(dir)?;
+        let rep = report(&r, &p, &args.pipeline, dir)?;
+        report::finish(dir, rep, "pipeline.json", &j)?;
     }
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);

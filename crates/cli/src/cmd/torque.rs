@@ -4,8 +4,8 @@
 use super::named_values;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
-use crate::report::Report;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
+use crate::report::{self, Report};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::torque_fit::{cyclic_torque_nominal, torque_fit, TorqueFit, TorqueFitConfig};
 use physid_core::Recording;
 use physid_estim::{NlMethod, SigmaPoints};
@@ -182,27 +182,11 @@ pub fn report_section(
         ),
         None,
     );
-    rep.table(
-        &["parameter", "rank", "relative residual", "estimable"],
-        &r.ranking
-            .iter()
-            .map(|row| {
-                vec![
-                    row.param.clone(),
-                    row.rank.to_string(),
-                    format!("{:.2e}", row.relative_residual),
-                    if row.estimable { "yes" } else { "—" }.into(),
-                ]
-            })
-            .collect::<Vec<_>>(),
-    );
-    let profile = dir.join("torque_residuals.svg");
-    plot::residual_profile(
-        &profile,
-        "Identifiability of Eq. 8.2: residual profile (Alg. 5.1)",
+    rep.ranking(
         &r.ranking,
+        "Identifiability of Eq. 8.2: residual profile (Alg. 5.1)",
+        &dir.join("torque_residuals.svg"),
     )?;
-    rep.svg(&profile)?;
     let mut rows = Vec::new();
     for (k, tr) in r.tracks.iter().enumerate() {
         let j = PARAMS.iter().position(|p| *p == tr.param).unwrap_or(0);
@@ -340,20 +324,13 @@ fn fit(a: &FitArgs) -> Result<()> {
     let r = torque_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
     let j = json(&r);
     if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir)
-            .into_diagnostic()
-            .wrap_err_with(|| format!("creating {}", dir.display()))?;
+        report::create_dir(dir)?;
         let mut rep = Report::new(
             "physid — cyclic torque fit",
             &format!("{}", a.data.display()),
         );
         report_section(&mut rep, &r, &cfg, &truths(&rec, &r), dir)?;
-        rep.write(&dir.join("report.html"))?;
-        std::fs::write(
-            dir.join("torque_fit.json"),
-            serde_json::to_string_pretty(&j).into_diagnostic()?,
-        )
-        .into_diagnostic()?;
+        report::finish(dir, rep, "torque_fit.json", &j)?;
     }
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
