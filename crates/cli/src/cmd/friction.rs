@@ -160,7 +160,7 @@ struct FitArgs {
     /// "max_after_transient"}, …}.
     #[arg(long)]
     json: bool,
-    /// Directory for the report (report.html, friction_fit.svg, friction_fit.json).
+    /// Directory for the report (report.html with its SVGs, friction_fit.json).
     #[arg(long)]
     out: Option<PathBuf>,
 }

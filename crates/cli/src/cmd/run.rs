@@ -18,7 +18,7 @@ pub struct Args {
     /// "limit_pct", "met"}, …}.
     #[arg(long)]
     json: bool,
-    /// Directory for the report (report.html, pipeline.svg, pipeline.json).
+    /// Directory for the report (report.html with its SVGs, pipeline.json).
     #[arg(long)]
     out: Option<PathBuf>,
 }

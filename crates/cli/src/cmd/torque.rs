@@ -68,7 +68,7 @@ struct FitArgs {
     /// Print JSON: {"estimable", "params", "std_err", "nmse_before", "nmse_after", …}.
     #[arg(long)]
     json: bool,
-    /// Directory for the report (report.html, torque_fit.svg, torque_fit.json).
+    /// Directory for the report (report.html with its SVGs, torque_fit.json).
     #[arg(long)]
     out: Option<PathBuf>,
 }
