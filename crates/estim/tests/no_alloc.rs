@@ -3,8 +3,6 @@
 //! without the wind-up guard, and for the detectors.
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
-// A global allocator can only be written with `unsafe impl GlobalAlloc`; it forwards to `System`.
-#![allow(unsafe_code)]
 
 mod common;
 
@@ -13,39 +11,7 @@ use physid_estim::{
     CovSpec, Cusum, EstimatorConfig, GuardAction, LinearEstimator, NlConfig, NlMethod,
     NonlinearEstimator, RelativeErrorDetector, SigmaPoints, WindupGuard,
 };
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-struct Counting;
-thread_local! {
-    /// Allocations made by *this* thread: the test harness's own threads (output capture,
-    /// progress) allocate concurrently and must not count.
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn bump() {
-    // `try_with`: no panic while thread-locals are being torn down.
-    let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-}
-
-fn allocs() -> usize {
-    ALLOCS.with(Cell::get)
-}
-
-// SAFETY: forwards every call unchanged to `System`, only counting.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        bump();
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        bump();
-        unsafe { System.realloc(p, l, n) }
-    }
-}
+use physid_testkit::{allocations as allocs, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;

@@ -1,0 +1,53 @@
+//! Test support shared by the crates' tests — a dev-dependency only.
+//!
+//! [`Counting`] is a global allocator that forwards to the system allocator and counts, per
+//! thread, the allocations made: a test installs it with
+//!
+//! ```ignore
+//! #[global_allocator]
+//! static GLOBAL: physid_testkit::Counting = physid_testkit::Counting;
+//! ```
+//!
+//! and checks that [`allocations`] does not move across the code under test (the estimators'
+//! "no allocation per sample" promise).
+
+// A global allocator can only be written with `unsafe impl GlobalAlloc`; it forwards to `System`.
+#![allow(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+/// The counting allocator.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Counting;
+
+thread_local! {
+    /// Allocations made by *this* thread: the test harness's own threads (output capture,
+    /// progress) allocate concurrently and must not count.
+    static ALLOCS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn bump() {
+    // `try_with`: no panic while thread-locals are being torn down.
+    let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+}
+
+/// Allocations (and reallocations) this thread has made so far.
+pub fn allocations() -> usize {
+    ALLOCS.with(Cell::get)
+}
+
+// SAFETY: forwards every call unchanged to `System`, only counting.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        bump();
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        bump();
+        unsafe { System.realloc(p, l, n) }
+    }
+}
