@@ -31,14 +31,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("native_value", |b| {
         b.iter(|| {
             data.iter()
-                .map(|u| native.eval::<f64>(black_box(u), &p))
+                .map(|u| native.eval::<f64>(black_box(u), black_box(&p)))
                 .sum::<f64>()
         })
     });
     g.bench_function("expr_value", |b| {
         b.iter(|| {
             data.iter()
-                .map(|u| expr.eval::<f64>(black_box(u), &p))
+                .map(|u| expr.eval::<f64>(black_box(u), black_box(&p)))
                 .sum::<f64>()
         })
     });
@@ -47,14 +47,24 @@ fn bench(c: &mut Criterion) {
     g.bench_function("native_gradient", |b| {
         b.iter(|| {
             data.iter()
-                .map(|u| engine.value_and_gradient(&native, black_box(u), &p, &free, &mut grad))
+                .map(|u| {
+                    engine.value_and_gradient(
+                        &native,
+                        black_box(u),
+                        black_box(&p),
+                        &free,
+                        &mut grad,
+                    )
+                })
                 .sum::<f64>()
         })
     });
     g.bench_function("expr_gradient", |b| {
         b.iter(|| {
             data.iter()
-                .map(|u| engine.value_and_gradient(&expr, black_box(u), &p, &free, &mut grad))
+                .map(|u| {
+                    engine.value_and_gradient(&expr, black_box(u), black_box(&p), &free, &mut grad)
+                })
                 .sum::<f64>()
         })
     });

@@ -136,19 +136,22 @@ pub fn run(args: &Args) -> Result<()> {
         (
             "native",
             "value",
-            eval_rate(&|u| native.eval::<f64>(u, &NOMINAL))?,
+            eval_rate(&|u| native.eval::<f64>(u, std::hint::black_box(&NOMINAL)))?,
         ),
         (
             "expr",
             "value",
-            eval_rate(&|u| expr.eval::<f64>(u, &NOMINAL))?,
+            eval_rate(&|u| expr.eval::<f64>(u, std::hint::black_box(&NOMINAL)))?,
         ),
     ];
     let mut grad_rate = |m: &dyn ParamModelDyn| {
         rate(data.len(), budget, || {
             let s: f64 = data
                 .iter()
-                .map(|u| m.value_and_gradient(&mut engine, u, &NOMINAL, &free, &mut grad))
+                .map(|u| {
+                    let p = std::hint::black_box(&NOMINAL);
+                    m.value_and_gradient(&mut engine, u, p, &free, &mut grad)
+                })
                 .sum();
             std::hint::black_box(s);
             Ok(())
