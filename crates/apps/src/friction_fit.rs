@@ -363,6 +363,11 @@ pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<Friction
             estimable: false,
         });
     }
+    if k == 0 {
+        return Err(AppError::Invalid(
+            "no coefficient is estimable on this data: another experiment is needed (speeds and manifold pressures varied)".into(),
+        ));
+    }
     let est_idx: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
     let estimable: Vec<String> = est_idx
         .iter()
@@ -378,11 +383,8 @@ pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<Friction
         p0: CovSpec::Scaled(cfg.s0 * cfg.s0),
         ..EstimatorConfig::new(Method::Dsfc { lambda: cfg.lambda })
     };
-    let mut est =
-        LinearEstimator::new(&config, &rel, &free_set).map_err(|source| AppError::Estim {
-            at: "estimator configuration".into(),
-            source,
-        })?;
+    let mut est = LinearEstimator::new(&config, &rel, &free_set)
+        .map_err(AppError::estim("estimator configuration"))?;
     let n = data.len();
     let mut predicted_nominal = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);

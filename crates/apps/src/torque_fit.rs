@@ -282,7 +282,8 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, A
         Some(v) => v,
         None => {
             let fit = fit_subset(&model, &data.view(), &cfg.nominal, &estimable, 20)?;
-            fit.rss / (n - estimable.len()).max(1) as f64
+            // An exact fit (noise-free data) leaves no residual: keep R2 positive.
+            (fit.rss / (n - estimable.len()).max(1) as f64).max(f64::MIN_POSITIVE)
         }
     };
     let params = ParamSet::new(PARAMS, cfg.nominal.to_vec())
