@@ -55,6 +55,8 @@ impl Combustion for Motored {
 /// pressure difference: the isentropic form has an infinite slope at equal pressures, which
 /// makes the equations stiff for no physical reason.
 const LINEAR_BAND: f64 = 0.02;
+/// `ln(1 − LINEAR_BAND)` (a constant: the band's edge; tested against the library `ln`).
+const LN_BAND_EDGE: f64 = -0.020202707317519466;
 
 /// Isentropic flow function Ψ(pr) (Eq. 3.16): choked below the critical ratio
 /// `pr* = (2/(γ+1))^(γ/(γ−1))`, subsonic above, linear in `1 − pr` in the last
@@ -62,17 +64,21 @@ const LINEAR_BAND: f64 = 0.02;
 /// powers share `ln(2/(γ+1))` and `a = pr^(1/γ)` gives `pr^((γ−1)/γ) = pr/a`.
 pub fn psi(pr: f64, gamma: f64) -> f64 {
     let g1 = gamma - 1.0;
-    let ln_c = (2.0 / (gamma + 1.0)).ln();
-    let sub = |pr: f64| {
-        let a = (pr.ln() / gamma).exp();
+    // Subsonic Ψ from pr and its logarithm.
+    let sub = |pr: f64, ln_pr: f64| {
+        let a = (ln_pr / gamma).exp();
         a * (2.0 * gamma / g1 * (1.0 - pr / a)).max(0.0).sqrt()
     };
-    if pr <= 0.0 || pr.ln() <= gamma / g1 * ln_c {
+    // The critical ratio (2/(γ+1))^(γ/(γ−1)) is below e^(−1/2) = 0.6065 for every γ > 1:
+    // above 0.61 the flow is subsonic without computing it.
+    let choked = pr <= 0.0 || (pr < 0.61 && pr.ln() <= gamma / g1 * (2.0 / (gamma + 1.0)).ln());
+    if choked {
+        let ln_c = (2.0 / (gamma + 1.0)).ln();
         gamma.sqrt() * ((gamma + 1.0) / (2.0 * g1) * ln_c).exp()
     } else if pr < 1.0 - LINEAR_BAND {
-        sub(pr)
+        sub(pr, pr.ln())
     } else {
-        sub(1.0 - LINEAR_BAND) * (1.0 - pr).max(0.0) / LINEAR_BAND
+        sub(1.0 - LINEAR_BAND, LN_BAND_EDGE) * (1.0 - pr).max(0.0) / LINEAR_BAND
     }
 }
 
@@ -95,14 +101,44 @@ pub fn orifice(cd_a: f64, p1: f64, t1: f64, p2: f64, t2: f64) -> (f64, f64) {
 /// Valve flow area (Eq. 3.33–3.35): curtain area up to the lift where it equals the port area,
 /// the port area beyond.
 pub fn valve_area(lift: f64, d: f64, di: f64, seat_deg: f64) -> f64 {
-    let c = seat_deg.to_radians().cos();
-    let lv = di * di / (2.0 * c * (d + di));
-    if lift <= 0.0 {
-        0.0
-    } else if lift <= lv {
-        PI * (d + di) / 2.0 * lift * c
-    } else {
-        PI * di * di / 4.0
+    ValveGeometry::new(d, di, seat_deg).area(lift)
+}
+
+/// A valve's flow-area constants, computed once (the seat angle's cosine, the lift where the
+/// curtain area reaches the port area): [`valve_area`] without its trigonometry per call.
+#[derive(Debug, Clone, Copy)]
+pub struct ValveGeometry {
+    /// `π·(d + di)/2` [m].
+    half_perimeter: f64,
+    /// cos(seat angle).
+    cos_seat: f64,
+    /// Lift where curtain = port area [m].
+    lv: f64,
+    /// Port area `π·di²/4` [m²].
+    port: f64,
+}
+
+impl ValveGeometry {
+    /// Head diameter `d`, inner seat diameter `di` [m], seat angle [deg].
+    pub fn new(d: f64, di: f64, seat_deg: f64) -> Self {
+        let c = seat_deg.to_radians().cos();
+        Self {
+            half_perimeter: PI * (d + di) / 2.0,
+            cos_seat: c,
+            lv: di * di / (2.0 * c * (d + di)),
+            port: PI * di * di / 4.0,
+        }
+    }
+
+    /// Flow area at `lift` [m].
+    pub fn area(&self, lift: f64) -> f64 {
+        if lift <= 0.0 {
+            0.0
+        } else if lift <= self.lv {
+            self.half_perimeter * lift * self.cos_seat
+        } else {
+            self.port
+        }
     }
 }
 
@@ -198,6 +234,8 @@ pub struct Engine {
     woschni_k: f64,
     settings: Settings,
     design: Design<f64>,
+    iv: ValveGeometry,
+    ev: ValveGeometry,
 }
 
 impl Engine {
@@ -233,6 +271,8 @@ impl Engine {
             woschni_k: 3.26 * p.bore.powf(-0.2),
             settings,
             design,
+            iv: ValveGeometry::new(p.iv_d, p.iv_di, p.seat_angle),
+            ev: ValveGeometry::new(p.ev_d, p.ev_di, p.seat_angle),
         }
     }
 
@@ -343,8 +383,8 @@ impl Engine {
         let deg = wrap720(theta.to_degrees());
         let l_in = lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32);
         let l_ex = lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32);
-        let a_in = e.cd_valve * valve_area(l_in, e.iv_d, e.iv_di, e.seat_angle);
-        let a_ex = e.cd_valve * valve_area(l_ex, e.ev_d, e.ev_di, e.seat_angle);
+        let a_in = e.cd_valve * self.iv.area(l_in);
+        let a_ex = e.cd_valve * self.ev.area(l_ex);
         let a_or = e.cd_exh * self.orifice_area;
         let (amb_p, amb_t) = (self.amb.p, self.amb.t);
         // Flows and the temperature of the gas each carries.
@@ -434,19 +474,13 @@ impl Engine {
         let v_cyl = self.volume(theta);
         let deg = wrap720(theta.to_degrees());
         let a_in = e.cd_valve
-            * valve_area(
-                lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32),
-                e.iv_d,
-                e.iv_di,
-                e.seat_angle,
-            );
+            * self
+                .iv
+                .area(lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32));
         let a_ex = e.cd_valve
-            * valve_area(
-                lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32),
-                e.ev_d,
-                e.ev_di,
-                e.seat_angle,
-            );
+            * self
+                .ev
+                .area(lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32));
         let a_or = e.cd_exh * self.orifice_area;
         // Row sums: diagonal (every restriction of the volume) plus the couplings to the other
         // volumes (restrictions to the ambient couple to nothing).
@@ -468,5 +502,15 @@ impl Engine {
     /// Enthalpy of ambient air [J/kg].
     pub fn ambient_enthalpy(&self) -> f64 {
         self.h_amb
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn band_edge_logarithm_is_the_library_value() {
+        assert_eq!(LN_BAND_EDGE, (1.0 - LINEAR_BAND).ln());
     }
 }
