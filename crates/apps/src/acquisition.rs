@@ -7,7 +7,7 @@ use physid_core::{Basis, Channel, Recording, RecordingError};
 use physid_signal::crank::{crank_grid, interp};
 use physid_signal::encoder::{first_marker, Encoder};
 use physid_signal::filter::{butter, Band, FilterError};
-use physid_signal::integrity::{check, Integrity, IntegrityOptions};
+use physid_signal::integrity::{check, median_step, Integrity, IntegrityOptions};
 use serde::Serialize;
 use std::f64::consts::PI;
 use thiserror::Error;
@@ -84,20 +84,7 @@ pub fn inspect(rec: &Recording, opts: &AcquisitionOptions) -> Inspection {
     let t = rec.values("t").ok();
     let duration_s = t.and_then(|t| Some(t.last()? - t.first()?));
     let sample_rate_hz = match (rec.basis, t) {
-        (Basis::Time, Some(t)) if t.len() > 1 => {
-            let mut d: Vec<f64> = t
-                .windows(2)
-                .map(|w| w[1] - w[0])
-                .filter(|d| *d > 0.0)
-                .collect();
-            if d.is_empty() {
-                None
-            } else {
-                let mid = d.len() / 2;
-                d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-                Some(1.0 / d[mid])
-            }
-        }
+        (Basis::Time, Some(t)) => median_step(t).map(|d| 1.0 / d),
         _ => None,
     };
     let per_cycle = rec.values("crank_deg").ok().and_then(|d| {
@@ -264,6 +251,26 @@ pub fn to_crank_angle(
     Ok(out)
 }
 
+/// The sample period [s] of a time channel that must be uniform: the mean step, or an error at
+/// the first step more than 0.1 % away from it (what to do about it included).
+pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
+    if t.len() < 2 {
+        return Err(AcquisitionError::Invalid("fewer than 2 samples".into()));
+    }
+    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    match t
+        .windows(2)
+        .position(|w| ((w[1] - w[0]) - dt).abs() > 1e-3 * dt)
+    {
+        Some(i) => Err(AcquisitionError::Invalid(format!(
+            "the time step is not uniform at sample {} ({} s, mean {dt} s): check with physid inspect, resample with physid convert --time-basis HZ",
+            i + 1,
+            t[i + 1] - t[i]
+        ))),
+        None => Ok(dt),
+    }
+}
+
 /// Resample a crank-angle recording (with its `t` channel) to a uniform time basis at
 /// `rate_hz`.
 pub fn to_time_basis(rec: &Recording, rate_hz: f64) -> Result<Recording, AcquisitionError> {
@@ -321,21 +328,7 @@ pub fn filter_channels(
             "zero-phase filtering in Hz needs a time basis: convert the recording first".into(),
         ));
     }
-    let t = rec.values("t")?;
-    if t.len() < 2 {
-        return Err(AcquisitionError::Invalid("fewer than 2 samples".into()));
-    }
-    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if let Some(i) = t
-        .windows(2)
-        .position(|w| ((w[1] - w[0]) - dt).abs() > 1e-3 * dt)
-    {
-        return Err(AcquisitionError::Invalid(format!(
-            "the time step is not uniform at sample {} ({} s, mean {dt} s): check with physid inspect, resample with physid convert",
-            i + 1,
-            t[i + 1] - t[i]
-        )));
-    }
+    let dt = uniform_step(rec.values("t")?)?;
     let zpk = butter(spec.order, &spec.cutoff_hz, spec.band, 1.0 / dt).map_err(|source| {
         AcquisitionError::Filter {
             channel: channels.join(", "),

@@ -7,6 +7,7 @@
 //! of each estimate from its healthy value (Eq. 6.3) raises an alarm when it stays beyond a
 //! bound for a dwell — and names the parameter that moved (isolation).
 
+use crate::acquisition::uniform_step;
 use crate::error::AppError;
 use physid_core::{ParamSet, Recording};
 use physid_estim::{
@@ -153,16 +154,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
             t.len()
         )));
     }
-    let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
-    if let Some(i) = t
-        .windows(2)
-        .position(|w| ((w[1] - w[0]) - dt).abs() > 1e-3 * dt)
-    {
-        return Err(AppError::Invalid(format!(
-            "time step not uniform at sample {} — resample first (physid convert --time-basis HZ)",
-            i + 1
-        )));
-    }
+    let dt = uniform_step(t)?;
     let fs = 1.0 / dt;
     let dth: Vec<f64> = thd.iter().zip(the).map(|(a, b)| a - b).collect();
     let dw: Vec<f64> = wd.iter().zip(we).map(|(a, b)| a - b).collect();

@@ -107,4 +107,13 @@ fn errors_name_the_problem() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("no channel 'omega_en'"), "{e}");
+    // A time stamp off the uniform grid is named by its sample.
+    let mut r3 = rec.clone();
+    let mut t = r3.values("t").unwrap().to_vec();
+    t[500] += 0.3 * (t[1] - t[0]);
+    r3.replace_values("t", t).unwrap();
+    let e = monitor_shaft(&r3, &MonitorConfig::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not uniform at sample 500"), "{e}");
 }

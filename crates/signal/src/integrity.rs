@@ -205,18 +205,26 @@ pub fn check(rec: &Recording, opts: &IntegrityOptions) -> Integrity {
     c.finish()
 }
 
-fn check_time(t: &[f64], c: &mut Collector) {
+/// The median of the positive steps of a time channel [s] (`None` with no positive step): the
+/// nominal sample period, robust to gaps and repeated stamps.
+pub fn median_step(t: &[f64]) -> Option<f64> {
     let mut d: Vec<f64> = t
         .windows(2)
         .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
         .collect();
     if d.is_empty() {
-        return;
+        return None;
     }
     let mid = d.len() / 2;
     d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-    let median = d[mid];
+    Some(d[mid])
+}
+
+fn check_time(t: &[f64], c: &mut Collector) {
+    let Some(median) = median_step(t) else {
+        return;
+    };
     for (i, w) in t.windows(2).enumerate() {
         let dt = w[1] - w[0];
         if dt < 0.0 {

@@ -120,7 +120,7 @@ struct RankArgs {
     /// Print JSON: {"parameters": [...], "tests": [{n_rpm, p_int_kpa, t_oil_c, ranking}]}.
     #[arg(long)]
     json: bool,
-    /// Directory for the heat map rank.svg (like the thesis's Fig. 7.1).
+    /// Directory for the report: report.html, the heat map rank.svg (like the thesis's Fig. 7.1), rank.json.
     #[arg(long)]
     out: Option<PathBuf>,
 }
