@@ -513,4 +513,25 @@ mod tests {
     fn band_edge_logarithm_is_the_library_value() {
         assert_eq!(LN_BAND_EDGE, (1.0 - LINEAR_BAND).ln());
     }
+
+    #[test]
+    fn valve_area_curtain_then_port() {
+        // Eq. 3.33–3.35 by hand: d = 30 mm, di = 26 mm, 45° seat.
+        let (d, di) = (0.030, 0.026);
+        let c = std::f64::consts::FRAC_1_SQRT_2;
+        let lv = di * di / (2.0 * c * (d + di));
+        assert_eq!(valve_area(0.0, d, di, 45.0), 0.0);
+        let curtain = |l: f64| PI * (d + di) / 2.0 * l * c;
+        for l in [1e-4, 1e-3, 0.5 * lv, lv] {
+            let a = valve_area(l, d, di, 45.0);
+            assert!(
+                (a - curtain(l)).abs() <= 1e-15 * curtain(l).max(1e-300),
+                "{l}"
+            );
+        }
+        let port = PI * di * di / 4.0;
+        assert!((valve_area(2.0 * lv, d, di, 45.0) - port).abs() < 1e-18);
+        // Continuous where the curtain reaches the port area.
+        assert!((curtain(lv) - port).abs() < 1e-15 * port);
+    }
 }

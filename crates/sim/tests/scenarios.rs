@@ -4,7 +4,7 @@
 
 use physid_core::standard_unit;
 use physid_sim::params::CellParams;
-use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::run::{parameter_truth, simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{named, Fault, Profile, Scenario, Shape, NAMED};
 use std::f64::consts::PI;
 
@@ -158,6 +158,26 @@ fn a_run_produces_the_recording() {
     assert_eq!(rec.len(), 10_001);
     let k = rec.values("true_shaft_k").unwrap();
     assert_eq!((k[0], k[10_000]), (1250.0, 1100.0));
+    // The truth rebuilt from the metadata equals the parameter the cell ran with.
+    let t = rec.values("t").unwrap();
+    // (The recorded channel is interpolated between solver steps, so at the sample on the step
+    // itself it lies between the two values; the metadata gives the value in force, 1100.)
+    let pt = parameter_truth(&rec, "shaft.k", t).unwrap();
+    for i in 0..k.len() {
+        if t[i] == 0.5 {
+            assert_eq!(pt[i], 1100.0);
+            assert!(k[i] > 1100.0 && k[i] < 1250.0);
+        } else {
+            assert_eq!(pt[i], k[i], "sample {i}");
+        }
+    }
+    assert!(parameter_truth(&rec, "shaft.b", t)
+        .unwrap()
+        .iter()
+        .all(|&b| b == 0.95));
+    let mut measured = rec.clone();
+    measured.meta.clear();
+    assert!(parameter_truth(&measured, "shaft.k", t).is_none());
     // Noise: the measured minus the noise-free torque (K·twist + B·Δω from the truth).
     let (tq, th_dy, th_en, w_dy, w_en) = (
         rec.values("torque_shaft").unwrap(),
