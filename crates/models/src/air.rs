@@ -111,6 +111,13 @@ fn mixture(t: f64, f: fn(&[f64; 7], f64) -> f64) -> f64 {
     f(coefficients(t), t) * R_AIR
 }
 
+/// `(c_p(T), h(T))` together (one choice of the polynomials' range) [J/(kg·K)], [J/kg]: what a
+/// gas-dynamics step needs of each volume (`c_v = c_p − R`, `u = h − R·T`, `γ = c_p/c_v`).
+pub fn cp_and_enthalpy(t: f64) -> (f64, f64) {
+    let a = coefficients(t);
+    (cp_over_r(a, t) * R_AIR, h_over_rt(a, t) * R_AIR * t)
+}
+
 /// Specific heat at constant pressure c_p(T) [J/(kg·K)].
 pub fn cp(t: f64) -> f64 {
     mixture(t, cp_over_r)

@@ -49,7 +49,11 @@ impl<T: Scalar> Crank<T> {
     /// `(s, s', s'')` at θ from one evaluation of the trigonometry: displacement from TDC [m]
     /// and its first two derivatives [m/rad, m/rad²].
     pub fn motion(&self, theta: f64) -> (T, T, T) {
-        let (sa, ca) = theta.sin_cos();
+        self.motion_sin_cos(theta.sin_cos())
+    }
+
+    /// [`motion`](Self::motion) from θ's sine and cosine (a caller that has them already).
+    pub fn motion_sin_cos(&self, (sa, ca): (f64, f64)) -> (T, T, T) {
         let r = self.r;
         let q = r * sa - self.delta;
         let w = (self.l * self.l - q * q).sqrt();

@@ -16,7 +16,7 @@
 //! error over a free oscillation is below 1e-9 per period (`tests/driveline.rs`).
 
 use crate::control::{Demand, Drive};
-use crate::engine::{Engine, EngineOutputs, GasState, Motored, CYL, EXH, INT};
+use crate::engine::{sin_cos_near, Engine, EngineOutputs, GasState, Motored, CYL, EXH, INT};
 use crate::machine::{Flux, Machine};
 use crate::params::CellParams;
 use std::f64::consts::PI;
@@ -108,6 +108,10 @@ struct Held {
     v: [f64; 2],
     w_slp: f64,
     friction: f64,
+    /// The engine angle at the step's start and its sine and cosine (the stages' angles are
+    /// within a step of it).
+    theta0: f64,
+    sc0: (f64, f64),
 }
 
 /// The virtual test cell.
@@ -199,15 +203,20 @@ impl TestCell {
         self.engine.p.t_oil = self.params.engine.t_oil;
     }
 
-    /// Derivatives of the continuous state with the held inputs; also the instant's sample.
+    /// Derivatives of the continuous state with the held inputs; also the instant's sample
+    /// (inlined: where a stage discards the sample, its construction is dropped).
+    #[inline(always)]
     fn derivatives(&self, x: &[f64; N], h: &Held) -> ([f64; N], Sample) {
         let gas = gas_of(x);
         let (th_en, w_en) = (x[TH_EN], x[W_EN]);
         let (dgas, out, tq) = if self.params.engine.active != 0.0 {
+            let k = self
+                .engine
+                .crank_point_sin_cos(th_en, sin_cos_near(th_en, h.theta0, h.sc0));
             let (dgas, out): (GasState, EngineOutputs) =
                 self.engine
-                    .gas_derivatives(th_en, w_en, h.throttle_area, &gas, &Motored);
-            let tq = self.engine.torque(th_en, w_en, out.p[CYL], h.friction);
+                    .gas_derivatives_at(&k, w_en, h.throttle_area, &gas, &Motored);
+            let tq = self.engine.torque_at(&k, w_en, out.p[CYL], h.friction);
             (dgas, out, tq)
         } else {
             ([0.0; 8], EngineOutputs::default(), Default::default())
@@ -278,24 +287,27 @@ impl TestCell {
             v: cmd.v,
             w_slp: cmd.w_slp,
             friction: self.engine.friction_torque(x0[W_EN], p_int),
+            theta0: x0[TH_EN],
+            sc0: x0[TH_EN].sin_cos(),
         };
+        // The first stage's derivatives (and the sample) at the step's start.
+        let (k1_start, mut sample) = self.derivatives(&x0, &held);
         // Sub-steps where the gas flows are stiff (small volumes, open restrictions near equal
         // pressures): keep rate·h inside RK4's stability interval (2.78 on the real axis).
         let rate = if self.params.engine.active != 0.0 {
-            self.engine
-                .stiffness(x0[TH_EN], &gas_of(&x0), held.throttle_area)
+            self.engine.stiffness(&gas_of(&x0), &sample.gas)
         } else {
             0.0
         };
         let m = ((rate * dt / 2.5).ceil() as usize).clamp(1, 64);
         let h = dt / m as f64;
-        let mut sample = Sample::default();
         let mut x = x0;
         for sub in 0..m {
-            let (k1, s) = self.derivatives(&x, &held);
-            if sub == 0 {
-                sample = s;
-            }
+            let k1 = if sub == 0 {
+                k1_start
+            } else {
+                self.derivatives(&x, &held).0
+            };
             let (k2, _) = self.derivatives(&add(&x, &k1, h / 2.0), &held);
             let (k3, _) = self.derivatives(&add(&x, &k2, h / 2.0), &held);
             let (k4, _) = self.derivatives(&add(&x, &k3, h), &held);

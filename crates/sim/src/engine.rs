@@ -78,23 +78,78 @@ pub fn psi(pr: f64, gamma: f64) -> f64 {
     } else if pr < 1.0 - LINEAR_BAND {
         sub(pr, pr.ln())
     } else {
-        sub(1.0 - LINEAR_BAND, LN_BAND_EDGE) * (1.0 - pr).max(0.0) / LINEAR_BAND
+        // Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
+        // 1 − pe^((γ−1)/γ) = −expm1(y·(γ−1)/γ), both of small arguments (no cancellation).
+        let inv_g = 1.0 / gamma;
+        let a = 1.0 + expm1_small(LN_BAND_EDGE * inv_g);
+        let edge = a * (-2.0 * gamma / g1 * expm1_small(LN_BAND_EDGE * (g1 * inv_g))).sqrt();
+        edge * (1.0 - pr).max(0.0) * (1.0 / LINEAR_BAND)
     }
+}
+
+/// `eˣ − 1` for `|x| ≤ 0.02` by its Taylor series to x⁸ (the first omitted term is below
+/// 1e-19 relative, under the round-off of the result); used where the argument is known to be
+/// that small.
+fn expm1_small(x: f64) -> f64 {
+    debug_assert!(x.abs() <= 0.02);
+    // 1/k! for k = 8 … 2, Horner.
+    const C: [f64; 7] = [
+        1.0 / 40320.0,
+        1.0 / 5040.0,
+        1.0 / 720.0,
+        1.0 / 120.0,
+        1.0 / 24.0,
+        1.0 / 6.0,
+        0.5,
+    ];
+    let mut p = C[0];
+    for c in &C[1..] {
+        p = p * x + c;
+    }
+    x * (1.0 + x * p)
+}
+
+/// `(sin θ, cos θ)` from those of a nearby angle θ0 (`sc0`): the angle-addition formulas with
+/// the Taylor series of the difference `d = θ − θ0`, for `|d| ≤ 0.05` rad (the first omitted
+/// terms, d¹¹/11! and d¹²/12!, are below 1e-22); farther, the library's `sin_cos`. An RK
+/// stage's crank angle is within a step of the step's start.
+pub fn sin_cos_near(theta: f64, theta0: f64, sc0: (f64, f64)) -> (f64, f64) {
+    let d = theta - theta0;
+    if d.abs() > 0.05 {
+        return theta.sin_cos();
+    }
+    let d2 = d * d;
+    // sin d = d·(1 − d²/3! + d⁴/5! − d⁶/7! + d⁸/9!), cos d = 1 − d²/2! + … + d¹⁰/10!.
+    let sd = d
+        * (1.0
+            + d2 * (-1.0 / 6.0
+                + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 * (1.0 / 362_880.0)))));
+    let cd = 1.0
+        + d2 * (-0.5
+            + d2 * (1.0 / 24.0
+                + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0 + d2 * (-1.0 / 3_628_800.0)))));
+    let (s0, c0) = sc0;
+    (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
 }
 
 /// Mass flow from side 1 to side 2 [kg/s] (negative: 2 → 1) through an effective area
 /// `cd_a` [m²], and the upstream temperature.
 pub fn orifice(cd_a: f64, p1: f64, t1: f64, p2: f64, t2: f64) -> (f64, f64) {
+    let f = flow(cd_a, [p1, p2], [t1, t2], [air::gamma(t1), air::gamma(t2)]);
+    (f, if p1 >= p2 { t1 } else { t2 })
+}
+
+/// [`orifice`]'s flow with the two sides' pressures, temperatures and γ given (γ computed
+/// once per volume per evaluation).
+fn flow(cd_a: f64, p: [f64; 2], t: [f64; 2], gamma: [f64; 2]) -> f64 {
     if cd_a <= 0.0 {
-        return (0.0, t1);
+        return 0.0;
     }
     let r = air::gas_constant();
-    if p1 >= p2 {
-        let g = air::gamma(t1);
-        (cd_a * p1 / (r * t1).sqrt() * psi(p2 / p1, g), t1)
+    if p[0] >= p[1] {
+        cd_a * p[0] / (r * t[0]).sqrt() * psi(p[1] / p[0], gamma[0])
     } else {
-        let g = air::gamma(t2);
-        (-cd_a * p2 / (r * t2).sqrt() * psi(p1 / p2, g), t2)
+        -cd_a * p[1] / (r * t[1]).sqrt() * psi(p[0] / p[1], gamma[1])
     }
 }
 
@@ -181,13 +236,39 @@ fn wrap720(x: f64) -> f64 {
 /// `l_max·sinⁿ(π·x)`, x the fraction of the open duration (SPEC §2.3 suggests n = 2; the
 /// cell's default is 5, see [`EngineParams::lift_exponent`]).
 pub fn lift(deg: f64, open: f64, close: f64, l_max: f64, n: i32) -> f64 {
-    let dur = wrap720(close - open);
-    let x = wrap720(deg - open) / dur;
-    if x >= 1.0 || dur <= 0.0 {
-        0.0
-    } else {
-        let s = (PI * x).sin();
-        l_max * s.powi(n)
+    Cam::new(open, close, l_max, n).lift(deg)
+}
+
+/// A valve's lift profile with its open duration computed once: [`lift`] per call without
+/// re-wrapping the timing.
+#[derive(Debug, Clone, Copy)]
+pub struct Cam {
+    open: f64,
+    dur: f64,
+    l_max: f64,
+    n: i32,
+}
+
+impl Cam {
+    /// Open from `open` to `close` [deg], peak lift `l_max` [m], exponent `n`.
+    pub fn new(open: f64, close: f64, l_max: f64, n: i32) -> Self {
+        Self {
+            open,
+            dur: wrap720(close - open),
+            l_max,
+            n,
+        }
+    }
+
+    /// Lift [m] at `deg` within the cycle.
+    pub fn lift(&self, deg: f64) -> f64 {
+        let x = wrap720(deg - self.open) / self.dur;
+        if x >= 1.0 || self.dur <= 0.0 {
+            0.0
+        } else {
+            let s = (PI * x).sin();
+            self.l_max * s.powi(self.n)
+        }
     }
 }
 
@@ -204,6 +285,20 @@ pub struct EngineTorque {
     pub friction: f64,
 }
 
+/// The slider-crank at one angle, computed once per evaluation and shared by the gas dynamics
+/// and the torques.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CrankPoint {
+    /// Crank angle θ [rad].
+    pub theta: f64,
+    /// Piston displacement from TDC s(θ) [m].
+    pub s: f64,
+    /// ds/dθ [m/rad].
+    pub ds: f64,
+    /// d²s/dθ² [m/rad²].
+    pub dds: f64,
+}
+
 /// Instantaneous engine quantities a step reports.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct EngineOutputs {
@@ -216,6 +311,8 @@ pub struct EngineOutputs {
     pub flows: [f64; 4],
     /// Wall heat flow out of the cylinder [W].
     pub q_wall: f64,
+    /// Effective flow areas `C_d·A` [m²] of the same four restrictions.
+    pub areas: [f64; 4],
 }
 
 /// The engine with its derived constants.
@@ -231,11 +328,14 @@ pub struct Engine {
     stroke: f64,
     orifice_area: f64,
     h_amb: f64,
+    gamma_amb: f64,
     woschni_k: f64,
     settings: Settings,
     design: Design<f64>,
     iv: ValveGeometry,
     ev: ValveGeometry,
+    iv_cam: Cam,
+    ev_cam: Cam,
 }
 
 impl Engine {
@@ -268,11 +368,14 @@ impl Engine {
             crank,
             orifice_area: PI * p.exh_orifice * p.exh_orifice / 4.0,
             h_amb: air::enthalpy(amb.t),
+            gamma_amb: air::gamma(amb.t),
             woschni_k: 3.26 * p.bore.powf(-0.2),
             settings,
             design,
             iv: ValveGeometry::new(p.iv_d, p.iv_di, p.seat_angle),
             ev: ValveGeometry::new(p.ev_d, p.ev_di, p.seat_angle),
+            iv_cam: Cam::new(p.ivo, p.ivc, p.lift_max, p.lift_exponent as i32),
+            ev_cam: Cam::new(p.evo, p.evc, p.lift_max, p.lift_exponent as i32),
         }
     }
 
@@ -329,11 +432,27 @@ impl Engine {
         self.p.friction_scale * friction::tau_nm(f, &self.design)
     }
 
+    /// The slider-crank at θ [rad].
+    pub fn crank_point(&self, theta: f64) -> CrankPoint {
+        self.crank_point_sin_cos(theta, theta.sin_cos())
+    }
+
+    /// The slider-crank at θ [rad] given `(sin θ, cos θ)`.
+    pub fn crank_point_sin_cos(&self, theta: f64, sc: (f64, f64)) -> CrankPoint {
+        let (s, ds, dds) = self.crank.motion_sin_cos(sc);
+        CrankPoint { theta, s, ds, dds }
+    }
+
     /// Torques at θ, ω with cylinder pressure `p_cyl` and the friction magnitude `fric`
     /// (evaluated once per step by the caller): friction opposes rotation, smoothed through
     /// zero speed over ±0.5 rad/s.
     pub fn torque(&self, theta: f64, omega: f64, p_cyl: f64, fric: f64) -> EngineTorque {
-        let (_, ds, dds) = self.crank.motion(theta);
+        self.torque_at(&self.crank_point(theta), omega, p_cyl, fric)
+    }
+
+    /// [`torque`](Self::torque) at a computed [`CrankPoint`].
+    pub fn torque_at(&self, k: &CrankPoint, omega: f64, p_cyl: f64, fric: f64) -> EngineTorque {
+        let (ds, dds) = (k.ds, k.dds);
         let m = self.p.m_rec;
         EngineTorque {
             indicated: (p_cyl - self.amb.p) * self.area_p * ds,
@@ -368,11 +487,22 @@ impl Engine {
         x: &GasState,
         comb: &impl Combustion,
     ) -> (GasState, EngineOutputs) {
+        self.gas_derivatives_at(&self.crank_point(theta), omega, a_th, x, comb)
+    }
+
+    /// [`gas_derivatives`](Self::gas_derivatives) at a computed [`CrankPoint`].
+    pub fn gas_derivatives_at(
+        &self,
+        k: &CrankPoint,
+        omega: f64,
+        a_th: f64,
+        x: &GasState,
+        comb: &impl Combustion,
+    ) -> (GasState, EngineOutputs) {
         let e = &self.p;
         let r = air::gas_constant();
-        let (s, ds, _) = self.crank.motion(theta);
-        let v_cyl = self.v_clear + self.area_p * s;
-        let dv_cyl = self.area_p * ds * omega;
+        let v_cyl = self.v_clear + self.area_p * k.s;
+        let dv_cyl = self.area_p * k.ds * omega;
         let vols = [e.v_int, v_cyl, e.v_exh];
         let t = [x[3], x[4], x[5]];
         let p = [
@@ -380,18 +510,42 @@ impl Engine {
             x[1] * r * t[1] / vols[1],
             x[2] * r * t[2] / vols[2],
         ];
-        let deg = wrap720(theta.to_degrees());
-        let l_in = lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32);
-        let l_ex = lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32);
+        // Each volume's c_p and h once: c_v = c_p − R, u = h − R·T, γ = c_p/c_v.
+        let (cp, h) = {
+            let ch = t.map(air::cp_and_enthalpy);
+            (ch.map(|c| c.0), ch.map(|c| c.1))
+        };
+        let cv = cp.map(|c| c - r);
+        let gamma = [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]];
+        let u = [h[0] - r * t[0], h[1] - r * t[1], h[2] - r * t[2]];
+        let deg = wrap720(k.theta.to_degrees());
+        let l_in = self.iv_cam.lift(deg);
+        let l_ex = self.ev_cam.lift(deg);
         let a_in = e.cd_valve * self.iv.area(l_in);
         let a_ex = e.cd_valve * self.ev.area(l_ex);
         let a_or = e.cd_exh * self.orifice_area;
-        let (amb_p, amb_t) = (self.amb.p, self.amb.t);
-        // Flows and the temperature of the gas each carries.
-        let (f_th, t_th) = orifice(a_th, amb_p, amb_t, p[INT], t[INT]);
-        let (f_iv, t_iv) = orifice(a_in, p[INT], t[INT], p[CYL], t[CYL]);
-        let (f_ev, t_ev) = orifice(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]);
-        let (f_or, t_or) = orifice(a_or, p[EXH], t[EXH], amb_p, amb_t);
+        let (amb_p, amb_t, amb_g) = (self.amb.p, self.amb.t, self.gamma_amb);
+        // Flows (positive in the direction ambient → int → cyl → exh → ambient) and the
+        // enthalpy of the gas each carries (the upstream side's).
+        let f_th = flow(a_th, [amb_p, p[INT]], [amb_t, t[INT]], [amb_g, gamma[INT]]);
+        let f_iv = flow(
+            a_in,
+            [p[INT], p[CYL]],
+            [t[INT], t[CYL]],
+            [gamma[INT], gamma[CYL]],
+        );
+        let f_ev = flow(
+            a_ex,
+            [p[CYL], p[EXH]],
+            [t[CYL], t[EXH]],
+            [gamma[CYL], gamma[EXH]],
+        );
+        let f_or = flow(a_or, [p[EXH], amb_p], [t[EXH], amb_t], [gamma[EXH], amb_g]);
+        let up = |f: f64, h1: f64, h2: f64| if f >= 0.0 { h1 } else { h2 };
+        let h_th = up(f_th, self.h_amb, h[INT]);
+        let h_iv = up(f_iv, h[INT], h[CYL]);
+        let h_ev = up(f_ev, h[CYL], h[EXH]);
+        let h_or = up(f_or, h[EXH], self.h_amb);
         // Woschni (Eq. 3.10–3.12), motored (C2 = 0); p in kPa.
         let q_wall = if e.heat_transfer != 0.0 {
             let gas_exchange = l_in > 0.0 || l_ex > 0.0;
@@ -407,18 +561,13 @@ impl Engine {
             } else {
                 0.0
             };
-            let area = PI * e.bore * e.bore / 2.0 + PI * e.bore * (self.v_clear / self.area_p + s);
+            let area =
+                PI * e.bore * e.bore / 2.0 + PI * e.bore * (self.v_clear / self.area_p + k.s);
             hc * area * (t[CYL] - e.t_wall)
         } else {
             0.0
         };
         let q_comb = comb.heat_release(deg, p[CYL], t[CYL]);
-        // Each volume: net mass flow, and the enthalpy term Σ in·(h_up − u) − Σ out·R·T.
-        let u = [
-            air::internal_energy(t[0]),
-            air::internal_energy(t[1]),
-            air::internal_energy(t[2]),
-        ];
         // Contribution of a flow `f` (positive into volume `i`) whose upstream gas has enthalpy
         // `h_up`: in, `f·(h_up − u_i)`; out (f < 0), the volume's own gas, `f·R·T_i`.
         let term = |i: usize, f: f64, h_up: f64| -> f64 {
@@ -428,27 +577,14 @@ impl Engine {
                 f * r * t[i]
             }
         };
-        let h_th = if f_th >= 0.0 {
-            self.h_amb
-        } else {
-            air::enthalpy(t_th)
-        };
-        let h_iv = air::enthalpy(t_iv);
-        let h_ev = air::enthalpy(t_ev);
-        let h_or = if f_or < 0.0 {
-            self.h_amb
-        } else {
-            air::enthalpy(t_or)
-        };
         let e_int = term(INT, f_th, h_th) + term(INT, -f_iv, h_iv);
         let e_cyl = term(CYL, f_iv, h_iv) + term(CYL, -f_ev, h_ev);
         let e_exh = term(EXH, f_ev, h_ev) + term(EXH, -f_or, h_or);
-        let cv = |tt: f64| air::cv(tt);
         let dm = [f_th - f_iv, f_iv - f_ev, f_ev - f_or];
         let dt = [
-            e_int / (x[0] * cv(t[0])),
-            (e_cyl - q_wall + q_comb - p[CYL] * dv_cyl) / (x[1] * cv(t[1])),
-            e_exh / (x[2] * cv(t[2])),
+            e_int / (x[0] * cv[0]),
+            (e_cyl - q_wall + q_comb - p[CYL] * dv_cyl) / (x[1] * cv[1]),
+            e_exh / (x[2] * cv[2]),
         ];
         (
             [dm[0], dm[1], dm[2], dt[0], dt[1], dt[2], f_th, f_or],
@@ -457,41 +593,48 @@ impl Engine {
                 v_cyl,
                 flows: [f_th, f_iv, f_ev, f_or],
                 q_wall,
+                areas: [a_th, a_in, a_ex, a_or],
             },
         )
     }
 
-    /// An upper bound on the gas system's fastest rate [1/s] at this state (Gershgorin on the
-    /// linearised flows): for each volume, `γ·√(R·T)·S/V` times the restrictions' `C_d·A`
-    /// (those to other volumes counted twice: diagonal and coupling), `S` the largest slope of Ψ (that of the linear band at equal pressures). The solver
-    /// sub-steps when `rate·dt` would leave RK4's stability interval.
-    pub fn stiffness(&self, theta: f64, x: &GasState, a_throttle: f64) -> f64 {
-        let e = &self.p;
+    /// The gas system's fastest rate [1/s] at this state: the largest eigenvalue of the
+    /// linearised pressure network. In the linear band a restriction is a conductance
+    /// `g = C_d·A·S/√(R·T_up)` (`S` the band's slope, the largest slope of Ψ), and a volume's
+    /// pressure moves as `dp_i/dt = γ·R·T_i/V_i · Σ ṁ_in`, so `dp/dt = −D·L·p` with `D =
+    /// diag(γ·R·T_i/V_i)` and `L` the network's Laplacian (restrictions to the ambient on the
+    /// diagonal only). `D·L` has the eigenvalues of the symmetric `D^½·L·D^½`; its largest is
+    /// computed from above ([`largest_eigenvalue_tridiag3`]). `out` are the outputs of
+    /// [`gas_derivatives`](Self::gas_derivatives) at the state `x`. The solver sub-steps when
+    /// `rate·dt` would leave RK4's stability interval (2.78 on the real axis).
+    pub fn stiffness(&self, x: &GasState, out: &EngineOutputs) -> f64 {
         let slope = psi(1.0 - LINEAR_BAND, 1.4) / LINEAR_BAND;
         let r = air::gas_constant();
-        let t_max = x[3].max(x[4]).max(x[5]).max(self.amb.t);
-        let k = 1.4 * (r * t_max).sqrt() * slope;
-        let v_cyl = self.volume(theta);
-        let deg = wrap720(theta.to_degrees());
-        let a_in = e.cd_valve
-            * self
-                .iv
-                .area(lift(deg, e.ivo, e.ivc, e.lift_max, e.lift_exponent as i32));
-        let a_ex = e.cd_valve
-            * self
-                .ev
-                .area(lift(deg, e.evo, e.evc, e.lift_max, e.lift_exponent as i32));
-        let a_or = e.cd_exh * self.orifice_area;
-        // Row sums: diagonal (every restriction of the volume) plus the couplings to the other
-        // volumes (restrictions to the ambient couple to nothing).
-        [
-            (a_throttle + 2.0 * a_in) / e.v_int,
-            2.0 * (a_in + a_ex) / v_cyl,
-            (2.0 * a_ex + a_or) / e.v_exh,
-        ]
-        .into_iter()
-        .fold(0.0, f64::max)
-            * k
+        let v = [self.p.v_int, out.v_cyl, self.p.v_exh];
+        let t = [x[3], x[4], x[5]];
+        let p = out.p;
+        let [a_throttle, a_in, a_ex, a_or] = out.areas;
+        // Conductance of a restriction between pressures p1, p2 (temperatures t1, t2): the
+        // upstream gas's temperature sets it.
+        let g = |cd_a: f64, p1: f64, t1: f64, p2: f64, t2: f64| {
+            let t_up = if p1 >= p2 { t1 } else { t2 };
+            cd_a * slope / (r * t_up).sqrt()
+        };
+        let (amb_p, amb_t) = (self.amb.p, self.amb.t);
+        let g_th = g(a_throttle, amb_p, amb_t, p[INT], t[INT]);
+        let g_iv = g(a_in, p[INT], t[INT], p[CYL], t[CYL]);
+        let g_ev = g(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]);
+        let g_or = g(a_or, p[EXH], t[EXH], amb_p, amb_t);
+        let d = [0, 1, 2].map(|i| (air::gamma(t[i]) * r * t[i] / v[i]).sqrt());
+        // D^½·L·D^½ for the chain int — cyl — exh: tridiagonal.
+        largest_eigenvalue_tridiag3(
+            [
+                d[0] * d[0] * (g_th + g_iv),
+                d[1] * d[1] * (g_iv + g_ev),
+                d[2] * d[2] * (g_ev + g_or),
+            ],
+            [-d[0] * d[1] * g_iv, -d[1] * d[2] * g_ev],
+        )
     }
 
     /// Total internal energy of the gas in the three volumes [J] (for conservation checks).
@@ -505,9 +648,94 @@ impl Engine {
     }
 }
 
+/// The largest eigenvalue of the symmetric tridiagonal 3×3 matrix with diagonal `a` and
+/// off-diagonal `b` (`b[0]` couples 0–1, `b[1]` couples 1–2), approached from above: Newton's
+/// method on the characteristic cubic, started at the Gershgorin bound. Right of its largest
+/// root the cubic is increasing and convex, so the iterates decrease monotonically onto that
+/// root and each is an upper bound; iteration stops when a step is below 1e-3 relative.
+pub fn largest_eigenvalue_tridiag3(a: [f64; 3], b: [f64; 2]) -> f64 {
+    let (b0, b1) = (b[0] * b[0], b[1] * b[1]);
+    let (c0, c1) = (b[0].abs(), b[1].abs());
+    let mut l = (a[0] + c0).max(a[1] + c0 + c1).max(a[2] + c1);
+    for _ in 0..64 {
+        let (x0, x1, x2) = (l - a[0], l - a[1], l - a[2]);
+        let p = x0 * x1 * x2 - b1 * x0 - b0 * x2;
+        let dp = x1 * x2 + x0 * x2 + x0 * x1 - b0 - b1;
+        if p <= 0.0 || dp <= 0.0 {
+            break;
+        }
+        let step = p / dp;
+        l -= step;
+        if step <= 1e-3 * l.abs() {
+            break;
+        }
+    }
+    l
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn small_argument_series_equal_the_library() {
+        for k in -200..=200 {
+            let x = f64::from(k) * 1e-4;
+            let lib = x.exp_m1();
+            assert!(
+                (expm1_small(x) - lib).abs() <= 2.0 * f64::EPSILON * lib.abs(),
+                "{x}"
+            );
+        }
+        // sin/cos near a base angle, against the library at the angle itself.
+        for k in 0..720 {
+            let th0 = f64::from(k).to_radians() * 1.37;
+            for d in [-0.05, -0.0174, -1e-9, 0.0, 1e-7, 0.0087, 0.0174, 0.049, 0.2] {
+                let (s, c) = sin_cos_near(th0 + d, th0, th0.sin_cos());
+                let (ls, lc) = (th0 + d).sin_cos();
+                assert!(
+                    (s - ls).abs() < 4e-16 && (c - lc).abs() < 4e-16,
+                    "{th0} {d}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn band_edge_equals_the_subsonic_form() {
+        // Ψ is continuous at the band's edge: the series form equals the isentropic formula.
+        for gamma in [1.25, 1.3, 1.35, 1.4, 1.5, 5.0 / 3.0] {
+            let pe: f64 = 1.0 - LINEAR_BAND;
+            let a = pe.powf(1.0 / gamma);
+            let sub = a * (2.0 * gamma / (gamma - 1.0) * (1.0 - pe / a)).sqrt();
+            let edge = psi(pe, gamma);
+            assert!((edge - sub).abs() < 1e-12 * sub, "{gamma}: {edge} vs {sub}");
+            // Linear inside the band.
+            assert!((psi(0.99, gamma) - 0.5 * edge).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn largest_eigenvalue_from_above() {
+        // [[2,−1,0],[−1,2,−1],[0,−1,2]]: eigenvalues 2 − √2, 2, 2 + √2.
+        let l = largest_eigenvalue_tridiag3([2.0, 2.0, 2.0], [-1.0, -1.0]);
+        let exact = 2.0 + 2f64.sqrt();
+        assert!(l >= exact && l < exact * (1.0 + 1e-3), "{l}");
+        // Decoupled: the largest diagonal entry.
+        assert_eq!(
+            largest_eigenvalue_tridiag3([1.0, 5.0, 3.0], [0.0, 0.0]),
+            5.0
+        );
+        // A chain with very different scales (a small cylinder between two manifolds).
+        let (a, b) = ([1.0, 400.0, 2.0], [-15.0, -20.0]);
+        let l = largest_eigenvalue_tridiag3(a, b);
+        let det = |x: f64| {
+            (x - a[0]) * (x - a[1]) * (x - a[2])
+                - b[1] * b[1] * (x - a[0])
+                - b[0] * b[0] * (x - a[2])
+        };
+        assert!(det(l) >= 0.0 && det(l * (1.0 - 1e-3)) <= 0.0, "{l}");
+    }
 
     #[test]
     fn band_edge_logarithm_is_the_library_value() {

@@ -86,6 +86,72 @@ fn orifice_flow_function() {
     }
 }
 
+/// The sub-step control's stiffness estimate (the linearised pressure network's largest
+/// eigenvalue) against the spectral radius of the gas equations' Jacobian by central
+/// differences, with a general eigenvalue solver, at every degree of a cycle at 600 and
+/// 1000 rpm, open and shut throttle: within −5 % … +35 % wherever the rate could ask for a
+/// sub-step (`rate·dt` above 1.5 at the one-degree step; measured 0.98 … 1.30). The estimate
+/// takes Ψ's steepest slope, so it is high where the pressures across an open valve differ;
+/// the solver keeps `rate·dt ≤ 2.5`, 10 % inside RK4's 2.785, which covers the low side.
+#[test]
+fn stiffness_estimate_tracks_the_jacobian() {
+    use nalgebra::DMatrix;
+    for rpm in [600.0, 1000.0] {
+        for throttle in [90.0, 0.0] {
+            let w = rpm * PI / 30.0;
+            let mut cell = TestCell::new(CellParams::default(), w, 0.0).unwrap();
+            let inputs = Inputs {
+                demand: Demand::Speed(w),
+                throttle_deg: throttle,
+            };
+            while cell.time() < 0.3 {
+                cell.step(&inputs);
+            }
+            let dt = 1f64.to_radians() / w;
+            let mut checked = 0;
+            for _ in 0..720 {
+                let e = cell.engine();
+                let x = *cell.state();
+                let (th, om) = (x[10], x[11]);
+                let a_th = e.throttle_cd_area(throttle);
+                let mut g = [0.0; 8];
+                g.copy_from_slice(&x[..8]);
+                let f = |g: &[f64; 8]| e.gas_derivatives(th, om, a_th, g, &Motored).0;
+                let mut j = DMatrix::zeros(6, 6);
+                for c in 0..6 {
+                    let h = g[c] * 1e-7;
+                    let (mut gp, mut gm) = (g, g);
+                    gp[c] += h;
+                    gm[c] -= h;
+                    let (fp, fm) = (f(&gp), f(&gm));
+                    for r in 0..6 {
+                        j[(r, c)] = (fp[r] - fm[r]) / (2.0 * h);
+                    }
+                }
+                let radius = j
+                    .complex_eigenvalues()
+                    .iter()
+                    .map(|z| z.norm())
+                    .fold(0.0, f64::max);
+                let out = e.gas_derivatives(th, om, a_th, &g, &Motored).1;
+                let rate = e.stiffness(&g, &out);
+                if radius * dt > 1.5 {
+                    checked += 1;
+                    let ratio = rate / radius;
+                    assert!(
+                        (0.95..1.35).contains(&ratio),
+                        "{rpm} rpm, throttle {throttle}, {:.0}°: estimate {rate:.0} vs \
+                         Jacobian {radius:.0} 1/s",
+                        th.to_degrees().rem_euclid(720.0)
+                    );
+                }
+                cell.step(&inputs);
+            }
+            assert!(checked > 100, "{rpm} rpm, throttle {throttle}: {checked}");
+        }
+    }
+}
+
 /// The energy equation: in a closed adiabatic cylinder the temperature derivative is the
 /// isentropic one, `m·c_v·dT = −p·dV`.
 #[test]
