@@ -299,7 +299,7 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
                 Fault::parse(f)?;
                 s.faults.push(f.clone());
             }
-            let mut opts = RunOptions {
+            let opts = RunOptions {
                 duration: spec.duration,
                 basis: match spec.basis.as_str() {
                     "crank" => OutputBasis::Crank(1.0),
@@ -308,9 +308,8 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
                 },
                 ..Default::default()
             };
-            for (k, v) in &spec.set {
-                opts.params.set(k, *v)?;
-            }
+            // The pipeline's `set` wins over the scenario's own settings.
+            s.set.extend(spec.set.iter().map(|(k, v)| (k.clone(), *v)));
             simulate(&s, &opts, |_| {}).map_err(|e| e.to_string())
         }
         _ => Err("[data] needs exactly one of file = \"…\" or scenario = \"…\"".into()),

@@ -906,6 +906,22 @@ fn simulate_runs_and_studies() {
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["basis"], "crank_angle");
     assert!(j["cycles"].as_u64().unwrap() >= 3);
+    // --set wins over a scenario's own setting (friction-sweep sets friction_scale 0.45).
+    let out = d.join("sweep.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "friction-sweep",
+        "--duration",
+        "0.2",
+        "--set",
+        "engine.friction_scale=0.3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let rec = physid_io::read(&out, &Default::default()).unwrap();
+    assert_eq!(rec.meta["param.engine.friction_scale"], "0.3");
     // The studies' JSON shapes.
     let o = physid(&[
         "simulate",

@@ -49,7 +49,8 @@ pub enum OutputBasis {
 /// How to run.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
-    /// Parameters (after `--set`).
+    /// Base parameters. The scenario's own `set` is applied over them: to override one of a
+    /// scenario's settings, put it in the scenario's `set` (as `physid simulate --set` does).
     pub params: CellParams,
     /// Recorded duration [s] (the scenario's if `None`).
     pub duration: Option<f64>,

@@ -363,13 +363,6 @@ pub fn named(name: &str) -> Option<Scenario> {
     };
     let c = |v: f64| Shape::Constant { value: v };
     let ramp = |v0: f64, v1: f64| Shape::Ramp { v0, v1 };
-    // The cyclic-torque tests are analysed one sample per crank degree: solver steps of 0.25°
-    // keep the linear interpolation onto that grid from biasing the gas torque (at 1° steps
-    // the bore comes out 1e-4 low — statistically visible over 30 000 samples).
-    let fine = |mut s: Scenario| {
-        s.set.insert("solver.step_deg".into(), 0.25);
-        s
-    };
     Some(match name {
         "fig314" => base(
             name,
@@ -413,18 +406,18 @@ pub fn named(name: &str) -> Option<Scenario> {
             s.set.insert("engine.friction_scale".into(), 0.45);
             s
         }
-        "torque-steady" => fine(base(
+        "torque-steady" => base(
             name,
             10.0,
             Profile::constant(1000.0, 10.0),
             Profile::constant(wot, 10.0),
-        )),
-        "torque-ramp" => fine(base(
+        ),
+        "torque-ramp" => base(
             name,
             5.0,
             Profile::default().then(5.0, ramp(800.0, 1400.0)),
             Profile::constant(wot, 5.0),
-        )),
+        ),
         "torque-validation" => {
             let mut speed = Profile::default();
             for _ in 0..4 {
@@ -432,7 +425,7 @@ pub fn named(name: &str) -> Option<Scenario> {
                     .then(15.0, ramp(800.0, 1400.0))
                     .then(15.0, ramp(1400.0, 800.0));
             }
-            fine(base(name, 120.0, speed, Profile::constant(wot, 120.0)))
+            base(name, 120.0, speed, Profile::constant(wot, 120.0))
         }
         "transient-10min" => {
             let levels = [1000.0, 1250.0, 800.0, 1500.0, 1100.0, 900.0, 1400.0, 1000.0];

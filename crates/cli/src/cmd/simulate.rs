@@ -55,17 +55,28 @@ struct SetArgs {
 }
 
 impl SetArgs {
+    /// The `PATH=VALUE` pairs, parsed.
+    fn pairs(&self) -> Result<Vec<(String, f64)>> {
+        self.set
+            .iter()
+            .map(|s| {
+                let (k, v) = s.split_once('=').ok_or_else(|| {
+                    miette!("--set {s}: expected PATH=VALUE, e.g. --set shaft.k=1340")
+                })?;
+                let v: f64 = v
+                    .trim()
+                    .parse()
+                    .map_err(|_| miette!("--set {s}: '{v}' is not a number"))?;
+                Ok((k.trim().to_string(), v))
+            })
+            .collect()
+    }
+
+    /// The default parameters with the `--set` values, checked.
     fn params(&self) -> Result<CellParams> {
         let mut p = CellParams::default();
-        for s in &self.set {
-            let (k, v) = s.split_once('=').ok_or_else(|| {
-                miette!("--set {s}: expected PATH=VALUE, e.g. --set shaft.k=1340")
-            })?;
-            let v: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| miette!("--set {s}: '{v}' is not a number"))?;
-            p.set(k.trim(), v).map_err(|e| miette!("--set: {e}"))?;
+        for (k, v) in self.pairs()? {
+            p.set(&k, v).map_err(|e| miette!("--set: {e}"))?;
         }
         p.validate().map_err(|e| miette!("{e}"))?;
         Ok(p)
@@ -169,7 +180,10 @@ pub fn run(args: &Args) -> Result<()> {
             out.display()
         ));
     }
-    let scenario = Scenario::load(name).map_err(|e| miette!("{e}"))?;
+    let mut scenario = Scenario::load(name).map_err(|e| miette!("{e}"))?;
+    // The command line's --set wins over the scenario's own settings (its `set`, applied over
+    // the base parameters).
+    scenario.set.extend(args.set.pairs()?);
     let faults: Vec<Fault> = args
         .faults
         .iter()
