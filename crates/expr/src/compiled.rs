@@ -3,8 +3,10 @@
 //! closure that calls its children directly, so there is no single dispatch point whose
 //! target changes at every node (the tree walk's cost, measured: see BENCHMARKS.md).
 //!
-//! Parameter-free subtrees become `f64` closures whose result is promoted once, and leaf
-//! operands (parameters, inputs, numbers) are read inside their parent's closure.
+//! For the dual, parameter-free subtrees become `f64` closures whose result is promoted once.
+//! Leaf operands (parameters, inputs, numbers) are read inside their parent's closure — both
+//! operands of a binary operation when both are leaves, the operand of a function, power or
+//! negation when it is a parameter or an input — so a leaf costs no call of its own.
 
 use crate::parse::{ExprModel, Func, Node};
 use physid_core::{Grad, Scalar};
@@ -32,7 +34,8 @@ impl Default for CompiledSet {
 
 impl CompiledSet {
     pub(crate) fn new(m: &ExprModel) -> Self {
-        let f: Compiled<f64> = compile::<f64>(m, m.root, true);
+        // Values need no lifting: every node is f64 already.
+        let f: Compiled<f64> = compile::<f64>(m, m.root, false);
         let g: Compiled<Grad> = compile::<Grad>(m, m.root, true);
         Self(Arc::new(vec![Box::new(f), Box::new(g)]))
     }
@@ -67,6 +70,27 @@ fn leaf_of(m: &ExprModel, i: u32) -> Option<Leaf> {
 macro_rules! binary {
     ($m:expr, $a:expr, $b:expr, $lift:expr, |$x:ident, $y:ident| $body:expr) => {{
         match (leaf_of($m, $a), leaf_of($m, $b)) {
+            // Both leaves, one of them a parameter (leaves without one are lifted to f64).
+            (Some(Leaf::Param(i)), Some(Leaf::Param(k))) => Box::new(move |_, p| {
+                let ($x, $y) = (p[i], p[k]);
+                $body
+            }),
+            (Some(Leaf::Param(i)), Some(Leaf::Input(k))) => Box::new(move |u, p| {
+                let ($x, $y) = (p[i], T::from(u[k]));
+                $body
+            }),
+            (Some(Leaf::Param(i)), Some(Leaf::Const(v))) => Box::new(move |_, p| {
+                let ($x, $y) = (p[i], T::from(v));
+                $body
+            }),
+            (Some(Leaf::Input(i)), Some(Leaf::Param(k))) => Box::new(move |u, p| {
+                let ($x, $y) = (T::from(u[i]), p[k]);
+                $body
+            }),
+            (Some(Leaf::Const(v)), Some(Leaf::Param(k))) => Box::new(move |_, p| {
+                let ($x, $y) = (T::from(v), p[k]);
+                $body
+            }),
             (_, Some(Leaf::Param(k))) => {
                 let fa = compile::<T>($m, $a, $lift);
                 Box::new(move |u, p| {
@@ -114,6 +138,30 @@ macro_rules! binary {
     }};
 }
 
+/// `f(a)` with the cheapest closure: a parameter or input operand read inline, else its
+/// compiled form.
+macro_rules! unary {
+    ($m:expr, $a:expr, $lift:expr, |$x:ident| $body:expr) => {{
+        match leaf_of($m, $a) {
+            Some(Leaf::Param(k)) => Box::new(move |_, p| {
+                let $x = p[k];
+                $body
+            }),
+            Some(Leaf::Input(k)) => Box::new(move |u, _| {
+                let $x = T::from(u[k]);
+                $body
+            }),
+            _ => {
+                let fa = compile::<T>($m, $a, $lift);
+                Box::new(move |u, p| {
+                    let $x = fa(u, p);
+                    $body
+                })
+            }
+        }
+    }};
+}
+
 /// Compile node `i`; with `lift`, a parameter-free subtree is compiled for `f64` and promoted.
 fn compile<T: Scalar + Send + Sync>(m: &ExprModel, i: u32, lift: bool) -> Compiled<T> {
     if lift && !m.dep[i as usize] {
@@ -124,10 +172,7 @@ fn compile<T: Scalar + Send + Sync>(m: &ExprModel, i: u32, lift: bool) -> Compil
         Node::Num(v) => Box::new(move |_, _| T::from(v)),
         Node::Param(k) => Box::new(move |_, p| p[k]),
         Node::Input(k) => Box::new(move |u, _| T::from(u[k])),
-        Node::Neg(a) => {
-            let fa = compile::<T>(m, a, lift);
-            Box::new(move |u, p| -fa(u, p))
-        }
+        Node::Neg(a) => unary!(m, a, lift, |x| -x),
         Node::Add(a, b) => binary!(m, a, b, lift, |x, y| x + y),
         Node::Sub(a, b) => binary!(m, a, b, lift, |x, y| x - y),
         Node::Mul(a, b) => binary!(m, a, b, lift, |x, y| x * y),
@@ -142,20 +187,11 @@ fn compile<T: Scalar + Send + Sync>(m: &ExprModel, i: u32, lift: bool) -> Compil
         } else {
             x
         }),
-        Node::PowI(a, n) => {
-            let fa = compile::<T>(m, a, lift);
-            match n {
-                2 => Box::new(move |u, p| {
-                    let x = fa(u, p);
-                    x * x
-                }),
-                3 => Box::new(move |u, p| {
-                    let x = fa(u, p);
-                    x * x * x
-                }),
-                _ => Box::new(move |u, p| fa(u, p).powi(n)),
-            }
-        }
+        Node::PowI(a, n) => match n {
+            2 => unary!(m, a, lift, |x| x * x),
+            3 => unary!(m, a, lift, |x| x * x * x),
+            _ => unary!(m, a, lift, |x| x.powi(n)),
+        },
         Node::Pow(a, b) => {
             let fa = compile::<T>(m, a, lift);
             if m.dep[b as usize] {
@@ -166,21 +202,18 @@ fn compile<T: Scalar + Send + Sync>(m: &ExprModel, i: u32, lift: bool) -> Compil
                 Box::new(move |u, p| fa(u, p).powf(e(u, &[])))
             }
         }
-        Node::Call(f, a) => {
-            let fa = compile::<T>(m, a, lift);
-            match f {
-                Func::Sqrt => Box::new(move |u, p| fa(u, p).sqrt()),
-                Func::Exp => Box::new(move |u, p| fa(u, p).exp()),
-                Func::Ln => Box::new(move |u, p| fa(u, p).ln()),
-                Func::Log10 => Box::new(move |u, p| fa(u, p).log10()),
-                Func::Sin => Box::new(move |u, p| fa(u, p).sin()),
-                Func::Cos => Box::new(move |u, p| fa(u, p).cos()),
-                Func::Tan => Box::new(move |u, p| fa(u, p).tan()),
-                Func::Asin => Box::new(move |u, p| fa(u, p).asin()),
-                Func::Acos => Box::new(move |u, p| fa(u, p).acos()),
-                Func::Atan => Box::new(move |u, p| fa(u, p).atan()),
-                Func::Abs => Box::new(move |u, p| fa(u, p).abs()),
-            }
-        }
+        Node::Call(f, a) => match f {
+            Func::Sqrt => unary!(m, a, lift, |x| x.sqrt()),
+            Func::Exp => unary!(m, a, lift, |x| x.exp()),
+            Func::Ln => unary!(m, a, lift, |x| x.ln()),
+            Func::Log10 => unary!(m, a, lift, |x| x.log10()),
+            Func::Sin => unary!(m, a, lift, |x| x.sin()),
+            Func::Cos => unary!(m, a, lift, |x| x.cos()),
+            Func::Tan => unary!(m, a, lift, |x| x.tan()),
+            Func::Asin => unary!(m, a, lift, |x| x.asin()),
+            Func::Acos => unary!(m, a, lift, |x| x.acos()),
+            Func::Atan => unary!(m, a, lift, |x| x.atan()),
+            Func::Abs => unary!(m, a, lift, |x| x.abs()),
+        },
     }
 }

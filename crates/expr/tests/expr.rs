@@ -215,9 +215,20 @@ fn errors_point_at_the_column() {
 /// a time) against the gradient engine's `Grad`, and `f64` against the Rust twin above.
 #[test]
 fn compiled_and_tree_walk_evaluations_agree() {
-    use num_dual::Dual64;
     let names = ["a", "b"];
-    let m = ExprModel::parse(ALL, &names).unwrap();
+    // ALL, and every way a leaf operand is read inline by the compiled closures: parameter
+    // with parameter, input, constant (either side), unary functions and powers of a
+    // parameter or an input, negation.
+    let leaves = "a*b + 2/a - b/3 + x*a - y/b + sqrt(a)*exp(b) + a^2 - b^3 + a^4 \
+                  + cos(x)*sin(a) + -b + abs(a - 2) + ln(y)^2 + (x + a)^3";
+    for text in [ALL, leaves] {
+        compiled_agrees_with_tree_walk(text, &names);
+    }
+}
+
+fn compiled_agrees_with_tree_walk(text: &str, names: &[&str]) {
+    use num_dual::Dual64;
+    let m = ExprModel::parse(text, names).unwrap();
     let mut engine = GradientEngine::new(2);
     let mut rng = ChaCha8Rng::seed_from_u64(99);
     for _ in 0..200 {
@@ -236,7 +247,9 @@ fn compiled_and_tree_walk_evaluations_agree() {
                 })
                 .collect();
             let r = m.eval(&u, &d);
-            assert!((r.re - v).abs() <= 1e-13 * v.abs().max(1.0));
+            assert!((r.re - v).abs() <= 1e-13 * v.abs().max(1.0), "{text}");
+            let vf = m.eval::<f64>(&u, &p);
+            assert!((r.re - vf).abs() <= 1e-13 * vf.abs().max(1.0), "{text}");
             assert!(
                 (r.eps - g[j]).abs() <= 1e-12 * g[j].abs().max(1.0),
                 "∂/∂{}: {} vs {}",
