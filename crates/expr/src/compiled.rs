@@ -70,7 +70,7 @@ fn leaf_of(m: &ExprModel, i: u32) -> Option<Leaf> {
 macro_rules! binary {
     ($m:expr, $a:expr, $b:expr, $lift:expr, |$x:ident, $y:ident| $body:expr) => {{
         match (leaf_of($m, $a), leaf_of($m, $b)) {
-            // Both leaves, one of them a parameter (leaves without one are lifted to f64).
+            // Both leaves (other than two numbers), read inline.
             (Some(Leaf::Param(i)), Some(Leaf::Param(k))) => Box::new(move |_, p| {
                 let ($x, $y) = (p[i], p[k]);
                 $body
@@ -89,6 +89,18 @@ macro_rules! binary {
             }),
             (Some(Leaf::Const(v)), Some(Leaf::Param(k))) => Box::new(move |_, p| {
                 let ($x, $y) = (T::from(v), p[k]);
+                $body
+            }),
+            (Some(Leaf::Input(i)), Some(Leaf::Input(k))) => Box::new(move |u, _| {
+                let ($x, $y) = (T::from(u[i]), T::from(u[k]));
+                $body
+            }),
+            (Some(Leaf::Input(i)), Some(Leaf::Const(v))) => Box::new(move |u, _| {
+                let ($x, $y) = (T::from(u[i]), T::from(v));
+                $body
+            }),
+            (Some(Leaf::Const(v)), Some(Leaf::Input(k))) => Box::new(move |u, _| {
+                let ($x, $y) = (T::from(v), T::from(u[k]));
                 $body
             }),
             (_, Some(Leaf::Param(k))) => {

@@ -217,10 +217,12 @@ fn errors_point_at_the_column() {
 fn compiled_and_tree_walk_evaluations_agree() {
     let names = ["a", "b"];
     // ALL, and every way a leaf operand is read inline by the compiled closures: parameter
-    // with parameter, input, constant (either side), unary functions and powers of a
-    // parameter or an input, negation.
+    // with parameter, input, constant (either side), input with input or constant (the f64
+    // closures; the dual ones lift them), unary functions and powers of a parameter or an
+    // input, negation.
     let leaves = "a*b + 2/a - b/3 + x*a - y/b + sqrt(a)*exp(b) + a^2 - b^3 + a^4 \
-                  + cos(x)*sin(a) + -b + abs(a - 2) + ln(y)^2 + (x + a)^3";
+                  + cos(x)*sin(a) + -b + abs(a - 2) + ln(y)^2 + (x + a)^3 \
+                  + a*(x/y) - (x - 2)*b + (3 - y)/a + 2*3*a";
     for text in [ALL, leaves] {
         compiled_agrees_with_tree_walk(text, &names);
     }
