@@ -29,6 +29,25 @@ pub trait ParamModel {
     fn input_names(&self) -> &[String];
     /// The output for inputs `inputs` and parameters `params` (same orders as the names).
     fn eval<T: Scalar>(&self, inputs: &[f64], params: &[T]) -> T;
+
+    /// `h(φ, ϑ)` and `∂h/∂ϑ_j` for each `j` in `free`, written into `grad` — what
+    /// [`GradientEngine::value_and_gradient`] returns. The default is forward mode through
+    /// [`eval`](Self::eval) ([`GradientEngine::forward`]). A model may override it to use its
+    /// structure (parameters it is affine in, say) as long as the result stays exact to
+    /// round-off; callers go through the engine, which checks the buffer sizes first.
+    fn value_and_gradient_with(
+        &self,
+        engine: &mut GradientEngine,
+        inputs: &[f64],
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
+        if free.is_empty() {
+            return self.eval::<f64>(inputs, params);
+        }
+        engine.forward(params, free, grad, |duals| self.eval(inputs, duals))
+    }
 }
 
 /// Width of the dual numbers: the gradient is computed in chunks of this many free parameters
@@ -59,7 +78,8 @@ impl GradientEngine {
     }
 
     /// `h(φ, ϑ)` and `∂h/∂ϑ_j` for each `j` in `free` (indices into `params`), written into
-    /// `grad` (same length as `free`). Exact to round-off.
+    /// `grad` (same length as `free`). Exact to round-off. The model computes it
+    /// ([`ParamModel::value_and_gradient_with`]; forward mode unless it knows better).
     ///
     /// # Panics
     /// If `params.len()` differs from [`n_params`](Self::n_params) or `grad.len()` from
@@ -74,13 +94,32 @@ impl GradientEngine {
     ) -> f64 {
         assert_eq!(params.len(), self.duals.len(), "parameter vector length");
         assert_eq!(grad.len(), free.len(), "gradient buffer length");
-        if free.is_empty() {
-            return model.eval::<f64>(inputs, params);
-        }
-        let mut value = 0.0;
+        model.value_and_gradient_with(self, inputs, params, free, grad)
+    }
+
+    /// Forward mode: `f` evaluated on the parameters as dual numbers, the parameters in `free`
+    /// seeded [`GRADIENT_CHUNK`] at a time (one call of `f` per chunk). Returns `f`'s value and
+    /// writes `∂f/∂ϑ_j` for each `j` in `free` into `grad`. `f` is called once, unseeded, when
+    /// `free` is empty.
+    ///
+    /// # Panics
+    /// As [`value_and_gradient`](Self::value_and_gradient).
+    pub fn forward(
+        &mut self,
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+        mut f: impl FnMut(&[Grad]) -> Grad,
+    ) -> f64 {
+        assert_eq!(params.len(), self.duals.len(), "parameter vector length");
+        assert_eq!(grad.len(), free.len(), "gradient buffer length");
         for (d, &p) in self.duals.iter_mut().zip(params) {
             *d = Grad::from_re(p);
         }
+        if free.is_empty() {
+            return f(&self.duals).re;
+        }
+        let mut value = 0.0;
         for (chunk, out) in free
             .chunks(GRADIENT_CHUNK)
             .zip(grad.chunks_mut(GRADIENT_CHUNK))
@@ -88,7 +127,7 @@ impl GradientEngine {
             for (k, &j) in chunk.iter().enumerate() {
                 self.duals[j].eps = Derivative::derivative_generic(Const::<GRADIENT_CHUNK>, U1, k);
             }
-            let r = model.eval(inputs, &self.duals);
+            let r = f(&self.duals);
             // Back to constants for the next chunk.
             for &j in chunk {
                 self.duals[j].eps = Derivative::none();

@@ -15,7 +15,7 @@
 //! mean-value model ([`fit_friction_cubic`](crate::friction_fit::fit_friction_cubic)).
 
 use crate::kinematics::Crank;
-use physid_core::{ParamModel, Scalar};
+use physid_core::{GradientEngine, ParamModel, Scalar};
 
 /// Parameter names, in order.
 pub const PARAMS: [&str; 15] = [
@@ -46,13 +46,55 @@ impl Default for CyclicTorque {
     }
 }
 
-/// The friction cubic `fmep(N, T)` [kPa] with the thesis's signs (app. B.4).
+/// The ten monomials of the friction cubic at (N, T) with the thesis's signs (app. B.4):
+/// `fmep = Σ c_i·φ_i`, `φ = (1, N, −T, N², −NT, T², −N³, N²T, NT², −T³)`.
+pub fn cubic_regressors(n: f64, t: f64) -> [f64; 10] {
+    [
+        1.0,
+        n,
+        -t,
+        n * n,
+        -(n * t),
+        t * t,
+        -(n * n * n),
+        n * n * t,
+        n * t * t,
+        -(t * t * t),
+    ]
+}
+
+/// The friction cubic `fmep(N, T) = Σ c_i·φ_i(N, T)` [kPa] ([`cubic_regressors`]).
 pub fn fmep_cubic<T: Scalar>(c: &[T], n: f64, t: f64) -> T {
-    c[0] + c[1] * n - c[2] * t + c[3] * (n * n) - c[4] * (n * t) + c[5] * (t * t)
-        - c[6] * (n * n * n)
-        + c[7] * (n * n * t)
-        + c[8] * (n * t * t)
-        - c[9] * (t * t * t)
+    let phi = cubic_regressors(n, t);
+    c[1..10]
+        .iter()
+        .zip(&phi[1..])
+        .fold(c[0], |acc, (&c, &f)| acc + c * f)
+}
+
+impl CyclicTorque {
+    /// The model split at the friction cubic: `τ = a − β·fmep` with `a = τ_ind − τ_rec` and
+    /// `β = A_p·r·1e3/(2π)` (the torque of 1 kPa fmep). Reads only `M_rec, b, L, r, δ` of `p`.
+    fn split<T: Scalar>(&self, u: &[f64], p: &[T]) -> (T, T) {
+        let (theta, omega, alpha, p_cyl, p_crank) = (u[0], u[1], u[2], u[3], u[4]);
+        let crank = Crank {
+            r: p[3],
+            l: p[2],
+            delta: p[4],
+            bore: p[1],
+            kappa: T::from(10.0), // not used by the torque
+        };
+        let (g, g1, g2) = crank.thesis_g(theta);
+        let r = p[3];
+        let area_r = crank.piston_area() * r;
+        let a = area_r * g * (p_cyl - p_crank) - p[0] * r * g * (g1 * (omega * omega) + g2 * alpha);
+        (a, area_r * (1e3 / (2.0 * std::f64::consts::PI)))
+    }
+}
+
+/// Speed in rpm from ω [rad/s].
+fn rpm(omega: f64) -> f64 {
+    omega * 30.0 / std::f64::consts::PI
 }
 
 impl ParamModel for CyclicTorque {
@@ -65,23 +107,58 @@ impl ParamModel for CyclicTorque {
     }
 
     fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
-        let (theta, omega, alpha, p_cyl, p_crank, t_oil) = (u[0], u[1], u[2], u[3], u[4], u[5]);
-        let crank = Crank {
-            r: p[3],
-            l: p[2],
-            delta: p[4],
-            bore: p[1],
-            kappa: T::from(10.0), // not used by the torque
+        let (a, beta) = self.split(u, p);
+        a - beta * fmep_cubic(&p[5..15], rpm(u[1]), u[5])
+    }
+
+    /// The model is affine in `c1 … c10`: `∂τ/∂c_i = −β·φ_i(N, T)` with `β` and `φ` of
+    /// [`split`](Self::split) and [`cubic_regressors`], exact. Only `M_rec, b, L, r, δ` go
+    /// through forward mode, in one dual evaluation instead of two.
+    fn value_and_gradient_with(
+        &self,
+        engine: &mut GradientEngine,
+        u: &[f64],
+        p: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
+        const NONLINEAR: usize = 5;
+        // The free nonlinear parameters and where their partials go in `grad`.
+        let (mut nl, mut at, mut k) = ([0; NONLINEAR], [0; NONLINEAR], 0);
+        for (pos, &j) in free.iter().enumerate() {
+            if j < NONLINEAR {
+                if k == NONLINEAR {
+                    // A parameter listed twice: forward mode handles any list.
+                    return engine.forward(p, free, grad, |d| self.eval(u, d));
+                }
+                (nl[k], at[k]) = (j, pos);
+                k += 1;
+            }
+        }
+        let (n, t) = (rpm(u[1]), u[5]);
+        let fmep = fmep_cubic(&p[5..15], n, t);
+        let (value, beta) = if k == 0 {
+            let (a, beta) = self.split(u, p);
+            (a - beta * fmep, beta)
+        } else {
+            let mut beta = 0.0;
+            let mut g = [0.0; NONLINEAR];
+            let value = engine.forward(p, &nl[..k], &mut g[..k], |d| {
+                let (a, b) = self.split(u, d);
+                beta = b.re;
+                a - b * fmep
+            });
+            for (&pos, &gj) in at[..k].iter().zip(&g) {
+                grad[pos] = gj;
+            }
+            (value, beta)
         };
-        let (g, g1, g2) = crank.thesis_g(theta);
-        let r = p[3];
-        let area_r = crank.piston_area() * r;
-        let n = omega * 30.0 / std::f64::consts::PI;
-        // τ_ind − τ_fri = A·r·(G·Δp − fmep·1e3/(2π)), shared factor A·r.
-        let fmep = fmep_cubic(&p[5..15], n, t_oil);
-        let ind_fri =
-            area_r * (g * (p_cyl - p_crank) - fmep * (1e3 / (2.0 * std::f64::consts::PI)));
-        let rec = p[0] * r * g * (g1 * (omega * omega) + g2 * alpha);
-        ind_fri - rec
+        let phi = cubic_regressors(n, t);
+        for (&j, gj) in free.iter().zip(grad.iter_mut()) {
+            if j >= NONLINEAR {
+                *gj = -beta * phi[j - NONLINEAR];
+            }
+        }
+        value
     }
 }

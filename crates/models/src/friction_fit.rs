@@ -5,7 +5,7 @@
 //! The target is the *mechanical* fmep (without pumping): in the cyclic-torque model the
 //! pumping work is in the indicated torque through the measured cylinder pressure (SPEC §2.3).
 
-use crate::cyclic_torque::fmep_cubic;
+use crate::cyclic_torque::cubic_regressors;
 use crate::friction::{fmep, Design, OperatingPoint, Settings};
 use nalgebra::{DMatrix, DVector};
 
@@ -36,17 +36,6 @@ pub enum FitError {
     /// The least-squares problem could not be solved.
     #[error("least-squares solve failed: {0}")]
     Solve(String),
-}
-
-/// The ten regressors of the cubic at (N, T), with the thesis's signs.
-pub fn cubic_regressors(n: f64, t: f64) -> [f64; 10] {
-    let mut r = [0.0; 10];
-    for (k, v) in r.iter_mut().enumerate() {
-        let mut unit = [0.0; 10];
-        unit[k] = 1.0;
-        *v = fmep_cubic(&unit, n, t);
-    }
-    r
 }
 
 /// Least squares of `target(N, T)` on the cubic over the grid; columns scaled to unit maximum

@@ -92,6 +92,94 @@ fn gradient_equals_central_differences() {
     }
 }
 
+/// The exact gradient equals sympy's symbolic derivatives of Eq. 8.2 written independently
+/// with the thesis's closed forms (`golden/gen_cyclic_torque_gradient.py`, 30 digits), δ ≠ 0.
+#[test]
+fn gradient_equals_sympy() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/cyclic_torque_gradient.json"
+    ))
+    .unwrap();
+    let golden: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let m = CyclicTorque::default();
+    let p = floats(&golden["theta"]);
+    let free: Vec<usize> = (0..15).collect();
+    let mut engine = GradientEngine::new(15);
+    let mut g = [0.0; 15];
+    let mut worst = 0.0_f64;
+    for point in golden["points"].as_array().unwrap() {
+        let u = floats(&point["inputs"]);
+        let want = floats(&point["gradient"]);
+        let v = engine.value_and_gradient(&m, &u, &p, &free, &mut g);
+        let value = point["value"].as_f64().unwrap();
+        assert!((v - value).abs() <= 1e-12 * value.abs(), "{v} vs {value}");
+        for j in 0..15 {
+            let err = (g[j] - want[j]).abs() / want[j].abs();
+            worst = worst.max(err);
+            assert!(
+                err <= 1e-12,
+                "∂τ/∂{}: {} vs {}",
+                m.param_names()[j],
+                g[j],
+                want[j]
+            );
+        }
+    }
+    println!("largest relative difference from sympy: {worst:.1e}");
+}
+
+/// The affine shortcut for `c1 … c10` (the model's own `value_and_gradient_with`) equals plain
+/// forward mode through `eval` — value and every partial — for any subset of the parameters
+/// in any order, including none and a list with repeats.
+#[test]
+fn affine_shortcut_equals_forward_mode() {
+    use rand::seq::SliceRandom;
+    let m = CyclicTorque::default();
+    let mut engine = GradientEngine::new(15);
+    let mut rng = ChaCha8Rng::seed_from_u64(10);
+    for trial in 0..400 {
+        let mut p = nominal();
+        for v in &mut p {
+            *v *= rng.random_range(0.8..1.2);
+        }
+        p[4] = rng.random_range(-0.003..0.003);
+        let u = [
+            rng.random_range(0.0..4.0 * std::f64::consts::PI),
+            rng.random_range(50.0..600.0),
+            rng.random_range(-500.0..500.0),
+            rng.random_range(2e4..3e6),
+            1.0e5,
+            rng.random_range(20.0..90.0),
+        ];
+        let mut free: Vec<usize> = (0..15).collect();
+        free.shuffle(&mut rng);
+        free.truncate(rng.random_range(0..=15));
+        if trial % 50 == 0 {
+            free = vec![0, 1, 2, 3, 4, 3, 7]; // more than five nonlinear entries
+        }
+        let mut g = vec![f64::NAN; free.len()];
+        let v = engine.value_and_gradient(&m, &u, &p, &free, &mut g);
+        let mut want = vec![0.0; free.len()];
+        let vf = engine.forward(&p, &free, &mut want, |d| m.eval(&u, d));
+        assert!((v - vf).abs() <= 1e-14 * vf.abs(), "{v} vs {vf}");
+        for ((j, a), b) in free.iter().zip(&g).zip(&want) {
+            assert!(
+                (a - b).abs() <= 1e-13 * b.abs().max(1e-300),
+                "∂τ/∂{}: {a} vs {b}",
+                m.param_names()[*j]
+            );
+        }
+    }
+}
+
 /// The fit recovers a known cubic exactly, and fits the thesis's mean-value friction model
 /// (mechanical, at ambient intake pressure) over 750–5000 rpm, 20–90 °C.
 #[test]

@@ -190,7 +190,10 @@ pub fn run(args: &Args) -> Result<()> {
     let r = rate(samples.len(), budget, || {
         let s: f64 = samples
             .iter()
-            .map(|u| engine15.value_and_gradient(&torque, u, &p15, &free15, &mut grad15))
+            .map(|u| {
+                let p = std::hint::black_box(&p15);
+                engine15.value_and_gradient(&torque, u, p, &free15, &mut grad15)
+            })
             .sum();
         std::hint::black_box(s);
         Ok(())
