@@ -308,6 +308,8 @@ pub struct EngineOutputs {
     pub q_wall: f64,
     /// Effective flow areas `C_d·A` [m²] of the same four restrictions.
     pub areas: [f64; 4],
+    /// Ratios of specific heats `γ = c_p/c_v` of the three volumes' gas.
+    pub gamma: [f64; 3],
 }
 
 /// The engine with its derived constants.
@@ -331,6 +333,8 @@ pub struct Engine {
     ev: ValveGeometry,
     iv_cam: Cam,
     ev_cam: Cam,
+    /// Ψ's slope in the linear band at γ = 1.4, `Ψ(1 − band)/band` (the stiffness estimate's).
+    band_slope: f64,
 }
 
 impl Engine {
@@ -371,6 +375,7 @@ impl Engine {
             ev: ValveGeometry::new(p.ev_d, p.ev_di, p.seat_angle),
             iv_cam: Cam::new(p.ivo, p.ivc, p.lift_max, p.lift_exponent as i32),
             ev_cam: Cam::new(p.evo, p.evc, p.lift_max, p.lift_exponent as i32),
+            band_slope: psi(1.0 - LINEAR_BAND, 1.4) / LINEAR_BAND,
         }
     }
 
@@ -592,6 +597,7 @@ impl Engine {
                 flows: [f_th, f_iv, f_ev, f_or],
                 q_wall,
                 areas: [a_th, a_in, a_ex, a_or],
+                gamma,
             },
         )
     }
@@ -606,7 +612,7 @@ impl Engine {
     /// [`gas_derivatives`](Self::gas_derivatives) at the state `x`. The solver sub-steps when
     /// `rate·dt` would leave RK4's stability interval (2.78 on the real axis).
     pub fn stiffness(&self, x: &GasState, out: &EngineOutputs) -> f64 {
-        let slope = psi(1.0 - LINEAR_BAND, 1.4) / LINEAR_BAND;
+        let slope = self.band_slope;
         let r = air::gas_constant();
         let v = [self.p.v_int, out.v_cyl, self.p.v_exh];
         let t = [x[3], x[4], x[5]];
@@ -623,7 +629,7 @@ impl Engine {
         let g_iv = g(a_in, p[INT], t[INT], p[CYL], t[CYL]);
         let g_ev = g(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]);
         let g_or = g(a_or, p[EXH], t[EXH], amb_p, amb_t);
-        let d = [0, 1, 2].map(|i| (air::gamma(t[i]) * r * t[i] / v[i]).sqrt());
+        let d = [0, 1, 2].map(|i| (out.gamma[i] * r * t[i] / v[i]).sqrt());
         // D^½·L·D^½ for the chain int — cyl — exh: tridiagonal.
         largest_eigenvalue_tridiag3(
             [
