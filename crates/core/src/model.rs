@@ -4,7 +4,10 @@
 //! [`Scalar`]). Evaluated with `f64` it gives the output; evaluated with forward-mode dual
 //! numbers it gives the output *and its exact derivatives* with respect to any chosen
 //! parameters — the thesis used the MATLAB symbolic toolbox for these (§5.2, §8), we use
-//! automatic differentiation (`num-dual`). Nothing is derived by hand or by finite differences.
+//! automatic differentiation (`num-dual`). Nothing is derived by hand or by finite differences;
+//! a model may only tell the engine which parameters it is affine in, whose partials are then
+//! its regressors (the cyclic-torque model's friction coefficients, see
+//! [`ParamModel::value_and_gradient_with`]).
 
 use nalgebra::{Const, U1};
 use num_dual::{Derivative, DualNum, DualSVec64};

@@ -15,6 +15,18 @@ fn nominal() -> [f64; 15] {
     ILLUSTRATIVE
 }
 
+/// Inputs `(θ, ω, α, p_cyl, p_crank, T_oil)` over two revolutions and the engine's range.
+fn random_inputs(rng: &mut ChaCha8Rng) -> [f64; 6] {
+    [
+        rng.random_range(0.0..4.0 * std::f64::consts::PI),
+        rng.random_range(50.0..600.0),
+        rng.random_range(-500.0..500.0),
+        rng.random_range(2e4..3e6),
+        1.0e5,
+        rng.random_range(20.0..90.0),
+    ]
+}
+
 /// At δ = 0 the model equals the torque written with the virtual-work forms:
 /// (p − p_c)·A_p·s' − M·s'·(s''ω² + s'α) − fmep·1e3·A_p·r/(2π).
 #[test]
@@ -66,14 +78,7 @@ fn gradient_equals_central_differences() {
     let mut g = [0.0; 15];
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     for _ in 0..200 {
-        let u = [
-            rng.random_range(0.0..4.0 * std::f64::consts::PI),
-            rng.random_range(50.0..600.0),
-            rng.random_range(-500.0..500.0),
-            rng.random_range(2e4..3e6),
-            1.0e5,
-            rng.random_range(20.0..90.0),
-        ];
+        let u = random_inputs(&mut rng);
         let v = engine.value_and_gradient(&m, &u, &p, &free, &mut g);
         for j in 0..15 {
             let h = 1e-6 * p[j].abs().max(1e-6);
@@ -151,14 +156,7 @@ fn affine_shortcut_equals_forward_mode() {
             *v *= rng.random_range(0.8..1.2);
         }
         p[4] = rng.random_range(-0.003..0.003);
-        let u = [
-            rng.random_range(0.0..4.0 * std::f64::consts::PI),
-            rng.random_range(50.0..600.0),
-            rng.random_range(-500.0..500.0),
-            rng.random_range(2e4..3e6),
-            1.0e5,
-            rng.random_range(20.0..90.0),
-        ];
+        let u = random_inputs(&mut rng);
         let mut free: Vec<usize> = (0..15).collect();
         free.shuffle(&mut rng);
         free.truncate(rng.random_range(0..=15));
