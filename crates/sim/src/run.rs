@@ -156,8 +156,20 @@ impl Raw {
     }
 }
 
-/// Linear interpolation of `y(x)` at `at` (x increasing).
-fn interp(x: &[f64], y: &[f64], at: &[f64]) -> Vec<f64> {
+/// How a raw column is carried from the solver's steps to the output grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Between {
+    /// Linear interpolation (the states and what follows from them).
+    Linear,
+    /// The value of the step that contains the point: for what the cell holds over a step
+    /// (the throttle, the demand, the parameters a fault changes), so that a stepped input or
+    /// fault never shows a value between its two levels. A point within 1 % of a step's length
+    /// before the next step counts as on it (the crank-angle grid's steps land within 0.1 %).
+    Hold,
+}
+
+/// `y(x)` at the points `at` (x increasing), `how` between the raw points.
+fn resample(x: &[f64], y: &[f64], at: &[f64], how: Between) -> Vec<f64> {
     let mut out = Vec::with_capacity(at.len());
     let mut j = 0;
     for &a in at {
@@ -170,7 +182,11 @@ fn interp(x: &[f64], y: &[f64], at: &[f64]) -> Vec<f64> {
         } else {
             0.0
         };
-        out.push(y[j] + f * (y[j + 1] - y[j]));
+        out.push(match how {
+            Between::Linear => y[j] + f * (y[j + 1] - y[j]),
+            Between::Hold if f >= 0.99 => y[j + 1],
+            Between::Hold => y[j],
+        });
     }
     out
 }
@@ -364,7 +380,8 @@ fn acquire(
             )
         }
     };
-    let at = |name: &str| interp(abscissa, col(name), &grid);
+    let at = |name: &str| resample(abscissa, col(name), &grid, Between::Linear);
+    let held = |name: &str| resample(abscissa, col(name), &grid, Between::Hold);
     let t = match basis {
         OutputBasis::Time(_) => grid.clone(),
         OutputBasis::Crank(_) => at("t"),
@@ -424,8 +441,7 @@ fn acquire(
     };
     let sensor_faulted = faults.iter().any(|f| f.path.starts_with("sensors."));
     let fixed = base.clone();
-    let sensed = |rng: &mut ChaCha8Rng, name: &str, pick: fn(&CellParams) -> SensorParams| {
-        let x = at(name);
+    let sensed = |rng: &mut ChaCha8Rng, x: Vec<f64>, pick: fn(&CellParams) -> SensorParams| {
         let mut st = SensorState { lagged: None };
         let mut out = Vec::with_capacity(x.len());
         for (k, &xi) in x.iter().enumerate() {
@@ -442,33 +458,33 @@ fn acquire(
     let theta_dy = at("theta_dy");
     push(&mut rec, "theta_en", "rad", theta_en.clone())?;
     push(&mut rec, "theta_dy", "rad", theta_dy.clone())?;
-    let speed = sensed(&mut rng, "omega_en", |p| p.sensors.speed);
+    let speed = sensed(&mut rng, at("omega_en"), |p| p.sensors.speed);
     push(&mut rec, "omega_en", "rad/s", speed)?;
-    let speed = sensed(&mut rng, "omega_dy", |p| p.sensors.speed);
+    let speed = sensed(&mut rng, at("omega_dy"), |p| p.sensors.speed);
     push(&mut rec, "omega_dy", "rad/s", speed)?;
     push(&mut rec, "alpha_en", "rad/s^2", at("alpha_en"))?;
     push(&mut rec, "alpha_dy", "rad/s^2", at("alpha_dy"))?;
-    let v = sensed(&mut rng, "torque_shaft", |p| p.sensors.torque_shaft);
+    let v = sensed(&mut rng, at("torque_shaft"), |p| p.sensors.torque_shaft);
     push(&mut rec, "torque_shaft", "N*m", v)?;
-    let v = sensed(&mut rng, "torque_engine", |p| p.sensors.torque_engine);
+    let v = sensed(&mut rng, at("torque_engine"), |p| p.sensors.torque_engine);
     push(&mut rec, "torque_engine", "N*m", v)?;
     push(&mut rec, "torque_dy", "N*m", at("torque_dy"))?;
-    let v = sensed(&mut rng, "p_cyl", |p| p.sensors.p_cyl);
+    let v = sensed(&mut rng, at("p_cyl"), |p| p.sensors.p_cyl);
     push(&mut rec, "p_cyl", "Pa", v)?;
-    let v = sensed(&mut rng, "p_int", |p| p.sensors.p_manifold);
+    let v = sensed(&mut rng, at("p_int"), |p| p.sensors.p_manifold);
     push(&mut rec, "p_int", "Pa", v)?;
-    let v = sensed(&mut rng, "p_exh", |p| p.sensors.p_manifold);
+    let v = sensed(&mut rng, at("p_exh"), |p| p.sensors.p_manifold);
     push(&mut rec, "p_exh", "Pa", v)?;
     push(&mut rec, "p_crank", "Pa", vec![base.ambient.p; t.len()])?;
     push(&mut rec, "p_atm", "Pa", vec![base.ambient.p; t.len()])?;
-    let v = sensed(&mut rng, "T_oil", |p| p.sensors.temperature);
+    let v = sensed(&mut rng, held("T_oil"), |p| p.sensors.temperature);
     push(&mut rec, "T_oil", "K", v)?;
-    let v = sensed(&mut rng, "T_int", |p| p.sensors.temperature);
+    let v = sensed(&mut rng, at("T_int"), |p| p.sensors.temperature);
     push(&mut rec, "T_int", "K", v)?;
-    let v = sensed(&mut rng, "T_exh", |p| p.sensors.temperature);
+    let v = sensed(&mut rng, at("T_exh"), |p| p.sensors.temperature);
     push(&mut rec, "T_exh", "K", v)?;
-    push(&mut rec, "throttle", "deg", at("throttle"))?;
-    push(&mut rec, "speed_demand", "rad/s", at("speed_demand"))?;
+    push(&mut rec, "throttle", "deg", held("throttle"))?;
+    push(&mut rec, "speed_demand", "rad/s", held("speed_demand"))?;
     for ch in ["i_a", "i_b", "i_c"] {
         push(&mut rec, ch, "A", at(ch))?;
     }
@@ -518,7 +534,13 @@ fn acquire(
     }
     push(&mut rec, "tdc", "-", tdc)?;
     for (name, unit) in RAW.iter().filter(|c| c.0.starts_with("true_")) {
-        push(&mut rec, name, unit, at(name))?;
+        // The shaft's parameters are held over a step; the true torques and T_cyl are states'.
+        let values = if name.starts_with("true_shaft_") {
+            held(name)
+        } else {
+            at(name)
+        };
+        push(&mut rec, name, unit, values)?;
     }
     rec.meta.insert("source".into(), "physid simulate".into());
     rec.meta.insert("scenario".into(), scenario.name.clone());
@@ -565,4 +587,25 @@ pub fn parameter_truth(rec: &Recording, path: &str, t: &[f64]) -> Option<Vec<f64
             })
             .collect(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{resample, Between};
+
+    /// Linear between the raw points; held at the containing step's value, a point within 1 %
+    /// of a step before the next counting as on it; clamped at the ends.
+    #[test]
+    fn resample_linear_and_held() {
+        let x = [0.0, 1.0, 2.0, 3.0];
+        let y = [10.0, 20.0, 30.0, 40.0];
+        let at = [-1.0, 0.5, 0.995, 1.0, 1.5, 2.999, 3.0, 4.0];
+        let lin = resample(&x, &y, &at, Between::Linear);
+        let want = [10.0, 15.0, 19.95, 20.0, 25.0, 39.99, 40.0, 40.0];
+        for (a, b) in lin.iter().zip(want) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        let held = resample(&x, &y, &at, Between::Hold);
+        assert_eq!(held, [10.0, 10.0, 20.0, 20.0, 20.0, 40.0, 40.0, 40.0]);
+    }
 }

@@ -160,17 +160,24 @@ fn a_run_produces_the_recording() {
     assert_eq!((k[0], k[10_000]), (1250.0, 1100.0));
     // The truth rebuilt from the metadata equals the parameter the cell ran with.
     let t = rec.values("t").unwrap();
-    // (The recorded channel is interpolated between solver steps, so at the sample on the step
-    // itself it lies between the two values; the metadata gives the value in force, 1100.)
+    // The recorded channel holds the value the step containing the sample ran with (never one
+    // between the two levels); the metadata gives the schedule. They differ only for samples
+    // inside the step that spans the fault's time (a step lasts at most 1° at 500 rpm).
     let pt = parameter_truth(&rec, "shaft.k", t).unwrap();
+    let mut late = 0;
     for i in 0..k.len() {
-        if t[i] == 0.5 {
-            assert_eq!(pt[i], 1100.0);
-            assert!(k[i] > 1100.0 && k[i] < 1250.0);
-        } else {
-            assert_eq!(pt[i], k[i], "sample {i}");
+        assert!(k[i] == 1250.0 || k[i] == 1100.0, "sample {i}: {}", k[i]);
+        if pt[i] != k[i] {
+            assert!(
+                t[i] >= 0.5 && t[i] < 0.5 + 1.0 / 3000.0,
+                "sample {i} at {}",
+                t[i]
+            );
+            assert_eq!((k[i], pt[i]), (1250.0, 1100.0));
+            late += 1;
         }
     }
+    assert!(late <= 2, "{late} samples");
     assert!(parameter_truth(&rec, "shaft.b", t)
         .unwrap()
         .iter()
