@@ -80,20 +80,28 @@ const fn mix(o: &[f64; 7], n: &[f64; 7]) -> [f64; 7] {
 }
 const AIR: [[f64; 7]; 2] = [mix(&O2[0], &N2[0]), mix(&O2[1], &N2[1])];
 
-fn coefficients(t: f64) -> &'static [f64; 7] {
-    if t < T_MID {
-        &AIR[0]
-    } else {
-        &AIR[1]
-    }
+/// The enthalpy polynomial's coefficients `h/R = a6 + T·(a1 + T·(a2/2 + T·(a3/3 + T·(a4/4 +
+/// T·a5/5))))`, divided once here instead of per evaluation.
+const fn enthalpy_coefficients(a: &[f64; 7]) -> [f64; 6] {
+    [a[0], a[1] / 2.0, a[2] / 3.0, a[3] / 4.0, a[4] / 5.0, a[5]]
+}
+const AIR_H: [[f64; 6]; 2] = [
+    enthalpy_coefficients(&AIR[0]),
+    enthalpy_coefficients(&AIR[1]),
+];
+
+/// The range of the polynomials that holds `t`.
+fn range(t: f64) -> usize {
+    usize::from(t >= T_MID)
 }
 
 fn cp_over_r(a: &[f64; 7], t: f64) -> f64 {
     a[0] + t * (a[1] + t * (a[2] + t * (a[3] + t * a[4])))
 }
 
-fn h_over_rt(a: &[f64; 7], t: f64) -> f64 {
-    a[0] + t * (a[1] / 2.0 + t * (a[2] / 3.0 + t * (a[3] / 4.0 + t * a[4] / 5.0))) + a[5] / t
+/// `h/R` [K] (`h/(R·T)` of the header times T, without its division).
+fn h_over_r(b: &[f64; 6], t: f64) -> f64 {
+    b[5] + t * (b[0] + t * (b[1] + t * (b[2] + t * (b[3] + t * b[4]))))
 }
 
 /// Molar mass of air [kg/kmol].
@@ -106,21 +114,19 @@ pub fn gas_constant() -> f64 {
     R_AIR
 }
 
-/// Mixture property: the dimensionless polynomial times `R`.
-fn mixture(t: f64, f: fn(&[f64; 7], f64) -> f64) -> f64 {
-    f(coefficients(t), t) * R_AIR
-}
-
 /// `(c_p(T), h(T))` together (one choice of the polynomials' range) [J/(kg·K)], [J/kg]: what a
 /// gas-dynamics step needs of each volume (`c_v = c_p − R`, `u = h − R·T`, `γ = c_p/c_v`).
 pub fn cp_and_enthalpy(t: f64) -> (f64, f64) {
-    let a = coefficients(t);
-    (cp_over_r(a, t) * R_AIR, h_over_rt(a, t) * R_AIR * t)
+    let i = range(t);
+    (
+        cp_over_r(&AIR[i], t) * R_AIR,
+        h_over_r(&AIR_H[i], t) * R_AIR,
+    )
 }
 
 /// Specific heat at constant pressure c_p(T) [J/(kg·K)].
 pub fn cp(t: f64) -> f64 {
-    mixture(t, cp_over_r)
+    cp_over_r(&AIR[range(t)], t) * R_AIR
 }
 
 /// Specific heat at constant volume c_v(T) = c_p − R [J/(kg·K)].
@@ -136,7 +142,7 @@ pub fn gamma(t: f64) -> f64 {
 
 /// Specific enthalpy h(T) [J/kg] (the polynomials' datum: formation enthalpy of the elements).
 pub fn enthalpy(t: f64) -> f64 {
-    mixture(t, h_over_rt) * t
+    h_over_r(&AIR_H[range(t)], t) * R_AIR
 }
 
 /// Specific internal energy u(T) = h − R·T [J/kg].

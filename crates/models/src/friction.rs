@@ -358,10 +358,20 @@ pub fn regressors<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) 
 /// The physical form, term by term as SPEC §2.5 writes the thesis's code (app. B.2) — written
 /// independently of [`regressors`], so that their agreement is a check.
 pub fn fmep<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) -> Fmep<T> {
+    fmep_with_viscosity(d, st, op, s_mu(st, op.t_oil_c))
+}
+
+/// [`fmep`] with the viscosity scaling `smu` = [`s_mu`]`(st, op.t_oil_c)` given: a caller that
+/// evaluates many operating points at one oil temperature computes it once.
+pub fn fmep_with_viscosity<T: Scalar>(
+    d: &Design<T>,
+    st: &Settings,
+    op: &OperatingPoint,
+    smu: f64,
+) -> Fmep<T> {
     let n = op.n_rpm;
     let (b, s, nc, nv, nb) = (d.b, d.s, st.nc, st.nv, st.nb);
     let sp = s * 2.0 / 1000.0 * n / 60.0;
-    let smu = s_mu(st, op.t_oil_c);
     let hydro = hydrodynamic_factor(st, smu);
     let (cff, crf, coh, com) = st.valvetrain;
     // The 4.12 kPa constant: in rfmep in the thesis (Eq. 3.47), a cam-seal term in vfmep in
@@ -384,7 +394,7 @@ pub fn fmep<T: Scalar>(d: &Design<T>, st: &Settings, op: &OperatingPoint) -> Fme
     let vfmep = T::from(244.0 * hydro * n * nb) / (b * b * s * nc)
         + T::from(cff * (1.0 + 500.0 / n) * nv) / (s * nc)
         + T::from(crf * n * nv) / (s * nc)
-        + d.lv.powf(1.5) * (coh * hydro * n.powf(0.5) * nv) / (b * s * nc)
+        + d.lv * d.lv.sqrt() * (coh * hydro * n.sqrt() * nv) / (b * s * nc)
         + d.lv * (com * (1.0 + 500.0 / n) * nv) / (s * nc)
         + vfmep_const;
     let (a0, a1, a2) = st.variant.auxiliaries();

@@ -53,15 +53,31 @@ impl<T: Scalar> Crank<T> {
     }
 
     /// [`motion`](Self::motion) from θ's sine and cosine (a caller that has them already).
-    pub fn motion_sin_cos(&self, (sa, ca): (f64, f64)) -> (T, T, T) {
+    pub fn motion_sin_cos(&self, sc: (f64, f64)) -> (T, T, T) {
+        self.motion_from(self.tdc_height(), sc)
+    }
+
+    /// The piston pin's height above the crank axis at TDC, `√((L+r)² − δ²)` [m]: a constant
+    /// of the geometry, which [`motion_from`](Self::motion_from) takes computed.
+    pub fn tdc_height(&self) -> T {
+        let rl = self.r + self.l;
+        (rl * rl - self.delta * self.delta).sqrt()
+    }
+
+    /// [`motion_sin_cos`](Self::motion_sin_cos) with [`tdc_height`](Self::tdc_height) given
+    /// (a caller evaluating many angles of one geometry computes it once). With
+    /// `q = r·sin θ − δ` and `w = √(L² − q²)`: `s = √((L+r)² − δ²) − r·cos θ − w`,
+    /// `s' = r·sin θ + q·r·cos θ/w`, `s'' = r·cos θ + (r²cos²θ − q·r·sin θ)/w + q²r²cos²θ/w³`
+    /// (one division, for 1/w).
+    pub fn motion_from(&self, tdc_height: T, (sa, ca): (f64, f64)) -> (T, T, T) {
         let r = self.r;
         let q = r * sa - self.delta;
         let w = (self.l * self.l - q * q).sqrt();
-        let rl = r + self.l;
-        let s = (rl * rl - self.delta * self.delta).sqrt() - r * ca - w;
-        let ds = r * sa + q * r * ca / w;
-        let dds =
-            r * ca + (r * r * ca * ca - q * r * sa) / w + q * q * r * r * ca * ca / (w * w * w);
+        let iw = w.recip();
+        let s = tdc_height - r * ca - w;
+        let rca = r * ca;
+        let ds = r * sa + q * rca * iw;
+        let dds = rca + (rca * rca - q * r * sa) * iw + q * q * rca * rca * (iw * iw * iw);
         (s, ds, dds)
     }
 

@@ -128,6 +128,9 @@ pub struct TestCell {
     dt_min: f64,
     dt_max: f64,
     substeps: u64,
+    /// The last throttle opening [deg] and its effective area [m²] (openings change far less
+    /// often than steps are taken).
+    throttle: (f64, f64),
 }
 
 impl TestCell {
@@ -157,6 +160,7 @@ impl TestCell {
             x,
             t: 0.0,
             substeps: 0,
+            throttle: (f64::NAN, 0.0),
         })
     }
 
@@ -201,7 +205,7 @@ impl TestCell {
     pub fn refresh_live_parameters(&mut self) {
         self.engine.p.m_rec = self.params.engine.m_rec;
         self.engine.p.friction_scale = self.params.engine.friction_scale;
-        self.engine.p.t_oil = self.params.engine.t_oil;
+        self.engine.set_oil_temperature(self.params.engine.t_oil);
     }
 
     /// Derivatives of the continuous state with the held inputs; also the instant's sample
@@ -288,6 +292,14 @@ impl TestCell {
         dt.clamp(self.dt_min, self.dt_max)
     }
 
+    /// The effective throttle area [m²] at an opening [deg], computed when the opening changes.
+    fn throttle_area(&mut self, deg: f64) -> f64 {
+        if self.throttle.0 != deg {
+            self.throttle = (deg, self.engine.throttle_cd_area(deg));
+        }
+        self.throttle.1
+    }
+
     /// Advance one crank step with `inputs`, the drive measuring speed `w_meas` [rad/s] (its
     /// speed sensor's reading of ω_dy; see [`Sensor`](crate::sensors::Sensor)). Returns the
     /// sample at the start of the step.
@@ -302,7 +314,7 @@ impl TestCell {
         let p_int = x0[INT] * r * x0[3 + INT] / self.params.engine.v_int;
         let held = Held {
             throttle: inputs.throttle_deg,
-            throttle_area: self.engine.throttle_cd_area(inputs.throttle_deg),
+            throttle_area: self.throttle_area(inputs.throttle_deg),
             v: cmd.v,
             w_slp: cmd.w_slp,
             friction: self.engine.friction_torque(x0[W_EN], p_int),
@@ -313,12 +325,14 @@ impl TestCell {
         let (k1_start, mut sample) = self.derivatives(&x0, &held);
         // Sub-steps where the gas flows are stiff (small volumes, open restrictions near equal
         // pressures): keep rate·h inside RK4's stability interval (2.78 on the real axis).
+        const RATE_DT: f64 = 2.5;
         let rate = if self.params.engine.active != 0.0 {
-            self.engine.stiffness(&gas_of(&x0), &sample.gas)
+            self.engine
+                .stiffness(&gas_of(&x0), &sample.gas, RATE_DT / dt)
         } else {
             0.0
         };
-        let m = ((rate * dt / 2.5).ceil() as usize).clamp(1, 64);
+        let m = ((rate * dt / RATE_DT).ceil() as usize).clamp(1, 64);
         let h = dt / m as f64;
         let mut x = x0;
         for sub in 0..m {

@@ -58,32 +58,100 @@ const LINEAR_BAND: f64 = 0.02;
 /// `ln(1 − LINEAR_BAND)` (a constant: the band's edge; tested against the library `ln`).
 const LN_BAND_EDGE: f64 = -0.020202707317519466;
 
-/// Isentropic flow function Ψ(pr) (Eq. 3.16): choked below the critical ratio
-/// `pr* = (2/(γ+1))^(γ/(γ−1))`, subsonic above, linear in `1 − pr` in the last
-/// [`LINEAR_BAND`]. Evaluated with logarithms and exponentials (two `ln`, one `exp`): the
-/// powers share `ln(2/(γ+1))` and `a = pr^(1/γ)` gives `pr^((γ−1)/γ) = pr/a`.
+/// Isentropic flow function Ψ(pr) (Eq. 3.16) for a gas of ratio of specific heats γ: choked
+/// below the critical ratio `pr* = (2/(γ+1))^(γ/(γ−1))`, subsonic above, linear in `1 − pr` in
+/// the last [`LINEAR_BAND`]. [`OrificeGas::psi`] with γ's two constants.
 pub fn psi(pr: f64, gamma: f64) -> f64 {
-    let g1 = gamma - 1.0;
-    // Subsonic Ψ from pr and its logarithm.
-    let sub = |pr: f64, ln_pr: f64| {
-        let a = (ln_pr / gamma).exp();
-        a * (2.0 * gamma / g1 * (1.0 - pr / a)).max(0.0).sqrt()
-    };
-    // The critical ratio (2/(γ+1))^(γ/(γ−1)) is below e^(−1/2) = 0.6065 for every γ > 1:
-    // above 0.61 the flow is subsonic without computing it.
-    let choked = pr <= 0.0 || (pr < 0.61 && pr.ln() <= gamma / g1 * (2.0 / (gamma + 1.0)).ln());
-    if choked {
-        let ln_c = (2.0 / (gamma + 1.0)).ln();
-        gamma.sqrt() * ((gamma + 1.0) / (2.0 * g1) * ln_c).exp()
-    } else if pr < 1.0 - LINEAR_BAND {
-        sub(pr, pr.ln())
-    } else {
-        // Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
-        // 1 − pe^((γ−1)/γ) = −expm1(y·(γ−1)/γ), both of small arguments (no cancellation).
-        let inv_g = 1.0 / gamma;
-        let a = 1.0 + expm1_small(LN_BAND_EDGE * inv_g);
-        let edge = a * (-2.0 * gamma / g1 * expm1_small(LN_BAND_EDGE * (g1 * inv_g))).sqrt();
-        edge * (1.0 - pr).max(0.0) * (1.0 / LINEAR_BAND)
+    OrificeGas::from_gamma(0.0, 1.0, gamma).psi(pr)
+}
+
+/// A volume's gas as the orifice equation (Eq. 3.16) needs it when the flow leaves that volume,
+/// computed once per volume per evaluation: the pressure, `1/√(R·T)`, `1/γ` and `2γ/(γ−1)`.
+/// With `c_v = c_p − R`, `1/γ = c_v/c_p` and `2γ/(γ−1) = 2·c_p/R`: the flow function itself
+/// divides nothing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrificeGas {
+    /// Pressure [Pa].
+    pub p: f64,
+    inv_sqrt_rt: f64,
+    inv_gamma: f64,
+    /// `2γ/(γ−1)`.
+    k: f64,
+    /// The critical ratio and the choked Ψ, where they are constants (the ambient's).
+    choke: Option<(f64, f64)>,
+}
+
+impl OrificeGas {
+    /// Gas at pressure `p` [Pa] with `√(R·T)` [m/s] and `c_p` [J/(kg·K)] at its temperature
+    /// (`1/γ = c_v/c_p`).
+    pub fn new(p: f64, sqrt_rt: f64, cp: f64) -> Self {
+        let r = air::gas_constant();
+        Self {
+            p,
+            inv_sqrt_rt: 1.0 / sqrt_rt,
+            inv_gamma: (cp - r) / cp,
+            k: cp * (2.0 / r),
+            choke: None,
+        }
+    }
+
+    /// Gas at pressure `p` [Pa], temperature `t` [K] with ratio of specific heats γ, which
+    /// stays (a reservoir such as the ambient): the critical ratio and the choked Ψ are computed
+    /// here, once.
+    pub fn from_gamma(p: f64, t: f64, gamma: f64) -> Self {
+        let mut g = Self {
+            p,
+            inv_sqrt_rt: 1.0 / (air::gas_constant() * t).sqrt(),
+            inv_gamma: 1.0 / gamma,
+            k: 2.0 * gamma / (gamma - 1.0),
+            choke: None,
+        };
+        let ln_c = g.ln_two_over_gamma_plus_one();
+        g.choke = Some(((0.5 * g.k * ln_c).exp(), g.psi_choked(ln_c)));
+        g
+    }
+
+    /// `ln(2/(γ+1)) = ln(2·(1/γ)/(1 + 1/γ))`.
+    fn ln_two_over_gamma_plus_one(&self) -> f64 {
+        (2.0 * self.inv_gamma / (1.0 + self.inv_gamma)).ln()
+    }
+
+    /// The choked Ψ from `ln(2/(γ+1))`: with `(γ+1)/(2(γ−1)) = (k/2)·(γ+1)/(2γ) = k·(1 + 1/γ)/4`.
+    fn psi_choked(&self, ln_c: f64) -> f64 {
+        (0.25 * self.k * (1.0 + self.inv_gamma) * ln_c).exp() / self.inv_gamma.sqrt()
+    }
+
+    /// Ψ(pr) for this gas upstream (Eq. 3.16). Subsonic, with `a = pr^(1/γ) = e^(ln(pr)/γ)`,
+    /// `Ψ² = 2γ/(γ−1)·(pr^(2/γ) − pr^((γ+1)/γ)) = 2γ/(γ−1)·a·(a − pr)`: one `ln`, one `exp`, one
+    /// square root. Choked (`pr < pr*`), `Ψ = √γ·(2/(γ+1))^((γ+1)/(2(γ−1)))`. In the linear
+    /// band, the band edge's value (by short series) times `(1 − pr)/band`.
+    pub fn psi(&self, pr: f64) -> f64 {
+        let (inv_g, k) = (self.inv_gamma, self.k);
+        // Choked below pr* = (2/(γ+1))^(γ/(γ−1)), i.e. ln pr ≤ (k/2)·ln(2/(γ+1)). The critical
+        // ratio is below e^(−1/2) = 0.6065 for every γ > 1: above 0.61 the flow is subsonic
+        // without computing it.
+        let choked = match self.choke {
+            Some((crit, _)) => pr < crit,
+            None => {
+                pr <= 0.0 || (pr < 0.61 && pr.ln() <= 0.5 * k * self.ln_two_over_gamma_plus_one())
+            }
+        };
+        if choked {
+            match self.choke {
+                Some((_, psi_c)) => psi_c,
+                None => self.psi_choked(self.ln_two_over_gamma_plus_one()),
+            }
+        } else if pr < 1.0 - LINEAR_BAND {
+            let a = (pr.ln() * inv_g).exp();
+            (k * a * (a - pr)).max(0.0).sqrt()
+        } else {
+            // Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
+            // 1 − pe^((γ−1)/γ) = −expm1(y·(1 − 1/γ)), both of small arguments (no
+            // cancellation).
+            let a = 1.0 + expm1_small(LN_BAND_EDGE * inv_g);
+            let edge = a * (-k * expm1_small(LN_BAND_EDGE * (1.0 - inv_g))).sqrt();
+            edge * (1.0 - pr).max(0.0) * (1.0 / LINEAR_BAND)
+        }
     }
 }
 
@@ -133,17 +201,17 @@ pub fn sin_cos_near(theta: f64, theta0: f64, sc0: (f64, f64)) -> (f64, f64) {
 }
 
 /// Mass flow from side 0 to side 1 [kg/s] (negative: 1 → 0) through an effective area
-/// `cd_a` [m²] (Eq. 3.16), with the two sides' pressures [Pa], temperatures [K] and γ (computed
-/// once per volume per evaluation); the upstream side's gas sets the flow.
-pub fn flow(cd_a: f64, p: [f64; 2], t: [f64; 2], gamma: [f64; 2]) -> f64 {
+/// `cd_a` [m²] (Eq. 3.16), `ṁ = C_d·A·p_up/√(R·T_up)·Ψ(p_dn/p_up)`: the upstream side's gas sets
+/// the flow.
+pub fn flow(cd_a: f64, side: [&OrificeGas; 2]) -> f64 {
     if cd_a <= 0.0 {
         return 0.0;
     }
-    let r = air::gas_constant();
-    if p[0] >= p[1] {
-        cd_a * p[0] / (r * t[0]).sqrt() * psi(p[1] / p[0], gamma[0])
+    let [g0, g1] = side;
+    if g0.p >= g1.p {
+        cd_a * g0.p * g0.inv_sqrt_rt * g0.psi(g1.p / g0.p)
     } else {
-        -cd_a * p[1] / (r * t[1]).sqrt() * psi(p[0] / p[1], gamma[1])
+        -cd_a * g1.p * g1.inv_sqrt_rt * g1.psi(g0.p / g1.p)
     }
 }
 
@@ -213,14 +281,11 @@ pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64)
     area.clamp(0.0, max) + leak
 }
 
-/// Exponent of the cam profile `sinⁿ`.
-pub const LIFT_EXPONENT: i32 = 6;
-
 /// `x mod 720` in [0, 720) by a floor of the quotient (a library `fmod` costs several times
 /// more, and the library `floor` is a call on baseline x86-64).
 fn wrap720(x: f64) -> f64 {
     // floor by truncation toward zero, corrected below zero (|x/720| stays far inside i64).
-    let q = x / 720.0;
+    let q = x * (1.0 / 720.0);
     let mut n = q as i64 as f64;
     if n > q {
         n -= 1.0;
@@ -233,6 +298,22 @@ fn wrap720(x: f64) -> f64 {
     }
 }
 
+/// `aⁿ` by repeated squaring, inline (a run-time exponent otherwise costs a library call;
+/// the same sequence of products as that call's, so the same result).
+fn powi(mut a: f64, mut n: u32) -> f64 {
+    let mut r = 1.0;
+    loop {
+        if n & 1 == 1 {
+            r *= a;
+        }
+        n /= 2;
+        if n == 0 {
+            return r;
+        }
+        a *= a;
+    }
+}
+
 /// A valve's lift profile: `l_max·sinⁿ(π·x)`, x the fraction of the open duration (SPEC §2.3
 /// suggests n = 2; the cell's default is 5, see [`EngineParams::lift_exponent`]), with the
 /// open duration computed once.
@@ -240,16 +321,19 @@ fn wrap720(x: f64) -> f64 {
 pub struct Cam {
     open: f64,
     dur: f64,
+    inv_dur: f64,
     l_max: f64,
-    n: i32,
+    n: u32,
 }
 
 impl Cam {
     /// Open from `open` to `close` [deg], peak lift `l_max` [m], exponent `n`.
-    pub fn new(open: f64, close: f64, l_max: f64, n: i32) -> Self {
+    pub fn new(open: f64, close: f64, l_max: f64, n: u32) -> Self {
+        let dur = wrap720(close - open);
         Self {
             open,
-            dur: wrap720(close - open),
+            dur,
+            inv_dur: 1.0 / dur,
             l_max,
             n,
         }
@@ -257,12 +341,13 @@ impl Cam {
 
     /// Lift [m] at `deg` within the cycle.
     pub fn lift(&self, deg: f64) -> f64 {
-        let x = wrap720(deg - self.open) / self.dur;
-        if x >= 1.0 || self.dur <= 0.0 {
+        // Shut (the common case) decided before dividing.
+        let r = wrap720(deg - self.open);
+        if self.dur <= 0.0 || r >= self.dur {
             0.0
         } else {
-            let s = (PI * x).sin();
-            self.l_max * s.powi(self.n)
+            let s = (PI * (r * self.inv_dur)).sin();
+            self.l_max * powi(s, self.n)
         }
     }
 }
@@ -325,7 +410,8 @@ pub struct Engine {
     stroke: f64,
     orifice_area: f64,
     h_amb: f64,
-    gamma_amb: f64,
+    /// The ambient as a restriction's upstream gas.
+    amb_gas: OrificeGas,
     woschni_k: f64,
     settings: Settings,
     design: Design<f64>,
@@ -335,6 +421,14 @@ pub struct Engine {
     ev_cam: Cam,
     /// Ψ's slope in the linear band at γ = 1.4, `Ψ(1 − band)/band` (the stiffness estimate's).
     band_slope: f64,
+    /// The friction model's viscosity scaling s_μ and the oil temperature [K] it is for.
+    oil_viscosity: (f64, f64),
+    /// Constants of the geometry: the piston pin's height at TDC (the crank's), the clearance
+    /// volume's height `V_c/A_p` [m], the manifolds' inverse volumes [1/m³].
+    tdc_height: f64,
+    clearance_height: f64,
+    inv_v_int: f64,
+    inv_v_exh: f64,
 }
 
 impl Engine {
@@ -367,16 +461,27 @@ impl Engine {
             crank,
             orifice_area: PI * p.exh_orifice * p.exh_orifice / 4.0,
             h_amb: air::enthalpy(amb.t),
-            gamma_amb: air::gamma(amb.t),
+            amb_gas: OrificeGas::from_gamma(amb.p, amb.t, air::gamma(amb.t)),
             woschni_k: 3.26 * p.bore.powf(-0.2),
             settings,
             design,
             iv: ValveGeometry::new(p.iv_d, p.iv_di, p.seat_angle),
             ev: ValveGeometry::new(p.ev_d, p.ev_di, p.seat_angle),
-            iv_cam: Cam::new(p.ivo, p.ivc, p.lift_max, p.lift_exponent as i32),
-            ev_cam: Cam::new(p.evo, p.evc, p.lift_max, p.lift_exponent as i32),
+            iv_cam: Cam::new(p.ivo, p.ivc, p.lift_max, p.lift_exponent as u32),
+            ev_cam: Cam::new(p.evo, p.evc, p.lift_max, p.lift_exponent as u32),
             band_slope: psi(1.0 - LINEAR_BAND, 1.4) / LINEAR_BAND,
+            oil_viscosity: (p.t_oil, friction::s_mu(&settings, p.t_oil - 273.15)),
+            tdc_height: crank.tdc_height(),
+            clearance_height: crank.clearance_volume() / crank.piston_area(),
+            inv_v_int: 1.0 / p.v_int,
+            inv_v_exh: 1.0 / p.v_exh,
         }
+    }
+
+    /// Set the oil temperature [K] (a live parameter: a fault or a warm-up changes it).
+    pub fn set_oil_temperature(&mut self, t_oil: f64) {
+        self.p.t_oil = t_oil;
+        self.oil_viscosity = (t_oil, friction::s_mu(&self.settings, t_oil - 273.15));
     }
 
     /// The mean-value friction model of this engine (SPEC §2.5): its geometry in mm with the
@@ -428,7 +533,15 @@ impl Engine {
             p_atm_kpa: self.amb.p / 1e3,
             t_oil_c: self.p.t_oil - 273.15,
         };
-        let f = friction::fmep(&self.design, &self.settings, &op).mechanical();
+        // s_μ depends on the oil temperature alone: the one computed for the oil temperature
+        // in force, unless the field was changed behind it.
+        let (t_oil, smu) = self.oil_viscosity;
+        let smu = if t_oil == self.p.t_oil {
+            smu
+        } else {
+            friction::s_mu(&self.settings, op.t_oil_c)
+        };
+        let f = friction::fmep_with_viscosity(&self.design, &self.settings, &op, smu).mechanical();
         self.p.friction_scale * friction::tau_nm(f, &self.design)
     }
 
@@ -439,7 +552,7 @@ impl Engine {
 
     /// The slider-crank at θ [rad] given `(sin θ, cos θ)`.
     pub fn crank_point_sin_cos(&self, theta: f64, sc: (f64, f64)) -> CrankPoint {
-        let (s, ds, dds) = self.crank.motion_sin_cos(sc);
+        let (s, ds, dds) = self.crank.motion_from(self.tdc_height, sc);
         CrankPoint { theta, s, ds, dds }
     }
 
@@ -503,44 +616,31 @@ impl Engine {
         let r = air::gas_constant();
         let v_cyl = self.v_clear + self.area_p * k.s;
         let dv_cyl = self.area_p * k.ds * omega;
-        let vols = [e.v_int, v_cyl, e.v_exh];
+        let inv_v = [self.inv_v_int, 1.0 / v_cyl, self.inv_v_exh];
         let t = [x[3], x[4], x[5]];
-        let p = [
-            x[0] * r * t[0] / vols[0],
-            x[1] * r * t[1] / vols[1],
-            x[2] * r * t[2] / vols[2],
-        ];
+        let p = [0, 1, 2].map(|i| x[i] * r * t[i] * inv_v[i]);
         // Each volume's c_p and h once: c_v = c_p − R, u = h − R·T, γ = c_p/c_v.
         let (cp, h) = {
             let ch = t.map(air::cp_and_enthalpy);
             (ch.map(|c| c.0), ch.map(|c| c.1))
         };
         let cv = cp.map(|c| c - r);
-        let gamma = [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]];
         let u = [h[0] - r * t[0], h[1] - r * t[1], h[2] - r * t[2]];
+        let sqrt_rt = t.map(|t| (r * t).sqrt());
+        let gas = [0, 1, 2].map(|i| OrificeGas::new(p[i], sqrt_rt[i], cp[i]));
         let deg = wrap720(k.theta.to_degrees());
         let l_in = self.iv_cam.lift(deg);
         let l_ex = self.ev_cam.lift(deg);
         let a_in = e.cd_valve * self.iv.area(l_in);
         let a_ex = e.cd_valve * self.ev.area(l_ex);
         let a_or = e.cd_exh * self.orifice_area;
-        let (amb_p, amb_t, amb_g) = (self.amb.p, self.amb.t, self.gamma_amb);
+        let amb = &self.amb_gas;
         // Flows (positive in the direction ambient → int → cyl → exh → ambient) and the
         // enthalpy of the gas each carries (the upstream side's).
-        let f_th = flow(a_th, [amb_p, p[INT]], [amb_t, t[INT]], [amb_g, gamma[INT]]);
-        let f_iv = flow(
-            a_in,
-            [p[INT], p[CYL]],
-            [t[INT], t[CYL]],
-            [gamma[INT], gamma[CYL]],
-        );
-        let f_ev = flow(
-            a_ex,
-            [p[CYL], p[EXH]],
-            [t[CYL], t[EXH]],
-            [gamma[CYL], gamma[EXH]],
-        );
-        let f_or = flow(a_or, [p[EXH], amb_p], [t[EXH], amb_t], [gamma[EXH], amb_g]);
+        let f_th = flow(a_th, [amb, &gas[INT]]);
+        let f_iv = flow(a_in, [&gas[INT], &gas[CYL]]);
+        let f_ev = flow(a_ex, [&gas[CYL], &gas[EXH]]);
+        let f_or = flow(a_or, [&gas[EXH], amb]);
         let up = |f: f64, h1: f64, h2: f64| if f >= 0.0 { h1 } else { h2 };
         let h_th = up(f_th, self.h_amb, h[INT]);
         let h_iv = up(f_iv, h[INT], h[CYL]);
@@ -554,18 +654,18 @@ impl Engine {
             } else {
                 e.woschni_c1_closed
             };
-            let w = c1 * self.stroke * omega.abs() / PI;
+            let w = c1 * self.stroke * omega.abs() * (1.0 / PI);
             // 3.26·b^−0.2·p^0.8·T^−0.55·w^0.8 with p in kPa. With p = ρ·R·T this is
-            // 3.26·b^−0.2·(ρ·R·w)^0.8·T^0.25: one logarithm and one exponential, T^¼ by two
-            // square roots.
+            // 3.26·b^−0.2·(ρ·R·w)^0.8·T^0.25: one logarithm and one exponential, T^¼ as
+            // √(√(R·T)/√R).
             let hc = if w > 0.0 {
-                let rho_r_w = x[1] * r / vols[1] / 1e3 * w;
-                self.woschni_k * (0.8 * rho_r_w.ln()).exp() * t[CYL].sqrt().sqrt()
+                let rho_r_w = x[1] * r * inv_v[CYL] * 1e-3 * w;
+                let t_quarter = (sqrt_rt[CYL] * (1.0 / r.sqrt())).sqrt();
+                self.woschni_k * (0.8 * rho_r_w.ln()).exp() * t_quarter
             } else {
                 0.0
             };
-            let area =
-                PI * e.bore * e.bore / 2.0 + PI * e.bore * (self.v_clear / self.area_p + k.s);
+            let area = PI * e.bore * (e.bore / 2.0 + self.clearance_height + k.s);
             hc * area * (t[CYL] - e.t_wall)
         } else {
             0.0
@@ -597,7 +697,7 @@ impl Engine {
                 flows: [f_th, f_iv, f_ev, f_or],
                 q_wall,
                 areas: [a_th, a_in, a_ex, a_or],
-                gamma,
+                gamma: [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]],
             },
         )
     }
@@ -610,8 +710,10 @@ impl Engine {
     /// diagonal only). `D·L` has the eigenvalues of the symmetric `D^½·L·D^½`; its largest is
     /// computed from above ([`largest_eigenvalue_tridiag3`]). `out` are the outputs of
     /// [`gas_derivatives`](Self::gas_derivatives) at the state `x`. The solver sub-steps when
-    /// `rate·dt` would leave RK4's stability interval (2.78 on the real axis).
-    pub fn stiffness(&self, x: &GasState, out: &EngineOutputs) -> f64 {
+    /// `rate·dt` would leave RK4's stability interval (2.78 on the real axis); it needs the rate
+    /// only above `enough` [1/s], so the search stops at the first upper bound at or below it
+    /// (pass 0 for the eigenvalue itself).
+    pub fn stiffness(&self, x: &GasState, out: &EngineOutputs, enough: f64) -> f64 {
         let slope = self.band_slope;
         let r = air::gas_constant();
         let v = [self.p.v_int, out.v_cyl, self.p.v_exh];
@@ -629,15 +731,16 @@ impl Engine {
         let g_iv = g(a_in, p[INT], t[INT], p[CYL], t[CYL]);
         let g_ev = g(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]);
         let g_or = g(a_or, p[EXH], t[EXH], amb_p, amb_t);
-        let d = [0, 1, 2].map(|i| (out.gamma[i] * r * t[i] / v[i]).sqrt());
+        let d = [0, 1, 2].map(|i| out.gamma[i] * r * t[i] / v[i]);
         // D^½·L·D^½ for the chain int — cyl — exh: tridiagonal.
         largest_eigenvalue_tridiag3(
             [
-                d[0] * d[0] * (g_th + g_iv),
-                d[1] * d[1] * (g_iv + g_ev),
-                d[2] * d[2] * (g_ev + g_or),
+                d[0] * (g_th + g_iv),
+                d[1] * (g_iv + g_ev),
+                d[2] * (g_ev + g_or),
             ],
-            [-d[0] * d[1] * g_iv, -d[1] * d[2] * g_ev],
+            [-(d[0] * d[1]).sqrt() * g_iv, -(d[1] * d[2]).sqrt() * g_ev],
+            enough,
         )
     }
 
@@ -656,12 +759,17 @@ impl Engine {
 /// off-diagonal `b` (`b[0]` couples 0–1, `b[1]` couples 1–2), approached from above: Newton's
 /// method on the characteristic cubic, started at the Gershgorin bound. Right of its largest
 /// root the cubic is increasing and convex, so the iterates decrease monotonically onto that
-/// root and each is an upper bound; iteration stops when a step is below 1e-3 relative.
-pub fn largest_eigenvalue_tridiag3(a: [f64; 3], b: [f64; 2]) -> f64 {
+/// root and each is an upper bound; iteration stops when a step is below 1e-3 relative, or at
+/// the first bound at or below `enough` (a caller that needs the eigenvalue only above that
+/// level; 0 for the eigenvalue itself).
+pub fn largest_eigenvalue_tridiag3(a: [f64; 3], b: [f64; 2], enough: f64) -> f64 {
     let (b0, b1) = (b[0] * b[0], b[1] * b[1]);
     let (c0, c1) = (b[0].abs(), b[1].abs());
     let mut l = (a[0] + c0).max(a[1] + c0 + c1).max(a[2] + c1);
     for _ in 0..64 {
+        if l <= enough {
+            break;
+        }
         let (x0, x1, x2) = (l - a[0], l - a[1], l - a[2]);
         let p = x0 * x1 * x2 - b1 * x0 - b0 * x2;
         let dp = x1 * x2 + x0 * x2 + x0 * x1 - b0 - b1;
@@ -736,12 +844,28 @@ mod tests {
                 0.0, b[1], a[2],
             );
             let exact = m.symmetric_eigenvalues().max();
-            let l = largest_eigenvalue_tridiag3(a, b);
+            let l = largest_eigenvalue_tridiag3(a, b, 0.0);
             let tol = 1e-12 * exact.abs().max(1.0);
+            // Asked for the rate only above twice the eigenvalue, it stops at an upper bound at
+            // or below that level.
+            let early = largest_eigenvalue_tridiag3(a, b, 2.0 * exact);
+            assert!(
+                early >= exact - tol && early <= 2.0 * exact + tol,
+                "{a:?} {b:?}: {early} vs {exact}"
+            );
             assert!(
                 l >= exact - tol && l <= exact * (1.0 + 1e-3) + tol,
                 "{a:?} {b:?}: {l} vs {exact}"
             );
+        }
+    }
+
+    #[test]
+    fn powi_is_the_library_power() {
+        for n in 0..=12 {
+            for a in [0.0, 1e-3, 0.3, 0.7, 0.99, 1.0, 1.7] {
+                assert_eq!(powi(a, n), a.powi(n as i32), "{a}^{n}");
+            }
         }
     }
 

@@ -33,7 +33,8 @@ pub struct Machine {
     pub lm: f64,
     /// Pole pairs.
     pub pole_pairs: f64,
-    det: f64,
+    /// `1/(L_s·L_r − L_m²)`.
+    inv_det: f64,
 }
 
 impl Machine {
@@ -48,18 +49,18 @@ impl Machine {
             lr,
             lm,
             pole_pairs: p.poles / 2.0,
-            det: ls * lr - lm * lm,
+            inv_det: 1.0 / (ls * lr - lm * lm),
         }
     }
 
     /// Currents `[i_sd, i_sq, i_rd, i_rq]` from the fluxes (`M⁻¹λ`, by 2×2 blocks).
     pub fn currents(&self, l: &Flux) -> [f64; 4] {
-        let (ls, lr, lm, d) = (self.ls, self.lr, self.lm, self.det);
+        let (ls, lr, lm, inv_d) = (self.ls, self.lr, self.lm, self.inv_det);
         [
-            (lr * l[0] - lm * l[2]) / d,
-            (lr * l[1] - lm * l[3]) / d,
-            (ls * l[2] - lm * l[0]) / d,
-            (ls * l[3] - lm * l[1]) / d,
+            (lr * l[0] - lm * l[2]) * inv_d,
+            (lr * l[1] - lm * l[3]) * inv_d,
+            (ls * l[2] - lm * l[0]) * inv_d,
+            (ls * l[3] - lm * l[1]) * inv_d,
         ]
     }
 

@@ -136,7 +136,7 @@ fn stiffness_estimate_tracks_the_jacobian() {
                     .map(|z| z.norm())
                     .fold(0.0, f64::max);
                 let out = e.gas_derivatives(th, om, a_th, &g, &Motored).1;
-                let rate = e.stiffness(&g, &out);
+                let rate = e.stiffness(&g, &out, 0.0);
                 slowest = slowest.min(radius * dt);
                 // RK4 sub-steps this degree takes (rate·dt ≤ 2.5 each), and would take with the
                 // Jacobian's own radius in place of the estimate.
