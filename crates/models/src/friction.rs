@@ -371,7 +371,11 @@ pub fn fmep_with_viscosity<T: Scalar>(
 ) -> Fmep<T> {
     let n = op.n_rpm;
     let (b, s, nc, nv, nb) = (d.b, d.s, st.nc, st.nv, st.nb);
-    let sp = s * 2.0 / 1000.0 * n / 60.0;
+    // S̄p = 2·S·N/60 with S in mm; the denominators shared by several terms once.
+    let sp = s * (n * (2.0 / 1000.0 / 60.0));
+    let speed_factor = 1.0 + 500.0 / n;
+    let per_bbsnc = (b * b * s * nc).recip();
+    let per_snc = (s * nc).recip();
     let hydro = hydrodynamic_factor(st, smu);
     let (cff, crf, coh, com) = st.valvetrain;
     // The 4.12 kPa constant: in rfmep in the thesis (Eq. 3.47), a cam-seal term in vfmep in
@@ -381,21 +385,22 @@ pub fn fmep_with_viscosity<T: Scalar>(
         Variant::Sandoval2002 => (0.0, 4.12),
     };
     let pr = op.p_int_kpa / op.p_atm_kpa;
-    let cfmep = d.db * 1.22e5 / (b * b * s * nc)
-        + d.db.powi(3) * d.lb * (3.03e-4 * smu * n * nb) / (b * b * s * nc)
+    let db3lb = d.db.powi(3) * d.lb;
+    let cfmep = d.db * 1.22e5 * per_bbsnc
+        + db3lb * (3.03e-4 * smu * n * nb) * per_bbsnc
         + d.db * d.db * (1.35e-10 * n * n * nb / nc);
     let rfmep = sp * (2.94e2 * smu) / b
-        + T::from(4.06e4 * (st.ft_fto * st.cr) * (1.0 + 500.0 / n)) / (b * b)
-        + d.db.powi(3) * d.lb * (3.03e-4 * hydro * n * nb) / (b * b * s * nc)
+        + T::from(4.06e4 * (st.ft_fto * st.cr) * speed_factor) / (b * b)
+        + db3lb * (3.03e-4 * hydro * n * nb) * per_bbsnc
         + (d.kappa * (0.088 * smu)
             + d.kappa.powd(-(sp * (2.0 * K_RING)) + 1.33) * (0.182 * st.ft_fto))
             * (6.89 * pr)
         + rfmep_const;
-    let vfmep = T::from(244.0 * hydro * n * nb) / (b * b * s * nc)
-        + T::from(cff * (1.0 + 500.0 / n) * nv) / (s * nc)
-        + T::from(crf * n * nv) / (s * nc)
-        + d.lv * d.lv.sqrt() * (coh * hydro * n.sqrt() * nv) / (b * s * nc)
-        + d.lv * (com * (1.0 + 500.0 / n) * nv) / (s * nc)
+    let vfmep = per_bbsnc * (244.0 * hydro * n * nb)
+        + per_snc * (cff * speed_factor * nv)
+        + per_snc * (crf * n * nv)
+        + d.lv * d.lv.sqrt() * (coh * hydro * n.sqrt() * nv) * per_snc / b
+        + d.lv * (com * speed_factor * nv) * per_snc
         + vfmep_const;
     let (a0, a1, a2) = st.variant.auxiliaries();
     let afmep = T::from(a0 + a1 * n + a2 * n * n);

@@ -1,6 +1,7 @@
 //! criterion benchmarks of physid-sim: the whole test cell (engine, machine, drive,
 //! driveline) stepping one crank degree at a time at 1000 rpm, full throttle and closed
-//! throttle; throughput in simulated seconds per wall second (the real-time factor).
+//! throttle, with each of the two solvers (`solver.order` 4 and 2); throughput in simulated
+//! seconds per wall second (the real-time factor).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use physid_sim::cell::{Inputs, TestCell};
@@ -14,8 +15,17 @@ fn cell(c: &mut Criterion) {
     g.sample_size(20);
     // One simulated second at 1000 rpm: 6000 one-degree steps.
     g.throughput(Throughput::Elements(6000));
-    for (name, throttle) in [("1000rpm_wot_1s", 90.0), ("1000rpm_closed_1s", 0.0)] {
-        let mut cell = match TestCell::new(CellParams::default(), w, 0.0) {
+    for (name, throttle, order) in [
+        ("1000rpm_wot_1s", 90.0, 4.0),
+        ("1000rpm_closed_1s", 0.0, 4.0),
+        ("1000rpm_wot_1s_order2", 90.0, 2.0),
+        ("1000rpm_closed_1s_order2", 0.0, 2.0),
+    ] {
+        let params = CellParams {
+            order,
+            ..CellParams::default()
+        };
+        let mut cell = match TestCell::new(params, w, 0.0) {
             Ok(c) => c,
             Err(e) => panic!("{e}"),
         };

@@ -17,6 +17,7 @@
 //! q-axis integrator would have to build up the whole back-EMF. Torque mode takes a torque
 //! demand instead of a speed demand.
 
+use crate::engine::expm1;
 use crate::machine::Machine;
 use crate::params::DynoParams;
 use std::f64::consts::PI;
@@ -35,6 +36,7 @@ pub struct Pi {
 impl Pi {
     /// Output for error `e` over `dt`, clamped to `[lo, hi]`; the integrator only moves when
     /// that does not push further into a limit.
+    #[inline]
     pub fn update(&mut self, e: f64, dt: f64, lo: f64, hi: f64) -> f64 {
         let candidate = self.integral + self.ki * e * dt;
         let u = self.kp * e + candidate;
@@ -83,6 +85,9 @@ pub struct Drive {
     i_max: f64,
     v_max: f64,
     sigma_ls: f64,
+    /// `1/τ_r = R_r/L_r` [1/s] and `L_m/L_r`, once.
+    inv_tau_r: f64,
+    lm_over_lr: f64,
 }
 
 /// The rotor flux at no load, nominal voltage and frequency [Wb]: `L_m·i_m` with the
@@ -128,6 +133,8 @@ impl Drive {
             i_max: 3f64.sqrt() * p.current_limit,
             v_max: p.voltage_limit * p.v_nom,
             sigma_ls: machine.ls - machine.lm * machine.lm / machine.lr,
+            inv_tau_r: 1.0 / machine.rotor_time_constant(),
+            lm_over_lr: machine.lm / machine.lr,
         }
     }
 
@@ -149,9 +156,8 @@ impl Drive {
     /// drive's frame, the demand, the step `dt`.
     pub fn update(&mut self, w_m: f64, i: [f64; 2], demand: Demand, dt: f64) -> Command {
         let m = self.machine;
-        let tau_r = m.rotor_time_constant();
-        // Observer (exact discretisation of the first-order lag).
-        self.flux_est += (m.lm * i[0] - self.flux_est) * (1.0 - (-dt / tau_r).exp());
+        // Observer (exact discretisation of the first-order lag: 1 − e^(−dt/τ_r)).
+        self.flux_est += (m.lm * i[0] - self.flux_est) * -expm1(-dt * self.inv_tau_r);
         let flux = self.flux_est.max(1e-3 * self.flux_ref);
         let i_sd_ref = self
             .flux
@@ -165,11 +171,11 @@ impl Drive {
         };
         // Slip from the measured q current (the loops are fast; during current limiting the
         // command and the current differ, and the measured one keeps the frame on the flux).
-        let w_slp = m.lm * i[1] / (tau_r * flux);
+        let w_slp = m.lm * i[1] * self.inv_tau_r / flux;
         let w_syn = m.pole_pairs * w_m + w_slp;
         // Current loops with decoupling feed-forward; the voltage vector limited.
         let ff_d = -w_syn * self.sigma_ls * i[1];
-        let ff_q = w_syn * (self.sigma_ls * i[0] + m.lm / m.lr * flux);
+        let ff_q = w_syn * (self.sigma_ls * i[0] + self.lm_over_lr * flux);
         let vd = self
             .id
             .update(i_sd_ref - i[0], dt, -self.v_max - ff_d, self.v_max - ff_d)

@@ -126,6 +126,13 @@ impl OrificeGas {
     /// square root. Choked (`pr < pr*`), `Ψ = √γ·(2/(γ+1))^((γ+1)/(2(γ−1)))`. In the linear
     /// band, the band edge's value (by short series) times `(1 − pr)/band`.
     pub fn psi(&self, pr: f64) -> f64 {
+        self.psi_and_slope(pr).0
+    }
+
+    /// `(Ψ(pr), dΨ/dpr)`: [`psi`](Self::psi) and its slope — subsonic, from `Ψ² = k·a·(a − pr)`
+    /// and `da/dpr = a/(γ·pr)`, `dΨ/dpr = k·a·((2a − pr)/γ − pr)/(2·pr·Ψ)`; choked, 0; in the
+    /// band, `−Ψ(1 − band)/band`.
+    pub fn psi_and_slope(&self, pr: f64) -> (f64, f64) {
         let (inv_g, k) = (self.inv_gamma, self.k);
         // Choked below pr* = (2/(γ+1))^(γ/(γ−1)), i.e. ln pr ≤ (k/2)·ln(2/(γ+1)). The critical
         // ratio is below e^(−1/2) = 0.6065 for every γ > 1: above 0.61 the flow is subsonic
@@ -137,21 +144,50 @@ impl OrificeGas {
             }
         };
         if choked {
-            match self.choke {
+            let psi = match self.choke {
                 Some((_, psi_c)) => psi_c,
                 None => self.psi_choked(self.ln_two_over_gamma_plus_one()),
-            }
+            };
+            (psi, 0.0)
         } else if pr < 1.0 - LINEAR_BAND {
             let a = (pr.ln() * inv_g).exp();
-            (k * a * (a - pr)).max(0.0).sqrt()
+            let psi = (k * a * (a - pr)).max(0.0).sqrt();
+            let slope = k * a * ((2.0 * a - pr) * inv_g - pr) / (2.0 * pr * psi);
+            (psi, slope)
         } else {
             // Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
             // 1 − pe^((γ−1)/γ) = −expm1(y·(1 − 1/γ)), both of small arguments (no
             // cancellation).
             let a = 1.0 + expm1_small(LN_BAND_EDGE * inv_g);
             let edge = a * (-k * expm1_small(LN_BAND_EDGE * (1.0 - inv_g))).sqrt();
-            edge * (1.0 - pr).max(0.0) * (1.0 / LINEAR_BAND)
+            let slope = edge * (1.0 / LINEAR_BAND);
+            (slope * (1.0 - pr).max(0.0), -slope)
         }
+    }
+}
+
+/// `tanh(x)`, with `±1` (its correctly rounded value) for `|x| ≥ 22` without the library call:
+/// the friction's sign, smoothed through zero speed.
+fn smooth_sign(x: f64) -> f64 {
+    if x.abs() >= 22.0 {
+        x.signum()
+    } else {
+        x.tanh()
+    }
+}
+
+/// `[f(INT), f(CYL), f(EXH)]`, inline (an array's `map` through a closure is not always).
+#[inline(always)]
+fn per_volume<T>(f: impl Fn(usize) -> T) -> [T; 3] {
+    [f(INT), f(CYL), f(EXH)]
+}
+
+/// `eˣ − 1`: by [`expm1_small`] for `|x| ≤ 0.02` (no library call), the library's beyond.
+pub(crate) fn expm1(x: f64) -> f64 {
+    if x.abs() <= 0.02 {
+        expm1_small(x)
+    } else {
+        x.exp_m1()
     }
 }
 
@@ -204,14 +240,25 @@ pub fn sin_cos_near(theta: f64, theta0: f64, sc0: (f64, f64)) -> (f64, f64) {
 /// `cd_a` [m²] (Eq. 3.16), `ṁ = C_d·A·p_up/√(R·T_up)·Ψ(p_dn/p_up)`: the upstream side's gas sets
 /// the flow.
 pub fn flow(cd_a: f64, side: [&OrificeGas; 2]) -> f64 {
+    flow_and_slopes(cd_a, side).0
+}
+
+/// [`flow`] and its slopes `[∂ṁ/∂p_0, ∂ṁ/∂p_1]` [kg/(s·Pa)] (the upstream gas's temperature
+/// held): with `c = C_d·A/√(R·T_up)`, `ṁ = c·p_up·Ψ(p_dn/p_up)` has `∂ṁ/∂p_dn = c·Ψ'` and
+/// `∂ṁ/∂p_up = c·(Ψ − pr·Ψ')`.
+pub fn flow_and_slopes(cd_a: f64, side: [&OrificeGas; 2]) -> (f64, [f64; 2]) {
     if cd_a <= 0.0 {
-        return 0.0;
+        return (0.0, [0.0; 2]);
     }
     let [g0, g1] = side;
     if g0.p >= g1.p {
-        cd_a * g0.p * g0.inv_sqrt_rt * g0.psi(g1.p / g0.p)
+        let (c, pr) = (cd_a * g0.inv_sqrt_rt, g1.p / g0.p);
+        let (psi, dpsi) = g0.psi_and_slope(pr);
+        (c * g0.p * psi, [c * (psi - pr * dpsi), c * dpsi])
     } else {
-        -cd_a * g1.p * g1.inv_sqrt_rt * g1.psi(g0.p / g1.p)
+        let (c, pr) = (cd_a * g1.inv_sqrt_rt, g0.p / g1.p);
+        let (psi, dpsi) = g1.psi_and_slope(pr);
+        (-c * g1.p * psi, [-c * dpsi, -c * (psi - pr * dpsi)])
     }
 }
 
@@ -281,18 +328,26 @@ pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64)
     area.clamp(0.0, max) + leak
 }
 
-/// `x mod 720` in [0, 720) by a floor of the quotient (a library `fmod` costs several times
-/// more, and the library `floor` is a call on baseline x86-64).
-fn wrap720(x: f64) -> f64 {
-    // floor by truncation toward zero, corrected below zero (|x/720| stays far inside i64).
-    let q = x * (1.0 / 720.0);
-    let mut n = q as i64 as f64;
-    if n > q {
-        n -= 1.0;
+/// `⌊x⌋` for `|x| < 2⁶³` by truncation toward zero, corrected below zero (the library
+/// `floor` is a call on baseline x86-64).
+pub(crate) fn floor(x: f64) -> f64 {
+    let n = x as i64 as f64;
+    if n > x {
+        n - 1.0
+    } else {
+        n
     }
-    let r = x - 720.0 * n;
+}
+
+/// `x mod 720` in [0, 720) by a floor of the quotient (a library `fmod` costs several times
+/// more).
+fn wrap720(x: f64) -> f64 {
+    let r = x - 720.0 * floor(x * (1.0 / 720.0));
+    // The quotient's rounding can put r a hair outside [0, 720).
     if r >= 720.0 {
-        0.0
+        r - 720.0
+    } else if r < 0.0 {
+        r + 720.0
     } else {
         r
     }
@@ -395,6 +450,12 @@ pub struct EngineOutputs {
     pub areas: [f64; 4],
     /// Ratios of specific heats `γ = c_p/c_v` of the three volumes' gas.
     pub gamma: [f64; 3],
+    /// The four flows' slopes `[∂ṁ/∂p_from, ∂ṁ/∂p_to]` [kg/(s·Pa)] ([`flow_and_slopes`]).
+    pub flow_slopes: [[f64; 2]; 4],
+    /// Specific enthalpies [J/kg] of the three volumes' gas.
+    pub enthalpy: [f64; 3],
+    /// Specific heats at constant volume [J/(kg·K)].
+    pub cv: [f64; 3],
 }
 
 /// The engine with its derived constants.
@@ -571,7 +632,7 @@ impl Engine {
             indicated: (p_cyl - self.amb.p) * self.area_p * ds,
             rec_velocity: m * ds * dds * omega * omega,
             rec_inertia: m * ds * ds,
-            friction: fric * (omega / 0.5).tanh(),
+            friction: fric * smooth_sign(omega / 0.5),
         }
     }
 
@@ -604,6 +665,7 @@ impl Engine {
     }
 
     /// [`gas_derivatives`](Self::gas_derivatives) at a computed [`CrankPoint`].
+    #[inline(always)]
     pub fn gas_derivatives_at(
         &self,
         k: &CrankPoint,
@@ -618,16 +680,14 @@ impl Engine {
         let dv_cyl = self.area_p * k.ds * omega;
         let inv_v = [self.inv_v_int, 1.0 / v_cyl, self.inv_v_exh];
         let t = [x[3], x[4], x[5]];
-        let p = [0, 1, 2].map(|i| x[i] * r * t[i] * inv_v[i]);
+        let p = per_volume(|i| x[i] * r * t[i] * inv_v[i]);
         // Each volume's c_p and h once: c_v = c_p − R, u = h − R·T, γ = c_p/c_v.
-        let (cp, h) = {
-            let ch = t.map(air::cp_and_enthalpy);
-            (ch.map(|c| c.0), ch.map(|c| c.1))
-        };
-        let cv = cp.map(|c| c - r);
+        let ch = per_volume(|i| air::cp_and_enthalpy(t[i]));
+        let (cp, h) = (per_volume(|i| ch[i].0), per_volume(|i| ch[i].1));
+        let cv = per_volume(|i| cp[i] - r);
         let u = [h[0] - r * t[0], h[1] - r * t[1], h[2] - r * t[2]];
-        let sqrt_rt = t.map(|t| (r * t).sqrt());
-        let gas = [0, 1, 2].map(|i| OrificeGas::new(p[i], sqrt_rt[i], cp[i]));
+        let sqrt_rt = per_volume(|i| (r * t[i]).sqrt());
+        let gas = per_volume(|i| OrificeGas::new(p[i], sqrt_rt[i], cp[i]));
         let deg = wrap720(k.theta.to_degrees());
         let l_in = self.iv_cam.lift(deg);
         let l_ex = self.ev_cam.lift(deg);
@@ -637,10 +697,10 @@ impl Engine {
         let amb = &self.amb_gas;
         // Flows (positive in the direction ambient → int → cyl → exh → ambient) and the
         // enthalpy of the gas each carries (the upstream side's).
-        let f_th = flow(a_th, [amb, &gas[INT]]);
-        let f_iv = flow(a_in, [&gas[INT], &gas[CYL]]);
-        let f_ev = flow(a_ex, [&gas[CYL], &gas[EXH]]);
-        let f_or = flow(a_or, [&gas[EXH], amb]);
+        let (f_th, s_th) = flow_and_slopes(a_th, [amb, &gas[INT]]);
+        let (f_iv, s_iv) = flow_and_slopes(a_in, [&gas[INT], &gas[CYL]]);
+        let (f_ev, s_ev) = flow_and_slopes(a_ex, [&gas[CYL], &gas[EXH]]);
+        let (f_or, s_or) = flow_and_slopes(a_or, [&gas[EXH], amb]);
         let up = |f: f64, h1: f64, h2: f64| if f >= 0.0 { h1 } else { h2 };
         let h_th = up(f_th, self.h_amb, h[INT]);
         let h_iv = up(f_iv, h[INT], h[CYL]);
@@ -697,6 +757,9 @@ impl Engine {
                 flows: [f_th, f_iv, f_ev, f_or],
                 q_wall,
                 areas: [a_th, a_in, a_ex, a_or],
+                flow_slopes: [s_th, s_iv, s_ev, s_or],
+                enthalpy: h,
+                cv,
                 gamma: [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]],
             },
         )
@@ -714,23 +777,10 @@ impl Engine {
     /// only above `enough` [1/s], so the search stops at the first upper bound at or below it
     /// (pass 0 for the eigenvalue itself).
     pub fn stiffness(&self, x: &GasState, out: &EngineOutputs, enough: f64) -> f64 {
-        let slope = self.band_slope;
         let r = air::gas_constant();
         let v = [self.p.v_int, out.v_cyl, self.p.v_exh];
         let t = [x[3], x[4], x[5]];
-        let p = out.p;
-        let [a_throttle, a_in, a_ex, a_or] = out.areas;
-        // Conductance of a restriction between pressures p1, p2 (temperatures t1, t2): the
-        // upstream gas's temperature sets it.
-        let g = |cd_a: f64, p1: f64, t1: f64, p2: f64, t2: f64| {
-            let t_up = if p1 >= p2 { t1 } else { t2 };
-            cd_a * slope / (r * t_up).sqrt()
-        };
-        let (amb_p, amb_t) = (self.amb.p, self.amb.t);
-        let g_th = g(a_throttle, amb_p, amb_t, p[INT], t[INT]);
-        let g_iv = g(a_in, p[INT], t[INT], p[CYL], t[CYL]);
-        let g_ev = g(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]);
-        let g_or = g(a_or, p[EXH], t[EXH], amb_p, amb_t);
+        let [g_th, g_iv, g_ev, g_or] = self.conductances(x, out);
         let d = [0, 1, 2].map(|i| out.gamma[i] * r * t[i] / v[i]);
         // D^½·L·D^½ for the chain int — cyl — exh: tridiagonal.
         largest_eigenvalue_tridiag3(
@@ -744,6 +794,101 @@ impl Engine {
         )
     }
 
+    /// The four restrictions' conductances `∂ṁ/∂Δp` [kg/(s·Pa)] at their steepest (the linear
+    /// band's slope `S`): `g = C_d·A·S/√(R·T_up)`, the upstream gas's temperature setting it.
+    /// `out` are the outputs of [`gas_derivatives`](Self::gas_derivatives) at the state `x`.
+    fn conductances(&self, x: &GasState, out: &EngineOutputs) -> [f64; 4] {
+        let slope = self.band_slope;
+        let r = air::gas_constant();
+        let t = [x[3], x[4], x[5]];
+        let p = out.p;
+        let [a_throttle, a_in, a_ex, a_or] = out.areas;
+        let g = |cd_a: f64, p1: f64, t1: f64, p2: f64, t2: f64| {
+            let t_up = if p1 >= p2 { t1 } else { t2 };
+            cd_a * slope / (r * t_up).sqrt()
+        };
+        let (amb_p, amb_t) = (self.amb.p, self.amb.t);
+        [
+            g(a_throttle, amb_p, amb_t, p[INT], t[INT]),
+            g(a_in, p[INT], t[INT], p[CYL], t[CYL]),
+            g(a_ex, p[CYL], t[CYL], p[EXH], t[EXH]),
+            g(a_or, p[EXH], t[EXH], amb_p, amb_t),
+        ]
+    }
+
+    /// The gas equations' Jacobian through the pressure network, `J ≈ U·Vᵀ` (rank 3): the
+    /// flows respond to the pressures through the [conductances](Self::conductances), `δṁ =
+    /// g·(δp_up − δp_dn)`; the pressures to the state through `p = m·R·T/V` (`∂p/∂m = p/m`,
+    /// `∂p/∂T = p/T`, the cylinder's volume held); and the state's derivatives to the flows
+    /// through the balances of Eq. 3.20–3.27 (mass: ±1; temperature: `(h_up − u)/(m·c_v)` for
+    /// gas coming in, `−R·T/(m·c_v)` for gas leaving; the ambient exchange counters: ±1). `U`
+    /// is 8 × 3 (state × volume), `Vᵀ` has two entries per volume. Every column of `U` sums
+    /// to zero over the masses and the exchange counters, as every flow conserves mass: a
+    /// step built on it conserves mass exactly as the flows do. `out` are the outputs of
+    /// [`gas_derivatives`](Self::gas_derivatives) at the state `x`.
+    pub fn network_jacobian(&self, x: &GasState, out: &EngineOutputs) -> NetworkJacobian {
+        let r = air::gas_constant();
+        let t = [x[3], x[4], x[5]];
+        let h = out.enthalpy;
+        let u_int = per_volume(|i| h[i] - r * t[i]);
+        let mcv = per_volume(|i| x[i] * out.cv[i]);
+        let f = out.flows;
+        // ∂(dT_i/dt)/∂ṁ for a flow `q` entering volume `i` with sign `s` (+1: positive flow
+        // enters), whose upstream enthalpy is `h_up` when it enters.
+        let dt_dq = |i: usize, s: f64, q: f64, h_up: f64| {
+            if s * q >= 0.0 {
+                s * (h_up - u_int[i]) / mcv[i]
+            } else {
+                s * r * t[i] / mcv[i]
+            }
+        };
+        // F: the state's derivatives per flow [th, iv, ev, or].
+        let fq: [[f64; 4]; 8] = [
+            [1.0, -1.0, 0.0, 0.0],
+            [0.0, 1.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0, -1.0],
+            [
+                dt_dq(INT, 1.0, f[0], self.h_amb),
+                dt_dq(INT, -1.0, f[1], h[CYL]),
+                0.0,
+                0.0,
+            ],
+            [
+                0.0,
+                dt_dq(CYL, 1.0, f[1], h[INT]),
+                dt_dq(CYL, -1.0, f[2], h[EXH]),
+                0.0,
+            ],
+            [
+                0.0,
+                0.0,
+                dt_dq(EXH, 1.0, f[2], h[CYL]),
+                dt_dq(EXH, -1.0, f[3], self.h_amb),
+            ],
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ];
+        // Q: the flows per volume pressure.
+        let [s_th, s_iv, s_ev, s_or] = out.flow_slopes;
+        let q: [[f64; 3]; 4] = [
+            [s_th[1], 0.0, 0.0],
+            [s_iv[0], s_iv[1], 0.0],
+            [0.0, s_ev[0], s_ev[1]],
+            [0.0, 0.0, s_or[0]],
+        ];
+        let mut u = [[0.0; 3]; 8];
+        for (ur, fr) in u.iter_mut().zip(&fq) {
+            for (k, uk) in ur.iter_mut().enumerate() {
+                *uk = (0..4).map(|j| fr[j] * q[j][k]).sum();
+            }
+        }
+        let p = out.p;
+        NetworkJacobian {
+            u,
+            v: per_volume(|i| [p[i] / x[i], p[i] / t[i]]),
+        }
+    }
+
     /// Total internal energy of the gas in the three volumes [J] (for conservation checks).
     pub fn internal_energy(&self, x: &GasState) -> f64 {
         (0..3).map(|i| x[i] * air::internal_energy(x[3 + i])).sum()
@@ -753,6 +898,15 @@ impl Engine {
     pub fn ambient_enthalpy(&self) -> f64 {
         self.h_amb
     }
+}
+
+/// The gas equations' Jacobian in factored form, `J = U·Vᵀ` ([`Engine::network_jacobian`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NetworkJacobian {
+    /// `U`: each gas state's derivative per unit pressure of each volume [per Pa].
+    pub u: [[f64; 3]; 8],
+    /// `Vᵀ`: each volume's pressure per unit of its mass and its temperature, `[p/m, p/T]`.
+    pub v: [[f64; 2]; 3],
 }
 
 /// The largest eigenvalue of the symmetric tridiagonal 3×3 matrix with diagonal `a` and
@@ -798,6 +952,10 @@ mod tests {
                 (expm1_small(x) - lib).abs() <= 2.0 * f64::EPSILON * lib.abs(),
                 "{x}"
             );
+            assert!((expm1(x) - lib).abs() <= 2.0 * f64::EPSILON * lib.abs());
+            // Beyond the series' range, the library's own.
+            let far = x * 10.0 + 0.03f64.copysign(x);
+            assert_eq!(expm1(far), far.exp_m1());
         }
         // sin/cos near a base angle, against the library at the angle itself.
         for k in 0..720 {
@@ -861,6 +1019,15 @@ mod tests {
     }
 
     #[test]
+    fn smooth_sign_is_tanh() {
+        for x in [
+            -1e3, -22.0, -21.9, -3.0, -1e-3, 0.0, 0.5, 19.0, 22.0, 22.1, 1e6,
+        ] {
+            assert_eq!(smooth_sign(x), x.tanh(), "{x}");
+        }
+    }
+
+    #[test]
     fn powi_is_the_library_power() {
         for n in 0..=12 {
             for a in [0.0, 1e-3, 0.3, 0.7, 0.99, 1.0, 1.7] {
@@ -884,6 +1051,9 @@ mod tests {
             -0.5,
             -720.0,
             -1000.25,
+            720.0 - 1e-13,
+            1440.0 * (1.0 + f64::EPSILON),
+            -720.0 * (1.0 + f64::EPSILON),
         ] {
             let r = wrap720(x);
             assert!((0.0..720.0).contains(&r), "{x} → {r}");

@@ -251,39 +251,44 @@ pub fn run(args: &Args) -> Result<()> {
     }
     results.push(json!({"name": "ident_online", "p": 15, "rows_per_s": r}));
     // The virtual test cell at one-degree steps, 1000 rpm, full throttle: simulated seconds
-    // per wall-clock second.
-    let w = 1000.0 * std::f64::consts::PI / 30.0;
-    let mut cell =
-        physid_sim::cell::TestCell::new(physid_sim::params::CellParams::default(), w, 0.0)
-            .map_err(|e| miette::miette!("{e}"))?;
-    let input = physid_sim::cell::Inputs {
-        demand: physid_sim::control::Demand::Speed(w),
-        throttle_deg: 90.0,
-    };
-    while cell.time() < 0.5 {
-        cell.step(&input);
-    }
-    // `rate` counts batches of 600 steps = 0.1 simulated seconds.
-    let (sub0, mut steps) = (cell.substeps(), 0u64);
-    let steps_per_s = rate(600, budget, || {
-        for _ in 0..600 {
-            std::hint::black_box(cell.step(&input));
+    // per wall-clock second, with each solver (`solver.order`: 4 the default RK4, 2 ROS2).
+    for (name, order) in [("testcell", 4.0), ("testcell_order2", 2.0)] {
+        let w = 1000.0 * std::f64::consts::PI / 30.0;
+        let params = physid_sim::params::CellParams {
+            order,
+            ..Default::default()
+        };
+        let mut cell =
+            physid_sim::cell::TestCell::new(params, w, 0.0).map_err(|e| miette::miette!("{e}"))?;
+        let input = physid_sim::cell::Inputs {
+            demand: physid_sim::control::Demand::Speed(w),
+            throttle_deg: 90.0,
+        };
+        while cell.time() < 0.5 {
+            cell.step(&input);
         }
-        steps += 600;
-        Ok(())
-    })?;
-    let realtime = steps_per_s / 6000.0;
-    // RK4 sub-steps per one-degree step (more than one where the gas flows are stiff).
-    let substeps = (cell.substeps() - sub0) as f64 / steps.max(1) as f64;
-    if !args.json {
-        outln!(
-            "testcell {:>17.0} steps/s at 1000 rpm, 1° steps: {realtime:.0}× real time, \
-             {substeps:.2} RK4 sub-steps per step",
-            steps_per_s
-        );
+        // `rate` counts batches of 600 steps = 0.1 simulated seconds.
+        let (sub0, mut steps) = (cell.substeps(), 0u64);
+        let steps_per_s = rate(600, budget, || {
+            for _ in 0..600 {
+                std::hint::black_box(cell.step(&input));
+            }
+            steps += 600;
+            Ok(())
+        })?;
+        let realtime = steps_per_s / 6000.0;
+        // Sub-steps per one-degree step (RK4: more than one where the gas flows are stiff).
+        let substeps = (cell.substeps() - sub0) as f64 / steps.max(1) as f64;
+        if !args.json {
+            outln!(
+                "{name:<15} {:>10.0} steps/s at 1000 rpm, 1° steps (solver.order {order}): \
+                 {realtime:.0}× real time, {substeps:.2} sub-steps per step",
+                steps_per_s
+            );
+        }
+        results.push(json!({"name": name, "realtime_factor": realtime,
+            "steps_per_s": steps_per_s, "substeps_per_step": substeps, "solver_order": order}));
     }
-    results.push(json!({"name": "testcell", "realtime_factor": realtime,
-        "steps_per_s": steps_per_s, "substeps_per_step": substeps}));
     if args.json {
         let out = json!({"machine": machine(), "results": results});
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
