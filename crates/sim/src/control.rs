@@ -20,7 +20,6 @@
 use crate::engine::expm1;
 use crate::machine::Machine;
 use crate::params::DynoParams;
-use std::f64::consts::PI;
 
 /// A PI controller with output limits and conditional integration.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -198,12 +197,39 @@ impl Drive {
     }
 }
 
-/// Inverse Park (power-invariant): phase quantities `[a, b, c]` from `[d, q]` at frame angle θ.
-pub fn inverse_park(dq: [f64; 2], theta: f64) -> [f64; 3] {
+/// Inverse Park (power-invariant): phase quantities `[a, b, c]` from `[d, q]` at the frame
+/// angle θ given as `(sin θ, cos θ)`; the phases b and c at θ ∓ 2π/3 by the angle-addition
+/// formulas (cos(2π/3) = −1/2, sin(2π/3) = √3/2).
+pub fn inverse_park(dq: [f64; 2], (s, c): (f64, f64)) -> [f64; 3] {
     let k = (2.0f64 / 3.0).sqrt();
-    let phase = |shift: f64| {
-        let a = theta - shift;
-        k * (dq[0] * a.cos() - dq[1] * a.sin())
-    };
-    [phase(0.0), phase(2.0 * PI / 3.0), phase(-2.0 * PI / 3.0)]
+    let h = 3f64.sqrt() / 2.0;
+    // (sin, cos) of θ − 2π/3 and θ + 2π/3.
+    let (sb, cb) = (-0.5 * s - h * c, -0.5 * c + h * s);
+    let (sc, cc) = (-0.5 * s + h * c, -0.5 * c - h * s);
+    let phase = |sa: f64, ca: f64| k * (dq[0] * ca - dq[1] * sa);
+    [phase(s, c), phase(sb, cb), phase(sc, cc)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn inverse_park_is_the_rotation_by_thirds() {
+        // Against the definition with each phase's own cosine and sine.
+        let k = (2.0f64 / 3.0).sqrt();
+        for i in 0..100 {
+            let theta = -7.0 + 0.37 * f64::from(i);
+            let dq = [3.0 - 0.1 * f64::from(i), -1.5];
+            let got = inverse_park(dq, theta.sin_cos());
+            for (n, shift) in [0.0, 2.0 * PI / 3.0, -2.0 * PI / 3.0].iter().enumerate() {
+                let a = theta - shift;
+                let want = k * (dq[0] * a.cos() - dq[1] * a.sin());
+                assert!((got[n] - want).abs() < 1e-14, "{theta} {n}");
+            }
+            // Balanced: the phases sum to zero.
+            assert!(got.iter().sum::<f64>().abs() < 1e-14);
+        }
+    }
 }

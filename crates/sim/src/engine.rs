@@ -542,7 +542,9 @@ impl Engine {
     /// Set the oil temperature [K] (a live parameter: a fault or a warm-up changes it).
     pub fn set_oil_temperature(&mut self, t_oil: f64) {
         self.p.t_oil = t_oil;
-        self.oil_viscosity = (t_oil, friction::s_mu(&self.settings, t_oil - 273.15));
+        if self.oil_viscosity.0 != t_oil {
+            self.oil_viscosity = (t_oil, friction::s_mu(&self.settings, t_oil - 273.15));
+        }
     }
 
     /// The mean-value friction model of this engine (SPEC §2.5): its geometry in mm with the

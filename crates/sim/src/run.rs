@@ -116,8 +116,9 @@ impl Raw {
         if self.cols.is_empty() {
             self.cols = vec![Vec::new(); RAW.len()];
         }
-        let i = inverse_park(s.i_dq, s.theta_syn);
-        let v = inverse_park(s.v_dq, s.theta_syn);
+        let sc = s.theta_syn.sin_cos();
+        let i = inverse_park(s.i_dq, sc);
+        let v = inverse_park(s.v_dq, sc);
         let row = [
             s.t,
             s.theta_en,
@@ -280,8 +281,7 @@ pub fn simulate(
         if cell.time() - settle > 0.0 {
             let mut s = s;
             s.t = t_rel;
-            let params = cell.params.clone();
-            raw.push(&s, &params);
+            raw.push(&s, &cell.params);
         }
         if t_rel - last_report >= duration / 100.0 {
             progress((t_rel / duration).clamp(0.0, 1.0));
