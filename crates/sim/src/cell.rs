@@ -27,7 +27,8 @@
 
 use crate::control::{Demand, Drive};
 use crate::engine::{
-    floor, sin_cos_near, Engine, EngineOutputs, GasState, Motored, NetworkJacobian, CYL, EXH, INT,
+    floor, sin_cos_near, Engine, EngineOutputs, GasLinearisation, GasState, Motored,
+    NetworkJacobian, CYL, EXH, INT,
 };
 use crate::machine::{Flux, Machine};
 use crate::params::CellParams;
@@ -257,20 +258,25 @@ impl TestCell {
     /// Derivatives of the continuous state with the held inputs; also the instant's sample
     /// (inlined: where a stage discards the sample, its construction is dropped).
     #[inline(always)]
-    fn derivatives(&self, x: &[f64; N], h: &Held) -> ([f64; N], Sample) {
+    fn derivatives(&self, x: &[f64; N], h: &Held) -> ([f64; N], Sample, GasLinearisation) {
         let gas = gas_of(x);
         let (th_en, w_en) = (x[TH_EN], x[W_EN]);
-        let (dgas, out, tq) = if self.params.engine.active != 0.0 {
+        let (dgas, out, lin, tq) = if self.params.engine.active != 0.0 {
             let k = self
                 .engine
                 .crank_point_sin_cos(th_en, sin_cos_near(th_en, h.theta0, h.sc0));
-            let (dgas, out): (GasState, EngineOutputs) =
+            let (dgas, out, lin) =
                 self.engine
                     .gas_derivatives_at(&k, w_en, h.throttle_area, &gas, &Motored);
             let tq = self.engine.torque_at(&k, w_en, out.p[CYL], h.friction);
-            (dgas, out, tq)
+            (dgas, out, lin, tq)
         } else {
-            ([0.0; 8], EngineOutputs::default(), Default::default())
+            (
+                [0.0; 8],
+                EngineOutputs::default(),
+                GasLinearisation::default(),
+                Default::default(),
+            )
         };
         let mut flux: Flux = [0.0; 4];
         flux.copy_from_slice(&x[FLUX..FLUX + 4]);
@@ -316,7 +322,7 @@ impl TestCell {
             demand: 0.0,
             flux_est: self.drive.flux_est,
         };
-        (d, sample)
+        (d, sample, lin)
     }
 
     /// The duration of the step from angle `theta` at speed `omega`: turning forwards, the
@@ -368,9 +374,9 @@ impl TestCell {
             sc0: x0[TH_EN].sin_cos(),
         };
         // The first stage's derivatives (and the sample) at the step's start.
-        let (k1_start, mut sample) = self.derivatives(&x0, &held);
+        let (k1_start, mut sample, lin) = self.derivatives(&x0, &held);
         let (x, m) = if self.params.order == 2.0 {
-            (self.ros2(&x0, k1_start, &sample, dt, &held), 1)
+            (self.ros2(&x0, k1_start, &sample, &lin, dt, &held), 1)
         } else {
             self.rk4(&x0, k1_start, &sample, dt, &held)
         };
@@ -412,9 +418,9 @@ impl TestCell {
             } else {
                 self.derivatives(&x, held).0
             };
-            let (k2, _) = self.derivatives(&add(&x, &k1, h / 2.0), held);
-            let (k3, _) = self.derivatives(&add(&x, &k2, h / 2.0), held);
-            let (k4, _) = self.derivatives(&add(&x, &k3, h), held);
+            let k2 = self.derivatives(&add(&x, &k1, h / 2.0), held).0;
+            let k3 = self.derivatives(&add(&x, &k2, h / 2.0), held).0;
+            let k4 = self.derivatives(&add(&x, &k3, h), held).0;
             for j in 0..N {
                 x[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
             }
@@ -436,11 +442,19 @@ impl TestCell {
     /// the machine the method is Heun's (explicit trapezoidal) rule. Two evaluations per step,
     /// none extra where the gas is stiff; mass is conserved as the flows conserve it (every
     /// column of `U` does).
-    fn ros2(&self, x0: &[f64; N], f0: [f64; N], sample: &Sample, dt: f64, held: &Held) -> [f64; N] {
+    fn ros2(
+        &self,
+        x0: &[f64; N],
+        f0: [f64; N],
+        sample: &Sample,
+        lin: &GasLinearisation,
+        dt: f64,
+        held: &Held,
+    ) -> [f64; N] {
         const GAMMA: f64 = 1.0 + std::f64::consts::FRAC_1_SQRT_2;
         let w = if self.params.engine.active != 0.0 {
             GasW::new(
-                &self.engine.network_jacobian(&gas_of(x0), &sample.gas),
+                &self.engine.network_jacobian(&gas_of(x0), &sample.gas, lin),
                 GAMMA * dt,
             )
         } else {
@@ -453,7 +467,7 @@ impl TestCell {
             v
         };
         let k1 = solve(f0);
-        let (f1, _) = self.derivatives(&add(x0, &k1, dt), held);
+        let f1 = self.derivatives(&add(x0, &k1, dt), held).0;
         let k2 = solve(add(&f1, &k1, -2.0));
         let mut x = *x0;
         for j in 0..N {

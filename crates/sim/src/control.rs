@@ -183,9 +183,10 @@ impl Drive {
             .iq
             .update(i_sq_ref - i[1], dt, -self.v_max - ff_q, self.v_max - ff_q)
             + ff_q;
-        let mag = (vd * vd + vq * vq).sqrt();
-        let k = if mag > self.v_max {
-            self.v_max / mag
+        // Scaled onto the limit circle only when outside it (the root only then).
+        let mag2 = vd * vd + vq * vq;
+        let k = if mag2 > self.v_max * self.v_max {
+            self.v_max / mag2.sqrt()
         } else {
             1.0
         };

@@ -77,8 +77,16 @@ pub struct OrificeGas {
     inv_gamma: f64,
     /// `2γ/(γ−1)`.
     k: f64,
-    /// The critical ratio and the choked Ψ, where they are constants (the ambient's).
-    choke: Option<(f64, f64)>,
+    /// Ψ's constants, where the gas's γ stays (the ambient's).
+    fixed: Option<PsiConstants>,
+}
+
+/// The constants of Ψ for one γ: the critical ratio, the choked Ψ, Ψ at the linear band's edge.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PsiConstants {
+    crit: f64,
+    choked: f64,
+    band_edge: f64,
 }
 
 impl OrificeGas {
@@ -91,24 +99,35 @@ impl OrificeGas {
             inv_sqrt_rt: 1.0 / sqrt_rt,
             inv_gamma: (cp - r) / cp,
             k: cp * (2.0 / r),
-            choke: None,
+            fixed: None,
         }
     }
 
     /// Gas at pressure `p` [Pa], temperature `t` [K] with ratio of specific heats γ, which
-    /// stays (a reservoir such as the ambient): the critical ratio and the choked Ψ are computed
-    /// here, once.
+    /// stays (a reservoir such as the ambient): the critical ratio, the choked Ψ and Ψ at the
+    /// band's edge are computed here, once.
     pub fn from_gamma(p: f64, t: f64, gamma: f64) -> Self {
         let mut g = Self {
             p,
             inv_sqrt_rt: 1.0 / (air::gas_constant() * t).sqrt(),
             inv_gamma: 1.0 / gamma,
             k: 2.0 * gamma / (gamma - 1.0),
-            choke: None,
+            fixed: None,
         };
         let ln_c = g.ln_two_over_gamma_plus_one();
-        g.choke = Some(((0.5 * g.k * ln_c).exp(), g.psi_choked(ln_c)));
+        g.fixed = Some(PsiConstants {
+            crit: (0.5 * g.k * ln_c).exp(),
+            choked: g.psi_choked(ln_c),
+            band_edge: g.band_edge(),
+        });
         g
+    }
+
+    /// Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
+    /// 1 − pe^((γ−1)/γ) = −expm1(y·(1 − 1/γ)), both of small arguments (no cancellation).
+    fn band_edge(&self) -> f64 {
+        let a = 1.0 + expm1_small(LN_BAND_EDGE * self.inv_gamma);
+        a * (-self.k * expm1_small(LN_BAND_EDGE * (1.0 - self.inv_gamma))).sqrt()
     }
 
     /// `ln(2/(γ+1)) = ln(2·(1/γ)/(1 + 1/γ))`.
@@ -137,15 +156,15 @@ impl OrificeGas {
         // Choked below pr* = (2/(γ+1))^(γ/(γ−1)), i.e. ln pr ≤ (k/2)·ln(2/(γ+1)). The critical
         // ratio is below e^(−1/2) = 0.6065 for every γ > 1: above 0.61 the flow is subsonic
         // without computing it.
-        let choked = match self.choke {
-            Some((crit, _)) => pr < crit,
+        let choked = match self.fixed {
+            Some(c) => pr < c.crit,
             None => {
                 pr <= 0.0 || (pr < 0.61 && pr.ln() <= 0.5 * k * self.ln_two_over_gamma_plus_one())
             }
         };
         if choked {
-            let psi = match self.choke {
-                Some((_, psi_c)) => psi_c,
+            let psi = match self.fixed {
+                Some(c) => c.choked,
                 None => self.psi_choked(self.ln_two_over_gamma_plus_one()),
             };
             (psi, 0.0)
@@ -155,11 +174,10 @@ impl OrificeGas {
             let slope = k * a * ((2.0 * a - pr) * inv_g - pr) / (2.0 * pr * psi);
             (psi, slope)
         } else {
-            // Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
-            // 1 − pe^((γ−1)/γ) = −expm1(y·(1 − 1/γ)), both of small arguments (no
-            // cancellation).
-            let a = 1.0 + expm1_small(LN_BAND_EDGE * inv_g);
-            let edge = a * (-k * expm1_small(LN_BAND_EDGE * (1.0 - inv_g))).sqrt();
+            let edge = match self.fixed {
+                Some(c) => c.band_edge,
+                None => self.band_edge(),
+            };
             let slope = edge * (1.0 / LINEAR_BAND);
             (slope * (1.0 - pr).max(0.0), -slope)
         }
@@ -450,6 +468,12 @@ pub struct EngineOutputs {
     pub areas: [f64; 4],
     /// Ratios of specific heats `γ = c_p/c_v` of the three volumes' gas.
     pub gamma: [f64; 3],
+}
+
+/// What the gas network's Jacobian ([`Engine::network_jacobian`]) needs beyond the outputs,
+/// from the same evaluation.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GasLinearisation {
     /// The four flows' slopes `[∂ṁ/∂p_from, ∂ṁ/∂p_to]` [kg/(s·Pa)] ([`flow_and_slopes`]).
     pub flow_slopes: [[f64; 2]; 4],
     /// Specific enthalpies [J/kg] of the three volumes' gas.
@@ -663,10 +687,12 @@ impl Engine {
         x: &GasState,
         comb: &impl Combustion,
     ) -> (GasState, EngineOutputs) {
-        self.gas_derivatives_at(&self.crank_point(theta), omega, a_th, x, comb)
+        let (d, out, _) = self.gas_derivatives_at(&self.crank_point(theta), omega, a_th, x, comb);
+        (d, out)
     }
 
-    /// [`gas_derivatives`](Self::gas_derivatives) at a computed [`CrankPoint`].
+    /// [`gas_derivatives`](Self::gas_derivatives) at a computed [`CrankPoint`], with the
+    /// [`GasLinearisation`] of the same evaluation (dropped by the compiler where unused).
     #[inline(always)]
     pub fn gas_derivatives_at(
         &self,
@@ -675,7 +701,7 @@ impl Engine {
         a_th: f64,
         x: &GasState,
         comb: &impl Combustion,
-    ) -> (GasState, EngineOutputs) {
+    ) -> (GasState, EngineOutputs, GasLinearisation) {
         let e = &self.p;
         let r = air::gas_constant();
         let v_cyl = self.v_clear + self.area_p * k.s;
@@ -759,10 +785,12 @@ impl Engine {
                 flows: [f_th, f_iv, f_ev, f_or],
                 q_wall,
                 areas: [a_th, a_in, a_ex, a_or],
+                gamma: [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]],
+            },
+            GasLinearisation {
                 flow_slopes: [s_th, s_iv, s_ev, s_or],
                 enthalpy: h,
                 cv,
-                gamma: [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]],
             },
         )
     }
@@ -819,71 +847,87 @@ impl Engine {
     }
 
     /// The gas equations' Jacobian through the pressure network, `J ≈ U·Vᵀ` (rank 3): the
-    /// flows respond to the pressures through the [conductances](Self::conductances), `δṁ =
-    /// g·(δp_up − δp_dn)`; the pressures to the state through `p = m·R·T/V` (`∂p/∂m = p/m`,
-    /// `∂p/∂T = p/T`, the cylinder's volume held); and the state's derivatives to the flows
-    /// through the balances of Eq. 3.20–3.27 (mass: ±1; temperature: `(h_up − u)/(m·c_v)` for
-    /// gas coming in, `−R·T/(m·c_v)` for gas leaving; the ambient exchange counters: ±1). `U`
-    /// is 8 × 3 (state × volume), `Vᵀ` has two entries per volume. Every column of `U` sums
-    /// to zero over the masses and the exchange counters, as every flow conserves mass: a
-    /// step built on it conserves mass exactly as the flows do. `out` are the outputs of
-    /// [`gas_derivatives`](Self::gas_derivatives) at the state `x`.
-    pub fn network_jacobian(&self, x: &GasState, out: &EngineOutputs) -> NetworkJacobian {
+    /// flows respond to the pressures by their slopes ([`flow_and_slopes`]: `δṁ =
+    /// ∂ṁ/∂p_from·δp_from + ∂ṁ/∂p_to·δp_to`, the upstream temperature held); the pressures to
+    /// the state through `p = m·R·T/V` (`∂p/∂m = p/m`, `∂p/∂T = p/T`, the cylinder's volume
+    /// held); and the state's derivatives to the flows through the balances of Eq. 3.20–3.27
+    /// (mass: ±1; temperature: `(h_up − u)/(m·c_v)` for gas coming in, `−R·T/(m·c_v)` for gas
+    /// leaving; the ambient exchange counters: ±1). `U` is 8 × 3 (state × volume), `Vᵀ` has
+    /// two entries per volume. Every column of `U` sums to zero over the masses and the
+    /// exchange counters, as every flow conserves mass: a step built on it conserves mass
+    /// exactly as the flows do. `out` and `lin` are from
+    /// [`gas_derivatives_at`](Self::gas_derivatives_at) at the state `x`.
+    pub fn network_jacobian(
+        &self,
+        x: &GasState,
+        out: &EngineOutputs,
+        lin: &GasLinearisation,
+    ) -> NetworkJacobian {
         let r = air::gas_constant();
         let t = [x[3], x[4], x[5]];
-        let h = out.enthalpy;
+        let h = lin.enthalpy;
         let u_int = per_volume(|i| h[i] - r * t[i]);
-        let mcv = per_volume(|i| x[i] * out.cv[i]);
+        let inv_mcv = per_volume(|i| 1.0 / (x[i] * lin.cv[i]));
         let f = out.flows;
         // ∂(dT_i/dt)/∂ṁ for a flow `q` entering volume `i` with sign `s` (+1: positive flow
         // enters), whose upstream enthalpy is `h_up` when it enters.
         let dt_dq = |i: usize, s: f64, q: f64, h_up: f64| {
             if s * q >= 0.0 {
-                s * (h_up - u_int[i]) / mcv[i]
+                s * (h_up - u_int[i]) * inv_mcv[i]
             } else {
-                s * r * t[i] / mcv[i]
+                s * r * t[i] * inv_mcv[i]
             }
         };
-        // F: the state's derivatives per flow [th, iv, ev, or].
-        let fq: [[f64; 4]; 8] = [
-            [1.0, -1.0, 0.0, 0.0],
-            [0.0, 1.0, -1.0, 0.0],
-            [0.0, 0.0, 1.0, -1.0],
-            [
-                dt_dq(INT, 1.0, f[0], self.h_amb),
-                dt_dq(INT, -1.0, f[1], h[CYL]),
-                0.0,
-                0.0,
-            ],
-            [
-                0.0,
-                dt_dq(CYL, 1.0, f[1], h[INT]),
-                dt_dq(CYL, -1.0, f[2], h[EXH]),
-                0.0,
-            ],
-            [
-                0.0,
-                0.0,
-                dt_dq(EXH, 1.0, f[2], h[CYL]),
-                dt_dq(EXH, -1.0, f[3], self.h_amb),
-            ],
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        ];
-        // Q: the flows per volume pressure.
-        let [s_th, s_iv, s_ev, s_or] = out.flow_slopes;
-        let q: [[f64; 3]; 4] = [
-            [s_th[1], 0.0, 0.0],
-            [s_iv[0], s_iv[1], 0.0],
-            [0.0, s_ev[0], s_ev[1]],
-            [0.0, 0.0, s_or[0]],
-        ];
+        // U = F·Q, flow by flow: the outer product of the rows a flow moves (F's column) and
+        // the pressures that move it (Q's row).
         let mut u = [[0.0; 3]; 8];
-        for (ur, fr) in u.iter_mut().zip(&fq) {
-            for (k, uk) in ur.iter_mut().enumerate() {
-                *uk = (0..4).map(|j| fr[j] * q[j][k]).sum();
+        let mut outer = |rows: &[(usize, f64)], cols: &[(usize, f64)]| {
+            for &(r, fr) in rows {
+                for &(c, qc) in cols {
+                    u[r][c] += fr * qc;
+                }
             }
-        }
+        };
+        let [s_th, s_iv, s_ev, s_or] = lin.flow_slopes;
+        let (m, tt, (cum_in, cum_out)) = (|i: usize| i, |i: usize| 3 + i, (6, 7));
+        // Throttle, ambient → int (its slope in the ambient pressure is not a state's).
+        outer(
+            &[
+                (m(INT), 1.0),
+                (tt(INT), dt_dq(INT, 1.0, f[0], self.h_amb)),
+                (cum_in, 1.0),
+            ],
+            &[(INT, s_th[1])],
+        );
+        // Intake valve, int → cyl.
+        outer(
+            &[
+                (m(INT), -1.0),
+                (m(CYL), 1.0),
+                (tt(INT), dt_dq(INT, -1.0, f[1], h[CYL])),
+                (tt(CYL), dt_dq(CYL, 1.0, f[1], h[INT])),
+            ],
+            &[(INT, s_iv[0]), (CYL, s_iv[1])],
+        );
+        // Exhaust valve, cyl → exh.
+        outer(
+            &[
+                (m(CYL), -1.0),
+                (m(EXH), 1.0),
+                (tt(CYL), dt_dq(CYL, -1.0, f[2], h[EXH])),
+                (tt(EXH), dt_dq(EXH, 1.0, f[2], h[CYL])),
+            ],
+            &[(CYL, s_ev[0]), (EXH, s_ev[1])],
+        );
+        // Exhaust orifice, exh → ambient.
+        outer(
+            &[
+                (m(EXH), -1.0),
+                (tt(EXH), dt_dq(EXH, -1.0, f[3], self.h_amb)),
+                (cum_out, 1.0),
+            ],
+            &[(EXH, s_or[0])],
+        );
         let p = out.p;
         NetworkJacobian {
             u,
