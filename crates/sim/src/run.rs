@@ -169,27 +169,45 @@ enum Between {
     Hold,
 }
 
-/// `y(x)` at the points `at` (x increasing), `how` between the raw points.
-fn resample(x: &[f64], y: &[f64], at: &[f64], how: Between) -> Vec<f64> {
-    let mut out = Vec::with_capacity(at.len());
-    let mut j = 0;
-    for &a in at {
-        while j + 2 < x.len() && x[j + 1] < a {
-            j += 1;
-        }
-        let (x0, x1) = (x[j], x[j + 1]);
-        let f = if x1 > x0 {
-            ((a - x0) / (x1 - x0)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        out.push(match how {
-            Between::Linear => y[j] + f * (y[j + 1] - y[j]),
-            Between::Hold if f >= 0.99 => y[j + 1],
-            Between::Hold => y[j],
-        });
+/// Where the points `at` fall among the raw abscissae `x` (increasing): for each, the raw
+/// interval `j` and the fraction `f` into it (clamped to the ends). Computed once per run and
+/// applied to every column.
+struct Resampler {
+    at: Vec<(usize, f64)>,
+}
+
+impl Resampler {
+    fn new(x: &[f64], at: &[f64]) -> Self {
+        let mut j = 0;
+        let at = at
+            .iter()
+            .map(|&a| {
+                while j + 2 < x.len() && x[j + 1] < a {
+                    j += 1;
+                }
+                let (x0, x1) = (x[j], x[j + 1]);
+                let f = if x1 > x0 {
+                    ((a - x0) / (x1 - x0)).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (j, f)
+            })
+            .collect();
+        Self { at }
     }
-    out
+
+    /// `y` at the points, `how` between the raw points.
+    fn apply(&self, y: &[f64], how: Between) -> Vec<f64> {
+        self.at
+            .iter()
+            .map(|&(j, f)| match how {
+                Between::Linear => y[j] + f * (y[j + 1] - y[j]),
+                Between::Hold if f >= 0.99 => y[j + 1],
+                Between::Hold => y[j],
+            })
+            .collect()
+    }
 }
 
 /// A sensor's state over the output samples.
@@ -380,8 +398,9 @@ fn acquire(
             )
         }
     };
-    let at = |name: &str| resample(abscissa, col(name), &grid, Between::Linear);
-    let held = |name: &str| resample(abscissa, col(name), &grid, Between::Hold);
+    let resampler = Resampler::new(abscissa, &grid);
+    let at = |name: &str| resampler.apply(col(name), Between::Linear);
+    let held = |name: &str| resampler.apply(col(name), Between::Hold);
     let t = match basis {
         OutputBasis::Time(_) => grid.clone(),
         OutputBasis::Crank(_) => at("t"),
@@ -591,7 +610,7 @@ pub fn parameter_truth(rec: &Recording, path: &str, t: &[f64]) -> Option<Vec<f64
 
 #[cfg(test)]
 mod tests {
-    use super::{resample, Between};
+    use super::{Between, Resampler};
 
     /// Linear between the raw points; held at the containing step's value, a point within 1 %
     /// of a step before the next counting as on it; clamped at the ends.
@@ -600,12 +619,13 @@ mod tests {
         let x = [0.0, 1.0, 2.0, 3.0];
         let y = [10.0, 20.0, 30.0, 40.0];
         let at = [-1.0, 0.5, 0.995, 1.0, 1.5, 2.999, 3.0, 4.0];
-        let lin = resample(&x, &y, &at, Between::Linear);
+        let r = Resampler::new(&x, &at);
+        let lin = r.apply(&y, Between::Linear);
         let want = [10.0, 15.0, 19.95, 20.0, 25.0, 39.99, 40.0, 40.0];
         for (a, b) in lin.iter().zip(want) {
             assert!((a - b).abs() < 1e-12, "{a} vs {b}");
         }
-        let held = resample(&x, &y, &at, Between::Hold);
+        let held = r.apply(&y, Between::Hold);
         assert_eq!(held, [10.0, 10.0, 20.0, 20.0, 20.0, 40.0, 40.0, 40.0]);
     }
 }
