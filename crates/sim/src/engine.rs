@@ -255,14 +255,9 @@ pub fn sin_cos_near(theta: f64, theta0: f64, sc0: (f64, f64)) -> (f64, f64) {
 }
 
 /// Mass flow from side 0 to side 1 [kg/s] (negative: 1 → 0) through an effective area
-/// `cd_a` [m²] (Eq. 3.16), `ṁ = C_d·A·p_up/√(R·T_up)·Ψ(p_dn/p_up)`: the upstream side's gas sets
-/// the flow.
-pub fn flow(cd_a: f64, side: [&OrificeGas; 2]) -> f64 {
-    flow_and_slopes(cd_a, side).0
-}
-
-/// [`flow`] and its slopes `[∂ṁ/∂p_0, ∂ṁ/∂p_1]` [kg/(s·Pa)] (the upstream gas's temperature
-/// held): with `c = C_d·A/√(R·T_up)`, `ṁ = c·p_up·Ψ(p_dn/p_up)` has `∂ṁ/∂p_dn = c·Ψ'` and
+/// `cd_a` [m²] (Eq. 3.16), `ṁ = C_d·A·p_up/√(R·T_up)·Ψ(p_dn/p_up)` — the upstream side's gas
+/// sets the flow — and its slopes `[∂ṁ/∂p_0, ∂ṁ/∂p_1]` [kg/(s·Pa)] (the upstream gas's
+/// temperature held): with `c = C_d·A/√(R·T_up)`, `∂ṁ/∂p_dn = c·Ψ'` and
 /// `∂ṁ/∂p_up = c·(Ψ − pr·Ψ')`.
 pub fn flow_and_slopes(cd_a: f64, side: [&OrificeGas; 2]) -> (f64, [f64; 2]) {
     if cd_a <= 0.0 {
@@ -899,26 +894,20 @@ impl Engine {
             ],
             &[(INT, s_th[1])],
         );
-        // Intake valve, int → cyl.
-        outer(
-            &[
-                (m(INT), -1.0),
-                (m(CYL), 1.0),
-                (tt(INT), dt_dq(INT, -1.0, f[1], h[CYL])),
-                (tt(CYL), dt_dq(CYL, 1.0, f[1], h[INT])),
-            ],
-            &[(INT, s_iv[0]), (CYL, s_iv[1])],
-        );
-        // Exhaust valve, cyl → exh.
-        outer(
-            &[
-                (m(CYL), -1.0),
-                (m(EXH), 1.0),
-                (tt(CYL), dt_dq(CYL, -1.0, f[2], h[EXH])),
-                (tt(EXH), dt_dq(EXH, 1.0, f[2], h[CYL])),
-            ],
-            &[(CYL, s_ev[0]), (EXH, s_ev[1])],
-        );
+        // The valves, each from volume `a` to volume `b`: int → cyl, cyl → exh.
+        let mut valve = |a: usize, b: usize, q: f64, s: [f64; 2]| {
+            outer(
+                &[
+                    (m(a), -1.0),
+                    (m(b), 1.0),
+                    (tt(a), dt_dq(a, -1.0, q, h[b])),
+                    (tt(b), dt_dq(b, 1.0, q, h[a])),
+                ],
+                &[(a, s[0]), (b, s[1])],
+            );
+        };
+        valve(INT, CYL, f[1], s_iv);
+        valve(CYL, EXH, f[2], s_ev);
         // Exhaust orifice, exh → ambient.
         outer(
             &[

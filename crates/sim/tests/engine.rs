@@ -6,7 +6,7 @@
 use physid_models::air;
 use physid_sim::cell::{Inputs, TestCell};
 use physid_sim::control::Demand;
-use physid_sim::engine::{psi, Engine, Motored, CYL};
+use physid_sim::engine::{flow_and_slopes, psi, Engine, Motored, OrificeGas, CYL};
 use physid_sim::params::CellParams;
 use physid_sim::studies::{compression, motored_cycle};
 use std::f64::consts::PI;
@@ -150,6 +150,54 @@ fn orifice_flow_function() {
         assert!((psi(0.7, g) - sub(0.7)).abs() < 1e-12);
         assert!((psi(0.98 - 1e-12, g) - psi(0.98 + 1e-12, g)).abs() < 1e-9);
         assert_eq!(psi(1.0, g), 0.0);
+        // Ψ′ against central differences of Ψ: subsonic, choked (0) and in the band.
+        let gas = OrificeGas::from_gamma(1e5, 300.0, g);
+        for pr in [0.1, 0.3, 0.55, 0.7, 0.85, 0.95, 0.975, 0.985, 0.995] {
+            let h = 1e-6;
+            let fd = (psi(pr + h, g) - psi(pr - h, g)) / (2.0 * h);
+            let slope = gas.psi_and_slope(pr).1;
+            assert!(
+                (slope - fd).abs() < 1e-6 * fd.abs().max(1.0),
+                "γ {g}, pr {pr}: {slope} vs {fd}"
+            );
+        }
+    }
+}
+
+/// The flows' slopes in the two pressures against central differences of the flow, both
+/// directions, subsonic, choked and in the linear band.
+#[test]
+fn flow_slopes_are_the_derivatives() {
+    let cp = air::cp(450.0);
+    let sqrt_rt = (air::gas_constant() * 450.0).sqrt();
+    let at = |p0: f64, p1: f64| {
+        let (a, b) = (
+            OrificeGas::new(p0, sqrt_rt, cp),
+            OrificeGas::new(p1, sqrt_rt, cp),
+        );
+        flow_and_slopes(3e-4, [&a, &b])
+    };
+    for (p0, p1) in [
+        (1e5, 0.7e5),
+        (1e5, 0.3e5),
+        (1e5, 0.99e5),
+        (0.6e5, 1e5),
+        (0.2e5, 1e5),
+        (0.995e5, 1e5),
+    ] {
+        let (_, [s0, s1]) = at(p0, p1);
+        let h = 1e-3;
+        let d0 = (at(p0 + h, p1).0 - at(p0 - h, p1).0) / (2.0 * h);
+        let d1 = (at(p0, p1 + h).0 - at(p0, p1 - h).0) / (2.0 * h);
+        let scale = s0.abs().max(s1.abs());
+        assert!(
+            (s0 - d0).abs() < 1e-6 * scale,
+            "{p0} {p1}: ∂/∂p0 {s0} vs {d0}"
+        );
+        assert!(
+            (s1 - d1).abs() < 1e-6 * scale,
+            "{p0} {p1}: ∂/∂p1 {s1} vs {d1}"
+        );
     }
 }
 
