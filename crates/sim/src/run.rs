@@ -459,18 +459,19 @@ fn acquire(
         p
     };
     let sensor_faulted = faults.iter().any(|f| f.path.starts_with("sensors."));
-    let fixed = base.clone();
     let sensed = |rng: &mut ChaCha8Rng, x: Vec<f64>, pick: fn(&CellParams) -> SensorParams| {
         let mut st = SensorState { lagged: None };
+        // Without a sensor fault the sensor's parameters are the same at every sample.
+        let constant = pick(base);
         let mut out = Vec::with_capacity(x.len());
         for (k, &xi) in x.iter().enumerate() {
             let dt = if k > 0 { t[k] - t[k - 1] } else { 0.0 };
-            let p = if sensor_faulted {
-                params_at(t[k])
+            let s = if sensor_faulted {
+                pick(&params_at(t[k]))
             } else {
-                fixed.clone()
+                constant
             };
-            out.push(st.measure(&pick(&p), xi, dt, rng));
+            out.push(st.measure(&s, xi, dt, rng));
         }
         out
     };
