@@ -238,8 +238,13 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    assert_eq!(r.len(), 15 + 3 + 4 + 1 + 3 + 2);
-    for (name, order) in [("testcell", 4.0), ("testcell_order2", 2.0)] {
+    assert_eq!(r.len(), 15 + 3 + 4 + 1 + 3 + 2 + 2);
+    for (name, order) in [
+        ("testcell", 4.0),
+        ("testcell_order2", 2.0),
+        ("testcell_run", 4.0),
+        ("testcell_run_order2", 2.0),
+    ] {
         let tc = r.iter().find(|e| e["name"] == name).unwrap();
         assert!(tc["realtime_factor"].as_f64().unwrap() > 0.0);
         assert_eq!(tc["solver_order"].as_f64(), Some(order));
