@@ -27,10 +27,10 @@
 
 use crate::control::{Demand, Drive};
 use crate::engine::{
-    floor, sin_cos_near, Engine, EngineOutputs, GasLinearisation, GasState, Motored,
-    NetworkJacobian, CYL, EXH, INT,
+    Engine, EngineOutputs, GasLinearisation, GasState, Motored, NetworkJacobian, CYL, EXH, INT,
 };
 use crate::machine::{Flux, Machine};
+use crate::numeric::{floor, sin_cos_near};
 use crate::params::CellParams;
 use std::f64::consts::PI;
 

@@ -17,8 +17,8 @@
 //! q-axis integrator would have to build up the whole back-EMF. Torque mode takes a torque
 //! demand instead of a speed demand.
 
-use crate::engine::expm1;
 use crate::machine::Machine;
+use crate::numeric::expm1;
 use crate::params::DynoParams;
 
 /// A PI controller with output limits and conditional integration.

@@ -7,12 +7,15 @@
 //! * [`cell`] — the whole cell advanced one crank step at a time;
 //! * [`scenario`] — speed/throttle profiles, the named scenarios, TOML files, faults;
 //! * [`studies`] — the compression check, a converged motored cycle, the torque–speed curve;
-//! * [`run`] — a scenario run into a [`Recording`](physid_core::Recording) through the sensors.
+//! * [`run`] — a scenario run into a [`Recording`](physid_core::Recording) through the sensors;
+//! * [`numeric`] — elementary functions by cheaper exact routes (near-angle sine and cosine,
+//!   small `eˣ − 1`, `⌊x⌋`, integer powers), tested against the library.
 
 pub mod cell;
 pub mod control;
 pub mod engine;
 pub mod machine;
+pub mod numeric;
 pub mod params;
 pub mod run;
 pub mod scenario;

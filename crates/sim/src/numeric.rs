@@ -1,0 +1,126 @@
+//! Elementary functions where the step's arguments allow a cheaper exact route than the
+//! library's: each equal to the library's result (bit for bit, or to round-off where stated),
+//! tested against it.
+
+/// `(sin θ, cos θ)` from those of a nearby angle θ0 (`sc0`): the angle-addition formulas with
+/// the Taylor series of the difference `d = θ − θ0`, for `|d| ≤ 0.05` rad (the first omitted
+/// terms, d¹¹/11! and d¹²/12!, are below 1e-22); farther, the library's `sin_cos`. An RK
+/// stage's crank angle is within a step of the step's start.
+pub fn sin_cos_near(theta: f64, theta0: f64, sc0: (f64, f64)) -> (f64, f64) {
+    let d = theta - theta0;
+    if d.abs() > 0.05 {
+        return theta.sin_cos();
+    }
+    let d2 = d * d;
+    // sin d = d·(1 − d²/3! + d⁴/5! − d⁶/7! + d⁸/9!), cos d = 1 − d²/2! + … + d¹⁰/10!.
+    let sd = d
+        * (1.0
+            + d2 * (-1.0 / 6.0
+                + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 * (1.0 / 362_880.0)))));
+    let cd = 1.0
+        + d2 * (-0.5
+            + d2 * (1.0 / 24.0
+                + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0 + d2 * (-1.0 / 3_628_800.0)))));
+    let (s0, c0) = sc0;
+    (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
+}
+
+/// `eˣ − 1`: by [`expm1_small`] for `|x| ≤ 0.02` (no library call), the library's beyond.
+pub fn expm1(x: f64) -> f64 {
+    if x.abs() <= 0.02 {
+        expm1_small(x)
+    } else {
+        x.exp_m1()
+    }
+}
+
+/// `eˣ − 1` for `|x| ≤ 0.02` by its Taylor series to x⁸ (the first omitted term is below
+/// 1e-19 relative, under the round-off of the result); used where the argument is known to be
+/// that small.
+pub fn expm1_small(x: f64) -> f64 {
+    debug_assert!(x.abs() <= 0.02);
+    // 1/k! for k = 8 … 2, Horner.
+    const C: [f64; 7] = [
+        1.0 / 40320.0,
+        1.0 / 5040.0,
+        1.0 / 720.0,
+        1.0 / 120.0,
+        1.0 / 24.0,
+        1.0 / 6.0,
+        0.5,
+    ];
+    let mut p = C[0];
+    for c in &C[1..] {
+        p = p * x + c;
+    }
+    x * (1.0 + x * p)
+}
+
+/// `⌊x⌋` for `|x| < 2⁶³` by truncation toward zero, corrected below zero (the library
+/// `floor` is a call on baseline x86-64).
+pub fn floor(x: f64) -> f64 {
+    let n = x as i64 as f64;
+    if n > x {
+        n - 1.0
+    } else {
+        n
+    }
+}
+
+/// `aⁿ` by repeated squaring, inline (a run-time exponent otherwise costs a library call;
+/// the same sequence of products as that call's, so the same result).
+pub fn powi(mut a: f64, mut n: u32) -> f64 {
+    let mut r = 1.0;
+    loop {
+        if n & 1 == 1 {
+            r *= a;
+        }
+        n /= 2;
+        if n == 0 {
+            return r;
+        }
+        a *= a;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_argument_series_equal_the_library() {
+        for k in -200..=200 {
+            let x = f64::from(k) * 1e-4;
+            let lib = x.exp_m1();
+            assert!(
+                (expm1_small(x) - lib).abs() <= 2.0 * f64::EPSILON * lib.abs(),
+                "{x}"
+            );
+            assert!((expm1(x) - lib).abs() <= 2.0 * f64::EPSILON * lib.abs());
+            // Beyond the series' range, the library's own.
+            let far = x * 10.0 + 0.03f64.copysign(x);
+            assert_eq!(expm1(far), far.exp_m1());
+        }
+        // sin/cos near a base angle, against the library at the angle itself.
+        for k in 0..720 {
+            let th0 = f64::from(k).to_radians() * 1.37;
+            for d in [-0.05, -0.0174, -1e-9, 0.0, 1e-7, 0.0087, 0.0174, 0.049, 0.2] {
+                let (s, c) = sin_cos_near(th0 + d, th0, th0.sin_cos());
+                let (ls, lc) = (th0 + d).sin_cos();
+                assert!(
+                    (s - ls).abs() < 4e-16 && (c - lc).abs() < 4e-16,
+                    "{th0} {d}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn powi_is_the_library_power() {
+        for n in 0..=12 {
+            for a in [0.0, 1e-3, 0.3, 0.7, 0.99, 1.0, 1.7] {
+                assert_eq!(powi(a, n), a.powi(n as i32), "{a}^{n}");
+            }
+        }
+    }
+}
