@@ -67,6 +67,23 @@ pub fn floor(x: f64) -> f64 {
     }
 }
 
+/// `x` rounded to the nearest integer, halves away from zero: the library's `round` (a call
+/// on baseline x86-64) by the 2⁵² shift, which rounds to nearest even, with the halves it
+/// sends toward zero sent away. Exact: for `|x| < 2⁵²` the sum `|x| + 2⁵²` rounds only its
+/// fraction, and `r − |x|` is exact (Sterbenz); larger `|x|` are integers already.
+pub fn round(x: f64) -> f64 {
+    const SHIFT: f64 = 4_503_599_627_370_496.0; // 2⁵²
+    let a = x.abs();
+    if a >= SHIFT || a.is_nan() {
+        return x;
+    }
+    let mut r = (a + SHIFT) - SHIFT;
+    if r - a == -0.5 {
+        r += 1.0;
+    }
+    r.copysign(x)
+}
+
 /// `aⁿ` by repeated squaring, inline (a run-time exponent otherwise costs a library call;
 /// the same sequence of products as that call's, so the same result).
 pub fn powi(mut a: f64, mut n: u32) -> f64 {
@@ -113,6 +130,34 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn round_is_the_library_round() {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            0.5,
+            1.5,
+            2.5,
+            0.49999999999999994,
+            4_503_599_627_370_495.5,
+            4_503_599_627_370_496.0,
+            9.1e15 + 1.0,
+            1e300,
+            f64::INFINITY,
+            f64::MIN_POSITIVE,
+        ];
+        for k in -2000..=2000 {
+            let x = f64::from(k) * 0.25;
+            xs.extend([x, x + 1e-9, x - 1e-9, x * 1.000_000_1, x * 7.3e5]);
+        }
+        for x in xs {
+            for v in [x, -x] {
+                assert_eq!(round(v).to_bits(), v.round().to_bits(), "{v}");
+            }
+        }
+        assert!(round(f64::NAN).is_nan());
     }
 
     #[test]

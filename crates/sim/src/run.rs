@@ -1,6 +1,8 @@
 //! Running a scenario: the cell stepped one crank increment at a time with the scenario's
-//! demand, throttle and faults, then the acquisition — resampling to the output basis and the
-//! sensors (SPEC §2.7) — into a [`Recording`] with the DESIGN.md channel names.
+//! demand, throttle and faults, and the acquisition as it goes — each output grid point carried
+//! from the two steps around it, then measured by its sensor (SPEC §2.7) — into a
+//! [`Recording`] with the DESIGN.md channel names. Only the output is kept: a run's memory is
+//! its recording's.
 //!
 //! Sensors act on the output samples: `y = gain·lag(x) + offset + noise`, quantised; the
 //! encoders count `floor(θ/q)` pulses (a lost-pulse fault drops pulses at random, for good);
@@ -11,6 +13,7 @@
 
 use crate::cell::{Inputs, Sample, TestCell};
 use crate::control::{inverse_park, Demand};
+use crate::numeric::{expm1, floor, round};
 use crate::params::{CellParams, SensorParams};
 use crate::scenario::{Fault, Scenario};
 use physid_core::{Basis, Channel, Recording};
@@ -71,90 +74,89 @@ impl Default for RunOptions {
     }
 }
 
-/// The truth at every solver step, column by column.
-#[derive(Debug, Default)]
-struct Raw {
-    cols: Vec<Vec<f64>>,
-}
-
-/// Names and units of the raw columns, in order.
-const RAW: [(&str, &str); 30] = [
-    ("t", "s"),
-    ("theta_en", "rad"),
-    ("theta_dy", "rad"),
-    ("omega_en", "rad/s"),
-    ("omega_dy", "rad/s"),
-    ("alpha_en", "rad/s^2"),
-    ("alpha_dy", "rad/s^2"),
-    ("torque_shaft", "N*m"),
-    ("torque_engine", "N*m"),
-    ("torque_dy", "N*m"),
-    ("p_cyl", "Pa"),
-    ("p_int", "Pa"),
-    ("p_exh", "Pa"),
-    ("T_int", "K"),
-    ("T_exh", "K"),
-    ("T_oil", "K"),
-    ("throttle", "deg"),
-    ("speed_demand", "rad/s"),
-    ("i_a", "A"),
-    ("i_b", "A"),
-    ("i_c", "A"),
-    ("v_a", "V"),
-    ("v_b", "V"),
-    ("v_c", "V"),
-    ("true_torque_indicated", "N*m"),
-    ("true_torque_reciprocating", "N*m"),
-    ("true_torque_friction", "N*m"),
-    ("true_T_cyl", "K"),
-    ("true_shaft_k", "N*m/rad"),
-    ("true_shaft_b", "N*m*s/rad"),
+/// The truth the cell gives at each solver step, in the order of a [`raw_row`] (each is
+/// recorded under its name, [`OUTPUT`]).
+const RAW: [&str; 30] = [
+    "t",
+    "theta_en",
+    "theta_dy",
+    "omega_en",
+    "omega_dy",
+    "alpha_en",
+    "alpha_dy",
+    "torque_shaft",
+    "torque_engine",
+    "torque_dy",
+    "p_cyl",
+    "p_int",
+    "p_exh",
+    "T_int",
+    "T_exh",
+    "T_oil",
+    "throttle",
+    "speed_demand",
+    "i_a",
+    "i_b",
+    "i_c",
+    "v_a",
+    "v_b",
+    "v_c",
+    "true_torque_indicated",
+    "true_torque_reciprocating",
+    "true_torque_friction",
+    "true_T_cyl",
+    "true_shaft_k",
+    "true_shaft_b",
 ];
 
-impl Raw {
-    fn push(&mut self, s: &Sample, p: &CellParams) {
-        if self.cols.is_empty() {
-            self.cols = vec![Vec::new(); RAW.len()];
-        }
-        let sc = s.theta_syn.sin_cos();
-        let i = inverse_park(s.i_dq, sc);
-        let v = inverse_park(s.v_dq, sc);
-        let row = [
-            s.t,
-            s.theta_en,
-            s.theta_dy,
-            s.omega_en,
-            s.omega_dy,
-            s.alpha_en,
-            s.alpha_dy,
-            s.torque_shaft,
-            s.torque_engine,
-            s.torque_dy,
-            s.gas.p[1],
-            s.gas.p[0],
-            s.gas.p[2],
-            s.temperatures[0],
-            s.temperatures[2],
-            p.engine.t_oil,
-            s.throttle_deg,
-            s.demand,
-            i[0],
-            i[1],
-            i[2],
-            v[0],
-            v[1],
-            v[2],
-            s.torque_indicated,
-            s.torque_reciprocating,
-            s.torque_friction,
-            s.temperatures[1],
-            p.shaft.k,
-            p.shaft.b,
-        ];
-        for (c, v) in self.cols.iter_mut().zip(row) {
-            c.push(v);
-        }
-    }
+/// One row of truth, [`RAW`]'s columns.
+type Row = [f64; RAW.len()];
+
+/// The position of `name` in [`RAW`] (the names are this module's own: an unknown one is a
+/// bug, caught by every run in the tests).
+fn raw_index(name: &str) -> usize {
+    let i = RAW.iter().position(|&c| c == name);
+    debug_assert!(i.is_some(), "no raw column {name}");
+    i.unwrap_or(0)
+}
+
+/// The truth of sample `s`, the cell running with `p`.
+fn raw_row(s: &Sample, p: &CellParams) -> Row {
+    let sc = s.theta_syn.sin_cos();
+    let i = inverse_park(s.i_dq, sc);
+    let v = inverse_park(s.v_dq, sc);
+    [
+        s.t,
+        s.theta_en,
+        s.theta_dy,
+        s.omega_en,
+        s.omega_dy,
+        s.alpha_en,
+        s.alpha_dy,
+        s.torque_shaft,
+        s.torque_engine,
+        s.torque_dy,
+        s.gas.p[1],
+        s.gas.p[0],
+        s.gas.p[2],
+        s.temperatures[0],
+        s.temperatures[2],
+        p.engine.t_oil,
+        s.throttle_deg,
+        s.demand,
+        i[0],
+        i[1],
+        i[2],
+        v[0],
+        v[1],
+        v[2],
+        s.torque_indicated,
+        s.torque_reciprocating,
+        s.torque_friction,
+        s.temperatures[1],
+        p.shaft.k,
+        p.shaft.b,
+    ]
 }
 
 /// How a raw column is carried from the solver's steps to the output grid.
@@ -169,70 +171,509 @@ enum Between {
     Hold,
 }
 
-/// Where the points `at` fall among the raw abscissae `x` (increasing): for each, the raw
-/// interval `j` and the fraction `f` into it (clamped to the ends). Computed once per run and
-/// applied to every column.
-struct Resampler {
-    at: Vec<(usize, f64)>,
-}
-
-impl Resampler {
-    fn new(x: &[f64], at: &[f64]) -> Self {
-        let mut j = 0;
-        let at = at
-            .iter()
-            .map(|&a| {
-                while j + 2 < x.len() && x[j + 1] < a {
-                    j += 1;
-                }
-                let (x0, x1) = (x[j], x[j + 1]);
-                let f = if x1 > x0 {
-                    ((a - x0) / (x1 - x0)).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                (j, f)
-            })
-            .collect();
-        Self { at }
-    }
-
-    /// `y` at the points, `how` between the raw points.
-    fn apply(&self, y: &[f64], how: Between) -> Vec<f64> {
-        self.at
-            .iter()
-            .map(|&(j, f)| match how {
-                Between::Linear => y[j] + f * (y[j + 1] - y[j]),
-                Between::Hold if f >= 0.99 => y[j + 1],
-                Between::Hold => y[j],
-            })
-            .collect()
+impl Between {
+    /// The value at fraction `f` ∈ [0, 1] of the way from `y0` to `y1`.
+    fn carry(self, y0: f64, y1: f64, f: f64) -> f64 {
+        match self {
+            Between::Linear => y0 + f * (y1 - y0),
+            Between::Hold if f >= 0.99 => y1,
+            Between::Hold => y0,
+        }
     }
 }
 
-/// A sensor's state over the output samples.
+/// Which sensor measures a channel (SPEC §2.7).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SensorKind {
+    Speed,
+    TorqueShaft,
+    TorqueEngine,
+    PCyl,
+    PManifold,
+    Temperature,
+}
+
+impl SensorKind {
+    /// This kind's parameters in `p`.
+    fn params(self, p: &CellParams) -> SensorParams {
+        let s = &p.sensors;
+        match self {
+            SensorKind::Speed => s.speed,
+            SensorKind::TorqueShaft => s.torque_shaft,
+            SensorKind::TorqueEngine => s.torque_engine,
+            SensorKind::PCyl => s.p_cyl,
+            SensorKind::PManifold => s.p_manifold,
+            SensorKind::Temperature => s.temperature,
+        }
+    }
+}
+
+/// Where an output channel's values come from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Source {
+    /// The raw column of the channel's name carried to the grid, measured by a sensor if one
+    /// is named.
+    Raw(Between, Option<SensorKind>),
+    /// The sample's time: the grid itself on a time basis, the interpolated time on a crank
+    /// basis.
+    Time,
+    /// Crank basis: the angle from the first firing TDC [rad], the cycle number, the angle
+    /// in the cycle [deg].
+    Theta,
+    Cycle,
+    CrankDeg,
+    /// The ambient pressure (crankcase and atmosphere).
+    Ambient,
+    /// Encoder counts `floor(θ/q)`, the engine's less the pulses lost; the TDC marker.
+    CountEn,
+    CountDy,
+    Tdc,
+}
+
+use Between::{Hold, Linear};
+
+/// The recording's channels, in order, with their units (DESIGN.md); the crank-basis ones
+/// only there.
+const OUTPUT: [(&str, &str, Source); 38] = [
+    ("t", "s", Source::Time),
+    ("theta", "rad", Source::Theta),
+    ("cycle", "-", Source::Cycle),
+    ("crank_deg", "deg", Source::CrankDeg),
+    ("theta_en", "rad", Source::Raw(Linear, None)),
+    ("theta_dy", "rad", Source::Raw(Linear, None)),
+    (
+        "omega_en",
+        "rad/s",
+        Source::Raw(Linear, Some(SensorKind::Speed)),
+    ),
+    (
+        "omega_dy",
+        "rad/s",
+        Source::Raw(Linear, Some(SensorKind::Speed)),
+    ),
+    ("alpha_en", "rad/s^2", Source::Raw(Linear, None)),
+    ("alpha_dy", "rad/s^2", Source::Raw(Linear, None)),
+    (
+        "torque_shaft",
+        "N*m",
+        Source::Raw(Linear, Some(SensorKind::TorqueShaft)),
+    ),
+    (
+        "torque_engine",
+        "N*m",
+        Source::Raw(Linear, Some(SensorKind::TorqueEngine)),
+    ),
+    ("torque_dy", "N*m", Source::Raw(Linear, None)),
+    ("p_cyl", "Pa", Source::Raw(Linear, Some(SensorKind::PCyl))),
+    (
+        "p_int",
+        "Pa",
+        Source::Raw(Linear, Some(SensorKind::PManifold)),
+    ),
+    (
+        "p_exh",
+        "Pa",
+        Source::Raw(Linear, Some(SensorKind::PManifold)),
+    ),
+    ("p_crank", "Pa", Source::Ambient),
+    ("p_atm", "Pa", Source::Ambient),
+    (
+        "T_oil",
+        "K",
+        Source::Raw(Hold, Some(SensorKind::Temperature)),
+    ),
+    (
+        "T_int",
+        "K",
+        Source::Raw(Linear, Some(SensorKind::Temperature)),
+    ),
+    (
+        "T_exh",
+        "K",
+        Source::Raw(Linear, Some(SensorKind::Temperature)),
+    ),
+    ("throttle", "deg", Source::Raw(Hold, None)),
+    ("speed_demand", "rad/s", Source::Raw(Hold, None)),
+    ("i_a", "A", Source::Raw(Linear, None)),
+    ("i_b", "A", Source::Raw(Linear, None)),
+    ("i_c", "A", Source::Raw(Linear, None)),
+    ("v_a", "V", Source::Raw(Linear, None)),
+    ("v_b", "V", Source::Raw(Linear, None)),
+    ("v_c", "V", Source::Raw(Linear, None)),
+    ("count_en", "-", Source::CountEn),
+    ("count_dy", "-", Source::CountDy),
+    ("tdc", "-", Source::Tdc),
+    // The true torques and T_cyl are states'; the shaft's parameters are held over a step.
+    ("true_torque_indicated", "N*m", Source::Raw(Linear, None)),
+    (
+        "true_torque_reciprocating",
+        "N*m",
+        Source::Raw(Linear, None),
+    ),
+    ("true_torque_friction", "N*m", Source::Raw(Linear, None)),
+    ("true_T_cyl", "K", Source::Raw(Linear, None)),
+    ("true_shaft_k", "N*m/rad", Source::Raw(Hold, None)),
+    ("true_shaft_b", "N*m*s/rad", Source::Raw(Hold, None)),
+];
+
+/// A first-order sensor's state over the output samples, with its own noise stream (so that
+/// one sensor's settings never change another's noise).
 struct SensorState {
     lagged: Option<f64>,
+    rng: ChaCha8Rng,
 }
 
 impl SensorState {
-    fn measure(&mut self, s: &SensorParams, x: f64, dt: f64, rng: &mut ChaCha8Rng) -> f64 {
+    fn new(seed: u64, stream: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        rng.set_stream(stream);
+        Self { lagged: None, rng }
+    }
+
+    /// `y = gain·lag(x) + offset + noise`, quantised; `dt` [s] since the last sample.
+    fn measure(&mut self, s: &SensorParams, x: f64, dt: f64) -> f64 {
+        // The exact discretisation of τ·l' = x − l with x held over dt:
+        // l ← l + (x − l)·(1 − e^(−dt/τ)).
         let l = match (self.lagged, s.lag > 0.0) {
-            (Some(prev), true) => prev + (x - prev) * (1.0 - (-dt / s.lag).exp()),
+            (Some(prev), true) => prev - (x - prev) * expm1(-dt / s.lag),
             _ => x,
         };
         self.lagged = Some(l);
         let noise: f64 = if s.noise > 0.0 {
-            s.noise * rng.sample::<f64, _>(StandardNormal)
+            s.noise * self.rng.sample::<f64, _>(StandardNormal)
         } else {
             0.0
         };
         let y = s.gain * l + s.offset + noise;
         if s.quantum > 0.0 {
-            (y / s.quantum).round() * s.quantum
+            round(y / s.quantum) * s.quantum
         } else {
             y
         }
+    }
+}
+
+/// An output channel being filled.
+struct Output {
+    name: &'static str,
+    unit: &'static str,
+    source: Source,
+    /// The raw column of a `Source::Raw`.
+    col: usize,
+    /// Its sensor's kind and state.
+    sensor: Option<(SensorKind, SensorState)>,
+    values: Vec<f64>,
+}
+
+/// Steps buffered before their samples are taken (≈ 60 kB of rows: the chunk stays in cache
+/// while each channel is taken from it in turn).
+const CHUNK: usize = 256;
+
+/// The acquisition (SPEC §2.7) as the cell steps: each output grid point between two
+/// consecutive steps is carried from their rows ([`Between`]) and measured by its sensor. The
+/// steps are taken in chunks of [`CHUNK`], channel by channel; nothing of the truth is kept
+/// beyond the chunk.
+struct Acquisition<'a> {
+    base: &'a CellParams,
+    faults: &'a [Fault],
+    /// Whether a fault changes a sensor (its parameters are then those in force at each
+    /// sample).
+    sensor_faulted: bool,
+    basis: OutputBasis,
+    duration: f64,
+    outputs: Vec<Output>,
+    /// The chunk's rows (the first is the previous chunk's last), and its grid points: the
+    /// row `j` each follows, its fraction `f` of the way to row `j + 1`, its abscissa `g`.
+    rows: Vec<Row>,
+    points: Vec<(usize, f64, f64)>,
+    /// Rows seen.
+    seen: usize,
+    /// The next grid point's index, and the index past the last (time basis).
+    k: u64,
+    end: u64,
+    /// Crank basis: the first firing TDC [rad], from the first row.
+    first: f64,
+    /// The last sample's time and engine angle.
+    last: Option<(f64, f64)>,
+    /// The engine encoder: its last ideal count, the pulses lost, its random stream.
+    count_en: Option<f64>,
+    lost: f64,
+    pulses: ChaCha8Rng,
+}
+
+impl<'a> Acquisition<'a> {
+    /// For a run of `duration` [s] with `base` parameters and `faults`, at the starting speed
+    /// `w0` [rad/s] (to size the channels).
+    fn new(
+        base: &'a CellParams,
+        faults: &'a [Fault],
+        basis: OutputBasis,
+        duration: f64,
+        w0: f64,
+    ) -> Result<Self, SimError> {
+        let expected = match basis {
+            OutputBasis::Time(rate) if rate.is_finite() && rate > 0.0 => duration * rate,
+            OutputBasis::Time(rate) => {
+                return Err(SimError::Invalid(format!(
+                    "output rate {rate} Hz: expected > 0"
+                )))
+            }
+            OutputBasis::Crank(step) if step.is_finite() && step > 0.0 => {
+                1.02 * duration * w0.max(1.0) / step.to_radians()
+            }
+            OutputBasis::Crank(step) => {
+                return Err(SimError::Invalid(format!(
+                    "crank step {step}°: expected > 0"
+                )))
+            }
+        };
+        // A hint (the channels grow beyond it if the engine speeds up), capped at 2²² samples.
+        let capacity = expected.min(f64::from(1u32 << 22)) as usize + 2;
+        let crank = matches!(basis, OutputBasis::Crank(_));
+        // Each sensor its own random stream (one sensor's settings never change another's
+        // noise); stream 0 is the encoder's.
+        let seed = base.sensors.seed as u64 ^ 0x5e5e;
+        let outputs = OUTPUT
+            .iter()
+            .filter(|(_, _, src)| {
+                crank || !matches!(src, Source::Theta | Source::Cycle | Source::CrankDeg)
+            })
+            .enumerate()
+            .map(|(stream, &(name, unit, source))| {
+                let (col, sensor) = match source {
+                    Source::Raw(_, sensor) => (raw_index(name), sensor),
+                    _ => (0, None),
+                };
+                Output {
+                    name,
+                    unit,
+                    source,
+                    col,
+                    sensor: sensor.map(|kind| (kind, SensorState::new(seed, stream as u64 + 1))),
+                    values: Vec::with_capacity(capacity),
+                }
+            })
+            .collect();
+        Ok(Self {
+            base,
+            faults,
+            sensor_faulted: faults.iter().any(|f| f.path.starts_with("sensors.")),
+            basis,
+            duration,
+            outputs,
+            rows: Vec::with_capacity(CHUNK),
+            points: Vec::with_capacity(4 * CHUNK),
+            seen: 0,
+            k: 0,
+            end: u64::MAX,
+            first: 0.0,
+            last: None,
+            count_en: None,
+            lost: 0.0,
+            pulses: SensorState::new(seed, 0).rng,
+        })
+    }
+
+    /// The next solver step's truth: the grid points up to it are placed, and taken when the
+    /// chunk is full.
+    fn accept(&mut self, row: Row) -> Result<(), SimError> {
+        const T: usize = 0;
+        const TH: usize = 1;
+        self.seen += 1;
+        let Some(prev) = self.rows.last().copied() else {
+            // The grid starts at or after the first row: t = 0, or the first firing TDC.
+            match self.basis {
+                OutputBasis::Time(rate) => {
+                    self.k = (row[T] * rate).ceil().max(0.0) as u64;
+                    self.end = (self.duration * rate).floor() as u64 + 1;
+                }
+                OutputBasis::Crank(_) => self.first = (row[TH] / (4.0 * PI)).ceil() * 4.0 * PI,
+            }
+            self.rows.push(row);
+            return Ok(());
+        };
+        let (x0, x1) = match self.basis {
+            OutputBasis::Time(_) => (prev[T], row[T]),
+            OutputBasis::Crank(_) => (prev[TH], row[TH]),
+        };
+        if matches!(self.basis, OutputBasis::Crank(_)) && x1 <= x0 {
+            return Err(SimError::Invalid(format!(
+                "the engine stopped or turned back at t = {:.6} s: a crank-angle basis needs it \
+                 turning forwards",
+                row[T]
+            )));
+        }
+        let j = self.rows.len() - 1;
+        while self.k < self.end {
+            let g = match self.basis {
+                OutputBasis::Time(rate) => self.k as f64 / rate,
+                OutputBasis::Crank(step) => self.first + self.k as f64 * step.to_radians(),
+            };
+            if g > x1 {
+                break;
+            }
+            let f = if x1 > x0 {
+                ((g - x0) / (x1 - x0)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            self.points.push((j, f, g));
+            self.k += 1;
+        }
+        self.rows.push(row);
+        if self.rows.len() == CHUNK {
+            self.take();
+            self.rows.drain(..CHUNK - 1);
+        }
+        Ok(())
+    }
+
+    /// Take the chunk's samples, channel by channel.
+    fn take(&mut self) {
+        let (rows, points) = (&self.rows, &self.points);
+        let carried = |col: usize, how: Between| {
+            points
+                .iter()
+                .map(move |&(j, f, _)| how.carry(rows[j][col], rows[j + 1][col], f))
+        };
+        let t: Vec<f64> = match self.basis {
+            OutputBasis::Time(_) => points.iter().map(|p| p.2).collect(),
+            OutputBasis::Crank(_) => carried(0, Linear).collect(),
+        };
+        let theta_en: Vec<f64> = carried(1, Linear).collect();
+        let dt: Vec<f64> = t
+            .iter()
+            .scan(self.last.map(|l| l.0), |before, &ti| {
+                let d = before.map_or(0.0, |b| ti - b);
+                *before = Some(ti);
+                Some(d)
+            })
+            .collect();
+        // The sensors' parameters in force at each sample when a fault changes them.
+        let faulted: Vec<CellParams> = if self.sensor_faulted {
+            t.iter()
+                .map(|&ti| {
+                    let mut p = self.base.clone();
+                    Fault::apply_all(self.faults, self.base, &mut p, ti);
+                    p
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let params = |k: usize| faulted.get(k).unwrap_or(self.base);
+        let first = self.first;
+        let since_tdc = points.iter().map(move |p| p.2 - first);
+        for out in &mut self.outputs {
+            let v = &mut out.values;
+            match (out.source, &mut out.sensor) {
+                (Source::Raw(how, _), None) => v.extend(carried(out.col, how)),
+                (Source::Raw(how, _), Some((kind, state))) => {
+                    let constant = kind.params(self.base);
+                    for (k, x) in carried(out.col, how).enumerate() {
+                        let s = if self.sensor_faulted {
+                            kind.params(params(k))
+                        } else {
+                            constant
+                        };
+                        v.push(state.measure(&s, x, dt[k]));
+                    }
+                }
+                (Source::Time, _) => v.extend_from_slice(&t),
+                (Source::Theta, _) => v.extend(since_tdc.clone()),
+                (Source::Cycle, _) => {
+                    v.extend(since_tdc.clone().map(|a| (a / (4.0 * PI) + 1e-9).floor()))
+                }
+                (Source::CrankDeg, _) => v.extend(since_tdc.clone().map(|a| {
+                    let d = a.to_degrees().rem_euclid(720.0);
+                    if d > 720.0 - 1e-6 {
+                        0.0
+                    } else {
+                        d
+                    }
+                })),
+                (Source::Ambient, _) => v.extend(t.iter().map(|_| self.base.ambient.p)),
+                (Source::CountEn, _) => {
+                    for (k, &th) in theta_en.iter().enumerate() {
+                        let s = &params(k).sensors;
+                        let ideal = floor(th / (TAU / s.ppr_en));
+                        if let Some(before) = self.count_en {
+                            if s.lost_pulses_en > 0.0 {
+                                for _ in 0..((ideal - before).max(0.0) as usize) {
+                                    if self.pulses.random::<f64>() < s.lost_pulses_en {
+                                        self.lost += 1.0;
+                                    }
+                                }
+                            }
+                        }
+                        self.count_en = Some(ideal);
+                        v.push(ideal - self.lost);
+                    }
+                }
+                (Source::CountDy, _) => v.extend(
+                    carried(2, Linear)
+                        .enumerate()
+                        .map(|(k, th)| floor(th / (TAU / params(k).sensors.ppr_dy))),
+                ),
+                (Source::Tdc, _) => {
+                    let mut before = self.last.map(|l| l.1);
+                    for &th in &theta_en {
+                        v.push(match before {
+                            Some(b) if floor(th / TAU) > floor(b / TAU) => 1.0,
+                            Some(_) => 0.0,
+                            // The first sample is on firing TDC on a crank basis.
+                            None => {
+                                f64::from(u8::from(matches!(self.basis, OutputBasis::Crank(_))))
+                            }
+                        });
+                        before = Some(th);
+                    }
+                }
+            }
+        }
+        if let (Some(&tl), Some(&thl)) = (t.last(), theta_en.last()) {
+            self.last = Some((tl, thl));
+        }
+        self.points.clear();
+    }
+
+    /// The recording: the channels, the scenario, the faults and the parameters in the
+    /// metadata.
+    fn finish(mut self, scenario: &Scenario) -> Result<Recording, SimError> {
+        if self.seen < 2 {
+            return Err(SimError::Invalid(
+                "the run produced fewer than 2 samples".into(),
+            ));
+        }
+        self.take();
+        let mut rec = Recording::new(match self.basis {
+            OutputBasis::Time(_) => Basis::Time,
+            OutputBasis::Crank(_) => Basis::CrankAngle,
+        });
+        for out in self.outputs {
+            rec.push(Channel {
+                name: out.name.into(),
+                unit: out.unit.into(),
+                values: out.values,
+            })
+            .map_err(|e| SimError::Invalid(e.to_string()))?;
+        }
+        rec.meta.insert("source".into(), "physid simulate".into());
+        rec.meta.insert("scenario".into(), scenario.name.clone());
+        rec.meta.insert(
+            "faults".into(),
+            self.faults
+                .iter()
+                .map(|f| format!("{}={}@{}+{}", f.path, f.value, f.at, f.ramp))
+                .collect::<Vec<_>>()
+                .join(" "),
+        );
+        for (path, _, _) in CellParams::TABLE {
+            if let Some(v) = self.base.get(path) {
+                rec.meta.insert(format!("param.{path}"), format!("{v}"));
+            }
+        }
+        Ok(rec)
     }
 }
 
@@ -277,10 +718,10 @@ pub fn simulate(
     };
     // The cell starts at BDC before firing TDC so the first cycle begins with compression.
     let mut cell = TestCell::new(base.clone(), w0.max(1.0), -PI).map_err(SimError::Invalid)?;
-    let mut rng = ChaCha8Rng::seed_from_u64(base.sensors.seed as u64);
     let settle = scenario.settle;
-    let mut raw = Raw::default();
-    let mut speed_sensor = SensorState { lagged: None };
+    let mut acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
+    // The drive's own speed sensor, at every step.
+    let mut speed_sensor = SensorState::new(base.sensors.seed as u64, 0);
     let mut last_report = -1.0;
     loop {
         let t_rel = cell.time() - settle;
@@ -292,14 +733,14 @@ pub fn simulate(
         };
         let w_true = cell.state()[9];
         let ss = cell.params.dyno.speed_sensor;
-        let w_meas = speed_sensor.measure(&ss, w_true, 0.0, &mut rng);
+        let w_meas = speed_sensor.measure(&ss, w_true, 0.0);
         let s = cell.step_with(&inputs, w_meas);
         check(&s, base.engine.active != 0.0)?;
         // From the step that spans t = 0 on, so that the output grid starts at 0.
         if cell.time() - settle > 0.0 {
             let mut s = s;
             s.t = t_rel;
-            raw.push(&s, &cell.params);
+            acquisition.accept(raw_row(&s, &cell.params))?;
         }
         if t_rel - last_report >= duration / 100.0 {
             progress((t_rel / duration).clamp(0.0, 1.0));
@@ -311,7 +752,7 @@ pub fn simulate(
         }
     }
     progress(1.0);
-    acquire(&raw, &base, &faults, opts.basis, scenario, duration)
+    acquisition.finish(scenario)
 }
 
 /// Catch a state that left the physical domain.
@@ -333,251 +774,6 @@ fn check(s: &Sample, engine_active: bool) -> Result<(), SimError> {
         return bad("speeds or machine torque not finite".into());
     }
     Ok(())
-}
-
-/// Resample the truth to the output basis and measure it with the sensors.
-fn acquire(
-    raw: &Raw,
-    base: &CellParams,
-    faults: &[Fault],
-    basis: OutputBasis,
-    scenario: &Scenario,
-    duration: f64,
-) -> Result<Recording, SimError> {
-    let col = |name: &str| {
-        RAW.iter()
-            .position(|c| c.0 == name)
-            .map(|i| raw.cols[i].as_slice())
-            .unwrap_or(&[])
-    };
-    let t_raw = col("t");
-    let th_raw = col("theta_en");
-    if t_raw.len() < 2 {
-        return Err(SimError::Invalid(
-            "the run produced fewer than 2 samples".into(),
-        ));
-    }
-    // Output grid in the raw columns' abscissa.
-    let (abscissa, grid): (&[f64], Vec<f64>) = match basis {
-        OutputBasis::Time(rate) => {
-            if !(rate.is_finite() && rate > 0.0) {
-                return Err(SimError::Invalid(format!(
-                    "output rate {rate} Hz: expected > 0"
-                )));
-            }
-            // On the rate's grid from 0 (the first recorded step starts at or before 0).
-            let k0 = (t_raw[0] * rate).ceil().max(0.0) as usize;
-            let n = (duration * rate).floor() as usize + 1;
-            let last = t_raw[t_raw.len() - 1];
-            (
-                t_raw,
-                (k0..n)
-                    .map(|i| i as f64 / rate)
-                    .filter(|t| *t <= last)
-                    .collect(),
-            )
-        }
-        OutputBasis::Crank(step) => {
-            if !(step.is_finite() && step > 0.0) {
-                return Err(SimError::Invalid(format!(
-                    "crank step {step}°: expected > 0"
-                )));
-            }
-            if th_raw.windows(2).any(|w| w[1] <= w[0]) {
-                return Err(SimError::Invalid(
-                    "the engine stopped or turned back: a crank-angle basis needs it turning forwards".into(),
-                ));
-            }
-            let first = (th_raw[0] / (4.0 * PI)).ceil() * 4.0 * PI;
-            let last = th_raw[th_raw.len() - 1];
-            let h = step.to_radians();
-            let n = ((last - first) / h).floor().max(-1.0) as i64 + 1;
-            (
-                th_raw,
-                (0..n.max(0)).map(|k| first + k as f64 * h).collect(),
-            )
-        }
-    };
-    let resampler = Resampler::new(abscissa, &grid);
-    let at = |name: &str| resampler.apply(col(name), Between::Linear);
-    let held = |name: &str| resampler.apply(col(name), Between::Hold);
-    let t = match basis {
-        OutputBasis::Time(_) => grid.clone(),
-        OutputBasis::Crank(_) => at("t"),
-    };
-    let mut rec = Recording::new(match basis {
-        OutputBasis::Time(_) => Basis::Time,
-        OutputBasis::Crank(_) => Basis::CrankAngle,
-    });
-    let mut rng = ChaCha8Rng::seed_from_u64(base.sensors.seed as u64 ^ 0x5e5e);
-    let push = |rec: &mut Recording, name: &str, unit: &str, values: Vec<f64>| {
-        rec.push(Channel {
-            name: name.into(),
-            unit: unit.into(),
-            values,
-        })
-        .map_err(|e| SimError::Invalid(e.to_string()))
-    };
-    push(&mut rec, "t", "s", t.clone())?;
-    let theta_en = at("theta_en");
-    if let OutputBasis::Crank(_) = basis {
-        let first = grid.first().copied().unwrap_or(0.0);
-        push(
-            &mut rec,
-            "theta",
-            "rad",
-            grid.iter().map(|g| g - first).collect(),
-        )?;
-        push(
-            &mut rec,
-            "cycle",
-            "-",
-            grid.iter()
-                .map(|g| ((g - first) / (4.0 * PI) + 1e-9).floor())
-                .collect(),
-        )?;
-        push(
-            &mut rec,
-            "crank_deg",
-            "deg",
-            grid.iter()
-                .map(|g| {
-                    let d = (g - first).to_degrees().rem_euclid(720.0);
-                    if d > 720.0 - 1e-6 {
-                        0.0
-                    } else {
-                        d
-                    }
-                })
-                .collect(),
-        )?;
-    }
-    // Sensor parameters in force at each output time (faults included).
-    let params_at = |ti: f64| {
-        let mut p = base.clone();
-        Fault::apply_all(faults, base, &mut p, ti);
-        p
-    };
-    let sensor_faulted = faults.iter().any(|f| f.path.starts_with("sensors."));
-    let sensed = |rng: &mut ChaCha8Rng, x: Vec<f64>, pick: fn(&CellParams) -> SensorParams| {
-        let mut st = SensorState { lagged: None };
-        // Without a sensor fault the sensor's parameters are the same at every sample.
-        let constant = pick(base);
-        let mut out = Vec::with_capacity(x.len());
-        for (k, &xi) in x.iter().enumerate() {
-            let dt = if k > 0 { t[k] - t[k - 1] } else { 0.0 };
-            let s = if sensor_faulted {
-                pick(&params_at(t[k]))
-            } else {
-                constant
-            };
-            out.push(st.measure(&s, xi, dt, rng));
-        }
-        out
-    };
-    let theta_dy = at("theta_dy");
-    push(&mut rec, "theta_en", "rad", theta_en.clone())?;
-    push(&mut rec, "theta_dy", "rad", theta_dy.clone())?;
-    let speed = sensed(&mut rng, at("omega_en"), |p| p.sensors.speed);
-    push(&mut rec, "omega_en", "rad/s", speed)?;
-    let speed = sensed(&mut rng, at("omega_dy"), |p| p.sensors.speed);
-    push(&mut rec, "omega_dy", "rad/s", speed)?;
-    push(&mut rec, "alpha_en", "rad/s^2", at("alpha_en"))?;
-    push(&mut rec, "alpha_dy", "rad/s^2", at("alpha_dy"))?;
-    let v = sensed(&mut rng, at("torque_shaft"), |p| p.sensors.torque_shaft);
-    push(&mut rec, "torque_shaft", "N*m", v)?;
-    let v = sensed(&mut rng, at("torque_engine"), |p| p.sensors.torque_engine);
-    push(&mut rec, "torque_engine", "N*m", v)?;
-    push(&mut rec, "torque_dy", "N*m", at("torque_dy"))?;
-    let v = sensed(&mut rng, at("p_cyl"), |p| p.sensors.p_cyl);
-    push(&mut rec, "p_cyl", "Pa", v)?;
-    let v = sensed(&mut rng, at("p_int"), |p| p.sensors.p_manifold);
-    push(&mut rec, "p_int", "Pa", v)?;
-    let v = sensed(&mut rng, at("p_exh"), |p| p.sensors.p_manifold);
-    push(&mut rec, "p_exh", "Pa", v)?;
-    push(&mut rec, "p_crank", "Pa", vec![base.ambient.p; t.len()])?;
-    push(&mut rec, "p_atm", "Pa", vec![base.ambient.p; t.len()])?;
-    let v = sensed(&mut rng, held("T_oil"), |p| p.sensors.temperature);
-    push(&mut rec, "T_oil", "K", v)?;
-    let v = sensed(&mut rng, at("T_int"), |p| p.sensors.temperature);
-    push(&mut rec, "T_int", "K", v)?;
-    let v = sensed(&mut rng, at("T_exh"), |p| p.sensors.temperature);
-    push(&mut rec, "T_exh", "K", v)?;
-    push(&mut rec, "throttle", "deg", held("throttle"))?;
-    push(&mut rec, "speed_demand", "rad/s", held("speed_demand"))?;
-    for ch in ["i_a", "i_b", "i_c"] {
-        push(&mut rec, ch, "A", at(ch))?;
-    }
-    for ch in ["v_a", "v_b", "v_c"] {
-        push(&mut rec, ch, "V", at(ch))?;
-    }
-    // Encoders and the TDC marker from the true angles.
-    let q_en = TAU / base.sensors.ppr_en;
-    let q_dy = TAU / base.sensors.ppr_dy;
-    let mut lost = 0.0;
-    let mut count_en = Vec::with_capacity(t.len());
-    let mut prev_ideal: Option<f64> = None;
-    for (k, th) in theta_en.iter().enumerate() {
-        let ideal = (th / q_en).floor();
-        if let Some(pi) = prev_ideal {
-            let p_lost = if sensor_faulted {
-                params_at(t[k]).sensors.lost_pulses_en
-            } else {
-                base.sensors.lost_pulses_en
-            };
-            if p_lost > 0.0 {
-                for _ in 0..((ideal - pi).max(0.0) as usize) {
-                    if rng.random::<f64>() < p_lost {
-                        lost += 1.0;
-                    }
-                }
-            }
-        }
-        prev_ideal = Some(ideal);
-        count_en.push(ideal - lost);
-    }
-    push(&mut rec, "count_en", "-", count_en)?;
-    push(
-        &mut rec,
-        "count_dy",
-        "-",
-        theta_dy.iter().map(|th| (th / q_dy).floor()).collect(),
-    )?;
-    let mut tdc = vec![0.0; t.len()];
-    for k in 1..t.len() {
-        if (theta_en[k] / TAU).floor() > (theta_en[k - 1] / TAU).floor() {
-            tdc[k] = 1.0;
-        }
-    }
-    if let OutputBasis::Crank(_) = basis {
-        tdc[0] = 1.0;
-    }
-    push(&mut rec, "tdc", "-", tdc)?;
-    for (name, unit) in RAW.iter().filter(|c| c.0.starts_with("true_")) {
-        // The shaft's parameters are held over a step; the true torques and T_cyl are states'.
-        let values = if name.starts_with("true_shaft_") {
-            held(name)
-        } else {
-            at(name)
-        };
-        push(&mut rec, name, unit, values)?;
-    }
-    rec.meta.insert("source".into(), "physid simulate".into());
-    rec.meta.insert("scenario".into(), scenario.name.clone());
-    rec.meta.insert(
-        "faults".into(),
-        faults
-            .iter()
-            .map(|f| format!("{}={}@{}+{}", f.path, f.value, f.at, f.ramp))
-            .collect::<Vec<_>>()
-            .join(" "),
-    );
-    for (path, _, _) in CellParams::TABLE {
-        if let Some(v) = base.get(path) {
-            rec.meta.insert(format!("param.{path}"), format!("{v}"));
-        }
-    }
-    Ok(rec)
 }
 
 /// The true value of a cell parameter at times `t`, from a simulated recording's metadata (its
@@ -611,22 +807,84 @@ pub fn parameter_truth(rec: &Recording, path: &str, t: &[f64]) -> Option<Vec<f64
 
 #[cfg(test)]
 mod tests {
-    use super::{Between, Resampler};
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::scenario::named;
 
-    /// Linear between the raw points; held at the containing step's value, a point within 1 %
-    /// of a step before the next counting as on it; clamped at the ends.
+    /// Linear between the steps; held at the containing step's value, a point within 1 % of
+    /// a step before the next counting as on it.
     #[test]
-    fn resample_linear_and_held() {
-        let x = [0.0, 1.0, 2.0, 3.0];
-        let y = [10.0, 20.0, 30.0, 40.0];
-        let at = [-1.0, 0.5, 0.995, 1.0, 1.5, 2.999, 3.0, 4.0];
-        let r = Resampler::new(&x, &at);
-        let lin = r.apply(&y, Between::Linear);
-        let want = [10.0, 15.0, 19.95, 20.0, 25.0, 39.99, 40.0, 40.0];
-        for (a, b) in lin.iter().zip(want) {
-            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+    fn carried_linear_and_held() {
+        for (f, lin, held) in [
+            (0.0, 10.0, 10.0),
+            (0.5, 15.0, 10.0),
+            (0.985, 19.85, 10.0),
+            (0.995, 19.95, 20.0),
+            (1.0, 20.0, 20.0),
+        ] {
+            assert!((Linear.carry(10.0, 20.0, f) - lin).abs() < 1e-12, "{f}");
+            assert_eq!(Hold.carry(10.0, 20.0, f), held, "{f}");
         }
-        let held = r.apply(&y, Between::Hold);
-        assert_eq!(held, [10.0, 10.0, 20.0, 20.0, 20.0, 40.0, 40.0, 40.0]);
+    }
+
+    /// Steps of 130 µs from −50 µs, sampled at 10 kHz from 0 to the duration (the steps going
+    /// through several chunks): a column linear
+    /// in time comes out on the line, a column held over each step at its step's value, the
+    /// grid from 0 to the duration inclusive; on a crank basis, from the first firing TDC
+    /// (the first multiple of 4π), with the TDC marker there, and an engine turning back is
+    /// refused with the time.
+    #[test]
+    fn the_output_grid_between_the_steps() {
+        let base = CellParams::default();
+        let scenario = named("shaft-steady").unwrap();
+        let (dq, thr) = (raw_index("torque_dy"), raw_index("throttle"));
+        let row = |k: usize| {
+            let t = -50e-6 + k as f64 * 130e-6;
+            let mut r = [0.0; RAW.len()];
+            r[0] = t;
+            r[1] = 12.5 + 1000.0 * t;
+            r[dq] = 3.0 + 2.0 * t;
+            r[thr] = k as f64;
+            r
+        };
+        // Across several chunks of steps.
+        let mut acq =
+            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
+        for k in 0..3 * CHUNK {
+            acq.accept(row(k)).unwrap();
+        }
+        let rec = acq.finish(&scenario).unwrap();
+        let t = rec.values("t").unwrap();
+        assert_eq!(t.len(), 701);
+        for (i, &ti) in t.iter().enumerate() {
+            assert_eq!(ti, i as f64 / 10_000.0);
+            assert!((rec.values("torque_dy").unwrap()[i] - (3.0 + 2.0 * ti)).abs() < 1e-14);
+            // A point on a step's start (to round-off) counts as on that step.
+            let step = ((ti + 50e-6) / 130e-6 + 1e-9).floor();
+            assert_eq!(rec.values("throttle").unwrap()[i], step, "{ti}");
+        }
+        assert!(rec.values("theta").is_err());
+
+        let mut acq = Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0).unwrap();
+        for k in 0..8 {
+            acq.accept(row(k)).unwrap();
+        }
+        let rec = acq.finish(&scenario).unwrap();
+        let th = rec.values("theta_en").unwrap();
+        let first = 4.0 * PI;
+        assert!((th[0] - first).abs() < 1e-12 && (th[1] - first - 1f64.to_radians()).abs() < 1e-12);
+        assert_eq!(rec.values("tdc").unwrap()[0], 1.0);
+        let deg = rec.values("crank_deg").unwrap();
+        assert!(deg[0] == 0.0 && (deg[1] - 1.0).abs() < 1e-12);
+        let mut acq = Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0).unwrap();
+        acq.accept(row(1)).unwrap();
+        let e = acq.accept(row(0)).unwrap_err().to_string();
+        assert!(e.contains("turned back at t = -0.000050 s"), "{e}");
+        // Too few steps, and a bad grid, are errors.
+        let acq = Acquisition::new(&base, &[], OutputBasis::Time(10.0), 1.0, 100.0).unwrap();
+        assert!(acq.finish(&scenario).is_err());
+        for basis in [OutputBasis::Time(0.0), OutputBasis::Crank(f64::NAN)] {
+            assert!(Acquisition::new(&base, &[], basis, 1.0, 100.0).is_err());
+        }
     }
 }
