@@ -418,6 +418,83 @@ pub fn fmep_with_viscosity<T: Scalar>(
     }
 }
 
+/// The mechanical fmep (no pumping) of one design, settings and oil viscosity `s_μ` as a
+/// function of speed and manifold pressure ratio alone [kPa]: the terms of
+/// [`fmep_with_viscosity`] gathered by how they vary with N, with `S̄p = s_p·N` and the ring
+/// term's `κ^(1.33 − 2K·S̄p) = e^(r0 − r1·N)`,
+///
+/// ```text
+/// mfmep = a + b·N + c·N² + d/N + e·√N + (p_int/p_atm)·(f + g·e^(r0 − r1·N))
+/// ```
+///
+/// (the `1 + 500/N` of ring tension, flat followers and oscillating mixed lubrication split
+/// into `a` and `d`). One division, one root and one exponential per evaluation: the form the
+/// test cell evaluates at every step. The constants are [`nominal_coefficients`]'; equal to
+/// the physical form to round-off (tested).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpeedForm {
+    a: f64,
+    b: f64,
+    c: f64,
+    d: f64,
+    e: f64,
+    f: f64,
+    g: f64,
+    r0: f64,
+    r1: f64,
+}
+
+impl SpeedForm {
+    /// The form of design `d` with settings `st` at oil viscosity scaling `smu` ([`s_mu`]).
+    pub fn new(d: &Design<f64>, st: &Settings, smu: f64) -> Self {
+        let c = nominal_coefficients(st);
+        let (b, s, nc, nv, nb) = (d.b, d.s, st.nc, st.nv, st.nb);
+        let hydro = hydrodynamic_factor(st, smu);
+        let per_bbsnc = (b * b * s * nc).recip();
+        let per_snc = (s * nc).recip();
+        let db3lb = d.db.powi(3) * d.lb;
+        // Mean piston speed per rpm [m/s], S in mm.
+        let sp = s * (2.0 / 1000.0 / 60.0);
+        // The terms in 1 + 500/N: ring tension (c5), flat followers (c10), oscillating mixed
+        // (c13).
+        let speed_factor_terms =
+            c[4] * st.ft_fto * st.cr / (b * b) + c[9] * nv * per_snc + c[12] * d.lv * nv * per_snc;
+        let ln_kappa = d.kappa.ln();
+        Self {
+            // Crankshaft seals (c1), the 4.12 kPa constant (c8), auxiliaries (c14).
+            a: c[0] * d.db * per_bbsnc + speed_factor_terms + c[7] + c[13],
+            // Bearings (c2), piston skirt (c4), con-rod bearings (c6), camshaft bearings (c9),
+            // roller followers (c11), auxiliaries (c15).
+            b: c[1] * db3lb * smu * nb * per_bbsnc
+                + c[3] * sp * smu / b
+                + c[5] * db3lb * hydro * nb * per_bbsnc
+                + c[8] * hydro * nb * per_bbsnc
+                + c[10] * nv * per_snc
+                + c[14],
+            // Bearing seals (c3), auxiliaries (c16).
+            c: c[2] * d.db * d.db * nb / nc + c[15],
+            d: 500.0 * speed_factor_terms,
+            // Oscillating hydrodynamic (c12).
+            e: c[11] * d.lv * d.lv.sqrt() * hydro * nv * per_snc / b,
+            // Gas-pressure loading of the rings (c7).
+            f: c[6] * d.kappa * 0.088 * smu,
+            g: c[6] * 0.182 * st.ft_fto,
+            r0: 1.33 * ln_kappa,
+            r1: 2.0 * K_RING * sp * ln_kappa,
+        }
+    }
+
+    /// Mechanical fmep [kPa] at speed `n_rpm` [rpm] and `pr = p_int/p_atm`.
+    pub fn mechanical(&self, n_rpm: f64, pr: f64) -> f64 {
+        let n = n_rpm;
+        self.a
+            + n * (self.b + n * self.c)
+            + self.d / n
+            + self.e * n.sqrt()
+            + pr * (self.f + self.g * (self.r0 - self.r1 * n).exp())
+    }
+}
+
 /// fmep [kPa] of the regression form: `Σ c_i·φ_i` (Eq. 7.4–7.9).
 pub fn fmep_regression(c: &[f64; 20], phi: &[f64; 20]) -> f64 {
     c.iter().zip(phi).map(|(c, p)| c * p).sum()

@@ -5,8 +5,8 @@
 
 use physid_models::friction::{
     fmep, fmep_regression, nominal_coefficients, preset, regressors, s_mu, sandoval2002_preset,
-    tau_nm, thesis_preset, viscosity, Design, OperatingPoint, Settings, Variant, OIL_GRADES,
-    PRESETS, T_REF_C,
+    tau_nm, thesis_preset, viscosity, Design, OperatingPoint, Settings, SpeedForm, Variant,
+    OIL_GRADES, PRESETS, T_REF_C,
 };
 
 fn grid() -> Vec<OperatingPoint> {
@@ -59,6 +59,38 @@ fn regression_equals_physical(d: &Design<f64>, st: &Settings) {
                 i + 1,
                 term
             );
+        }
+    }
+}
+
+/// The speed form (the terms gathered by their dependence on N, the test cell's) equals the
+/// physical form's mechanical fmep to 1e-13 over the grid and at speeds between, for every
+/// preset (both variants) and with the design moved off the preset.
+#[test]
+fn speed_form_equals_physical_form() {
+    for name in PRESETS {
+        let (d, st) = preset(name).unwrap();
+        let moved = Design {
+            b: d.b * 1.07,
+            s: d.s * 0.93,
+            kappa: d.kappa + 1.5,
+            lv: d.lv * 1.2,
+            db: d.db * 0.9,
+            ..d
+        };
+        for d in [d, moved] {
+            for op in grid() {
+                let form = SpeedForm::new(&d, &st, s_mu(&st, op.t_oil_c));
+                for n_rpm in [op.n_rpm, op.n_rpm * 0.613, 50.0] {
+                    let op = OperatingPoint { n_rpm, ..op };
+                    let want = fmep(&d, &st, &op).mechanical();
+                    let got = form.mechanical(n_rpm, op.p_int_kpa / op.p_atm_kpa);
+                    assert!(
+                        (got - want).abs() <= 1e-13 * want.abs(),
+                        "{name} {op:?}: {got} vs {want}"
+                    );
+                }
+            }
         }
     }
 }

@@ -20,7 +20,7 @@
 use crate::numeric::{expm1_small, floor, powi};
 use crate::params::{AmbientParams, EngineParams};
 use physid_models::air;
-use physid_models::friction::{self, Design, OperatingPoint, Settings};
+use physid_models::friction::{self, Design, Settings, SpeedForm};
 use physid_models::kinematics::Crank;
 use std::f64::consts::PI;
 
@@ -421,8 +421,9 @@ pub struct Engine {
     ev_cam: Cam,
     /// Ψ's slope in the linear band at γ = 1.4, `Ψ(1 − band)/band` (the stiffness estimate's).
     band_slope: f64,
-    /// The friction model's viscosity scaling s_μ and the oil temperature [K] it is for.
-    oil_viscosity: (f64, f64),
+    /// The friction model's speed form at the oil temperature [K] it is for (s_μ depends on
+    /// the oil temperature alone).
+    friction_form: (f64, SpeedForm),
     /// Constants of the geometry: the piston pin's height at TDC (the crank's), the clearance
     /// volume's height `V_c/A_p` [m], the manifolds' inverse volumes [1/m³].
     tdc_height: f64,
@@ -470,7 +471,14 @@ impl Engine {
             iv_cam: Cam::new(p.ivo, p.ivc, p.lift_max, p.lift_exponent as u32),
             ev_cam: Cam::new(p.evo, p.evc, p.lift_max, p.lift_exponent as u32),
             band_slope: psi(1.0 - LINEAR_BAND, 1.4) / LINEAR_BAND,
-            oil_viscosity: (p.t_oil, friction::s_mu(&settings, p.t_oil - 273.15)),
+            friction_form: (
+                p.t_oil,
+                SpeedForm::new(
+                    &design,
+                    &settings,
+                    friction::s_mu(&settings, p.t_oil - 273.15),
+                ),
+            ),
             tdc_height: crank.tdc_height(),
             clearance_height: crank.clearance_volume() / crank.piston_area(),
             inv_v_int: 1.0 / p.v_int,
@@ -481,8 +489,8 @@ impl Engine {
     /// Set the oil temperature [K] (a live parameter: a fault or a warm-up changes it).
     pub fn set_oil_temperature(&mut self, t_oil: f64) {
         self.p.t_oil = t_oil;
-        if self.oil_viscosity.0 != t_oil {
-            self.oil_viscosity = (t_oil, friction::s_mu(&self.settings, t_oil - 273.15));
+        if self.friction_form.0 != t_oil {
+            self.friction_form = (t_oil, self.friction_form_at(t_oil));
         }
     }
 
@@ -524,26 +532,26 @@ impl Engine {
         ]
     }
 
+    /// The friction model's speed form at oil temperature `t_oil` [K].
+    fn friction_form_at(&self, t_oil: f64) -> SpeedForm {
+        let smu = friction::s_mu(&self.settings, t_oil - 273.15);
+        SpeedForm::new(&self.design, &self.settings, smu)
+    }
+
     /// Friction torque magnitude [N·m] at speed ω [rad/s] and manifold pressure [Pa]: the
-    /// mean-value model's mechanical fmep (no pumping — the gas exchange is simulated),
-    /// scaled by `friction_scale`; speeds below 50 rpm use 50 rpm's value (the correlations
-    /// have `1 + 500/N` terms).
+    /// mean-value model's mechanical fmep (no pumping — the gas exchange is simulated), in its
+    /// speed form, scaled by `friction_scale`; speeds below 50 rpm use 50 rpm's value (the
+    /// correlations have `1 + 500/N` terms).
     pub fn friction_torque(&self, omega: f64, p_int: f64) -> f64 {
-        let op = OperatingPoint {
-            n_rpm: (omega.abs() * 30.0 / PI).max(50.0),
-            p_int_kpa: p_int / 1e3,
-            p_atm_kpa: self.amb.p / 1e3,
-            t_oil_c: self.p.t_oil - 273.15,
-        };
-        // s_μ depends on the oil temperature alone: the one computed for the oil temperature
-        // in force, unless the field was changed behind it.
-        let (t_oil, smu) = self.oil_viscosity;
-        let smu = if t_oil == self.p.t_oil {
-            smu
+        let n_rpm = (omega.abs() * (30.0 / PI)).max(50.0);
+        // The form for the oil temperature in force, unless the field was changed behind it.
+        let (t_oil, form) = self.friction_form;
+        let f = if t_oil == self.p.t_oil {
+            form.mechanical(n_rpm, p_int / self.amb.p)
         } else {
-            friction::s_mu(&self.settings, op.t_oil_c)
+            self.friction_form_at(self.p.t_oil)
+                .mechanical(n_rpm, p_int / self.amb.p)
         };
-        let f = friction::fmep_with_viscosity(&self.design, &self.settings, &op, smu).mechanical();
         self.p.friction_scale * friction::tau_nm(f, &self.design)
     }
 
@@ -897,6 +905,7 @@ pub fn largest_eigenvalue_tridiag3(a: [f64; 3], b: [f64; 2], enough: f64) -> f64
 #[cfg(test)]
 mod tests {
     use super::*;
+    use physid_models::friction::OperatingPoint;
 
     #[test]
     fn band_edge_equals_the_subsonic_form() {
@@ -947,8 +956,9 @@ mod tests {
 
     #[test]
     fn friction_follows_the_oil_temperature() {
-        // Against the mean-value model evaluated directly at each oil temperature: through
-        // set_oil_temperature, and with the field changed behind the cached s_μ.
+        // Against the mean-value model's physical form evaluated directly at each oil
+        // temperature: through set_oil_temperature, and with the field changed behind the
+        // cached speed form.
         let p = crate::params::CellParams::default();
         let mut e = Engine::new(&p.engine, &p.ambient);
         let (omega, p_int) = (100.0, 8e4);
