@@ -331,24 +331,43 @@ impl SensorState {
     }
 
     /// `y = gain·lag(x) + offset + noise`, quantised; `dt` [s] since the last sample.
-    fn measure(&mut self, s: &SensorParams, x: f64, dt: f64) -> f64 {
+    fn measure(&mut self, s: &Prepared, x: f64, dt: f64) -> f64 {
         // The exact discretisation of τ·l' = x − l with x held over dt:
         // l ← l + (x − l)·(1 − e^(−dt/τ)).
-        let l = match (self.lagged, s.lag > 0.0) {
-            (Some(prev), true) => prev - (x - prev) * expm1(-dt / s.lag),
+        let l = match (self.lagged, s.inv_lag > 0.0) {
+            (Some(prev), true) => prev - (x - prev) * expm1(-dt * s.inv_lag),
             _ => x,
         };
         self.lagged = Some(l);
-        let noise: f64 = if s.noise > 0.0 {
-            s.noise * self.rng.sample::<f64, _>(StandardNormal)
+        let noise: f64 = if s.p.noise > 0.0 {
+            s.p.noise * self.rng.sample::<f64, _>(StandardNormal)
         } else {
             0.0
         };
-        let y = s.gain * l + s.offset + noise;
-        if s.quantum > 0.0 {
-            round(y / s.quantum) * s.quantum
+        let y = s.p.gain * l + s.p.offset + noise;
+        if s.p.quantum > 0.0 {
+            round(y * s.inv_quantum) * s.p.quantum
         } else {
             y
+        }
+    }
+}
+
+/// A sensor's parameters with the reciprocals of its lag and quantum (0 where it has none).
+#[derive(Debug, Clone, Copy)]
+struct Prepared {
+    p: SensorParams,
+    inv_lag: f64,
+    inv_quantum: f64,
+}
+
+impl From<SensorParams> for Prepared {
+    fn from(p: SensorParams) -> Self {
+        let inv = |x: f64| if x > 0.0 { 1.0 / x } else { 0.0 };
+        Self {
+            p,
+            inv_lag: inv(p.lag),
+            inv_quantum: inv(p.quantum),
         }
     }
 }
@@ -569,10 +588,10 @@ impl<'a> Acquisition<'a> {
             match (out.source, &mut out.sensor) {
                 (Source::Raw(how, _), None) => v.extend(carried(out.col, how)),
                 (Source::Raw(how, _), Some((kind, state))) => {
-                    let constant = kind.params(self.base);
+                    let constant = Prepared::from(kind.params(self.base));
                     for (k, x) in carried(out.col, how).enumerate() {
                         let s = if self.sensor_faulted {
-                            kind.params(params(k))
+                            Prepared::from(kind.params(params(k)))
                         } else {
                             constant
                         };
@@ -732,7 +751,7 @@ pub fn simulate(
             throttle_deg: scenario.throttle.value(t_rel.max(0.0)),
         };
         let w_true = cell.state()[9];
-        let ss = cell.params.dyno.speed_sensor;
+        let ss = Prepared::from(cell.params.dyno.speed_sensor);
         let w_meas = speed_sensor.measure(&ss, w_true, 0.0);
         let s = cell.step_with(&inputs, w_meas);
         check(&s, base.engine.active != 0.0)?;
