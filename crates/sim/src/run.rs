@@ -22,6 +22,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use std::f64::consts::{PI, TAU};
 use thiserror::Error;
+use Between::{Hold, Linear};
 
 /// Errors of a run.
 #[derive(Debug, Error, PartialEq)]
@@ -229,8 +230,6 @@ enum Source {
     CountDy,
     Tdc,
 }
-
-use Between::{Hold, Linear};
 
 /// The recording's channels, in order, with their units (DESIGN.md); the crank-basis ones
 /// only there.
