@@ -253,3 +253,59 @@ fn speed_sensor_fault_moves_the_drive_not_the_shaft() {
     let k = rec.values("true_shaft_k").unwrap();
     assert!(k.iter().all(|&v| v == 1250.0));
 }
+
+/// Sensor faults act on the recording alone, from their time on: an offset on the shaft
+/// torque transducer adds exactly its value to the reading and nothing to anything else (each
+/// sensor draws its own noise, so the two runs' noise is the same sample for sample); lost
+/// encoder pulses make the engine's count fall behind `floor(θ/q)` from the fault on, by about
+/// the probability times the pulses since.
+#[test]
+fn sensor_faults_change_the_readings_from_their_time() {
+    let mut s = named("shaft-steady").unwrap();
+    s.settle = 0.2;
+    let opts = RunOptions {
+        duration: Some(1.0),
+        ..Default::default()
+    };
+    let clean = simulate(&s, &opts, |_| {}).unwrap();
+    s.faults.push("sensors.torque_shaft.offset=5@0.5".into());
+    s.faults.push("sensors.lost_pulses_en=0.01@0.5".into());
+    // A different noise level on another sensor leaves the shaft torque's noise as it was.
+    let mut quieter = opts.clone();
+    quieter.params.set("sensors.p_cyl.noise", 0.0).unwrap();
+    let faulty = simulate(&s, &quieter, |_| {}).unwrap();
+    let t = clean.values("t").unwrap();
+    let (a, b) = (
+        clean.values("torque_shaft").unwrap(),
+        faulty.values("torque_shaft").unwrap(),
+    );
+    for i in 0..t.len() {
+        let want = if t[i] >= 0.5 { 5.0 } else { 0.0 };
+        assert!((b[i] - a[i] - want).abs() < 1e-9, "sample {i} at {}", t[i]);
+    }
+    assert_eq!(clean.values("omega_en"), faulty.values("omega_en"));
+    // The lost pulses.
+    let (th, count) = (
+        faulty.values("theta_en").unwrap(),
+        faulty.values("count_en").unwrap(),
+    );
+    let q = 2.0 * PI / 360.0;
+    let mut pulses_since = 0.0;
+    for i in 0..t.len() {
+        let lost = (th[i] / q).floor() - count[i];
+        if t[i] < 0.5 {
+            assert_eq!(lost, 0.0, "sample {i}");
+        } else if pulses_since == 0.0 {
+            pulses_since = (th[i] / q).floor();
+        }
+    }
+    let n = t.len() - 1;
+    let since = (th[n] / q).floor() - pulses_since;
+    let lost = (th[n] / q).floor() - count[n];
+    // Binomial(since, 0.01): within 5 standard deviations.
+    let (mean, sd) = (0.01 * since, (0.01 * 0.99 * since).sqrt());
+    assert!(
+        since > 2000.0 && (lost - mean).abs() < 5.0 * sd,
+        "{lost} of {since}"
+    );
+}
