@@ -110,6 +110,11 @@ const RAW: [&str; 30] = [
     "true_shaft_b",
 ];
 
+/// The columns the acquisition reads itself: time and the two angles.
+const T: usize = 0;
+const THETA_EN: usize = 1;
+const THETA_DY: usize = 2;
+
 /// One row of truth, [`RAW`]'s columns.
 type Row = [f64; RAW.len()];
 
@@ -451,12 +456,13 @@ impl<'a> Acquisition<'a> {
         // Each sensor its own random stream (one sensor's settings never change another's
         // noise); stream 0 is the encoder's.
         let seed = base.sensors.seed as u64 ^ 0x5e5e;
+        // The stream is the channel's place in OUTPUT, the same on either basis.
         let outputs = OUTPUT
             .iter()
-            .filter(|(_, _, src)| {
+            .enumerate()
+            .filter(|(_, (_, _, src))| {
                 crank || !matches!(src, Source::Theta | Source::Cycle | Source::CrankDeg)
             })
-            .enumerate()
             .map(|(stream, &(name, unit, source))| {
                 let (col, sensor) = match source {
                     Source::Raw(_, sensor) => (raw_index(name), sensor),
@@ -495,8 +501,6 @@ impl<'a> Acquisition<'a> {
     /// The next solver step's truth: the grid points up to it are placed, and taken when the
     /// chunk is full.
     fn accept(&mut self, row: Row) -> Result<(), SimError> {
-        const T: usize = 0;
-        const TH: usize = 1;
         self.seen += 1;
         let Some(prev) = self.rows.last().copied() else {
             // The grid starts at or after the first row: t = 0, or the first firing TDC.
@@ -505,14 +509,16 @@ impl<'a> Acquisition<'a> {
                     self.k = (row[T] * rate).ceil().max(0.0) as u64;
                     self.end = (self.duration * rate).floor() as u64 + 1;
                 }
-                OutputBasis::Crank(_) => self.first = (row[TH] / (4.0 * PI)).ceil() * 4.0 * PI,
+                OutputBasis::Crank(_) => {
+                    self.first = (row[THETA_EN] / (4.0 * PI)).ceil() * 4.0 * PI
+                }
             }
             self.rows.push(row);
             return Ok(());
         };
         let (x0, x1) = match self.basis {
             OutputBasis::Time(_) => (prev[T], row[T]),
-            OutputBasis::Crank(_) => (prev[TH], row[TH]),
+            OutputBasis::Crank(_) => (prev[THETA_EN], row[THETA_EN]),
         };
         if matches!(self.basis, OutputBasis::Crank(_)) && x1 <= x0 {
             return Err(SimError::Invalid(format!(
@@ -556,9 +562,9 @@ impl<'a> Acquisition<'a> {
         };
         let t: Vec<f64> = match self.basis {
             OutputBasis::Time(_) => points.iter().map(|p| p.2).collect(),
-            OutputBasis::Crank(_) => carried(0, Linear).collect(),
+            OutputBasis::Crank(_) => carried(T, Linear).collect(),
         };
-        let theta_en: Vec<f64> = carried(1, Linear).collect();
+        let theta_en: Vec<f64> = carried(THETA_EN, Linear).collect();
         let dt: Vec<f64> = t
             .iter()
             .scan(self.last.map(|l| l.0), |before, &ti| {
@@ -629,7 +635,7 @@ impl<'a> Acquisition<'a> {
                     }
                 }
                 (Source::CountDy, _) => v.extend(
-                    carried(2, Linear)
+                    carried(THETA_DY, Linear)
                         .enumerate()
                         .map(|(k, th)| floor(th / (TAU / params(k).sensors.ppr_dy))),
                 ),
@@ -828,6 +834,26 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
     use crate::scenario::named;
+
+    /// Every raw column is recorded under its own name (the time through `Source::Time`,
+    /// which reads it on a crank basis), and every channel taken from a raw column names one.
+    #[test]
+    fn every_raw_column_is_a_channel() {
+        let raw: Vec<&str> = OUTPUT
+            .iter()
+            .filter(|c| matches!(c.2, Source::Raw(..) | Source::Time))
+            .map(|c| c.0)
+            .collect();
+        let mut sorted = raw.clone();
+        sorted.sort_unstable();
+        let mut want = RAW.to_vec();
+        want.sort_unstable();
+        assert_eq!(sorted, want);
+        assert_eq!(
+            [RAW[T], RAW[THETA_EN], RAW[THETA_DY]],
+            ["t", "theta_en", "theta_dy"]
+        );
+    }
 
     /// Linear between the steps; held at the containing step's value, a point within 1 % of
     /// a step before the next counting as on it.
