@@ -290,12 +290,16 @@ pub fn run(args: &Args) -> Result<()> {
             "steps_per_s": steps_per_s, "substeps_per_step": substeps, "solver_order": order}));
     }
     // The whole run — the cell, its sensors and the acquisition, one sample per crank degree,
-    // no file — of the T1 scenario (1000 rpm, full throttle): 0.5 s recorded after its 1 s of
-    // settling. `rate` counts simulated milliseconds.
-    let scenario = physid_sim::scenario::named("torque-steady")
-        .ok_or_else(|| miette::miette!("no scenario torque-steady"))?;
-    let recorded = 0.5;
-    let simulated_ms = (1000.0 * (scenario.settle + recorded)).round() as usize;
+    // no file — of the T1 scenario (1000 rpm, full throttle), recorded from its start (no
+    // settling, so that every step is acquired) for 0.5 s. `rate` counts simulated
+    // milliseconds.
+    let scenario = physid_sim::scenario::Scenario {
+        settle: 0.0,
+        ..physid_sim::scenario::named("torque-steady")
+            .ok_or_else(|| miette::miette!("no scenario torque-steady"))?
+    };
+    let recorded: f64 = 0.5;
+    let simulated_ms = (1000.0 * recorded).round() as usize;
     for (name, order) in [("testcell_run", 4.0), ("testcell_run_order2", 2.0)] {
         let opts = physid_sim::run::RunOptions {
             params: physid_sim::params::CellParams {
