@@ -17,7 +17,7 @@
 //! No combustion (every thesis experiment is motored); [`Combustion`] is the seam where a heat
 //! release model would plug in.
 
-use crate::numeric::{expm1_small, floor, powi};
+use crate::numeric::{expm1_small, powi, wrap720};
 use crate::params::{AmbientParams, EngineParams};
 use physid_models::air;
 use physid_models::friction::{self, Design, Settings, SpeedForm};
@@ -286,20 +286,6 @@ pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64)
         max
     };
     area.clamp(0.0, max) + leak
-}
-
-/// `x mod 720` in [0, 720) by a floor of the quotient (a library `fmod` costs several times
-/// more).
-fn wrap720(x: f64) -> f64 {
-    let r = x - 720.0 * floor(x * (1.0 / 720.0));
-    // The quotient's rounding can put r a hair outside [0, 720).
-    if r >= 720.0 {
-        r - 720.0
-    } else if r < 0.0 {
-        r + 720.0
-    } else {
-        r
-    }
 }
 
 /// A valve's lift profile: `l_max·sinⁿ(π·x)`, x the fraction of the open duration (SPEC §2.3
@@ -989,32 +975,6 @@ mod tests {
             -1e3, -22.0, -21.9, -3.0, -1e-3, 0.0, 0.5, 19.0, 22.0, 22.1, 1e6,
         ] {
             assert_eq!(smooth_sign(x), x.tanh(), "{x}");
-        }
-    }
-
-    #[test]
-    fn wrap720_is_the_euclidean_remainder() {
-        for x in [
-            0.0,
-            1e-12,
-            359.5,
-            719.999999,
-            720.0,
-            720.5,
-            1440.0,
-            123_456.789,
-            -1e-9,
-            -0.5,
-            -720.0,
-            -1000.25,
-            720.0 - 1e-13,
-            1440.0 * (1.0 + f64::EPSILON),
-            -720.0 * (1.0 + f64::EPSILON),
-        ] {
-            let r = wrap720(x);
-            assert!((0.0..720.0).contains(&r), "{x} → {r}");
-            let d = (r - x.rem_euclid(720.0)).abs();
-            assert!(d < 1e-9 || (720.0 - d).abs() < 1e-9, "{x}: {r}");
         }
     }
 

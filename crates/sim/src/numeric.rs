@@ -67,6 +67,24 @@ pub fn floor(x: f64) -> f64 {
     }
 }
 
+/// `x mod 720` in [0, 720) by a floor of the quotient (a library `fmod` costs several times
+/// more). For `0 ≤ x < 2⁵²` it is the exact remainder, `x.rem_euclid(720.0)` bit for bit: the
+/// quotient's rounding may make the floor one off, but `x − 720·m` is then a multiple of x's
+/// ulp no larger than x, so exact, and the correction by ±720 lands on the exact remainder,
+/// which is representable. Below zero it stays in [0, 720) where `rem_euclid` can round up to
+/// 720 itself.
+pub fn wrap720(x: f64) -> f64 {
+    let r = x - 720.0 * floor(x * (1.0 / 720.0));
+    // The quotient's rounding can put r a hair outside [0, 720).
+    if r >= 720.0 {
+        r - 720.0
+    } else if r < 0.0 {
+        r + 720.0
+    } else {
+        r
+    }
+}
+
 /// `x` rounded to the nearest integer, halves away from zero: the library's `round` (a call
 /// on baseline x86-64) by the 2⁵² shift, which rounds to nearest even, with the halves it
 /// sends toward zero sent away. Exact: for `|x| < 2⁵²` the sum `|x| + 2⁵²` rounds only its
@@ -103,6 +121,40 @@ pub fn powi(mut a: f64, mut n: u32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wrap720_is_the_euclidean_remainder() {
+        for x in [-1e-9, -0.5, -720.0, -1000.25, -720.0 * (1.0 + f64::EPSILON)] {
+            let r = wrap720(x);
+            assert!((0.0..720.0).contains(&r), "{x} → {r}");
+            let d = (r - x.rem_euclid(720.0)).abs();
+            assert!(d < 1e-9 || (720.0 - d).abs() < 1e-9, "{x}: {r}");
+        }
+        // Not negative: the exact remainder, bit for bit — at and around every multiple of 720
+        // up to 2⁴⁰ and at angles in degrees of a long run.
+        let mut xs = vec![0.0, 1e-12, 359.5, 719.999999, 720.0 - 1e-13, 123_456.789];
+        for k in (0..40)
+            .map(|e| 2f64.powi(e))
+            .chain((0..2000).map(f64::from))
+        {
+            let m = 720.0 * k;
+            xs.extend([
+                m,
+                m.next_up(),
+                m.next_down(),
+                m + 0.5,
+                m * (1.0 + f64::EPSILON),
+            ]);
+        }
+        let mut a = 0.37_f64;
+        for _ in 0..100_000 {
+            a = (a * 1.618_033_988_749_895 + 0.1).fract();
+            xs.push(a * 3.6e6);
+        }
+        for x in xs.into_iter().filter(|&x| x >= 0.0) {
+            assert_eq!(wrap720(x).to_bits(), x.rem_euclid(720.0).to_bits(), "{x}");
+        }
+    }
 
     #[test]
     fn small_argument_series_equal_the_library() {

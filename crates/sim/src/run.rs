@@ -13,7 +13,7 @@
 
 use crate::cell::{Inputs, Sample, TestCell};
 use crate::control::{inverse_park, Demand};
-use crate::numeric::{expm1, floor, round};
+use crate::numeric::{expm1, floor, round, wrap720};
 use crate::params::{CellParams, SensorParams};
 use crate::scenario::{Fault, Scenario};
 use physid_core::{Basis, Channel, Recording};
@@ -334,26 +334,45 @@ impl SensorState {
         Self { lagged: None, rng }
     }
 
-    /// `y = gain·lag(x) + offset + noise`, quantised; `dt` [s] since the last sample.
-    fn measure(&mut self, s: &Prepared, x: f64, dt: f64) -> f64 {
-        // The exact discretisation of τ·l' = x − l with x held over dt:
-        // l ← l + (x − l)·(1 − e^(−dt/τ)).
-        let l = match (self.lagged, s.inv_lag > 0.0) {
-            (Some(prev), true) => prev - (x - prev) * expm1(-dt * s.inv_lag),
-            _ => x,
-        };
-        self.lagged = Some(l);
-        let noise: f64 = if s.p.noise > 0.0 {
-            s.p.noise * self.rng.sample::<f64, _>(StandardNormal)
-        } else {
-            0.0
-        };
-        let y = s.p.gain * l + s.p.offset + noise;
-        if s.p.quantum > 0.0 {
-            round(y * s.inv_quantum) * s.p.quantum
-        } else {
-            y
+    /// Measure consecutive samples `x` in place, all with the sensor's parameters `s`:
+    /// `y = gain·lag(x) + offset + noise`, quantised. `decay[k]` is the lag's
+    /// [`Prepared::decay`] over the time since the sample before `x[k]`. Each step of the
+    /// measurement is one pass over the samples (no choice made per sample).
+    fn measure(&mut self, s: &Prepared, x: &mut [f64], decay: &[f64]) {
+        if s.inv_lag > 0.0 {
+            // The exact discretisation of τ·l' = x − l with x held over dt:
+            // l ← l + (x − l)·(1 − e^(−dt/τ)).
+            for (xi, &a) in x.iter_mut().zip(decay) {
+                if let Some(prev) = self.lagged {
+                    *xi = prev + (*xi - prev) * a;
+                }
+                self.lagged = Some(*xi);
+            }
+        } else if let Some(&last) = x.last() {
+            self.lagged = Some(last);
         }
+        if (s.p.gain, s.p.offset) != (1.0, 0.0) {
+            for xi in x.iter_mut() {
+                *xi = s.p.gain * *xi + s.p.offset;
+            }
+        }
+        if s.p.noise > 0.0 {
+            for xi in x.iter_mut() {
+                *xi += s.p.noise * self.rng.sample::<f64, _>(StandardNormal);
+            }
+        }
+        if s.p.quantum > 0.0 {
+            for xi in x.iter_mut() {
+                *xi = round(*xi * s.inv_quantum) * s.p.quantum;
+            }
+        }
+    }
+
+    /// One sample `x`, `dt` [s] after the one before.
+    fn measure_one(&mut self, s: &Prepared, x: f64, dt: f64) -> f64 {
+        let mut y = [x];
+        self.measure(s, &mut y, &[s.decay(dt)]);
+        y[0]
     }
 }
 
@@ -376,6 +395,17 @@ impl From<SensorParams> for Prepared {
     }
 }
 
+impl Prepared {
+    /// The lag's `1 − e^(−dt/τ)` over `dt` [s] (by `expm1`: no cancellation); 0 without a lag.
+    fn decay(&self, dt: f64) -> f64 {
+        if self.inv_lag > 0.0 {
+            -expm1(-dt * self.inv_lag)
+        } else {
+            0.0
+        }
+    }
+}
+
 /// An output channel being filled.
 struct Output {
     name: &'static str,
@@ -388,12 +418,53 @@ struct Output {
     values: Vec<f64>,
 }
 
-/// Steps buffered before their samples are taken (≈ 60 kB of rows: the chunk stays in cache
+/// Steps buffered before their samples are taken (≈ 60 kB of truth: the chunk stays in cache
 /// while each channel is taken from it in turn).
 const CHUNK: usize = 256;
 
+/// A column's length in the chunk: [`CHUNK`] padded by a cache line, so that the columns are
+/// not a power of two apart (a step's 30 values would otherwise fall in the same few sets of
+/// the cache and evict each other).
+const COLUMN: usize = CHUNK + 8;
+
+/// A chunk's output grid points: for each, the step `j` it follows, its fraction `f` of the
+/// way to step `j + 1`, its abscissa `g` (time or engine angle).
+#[derive(Default)]
+struct Points {
+    j: Vec<usize>,
+    f: Vec<f64>,
+    g: Vec<f64>,
+}
+
+impl Points {
+    fn push(&mut self, j: usize, f: f64, g: f64) {
+        self.j.push(j);
+        self.f.push(f);
+        self.g.push(g);
+    }
+
+    fn clear(&mut self) {
+        self.j.clear();
+        self.f.clear();
+        self.g.clear();
+    }
+
+    /// Raw column `col` (its values at the chunk's steps) carried to the points, appended to
+    /// `out`.
+    fn carry_into(&self, col: &[f64; COLUMN], how: Between, out: &mut Vec<f64>) {
+        // A point follows one of the chunk's steps but its last: `j ≤ COLUMN − 2` said to the
+        // compiler (no bounds checks in the loop).
+        let each = self.j.iter().map(|&j| j.min(COLUMN - 2)).zip(&self.f);
+        // One loop for each way of carrying, so that the choice is not made per point.
+        match how {
+            Linear => out.extend(each.map(|(j, &f)| Linear.carry(col[j], col[j + 1], f))),
+            Hold => out.extend(each.map(|(j, &f)| Hold.carry(col[j], col[j + 1], f))),
+        }
+    }
+}
+
 /// The acquisition (SPEC §2.7) as the cell steps: each output grid point between two
-/// consecutive steps is carried from their rows ([`Between`]) and measured by its sensor. The
+/// consecutive steps is carried from their truth ([`Between`]) and measured by its sensor. The
 /// steps are taken in chunks of [`CHUNK`], channel by channel; nothing of the truth is kept
 /// beyond the chunk.
 struct Acquisition<'a> {
@@ -405,10 +476,12 @@ struct Acquisition<'a> {
     basis: OutputBasis,
     duration: f64,
     outputs: Vec<Output>,
-    /// The chunk's rows (the first is the previous chunk's last), and its grid points: the
-    /// row `j` each follows, its fraction `f` of the way to row `j + 1`, its abscissa `g`.
-    rows: Vec<Row>,
-    points: Vec<(usize, f64, f64)>,
+    /// The chunk's truth, column by column (so that a channel is taken from contiguous
+    /// memory): `cols[c][j]` is raw column `c` at the chunk's step `j`, step 0 being the
+    /// previous chunk's last; the steps in it; its grid points.
+    cols: Vec<[f64; COLUMN]>,
+    steps: usize,
+    points: Points,
     /// Rows seen.
     seen: usize,
     /// The next grid point's index, and the index past the last (time basis).
@@ -422,6 +495,12 @@ struct Acquisition<'a> {
     count_en: Option<f64>,
     lost: f64,
     pulses: ChaCha8Rng,
+    /// A chunk's samples' time, engine angle and time since the sample before, and the lags'
+    /// decays over them for each time constant (`1/τ`, decays): kept from chunk to chunk.
+    t: Vec<f64>,
+    theta_en: Vec<f64>,
+    dt: Vec<f64>,
+    decays: Vec<(f64, Vec<f64>)>,
 }
 
 impl<'a> Acquisition<'a> {
@@ -485,8 +564,9 @@ impl<'a> Acquisition<'a> {
             basis,
             duration,
             outputs,
-            rows: Vec::with_capacity(CHUNK),
-            points: Vec::with_capacity(4 * CHUNK),
+            cols: vec![[0.0; COLUMN]; RAW.len()],
+            steps: 0,
+            points: Points::default(),
             seen: 0,
             k: 0,
             end: u64::MAX,
@@ -495,6 +575,10 @@ impl<'a> Acquisition<'a> {
             count_en: None,
             lost: 0.0,
             pulses: SensorState::new(seed, 0).rng,
+            t: Vec::with_capacity(4 * CHUNK),
+            theta_en: Vec::with_capacity(4 * CHUNK),
+            dt: Vec::with_capacity(4 * CHUNK),
+            decays: Vec::new(),
         })
     }
 
@@ -502,7 +586,7 @@ impl<'a> Acquisition<'a> {
     /// chunk is full.
     fn accept(&mut self, row: Row) -> Result<(), SimError> {
         self.seen += 1;
-        let Some(prev) = self.rows.last().copied() else {
+        if self.steps == 0 {
             // The grid starts at or after the first row: t = 0, or the first firing TDC.
             match self.basis {
                 OutputBasis::Time(rate) => {
@@ -513,13 +597,15 @@ impl<'a> Acquisition<'a> {
                     self.first = (row[THETA_EN] / (4.0 * PI)).ceil() * 4.0 * PI
                 }
             }
-            self.rows.push(row);
+            self.put(row);
             return Ok(());
+        }
+        let j = self.steps - 1;
+        let c = match self.basis {
+            OutputBasis::Time(_) => T,
+            OutputBasis::Crank(_) => THETA_EN,
         };
-        let (x0, x1) = match self.basis {
-            OutputBasis::Time(_) => (prev[T], row[T]),
-            OutputBasis::Crank(_) => (prev[THETA_EN], row[THETA_EN]),
-        };
+        let (x0, x1) = (self.cols[c][j], row[c]);
         if matches!(self.basis, OutputBasis::Crank(_)) && x1 <= x0 {
             return Err(SimError::Invalid(format!(
                 "the engine stopped or turned back at t = {:.6} s: a crank-angle basis needs it \
@@ -527,7 +613,6 @@ impl<'a> Acquisition<'a> {
                 row[T]
             )));
         }
-        let j = self.rows.len() - 1;
         while self.k < self.end {
             let g = match self.basis {
                 OutputBasis::Time(rate) => self.k as f64 / rate,
@@ -541,126 +626,161 @@ impl<'a> Acquisition<'a> {
             } else {
                 0.0
             };
-            self.points.push((j, f, g));
+            self.points.push(j, f, g);
             self.k += 1;
         }
-        self.rows.push(row);
-        if self.rows.len() == CHUNK {
+        self.put(row);
+        if self.steps == CHUNK {
             self.take();
-            self.rows.drain(..CHUNK - 1);
+            // The chunk's last step starts the next.
+            for col in &mut self.cols {
+                col[0] = col[CHUNK - 1];
+            }
+            self.steps = 1;
         }
         Ok(())
     }
 
+    /// Store a step's truth in the chunk.
+    fn put(&mut self, row: Row) {
+        for (col, v) in self.cols.iter_mut().zip(row) {
+            col[self.steps] = v;
+        }
+        self.steps += 1;
+    }
+
     /// Take the chunk's samples, channel by channel.
     fn take(&mut self) {
-        let (rows, points) = (&self.rows, &self.points);
-        let carried = |col: usize, how: Between| {
-            points
-                .iter()
-                .map(move |&(j, f, _)| how.carry(rows[j][col], rows[j + 1][col], f))
-        };
-        let t: Vec<f64> = match self.basis {
-            OutputBasis::Time(_) => points.iter().map(|p| p.2).collect(),
-            OutputBasis::Crank(_) => carried(T, Linear).collect(),
-        };
-        let theta_en: Vec<f64> = carried(THETA_EN, Linear).collect();
-        let dt: Vec<f64> = t
-            .iter()
-            .scan(self.last.map(|l| l.0), |before, &ti| {
-                let d = before.map_or(0.0, |b| ti - b);
-                *before = Some(ti);
-                Some(d)
-            })
-            .collect();
+        let Self {
+            base,
+            faults,
+            sensor_faulted,
+            basis,
+            outputs,
+            cols,
+            points,
+            first,
+            last,
+            count_en,
+            lost,
+            pulses,
+            t,
+            theta_en,
+            dt,
+            decays,
+            ..
+        } = self;
+        let (base, first) = (*base, *first);
+        t.clear();
+        match basis {
+            OutputBasis::Time(_) => t.extend_from_slice(&points.g),
+            OutputBasis::Crank(_) => points.carry_into(&cols[T], Linear, t),
+        }
+        theta_en.clear();
+        points.carry_into(&cols[THETA_EN], Linear, theta_en);
+        dt.clear();
+        let mut before = last.map(|l| l.0);
+        for &ti in t.iter() {
+            dt.push(before.map_or(0.0, |b| ti - b));
+            before = Some(ti);
+        }
+        decays.clear();
         // The sensors' parameters in force at each sample when a fault changes them.
-        let faulted: Vec<CellParams> = if self.sensor_faulted {
+        let faulted: Vec<CellParams> = if *sensor_faulted {
             t.iter()
                 .map(|&ti| {
-                    let mut p = self.base.clone();
-                    Fault::apply_all(self.faults, self.base, &mut p, ti);
+                    let mut p = base.clone();
+                    Fault::apply_all(faults, base, &mut p, ti);
                     p
                 })
                 .collect()
         } else {
             Vec::new()
         };
-        let params = |k: usize| faulted.get(k).unwrap_or(self.base);
-        let first = self.first;
-        let since_tdc = points.iter().map(move |p| p.2 - first);
-        for out in &mut self.outputs {
+        let params = |k: usize| faulted.get(k).unwrap_or(base);
+        let since_tdc = points.g.iter().map(move |g| g - first);
+        for out in outputs.iter_mut() {
             let v = &mut out.values;
+            let start = v.len();
             match (out.source, &mut out.sensor) {
-                (Source::Raw(how, _), None) => v.extend(carried(out.col, how)),
+                (Source::Raw(how, _), None) => points.carry_into(&cols[out.col], how, v),
                 (Source::Raw(how, _), Some((kind, state))) => {
-                    let constant = Prepared::from(kind.params(self.base));
-                    for (k, x) in carried(out.col, how).enumerate() {
-                        let s = if self.sensor_faulted {
-                            Prepared::from(kind.params(params(k)))
-                        } else {
-                            constant
+                    points.carry_into(&cols[out.col], how, v);
+                    let x = &mut v[start..];
+                    // In runs of samples with the same parameters (all of them without a
+                    // sensor fault).
+                    let mut a = 0;
+                    while a < x.len() {
+                        let s = Prepared::from(kind.params(params(a)));
+                        let b = match sensor_faulted {
+                            true => (a + 1..x.len())
+                                .find(|&k| kind.params(params(k)) != s.p)
+                                .unwrap_or(x.len()),
+                            false => x.len(),
                         };
-                        v.push(state.measure(&s, x, dt[k]));
+                        let decay = lag_decays(decays, &s, dt);
+                        state.measure(&s, &mut x[a..b], &decay[a..b]);
+                        a = b;
                     }
                 }
-                (Source::Time, _) => v.extend_from_slice(&t),
+                (Source::Time, _) => v.extend_from_slice(t),
                 (Source::Theta, _) => v.extend(since_tdc.clone()),
                 (Source::Cycle, _) => {
                     v.extend(since_tdc.clone().map(|a| (a / (4.0 * PI) + 1e-9).floor()))
                 }
                 (Source::CrankDeg, _) => v.extend(since_tdc.clone().map(|a| {
-                    let d = a.to_degrees().rem_euclid(720.0);
+                    let d = wrap720(a.to_degrees());
                     if d > 720.0 - 1e-6 {
                         0.0
                     } else {
                         d
                     }
                 })),
-                (Source::Ambient, _) => v.extend(t.iter().map(|_| self.base.ambient.p)),
+                (Source::Ambient, _) => v.extend(t.iter().map(|_| base.ambient.p)),
                 (Source::CountEn, _) => {
                     for (k, &th) in theta_en.iter().enumerate() {
                         let s = &params(k).sensors;
                         let ideal = floor(th / (TAU / s.ppr_en));
-                        if let Some(before) = self.count_en {
+                        if let Some(before) = *count_en {
                             if s.lost_pulses_en > 0.0 {
                                 for _ in 0..((ideal - before).max(0.0) as usize) {
-                                    if self.pulses.random::<f64>() < s.lost_pulses_en {
-                                        self.lost += 1.0;
+                                    if pulses.random::<f64>() < s.lost_pulses_en {
+                                        *lost += 1.0;
                                     }
                                 }
                             }
                         }
-                        self.count_en = Some(ideal);
-                        v.push(ideal - self.lost);
+                        *count_en = Some(ideal);
+                        v.push(ideal - *lost);
                     }
                 }
-                (Source::CountDy, _) => v.extend(
-                    carried(THETA_DY, Linear)
-                        .enumerate()
-                        .map(|(k, th)| floor(th / (TAU / params(k).sensors.ppr_dy))),
-                ),
+                (Source::CountDy, _) => {
+                    points.carry_into(&cols[THETA_DY], Linear, v);
+                    for (k, th) in v[start..].iter_mut().enumerate() {
+                        *th = floor(*th / (TAU / params(k).sensors.ppr_dy));
+                    }
+                }
                 (Source::Tdc, _) => {
-                    let mut before = self.last.map(|l| l.1);
-                    for &th in &theta_en {
+                    // The engine revolutions completed, sample by sample.
+                    let mut before = last.map(|l| floor(l.1 / TAU));
+                    for &th in theta_en.iter() {
+                        let revolutions = floor(th / TAU);
                         v.push(match before {
-                            Some(b) if floor(th / TAU) > floor(b / TAU) => 1.0,
+                            Some(b) if revolutions > b => 1.0,
                             Some(_) => 0.0,
                             // The first sample is on firing TDC on a crank basis.
-                            None => {
-                                f64::from(u8::from(matches!(self.basis, OutputBasis::Crank(_))))
-                            }
+                            None => f64::from(u8::from(matches!(basis, OutputBasis::Crank(_)))),
                         });
-                        before = Some(th);
+                        before = Some(revolutions);
                     }
                 }
             }
         }
         if let (Some(&tl), Some(&thl)) = (t.last(), theta_en.last()) {
-            self.last = Some((tl, thl));
+            *last = Some((tl, thl));
         }
-        self.points.clear();
+        points.clear();
     }
-
     /// The recording: the channels, the scenario, the faults and the parameters in the
     /// metadata.
     fn finish(mut self, scenario: &Scenario) -> Result<Recording, SimError> {
@@ -699,6 +819,19 @@ impl<'a> Acquisition<'a> {
         }
         Ok(rec)
     }
+}
+
+/// The lag's decays over a chunk's samples, `dt` apart, for sensor `s`: computed once per chunk
+/// for each time constant (the three temperature channels share theirs).
+fn lag_decays<'d>(decays: &'d mut Vec<(f64, Vec<f64>)>, s: &Prepared, dt: &[f64]) -> &'d [f64] {
+    let i = match decays.iter().position(|d| d.0 == s.inv_lag) {
+        Some(i) => i,
+        None => {
+            decays.push((s.inv_lag, dt.iter().map(|&d| s.decay(d)).collect()));
+            decays.len() - 1
+        }
+    };
+    &decays[i].1
 }
 
 /// Run a scenario.
@@ -744,8 +877,9 @@ pub fn simulate(
     let mut cell = TestCell::new(base.clone(), w0.max(1.0), -PI).map_err(SimError::Invalid)?;
     let settle = scenario.settle;
     let mut acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
-    // The drive's own speed sensor, at every step.
+    // The drive's own speed sensor, at every step (from the time of the one before).
     let mut speed_sensor = SensorState::new(base.sensors.seed as u64, 0);
+    let mut measured_at = cell.time();
     let mut last_report = -1.0;
     loop {
         let t_rel = cell.time() - settle;
@@ -757,7 +891,8 @@ pub fn simulate(
         };
         let w_true = cell.state()[9];
         let ss = Prepared::from(cell.params.dyno.speed_sensor);
-        let w_meas = speed_sensor.measure(&ss, w_true, 0.0);
+        let w_meas = speed_sensor.measure_one(&ss, w_true, cell.time() - measured_at);
+        measured_at = cell.time();
         let s = cell.step_with(&inputs, w_meas);
         check(&s, base.engine.active != 0.0)?;
         // From the step that spans t = 0 on, so that the output grid starts at 0.
