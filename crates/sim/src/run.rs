@@ -18,8 +18,8 @@ use crate::params::{CellParams, SensorParams};
 use crate::scenario::{Fault, Scenario};
 use physid_core::{Basis, Channel, Recording};
 use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::{PI, TAU};
 use thiserror::Error;
 use Between::{Hold, Linear};
@@ -324,13 +324,16 @@ const OUTPUT: [(&str, &str, Source); 38] = [
 /// one sensor's settings never change another's noise).
 struct SensorState {
     lagged: Option<f64>,
-    rng: ChaCha8Rng,
+    rng: Xoshiro256PlusPlus,
 }
 
 impl SensorState {
+    /// Stream `stream` of `seed`: xoshiro256++ seeded through SplitMix64 from `seed` and the
+    /// stream number spread by the golden ratio (so that neighbouring streams and seeds start
+    /// far apart in the generator's 2²⁵⁶ − 1 period).
     fn new(seed: u64, stream: u64) -> Self {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        rng.set_stream(stream);
+        let rng =
+            Xoshiro256PlusPlus::seed_from_u64(seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15));
         Self { lagged: None, rng }
     }
 
@@ -494,7 +497,7 @@ struct Acquisition<'a> {
     /// The engine encoder: its last ideal count, the pulses lost, its random stream.
     count_en: Option<f64>,
     lost: f64,
-    pulses: ChaCha8Rng,
+    pulses: Xoshiro256PlusPlus,
     /// A chunk's samples' time, engine angle and time since the sample before, and the lags'
     /// decays over them for each time constant (`1/τ`, decays): kept from chunk to chunk.
     t: Vec<f64>,
