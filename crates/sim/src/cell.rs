@@ -30,7 +30,7 @@ use crate::engine::{
     Engine, EngineOutputs, GasLinearisation, GasState, Motored, NetworkJacobian, CYL, EXH, INT,
 };
 use crate::machine::{Flux, Machine};
-use crate::numeric::{floor, sin_cos_near};
+use crate::numeric::{floor, sin_cos_near, SinCosTrack};
 use crate::params::CellParams;
 use std::f64::consts::PI;
 
@@ -178,6 +178,8 @@ pub struct TestCell {
     /// The last throttle opening [deg] and its effective area [m²] (openings change far less
     /// often than steps are taken).
     throttle: (f64, f64),
+    /// The sine and cosine of the engine angle at each step's start.
+    crank_sin_cos: SinCosTrack,
 }
 
 impl TestCell {
@@ -208,6 +210,7 @@ impl TestCell {
             t: 0.0,
             substeps: 0,
             throttle: (f64::NAN, 0.0),
+            crank_sin_cos: SinCosTrack::default(),
         })
     }
 
@@ -371,7 +374,7 @@ impl TestCell {
             w_slp: cmd.w_slp,
             friction: self.engine.friction_torque(x0[W_EN], p_int),
             theta0: x0[TH_EN],
-            sc0: x0[TH_EN].sin_cos(),
+            sc0: self.crank_sin_cos.at(x0[TH_EN]),
         };
         // The first stage's derivatives (and the sample) at the step's start.
         let (k1_start, mut sample, lin) = self.derivatives(&x0, &held);

@@ -13,7 +13,7 @@
 
 use crate::cell::{Inputs, Sample, TestCell};
 use crate::control::{inverse_park, Demand};
-use crate::numeric::{expm1, floor, round, wrap720};
+use crate::numeric::{expm1, floor, round, wrap720, SinCosTrack};
 use crate::params::{CellParams, SensorParams};
 use crate::scenario::{Fault, Scenario};
 use physid_core::{Basis, Channel, Recording};
@@ -126,9 +126,9 @@ fn raw_index(name: &str) -> usize {
     i.unwrap_or(0)
 }
 
-/// The truth of sample `s`, the cell running with `p`.
-fn raw_row(s: &Sample, p: &CellParams) -> Row {
-    let sc = s.theta_syn.sin_cos();
+/// The truth of sample `s`, the cell running with `p`; `sc` is `(sin, cos)` of the machine
+/// frame's angle.
+fn raw_row(s: &Sample, p: &CellParams, sc: (f64, f64)) -> Row {
     let i = inverse_park(s.i_dq, sc);
     let v = inverse_park(s.v_dq, sc);
     [
@@ -587,7 +587,7 @@ impl<'a> Acquisition<'a> {
 
     /// The next solver step's truth: the grid points up to it are placed, and taken when the
     /// chunk is full.
-    fn accept(&mut self, row: Row) -> Result<(), SimError> {
+    fn accept(&mut self, row: &Row) -> Result<(), SimError> {
         self.seen += 1;
         if self.steps == 0 {
             // The grid starts at or after the first row: t = 0, or the first firing TDC.
@@ -645,9 +645,9 @@ impl<'a> Acquisition<'a> {
     }
 
     /// Store a step's truth in the chunk.
-    fn put(&mut self, row: Row) {
+    fn put(&mut self, row: &Row) {
         for (col, v) in self.cols.iter_mut().zip(row) {
-            col[self.steps] = v;
+            col[self.steps] = *v;
         }
         self.steps += 1;
     }
@@ -883,6 +883,8 @@ pub fn simulate(
     // The drive's own speed sensor, at every step (from the time of the one before).
     let mut speed_sensor = SensorState::new(base.sensors.seed as u64, 0);
     let mut measured_at = cell.time();
+    // The machine frame's angle, for the phase currents and voltages.
+    let mut frame = SinCosTrack::default();
     let mut last_report = -1.0;
     loop {
         let t_rel = cell.time() - settle;
@@ -896,13 +898,12 @@ pub fn simulate(
         let ss = Prepared::from(cell.params.dyno.speed_sensor);
         let w_meas = speed_sensor.measure_one(&ss, w_true, cell.time() - measured_at);
         measured_at = cell.time();
-        let s = cell.step_with(&inputs, w_meas);
+        let mut s = cell.step_with(&inputs, w_meas);
         check(&s, base.engine.active != 0.0)?;
         // From the step that spans t = 0 on, so that the output grid starts at 0.
         if cell.time() - settle > 0.0 {
-            let mut s = s;
             s.t = t_rel;
-            acquisition.accept(raw_row(&s, &cell.params))?;
+            acquisition.accept(&raw_row(&s, &cell.params, frame.at(s.theta_syn)))?;
         }
         if t_rel - last_report >= duration / 100.0 {
             progress((t_rel / duration).clamp(0.0, 1.0));
@@ -1033,7 +1034,7 @@ mod tests {
         let mut acq =
             Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
         for k in 0..3 * CHUNK {
-            acq.accept(row(k)).unwrap();
+            acq.accept(&row(k)).unwrap();
         }
         let rec = acq.finish(&scenario).unwrap();
         let t = rec.values("t").unwrap();
@@ -1049,7 +1050,7 @@ mod tests {
 
         let mut acq = Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0).unwrap();
         for k in 0..8 {
-            acq.accept(row(k)).unwrap();
+            acq.accept(&row(k)).unwrap();
         }
         let rec = acq.finish(&scenario).unwrap();
         let th = rec.values("theta_en").unwrap();
@@ -1059,8 +1060,8 @@ mod tests {
         let deg = rec.values("crank_deg").unwrap();
         assert!(deg[0] == 0.0 && (deg[1] - 1.0).abs() < 1e-12);
         let mut acq = Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0).unwrap();
-        acq.accept(row(1)).unwrap();
-        let e = acq.accept(row(0)).unwrap_err().to_string();
+        acq.accept(&row(1)).unwrap();
+        let e = acq.accept(&row(0)).unwrap_err().to_string();
         assert!(e.contains("turned back at t = -0.000050 s"), "{e}");
         // Too few steps, and a bad grid, are errors.
         let acq = Acquisition::new(&base, &[], OutputBasis::Time(10.0), 1.0, 100.0).unwrap();
