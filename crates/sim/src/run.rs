@@ -701,6 +701,8 @@ impl<'a> Acquisition<'a> {
             Vec::new()
         };
         let params = |k: usize| faulted.get(k).unwrap_or(base);
+        // The encoders' pulse angles [rad] (their resolutions are fixed for a run).
+        let (pulse_en, pulse_dy) = (TAU / base.sensors.ppr_en, TAU / base.sensors.ppr_dy);
         let since_tdc = points.g.iter().map(move |g| g - first);
         for out in outputs.iter_mut() {
             let v = &mut out.values;
@@ -743,7 +745,7 @@ impl<'a> Acquisition<'a> {
                 (Source::CountEn, _) => {
                     for (k, &th) in theta_en.iter().enumerate() {
                         let s = &params(k).sensors;
-                        let ideal = floor(th / (TAU / s.ppr_en));
+                        let ideal = floor(th / pulse_en);
                         if let Some(before) = *count_en {
                             if s.lost_pulses_en > 0.0 {
                                 for _ in 0..((ideal - before).max(0.0) as usize) {
@@ -759,8 +761,8 @@ impl<'a> Acquisition<'a> {
                 }
                 (Source::CountDy, _) => {
                     points.carry_into(&cols[THETA_DY], Linear, v);
-                    for (k, th) in v[start..].iter_mut().enumerate() {
-                        *th = floor(*th / (TAU / params(k).sensors.ppr_dy));
+                    for th in &mut v[start..] {
+                        *th = floor(*th / pulse_dy);
                     }
                 }
                 (Source::Tdc, _) => {
