@@ -19,7 +19,7 @@
 //!   ≈ 176 steps per period: the mode's energy falls by 4.9e-9 per period, as RK4's stability
 //!   function says; the cylinder pressure is within 4e-5 of its peak of the converged solution.
 //! - **2**: the linearly implicit Rosenbrock-W method ROS2 with the gas network's Jacobian —
-//!   two evaluations per degree and no sub-steps, ≈ 1.8× faster. The pressures are within 2e-3
+//!   two evaluations per degree and no sub-steps, ≈ 2× faster. The pressures are within 2e-3
 //!   of the peak of the converged solution at one degree (halving with the step); on the
 //!   driveline it is Heun's rule, whose energy *grows* by 7e-5 per period of the shaft mode.
 //!
