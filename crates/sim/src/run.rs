@@ -1012,6 +1012,48 @@ mod tests {
         }
     }
 
+    /// The temperature sensors' first-order lag (τ = 0.5 s, noise off) against its closed
+    /// form: a step of 300 → 400 K in T_int at 20 ms reads `400 − 100·e^(−(j+1)·dt/τ)` j samples
+    /// after it, through several chunks; T_exh, constant and measured by the same kind of
+    /// sensor, stays exactly where it is; the manifold pressure (no lag) reads the truth.
+    #[test]
+    fn the_lag_is_the_exact_first_order_response() {
+        let mut base = CellParams::default();
+        base.sensors.temperature.noise = 0.0;
+        base.sensors.p_manifold.noise = 0.0;
+        let tau = base.sensors.temperature.lag;
+        assert_eq!(tau, 0.5);
+        let scenario = named("shaft-steady").unwrap();
+        let (t_int, t_exh, p_int) = (raw_index("T_int"), raw_index("T_exh"), raw_index("p_int"));
+        let mut acq =
+            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
+        for k in 0..1500 {
+            let t = k as f64 * 50e-6;
+            let mut r = [0.0; RAW.len()];
+            r[T] = t;
+            r[THETA_EN] = 100.0 * t;
+            r[t_int] = if k >= 400 { 400.0 } else { 300.0 };
+            r[t_exh] = 500.0;
+            r[p_int] = 1e5 + 1e6 * t;
+            acq.accept(&r).unwrap();
+        }
+        let rec = acq.finish(&scenario).unwrap();
+        let (t, y) = (rec.values("t").unwrap(), rec.values("T_int").unwrap());
+        assert_eq!(y.len(), 701);
+        for (m, (&tm, &ym)) in t.iter().zip(y).enumerate() {
+            let want = if m < 200 {
+                300.0
+            } else {
+                400.0 - 100.0 * (-((m - 199) as f64) * 1e-4 / tau).exp()
+            };
+            assert!((ym - want).abs() < 1e-9, "{tm}: {ym} against {want}");
+        }
+        assert!(rec.values("T_exh").unwrap().iter().all(|&v| v == 500.0));
+        for (&tm, &pm) in t.iter().zip(rec.values("p_int").unwrap()) {
+            assert!((pm - (1e5 + 1e6 * tm)).abs() < 1e-6, "{tm}");
+        }
+    }
+
     /// Steps of 130 µs from −50 µs, sampled at 10 kHz from 0 to the duration (the steps going
     /// through several chunks): a column linear
     /// in time comes out on the line, a column held over each step at its step's value, the
