@@ -1054,6 +1054,42 @@ mod tests {
         }
     }
 
+    /// A manifold-pressure sensor with gain 1.01, offset 50 Pa, a 100 Pa quantum and no noise:
+    /// every reading is a whole number of quanta within half a quantum of `1.01·p + 50`, and the
+    /// quantisation error averages out over a ramp.
+    #[test]
+    fn gain_offset_and_quantum() {
+        let mut base = CellParams::default();
+        base.sensors.p_manifold = SensorParams {
+            gain: 1.01,
+            offset: 50.0,
+            noise: 0.0,
+            quantum: 100.0,
+            lag: 0.0,
+        };
+        let scenario = named("shaft-steady").unwrap();
+        let p_int = raw_index("p_int");
+        let mut acq =
+            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
+        for k in 0..1500 {
+            let t = k as f64 * 50e-6;
+            let mut r = [0.0; RAW.len()];
+            r[T] = t;
+            r[p_int] = 1e5 + 3.7e5 * t;
+            acq.accept(&r).unwrap();
+        }
+        let rec = acq.finish(&scenario).unwrap();
+        let t = rec.values("t").unwrap();
+        let mut error_sum = 0.0;
+        for (&tm, &pm) in t.iter().zip(rec.values("p_int").unwrap()) {
+            let ideal = 1.01 * (1e5 + 3.7e5 * tm) + 50.0;
+            assert_eq!(pm, (pm / 100.0).round() * 100.0, "{tm}: {pm}");
+            assert!((pm - ideal).abs() <= 50.0 + 1e-9, "{tm}: {pm} for {ideal}");
+            error_sum += pm - ideal;
+        }
+        assert!((error_sum / t.len() as f64).abs() < 5.0, "{error_sum}");
+    }
+
     /// Steps of 130 µs from −50 µs, sampled at 10 kHz from 0 to the duration (the steps going
     /// through several chunks): a column linear
     /// in time comes out on the line, a column held over each step at its step's value, the
