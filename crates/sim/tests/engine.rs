@@ -78,41 +78,53 @@ fn mass_conserved(order: f64) {
     assert!(cell.state()[6] > 10.0 * m0);
 }
 
-/// The cylinder and manifold pressures over a steady cycle at 1000 rpm, open and shut
-/// throttle, at one-degree steps against the converged solution (RK4 at 0.05°, whose steps
-/// include every degree): RK4 within 1e-4 of the peak cylinder pressure, the linearly implicit
-/// second-order solver (`solver.order = 2`) within 3e-3, and closer at half the step.
-#[test]
-fn solvers_converge_to_the_fine_step_solution() {
-    // (θ in whole degrees) → (p_cyl, p_int) over the cycle after 0.48 s.
-    let trace = |order: f64, step_deg: f64, throttle_deg: f64| {
-        let w = 1000.0 * PI / 30.0;
-        let params = CellParams {
-            order,
-            step_deg,
-            ..CellParams::default()
-        };
-        let mut cell = TestCell::new(params, w, 0.0).unwrap();
+/// `(p_cyl, p_int)` [Pa] at each whole crank degree (of the continuous angle) passed between
+/// `t0` and `t1` [s], at 1000 rpm demanded, with the throttle [deg] a function of time held
+/// over each step.
+fn pressures_by_degree(
+    order: f64,
+    step_deg: f64,
+    throttle: impl Fn(f64) -> f64,
+    (t0, t1): (f64, f64),
+) -> std::collections::BTreeMap<i64, (f64, f64)> {
+    let w = 1000.0 * PI / 30.0;
+    let params = CellParams {
+        order,
+        step_deg,
+        ..CellParams::default()
+    };
+    let mut cell = TestCell::new(params, w, 0.0).unwrap();
+    let mut out = std::collections::BTreeMap::new();
+    while cell.time() < t1 {
         let inputs = Inputs {
             demand: Demand::Speed(w),
-            throttle_deg,
+            throttle_deg: throttle(cell.time()),
         };
-        let mut out = std::collections::BTreeMap::new();
-        while cell.time() < 0.6 {
-            let s = cell.step(&inputs);
-            let deg = s.theta_en.to_degrees();
-            if s.t > 0.48 && (deg - deg.round()).abs() < 2e-3 {
-                out.insert(deg.round() as i64, (s.gas.p[CYL], s.gas.p[0]));
-            }
+        let s = cell.step(&inputs);
+        let deg = s.theta_en.to_degrees();
+        if s.t > t0 && (deg - deg.round()).abs() < 2e-3 {
+            out.insert(deg.round() as i64, (s.gas.p[CYL], s.gas.p[0]));
         }
-        out
-    };
-    for throttle in [90.0, 0.0] {
-        let fine = trace(4.0, 0.05, throttle);
-        let peak = fine.values().map(|v| v.0).fold(0.0, f64::max);
-        let mut errors = Vec::new();
-        for (order, step) in [(4.0, 1.0), (2.0, 1.0), (2.0, 0.5)] {
-            let t = trace(order, step, throttle);
+    }
+    out
+}
+
+/// Each solver's largest errors against the converged solution (RK4 at 0.05°, whose steps
+/// include every degree) over the degrees both have: `[|Δp_cyl| / the peak, |Δp_int| in Pa]`,
+/// for `(order, step)` each; printed with --nocapture.
+fn errors_against_converged(
+    label: &str,
+    throttle: impl Fn(f64) -> f64 + Copy,
+    window: (f64, f64),
+    solvers: &[(f64, f64)],
+) -> Vec<[f64; 2]> {
+    let fine = pressures_by_degree(4.0, 0.05, throttle, window);
+    let peak = fine.values().map(|v| v.0).fold(0.0, f64::max);
+    let degrees = (360.0 * 1000.0 / 60.0 * (window.1 - window.0)) as usize;
+    solvers
+        .iter()
+        .map(|&(order, step)| {
+            let t = pressures_by_degree(order, step, throttle, window);
             let (mut e_cyl, mut e_int, mut n) = (0.0f64, 0.0f64, 0);
             for (deg, v) in &t {
                 if let Some(f) = fine.get(deg) {
@@ -121,17 +133,58 @@ fn solvers_converge_to_the_fine_step_solution() {
                     n += 1;
                 }
             }
-            assert!(n >= 720, "{n} common degrees");
+            assert!(
+                n + 10 >= degrees,
+                "{label}: {n} common degrees of {degrees}"
+            );
             println!(
-                "throttle {throttle}°, order {order}, {step}°: max |Δp_cyl| {e_cyl:.1} Pa \
-                 ({:.1e} of the peak), max |Δp_int| {e_int:.1} Pa",
+                "{label}, order {order}, {step}°: max |Δp_cyl| {e_cyl:.1} Pa ({:.1e} of the \
+                 peak), max |Δp_int| {e_int:.1} Pa",
                 e_cyl / peak
             );
-            errors.push(e_cyl / peak);
+            [e_cyl / peak, e_int]
+        })
+        .collect()
+}
+
+/// The cylinder and manifold pressures over a steady cycle at 1000 rpm, open and shut
+/// throttle, at one-degree steps against the converged solution: RK4 within 1e-4 of the peak
+/// cylinder pressure, the linearly implicit second-order solver (`solver.order = 2`, the
+/// default) within 3e-3, and closer at half the step.
+#[test]
+fn solvers_converge_to_the_fine_step_solution() {
+    for throttle in [90.0, 0.0] {
+        let e = errors_against_converged(
+            &format!("throttle {throttle}°"),
+            move |_| throttle,
+            (0.48, 0.6),
+            &[(4.0, 1.0), (2.0, 1.0), (2.0, 0.5)],
+        );
+        assert!(e[0][0] < 1e-4, "RK4: {e:?}");
+        assert!(e[1][0] < 3e-3, "order 2: {e:?}");
+        assert!(e[2][0] < 0.6 * e[1][0], "order 2 at 0.5°: {e:?}");
+    }
+}
+
+/// The same through the transients the scenarios impose on the gas: a tip-out (full throttle
+/// shut in 20 ms, the manifold emptying to idle pressure) and a tip-in (the reverse), 0.3 s
+/// of each from the throttle's move. Here both solvers' errors are mostly the step's own: the
+/// throttle and the drive's voltages are held over each step, so a 1° step sees the moving
+/// throttle up to a degree late, whatever the solver. Both stay within 3e-3 of the peak
+/// cylinder pressure and 0.5 kPa of the manifold's.
+#[test]
+fn solvers_converge_through_throttle_transients() {
+    let ramp =
+        |from: f64, to: f64| move |t: f64| from + (to - from) * ((t - 0.3) / 0.02).clamp(0.0, 1.0);
+    for (label, from, to) in [("tip-out", 90.0, 0.0), ("tip-in", 0.0, 90.0)] {
+        let e =
+            errors_against_converged(label, ramp(from, to), (0.3, 0.6), &[(4.0, 1.0), (2.0, 1.0)]);
+        for (solver, [cyl, int]) in ["RK4", "order 2"].iter().zip(e) {
+            assert!(
+                cyl < 3e-3 && int < 500.0,
+                "{label}, {solver}: {cyl:e}, {int} Pa"
+            );
         }
-        assert!(errors[0] < 1e-4, "RK4: {}", errors[0]);
-        assert!(errors[1] < 3e-3, "order 2: {}", errors[1]);
-        assert!(errors[2] < 0.6 * errors[1], "order 2 at 0.5°: {errors:?}");
     }
 }
 
@@ -214,7 +267,12 @@ fn stiffness_estimate_tracks_the_jacobian() {
     for rpm in [600.0, 1000.0] {
         for throttle in [90.0, 0.0] {
             let w = rpm * PI / 30.0;
-            let mut cell = TestCell::new(CellParams::default(), w, 0.0).unwrap();
+            // On RK4's own trajectory: the estimate is RK4's step control.
+            let params = CellParams {
+                order: 4.0,
+                ..Default::default()
+            };
+            let mut cell = TestCell::new(params, w, 0.0).unwrap();
             let inputs = Inputs {
                 demand: Demand::Speed(w),
                 throttle_deg: throttle,
