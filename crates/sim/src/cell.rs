@@ -14,14 +14,16 @@
 //! the friction magnitude (a function of speed, manifold pressure and oil temperature, all
 //! slow against one degree) is evaluated once per step. Two solvers (`solver.order`):
 //!
-//! - **4** (default): classical RK4, with sub-steps in the degrees where the gas flows are
-//!   stiff (1.3 per degree at 1000 rpm). At one degree it resolves the ≈ 34 Hz shaft mode with
+//! - **2** (default): the linearly implicit Rosenbrock-W method ROS2 with the gas network's
+//!   Jacobian — two evaluations per degree and no sub-steps, ≈ 2× faster than RK4. The
+//!   pressures are within 2e-3 of the peak of the converged solution at one degree (halving
+//!   with the step); on the driveline it is Heun's rule, whose energy *grows* by 7e-5 per
+//!   period of the ≈ 34 Hz shaft mode (the shaft's own damping removes ≈ 40 % per period).
+//!   The thesis's own model took forward Euler at one degree (its §3.5).
+//! - **4**: classical RK4, with sub-steps in the degrees where the gas flows are stiff (1.3 per
+//!   degree at 1000 rpm) — the reference. At one degree it resolves the shaft mode with
 //!   ≈ 176 steps per period: the mode's energy falls by 4.9e-9 per period, as RK4's stability
 //!   function says; the cylinder pressure is within 4e-5 of its peak of the converged solution.
-//! - **2**: the linearly implicit Rosenbrock-W method ROS2 with the gas network's Jacobian —
-//!   two evaluations per degree and no sub-steps, ≈ 2× faster. The pressures are within 2e-3
-//!   of the peak of the converged solution at one degree (halving with the step); on the
-//!   driveline it is Heun's rule, whose energy *grows* by 7e-5 per period of the shaft mode.
 //!
 //! (`tests/drive.rs` and `tests/engine.rs` measure both; docs/simulate.md has the numbers.)
 
