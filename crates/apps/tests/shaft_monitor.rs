@@ -40,6 +40,8 @@ fn three_spiders_on_t01_and_t02() {
                 let r = monitor_shaft(&rec, &cfg).unwrap();
                 let label = format!("{scenario} {name} {m:?}");
                 let within = r.within_5pct_s.unwrap();
+                // Printed with --nocapture: the times docs/shaft.md quotes.
+                eprintln!("{label}: K, B within 5 % from {within:?} s");
                 assert!(
                     within[0].unwrap() < 5.0,
                     "{label}: K within 5 % from {:?}",
