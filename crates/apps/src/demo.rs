@@ -73,10 +73,22 @@ pub struct Demo {
     pub torque: Vec<TorqueIdent>,
     /// The cyclic-torque fit: configuration, result, and the engine's true M_rec, b, L, r.
     pub torque_fit: (TorqueFitConfig, TorqueFit, [f64; 4]),
+    /// The test cell's solver (`solver.order`) every recording was simulated with.
+    pub solver_order: f64,
 }
 
-/// Run the demo; `progress(stage, fraction)`.
-pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> {
+/// Run the demo with the test cell's solver `solver_order` (`solver.order`: 2, the default, or
+/// 4, the RK4 reference); `progress(stage, fraction)`.
+pub fn run_demo(solver_order: f64, mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> {
+    let cell = CellParams {
+        order: solver_order,
+        ..CellParams::default()
+    };
+    cell.validate().map_err(err("test cell"))?;
+    let defaults = || RunOptions {
+        params: cell.clone(),
+        ..Default::default()
+    };
     // 1. Shaft.
     let fault = "shaft.k=1100@5".to_string();
     let mut s = named("shaft-steady").ok_or_else(|| err("shaft")("no scenario".into()))?;
@@ -84,7 +96,7 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
     let opts = RunOptions {
         duration: Some(8.0),
         faults: vec![Fault::parse(&fault).map_err(err("shaft"))?],
-        ..Default::default()
+        ..defaults()
     };
     let rec = simulate(&s, &opts, |f| {
         progress("simulating T01 with a shaft fault", 0.4 * f)
@@ -113,13 +125,12 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
     let sweep = named("friction-sweep").ok_or_else(|| err("friction")("no scenario".into()))?;
     let o = RunOptions {
         basis: OutputBasis::Crank(1.0),
-        ..Default::default()
+        ..defaults()
     };
     let rec_f = simulate(&sweep, &o, |f| {
         progress("simulating the friction sweep", 0.45 + 0.3 * f)
     })
     .map_err(|e| err("friction")(e.to_string()))?;
-    let cell = CellParams::default();
     let (design, settings) = Engine::new(&cell.engine, &cell.ambient).friction_model();
     let fcfg = FrictionFitConfig::new(design, settings);
     let ffit = friction_fit(&rec_f, &fcfg).map_err(|e| err("friction")(e.to_string()))?;
@@ -133,7 +144,7 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
         let o = RunOptions {
             duration: Some(3.0),
             basis: OutputBasis::Crank(1.0),
-            ..Default::default()
+            ..defaults()
         };
         let r = simulate(&sc, &o, |f| {
             progress(&format!("simulating {name}"), 0.75 + 0.08 * (k as f64 + f))
@@ -156,7 +167,7 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
     sc.settle = 0.5;
     let mut o = RunOptions {
         basis: OutputBasis::Crank(1.0),
-        ..Default::default()
+        ..defaults()
     };
     let e = &cell.engine;
     let truth = [e.m_rec * 1.05, e.bore, e.rod, e.crank_radius];
@@ -180,5 +191,6 @@ pub fn run_demo(mut progress: impl FnMut(&str, f64)) -> Result<Demo, DemoError> 
         friction_fit: (fcfg, ffit),
         torque,
         torque_fit: (fit_cfg, tfit, truth),
+        solver_order,
     })
 }

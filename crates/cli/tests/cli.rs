@@ -1055,6 +1055,7 @@ fn demo_writes_report_and_summary() {
     assert!(html.contains("<svg") && html.contains("ALARM: K moved"));
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["solver_order"].as_f64(), Some(2.0));
     let alarms = s["shaft"]["alarms"].as_array().unwrap();
     assert!(!alarms.is_empty() && alarms.iter().all(|a| a["param"] == "K"));
     assert!((s["shaft"]["final"]["K"].as_f64().unwrap() / 1100.0 - 1.0).abs() < 0.02);
@@ -1078,6 +1079,13 @@ fn demo_writes_report_and_summary() {
     assert!((m - 0.84).abs() < 3.0 * se, "M_rec {m} ± {se}");
     assert!(
         html.contains("Engine friction characterisation") && html.contains("Cyclic engine torque")
+    );
+    // A solver the test cell does not have is refused, naming the parameter.
+    let o = physid(&["demo", "--out", d.to_str().unwrap(), "--solver-order", "3"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("solver.order = 3"),
+        "{}",
+        stderr(&o)
     );
 }
 

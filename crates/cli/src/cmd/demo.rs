@@ -14,6 +14,10 @@ pub struct Args {
     /// Directory for report.html and summary.json [default: physid-out/demo].
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// The test cell's solver: 2, linearly implicit ROS2 (the default); 4, RK4 (the reference,
+    /// ≈ 2× slower; docs/simulate.md).
+    #[arg(long, default_value_t = 2.0)]
+    pub solver_order: f64,
 }
 
 /// Run the demo.
@@ -30,7 +34,7 @@ pub fn run(args: &Args) -> Result<()> {
             .progress_chars("=> "),
     );
     let t0 = std::time::Instant::now();
-    let d = run_demo(|stage, f| {
+    let d = run_demo(args.solver_order, |stage, f| {
         bar.set_message(stage.to_string());
         bar.set_position((f * 100.0) as u64);
     })
@@ -146,6 +150,7 @@ pub fn run(args: &Args) -> Result<()> {
         "shaft": super::monitor::json(mon),
         "shaft_methods": d.shaft_methods.iter().map(super::monitor::json).collect::<Vec<_>>(),
         "fault": d.fault,
+        "solver_order": d.solver_order,
         "friction_rank": {
             "parameters": d.friction.parameters,
             "tests": d.friction.tests.iter().map(|x| serde_json::json!({
