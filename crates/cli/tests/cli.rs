@@ -12,10 +12,9 @@ fn physid(args: &[&str]) -> Output {
         .expect("run physid")
 }
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("physid-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A scratch directory removed when the test ends.
+fn dir(name: &str) -> physid_testkit::Scratch {
+    physid_testkit::Scratch::new(&format!("physid-cli-{name}"))
 }
 
 fn stderr(o: &Output) -> String {

@@ -15,6 +15,7 @@
 pub mod model;
 pub mod params;
 pub mod recording;
+pub mod units;
 
 pub use model::{Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
 pub use params::{FreeSet, ParamError, ParamSet};

@@ -3,6 +3,7 @@
 //! Every producer (simulator, file reader) and consumer (estimators, applications) speaks this
 //! type; file formats are adapters at the edge (`physid-io`).
 
+use crate::units;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -107,7 +108,7 @@ pub enum RecordingError {
     #[error("channel '{0}' appears twice")]
     DuplicateChannel(String),
     /// A channel in a unit that cannot be converted to the one asked for.
-    #[error("channel '{name}' is in '{unit}', which physid cannot convert to '{wanted}' (known: {known})")]
+    #[error("channel '{name}' is in '{unit}', which physid cannot convert to '{wanted}' (units it converts: {known}); state the right unit with --map {name}=COLUMN:UNIT, or map the column to another name")]
     Unit {
         /// Channel name.
         name: String,
@@ -119,22 +120,6 @@ pub enum RecordingError {
         known: String,
     },
 }
-
-/// Unit conversions `(from, to, scale, offset)`: `to = from·scale + offset`.
-const CONVERSIONS: [(&str, &str, f64, f64); 12] = [
-    ("kPa", "Pa", 1e3, 0.0),
-    ("bar", "Pa", 1e5, 0.0),
-    ("mbar", "Pa", 100.0, 0.0),
-    ("MPa", "Pa", 1e6, 0.0),
-    ("degC", "K", 1.0, 273.15),
-    ("°C", "K", 1.0, 273.15),
-    ("C", "K", 1.0, 273.15),
-    ("rpm", "rad/s", std::f64::consts::PI / 30.0, 0.0),
-    ("deg", "rad", std::f64::consts::PI / 180.0, 0.0),
-    ("kN*m", "N*m", 1e3, 0.0),
-    ("Nm", "N*m", 1.0, 0.0),
-    ("N.m", "N*m", 1.0, 0.0),
-];
 
 /// Named channels of equal length on one basis, with free-form metadata.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
@@ -210,44 +195,59 @@ impl Recording {
         self.channel(name).map(|c| c.values.as_slice())
     }
 
-    /// The samples of a channel in `unit`, converted from the channel's own unit when the pair
-    /// is known, either way (kPa/bar/mbar/MPa ↔ Pa, degC/°C ↔ K, rpm ↔ rad/s, deg ↔ rad,
-    /// kN·m/Nm ↔ N·m). A channel without a unit is taken to be in `unit` already; any other
-    /// unit is an error naming the channel.
+    /// The samples of a channel in `unit`, converted from the channel's own unit when both are
+    /// labels of one dimension ([`crate::units`]: rpm ↔ rad/s, deg ↔ rad, bar/kPa ↔ Pa,
+    /// °C ↔ K, mm ↔ m, …). A channel without a unit is taken to be in `unit` already; any other
+    /// unit is an error naming the channel and the labels that would convert.
     pub fn values_in(&self, name: &str, unit: &str) -> Result<Vec<f64>, RecordingError> {
         let ch = self.channel(name)?;
         if ch.unit.is_empty() || ch.unit == unit {
             return Ok(ch.values.clone());
         }
-        let forward = CONVERSIONS.iter().find(|c| c.0 == ch.unit && c.1 == unit);
-        let inverse = CONVERSIONS.iter().find(|c| c.1 == ch.unit && c.0 == unit);
-        match (forward, inverse) {
-            (Some(&(_, _, scale, offset)), _) => {
-                Ok(ch.values.iter().map(|v| v * scale + offset).collect())
-            }
-            (None, Some(&(_, _, scale, offset))) => {
-                Ok(ch.values.iter().map(|v| (v - offset) / scale).collect())
-            }
-            (None, None) => Err(RecordingError::Unit {
+        match units::conversion(&ch.unit, unit) {
+            Some((scale, offset)) => Ok(ch.values.iter().map(|v| v * scale + offset).collect()),
+            None => Err(RecordingError::Unit {
                 name: name.into(),
                 unit: ch.unit.clone(),
                 wanted: unit.into(),
-                known: CONVERSIONS
-                    .iter()
-                    .filter_map(|c| {
-                        if c.1 == unit {
-                            Some(c.0)
-                        } else if c.0 == unit {
-                            Some(c.1)
-                        } else {
-                            None
-                        }
-                    })
-                    .chain([unit])
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                known: units::known_for(unit),
             }),
         }
+    }
+
+    /// Convert every channel of the channel table ([`CHANNEL_TABLE`]) to its SI unit in place,
+    /// so that every consumer gets `omega_en` in rad/s whatever the file said. A channel with
+    /// no unit is taken to be in SI already and left unlabelled; a unit that does not convert
+    /// is an error naming the channel. Returns what was converted, `(channel, from, to)`.
+    pub fn to_standard_units(&mut self) -> Result<Vec<(String, String, String)>, RecordingError> {
+        let mut done = Vec::new();
+        for ch in &mut self.channels {
+            let Some(si) = standard_unit(&ch.name) else {
+                continue;
+            };
+            if ch.unit.is_empty() || ch.unit == si {
+                continue;
+            }
+            let Some((scale, offset)) = units::conversion(&ch.unit, si) else {
+                return Err(RecordingError::Unit {
+                    name: ch.name.clone(),
+                    unit: ch.unit.clone(),
+                    wanted: si.into(),
+                    known: units::known_for(si),
+                });
+            };
+            if (scale, offset) != (1.0, 0.0) {
+                for v in &mut ch.values {
+                    *v = *v * scale + offset;
+                }
+            }
+            done.push((
+                ch.name.clone(),
+                std::mem::replace(&mut ch.unit, si.into()),
+                si.into(),
+            ));
+        }
+        Ok(done)
     }
 
     /// Replace a channel's samples (same length).
@@ -323,6 +323,52 @@ mod tests {
         let e = r.values_in("torque_shaft", "N*m").unwrap_err().to_string();
         assert!(
             e.contains("'torque_shaft' is in 'lbf*ft'") && e.contains("kN*m"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn standard_channels_come_to_si_and_others_stay() {
+        let mut r = Recording::new(Basis::Time);
+        for (name, unit, v) in [
+            ("t", "ms", 250.0),
+            ("theta_en", "deg", 90.0),
+            ("omega_en", "rpm", 1500.0),
+            ("T_oil", "°C", 90.0),
+            ("p_int", "bar", 0.7),
+            ("p_cyl", "", 1e5),
+            ("throttle", "deg", 30.0),
+            ("EngSpeed", "rpm", 1500.0),
+        ] {
+            r.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: vec![v],
+            })
+            .unwrap();
+        }
+        let done = r.to_standard_units().unwrap();
+        assert_eq!(done.len(), 5, "{done:?}");
+        assert_eq!(r.values("t").unwrap(), [0.25]);
+        assert!((r.values("theta_en").unwrap()[0] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+        assert!((r.values("omega_en").unwrap()[0] - 50.0 * std::f64::consts::PI).abs() < 1e-12);
+        assert!((r.values("T_oil").unwrap()[0] - 363.15).abs() < 1e-12);
+        assert!((r.values("p_int").unwrap()[0] - 70_000.0).abs() < 1e-9);
+        assert_eq!(r.channel("omega_en").unwrap().unit, "rad/s");
+        // Unlabelled stays unlabelled; the throttle's SI is deg; a user's own name is untouched.
+        assert_eq!(r.channel("p_cyl").unwrap().unit, "");
+        assert_eq!(r.values("throttle").unwrap(), [30.0]);
+        assert_eq!(r.values("EngSpeed").unwrap(), [1500.0]);
+        let mut bad = Recording::new(Basis::Time);
+        bad.push(Channel {
+            name: "torque_shaft".into(),
+            unit: "lbf*ft".into(),
+            values: vec![1.0],
+        })
+        .unwrap();
+        let e = bad.to_standard_units().unwrap_err().to_string();
+        assert!(
+            e.contains("'torque_shaft' is in 'lbf*ft'") && e.contains("kNm"),
             "{e}"
         );
     }

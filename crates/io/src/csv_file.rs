@@ -1,85 +1,169 @@
-//! CSV recordings: a header row of channel names, optionally a second row of units, then one
-//! row per sample. Numbers in Rust/Python float syntax (`1.5`, `-2e-3`, `NaN`, `inf`).
+//! CSV recordings: a header row of channel names, optionally a row of units, then one row per
+//! sample.
+//!
+//! **What physid writes** (and so reads back with no option): the header row, then — when any
+//! channel has a unit — a units row (`s,rad/s,N*m,…`), then the samples with `,` separators and
+//! `.` decimals, each number in the shortest form that reads back to the same `f64`. The units
+//! get a row of their own rather than `name [unit]` headers so that a column is still called by
+//! its channel name elsewhere: pandas reads the file with `pd.read_csv(path, skiprows=[1])`
+//! (or `header=[0, 1]` to keep the units as a second column level). A crank-angle recording
+//! is one with `cycle` and `crank_deg` columns (the channels only a crank-angle recording has,
+//! DESIGN.md's channel table; [`crate::format::basis_by_channels`]); nothing else marks the
+//! basis, so the file stays plain CSV.
+//!
+//! **What physid reads**, so that test-cell exports open as they are:
+//! - the separator from the header line: `;`, tab or `,` (in that order of preference);
+//!   with `;` or tab, decimal commas (`1,5`) are read as well as points;
+//! - a units row found by its content (no number in it), or forced by
+//!   [`CsvOptions::units_row`]; units in the header as `name [unit]`;
+//! - `\n` or `\r\n` line ends, a last line without one (read, with a warning in
+//!   `meta["warning"]`), lines numbered as an editor numbers them;
+//! - numbers in Rust/Python float syntax (`1.5`, `-2e-3`, `NaN`, `inf`).
 
 use crate::IoError;
 use physid_core::{Basis, Channel, Recording};
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 /// How to read a CSV file.
 #[derive(Debug, Clone, Default)]
 pub struct CsvOptions {
-    /// The second row holds units (`s`, `rad/s`, `N*m`, …) rather than data.
+    /// The second row holds units (it is also found without this, by its content).
     pub units_row: bool,
-    /// Samples are on a crank-angle basis (default: time).
+    /// Samples are on a crank-angle basis (also found without this by [`crate::read`]:
+    /// `cycle` and `crank_deg` columns).
     pub crank_angle: bool,
 }
 
-fn malformed(path: &str, e: csv::Error) -> IoError {
-    match e.kind() {
-        csv::ErrorKind::UnequalLengths {
-            pos,
-            expected_len,
-            len,
-        } => IoError::Ragged {
-            path: path.into(),
-            line: pos.as_ref().map_or(0, |p| p.line()),
-            expected: *expected_len as usize,
-            got: *len as usize,
-        },
-        _ => IoError::Malformed {
-            path: path.into(),
-            detail: e.to_string(),
-        },
+/// The separator a header line uses: `;` or tab when present, else `,`.
+fn separator(header: &str) -> u8 {
+    if header.contains(';') {
+        b';'
+    } else if header.contains('\t') {
+        b'\t'
+    } else {
+        b','
     }
 }
 
-/// Read a CSV file into a [`Recording`].
+/// A cell as a number: float syntax, or with a decimal comma where the separator allows one.
+fn number(cell: &str, decimal_comma: bool) -> Option<f64> {
+    if let Ok(v) = cell.parse::<f64>() {
+        return Some(v);
+    }
+    if decimal_comma && cell.matches(',').count() == 1 && !cell.contains('.') {
+        return cell.replace(',', ".").parse().ok();
+    }
+    None
+}
+
+/// Whether a row is a units row: nothing in it is a number (a dimensionless unit written
+/// `1` is therefore not recognised: `--units-row` says so).
+fn is_units_row(cells: &[String], decimal_comma: bool) -> bool {
+    cells
+        .iter()
+        .all(|c| c.is_empty() || number(c, decimal_comma).is_none())
+}
+
+/// `name [unit]` → (`name`, `unit`); anything else is a name without a unit.
+fn split_header(cell: &str) -> (String, String) {
+    if let Some(stripped) = cell.strip_suffix(']') {
+        if let Some((name, unit)) = stripped.rsplit_once('[') {
+            let name = name.trim_end();
+            if !name.is_empty() {
+                return (name.to_string(), unit.trim().to_string());
+            }
+        }
+    }
+    (cell.to_string(), String::new())
+}
+
+/// Read a CSV file into a [`Recording`] (module docs). `meta["first_data_line"]` is the file
+/// line of sample 0, so that sample `i` is on line `first_data_line + i`.
 pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, IoError> {
     let p = path.as_ref().display().to_string();
-    let file = std::fs::File::open(path.as_ref()).map_err(|source| IoError::Os {
+    let os = |source| IoError::Os {
         path: p.clone(),
         source,
-    })?;
+    };
+    let mut file = std::io::BufReader::new(std::fs::File::open(path.as_ref()).map_err(os)?);
+    // The header line decides the separator; it is read again by the CSV parser.
+    let mut first = Vec::new();
+    (&mut file)
+        .take(1 << 20)
+        .read_until(b'\n', &mut first)
+        .map_err(os)?;
+    let sep = separator(&String::from_utf8_lossy(&first));
+    let decimal_comma = sep != b',';
+    let rest = std::io::Cursor::new(first).chain(file);
     let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(true)
+        .has_headers(false)
+        .delimiter(sep)
+        .flexible(true)
         .trim(csv::Trim::All)
-        .from_reader(std::io::BufReader::new(file));
-    let headers: Vec<String> = rdr
-        .headers()
-        .map_err(|e| malformed(&p, e))?
-        .iter()
-        .map(str::to_string)
-        .collect();
-    if headers.is_empty() || headers.iter().all(String::is_empty) {
+        .from_reader(rest);
+    let mut record = csv::StringRecord::new();
+    let next = |rdr: &mut csv::Reader<_>, record: &mut csv::StringRecord| {
+        rdr.read_record(record).map_err(|e| IoError::Malformed {
+            path: p.clone(),
+            detail: e.to_string(),
+        })
+    };
+    if !next(&mut rdr, &mut record)? || record.iter().all(str::is_empty) {
         return Err(IoError::Empty {
             path: p,
             what: "no header row (expected channel names on the first line)",
         });
     }
-    let mut units = vec![String::new(); headers.len()];
-    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); headers.len()];
-    let mut record = csv::StringRecord::new();
-    let mut first = true;
-    loop {
-        match rdr.read_record(&mut record) {
-            Ok(false) => break,
-            Ok(true) => {}
-            Err(e) => return Err(malformed(&p, e)),
+    let (names, mut units): (Vec<String>, Vec<String>) = record.iter().map(split_header).unzip();
+    let width = names.len();
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); width];
+    let mut first_data_line = None;
+    let mut last_start = 0u64;
+    let mut row = 1usize;
+    while next(&mut rdr, &mut record)? {
+        row += 1;
+        // The parser's own line count is one short after `\r\n` ends (csv 1.3): lines are
+        // counted from the record's byte offset, when a line is needed (an error, the first
+        // data row), by counting the line ends up to it.
+        let at = record.position().map_or(0, |q| q.byte());
+        let line_here = || line_at(path.as_ref(), at);
+        if record.len() == 1 && record.get(0) == Some("") {
+            continue; // a blank line
         }
-        let line = record.position().map_or(0, |q| q.line());
-        if first && opts.units_row {
-            first = false;
-            for (u, cell) in units.iter_mut().zip(record.iter()) {
-                *u = cell.to_string();
+        if record.len() != width {
+            return Err(IoError::Ragged {
+                path: p,
+                line: line_here(),
+                expected: width,
+                got: record.len(),
+                hint: if sep == b',' && record.len() > width {
+                    " (decimal commas? use ';' or tab separators with them)"
+                } else {
+                    ""
+                },
+            });
+        }
+        if row == 2 {
+            let cells: Vec<String> = record.iter().map(str::to_string).collect();
+            if opts.units_row || is_units_row(&cells, decimal_comma) {
+                for (u, cell) in units.iter_mut().zip(cells) {
+                    if !cell.is_empty() {
+                        *u = cell;
+                    }
+                }
+                continue;
             }
-            continue;
         }
-        first = false;
+        if first_data_line.is_none() {
+            first_data_line = Some(line_here());
+        }
+        last_start = at;
         for (j, cell) in record.iter().enumerate() {
-            let v: f64 = cell.parse().map_err(|_| IoError::NotNumeric {
+            let v = number(cell, decimal_comma).ok_or_else(|| IoError::NotNumeric {
                 path: p.clone(),
-                line,
-                column: headers[j].clone(),
+                line: line_here(),
+                column: names[j].clone(),
                 value: cell.to_string(),
             })?;
             columns[j].push(v);
@@ -97,7 +181,25 @@ pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, 
         Basis::Time
     });
     rec.meta.insert("source".into(), p.clone());
-    for ((name, unit), values) in headers.into_iter().zip(units).zip(columns) {
+    if let Some(l) = first_data_line {
+        rec.meta.insert("first_data_line".into(), l.to_string());
+    }
+    if sep != b',' {
+        rec.meta.insert(
+            "csv_separator".into(),
+            if sep == b';' { ";" } else { "tab" }.into(),
+        );
+    }
+    if !ends_with_newline(path.as_ref()).map_err(os)? {
+        rec.meta.insert(
+            "warning".into(),
+            format!(
+                "the last line (line {}) has no line end: the file may have been cut short",
+                line_at(path.as_ref(), last_start)
+            ),
+        );
+    }
+    for ((name, unit), values) in names.into_iter().zip(units).zip(columns) {
         rec.push(Channel { name, unit, values })
             .map_err(|source| IoError::Recording {
                 path: p.clone(),
@@ -107,8 +209,41 @@ pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, 
     Ok(rec)
 }
 
-/// Write a [`Recording`] as CSV (header row, then a units row when any channel has a unit).
-/// Numbers are written in the shortest form that reads back to the same `f64`.
+/// The 1-based line of the file on which byte `at` lies (0 when the file cannot be read again:
+/// the error that asked for the line is reported all the same).
+fn line_at(path: &Path, at: u64) -> u64 {
+    let Ok(f) = std::fs::File::open(path) else {
+        return 0;
+    };
+    let mut n = 1;
+    let mut buf = [0u8; 1 << 16];
+    // After a `\r\n` the parser's record offset is that of the `\n` (it ended the line at
+    // the `\r`), so the byte at `at` itself is counted too.
+    let mut rest = f.take(at + 1);
+    while let Ok(k) = rest.read(&mut buf) {
+        if k == 0 {
+            break;
+        }
+        n += buf[..k].iter().filter(|&&b| b == b'\n').count() as u64;
+    }
+    n
+}
+
+/// Whether the file's last byte is a line end (an empty file counts as ended).
+fn ends_with_newline(path: &Path) -> std::io::Result<bool> {
+    use std::io::{Seek, SeekFrom};
+    let mut f = std::fs::File::open(path)?;
+    if f.seek(SeekFrom::End(0))? == 0 {
+        return Ok(true);
+    }
+    f.seek(SeekFrom::End(-1))?;
+    let mut b = [0u8; 1];
+    f.read_exact(&mut b)?;
+    Ok(b[0] == b'\n')
+}
+
+/// Write a [`Recording`] as CSV (module docs: header row, then a units row when any channel
+/// has a unit). Numbers are written in the shortest form that reads back to the same `f64`.
 pub fn write_csv(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError> {
     let p = path.as_ref().display().to_string();
     let os = |source| IoError::Os {
@@ -137,77 +272,4 @@ pub fn write_csv(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError>
         w.write_record(&row).map_err(werr)?;
     }
     w.flush().map_err(os)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn tmp(name: &str, text: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("physid-io-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-
-    #[test]
-    fn reads_units_row_and_round_trips_exactly() {
-        let p = tmp("a.csv", "t,omega\ns,rad/s\n0,1.5\n0.001,0.1\n");
-        let r = read_csv(
-            &p,
-            &CsvOptions {
-                units_row: true,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        assert_eq!(r.values("omega").unwrap(), &[1.5, 0.1]);
-        assert_eq!(r.channel("omega").unwrap().unit, "rad/s");
-        let q = p.with_file_name("b.csv");
-        write_csv(&q, &r).unwrap();
-        let back = read_csv(
-            &q,
-            &CsvOptions {
-                units_row: true,
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        assert_eq!(back.channels(), r.channels());
-    }
-
-    #[test]
-    fn errors_name_file_line_and_column() {
-        let p = tmp("bad.csv", "a,b\n1,2\n3,x7\n");
-        let e = read_csv(&p, &CsvOptions::default())
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.ends_with("bad.csv, line 3, column 'b': 'x7' is not a number"),
-            "{e}"
-        );
-        let p = tmp("empty.csv", "");
-        let e = read_csv(&p, &CsvOptions::default())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("no header row"), "{e}");
-        let p = tmp("hdr.csv", "a,b\n");
-        let e = read_csv(&p, &CsvOptions::default())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("no data rows"), "{e}");
-        let p = tmp("ragged.csv", "a,b\n1,2\n3\n");
-        let e = read_csv(&p, &CsvOptions::default())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("line 3: 1 cells, but the header has 2"), "{e}");
-        let p = tmp("dup.csv", "a,a\n1,2\n");
-        let e = read_csv(&p, &CsvOptions::default())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("channel 'a' appears twice"), "{e}");
-        let e = read_csv("/nonexistent/x.csv", &CsvOptions::default()).unwrap_err();
-        assert!(matches!(e, IoError::Os { .. }));
-    }
 }

@@ -1,11 +1,20 @@
 //! One entry point for every format: the extension says which (`.csv`, `.parquet`, `.mf4` /
 //! `.mdf`), the first bytes must agree (a file that is not what its extension says is named
-//! as such), and a channel map renames the file's columns to physid's channel names on the
-//! way in (`--map omega_en=EngSpeed`) — the file itself is never changed.
+//! as such; any other extension — `.txt`, `.dat`, `.asc` — is read by its first bytes), and a
+//! channel map renames the file's columns to physid's channel names on the way in
+//! (`--map omega_en=EngSpeed`, or `--map omega_en=EngSpeed:rpm` to state the unit of a column
+//! the file gives none) — the file itself is never changed.
+//!
+//! On the way in, every channel of DESIGN.md's table is brought to its SI unit
+//! ([`Recording::to_standard_units`]): a log with `omega_en` in rpm and `T_oil` in °C reaches
+//! the applications in rad/s and K, and a unit physid cannot convert is refused naming the
+//! channel. The conversions made are listed in `meta["units_converted"]`. A recording with
+//! `cycle` and `crank_deg` channels is on a crank-angle basis in every format
+//! ([`basis_by_channels`]).
 
 use crate::{read_csv, read_mdf, read_parquet, write_csv, write_mdf, write_parquet};
 use crate::{CsvOptions, IoError, MdfCompression};
-use physid_core::{Channel, Recording};
+use physid_core::{Basis, Channel, Recording};
 use std::io::Read;
 use std::path::Path;
 
@@ -47,6 +56,9 @@ impl Format {
 
 /// What the first bytes say the file is.
 fn sniff(head: &[u8]) -> Option<Format> {
+    if head.starts_with(b"MDF     3") {
+        return None; // MDF 3: refused by `detect` with what to do
+    }
     if head.starts_with(b"PAR1") {
         Some(Format::Parquet)
     } else if head.starts_with(b"MDF ") || head.starts_with(b"UnFinMF") {
@@ -59,13 +71,11 @@ fn sniff(head: &[u8]) -> Option<Format> {
     }
 }
 
-/// The file's format from its extension, checked against its first bytes.
+/// The file's format from its extension, checked against its first bytes; a file with another
+/// extension (`.txt`, `.dat`, …) by its first bytes alone.
 pub fn detect(path: &Path) -> Result<Format, IoError> {
     let p = path.display().to_string();
-    let by_ext = Format::from_extension(path).ok_or_else(|| IoError::Malformed {
-        path: p.clone(),
-        detail: "unknown extension: expected .csv, .parquet or .mf4".into(),
-    })?;
+    let by_ext = Format::from_extension(path);
     let mut head = [0u8; 512];
     let n = std::fs::File::open(path)
         .and_then(|mut f| f.read(&mut head))
@@ -73,26 +83,49 @@ pub fn detect(path: &Path) -> Result<Format, IoError> {
             path: p.clone(),
             source,
         })?;
-    match sniff(&head[..n]) {
-        Some(f) if f == by_ext => Ok(f),
-        Some(f) => Err(IoError::Malformed {
+    let head = &head[..n];
+    if head.starts_with(b"MDF     3") {
+        return Err(IoError::Malformed {
+            path: p,
+            detail: "an MDF version 3 file: physid reads MDF 4 (convert it first, e.g. asammdf's MDF(path).convert('4.10').save(...))".into(),
+        });
+    }
+    match (sniff(head), by_ext) {
+        (Some(f), Some(e)) if f == e => Ok(f),
+        (Some(f), None) => Ok(f),
+        (Some(f), Some(e)) => Err(IoError::Malformed {
             path: p,
             detail: format!(
                 "the extension says {} but the file is {}",
-                by_ext.name(),
+                e.name(),
                 match f {
                     Format::Csv => "text (CSV?)".to_string(),
                     other => format!("{} (by its first bytes)", other.name()),
                 }
             ),
         }),
-        None => Err(IoError::Malformed {
+        (None, Some(e)) => Err(IoError::Malformed {
             path: p,
             detail: format!(
                 "the extension says {} but the file is neither {0}, CSV, Parquet nor MDF4 by its first bytes",
-                by_ext.name()
+                e.name()
             ),
         }),
+        (None, None) => Err(IoError::Malformed {
+            path: p,
+            detail: "neither CSV text, Parquet nor MDF4 by its first bytes (physid reads .csv, .parquet and .mf4 files, and text files of any extension)".into(),
+        }),
+    }
+}
+
+/// A crank-angle recording is one with `cycle` and `crank_deg` channels (DESIGN.md's channel
+/// table: only a crank-angle recording has them). The convention that keeps the basis in
+/// formats with no place for it (CSV) or where physid writes a time master (MDF4).
+pub fn basis_by_channels(rec: &Recording) -> Basis {
+    if rec.channel("cycle").is_ok() && rec.channel("crank_deg").is_ok() {
+        Basis::CrankAngle
+    } else {
+        rec.basis
     }
 }
 
@@ -101,26 +134,54 @@ pub fn detect(path: &Path) -> Result<Format, IoError> {
 pub struct ReadOptions {
     /// Only these channels (physid names, after the map); all if `None`.
     pub channels: Option<Vec<String>>,
-    /// `(physid name, file column)` pairs.
-    pub map: Vec<(String, String)>,
+    /// The channel map (`--map`).
+    pub map: Vec<MapItem>,
     /// CSV: the second row holds units.
     pub units_row: bool,
     /// CSV: samples are on a crank-angle basis.
     pub crank_angle: bool,
+    /// Keep every channel in the file's units (default: channels of the channel table are
+    /// brought to SI).
+    pub keep_units: bool,
+}
+
+/// One `--map` item: read the file's `column` as channel `name`, optionally stating its unit.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MapItem {
+    /// physid's channel name.
+    pub name: String,
+    /// The file's column.
+    pub column: String,
+    /// The column's unit, when the user states it (`NAME=COLUMN:UNIT`).
+    pub unit: Option<String>,
 }
 
 impl ReadOptions {
-    /// Parse `name=column` items (the `--map` option).
-    pub fn parse_map(items: &[String]) -> Result<Vec<(String, String)>, String> {
+    /// Parse `NAME=COLUMN` or `NAME=COLUMN:UNIT` items (the `--map` option). A `:UNIT`
+    /// suffix is taken as a unit only when it is one physid knows, so a column whose own name
+    /// has a colon still maps.
+    pub fn parse_map(items: &[String]) -> Result<Vec<MapItem>, String> {
         items
             .iter()
             .map(|s| {
-                s.split_once('=')
-                    .map(|(a, b)| (a.trim().to_string(), b.trim().to_string()))
+                let (name, column) = s
+                    .split_once('=')
+                    .map(|(a, b)| (a.trim(), b.trim()))
                     .filter(|(a, b)| !a.is_empty() && !b.is_empty())
                     .ok_or_else(|| {
-                        format!("--map '{s}': expected NAME=COLUMN, e.g. omega_en=EngSpeed")
-                    })
+                        format!("--map '{s}': expected NAME=COLUMN or NAME=COLUMN:UNIT, e.g. omega_en=EngSpeed:rpm")
+                    })?;
+                let (column, unit) = match column.rsplit_once(':') {
+                    Some((c, u)) if physid_core::units::lookup(u).is_some() && !c.is_empty() => {
+                        (c.trim(), Some(u.trim().to_string()))
+                    }
+                    _ => (column, None),
+                };
+                Ok(MapItem {
+                    name: name.to_string(),
+                    column: column.to_string(),
+                    unit,
+                })
             })
             .collect()
     }
@@ -128,8 +189,8 @@ impl ReadOptions {
     fn file_name<'a>(&'a self, name: &'a str) -> &'a str {
         self.map
             .iter()
-            .find(|(n, _)| n == name)
-            .map_or(name, |(_, c)| c.as_str())
+            .find(|m| m.name == name)
+            .map_or(name, |m| m.column.as_str())
     }
 }
 
@@ -171,6 +232,24 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
     if !opts.map.is_empty() {
         rec = rename(rec, &opts.map, path)?;
     }
+    rec.basis = basis_by_channels(&rec);
+    if !opts.keep_units {
+        let done = rec
+            .to_standard_units()
+            .map_err(|source| IoError::Recording {
+                path: path.display().to_string(),
+                source,
+            })?;
+        if !done.is_empty() {
+            rec.meta.insert(
+                "units_converted".into(),
+                done.iter()
+                    .map(|(n, from, to)| format!("{n}: {from} → {to}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            );
+        }
+    }
     Ok(rec)
 }
 
@@ -191,15 +270,15 @@ fn select(rec: Recording, names: &[String], path: &Path) -> Result<Recording, Io
     Ok(out)
 }
 
-/// Rename the file's columns to physid names per the map.
-fn rename(rec: Recording, map: &[(String, String)], path: &Path) -> Result<Recording, IoError> {
+/// Rename the file's columns to physid names per the map, with the units it states.
+fn rename(rec: Recording, map: &[MapItem], path: &Path) -> Result<Recording, IoError> {
     let p = path.display().to_string();
-    for (name, column) in map {
-        if rec.channel(column).is_err() && rec.channel(name).is_err() {
+    for m in map {
+        if rec.channel(&m.column).is_err() && rec.channel(&m.name).is_err() {
             return Err(IoError::Recording {
                 path: p,
                 source: physid_core::RecordingError::MissingChannel {
-                    name: format!("{column} (mapped to {name})"),
+                    name: format!("{} (mapped to {})", m.column, m.name),
                     available: rec.names().join(", "),
                 },
             });
@@ -208,13 +287,26 @@ fn rename(rec: Recording, map: &[(String, String)], path: &Path) -> Result<Recor
     let mut out = Recording::new(rec.basis);
     out.meta = rec.meta.clone();
     for ch in rec.channels() {
-        let name = map
-            .iter()
-            .find(|(_, c)| *c == ch.name)
-            .map_or(ch.name.clone(), |(n, _)| n.clone());
+        let item = map.iter().find(|m| m.column == ch.name).or_else(|| {
+            map.iter()
+                .find(|m| m.name == ch.name && rec.channel(&m.column).is_err())
+        });
+        let mut unit = ch.unit.clone();
+        if let Some(stated) = item.and_then(|m| m.unit.as_ref()) {
+            if !unit.is_empty() && &unit != stated {
+                return Err(IoError::Malformed {
+                    path: p,
+                    detail: format!(
+                        "--map gives column '{}' the unit '{stated}', but the file says '{unit}'",
+                        ch.name
+                    ),
+                });
+            }
+            unit = stated.clone();
+        }
         out.push(Channel {
-            name,
-            unit: ch.unit.clone(),
+            name: item.map_or(ch.name.clone(), |m| m.name.clone()),
+            unit,
             values: ch.values.clone(),
         })
         .map_err(|source| IoError::Recording {

@@ -13,7 +13,9 @@ pub mod mdf;
 pub mod parquet_file;
 
 pub use csv_file::{read_csv, write_csv, CsvOptions};
-pub use format::{detect, read, write, Format, ReadOptions, WriteOptions};
+pub use format::{
+    basis_by_channels, detect, read, write, Format, MapItem, ReadOptions, WriteOptions,
+};
 pub use mdf::{read_mdf, write_mdf, MdfCompression};
 pub use parquet_file::{read_parquet, write_parquet};
 
@@ -49,7 +51,7 @@ pub enum IoError {
         value: String,
     },
     /// A row with the wrong number of cells.
-    #[error("{path}, line {line}: {got} cells, but the header has {expected}")]
+    #[error("{path}, line {line}: {got} cells, but the header has {expected}{hint}")]
     Ragged {
         /// The file.
         path: String,
@@ -59,6 +61,8 @@ pub enum IoError {
         expected: usize,
         /// Cells in this row.
         got: usize,
+        /// What may be the cause, when one is likely (empty otherwise).
+        hint: &'static str,
     },
     /// Malformed CSV (quoting, encoding).
     #[error("{path}: {detail}")]

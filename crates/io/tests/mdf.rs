@@ -103,7 +103,8 @@ fn written() -> Recording {
 #[test]
 fn writes_the_file_asammdf_reads_back() {
     let rec = written();
-    let out = std::env::temp_dir().join(format!("physid-mdf-{}.mf4", std::process::id()));
+    let scratch = physid_testkit::Scratch::new("physid-mdf");
+    let out = scratch.file("w.mf4");
     write_mdf(
         &out,
         &rec,
@@ -180,7 +181,8 @@ fn errors_name_the_file_and_the_problem() {
     );
     // Truncated file.
     let bytes = std::fs::read(dir().join("time_plain.mf4")).unwrap();
-    let cut = std::env::temp_dir().join(format!("physid-cut-{}.mf4", std::process::id()));
+    let scratch = physid_testkit::Scratch::new("physid-mdf");
+    let cut = scratch.file("cut.mf4");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let e = read_mdf(&cut, None).unwrap_err().to_string();
     assert!(e.contains(cut.to_str().unwrap()), "{e}");

@@ -68,8 +68,7 @@ fn profile_shapes_in_closed_form() {
 
 #[test]
 fn toml_files_with_a_recorded_profile() {
-    let d = std::env::temp_dir().join(format!("physid-scn-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
+    let d = physid_testkit::Scratch::new("physid-scn");
     std::fs::write(d.join("speed.csv"), "t,value\n0,900\n1,1100\n2,1000\n").unwrap();
     let toml = r#"
 name = "custom"

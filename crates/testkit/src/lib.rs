@@ -51,3 +51,33 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.realloc(p, l, n) }
     }
 }
+
+/// A scratch directory for one test, removed when it goes out of scope (so tests leave nothing
+/// in the temporary folder): `let s = Scratch::new("physid-io"); let p = s.file("a.csv");`.
+#[derive(Debug)]
+pub struct Scratch(tempfile::TempDir);
+
+impl Scratch {
+    /// A new empty directory named `PREFIX-…` in the temporary folder.
+    #[allow(clippy::expect_used)] // test support: no temporary folder is a broken machine
+    pub fn new(prefix: &str) -> Self {
+        Self(
+            tempfile::Builder::new()
+                .prefix(&format!("{prefix}-"))
+                .tempdir()
+                .expect("a scratch directory in the temporary folder"),
+        )
+    }
+
+    /// The path of `name` inside it.
+    pub fn file(&self, name: &str) -> std::path::PathBuf {
+        self.0.path().join(name)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        self.0.path()
+    }
+}

@@ -339,7 +339,7 @@ pub fn run(args: &Args) -> Result<()> {
         .collect();
     let nfree = names.len();
 
-    let line = |i: usize| args.input.locate(&args.data, i);
+    let line = |i: usize| super::locate(&rec, i);
     let n = y.len();
     let mut measured = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);

@@ -21,10 +21,13 @@ use std::path::Path;
 /// How to read a recording file (every format: CSV, Parquet, MDF4 by extension).
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct InputArgs {
-    /// Read the file's column COLUMN as channel NAME (repeatable), e.g. --map omega_en=EngSpeed.
-    #[arg(long = "map", value_name = "NAME=COLUMN")]
+    /// Read the file's column COLUMN as channel NAME (repeatable), e.g. --map omega_en=EngSpeed;
+    /// state its unit where the file gives none with :UNIT, e.g. --map omega_en=EngSpeed:rpm.
+    /// Standard channels are converted to SI on reading (rpm → rad/s, deg → rad, °C → K, bar → Pa).
+    #[arg(long = "map", value_name = "NAME=COLUMN[:UNIT]")]
     pub map: Vec<String>,
-    /// CSV: the file's second row holds units.
+    /// CSV: the file's second row holds units (found without this flag when the row has no
+    /// numbers).
     #[arg(long)]
     pub units_row: bool,
 }
@@ -39,20 +42,23 @@ impl InputArgs {
                 channels,
                 map,
                 units_row: self.units_row,
-                crank_angle: false,
+                ..Default::default()
             },
         )
         .into_diagnostic()
     }
+}
 
-    /// Where sample `i` of `path` is, for error messages: the CSV line, else the index.
-    pub fn locate(&self, path: &Path, i: usize) -> String {
-        match physid_io::Format::from_extension(path) {
-            Some(physid_io::Format::Csv) => {
-                format!("line {} (sample {i})", i + 2 + usize::from(self.units_row))
-            }
-            _ => format!("sample {i}"),
-        }
+/// Where sample `i` of a recording read from a file is, for error messages: the CSV line
+/// (from the reader's `first_data_line`), else the index.
+pub fn locate(rec: &Recording, i: usize) -> String {
+    match rec
+        .meta
+        .get("first_data_line")
+        .and_then(|l| l.parse::<usize>().ok())
+    {
+        Some(l) => format!("line {} (sample {i})", l + i),
+        None => format!("sample {i}"),
     }
 }
 
