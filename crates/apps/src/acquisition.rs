@@ -34,7 +34,8 @@ pub enum AcquisitionError {
 /// Where the encoders and the TDC marker are.
 #[derive(Debug, Clone)]
 pub struct AcquisitionOptions {
-    /// Encoder counter channels with their pulses per revolution.
+    /// Encoder counter channels with their pulses per revolution; the TDC marker belongs to the
+    /// first (the engine's).
     pub encoders: Vec<(String, u32)>,
     /// The TDC marker channel.
     pub marker: String,
@@ -111,6 +112,8 @@ pub fn inspect(rec: &Recording, opts: &AcquisitionOptions) -> Inspection {
                 .cloned()
                 .collect(),
             marker: rec.channel(&opts.marker).ok().map(|_| opts.marker.clone()),
+            // The marker is the first encoder's (the engine's, by default).
+            marker_encoder: opts.encoders.first().map(|e| e.0.clone()),
             samples_per_cycle: per_cycle,
         },
     );

@@ -16,8 +16,8 @@ pub struct Args {
     pub file: PathBuf,
     #[command(flatten)]
     pub input: InputArgs,
-    /// Encoder counter channel and pulses per revolution (repeatable)
-    /// [default: count_en=360, count_dy=1024].
+    /// Encoder counter channel and pulses per revolution (repeatable); the TDC marker belongs
+    /// to the first [default: count_en=360, count_dy=1024].
     #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
     pub encoders: Vec<String>,
     /// TDC marker channel.
@@ -93,6 +93,9 @@ pub fn run(args: &Args) -> Result<()> {
                 .collect::<Vec<_>>(),
         );
         rep.section("Integrity");
+        for n in &i.integrity.notes {
+            rep.para(&format!("Note (sample {}): {}", n.index, n.detail), None);
+        }
         if i.integrity.ok {
             rep.para("No finding.", Some("ok"));
         } else {
@@ -149,6 +152,15 @@ pub fn run(args: &Args) -> Result<()> {
         outln!("{:<24} {:<10} {:>10}", "channel", "unit", "samples");
         for c in &i.channels {
             outln!("{:<24} {:<10} {:>10}", c.name, c.unit, c.samples);
+        }
+        for n in &i.integrity.notes {
+            outln!("note: {} (sample {})", n.detail, n.index);
+        }
+        if let Some(u) = rec.meta.get("units_converted") {
+            outln!("units converted on reading: {u}");
+        }
+        if let Some(w) = rec.meta.get("warning") {
+            outln!("warning: {w}");
         }
         if i.integrity.ok {
             outln!("integrity: ok");
