@@ -7,9 +7,9 @@
 //! of each estimate from its healthy value (Eq. 6.3) raises an alarm when it stays beyond a
 //! bound for a dwell — and names the parameter that moved (isolation).
 
-use crate::acquisition::uniform_step;
+use crate::acquisition::{to_time_basis, uniform_step};
 use crate::error::AppError;
-use physid_core::{ParamSet, Recording};
+use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::{
     Alarm, CovSpec, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector, VfVariant,
 };
@@ -138,7 +138,24 @@ pub struct ShaftMonitor {
 
 /// Run the monitor on a time-basis recording with `theta_dy`, `theta_en`, `omega_dy`,
 /// `omega_en`, `torque_shaft` and `t` (and `true_shaft_k`/`true_shaft_b` if simulated).
+///
+/// A crank-angle recording (one sample per crank step, so its time step follows the speed) is
+/// first resampled to a uniform time basis at its mean sample rate.
 pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonitor, AppError> {
+    let resampled;
+    let rec = if rec.basis == Basis::CrankAngle {
+        let t = rec.values("t")?;
+        let span = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
+        if t.len() < 2 || !(span > 0.0) {
+            return Err(AppError::Invalid(
+                "a crank-angle recording whose time 't' does not advance cannot be put on a time basis".into(),
+            ));
+        }
+        resampled = to_time_basis(rec, (t.len() - 1) as f64 / span)?;
+        &resampled
+    } else {
+        rec
+    };
     let t = rec.values("t")?;
     let get = |n: &str| rec.values(n);
     let (thd, the, wd, we, tq) = (

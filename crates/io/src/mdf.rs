@@ -166,6 +166,20 @@ pub fn write_mdf(
         path: p.clone(),
         detail: "MDF4 files carry a time master: the recording needs a 't' channel [s]".into(),
     })?;
+    // MDF4 orders a group's records by its time master (and the writer sorts them): a time
+    // that goes back or is not a number would reorder or lose samples, so it is refused.
+    if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+        return Err(IoError::Malformed {
+            path: p,
+            detail: format!("MDF4 needs a finite time master: 't' is {} at sample {i}; write CSV or Parquet to keep the samples as they are", t[i]),
+        });
+    }
+    if let Some(i) = t.windows(2).position(|w| w[1] < w[0]) {
+        return Err(IoError::Malformed {
+            path: p,
+            detail: format!("MDF4 orders records by their time master, and 't' goes back at sample {}: write CSV or Parquet to keep the samples in their order", i + 1),
+        });
+    }
     let mut w = match start_time_ns {
         Some(ns) => Mf4Writer::with_start_time_ns(ns),
         None => Mf4Writer::new(),

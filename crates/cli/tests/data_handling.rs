@@ -1,0 +1,323 @@
+//! Day-one data handling, end to end: the same recording in SI and in a test cell's units
+//! (deg, rpm, °C, bar, kN·m, under its own column names) gives the same estimates in every
+//! application; a crank-angle recording keeps its basis in every format and every verb takes
+//! it; `inspect --strict` passes on every clean built-in scenario in both bases, and every
+//! injected defect is found at its sample.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_core::{Basis, Channel, Recording};
+use physid_io::{read, write, ReadOptions, WriteOptions};
+use physid_testkit::Scratch;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn physid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args(args)
+        .output()
+        .expect("run physid")
+}
+
+fn ok_json(args: &[&str]) -> Value {
+    let o = physid(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn simulate(dir: &Path, scenario: &str, basis: &str, duration: &str, ext: &str) -> PathBuf {
+    let f = dir.join(format!("{scenario}-{basis}.{ext}"));
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        scenario,
+        "--basis",
+        basis,
+        "--duration",
+        duration,
+        "--out",
+        f.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    f
+}
+
+/// How a test-cell log states each standard channel: `(unit, from SI)`.
+fn test_cell_unit(name: &str) -> Option<(&'static str, fn(f64) -> f64)> {
+    Some(match name {
+        "theta_en" | "theta_dy" | "theta" => ("deg", |x: f64| x.to_degrees()),
+        "omega_en" | "omega_dy" | "speed_demand" => {
+            ("rpm", |x: f64| x * 30.0 / std::f64::consts::PI)
+        }
+        "T_oil" | "T_int" | "T_exh" => ("°C", |x: f64| x - 273.15),
+        "p_cyl" | "p_int" | "p_exh" | "p_crank" | "p_atm" => ("bar", |x: f64| x / 1e5),
+        "torque_shaft" | "torque_engine" => ("kNm", |x: f64| x / 1e3),
+        _ => return None,
+    })
+}
+
+/// The recording in the test cell's units, every channel renamed `Log_<name>`, written as a
+/// CSV with a units row; returns the file and the `--map` items that read it back.
+fn test_cell_log(rec: &Recording, path: &Path) -> Vec<String> {
+    let mut out = Recording::new(rec.basis);
+    let mut map = Vec::new();
+    for ch in rec.channels() {
+        let (unit, values) = match test_cell_unit(&ch.name) {
+            Some((u, f)) => (u.to_string(), ch.values.iter().map(|&v| f(v)).collect()),
+            None => (ch.unit.clone(), ch.values.clone()),
+        };
+        let name = format!("Log_{}", ch.name);
+        map.push(format!("--map={}={name}", ch.name));
+        out.push(Channel { name, unit, values }).unwrap();
+    }
+    write(path, &out, &WriteOptions::default()).unwrap();
+    map
+}
+
+/// Relative agreement of two JSON numbers.
+fn close(a: &Value, b: &Value, tol: f64, what: &str) {
+    let (x, y) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+    assert!(
+        (x - y).abs() <= tol * y.abs().max(1e-300),
+        "{what}: {x} against {y}"
+    );
+}
+
+#[test]
+fn the_same_recording_in_test_cell_units_gives_the_same_estimates() {
+    let s = Scratch::new("physid-data");
+    // Shaft monitor (time basis).
+    let si = simulate(&s, "shaft-steady", "time", "3", "csv");
+    let log = s.file("shaft-log.csv");
+    let map = test_cell_log(&read(&si, &ReadOptions::default()).unwrap(), &log);
+    let a = ok_json(&["monitor", "shaft", "--data", si.to_str().unwrap(), "--json"]);
+    let mut args = vec![
+        "monitor",
+        "shaft",
+        "--data",
+        log.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(map.iter().map(String::as_str));
+    let b = ok_json(&args);
+    for p in ["K", "B"] {
+        close(&b["final"][p], &a["final"][p], 1e-9, p);
+        close(&b["std_err"][p], &a["std_err"][p], 1e-9, p);
+    }
+    // τ0 is zero within its standard error: compared on the scale of that error.
+    let (x, y, se) = (
+        b["final"]["tau0"].as_f64().unwrap(),
+        a["final"]["tau0"].as_f64().unwrap(),
+        a["std_err"]["tau0"].as_f64().unwrap(),
+    );
+    assert!((x - y).abs() <= 1e-9 * se, "tau0: {x} against {y} (σ {se})");
+    assert!(a["alarms"].as_array().unwrap().is_empty());
+    assert!(b["alarms"].as_array().unwrap().is_empty());
+
+    // Cyclic torque (crank-angle basis, UKF).
+    let si = simulate(&s, "torque-ramp", "crank", "2", "parquet");
+    let log = s.file("torque-log.csv");
+    let map = test_cell_log(&read(&si, &ReadOptions::default()).unwrap(), &log);
+    let a = ok_json(&["torque", "fit", "--data", si.to_str().unwrap(), "--json"]);
+    let mut args = vec!["torque", "fit", "--data", log.to_str().unwrap(), "--json"];
+    args.extend(map.iter().map(String::as_str));
+    let b = ok_json(&args);
+    assert_eq!(a["estimable"], b["estimable"]);
+    for p in a["estimable"].as_array().unwrap() {
+        let p = p.as_str().unwrap();
+        close(&b["params"][p], &a["params"][p], 1e-9, p);
+    }
+    close(&b["nmse_after"], &a["nmse_after"], 1e-9, "nmse_after");
+
+    // Friction characterisation (crank-angle basis, cycle means).
+    let si = simulate(&s, "friction-sweep", "crank", "8", "parquet");
+    let log = s.file("friction-log.csv");
+    let map = test_cell_log(&read(&si, &ReadOptions::default()).unwrap(), &log);
+    let a = ok_json(&[
+        "friction",
+        "fit",
+        "--data",
+        si.to_str().unwrap(),
+        "--preset",
+        "cell",
+        "--json",
+    ]);
+    let mut args = vec![
+        "friction",
+        "fit",
+        "--data",
+        log.to_str().unwrap(),
+        "--preset",
+        "cell",
+        "--json",
+    ];
+    args.extend(map.iter().map(String::as_str));
+    let b = ok_json(&args);
+    assert_eq!(a["estimable"], b["estimable"]);
+    assert_eq!(a["cycles"], b["cycles"]);
+    for p in a["estimable"].as_array().unwrap() {
+        let p = p.as_str().unwrap();
+        close(&b["params"][p], &a["params"][p], 1e-9, p);
+        close(&b["std_err"][p], &a["std_err"][p], 1e-9, p);
+    }
+}
+
+#[test]
+fn a_unit_physid_cannot_convert_is_refused_naming_the_channel() {
+    let s = Scratch::new("physid-data");
+    let f = s.file("bad.csv");
+    std::fs::write(&f, "t,torque_shaft\ns,lbf*ft\n0,1\n0.001,2\n").unwrap();
+    let o = physid(&["inspect", f.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("'torque_shaft' is in 'lbf*ft'"), "{e}");
+    // A unit stated on the command line where the file has none.
+    let f = s.file("bare.csv");
+    std::fs::write(&f, "t,EngSpeed\n0,1500\n0.001,1500\n").unwrap();
+    let j = ok_json(&[
+        "inspect",
+        f.to_str().unwrap(),
+        "--map",
+        "omega_en=EngSpeed:rpm",
+        "--json",
+    ]);
+    let ch = j["channels"].as_array().unwrap();
+    assert!(
+        ch.iter()
+            .any(|c| c["name"] == "omega_en" && c["unit"] == "rad/s"),
+        "{j}"
+    );
+}
+
+#[test]
+fn a_crank_angle_recording_keeps_its_basis_in_every_format_and_every_verb_takes_it() {
+    let s = Scratch::new("physid-data");
+    let mut fits = Vec::new();
+    for ext in ["csv", "parquet", "mf4"] {
+        let f = simulate(&s, "torque-ramp", "crank", "2", ext);
+        let i = ok_json(&["inspect", f.to_str().unwrap(), "--json", "--strict"]);
+        assert_eq!(i["basis"], "crank_angle", "{ext}");
+        fits.push(ok_json(&[
+            "torque",
+            "fit",
+            "--data",
+            f.to_str().unwrap(),
+            "--json",
+        ]));
+        let m = ok_json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"]);
+        assert!(m["final"]["K"].as_f64().unwrap() > 0.0, "{ext}");
+    }
+    // The same samples in each format: the same fit to the last digit.
+    assert_eq!(fits[0]["params"], fits[1]["params"]);
+    assert_eq!(fits[0]["params"], fits[2]["params"]);
+}
+
+#[test]
+fn inspect_strict_passes_on_every_clean_scenario_in_both_bases() {
+    let s = Scratch::new("physid-data");
+    let list = physid(&["simulate", "--list"]);
+    let names: Vec<String> = String::from_utf8_lossy(&list.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().next().map(String::from))
+        .collect();
+    assert!(names.len() >= 8, "{names:?}");
+    for name in &names {
+        for basis in ["time", "crank"] {
+            let f = simulate(&s, name, basis, "1.5", "parquet");
+            let o = physid(&["inspect", f.to_str().unwrap(), "--strict", "--json"]);
+            assert!(
+                o.status.success(),
+                "{name} {basis}: {}{}",
+                String::from_utf8_lossy(&o.stdout),
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+    }
+}
+
+fn findings(j: &Value, kind: &str) -> Vec<u64> {
+    j["integrity"]["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["kind"] == kind)
+        .map(|f| f["index"].as_u64().unwrap())
+        .collect()
+}
+
+#[test]
+fn every_injected_defect_is_found_at_its_sample() {
+    let s = Scratch::new("physid-data");
+    let f = simulate(&s, "shaft-steady", "time", "1.5", "parquet");
+    let rec = read(&f, &ReadOptions::default()).unwrap();
+    let edit = |name: &str, fun: &dyn Fn(&mut Recording)| {
+        let mut r = rec.clone();
+        fun(&mut r);
+        let p = s.file(name);
+        write(&p, &r, &WriteOptions::default()).unwrap();
+        let o = physid(&["inspect", p.to_str().unwrap(), "--json", "--strict"]);
+        assert!(!o.status.success(), "{name}: --strict should fail");
+        serde_json::from_slice::<Value>(&o.stdout).unwrap()
+    };
+    // A gap: samples 999..1009 dropped from every channel.
+    let j = edit("gap.csv", &|r| {
+        let mut out = Recording::new(Basis::Time);
+        for c in r.channels() {
+            let mut c = c.clone();
+            c.values.drain(999..1009);
+            out.push(c).unwrap();
+        }
+        *r = out;
+    });
+    assert_eq!(findings(&j, "lost_samples"), [999], "{j}");
+    // A NaN, and time going back.
+    let j = edit("nan.parquet", &|r| {
+        let mut v = r.values("p_cyl").unwrap().to_vec();
+        v[1234] = f64::NAN;
+        r.replace_values("p_cyl", v).unwrap();
+    });
+    assert_eq!(findings(&j, "non_finite"), [1234], "{j}");
+    let j = edit("back.parquet", &|r| {
+        let mut t = r.values("t").unwrap().to_vec();
+        t[2345] = t[2343];
+        r.replace_values("t", t).unwrap();
+    });
+    assert_eq!(findings(&j, "non_monotonic_time"), [2345], "{j}");
+    // MDF4 orders its records by their time master: such a recording is refused, not reordered.
+    let mut back = rec.clone();
+    let mut t = back.values("t").unwrap().to_vec();
+    t[2345] = t[2343];
+    back.replace_values("t", t).unwrap();
+    let e = write(s.file("back.mf4"), &back, &WriteOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("'t' goes back at sample 2345"), "{e}");
+    // Lost encoder pulses, from the simulator's own fault.
+    let p = s.file("lost.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "1.5",
+        "--fault",
+        "sensors.lost_pulses_en=0.01@1.0",
+        "--out",
+        p.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = physid(&["inspect", p.to_str().unwrap(), "--json"]);
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let lost = findings(&j, "pulse_loss");
+    assert!(!lost.is_empty(), "{j}");
+    let t = read(&p, &ReadOptions::default()).unwrap();
+    let t = t.values("t").unwrap();
+    // The first interval found ends after the fault's time and starts at most a revolution
+    // (at 1000 rpm, 60 ms) before it.
+    let at = t[lost[0] as usize];
+    assert!((1.0 - 0.061..1.0).contains(&at), "{at}");
+}
