@@ -321,3 +321,54 @@ fn every_injected_defect_is_found_at_its_sample() {
     let at = t[lost[0] as usize];
     assert!((1.0 - 0.061..1.0).contains(&at), "{at}");
 }
+
+#[test]
+fn physically_impossible_inputs_are_refused_naming_the_flag_and_range() {
+    let s = Scratch::new("physid-data");
+    let st = simulate(&s, "shaft-steady", "time", "1", "parquet");
+    let out = s.file("x.csv");
+    let out = out.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["simulate", "--scenario", "shaft-steady", "--set", "engine.m_rec=-1", "--out", out],
+            "engine.m_rec = -1: expected ≥ 0 (kg)",
+        ),
+        (
+            vec!["simulate", "--scenario", "shaft-steady", "--duration", "1", "--fault", "shaft.k=1000@5", "--out", out],
+            "--fault shaft.k=1000@5: at 5 s, outside the recording (0 to 1 s)",
+        ),
+        (
+            vec!["simulate", "--scenario", "torque-ramp", "--basis", "crank", "--duration", "0.05", "--out", out],
+            "--duration 0.05: the recording would hold no sample",
+        ),
+        (
+            vec!["simulate", "--scenario", "shaft-steady", "--duration", "-5", "--out", out],
+            "invalid value '-5' for '--duration <S>': expected a number > 0",
+        ),
+        (
+            vec!["friction", "eval", "--n", "1000", "--p-int", "100000", "--t-oil", "35"],
+            "'--p-int <P_INT>': the pressure is in kPa (0 < p ≤ 500); 100000 looks like Pa: 100 kPa",
+        ),
+        (
+            vec!["friction", "eval", "--n", "1000", "--p-int", "50", "--t-oil", "363"],
+            "looks like K",
+        ),
+        (
+            vec!["monitor", "shaft", "--data", st.to_str().unwrap(), "--rate", "0"],
+            "invalid value '0' for '--rate <RATE>': expected a number > 0",
+        ),
+        (
+            vec!["monitor", "shaft", "--data", st.to_str().unwrap(), "--lambda", "1.5"],
+            "'--lambda <LAMBDA>': a forgetting factor is in (0, 1]",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = physid(&args);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} should fail");
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
+    // A scenario's own fault beyond a shortened run is not the user's: it simply does not
+    // happen (shaft-steady has none; fig314's throttle steps lie beyond 1 s).
+    simulate(&s, "fig314", "time", "1", "parquet");
+}

@@ -347,6 +347,14 @@ macro_rules! paths {
     };
 }
 
+/// The unit the parameter table gives a path.
+fn unit_of(path: &str) -> &'static str {
+    CellParams::TABLE
+        .iter()
+        .find(|r| r.0 == path)
+        .map_or("", |r| r.1)
+}
+
 fn unknown(path: &str) -> String {
     let head = path.split('.').next().unwrap_or("");
     let near: Vec<&str> = CellParams::TABLE
@@ -455,7 +463,8 @@ paths! {
 }
 
 impl CellParams {
-    /// Check ranges that would make the model meaningless; the error names the parameter.
+    /// Check ranges that would make the model meaningless; the error names the parameter and
+    /// the range.
     pub fn validate(&self) -> Result<(), String> {
         let positive = [
             "engine.bore",
@@ -483,7 +492,74 @@ impl CellParams {
         for p in positive {
             let v = self.get(p).unwrap_or(f64::NAN);
             if v.is_nan() || v <= 0.0 {
-                return Err(format!("{p} = {v}: expected > 0"));
+                return Err(format!("{p} = {v}: expected > 0 ({})", unit_of(p)));
+            }
+        }
+        // Masses, sizes, damping, gains and sensor imperfections: zero is an idealisation,
+        // below zero is no physical thing.
+        let non_negative = [
+            "engine.m_rec",
+            "engine.iv_d",
+            "engine.iv_di",
+            "engine.ev_d",
+            "engine.ev_di",
+            "engine.lift_max",
+            "engine.throttle_d",
+            "engine.throttle_shaft",
+            "engine.throttle_leak",
+            "engine.exh_orifice",
+            "engine.woschni_c1_gas",
+            "engine.woschni_c1_closed",
+            "engine.friction_scale",
+            "engine.t_oil",
+            "shaft.b",
+            "dyno.poles",
+            "dyno.xls",
+            "dyno.xlr",
+            "dyno.speed_kp",
+            "dyno.speed_ki",
+            "dyno.flux_kp",
+            "dyno.flux_ki",
+            "dyno.current_kp",
+            "dyno.current_ki",
+            "dyno.voltage_limit",
+            "dyno.flux_ref",
+            "dyno.speed_sensor.noise",
+            "sensors.torque_shaft.noise",
+            "sensors.torque_shaft.quantum",
+            "sensors.torque_shaft.lag",
+            "sensors.torque_engine.noise",
+            "sensors.torque_engine.lag",
+            "sensors.p_cyl.noise",
+            "sensors.p_cyl.quantum",
+            "sensors.p_manifold.noise",
+            "sensors.temperature.noise",
+            "sensors.temperature.lag",
+            "sensors.speed.noise",
+            "sensors.seed",
+        ];
+        for p in non_negative {
+            let Some(v) = self.get(p) else { continue };
+            if v.is_nan() || v < 0.0 {
+                return Err(format!("{p} = {v}: expected ≥ 0 ({})", unit_of(p)));
+            }
+        }
+        for p in ["engine.cd_valve", "engine.cd_throttle", "engine.cd_exh"] {
+            let v = self.get(p).unwrap_or(f64::NAN);
+            if !(v > 0.0 && v <= 1.0) {
+                return Err(format!("{p} = {v}: a discharge coefficient is in (0, 1]"));
+            }
+        }
+        let lost = self.sensors.lost_pulses_en;
+        if !(0.0..=1.0).contains(&lost) {
+            return Err(format!(
+                "sensors.lost_pulses_en = {lost}: a probability per pulse is in [0, 1]"
+            ));
+        }
+        for p in ["engine.heat_transfer", "engine.active", "dyno.torque_mode"] {
+            let v = self.get(p).unwrap_or(f64::NAN);
+            if v != 0.0 && v != 1.0 {
+                return Err(format!("{p} = {v}: a switch is 0 (off) or 1 (on)"));
             }
         }
         if self.engine.kappa <= 1.0 {

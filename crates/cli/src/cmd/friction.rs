@@ -80,16 +80,16 @@ impl ModelArgs {
 #[derive(clap::Args)]
 struct EvalArgs {
     /// Engine speed [rpm].
-    #[arg(long)]
+    #[arg(long, value_parser = super::range::rpm, allow_negative_numbers = true)]
     n: f64,
     /// Intake manifold pressure [kPa].
-    #[arg(long)]
+    #[arg(long, value_parser = super::range::kpa, allow_negative_numbers = true)]
     p_int: f64,
     /// Oil temperature [°C].
-    #[arg(long)]
+    #[arg(long, value_parser = super::range::celsius, allow_negative_numbers = true)]
     t_oil: f64,
     /// Ambient pressure [kPa] (the thesis code's 101 kPa).
-    #[arg(long, default_value_t = 101.0)]
+    #[arg(long, default_value_t = 101.0, value_parser = super::range::kpa, allow_negative_numbers = true)]
     p_atm: f64,
     #[command(flatten)]
     model: ModelArgs,
@@ -101,16 +101,16 @@ struct EvalArgs {
 #[derive(clap::Args)]
 struct RankArgs {
     /// Engine speeds of the grid [rpm].
-    #[arg(long, value_delimiter = ',', default_values_t = [1000.0, 3000.0, 5000.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = [1000.0, 3000.0, 5000.0], value_parser = super::range::rpm, allow_negative_numbers = true)]
     n: Vec<f64>,
     /// Intake manifold pressures of the grid [kPa].
-    #[arg(long, value_delimiter = ',', default_values_t = [10.0, 55.0, 100.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = [10.0, 55.0, 100.0], value_parser = super::range::kpa, allow_negative_numbers = true)]
     p_int: Vec<f64>,
     /// Oil temperatures of the grid [°C].
-    #[arg(long, value_delimiter = ',', default_values_t = [20.0, 55.0, 90.0])]
+    #[arg(long, value_delimiter = ',', default_values_t = [20.0, 55.0, 90.0], value_parser = super::range::celsius, allow_negative_numbers = true)]
     t_oil: Vec<f64>,
     /// Ambient pressure [kPa].
-    #[arg(long, default_value_t = 101.0)]
+    #[arg(long, default_value_t = 101.0, value_parser = super::range::kpa, allow_negative_numbers = true)]
     p_atm: f64,
     /// The parameters to rank [default: B,S,kappa,Di,De,Lv,Db,Lb,r].
     #[arg(long, value_delimiter = ',')]

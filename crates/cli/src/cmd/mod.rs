@@ -79,3 +79,75 @@ pub fn named_values(items: &[String], flag: &str) -> Result<(Vec<String>, Vec<f6
     }
     Ok((names, values))
 }
+
+/// Value parsers for flags with a physical range: clap's error names the flag and the value,
+/// and these say the range (`invalid value '-5' for '--duration <S>': expected a time > 0 s`).
+pub mod range {
+    fn number(s: &str) -> Result<f64, String> {
+        s.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{s}' is not a finite number"))
+    }
+
+    /// A duration, rate or step: > 0.
+    pub fn positive(s: &str) -> Result<f64, String> {
+        let v = number(s)?;
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("expected a number > 0, got {v}"))
+        }
+    }
+
+    /// A forgetting factor: 0 < λ ≤ 1.
+    pub fn forgetting(s: &str) -> Result<f64, String> {
+        let v = number(s)?;
+        if v > 0.0 && v <= 1.0 {
+            Ok(v)
+        } else {
+            Err(format!("a forgetting factor is in (0, 1], got {v}"))
+        }
+    }
+
+    /// An engine speed in rpm: 0 < n ≤ 20 000.
+    pub fn rpm(s: &str) -> Result<f64, String> {
+        let v = number(s)?;
+        if v > 0.0 && v <= 20_000.0 {
+            Ok(v)
+        } else {
+            Err(format!("an engine speed in rpm is in (0, 20000], got {v}"))
+        }
+    }
+
+    /// A manifold or ambient pressure in kPa: 0 < p ≤ 500 (a value in Pa is named as such).
+    pub fn kpa(s: &str) -> Result<f64, String> {
+        let v = number(s)?;
+        if v > 0.0 && v <= 500.0 {
+            Ok(v)
+        } else if v > 500.0 && v <= 500_000.0 {
+            Err(format!(
+                "the pressure is in kPa (0 < p ≤ 500); {v} looks like Pa: {} kPa",
+                v / 1e3
+            ))
+        } else {
+            Err(format!("a pressure in kPa is in (0, 500], got {v}"))
+        }
+    }
+
+    /// An oil or air temperature in °C: −50 … 250 (a value in K is named as such).
+    pub fn celsius(s: &str) -> Result<f64, String> {
+        let v = number(s)?;
+        if (-50.0..=250.0).contains(&v) {
+            Ok(v)
+        } else if (250.0..=523.15).contains(&v) {
+            Err(format!(
+                "the temperature is in °C (−50 … 250); {v} looks like K: {} °C",
+                v - 273.15
+            ))
+        } else {
+            Err(format!("a temperature in °C is in [−50, 250], got {v}"))
+        }
+    }
+}

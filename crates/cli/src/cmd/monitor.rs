@@ -34,8 +34,8 @@ struct ShaftArgs {
     /// Estimator: rls, rlsvf or dsfc.
     #[arg(long, default_value = "rls")]
     method: String,
-    /// Forgetting factor.
-    #[arg(long, default_value_t = 0.98)]
+    /// Forgetting factor, 0 < λ ≤ 1.
+    #[arg(long, default_value_t = 0.98, value_parser = super::range::forgetting, allow_negative_numbers = true)]
     lambda: f64,
     /// Healthy values K=…,B=… (the alarms' reference) [default: Table 6.1, 1250 and 0.95].
     #[arg(long, value_delimiter = ',')]
@@ -43,17 +43,17 @@ struct ShaftArgs {
     /// Start the estimator at the healthy values instead of 0.
     #[arg(long)]
     start_healthy: bool,
-    /// Relative-error bound (Eq. 6.3).
-    #[arg(long, default_value_t = 0.1)]
+    /// Relative-error bound (Eq. 6.3), > 0.
+    #[arg(long, default_value_t = 0.1, value_parser = super::range::positive, allow_negative_numbers = true)]
     bound: f64,
     /// Estimator samples beyond the bound before an alarm.
     #[arg(long, default_value_t = 200)]
     dwell: u64,
     /// Zero-phase low-pass cut-off before estimation [Hz].
-    #[arg(long, default_value_t = 500.0)]
+    #[arg(long, default_value_t = 500.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     cutoff: f64,
-    /// Estimator rate [Hz].
-    #[arg(long, default_value_t = 2000.0)]
+    /// Estimator rate [Hz], > 0 (at most the recording's sample rate: every sample).
+    #[arg(long, default_value_t = 2000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     rate: f64,
     /// Print JSON.
     #[arg(long)]

@@ -19,7 +19,7 @@ pub struct Args {
     #[arg(long)]
     scenario: Option<String>,
     /// Recorded duration [s] (default: the scenario's).
-    #[arg(long)]
+    #[arg(long, value_name = "S", value_parser = super::range::positive, allow_negative_numbers = true)]
     duration: Option<f64>,
     /// Fault PATH=VALUE@T[+RAMP] (repeatable), e.g. --fault shaft.k=1200@5.
     #[arg(long = "fault", value_name = "SPEC")]
@@ -30,10 +30,10 @@ pub struct Args {
     #[arg(long, default_value = "time")]
     basis: String,
     /// Output sample rate on a time basis [Hz].
-    #[arg(long, default_value_t = 10_000.0)]
+    #[arg(long, default_value_t = 10_000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     rate: f64,
     /// Output crank-angle step on a crank basis [deg].
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     step_deg: f64,
     /// Output file (.parquet, .csv or .mf4).
     #[arg(long)]
@@ -190,6 +190,15 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|f| Fault::parse(f))
         .collect::<std::result::Result<_, _>>()
         .map_err(|e| miette!("--fault {e}"))?;
+    let recorded = args.duration.unwrap_or(scenario.duration);
+    for (f, text) in faults.iter().zip(&args.faults) {
+        if !(0.0..recorded).contains(&f.at) {
+            return Err(miette!(
+                "--fault {text}: at {} s, outside the recording (0 to {recorded} s): it would never happen",
+                f.at
+            ));
+        }
+    }
     let basis = match args.basis.as_str() {
         "time" => OutputBasis::Time(args.rate),
         "crank" => OutputBasis::Crank(args.step_deg),
@@ -213,6 +222,15 @@ pub fn run(args: &Args) -> Result<()> {
         .map_err(|e| miette!("{e}"))?;
     bar.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
+    if rec.is_empty() {
+        let why = match basis {
+            OutputBasis::Crank(_) => " (a crank-angle recording starts at the engine's first TDC after the settling time; an engine cycle at 1000 rpm lasts 0.12 s)",
+            OutputBasis::Time(_) => "",
+        };
+        return Err(miette!(
+            "--duration {recorded}: the recording would hold no sample{why}: record longer"
+        ));
+    }
     physid_io::write(out, &rec, &Default::default()).into_diagnostic()?;
     let simulated = opts.duration.unwrap_or(scenario.duration) + scenario.settle;
     outln!(
