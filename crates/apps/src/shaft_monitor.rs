@@ -146,7 +146,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
     let rec = if rec.basis == Basis::CrankAngle {
         let t = rec.values("t")?;
         let span = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
-        if t.len() < 2 || !(span > 0.0) {
+        if t.len() < 2 || span.is_nan() || span <= 0.0 {
             return Err(AppError::Invalid(
                 "a crank-angle recording whose time 't' does not advance cannot be put on a time basis".into(),
             ));
