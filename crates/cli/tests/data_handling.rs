@@ -46,8 +46,11 @@ fn simulate(dir: &Path, scenario: &str, basis: &str, duration: &str, ext: &str) 
     f
 }
 
+/// A unit and the conversion into it from SI.
+type LogUnit = (&'static str, fn(f64) -> f64);
+
 /// How a test-cell log states each standard channel: `(unit, from SI)`.
-fn test_cell_unit(name: &str) -> Option<(&'static str, fn(f64) -> f64)> {
+fn test_cell_unit(name: &str) -> Option<LogUnit> {
     Some(match name {
         "theta_en" | "theta_dy" | "theta" => ("deg", |x: f64| x.to_degrees()),
         "omega_en" | "omega_dy" | "speed_demand" => {
