@@ -81,3 +81,52 @@ pub enum IoError {
         source: physid_core::RecordingError,
     },
 }
+
+thread_local! {
+    /// Set while a decoder runs under [`contained`]: its panics are reported as errors, so the
+    /// panic hook stays quiet for them.
+    static CONTAINED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Run a third-party decoder (the parquet and MDF crates) so that a panic on a corrupt file
+/// becomes `FILE: corrupt FORMAT (…)` instead of ending the program: the boundary the readers
+/// keep, since those crates assert on some malformed inputs (see `tests/fuzz.rs`). Allocation
+/// failure aborts and cannot be contained: the readers check claimed sizes before allocating.
+pub(crate) fn contained<T>(
+    path: &str,
+    format: &str,
+    f: impl FnOnce() -> Result<T, IoError>,
+) -> Result<T, IoError> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !CONTAINED.with(std::cell::Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    let was = CONTAINED.with(|c| c.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    CONTAINED.with(|c| c.set(was));
+    r.unwrap_or_else(|payload| {
+        let why = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "the decoder stopped".into());
+        Err(IoError::Malformed {
+            path: path.into(),
+            detail: format!("corrupt {format} (the decoder failed: {why})"),
+        })
+    })
+}
+
+/// Memory this machine can still give [bytes] (`MemAvailable`), if known: a reader refuses a
+/// file whose claimed size would not fit before allocating for it.
+pub(crate) fn available_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}

@@ -45,7 +45,12 @@ fn mdf_err(path: &str, e: impl std::fmt::Display) -> IoError {
 /// with them).
 pub fn read_mdf(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<Recording, IoError> {
     let p = path.as_ref().display().to_string();
-    let file = Mf4File::open_buffered(path.as_ref()).map_err(|e| mdf_err(&p, e))?;
+    crate::contained(&p, "MDF4", || read_mdf_inner(path.as_ref(), &p, channels))
+}
+
+fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Recording, IoError> {
+    let p = p.to_string();
+    let file = Mf4File::open_buffered(path).map_err(|e| mdf_err(&p, e))?;
     let data: Vec<&falcon_mdf::model::Channel> = file
         .channels()
         .filter(|c| !c.is_master() && c.is_numeric())

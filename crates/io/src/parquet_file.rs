@@ -70,13 +70,25 @@ fn extend_f64(col: &ArrayRef, out: &mut Vec<f64>, name: &str, row0: usize) -> Re
     Ok(())
 }
 
-/// Read a Parquet file; `channels` selects columns by name (all if `None`).
+/// Read a Parquet file; `channels` selects columns by name (all if `None`). A corrupt file is
+/// an error, never a panic or an allocation the file's claims alone asked for.
 pub fn read_parquet(
     path: impl AsRef<Path>,
     channels: Option<&[String]>,
 ) -> Result<Recording, IoError> {
     let p = path.as_ref().display().to_string();
-    let file = std::fs::File::open(path.as_ref()).map_err(|source| IoError::Os {
+    crate::contained(&p, "Parquet", || {
+        read_parquet_inner(path.as_ref(), &p, channels)
+    })
+}
+
+fn read_parquet_inner(
+    path: &Path,
+    p: &str,
+    channels: Option<&[String]>,
+) -> Result<Recording, IoError> {
+    let p = p.to_string();
+    let file = std::fs::File::open(path).map_err(|source| IoError::Os {
         path: p.clone(),
         source,
     })?;
@@ -102,7 +114,30 @@ pub fn read_parquet(
         None => (0..names.len()).collect(),
     };
     let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
-    let rows = builder.metadata().file_metadata().num_rows().max(0) as usize;
+    // The row count is the file's claim: checked against what the columns asked for would
+    // take in memory before anything is sized from it (a corrupt footer can claim 2⁶⁰ rows).
+    let claimed = builder.metadata().file_metadata().num_rows();
+    let rows = usize::try_from(claimed).map_err(|_| IoError::Malformed {
+        path: p.clone(),
+        detail: format!("corrupt Parquet: the footer claims {claimed} rows"),
+    })?;
+    let need = (rows as u128) * (wanted.len().max(1) as u128) * 8;
+    if let Some(free) = crate::available_memory() {
+        if need > u128::from(free) {
+            return Err(IoError::Malformed {
+                path: p.clone(),
+                detail: format!(
+                    "the file claims {rows} rows: {} channels of them would take {:.1} GB, and this machine has {:.1} GB free (read fewer channels, or the footer is corrupt)",
+                    wanted.len(),
+                    need as f64 / 1e9,
+                    free as f64 / 1e9
+                ),
+            });
+        }
+    }
+    // Capacity is only a hint: never more than the file's size could hold in plain values.
+    let size = std::fs::metadata(path).map_or(0, |m| m.len()) as usize;
+    let rows = rows.min(size / 8 + 1);
     let reader = builder
         .with_projection(mask)
         .with_batch_size(65_536)

@@ -1,0 +1,306 @@
+//! Mutation fuzzing of every reader, on stable Rust: committed seed files (CSV with units and
+//! with `;` decimal commas, Parquet from pyarrow and from physid, MDF4 plain, deflate and
+//! transposed from asammdf, and an angle-master file) are mutated byte-wise — bit flips,
+//! interesting integers written over lengths and counts (0, −1, 2³¹, 2³³, 2⁶⁰ …), bytes
+//! inserted, deleted and duplicated, the file cut — with extra weight on the metadata at the
+//! end of a Parquet file and the block headers at the start of an MDF4 file. Every case must
+//! come back as a recording or an error: no panic, no hang (a watchdog), no memory blow-up
+//! (peak resident memory checked at the end).
+//!
+//! CI runs `PHYSID_FUZZ_CASES` (default 400) cases per seed. The long run (docs/data.md
+//! records its count and time):
+//!
+//! ```text
+//! PHYSID_FUZZ_CASES=20000 cargo test --release -p physid-io --test fuzz -- --nocapture
+//! ```
+//!
+//! A failing case is reproduced by its seed file and case number (the mutations are drawn
+//! from a fixed-seed generator): `PHYSID_FUZZ_ONLY=file:case`.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_io::{read, ReadOptions};
+use physid_testkit::Scratch;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// SplitMix64: a small fixed-seed generator, so a case is reproducible by its number.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+const INTERESTING: [u64; 12] = [
+    0,
+    1,
+    0x7F,
+    0xFF,
+    0xFFFF,
+    0x7FFF_FFFF,
+    0x8000_0000,
+    0xFFFF_FFFF,
+    1 << 33,
+    1 << 40,
+    1 << 60,
+    u64::MAX,
+];
+
+/// One mutated copy of `seed` (case `case` of its stream). `hot`: where the format keeps its
+/// metadata (a byte range mutated more often).
+fn mutate(seed: &[u8], case: u64, hot: std::ops::Range<usize>) -> Vec<u8> {
+    let mut r = Rng(case.wrapping_mul(0xA24B_AED4_963E_E407) ^ seed.len() as u64);
+    let mut b = seed.to_vec();
+    let rounds = 1 + r.below(4);
+    for _ in 0..rounds {
+        if b.is_empty() {
+            b.push(0);
+        }
+        let at = if r.below(2) == 0 && hot.end <= b.len() && !hot.is_empty() {
+            hot.start + r.below(hot.len())
+        } else {
+            r.below(b.len())
+        };
+        match r.below(7) {
+            0 => b[at] ^= 1 << r.below(8),
+            1 => b[at] = r.next() as u8,
+            2 => {
+                // An interesting integer over 1, 2, 4 or 8 bytes, little-endian.
+                let v = INTERESTING[r.below(INTERESTING.len())].to_le_bytes();
+                let w = [1, 2, 4, 8][r.below(4)];
+                for (k, byte) in v.iter().take(w).enumerate() {
+                    if at + k < b.len() {
+                        b[at + k] = *byte;
+                    }
+                }
+            }
+            3 => {
+                let n = 1 + r.below(16);
+                let bytes: Vec<u8> = (0..n).map(|_| r.next() as u8).collect();
+                b.splice(at..at, bytes);
+            }
+            4 => {
+                let n = (1 + r.below(64)).min(b.len() - at);
+                b.drain(at..at + n);
+            }
+            5 => {
+                let n = (1 + r.below(256)).min(b.len() - at);
+                let chunk = b[at..at + n].to_vec();
+                let to = r.below(b.len());
+                b.splice(to..to, chunk);
+            }
+            _ => b.truncate(at),
+        }
+    }
+    b
+}
+
+struct Seed {
+    name: &'static str,
+    bytes: Vec<u8>,
+    ext: &'static str,
+    hot: std::ops::Range<usize>,
+}
+
+fn golden(rel: &str) -> Vec<u8> {
+    std::fs::read(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/golden")
+            .join(rel),
+    )
+    .unwrap()
+}
+
+fn seeds() -> Vec<Seed> {
+    let tail = |b: &[u8], n: usize| b.len().saturating_sub(n)..b.len();
+    let mut v = Vec::new();
+    let csv = golden("csv/physid_written.csv");
+    v.push(Seed {
+        name: "csv/physid_written.csv",
+        hot: 0..64.min(csv.len()),
+        bytes: csv,
+        ext: "csv",
+    });
+    let eu =
+        b"Zeit;omega_en;p_int\r\ns;rpm;bar\r\n0,000;1000;0,95\r\n0,001;1500,5;1,013\r\n".to_vec();
+    v.push(Seed {
+        name: "csv/semicolon-decimal-comma",
+        hot: 0..32,
+        bytes: eu,
+        ext: "csv",
+    });
+    for (name, ext) in [
+        ("parquet/pyarrow_written.parquet", "parquet"),
+        ("parquet/physid_written.parquet", "parquet"),
+    ] {
+        let b = golden(name);
+        v.push(Seed {
+            name,
+            hot: tail(&b, 2048),
+            bytes: b,
+            ext,
+        });
+    }
+    for name in [
+        "mdf/time_plain.mf4",
+        "mdf/time_deflate.mf4",
+        "mdf/time_transposed.mf4",
+        "mdf/angle.mf4",
+    ] {
+        let b = golden(name);
+        v.push(Seed {
+            name,
+            hot: 0..4096.min(b.len()),
+            bytes: b,
+            ext: "mf4",
+        });
+    }
+    v
+}
+
+/// Peak resident memory of this process [bytes] (`VmHWM`).
+fn peak_rss() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let l = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    Some(l.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+}
+
+/// Read one mutated file: 0 read as a recording, 1 refused, 2 refused after the third-party
+/// decoder panicked (contained at the reader's boundary: worth reporting upstream).
+fn one(path: &Path) -> usize {
+    match read(path, &ReadOptions::default()) {
+        Ok(_) => 0,
+        Err(e) if e.to_string().contains("the decoder failed") => 2,
+        Err(_) => 1,
+    }
+}
+
+#[test]
+fn no_reader_panics_hangs_or_blows_up_on_mutated_files() {
+    let cases: u64 = std::env::var("PHYSID_FUZZ_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(400);
+    let only = std::env::var("PHYSID_FUZZ_ONLY").ok();
+    let scratch = Scratch::new("physid-fuzz");
+    for seed in seeds() {
+        let (from, to) = match only.as_deref().and_then(|o| o.rsplit_once(':')) {
+            Some((name, case)) if name == seed.name => {
+                let c: u64 = case.parse().unwrap();
+                (c, c + 1)
+            }
+            Some(_) => continue,
+            None => (0, cases),
+        };
+        let done = Arc::new(AtomicUsize::new(0));
+        let ok = Arc::new(AtomicUsize::new(0));
+        let caught = Arc::new(AtomicUsize::new(0));
+        let path = scratch.file(&format!("case.{}", seed.ext));
+        let worker = {
+            let (done, ok, caught, path) = (done.clone(), ok.clone(), caught.clone(), path.clone());
+            let (bytes, hot) = (seed.bytes.clone(), seed.hot.clone());
+            std::thread::spawn(move || {
+                for case in from..to {
+                    std::fs::write(&path, mutate(&bytes, case, hot.clone())).unwrap();
+                    match one(&path) {
+                        0 => ok.fetch_add(1, Ordering::Relaxed),
+                        2 => caught.fetch_add(1, Ordering::Relaxed),
+                        _ => 0,
+                    };
+                    done.fetch_add(1, Ordering::Relaxed);
+                }
+            })
+        };
+        let t0 = Instant::now();
+        let (mut last, mut since) = (usize::MAX, Instant::now());
+        while !worker.is_finished() {
+            std::thread::sleep(Duration::from_millis(20));
+            let d = done.load(Ordering::Relaxed);
+            if d != last {
+                (last, since) = (d, Instant::now());
+            }
+            assert!(
+                since.elapsed() < Duration::from_secs(60),
+                "{}: case {} has run for a minute (a hang): PHYSID_FUZZ_ONLY={}:{}",
+                seed.name,
+                from + d as u64,
+                seed.name,
+                from + d as u64
+            );
+        }
+        if worker.join().is_err() {
+            panic!(
+                "{}: a reader panicked at case {} (PHYSID_FUZZ_ONLY={}:{})",
+                seed.name,
+                from + done.load(Ordering::Relaxed) as u64,
+                seed.name,
+                from + done.load(Ordering::Relaxed) as u64
+            );
+        }
+        println!(
+            "{:<34} {:>7} cases in {:>7.2} s: {:>6} read, the rest refused ({} after a decoder panic, contained)",
+            seed.name,
+            to - from,
+            t0.elapsed().as_secs_f64(),
+            ok.load(Ordering::Relaxed),
+            caught.load(Ordering::Relaxed)
+        );
+    }
+    if let Some(peak) = peak_rss() {
+        println!("peak resident memory {:.0} MB", peak as f64 / 1e6);
+        assert!(peak < 2_000_000_000, "peak resident memory {peak} bytes");
+    }
+}
+
+#[test]
+fn a_footer_claiming_a_trillion_rows_is_refused_before_allocating() {
+    // physid's own Parquet file with the footer's row count patched to 10¹² (the count is an
+    // i64 in the Thrift footer: found by its value, the file's real row count).
+    let s = Scratch::new("physid-fuzz");
+    let mut r = physid_core::Recording::new(physid_core::Basis::Time);
+    r.push(physid_core::Channel {
+        name: "x".into(),
+        unit: String::new(),
+        values: (0..777).map(f64::from).collect(),
+    })
+    .unwrap();
+    let f = s.file("rows.parquet");
+    physid_io::write_parquet(&f, &r).unwrap();
+    let mut b = std::fs::read(&f).unwrap();
+    // Thrift compact encoding of i64 777 as a zigzag varint: 1554 = 0x92 0x0C.
+    let needle = [0x92u8, 0x0C];
+    let footer_start =
+        b.len() - 8 - u32::from_le_bytes(b[b.len() - 8..b.len() - 4].try_into().unwrap()) as usize;
+    let at = (footer_start..b.len() - 1)
+        .find(|&i| b[i..i + 2] == needle)
+        .expect("the row count in the footer");
+    // 10¹² zigzag = 2·10¹² as a varint (6 bytes): the footer grows by 4, so its length too.
+    let mut v = 2_000_000_000_000u64;
+    let mut varint = Vec::new();
+    while v >= 0x80 {
+        varint.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    varint.push(v as u8);
+    let grow = varint.len() - 2;
+    b.splice(at..at + 2, varint);
+    let n = b.len();
+    let len = u32::from_le_bytes(b[n - 8..n - 4].try_into().unwrap()) + grow as u32;
+    b[n - 8..n - 4].copy_from_slice(&len.to_le_bytes());
+    std::fs::write(&f, &b).unwrap();
+    let e = read(&f, &ReadOptions::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("claims 1000000000000 rows") || e.contains("corrupt Parquet"),
+        "{e}"
+    );
+}
