@@ -96,14 +96,21 @@ fn inspection_counts_cycles_and_finds_what_is_wrong() {
     assert!((i.duration_s.unwrap() - 1.99995).abs() < 1e-9);
     // θ runs from −0.2 to 209.8 rad: 34 markers (at 0, 2π, …, 66π), 16 complete cycles.
     assert_eq!(i.cycles, Some(16));
-    // The only finding: samples before the first marker.
-    assert_eq!(i.integrity.findings.len(), 1, "{:?}", i.integrity.findings);
+    // Clean: no finding; the samples before the first marker are a note.
+    assert!(
+        i.integrity.ok && i.integrity.findings.is_empty(),
+        "{:?}",
+        i.integrity.findings
+    );
+    assert_eq!(i.integrity.notes.len(), 1, "{:?}", i.integrity.notes);
     let ca = to_crank_angle(&rec, &AcquisitionOptions::default(), 1.0).unwrap();
     let j = inspect(&ca, &AcquisitionOptions::default());
     assert_eq!(j.basis, "crank_angle");
-    // 16 whole cycles and a partial one at the end, which the check reports.
+    // 16 whole cycles and a partial one at the end, which the check notes.
     assert_eq!(j.cycles, Some(16));
-    assert_eq!(j.integrity.findings.len(), 1, "{:?}", j.integrity.findings);
+    assert!(j.integrity.ok, "{:?}", j.integrity.findings);
+    assert_eq!(j.integrity.notes.len(), 1, "{:?}", j.integrity.notes);
+    assert!(j.integrity.notes[0].detail.contains("ends mid-cycle"));
 }
 
 #[test]

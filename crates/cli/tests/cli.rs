@@ -566,7 +566,7 @@ fn friction_errors_name_the_problem() {
             &[
                 "friction", "eval", "--n", "0", "--p-int", "50", "--t-oil", "90",
             ],
-            "engine speed [rpm] = 0",
+            "'--n <N>': an engine speed in rpm is in (0, 20000], got 0",
         ),
         (
             &[
@@ -789,11 +789,15 @@ fn inspect_convert_filter_chain() {
     assert!((j["sample_rate_hz"].as_f64().unwrap() - 20_000.0).abs() < 1e-6);
     assert_eq!(j["channels"].as_array().unwrap().len(), 5);
     assert_eq!(j["channels"][3]["unit"], "Pa");
-    assert_eq!(j["integrity"]["ok"], false);
-    assert_eq!(j["integrity"]["findings"][0]["kind"], "incomplete_cycle");
-    // --strict fails on the finding.
-    let o = physid(&["inspect", c, "--units-row", "--strict"]);
-    assert!(!o.status.success() && stderr(&o).contains("--strict"));
+    // Starting mid-revolution is a note, not a finding: --strict passes.
+    assert_eq!(j["integrity"]["ok"], true);
+    assert_eq!(j["integrity"]["notes"][0]["kind"], "note");
+    assert!(j["integrity"]["notes"][0]["detail"]
+        .as_str()
+        .unwrap()
+        .contains("starts mid-revolution"));
+    let o = physid(&["inspect", c, "--strict"]);
+    assert!(o.status.success(), "{}", stderr(&o));
 
     // To one sample per degree, as Parquet; then inspect it and draw a surface.
     let pq = d.join("deg.parquet");
