@@ -15,7 +15,8 @@
 //! ```
 //!
 //! A failing case is reproduced by its seed file and case number (the mutations are drawn
-//! from a fixed-seed generator): `PHYSID_FUZZ_ONLY=file:case`.
+//! from a fixed-seed generator): `PHYSID_FUZZ_ONLY=file:case`. `PHYSID_FUZZ_SHOW=1` prints
+//! the third-party decoders' panics the readers contained (to report upstream).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use physid_io::{read, ReadOptions};
@@ -180,7 +181,12 @@ fn peak_rss() -> Option<u64> {
 fn one(path: &Path) -> usize {
     match read(path, &ReadOptions::default()) {
         Ok(_) => 0,
-        Err(e) if e.to_string().contains("the decoder failed") => 2,
+        Err(e) if e.to_string().contains("the decoder failed") => {
+            if std::env::var("PHYSID_FUZZ_SHOW").is_ok() {
+                println!("contained: {e}");
+            }
+            2
+        }
         Err(_) => 1,
     }
 }
