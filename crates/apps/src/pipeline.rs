@@ -82,11 +82,9 @@ pub struct DataSpec {
     /// Simulated duration [s] (default: the scenario's).
     pub duration: Option<f64>,
     /// `crank` (one sample per crank degree) or `time`.
-    #[serde(default = "default_basis")]
-    pub basis: String,
+    pub basis: Option<String>,
     /// Sample rate of a time basis [Hz].
-    #[serde(default = "default_rate")]
-    pub rate_hz: f64,
+    pub rate_hz: Option<f64>,
     /// Cell parameters for the simulation.
     #[serde(default)]
     pub set: BTreeMap<String, f64>,
@@ -95,12 +93,8 @@ pub struct DataSpec {
     pub faults: Vec<String>,
 }
 
-fn default_basis() -> String {
-    "time".into()
-}
-fn default_rate() -> f64 {
-    10_000.0
-}
+/// The simulated recording's sample rate on a time basis when `rate_hz` is not given [Hz].
+const DEFAULT_RATE_HZ: f64 = 10_000.0;
 
 /// The identifiability section.
 #[derive(Debug, Clone, Deserialize)]
@@ -143,15 +137,11 @@ pub struct EstimatorSpec {
     /// residual variance).
     pub r2: Option<f64>,
     /// Forgetting factor of RLSF and DSFC.
-    #[serde(default = "one")]
-    pub lambda: f64,
+    pub lambda: Option<f64>,
 }
 
 fn default_method() -> String {
     "ukf".into()
-}
-fn one() -> f64 {
-    1.0
 }
 
 impl Default for EstimatorSpec {
@@ -160,7 +150,7 @@ impl Default for EstimatorSpec {
             method: default_method(),
             p0: None,
             r2: None,
-            lambda: 1.0,
+            lambda: None,
         }
     }
 }
@@ -220,6 +210,7 @@ impl Pipeline {
     /// Parse a pipeline file's text; `base` resolves relative data paths.
     pub fn parse(text: &str, base: &Path) -> Result<Self, String> {
         let mut p: Self = toml::from_str(text).map_err(|e| e.to_string())?;
+        p.validate()?;
         if let Some(f) = &p.data.file {
             if f.is_relative() {
                 p.data.file = Some(base.join(f));
@@ -233,6 +224,120 @@ impl Pipeline {
             }
         }
         Ok(p)
+    }
+
+    /// Refuse, naming the key, every setting that has no valid value or would not be used —
+    /// before any identification or estimation runs.
+    pub fn validate(&self) -> Result<(), String> {
+        let m = &self.model;
+        match (&m.builtin, &m.expr) {
+            (Some(_), Some(_)) => {
+                return Err("model: both builtin and expr are given: choose one".into())
+            }
+            (None, None) => return Err("model: give builtin = \"…\" or expr = \"…\"".into()),
+            _ => {}
+        }
+        let d = &self.data;
+        if let Some(b) = &d.basis {
+            if b != "time" && b != "crank" {
+                return Err(format!("data.basis '{b}': expected time or crank"));
+            }
+        }
+        if let Some(r) = d.rate_hz {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(format!("data.rate_hz = {r}: expected a rate > 0 Hz"));
+            }
+            if d.basis.as_deref() == Some("crank") {
+                return Err("data.rate_hz: a crank-angle basis has no sample rate (one sample per degree): remove it, or basis = \"time\"".into());
+            }
+        }
+        if let Some(t) = d.duration {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(format!("data.duration = {t}: expected a duration > 0 s"));
+            }
+        }
+        match (&d.file, &d.scenario) {
+            (Some(_), Some(_)) => {
+                return Err("data: both file and scenario are given: choose one".into())
+            }
+            (None, None) => return Err("data: give file = \"…\" or scenario = \"…\"".into()),
+            (Some(_), None) => {
+                // A file is read as it is: the simulation's settings would be ignored.
+                let unused = [
+                    ("duration", d.duration.is_some()),
+                    ("basis", d.basis.is_some()),
+                    ("rate_hz", d.rate_hz.is_some()),
+                    ("set", !d.set.is_empty()),
+                    ("faults", !d.faults.is_empty()),
+                ];
+                if let Some((k, _)) = unused.iter().find(|u| u.1) {
+                    return Err(format!(
+                        "data.{k} applies to a simulated scenario, not to data.file (the file is read as it is)"
+                    ));
+                }
+            }
+            (None, Some(_)) => {}
+        }
+        let e = &self.estimator;
+        let nonlinear = matches!(e.method.as_str(), "ekf" | "ukf" | "srukf");
+        let linear = matches!(e.method.as_str(), "rls" | "rlsf" | "dsfc");
+        if !nonlinear && !linear {
+            return Err(format!(
+                "estimator.method '{}': expected ekf, ukf, srukf, rls, rlsf or dsfc",
+                e.method
+            ));
+        }
+        if let Some(r2) = e.r2 {
+            if !nonlinear {
+                return Err(format!("estimator.r2 is the filters' noise variance: {} does not use it (ekf, ukf, srukf do)", e.method));
+            }
+            if !(r2.is_finite() && r2 > 0.0) {
+                return Err(format!("estimator.r2 = {r2}: expected a variance > 0"));
+            }
+        }
+        if let Some(p0) = e.p0 {
+            if !(p0.is_finite() && p0 > 0.0) {
+                return Err(format!("estimator.p0 = {p0}: expected > 0"));
+            }
+        }
+        if let Some(l) = e.lambda {
+            if !(l > 0.0 && l <= 1.0) {
+                return Err(format!(
+                    "estimator.lambda = {l}: a forgetting factor is in (0, 1]"
+                ));
+            }
+            if !matches!(e.method.as_str(), "rlsf" | "dsfc") {
+                return Err(format!(
+                    "estimator.lambda: {} does not forget (rlsf and dsfc do)",
+                    e.method
+                ));
+            }
+        }
+        let o = &self.objective;
+        if o.metric != "nrmse" && o.metric != "max_relative" {
+            return Err(format!(
+                "objective.metric '{}': expected nrmse or max_relative",
+                o.metric
+            ));
+        }
+        if !(o.after_s.is_finite() && o.after_s >= 0.0) {
+            return Err(format!("objective.after_s = {}: expected ≥ 0 s", o.after_s));
+        }
+        if !(o.prediction_within_pct.is_finite() && o.prediction_within_pct > 0.0) {
+            return Err(format!(
+                "objective.prediction_within_pct = {}: expected > 0",
+                o.prediction_within_pct
+            ));
+        }
+        let i = &self.identifiability;
+        if Scaling::parse(&i.scaling).is_none() {
+            return Err(format!(
+                "identifiability.scaling '{}': expected thesis, sigma or none",
+                i.scaling
+            ));
+        }
+        Selection::parse(&i.cutoff).map_err(|e| format!("identifiability.cutoff: {e}"))?;
+        Ok(())
     }
 
     /// Read a pipeline file.
@@ -301,9 +406,9 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
             }
             let opts = RunOptions {
                 duration: spec.duration,
-                basis: match spec.basis.as_str() {
+                basis: match spec.basis.as_deref().unwrap_or("time") {
                     "crank" => OutputBasis::Crank(1.0),
-                    "time" => OutputBasis::Time(spec.rate_hz),
+                    "time" => OutputBasis::Time(spec.rate_hz.unwrap_or(DEFAULT_RATE_HZ)),
                     b => return Err(format!("data.basis '{b}': expected crank or time")),
                 },
                 ..Default::default()
@@ -432,6 +537,12 @@ fn run_with<M: ParamModel + Clone>(
     let free: Vec<usize> = (0..names.len())
         .filter(|&j| !p.model.fixed.contains(&names[j]))
         .collect();
+    if free.is_empty() {
+        return Err(format!(
+            "model.fixed fixes every parameter ({}): nothing is left to identify or estimate",
+            names.join(", ")
+        ));
+    }
     // 1. Identifiability.
     let data = Data {
         inputs: cols.iter().map(|c| c.as_slice()).collect(),
@@ -516,7 +627,7 @@ fn run_with<M: ParamModel + Clone>(
             ))
         }
         "rls" | "rlsf" | "dsfc" => {
-            let lambda = p.estimator.lambda;
+            let lambda = p.estimator.lambda.unwrap_or(1.0);
             let method = match p.estimator.method.as_str() {
                 "rls" => Method::Rls,
                 "rlsf" => Method::Rlsf { lambda },

@@ -88,19 +88,110 @@ fn an_unmet_objective_and_bad_pipelines_are_reported() {
     )
     .unwrap_err();
     assert!(e.contains("modle"), "{e}");
-    let p = Pipeline::parse(&text(linear, "lms", 5.0), base).unwrap();
-    let e = error_of(&p);
+    // A misspelt method is refused when the file is read, before anything runs.
+    let e = Pipeline::parse(&text(linear, "lms", 5.0), base).unwrap_err();
     assert!(
-        e.contains("expected ekf, ukf, srukf, rls, rlsf or dsfc"),
+        e.contains("estimator.method 'lms': expected ekf, ukf, srukf, rls, rlsf or dsfc"),
         "{e}"
     );
     let p = Pipeline::parse(&text("builtin = \"cyclic-torque\"", "ukf", 5.0), base).unwrap();
     let e = error_of(&p);
     assert!(e.contains("model input 'theta'"), "{e}");
-    let p = Pipeline::parse(
+    let e = Pipeline::parse(
         "[model]\nbuiltin = \"shaft\"\noutput = \"y\"\n[data]\n",
         base,
     )
-    .unwrap();
-    assert!(load_data(&p.data).unwrap_err().contains("exactly one of"));
+    .unwrap_err();
+    assert!(e.contains("data: give file"), "{e}");
+}
+
+#[test]
+fn settings_without_a_valid_value_or_a_use_are_refused_naming_the_key() {
+    let base = Path::new(".");
+    let model = "[model]\nexpr = \"K*(theta_dy - theta_en)\"\nparams = { K = 1250.0 }\noutput = \"torque_shaft\"\n";
+    let cases = [
+        (
+            "[data]\nscenario = \"shaft-steady\"\nbasis = \"sideways\"\n",
+            "",
+            "data.basis 'sideways'",
+        ),
+        (
+            "[data]\nfile = \"x.csv\"\nrate_hz = 2000.0\n",
+            "",
+            "data.rate_hz applies to a simulated scenario",
+        ),
+        (
+            "[data]\nfile = \"x.csv\"\nduration = 2.0\n",
+            "",
+            "data.duration applies to a simulated scenario",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\nbasis = \"crank\"\nrate_hz = 2000.0\n",
+            "",
+            "data.rate_hz: a crank-angle basis",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\nduration = -1.0\n",
+            "",
+            "data.duration = -1",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\nfile = \"x.csv\"\n",
+            "",
+            "both file and scenario",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[estimator]\nmethod = \"dsfc\"\nr2 = nan\n",
+            "estimator.r2 is the filters' noise variance: dsfc does not use it",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[estimator]\nmethod = \"ukf\"\nr2 = nan\n",
+            "estimator.r2 = NaN",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[estimator]\nmethod = \"rls\"\nlambda = 0.98\n",
+            "estimator.lambda: rls does not forget",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[estimator]\nmethod = \"dsfc\"\nlambda = 1.5\n",
+            "estimator.lambda = 1.5",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[objective]\nafter_s = -1.0\n",
+            "objective.after_s = -1",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[objective]\nmetric = \"rms\"\n",
+            "objective.metric 'rms'",
+        ),
+        (
+            "[data]\nscenario = \"shaft-steady\"\n",
+            "[identifiability]\nscaling = \"log\"\n",
+            "identifiability.scaling 'log'",
+        ),
+    ];
+    for (data, rest, want) in cases {
+        let e = Pipeline::parse(&format!("{model}{data}{rest}"), base).unwrap_err();
+        assert!(e.contains(want), "{data}{rest}: {e}");
+    }
+    let both = "[model]\nbuiltin = \"shaft\"\nexpr = \"K*x\"\noutput = \"y\"\n[data]\nscenario = \"shaft-steady\"\n";
+    assert!(Pipeline::parse(both, base)
+        .unwrap_err()
+        .contains("both builtin and expr"));
+    // Every parameter fixed: refused naming the key, not an index panic.
+    let fixed = format!("{model}fixed = [\"K\"]\n[data]\nscenario = \"shaft-steady\"\nduration = 1.0\n[estimator]\nmethod = \"rls\"\n");
+    let p = Pipeline::parse(&fixed, base).unwrap();
+    let e = error_of(&p);
+    assert!(e.contains("model.fixed fixes every parameter (K)"), "{e}");
+    // A recording that cannot fit is refused before the run.
+    let huge = format!("{model}[data]\nscenario = \"shaft-steady\"\nduration = 1e308\n");
+    let p = Pipeline::parse(&huge, base).unwrap();
+    let e = load_data(&p.data).unwrap_err();
+    assert!(e.contains("would not fit in any memory"), "{e}");
 }

@@ -12,6 +12,7 @@
 //! * [`Recording`] — named channels with SI units on a time or crank-angle basis (DESIGN.md,
 //!   "A recording is columns with units").
 
+pub mod memory;
 pub mod model;
 pub mod params;
 pub mod recording;

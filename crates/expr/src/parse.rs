@@ -84,7 +84,17 @@ pub enum ExprError {
         /// Where.
         column: usize,
     },
+    /// A chain of operations longer than the evaluator supports (a sum of thousands of terms).
+    #[error("the expression is a chain of more than {MAX_TREE_DEPTH} operations at column {column} (the evaluator recurses through it): write it with fewer terms")]
+    TooLong {
+        /// Where the limit is passed.
+        column: usize,
+    },
 }
+
+/// Longest chain of operations accepted (`a + b + c + …` is a chain as long as its terms):
+/// bounds the evaluator's, the differentiator's and the printer's recursion.
+pub const MAX_TREE_DEPTH: usize = 1000;
 
 /// Deepest nesting accepted (bounds the evaluator's recursion).
 pub const MAX_DEPTH: usize = 200;
@@ -246,6 +256,10 @@ struct Parser<'a> {
     input_columns: Vec<usize>,
     used: Vec<bool>,
     depth: usize,
+    /// Each node's depth in the tree (children precede parents).
+    heights: Vec<u32>,
+    /// Where the tree first grew past [`MAX_TREE_DEPTH`].
+    too_long: Option<usize>,
 }
 
 impl Parser<'_> {
@@ -258,6 +272,22 @@ impl Parser<'_> {
     }
 
     fn push(&mut self, n: Node) -> u32 {
+        let h = |i: u32| self.heights[i as usize];
+        let height = 1 + match n {
+            Node::Num(_) | Node::Input(_) | Node::Param(_) => 0,
+            Node::Neg(a) | Node::Call(_, a) | Node::PowI(a, _) => h(a),
+            Node::Add(a, b)
+            | Node::Sub(a, b)
+            | Node::Mul(a, b)
+            | Node::Div(a, b)
+            | Node::Pow(a, b)
+            | Node::Min(a, b)
+            | Node::Max(a, b) => h(a).max(h(b)),
+        };
+        if height as usize > MAX_TREE_DEPTH && self.too_long.is_none() {
+            self.too_long = Some(self.column());
+        }
+        self.heights.push(height);
         self.nodes.push(n);
         (self.nodes.len() - 1) as u32
     }
@@ -448,8 +478,14 @@ impl ExprModel {
             input_columns: Vec::new(),
             used: vec![false; params.len()],
             depth: 0,
+            heights: Vec::new(),
+            too_long: None,
         };
-        let root = parser.expr()?;
+        let root = parser.expr();
+        if let Some(column) = parser.too_long {
+            return Err(ExprError::TooLong { column });
+        }
+        let root = root?;
         if parser.pos < parser.toks.len() {
             return Err(parser.unexpected("an operator or the end"));
         }

@@ -262,3 +262,40 @@ fn compiled_agrees_with_tree_walk(text: &str, names: &[&str]) {
         }
     }
 }
+
+#[test]
+fn a_chain_of_terms_is_bounded_and_the_longest_allowed_works_on_a_small_stack() {
+    // 40 000 terms: refused with where the limit is passed, not a stack overflow.
+    let long = format!("A*x{}", "+A*x".repeat(39_999));
+    match ExprModel::parse(&long, &["A"]) {
+        Err(e @ ExprError::TooLong { column }) => {
+            // A leaf is 1 deep, `A*x` 2, the k-th `+` k + 2: the 999th `+` (joining term
+            // 1000, which ends before the '+' at column 4000) passes 1000.
+            assert_eq!(column, 4000, "{e}");
+            assert!(e.to_string().contains("more than 1000 operations"), "{e}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // 500 terms (999 operations deep): evaluated, differentiated and printed on a 2 MiB stack,
+    // against the closed form 500·A·x and its derivative 500·x.
+    std::thread::Builder::new()
+        .stack_size(2 << 20)
+        .spawn(|| {
+            let text = format!("A*x{}", "+A*x".repeat(499));
+            let m = ExprModel::parse(&text, &["A"]).unwrap();
+            let (a, x) = (1.7, 0.3);
+            let v = m.eval::<f64>(&[x], &[a]);
+            assert!((v - 500.0 * a * x).abs() < 1e-12 * v.abs());
+            let mut engine = GradientEngine::new(1);
+            let mut g = [0.0];
+            let vd = engine.value_and_gradient(&m, &[x], &[a], &[0], &mut g);
+            assert!((vd - v).abs() < 1e-12 * v.abs());
+            assert!((g[0] - 500.0 * x).abs() < 1e-12 * g[0].abs());
+            let printed = m.to_string();
+            let again = ExprModel::parse(&printed, &["A"]).unwrap();
+            assert_eq!(again.eval::<f64>(&[x], &[a]), v);
+        })
+        .unwrap()
+        .join()
+        .unwrap();
+}

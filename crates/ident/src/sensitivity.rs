@@ -151,7 +151,12 @@ impl RowScaler {
     /// A scaler for `scaling` with the analysed parameters' nominal values `theta0_free` and
     /// the output level: `g·rms(y)` (thesis) or `σ_y` (sigma); ignored for `none`.
     pub fn new(scaling: Scaling, theta0_free: &[f64], level: f64) -> Result<Self, IdentError> {
-        if scaling != Scaling::None && !(level.is_finite() && level > 0.0) {
+        if scaling != Scaling::None && !level.is_finite() {
+            return Err(IdentError::Invalid(format!(
+                "the output's level overflowed ({level}): the data or the model's output is too large for 64-bit floating point (its squares pass 1.8e308); rescale the data (e.g. to SI units or by a power of ten)"
+            )));
+        }
+        if scaling != Scaling::None && level <= 0.0 {
             return Err(IdentError::Invalid(format!(
                 "{} scaling needs an output level > 0 (the output is {level}): is it identically zero? Use --scaling none",
                 scaling.name()

@@ -18,7 +18,8 @@
 //!   [`CsvOptions::units_row`]; units in the header as `name [unit]`;
 //! - `\n` or `\r\n` line ends, a last line without one (read, with a warning in
 //!   `meta["warning"]`), lines numbered as an editor numbers them;
-//! - numbers in Rust/Python float syntax (`1.5`, `-2e-3`, `NaN`, `inf`).
+//! - numbers in Rust/Python float syntax (`1.5`, `-2e-3`, `NaN`, `inf`); an empty cell is a
+//!   missing sample, read as NaN.
 
 use crate::IoError;
 use physid_core::{Basis, Channel, Recording};
@@ -160,6 +161,12 @@ pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, 
         }
         last_start = at;
         for (j, cell) in record.iter().enumerate() {
+            // An empty cell is a missing sample: NaN, which the integrity check reports and
+            // every consumer refuses or skips (`--on-bad`), never takes as a number.
+            if cell.is_empty() {
+                columns[j].push(f64::NAN);
+                continue;
+            }
             let v = number(cell, decimal_comma).ok_or_else(|| IoError::NotNumeric {
                 path: p.clone(),
                 line: line_here(),

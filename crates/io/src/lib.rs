@@ -121,12 +121,3 @@ pub(crate) fn contained<T>(
         })
     })
 }
-
-/// Memory this machine can still give [bytes] (`MemAvailable`), if known: a reader refuses a
-/// file whose claimed size would not fit before allocating for it.
-pub(crate) fn available_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}

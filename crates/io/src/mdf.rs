@@ -88,6 +88,7 @@ fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<R
         what: "no numeric channels",
     })?;
     let group = (first.data_group_index, first.channel_group_index);
+    check_record_count(&file, group, &p)?;
     let master = file.master_channel(group.0, group.1);
     let axis = file.channel_timestamps(first).map_err(|e| mdf_err(&p, e))?;
     let mut rec = Recording::new(match master.map(|m| m.sync_type) {
@@ -156,6 +157,33 @@ fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<R
         })?;
     }
     Ok(rec)
+}
+
+/// A sorted data group's record count against its data blocks' length: a count corrupted
+/// smaller would otherwise read as a shorter recording, silently.
+fn check_record_count(file: &Mf4File, (dg, cg): (usize, usize), p: &str) -> Result<(), IoError> {
+    let Some(d) = file.data_groups().get(dg) else {
+        return Ok(());
+    };
+    if d.is_unsorted() || d.channel_groups.len() != 1 {
+        return Ok(());
+    }
+    let Some(g) = d.channel_groups.get(cg) else {
+        return Ok(());
+    };
+    let record = g.record_size(d.rec_id_size()) as u64;
+    let held = d.block_index().total_size();
+    if record > 0 && held / record > g.sample_count {
+        return Err(IoError::Malformed {
+            path: p.into(),
+            detail: format!(
+                "corrupt MDF4: channel group {cg} of data group {dg} claims {} records, but its data blocks hold {} ({held} bytes of {record}-byte records)",
+                g.sample_count,
+                held / record
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// Write a recording as MDF4 (module docs). `start_time_ns`: the file's start time in

@@ -122,7 +122,7 @@ fn read_parquet_inner(
         detail: format!("corrupt Parquet: the footer claims {claimed} rows"),
     })?;
     let need = (rows as u128) * (wanted.len().max(1) as u128) * 8;
-    if let Some(free) = crate::available_memory() {
+    if let Some(free) = physid_core::memory::available() {
         if need > u128::from(free) {
             return Err(IoError::Malformed {
                 path: p.clone(),

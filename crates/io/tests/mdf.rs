@@ -203,3 +203,33 @@ fn errors_name_the_file_and_the_problem() {
         .to_string();
     assert!(e.contains("needs a 't' channel"), "{e}");
 }
+
+#[test]
+fn a_record_count_corrupted_smaller_than_the_data_is_refused() {
+    // The channel group's cycle count (after the CG block's 24-byte header, its links and the
+    // 8-byte record id) patched to 1, in asammdf's files and physid's.
+    let scratch = physid_testkit::Scratch::new("physid-mdf");
+    for name in [
+        "time_plain.mf4",
+        "time_deflate.mf4",
+        "time_transposed.mf4",
+        "physid_written.mf4",
+    ] {
+        let mut b = std::fs::read(dir().join(name)).unwrap();
+        let i = b.windows(4).position(|w| w == b"##CG").unwrap();
+        let links = u64::from_le_bytes(b[i + 16..i + 24].try_into().unwrap()) as usize;
+        let at = i + 24 + 8 * links + 8;
+        let count = u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+        assert!(count > 1, "{name}: {count}");
+        b[at..at + 8].copy_from_slice(&1u64.to_le_bytes());
+        let f = scratch.file(name);
+        std::fs::write(&f, &b).unwrap();
+        let e = read_mdf(&f, None).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "claims 1 records, but its data blocks hold {count}"
+            )),
+            "{name}: {e}"
+        );
+    }
+}

@@ -865,6 +865,31 @@ pub fn simulate(
         )));
     }
     let torque_mode = scenario.torque_mode || base.dyno.torque_mode != 0.0;
+    // The recording's size, known in advance: refused when it cannot fit (a typo such as
+    // `duration = 1e6` would otherwise grow until the allocator aborts).
+    let per_second = match opts.basis {
+        OutputBasis::Time(rate) => rate,
+        OutputBasis::Crank(step) => {
+            // The fastest demanded speed over the run (1000 rpm when the demand is a torque).
+            let rpm = if torque_mode {
+                1000.0
+            } else {
+                (0..=1000)
+                    .map(|k| scenario.speed.value(duration * f64::from(k) / 1000.0))
+                    .fold(0.0, f64::max)
+            };
+            rpm / 60.0 * 360.0 / step
+        }
+    };
+    physid_core::memory::check_fits(
+        duration * per_second * OUTPUT.len() as f64 * 8.0,
+        &if duration < 1e5 {
+            format!("a recording of {duration} s")
+        } else {
+            format!("a recording of {duration:e} s")
+        },
+    )
+    .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
     let demand_at = |t: f64| {
         let v = scenario.speed.value(t.max(0.0));
         if torque_mode {

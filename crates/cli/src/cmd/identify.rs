@@ -203,7 +203,14 @@ fn identify_one<M: ParamModel>(
         })
         .collect::<Result<_>>()?;
     let data = Data { inputs, y };
-    let a = analyse(model, &data, nominal, &free, config).map_err(|e| miette!("{file}: {e}"))?;
+    let a = analyse(model, &data, nominal, &free, config).map_err(|e| match e {
+        // Placed by file line, as every verb does.
+        physid_ident::IdentError::BadValue { row, column, value } => miette!(
+            "{file}, {}: '{column}' is {value} (expected a finite number)",
+            super::locate(rec, row)
+        ),
+        e => miette!("{file}: {e}"),
+    })?;
     let (k, wu) = choice
         .resolve(model, &data, &a)
         .map_err(|e| miette!("{file}: {e}"))?;

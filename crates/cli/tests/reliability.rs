@@ -1,0 +1,164 @@
+//! Bad input at the command line gives a clear error — never a panic, an abort, a hang or a
+//! silently wrong number: every case here was once one of those.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_testkit::Scratch;
+use std::process::{Command, Output};
+
+fn physid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args(args)
+        .output()
+        .expect("run physid")
+}
+
+fn fails_with(args: &[&str], want: &str) {
+    let o = physid(args);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+    assert!(e.contains(want), "{args:?}: {e}");
+}
+
+#[test]
+fn runs_that_cannot_fit_are_refused_before_they_start() {
+    let s = Scratch::new("physid-rel");
+    let out = s.file("x.parquet");
+    let out = out.to_str().unwrap();
+    fails_with(
+        &[
+            "simulate",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "1e6",
+            "--out",
+            out,
+        ],
+        "a recording of 1e6 s would take about",
+    );
+    fails_with(
+        &[
+            "simulate",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "1e308",
+            "--basis",
+            "crank",
+            "--out",
+            out,
+        ],
+        "would not fit in any memory",
+    );
+}
+
+#[test]
+fn a_formula_of_forty_thousand_terms_is_refused_not_a_stack_overflow() {
+    let s = Scratch::new("physid-rel");
+    let data = s.file("d.csv");
+    std::fs::write(&data, "t,x,y\n0,1,2\n0.1,2,4\n0.2,3,6\n").unwrap();
+    let expr = format!("A*x{}", "+A*x".repeat(39_999));
+    let pipeline = s.file("deep.toml");
+    std::fs::write(
+        &pipeline,
+        format!(
+            "[model]\nexpr = \"{expr}\"\nparams = {{ A = 1.0 }}\noutput = \"y\"\n[data]\nfile = \"{}\"\n[estimator]\nmethod = \"rls\"\n",
+            data.display()
+        ),
+    )
+    .unwrap();
+    fails_with(
+        &[
+            "run",
+            pipeline.to_str().unwrap(),
+            "--out",
+            s.file("o").to_str().unwrap(),
+        ],
+        "a chain of more than 1000 operations at column 4000",
+    );
+}
+
+#[test]
+fn bad_samples_are_placed_by_file_line_and_empty_cells_are_missing_samples() {
+    let s = Scratch::new("physid-rel");
+    let f = s.file("nan.csv");
+    std::fs::write(&f, "t,a,y\ns,,\n0,1,2\n0.1,nan,4\n0.2,3,6\n").unwrap();
+    // identify places the bad value by its line (4) like every other verb.
+    fails_with(
+        &[
+            "identify",
+            "--expr",
+            "A*a",
+            "--params",
+            "A=1",
+            "--data",
+            f.to_str().unwrap(),
+            "--y",
+            "y",
+        ],
+        "line 4 (sample 1): 'a' is NaN",
+    );
+    // An empty cell is a missing sample: refused by default, skipped with --on-bad skip.
+    let f = s.file("empty.csv");
+    let mut text = String::from("t,a,y\n");
+    for i in 0..50 {
+        let a = 1.0 + (i % 7) as f64;
+        if i == 10 {
+            text.push_str(&format!("{},,{}\n", i as f64 * 0.1, 2.0 * a));
+        } else {
+            text.push_str(&format!("{},{a},{}\n", i as f64 * 0.1, 2.0 * a));
+        }
+    }
+    std::fs::write(&f, text).unwrap();
+    let out = s.file("e.csv");
+    let base = [
+        "estimate",
+        "--data",
+        f.to_str().unwrap(),
+        "--y",
+        "y",
+        "--phi",
+        "a",
+        "--method",
+        "rls",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    fails_with(&base, "line 12 (sample 10)");
+    let mut skip = base.to_vec();
+    skip.extend(["--on-bad", "skip", "--json"]);
+    let o = physid(&skip);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["skipped"], 1, "{j}");
+    // y = 2·a exactly: the estimate is 2.
+    let a = j["estimates"]["a"]
+        .as_f64()
+        .unwrap_or_else(|| j["params"]["a"].as_f64().unwrap());
+    assert!((a - 2.0).abs() < 1e-3, "{j}");
+}
+
+#[test]
+fn an_overflowing_output_is_named_as_such() {
+    let s = Scratch::new("physid-rel");
+    let f = s.file("big.csv");
+    std::fs::write(
+        &f,
+        "t,a,y\n0,1e300,2e300\n0.1,2e300,4e300\n0.2,3e300,6e300\n",
+    )
+    .unwrap();
+    fails_with(
+        &[
+            "identify",
+            "--expr",
+            "A*a",
+            "--params",
+            "A=1",
+            "--data",
+            f.to_str().unwrap(),
+            "--y",
+            "y",
+        ],
+        "the output's level overflowed",
+    );
+}

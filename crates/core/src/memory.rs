@@ -1,0 +1,49 @@
+//! How much memory this machine can still give: a run or a reader refuses work whose size it
+//! can tell in advance would not fit, instead of growing until the allocator aborts.
+
+/// Memory available to new allocations [bytes] (`MemAvailable` of `/proc/meminfo`), if known.
+pub fn available() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb.saturating_mul(1024))
+}
+
+/// `Err(message)` when `bytes` (a size known in advance, possibly infinite) would not fit in
+/// the available memory; `what` says what would take it.
+pub fn check_fits(bytes: f64, what: &str) -> Result<(), String> {
+    match available() {
+        Some(free) if !bytes.is_finite() => Err(format!(
+            "{what} would not fit in any memory (this machine has {:.1} GB free)",
+            free as f64 / 1e9
+        )),
+        Some(free) if bytes > free as f64 => Err(format!(
+            "{what} would take about {:.3} GB, and this machine has {:.1} GB free",
+            bytes / 1e9,
+            free as f64 / 1e9
+        )),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_that_cannot_fit_are_refused() {
+        if available().is_none() {
+            return; // no /proc here: nothing to check against
+        }
+        assert!(check_fits(1e3, "a kilobyte").is_ok());
+        let e = check_fits(1e30, "a recording").unwrap_err();
+        assert!(
+            e.starts_with("a recording would take about 1000000000000000000000.000 GB"),
+            "{e}"
+        );
+        assert!(check_fits(f64::INFINITY, "x")
+            .unwrap_err()
+            .contains("would not fit in any memory"));
+        assert!(check_fits(f64::NAN, "x").is_err());
+    }
+}
