@@ -42,6 +42,7 @@ use physid_estim::{
     CovSpec, EstimatorConfig, LinearEstimator, Method, NlConfig, NlMethod, NonlinearEstimator,
     SigmaPoints,
 };
+use physid_estim::resolution::resolution;
 use physid_ident::{analyse, fit_subset, Data, IdentConfig, RankedParam, Scaling, Selection};
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
@@ -380,8 +381,10 @@ pub struct PipelineResult {
     pub nominal: Vec<f64>,
     /// Final values (non-estimable ones at nominal).
     pub params: Vec<f64>,
-    /// Standard errors of the estimated ones.
+    /// Standard errors of the estimated ones (`None` for one the data do not resolve).
     pub std_err: Vec<Option<f64>>,
+    /// The estimated parameters the data do not resolve ([`physid_estim::resolution`]).
+    pub unresolved: Vec<String>,
     /// The objective.
     pub objective: Objective,
     /// Times of the plotted samples [s] (decimated to at most ~4000).
@@ -487,6 +490,14 @@ impl<M: ParamModel> Estimator<M> {
             Self::Linear { est, .. } => est.std_errors().unwrap_or_default(),
         }
     }
+
+    /// The covariance, in the coordinates of the estimator's P0.
+    fn covariance(&self) -> nalgebra::DMatrix<f64> {
+        match self {
+            Self::NonLinear(est) => est.covariance(),
+            Self::Linear { est, .. } => est.covariance(),
+        }
+    }
 }
 
 fn run_with<M: ParamModel + Clone>(
@@ -583,6 +594,7 @@ fn run_with<M: ParamModel + Clone>(
         nominal: nominal.clone(),
         params: nominal.clone(),
         std_err: vec![None; names.len()],
+        unresolved: Vec::new(),
         objective: Objective {
             metric: p.objective.metric.clone(),
             value_pct: f64::NAN,
@@ -598,6 +610,7 @@ fn run_with<M: ParamModel + Clone>(
             .map(|&j| (names[j].clone(), Vec::new()))
             .collect(),
     };
+    let p0: CovSpec;
     let mut est = match p.estimator.method.as_str() {
         "ekf" | "ukf" | "srukf" => {
             let method = match p.estimator.method.as_str() {
@@ -615,8 +628,9 @@ fn run_with<M: ParamModel + Clone>(
                         .max(f64::MIN_POSITIVE)
                 }
             };
+            p0 = CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 }));
             let nl = NlConfig {
-                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 })),
+                p0: p0.clone(),
                 r2,
                 scaled,
                 ..NlConfig::new(method)
@@ -633,8 +647,9 @@ fn run_with<M: ParamModel + Clone>(
                 "rlsf" => Method::Rlsf { lambda },
                 _ => Method::Dsfc { lambda },
             };
+            p0 = CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0));
             let config = EstimatorConfig {
-                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
+                p0: p0.clone(),
                 ..EstimatorConfig::new(method)
             };
             Estimator::Linear {
@@ -674,9 +689,13 @@ fn run_with<M: ParamModel + Clone>(
         }
     }
     let (final_full, se) = (est.estimate_full(), est.std_errors());
+    // What the data resolved: an unresolved parameter gets no standard error.
+    let p0 = p0.to_matrix(order.len(), "P0").map_err(|e| e.to_string())?;
+    let res = resolution(&est.covariance(), &p0);
     for (k, &j) in order.iter().enumerate() {
-        out.std_err[j] = se.get(k).copied();
+        out.std_err[j] = se.get(k).copied().filter(|_| res.resolved[k]);
     }
+    out.unresolved = res.unresolved().iter().map(|&k| names[order[k]].clone()).collect();
     out.params = final_full;
     // 3. The objective, on the one-step-ahead predictions after the transient.
     let start = t

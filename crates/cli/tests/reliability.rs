@@ -162,3 +162,129 @@ fn an_overflowing_output_is_named_as_such() {
         "the output's level overflowed",
     );
 }
+
+/// Two regressors and `y = 2·x1 − 3·x2` (+ a small known disturbance when `noise`), written
+/// with `scale` on every column.
+fn regression(path: &std::path::Path, scale: f64, collinear: bool, noise: bool) {
+    let mut s = String::from("t,x1,x2,y\n");
+    for i in 0..500 {
+        let t = i as f64 * 0.01;
+        let a = (3.0 * t).sin() + 0.5;
+        let b = if collinear { a } else { (5.0 * t).cos() };
+        let e = if noise { 0.01 * (91.0 * t).sin() } else { 0.0 };
+        s.push_str(&format!(
+            "{t},{},{},{}\n",
+            a * scale,
+            b * scale,
+            (2.0 * a - 3.0 * b + e) * scale
+        ));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+fn estimate_json(args: &[&str]) -> serde_json::Value {
+    let o = physid(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error() {
+    let s = Scratch::new("physid-rel");
+    let (tiny, coll, good) = (s.file("tiny.csv"), s.file("coll.csv"), s.file("good.csv"));
+    regression(&tiny, 1e-300, false, false);
+    regression(&coll, 1.0, true, false);
+    regression(&good, 1.0, false, true);
+    for method in ["rls", "rlsf", "rlsvf", "kf", "dsfc"] {
+        for (f, what) in [(&tiny, "scaled by 1e-300"), (&coll, "collinear")] {
+            let j = estimate_json(&[
+                "estimate",
+                "--data",
+                f.to_str().unwrap(),
+                "--y",
+                "y",
+                "--phi",
+                "x1,x2",
+                "--method",
+                method,
+                "--json",
+            ]);
+            assert_eq!(
+                j["unresolved"],
+                serde_json::json!(["x1", "x2"]),
+                "{method} {what}: {j}"
+            );
+            assert!(
+                j["std_err"]["x1"].is_null() && j["std_err"]["x2"].is_null(),
+                "{method} {what}: {j}"
+            );
+            assert_eq!(j["resolution"]["x1"]["resolved"], false);
+        }
+        // Well-posed data: nothing flagged, the estimates within 5σ of the truth and σ small.
+        let j = estimate_json(&[
+            "estimate",
+            "--data",
+            good.to_str().unwrap(),
+            "--y",
+            "y",
+            "--phi",
+            "x1,x2",
+            "--method",
+            method,
+            "--json",
+        ]);
+        assert_eq!(j["unresolved"], serde_json::json!([]), "{method}: {j}");
+        for (p, truth) in [("x1", 2.0), ("x2", -3.0)] {
+            let (v, se) = (
+                j["params"][p].as_f64().unwrap(),
+                j["std_err"][p].as_f64().unwrap(),
+            );
+            // (kf takes its noise variance as given, R2 = 1 by default: a wider σ.)
+            assert!(se > 0.0 && se < 0.1, "{method} {p}: σ {se}");
+            assert!(
+                (v - truth).abs() < 5.0 * se + 1e-3,
+                "{method} {p}: {v} ± {se}"
+            );
+        }
+    }
+    // A model whose parameters only appear as a product: A and B cannot be told apart.
+    let j = estimate_json(&[
+        "estimate",
+        "--data",
+        good.to_str().unwrap(),
+        "--y",
+        "y",
+        "--expr",
+        "A*B*x1 - 3*x2",
+        "--params",
+        "A=1,B=1",
+        "--method",
+        "ukf",
+        "--json",
+    ]);
+    assert_eq!(j["unresolved"], serde_json::json!(["A", "B"]), "{j}");
+    // Separately: both resolved, near the truth.
+    let j = estimate_json(&[
+        "estimate",
+        "--data",
+        good.to_str().unwrap(),
+        "--y",
+        "y",
+        "--expr",
+        "A*x1 + B*x2",
+        "--params",
+        "A=1,B=1",
+        "--method",
+        "ukf",
+        "--json",
+    ]);
+    assert_eq!(j["unresolved"], serde_json::json!([]), "{j}");
+    assert!(
+        (j["params"]["A"].as_f64().unwrap() - 2.0).abs() < 0.01,
+        "{j}"
+    );
+}

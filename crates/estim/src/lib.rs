@@ -25,6 +25,7 @@ pub mod error;
 pub mod linear;
 pub mod metrics;
 pub mod nonlinear;
+pub mod resolution;
 pub mod workload;
 
 pub use detect::{Alarm, Cusum, CusumLevel, RelativeErrorDetector};

@@ -5,6 +5,7 @@ use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
+use physid_estim::resolution::resolution;
 use physid_estim::{
     metrics, CovSpec, EstimError, EstimatorConfig, GuardAction, LinearEstimator, Method, NlConfig,
     NlMethod, NonlinearEstimator, SigmaPoints, Step, VfVariant, WindupGuard,
@@ -107,6 +108,10 @@ trait Online {
     fn free_estimate(&self) -> Vec<f64>;
     /// Their standard errors, when they can be estimated yet.
     fn std_errors(&self) -> Option<Vec<f64>>;
+    /// The covariance now, in the coordinates the run started from with [`Online::p0`].
+    fn covariance(&self) -> nalgebra::DMatrix<f64>;
+    /// The starting covariance.
+    fn p0(&self) -> &nalgebra::DMatrix<f64>;
     /// Covariance repairs so far (the UKFs; `None` where the method has none).
     fn repairs(&self) -> Option<u64> {
         None
@@ -119,6 +124,7 @@ trait Online {
 
 struct LinearRun<'a> {
     est: LinearEstimator,
+    p0: nalgebra::DMatrix<f64>,
     cols: Vec<&'a [f64]>,
     y: &'a [f64],
     phi: Vec<f64>,
@@ -137,10 +143,17 @@ impl Online for LinearRun<'_> {
     fn std_errors(&self) -> Option<Vec<f64>> {
         self.est.std_errors().ok()
     }
+    fn covariance(&self) -> nalgebra::DMatrix<f64> {
+        self.est.covariance()
+    }
+    fn p0(&self) -> &nalgebra::DMatrix<f64> {
+        &self.p0
+    }
 }
 
 struct NonlinearRun<'a> {
     est: NonlinearEstimator<ExprModel>,
+    p0: nalgebra::DMatrix<f64>,
     cols: Vec<&'a [f64]>,
     y: &'a [f64],
     u: Vec<f64>,
@@ -158,6 +171,12 @@ impl Online for NonlinearRun<'_> {
     }
     fn std_errors(&self) -> Option<Vec<f64>> {
         Some(self.est.std_errors())
+    }
+    fn covariance(&self) -> nalgebra::DMatrix<f64> {
+        self.est.covariance()
+    }
+    fn p0(&self) -> &nalgebra::DMatrix<f64> {
+        &self.p0
     }
     fn repairs(&self) -> Option<u64> {
         Some(self.est.repairs())
@@ -280,9 +299,19 @@ pub fn run(args: &Args) -> Result<()> {
         };
         let name = cfg.method.name();
         let est = NonlinearEstimator::new(model, &params, &free, &cfg).into_diagnostic()?;
+        let p0 = cfg
+            .p0
+            .to_matrix(free.free().len(), "P0")
+            .into_diagnostic()?;
         let u = vec![0.0; cols.len()];
         (
-            Box::new(NonlinearRun { est, cols, y, u }),
+            Box::new(NonlinearRun {
+                est,
+                p0,
+                cols,
+                y,
+                u,
+            }),
             params,
             free,
             name,
@@ -320,9 +349,14 @@ pub fn run(args: &Args) -> Result<()> {
         };
         let name = cfg.method.name();
         let est = LinearEstimator::new(&cfg, &params, &free).into_diagnostic()?;
+        let p0 = cfg
+            .p0
+            .to_matrix(free.free().len(), "P0")
+            .into_diagnostic()?;
         (
             Box::new(LinearRun {
                 est,
+                p0,
                 cols,
                 y,
                 phi: vec![0.0; p],
@@ -380,7 +414,16 @@ pub fn run(args: &Args) -> Result<()> {
         return Err(miette!("{file}: no usable samples ({skipped} skipped)"));
     }
     let theta = online.free_estimate();
-    let std_err = online.std_errors();
+    // What the data resolved (physid_estim::resolution): an unresolved parameter keeps its
+    // estimate but gets no standard error — the data cannot support one.
+    let res = resolution(&online.covariance(), online.p0());
+    let unresolved: Vec<&String> = res.unresolved().iter().map(|&j| &names[j]).collect();
+    let std_err: Option<Vec<Option<f64>>> = online.std_errors().map(|s| {
+        s.iter()
+            .enumerate()
+            .map(|(j, &v)| res.resolved[j].then_some(v))
+            .collect()
+    });
     let mut full = params.nominal().to_vec();
     free.scatter(&theta, &mut full);
     let repairs = online.repairs();
@@ -428,7 +471,19 @@ pub fn run(args: &Args) -> Result<()> {
         let se: serde_json::Map<_, _> = names
             .iter()
             .enumerate()
-            .map(|(j, k)| (k.clone(), json!(std_err.as_ref().map(|s| s[j]))))
+            .map(|(j, k)| (k.clone(), json!(std_err.as_ref().and_then(|s| s[j]))))
+            .collect();
+        let resolution_json: serde_json::Map<_, _> = names
+            .iter()
+            .enumerate()
+            .map(|(j, k)| {
+                (
+                    k.clone(),
+                    json!({"resolved": res.resolved[j],
+                           "variance_ratio": res.variance_ratio[j],
+                           "independence": res.independence[j]}),
+                )
+            })
             .collect();
         let mut out = json!({
             "method": method_name,
@@ -436,6 +491,8 @@ pub fn run(args: &Args) -> Result<()> {
             "skipped": skipped,
             "params": params_json,
             "std_err": se,
+            "unresolved": unresolved,
+            "resolution": resolution_json,
             "nmse": nmse,
             "nrmse": nrmse,
             "fit_percent": fit,
@@ -467,9 +524,10 @@ pub fn run(args: &Args) -> Result<()> {
         "std. error"
     );
     for (j, nm) in names.iter().enumerate() {
-        let s = std_err
-            .as_ref()
-            .map_or("-".to_string(), |s| format!("{:.6e}", s[j]));
+        let s = match std_err.as_ref() {
+            None => "-".to_string(),
+            Some(s) => s[j].map_or("unresolved".to_string(), |v| format!("{v:.6e}")),
+        };
         outln!("{nm:<16} {:>16.8e} {s:>14}", theta[j]);
     }
     for i in free.fixed() {
@@ -478,6 +536,16 @@ pub fn run(args: &Args) -> Result<()> {
             params.names()[*i],
             params.nominal()[*i],
             "(fixed)"
+        );
+    }
+    if !unresolved.is_empty() {
+        outln!(
+            "the data do not resolve {}: their variance fell by less than half, or they cannot be told apart from the others (collinear); their estimates are not supported by the data",
+            unresolved
+                .iter()
+                .map(|s| s.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     let show = |v: Option<f64>| v.map_or("undefined".to_string(), |v| format!("{v:.4e}"));

@@ -14,7 +14,7 @@ pub struct Args {
     /// The pipeline file (TOML: [model], [data], [identifiability], [estimator], [objective];
     /// see docs/pipeline.md).
     pipeline: PathBuf,
-    /// Print JSON: {"estimable", "params", "std_err", "objective": {"metric", "value_pct",
+    /// Print JSON: {"estimable", "params", "std_err", "unresolved", "objective": {"metric", "value_pct",
     /// "limit_pct", "met"}, …}.
     #[arg(long)]
     json: bool,
@@ -40,8 +40,10 @@ pub fn json(r: &PipelineResult) -> serde_json::Value {
         "nominal": by_name(&r.nominal),
         "params": by_name(&r.params),
         "std_err": r.names.iter().zip(&r.std_err)
-            .filter_map(|(n, s)| s.map(|s| (n.clone(), serde_json::json!(s))))
+            .filter(|(n, _)| r.estimable.contains(n))
+            .map(|(n, s)| (n.clone(), serde_json::json!(s)))
             .collect::<serde_json::Map<_, _>>(),
+        "unresolved": r.unresolved,
         "objective": r.objective,
     })
 }
@@ -77,13 +79,13 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
         &r.names
             .iter()
             .enumerate()
-            .filter(|(j, _)| r.std_err[*j].is_some())
+            .filter(|(_, n)| r.estimable.contains(n))
             .map(|(j, n)| {
                 vec![
                     n.clone(),
                     format!("{:.6e}", r.nominal[j]),
                     format!("{:.6e}", r.params[j]),
-                    format!("{:.2e}", r.std_err[j].unwrap_or(f64::NAN)),
+                    r.std_err[j].map_or("unresolved by the data".into(), |s| format!("{s:.2e}")),
                 ]
             })
             .collect::<Vec<_>>(),
@@ -156,14 +158,15 @@ pub fn run(args: &Args) -> Result<()> {
         outln!("{}: {} rows", args.pipeline.display(), r.rows);
         outln!("  estimable: {}", r.estimable.join(", "));
         for (j, n) in r.names.iter().enumerate() {
-            if let Some(se) = r.std_err[j] {
-                outln!(
-                    "  {n:<10} {:>14.6e} → {:>14.6e} ± {:.2e}",
-                    r.nominal[j],
-                    r.params[j],
-                    se
-                );
+            if !r.estimable.contains(n) {
+                continue;
             }
+            outln!(
+                "  {n:<10} {:>14.6e} → {:>14.6e} {}",
+                r.nominal[j],
+                r.params[j],
+                r.std_err[j].map_or("(unresolved by the data)".into(), |se| format!("± {se:.2e}"))
+            );
         }
         let o = &r.objective;
         outln!(
