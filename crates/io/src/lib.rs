@@ -82,6 +82,20 @@ pub enum IoError {
     },
 }
 
+/// Metadata keys that describe the file a recording was read from (its path, the CSV line of
+/// sample 0, its separator, a warning about it, the units converted, the MDF master): they
+/// belong to that file, so they are neither written into another one nor taken from one.
+pub const FILE_META: [&str; 8] = [
+    "source",
+    "first_data_line",
+    "csv_separator",
+    "warning",
+    "units_converted",
+    "master",
+    "master_unit_label",
+    "skipped",
+];
+
 thread_local! {
     /// Set while a decoder runs under [`contained`]: its panics are reported as errors, so the
     /// panic hook stays quiet for them.

@@ -167,7 +167,9 @@ fn read_parquet_inner(
     let mut rec = Recording::new(basis);
     for (k, v) in schema.metadata() {
         if let Some(key) = k.strip_prefix(META_PREFIX) {
-            rec.meta.insert(key.to_string(), v.clone());
+            if !crate::FILE_META.contains(&key) {
+                rec.meta.insert(key.to_string(), v.clone());
+            }
         }
     }
     rec.meta.insert("source".into(), p.clone());
@@ -205,7 +207,7 @@ pub fn write_parquet(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoEr
         Basis::CrankAngle => "crank_angle",
     };
     let mut meta = HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]);
-    for (k, v) in &rec.meta {
+    for (k, v) in rec.meta.iter().filter(|(k, _)| !crate::FILE_META.contains(&k.as_str())) {
         meta.insert(format!("{META_PREFIX}{k}"), v.clone());
     }
     let schema = Arc::new(Schema::new_with_metadata(fields, meta));

@@ -15,7 +15,8 @@
 //! ```
 //!
 //! A failing case is reproduced by its seed file and case number (the mutations are drawn
-//! from a fixed-seed generator): `PHYSID_FUZZ_ONLY=file:case`. `PHYSID_FUZZ_SHOW=1` prints
+//! from a fixed-seed generator): `PHYSID_FUZZ_ONLY=file:case` (or `=file` for every case of
+//! one seed). `PHYSID_FUZZ_SHOW=1` prints
 //! the third-party decoders' panics the readers contained (to report upstream).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -143,6 +144,7 @@ fn seeds() -> Vec<Seed> {
     for (name, ext) in [
         ("parquet/pyarrow_written.parquet", "parquet"),
         ("parquet/physid_written.parquet", "parquet"),
+        ("parquet/tiny.parquet", "parquet"),
     ] {
         let b = golden(name);
         v.push(Seed {
@@ -185,10 +187,30 @@ fn one(path: &Path) -> usize {
             if std::env::var("PHYSID_FUZZ_SHOW").is_ok() {
                 println!("contained: {e}");
             }
+            if let Ok(dir) = std::env::var("PHYSID_FUZZ_SAVE") {
+                let name = path.file_name().unwrap_or_default().to_string_lossy().to_string();
+                let n = std::fs::read_dir(&dir).map_or(0, |d| d.count());
+                std::fs::copy(path, Path::new(&dir).join(format!("{n:03}-{name}"))).unwrap();
+            }
             2
         }
         Err(_) => 1,
     }
+}
+
+/// The inputs that made a third-party decoder panic (saved by `PHYSID_FUZZ_SAVE=DIR` from the
+/// small seed `golden/parquet/tiny.parquet`): each stays a clear error.
+#[test]
+fn the_crashing_inputs_found_are_clear_errors() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz/crashes");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let e = read(&path, &ReadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("corrupt Parquet") || e.contains("Parquet:"), "{}: {e}", path.display());
+        n += 1;
+    }
+    assert!(n > 0, "no crash seeds in {}", dir.display());
 }
 
 #[test]
@@ -200,13 +222,17 @@ fn no_reader_panics_hangs_or_blows_up_on_mutated_files() {
     let only = std::env::var("PHYSID_FUZZ_ONLY").ok();
     let scratch = Scratch::new("physid-fuzz");
     for seed in seeds() {
-        let (from, to) = match only.as_deref().and_then(|o| o.rsplit_once(':')) {
-            Some((name, case)) if name == seed.name => {
-                let c: u64 = case.parse().unwrap();
-                (c, c + 1)
-            }
-            Some(_) => continue,
+        // PHYSID_FUZZ_ONLY=SEED:CASE runs one case, =SEED every case of one seed.
+        let (from, to) = match only.as_deref().filter(|o| !o.is_empty()) {
             None => (0, cases),
+            Some(o) => match o.rsplit_once(':') {
+                Some((name, case)) if name == seed.name => {
+                    let c: u64 = case.parse().unwrap();
+                    (c, c + 1)
+                }
+                None if o == seed.name => (0, cases),
+                _ => continue,
+            },
         };
         let done = Arc::new(AtomicUsize::new(0));
         let ok = Arc::new(AtomicUsize::new(0));
