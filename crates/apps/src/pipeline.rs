@@ -38,11 +38,11 @@
 use crate::model_choice::ModelChoice;
 use crate::with_model;
 use physid_core::{GradientEngine, ParamModel, ParamSet, Recording};
+use physid_estim::resolution::resolution;
 use physid_estim::{
     CovSpec, EstimatorConfig, LinearEstimator, Method, NlConfig, NlMethod, NonlinearEstimator,
     SigmaPoints,
 };
-use physid_estim::resolution::resolution;
 use physid_ident::{analyse, fit_subset, Data, IdentConfig, RankedParam, Scaling, Selection};
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
@@ -695,7 +695,11 @@ fn run_with<M: ParamModel + Clone>(
     for (k, &j) in order.iter().enumerate() {
         out.std_err[j] = se.get(k).copied().filter(|_| res.resolved[k]);
     }
-    out.unresolved = res.unresolved().iter().map(|&k| names[order[k]].clone()).collect();
+    out.unresolved = res
+        .unresolved()
+        .iter()
+        .map(|&k| names[order[k]].clone())
+        .collect();
     out.params = final_full;
     // 3. The objective, on the one-step-ahead predictions after the transient.
     let start = t

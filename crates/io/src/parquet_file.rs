@@ -207,7 +207,11 @@ pub fn write_parquet(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoEr
         Basis::CrankAngle => "crank_angle",
     };
     let mut meta = HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]);
-    for (k, v) in rec.meta.iter().filter(|(k, _)| !crate::FILE_META.contains(&k.as_str())) {
+    for (k, v) in rec
+        .meta
+        .iter()
+        .filter(|(k, _)| !crate::FILE_META.contains(&k.as_str()))
+    {
         meta.insert(format!("{META_PREFIX}{k}"), v.clone());
     }
     let schema = Arc::new(Schema::new_with_metadata(fields, meta));

@@ -188,7 +188,11 @@ fn one(path: &Path) -> usize {
                 println!("contained: {e}");
             }
             if let Ok(dir) = std::env::var("PHYSID_FUZZ_SAVE") {
-                let name = path.file_name().unwrap_or_default().to_string_lossy().to_string();
+                let name = path
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .to_string();
                 let n = std::fs::read_dir(&dir).map_or(0, |d| d.count());
                 std::fs::copy(path, Path::new(&dir).join(format!("{n:03}-{name}"))).unwrap();
             }
@@ -206,8 +210,14 @@ fn the_crashing_inputs_found_are_clear_errors() {
     let mut n = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
-        let e = read(&path, &ReadOptions::default()).unwrap_err().to_string();
-        assert!(e.contains("corrupt Parquet") || e.contains("Parquet:"), "{}: {e}", path.display());
+        let e = read(&path, &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("corrupt Parquet") || e.contains("Parquet:"),
+            "{}: {e}",
+            path.display()
+        );
         n += 1;
     }
     assert!(n > 0, "no crash seeds in {}", dir.display());

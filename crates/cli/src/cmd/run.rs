@@ -165,7 +165,9 @@ pub fn run(args: &Args) -> Result<()> {
                 "  {n:<10} {:>14.6e} → {:>14.6e} {}",
                 r.nominal[j],
                 r.params[j],
-                r.std_err[j].map_or("(unresolved by the data)".into(), |se| format!("± {se:.2e}"))
+                r.std_err[j].map_or("(unresolved by the data)".into(), |se| format!(
+                    "± {se:.2e}"
+                ))
             );
         }
         let o = &r.objective;
