@@ -3,14 +3,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::PathBuf;
+mod common;
+use common::physid;
 use std::process::{Command, Output};
-
-fn physid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_physid"))
-        .args(args)
-        .output()
-        .expect("run physid")
-}
 
 /// A scratch directory removed when the test ends.
 fn dir(name: &str) -> physid_testkit::Scratch {

@@ -10,14 +10,8 @@ use physid_io::{read, write, ReadOptions, WriteOptions};
 use physid_testkit::Scratch;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn physid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_physid"))
-        .args(args)
-        .output()
-        .expect("run physid")
-}
+mod common;
+use common::physid;
 
 fn ok_json(args: &[&str]) -> Value {
     let o = physid(args);

@@ -3,14 +3,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use physid_testkit::Scratch;
-use std::process::{Command, Output};
-
-fn physid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_physid"))
-        .args(args)
-        .output()
-        .expect("run physid")
-}
+mod common;
+use common::physid;
 
 fn fails_with(args: &[&str], want: &str) {
     let o = physid(args);

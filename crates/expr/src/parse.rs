@@ -172,6 +172,23 @@ pub(crate) enum Node {
     Max(u32, u32),
 }
 
+impl Node {
+    /// The children's indices (none for a leaf, one or two).
+    pub(crate) fn children(self) -> [Option<u32>; 2] {
+        match self {
+            Node::Num(_) | Node::Param(_) | Node::Input(_) => [None, None],
+            Node::Neg(a) | Node::Call(_, a) | Node::PowI(a, _) => [Some(a), None],
+            Node::Add(a, b)
+            | Node::Sub(a, b)
+            | Node::Mul(a, b)
+            | Node::Div(a, b)
+            | Node::Pow(a, b)
+            | Node::Min(a, b)
+            | Node::Max(a, b) => [Some(a), Some(b)],
+        }
+    }
+}
+
 /// A model parsed from an expression: parameters named by the caller, every other name an
 /// input (data column).
 #[derive(Debug, Clone)]
@@ -272,18 +289,13 @@ impl Parser<'_> {
     }
 
     fn push(&mut self, n: Node) -> u32 {
-        let h = |i: u32| self.heights[i as usize];
-        let height = 1 + match n {
-            Node::Num(_) | Node::Input(_) | Node::Param(_) => 0,
-            Node::Neg(a) | Node::Call(_, a) | Node::PowI(a, _) => h(a),
-            Node::Add(a, b)
-            | Node::Sub(a, b)
-            | Node::Mul(a, b)
-            | Node::Div(a, b)
-            | Node::Pow(a, b)
-            | Node::Min(a, b)
-            | Node::Max(a, b) => h(a).max(h(b)),
-        };
+        let height = 1 + n
+            .children()
+            .iter()
+            .flatten()
+            .map(|&c| self.heights[c as usize])
+            .max()
+            .unwrap_or(0);
         if height as usize > MAX_TREE_DEPTH && self.too_long.is_none() {
             self.too_long = Some(self.column());
         }
@@ -512,18 +524,12 @@ impl ExprModel {
         // Children precede parents in the array, so one forward pass settles dependence.
         let mut dep = vec![false; nodes.len()];
         for i in 0..nodes.len() {
-            dep[i] = match nodes[i] {
-                Node::Num(_) | Node::Input(_) => false,
-                Node::Param(_) => true,
-                Node::Neg(a) | Node::Call(_, a) | Node::PowI(a, _) => dep[a as usize],
-                Node::Add(a, b)
-                | Node::Sub(a, b)
-                | Node::Mul(a, b)
-                | Node::Div(a, b)
-                | Node::Pow(a, b)
-                | Node::Min(a, b)
-                | Node::Max(a, b) => dep[a as usize] || dep[b as usize],
-            };
+            dep[i] = matches!(nodes[i], Node::Param(_))
+                || nodes[i]
+                    .children()
+                    .iter()
+                    .flatten()
+                    .any(|&c| dep[c as usize]);
         }
         let mut model = Self {
             text: text.to_string(),
