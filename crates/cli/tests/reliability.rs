@@ -282,3 +282,17 @@ fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error()
         "{j}"
     );
 }
+
+#[test]
+fn a_csv_cut_off_in_its_last_number_is_read_with_a_warning() {
+    let s = Scratch::new("physid-rel");
+    let f = s.file("cut.csv");
+    std::fs::write(&f, "t,x\n0,1\n0.001,2\n0.002,3.1").unwrap();
+    let o = physid(&["inspect", f.to_str().unwrap(), "--json"]);
+    assert!(o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("the last line (line 4) has no line end: the file may have been cut short"),
+        "{e}"
+    );
+}

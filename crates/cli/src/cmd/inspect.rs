@@ -159,9 +159,6 @@ pub fn run(args: &Args) -> Result<()> {
         if let Some(u) = rec.meta.get("units_converted") {
             outln!("units converted on reading: {u}");
         }
-        if let Some(w) = rec.meta.get("warning") {
-            outln!("warning: {w}");
-        }
         if i.integrity.ok {
             outln!("integrity: ok");
         } else {

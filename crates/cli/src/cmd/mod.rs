@@ -36,7 +36,7 @@ impl InputArgs {
     /// Read `path`, optionally only `channels` (physid names).
     pub fn read(&self, path: &Path, channels: Option<Vec<String>>) -> Result<Recording> {
         let map = physid_io::ReadOptions::parse_map(&self.map).map_err(|e| miette!("{e}"))?;
-        physid_io::read(
+        let rec = physid_io::read(
             path,
             &physid_io::ReadOptions {
                 channels,
@@ -45,7 +45,12 @@ impl InputArgs {
                 ..Default::default()
             },
         )
-        .into_diagnostic()
+        .into_diagnostic()?;
+        // What the reader noticed but read all the same (a cut-short last line) is said.
+        if let Some(w) = rec.meta.get("warning") {
+            eprintln!("warning: {}: {w}", path.display());
+        }
+        Ok(rec)
     }
 }
 
