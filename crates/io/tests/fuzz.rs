@@ -341,8 +341,5 @@ fn a_footer_claiming_a_trillion_rows_is_refused_before_allocating() {
     b[n - 8..n - 4].copy_from_slice(&len.to_le_bytes());
     std::fs::write(&f, &b).unwrap();
     let e = read(&f, &ReadOptions::default()).unwrap_err().to_string();
-    assert!(
-        e.contains("claims 1000000000000 rows") || e.contains("corrupt Parquet"),
-        "{e}"
-    );
+    assert!(e.contains("the file claims 1000000000000 rows"), "{e}");
 }
