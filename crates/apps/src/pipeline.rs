@@ -5,7 +5,7 @@
 //! ```toml
 //! [model]
 //! builtin = "cyclic-torque"          # or: expr = "K*dth + B*dw", params = { K = 1000, B = 1 }
-//! output = "torque_engine"           # the measured channel the model predicts
+//! output = "torque_engine"           # the measured channel the model predicts (CHANNEL[:UNIT])
 //! inputs = { omega = "omega_en", alpha = "alpha_en", T_oil = "T_oil:degC" }
 //! fixed = ["delta", "r"]             # known by design
 //! params = { M_rec = 0.8 }           # nominal values (override the built-in's)
@@ -508,20 +508,17 @@ fn run_with<M: ParamModel + Clone>(
 ) -> Result<PipelineResult, String> {
     let names = model.param_names().to_vec();
     // Data columns.
+    // `CHANNEL` as recorded, or `CHANNEL:UNIT` converted to the unit the model expects.
+    let column = |spec: &str| match spec.split_once(':') {
+        Some((ch, unit)) => rec.values_in(ch.trim(), unit.trim()),
+        None => rec.values(spec).map(|v| v.to_vec()),
+    };
     let mut cols = Vec::new();
     for input in model.input_names() {
         let spec = p.model.inputs.get(input).unwrap_or(input);
-        // `CHANNEL` as recorded, or `CHANNEL:UNIT` converted to the unit the model expects.
-        let col = match spec.split_once(':') {
-            Some((ch, unit)) => rec.values_in(ch.trim(), unit.trim()),
-            None => rec.values(spec).map(|v| v.to_vec()),
-        };
-        cols.push(col.map_err(|e| format!("model input '{input}': {e}"))?);
+        cols.push(column(spec).map_err(|e| format!("model input '{input}': {e}"))?);
     }
-    let y = rec
-        .values(&p.model.output)
-        .map_err(|e| format!("model output: {e}"))?
-        .to_vec();
+    let y = column(&p.model.output).map_err(|e| format!("model output: {e}"))?;
     let n = y.len();
     let t: Vec<f64> = match rec.values("t") {
         Ok(t) => t.to_vec(),

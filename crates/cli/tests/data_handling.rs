@@ -115,6 +115,44 @@ fn the_same_recording_in_test_cell_units_gives_the_same_estimates() {
     assert!(a["alarms"].as_array().unwrap().is_empty());
     assert!(b["alarms"].as_array().unwrap().is_empty());
 
+    // The qualitative identification pipeline on the same two files: the log's columns named
+    // and converted by the pipeline's own CHANNEL:UNIT (inputs and output).
+    let pipeline = |data: &Path, log: bool| {
+        let c = |name: &str, unit: &str| {
+            if log {
+                format!("Log_{name}:{unit}")
+            } else {
+                name.to_string()
+            }
+        };
+        let f = s.file(if log { "p-log.toml" } else { "p-si.toml" });
+        std::fs::write(
+            &f,
+            format!(
+                "[model]\nexpr = \"K*(theta_dy - theta_en) + B*(omega_dy - omega_en) + tau0\"\nparams = {{ K = 1250.0, B = 0.95, tau0 = 0.1 }}\noutput = \"{}\"\ninputs = {{ theta_dy = \"{}\", theta_en = \"{}\", omega_dy = \"{}\", omega_en = \"{}\" }}\n[data]\nfile = \"{}\"\n[estimator]\nmethod = \"dsfc\"\nlambda = 0.999\n",
+                c("torque_shaft", "N*m"),
+                c("theta_dy", "rad"),
+                c("theta_en", "rad"),
+                c("omega_dy", "rad/s"),
+                c("omega_en", "rad/s"),
+                data.display()
+            ),
+        )
+        .unwrap();
+        ok_json(&["run", f.to_str().unwrap(), "--json"])
+    };
+    let (a, b) = (pipeline(&si, false), pipeline(&log, true));
+    assert_eq!(a["estimable"], b["estimable"]);
+    for p in ["K", "B"] {
+        close(&b["params"][p], &a["params"][p], 1e-9, p);
+    }
+    close(
+        &b["objective"]["value_pct"],
+        &a["objective"]["value_pct"],
+        1e-9,
+        "objective",
+    );
+
     // Cyclic torque (crank-angle basis, UKF).
     let si = simulate(&s, "torque-ramp", "crank", "2", "parquet");
     let log = s.file("torque-log.csv");
