@@ -221,6 +221,9 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
                     crank_angle: opts.crank_angle,
                 },
             )?;
+            // The basis by the columns is decided on the whole file, before a selection.
+            let mut r = r;
+            r.basis = basis_by_channels(&r);
             match &file_channels {
                 Some(names) => select(r, names, path)?,
                 None => r,

@@ -91,14 +91,23 @@ fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<R
     check_record_count(&file, group, &p)?;
     let master = file.master_channel(group.0, group.1);
     let axis = file.channel_timestamps(first).map_err(|e| mdf_err(&p, e))?;
+    // An angle master, or physid's convention for its own time-master files: `cycle` and
+    // `crank_deg` in the group (decided before a selection drops them).
+    let in_group = |n: &str| {
+        data.iter()
+            .any(|c| c.name == n && (c.data_group_index, c.channel_group_index) == group)
+    };
+    let by_columns = in_group("cycle") && in_group("crank_deg");
     let mut rec = Recording::new(match master.map(|m| m.sync_type) {
         Some(SyncType::Angle) => Basis::CrankAngle,
+        _ if by_columns => Basis::CrankAngle,
         _ => Basis::Time,
     });
     rec.meta.insert("source".into(), p.clone());
-    let (mname, munit) = match rec.basis {
-        Basis::CrankAngle => ("theta", "rad"),
-        Basis::Time => ("t", "s"),
+    // The master's name by what it measures (a time master stays `t` on a crank-angle basis).
+    let (mname, munit) = match master.map(|m| m.sync_type) {
+        Some(SyncType::Angle) => ("theta", "rad"),
+        _ => ("t", "s"),
     };
     if let Some(m) = master {
         rec.meta.insert("master".into(), m.name.clone());

@@ -152,6 +152,16 @@ fn every_format_round_trips_through_every_other_with_units_and_basis() {
                     assert!(got.values == ch.values, "{a} → {b}: {}", ch.name);
                     assert_eq!(got.unit, ch.unit, "{a} → {b}: {}", ch.name);
                 }
+                // A selection without the basis channels keeps the basis.
+                let some = read(
+                    &pb,
+                    &ReadOptions {
+                        channels: Some(vec!["t".into(), "p_cyl".into()]),
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+                assert_eq!(some.basis, original.basis, "{a} → {b}, selected");
             }
         }
     }
