@@ -214,7 +214,7 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
     };
     let mut rec = match format {
         Format::Csv => {
-            let r = read_csv(
+            let mut r = read_csv(
                 path,
                 &CsvOptions {
                     units_row: opts.units_row,
@@ -222,7 +222,6 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
                 },
             )?;
             // The basis by the columns is decided on the whole file, before a selection.
-            let mut r = r;
             r.basis = basis_by_channels(&r);
             match &file_channels {
                 Some(names) => select(r, names, path)?,
