@@ -3,12 +3,12 @@
 //! files turn "which model" into a [`ParamModel`].
 //!
 //! [`ParamModel`] is generic over its scalar, so it is not object-safe: a chosen model is an
-//! enum, and [`with_model!`](crate::with_model) calls a generic function with the concrete
-//! model inside.
+//! enum that is itself a [`ParamModel`], delegating to the model inside (one `match` per
+//! evaluation — nothing beside the model's own arithmetic).
 
 use crate::example_5_1::{Model51, NOMINAL as NOMINAL_51};
 use crate::torque_fit::cyclic_torque_nominal;
-use physid_core::ParamModel;
+use physid_core::{GradientEngine, ParamModel, Scalar};
 use physid_expr::ExprModel;
 use physid_models::cyclic_torque::CyclicTorque;
 use physid_models::friction::FrictionRegression;
@@ -60,30 +60,42 @@ pub enum ModelChoice {
     Friction(FrictionRegression),
 }
 
-/// Call `$f(model, args…)` with the concrete model inside a [`ModelChoice`].
-#[macro_export]
-macro_rules! with_model {
-    ($m:expr, $f:ident ( $($a:expr),* )) => {
-        match $m {
-            $crate::model_choice::ModelChoice::Expr(m) => $f(m, $($a),*),
-            $crate::model_choice::ModelChoice::Ex51(m) => $f(m, $($a),*),
-            $crate::model_choice::ModelChoice::Shaft(m) => $f(m, $($a),*),
-            $crate::model_choice::ModelChoice::Cyclic(m) => $f(m, $($a),*),
-            $crate::model_choice::ModelChoice::Friction(m) => $f(m, $($a),*),
+/// `$body` with `$m` bound to the concrete model inside `$self`.
+macro_rules! delegate {
+    ($self:expr, $m:ident => $body:expr) => {
+        match $self {
+            ModelChoice::Expr($m) => $body,
+            ModelChoice::Ex51($m) => $body,
+            ModelChoice::Shaft($m) => $body,
+            ModelChoice::Cyclic($m) => $body,
+            ModelChoice::Friction($m) => $body,
         }
     };
 }
 
-fn names_of<M: ParamModel>(m: &M) -> Vec<String> {
-    m.param_names().to_vec()
+impl ParamModel for ModelChoice {
+    fn param_names(&self) -> &[String] {
+        delegate!(self, m => m.param_names())
+    }
+    fn input_names(&self) -> &[String] {
+        delegate!(self, m => m.input_names())
+    }
+    fn eval<T: Scalar>(&self, inputs: &[f64], params: &[T]) -> T {
+        delegate!(self, m => m.eval(inputs, params))
+    }
+    fn value_and_gradient_with(
+        &self,
+        engine: &mut GradientEngine,
+        inputs: &[f64],
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
+        delegate!(self, m => m.value_and_gradient_with(engine, inputs, params, free, grad))
+    }
 }
 
 impl ModelChoice {
-    /// The model's parameter names.
-    pub fn param_names(&self) -> Vec<String> {
-        with_model!(self, names_of())
-    }
-
     /// A model from a formula (`expr`, with every parameter given a nominal value in
     /// `params`) or by built-in name, its nominal values overridden by `params`. Errors say
     /// what was expected.

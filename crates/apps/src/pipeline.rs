@@ -36,12 +36,10 @@
 //! exact gradient is then the regressor; linearity is checked on the data first.
 
 use crate::model_choice::ModelChoice;
-use crate::with_model;
-use physid_core::{GradientEngine, ParamModel, ParamSet, Recording};
-use physid_estim::resolution::resolution;
+use physid_core::{ParamModel, ParamSet, Recording};
 use physid_estim::{
-    CovSpec, EstimatorConfig, LinearEstimator, Method, NlConfig, NlMethod, NonlinearEstimator,
-    SigmaPoints,
+    CovSpec, EstimatorConfig, LinearInParams, Method, NlConfig, NlMethod, NonlinearEstimator,
+    Recursive, SigmaPoints,
 };
 use physid_ident::{analyse, fit_subset, Data, IdentConfig, RankedParam, Scaling, Selection};
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
@@ -434,74 +432,11 @@ pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, Str
         .collect();
     let (model, nominal) =
         ModelChoice::build(p.model.expr.as_deref(), p.model.builtin.as_deref(), &params)?;
-    with_model!(&model, run_with(p, rec, nominal))
+    run_with(&model, p, rec, nominal)
 }
 
-/// The estimator of a pipeline: a filter for any model, or a linear one fed with the model's
-/// exact gradient (valid when the model is linear in its parameters, checked every sample).
-enum Estimator<M: ParamModel> {
-    NonLinear(Box<NonlinearEstimator<M>>),
-    Linear {
-        est: Box<LinearEstimator>,
-        engine: GradientEngine,
-        phi: Vec<f64>,
-        all: Vec<usize>,
-    },
-}
-
-impl<M: ParamModel> Estimator<M> {
-    /// One sample; the one-step-ahead prediction error.
-    fn update(&mut self, model: &M, u: &[f64], y: f64, nominal: &[f64]) -> Result<f64, String> {
-        match self {
-            Self::NonLinear(est) => est
-                .update(u, y)
-                .map(|s| s.prediction_error)
-                .map_err(|e| e.to_string()),
-            Self::Linear {
-                est,
-                engine,
-                phi,
-                all,
-            } => {
-                let h = engine.value_and_gradient(model, u, nominal, all, phi);
-                let lin: f64 = phi.iter().zip(nominal).map(|(g, v)| g * v).sum();
-                if (h - lin).abs() > 1e-9 * (h.abs() + lin.abs()).max(1e-300) {
-                    return Err(format!(
-                        "the model is not linear in its parameters (h = {h}, φᵀϑ = {lin}); use ekf, ukf or srukf"
-                    ));
-                }
-                est.update(phi, y)
-                    .map(|s| s.prediction_error)
-                    .map_err(|e| e.to_string())
-            }
-        }
-    }
-
-    fn estimate_full(&self) -> Vec<f64> {
-        match self {
-            Self::NonLinear(est) => est.estimate_full(),
-            Self::Linear { est, .. } => est.estimate_full(),
-        }
-    }
-
-    fn std_errors(&self) -> Vec<f64> {
-        match self {
-            Self::NonLinear(est) => est.std_errors(),
-            Self::Linear { est, .. } => est.std_errors().unwrap_or_default(),
-        }
-    }
-
-    /// The covariance, in the coordinates of the estimator's P0.
-    fn covariance(&self) -> nalgebra::DMatrix<f64> {
-        match self {
-            Self::NonLinear(est) => est.covariance(),
-            Self::Linear { est, .. } => est.covariance(),
-        }
-    }
-}
-
-fn run_with<M: ParamModel + Clone>(
-    model: &M,
+fn run_with(
+    model: &ModelChoice,
     p: &Pipeline,
     rec: &Recording,
     nominal: Vec<f64>,
@@ -607,8 +542,7 @@ fn run_with<M: ParamModel + Clone>(
             .map(|&j| (names[j].clone(), Vec::new()))
             .collect(),
     };
-    let p0: CovSpec;
-    let mut est = match p.estimator.method.as_str() {
+    let mut est: Box<dyn Recursive> = match p.estimator.method.as_str() {
         "ekf" | "ukf" | "srukf" => {
             let method = match p.estimator.method.as_str() {
                 "ekf" => NlMethod::Ekf,
@@ -625,17 +559,16 @@ fn run_with<M: ParamModel + Clone>(
                         .max(f64::MIN_POSITIVE)
                 }
             };
-            p0 = CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 }));
             let nl = NlConfig {
-                p0: p0.clone(),
+                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 })),
                 r2,
                 scaled,
                 ..NlConfig::new(method)
             };
-            Estimator::NonLinear(Box::new(
+            Box::new(
                 NonlinearEstimator::new(model.clone(), &set, &free_set, &nl)
                     .map_err(|e| e.to_string())?,
-            ))
+            )
         }
         "rls" | "rlsf" | "dsfc" => {
             let lambda = p.estimator.lambda.unwrap_or(1.0);
@@ -644,19 +577,14 @@ fn run_with<M: ParamModel + Clone>(
                 "rlsf" => Method::Rlsf { lambda },
                 _ => Method::Dsfc { lambda },
             };
-            p0 = CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0));
             let config = EstimatorConfig {
-                p0: p0.clone(),
+                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
                 ..EstimatorConfig::new(method)
             };
-            Estimator::Linear {
-                est: Box::new(
-                    LinearEstimator::new(&config, &set, &free_set).map_err(|e| e.to_string())?,
-                ),
-                engine: GradientEngine::new(names.len()),
-                phi: vec![0.0; names.len()],
-                all: (0..names.len()).collect(),
-            }
+            Box::new(
+                LinearInParams::new(model.clone(), &set, &free_set, &config)
+                    .map_err(|e| e.to_string())?,
+            )
         }
         m => {
             return Err(format!(
@@ -671,8 +599,9 @@ fn run_with<M: ParamModel + Clone>(
             u[k] = c[i];
         }
         let e = est
-            .update(model, &u, y[i], &nominal)
-            .map_err(|e| format!("sample {i}: {e}"))?;
+            .update(&u, y[i])
+            .map_err(|e| format!("sample {i}: {e}"))?
+            .prediction_error;
         prediction[i] = y[i] - e;
         // The full estimate is assembled only for the plotted samples.
         if i.is_multiple_of(stride) || i + 1 == n {
@@ -685,10 +614,9 @@ fn run_with<M: ParamModel + Clone>(
             }
         }
     }
-    let (final_full, se) = (est.estimate_full(), est.std_errors());
+    let (final_full, se) = (est.estimate_full(), est.std_errors().unwrap_or_default());
     // What the data resolved: an unresolved parameter gets no standard error.
-    let p0 = p0.to_matrix(order.len(), "P0").map_err(|e| e.to_string())?;
-    let res = resolution(&est.covariance(), &p0);
+    let res = est.resolution();
     for (k, &j) in order.iter().enumerate() {
         out.std_err[j] = se.get(k).copied().filter(|_| res.resolved[k]);
     }

@@ -18,6 +18,6 @@ pub mod params;
 pub mod recording;
 pub mod units;
 
-pub use model::{Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
+pub use model::{DynModel, Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
 pub use params::{FreeSet, ParamError, ParamSet};
 pub use recording::{standard_unit, Basis, Channel, Recording, RecordingError, CHANNEL_TABLE};

@@ -53,6 +53,49 @@ pub trait ParamModel {
     }
 }
 
+/// The object-safe face of a [`ParamModel`] (whose `eval` is generic over the scalar, so it
+/// cannot be a trait object): the value and the exact gradient, for code that holds models of
+/// different types behind one pointer. Every [`ParamModel`] is one (blanket impl).
+pub trait DynModel {
+    /// Parameter names, in order.
+    fn param_names(&self) -> &[String];
+    /// Input names, in order.
+    fn input_names(&self) -> &[String];
+    /// `h(φ, ϑ)`.
+    fn value(&self, inputs: &[f64], params: &[f64]) -> f64;
+    /// `h(φ, ϑ)` and `∂h/∂ϑ_j` for `j` in `free` ([`GradientEngine::value_and_gradient`]).
+    fn value_and_gradient(
+        &self,
+        engine: &mut GradientEngine,
+        inputs: &[f64],
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64;
+}
+
+impl<M: ParamModel> DynModel for M {
+    fn param_names(&self) -> &[String] {
+        ParamModel::param_names(self)
+    }
+    fn input_names(&self) -> &[String] {
+        ParamModel::input_names(self)
+    }
+    fn value(&self, inputs: &[f64], params: &[f64]) -> f64 {
+        self.eval::<f64>(inputs, params)
+    }
+    fn value_and_gradient(
+        &self,
+        engine: &mut GradientEngine,
+        inputs: &[f64],
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
+        engine.value_and_gradient(self, inputs, params, free, grad)
+    }
+}
+
 /// Width of the dual numbers: the gradient is computed in chunks of this many free parameters
 /// per model evaluation (one evaluation for up to 8 free parameters, two for 9–16, …).
 pub const GRADIENT_CHUNK: usize = 8;

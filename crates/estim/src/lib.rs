@@ -13,6 +13,11 @@
 //! * [`nonlinear`] — models non-linear in the parameters (Eq. 5.29–5.32), any
 //!   [`ParamModel`](physid_core::ParamModel): EKF (Alg. 5.6) with exact Jacobians, UKF (Alg. 5.7)
 //!   with covariance repair, scaled coordinates and bounds.
+//! * [`recursive`] — the one interface all of them implement ([`Recursive`]: update,
+//!   estimate, covariance, standard errors, checkpoints), and [`LinearInParams`], a linear
+//!   estimator fed with a model's exact gradient.
+//! * [`cov`] — the covariance with its form (P or its Cholesky factor S) in the type, and the
+//!   factorisations and the jitter repair the estimators share.
 //! * [`metrics`] — NMSE (Eq. 6.4), NRMSE, fit %.
 //! * [`workload`] — the standard benchmark workloads (criterion and `physid bench`).
 //! * [`detect`] — the relative-error change detector (Eq. 6.3) with a dwell, and the CUSUM test
@@ -20,17 +25,23 @@
 //!
 //! This crate knows nothing of engines.
 
+pub mod cov;
 pub mod detect;
 pub mod error;
 pub mod linear;
 pub mod metrics;
 pub mod nonlinear;
+pub mod recursive;
 pub mod resolution;
 pub mod workload;
 
+pub use cov::{Cov, CovForm};
 pub use detect::{Alarm, Cusum, CusumLevel, RelativeErrorDetector};
 pub use error::EstimError;
 pub use linear::{
     CovSpec, EstimatorConfig, GuardAction, LinearEstimator, Method, Step, VfVariant, WindupGuard,
 };
-pub use nonlinear::{NlConfig, NlMethod, NonlinearEstimator, SigmaPoints};
+pub use nonlinear::{NlConfig, NlMethod, NonlinearEstimator, SigmaPoints, SigmaWeights};
+pub use recursive::{
+    feed, FeedError, FeedSummary, LinearInParams, Memory, MethodName, OnBad, Recursive, Snapshot,
+};

@@ -40,6 +40,7 @@
 //! weighted estimate by up to √(1+λ)). The Kalman filter's P is absolute (R1, R2 are given):
 //! its standard errors are `√P_ii`.
 
+use crate::cov::{Cov, CovForm};
 use crate::error::{check_sample, check_view};
 use crate::EstimError;
 use nalgebra::{Const, DMatrix, DVector, Dim, Dyn};
@@ -109,6 +110,17 @@ pub enum VfVariant {
     Published,
     /// `M = Λ^(−1/2)PΛ^(−1/2)` before the gain: with `Λ = λI` exactly Alg. 5.3.
     Symmetric,
+}
+
+impl std::str::FromStr for VfVariant {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "published" => Ok(Self::Published),
+            "symmetric" => Ok(Self::Symmetric),
+            _ => Err(format!("'{s}': expected published or symmetric")),
+        }
+    }
 }
 
 /// A covariance matrix given as `c·I`, a diagonal, or in full (rows).
@@ -187,6 +199,17 @@ pub enum GuardAction {
     Scale,
     /// Reset P to P0 (covariance resetting).
     Reset,
+}
+
+impl std::str::FromStr for GuardAction {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "scale" => Ok(Self::Scale),
+            "reset" => Ok(Self::Reset),
+            _ => Err(format!("'{s}': expected scale or reset")),
+        }
+    }
 }
 
 /// Protection against covariance wind-up when excitation is poor: under forgetting, the
@@ -276,11 +299,11 @@ pub struct LinearEstimator {
     /// Free-parameter estimates.
     theta: DVector<f64>,
     /// P, or S for DSFC.
-    cov: DMatrix<f64>,
+    cov: Cov,
     /// Scratch of the same size as `cov`; swapped in on a successful step.
     work: DMatrix<f64>,
     /// P0 (or S0 for DSFC), for covariance resetting.
-    cov0: DMatrix<f64>,
+    cov0: Cov,
     /// Pφ̃, or f = Sᵀφ for DSFC.
     u: DVector<f64>,
     /// DSFC: γ. Covariance form: the gain K.
@@ -373,28 +396,16 @@ impl LinearEstimator {
                 }
             }
             Method::Kalman { r1, r2 } => {
-                if !(r2.is_finite() && *r2 > 0.0) {
-                    return Err(EstimError::InvalidConfig(format!(
-                        "R2 = {r2} must be a positive variance"
-                    )));
-                }
-                let r1 = r1.to_matrix(p, "R1")?;
-                let eig = r1.clone().symmetric_eigenvalues();
-                let scale = r1.amax().max(f64::MIN_POSITIVE);
-                if eig.iter().any(|&v| v < -1e-12 * scale) {
-                    return Err(EstimError::InvalidConfig(
-                        "R1 is not positive semi-definite".into(),
-                    ));
-                }
-                Kind::Kalman { r1, r2: *r2 }
+                let (r1, r2) = kalman_noise(r1, *r2, p)?;
+                Kind::Kalman { r1, r2 }
             }
             Method::Dsfc { lambda } => Kind::Dsfc {
                 lambda: check_lambda("λ", *lambda)?,
             },
         };
         let cov0 = match kind {
-            Kind::Dsfc { .. } => chol.l(),
-            _ => p0,
+            Kind::Dsfc { .. } => Cov::sqrt(chol.l()),
+            _ => Cov::full(p0),
         };
         if let Some(g) = &config.guard {
             if !(g.max_trace.is_finite() && g.max_trace > 0.0) {
@@ -403,10 +414,7 @@ impl LinearEstimator {
                     g.max_trace
                 )));
             }
-            let tr0 = match kind {
-                Kind::Dsfc { .. } => cov0.norm_squared(),
-                _ => cov0.trace(),
-            };
+            let tr0 = cov0.trace();
             if g.action == GuardAction::Reset && g.max_trace <= tr0 {
                 return Err(EstimError::InvalidConfig(format!(
                     "covariance resetting to P0 (trace {tr0}) needs a bound above it, got {}",
@@ -428,7 +436,7 @@ impl LinearEstimator {
             free: free.clone(),
             theta,
             cov: cov0.clone(),
-            work: cov0.clone(),
+            work: cov0.held().clone(),
             cov0,
             u: DVector::zeros(p),
             k: DVector::zeros(p),
@@ -559,7 +567,7 @@ impl LinearEstimator {
         for ((t, &d), &f) in phit.iter_mut().zip(pre).zip(phi) {
             *t = d * f;
         }
-        let pm = &self.cov.as_slice()[..p * p];
+        let pm = &self.cov.held().as_slice()[..p * p];
         let u = &mut self.u.as_mut_slice()[..p];
         // P is symmetric: row i of P·φ̃ is column i · φ̃ (contiguous).
         for (ui, col) in u.iter_mut().zip(pm.chunks_exact(p)) {
@@ -620,7 +628,7 @@ impl LinearEstimator {
             return Err(breakdown("gain times prediction error", ke));
         }
         self.apply_guard_cov();
-        std::mem::swap(&mut self.cov, &mut self.work);
+        std::mem::swap(self.cov.held_mut(), &mut self.work);
         for (t, &ki) in self.theta.as_mut_slice()[..p]
             .iter_mut()
             .zip(&self.k.as_slice()[..p])
@@ -649,7 +657,7 @@ impl LinearEstimator {
     ) -> Result<Step, Breakdown> {
         let p = dim.value();
         let phi = &phi[..p];
-        let sm = &self.cov.as_slice()[..p * p];
+        let sm = &self.cov.held().as_slice()[..p * p];
         // f = Sᵀφ: f_j = column j of S · φ.
         let f = &mut self.u.as_mut_slice()[..p];
         for (fj, col) in f.iter_mut().zip(sm.chunks_exact(p)) {
@@ -690,7 +698,7 @@ impl LinearEstimator {
             return Err(breakdown("gain times prediction error", ke));
         }
         self.apply_guard_sqrt();
-        std::mem::swap(&mut self.cov, &mut self.work);
+        std::mem::swap(self.cov.held_mut(), &mut self.work);
         for (t, &gi) in self.theta.as_mut_slice()[..p]
             .iter_mut()
             .zip(&self.k.as_slice()[..p])
@@ -721,7 +729,7 @@ impl LinearEstimator {
             self.guard_activations += 1;
             match g.action {
                 GuardAction::Scale => self.work *= g.max_trace / tr,
-                GuardAction::Reset => self.work.copy_from(&self.cov0),
+                GuardAction::Reset => self.work.copy_from(self.cov0.held()),
             }
         }
     }
@@ -735,7 +743,7 @@ impl LinearEstimator {
             self.guard_activations += 1;
             match g.action {
                 GuardAction::Scale => self.work *= (g.max_trace / tr).sqrt(),
-                GuardAction::Reset => self.work.copy_from(&self.cov0),
+                GuardAction::Reset => self.work.copy_from(self.cov0.held()),
             }
         }
     }
@@ -744,7 +752,7 @@ impl LinearEstimator {
     /// [`EstimError::LostPositiveDefiniteness`] — which on nearly collinear data is the
     /// covariance form reaching its numerical limit: DSFC is the method for such data.
     pub fn reset_covariance(&mut self) {
-        self.cov.copy_from(&self.cov0);
+        self.cov.held_mut().copy_from(self.cov0.held());
     }
 
     /// Change which parameters are estimated, among those the estimator was built with:
@@ -827,16 +835,12 @@ impl LinearEstimator {
             }
             _ => 0.0,
         });
-        next.cov = match next.kind {
-            Kind::Dsfc { .. } => cov
-                .cholesky()
-                .ok_or(EstimError::NotPositiveDefinite {
-                    what: "covariance after changing the free set",
-                })?
-                .l(),
-            _ => cov,
-        };
-        next.work = next.cov.clone();
+        next.cov = Cov::from_covariance(
+            next.cov.form(),
+            cov,
+            "covariance after changing the free set",
+        )?;
+        next.work = next.cov.held().clone();
         next.config = self.config.clone();
         next.universe = self.universe.clone();
         next.frozen_variance = frozen_variance;
@@ -890,26 +894,25 @@ impl LinearEstimator {
 
     /// Covariance P of the free parameters (DSFC: `S·Sᵀ`). In σ² units for the RLS family.
     pub fn covariance(&self) -> DMatrix<f64> {
-        match self.kind {
-            Kind::Dsfc { .. } => &self.cov * self.cov.transpose(),
-            _ => self.cov.clone(),
-        }
+        self.cov.covariance()
+    }
+
+    /// The covariance as held: P, or DSFC's square root S (`P = S·Sᵀ`).
+    pub fn held_covariance(&self) -> &Cov {
+        &self.cov
     }
 
     /// DSFC's square root S (`P = S·Sᵀ`); `None` for the covariance-form methods.
     pub fn sqrt_covariance(&self) -> Option<&DMatrix<f64>> {
-        match self.kind {
-            Kind::Dsfc { .. } => Some(&self.cov),
-            _ => None,
+        match self.cov.form() {
+            CovForm::Sqrt => Some(self.cov.held()),
+            CovForm::Full => None,
         }
     }
 
     /// trace(P), without forming P.
     pub fn covariance_trace(&self) -> f64 {
-        match self.kind {
-            Kind::Dsfc { .. } => self.cov.norm_squared(),
-            _ => self.cov.trace(),
-        }
+        self.cov.trace()
     }
 
     /// Estimated measurement-noise variance σ̂² (see the module docs); the Kalman filter's is
@@ -944,11 +947,7 @@ impl LinearEstimator {
             _ => self.noise_variance()?,
         };
         for (i, o) in out.iter_mut().enumerate() {
-            let pii = match self.kind {
-                Kind::Dsfc { .. } => self.cov.row(i).norm_squared(),
-                _ => self.cov[(i, i)],
-            };
-            *o = (scale * pii).sqrt();
+            *o = (scale * self.cov.variance(i)).sqrt();
         }
         Ok(())
     }
@@ -985,6 +984,144 @@ impl LinearEstimator {
     pub fn last_step(&self) -> Option<Step> {
         self.last
     }
+}
+
+impl crate::recursive::Recursive for LinearEstimator {
+    fn method_name(&self) -> &'static str {
+        self.method.name()
+    }
+    fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
+        LinearEstimator::update(self, inputs, y)
+    }
+    fn free_names(&self) -> Vec<&str> {
+        LinearEstimator::free_names(self)
+    }
+    fn estimate(&self) -> Vec<f64> {
+        self.theta.as_slice().to_vec()
+    }
+    fn estimate_full(&self) -> Vec<f64> {
+        LinearEstimator::estimate_full(self)
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        self.cov.covariance()
+    }
+    fn initial_covariance(&self) -> DMatrix<f64> {
+        self.cov0.covariance()
+    }
+    fn std_errors(&self) -> Option<Vec<f64>> {
+        LinearEstimator::std_errors(self).ok()
+    }
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+    fn snapshot(&self) -> crate::recursive::Snapshot {
+        crate::recursive::Snapshot {
+            method: self.method.name().into(),
+            free: self.free.free().to_vec(),
+            params: LinearEstimator::estimate_full(self),
+            state: self.theta.as_slice().to_vec(),
+            cov: self.cov.clone(),
+            samples: self.samples,
+            memory: crate::recursive::Memory::Linear {
+                lambda_t: self.lambda_t,
+                noise_num: self.noise_num,
+                noise_den: self.noise_den,
+                guard_activations: self.guard_activations,
+                frozen_variance: self
+                    .frozen_variance
+                    .iter()
+                    .map(|v| v.is_finite().then_some(*v))
+                    .collect(),
+                last: self.last,
+            },
+        }
+    }
+    /// A snapshot taken with another free set (the excitation supervisor changed it) first
+    /// moves this estimator to that set.
+    fn restore(&mut self, s: &crate::recursive::Snapshot) -> Result<(), EstimError> {
+        let crate::recursive::Memory::Linear {
+            lambda_t,
+            noise_num,
+            noise_den,
+            guard_activations,
+            frozen_variance,
+            last,
+        } = &s.memory
+        else {
+            return Err(EstimError::InvalidConfig(
+                "checkpoint: taken of a model-based filter, restored into a linear estimator"
+                    .into(),
+            ));
+        };
+        if frozen_variance.len() != self.params.len() || s.params.len() != self.params.len() {
+            return Err(EstimError::DimensionMismatch {
+                what: "checkpoint: frozen variances (one per parameter)",
+                expected: self.params.len(),
+                got: frozen_variance.len(),
+            });
+        }
+        let mut next = self.clone();
+        if s.free != next.free.free() {
+            let mut mask = vec![false; next.params.len()];
+            for &i in &s.free {
+                if i >= mask.len() {
+                    return Err(EstimError::InvalidConfig(format!(
+                        "checkpoint: free parameter index {i} beyond the {} parameters",
+                        mask.len()
+                    )));
+                }
+                mask[i] = true;
+            }
+            let free = FreeSet::from_mask(&mask)
+                .map_err(|e| EstimError::InvalidConfig(format!("checkpoint: {e}")))?;
+            next.set_free(&free)?;
+        }
+        s.check(
+            self.method.name(),
+            next.free.free(),
+            next.params.len(),
+            &next.cov,
+        )?;
+        next.params = ParamSet::new(next.params.names().to_vec(), s.params.clone())
+            .map_err(|e| EstimError::InvalidConfig(format!("checkpoint: {e}")))?;
+        next.theta.copy_from_slice(&s.state);
+        next.cov = s.cov.clone();
+        next.samples = s.samples;
+        next.lambda_t = *lambda_t;
+        next.noise_num = *noise_num;
+        next.noise_den = *noise_den;
+        next.guard_activations = *guard_activations;
+        next.frozen_variance = frozen_variance
+            .iter()
+            .map(|v| v.unwrap_or(f64::NAN))
+            .collect();
+        next.last = *last;
+        *self = next;
+        Ok(())
+    }
+}
+
+/// The Kalman filter's noise, checked: R1 (of size `n`) positive semi-definite, R2 a positive
+/// variance (Eq. 5.19). Shared by the linear Kalman filter, the EKF and the UKFs.
+pub(crate) fn kalman_noise(
+    r1: &CovSpec,
+    r2: f64,
+    n: usize,
+) -> Result<(DMatrix<f64>, f64), EstimError> {
+    if !(r2.is_finite() && r2 > 0.0) {
+        return Err(EstimError::InvalidConfig(format!(
+            "R2 = {r2} must be a positive variance"
+        )));
+    }
+    let r1 = r1.to_matrix(n, "R1")?;
+    let eig = r1.clone().symmetric_eigenvalues();
+    let scale = r1.amax().max(f64::MIN_POSITIVE);
+    if eig.iter().any(|&v| v < -1e-12 * scale) {
+        return Err(EstimError::InvalidConfig(
+            "R1 is not positive semi-definite".into(),
+        ));
+    }
+    Ok((r1, r2))
 }
 
 /// Why a step was refused — small and `Copy`, so the success path carries no `String`; it

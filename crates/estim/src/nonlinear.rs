@@ -33,7 +33,10 @@
 //! physical units. **Bounds** (e.g. a mass stays positive) are enforced by projection after each
 //! update and counted.
 
+use crate::cov::{chol_rank_one, factor_with_jitter, Cov, CovForm};
 use crate::error::{check_sample, check_view};
+use crate::linear::kalman_noise;
+use crate::recursive::{Memory, Recursive, Snapshot};
 use crate::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, Step};
 use nalgebra::{DMatrix, DVector};
 use physid_core::{FreeSet, GradientEngine, ParamModel, ParamSet};
@@ -57,6 +60,44 @@ impl Default for SigmaPoints {
             beta: 2.0,
             kappa: None,
         }
+    }
+}
+
+/// The unscented transform's weights for `l` free parameters (Alg. 5.7, SPEC fix):
+/// `ζ = α²(l + κ) − l`, `W0m = ζ/(l+ζ)`, `W0c = W0m + 1 − α² + β`, `Wi = 1/(2(l+ζ))`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SigmaWeights {
+    /// Mean weight of the centre point, `W0m`.
+    pub wm0: f64,
+    /// Covariance weight of the centre point, `W0c`.
+    pub wc0: f64,
+    /// Weight of each of the 2l outer points, `Wi` (mean and covariance).
+    pub wi: f64,
+}
+
+impl SigmaWeights {
+    /// The weights of `points` for `l` parameters; refused unless α > 0 and `l + ζ > 0`.
+    pub fn new(points: &SigmaPoints, l: usize) -> Result<Self, EstimError> {
+        let lf = l as f64;
+        let kappa = points.kappa.unwrap_or(3.0 - lf);
+        let zeta = points.alpha * points.alpha * (lf + kappa) - lf;
+        if !(points.alpha > 0.0 && lf + zeta > 0.0 && zeta.is_finite() && points.beta.is_finite()) {
+            return Err(EstimError::InvalidConfig(format!(
+                "sigma points need α > 0 and l + ζ > 0 (α = {}, κ = {kappa}, l = {l})",
+                points.alpha
+            )));
+        }
+        let wm0 = zeta / (lf + zeta);
+        Ok(Self {
+            wm0,
+            wc0: wm0 + 1.0 - points.alpha * points.alpha + points.beta,
+            wi: 1.0 / (2.0 * (lf + zeta)),
+        })
+    }
+
+    /// `l + ζ`, the square of the sigma points' spread factor.
+    pub fn spread2(&self) -> f64 {
+        1.0 / (2.0 * self.wi)
     }
 }
 
@@ -135,22 +176,19 @@ impl NlConfig {
 #[derive(Debug, Clone)]
 struct Ukf {
     x: DVector<f64>,
-    p: DMatrix<f64>,
+    /// The prior covariance: P (UKF), or its factor S (SR-UKF).
+    p: Cov,
     r1: DMatrix<f64>,
     r2: f64,
     /// (l+ζ)·P (P the prior), then its Cholesky factor in place.
     chol: DMatrix<f64>,
-    wm0: f64,
-    wc0: f64,
-    wi: f64,
+    w: SigmaWeights,
     /// Outputs of the 2l+1 sigma points.
     ys: Vec<f64>,
     /// Cross-covariance / gain.
     pxy: DVector<f64>,
     /// Candidate state.
     x_new: DVector<f64>,
-    /// Square-root form: `p` holds S (lower Cholesky factor of the prior) instead of P.
-    sqrt: bool,
     /// Square-root columns of R1 (SR-UKF): R1 = Σ c cᵀ.
     r1_cols: Vec<DVector<f64>>,
     /// Work matrix and vector of the rank-one updates.
@@ -206,28 +244,6 @@ impl Coords<'_> {
     }
 }
 
-/// Rank-one update (`sign` = 1) or downdate (`sign` = −1) of a lower Cholesky factor in place:
-/// `L Lᵀ ± x xᵀ` (`x` is overwritten). False if the result is not positive definite (then `l`
-/// is partly modified: work on a copy). Allocation-free.
-fn chol_rank_one(l: &mut DMatrix<f64>, x: &mut DVector<f64>, sign: f64) -> bool {
-    let n = l.nrows();
-    for k in 0..n {
-        let lkk = l[(k, k)];
-        let r2 = lkk * lkk + sign * x[k] * x[k];
-        if r2.is_nan() || r2 <= 0.0 || lkk == 0.0 {
-            return false;
-        }
-        let r = r2.sqrt();
-        let (c, s) = (r / lkk, x[k] / lkk);
-        l[(k, k)] = r;
-        for i in k + 1..n {
-            l[(i, k)] = (l[(i, k)] + sign * s * x[i]) / c;
-            x[i] = c * x[i] - s * l[(i, k)];
-        }
-    }
-    true
-}
-
 #[derive(Debug, Clone)]
 enum Engine {
     Ekf(Box<LinearEstimator>),
@@ -254,34 +270,8 @@ pub struct NonlinearEstimator<M: ParamModel> {
     repairs: u64,
     projections: u64,
     samples: u64,
-}
-
-fn cholesky_in_place(a: &mut DMatrix<f64>) -> bool {
-    // Lower-triangular Cholesky factor written over `a` (upper part zeroed); false if `a` is
-    // not positive definite. Allocation-free.
-    let n = a.nrows();
-    for j in 0..n {
-        let mut d = a[(j, j)];
-        for k in 0..j {
-            d -= a[(j, k)] * a[(j, k)];
-        }
-        if !(d > 0.0 && d.is_finite()) {
-            return false;
-        }
-        let d = d.sqrt();
-        a[(j, j)] = d;
-        for i in j + 1..n {
-            let mut s = a[(i, j)];
-            for k in 0..j {
-                s -= a[(i, k)] * a[(j, k)];
-            }
-            a[(i, j)] = s / d;
-        }
-        for i in 0..j {
-            a[(i, j)] = 0.0;
-        }
-    }
-    true
+    /// P0 in state coordinates (for [`Recursive::initial_covariance`]).
+    p0: DMatrix<f64>,
 }
 
 impl<M: ParamModel> NonlinearEstimator<M> {
@@ -352,63 +342,34 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 )?))
             }
             NlMethod::Ukf(sp) | NlMethod::Srukf(sp) => {
-                let sqrt = matches!(config.method, NlMethod::Srukf(_));
-                // Validate R1, R2 and P0 as the Kalman filter does.
-                let probe = ParamSet::zeros((0..l).map(|k| format!("x{k}")))
-                    .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
-                LinearEstimator::new(
-                    &EstimatorConfig {
-                        method: Method::Kalman {
-                            r1: config.r1.clone(),
-                            r2: config.r2,
-                        },
-                        p0: config.p0.clone(),
-                        guard: None,
-                    },
-                    &probe,
-                    &probe.all_free(),
-                )?;
-                let lf = l as f64;
-                let kappa = sp.kappa.unwrap_or(3.0 - lf);
-                let zeta = sp.alpha * sp.alpha * (lf + kappa) - lf;
-                if !(sp.alpha > 0.0 && lf + zeta > 0.0 && zeta.is_finite() && sp.beta.is_finite()) {
-                    return Err(EstimError::InvalidConfig(format!(
-                        "sigma points need α > 0 and l + ζ > 0 (α = {}, κ = {kappa}, l = {l})",
-                        sp.alpha
-                    )));
-                }
-                let wm0 = zeta / (lf + zeta);
-                let p0 = config.p0.to_matrix(l, "P0")?;
-                let r1 = config.r1.to_matrix(l, "R1")?;
-                // SR-UKF: S0 = chol(P0); R1 = V Λ Vᵀ → columns √λ_k v_k.
-                let (p, r1_cols) = if sqrt {
-                    let s0 = p0
-                        .clone()
-                        .cholesky()
-                        .ok_or(EstimError::NotPositiveDefinite { what: "P0" })?
-                        .l();
-                    let eig = r1.clone().symmetric_eigen();
-                    let cols = (0..l)
-                        .filter(|&k| eig.eigenvalues[k] > 0.0)
-                        .map(|k| eig.eigenvectors.column(k) * eig.eigenvalues[k].sqrt())
-                        .collect();
-                    (s0, cols)
-                } else {
-                    (p0, Vec::new())
+                let form = match config.method {
+                    NlMethod::Srukf(_) => CovForm::Sqrt,
+                    _ => CovForm::Full,
+                };
+                let w = SigmaWeights::new(&sp, l)?;
+                let (r1, r2) = kalman_noise(&config.r1, config.r2, l)?;
+                let p = Cov::from_covariance(form, config.p0.to_matrix(l, "P0")?, "P0")?;
+                // SR-UKF: R1 = V Λ Vᵀ → columns √λ_k v_k.
+                let r1_cols = match form {
+                    CovForm::Sqrt => {
+                        let eig = r1.clone().symmetric_eigen();
+                        (0..l)
+                            .filter(|&k| eig.eigenvalues[k] > 0.0)
+                            .map(|k| eig.eigenvectors.column(k) * eig.eigenvalues[k].sqrt())
+                            .collect()
+                    }
+                    CovForm::Full => Vec::new(),
                 };
                 Engine::Ukf(Box::new(Ukf {
                     x: DVector::from_vec(x0),
                     p,
                     r1,
-                    r2: config.r2,
+                    r2,
                     chol: DMatrix::zeros(l, l),
-                    wm0,
-                    wc0: wm0 + 1.0 - sp.alpha * sp.alpha + sp.beta,
-                    wi: 1.0 / (2.0 * (lf + zeta)),
+                    w,
                     ys: vec![0.0; 2 * l + 1],
                     pxy: DVector::zeros(l),
                     x_new: DVector::zeros(l),
-                    sqrt,
                     r1_cols,
                     work: DMatrix::zeros(l, l),
                     v: DVector::zeros(l),
@@ -431,6 +392,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             repairs: 0,
             projections: 0,
             samples: 0,
+            p0: config.p0.to_matrix(l, "P0")?,
         })
     }
 
@@ -541,46 +503,33 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         sample: u64,
     ) -> Result<(Step, u64), EstimError> {
         let l = u.x.len();
-        let lf = l as f64;
-        let gamma2 = 1.0 / (2.0 * u.wi); // l + ζ
+        let gamma2 = u.w.spread2(); // l + ζ
         let mut repairs = 0;
         // The factor of (l+ζ)·P (P the prior): γ·S directly in the square-root form; else a
         // Cholesky factorisation, repaired if needed.
-        let mut eps = 0.0;
-        let mut tries = 0;
-        if u.sqrt {
-            let g = gamma2.sqrt();
-            for j in 0..l {
-                for i in 0..l {
-                    u.chol[(i, j)] = g * u.p[(i, j)];
-                }
+        match u.p.form() {
+            CovForm::Sqrt => {
+                u.chol.copy_from(u.p.held());
+                u.chol *= gamma2.sqrt();
             }
-        }
-        while !u.sqrt {
-            for j in 0..l {
-                for i in 0..l {
-                    let v = 0.5 * (u.p[(i, j)] + u.p[(j, i)]) + if i == j { eps } else { 0.0 };
-                    u.chol[(i, j)] = gamma2 * v;
-                }
-            }
-            if cholesky_in_place(&mut u.chol) {
-                break;
-            }
-            tries += 1;
-            if tries > 12 {
-                return Err(EstimError::LostPositiveDefiniteness {
+            CovForm::Full => {
+                let p = u.p.held();
+                let scale = p.trace().abs() / l as f64;
+                let tries = factor_with_jitter(&mut u.chol, scale, |a, eps| {
+                    for j in 0..l {
+                        for i in 0..l {
+                            let v = 0.5 * (p[(i, j)] + p[(j, i)]) + if i == j { eps } else { 0.0 };
+                            a[(i, j)] = gamma2 * v;
+                        }
+                    }
+                })
+                .ok_or_else(|| EstimError::LostPositiveDefiniteness {
                     sample,
                     detail: "the prior covariance has no Cholesky factor after 12 jitter repairs"
                         .into(),
-                });
+                })?;
+                repairs = u64::from(tries > 0);
             }
-            let tr = u.p.trace().abs() / lf;
-            eps = if eps == 0.0 {
-                1e-12 * tr.max(f64::MIN_POSITIVE)
-            } else {
-                eps * 10.0
-            };
-            repairs = 1;
         }
         // Outputs of the sigma points x, x ± column k of the factor.
         // Sigma point `col` (0-based among the 2l outer ones) is x + sign·(column k).
@@ -628,12 +577,13 @@ impl<M: ParamModel> NonlinearEstimator<M> {
             // has no deviation), factored again in the square-root form.
             repairs += Self::projected_prior(u, sample)?;
         }
-        let y_hat = u.wm0 * u.ys[0] + u.wi * u.ys[1..].iter().sum::<f64>();
+        let SigmaWeights { wm0, wc0, wi } = u.w;
+        let y_hat = wm0 * u.ys[0] + wi * u.ys[1..].iter().sum::<f64>();
         let spread: f64 = u.ys[1..].iter().map(|v| (v - y_hat) * (v - y_hat)).sum();
         let centre = (u.ys[0] - y_hat) * (u.ys[0] - y_hat);
-        let mut s = u.wc0 * centre + u.wi * spread + u.r2;
+        let mut s = wc0 * centre + wi * spread + u.r2;
         if s.is_nan() || s <= 0.0 {
-            s = u.wi * spread + u.r2; // repair (2): drop the negative centre weight
+            s = wi * spread + u.r2; // repair (2): drop the negative centre weight
             repairs += 1;
         }
         // Cross-covariance: the centre point has zero deviation in x.
@@ -644,7 +594,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 c += dev[k * l + idx] * (u.ys[1 + k] - y_hat)
                     + dev[(l + k) * l + idx] * (u.ys[1 + l + k] - y_hat);
             }
-            *pxy = u.wi * c;
+            *pxy = wi * c;
         }
         let e = y - y_hat;
         // K = Pxy/S; x += K e; next prior P = P − K S Kᵀ + R1 = P − Pxy Pxyᵀ/S + R1
@@ -659,12 +609,13 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 detail: "non-finite state after the update".into(),
             });
         }
-        if u.sqrt {
+        if u.p.form() == CovForm::Sqrt {
             repairs += Self::sqrt_update(u, sinv, sample)?;
         } else {
             let pxy = u.pxy.as_slice();
             for ((pcol, rcol), &pj) in
-                u.p.as_mut_slice()
+                u.p.held_mut()
+                    .as_mut_slice()
                     .chunks_exact_mut(l)
                     .zip(u.r1.as_slice().chunks_exact(l))
                     .zip(pxy)
@@ -691,33 +642,25 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         for j in 0..l {
             for i in 0..l {
                 let c: f64 = (0..2 * l).map(|k| u.dev[(i, k)] * u.dev[(j, k)]).sum();
-                u.work[(i, j)] = u.wi * c;
+                u.work[(i, j)] = u.w.wi * c;
             }
         }
-        if !u.sqrt {
-            u.p.copy_from(&u.work);
+        if u.p.form() == CovForm::Full {
+            u.p.held_mut().copy_from(&u.work);
             return Ok(0);
         }
-        let tr = u.work.trace().abs() / l as f64;
-        let mut eps = 0.0;
-        for tries in 0..13 {
-            u.p.copy_from(&u.work);
+        let work = &u.work;
+        let tries = factor_with_jitter(u.p.held_mut(), work.trace().abs() / l as f64, |a, eps| {
+            a.copy_from(work);
             for i in 0..l {
-                u.p[(i, i)] += eps;
+                a[(i, i)] += eps;
             }
-            if cholesky_in_place(&mut u.p) {
-                return Ok(u64::from(tries > 0));
-            }
-            eps = if eps == 0.0 {
-                1e-12 * tr.max(f64::MIN_POSITIVE)
-            } else {
-                eps * 10.0
-            };
-        }
-        Err(EstimError::LostPositiveDefiniteness {
+        })
+        .ok_or_else(|| EstimError::LostPositiveDefiniteness {
             sample,
             detail: "covariance of the projected sigma points has no Cholesky factor".into(),
-        })
+        })?;
+        Ok(u64::from(tries > 0))
     }
 
     /// SR-UKF covariance update: `S ← chol(S Sᵀ − U Uᵀ + R1)`, `U = Pxy·√(1/S_y²)`, by a rank-one
@@ -726,39 +669,26 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     fn sqrt_update(u: &mut Ukf, sinv: f64, sample: u64) -> Result<u64, EstimError> {
         let l = u.x.len();
         let mut repairs = 0;
-        u.work.copy_from(&u.p);
+        u.work.copy_from(u.p.held());
         u.v.copy_from(&u.pxy);
         u.v *= sinv.sqrt();
         if !chol_rank_one(&mut u.work, &mut u.v, -1.0) {
             // Repair: P = S Sᵀ − U Uᵀ formed explicitly, symmetrised, jittered, re-factored.
             repairs += 1;
-            let mut eps = 0.0;
-            let mut ok = false;
-            for _ in 0..13 {
+            let (s, pxy) = (u.p.held(), &u.pxy);
+            let scale = s.norm_squared() / l as f64;
+            factor_with_jitter(&mut u.work, scale, |a, eps| {
                 for j in 0..l {
                     for i in 0..l {
-                        let sst: f64 = (0..l).map(|k| u.p[(i, k)] * u.p[(j, k)]).sum();
-                        u.work[(i, j)] =
-                            sst - (u.pxy[i] * u.pxy[j]) * sinv + if i == j { eps } else { 0.0 };
+                        let sst: f64 = (0..l).map(|k| s[(i, k)] * s[(j, k)]).sum();
+                        a[(i, j)] = sst - (pxy[i] * pxy[j]) * sinv + if i == j { eps } else { 0.0 };
                     }
                 }
-                if cholesky_in_place(&mut u.work) {
-                    ok = true;
-                    break;
-                }
-                let tr = (0..l).map(|i| u.p.row(i).norm_squared()).sum::<f64>() / l as f64;
-                eps = if eps == 0.0 {
-                    1e-12 * tr.max(f64::MIN_POSITIVE)
-                } else {
-                    eps * 10.0
-                };
-            }
-            if !ok {
-                return Err(EstimError::LostPositiveDefiniteness {
-                    sample,
-                    detail: "square-root downdate could not be repaired".into(),
-                });
-            }
+            })
+            .ok_or_else(|| EstimError::LostPositiveDefiniteness {
+                sample,
+                detail: "square-root downdate could not be repaired".into(),
+            })?;
         }
         for c in &u.r1_cols {
             u.v.copy_from(c);
@@ -769,7 +699,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
                 });
             }
         }
-        std::mem::swap(&mut u.p, &mut u.work);
+        std::mem::swap(u.p.held_mut(), &mut u.work);
         Ok(repairs)
     }
 
@@ -809,8 +739,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     pub fn covariance(&self) -> DMatrix<f64> {
         match &self.engine {
             Engine::Ekf(kf) => kf.covariance(),
-            Engine::Ukf(u) if u.sqrt => &u.p * u.p.transpose(),
-            Engine::Ukf(u) => u.p.clone(),
+            Engine::Ukf(u) => u.p.covariance(),
         }
     }
 
@@ -846,6 +775,109 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     }
 }
 
+impl<M: ParamModel> Recursive for NonlinearEstimator<M> {
+    fn method_name(&self) -> &'static str {
+        self.method.name()
+    }
+    fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
+        NonlinearEstimator::update(self, inputs, y)
+    }
+    fn free_names(&self) -> Vec<&str> {
+        NonlinearEstimator::free_names(self)
+    }
+    fn estimate(&self) -> Vec<f64> {
+        NonlinearEstimator::estimate(self)
+    }
+    fn estimate_full(&self) -> Vec<f64> {
+        NonlinearEstimator::estimate_full(self)
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        NonlinearEstimator::covariance(self)
+    }
+    fn initial_covariance(&self) -> DMatrix<f64> {
+        self.p0.clone()
+    }
+    fn std_errors(&self) -> Option<Vec<f64>> {
+        Some(NonlinearEstimator::std_errors(self))
+    }
+    fn samples(&self) -> u64 {
+        self.samples
+    }
+    fn repairs(&self) -> Option<u64> {
+        Some(self.repairs)
+    }
+    fn projections(&self) -> Option<u64> {
+        Some(self.projections)
+    }
+    fn snapshot(&self) -> Snapshot {
+        let (state, cov, inner_samples) = match &self.engine {
+            Engine::Ekf(kf) => (
+                kf.estimate().to_vec(),
+                kf.held_covariance().clone(),
+                kf.samples(),
+            ),
+            Engine::Ukf(u) => (u.x.as_slice().to_vec(), u.p.clone(), self.samples),
+        };
+        debug_assert_eq!(inner_samples, self.samples);
+        Snapshot {
+            method: self.method.name().into(),
+            free: self.free.free().to_vec(),
+            params: NonlinearEstimator::estimate_full(self),
+            state,
+            cov,
+            samples: self.samples,
+            memory: Memory::Model {
+                repairs: self.repairs,
+                projections: self.projections,
+            },
+        }
+    }
+    fn restore(&mut self, s: &Snapshot) -> Result<(), EstimError> {
+        let Memory::Model {
+            repairs,
+            projections,
+        } = s.memory
+        else {
+            return Err(EstimError::InvalidConfig(
+                "checkpoint: taken of a linear estimator, restored into a model-based filter"
+                    .into(),
+            ));
+        };
+        match &mut self.engine {
+            Engine::Ekf(kf) => {
+                let mut inner = Recursive::snapshot(kf.as_ref());
+                s.check(
+                    self.method.name(),
+                    self.free.free(),
+                    self.params.len(),
+                    kf.held_covariance(),
+                )?;
+                inner.state.clone_from(&s.state);
+                inner.cov = s.cov.clone();
+                inner.samples = s.samples;
+                Recursive::restore(kf.as_mut(), &inner)?;
+            }
+            Engine::Ukf(u) => {
+                s.check(
+                    self.method.name(),
+                    self.free.free(),
+                    self.params.len(),
+                    &u.p,
+                )?;
+                u.x.copy_from_slice(&s.state);
+                u.p = s.cov.clone();
+            }
+        }
+        self.params = ParamSet::new(self.params.names().to_vec(), s.params.clone())
+            .map_err(|e| EstimError::InvalidConfig(format!("checkpoint: {e}")))?;
+        self.theta.copy_from_slice(&s.params);
+        self.samples = s.samples;
+        self.repairs = repairs;
+        self.projections = projections;
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -878,36 +910,13 @@ mod tests {
         NonlinearEstimator::new(m, &params, &params.all_free(), &NlConfig::new(method)).unwrap()
     }
 
-    #[test]
-    fn in_place_cholesky_and_rank_one_updates_match_nalgebra() {
-        let a = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0]);
-        let mut l = a.clone();
-        assert!(cholesky_in_place(&mut l));
-        let reference = a.clone().cholesky().unwrap().l();
-        assert!((&l - &reference).norm() < 1e-14);
-        let x = DVector::from_vec(vec![0.3, -0.2, 0.5]);
-        for sign in [1.0, -1.0] {
-            let mut l2 = l.clone();
-            let mut w = x.clone();
-            assert!(chol_rank_one(&mut l2, &mut w, sign));
-            let expect = (&a + &x * x.transpose() * sign).cholesky().unwrap().l();
-            assert!((&l2 - &expect).norm() < 1e-13, "sign {sign}");
-        }
-        // L Lᵀ − x xᵀ indefinite: refused.
-        let mut l3 = l.clone();
-        let mut big = DVector::from_vec(vec![3.0, 0.0, 0.0]);
-        assert!(!chol_rank_one(&mut l3, &mut big, -1.0));
-        let mut semi = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
-        assert!(!cholesky_in_place(&mut semi));
-    }
-
     /// Repair (1): a prior with no Cholesky factor (here singular, P = v vᵀ) is jittered until
     /// it has one; the step succeeds and the repair is counted.
     #[test]
     fn singular_prior_is_repaired_and_counted() {
         let mut est = ukf(NlMethod::Ukf(SigmaPoints::default()));
         if let Engine::Ukf(u) = &mut est.engine {
-            u.p = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+            u.p = Cov::full(DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]));
         }
         est.update(&[1.0, 0.5], 2.0).unwrap();
         assert_eq!(est.repairs(), 1);
@@ -922,12 +931,12 @@ mod tests {
         let Engine::Ukf(u) = &mut est.engine else {
             panic!("SR-UKF engine")
         };
-        u.p = DMatrix::identity(2, 2);
+        u.p = Cov::sqrt(DMatrix::identity(2, 2));
         u.pxy = DVector::from_vec(vec![1.0, 0.0]);
         // S Sᵀ − U Uᵀ with U = Pxy·√(1/S_y²), S_y² = 1: I − e1 e1ᵀ, singular.
         let repairs = NonlinearEstimator::<Lin2>::sqrt_update(u, 1.0, 0).unwrap();
         assert_eq!(repairs, 1);
-        let p = &u.p * u.p.transpose();
+        let p = u.p.covariance();
         assert!(p[(0, 0)] > 0.0 && p[(0, 0)] < 1e-9 && (p[(1, 1)] - 1.0).abs() < 1e-9);
     }
 }

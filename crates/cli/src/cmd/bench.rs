@@ -144,7 +144,7 @@ pub fn run(args: &Args) -> Result<()> {
             eval_rate(&|u| expr.eval::<f64>(u, std::hint::black_box(&NOMINAL)))?,
         ),
     ];
-    let mut grad_rate = |m: &dyn ParamModelDyn| {
+    let mut grad_rate = |m: &dyn physid_core::DynModel| {
         rate(data.len(), budget, || {
             let s: f64 = data
                 .iter()
@@ -337,30 +337,4 @@ pub fn run(args: &Args) -> Result<()> {
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
     }
     Ok(())
-}
-
-/// Object-safe access to a model's exact gradient, so that the benchmark loop is written once
-/// for the native and the expression model.
-trait ParamModelDyn {
-    fn value_and_gradient(
-        &self,
-        engine: &mut GradientEngine,
-        u: &[f64],
-        p: &[f64],
-        free: &[usize],
-        grad: &mut [f64],
-    ) -> f64;
-}
-
-impl<M: ParamModel> ParamModelDyn for M {
-    fn value_and_gradient(
-        &self,
-        engine: &mut GradientEngine,
-        u: &[f64],
-        p: &[f64],
-        free: &[usize],
-        grad: &mut [f64],
-    ) -> f64 {
-        engine.value_and_gradient(self, u, p, free, grad)
-    }
 }

@@ -5,15 +5,14 @@ use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
-use physid_estim::resolution::resolution;
 use physid_estim::{
-    metrics, CovSpec, EstimError, EstimatorConfig, GuardAction, LinearEstimator, Method, NlConfig,
-    NlMethod, NonlinearEstimator, SigmaPoints, Step, VfVariant, WindupGuard,
+    feed, metrics, CovSpec, EstimError, EstimatorConfig, FeedError, FeedSummary, GuardAction,
+    LinearEstimator, Method, MethodName, NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive,
+    SigmaPoints, VfVariant, WindupGuard,
 };
 use physid_expr::ExprModel;
 use serde_json::json;
 use std::path::PathBuf;
-use std::time::Instant;
 
 /// Arguments of `physid estimate`.
 #[derive(clap::Args)]
@@ -39,7 +38,7 @@ pub struct Args {
     /// Estimator: rls, rlsf (constant or, with --lambda0, time-varying λ), rlsvf, kf, dsfc;
     /// ekf, ukf, srukf for --expr models.
     #[arg(long, default_value = "rlsf")]
-    pub method: String,
+    pub method: MethodName,
     /// Forgetting factor λ ∈ (0, 1] (rlsf, dsfc; with --lambda0 it is λ(0)) [default: 0.98].
     #[arg(long)]
     pub lambda: Option<f64>,
@@ -51,7 +50,7 @@ pub struct Args {
     pub lambdas: Option<Vec<f64>>,
     /// Vector-forgetting form: published (thesis Alg. 5.4) or symmetric.
     #[arg(long, default_value = "published")]
-    pub vf_variant: String,
+    pub vf_variant: VfVariant,
     /// Initial covariance P0 = C·I [default: 1000 for linear methods, 100 for ekf/ukf/srukf].
     #[arg(long)]
     pub p0: Option<f64>,
@@ -88,10 +87,10 @@ pub struct Args {
     pub max_trace: Option<f64>,
     /// Wind-up guard action beyond the bound: scale or reset.
     #[arg(long, default_value = "scale")]
-    pub guard: String,
+    pub guard: GuardAction,
     /// Samples with NaN/inf: error (stop and report) or skip (count them).
     #[arg(long, default_value = "error")]
-    pub on_bad: String,
+    pub on_bad: OnBad,
     /// Write the estimates, standard errors and prediction error of every sample to this CSV.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -100,129 +99,33 @@ pub struct Args {
     pub json: bool,
 }
 
-/// What the command needs of a recursive estimator, whichever kind it is.
-trait Online {
-    /// Feed sample `i` of the recording.
-    fn update(&mut self, i: usize) -> Result<Step, EstimError>;
-    /// Free-parameter estimates.
-    fn free_estimate(&self) -> Vec<f64>;
-    /// Their standard errors, when they can be estimated yet.
-    fn std_errors(&self) -> Option<Vec<f64>>;
-    /// The covariance now, in the coordinates the run started from with [`Online::p0`].
-    fn covariance(&self) -> nalgebra::DMatrix<f64>;
-    /// The starting covariance.
-    fn p0(&self) -> &nalgebra::DMatrix<f64>;
-    /// Covariance repairs so far (the UKFs; `None` where the method has none).
-    fn repairs(&self) -> Option<u64> {
-        None
-    }
-    /// Times a bound was enforced (non-linear methods with --bound).
-    fn projections(&self) -> Option<u64> {
-        None
-    }
-}
-
-struct LinearRun<'a> {
-    est: LinearEstimator,
-    p0: nalgebra::DMatrix<f64>,
-    cols: Vec<&'a [f64]>,
-    y: &'a [f64],
-    phi: Vec<f64>,
-}
-
-impl Online for LinearRun<'_> {
-    fn update(&mut self, i: usize) -> Result<Step, EstimError> {
-        for (f, c) in self.phi.iter_mut().zip(&self.cols) {
-            *f = c[i];
-        }
-        self.est.update(&self.phi, self.y[i])
-    }
-    fn free_estimate(&self) -> Vec<f64> {
-        self.est.estimate().to_vec()
-    }
-    fn std_errors(&self) -> Option<Vec<f64>> {
-        self.est.std_errors().ok()
-    }
-    fn covariance(&self) -> nalgebra::DMatrix<f64> {
-        self.est.covariance()
-    }
-    fn p0(&self) -> &nalgebra::DMatrix<f64> {
-        &self.p0
-    }
-}
-
-struct NonlinearRun<'a> {
-    est: NonlinearEstimator<ExprModel>,
-    p0: nalgebra::DMatrix<f64>,
-    cols: Vec<&'a [f64]>,
-    y: &'a [f64],
-    u: Vec<f64>,
-}
-
-impl Online for NonlinearRun<'_> {
-    fn update(&mut self, i: usize) -> Result<Step, EstimError> {
-        for (f, c) in self.u.iter_mut().zip(&self.cols) {
-            *f = c[i];
-        }
-        self.est.update(&self.u, self.y[i])
-    }
-    fn free_estimate(&self) -> Vec<f64> {
-        self.est.estimate()
-    }
-    fn std_errors(&self) -> Option<Vec<f64>> {
-        Some(self.est.std_errors())
-    }
-    fn covariance(&self) -> nalgebra::DMatrix<f64> {
-        self.est.covariance()
-    }
-    fn p0(&self) -> &nalgebra::DMatrix<f64> {
-        &self.p0
-    }
-    fn repairs(&self) -> Option<u64> {
-        Some(self.est.repairs())
-    }
-    fn projections(&self) -> Option<u64> {
-        Some(self.est.projections())
-    }
-}
-
-fn linear_method(args: &Args, p: usize) -> Result<Method> {
+fn linear_method(args: &Args, p: usize) -> Method {
     let lambda = args.lambda.unwrap_or(0.98);
-    Ok(match args.method.as_str() {
-        "rls" => Method::Rls,
-        "rlsf" => match args.lambda0 {
+    match args.method {
+        MethodName::Rls => Method::Rls,
+        MethodName::Rlsf => match args.lambda0 {
             Some(lambda0) => Method::RlsfTv {
                 lambda0,
                 lambda_init: lambda,
             },
             None => Method::Rlsf { lambda },
         },
-        "rlsvf" => Method::Rlsvf {
+        MethodName::Rlsvf => Method::Rlsvf {
             lambdas: match &args.lambdas {
                 Some(l) => l.clone(),
                 None => vec![lambda; p],
             },
-            variant: match args.vf_variant.as_str() {
-                "published" => VfVariant::Published,
-                "symmetric" => VfVariant::Symmetric,
-                v => {
-                    return Err(miette!(
-                        "--vf-variant '{v}': expected published or symmetric"
-                    ))
-                }
-            },
+            variant: args.vf_variant,
         },
-        "kf" => Method::Kalman {
+        MethodName::Kf => Method::Kalman {
             r1: CovSpec::Scaled(args.r1),
             r2: args.r2,
         },
-        "dsfc" => Method::Dsfc { lambda },
-        m => {
-            return Err(miette!(
-                "unknown method '{m}'; the methods are: rls, rlsf, rlsvf, kf, dsfc, ekf, ukf, srukf"
-            ))
+        MethodName::Dsfc => Method::Dsfc { lambda },
+        MethodName::Ekf | MethodName::Ukf | MethodName::Srukf => {
+            unreachable!("model-based methods are built from --expr")
         }
-    })
+    }
 }
 
 /// The free/fixed view from --free.
@@ -235,18 +138,14 @@ fn free_set(args: &Args, params: &ParamSet) -> Result<physid_core::FreeSet> {
 
 /// Run the estimation.
 pub fn run(args: &Args) -> Result<()> {
-    let skip_bad = match args.on_bad.as_str() {
-        "error" => false,
-        "skip" => true,
-        v => return Err(miette!("--on-bad '{v}': expected error or skip")),
-    };
     let rec = args.input.read(&args.data, None)?;
     let file = args.data.display().to_string();
     let column = |c: &str| rec.values(c).map_err(|e| miette!("{file}: {e}"));
     let y = column(&args.y)?;
-    let nonlinear = matches!(args.method.as_str(), "ekf" | "ukf" | "srukf");
 
-    let (mut online, params, free, method_name): (Box<dyn Online>, ParamSet, _, &str) = if nonlinear
+    let (mut est, cols, params, free): (Box<dyn Recursive>, Vec<&[f64]>, ParamSet, _) = if args
+        .method
+        .is_model_based()
     {
         let text = args.expr.as_deref().ok_or_else(|| {
             miette!(
@@ -286,9 +185,9 @@ pub fn run(args: &Args) -> Result<()> {
             bounds.push((n.trim().to_string(), lo, hi));
         }
         let cfg = NlConfig {
-            method: match args.method.as_str() {
-                "ekf" => NlMethod::Ekf,
-                "ukf" => NlMethod::Ukf(sp),
+            method: match args.method {
+                MethodName::Ekf => NlMethod::Ekf,
+                MethodName::Ukf => NlMethod::Ukf(sp),
                 _ => NlMethod::Srukf(sp),
             },
             p0: CovSpec::Scaled(args.p0.unwrap_or(100.0)),
@@ -297,25 +196,8 @@ pub fn run(args: &Args) -> Result<()> {
             scaled: args.scaled,
             bounds,
         };
-        let name = cfg.method.name();
         let est = NonlinearEstimator::new(model, &params, &free, &cfg).into_diagnostic()?;
-        let p0 = cfg
-            .p0
-            .to_matrix(free.free().len(), "P0")
-            .into_diagnostic()?;
-        let u = vec![0.0; cols.len()];
-        (
-            Box::new(NonlinearRun {
-                est,
-                p0,
-                cols,
-                y,
-                u,
-            }),
-            params,
-            free,
-            name,
-        )
+        (Box::new(est), cols, params, free)
     } else {
         if args.phi.is_empty() {
             return Err(miette!(
@@ -331,40 +213,17 @@ pub fn run(args: &Args) -> Result<()> {
         let theta0 = args.theta0.clone().unwrap_or_else(|| vec![0.0; p]);
         let params = ParamSet::new(args.phi.clone(), theta0).into_diagnostic()?;
         let free = free_set(args, &params)?;
-        let guard = match args.max_trace {
-            None => None,
-            Some(max_trace) => Some(WindupGuard {
-                max_trace,
-                action: match args.guard.as_str() {
-                    "scale" => GuardAction::Scale,
-                    "reset" => GuardAction::Reset,
-                    v => return Err(miette!("--guard '{v}': expected scale or reset")),
-                },
-            }),
-        };
+        let guard = args.max_trace.map(|max_trace| WindupGuard {
+            max_trace,
+            action: args.guard,
+        });
         let cfg = EstimatorConfig {
-            method: linear_method(args, free.free().len())?,
+            method: linear_method(args, free.free().len()),
             p0: CovSpec::Scaled(args.p0.unwrap_or(1000.0)),
             guard,
         };
-        let name = cfg.method.name();
         let est = LinearEstimator::new(&cfg, &params, &free).into_diagnostic()?;
-        let p0 = cfg
-            .p0
-            .to_matrix(free.free().len(), "P0")
-            .into_diagnostic()?;
-        (
-            Box::new(LinearRun {
-                est,
-                p0,
-                cols,
-                y,
-                phi: vec![0.0; p],
-            }),
-            params,
-            free,
-            name,
-        )
+        (Box::new(est), cols, params, free)
     };
     let names: Vec<String> = params
         .free_names(&free)
@@ -373,52 +232,46 @@ pub fn run(args: &Args) -> Result<()> {
         .collect();
     let nfree = names.len();
 
+    let method_name = est.method_name();
     let line = |i: usize| super::locate(&rec, i);
     let n = y.len();
     let mut measured = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);
     let mut track: Vec<Vec<f64>> = vec![Vec::new(); 2 * nfree + 2];
-    let mut skipped = 0usize;
-    let mut seconds = 0.0;
-    for (i, &yi) in y.iter().enumerate() {
-        let t0 = Instant::now();
-        let r = online.update(i);
-        seconds += t0.elapsed().as_secs_f64();
-        match r {
-            Ok(step) => {
-                measured.push(yi);
-                predicted.push(yi - step.prediction_error);
-                if args.out.is_some() {
-                    let se = online.std_errors();
-                    track[0].push(yi - step.prediction_error);
-                    track[1].push(step.prediction_error);
-                    for (j, v) in online.free_estimate().into_iter().enumerate() {
-                        track[2 + j].push(v);
-                        track[2 + nfree + j].push(se.as_ref().map_or(f64::NAN, |s| s[j]));
-                    }
-                }
+    let summary = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
+        measured.push(y[i]);
+        predicted.push(y[i] - step.prediction_error);
+        if args.out.is_some() {
+            let se = est.std_errors();
+            track[0].push(y[i] - step.prediction_error);
+            track[1].push(step.prediction_error);
+            for (j, v) in est.estimate().into_iter().enumerate() {
+                track[2 + j].push(v);
+                track[2 + nfree + j].push(se.as_ref().map_or(f64::NAN, |s| s[j]));
             }
-            Err(EstimError::NonFinite { .. }) if skip_bad => skipped += 1,
-            Err(EstimError::NonFinite { what, value, .. }) => {
-                return Err(miette!(
-                    "{file}, {}: {what} is not finite ({value}); \
-                     use --on-bad skip to skip such samples",
-                    line(i)
-                ))
-            }
-            Err(e) => return Err(miette!("{file}, {}: {e}", line(i))),
         }
-    }
-    let accepted = measured.len();
+    })
+    .map_err(|FeedError { sample, error }| match error {
+        EstimError::NonFinite { what, value, .. } => miette!(
+            "{file}, {}: {what} is not finite ({value}); use --on-bad skip to skip such samples",
+            line(sample)
+        ),
+        e => miette!("{file}, {}: {e}", line(sample)),
+    })?;
+    let FeedSummary {
+        accepted,
+        skipped,
+        seconds,
+    } = summary;
     if accepted == 0 {
         return Err(miette!("{file}: no usable samples ({skipped} skipped)"));
     }
-    let theta = online.free_estimate();
+    let theta = est.estimate();
     // What the data resolved (physid_estim::resolution): an unresolved parameter keeps its
     // estimate but gets no standard error — the data cannot support one.
-    let res = resolution(&online.covariance(), online.p0());
+    let res = est.resolution();
     let unresolved: Vec<&String> = res.unresolved().iter().map(|&j| &names[j]).collect();
-    let std_err: Option<Vec<Option<f64>>> = online.std_errors().map(|s| {
+    let std_err: Option<Vec<Option<f64>>> = est.std_errors().map(|s| {
         s.iter()
             .enumerate()
             .map(|(j, &v)| res.resolved[j].then_some(v))
@@ -426,8 +279,8 @@ pub fn run(args: &Args) -> Result<()> {
     });
     let mut full = params.nominal().to_vec();
     free.scatter(&theta, &mut full);
-    let repairs = online.repairs();
-    let projections = online.projections();
+    let repairs = est.repairs();
+    let projections = est.projections();
     let nmse = metrics::nmse(&measured, &predicted);
     let nrmse = metrics::nrmse(&measured, &predicted);
     let fit = metrics::fit_percent(&measured, &predicted);

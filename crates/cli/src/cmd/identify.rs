@@ -5,7 +5,6 @@ use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::model_choice::ModelChoice;
-use physid_apps::with_model;
 use physid_core::{ParamModel, Recording};
 use physid_ident::{
     analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, RankStep, Scaling, Selection,
@@ -144,10 +143,7 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
             m.check_inputs(&rec.names())
                 .map_err(|e| miette!("--expr: {e} (in {})", path.display()))?;
         }
-        let r = with_model!(
-            &model,
-            identify_one(path, &rec, &nominal, args, config, &choice)
-        )?;
+        let r = identify_one(&model, path, &rec, &nominal, args, config, &choice)?;
         reports.push(r);
     }
     Ok(reports)
