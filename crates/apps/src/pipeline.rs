@@ -19,7 +19,7 @@
 //! cutoff = "rel:1e-6"                # repeat | wu | rel:FRACTION | absolute
 //!
 //! [estimator]
-//! method = "ukf"                     # ekf | ukf | srukf | rls | rlsf | dsfc
+//! method = "ukf"                     # ekf | ukf | srukf | rls | rlsf | rlsvf | kf | dsfc
 //!
 //! [objective]
 //! prediction_within_pct = 5.0
@@ -32,16 +32,19 @@
 //! signals that cross zero, such as a cyclic torque), `max_relative` is `max 100·|y − ŷ|/|y|`
 //! (for a signal that keeps its sign, such as a friction torque).
 //!
-//! The linear methods (RLS, RLSF, DSFC) need a model linear in the estimated parameters: its
-//! exact gradient is then the regressor; linearity is checked on the data first.
+//! The linear methods (RLS, RLSF, RLSVF, KF, DSFC) need a model linear in the estimated
+//! parameters: its exact gradient is then the regressor ([`LinearInParams`]); linearity is
+//! checked on every sample.
 
 use crate::model_choice::ModelChoice;
 use physid_core::{ParamModel, ParamSet, Recording};
 use physid_estim::{
-    CovSpec, EstimatorConfig, LinearInParams, Method, NlConfig, NlMethod, NonlinearEstimator,
-    Recursive, SigmaPoints,
+    metrics, CovSpec, EstimatorConfig, LinearInParams, Method, MethodName, NlConfig, NlMethod,
+    NonlinearEstimator, Recursive, SigmaPoints,
 };
-use physid_ident::{analyse, fit_subset, Data, IdentConfig, RankedParam, Scaling, Selection};
+use physid_ident::{
+    analyse, fit_subset, Cutoff, Data, IdentConfig, RankedParam, Scaling, Selection,
+};
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
 use serde::{Deserialize, Serialize};
@@ -81,7 +84,7 @@ pub struct DataSpec {
     /// Simulated duration [s] (default: the scenario's).
     pub duration: Option<f64>,
     /// `crank` (one sample per crank degree) or `time`.
-    pub basis: Option<String>,
+    pub basis: Option<DataBasis>,
     /// Sample rate of a time basis [Hz].
     pub rate_hz: Option<f64>,
     /// Cell parameters for the simulation.
@@ -90,6 +93,16 @@ pub struct DataSpec {
     /// Faults for the simulation (`PATH=VALUE@T[+RAMP]`).
     #[serde(default)]
     pub faults: Vec<String>,
+}
+
+/// The basis a simulated recording is sampled on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DataBasis {
+    /// One sample per crank degree.
+    Crank,
+    /// `rate_hz` samples per second.
+    Time,
 }
 
 /// The simulated recording's sample rate on a time basis when `rate_hz` is not given [Hz].
@@ -101,24 +114,21 @@ const DEFAULT_RATE_HZ: f64 = 10_000.0;
 pub struct IdentSpec {
     /// `repeat`, `wu`, `rel:FRACTION` or an absolute residual.
     #[serde(default = "default_cutoff")]
-    pub cutoff: String,
+    pub cutoff: Selection,
     /// `thesis`, `sigma` or `none`.
-    #[serde(default = "default_scaling")]
-    pub scaling: String,
+    #[serde(default)]
+    pub scaling: Scaling,
 }
 
-fn default_cutoff() -> String {
-    "repeat".into()
-}
-fn default_scaling() -> String {
-    "thesis".into()
+fn default_cutoff() -> Selection {
+    Selection::Rule(Cutoff::Repeat)
 }
 
 impl Default for IdentSpec {
     fn default() -> Self {
         Self {
             cutoff: default_cutoff(),
-            scaling: default_scaling(),
+            scaling: Scaling::default(),
         }
     }
 }
@@ -127,20 +137,21 @@ impl Default for IdentSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EstimatorSpec {
-    /// `ekf`, `ukf`, `srukf` (any model) or `rls`, `rlsf`, `dsfc` (linear in the parameters).
+    /// `ekf`, `ukf`, `srukf` (any model) or `rls`, `rlsf`, `rlsvf`, `kf`, `dsfc` (linear in the
+    /// parameters).
     #[serde(default = "default_method")]
-    pub method: String,
+    pub method: MethodName,
     /// `P0 = p0·I` (scaled coordinates for the non-linear filters; physical for the linear).
     pub p0: Option<f64>,
-    /// Measurement-noise variance R2 of the non-linear filters (default: the batch fit's
-    /// residual variance).
+    /// Measurement-noise variance R2 of the Kalman filters, kf, ekf, ukf, srukf (default: the
+    /// batch fit's residual variance).
     pub r2: Option<f64>,
-    /// Forgetting factor of RLSF and DSFC.
+    /// Forgetting factor of RLSF, RLSVF (the same for every parameter) and DSFC.
     pub lambda: Option<f64>,
 }
 
-fn default_method() -> String {
-    "ukf".into()
+fn default_method() -> MethodName {
+    MethodName::Ukf
 }
 
 impl Default for EstimatorSpec {
@@ -162,8 +173,8 @@ pub struct ObjectiveSpec {
     #[serde(default = "five")]
     pub prediction_within_pct: f64,
     /// `nrmse` or `max_relative`.
-    #[serde(default = "default_metric")]
-    pub metric: String,
+    #[serde(default)]
+    pub metric: Metric,
     /// Start-up transient left out [s].
     #[serde(default)]
     pub after_s: f64,
@@ -172,17 +183,49 @@ pub struct ObjectiveSpec {
 fn five() -> f64 {
     5.0
 }
-fn default_metric() -> String {
-    "nrmse".into()
+/// How the objective measures the one-step-ahead prediction (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Metric {
+    /// `100·rms(y − ŷ)/rms(y)` ([`metrics::nrmse`] in per cent).
+    #[default]
+    Nrmse,
+    /// `max 100·|y − ŷ|/|y|`.
+    MaxRelative,
+}
+
+impl Metric {
+    /// The name as the file spells it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Nrmse => "nrmse",
+            Self::MaxRelative => "max_relative",
+        }
+    }
+
+    /// The metric of `y` predicted by `yhat`, in per cent ([`metrics`]); NaN where it is
+    /// undefined (no samples, an all-zero signal).
+    pub fn percent(self, y: &[f64], yhat: &[f64]) -> f64 {
+        match self {
+            Self::Nrmse => metrics::nrmse(y, yhat).map_or(f64::NAN, |v| 100.0 * v),
+            Self::MaxRelative => metrics::max_relative_percent(y, yhat).unwrap_or(f64::NAN),
+        }
+    }
 }
 
 impl Default for ObjectiveSpec {
     fn default() -> Self {
         Self {
             prediction_within_pct: 5.0,
-            metric: default_metric(),
+            metric: Metric::default(),
             after_s: 0.0,
         }
+    }
+}
+
+impl std::fmt::Display for Metric {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
     }
 }
 
@@ -237,16 +280,11 @@ impl Pipeline {
             _ => {}
         }
         let d = &self.data;
-        if let Some(b) = &d.basis {
-            if b != "time" && b != "crank" {
-                return Err(format!("data.basis '{b}': expected time or crank"));
-            }
-        }
         if let Some(r) = d.rate_hz {
             if !(r.is_finite() && r > 0.0) {
                 return Err(format!("data.rate_hz = {r}: expected a rate > 0 Hz"));
             }
-            if d.basis.as_deref() == Some("crank") {
+            if d.basis == Some(DataBasis::Crank) {
                 return Err("data.rate_hz: a crank-angle basis has no sample rate (one sample per degree): remove it, or basis = \"time\"".into());
             }
         }
@@ -278,17 +316,10 @@ impl Pipeline {
             (None, Some(_)) => {}
         }
         let e = &self.estimator;
-        let nonlinear = matches!(e.method.as_str(), "ekf" | "ukf" | "srukf");
-        let linear = matches!(e.method.as_str(), "rls" | "rlsf" | "dsfc");
-        if !nonlinear && !linear {
-            return Err(format!(
-                "estimator.method '{}': expected ekf, ukf, srukf, rls, rlsf or dsfc",
-                e.method
-            ));
-        }
+        let kalman = e.method.is_model_based() || e.method == MethodName::Kf;
         if let Some(r2) = e.r2 {
-            if !nonlinear {
-                return Err(format!("estimator.r2 is the filters' noise variance: {} does not use it (ekf, ukf, srukf do)", e.method));
+            if !kalman {
+                return Err(format!("estimator.r2 is the Kalman filters' noise variance: {} does not use it (kf, ekf, ukf, srukf do)", e.method));
             }
             if !(r2.is_finite() && r2 > 0.0) {
                 return Err(format!("estimator.r2 = {r2}: expected a variance > 0"));
@@ -305,20 +336,17 @@ impl Pipeline {
                     "estimator.lambda = {l}: a forgetting factor is in (0, 1]"
                 ));
             }
-            if !matches!(e.method.as_str(), "rlsf" | "dsfc") {
+            if !matches!(
+                e.method,
+                MethodName::Rlsf | MethodName::Rlsvf | MethodName::Dsfc
+            ) {
                 return Err(format!(
-                    "estimator.lambda: {} does not forget (rlsf and dsfc do)",
+                    "estimator.lambda: {} does not forget (rlsf, rlsvf and dsfc do)",
                     e.method
                 ));
             }
         }
         let o = &self.objective;
-        if o.metric != "nrmse" && o.metric != "max_relative" {
-            return Err(format!(
-                "objective.metric '{}': expected nrmse or max_relative",
-                o.metric
-            ));
-        }
         if !(o.after_s.is_finite() && o.after_s >= 0.0) {
             return Err(format!("objective.after_s = {}: expected ≥ 0 s", o.after_s));
         }
@@ -328,14 +356,6 @@ impl Pipeline {
                 o.prediction_within_pct
             ));
         }
-        let i = &self.identifiability;
-        if Scaling::parse(&i.scaling).is_none() {
-            return Err(format!(
-                "identifiability.scaling '{}': expected thesis, sigma or none",
-                i.scaling
-            ));
-        }
-        Selection::parse(&i.cutoff).map_err(|e| format!("identifiability.cutoff: {e}"))?;
         Ok(())
     }
 
@@ -351,7 +371,7 @@ impl Pipeline {
 #[derive(Debug, Clone, Serialize)]
 pub struct Objective {
     /// `nrmse` or `max_relative`.
-    pub metric: String,
+    pub metric: Metric,
     /// The value reached [%].
     pub value_pct: f64,
     /// The limit [%].
@@ -374,7 +394,7 @@ pub struct PipelineResult {
     /// The estimable parameters, in rank order.
     pub estimable: Vec<String>,
     /// The estimator.
-    pub method: String,
+    pub method: MethodName,
     /// Nominal values.
     pub nominal: Vec<f64>,
     /// Final values (non-estimable ones at nominal).
@@ -407,10 +427,9 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
             }
             let opts = RunOptions {
                 duration: spec.duration,
-                basis: match spec.basis.as_deref().unwrap_or("time") {
-                    "crank" => OutputBasis::Crank(1.0),
-                    "time" => OutputBasis::Time(spec.rate_hz.unwrap_or(DEFAULT_RATE_HZ)),
-                    b => return Err(format!("data.basis '{b}': expected crank or time")),
+                basis: match spec.basis.unwrap_or(DataBasis::Time) {
+                    DataBasis::Crank => OutputBasis::Crank(1.0),
+                    DataBasis::Time => OutputBasis::Time(spec.rate_hz.unwrap_or(DEFAULT_RATE_HZ)),
                 },
                 ..Default::default()
             };
@@ -491,20 +510,14 @@ fn run_with(
         inputs: cols.iter().map(|c| c.as_slice()).collect(),
         y: Some(&y),
     };
-    let scaling = Scaling::parse(&p.identifiability.scaling).ok_or_else(|| {
-        format!(
-            "identifiability.scaling '{}': expected thesis, sigma or none",
-            p.identifiability.scaling
-        )
-    })?;
     let config = IdentConfig {
-        scaling,
+        scaling: p.identifiability.scaling,
         ..IdentConfig::default()
     };
     let analysis = analyse(model, &data, &nominal, &free, config).map_err(|e| e.to_string())?;
-    let selection = Selection::parse(&p.identifiability.cutoff)
-        .map_err(|e| format!("identifiability.cutoff: {e}"))?;
-    let (k, _) = selection
+    let (k, _) = p
+        .identifiability
+        .cutoff
         .resolve(model, &data, &analysis)
         .map_err(|e| e.to_string())?;
     let estimable: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
@@ -522,13 +535,13 @@ fn run_with(
         rows: n,
         ranking: analysis.ranked(k),
         estimable: est_names.iter().map(|s| s.to_string()).collect(),
-        method: p.estimator.method.clone(),
+        method: p.estimator.method,
         nominal: nominal.clone(),
         params: nominal.clone(),
         std_err: vec![None; names.len()],
         unresolved: Vec::new(),
         objective: Objective {
-            metric: p.objective.metric.clone(),
+            metric: p.objective.metric,
             value_pct: f64::NAN,
             limit_pct: p.objective.prediction_within_pct,
             samples: 0,
@@ -542,26 +555,39 @@ fn run_with(
             .map(|&j| (names[j].clone(), Vec::new()))
             .collect(),
     };
-    let mut est: Box<dyn Recursive> = match p.estimator.method.as_str() {
-        "ekf" | "ukf" | "srukf" => {
-            let method = match p.estimator.method.as_str() {
-                "ekf" => NlMethod::Ekf,
-                "ukf" => NlMethod::Ukf(SigmaPoints::default()),
+    // R2 of the Kalman filters: given, or the batch fit's residual variance.
+    let r2 = || -> Result<f64, String> {
+        Ok(match p.estimator.r2 {
+            Some(v) => v,
+            None => {
+                let fit = fit_subset(model, &data, &nominal, &estimable, 20)
+                    .map_err(|e| e.to_string())?;
+                (fit.rss / (n.saturating_sub(estimable.len())).max(1) as f64).max(f64::MIN_POSITIVE)
+            }
+        })
+    };
+    let lambda = p.estimator.lambda.unwrap_or(1.0);
+    let linear = |method: Method| -> Result<Box<dyn Recursive>, String> {
+        let config = EstimatorConfig {
+            p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
+            ..EstimatorConfig::new(method)
+        };
+        Ok(Box::new(
+            LinearInParams::new(model.clone(), &set, &free_set, &config)
+                .map_err(|e| e.to_string())?,
+        ))
+    };
+    let mut est: Box<dyn Recursive> = match p.estimator.method {
+        m @ (MethodName::Ekf | MethodName::Ukf | MethodName::Srukf) => {
+            let method = match m {
+                MethodName::Ekf => NlMethod::Ekf,
+                MethodName::Ukf => NlMethod::Ukf(SigmaPoints::default()),
                 _ => NlMethod::Srukf(SigmaPoints::default()),
             };
             let scaled = estimable.iter().all(|&j| nominal[j] != 0.0);
-            let r2 = match p.estimator.r2 {
-                Some(v) => v,
-                None => {
-                    let fit = fit_subset(model, &data, &nominal, &estimable, 20)
-                        .map_err(|e| e.to_string())?;
-                    (fit.rss / (n.saturating_sub(estimable.len())).max(1) as f64)
-                        .max(f64::MIN_POSITIVE)
-                }
-            };
             let nl = NlConfig {
                 p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 })),
-                r2,
+                r2: r2()?,
                 scaled,
                 ..NlConfig::new(method)
             };
@@ -570,27 +596,17 @@ fn run_with(
                     .map_err(|e| e.to_string())?,
             )
         }
-        "rls" | "rlsf" | "dsfc" => {
-            let lambda = p.estimator.lambda.unwrap_or(1.0);
-            let method = match p.estimator.method.as_str() {
-                "rls" => Method::Rls,
-                "rlsf" => Method::Rlsf { lambda },
-                _ => Method::Dsfc { lambda },
-            };
-            let config = EstimatorConfig {
-                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
-                ..EstimatorConfig::new(method)
-            };
-            Box::new(
-                LinearInParams::new(model.clone(), &set, &free_set, &config)
-                    .map_err(|e| e.to_string())?,
-            )
-        }
-        m => {
-            return Err(format!(
-                "estimator.method '{m}': expected ekf, ukf, srukf, rls, rlsf or dsfc"
-            ))
-        }
+        MethodName::Rls => linear(Method::Rls)?,
+        MethodName::Rlsf => linear(Method::Rlsf { lambda })?,
+        MethodName::Rlsvf => linear(Method::Rlsvf {
+            lambdas: vec![lambda; estimable.len()],
+            variant: Default::default(),
+        })?,
+        MethodName::Kf => linear(Method::Kalman {
+            r1: CovSpec::Scaled(0.0),
+            r2: r2()?,
+        })?,
+        MethodName::Dsfc => linear(Method::Dsfc { lambda })?,
     };
     let mut prediction = vec![0.0; n];
     let mut u = vec![0.0; cols.len()];
@@ -632,23 +648,7 @@ fn run_with(
         .position(|&ti| ti - t[0] >= p.objective.after_s)
         .unwrap_or(n);
     let (ys, ps) = (&y[start..], &prediction[start..]);
-    let value = match p.objective.metric.as_str() {
-        "nrmse" => {
-            let e: f64 = ys.iter().zip(ps).map(|(a, b)| (a - b) * (a - b)).sum();
-            let s: f64 = ys.iter().map(|a| a * a).sum();
-            100.0 * (e / s).sqrt()
-        }
-        "max_relative" => ys
-            .iter()
-            .zip(ps)
-            .map(|(a, b)| 100.0 * (a - b).abs() / a.abs())
-            .fold(0.0, f64::max),
-        m => {
-            return Err(format!(
-                "objective.metric '{m}': expected nrmse or max_relative"
-            ))
-        }
-    };
+    let value = p.objective.metric.percent(ys, ps);
     out.objective.value_pct = value;
     out.objective.samples = ys.len();
     out.objective.met = !ys.is_empty() && value <= p.objective.prediction_within_pct;

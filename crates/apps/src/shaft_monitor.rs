@@ -40,12 +40,20 @@ impl MonitorMethod {
         }
     }
 
-    fn name(self) -> &'static str {
+    /// The name (`rls`, `rlsvf`, `dsfc`).
+    pub fn name(self) -> &'static str {
         match self {
             Self::Rls => "rls",
             Self::Rlsvf => "rlsvf",
             Self::Dsfc => "dsfc",
         }
+    }
+}
+
+impl std::str::FromStr for MonitorMethod {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::parse(s).ok_or_else(|| format!("'{s}': expected rls, rlsvf or dsfc"))
     }
 }
 

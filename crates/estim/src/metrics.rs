@@ -77,3 +77,19 @@ mod tests {
         assert_eq!(fit_percent(&[2.0, 2.0], &[1.0, 2.0]), None);
     }
 }
+
+/// Largest relative error in per cent, `max 100·|y − ŷ|/|y|` — for a signal that keeps its
+/// sign (a friction torque); `None` if empty or of different lengths (∞ if a measured sample
+/// is 0 and mispredicted).
+pub fn max_relative_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
+    if measured.is_empty() || measured.len() != predicted.len() {
+        return None;
+    }
+    Some(
+        measured
+            .iter()
+            .zip(predicted)
+            .map(|(m, p)| 100.0 * (m - p).abs() / m.abs())
+            .fold(0.0, f64::max),
+    )
+}

@@ -430,6 +430,37 @@ pub enum Selection {
     },
 }
 
+/// A number as a user writes it: `1e-6`, not `0.000001`.
+fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-3..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+impl std::fmt::Display for Selection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.to_text())
+    }
+}
+
+impl std::str::FromStr for Selection {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::parse(s)
+    }
+}
+
+/// Read from its text form (`"repeat"`, `"wu"`, `"rel:1e-6"`, `"0.5"`), so that a pipeline
+/// file's cut-off is checked when the file is read.
+impl<'de> Deserialize<'de> for Selection {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let text = String::deserialize(d)?;
+        Self::parse(&text).map_err(serde::de::Error::custom)
+    }
+}
+
 impl Selection {
     /// Parse `repeat`, `wu`, `rel:F` (relative cut-off) or a number (absolute cut-off); the
     /// error says what was expected.
@@ -450,6 +481,16 @@ impl Selection {
                 Some(r) => Ok(Self::Rule(Cutoff::Relative(number(r)?))),
                 None => Ok(Self::Rule(Cutoff::Absolute(number(t)?))),
             },
+        }
+    }
+
+    /// The text [`parse`](Self::parse) reads back (`repeat`, `wu`, `rel:F`, a number).
+    pub fn to_text(&self) -> String {
+        match self {
+            Self::Rule(Cutoff::Repeat) => "repeat".into(),
+            Self::Rule(Cutoff::Relative(r)) => format!("rel:{}", short(*r)),
+            Self::Rule(Cutoff::Absolute(a)) => short(*a),
+            Self::Wu { .. } => "wu".into(),
         }
     }
 

@@ -56,6 +56,19 @@ impl Scaling {
     }
 }
 
+impl std::fmt::Display for Scaling {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Scaling {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::parse(s).ok_or_else(|| format!("'{s}': expected thesis, sigma or none"))
+    }
+}
+
 /// Columns of data: one slice per model input (in the model's input order), all the same
 /// length, and optionally the measured output.
 #[derive(Debug, Clone)]

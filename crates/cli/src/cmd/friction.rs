@@ -143,7 +143,7 @@ struct FitArgs {
     /// How many ranked coefficients to estimate: repeat (the thesis's), wu, rel:FRACTION or an
     /// absolute residual.
     #[arg(long, default_value = "repeat")]
-    cutoff: String,
+    cutoff: Selection,
     /// DSFC initial square-root covariance S0 = s0·I, in relative coordinates c = c0·(1 + x).
     #[arg(long, default_value_t = 10.0)]
     s0: f64,
@@ -179,7 +179,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     let mut cfg = FrictionFitConfig::new(d, st);
     cfg.source = TorqueSource::parse(&a.source)
         .ok_or_else(|| miette!("--source '{}': expected engine or shaft", a.source))?;
-    cfg.selection = Selection::parse(&a.cutoff).map_err(|e| miette!("--cutoff: {e}"))?;
+    cfg.selection = a.cutoff;
     cfg.s0 = a.s0;
     cfg.lambda = a.lambda;
     cfg.transient_s = a.transient;

@@ -33,7 +33,7 @@ pub struct Args {
     pub y: Option<String>,
     /// Sensitivity scaling: thesis (ϑ0/y, Eq. 5.11), sigma (ϑ0/σ_y) or none.
     #[arg(long, default_value = "thesis")]
-    pub scaling: String,
+    pub scaling: Scaling,
     /// Thesis-scaling guard: rows with |y| below this fraction of rms(y) divide by it instead.
     #[arg(long, default_value_t = 1e-3)]
     pub guard: f64,
@@ -43,7 +43,7 @@ pub struct Args {
     /// Cut-off: repeat (the thesis's: stop when a column repeats), a number (absolute residual
     /// sum of squares), or wu (the MSE criterion of Wu et al. 2011; needs --y).
     #[arg(long, default_value = "repeat", conflicts_with = "cutoff_rel")]
-    pub cutoff: String,
+    pub cutoff: Selection,
     /// Cut-off relative to the first residual.
     #[arg(long)]
     pub cutoff_rel: Option<f64>,
@@ -87,7 +87,7 @@ fn cutoff(args: &Args) -> Result<Selection> {
         }
         return Ok(Selection::Rule(Cutoff::Relative(r)));
     }
-    match Selection::parse(&args.cutoff).map_err(|e| miette!("--cutoff: {e}"))? {
+    match args.cutoff {
         Selection::Wu { .. } if args.y.is_none() => Err(miette!(
             "--cutoff wu fits the top-ranked parameters: it needs the measured output, --y COL"
         )),
@@ -119,14 +119,8 @@ pub fn run(args: &Args) -> Result<()> {
 /// Analyse every `--data` file (printing each table unless `--json`); the JSON report of each.
 pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
     let (model, nominal) = build(args)?;
-    let scaling = Scaling::parse(&args.scaling).ok_or_else(|| {
-        miette!(
-            "--scaling '{}': expected thesis, sigma or none",
-            args.scaling
-        )
-    })?;
     let config = IdentConfig {
-        scaling,
+        scaling: args.scaling,
         guard: args.guard,
         centre: args.centre,
     };

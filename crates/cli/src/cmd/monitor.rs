@@ -33,7 +33,7 @@ struct ShaftArgs {
     input: InputArgs,
     /// Estimator: rls, rlsvf or dsfc.
     #[arg(long, default_value = "rls")]
-    method: String,
+    method: MonitorMethod,
     /// Forgetting factor, 0 < λ ≤ 1.
     #[arg(long, default_value_t = 0.98, value_parser = super::range::forgetting, allow_negative_numbers = true)]
     lambda: f64,
@@ -72,8 +72,7 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// The monitor's configuration from the flags.
 fn config(a: &ShaftArgs) -> Result<MonitorConfig> {
-    let method = MonitorMethod::parse(&a.method)
-        .ok_or_else(|| miette!("--method '{}': expected rls, rlsvf or dsfc", a.method))?;
+    let method = a.method;
     let mut cfg = MonitorConfig {
         method,
         lambda: a.lambda,

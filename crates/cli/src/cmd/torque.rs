@@ -8,7 +8,7 @@ use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::torque_fit::{cyclic_torque_nominal, torque_fit, TorqueFit, TorqueFitConfig};
 use physid_core::Recording;
-use physid_estim::{NlMethod, SigmaPoints};
+use physid_estim::NlMethod;
 use physid_ident::Selection;
 use physid_models::cyclic_torque::PARAMS;
 use physid_sim::params::CellParams;
@@ -42,7 +42,7 @@ struct FitArgs {
     input: super::InputArgs,
     /// Filter: ekf, ukf or srukf.
     #[arg(long, default_value = "ukf")]
-    method: String,
+    method: NlMethod,
     /// Parameters known by design, held at their nominal values (δ's nominal value is 0 and
     /// cannot be scaled).
     #[arg(long, value_delimiter = ',', default_value = "delta")]
@@ -50,7 +50,7 @@ struct FitArgs {
     /// How many ranked parameters to estimate: rel:FRACTION (default rel:1e-6), repeat, wu or
     /// an absolute residual.
     #[arg(long, default_value = "rel:1e-6")]
-    cutoff: String,
+    cutoff: Selection,
     /// Nominal (initial) values NAME=VALUE (SI: kg, m; c in kPa units) over the built-in test
     /// cell's engine, e.g. --nominal M_rec=0.82,b=0.0541.
     #[arg(long, value_delimiter = ',')]
@@ -91,14 +91,9 @@ fn config(a: &FitArgs) -> Result<TorqueFitConfig> {
         nominal[j] = v;
     }
     let mut cfg = TorqueFitConfig::new(nominal);
-    cfg.method = match a.method.as_str() {
-        "ekf" => NlMethod::Ekf,
-        "ukf" => NlMethod::Ukf(SigmaPoints::default()),
-        "srukf" => NlMethod::Srukf(SigmaPoints::default()),
-        m => return Err(miette!("--method '{m}': expected ekf, ukf or srukf")),
-    };
+    cfg.method = a.method;
     cfg.fixed = a.fix.iter().map(|s| s.trim().to_string()).collect();
-    cfg.selection = Selection::parse(&a.cutoff).map_err(|e| miette!("--cutoff: {e}"))?;
+    cfg.selection = a.cutoff;
     cfg.p0 = a.p0;
     if let Some(r2) = a.r2 {
         if !(r2.is_finite() && r2 > 0.0) {
