@@ -50,6 +50,22 @@ pub fn fit_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
     (var != 0.0).then(|| 100.0 * (1.0 - (err / var).sqrt()))
 }
 
+/// Largest relative error in per cent, `max 100·|y − ŷ|/|y|` — for a signal that keeps its
+/// sign (a friction torque); `None` if empty or of different lengths (∞ if a measured sample
+/// is 0 and mispredicted).
+pub fn max_relative_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
+    if measured.is_empty() || measured.len() != predicted.len() {
+        return None;
+    }
+    Some(
+        measured
+            .iter()
+            .zip(predicted)
+            .map(|(m, p)| 100.0 * (m - p).abs() / m.abs())
+            .fold(0.0, f64::max),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -66,6 +82,9 @@ mod tests {
         assert!((nrmse(&m, &p).unwrap() - (4.0f64 / 30.0).sqrt()).abs() < 1e-15);
         assert!((fit_percent(&m, &p).unwrap() - 100.0 * (1.0 - 0.8f64.sqrt())).abs() < 1e-12);
         assert_eq!(fit_percent(&m, &m), Some(100.0));
+        // |4 − 6|/4 = 50 %; −2 predicted as −1: 50 % too (the sign of y does not matter).
+        assert_eq!(max_relative_percent(&m, &p), Some(50.0));
+        assert_eq!(max_relative_percent(&[-2.0], &[-1.0]), Some(50.0));
     }
 
     #[test]
@@ -75,21 +94,6 @@ mod tests {
         assert_eq!(nmse(&[1.0, -1.0], &[1.0, -1.0]), None);
         assert_eq!(nrmse(&[0.0], &[1.0]), None);
         assert_eq!(fit_percent(&[2.0, 2.0], &[1.0, 2.0]), None);
+        assert_eq!(max_relative_percent(&[], &[]), None);
     }
-}
-
-/// Largest relative error in per cent, `max 100·|y − ŷ|/|y|` — for a signal that keeps its
-/// sign (a friction torque); `None` if empty or of different lengths (∞ if a measured sample
-/// is 0 and mispredicted).
-pub fn max_relative_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
-    if measured.is_empty() || measured.len() != predicted.len() {
-        return None;
-    }
-    Some(
-        measured
-            .iter()
-            .zip(predicted)
-            .map(|(m, p)| 100.0 * (m - p).abs() / m.abs())
-            .fold(0.0, f64::max),
-    )
 }
