@@ -231,6 +231,26 @@ impl TestCell {
         &self.x
     }
 
+    /// The dynamometer's angle θ_dy [rad].
+    pub fn theta_dy(&self) -> f64 {
+        self.x[TH_DY]
+    }
+
+    /// The dynamometer's speed ω_dy [rad/s].
+    pub fn omega_dy(&self) -> f64 {
+        self.x[W_DY]
+    }
+
+    /// The engine's angle θ_en [rad] (0 at firing TDC).
+    pub fn theta_en(&self) -> f64 {
+        self.x[TH_EN]
+    }
+
+    /// The engine's speed ω_en [rad/s].
+    pub fn omega_en(&self) -> f64 {
+        self.x[W_EN]
+    }
+
     /// The engine model.
     pub fn engine(&self) -> &Engine {
         &self.engine

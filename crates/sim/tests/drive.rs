@@ -224,8 +224,8 @@ fn steady_twist_is_torque_over_stiffness() {
     }
     // Time averages (samples are one crank degree apart, not equally spaced in time).
     let (mut tw, mut tq, mut n) = (0.0, 0.0, 0.0);
-    let start = cell.state()[10];
-    while cell.state()[10] < start + 20.0 * 4.0 * PI {
+    let start = cell.theta_en();
+    while cell.theta_en() < start + 20.0 * 4.0 * PI {
         let t0 = cell.time();
         let s = cell.step(&input);
         let dt = cell.time() - t0;

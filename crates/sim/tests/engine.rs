@@ -69,7 +69,7 @@ fn mass_conserved(order: f64) {
         demand: Demand::Speed(w),
         throttle_deg: 3.0,
     };
-    while cell.state()[10] < 100.0 * 4.0 * PI {
+    while cell.theta_en() < 100.0 * 4.0 * PI {
         cell.step(&inputs);
     }
     let m1 = total(cell.state());
@@ -360,7 +360,7 @@ fn steps_fall_on_the_crank_angle_grid() {
             demand: Demand::Speed(demand),
             throttle_deg: 90.0,
         });
-        let th = cell.state()[10];
+        let th = cell.theta_en();
         if k > 0 {
             worst = worst.max((th / h - (th / h).round()).abs() * h);
         }
@@ -425,7 +425,6 @@ fn plausible_against_the_thesis() {
     );
     assert!(wot.torque_mean_nm.reciprocating.abs() < 1e-6);
     // Back-flow into the intake at part throttle, just after the intake valve opens.
-    let e = Engine::new(&p.engine, &p.ambient);
     let part = motored_cycle(&p, 1000.0, 3.0).unwrap();
     let ivo = p.engine.ivo;
     let p_cyl_at = |deg: f64| part.p_cyl_pa[(deg.round() as usize) % 720];
@@ -435,5 +434,4 @@ fn plausible_against_the_thesis() {
         p_cyl_at(ivo + 5.0),
         part.p_int_mean_pa
     );
-    let _ = e;
 }

@@ -1,413 +1,18 @@
-//! Running a scenario: the cell stepped one crank increment at a time with the scenario's
-//! demand, throttle and faults, and the acquisition as it goes — each output grid point carried
-//! from the two steps around it, then measured by its sensor (SPEC §2.7) — into a
-//! [`Recording`] with the DESIGN.md channel names. Only the output is kept: a run's memory is
-//! its recording's.
-//!
-//! Sensors act on the output samples: `y = gain·lag(x) + offset + noise`, quantised; the
-//! encoders count `floor(θ/q)` pulses (a lost-pulse fault drops pulses at random, for good);
-//! the TDC marker is 1 on the first sample of each engine revolution (θ_en passing a multiple
-//! of 2π from firing TDC). The true torque components and the cylinder temperature come along
-//! as `true_*` channels, the parameters and faults in the metadata: the ground truth that
-//! identification results are checked against.
+//! The acquisition (SPEC §2.7) as the cell steps: the output grid placed between the solver's
+//! steps, each channel carried to it and measured by its sensor, chunk by chunk; the encoders'
+//! counts and the TDC marker; the recording and its metadata at the end.
 
-use crate::cell::{Inputs, Sample, TestCell};
-use crate::control::{inverse_park, Demand};
-use crate::numeric::{expm1, floor, round, wrap720, SinCosTrack};
-use crate::params::{CellParams, SensorParams};
+use super::channels::{raw_index, Between, Row, Source, OUTPUT, RAW, T, THETA_DY, THETA_EN};
+use super::sensors::{Prepared, SensorKind, SensorState};
+use super::{OutputBasis, SimError};
+use crate::numeric::{floor, wrap720};
+use crate::params::CellParams;
 use crate::scenario::{Fault, Scenario};
 use physid_core::{Basis, Channel, Recording};
-use rand::{Rng, SeedableRng};
-use rand_distr::StandardNormal;
+use rand::Rng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::{PI, TAU};
-use thiserror::Error;
 use Between::{Hold, Linear};
-
-/// Errors of a run.
-#[derive(Debug, Error, PartialEq)]
-pub enum SimError {
-    /// A bad parameter, scenario or fault, explained.
-    #[error("{0}")]
-    Invalid(String),
-    /// The solution left the physical domain (a volume emptied, a temperature went
-    /// negative): the step, time and what.
-    #[error("the simulation diverged at t = {t:.6} s: {what}; try a smaller solver.step_deg")]
-    Diverged {
-        /// Time [s].
-        t: f64,
-        /// What went wrong.
-        what: String,
-    },
-}
-
-/// The output basis.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum OutputBasis {
-    /// Uniform time steps at this rate [Hz].
-    Time(f64),
-    /// One sample per this many crank degrees from the first firing TDC.
-    Crank(f64),
-}
-
-/// How to run.
-#[derive(Debug, Clone)]
-pub struct RunOptions {
-    /// Base parameters. The scenario's own `set` is applied over them: to override one of a
-    /// scenario's settings, put it in the scenario's `set` (as `physid simulate --set` does).
-    pub params: CellParams,
-    /// Recorded duration [s] (the scenario's if `None`).
-    pub duration: Option<f64>,
-    /// Extra faults (`--fault`).
-    pub faults: Vec<Fault>,
-    /// Output basis.
-    pub basis: OutputBasis,
-}
-
-impl Default for RunOptions {
-    fn default() -> Self {
-        Self {
-            params: CellParams::default(),
-            duration: None,
-            faults: Vec::new(),
-            basis: OutputBasis::Time(10_000.0),
-        }
-    }
-}
-
-/// The truth the cell gives at each solver step, in the order of a [`raw_row`] (each is
-/// recorded under its name, [`OUTPUT`]).
-const RAW: [&str; 30] = [
-    "t",
-    "theta_en",
-    "theta_dy",
-    "omega_en",
-    "omega_dy",
-    "alpha_en",
-    "alpha_dy",
-    "torque_shaft",
-    "torque_engine",
-    "torque_dy",
-    "p_cyl",
-    "p_int",
-    "p_exh",
-    "T_int",
-    "T_exh",
-    "T_oil",
-    "throttle",
-    "speed_demand",
-    "i_a",
-    "i_b",
-    "i_c",
-    "v_a",
-    "v_b",
-    "v_c",
-    "true_torque_indicated",
-    "true_torque_reciprocating",
-    "true_torque_friction",
-    "true_T_cyl",
-    "true_shaft_k",
-    "true_shaft_b",
-];
-
-/// The columns the acquisition reads itself: time and the two angles.
-const T: usize = 0;
-const THETA_EN: usize = 1;
-const THETA_DY: usize = 2;
-
-/// One row of truth, [`RAW`]'s columns.
-type Row = [f64; RAW.len()];
-
-/// The position of `name` in [`RAW`] (the names are this module's own: an unknown one is a
-/// bug, caught by every run in the tests).
-fn raw_index(name: &str) -> usize {
-    let i = RAW.iter().position(|&c| c == name);
-    debug_assert!(i.is_some(), "no raw column {name}");
-    i.unwrap_or(0)
-}
-
-/// The truth of sample `s`, the cell running with `p`; `sc` is `(sin, cos)` of the machine
-/// frame's angle.
-fn raw_row(s: &Sample, p: &CellParams, sc: (f64, f64)) -> Row {
-    let i = inverse_park(s.i_dq, sc);
-    let v = inverse_park(s.v_dq, sc);
-    [
-        s.t,
-        s.theta_en,
-        s.theta_dy,
-        s.omega_en,
-        s.omega_dy,
-        s.alpha_en,
-        s.alpha_dy,
-        s.torque_shaft,
-        s.torque_engine,
-        s.torque_dy,
-        s.gas.p[1],
-        s.gas.p[0],
-        s.gas.p[2],
-        s.temperatures[0],
-        s.temperatures[2],
-        p.engine.t_oil,
-        s.throttle_deg,
-        s.demand,
-        i[0],
-        i[1],
-        i[2],
-        v[0],
-        v[1],
-        v[2],
-        s.torque_indicated,
-        s.torque_reciprocating,
-        s.torque_friction,
-        s.temperatures[1],
-        p.shaft.k,
-        p.shaft.b,
-    ]
-}
-
-/// How a raw column is carried from the solver's steps to the output grid.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Between {
-    /// Linear interpolation (the states and what follows from them).
-    Linear,
-    /// The value of the step that contains the point: for what the cell holds over a step
-    /// (the throttle, the demand, the parameters a fault changes), so that a stepped input or
-    /// fault never shows a value between its two levels. A point within 1 % of a step's length
-    /// before the next step counts as on it (the crank-angle grid's steps land within 0.1 %).
-    Hold,
-}
-
-impl Between {
-    /// The value at fraction `f` ∈ [0, 1] of the way from `y0` to `y1`.
-    fn carry(self, y0: f64, y1: f64, f: f64) -> f64 {
-        match self {
-            Between::Linear => y0 + f * (y1 - y0),
-            Between::Hold if f >= 0.99 => y1,
-            Between::Hold => y0,
-        }
-    }
-}
-
-/// Which sensor measures a channel (SPEC §2.7).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum SensorKind {
-    Speed,
-    TorqueShaft,
-    TorqueEngine,
-    PCyl,
-    PManifold,
-    Temperature,
-}
-
-impl SensorKind {
-    /// This kind's parameters in `p`.
-    fn params(self, p: &CellParams) -> SensorParams {
-        let s = &p.sensors;
-        match self {
-            SensorKind::Speed => s.speed,
-            SensorKind::TorqueShaft => s.torque_shaft,
-            SensorKind::TorqueEngine => s.torque_engine,
-            SensorKind::PCyl => s.p_cyl,
-            SensorKind::PManifold => s.p_manifold,
-            SensorKind::Temperature => s.temperature,
-        }
-    }
-}
-
-/// Where an output channel's values come from.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Source {
-    /// The raw column of the channel's name carried to the grid, measured by a sensor if one
-    /// is named.
-    Raw(Between, Option<SensorKind>),
-    /// The sample's time: the grid itself on a time basis, the interpolated time on a crank
-    /// basis.
-    Time,
-    /// Crank basis: the angle from the first firing TDC [rad], the cycle number, the angle
-    /// in the cycle [deg].
-    Theta,
-    Cycle,
-    CrankDeg,
-    /// The ambient pressure (crankcase and atmosphere).
-    Ambient,
-    /// Encoder counts `floor(θ/q)`, the engine's less the pulses lost; the TDC marker.
-    CountEn,
-    CountDy,
-    Tdc,
-}
-
-/// The recording's channels, in order, with their units (DESIGN.md); the crank-basis ones
-/// only there.
-const OUTPUT: [(&str, &str, Source); 38] = [
-    ("t", "s", Source::Time),
-    ("theta", "rad", Source::Theta),
-    ("cycle", "-", Source::Cycle),
-    ("crank_deg", "deg", Source::CrankDeg),
-    ("theta_en", "rad", Source::Raw(Linear, None)),
-    ("theta_dy", "rad", Source::Raw(Linear, None)),
-    (
-        "omega_en",
-        "rad/s",
-        Source::Raw(Linear, Some(SensorKind::Speed)),
-    ),
-    (
-        "omega_dy",
-        "rad/s",
-        Source::Raw(Linear, Some(SensorKind::Speed)),
-    ),
-    ("alpha_en", "rad/s^2", Source::Raw(Linear, None)),
-    ("alpha_dy", "rad/s^2", Source::Raw(Linear, None)),
-    (
-        "torque_shaft",
-        "N*m",
-        Source::Raw(Linear, Some(SensorKind::TorqueShaft)),
-    ),
-    (
-        "torque_engine",
-        "N*m",
-        Source::Raw(Linear, Some(SensorKind::TorqueEngine)),
-    ),
-    ("torque_dy", "N*m", Source::Raw(Linear, None)),
-    ("p_cyl", "Pa", Source::Raw(Linear, Some(SensorKind::PCyl))),
-    (
-        "p_int",
-        "Pa",
-        Source::Raw(Linear, Some(SensorKind::PManifold)),
-    ),
-    (
-        "p_exh",
-        "Pa",
-        Source::Raw(Linear, Some(SensorKind::PManifold)),
-    ),
-    ("p_crank", "Pa", Source::Ambient),
-    ("p_atm", "Pa", Source::Ambient),
-    (
-        "T_oil",
-        "K",
-        Source::Raw(Hold, Some(SensorKind::Temperature)),
-    ),
-    (
-        "T_int",
-        "K",
-        Source::Raw(Linear, Some(SensorKind::Temperature)),
-    ),
-    (
-        "T_exh",
-        "K",
-        Source::Raw(Linear, Some(SensorKind::Temperature)),
-    ),
-    ("throttle", "deg", Source::Raw(Hold, None)),
-    ("speed_demand", "rad/s", Source::Raw(Hold, None)),
-    ("i_a", "A", Source::Raw(Linear, None)),
-    ("i_b", "A", Source::Raw(Linear, None)),
-    ("i_c", "A", Source::Raw(Linear, None)),
-    ("v_a", "V", Source::Raw(Linear, None)),
-    ("v_b", "V", Source::Raw(Linear, None)),
-    ("v_c", "V", Source::Raw(Linear, None)),
-    ("count_en", "-", Source::CountEn),
-    ("count_dy", "-", Source::CountDy),
-    ("tdc", "-", Source::Tdc),
-    // The true torques and T_cyl are states'; the shaft's parameters are held over a step.
-    ("true_torque_indicated", "N*m", Source::Raw(Linear, None)),
-    (
-        "true_torque_reciprocating",
-        "N*m",
-        Source::Raw(Linear, None),
-    ),
-    ("true_torque_friction", "N*m", Source::Raw(Linear, None)),
-    ("true_T_cyl", "K", Source::Raw(Linear, None)),
-    ("true_shaft_k", "N*m/rad", Source::Raw(Hold, None)),
-    ("true_shaft_b", "N*m*s/rad", Source::Raw(Hold, None)),
-];
-
-/// A first-order sensor's state over the output samples, with its own noise stream (so that
-/// one sensor's settings never change another's noise).
-struct SensorState {
-    lagged: Option<f64>,
-    rng: Xoshiro256PlusPlus,
-}
-
-impl SensorState {
-    /// Stream `stream` of `seed`: xoshiro256++ seeded through SplitMix64 from `seed` and the
-    /// stream number spread by the golden ratio (so that neighbouring streams and seeds start
-    /// far apart in the generator's 2²⁵⁶ − 1 period).
-    fn new(seed: u64, stream: u64) -> Self {
-        let rng =
-            Xoshiro256PlusPlus::seed_from_u64(seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15));
-        Self { lagged: None, rng }
-    }
-
-    /// Measure consecutive samples `x` in place, all with the sensor's parameters `s`:
-    /// `y = gain·lag(x) + offset + noise`, quantised. `decay[k]` is the lag's
-    /// [`Prepared::decay`] over the time since the sample before `x[k]`. Each step of the
-    /// measurement is one pass over the samples (no choice made per sample).
-    fn measure(&mut self, s: &Prepared, x: &mut [f64], decay: &[f64]) {
-        if s.inv_lag > 0.0 {
-            // The exact discretisation of τ·l' = x − l with x held over dt:
-            // l ← l + (x − l)·(1 − e^(−dt/τ)).
-            for (xi, &a) in x.iter_mut().zip(decay) {
-                if let Some(prev) = self.lagged {
-                    *xi = prev + (*xi - prev) * a;
-                }
-                self.lagged = Some(*xi);
-            }
-        } else if let Some(&last) = x.last() {
-            self.lagged = Some(last);
-        }
-        if (s.p.gain, s.p.offset) != (1.0, 0.0) {
-            for xi in x.iter_mut() {
-                *xi = s.p.gain * *xi + s.p.offset;
-            }
-        }
-        if s.p.noise > 0.0 {
-            for xi in x.iter_mut() {
-                *xi += s.p.noise * self.rng.sample::<f64, _>(StandardNormal);
-            }
-        }
-        if s.p.quantum > 0.0 {
-            for xi in x.iter_mut() {
-                *xi = round(*xi * s.inv_quantum) * s.p.quantum;
-            }
-        }
-    }
-
-    /// One sample `x`, `dt` [s] after the one before.
-    fn measure_one(&mut self, s: &Prepared, x: f64, dt: f64) -> f64 {
-        let mut y = [x];
-        self.measure(s, &mut y, &[s.decay(dt)]);
-        y[0]
-    }
-}
-
-/// A sensor's parameters with the reciprocals of its lag and quantum (0 where it has none).
-#[derive(Debug, Clone, Copy)]
-struct Prepared {
-    p: SensorParams,
-    inv_lag: f64,
-    inv_quantum: f64,
-}
-
-impl From<SensorParams> for Prepared {
-    fn from(p: SensorParams) -> Self {
-        let inv = |x: f64| if x > 0.0 { 1.0 / x } else { 0.0 };
-        Self {
-            p,
-            inv_lag: inv(p.lag),
-            inv_quantum: inv(p.quantum),
-        }
-    }
-}
-
-impl Prepared {
-    /// The lag's `1 − e^(−dt/τ)` over `dt` [s] (by `expm1`: no cancellation); 0 without a lag.
-    fn decay(&self, dt: f64) -> f64 {
-        if self.inv_lag > 0.0 {
-            -expm1(-dt * self.inv_lag)
-        } else {
-            0.0
-        }
-    }
-}
 
 /// An output channel being filled.
 struct Output {
@@ -470,9 +75,9 @@ impl Points {
 /// consecutive steps is carried from their truth ([`Between`]) and measured by its sensor. The
 /// steps are taken in chunks of [`CHUNK`], channel by channel; nothing of the truth is kept
 /// beyond the chunk.
-struct Acquisition<'a> {
-    base: &'a CellParams,
-    faults: &'a [Fault],
+pub(super) struct Acquisition {
+    base: CellParams,
+    faults: Vec<Fault>,
     /// Whether a fault changes a sensor (its parameters are then those in force at each
     /// sample).
     sensor_faulted: bool,
@@ -506,12 +111,12 @@ struct Acquisition<'a> {
     decays: Vec<(f64, Vec<f64>)>,
 }
 
-impl<'a> Acquisition<'a> {
+impl Acquisition {
     /// For a run of `duration` [s] with `base` parameters and `faults`, at the starting speed
     /// `w0` [rad/s] (to size the channels).
-    fn new(
-        base: &'a CellParams,
-        faults: &'a [Fault],
+    pub(super) fn new(
+        base: &CellParams,
+        faults: &[Fault],
         basis: OutputBasis,
         duration: f64,
         w0: f64,
@@ -561,8 +166,8 @@ impl<'a> Acquisition<'a> {
             })
             .collect();
         Ok(Self {
-            base,
-            faults,
+            base: base.clone(),
+            faults: faults.to_vec(),
             sensor_faulted: faults.iter().any(|f| f.path.starts_with("sensors.")),
             basis,
             duration,
@@ -587,7 +192,7 @@ impl<'a> Acquisition<'a> {
 
     /// The next solver step's truth: the grid points up to it are placed, and taken when the
     /// chunk is full.
-    fn accept(&mut self, row: &Row) -> Result<(), SimError> {
+    pub(super) fn accept(&mut self, row: &Row) -> Result<(), SimError> {
         self.seen += 1;
         if self.steps == 0 {
             // The grid starts at or after the first row: t = 0, or the first firing TDC.
@@ -644,6 +249,13 @@ impl<'a> Acquisition<'a> {
         Ok(())
     }
 
+    /// A fault added during the run (the live cell's controls): its sensor changes are
+    /// applied from now on and it is listed in the metadata.
+    pub(super) fn add_fault(&mut self, fault: Fault) {
+        self.sensor_faulted |= fault.path.starts_with("sensors.");
+        self.faults.push(fault);
+    }
+
     /// Store a step's truth in the chunk.
     fn put(&mut self, row: &Row) {
         for (col, v) in self.cols.iter_mut().zip(row) {
@@ -673,7 +285,7 @@ impl<'a> Acquisition<'a> {
             decays,
             ..
         } = self;
-        let (base, first) = (*base, *first);
+        let (base, first) = (&*base, *first);
         t.clear();
         match basis {
             OutputBasis::Time(_) => t.extend_from_slice(&points.g),
@@ -788,7 +400,7 @@ impl<'a> Acquisition<'a> {
     }
     /// The recording: the channels, the scenario, the faults and the parameters in the
     /// metadata.
-    fn finish(mut self, scenario: &Scenario) -> Result<Recording, SimError> {
+    pub(super) fn finish(mut self, scenario: &Scenario) -> Result<Recording, SimError> {
         if self.seen < 2 {
             return Err(SimError::Invalid(
                 "the run produced fewer than 2 samples".into(),
@@ -839,203 +451,12 @@ fn lag_decays<'d>(decays: &'d mut Vec<(f64, Vec<f64>)>, s: &Prepared, dt: &[f64]
     &decays[i].1
 }
 
-/// Run a scenario.
-pub fn simulate(
-    scenario: &Scenario,
-    opts: &RunOptions,
-    mut progress: impl FnMut(f64),
-) -> Result<Recording, SimError> {
-    scenario.validate().map_err(SimError::Invalid)?;
-    let mut base = opts.params.clone();
-    for (k, v) in &scenario.set {
-        base.set(k, *v).map_err(SimError::Invalid)?;
-    }
-    base.validate().map_err(SimError::Invalid)?;
-    let mut faults: Vec<Fault> = scenario
-        .faults
-        .iter()
-        .map(|f| Fault::parse(f))
-        .collect::<Result<_, _>>()
-        .map_err(SimError::Invalid)?;
-    faults.extend(opts.faults.iter().cloned());
-    let duration = opts.duration.unwrap_or(scenario.duration);
-    if !(duration.is_finite() && duration > 0.0) {
-        return Err(SimError::Invalid(format!(
-            "duration {duration}: expected > 0 s"
-        )));
-    }
-    let torque_mode = scenario.torque_mode || base.dyno.torque_mode != 0.0;
-    // The recording's size, known in advance: refused when it cannot fit (a typo such as
-    // `duration = 1e6` would otherwise grow until the allocator aborts).
-    let per_second = match opts.basis {
-        OutputBasis::Time(rate) => rate,
-        OutputBasis::Crank(step) => {
-            // The fastest demanded speed over the run (1000 rpm when the demand is a torque).
-            let rpm = if torque_mode {
-                1000.0
-            } else {
-                (0..=1000)
-                    .map(|k| scenario.speed.value(duration * f64::from(k) / 1000.0))
-                    .fold(0.0, f64::max)
-            };
-            rpm / 60.0 * 360.0 / step
-        }
-    };
-    physid_core::memory::check_fits(
-        duration * per_second * OUTPUT.len() as f64 * 8.0,
-        &if duration < 1e5 {
-            format!("a recording of {duration} s")
-        } else {
-            format!("a recording of {duration:e} s")
-        },
-    )
-    .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
-    let demand_at = |t: f64| {
-        let v = scenario.speed.value(t.max(0.0));
-        if torque_mode {
-            Demand::Torque(v)
-        } else {
-            Demand::Speed(v * PI / 30.0)
-        }
-    };
-    let w0 = if torque_mode {
-        1000.0 * PI / 30.0
-    } else {
-        scenario.speed.value(0.0) * PI / 30.0
-    };
-    // The cell starts at BDC before firing TDC so the first cycle begins with compression.
-    let mut cell = TestCell::new(base.clone(), w0.max(1.0), -PI).map_err(SimError::Invalid)?;
-    let settle = scenario.settle;
-    let mut acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
-    // The drive's own speed sensor, at every step (from the time of the one before).
-    let mut speed_sensor = SensorState::new(base.sensors.seed as u64, 0);
-    let mut measured_at = cell.time();
-    // The machine frame's angle, for the phase currents and voltages.
-    let mut frame = SinCosTrack::default();
-    let mut last_report = -1.0;
-    loop {
-        let t_rel = cell.time() - settle;
-        Fault::apply_all(&faults, &base, &mut cell.params, t_rel.max(0.0));
-        cell.refresh_live_parameters();
-        let inputs = Inputs {
-            demand: demand_at(t_rel),
-            throttle_deg: scenario.throttle.value(t_rel.max(0.0)),
-        };
-        let w_true = cell.state()[9];
-        let ss = Prepared::from(cell.params.dyno.speed_sensor);
-        let w_meas = speed_sensor.measure_one(&ss, w_true, cell.time() - measured_at);
-        measured_at = cell.time();
-        let mut s = cell.step_with(&inputs, w_meas);
-        check(&s, base.engine.active != 0.0)?;
-        // From the step that spans t = 0 on, so that the output grid starts at 0.
-        if cell.time() - settle > 0.0 {
-            s.t = t_rel;
-            acquisition.accept(&raw_row(&s, &cell.params, frame.at(s.theta_syn)))?;
-        }
-        if t_rel - last_report >= duration / 100.0 {
-            progress((t_rel / duration).clamp(0.0, 1.0));
-            last_report = t_rel;
-        }
-        // One sample past the end, so that the output grid reaches it.
-        if t_rel > duration {
-            break;
-        }
-    }
-    progress(1.0);
-    acquisition.finish(scenario)
-}
-
-/// Catch a state that left the physical domain.
-fn check(s: &Sample, engine_active: bool) -> Result<(), SimError> {
-    let bad = |what: String| Err(SimError::Diverged { t: s.t, what });
-    for (k, name) in ["intake", "cylinder", "exhaust"]
-        .iter()
-        .enumerate()
-        .filter(|_| engine_active)
-    {
-        if !(s.gas.p[k].is_finite() && s.gas.p[k] > 0.0) {
-            return bad(format!("{name} pressure {}", s.gas.p[k]));
-        }
-        if !(s.temperatures[k].is_finite() && s.temperatures[k] > 0.0) {
-            return bad(format!("{name} temperature {}", s.temperatures[k]));
-        }
-    }
-    if !s.omega_en.is_finite() || !s.omega_dy.is_finite() || !s.torque_dy.is_finite() {
-        return bad("speeds or machine torque not finite".into());
-    }
-    Ok(())
-}
-
-/// The true value of a cell parameter at times `t`, from a simulated recording's metadata (its
-/// `param.PATH` value and the faults on PATH); `None` for a recording that does not carry it
-/// (measured data).
-pub fn parameter_truth(rec: &Recording, path: &str, t: &[f64]) -> Option<Vec<f64>> {
-    let v0: f64 = rec.meta.get(&format!("param.{path}"))?.parse().ok()?;
-    let faults: Vec<Fault> = rec
-        .meta
-        .get("faults")
-        .map(|s| {
-            s.split_whitespace()
-                .filter_map(|f| Fault::parse(f).ok())
-                .filter(|f| f.path == path)
-                .collect()
-        })
-        .unwrap_or_default();
-    Some(
-        t.iter()
-            .map(|&ti| {
-                // As `Fault::apply_all`: each fault moves from the base value; a later one on
-                // the same path overrides an earlier one once it has started.
-                faults.iter().fold(v0, |v, f| match f.progress(ti) {
-                    x if x > 0.0 => v0 + (f.value - v0) * x,
-                    _ => v,
-                })
-            })
-            .collect(),
-    )
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use crate::params::SensorParams;
     use crate::scenario::named;
-
-    /// Every raw column is recorded under its own name (the time through `Source::Time`,
-    /// which reads it on a crank basis), and every channel taken from a raw column names one.
-    #[test]
-    fn every_raw_column_is_a_channel() {
-        let raw: Vec<&str> = OUTPUT
-            .iter()
-            .filter(|c| matches!(c.2, Source::Raw(..) | Source::Time))
-            .map(|c| c.0)
-            .collect();
-        let mut sorted = raw.clone();
-        sorted.sort_unstable();
-        let mut want = RAW.to_vec();
-        want.sort_unstable();
-        assert_eq!(sorted, want);
-        assert_eq!(
-            [RAW[T], RAW[THETA_EN], RAW[THETA_DY]],
-            ["t", "theta_en", "theta_dy"]
-        );
-    }
-
-    /// Linear between the steps; held at the containing step's value, a point within 1 % of
-    /// a step before the next counting as on it.
-    #[test]
-    fn carried_linear_and_held() {
-        for (f, lin, held) in [
-            (0.0, 10.0, 10.0),
-            (0.5, 15.0, 10.0),
-            (0.985, 19.85, 10.0),
-            (0.995, 19.95, 20.0),
-            (1.0, 20.0, 20.0),
-        ] {
-            assert!((Linear.carry(10.0, 20.0, f) - lin).abs() < 1e-12, "{f}");
-            assert_eq!(Hold.carry(10.0, 20.0, f), held, "{f}");
-        }
-    }
 
     /// The temperature sensors' first-order lag (τ = 0.5 s, noise off) against its closed
     /// form: a step of 300 → 400 K in T_int at 20 ms reads `400 − 100·e^(−(j+1)·dt/τ)` j samples

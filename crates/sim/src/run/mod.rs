@@ -1,0 +1,306 @@
+//! Running a scenario: the cell stepped one crank increment at a time with the scenario's
+//! demand, throttle and faults, and the acquisition as it goes — each output grid point carried
+//! from the two steps around it, then measured by its sensor (SPEC §2.7) — into a
+//! [`Recording`] with the DESIGN.md channel names. Only the output is kept: a run's memory is
+//! its recording's.
+//!
+//! Sensors act on the output samples: `y = gain·lag(x) + offset + noise`, quantised; the
+//! encoders count `floor(θ/q)` pulses (a lost-pulse fault drops pulses at random, for good);
+//! the TDC marker is 1 on the first sample of each engine revolution (θ_en passing a multiple
+//! of 2π from firing TDC). The true torque components and the cylinder temperature come along
+//! as `true_*` channels, the parameters and faults in the metadata: the ground truth that
+//! identification results are checked against.
+
+use crate::cell::{Inputs, Sample, TestCell};
+use crate::control::Demand;
+use crate::numeric::SinCosTrack;
+use crate::params::CellParams;
+use crate::scenario::{Fault, Profile, Scenario};
+use physid_core::Recording;
+use std::f64::consts::PI;
+use thiserror::Error;
+
+/// Errors of a run.
+#[derive(Debug, Error, PartialEq)]
+pub enum SimError {
+    /// A bad parameter, scenario or fault, explained.
+    #[error("{0}")]
+    Invalid(String),
+    /// The solution left the physical domain (a volume emptied, a temperature went
+    /// negative): the step, time and what.
+    #[error("the simulation diverged at t = {t:.6} s: {what}; try a smaller solver.step_deg")]
+    Diverged {
+        /// Time [s].
+        t: f64,
+        /// What went wrong.
+        what: String,
+    },
+}
+
+/// The output basis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OutputBasis {
+    /// Uniform time steps at this rate [Hz].
+    Time(f64),
+    /// One sample per this many crank degrees from the first firing TDC.
+    Crank(f64),
+}
+
+/// How to run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Base parameters. The scenario's own `set` is applied over them: to override one of a
+    /// scenario's settings, put it in the scenario's `set` (as `physid simulate --set` does).
+    pub params: CellParams,
+    /// Recorded duration [s] (the scenario's if `None`).
+    pub duration: Option<f64>,
+    /// Extra faults (`--fault`).
+    pub faults: Vec<Fault>,
+    /// Output basis.
+    pub basis: OutputBasis,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            params: CellParams::default(),
+            duration: None,
+            faults: Vec::new(),
+            basis: OutputBasis::Time(10_000.0),
+        }
+    }
+}
+
+mod acquisition;
+mod channels;
+mod sensors;
+mod truth;
+
+pub use truth::parameter_truth;
+
+use acquisition::Acquisition;
+use channels::{raw_row, OUTPUT};
+use sensors::{Prepared, SensorState};
+
+/// Run a scenario to its end: a [`Run`] stepped through the whole duration.
+/// `progress` is told the fraction done, about every 1 %.
+pub fn simulate(
+    scenario: &Scenario,
+    opts: &RunOptions,
+    mut progress: impl FnMut(f64),
+) -> Result<Recording, SimError> {
+    let mut run = Run::new(scenario, opts)?;
+    let duration = run.duration();
+    let mut t = 0.0;
+    while !run.is_done() {
+        t += duration / 100.0;
+        run.step_until(t)?;
+        progress((run.time() / duration).clamp(0.0, 1.0));
+    }
+    progress(1.0);
+    run.finish()
+}
+
+/// A scenario being run, one solver step at a time: the cell with the scenario's demand,
+/// throttle and faults, and the acquisition as it goes. [`step_until`](Self::step_until)
+/// advances it to a recording time; between calls its inputs can change
+/// ([`set_speed`](Self::set_speed), [`set_throttle`](Self::set_throttle),
+/// [`add_fault`](Self::add_fault)) — what a paced live cell needs; [`finish`](Self::finish)
+/// gives the recording.
+pub struct Run {
+    scenario: Scenario,
+    base: CellParams,
+    faults: Vec<Fault>,
+    duration: f64,
+    torque_mode: bool,
+    cell: TestCell,
+    acquisition: Acquisition,
+    /// The drive's own speed sensor, read at every step (from the time of the one before).
+    speed_sensor: SensorState,
+    measured_at: f64,
+    /// The machine frame's angle, for the phase currents and voltages.
+    frame: SinCosTrack,
+    done: bool,
+}
+
+impl Run {
+    /// Check the scenario, options and parameters, refuse a recording that cannot fit in
+    /// memory, and start the cell at BDC before firing TDC (so that the first cycle begins
+    /// with compression), `settle` seconds before the recording starts.
+    pub fn new(scenario: &Scenario, opts: &RunOptions) -> Result<Self, SimError> {
+        scenario.validate().map_err(SimError::Invalid)?;
+        let mut base = opts.params.clone();
+        for (k, v) in &scenario.set {
+            base.set(k, *v).map_err(SimError::Invalid)?;
+        }
+        base.validate().map_err(SimError::Invalid)?;
+        let mut faults: Vec<Fault> = scenario
+            .faults
+            .iter()
+            .map(|f| Fault::parse(f))
+            .collect::<Result<_, _>>()
+            .map_err(SimError::Invalid)?;
+        faults.extend(opts.faults.iter().cloned());
+        let duration = opts.duration.unwrap_or(scenario.duration);
+        if !(duration.is_finite() && duration > 0.0) {
+            return Err(SimError::Invalid(format!(
+                "duration {duration}: expected > 0 s"
+            )));
+        }
+        let torque_mode = scenario.torque_mode || base.dyno.torque_mode != 0.0;
+        // The recording's size, known in advance: refused when it cannot fit (a typo such as
+        // `duration = 1e6` would otherwise grow until the allocator aborts).
+        let per_second = match opts.basis {
+            OutputBasis::Time(rate) => rate,
+            OutputBasis::Crank(step) => {
+                // The fastest demanded speed over the run (1000 rpm when the demand is a torque).
+                let rpm = if torque_mode {
+                    1000.0
+                } else {
+                    (0..=1000)
+                        .map(|k| scenario.speed.value(duration * f64::from(k) / 1000.0))
+                        .fold(0.0, f64::max)
+                };
+                rpm / 60.0 * 360.0 / step
+            }
+        };
+        physid_core::memory::check_fits(
+            duration * per_second * OUTPUT.len() as f64 * 8.0,
+            &if duration < 1e5 {
+                format!("a recording of {duration} s")
+            } else {
+                format!("a recording of {duration:e} s")
+            },
+        )
+        .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
+        let w0 = if torque_mode {
+            1000.0 * PI / 30.0
+        } else {
+            scenario.speed.value(0.0) * PI / 30.0
+        };
+        let cell = TestCell::new(base.clone(), w0.max(1.0), -PI).map_err(SimError::Invalid)?;
+        let acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
+        Ok(Self {
+            speed_sensor: SensorState::new(base.sensors.seed as u64, 0),
+            measured_at: cell.time(),
+            frame: SinCosTrack::default(),
+            scenario: scenario.clone(),
+            base,
+            faults,
+            duration,
+            torque_mode,
+            cell,
+            acquisition,
+            done: false,
+        })
+    }
+
+    /// The recording's time now [s] (negative while the cell settles).
+    pub fn time(&self) -> f64 {
+        self.cell.time() - self.scenario.settle
+    }
+
+    /// The recorded duration [s].
+    pub fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    /// Whether the run has reached its end (one step past the duration).
+    pub fn is_done(&self) -> bool {
+        self.done
+    }
+
+    /// The cell's parameters now (faults applied).
+    pub fn params(&self) -> &CellParams {
+        &self.cell.params
+    }
+
+    /// The speed demand [rpm] (a torque demand [N·m] in torque mode) from now on, against the
+    /// recording's time.
+    pub fn set_speed(&mut self, profile: Profile) {
+        self.scenario.speed = profile;
+    }
+
+    /// The throttle opening [deg] from now on, against the recording's time.
+    pub fn set_throttle(&mut self, profile: Profile) {
+        self.scenario.throttle = profile;
+    }
+
+    /// A fault from its time on (relative to the recording's start, as every fault).
+    pub fn add_fault(&mut self, fault: Fault) {
+        self.acquisition.add_fault(fault.clone());
+        self.faults.push(fault);
+    }
+
+    /// Step the cell until the recording's time passes `t` [s] (or the run ends: one step past
+    /// the duration, so that the output grid reaches it).
+    pub fn step_until(&mut self, t: f64) -> Result<(), SimError> {
+        while !self.done && self.time() <= t {
+            self.step()?;
+        }
+        Ok(())
+    }
+
+    /// One solver step with the inputs in force, its truth handed to the acquisition.
+    fn step(&mut self) -> Result<(), SimError> {
+        let settle = self.scenario.settle;
+        let t_rel = self.cell.time() - settle;
+        let cell = &mut self.cell;
+        Fault::apply_all(&self.faults, &self.base, &mut cell.params, t_rel.max(0.0));
+        cell.refresh_live_parameters();
+        let v = self.scenario.speed.value(t_rel.max(0.0));
+        let inputs = Inputs {
+            demand: if self.torque_mode {
+                Demand::Torque(v)
+            } else {
+                Demand::Speed(v * PI / 30.0)
+            },
+            throttle_deg: self.scenario.throttle.value(t_rel.max(0.0)),
+        };
+        let ss = Prepared::from(cell.params.dyno.speed_sensor);
+        let w_meas =
+            self.speed_sensor
+                .measure_one(&ss, cell.omega_dy(), cell.time() - self.measured_at);
+        self.measured_at = cell.time();
+        let mut s = cell.step_with(&inputs, w_meas);
+        check(&s, self.base.engine.active != 0.0)?;
+        // From the step that spans t = 0 on, so that the output grid starts at 0.
+        if cell.time() - settle > 0.0 {
+            s.t = t_rel;
+            self.acquisition
+                .accept(&raw_row(&s, &cell.params, self.frame.at(s.theta_syn)))?;
+        }
+        // One sample past the end, so that the output grid reaches it.
+        if t_rel > self.duration {
+            self.done = true;
+        }
+        Ok(())
+    }
+
+    /// The recording so far (the whole run once [`is_done`](Self::is_done)), with the
+    /// scenario, the faults and the parameters in the metadata.
+    pub fn finish(self) -> Result<Recording, SimError> {
+        self.acquisition.finish(&self.scenario)
+    }
+}
+
+/// Catch a state that left the physical domain.
+fn check(s: &Sample, engine_active: bool) -> Result<(), SimError> {
+    let bad = |what: String| Err(SimError::Diverged { t: s.t, what });
+    for (k, name) in ["intake", "cylinder", "exhaust"]
+        .iter()
+        .enumerate()
+        .filter(|_| engine_active)
+    {
+        if !(s.gas.p[k].is_finite() && s.gas.p[k] > 0.0) {
+            return bad(format!("{name} pressure {}", s.gas.p[k]));
+        }
+        if !(s.temperatures[k].is_finite() && s.temperatures[k] > 0.0) {
+            return bad(format!("{name} temperature {}", s.temperatures[k]));
+        }
+    }
+    if !s.omega_en.is_finite() || !s.omega_dy.is_finite() || !s.torque_dy.is_finite() {
+        return bad("speeds or machine torque not finite".into());
+    }
+    Ok(())
+}
