@@ -222,9 +222,8 @@ pub fn cycle_means(rec: &Recording, cfg: &FrictionFitConfig) -> Result<CycleMean
         truth_nm: truth.as_ref().map(|_| Vec::new()),
         ..Default::default()
     };
-    // Complete cycles: (cycle, first sample, end, mean p_int); `None` separates runs of
-    // consecutive complete cycles.
-    let mut complete: Vec<Option<(f64, usize, usize, f64)>> = Vec::new();
+    // Complete cycles; `None` separates runs of consecutive complete cycles.
+    let mut complete: Vec<Option<CycleSpan>> = Vec::new();
     let mut start = 0;
     while start < cycle.len() {
         let c = cycle[start];
@@ -232,17 +231,25 @@ pub fn cycle_means(rec: &Recording, cfg: &FrictionFitConfig) -> Result<CycleMean
         while end < cycle.len() && cycle[end] == c {
             end += 1;
         }
-        complete.push(
-            (c >= 0.0 && end - start == per_cycle)
-                .then(|| (c, start, end, mean(&p_int, start, end))),
-        );
+        complete.push((c >= 0.0 && end - start == per_cycle).then(|| CycleSpan {
+            cycle: c,
+            start,
+            end,
+            p_int: mean(&p_int, start, end),
+        }));
         start = end;
     }
-    let moved = |a: &Option<(f64, usize, usize, f64)>, p: f64| {
-        a.map_or(0.0, |q| (p - q.3).abs() / q.3) > cfg.max_pressure_change
+    let moved = |a: &Option<CycleSpan>, p: f64| {
+        a.map_or(0.0, |q| (p - q.p_int).abs() / q.p_int) > cfg.max_pressure_change
     };
     for (k, entry) in complete.iter().enumerate() {
-        let Some((c, start, end, p)) = *entry else {
+        let Some(CycleSpan {
+            cycle: c,
+            start,
+            end,
+            p_int: p,
+        }) = *entry
+        else {
             continue;
         };
         let w = mean(&omega, start, end);
@@ -319,6 +326,18 @@ pub struct FrictionFit {
     pub nmse_nominal: f64,
     /// See [`nmse_nominal`](Self::nmse_nominal).
     pub nmse_final: f64,
+}
+
+/// One complete cycle of a recording.
+#[derive(Debug, Clone, Copy)]
+struct CycleSpan {
+    /// Its number.
+    cycle: f64,
+    /// Its first sample, and the one past its last.
+    start: usize,
+    end: usize,
+    /// Its mean manifold pressure [Pa].
+    p_int: f64,
 }
 
 /// Run the characterisation on a motored recording.

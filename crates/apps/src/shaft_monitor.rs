@@ -284,15 +284,9 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
             .iter()
             .position(|&x| x - t[0] >= cfg.settle_s)
             .unwrap_or(0);
+        // NMSE (Eq. 6.4) of each track against the truth after settling.
         let nmse = |truth: &[f64], est: &[f64]| {
-            // Normalised by the truth's mean square (the truth may be constant).
-            let ms = truth[start..].iter().map(|v| v * v).sum::<f64>();
-            let e = truth[start..]
-                .iter()
-                .zip(&est[start..])
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum::<f64>();
-            e / ms
+            physid_estim::metrics::nmse(&truth[start..], &est[start..]).unwrap_or(f64::NAN)
         };
         let within = |truth: &[f64], est: &[f64]| {
             let last_out = truth

@@ -38,6 +38,31 @@ fn regression_csv(d: &std::path::Path, bad_line: Option<usize>) -> PathBuf {
     p
 }
 
+/// Standard errors of the Kalman filter with R1 = 0 on `regression_csv`'s regressors: the
+/// square roots of the diagonal of `(I/p0 + ΦᵀΦ/r2)⁻¹`, inverted here by cofactors.
+fn kalman_std_errors(csv: &std::path::Path, p0: f64, r2: f64) -> [f64; 3] {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut m = [[0.0; 3]; 3];
+    for l in text.lines().skip(1) {
+        let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+        let phi = [v[1], v[2], v[3]];
+        for i in 0..3 {
+            for j in 0..3 {
+                m[i][j] += phi[i] * phi[j] / r2;
+            }
+        }
+    }
+    for (i, row) in m.iter_mut().enumerate() {
+        row[i] += 1.0 / p0;
+    }
+    let cof = |i: usize, j: usize| {
+        let (r, c) = ([(i + 1) % 3, (i + 2) % 3], [(j + 1) % 3, (j + 2) % 3]);
+        m[r[0]][c[0]] * m[r[1]][c[1]] - m[r[0]][c[1]] * m[r[1]][c[0]]
+    };
+    let det: f64 = (0..3).map(|j| m[0][j] * cof(0, j)).sum();
+    [0, 1, 2].map(|i| (cof(i, i) / det).sqrt())
+}
+
 #[test]
 fn estimate_json_recovers_the_parameters() {
     let d = dir("est");
@@ -65,17 +90,56 @@ fn estimate_json_recovers_the_parameters() {
         assert_eq!(v["method"], method);
         assert_eq!(v["samples"], 2000);
         // Noise-free data: the truth is the least-squares solution.
-        for (k, truth) in [("a", 2.0), ("b", -3.0), ("c", 0.5)] {
+        let kf_se = kalman_std_errors(&csv, 1e6, 1.0);
+        for (j, (k, truth)) in [("a", 2.0), ("b", -3.0), ("c", 0.5)]
+            .into_iter()
+            .enumerate()
+        {
             let est = v["params"][k].as_f64().unwrap();
             assert!((est - truth).abs() < 1e-4, "{method} {k}: {est}");
-            assert!(v["std_err"][k].as_f64().unwrap() >= 0.0);
+            let se = v["std_err"][k].as_f64().unwrap();
+            if method == "kf" {
+                // R1 = 0, R2 = 1: P = (P0⁻¹ + ΦᵀΦ/R2)⁻¹ in closed form.
+                assert!(
+                    (se / kf_se[j] - 1.0).abs() < 1e-6,
+                    "kf {k}: {se} vs {}",
+                    kf_se[j]
+                );
+            } else {
+                // σ̂² holds only the start-up transient of exactly fitting data.
+                assert!((0.0..1e-5).contains(&se), "{method} {k}: {se}");
+            }
         }
-        assert!(v["nmse"].as_f64().unwrap() >= 0.0);
         let track = std::fs::read_to_string(&out_csv).unwrap();
         assert!(
             track.starts_with("y_predicted,prediction_error,a,b,c,a_std_err,b_std_err,c_std_err")
         );
         assert_eq!(track.lines().count(), 2001);
+        // NMSE (Eq. 6.4) of the one-step predictions in the track, computed here.
+        let data = std::fs::read_to_string(&csv).unwrap();
+        let y: Vec<f64> = data
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+            .collect();
+        let yp: Vec<f64> = track
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        let n = y.len() as f64;
+        let mse = y
+            .iter()
+            .zip(&yp)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            / n;
+        let nmse = mse / (y.iter().sum::<f64>() / n * yp.iter().sum::<f64>() / n);
+        let got = v["nmse"].as_f64().unwrap();
+        assert!(
+            (got / nmse - 1.0).abs() < 1e-9,
+            "{method}: nmse {got} vs {nmse}"
+        );
     }
     // A fixed subset: c held at its nominal 0.5, a and b estimated.
     let o = physid(&[
@@ -1074,7 +1138,8 @@ fn demo_writes_report_and_summary() {
     let tf = &s["torque_fit"];
     let m = tf["params"]["M_rec"].as_f64().unwrap();
     let se = tf["std_err"]["M_rec"].as_f64().unwrap();
-    assert!((m - 0.84).abs() < 3.0 * se, "M_rec {m} ± {se}");
+    // σ bounded too (the run gives 9e-5 kg): an over-uncertain filter must not pass.
+    assert!((m - 0.84).abs() < 3.0 * se && se < 1e-3, "M_rec {m} ± {se}");
     assert!(
         html.contains("Engine friction characterisation") && html.contains("Cyclic engine torque")
     );
