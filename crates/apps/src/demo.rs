@@ -39,8 +39,11 @@ pub struct DemoError {
     pub detail: String,
 }
 
-fn err(stage: &'static str) -> impl Fn(String) -> DemoError {
-    move |detail| DemoError { stage, detail }
+fn err<E: std::fmt::Display>(stage: &'static str) -> impl Fn(E) -> DemoError {
+    move |detail| DemoError {
+        stage,
+        detail: detail.to_string(),
+    }
 }
 
 /// One cyclic-torque identifiability result.
@@ -91,7 +94,7 @@ pub fn run_demo(solver_order: f64, mut progress: impl FnMut(&str, f64)) -> Resul
     };
     // 1. Shaft.
     let fault = "shaft.k=1100@5".to_string();
-    let mut s = named("shaft-steady").ok_or_else(|| err("shaft")("no scenario".into()))?;
+    let mut s = named("shaft-steady").ok_or_else(|| err("shaft")("no scenario"))?;
     s.settle = 0.5;
     let opts = RunOptions {
         duration: Some(8.0),
@@ -122,7 +125,7 @@ pub fn run_demo(solver_order: f64, mut progress: impl FnMut(&str, f64)) -> Resul
     let friction = friction_rank(&d, &st, &RankGrid::default(), &[])
         .map_err(|e| err("friction")(e.to_string()))?;
     // 3. Friction characterisation on the four friction-sweep tests.
-    let sweep = named("friction-sweep").ok_or_else(|| err("friction")("no scenario".into()))?;
+    let sweep = named("friction-sweep").ok_or_else(|| err("friction")("no scenario"))?;
     let o = RunOptions {
         basis: OutputBasis::Crank(1.0),
         ..defaults()
@@ -163,7 +166,7 @@ pub fn run_demo(solver_order: f64, mut progress: impl FnMut(&str, f64)) -> Resul
         });
     }
     // 5. Cyclic-torque estimation: an engine 5 % heavier in M_rec on the ramp, r known.
-    let mut sc = named("torque-ramp").ok_or_else(|| err("torque")("no scenario".into()))?;
+    let mut sc = named("torque-ramp").ok_or_else(|| err("torque")("no scenario"))?;
     sc.settle = 0.5;
     let mut o = RunOptions {
         basis: OutputBasis::Crank(1.0),

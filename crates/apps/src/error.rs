@@ -5,6 +5,8 @@ use crate::acquisition::AcquisitionError;
 use physid_core::RecordingError;
 use physid_estim::EstimError;
 use physid_ident::IdentError;
+use physid_io::IoError;
+use physid_sim::run::SimError;
 use thiserror::Error;
 
 /// Errors of the applications.
@@ -28,9 +30,21 @@ pub enum AppError {
         /// The estimator's error.
         source: EstimError,
     },
+    /// Reading a recording.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// The virtual test cell: a parameter, fault or scenario, or a run.
+    #[error(transparent)]
+    Sim(#[from] SimError),
     /// Anything else, explained.
     #[error("{0}")]
     Invalid(String),
+}
+
+impl From<String> for AppError {
+    fn from(message: String) -> Self {
+        AppError::Invalid(message)
+    }
 }
 
 impl AppError {

@@ -328,6 +328,43 @@ pub struct FrictionFit {
     pub nmse_final: f64,
 }
 
+/// The model presets by name: the thesis's and the original model's
+/// ([`physid_models::friction::PRESETS`]) and `cell`, the built-in virtual test cell's engine (its
+/// geometry with the thesis's oil and valvetrain).
+pub const FRICTION_PRESETS: [&str; 3] = ["thesis", "sandoval2002", "cell"];
+
+/// A friction model preset by name ([`FRICTION_PRESETS`]); `None` for an unknown name.
+pub fn friction_preset(name: &str) -> Option<(Design<f64>, Settings)> {
+    match name {
+        "cell" => Some(cell_friction_model()),
+        other => physid_models::friction::preset(other),
+    }
+}
+
+/// The `cell` preset: the friction model of the built-in virtual test cell's engine.
+pub fn cell_friction_model() -> (Design<f64>, Settings) {
+    let p = physid_sim::params::CellParams::default();
+    physid_sim::engine::Engine::new(&p.engine, &p.ambient).friction_model()
+}
+
+/// The characterisation's objective (thesis §7.3): the prediction within ±5 % after the
+/// start-up transient.
+pub const OBJECTIVE_PCT: f64 = 5.0;
+
+impl FrictionFit {
+    /// The largest prediction error after the start-up transient [%], against the simulated
+    /// truth when the recording carries it, else against the measured cycle means.
+    pub fn error_after_transient_pct(&self) -> f64 {
+        self.max_truth_error_after_transient_pct
+            .unwrap_or(self.max_error_after_transient_pct)
+    }
+
+    /// Whether that error is within [`OBJECTIVE_PCT`].
+    pub fn objective_met(&self) -> bool {
+        self.error_after_transient_pct() <= OBJECTIVE_PCT
+    }
+}
+
 /// One complete cycle of a recording.
 #[derive(Debug, Clone, Copy)]
 struct CycleSpan {

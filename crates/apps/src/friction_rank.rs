@@ -91,7 +91,7 @@ impl RankGrid {
         self.points()
             .iter()
             .try_for_each(OperatingPoint::validate)
-            .map_err(RankError::BadGrid)
+            .map_err(|e| RankError::BadGrid(e.to_string()))
     }
 }
 

@@ -6,6 +6,7 @@
 //! enum that is itself a [`ParamModel`], delegating to the model inside (one `match` per
 //! evaluation — nothing beside the model's own arithmetic).
 
+use crate::error::AppError;
 use crate::example_5_1::{Model51, NOMINAL as NOMINAL_51};
 use crate::torque_fit::cyclic_torque_nominal;
 use physid_core::{GradientEngine, ParamModel, Scalar};
@@ -13,7 +14,6 @@ use physid_expr::ExprModel;
 use physid_models::cyclic_torque::CyclicTorque;
 use physid_models::friction::FrictionRegression;
 use physid_models::shaft::{Shaft, NOMINAL as NOMINAL_SHAFT};
-use physid_sim::engine::Engine;
 use physid_sim::params::CellParams;
 
 /// The built-in models: name, parameters with their nominal values, inputs.
@@ -103,12 +103,12 @@ impl ModelChoice {
         expr: Option<&str>,
         builtin: Option<&str>,
         params: &[(String, f64)],
-    ) -> Result<(Self, Vec<f64>), String> {
+    ) -> Result<(Self, Vec<f64>), AppError> {
         if let Some(text) = expr {
             if params.is_empty() {
-                return Err(
+                return Err(AppError::Invalid(
                     "a formula needs its parameters and their nominal values (A=1, B=2, …)".into(),
-                );
+                ));
             }
             let names: Vec<&str> = params.iter().map(|p| p.0.as_str()).collect();
             let m = ExprModel::parse(text, &names).map_err(|e| e.to_string())?;
@@ -134,12 +134,17 @@ impl ModelChoice {
                 cyclic_torque_nominal(&cell)?.to_vec(),
             ),
             "friction-regression" => {
-                let (d, st) = Engine::new(&cell.engine, &cell.ambient).friction_model();
+                let (d, st) = crate::friction_fit::cell_friction_model();
                 let m = FrictionRegression::new(d, st);
                 let c0 = m.nominal().to_vec();
                 (Self::Friction(m), c0)
             }
-            other => return Err(format!("no built-in model '{other}'; they are {}", list())),
+            other => {
+                return Err(AppError::Invalid(format!(
+                    "no built-in model '{other}'; they are {}",
+                    list()
+                )))
+            }
         };
         let pnames = model.param_names();
         for (n, v) in params {

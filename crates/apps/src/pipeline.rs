@@ -36,6 +36,7 @@
 //! parameters: its exact gradient is then the regressor ([`LinearInParams`]); linearity is
 //! checked on every sample.
 
+use crate::error::AppError;
 use crate::model_choice::ModelChoice;
 use physid_core::{ParamModel, ParamSet, Recording};
 use physid_estim::{
@@ -250,7 +251,7 @@ pub struct Pipeline {
 
 impl Pipeline {
     /// Parse a pipeline file's text; `base` resolves relative data paths.
-    pub fn parse(text: &str, base: &Path) -> Result<Self, String> {
+    pub fn parse(text: &str, base: &Path) -> Result<Self, AppError> {
         let mut p: Self = toml::from_str(text).map_err(|e| e.to_string())?;
         p.validate()?;
         if let Some(f) = &p.data.file {
@@ -270,34 +271,50 @@ impl Pipeline {
 
     /// Refuse, naming the key, every setting that has no valid value or would not be used —
     /// before any identification or estimation runs.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), AppError> {
         let m = &self.model;
         match (&m.builtin, &m.expr) {
             (Some(_), Some(_)) => {
-                return Err("model: both builtin and expr are given: choose one".into())
+                return Err(AppError::Invalid(
+                    "model: both builtin and expr are given: choose one".into(),
+                ))
             }
-            (None, None) => return Err("model: give builtin = \"…\" or expr = \"…\"".into()),
+            (None, None) => {
+                return Err(AppError::Invalid(
+                    "model: give builtin = \"…\" or expr = \"…\"".into(),
+                ))
+            }
             _ => {}
         }
         let d = &self.data;
         if let Some(r) = d.rate_hz {
             if !(r.is_finite() && r > 0.0) {
-                return Err(format!("data.rate_hz = {r}: expected a rate > 0 Hz"));
+                return Err(AppError::Invalid(format!(
+                    "data.rate_hz = {r}: expected a rate > 0 Hz"
+                )));
             }
             if d.basis == Some(DataBasis::Crank) {
-                return Err("data.rate_hz: a crank-angle basis has no sample rate (one sample per degree): remove it, or basis = \"time\"".into());
+                return Err(AppError::Invalid("data.rate_hz: a crank-angle basis has no sample rate (one sample per degree): remove it, or basis = \"time\"".into()));
             }
         }
         if let Some(t) = d.duration {
             if !(t.is_finite() && t > 0.0) {
-                return Err(format!("data.duration = {t}: expected a duration > 0 s"));
+                return Err(AppError::Invalid(format!(
+                    "data.duration = {t}: expected a duration > 0 s"
+                )));
             }
         }
         match (&d.file, &d.scenario) {
             (Some(_), Some(_)) => {
-                return Err("data: both file and scenario are given: choose one".into())
+                return Err(AppError::Invalid(
+                    "data: both file and scenario are given: choose one".into(),
+                ))
             }
-            (None, None) => return Err("data: give file = \"…\" or scenario = \"…\"".into()),
+            (None, None) => {
+                return Err(AppError::Invalid(
+                    "data: give file = \"…\" or scenario = \"…\"".into(),
+                ))
+            }
             (Some(_), None) => {
                 // A file is read as it is: the simulation's settings would be ignored.
                 let unused = [
@@ -308,9 +325,9 @@ impl Pipeline {
                     ("faults", !d.faults.is_empty()),
                 ];
                 if let Some((k, _)) = unused.iter().find(|u| u.1) {
-                    return Err(format!(
+                    return Err(AppError::Invalid(format!(
                         "data.{k} applies to a simulated scenario, not to data.file (the file is read as it is)"
-                    ));
+                    )));
                 }
             }
             (None, Some(_)) => {}
@@ -319,51 +336,58 @@ impl Pipeline {
         let kalman = e.method.is_model_based() || e.method == MethodName::Kf;
         if let Some(r2) = e.r2 {
             if !kalman {
-                return Err(format!("estimator.r2 is the Kalman filters' noise variance: {} does not use it (kf, ekf, ukf, srukf do)", e.method));
+                return Err(AppError::Invalid(format!("estimator.r2 is the Kalman filters' noise variance: {} does not use it (kf, ekf, ukf, srukf do)", e.method)));
             }
             if !(r2.is_finite() && r2 > 0.0) {
-                return Err(format!("estimator.r2 = {r2}: expected a variance > 0"));
+                return Err(AppError::Invalid(format!(
+                    "estimator.r2 = {r2}: expected a variance > 0"
+                )));
             }
         }
         if let Some(p0) = e.p0 {
             if !(p0.is_finite() && p0 > 0.0) {
-                return Err(format!("estimator.p0 = {p0}: expected > 0"));
+                return Err(AppError::Invalid(format!(
+                    "estimator.p0 = {p0}: expected > 0"
+                )));
             }
         }
         if let Some(l) = e.lambda {
             if !(l > 0.0 && l <= 1.0) {
-                return Err(format!(
+                return Err(AppError::Invalid(format!(
                     "estimator.lambda = {l}: a forgetting factor is in (0, 1]"
-                ));
+                )));
             }
             if !matches!(
                 e.method,
                 MethodName::Rlsf | MethodName::Rlsvf | MethodName::Dsfc
             ) {
-                return Err(format!(
+                return Err(AppError::Invalid(format!(
                     "estimator.lambda: {} does not forget (rlsf, rlsvf and dsfc do)",
                     e.method
-                ));
+                )));
             }
         }
         let o = &self.objective;
         if !(o.after_s.is_finite() && o.after_s >= 0.0) {
-            return Err(format!("objective.after_s = {}: expected ≥ 0 s", o.after_s));
+            return Err(AppError::Invalid(format!(
+                "objective.after_s = {}: expected ≥ 0 s",
+                o.after_s
+            )));
         }
         if !(o.prediction_within_pct.is_finite() && o.prediction_within_pct > 0.0) {
-            return Err(format!(
+            return Err(AppError::Invalid(format!(
                 "objective.prediction_within_pct = {}: expected > 0",
                 o.prediction_within_pct
-            ));
+            )));
         }
         Ok(())
     }
 
     /// Read a pipeline file.
-    pub fn load(path: &Path) -> Result<Self, String> {
+    pub fn load(path: &Path) -> Result<Self, AppError> {
         let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
         Self::parse(&text, path.parent().unwrap_or(Path::new(".")))
-            .map_err(|e| format!("{}: {e}", path.display()))
+            .map_err(|e| AppError::Invalid(format!("{}: {e}", path.display())))
     }
 }
 
@@ -416,9 +440,9 @@ pub struct PipelineResult {
 }
 
 /// Load (or simulate) the pipeline's recording.
-pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
+pub fn load_data(spec: &DataSpec) -> Result<Recording, AppError> {
     match (&spec.file, &spec.scenario) {
-        (Some(f), None) => physid_io::read(f, &Default::default()).map_err(|e| e.to_string()),
+        (Some(f), None) => Ok(physid_io::read(f, &Default::default())?),
         (None, Some(name)) => {
             let mut s = Scenario::load(name)?;
             for f in &spec.faults {
@@ -435,14 +459,16 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, String> {
             };
             // The pipeline's `set` wins over the scenario's own settings.
             s.set.extend(spec.set.iter().map(|(k, v)| (k.clone(), *v)));
-            simulate(&s, &opts, |_| {}).map_err(|e| e.to_string())
+            Ok(simulate(&s, &opts, |_| {})?)
         }
-        _ => Err("[data] needs exactly one of file = \"…\" or scenario = \"…\"".into()),
+        _ => Err(AppError::Invalid(
+            "[data] needs exactly one of file = \"…\" or scenario = \"…\"".into(),
+        )),
     }
 }
 
 /// Run the loop on a recording.
-pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, String> {
+pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, AppError> {
     let params: Vec<(String, f64)> = p
         .model
         .params
@@ -459,7 +485,7 @@ fn run_with(
     p: &Pipeline,
     rec: &Recording,
     nominal: Vec<f64>,
-) -> Result<PipelineResult, String> {
+) -> Result<PipelineResult, AppError> {
     let names = model.param_names().to_vec();
     // Data columns.
     // `CHANNEL` as recorded, or `CHANNEL:UNIT` converted to the unit the model expects.
@@ -485,25 +511,28 @@ fn run_with(
         .chain([(&p.model.output, &y)])
     {
         if let Some(i) = col.iter().position(|v| !v.is_finite()) {
-            return Err(format!("channel for '{name}' sample {i} is {}", col[i]));
+            return Err(AppError::Invalid(format!(
+                "channel for '{name}' sample {i} is {}",
+                col[i]
+            )));
         }
     }
     for f in &p.model.fixed {
         if !names.contains(f) {
-            return Err(format!(
+            return Err(AppError::Invalid(format!(
                 "fixed parameter '{f}': the parameters are {}",
                 names.join(", ")
-            ));
+            )));
         }
     }
     let free: Vec<usize> = (0..names.len())
         .filter(|&j| !p.model.fixed.contains(&names[j]))
         .collect();
     if free.is_empty() {
-        return Err(format!(
+        return Err(AppError::Invalid(format!(
             "model.fixed fixes every parameter ({}): nothing is left to identify or estimate",
             names.join(", ")
-        ));
+        )));
     }
     // 1. Identifiability.
     let data = Data {
@@ -522,7 +551,9 @@ fn run_with(
         .map_err(|e| e.to_string())?;
     let estimable: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
     if estimable.is_empty() {
-        return Err("no parameter is estimable on this data: another experiment is needed".into());
+        return Err(AppError::Invalid(
+            "no parameter is estimable on this data: another experiment is needed".into(),
+        ));
     }
     // 2. Estimation.
     let set = ParamSet::new(names.clone(), nominal.clone()).map_err(|e| e.to_string())?;

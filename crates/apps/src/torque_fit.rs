@@ -30,6 +30,7 @@ use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
 use physid_models::friction::thesis_preset;
 use physid_models::friction_fit::fit_friction_cubic;
 use physid_sim::params::CellParams;
+use physid_sim::run::parameter_truth;
 use serde::Serialize;
 
 /// The relative cut-off of the cyclic-torque ranking: residuals below 1e-6 of the first are
@@ -40,7 +41,7 @@ pub const TORQUE_CUTOFF: f64 = 1e-6;
 /// The cyclic-torque model's nominal parameters for the virtual test cell's engine: its
 /// geometry and reciprocating mass, the friction cubic fitted to the mean-value model (thesis
 /// preset) over 500–1500 rpm and 20–100 °C (Fig. 8.1).
-pub fn cyclic_torque_nominal(p: &CellParams) -> Result<[f64; 15], String> {
+pub fn cyclic_torque_nominal(p: &CellParams) -> Result<[f64; 15], AppError> {
     let (d, st) = thesis_preset();
     let n: Vec<f64> = (0..11).map(|k| 500.0 + 100.0 * k as f64).collect();
     let t: Vec<f64> = (0..9).map(|k| 20.0 + 10.0 * k as f64).collect();
@@ -207,6 +208,16 @@ pub struct Track {
     pub std_err: Vec<f64>,
 }
 
+/// The test cell's parameter path of each cyclic-torque parameter that has one (the truth of
+/// simulated data; the friction cubic's c1 … c10 have none).
+pub const TRUTH_PATHS: [(&str, &str); 5] = [
+    ("M_rec", "engine.m_rec"),
+    ("b", "engine.bore"),
+    ("L", "engine.rod"),
+    ("r", "engine.crank_radius"),
+    ("delta", "engine.pin_offset"),
+];
+
 /// The fit's result.
 #[derive(Debug, Clone, Serialize)]
 pub struct TorqueFit {
@@ -247,6 +258,20 @@ pub struct TorqueFit {
     pub last_cycles: [Vec<f64>; 4],
     /// Samples processed.
     pub samples: usize,
+}
+
+impl TorqueFit {
+    /// The true value of each track over its times, where the recording is simulated and the
+    /// parameter is one of the cell's ([`TRUTH_PATHS`]); `None` elsewhere.
+    pub fn truths(&self, rec: &Recording) -> Vec<Option<Vec<f64>>> {
+        self.tracks
+            .iter()
+            .map(|tr| {
+                let path = TRUTH_PATHS.iter().find(|p| p.0 == tr.param)?.1;
+                parameter_truth(rec, path, &self.t)
+            })
+            .collect()
+    }
 }
 
 /// Run Application 3 on a crank-angle recording.

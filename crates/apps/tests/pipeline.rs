@@ -75,7 +75,7 @@ fn shaft_formula_pipeline_with_dsfc_recovers_the_red_spider() {
 fn error_of(p: &Pipeline) -> String {
     match run_pipeline(p, &load_data(&p.data).unwrap()) {
         Ok(r) => panic!("expected an error, got estimable {:?}", r.estimable),
-        Err(e) => e,
+        Err(e) => e.to_string(),
     }
 }
 
@@ -102,10 +102,13 @@ fn an_unmet_objective_and_bad_pipelines_are_reported() {
         "[model]\nbuiltin = \"shaft\"\noutput = \"y\"\nmodle = 1\n[data]\n",
         base,
     )
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("modle"), "{e}");
     // A misspelt method is refused when the file is read, before anything runs.
-    let e = Pipeline::parse(&text(linear, "lms", 5.0), base).unwrap_err();
+    let e = Pipeline::parse(&text(linear, "lms", 5.0), base)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("method = \"lms\"")
             && e.contains(
@@ -120,7 +123,8 @@ fn an_unmet_objective_and_bad_pipelines_are_reported() {
         "[model]\nbuiltin = \"shaft\"\noutput = \"y\"\n[data]\n",
         base,
     )
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("data: give file"), "{e}");
 }
 
@@ -201,12 +205,15 @@ fn settings_without_a_valid_value_or_a_use_are_refused_naming_the_key() {
         "cut-off 'rel:-1': expected repeat, wu, rel:FRACTION or an absolute residual ≥ 0",
     )]);
     for (data, rest, want) in cases {
-        let e = Pipeline::parse(&format!("{model}{data}{rest}"), base).unwrap_err();
+        let e = Pipeline::parse(&format!("{model}{data}{rest}"), base)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(want), "{data}{rest}: {e}");
     }
     let both = "[model]\nbuiltin = \"shaft\"\nexpr = \"K*x\"\noutput = \"y\"\n[data]\nscenario = \"shaft-steady\"\n";
     assert!(Pipeline::parse(both, base)
         .unwrap_err()
+        .to_string()
         .contains("both builtin and expr"));
     // Every parameter fixed: refused naming the key, not an index panic.
     let fixed = format!("{model}fixed = [\"K\"]\n[data]\nscenario = \"shaft-steady\"\nduration = 1.0\n[estimator]\nmethod = \"rls\"\n");
@@ -216,6 +223,6 @@ fn settings_without_a_valid_value_or_a_use_are_refused_naming_the_key() {
     // A recording that cannot fit is refused before the run.
     let huge = format!("{model}[data]\nscenario = \"shaft-steady\"\nduration = 1e308\n");
     let p = Pipeline::parse(&huge, base).unwrap();
-    let e = load_data(&p.data).unwrap_err();
+    let e = load_data(&p.data).unwrap_err().to_string();
     assert!(e.contains("would not fit in any memory"), "{e}");
 }

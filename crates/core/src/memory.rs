@@ -9,19 +9,35 @@ pub fn available() -> Option<u64> {
     Some(kb.saturating_mul(1024))
 }
 
-/// `Err(message)` when `bytes` (a size known in advance, possibly infinite) would not fit in
-/// the available memory; `what` says what would take it.
-pub fn check_fits(bytes: f64, what: &str) -> Result<(), String> {
+/// Work that would not fit in the available memory.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{what} would {}, and this machine has {:.1} GB free", needed(*.bytes), *.available as f64 / 1e9)]
+pub struct TooLarge {
+    /// What would take it.
+    pub what: String,
+    /// Its size [bytes] (possibly infinite).
+    pub bytes: f64,
+    /// The memory available [bytes].
+    pub available: u64,
+}
+
+fn needed(bytes: f64) -> String {
+    if bytes.is_finite() {
+        format!("take about {:.3} GB", bytes / 1e9)
+    } else {
+        "not fit in any memory".into()
+    }
+}
+
+/// Refuse `bytes` (a size known in advance, possibly infinite) when it would not fit in the
+/// available memory; `what` says what would take it.
+pub fn check_fits(bytes: f64, what: &str) -> Result<(), TooLarge> {
     match available() {
-        Some(free) if !bytes.is_finite() => Err(format!(
-            "{what} would not fit in any memory (this machine has {:.1} GB free)",
-            free as f64 / 1e9
-        )),
-        Some(free) if bytes > free as f64 => Err(format!(
-            "{what} would take about {:.3} GB, and this machine has {:.1} GB free",
-            bytes / 1e9,
-            free as f64 / 1e9
-        )),
+        Some(free) if !bytes.is_finite() || bytes > free as f64 => Err(TooLarge {
+            what: what.to_string(),
+            bytes,
+            available: free,
+        }),
         _ => Ok(()),
     }
 }
@@ -36,13 +52,14 @@ mod tests {
             return; // no /proc here: nothing to check against
         }
         assert!(check_fits(1e3, "a kilobyte").is_ok());
-        let e = check_fits(1e30, "a recording").unwrap_err();
+        let e = check_fits(1e30, "a recording").unwrap_err().to_string();
         assert!(
             e.starts_with("a recording would take about 1000000000000000000000.000 GB"),
             "{e}"
         );
         assert!(check_fits(f64::INFINITY, "x")
             .unwrap_err()
+            .to_string()
             .contains("would not fit in any memory"));
         assert!(check_fits(f64::NAN, "x").is_err());
     }

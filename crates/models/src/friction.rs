@@ -12,31 +12,70 @@
 
 use physid_core::{ParamModel, Scalar};
 
-/// Oil grades: Vogel constants `μ = k·exp(θ1/(θ2 + T))` [cP, T in °C] and the high-shear factor
-/// `u_uo` (SPEC §2.5 table).
-pub const OIL_GRADES: [(&str, f64, f64, f64, f64); 12] = [
-    ("0W40", 0.01341, 1986.4, 189.7, 0.67),
-    ("5W20", 0.04576, 1224.0, 134.1, 0.94),
-    ("5W40", 0.15, 1018.74, 125.91, 0.8),
-    ("10W30", 0.1403, 869.72, 104.4, 0.76),
-    ("10W50A", 0.0352, 1658.88, 163.54, 0.49),
-    ("10W50B", 0.0507, 1362.4, 129.8, 0.52),
-    ("15W40A", 0.1223, 933.46, 103.89, 0.9),
-    ("15W40B", 0.03435, 1424.3, 137.2, 0.79),
-    ("20W50", 0.0639, 1255.46, 117.7, 0.84),
-    ("SAE10", 0.0258, 1345.42, 144.58, 1.0),
-    ("SAE30", 0.0246, 1432.29, 132.94, 1.0),
-    ("SAE50", 0.0384, 1349.94, 115.16, 1.0),
+/// An oil grade: Vogel constants of `μ = k·exp(θ1/(θ2 + T))` [cP, T in °C] and the high-shear
+/// factor `u_uo` (SPEC §2.5 table).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Oil {
+    /// k [cP].
+    pub k: f64,
+    /// θ1 [°C].
+    pub theta1: f64,
+    /// θ2 [°C].
+    pub theta2: f64,
+    /// High-shear factor u_uo.
+    pub u_uo: f64,
+}
+
+/// A valvetrain's friction constants (SPEC §2.5 table).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Valvetrain {
+    /// Cff, flat-follower.
+    pub cff: f64,
+    /// Crf, roller-follower.
+    pub crf: f64,
+    /// Coh, oscillating hydrodynamic.
+    pub coh: f64,
+    /// Com, oscillating mixed.
+    pub com: f64,
+}
+
+const fn oil(k: f64, theta1: f64, theta2: f64, u_uo: f64) -> Oil {
+    Oil {
+        k,
+        theta1,
+        theta2,
+        u_uo,
+    }
+}
+
+const fn valvetrain(cff: f64, crf: f64, coh: f64, com: f64) -> Valvetrain {
+    Valvetrain { cff, crf, coh, com }
+}
+
+/// The oil grades by name (SPEC §2.5 table).
+pub const OIL_GRADES: [(&str, Oil); 12] = [
+    ("0W40", oil(0.01341, 1986.4, 189.7, 0.67)),
+    ("5W20", oil(0.04576, 1224.0, 134.1, 0.94)),
+    ("5W40", oil(0.15, 1018.74, 125.91, 0.8)),
+    ("10W30", oil(0.1403, 869.72, 104.4, 0.76)),
+    ("10W50A", oil(0.0352, 1658.88, 163.54, 0.49)),
+    ("10W50B", oil(0.0507, 1362.4, 129.8, 0.52)),
+    ("15W40A", oil(0.1223, 933.46, 103.89, 0.9)),
+    ("15W40B", oil(0.03435, 1424.3, 137.2, 0.79)),
+    ("20W50", oil(0.0639, 1255.46, 117.7, 0.84)),
+    ("SAE10", oil(0.0258, 1345.42, 144.58, 1.0)),
+    ("SAE30", oil(0.0246, 1432.29, 132.94, 1.0)),
+    ("SAE50", oil(0.0384, 1349.94, 115.16, 1.0)),
 ];
 
-/// Valvetrains: (Cff, Crf, Coh, Com) (SPEC §2.5 table).
-pub const VALVETRAINS: [(&str, f64, f64, f64, f64); 6] = [
-    ("SOHC_I", 600.0, 0.0227, 0.2, 42.8),
-    ("SOHC_II", 400.0, 0.0151, 0.5, 21.4),
-    ("SOHC_III", 200.0, 0.0076, 0.5, 10.7),
-    ("DOHC_I", 600.0, 0.0227, 0.2, 25.8),
-    ("DOHC_II", 133.0, 0.0050, 0.5, 10.7),
-    ("OHV", 400.0, 0.0151, 0.5, 32.1),
+/// The valvetrains by name (SPEC §2.5 table).
+pub const VALVETRAINS: [(&str, Valvetrain); 6] = [
+    ("SOHC_I", valvetrain(600.0, 0.0227, 0.2, 42.8)),
+    ("SOHC_II", valvetrain(400.0, 0.0151, 0.5, 21.4)),
+    ("SOHC_III", valvetrain(200.0, 0.0076, 0.5, 10.7)),
+    ("DOHC_I", valvetrain(600.0, 0.0227, 0.2, 25.8)),
+    ("DOHC_II", valvetrain(133.0, 0.0050, 0.5, 10.7)),
+    ("OHV", valvetrain(400.0, 0.0151, 0.5, 32.1)),
 ];
 
 /// Reference oil temperature of the viscosity scaling [°C].
@@ -61,7 +100,7 @@ impl OperatingPoint {
     /// Whether the point is inside the model's domain: speed > 0, pressures ≥ 0 (ambient > 0),
     /// oil temperature −50 … 200 °C (the Vogel form has a pole near −θ2 ≈ −100 … −190 °C).
     /// The error names the quantity, its value and what was expected.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidFriction> {
         let checks = [
             ("engine speed [rpm]", self.n_rpm, self.n_rpm > 0.0, "> 0"),
             (
@@ -85,7 +124,9 @@ impl OperatingPoint {
         ];
         for (what, v, ok, expected) in checks {
             if !(v.is_finite() && ok) {
-                return Err(format!("{what} = {v}: expected a finite value {expected}"));
+                return Err(InvalidFriction(format!(
+                    "{what} = {v}: expected a finite value {expected}"
+                )));
             }
         }
         Ok(())
@@ -170,10 +211,10 @@ impl<T: Scalar> Design<T> {
 pub struct Settings {
     /// Which statement of the model.
     pub variant: Variant,
-    /// Oil: (k, θ1, θ2, u_uo).
-    pub oil: (f64, f64, f64, f64),
-    /// Valvetrain: (Cff, Crf, Coh, Com).
-    pub valvetrain: (f64, f64, f64, f64),
+    /// The oil.
+    pub oil: Oil,
+    /// The valvetrain.
+    pub valvetrain: Valvetrain,
     /// Ring tension ratio Ft/Fto.
     pub ft_fto: f64,
     /// Conformability factor Cr.
@@ -256,18 +297,8 @@ pub fn thesis_preset() -> (Design<f64>, Settings) {
         },
         Settings {
             variant: Variant::Thesis,
-            oil: (
-                OIL_GRADES[0].1,
-                OIL_GRADES[0].2,
-                OIL_GRADES[0].3,
-                OIL_GRADES[0].4,
-            ),
-            valvetrain: (
-                VALVETRAINS[2].1,
-                VALVETRAINS[2].2,
-                VALVETRAINS[2].3,
-                VALVETRAINS[2].4,
-            ),
+            oil: OIL_GRADES[0].1,
+            valvetrain: VALVETRAINS[2].1,
             ft_fto: 1.0,
             cr: 1.0,
             nc: 1.0,
@@ -278,15 +309,15 @@ pub fn thesis_preset() -> (Design<f64>, Settings) {
 }
 
 /// Oil viscosity `μ(T) = k·exp(θ1/(θ2 + T))` [cP], T in °C (Vogel).
-pub fn viscosity(oil: (f64, f64, f64, f64), t_c: f64) -> f64 {
-    oil.0 * (oil.1 / (oil.2 + t_c)).exp()
+pub fn viscosity(oil: Oil, t_c: f64) -> f64 {
+    oil.k * (oil.theta1 / (oil.theta2 + t_c)).exp()
 }
 
 /// The viscosity scaling `s_μ` (Eq. 3.45): `√(u_uo·μ(T)/μ(T_ref))` as the thesis's code
 /// computes it (√u_uo at T_ref), `√(μ(T)/μ(T_ref))` in the original (1 at T_ref).
 pub fn s_mu(st: &Settings, t_c: f64) -> f64 {
     let grade = match st.variant {
-        Variant::Thesis => st.oil.3,
+        Variant::Thesis => st.oil.u_uo,
         Variant::Sandoval2002 => 1.0,
     };
     (grade * viscosity(st.oil, t_c) / viscosity(st.oil, T_REF_C)).sqrt()
@@ -297,7 +328,7 @@ pub fn s_mu(st: &Settings, t_c: f64) -> f64 {
 /// `u_uo` alone and the original by `s_μ`.
 fn hydrodynamic_factor(st: &Settings, smu: f64) -> f64 {
     match st.variant {
-        Variant::Thesis => st.oil.3,
+        Variant::Thesis => st.oil.u_uo,
         Variant::Sandoval2002 => smu,
     }
 }
@@ -306,7 +337,7 @@ fn hydrodynamic_factor(st: &Settings, smu: f64) -> f64 {
 /// appear in the physical form (SPEC §2.5; c8 is the 4.12 kPa constant wherever the variant
 /// puts it, c14–c16 the variant's auxiliary constants), so that both forms agree exactly.
 pub fn nominal_coefficients(settings: &Settings) -> [f64; 20] {
-    let (cff, crf, coh, com) = settings.valvetrain;
+    let Valvetrain { cff, crf, coh, com } = settings.valvetrain;
     let (a0, a1, a2) = settings.variant.auxiliaries();
     [
         1.22e5, 3.03e-4, 1.35e-10, 294.0, 4.06e4, 3.03e-4, 6.89, 4.12, 244.0, cff, crf, coh, com,
@@ -377,7 +408,7 @@ pub fn fmep_with_viscosity<T: Scalar>(
     let per_bbsnc = (b * b * s * nc).recip();
     let per_snc = (s * nc).recip();
     let hydro = hydrodynamic_factor(st, smu);
-    let (cff, crf, coh, com) = st.valvetrain;
+    let Valvetrain { cff, crf, coh, com } = st.valvetrain;
     // The 4.12 kPa constant: in rfmep in the thesis (Eq. 3.47), a cam-seal term in vfmep in
     // the original.
     let (rfmep_const, vfmep_const) = match st.variant {
@@ -669,6 +700,18 @@ impl ParamModel for FrictionRegression {
     }
 }
 
+/// A design or setting the friction model cannot take, explained (the value, what was
+/// expected).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidFriction(pub String);
+
+impl From<String> for InvalidFriction {
+    fn from(message: String) -> Self {
+        Self(message)
+    }
+}
+
 /// Names accepted by [`set_by_name`] besides [`DESIGN_PARAMS`].
 pub const SETTING_NAMES: [&str; 7] = ["oil", "valvetrain", "ft_fto", "cr", "nc", "nv", "nb"];
 
@@ -680,11 +723,13 @@ pub fn set_by_name(
     st: &mut Settings,
     name: &str,
     value: &str,
-) -> Result<(), String> {
-    let number = || -> Result<f64, String> {
+) -> Result<(), InvalidFriction> {
+    let number = || -> Result<f64, InvalidFriction> {
         match value.trim().parse::<f64>() {
             Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-            _ => Err(format!("{name}={value}: expected a finite number > 0")),
+            _ => Err(InvalidFriction(format!(
+                "{name}={value}: expected a finite number > 0"
+            ))),
         }
     };
     if let Some(j) = DESIGN_PARAMS.iter().position(|&p| p == name) {
@@ -702,7 +747,7 @@ pub fn set_by_name(
                     let list: Vec<&str> = OIL_GRADES.iter().map(|g| g.0).collect();
                     format!("oil={value}: the grades are {}", list.join(", "))
                 })?;
-            st.oil = (g.1, g.2, g.3, g.4);
+            st.oil = g.1;
         }
         "valvetrain" => {
             let v = VALVETRAINS
@@ -715,7 +760,7 @@ pub fn set_by_name(
                         list.join(", ")
                     )
                 })?;
-            st.valvetrain = (v.1, v.2, v.3, v.4);
+            st.valvetrain = v.1;
         }
         "ft_fto" => st.ft_fto = number()?,
         "cr" => st.cr = number()?,
@@ -723,11 +768,11 @@ pub fn set_by_name(
         "nv" => st.nv = number()?,
         "nb" => st.nb = number()?,
         _ => {
-            return Err(format!(
+            return Err(InvalidFriction(format!(
                 "'{name}' is not a friction parameter; they are {}, {}",
                 DESIGN_PARAMS.join(", "),
                 SETTING_NAMES.join(", ")
-            ))
+            )))
         }
     }
     Ok(())

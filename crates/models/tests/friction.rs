@@ -102,8 +102,8 @@ fn speed_form_equals_physical_form() {
 fn viscosity_of_every_grade() {
     let (_, thesis) = thesis_preset();
     let (_, original) = sandoval2002_preset();
-    for (name, k, t1, t2, uuo) in OIL_GRADES {
-        let oil = (k, t1, t2, uuo);
+    for (name, oil) in OIL_GRADES {
+        let (k, t1, t2, uuo) = (oil.k, oil.theta1, oil.theta2, oil.u_uo);
         let thesis = Settings { oil, ..thesis };
         let original = Settings { oil, ..original };
         let mu90 = viscosity(oil, 90.0);
@@ -136,7 +136,7 @@ fn viscosity_of_every_grade() {
 fn variants_differ_where_the_spec_says() {
     let (d, thesis) = thesis_preset();
     let sae30 = OIL_GRADES.iter().find(|g| g.0 == "SAE30").unwrap();
-    let oil = (sae30.1, sae30.2, sae30.3, sae30.4);
+    let oil = sae30.1;
     let thesis = Settings { oil, ..thesis };
     let original = Settings {
         variant: Variant::Sandoval2002,
@@ -232,14 +232,24 @@ fn set_by_name_changes_one_thing_and_explains_mistakes() {
     set_by_name(&mut d, &mut st, "valvetrain", "DOHC_I").unwrap();
     set_by_name(&mut d, &mut st, "nb", "5").unwrap();
     assert_eq!((d.b, d.s), (56.0, 51.5));
-    assert_eq!(st.oil, (0.0246, 1432.29, 132.94, 1.0));
-    assert_eq!(st.valvetrain.0, 600.0);
+    let (o, v) = (st.oil, st.valvetrain);
+    assert_eq!(
+        (o.k, o.theta1, o.theta2, o.u_uo),
+        (0.0246, 1432.29, 132.94, 1.0)
+    );
+    assert_eq!((v.cff, v.com), (600.0, 25.8));
     assert_eq!(st.nb, 5.0);
-    let e = set_by_name(&mut d, &mut st, "oil", "5W31").unwrap_err();
+    let e = set_by_name(&mut d, &mut st, "oil", "5W31")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("0W40") && e.contains("SAE50"), "{e}");
-    let e = set_by_name(&mut d, &mut st, "S", "-3").unwrap_err();
+    let e = set_by_name(&mut d, &mut st, "S", "-3")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("S=-3") && e.contains("> 0"), "{e}");
-    let e = set_by_name(&mut d, &mut st, "stroke", "3").unwrap_err();
+    let e = set_by_name(&mut d, &mut st, "stroke", "3")
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("'stroke'") && e.contains("kappa"), "{e}");
 }
 

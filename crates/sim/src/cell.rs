@@ -31,6 +31,7 @@ use crate::control::{Demand, Drive};
 use crate::engine::{
     Engine, EngineOutputs, GasLinearisation, GasState, Motored, NetworkJacobian, CYL, EXH, INT,
 };
+use crate::error::SimError;
 use crate::machine::{Flux, Machine};
 use crate::numeric::{floor, sin_cos_near, SinCosTrack};
 use crate::params::CellParams;
@@ -187,7 +188,7 @@ pub struct TestCell {
 impl TestCell {
     /// A cell at rest at speed `omega0` [rad/s] (both sides), the engine at crank angle
     /// `theta0` [rad], gas at ambient, the machine magnetised.
-    pub fn new(params: CellParams, omega0: f64, theta0: f64) -> Result<Self, String> {
+    pub fn new(params: CellParams, omega0: f64, theta0: f64) -> Result<Self, SimError> {
         params.validate()?;
         let engine = Engine::new(&params.engine, &params.ambient);
         let machine = Machine::new(&params.dyno);

@@ -14,6 +14,7 @@
 pub mod cell;
 pub mod control;
 pub mod engine;
+pub mod error;
 pub mod machine;
 pub mod numeric;
 pub mod params;

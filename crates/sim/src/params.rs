@@ -3,6 +3,7 @@
 //! path (`shaft.k`, `engine.bore`, `dyno.speed_sensor.offset`) — the same paths for `--set`,
 //! scenario files and `--fault`.
 
+use crate::error::SimError;
 use serde::Serialize;
 
 /// A first-order sensor: `y = gain·lag(x) + offset + noise`, quantised.
@@ -334,13 +335,13 @@ macro_rules! paths {
             }
 
             /// Set the value at a path; an unknown path lists near ones.
-            pub fn set(&mut self, path: &str, value: f64) -> Result<(), String> {
+            pub fn set(&mut self, path: &str, value: f64) -> Result<(), SimError> {
                 if !value.is_finite() {
-                    return Err(format!("{path} = {value}: expected a finite number"));
+                    return Err(SimError::Invalid(format!("{path} = {value}: expected a finite number")));
                 }
                 match path {
                     $( $path => { self.$($field).+ = value; Ok(()) } )*
-                    _ => Err(unknown(path)),
+                    _ => Err(SimError::Invalid(unknown(path))),
                 }
             }
         }
@@ -465,7 +466,7 @@ paths! {
 impl CellParams {
     /// Check ranges that would make the model meaningless; the error names the parameter and
     /// the range.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SimError> {
         let positive = [
             "engine.bore",
             "engine.crank_radius",
@@ -492,7 +493,10 @@ impl CellParams {
         for p in positive {
             let v = self.get(p).unwrap_or(f64::NAN);
             if v.is_nan() || v <= 0.0 {
-                return Err(format!("{p} = {v}: expected > 0 ({})", unit_of(p)));
+                return Err(SimError::Invalid(format!(
+                    "{p} = {v}: expected > 0 ({})",
+                    unit_of(p)
+                )));
             }
         }
         // Masses, sizes, damping, gains and sensor imperfections: zero is an idealisation,
@@ -541,55 +545,64 @@ impl CellParams {
         for p in non_negative {
             let Some(v) = self.get(p) else { continue };
             if v.is_nan() || v < 0.0 {
-                return Err(format!("{p} = {v}: expected ≥ 0 ({})", unit_of(p)));
+                return Err(SimError::Invalid(format!(
+                    "{p} = {v}: expected ≥ 0 ({})",
+                    unit_of(p)
+                )));
             }
         }
         for p in ["engine.cd_valve", "engine.cd_throttle", "engine.cd_exh"] {
             let v = self.get(p).unwrap_or(f64::NAN);
             if !(v > 0.0 && v <= 1.0) {
-                return Err(format!("{p} = {v}: a discharge coefficient is in (0, 1]"));
+                return Err(SimError::Invalid(format!(
+                    "{p} = {v}: a discharge coefficient is in (0, 1]"
+                )));
             }
         }
         let lost = self.sensors.lost_pulses_en;
         if !(0.0..=1.0).contains(&lost) {
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "sensors.lost_pulses_en = {lost}: a probability per pulse is in [0, 1]"
-            ));
+            )));
         }
         for p in ["engine.heat_transfer", "engine.active", "dyno.torque_mode"] {
             let v = self.get(p).unwrap_or(f64::NAN);
             if v != 0.0 && v != 1.0 {
-                return Err(format!("{p} = {v}: a switch is 0 (off) or 1 (on)"));
+                return Err(SimError::Invalid(format!(
+                    "{p} = {v}: a switch is 0 (off) or 1 (on)"
+                )));
             }
         }
         if self.engine.kappa <= 1.0 {
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "engine.kappa = {}: a compression ratio is > 1",
                 self.engine.kappa
-            ));
+            )));
         }
         if self.engine.rod <= self.engine.crank_radius + self.engine.pin_offset.abs() {
-            return Err("engine.rod must exceed crank_radius + |pin_offset|".into());
+            return Err(SimError::Invalid(
+                "engine.rod must exceed crank_radius + |pin_offset|".into(),
+            ));
         }
         if !(1.0..=12.0).contains(&self.engine.lift_exponent)
             || self.engine.lift_exponent.fract() != 0.0
         {
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "engine.lift_exponent = {}: expected a whole number 1 … 12",
                 self.engine.lift_exponent
-            ));
+            )));
         }
         if self.order != 4.0 && self.order != 2.0 {
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "solver.order = {}: expected 4 (RK4) or 2 (linearly implicit ROS2)",
                 self.order
-            ));
+            )));
         }
         if self.step_deg > 5.0 {
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "solver.step_deg = {}: at most 5° (the thesis uses 0.5–1°)",
                 self.step_deg
-            ));
+            )));
         }
         Ok(())
     }

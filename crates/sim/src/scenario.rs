@@ -29,6 +29,7 @@
 //! and `value`, time from the segment's start). Outside every segment a profile holds the
 //! value at the nearest end.
 
+use crate::error::SimError;
 use crate::params::CellParams;
 use serde::Deserialize;
 use std::f64::consts::PI;
@@ -234,7 +235,7 @@ pub const FAULT_PATHS: &[&str] = &[
 
 impl Fault {
     /// Parse `PATH=VALUE@T[+RAMP]`.
-    pub fn parse(spec: &str) -> Result<Self, String> {
+    pub fn parse(spec: &str) -> Result<Self, SimError> {
         let bad = || {
             format!("fault '{spec}': expected PATH=VALUE@T[+RAMP], e.g. shaft.k=1200@5 or shaft.b=1.2@5+2")
         };
@@ -247,17 +248,17 @@ impl Fault {
         let num = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
         let (value, at, ramp) = match (num(value), num(at), num(ramp)) {
             (Some(v), Some(a), Some(r)) if a >= 0.0 && r >= 0.0 => (v, a, r),
-            _ => return Err(bad()),
+            _ => return Err(SimError::Invalid(bad())),
         };
         let path = path.trim().to_string();
         if CellParams::default().get(&path).is_none() {
             CellParams::default().set(&path, 0.0)?;
         }
         if !FAULT_PATHS.contains(&path.as_str()) {
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "fault '{spec}': '{path}' cannot change during a run (set it with --set); faults act on {}",
                 FAULT_PATHS.join(", ")
-            ));
+            )));
         }
         Ok(Self {
             path,
@@ -453,17 +454,17 @@ pub fn named(name: &str) -> Option<Scenario> {
 
 impl Scenario {
     /// A named scenario or a TOML file.
-    pub fn load(name_or_file: &str) -> Result<Self, String> {
+    pub fn load(name_or_file: &str) -> Result<Self, SimError> {
         if let Some(s) = named(name_or_file) {
             return Ok(s);
         }
         let path = Path::new(name_or_file);
         if !path.exists() {
             let names: Vec<&str> = NAMED.iter().map(|n| n.0).collect();
-            return Err(format!(
+            return Err(SimError::Invalid(format!(
                 "'{name_or_file}' is neither a built-in scenario ({}) nor a file",
                 names.join(", ")
-            ));
+            )));
         }
         let text = std::fs::read_to_string(path).map_err(|e| format!("{name_or_file}: {e}"))?;
         let mut s: Scenario = toml::from_str(&text).map_err(|e| format!("{name_or_file}: {e}"))?;
@@ -483,23 +484,31 @@ impl Scenario {
     }
 
     /// Check durations, segments and the settings' paths.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SimError> {
         if !(self.duration.is_finite() && self.duration > 0.0) {
-            return Err(format!("duration {}: expected > 0 s", self.duration));
+            return Err(SimError::Invalid(format!(
+                "duration {}: expected > 0 s",
+                self.duration
+            )));
         }
         if !(self.settle.is_finite() && self.settle >= 0.0) {
-            return Err(format!("settle {}: expected ≥ 0 s", self.settle));
+            return Err(SimError::Invalid(format!(
+                "settle {}: expected ≥ 0 s",
+                self.settle
+            )));
         }
         for (what, p) in [("speed", &self.speed), ("throttle", &self.throttle)] {
             if p.segments.is_empty() {
-                return Err(format!("the {what} profile has no segments"));
+                return Err(SimError::Invalid(format!(
+                    "the {what} profile has no segments"
+                )));
             }
             for s in &p.segments {
                 if s.t1 < s.t0 || s.t1.is_nan() || s.t0.is_nan() {
-                    return Err(format!(
+                    return Err(SimError::Invalid(format!(
                         "{what} segment {}–{} s ends before it starts",
                         s.t0, s.t1
-                    ));
+                    )));
                 }
             }
         }

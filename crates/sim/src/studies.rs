@@ -2,6 +2,7 @@
 //! converged motored cycle at constant speed, and the dynamometer's torque–speed curve.
 
 use crate::engine::{Engine, GasState, Motored, CYL, INT};
+use crate::error::SimError;
 use crate::machine::Machine;
 use crate::params::CellParams;
 use physid_models::air;
@@ -63,10 +64,10 @@ pub fn compression(
     t0: f64,
     rpm: f64,
     heat_transfer: bool,
-) -> Result<Compression, String> {
+) -> Result<Compression, SimError> {
     for (what, v) in [("p0", p0), ("t0", t0), ("rpm", rpm)] {
         if !(v.is_finite() && v > 0.0) {
-            return Err(format!("{what} = {v}: expected > 0"));
+            return Err(SimError::Invalid(format!("{what} = {v}: expected > 0")));
         }
     }
     let mut p = params.clone();
@@ -149,9 +150,9 @@ pub fn motored_cycle(
     params: &CellParams,
     rpm: f64,
     throttle_deg: f64,
-) -> Result<MotoredCycle, String> {
+) -> Result<MotoredCycle, SimError> {
     if !(rpm.is_finite() && rpm >= 100.0) {
-        return Err(format!("rpm = {rpm}: expected ≥ 100"));
+        return Err(SimError::Invalid(format!("rpm = {rpm}: expected ≥ 100")));
     }
     params.validate()?;
     let engine = Engine::new(&params.engine, &params.ambient);
@@ -250,9 +251,11 @@ pub fn dyno_curve(
     v_ll: f64,
     f: f64,
     speeds_rpm: &[f64],
-) -> Result<Vec<DynoPoint>, String> {
+) -> Result<Vec<DynoPoint>, SimError> {
     if !(v_ll.is_finite() && v_ll > 0.0 && f.is_finite() && f > 0.0) {
-        return Err(format!("voltage {v_ll} V, frequency {f} Hz: expected > 0"));
+        return Err(SimError::Invalid(format!(
+            "voltage {v_ll} V, frequency {f} Hz: expected > 0"
+        )));
     }
     // Inductances from the reactances at f_nom; the steady state at f.
     let m = Machine::new(&params.dyno);

@@ -20,7 +20,7 @@ fn every_named_scenario_is_valid() {
         );
     }
     assert!(named("nope").is_none());
-    let e = Scenario::load("nope").unwrap_err();
+    let e = Scenario::load("nope").unwrap_err().to_string();
     assert!(
         e.contains("shaft-steady") && e.contains("nor a file"),
         "{e}"
@@ -102,13 +102,13 @@ v1 = 10.0
     assert_eq!(s.throttle.value(1.5), 50.0);
     // Mistakes are named.
     std::fs::write(&f, toml.replace("\"shaft.k\"", "\"shaft.q\"")).unwrap();
-    let e = Scenario::load(f.to_str().unwrap()).unwrap_err();
+    let e = Scenario::load(f.to_str().unwrap()).unwrap_err().to_string();
     assert!(
         e.contains("no parameter 'shaft.q'") && e.contains("shaft.k"),
         "{e}"
     );
     std::fs::write(&f, toml.replace("kind = \"ramp\"", "kind = \"zigzag\"")).unwrap();
-    let e = Scenario::load(f.to_str().unwrap()).unwrap_err();
+    let e = Scenario::load(f.to_str().unwrap()).unwrap_err().to_string();
     assert!(e.contains("zigzag"), "{e}");
 }
 
@@ -130,7 +130,7 @@ fn fault_syntax_and_schedule() {
         ("engine.bore=0.05@1", "cannot change during a run"),
         ("shaft.x=1@1", "no parameter 'shaft.x'"),
     ] {
-        let e = Fault::parse(spec).unwrap_err();
+        let e = Fault::parse(spec).unwrap_err().to_string();
         assert!(e.contains(want), "{spec}: {e}");
     }
 }

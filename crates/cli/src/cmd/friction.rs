@@ -6,11 +6,14 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::friction_fit::{friction_fit, FrictionFit, FrictionFitConfig, TorqueSource};
+use physid_apps::friction_fit::{
+    friction_fit, friction_preset, FrictionFit, FrictionFitConfig, TorqueSource, FRICTION_PRESETS,
+    OBJECTIVE_PCT,
+};
 use physid_apps::friction_rank::{friction_rank, RankGrid, RankTable};
 use physid_ident::Selection;
 use physid_models::friction::{
-    fmep, preset, set_by_name, tau_nm, Design, OperatingPoint, Settings, PRESETS, REGRESSION_PARAMS,
+    fmep, set_by_name, tau_nm, Design, OperatingPoint, Settings, REGRESSION_PARAMS,
 };
 use std::path::{Path, PathBuf};
 
@@ -55,18 +58,13 @@ struct ModelArgs {
 
 impl ModelArgs {
     fn build(&self) -> Result<(Design<f64>, Settings)> {
-        let (mut d, mut st) = if self.preset == "cell" {
-            let p = physid_sim::params::CellParams::default();
-            physid_sim::engine::Engine::new(&p.engine, &p.ambient).friction_model()
-        } else {
-            preset(&self.preset).ok_or_else(|| {
-                miette!(
-                    "no friction preset '{}'; the presets are {}, cell",
-                    self.preset,
-                    PRESETS.join(", ")
-                )
-            })?
-        };
+        let (mut d, mut st) = friction_preset(&self.preset).ok_or_else(|| {
+            miette!(
+                "no friction preset '{}'; the presets are {}",
+                self.preset,
+                FRICTION_PRESETS.join(", ")
+            )
+        })?;
         for s in &self.set {
             let (name, value) = s
                 .split_once('=')
@@ -321,19 +319,17 @@ pub fn fit_report_section(
             })
             .collect::<Vec<_>>(),
     );
-    let verdict = r
-        .max_truth_error_after_transient_pct
-        .unwrap_or(r.max_error_after_transient_pct);
+    let verdict = r.error_after_transient_pct();
     rep.para(
         &format!(
             "Prediction error after the {} s start-up transient: at most {:.2} % (final {:+.2} %); NMSE {:.3e} (nominal) → {:.3e} (fitted).",
             cfg.transient_s, verdict, r.final_error_pct, r.nmse_nominal, r.nmse_final
         ),
-        Some(if verdict <= 5.0 { "ok" } else { "alarm" }),
+        Some(if r.objective_met() { "ok" } else { "alarm" }),
     );
     let svg = dir.join("friction_fit.svg");
-    let band_hi = vec![5.0; r.data.len()];
-    let band_lo = vec![-5.0; r.data.len()];
+    let band_hi = vec![OBJECTIVE_PCT; r.data.len()];
+    let band_lo = vec![-OBJECTIVE_PCT; r.data.len()];
     let mut torque = vec![
         Series {
             name: "measured".into(),

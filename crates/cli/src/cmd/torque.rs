@@ -7,12 +7,10 @@ use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::torque_fit::{cyclic_torque_nominal, torque_fit, TorqueFit, TorqueFitConfig};
-use physid_core::Recording;
 use physid_estim::NlMethod;
 use physid_ident::Selection;
 use physid_models::cyclic_torque::PARAMS;
 use physid_sim::params::CellParams;
-use physid_sim::run::parameter_truth;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid torque`.
@@ -132,26 +130,6 @@ pub fn json(r: &TorqueFit) -> serde_json::Value {
         "repairs": r.repairs,
         "samples": r.samples,
     })
-}
-
-/// The test cell's parameter path of each model parameter (for the truth of simulated data).
-const TRUTH_PATHS: [(&str, &str); 5] = [
-    ("M_rec", "engine.m_rec"),
-    ("b", "engine.bore"),
-    ("L", "engine.rod"),
-    ("r", "engine.crank_radius"),
-    ("delta", "engine.pin_offset"),
-];
-
-/// The true value of each track over time, when the recording is simulated.
-fn truths(rec: &Recording, r: &TorqueFit) -> Vec<Option<Vec<f64>>> {
-    r.tracks
-        .iter()
-        .map(|tr| {
-            let path = TRUTH_PATHS.iter().find(|p| p.0 == tr.param)?.1;
-            parameter_truth(rec, path, &r.t)
-        })
-        .collect()
 }
 
 /// Write the cyclic-torque section of a report (and its SVGs into `dir`). `truth` holds the
@@ -324,7 +302,7 @@ fn fit(a: &FitArgs) -> Result<()> {
             "physid — cyclic torque fit",
             &format!("{}", a.data.display()),
         );
-        report_section(&mut rep, &r, &cfg, &truths(&rec, &r), dir)?;
+        report_section(&mut rep, &r, &cfg, &r.truths(&rec), dir)?;
         report::finish(dir, rep, "torque_fit.json", &j)?;
     }
     if a.json {

@@ -18,24 +18,8 @@ use crate::params::CellParams;
 use crate::scenario::{Fault, Profile, Scenario};
 use physid_core::Recording;
 use std::f64::consts::PI;
-use thiserror::Error;
 
-/// Errors of a run.
-#[derive(Debug, Error, PartialEq)]
-pub enum SimError {
-    /// A bad parameter, scenario or fault, explained.
-    #[error("{0}")]
-    Invalid(String),
-    /// The solution left the physical domain (a volume emptied, a temperature went
-    /// negative): the step, time and what.
-    #[error("the simulation diverged at t = {t:.6} s: {what}; try a smaller solver.step_deg")]
-    Diverged {
-        /// Time [s].
-        t: f64,
-        /// What went wrong.
-        what: String,
-    },
-}
+pub use crate::error::SimError;
 
 /// The output basis.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,18 +112,17 @@ impl Run {
     /// memory, and start the cell at BDC before firing TDC (so that the first cycle begins
     /// with compression), `settle` seconds before the recording starts.
     pub fn new(scenario: &Scenario, opts: &RunOptions) -> Result<Self, SimError> {
-        scenario.validate().map_err(SimError::Invalid)?;
+        scenario.validate()?;
         let mut base = opts.params.clone();
         for (k, v) in &scenario.set {
-            base.set(k, *v).map_err(SimError::Invalid)?;
+            base.set(k, *v)?;
         }
-        base.validate().map_err(SimError::Invalid)?;
+        base.validate()?;
         let mut faults: Vec<Fault> = scenario
             .faults
             .iter()
             .map(|f| Fault::parse(f))
-            .collect::<Result<_, _>>()
-            .map_err(SimError::Invalid)?;
+            .collect::<Result<_, _>>()?;
         faults.extend(opts.faults.iter().cloned());
         let duration = opts.duration.unwrap_or(scenario.duration);
         if !(duration.is_finite() && duration > 0.0) {
@@ -178,7 +161,7 @@ impl Run {
         } else {
             scenario.speed.value(0.0) * PI / 30.0
         };
-        let cell = TestCell::new(base.clone(), w0.max(1.0), -PI).map_err(SimError::Invalid)?;
+        let cell = TestCell::new(base.clone(), w0.max(1.0), -PI)?;
         let acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
         Ok(Self {
             speed_sensor: SensorState::new(base.sensors.seed as u64, 0),
