@@ -33,6 +33,7 @@ use physid_models::friction::{
 };
 use physid_signal::crank::cycle_stats;
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// Where the motoring torque comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -351,7 +352,96 @@ pub fn cell_friction_model() -> (Design<f64>, Settings) {
 /// start-up transient.
 pub const OBJECTIVE_PCT: f64 = 5.0;
 
+/// What `physid friction fit --json` prints (and the demo's summary holds).
+#[derive(Debug, Clone, Serialize)]
+pub struct FrictionSummary<'a> {
+    /// The estimated coefficients, in rank order.
+    pub estimable: &'a [String],
+    /// The identifiability ranking.
+    pub ranking: &'a [RankedParam],
+    /// Every coefficient's final value, by name.
+    pub params: BTreeMap<&'static str, f64>,
+    /// Their nominal values.
+    pub nominal: BTreeMap<&'static str, f64>,
+    /// The standard errors of the estimated ones (null where the estimator has none yet).
+    pub std_err: BTreeMap<&'a str, Option<f64>>,
+    /// The prediction errors [%].
+    pub prediction_error_pct: PredictionErrors,
+    /// NMSE (Eq. 6.4) against the cycle means.
+    pub nmse: NmseBeforeAfter,
+    /// The cycles.
+    pub cycles: CycleCount,
+}
+
+/// Prediction errors of a friction fit [%].
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PredictionErrors {
+    /// Of the last cycle.
+    #[serde(rename = "final")]
+    pub final_pct: f64,
+    /// The largest after the start-up transient, against the cycle means.
+    pub max_after_transient: f64,
+    /// The same against the simulated truth.
+    pub max_after_transient_vs_truth: Option<f64>,
+}
+
+/// NMSE of the nominal and of the fitted model.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct NmseBeforeAfter {
+    /// The nominal coefficients.
+    pub nominal: f64,
+    /// The fitted ones.
+    pub fitted: f64,
+}
+
+/// The cycles a friction fit used and skipped.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct CycleCount {
+    /// Used.
+    pub used: usize,
+    /// Skipped as not steady.
+    pub skipped_unsteady: usize,
+}
+
 impl FrictionFit {
+    /// The result without its tracks.
+    pub fn summary(&self) -> FrictionSummary<'_> {
+        let by_name = |v: &[f64]| {
+            REGRESSION_PARAMS
+                .iter()
+                .copied()
+                .zip(v.iter().copied())
+                .collect()
+        };
+        FrictionSummary {
+            estimable: &self.estimable,
+            ranking: &self.ranking,
+            params: by_name(&self.params),
+            nominal: by_name(&self.nominal),
+            std_err: self
+                .estimable
+                .iter()
+                .map(|n| {
+                    let j = REGRESSION_PARAMS.iter().position(|p| p == n);
+                    (n.as_str(), j.and_then(|j| self.std_err[j]))
+                })
+                .collect(),
+            prediction_error_pct: PredictionErrors {
+                final_pct: self.final_error_pct,
+                max_after_transient: self.max_error_after_transient_pct,
+                max_after_transient_vs_truth: self.max_truth_error_after_transient_pct,
+            },
+            nmse: NmseBeforeAfter {
+                nominal: self.nmse_nominal,
+                fitted: self.nmse_final,
+            },
+            cycles: CycleCount {
+                used: self.data.len(),
+                skipped_unsteady: self.data.skipped_unsteady,
+            },
+        }
+    }
+
     /// The largest prediction error after the start-up transient [%], against the simulated
     /// truth when the recording carries it, else against the measured cycle means.
     pub fn error_after_transient_pct(&self) -> f64 {

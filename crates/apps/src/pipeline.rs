@@ -439,6 +439,59 @@ pub struct PipelineResult {
     pub tracks: Vec<(String, Vec<f64>)>,
 }
 
+/// What `physid run --json` prints.
+#[derive(Debug, Clone, Serialize)]
+pub struct PipelineSummary<'a> {
+    /// Data rows.
+    pub rows: usize,
+    /// The ranking.
+    pub ranking: &'a [RankedParam],
+    /// The estimated parameters.
+    pub estimable: &'a [String],
+    /// The estimator.
+    pub method: MethodName,
+    /// Nominal values by name.
+    pub nominal: BTreeMap<&'a str, f64>,
+    /// Final values by name.
+    pub params: BTreeMap<&'a str, f64>,
+    /// Standard errors of the estimated ones by name (null where unresolved).
+    pub std_err: BTreeMap<&'a str, Option<f64>>,
+    /// The estimated parameters the data do not resolve.
+    pub unresolved: &'a [String],
+    /// The objective.
+    pub objective: &'a Objective,
+}
+
+impl PipelineResult {
+    /// The result without its tracks.
+    pub fn summary(&self) -> PipelineSummary<'_> {
+        let by_name = |v: &[f64]| {
+            self.names
+                .iter()
+                .map(String::as_str)
+                .zip(v.iter().copied())
+                .collect()
+        };
+        PipelineSummary {
+            rows: self.rows,
+            ranking: &self.ranking,
+            estimable: &self.estimable,
+            method: self.method,
+            nominal: by_name(&self.nominal),
+            params: by_name(&self.params),
+            std_err: self
+                .names
+                .iter()
+                .zip(&self.std_err)
+                .filter(|(n, _)| self.estimable.contains(n))
+                .map(|(n, s)| (n.as_str(), *s))
+                .collect(),
+            unresolved: &self.unresolved,
+            objective: &self.objective,
+        }
+    }
+}
+
 /// Load (or simulate) the pipeline's recording.
 pub fn load_data(spec: &DataSpec) -> Result<Recording, AppError> {
     match (&spec.file, &spec.scenario) {

@@ -102,6 +102,30 @@ impl Default for MonitorConfig {
     }
 }
 
+/// The coupling shaft's parameters by name (JSON: `K`, `B`, `tau0`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ShaftParams {
+    /// Stiffness K [N·m/rad].
+    #[serde(rename = "K")]
+    pub k: f64,
+    /// Damping B [N·m·s/rad].
+    #[serde(rename = "B")]
+    pub b: f64,
+    /// Encoder-offset torque τ0 [N·m].
+    pub tau0: f64,
+}
+
+/// A figure per monitored parameter (JSON: `K`, `B`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PerParam {
+    /// For K.
+    #[serde(rename = "K")]
+    pub k: f64,
+    /// For B.
+    #[serde(rename = "B")]
+    pub b: f64,
+}
+
 /// A raised alarm, in time.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ShaftAlarm {
@@ -131,17 +155,46 @@ pub struct ShaftMonitor {
     /// Standard errors of K and B at each sample.
     pub std_err: Vec<[f64; 2]>,
     /// Final K, B, τ0.
-    pub final_estimate: [f64; 3],
-    /// Final standard errors of K, B, τ0.
-    pub final_std_err: [f64; 3],
+    pub final_estimate: ShaftParams,
+    /// Final standard errors of K, B, τ0 (NaN before they can be estimated).
+    pub final_std_err: ShaftParams,
     /// Alarms.
     pub alarms: Vec<ShaftAlarm>,
     /// True K and B over time, when the recording carries them (simulated data).
     pub truth: Option<(Vec<f64>, Vec<f64>)>,
     /// NMSE of the K and B tracks against the truth after settling (thesis Fig. 6.9).
-    pub nmse: Option<[f64; 2]>,
+    pub nmse: Option<PerParam>,
     /// First time after which the estimates stay within ±5 % of the truth [s], per parameter.
     pub within_5pct_s: Option<[Option<f64>; 2]>,
+}
+
+/// What `physid monitor shaft --json` prints (and the demo's summary holds per method).
+#[derive(Debug, Clone, Serialize)]
+pub struct ShaftSummary<'a> {
+    /// The method.
+    pub method: &'static str,
+    /// Final K, B, τ0.
+    #[serde(rename = "final")]
+    pub final_estimate: ShaftParams,
+    /// Their standard errors (null before they can be estimated).
+    pub std_err: ShaftParams,
+    /// The alarms.
+    pub alarms: &'a [ShaftAlarm],
+    /// NMSE (Eq. 6.4) of the tracks against the truth (simulated data).
+    pub nmse: Option<PerParam>,
+}
+
+impl ShaftMonitor {
+    /// The result without its tracks.
+    pub fn summary(&self) -> ShaftSummary<'_> {
+        ShaftSummary {
+            method: self.method,
+            final_estimate: self.final_estimate,
+            std_err: self.final_std_err,
+            alarms: &self.alarms,
+            nmse: self.nmse,
+        }
+    }
 }
 
 /// Run the monitor on a time-basis recording with `theta_dy`, `theta_en`, `omega_dy`,
@@ -229,8 +282,16 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         b: Vec::new(),
         tau0: Vec::new(),
         std_err: Vec::new(),
-        final_estimate: [0.0; 3],
-        final_std_err: [f64::NAN; 3],
+        final_estimate: ShaftParams {
+            k: 0.0,
+            b: 0.0,
+            tau0: 0.0,
+        },
+        final_std_err: ShaftParams {
+            k: f64::NAN,
+            b: f64::NAN,
+            tau0: f64::NAN,
+        },
         alarms: Vec::new(),
         truth: None,
         nmse: None,
@@ -260,9 +321,17 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         }
     }
     let th = est.estimate();
-    out.final_estimate = [th[0], th[1], th[2]];
+    out.final_estimate = ShaftParams {
+        k: th[0],
+        b: th[1],
+        tau0: th[2],
+    };
     if est.std_errors_into(&mut se).is_ok() {
-        out.final_std_err = se;
+        out.final_std_err = ShaftParams {
+            k: se[0],
+            b: se[1],
+            tau0: se[2],
+        };
     }
     let first = det_t0.unwrap_or(0);
     out.alarms = det
@@ -299,7 +368,10 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
                 _ => None,
             }
         };
-        out.nmse = Some([nmse(&k_true, &out.k), nmse(&b_true, &out.b)]);
+        out.nmse = Some(PerParam {
+            k: nmse(&k_true, &out.k),
+            b: nmse(&b_true, &out.b),
+        });
         out.within_5pct_s = Some([within(&k_true, &out.k), within(&b_true, &out.b)]);
         out.truth = Some((k_true, b_true));
     }

@@ -32,6 +32,7 @@ use physid_models::friction_fit::fit_friction_cubic;
 use physid_sim::params::CellParams;
 use physid_sim::run::parameter_truth;
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// The relative cut-off of the cyclic-torque ranking: residuals below 1e-6 of the first are
 /// at the level of the measured oil temperature's noise (0.1 K on 363 K, squared), which is all
@@ -260,7 +261,62 @@ pub struct TorqueFit {
     pub samples: usize,
 }
 
+/// What `physid torque fit --json` prints (and the demo's summary holds).
+#[derive(Debug, Clone, Serialize)]
+pub struct TorqueSummary<'a> {
+    /// The filter.
+    pub method: &'static str,
+    /// The estimated parameters, in rank order.
+    pub estimable: &'a [String],
+    /// The identifiability ranking.
+    pub ranking: &'a [RankedParam],
+    /// Every parameter's final value, by name.
+    pub params: BTreeMap<&'static str, f64>,
+    /// The standard errors of the estimated ones, by name.
+    pub std_err: BTreeMap<&'static str, f64>,
+    /// NMSE (Eq. 6.4) of the prediction with the nominal and the final values.
+    pub nmse_before: f64,
+    /// See `nmse_before`.
+    pub nmse_after: f64,
+    /// NRMSE of the same.
+    pub nrmse_before: f64,
+    /// See `nrmse_before`.
+    pub nrmse_after: f64,
+    /// R² of the batch fit.
+    pub r2: f64,
+    /// Covariance repairs.
+    pub repairs: u64,
+    /// Samples.
+    pub samples: usize,
+}
+
 impl TorqueFit {
+    /// The result without its tracks.
+    pub fn summary(&self) -> TorqueSummary<'_> {
+        TorqueSummary {
+            method: self.method,
+            estimable: &self.estimable,
+            ranking: &self.ranking,
+            params: PARAMS
+                .iter()
+                .copied()
+                .zip(self.params.iter().copied())
+                .collect(),
+            std_err: PARAMS
+                .iter()
+                .zip(&self.std_err)
+                .filter_map(|(&n, s)| s.map(|s| (n, s)))
+                .collect(),
+            nmse_before: self.nmse_before,
+            nmse_after: self.nmse_after,
+            nrmse_before: self.nrmse_before,
+            nrmse_after: self.nrmse_after,
+            r2: self.r2,
+            repairs: self.repairs,
+            samples: self.samples,
+        }
+    }
+
     /// The true value of each track over its times, where the recording is simulated and the
     /// parameter is one of the cell's ([`TRUTH_PATHS`]); `None` elsewhere.
     pub fn truths(&self, rec: &Recording) -> Vec<Option<Vec<f64>>> {

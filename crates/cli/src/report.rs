@@ -115,7 +115,12 @@ pub fn create_dir(dir: &Path) -> Result<()> {
 }
 
 /// Finish an output directory: `DIR/report.html` and the JSON as `DIR/json_name`.
-pub fn finish(dir: &Path, report: Report, json_name: &str, json: &serde_json::Value) -> Result<()> {
+pub fn finish(
+    dir: &Path,
+    report: Report,
+    json_name: &str,
+    json: &impl serde::Serialize,
+) -> Result<()> {
     report.write(&dir.join("report.html"))?;
     let path = dir.join(json_name);
     std::fs::write(&path, serde_json::to_string_pretty(json).into_diagnostic()?)

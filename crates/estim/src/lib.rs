@@ -43,5 +43,6 @@ pub use linear::{
 };
 pub use nonlinear::{NlConfig, NlMethod, NonlinearEstimator, SigmaPoints, SigmaWeights};
 pub use recursive::{
-    feed, FeedError, FeedSummary, LinearInParams, Memory, MethodName, OnBad, Recursive, Snapshot,
+    feed, FeedError, FeedSummary, LinearInParams, Memory, MethodName, OnBad, ParamResolution,
+    Recursive, RunSummary, Snapshot, Timing,
 };

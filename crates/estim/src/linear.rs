@@ -990,6 +990,9 @@ impl crate::recursive::Recursive for LinearEstimator {
     fn method_name(&self) -> &'static str {
         self.method.name()
     }
+    fn param_names(&self) -> &[String] {
+        self.params.names()
+    }
     fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
         LinearEstimator::update(self, inputs, y)
     }

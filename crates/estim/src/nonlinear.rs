@@ -792,6 +792,9 @@ impl<M: ParamModel> Recursive for NonlinearEstimator<M> {
     fn method_name(&self) -> &'static str {
         self.method.name()
     }
+    fn param_names(&self) -> &[String] {
+        self.params.names()
+    }
     fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
         NonlinearEstimator::update(self, inputs, y)
     }

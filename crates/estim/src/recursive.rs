@@ -13,6 +13,7 @@ use crate::{EstimError, EstimatorConfig, LinearEstimator, Step};
 use nalgebra::DMatrix;
 use physid_core::{FreeSet, GradientEngine, ParamModel, ParamSet};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// What every recursive estimator offers.
 pub trait Recursive {
@@ -22,6 +23,8 @@ pub trait Recursive {
     /// the model's inputs (model-based ones), `y` the measured output. A refused sample leaves
     /// the state untouched. Allocation-free.
     fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError>;
+    /// Names of all the parameters, free and fixed, in order.
+    fn param_names(&self) -> &[String];
     /// Names of the estimated (free) parameters, in order.
     fn free_names(&self) -> Vec<&str>;
     /// The free parameters' estimates, physical units.
@@ -209,6 +212,9 @@ impl<M: ParamModel> LinearInParams<M> {
 impl<M: ParamModel> Recursive for LinearInParams<M> {
     fn method_name(&self) -> &'static str {
         self.est.method_name()
+    }
+    fn param_names(&self) -> &[String] {
+        self.est.params().names()
     }
     fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
         let names = self.model.input_names();
@@ -416,5 +422,119 @@ impl std::str::FromStr for MethodName {
                 let all: Vec<&str> = Self::ALL.iter().map(|m| m.as_str()).collect();
                 format!("unknown method '{s}'; the methods are: {}", all.join(", "))
             })
+    }
+}
+
+/// A run's result as `physid estimate --json` prints it (and the Python package returns it):
+/// the final estimates, their standard errors where the data resolve them, the one-step
+/// prediction metrics and the timing.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// The method.
+    pub method: &'static str,
+    /// Samples accepted.
+    pub samples: usize,
+    /// Non-finite samples skipped.
+    pub skipped: usize,
+    /// Every parameter's final value (fixed ones at their nominal values).
+    pub params: BTreeMap<String, f64>,
+    /// The free parameters' standard errors; null where the data do not resolve the parameter
+    /// or the estimator cannot give one yet.
+    pub std_err: BTreeMap<String, Option<f64>>,
+    /// The free parameters the data do not resolve ([`crate::resolution`]).
+    pub unresolved: Vec<String>,
+    /// Per free parameter, the resolution tests.
+    pub resolution: BTreeMap<String, ParamResolution>,
+    /// NMSE (Eq. 6.4) of the one-step predictions.
+    pub nmse: Option<f64>,
+    /// NRMSE of the same.
+    pub nrmse: Option<f64>,
+    /// Fit [%] of the same.
+    pub fit_percent: Option<f64>,
+    /// Time spent in the updates.
+    pub timing: Timing,
+    /// Covariance repairs (the unscented filters).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub repairs: Option<u64>,
+    /// Bound projections (model-based filters).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub projections: Option<u64>,
+}
+
+/// One parameter's resolution ([`Resolution`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ParamResolution {
+    /// Both tests passed.
+    pub resolved: bool,
+    /// `P_jj / P0_jj`.
+    pub variance_ratio: f64,
+    /// `1/VIF_j`.
+    pub independence: f64,
+}
+
+/// Time spent in the updates of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Timing {
+    /// Seconds.
+    pub seconds: f64,
+    /// Updates per second.
+    pub updates_per_s: f64,
+}
+
+impl RunSummary {
+    /// The summary of `est` after [`feed`] (`fed`), its one-step predictions `predicted` of
+    /// `measured`.
+    pub fn new(
+        est: &dyn Recursive,
+        fed: &FeedSummary,
+        measured: &[f64],
+        predicted: &[f64],
+    ) -> Self {
+        let names: Vec<String> = est.free_names().iter().map(|s| s.to_string()).collect();
+        let res = est.resolution();
+        let se = est.std_errors();
+        Self {
+            method: est.method_name(),
+            samples: fed.accepted,
+            skipped: fed.skipped,
+            params: est
+                .param_names()
+                .iter()
+                .cloned()
+                .zip(est.estimate_full())
+                .collect(),
+            std_err: names
+                .iter()
+                .enumerate()
+                .map(|(j, n)| {
+                    let s = se.as_ref().map(|s| s[j]).filter(|_| res.resolved[j]);
+                    (n.clone(), s)
+                })
+                .collect(),
+            unresolved: res.unresolved().iter().map(|&j| names[j].clone()).collect(),
+            resolution: names
+                .iter()
+                .enumerate()
+                .map(|(j, n)| {
+                    (
+                        n.clone(),
+                        ParamResolution {
+                            resolved: res.resolved[j],
+                            variance_ratio: res.variance_ratio[j],
+                            independence: res.independence[j],
+                        },
+                    )
+                })
+                .collect(),
+            nmse: crate::metrics::nmse(measured, predicted),
+            nrmse: crate::metrics::nrmse(measured, predicted),
+            fit_percent: crate::metrics::fit_percent(measured, predicted),
+            timing: Timing {
+                seconds: fed.seconds,
+                updates_per_s: fed.accepted as f64 / fed.seconds.max(1e-12),
+            },
+            repairs: est.repairs(),
+            projections: est.projections(),
+        }
     }
 }

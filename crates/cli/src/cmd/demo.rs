@@ -62,10 +62,10 @@ pub fn run(args: &Args) -> Result<()> {
         .map(|m| {
             vec![
                 m.method.to_string(),
-                format!("{:.2}", m.final_estimate[0]),
-                format!("{:.4}", m.final_estimate[1]),
-                m.nmse.map_or("—".into(), |n| format!("{:.2e}", n[0])),
-                m.nmse.map_or("—".into(), |n| format!("{:.2e}", n[1])),
+                format!("{:.2}", m.final_estimate.k),
+                format!("{:.4}", m.final_estimate.b),
+                m.nmse.map_or("—".into(), |n| format!("{:.2e}", n.k)),
+                m.nmse.map_or("—".into(), |n| format!("{:.2e}", n.b)),
                 m.alarms
                     .iter()
                     .map(|a| format!("{} at {:.2} s", a.param, a.t_start_s))
@@ -147,8 +147,8 @@ pub fn run(args: &Args) -> Result<()> {
     rep.write(&dir.join("report.html"))?;
 
     let summary = serde_json::json!({
-        "shaft": super::monitor::json(mon),
-        "shaft_methods": d.shaft_methods.iter().map(super::monitor::json).collect::<Vec<_>>(),
+        "shaft": mon.summary(),
+        "shaft_methods": d.shaft_methods.iter().map(|m| m.summary()).collect::<Vec<_>>(),
         "fault": d.fault,
         "solver_order": d.solver_order,
         "friction_rank": {
@@ -163,8 +163,8 @@ pub fn run(args: &Args) -> Result<()> {
             "estimable": t.analysis.ranking.steps[..t.estimable].iter().map(|s| &t.analysis.names[s.param]).collect::<Vec<_>>(),
             "unidentifiable": t.analysis.ranking.steps[t.estimable..].iter().map(|s| &t.analysis.names[s.param]).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
-        "friction_fit": super::friction::fit_json(ffit),
-        "torque_fit": super::torque::json(tfit),
+        "friction_fit": ffit.summary(),
+        "torque_fit": tfit.summary(),
         "seconds": t0.elapsed().as_secs_f64(),
     });
     std::fs::write(
@@ -180,8 +180,8 @@ pub fn run(args: &Args) -> Result<()> {
     outln!(
         "  shaft (T01, fault {}): K = {:.1} N·m/rad, B = {:.3} N·m·s/rad at the end",
         d.fault,
-        mon.final_estimate[0],
-        mon.final_estimate[1]
+        mon.final_estimate.k,
+        mon.final_estimate.b
     );
     for a in &mon.alarms {
         outln!(

@@ -6,12 +6,11 @@ use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
 use physid_estim::{
-    feed, metrics, CovSpec, EstimError, EstimatorConfig, FeedError, FeedSummary, GuardAction,
+    feed, CovSpec, EstimError, EstimatorConfig, FeedError, FeedSummary, GuardAction,
     LinearEstimator, Method, MethodName, NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive,
-    SigmaPoints, VfVariant, WindupGuard,
+    RunSummary, SigmaPoints, VfVariant, WindupGuard,
 };
 use physid_expr::ExprModel;
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Arguments of `physid estimate`.
@@ -238,7 +237,7 @@ pub fn run(args: &Args) -> Result<()> {
     let mut measured = Vec::with_capacity(n);
     let mut predicted = Vec::with_capacity(n);
     let mut track: Vec<Vec<f64>> = vec![Vec::new(); 2 * nfree + 2];
-    let summary = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
+    let fed = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
         measured.push(y[i]);
         predicted.push(y[i] - step.prediction_error);
         if args.out.is_some() {
@@ -262,28 +261,15 @@ pub fn run(args: &Args) -> Result<()> {
         accepted,
         skipped,
         seconds,
-    } = summary;
+    } = fed;
     if accepted == 0 {
         return Err(miette!("{file}: no usable samples ({skipped} skipped)"));
     }
     let theta = est.estimate();
     // What the data resolved (physid_estim::resolution): an unresolved parameter keeps its
     // estimate but gets no standard error — the data cannot support one.
-    let res = est.resolution();
-    let unresolved: Vec<&String> = res.unresolved().iter().map(|&j| &names[j]).collect();
-    let std_err: Option<Vec<Option<f64>>> = est.std_errors().map(|s| {
-        s.iter()
-            .enumerate()
-            .map(|(j, &v)| res.resolved[j].then_some(v))
-            .collect()
-    });
-    let mut full = params.nominal().to_vec();
-    free.scatter(&theta, &mut full);
-    let repairs = est.repairs();
-    let projections = est.projections();
-    let nmse = metrics::nmse(&measured, &predicted);
-    let nrmse = metrics::nrmse(&measured, &predicted);
-    let fit = metrics::fit_percent(&measured, &predicted);
+    let summary = RunSummary::new(est.as_ref(), &fed, &measured, &predicted);
+    let has_std_err = est.std_errors().is_some();
 
     if let Some(out) = &args.out {
         let mut r = Recording::new(Basis::Time);
@@ -313,51 +299,11 @@ pub fn run(args: &Args) -> Result<()> {
             .wrap_err("writing --out")?;
     }
 
-    let rate = accepted as f64 / seconds.max(1e-12);
     if args.json {
-        let params_json: serde_json::Map<_, _> = params
-            .names()
-            .iter()
-            .zip(&full)
-            .map(|(k, v)| (k.clone(), json!(v)))
-            .collect();
-        let se: serde_json::Map<_, _> = names
-            .iter()
-            .enumerate()
-            .map(|(j, k)| (k.clone(), json!(std_err.as_ref().and_then(|s| s[j]))))
-            .collect();
-        let resolution_json: serde_json::Map<_, _> = names
-            .iter()
-            .enumerate()
-            .map(|(j, k)| {
-                (
-                    k.clone(),
-                    json!({"resolved": res.resolved[j],
-                           "variance_ratio": res.variance_ratio[j],
-                           "independence": res.independence[j]}),
-                )
-            })
-            .collect();
-        let mut out = json!({
-            "method": method_name,
-            "samples": accepted,
-            "skipped": skipped,
-            "params": params_json,
-            "std_err": se,
-            "unresolved": unresolved,
-            "resolution": resolution_json,
-            "nmse": nmse,
-            "nrmse": nrmse,
-            "fit_percent": fit,
-            "timing": {"seconds": seconds, "updates_per_s": rate},
-        });
-        if let Some(r) = repairs {
-            out["repairs"] = json!(r);
-        }
-        if let Some(n) = projections {
-            out["projections"] = json!(n);
-        }
-        outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&summary).into_diagnostic()?
+        );
         return Ok(());
     }
     outln!(
@@ -368,7 +314,7 @@ pub fn run(args: &Args) -> Result<()> {
             String::new()
         },
         seconds,
-        rate
+        summary.timing.updates_per_s
     );
     outln!(
         "{:<16} {:>16} {:>14}",
@@ -377,9 +323,10 @@ pub fn run(args: &Args) -> Result<()> {
         "std. error"
     );
     for (j, nm) in names.iter().enumerate() {
-        let s = match std_err.as_ref() {
-            None => "-".to_string(),
-            Some(s) => s[j].map_or("unresolved".to_string(), |v| format!("{v:.6e}")),
+        let s = match summary.std_err[nm] {
+            _ if !has_std_err => "-".to_string(),
+            None => "unresolved".to_string(),
+            Some(v) => format!("{v:.6e}"),
         };
         outln!("{nm:<16} {:>16.8e} {s:>14}", theta[j]);
     }
@@ -391,27 +338,25 @@ pub fn run(args: &Args) -> Result<()> {
             "(fixed)"
         );
     }
-    if !unresolved.is_empty() {
+    if !summary.unresolved.is_empty() {
         outln!(
             "the data do not resolve {}: their variance fell by less than half, or they cannot be told apart from the others (collinear); their estimates are not supported by the data",
-            unresolved
-                .iter()
-                .map(|s| s.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
+            summary.unresolved.join(", ")
         );
     }
     let show = |v: Option<f64>| v.map_or("undefined".to_string(), |v| format!("{v:.4e}"));
     outln!(
         "one-step prediction: NMSE {} (Eq. 6.4), NRMSE {}, fit {}",
-        show(nmse),
-        show(nrmse),
-        fit.map_or("undefined".to_string(), |v| format!("{v:.2} %"))
+        show(summary.nmse),
+        show(summary.nrmse),
+        summary
+            .fit_percent
+            .map_or("undefined".to_string(), |v| format!("{v:.2} %"))
     );
-    if let Some(r) = repairs {
+    if let Some(r) = summary.repairs {
         outln!("covariance repairs: {r}");
     }
-    if let Some(n) = projections.filter(|n| *n > 0) {
+    if let Some(n) = summary.projections.filter(|n| *n > 0) {
         outln!("bounds enforced: {n} times (an estimate is at a bound)");
     }
     Ok(())

@@ -184,7 +184,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     cfg.p_atm_kpa = a.p_atm;
     let rec = a.input.read(&a.data, None)?;
     let r = friction_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
-    let j = fit_json(&r);
+    let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
         let mut rep = Report::new("physid — friction fit", &format!("{}", a.data.display()));
@@ -240,34 +240,6 @@ fn coefficient_index(name: &str) -> usize {
         .iter()
         .position(|p| *p == name)
         .unwrap_or(0)
-}
-
-/// The JSON of a friction fit.
-pub fn fit_json(r: &FrictionFit) -> serde_json::Value {
-    let by_name = |v: &dyn Fn(usize) -> serde_json::Value| {
-        REGRESSION_PARAMS
-            .iter()
-            .enumerate()
-            .map(|(j, n)| (n.to_string(), v(j)))
-            .collect::<serde_json::Map<_, _>>()
-    };
-    serde_json::json!({
-        "estimable": r.estimable,
-        "ranking": r.ranking,
-        "params": by_name(&|j| serde_json::json!(r.params[j])),
-        "nominal": by_name(&|j| serde_json::json!(r.nominal[j])),
-        "std_err": r.estimable.iter().map(|n| {
-            let j = coefficient_index(n);
-            (n.clone(), serde_json::json!(r.std_err[j]))
-        }).collect::<serde_json::Map<_, _>>(),
-        "prediction_error_pct": {
-            "final": r.final_error_pct,
-            "max_after_transient": r.max_error_after_transient_pct,
-            "max_after_transient_vs_truth": r.max_truth_error_after_transient_pct,
-        },
-        "nmse": {"nominal": r.nmse_nominal, "fitted": r.nmse_final},
-        "cycles": {"used": r.data.len(), "skipped_unsteady": r.data.skipped_unsteady},
-    })
 }
 
 /// Write the friction-fit section of a report (and its SVG into `dir`).

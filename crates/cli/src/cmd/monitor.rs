@@ -96,17 +96,6 @@ fn config(a: &ShaftArgs) -> Result<MonitorConfig> {
     Ok(cfg)
 }
 
-/// The JSON of a monitor run.
-pub fn json(r: &ShaftMonitor) -> serde_json::Value {
-    serde_json::json!({
-        "method": r.method,
-        "final": {"K": r.final_estimate[0], "B": r.final_estimate[1], "tau0": r.final_estimate[2]},
-        "std_err": {"K": r.final_std_err[0], "B": r.final_std_err[1], "tau0": r.final_std_err[2]},
-        "alarms": r.alarms,
-        "nmse": r.nmse.map(|n| serde_json::json!({"K": n[0], "B": n[1]})),
-    })
-}
-
 /// Write the shaft section of a report (and its SVG into `dir`).
 pub fn report_section(
     rep: &mut Report,
@@ -127,20 +116,20 @@ pub fn report_section(
         &[
             vec![
                 "K [N·m/rad]".into(),
-                format!("{:.2}", r.final_estimate[0]),
-                format!("{:.3e}", r.final_std_err[0]),
-                r.nmse.map_or("—".into(), |n| format!("{:.2e}", n[0])),
+                format!("{:.2}", r.final_estimate.k),
+                format!("{:.3e}", r.final_std_err.k),
+                r.nmse.map_or("—".into(), |n| format!("{:.2e}", n.k)),
             ],
             vec![
                 "B [N·m·s/rad]".into(),
-                format!("{:.4}", r.final_estimate[1]),
-                format!("{:.3e}", r.final_std_err[1]),
-                r.nmse.map_or("—".into(), |n| format!("{:.2e}", n[1])),
+                format!("{:.4}", r.final_estimate.b),
+                format!("{:.3e}", r.final_std_err.b),
+                r.nmse.map_or("—".into(), |n| format!("{:.2e}", n.b)),
             ],
             vec![
                 "τ0 [N·m]".into(),
-                format!("{:.4}", r.final_estimate[2]),
-                format!("{:.3e}", r.final_std_err[2]),
+                format!("{:.4}", r.final_estimate.tau0),
+                format!("{:.3e}", r.final_std_err.tau0),
                 "—".into(),
             ],
         ],
@@ -263,7 +252,7 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     let cfg = config(a)?;
     let rec = a.input.read(&a.data, None)?;
     let r = monitor_shaft(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
-    let j = json(&r);
+    let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
         let mut rep = Report::new("physid — shaft monitor", &format!("{}", a.data.display()));
@@ -282,17 +271,17 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     );
     outln!(
         "  K = {:.2} ± {:.2e} N·m/rad, B = {:.4} ± {:.2e} N·m·s/rad, τ0 = {:.4} N·m",
-        r.final_estimate[0],
-        r.final_std_err[0],
-        r.final_estimate[1],
-        r.final_std_err[1],
-        r.final_estimate[2]
+        r.final_estimate.k,
+        r.final_std_err.k,
+        r.final_estimate.b,
+        r.final_std_err.b,
+        r.final_estimate.tau0
     );
     if let Some(n) = r.nmse {
         outln!(
             "  NMSE against the recording's truth: K {:.2e}, B {:.2e}",
-            n[0],
-            n[1]
+            n.k,
+            n.b
         );
     }
     if r.alarms.is_empty() {

@@ -23,31 +23,6 @@ pub struct Args {
     out: Option<PathBuf>,
 }
 
-/// The JSON of a pipeline run.
-pub fn json(r: &PipelineResult) -> serde_json::Value {
-    let by_name = |v: &[f64]| {
-        r.names
-            .iter()
-            .zip(v)
-            .map(|(n, x)| (n.clone(), serde_json::json!(x)))
-            .collect::<serde_json::Map<_, _>>()
-    };
-    serde_json::json!({
-        "rows": r.rows,
-        "ranking": r.ranking,
-        "estimable": r.estimable,
-        "method": r.method,
-        "nominal": by_name(&r.nominal),
-        "params": by_name(&r.params),
-        "std_err": r.names.iter().zip(&r.std_err)
-            .filter(|(n, _)| r.estimable.contains(n))
-            .map(|(n, s)| (n.clone(), serde_json::json!(s)))
-            .collect::<serde_json::Map<_, _>>(),
-        "unresolved": r.unresolved,
-        "objective": r.objective,
-    })
-}
-
 fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<Report> {
     let mut rep = Report::new(
         "physid — qualitative adaptive identification",
@@ -146,7 +121,7 @@ pub fn run(args: &Args) -> Result<()> {
     let p = Pipeline::load(&args.pipeline).map_err(|e| miette!("{e}"))?;
     let rec = load_data(&p.data).map_err(|e| miette!("{}: [data] {e}", args.pipeline.display()))?;
     let r = run_pipeline(&p, &rec).map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
-    let j = json(&r);
+    let j = r.summary();
     if let Some(dir) = &args.out {
         report::create_dir(dir)?;
         let rep = report(&r, &p, &args.pipeline, dir)?;

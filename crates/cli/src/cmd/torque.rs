@@ -104,34 +104,6 @@ fn config(a: &FitArgs) -> Result<TorqueFitConfig> {
     Ok(cfg)
 }
 
-/// The JSON of a cyclic-torque fit.
-pub fn json(r: &TorqueFit) -> serde_json::Value {
-    let params: serde_json::Map<_, _> = PARAMS
-        .iter()
-        .zip(&r.params)
-        .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
-        .collect();
-    let std_err: serde_json::Map<_, _> = PARAMS
-        .iter()
-        .zip(&r.std_err)
-        .filter_map(|(n, s)| s.map(|s| (n.to_string(), serde_json::json!(s))))
-        .collect();
-    serde_json::json!({
-        "method": r.method,
-        "estimable": r.estimable,
-        "ranking": r.ranking,
-        "params": params,
-        "std_err": std_err,
-        "nmse_before": r.nmse_before,
-        "nmse_after": r.nmse_after,
-        "nrmse_before": r.nrmse_before,
-        "nrmse_after": r.nrmse_after,
-        "r2": r.r2,
-        "repairs": r.repairs,
-        "samples": r.samples,
-    })
-}
-
 /// Write the cyclic-torque section of a report (and its SVGs into `dir`). `truth` holds the
 /// true value of each track over time, where known.
 pub fn report_section(
@@ -295,7 +267,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     let cfg = config(a)?;
     let rec = a.input.read(&a.data, None)?;
     let r = torque_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
-    let j = json(&r);
+    let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
         let mut rep = Report::new(
