@@ -18,6 +18,7 @@ pub mod analysis;
 pub mod fisher;
 pub mod online;
 pub mod ranking;
+pub mod report;
 pub mod sensitivity;
 pub mod triangular;
 pub mod workload;
@@ -30,6 +31,7 @@ pub use analysis::{
 pub use fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, Quantitative};
 pub use online::{Memory, OnlineIdent};
 pub use ranking::{rank, Cutoff, RankStep, Ranking};
+pub use report::{identify, IdentReport, Identification, Num, SigmaSource};
 pub use sensitivity::{sensitivity_matrix, Data, RowScaler, Scaling};
 pub use triangular::TriangularFactor;
 pub use wu::{wu_criterion, WuCriterion};

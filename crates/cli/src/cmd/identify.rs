@@ -7,9 +7,9 @@ use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::model_choice::ModelChoice;
 use physid_core::{ParamModel, Recording};
 use physid_ident::{
-    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, RankStep, Scaling, Selection,
+    identify, Cutoff, Data, IdentConfig, Identification, Scaling, Selection, SigmaSource,
 };
-use serde_json::{json, Map, Value};
+use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid identify`.
@@ -143,21 +143,6 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
     Ok(reports)
 }
 
-/// A number for JSON: ∞ as the string "inf" (JSON has no infinity), NaN as null.
-fn num(x: f64) -> Value {
-    if x.is_infinite() {
-        json!("inf")
-    } else if x.is_nan() {
-        Value::Null
-    } else {
-        json!(x)
-    }
-}
-
-fn step_json(a: &Analysis, s: &RankStep) -> Value {
-    json!({"param": a.names[s.param], "residual_ss": s.residual_ss, "relative": s.relative})
-}
-
 /// Analyse one recording; print the table unless JSON; return the JSON report.
 fn identify_one<M: ParamModel>(
     model: &M,
@@ -193,123 +178,31 @@ fn identify_one<M: ParamModel>(
         })
         .collect::<Result<_>>()?;
     let data = Data { inputs, y };
-    let a = analyse(model, &data, nominal, &free, config).map_err(|e| match e {
-        // Placed by file line, as every verb does.
-        physid_ident::IdentError::BadValue { row, column, value } => miette!(
-            "{file}, {}: '{column}' is {value} (expected a finite number)",
-            super::locate(rec, row)
-        ),
-        e => miette!("{file}: {e}"),
-    })?;
-    let (k, wu) = choice
-        .resolve(model, &data, &a)
-        .map_err(|e| miette!("{file}: {e}"))?;
-    let cutoff_json = match (*choice, wu) {
-        (Selection::Rule(c), _) => serde_json::to_value(c).into_diagnostic()?,
-        (_, Some((wu, j))) => json!({"kind": "wu", "k_star": wu.k_star, "j": j, "r_c": wu.r_c,
-                                     "r_ckub": wu.r_ckub, "r_cc": wu.r_cc}),
-        (_, None) => json!({"kind": "wu"}),
-    };
-    let selected = a.top(k);
-    // Precision of the selected subset: fitted with a measured output, else at ϑ0.
-    let subset_model: Vec<usize> = selected.iter().map(|&i| a.free[i]).collect();
-    let mut values: Vec<f64> = selected.iter().map(|&i| nominal[a.free[i]]).collect();
-    let (gram, sigma2, sigma_source) = if data.y.is_some() && k > 0 {
-        let fit = fit_subset(model, &data, nominal, &subset_model, 30)
-            .map_err(|e| miette!("{file}: {e}"))?;
-        values = subset_model.iter().map(|&j| fit.theta[j]).collect();
-        let dof = a.rows.saturating_sub(k).max(1) as f64;
-        match args.sigma {
-            Some(s) => (fit.gram, s * s, "given"),
-            None => (fit.gram, fit.rss / dof, "fit"),
-        }
-    } else {
-        let (s2, src) = match args.sigma {
-            Some(s) => (s * s, "given"),
-            None => (1.0, "unit"),
-        };
-        (a.gram(&selected), s2, src)
-    };
-    let quant = if k > 0 {
-        physid_ident::quantify(&gram, sigma2, &values, a.rows).ok()
-    } else {
-        None
-    };
-    let collinearity = if k > 1 {
-        a.collinearity(&selected)
-    } else {
-        1.0
-    };
-    let design = (k > 0).then(|| physid_ident::design_criteria(&(gram.clone() / sigma2)));
-    let d_criterion = design.map_or(f64::NAN, |c| c.d);
-    let sel_names: Vec<&str> = selected.iter().map(|&i| a.names[i].as_str()).collect();
-    let unident: Vec<&str> = a.ranking.steps[k..]
-        .iter()
-        .map(|s| a.names[s.param].as_str())
-        .collect();
-
-    let mut report = json!({
-        "data": file,
-        "rows": a.rows,
-        "ranking": a.ranking.steps[..k].iter().map(|s| step_json(&a, s)).collect::<Vec<_>>(),
-        "unidentifiable": unident,
-        "remainder": a.ranking.steps[k..].iter().map(|s| step_json(&a, s)).collect::<Vec<_>>(),
-        "scaling": config.scaling.name(),
-        "guarded_rows": a.guarded_rows,
-        "unit_scaled": a.unit_scaled.iter().map(|&i| &a.names[i]).collect::<Vec<_>>(),
-        "cutoff": cutoff_json,
-        "sigma2": sigma2,
-        "sigma2_source": sigma_source,
-        "collinearity": num(collinearity),
-        "d_criterion": num(d_criterion),
-        "design": design.map(|c| json!({"d": num(c.d), "a": num(c.a), "e": num(c.e),
-                                         "modified_e": num(c.modified_e)})),
-    });
-    if let (Some(q), Some(obj)) = (&quant, report.as_object_mut()) {
-        let by_name = |v: &[f64]| -> Map<String, Value> {
-            sel_names
-                .iter()
-                .zip(v)
-                .map(|(n, x)| (n.to_string(), num(*x)))
-                .collect()
-        };
-        let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
-            (0..m.nrows())
-                .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
-                .collect()
-        };
-        obj.insert("params".into(), Value::Object(by_name(&values)));
-        obj.insert("fim".into(), json!(rows(&q.fim)));
-        obj.insert("std_err".into(), Value::Object(by_name(&q.std_err)));
-        obj.insert("t_values".into(), Value::Object(by_name(&q.t_values)));
-        obj.insert(
-            "ci95".into(),
-            Value::Object(
-                sel_names
-                    .iter()
-                    .zip(&q.ci95)
-                    .map(|(n, (lo, hi))| (n.to_string(), json!([lo, hi])))
-                    .collect(),
-            ),
-        );
-        obj.insert("correlation".into(), json!(rows(&q.correlation)));
-    }
+    let id =
+        identify(model, &data, nominal, &free, config, *choice, args.sigma).map_err(
+            |e| match e {
+                // Placed by file line, as every verb does.
+                physid_ident::IdentError::BadValue { row, column, value } => miette!(
+                    "{file}, {}: '{column}' is {value} (expected a finite number)",
+                    super::locate(rec, row)
+                ),
+                e => miette!("{file}: {e}"),
+            },
+        )?;
     if !args.json {
-        print_report(
-            &a,
-            k,
-            &sel_names,
-            &unident,
-            &values,
-            quant.as_ref(),
-            sigma2,
-            sigma_source,
-            collinearity,
-            d_criterion,
-            &file,
-        );
+        print_report(&id, &file);
     }
-    Ok(report)
+    #[derive(serde::Serialize)]
+    struct FileReport<'a> {
+        data: &'a str,
+        #[serde(flatten)]
+        report: physid_ident::IdentReport<'a>,
+    }
+    serde_json::to_value(FileReport {
+        data: &file,
+        report: id.report(),
+    })
+    .into_diagnostic()
 }
 
 /// The residual profile as a bar on a log scale: 1 → full width, 1e-16 → empty.
@@ -323,20 +216,9 @@ fn bar(relative: f64) -> String {
     "█".repeat((w * f).round() as usize)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn print_report(
-    a: &Analysis,
-    k: usize,
-    sel: &[&str],
-    unident: &[&str],
-    values: &[f64],
-    quant: Option<&physid_ident::Quantitative>,
-    sigma2: f64,
-    sigma_source: &str,
-    collinearity: f64,
-    d_criterion: f64,
-    file: &str,
-) {
+fn print_report(id: &Identification, file: &str) {
+    let (a, k) = (&id.analysis, id.k);
+    let (sel, unident) = (id.estimable(), id.unidentifiable());
     outln!(
         "{file}: {} rows, {} parameters, scaling {}{}",
         a.rows,
@@ -375,13 +257,16 @@ fn print_report(
             n.join(", ")
         );
     }
-    if let Some(q) = quant {
-        let src = match sigma_source {
-            "fit" => "from the fit's residuals",
-            "given" => "given",
-            _ => "per unit noise variance (give --sigma or --y)",
+    if let Some(q) = &id.quant {
+        let src = match id.sigma_source {
+            SigmaSource::Fit => "from the fit's residuals",
+            SigmaSource::Given => "given",
+            SigmaSource::Unit => "per unit noise variance (give --sigma or --y)",
         };
-        outln!("precision of the estimable parameters (σ² = {sigma2:.4e}, {src}):");
+        outln!(
+            "precision of the estimable parameters (σ² = {:.4e}, {src}):",
+            id.sigma2
+        );
         outln!(
             "  {:<10} {:>14} {:>12} {:>28} {:>9}",
             "parameter",
@@ -394,7 +279,7 @@ fn print_report(
             outln!(
                 "  {:<10} {:>14.6e} {:>12.3e} [{:>12.5e}, {:>12.5e}] {:>9.2}",
                 n,
-                values[i],
+                id.values[i],
                 q.std_err[i],
                 q.ci95[i].0,
                 q.ci95[i].1,
@@ -402,7 +287,9 @@ fn print_report(
             );
         }
         outln!(
-            "  collinearity index γ = {collinearity:.4}, D-criterion det(FIM) = {d_criterion:.4e}"
+            "  collinearity index γ = {:.4}, D-criterion det(FIM) = {:.4e}",
+            id.collinearity,
+            id.design.map_or(f64::NAN, |c| c.d)
         );
     }
 }
