@@ -10,6 +10,8 @@
 
 use physid_core::{GradientEngine, ParamModel};
 use physid_models::friction::{Design, FrictionTorque, OperatingPoint, Settings, DESIGN_PARAMS};
+use serde::Serialize;
+use std::collections::BTreeMap;
 use thiserror::Error;
 
 /// What can go wrong in the ranking.
@@ -118,6 +120,59 @@ pub struct RankTable {
     pub parameters: Vec<String>,
     /// One entry per operating point.
     pub tests: Vec<RankTest>,
+}
+
+/// One test of a ranking table as plain data.
+#[derive(Debug, Clone, Serialize)]
+pub struct RankTestSummary<'a> {
+    /// Speed [rpm].
+    pub n_rpm: f64,
+    /// Manifold pressure [kPa].
+    pub p_int_kpa: f64,
+    /// Oil temperature [°C].
+    pub t_oil_c: f64,
+    /// Friction torque [N·m].
+    pub tau_fri_nm: f64,
+    /// The design parameters, most sensitive first.
+    pub ranking: Vec<&'a str>,
+    /// Each parameter's normalised sensitivity.
+    pub sensitivity: BTreeMap<&'a str, f64>,
+}
+
+/// A ranking table as `physid friction rank --json` prints it.
+#[derive(Debug, Clone, Serialize)]
+pub struct RankSummary<'a> {
+    /// The design parameters.
+    pub parameters: &'a [String],
+    /// The tests.
+    pub tests: Vec<RankTestSummary<'a>>,
+}
+
+impl RankTable {
+    /// The table as plain data.
+    pub fn summary(&self) -> RankSummary<'_> {
+        let names = |idx: &[usize]| idx.iter().map(|&j| self.parameters[j].as_str()).collect();
+        RankSummary {
+            parameters: &self.parameters,
+            tests: self
+                .tests
+                .iter()
+                .map(|x| RankTestSummary {
+                    n_rpm: x.op.n_rpm,
+                    p_int_kpa: x.op.p_int_kpa,
+                    t_oil_c: x.op.t_oil_c,
+                    tau_fri_nm: x.tau_nm,
+                    ranking: names(&x.order),
+                    sensitivity: self
+                        .parameters
+                        .iter()
+                        .map(String::as_str)
+                        .zip(x.sensitivity.iter().copied())
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
 }
 
 /// Rank the design parameters named in `params` (all of [`DESIGN_PARAMS`] if empty) of the

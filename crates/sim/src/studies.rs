@@ -23,6 +23,7 @@ pub struct Compression {
     /// Temperature back at BDC [K].
     pub t_end_k: f64,
     /// Cylinder mass at the start and end [kg] (valves shut: equal).
+    #[serde(skip)]
     pub mass_kg: [f64; 2],
 }
 
@@ -140,6 +141,7 @@ pub struct MotoredCycle {
     /// Cycles simulated to converge.
     pub cycles: usize,
     /// Cylinder pressure over the last cycle, one value per degree from 0 to 719 [Pa].
+    #[serde(skip)]
     pub p_cyl_pa: Vec<f64>,
 }
 

@@ -493,7 +493,7 @@ fn rank(a: &RankArgs) -> Result<()> {
             .collect();
         rep.table(&header, &rows);
         rep.svg(&svg)?;
-        report::finish(dir, rep, "rank.json", &rank_json(&t))?;
+        report::finish(dir, rep, "rank.json", &t.summary())?;
         if !a.json {
             outln!(
                 "wrote {} and {}",
@@ -505,7 +505,7 @@ fn rank(a: &RankArgs) -> Result<()> {
     if a.json {
         outln!(
             "{}",
-            serde_json::to_string_pretty(&rank_json(&t)).into_diagnostic()?
+            serde_json::to_string_pretty(&t.summary()).into_diagnostic()?
         );
         return Ok(());
     }
@@ -545,27 +545,6 @@ fn rank(a: &RankArgs) -> Result<()> {
         outln!("{line}");
     }
     Ok(())
-}
-
-/// The JSON of a ranking table.
-fn rank_json(t: &RankTable) -> serde_json::Value {
-    let tests: Vec<_> = t
-        .tests
-        .iter()
-        .map(|x| {
-            serde_json::json!({
-                "n_rpm": x.op.n_rpm,
-                "p_int_kpa": x.op.p_int_kpa,
-                "t_oil_c": x.op.t_oil_c,
-                "tau_fri_nm": x.tau_nm,
-                "ranking": x.order.iter().map(|&j| &t.parameters[j]).collect::<Vec<_>>(),
-                "sensitivity": t.parameters.iter().zip(&x.sensitivity)
-                    .map(|(p, z)| (p.clone(), serde_json::json!(z)))
-                    .collect::<serde_json::Map<_, _>>(),
-            })
-        })
-        .collect();
-    serde_json::json!({"parameters": t.parameters, "tests": tests})
 }
 
 /// The heat map of a ranking table (thesis Fig. 7.1) as SVG.

@@ -296,14 +296,7 @@ fn run_study(study: &Study) -> Result<()> {
             let p = set.params()?;
             let c = motored_cycle(&p, *rpm, *throttle).map_err(|e| miette!("{e}"))?;
             if *json {
-                let v = serde_json::json!({
-                    "p_max_pa": c.p_max_pa, "theta_p_max_deg": c.theta_p_max_deg,
-                    "imep_pa": c.imep_pa, "pmep_pa": c.pmep_pa,
-                    "trapped_mass_kg": c.trapped_mass_kg, "vol_eff": c.vol_eff,
-                    "p_int_mean_pa": c.p_int_mean_pa,
-                    "torque_mean_nm": c.torque_mean_nm, "cycles": c.cycles,
-                });
-                outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+                outln!("{}", serde_json::to_string_pretty(&c).into_diagnostic()?);
             } else {
                 outln!(
                     "motored cycle at {rpm} rpm, throttle {throttle}° ({} cycles to converge)",
@@ -345,12 +338,7 @@ fn run_study(study: &Study) -> Result<()> {
             let c =
                 compression(&p, *p0, *t0, *rpm, !no_heat_transfer).map_err(|e| miette!("{e}"))?;
             if *json {
-                let v = serde_json::json!({
-                    "p_max_pa": c.p_max_pa, "t_max_k": c.t_max_k,
-                    "theta_p_max_deg": c.theta_p_max_deg,
-                    "p_end_pa": c.p_end_pa, "t_end_k": c.t_end_k,
-                });
-                outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+                outln!("{}", serde_json::to_string_pretty(&c).into_diagnostic()?);
             } else {
                 outln!(
                     "closed cylinder from BDC at {p0} Pa, {t0} K, {rpm} rpm{}:",
