@@ -87,6 +87,21 @@ pub(crate) fn check_sample(
 }
 
 /// A free/fixed view must cover exactly the parameter set it is used with.
+/// A parameter set for `model` must name the model's parameters, in its order.
+pub(crate) fn check_model_params<M: physid_core::ParamModel>(
+    params: &physid_core::ParamSet,
+    model: &M,
+) -> Result<(), EstimError> {
+    if params.names() != model.param_names() {
+        return Err(EstimError::InvalidConfig(format!(
+            "parameter set ({}) does not match the model's parameters ({})",
+            params.names().join(", "),
+            model.param_names().join(", ")
+        )));
+    }
+    Ok(())
+}
+
 pub(crate) fn check_view(
     params: &physid_core::ParamSet,
     free: &physid_core::FreeSet,

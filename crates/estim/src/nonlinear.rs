@@ -296,13 +296,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
         free: &FreeSet,
         config: &NlConfig,
     ) -> Result<Self, EstimError> {
-        if params.names() != model.param_names() {
-            return Err(EstimError::InvalidConfig(format!(
-                "parameter set ({}) does not match the model's parameters ({})",
-                params.names().join(", "),
-                model.param_names().join(", ")
-            )));
-        }
+        crate::error::check_model_params(params, &model)?;
         check_view(params, free)?;
         let l = free.free().len();
         let scale: Vec<f64> = free.free().iter().map(|&i| params.nominal()[i]).collect();

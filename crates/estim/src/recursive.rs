@@ -185,13 +185,7 @@ impl<M: ParamModel> LinearInParams<M> {
         free: &FreeSet,
         config: &EstimatorConfig,
     ) -> Result<Self, EstimError> {
-        if params.names() != model.param_names() {
-            return Err(EstimError::InvalidConfig(format!(
-                "parameter set ({}) does not match the model's parameters ({})",
-                params.names().join(", "),
-                model.param_names().join(", ")
-            )));
-        }
+        crate::error::check_model_params(params, &model)?;
         let n = params.len();
         Ok(Self {
             est: LinearEstimator::new(config, params, free)?,

@@ -323,52 +323,20 @@ impl Acquisition {
                 (Source::Raw(how, _), None) => points.carry_into(&cols[out.col], how, v),
                 (Source::Raw(how, _), Some((kind, state))) => {
                     points.carry_into(&cols[out.col], how, v);
-                    let x = &mut v[start..];
-                    // In runs of samples with the same parameters (all of them without a
-                    // sensor fault).
-                    let mut a = 0;
-                    while a < x.len() {
-                        let s = Prepared::from(kind.params(params(a)));
-                        let b = match sensor_faulted {
-                            true => (a + 1..x.len())
-                                .find(|&k| kind.params(params(k)) != s.p)
-                                .unwrap_or(x.len()),
-                            false => x.len(),
-                        };
-                        let decay = lag_decays(decays, &s, dt);
-                        state.measure(&s, &mut x[a..b], &decay[a..b]);
-                        a = b;
-                    }
+                    let sensor = |k: usize| kind.params(params(k));
+                    measure_in_runs(state, &mut v[start..], sensor, *sensor_faulted, decays, dt);
                 }
                 (Source::Time, _) => v.extend_from_slice(t),
                 (Source::Theta, _) => v.extend(since_tdc.clone()),
                 (Source::Cycle, _) => {
                     v.extend(since_tdc.clone().map(|a| (a / (4.0 * PI) + 1e-9).floor()))
                 }
-                (Source::CrankDeg, _) => v.extend(since_tdc.clone().map(|a| {
-                    let d = wrap720(a.to_degrees());
-                    if d > 720.0 - 1e-6 {
-                        0.0
-                    } else {
-                        d
-                    }
-                })),
+                (Source::CrankDeg, _) => v.extend(since_tdc.clone().map(crank_deg)),
                 (Source::Ambient, _) => v.extend(t.iter().map(|_| base.ambient.p)),
                 (Source::CountEn, _) => {
                     for (k, &th) in theta_en.iter().enumerate() {
-                        let s = &params(k).sensors;
-                        let ideal = floor(th / pulse_en);
-                        if let Some(before) = *count_en {
-                            if s.lost_pulses_en > 0.0 {
-                                for _ in 0..((ideal - before).max(0.0) as usize) {
-                                    if pulses.random::<f64>() < s.lost_pulses_en {
-                                        *lost += 1.0;
-                                    }
-                                }
-                            }
-                        }
-                        *count_en = Some(ideal);
-                        v.push(ideal - *lost);
+                        let lose = params(k).sensors.lost_pulses_en;
+                        v.push(count_engine(th / pulse_en, lose, count_en, lost, pulses));
                     }
                 }
                 (Source::CountDy, _) => {
@@ -378,18 +346,8 @@ impl Acquisition {
                     }
                 }
                 (Source::Tdc, _) => {
-                    // The engine revolutions completed, sample by sample.
-                    let mut before = last.map(|l| floor(l.1 / TAU));
-                    for &th in theta_en.iter() {
-                        let revolutions = floor(th / TAU);
-                        v.push(match before {
-                            Some(b) if revolutions > b => 1.0,
-                            Some(_) => 0.0,
-                            // The first sample is on firing TDC on a crank basis.
-                            None => f64::from(u8::from(matches!(basis, OutputBasis::Crank(_)))),
-                        });
-                        before = Some(revolutions);
-                    }
+                    let crank = matches!(basis, OutputBasis::Crank(_));
+                    tdc_marker(theta_en, last.map(|l| l.1), crank, v);
                 }
             }
         }
@@ -435,6 +393,81 @@ impl Acquisition {
             }
         }
         Ok(rec)
+    }
+}
+
+/// Measure `x` by a sensor whose parameters at sample `k` are `sensor(k)`: in runs of samples
+/// with the same parameters (one run unless a fault changes the sensor, `faulted`).
+fn measure_in_runs(
+    state: &mut SensorState,
+    x: &mut [f64],
+    sensor: impl Fn(usize) -> crate::params::SensorParams,
+    faulted: bool,
+    decays: &mut Vec<(f64, Vec<f64>)>,
+    dt: &[f64],
+) {
+    let mut a = 0;
+    while a < x.len() {
+        let s = Prepared::from(sensor(a));
+        let b = match faulted {
+            true => (a + 1..x.len())
+                .find(|&k| sensor(k) != s.p)
+                .unwrap_or(x.len()),
+            false => x.len(),
+        };
+        let decay = lag_decays(decays, &s, dt);
+        state.measure(&s, &mut x[a..b], &decay[a..b]);
+        a = b;
+    }
+}
+
+/// The angle in the cycle [deg] `a` [rad] after the first firing TDC, in [0, 720).
+fn crank_deg(a: f64) -> f64 {
+    let d = wrap720(a.to_degrees());
+    if d > 720.0 - 1e-6 {
+        0.0
+    } else {
+        d
+    }
+}
+
+/// The engine encoder's count at `pulses_now` ideal pulses: `floor` of it, less the pulses lost
+/// so far — each new pulse lost with probability `lose` (a fault), for good. `count` holds the
+/// last ideal count, `lost` the pulses lost.
+fn count_engine(
+    pulses_now: f64,
+    lose: f64,
+    count: &mut Option<f64>,
+    lost: &mut f64,
+    rng: &mut Xoshiro256PlusPlus,
+) -> f64 {
+    let ideal = floor(pulses_now);
+    if let Some(before) = *count {
+        if lose > 0.0 {
+            for _ in 0..((ideal - before).max(0.0) as usize) {
+                if rng.random::<f64>() < lose {
+                    *lost += 1.0;
+                }
+            }
+        }
+    }
+    *count = Some(ideal);
+    ideal - *lost
+}
+
+/// The TDC marker at engine angles `theta_en`: 1 on the first sample of each engine revolution
+/// (`before` the angle of the sample before, if any; the first sample of a crank-basis run is
+/// on firing TDC), else 0; appended to `out`.
+fn tdc_marker(theta_en: &[f64], before: Option<f64>, crank: bool, out: &mut Vec<f64>) {
+    let mut before = before.map(|th| floor(th / TAU));
+    for &th in theta_en {
+        let revolutions = floor(th / TAU);
+        out.push(match before {
+            Some(b) if revolutions > b => 1.0,
+            Some(_) => 0.0,
+            None => f64::from(u8::from(crank)),
+        });
+        before = Some(revolutions);
     }
 }
 
