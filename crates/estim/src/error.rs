@@ -87,6 +87,26 @@ pub(crate) fn check_sample(
 }
 
 /// A free/fixed view must cover exactly the parameter set it is used with.
+/// Check one sample of a model's inputs (named after the model's inputs in the error) and
+/// its measured output, as [`check_sample`] does.
+pub(crate) fn check_model_sample<M: physid_core::ParamModel>(
+    model: &M,
+    sample: u64,
+    inputs: &[f64],
+    y: f64,
+) -> Result<(), EstimError> {
+    let names = model.input_names();
+    check_sample(
+        sample,
+        "model inputs φ",
+        inputs,
+        names.len(),
+        "y",
+        y,
+        |i| format!("input '{}'", names[i]),
+    )
+}
+
 /// A parameter set for `model` must name the model's parameters, in its order.
 pub(crate) fn check_model_params<M: physid_core::ParamModel>(
     params: &physid_core::ParamSet,

@@ -34,7 +34,7 @@
 //! update and counted.
 
 use crate::cov::{chol_rank_one, factor_with_jitter, Cov, CovForm};
-use crate::error::{check_sample, check_view};
+use crate::error::check_view;
 use crate::linear::kalman_noise;
 use crate::recursive::{Memory, Recursive, Snapshot};
 use crate::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, Step};
@@ -423,16 +423,7 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     /// Bad samples, a model that returns NaN, or a step that cannot be repaired return an error
     /// and leave the state untouched. Allocation-free.
     pub fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
-        let names = self.model.input_names();
-        check_sample(
-            self.samples,
-            "model inputs φ",
-            inputs,
-            names.len(),
-            "y",
-            y,
-            |i| format!("input '{}'", names[i]),
-        )?;
+        crate::error::check_model_sample(&self.model, self.samples, inputs, y)?;
         // Field by field, so that the engine and the parameter vector can be borrowed mutably.
         let coords = Coords {
             free: self.free.free(),

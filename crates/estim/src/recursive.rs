@@ -211,16 +211,7 @@ impl<M: ParamModel> Recursive for LinearInParams<M> {
         self.est.params().names()
     }
     fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
-        let names = self.model.input_names();
-        crate::error::check_sample(
-            self.est.samples(),
-            "model inputs φ",
-            inputs,
-            names.len(),
-            "y",
-            y,
-            |i| format!("input '{}'", names[i]),
-        )?;
+        crate::error::check_model_sample(&self.model, self.est.samples(), inputs, y)?;
         let h = self.engine.value_and_gradient(
             &self.model,
             inputs,

@@ -39,43 +39,32 @@ pub struct Valvetrain {
     pub com: f64,
 }
 
-const fn oil(k: f64, theta1: f64, theta2: f64, u_uo: f64) -> Oil {
-    Oil {
-        k,
-        theta1,
-        theta2,
-        u_uo,
-    }
-}
-
-const fn valvetrain(cff: f64, crf: f64, coh: f64, com: f64) -> Valvetrain {
-    Valvetrain { cff, crf, coh, com }
-}
-
 /// The oil grades by name (SPEC §2.5 table).
+#[rustfmt::skip]
 pub const OIL_GRADES: [(&str, Oil); 12] = [
-    ("0W40", oil(0.01341, 1986.4, 189.7, 0.67)),
-    ("5W20", oil(0.04576, 1224.0, 134.1, 0.94)),
-    ("5W40", oil(0.15, 1018.74, 125.91, 0.8)),
-    ("10W30", oil(0.1403, 869.72, 104.4, 0.76)),
-    ("10W50A", oil(0.0352, 1658.88, 163.54, 0.49)),
-    ("10W50B", oil(0.0507, 1362.4, 129.8, 0.52)),
-    ("15W40A", oil(0.1223, 933.46, 103.89, 0.9)),
-    ("15W40B", oil(0.03435, 1424.3, 137.2, 0.79)),
-    ("20W50", oil(0.0639, 1255.46, 117.7, 0.84)),
-    ("SAE10", oil(0.0258, 1345.42, 144.58, 1.0)),
-    ("SAE30", oil(0.0246, 1432.29, 132.94, 1.0)),
-    ("SAE50", oil(0.0384, 1349.94, 115.16, 1.0)),
+    ("0W40", Oil { k: 0.01341, theta1: 1986.4, theta2: 189.7, u_uo: 0.67 }),
+    ("5W20", Oil { k: 0.04576, theta1: 1224.0, theta2: 134.1, u_uo: 0.94 }),
+    ("5W40", Oil { k: 0.15, theta1: 1018.74, theta2: 125.91, u_uo: 0.8 }),
+    ("10W30", Oil { k: 0.1403, theta1: 869.72, theta2: 104.4, u_uo: 0.76 }),
+    ("10W50A", Oil { k: 0.0352, theta1: 1658.88, theta2: 163.54, u_uo: 0.49 }),
+    ("10W50B", Oil { k: 0.0507, theta1: 1362.4, theta2: 129.8, u_uo: 0.52 }),
+    ("15W40A", Oil { k: 0.1223, theta1: 933.46, theta2: 103.89, u_uo: 0.9 }),
+    ("15W40B", Oil { k: 0.03435, theta1: 1424.3, theta2: 137.2, u_uo: 0.79 }),
+    ("20W50", Oil { k: 0.0639, theta1: 1255.46, theta2: 117.7, u_uo: 0.84 }),
+    ("SAE10", Oil { k: 0.0258, theta1: 1345.42, theta2: 144.58, u_uo: 1.0 }),
+    ("SAE30", Oil { k: 0.0246, theta1: 1432.29, theta2: 132.94, u_uo: 1.0 }),
+    ("SAE50", Oil { k: 0.0384, theta1: 1349.94, theta2: 115.16, u_uo: 1.0 }),
 ];
 
 /// The valvetrains by name (SPEC §2.5 table).
+#[rustfmt::skip]
 pub const VALVETRAINS: [(&str, Valvetrain); 6] = [
-    ("SOHC_I", valvetrain(600.0, 0.0227, 0.2, 42.8)),
-    ("SOHC_II", valvetrain(400.0, 0.0151, 0.5, 21.4)),
-    ("SOHC_III", valvetrain(200.0, 0.0076, 0.5, 10.7)),
-    ("DOHC_I", valvetrain(600.0, 0.0227, 0.2, 25.8)),
-    ("DOHC_II", valvetrain(133.0, 0.0050, 0.5, 10.7)),
-    ("OHV", valvetrain(400.0, 0.0151, 0.5, 32.1)),
+    ("SOHC_I", Valvetrain { cff: 600.0, crf: 0.0227, coh: 0.2, com: 42.8 }),
+    ("SOHC_II", Valvetrain { cff: 400.0, crf: 0.0151, coh: 0.5, com: 21.4 }),
+    ("SOHC_III", Valvetrain { cff: 200.0, crf: 0.0076, coh: 0.5, com: 10.7 }),
+    ("DOHC_I", Valvetrain { cff: 600.0, crf: 0.0227, coh: 0.2, com: 25.8 }),
+    ("DOHC_II", Valvetrain { cff: 133.0, crf: 0.0050, coh: 0.5, com: 10.7 }),
+    ("OHV", Valvetrain { cff: 400.0, crf: 0.0151, coh: 0.5, com: 32.1 }),
 ];
 
 /// Reference oil temperature of the viscosity scaling [°C].
