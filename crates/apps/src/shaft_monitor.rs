@@ -67,10 +67,10 @@ pub struct MonitorConfig {
     /// `P0 = c·I`.
     pub p0: f64,
     /// Healthy K [N·m/rad] and B [N·m·s/rad]: the detector's reference.
-    pub healthy: [f64; 2],
+    pub healthy: PerParam,
     /// Initial estimates of K, B, τ0 (the thesis's experiments start from 0; its fault
     /// simulations from the healthy values).
-    pub theta0: [f64; 3],
+    pub theta0: ShaftParams,
     /// Relative-error bound (Eq. 6.3).
     pub bound: f64,
     /// Samples beyond the bound before an alarm.
@@ -91,8 +91,15 @@ impl Default for MonitorConfig {
             method: MonitorMethod::Rls,
             lambda: 0.98,
             p0: 1000.0,
-            healthy: NOMINAL,
-            theta0: [0.0; 3],
+            healthy: PerParam {
+                k: NOMINAL[0],
+                b: NOMINAL[1],
+            },
+            theta0: ShaftParams {
+                k: 0.0,
+                b: 0.0,
+                tau0: 0.0,
+            },
             bound: 0.1,
             dwell: 200,
             cutoff_hz: 500.0,
@@ -250,7 +257,8 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         (dth, dw, tq.to_vec())
     };
     let every = ((fs / cfg.rate_hz).round() as usize).max(1);
-    let params = ParamSet::new(["K", "B", "tau0"], cfg.theta0.to_vec())
+    let t0 = cfg.theta0;
+    let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
         .map_err(|e| AppError::Invalid(e.to_string()))?;
     let method = match cfg.method {
         MonitorMethod::Rls => Method::Rlsf { lambda: cfg.lambda },
@@ -268,7 +276,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         .map_err(AppError::estim("estimator configuration"))?;
     let mut det = RelativeErrorDetector::new(
         vec!["K".into(), "B".into()],
-        cfg.healthy.to_vec(),
+        vec![cfg.healthy.k, cfg.healthy.b],
         vec![cfg.bound, cfg.bound],
         cfg.dwell.max(1),
     )

@@ -5,7 +5,9 @@
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod};
+use physid_apps::shaft_monitor::{
+    monitor_shaft, MonitorConfig, MonitorMethod, PerParam, ShaftParams,
+};
 use physid_core::Recording;
 use physid_sim::run::OutputBasis;
 
@@ -53,7 +55,7 @@ fn three_spiders_on_t01_and_t02() {
             for m in METHODS {
                 let cfg = MonitorConfig {
                     method: m,
-                    healthy: [k, b],
+                    healthy: PerParam { k, b },
                     ..Default::default()
                 };
                 let r = monitor_shaft(&rec, &cfg).unwrap();
@@ -89,7 +91,11 @@ fn three_spiders_on_t01_and_t02() {
 #[test]
 fn process_faults_are_isolated_and_sensor_faults_ignored() {
     let cfg = MonitorConfig {
-        theta0: [1250.0, 0.95, 0.0],
+        theta0: ShaftParams {
+            k: 1250.0,
+            b: 0.95,
+            tau0: 0.0,
+        },
         ..Default::default()
     };
     // Stiffness drops 20 % at 3 s: a K alarm, no B alarm.

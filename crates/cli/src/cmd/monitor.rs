@@ -5,7 +5,9 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor};
+use physid_apps::shaft_monitor::{
+    monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor, ShaftParams,
+};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid monitor`.
@@ -85,13 +87,17 @@ fn config(a: &ShaftArgs) -> Result<MonitorConfig> {
     let (names, values) = super::named_values(&a.healthy, "--healthy")?;
     for (n, v) in names.iter().zip(values) {
         match n.as_str() {
-            "K" => cfg.healthy[0] = v,
-            "B" => cfg.healthy[1] = v,
+            "K" => cfg.healthy.k = v,
+            "B" => cfg.healthy.b = v,
             other => return Err(miette!("--healthy {other}: the parameters are K and B")),
         }
     }
     if a.start_healthy {
-        cfg.theta0 = [cfg.healthy[0], cfg.healthy[1], 0.0];
+        cfg.theta0 = ShaftParams {
+            k: cfg.healthy.k,
+            b: cfg.healthy.b,
+            tau0: 0.0,
+        };
     }
     Ok(cfg)
 }
@@ -107,7 +113,7 @@ pub fn report_section(
     rep.para(
         &format!(
             "τ_sh = K·Δθ + B·Δω + τ0 (Eq. 6.1) tracked by {} (λ = {}); alarms when |ϑ_healthy − ϑ̂|/ϑ_healthy > {} for {} samples (Eq. 6.3), healthy K = {}, B = {}.",
-            r.method, cfg.lambda, cfg.bound, cfg.dwell, cfg.healthy[0], cfg.healthy[1]
+            r.method, cfg.lambda, cfg.bound, cfg.dwell, cfg.healthy.k, cfg.healthy.b
         ),
         None,
     );
