@@ -488,7 +488,7 @@ impl Sos {
 
     /// Every section over `buf` in place, forwards or backwards: up to four sections (order 8)
     /// fused into one pass with the states in registers, section by section beyond.
-    fn sections_inplace(&self, buf: &mut [f64], zi: &mut [[f64; 2]], backwards: bool) {
+    pub(crate) fn sections_inplace(&self, buf: &mut [f64], zi: &mut [[f64; 2]], backwards: bool) {
         macro_rules! fused {
             ($n:literal) => {
                 if backwards {
