@@ -11,11 +11,13 @@ use crate::acquisition::{to_time_basis, uniform_step};
 use crate::error::AppError;
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::{
-    Alarm, CovSpec, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector, VfVariant,
+    CovSpec, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector, VfVariant,
 };
 use physid_models::shaft::{Shaft, NOMINAL};
 use physid_signal::filter::{butter, Band};
+use physid_signal::stream::ZeroPhaseStream;
 use serde::Serialize;
+use std::collections::VecDeque;
 
 /// The estimator.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -175,6 +177,290 @@ pub struct ShaftMonitor {
     pub within_5pct_s: Option<[Option<f64>; 2]>,
 }
 
+/// Samples per chunk when a file is streamed through the stage.
+const FILE_CHUNK: usize = 4096;
+
+/// A chunk of the monitor's input channels, all the same length.
+#[derive(Debug, Clone, Copy)]
+pub struct ShaftInputs<'a> {
+    /// Time [s], uniformly spaced at the stage's rate.
+    pub t: &'a [f64],
+    /// Dynamometer angle [rad].
+    pub theta_dy: &'a [f64],
+    /// Engine angle [rad].
+    pub theta_en: &'a [f64],
+    /// Dynamometer speed [rad/s].
+    pub omega_dy: &'a [f64],
+    /// Engine speed [rad/s].
+    pub omega_en: &'a [f64],
+    /// Shaft torque [N·m].
+    pub torque_shaft: &'a [f64],
+}
+
+/// One estimator sample of the monitor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ShaftSample {
+    /// The input sample it was taken at (0 = the stream's first).
+    pub index: usize,
+    /// Its time [s].
+    pub t_s: f64,
+    /// K, B, τ0 after it.
+    pub estimate: ShaftParams,
+    /// Standard errors of K and B (NaN before they can be estimated).
+    pub std_err: PerParam,
+}
+
+/// The shaft monitor as a stage: chunks of samples in, estimator samples and alarms out, the
+/// zero-phase low-pass done on the stream ([`ZeroPhaseStream`]). The file verb
+/// ([`monitor_shaft`]) and the live service run this same code; its output does not depend on
+/// how the input is chunked, and a sample's estimate leaves [`latency`](Self::latency) samples
+/// after it arrived at the most. Allocation-free per sample once the output vectors have room.
+#[derive(Debug, Clone)]
+pub struct ShaftStage {
+    cfg: MonitorConfig,
+    every: usize,
+    filters: Option<Box<[ZeroPhaseStream; 3]>>,
+    /// Times of the inputs not yet out of the filters.
+    times: VecDeque<f64>,
+    t0: Option<f64>,
+    /// Index of the next filtered sample.
+    next: usize,
+    est: LinearEstimator,
+    det: RelativeErrorDetector,
+    /// Times of the detector's last samples (an alarm's onset is at most a dwell back).
+    det_times: VecDeque<f64>,
+    model: Shaft,
+    raw: [Vec<f64>; 3],
+    filtered: [Vec<f64>; 3],
+}
+
+impl ShaftStage {
+    /// A stage for inputs at `rate_hz` [Hz].
+    pub fn new(cfg: &MonitorConfig, rate_hz: f64) -> Result<Self, AppError> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(AppError::Invalid(format!(
+                "sample rate {rate_hz} Hz: expected > 0"
+            )));
+        }
+        let filters = if cfg.cutoff_hz < rate_hz / 2.0 {
+            let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, rate_hz)
+                .map_err(|e| AppError::Invalid(e.to_string()))?
+                .to_sos();
+            let f = ZeroPhaseStream::new(&sos, None, None);
+            Some(Box::new([f.clone(), f.clone(), f]))
+        } else {
+            None
+        };
+        let t0 = cfg.theta0;
+        let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
+            .map_err(|e| AppError::Invalid(e.to_string()))?;
+        let method = match cfg.method {
+            MonitorMethod::Rls => Method::Rlsf { lambda: cfg.lambda },
+            MonitorMethod::Rlsvf => Method::Rlsvf {
+                lambdas: vec![cfg.lambda, cfg.lambda, 1.0],
+                variant: VfVariant::Symmetric,
+            },
+            MonitorMethod::Dsfc => Method::Dsfc { lambda: cfg.lambda },
+        };
+        let config = EstimatorConfig {
+            p0: CovSpec::Scaled(cfg.p0),
+            ..EstimatorConfig::new(method)
+        };
+        let est = LinearEstimator::new(&config, &params, &params.all_free())
+            .map_err(AppError::estim("estimator configuration"))?;
+        let dwell = cfg.dwell.max(1);
+        let det = RelativeErrorDetector::new(
+            vec!["K".into(), "B".into()],
+            vec![cfg.healthy.k, cfg.healthy.b],
+            vec![cfg.bound, cfg.bound],
+            dwell,
+        )
+        .map_err(AppError::estim("detector configuration"))?;
+        let latency = filters.as_ref().map_or(0, |f| f[0].latency());
+        Ok(Self {
+            every: ((rate_hz / cfg.rate_hz).round() as usize).max(1),
+            cfg: cfg.clone(),
+            filters,
+            times: VecDeque::with_capacity(latency + FILE_CHUNK),
+            t0: None,
+            next: 0,
+            est,
+            det,
+            det_times: VecDeque::with_capacity(dwell as usize + 1),
+            model: Shaft::new(true),
+            raw: Default::default(),
+            filtered: Default::default(),
+        })
+    }
+
+    /// The most input samples between a sample's arrival and its estimate: the low-pass's
+    /// block and lookahead ([`ZeroPhaseStream::latency`]), 0 without a low-pass.
+    pub fn latency(&self) -> usize {
+        self.filters.as_ref().map_or(0, |f| f[0].latency())
+    }
+
+    /// The current K, B, τ0.
+    pub fn estimate(&self) -> ShaftParams {
+        let th = self.est.estimate();
+        ShaftParams {
+            k: th[0],
+            b: th[1],
+            tau0: th[2],
+        }
+    }
+
+    /// Their standard errors (NaN before they can be estimated).
+    pub fn std_err(&self) -> ShaftParams {
+        let mut se = [f64::NAN; 3];
+        if self.est.std_errors_into(&mut se).is_err() {
+            se = [f64::NAN; 3];
+        }
+        ShaftParams {
+            k: se[0],
+            b: se[1],
+            tau0: se[2],
+        }
+    }
+
+    /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
+    /// columns of different lengths or a non-finite sample is refused, naming the sample.
+    pub fn push(
+        &mut self,
+        x: &ShaftInputs,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        let n = x.t.len();
+        let cols = [
+            x.theta_dy,
+            x.theta_en,
+            x.omega_dy,
+            x.omega_en,
+            x.torque_shaft,
+        ];
+        if cols.iter().any(|c| c.len() != n) {
+            return Err(AppError::Invalid(
+                "a chunk's channels have different lengths".into(),
+            ));
+        }
+        if self.t0.is_none() {
+            self.t0 = x.t.first().copied();
+        }
+        for r in &mut self.raw {
+            r.clear();
+        }
+        self.raw[0].extend(x.theta_dy.iter().zip(x.theta_en).map(|(a, b)| a - b));
+        self.raw[1].extend(x.omega_dy.iter().zip(x.omega_en).map(|(a, b)| a - b));
+        self.raw[2].extend_from_slice(x.torque_shaft);
+        let first = self.next + self.times.len();
+        if let Some(i) = self
+            .raw
+            .iter()
+            .flat_map(|r| r.iter().enumerate())
+            .find(|(_, v)| !v.is_finite())
+            .map(|(i, _)| i)
+        {
+            return Err(AppError::Invalid(format!(
+                "sample {}: a shaft signal is not finite",
+                first + i
+            )));
+        }
+        self.times.extend(x.t);
+        for f in &mut self.filtered {
+            f.clear();
+        }
+        match &mut self.filters {
+            Some(filters) => {
+                for ((f, r), o) in filters.iter_mut().zip(&self.raw).zip(&mut self.filtered) {
+                    f.push(r, o).map_err(|e| AppError::Invalid(e.to_string()))?;
+                }
+            }
+            None => {
+                for (r, o) in self.raw.iter().zip(&mut self.filtered) {
+                    o.extend_from_slice(r);
+                }
+            }
+        }
+        self.consume(samples, alarms)
+    }
+
+    /// The end of the stream: the last samples out of the filters.
+    pub fn finish(
+        &mut self,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        for f in &mut self.filtered {
+            f.clear();
+        }
+        if let Some(filters) = &mut self.filters {
+            for (f, o) in filters.iter_mut().zip(&mut self.filtered) {
+                f.finish(o).map_err(|e| AppError::Invalid(e.to_string()))?;
+            }
+        }
+        self.consume(samples, alarms)
+    }
+
+    /// Estimator updates at the filtered samples on the estimator's grid.
+    fn consume(
+        &mut self,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        let [dth, dw, tq] = &self.filtered;
+        let mut phi = [0.0; 3];
+        let mut se = [0.0; 3];
+        let t0 = self.t0.unwrap_or(0.0);
+        for k in 0..dth.len() {
+            let i = self.next;
+            self.next += 1;
+            let t = self.times.pop_front().unwrap_or(f64::NAN);
+            if !i.is_multiple_of(self.every) {
+                continue;
+            }
+            self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
+            self.est
+                .update(&phi, tq[k])
+                .map_err(AppError::estim(format!("sample {i}")))?;
+            let th = self.est.estimate();
+            if self.est.std_errors_into(&mut se).is_err() {
+                se = [f64::NAN; 3];
+            }
+            samples.push(ShaftSample {
+                index: i,
+                t_s: t,
+                estimate: ShaftParams {
+                    k: th[0],
+                    b: th[1],
+                    tau0: th[2],
+                },
+                std_err: PerParam { k: se[0], b: se[1] },
+            });
+            if t - t0 >= self.cfg.settle_s {
+                if self.det_times.len() > self.cfg.dwell.max(1) as usize {
+                    self.det_times.pop_front();
+                }
+                self.det_times.push_back(t);
+                let before = self.det.alarms().len();
+                self.det
+                    .update(&th[..2])
+                    .map_err(AppError::estim(format!("sample {i}")))?;
+                for a in &self.det.alarms()[before..] {
+                    let back = (a.raised_sample - a.onset_sample) as usize;
+                    let at = self.det_times.len() - 1;
+                    alarms.push(ShaftAlarm {
+                        param: a.name.clone(),
+                        t_start_s: self.det_times[at.saturating_sub(back)],
+                        t_raised_s: t,
+                        relative_error: a.relative_error,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
 /// What `physid monitor shaft --json` prints (and the demo's summary holds per method).
 #[derive(Debug, Clone, Serialize)]
 pub struct ShaftSummary<'a> {
@@ -239,121 +525,39 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
             t.len()
         )));
     }
-    let dt = uniform_step(t)?;
-    let fs = 1.0 / dt;
-    let dth: Vec<f64> = thd.iter().zip(the).map(|(a, b)| a - b).collect();
-    let dw: Vec<f64> = wd.iter().zip(we).map(|(a, b)| a - b).collect();
-    // Zero-phase prefilter (if the cut-off is below Nyquist).
-    let (dth, dw, tq) = if cfg.cutoff_hz < fs / 2.0 {
-        let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, fs)
-            .map_err(|e| AppError::Invalid(e.to_string()))?
-            .to_sos();
-        let f = |x: &[f64]| {
-            sos.sosfiltfilt(x)
-                .map_err(|e| AppError::Invalid(e.to_string()))
+    let fs = 1.0 / uniform_step(t)?;
+    // The file as a stream of chunks through the stage the live service runs.
+    let mut stage = ShaftStage::new(cfg, fs)?;
+    let (mut samples, mut alarms) = (Vec::new(), Vec::new());
+    for start in (0..t.len()).step_by(FILE_CHUNK) {
+        let r = start..(start + FILE_CHUNK).min(t.len());
+        let chunk = ShaftInputs {
+            t: &t[r.clone()],
+            theta_dy: &thd[r.clone()],
+            theta_en: &the[r.clone()],
+            omega_dy: &wd[r.clone()],
+            omega_en: &we[r.clone()],
+            torque_shaft: &tq[r],
         };
-        (f(&dth)?, f(&dw)?, f(tq)?)
-    } else {
-        (dth, dw, tq.to_vec())
-    };
-    let every = ((fs / cfg.rate_hz).round() as usize).max(1);
-    let t0 = cfg.theta0;
-    let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
-        .map_err(|e| AppError::Invalid(e.to_string()))?;
-    let method = match cfg.method {
-        MonitorMethod::Rls => Method::Rlsf { lambda: cfg.lambda },
-        MonitorMethod::Rlsvf => Method::Rlsvf {
-            lambdas: vec![cfg.lambda, cfg.lambda, 1.0],
-            variant: VfVariant::Symmetric,
-        },
-        MonitorMethod::Dsfc => Method::Dsfc { lambda: cfg.lambda },
-    };
-    let config = EstimatorConfig {
-        p0: CovSpec::Scaled(cfg.p0),
-        ..EstimatorConfig::new(method)
-    };
-    let mut est = LinearEstimator::new(&config, &params, &params.all_free())
-        .map_err(AppError::estim("estimator configuration"))?;
-    let mut det = RelativeErrorDetector::new(
-        vec!["K".into(), "B".into()],
-        vec![cfg.healthy.k, cfg.healthy.b],
-        vec![cfg.bound, cfg.bound],
-        cfg.dwell.max(1),
-    )
-    .map_err(AppError::estim("detector configuration"))?;
-    let model = Shaft::new(true);
-    let mut phi = [0.0; 3];
+        stage.push(&chunk, &mut samples, &mut alarms)?;
+    }
+    stage.finish(&mut samples, &mut alarms)?;
     let mut out = ShaftMonitor {
         method: cfg.method.name(),
-        t: Vec::new(),
-        k: Vec::new(),
-        b: Vec::new(),
-        tau0: Vec::new(),
-        std_err: Vec::new(),
-        final_estimate: ShaftParams {
-            k: 0.0,
-            b: 0.0,
-            tau0: 0.0,
-        },
-        final_std_err: ShaftParams {
-            k: f64::NAN,
-            b: f64::NAN,
-            tau0: f64::NAN,
-        },
-        alarms: Vec::new(),
+        t: samples.iter().map(|s| s.t_s).collect(),
+        k: samples.iter().map(|s| s.estimate.k).collect(),
+        b: samples.iter().map(|s| s.estimate.b).collect(),
+        tau0: samples.iter().map(|s| s.estimate.tau0).collect(),
+        std_err: samples.iter().map(|s| [s.std_err.k, s.std_err.b]).collect(),
+        final_estimate: stage.estimate(),
+        final_std_err: stage.std_err(),
+        alarms,
         truth: None,
         nmse: None,
         within_5pct_s: None,
     };
-    let mut se = [0.0; 3];
-    let mut det_t0 = None;
-    for i in (0..t.len()).step_by(every) {
-        model.regressor(&[dth[i], 0.0, dw[i], 0.0], &mut phi);
-        est.update(&phi, tq[i])
-            .map_err(AppError::estim(format!("sample {i}")))?;
-        let th = est.estimate();
-        if est.std_errors_into(&mut se).is_err() {
-            se = [f64::NAN; 3];
-        }
-        out.t.push(t[i]);
-        out.k.push(th[0]);
-        out.b.push(th[1]);
-        out.tau0.push(th[2]);
-        out.std_err.push([se[0], se[1]]);
-        if t[i] - t[0] >= cfg.settle_s {
-            if det_t0.is_none() {
-                det_t0 = Some(out.t.len() - 1);
-            }
-            det.update(&th[..2])
-                .map_err(AppError::estim(format!("sample {i}")))?;
-        }
-    }
-    let th = est.estimate();
-    out.final_estimate = ShaftParams {
-        k: th[0],
-        b: th[1],
-        tau0: th[2],
-    };
-    if est.std_errors_into(&mut se).is_ok() {
-        out.final_std_err = ShaftParams {
-            k: se[0],
-            b: se[1],
-            tau0: se[2],
-        };
-    }
-    let first = det_t0.unwrap_or(0);
-    out.alarms = det
-        .alarms()
-        .iter()
-        .map(|a: &Alarm| ShaftAlarm {
-            param: a.name.clone(),
-            t_start_s: out.t[(first + a.onset_sample as usize).min(out.t.len() - 1)],
-            t_raised_s: out.t[(first + a.raised_sample as usize).min(out.t.len() - 1)],
-            relative_error: a.relative_error,
-        })
-        .collect();
     if let (Ok(tk), Ok(tb)) = (rec.values("true_shaft_k"), rec.values("true_shaft_b")) {
-        let idx: Vec<usize> = (0..t.len()).step_by(every).collect();
+        let idx: Vec<usize> = samples.iter().map(|s| s.index).collect();
         let k_true: Vec<f64> = idx.iter().map(|&i| tk[i]).collect();
         let b_true: Vec<f64> = idx.iter().map(|&i| tb[i]).collect();
         let start = out

@@ -1,0 +1,136 @@
+//! The applications as stages: the file verb is a stream over the file, so streaming the same
+//! recording in chunks of 1, 17, 4096 samples or whole gives the very same result; and the
+//! stream's zero-phase low-pass reproduces the whole-record computation (sosfiltfilt over the
+//! whole file, then the estimator) to 1e-9 relative.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::shaft_monitor::{
+    monitor_shaft, MonitorConfig, ShaftAlarm, ShaftInputs, ShaftSample, ShaftStage,
+};
+use physid_core::{ParamSet, Recording};
+use physid_estim::{CovSpec, EstimatorConfig, LinearEstimator, Method};
+use physid_signal::filter::{butter, Band};
+use physid_sim::run::OutputBasis;
+
+mod common;
+
+fn stream(
+    rec: &Recording,
+    cfg: &MonitorConfig,
+    chunk: usize,
+) -> (Vec<ShaftSample>, Vec<ShaftAlarm>) {
+    let get = |n: &str| rec.values(n).unwrap();
+    let t = get("t");
+    let mut stage = ShaftStage::new(cfg, 1.0 / (t[1] - t[0])).unwrap();
+    let (mut s, mut a) = (Vec::new(), Vec::new());
+    for start in (0..t.len()).step_by(chunk) {
+        let r = start..(start + chunk).min(t.len());
+        let x = ShaftInputs {
+            t: &t[r.clone()],
+            theta_dy: &get("theta_dy")[r.clone()],
+            theta_en: &get("theta_en")[r.clone()],
+            omega_dy: &get("omega_dy")[r.clone()],
+            omega_en: &get("omega_en")[r.clone()],
+            torque_shaft: &get("torque_shaft")[r],
+        };
+        stage.push(&x, &mut s, &mut a).unwrap();
+        // Nothing waits longer than the stated latency.
+        let waiting = r_end(start, chunk, t.len()) - s.last().map_or(0, |x| x.index + 1);
+        assert!(waiting <= stage.latency() + cfg_every(cfg, t), "{waiting}");
+    }
+    stage.finish(&mut s, &mut a).unwrap();
+    (s, a)
+}
+
+/// Bit for bit (NaN standard errors before the estimator has any included).
+fn same(a: &[ShaftSample], b: &[ShaftSample], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}");
+    let bits = |s: &ShaftSample| {
+        [
+            s.t_s,
+            s.estimate.k,
+            s.estimate.b,
+            s.estimate.tau0,
+            s.std_err.k,
+            s.std_err.b,
+        ]
+        .map(f64::to_bits)
+    };
+    if let Some(i) = (0..a.len()).find(|&i| a[i].index != b[i].index || bits(&a[i]) != bits(&b[i]))
+    {
+        panic!("{what}: sample {i} differs: {:?} vs {:?}", a[i], b[i]);
+    }
+}
+
+fn r_end(start: usize, chunk: usize, n: usize) -> usize {
+    (start + chunk).min(n)
+}
+
+fn cfg_every(cfg: &MonitorConfig, t: &[f64]) -> usize {
+    ((1.0 / (t[1] - t[0]) / cfg.rate_hz).round() as usize).max(1)
+}
+
+#[test]
+fn the_shaft_monitor_is_the_same_however_the_file_is_chunked() {
+    let rec = common::simulate_scenario(
+        "shaft-steady",
+        &[],
+        &["shaft.k=1000@2"],
+        3.0,
+        OutputBasis::Time(10_000.0),
+    );
+    let cfg = MonitorConfig::default();
+    let (whole, alarms) = stream(&rec, &cfg, usize::MAX);
+    assert!(
+        alarms.iter().any(|a| a.param == "K") && alarms.iter().all(|a| a.param == "K"),
+        "{alarms:?}"
+    );
+    for chunk in [1, 17, 4096] {
+        let (s, a) = stream(&rec, &cfg, chunk);
+        same(&s, &whole, &format!("chunks of {chunk}"));
+        assert_eq!(a, alarms, "chunks of {chunk}");
+    }
+    // The file verb is the same stream.
+    let r = monitor_shaft(&rec, &cfg).unwrap();
+    assert_eq!(r.k, whole.iter().map(|s| s.estimate.k).collect::<Vec<_>>());
+    assert_eq!(r.alarms, alarms);
+
+    // The whole-record computation: sosfiltfilt over the file, then RLS with forgetting on the
+    // decimated samples — the stream's estimates agree to 1e-9 relative.
+    let get = |n: &str| rec.values(n).unwrap();
+    let t = get("t");
+    let fs = 1.0 / (t[1] - t[0]);
+    let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, fs)
+        .unwrap()
+        .to_sos();
+    let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x - y).collect::<Vec<_>>();
+    let dth = sos
+        .sosfiltfilt(&d(get("theta_dy"), get("theta_en")))
+        .unwrap();
+    let dw = sos
+        .sosfiltfilt(&d(get("omega_dy"), get("omega_en")))
+        .unwrap();
+    let tq = sos.sosfiltfilt(get("torque_shaft")).unwrap();
+    let params = ParamSet::new(["K", "B", "tau0"], vec![0.0; 3]).unwrap();
+    let mut est = LinearEstimator::new(
+        &EstimatorConfig {
+            p0: CovSpec::Scaled(cfg.p0),
+            ..EstimatorConfig::new(Method::Rlsf { lambda: cfg.lambda })
+        },
+        &params,
+        &params.all_free(),
+    )
+    .unwrap();
+    let every = cfg_every(&cfg, t);
+    let mut worst: f64 = 0.0;
+    for (s, i) in whole.iter().zip((0..t.len()).step_by(every)) {
+        assert_eq!(s.index, i);
+        est.update(&[dth[i], dw[i], 1.0], tq[i]).unwrap();
+        let e = est.estimate();
+        for (a, b) in [(s.estimate.k, e[0]), (s.estimate.b, e[1])] {
+            worst = worst.max((a - b).abs() / b.abs());
+        }
+    }
+    eprintln!("stream vs whole record: worst relative difference {worst:.2e}");
+    assert!(worst < 1e-9, "{worst:e}");
+}
