@@ -490,26 +490,32 @@ impl ShaftMonitor {
     }
 }
 
+/// A crank-angle recording (one sample per crank step, so its time step follows the speed) on
+/// a uniform time basis at its mean sample rate, as the monitor takes it; `None` for a
+/// recording already on a time basis.
+pub fn on_time_basis(rec: &Recording) -> Result<Option<Recording>, AppError> {
+    if rec.basis != Basis::CrankAngle {
+        return Ok(None);
+    }
+    let t = rec.values("t")?;
+    let span = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
+    if t.len() < 2 || span.is_nan() || span <= 0.0 {
+        return Err(AppError::Invalid(
+            "a crank-angle recording whose time 't' does not advance cannot be put on a time basis"
+                .into(),
+        ));
+    }
+    Ok(Some(to_time_basis(rec, (t.len() - 1) as f64 / span)?))
+}
+
 /// Run the monitor on a time-basis recording with `theta_dy`, `theta_en`, `omega_dy`,
 /// `omega_en`, `torque_shaft` and `t` (and `true_shaft_k`/`true_shaft_b` if simulated).
 ///
 /// A crank-angle recording (one sample per crank step, so its time step follows the speed) is
 /// first resampled to a uniform time basis at its mean sample rate.
 pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonitor, AppError> {
-    let resampled;
-    let rec = if rec.basis == Basis::CrankAngle {
-        let t = rec.values("t")?;
-        let span = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
-        if t.len() < 2 || span.is_nan() || span <= 0.0 {
-            return Err(AppError::Invalid(
-                "a crank-angle recording whose time 't' does not advance cannot be put on a time basis".into(),
-            ));
-        }
-        resampled = to_time_basis(rec, (t.len() - 1) as f64 / span)?;
-        &resampled
-    } else {
-        rec
-    };
+    let resampled = on_time_basis(rec)?;
+    let rec = resampled.as_ref().unwrap_or(rec);
     let t = rec.values("t")?;
     let get = |n: &str| rec.values(n);
     let (thd, the, wd, we, tq) = (

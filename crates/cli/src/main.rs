@@ -52,6 +52,12 @@ enum Command {
     ///
     /// Example: physid torque fit --data t2.parquet --fix delta,r --out torque
     Torque(cmd::torque::Args),
+    /// The live service: the virtual test cell (paced by the wall clock) or a replayed
+    /// recording through the shaft monitor's stage, events out. Headless so far.
+    ///
+    /// Example: physid live --headless --json --scenario shaft-steady --fault shaft.k=1000@5
+    /// --pace max --duration 8
+    Live(cmd::live::Args),
     /// The virtual transient engine test cell: scenario runs into recordings, and the
     /// compression, motored-cycle and torque–speed checks.
     ///
@@ -101,6 +107,7 @@ fn main() -> miette::Result<()> {
         Command::Identify(a) => cmd::identify::run(&a),
         Command::Inspect(a) => cmd::inspect::run(&a),
         Command::Simulate(a) => cmd::simulate::run(&a),
+        Command::Live(a) => cmd::live::run(&a),
         Command::Monitor(a) => cmd::monitor::run(&a),
         Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),

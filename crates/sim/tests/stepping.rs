@@ -84,3 +84,50 @@ fn inputs_changed_between_steps_act_as_if_scheduled() {
     let at = |time: f64| k[t.iter().position(|&ti| ti >= time).unwrap()];
     assert_eq!((at(0.29), at(0.31)), (1250.0, 1000.0));
 }
+
+/// A streaming run drained as it goes: the chunks, put end to end, are the recording
+/// `simulate` gives — and a run far longer than memory would hold is accepted.
+#[test]
+fn drained_chunks_put_end_to_end_are_the_recording() {
+    let scenario = named("shaft-ramp").unwrap();
+    let whole = simulate(&scenario, &options(0.4), |_| {}).unwrap();
+    let opts = RunOptions {
+        stream: true,
+        ..options(0.4)
+    };
+    let mut run = Run::new(&scenario, &opts).unwrap();
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); whole.names().len()];
+    let mut t = 0.0;
+    let mut chunks = 0;
+    while !run.is_done() {
+        t += 0.013;
+        run.step_until(t).unwrap();
+        let c = run.drain().unwrap();
+        assert_eq!(c.names(), whole.names());
+        for (col, name) in columns.iter_mut().zip(whole.names()) {
+            col.extend_from_slice(c.values(name).unwrap());
+        }
+        chunks += 1;
+    }
+    let last = run.finish().unwrap(); // what was not drained yet
+    for (col, name) in columns.iter_mut().zip(whole.names()) {
+        col.extend_from_slice(last.values(name).unwrap());
+        assert_eq!(&col[..], whole.values(name).unwrap(), "{name}");
+    }
+    assert!(chunks > 20);
+    let long = RunOptions {
+        stream: true,
+        duration: Some(1e7),
+        ..options(1.0)
+    };
+    assert!(Run::new(&scenario, &long).is_ok());
+    assert!(simulate(
+        &scenario,
+        &RunOptions {
+            stream: false,
+            ..long
+        },
+        |_| {}
+    )
+    .is_err());
+}

@@ -9,6 +9,7 @@ pub mod filter;
 pub mod friction;
 pub mod identify;
 pub mod inspect;
+pub mod live;
 pub mod monitor;
 pub mod run;
 pub mod simulate;

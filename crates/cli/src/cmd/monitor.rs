@@ -33,6 +33,19 @@ struct ShaftArgs {
     data: PathBuf,
     #[command(flatten)]
     input: InputArgs,
+    #[command(flatten)]
+    monitor: MonitorFlags,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+    /// Directory for the report (report.html, shaft.svg, shaft.json).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// The shaft monitor's settings, shared by `monitor shaft` and `live`.
+#[derive(clap::Args, Clone)]
+pub struct MonitorFlags {
     /// Estimator: rls, rlsvf or dsfc.
     #[arg(long, default_value = "rls")]
     method: MonitorMethod,
@@ -57,12 +70,6 @@ struct ShaftArgs {
     /// Estimator rate [Hz], > 0 (at most the recording's sample rate: every sample).
     #[arg(long, default_value_t = 2000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     rate: f64,
-    /// Print JSON.
-    #[arg(long)]
-    json: bool,
-    /// Directory for the report (report.html, shaft.svg, shaft.json).
-    #[arg(long)]
-    out: Option<PathBuf>,
 }
 
 /// Run `physid monitor`.
@@ -73,7 +80,7 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 /// The monitor's configuration from the flags.
-fn config(a: &ShaftArgs) -> Result<MonitorConfig> {
+pub fn config(a: &MonitorFlags) -> Result<MonitorConfig> {
     let method = a.method;
     let mut cfg = MonitorConfig {
         method,
@@ -255,7 +262,7 @@ fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
 }
 
 fn shaft(a: &ShaftArgs) -> Result<()> {
-    let cfg = config(a)?;
+    let cfg = config(&a.monitor)?;
     let rec = a.input.read(&a.data, None)?;
     let r = monitor_shaft(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
     let j = r.summary();

@@ -209,6 +209,7 @@ pub fn run(args: &Args) -> Result<()> {
         duration: args.duration,
         faults,
         basis,
+        stream: false,
     };
     let bar = indicatif::ProgressBar::new(100);
     bar.set_style(

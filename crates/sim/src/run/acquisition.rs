@@ -249,6 +249,30 @@ impl Acquisition {
         Ok(())
     }
 
+    /// Keep little room in the channels: a streaming run's samples are drained as it goes.
+    pub(super) fn shrink(&mut self) {
+        for out in &mut self.outputs {
+            out.values = Vec::with_capacity(4 * CHUNK);
+        }
+    }
+
+    /// The samples taken so far, moved out (the channels keep their room).
+    pub(super) fn drain(&mut self) -> Result<Recording, SimError> {
+        let mut rec = Recording::new(match self.basis {
+            OutputBasis::Time(_) => Basis::Time,
+            OutputBasis::Crank(_) => Basis::CrankAngle,
+        });
+        for out in &mut self.outputs {
+            rec.push(Channel {
+                name: out.name.into(),
+                unit: out.unit.into(),
+                values: out.values.drain(..).collect(),
+            })
+            .map_err(|e| SimError::Invalid(e.to_string()))?;
+        }
+        Ok(rec)
+    }
+
     /// A fault added during the run (the live cell's controls): its sensor changes are
     /// applied from now on and it is listed in the metadata.
     pub(super) fn add_fault(&mut self, fault: Fault) {

@@ -42,6 +42,9 @@ pub struct RunOptions {
     pub faults: Vec<Fault>,
     /// Output basis.
     pub basis: OutputBasis,
+    /// The samples are taken as the run goes ([`Run::drain`]) rather than kept for
+    /// [`Run::finish`]: no limit from the memory the whole recording would take.
+    pub stream: bool,
 }
 
 impl Default for RunOptions {
@@ -51,6 +54,7 @@ impl Default for RunOptions {
             duration: None,
             faults: Vec::new(),
             basis: OutputBasis::Time(10_000.0),
+            stream: false,
         }
     }
 }
@@ -147,22 +151,27 @@ impl Run {
                 rpm / 60.0 * 360.0 / step
             }
         };
-        physid_core::memory::check_fits(
-            duration * per_second * OUTPUT.len() as f64 * 8.0,
-            &if duration < 1e5 {
-                format!("a recording of {duration} s")
-            } else {
-                format!("a recording of {duration:e} s")
-            },
-        )
-        .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
+        if !opts.stream {
+            physid_core::memory::check_fits(
+                duration * per_second * OUTPUT.len() as f64 * 8.0,
+                &if duration < 1e5 {
+                    format!("a recording of {duration} s")
+                } else {
+                    format!("a recording of {duration:e} s")
+                },
+            )
+            .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
+        }
         let w0 = if torque_mode {
             1000.0 * PI / 30.0
         } else {
             scenario.speed.value(0.0) * PI / 30.0
         };
         let cell = TestCell::new(base.clone(), w0.max(1.0), -PI)?;
-        let acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
+        let mut acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
+        if opts.stream {
+            acquisition.shrink();
+        }
         Ok(Self {
             speed_sensor: SensorState::new(base.sensors.seed as u64, 0),
             measured_at: cell.time(),
@@ -258,6 +267,13 @@ impl Run {
             self.done = true;
         }
         Ok(())
+    }
+
+    /// The samples acquired since the last call (all channels, the recording's names and
+    /// units): a streaming run's output, chunk by chunk. Samples wait for a chunk of 256 solver
+    /// steps before they are acquired.
+    pub fn drain(&mut self) -> Result<Recording, SimError> {
+        self.acquisition.drain()
     }
 
     /// The recording so far (the whole run once [`is_done`](Self::is_done)), with the

@@ -1,0 +1,160 @@
+//! `physid live --headless --json`: the shaft monitor's stage on a paced virtual cell or a
+//! replayed file, NDJSON events out — the same numbers as the file verb, whatever the chunk.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use common::physid;
+use physid_testkit::Scratch;
+use serde_json::Value;
+
+fn events(args: &[&str]) -> Vec<Value> {
+    let o = physid(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = String::from_utf8(o.stdout).unwrap();
+    let ev: Vec<Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    for e in &ev {
+        assert!(e["type"].is_string() && e["t_s"].is_number(), "{e}");
+    }
+    assert_eq!(
+        ev.last().unwrap()["type"],
+        "end",
+        "the last event ends the run"
+    );
+    ev
+}
+
+fn of_type<'a>(ev: &'a [Value], t: &str) -> Vec<&'a Value> {
+    ev.iter().filter(|e| e["type"] == t).collect()
+}
+
+#[test]
+fn a_replay_ends_on_the_file_verbs_estimate_whatever_the_chunk() {
+    let s = Scratch::new("physid-live");
+    let file = s.file("t01.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "3",
+        "--fault",
+        "shaft.k=1000@1.5",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let o = physid(&[
+        "monitor",
+        "shaft",
+        "--data",
+        file.to_str().unwrap(),
+        "--json",
+    ]);
+    let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let f = file.to_str().unwrap();
+    let mut finals = Vec::new();
+    for chunk in ["0.0001", "0.0017", "0.4096", "10"] {
+        let ev = events(&[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            f,
+            "--pace",
+            "max",
+            "--chunk",
+            chunk,
+        ]);
+        let end = of_type(&ev, "end")[0];
+        assert_eq!(end["samples"], 30001);
+        assert_eq!(end["dropped"], 0);
+        let last = of_type(&ev, "estimate").last().copied().unwrap().clone();
+        for p in ["K", "B"] {
+            assert_eq!(last["params"][p], verb["final"][p], "chunk {chunk}: {p}");
+        }
+        let alarms: Vec<&Value> = of_type(&ev, "alarm");
+        let verb_alarms = verb["alarms"].as_array().unwrap();
+        assert_eq!(alarms.len(), verb_alarms.len(), "chunk {chunk}");
+        for (a, v) in alarms.iter().zip(verb_alarms) {
+            assert_eq!(a["param"], v["param"]);
+            assert_eq!(a["t_s"], v["t_raised_s"]);
+            assert_eq!(a["t_start_s"], v["t_start_s"]);
+        }
+        finals.push(last);
+    }
+    assert!(finals.windows(2).all(|w| w[0] == w[1]));
+}
+
+#[test]
+fn the_virtual_cell_raises_the_stiffness_alarm_and_no_damping_alarm() {
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "shaft-steady",
+        "--fault",
+        "shaft.k=1000@2",
+        "--duration",
+        "4",
+        "--pace",
+        "max",
+    ]);
+    let alarms = of_type(&ev, "alarm");
+    assert!(!alarms.is_empty(), "no alarm");
+    for a in &alarms {
+        assert_eq!(a["param"], "K", "{a}");
+        let t = a["t_s"].as_f64().unwrap();
+        assert!((2.0..4.0).contains(&t), "raised at {t}");
+        assert!(a["relative_error"].as_f64().unwrap() > 0.1);
+    }
+    // Estimate events at most every 0.1 s of recording, in time order.
+    let t: Vec<f64> = of_type(&ev, "estimate")
+        .iter()
+        .map(|e| e["t_s"].as_f64().unwrap())
+        .collect();
+    assert!(t.windows(2).all(|w| w[1] > w[0]));
+    assert!(
+        t.len() >= 35 && t.len() <= 42,
+        "{} estimate events",
+        t.len()
+    );
+    let k = of_type(&ev, "estimate").last().unwrap()["params"]["K"]
+        .as_f64()
+        .unwrap();
+    assert!((k / 1000.0 - 1.0).abs() < 0.02, "K {k}");
+}
+
+#[test]
+fn bad_flags_are_refused_naming_them() {
+    let o = physid(&["live", "--headless", "--json", "--pace", "fast"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("--pace") && e.contains("expected max or a factor"),
+        "{e}"
+    );
+    let o = physid(&["live", "--scenario", "shaft-steady"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("--headless --json"), "{e}");
+    let o = physid(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "nope",
+        "--pace",
+        "max",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--scenario"));
+}

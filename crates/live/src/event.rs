@@ -1,0 +1,74 @@
+//! The events of the live service, one JSON object each with `"type"` and `"t_s"` (the
+//! recording's time). The names are stable (docs/live.md).
+
+use physid_apps::shaft_monitor::{PerParam, ShaftAlarm, ShaftSample};
+use serde::Serialize;
+
+/// An event.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Event {
+    /// An application's estimates now: `{"type": "estimate", "app": "shaft", "t_s": …,
+    /// "params": {"K": …, "B": …}, "std_err": {"K": …, "B": …}}`.
+    Estimate {
+        /// The application (`shaft`).
+        app: &'static str,
+        /// Recording time [s].
+        t_s: f64,
+        /// The estimates by name.
+        params: PerParam,
+        /// Their standard errors (null before they can be estimated).
+        std_err: PerParam,
+    },
+    /// An alarm: `{"type": "alarm", "app": "shaft", "param": "K", "t_s": …, "t_start_s": …,
+    /// "relative_error": …}` (`t_s` when it was raised, `t_start_s` when the estimate left its
+    /// bound).
+    Alarm {
+        /// The application.
+        app: &'static str,
+        /// The parameter that moved.
+        param: String,
+        /// When the alarm was raised [s].
+        t_s: f64,
+        /// When the estimate left its bound [s].
+        t_start_s: f64,
+        /// Its relative error (Eq. 6.3) then.
+        relative_error: f64,
+    },
+    /// The run ended (a replay's last sample, or the end of `--duration`): `{"type": "end",
+    /// "t_s": …, "samples": n, "dropped": n}`.
+    End {
+        /// Recording time of the last sample [s].
+        t_s: f64,
+        /// Samples taken from the source.
+        samples: usize,
+        /// Samples the service could not take (a bounded buffer overflowed): 0 headless.
+        dropped: usize,
+    },
+}
+
+impl Event {
+    /// The shaft monitor's estimate event of an estimator sample.
+    pub fn shaft_estimate(s: &ShaftSample) -> Self {
+        Event::Estimate {
+            app: "shaft",
+            t_s: s.t_s,
+            params: PerParam {
+                k: s.estimate.k,
+                b: s.estimate.b,
+            },
+            std_err: s.std_err,
+        }
+    }
+
+    /// The shaft monitor's alarm event.
+    pub fn shaft_alarm(a: &ShaftAlarm) -> Self {
+        Event::Alarm {
+            app: "shaft",
+            param: a.param.clone(),
+            t_s: a.t_raised_s,
+            t_start_s: a.t_start_s,
+            relative_error: a.relative_error,
+        }
+    }
+}

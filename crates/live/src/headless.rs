@@ -1,0 +1,148 @@
+//! The live loop without a panel: chunks from a [`Source`] through the applications' stages,
+//! events out — what `physid live --headless --json` runs.
+
+use crate::event::Event;
+use crate::source::{Pace, Pacer, Source};
+use physid_apps::error::AppError;
+use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
+use physid_core::{Recording, RecordingError};
+use physid_io::IoError;
+use physid_sim::run::SimError;
+use thiserror::Error;
+
+/// Errors of the live service.
+#[derive(Debug, Error)]
+pub enum LiveError {
+    /// An application's stage.
+    #[error(transparent)]
+    App(#[from] AppError),
+    /// The virtual test cell.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Reading a recording.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// A chunk without a channel a stage needs.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// Writing the events.
+    #[error("writing the events: {0}")]
+    Output(String),
+    /// Anything else, explained.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// How the live loop runs.
+#[derive(Debug, Clone)]
+pub struct LiveConfig {
+    /// The shaft monitor's settings.
+    pub monitor: MonitorConfig,
+    /// At most one estimate event per this much recording time [s] (the last estimate is always
+    /// sent at the end).
+    pub estimate_every_s: f64,
+    /// How fast against the wall clock.
+    pub pace: Pace,
+}
+
+impl Default for LiveConfig {
+    /// The monitor's defaults, 10 estimate events per second, as fast as it can.
+    fn default() -> Self {
+        Self {
+            monitor: MonitorConfig::default(),
+            estimate_every_s: 0.1,
+            pace: Pace::Max,
+        }
+    }
+}
+
+/// What a run did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// Samples taken from the source.
+    pub samples: usize,
+    /// The shaft's final K, B, τ0 and their standard errors.
+    pub shaft: (ShaftParams, ShaftParams),
+    /// Events sent.
+    pub events: usize,
+}
+
+/// Run `source` to its end through the shaft monitor's stage, handing each event to `emit`
+/// (whose error, e.g. a closed output, stops the run). A chunk missing a channel, or a stage's
+/// error, stops the run with the error (the events so far have been sent).
+pub fn run_headless(
+    source: &mut dyn Source,
+    cfg: &LiveConfig,
+    mut emit: impl FnMut(&Event) -> Result<(), String>,
+) -> Result<Summary, LiveError> {
+    let mut stage = ShaftStage::new(&cfg.monitor, source.rate_hz())?;
+    let mut pacer = Pacer::new(cfg.pace);
+    let (mut samples, mut alarms) = (Vec::new(), Vec::new());
+    let (mut taken, mut events) = (0usize, 0usize);
+    let mut last_sent: Option<f64> = None;
+    // The latest estimate not sent (throttled): sent at the end.
+    let mut pending = None;
+    let mut last_t = f64::NAN;
+    let mut send = |e: &Event, events: &mut usize| -> Result<(), LiveError> {
+        *events += 1;
+        emit(e).map_err(LiveError::Output)
+    };
+    while let Some(chunk) = source.next_chunk()? {
+        if chunk.is_empty() {
+            continue;
+        }
+        let t = chunk.values("t")?;
+        pacer.wait_until(t[t.len() - 1]);
+        taken += t.len();
+        last_t = t[t.len() - 1];
+        samples.clear();
+        alarms.clear();
+        stage.push(&inputs(&chunk)?, &mut samples, &mut alarms)?;
+        for s in &samples {
+            if last_sent.is_none_or(|l| s.t_s - l >= cfg.estimate_every_s) {
+                send(&Event::shaft_estimate(s), &mut events)?;
+                last_sent = Some(s.t_s);
+                pending = None;
+            } else {
+                pending = Some(*s);
+            }
+        }
+        for a in &alarms {
+            send(&Event::shaft_alarm(a), &mut events)?;
+        }
+    }
+    samples.clear();
+    alarms.clear();
+    stage.finish(&mut samples, &mut alarms)?;
+    for a in &alarms {
+        send(&Event::shaft_alarm(a), &mut events)?;
+    }
+    if let Some(s) = samples.last().or(pending.as_ref()) {
+        send(&Event::shaft_estimate(s), &mut events)?;
+    }
+    send(
+        &Event::End {
+            t_s: last_t,
+            samples: taken,
+            dropped: 0,
+        },
+        &mut events,
+    )?;
+    Ok(Summary {
+        samples: taken,
+        shaft: (stage.estimate(), stage.std_err()),
+        events,
+    })
+}
+
+/// The shaft monitor's channels of a chunk.
+fn inputs(c: &Recording) -> Result<ShaftInputs<'_>, LiveError> {
+    Ok(ShaftInputs {
+        t: c.values("t")?,
+        theta_dy: c.values("theta_dy")?,
+        theta_en: c.values("theta_en")?,
+        omega_dy: c.values("omega_dy")?,
+        omega_en: c.values("omega_en")?,
+        torque_shaft: c.values("torque_shaft")?,
+    })
+}

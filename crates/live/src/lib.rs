@@ -1,0 +1,21 @@
+//! # physid-live — the live service (thesis §4.4: acquisition streamed in chunks to a host)
+//!
+//! * [`source`] — where chunks of samples come from: the virtual test cell run as a stream
+//!   ([`ScenarioSource`]), a recording replayed ([`ReplaySource`]); paced by the wall clock
+//!   ([`Pace`]).
+//! * [`event`] — what the service emits ([`Event`]): estimates with standard errors, alarms,
+//!   the end of a run; one JSON object each (`physid live --headless --json` prints them one
+//!   per line).
+//! * [`headless`] — the loop: chunks from a source through the applications' stages (the same
+//!   stages the file verbs run), events out.
+//!
+//! Built so far: the shaft monitor's stage on a paced virtual cell or a replay, headless. Not
+//! yet: the web panel, frames from outside, the other applications' stages (see the issue).
+
+pub mod event;
+pub mod headless;
+pub mod source;
+
+pub use event::Event;
+pub use headless::{run_headless, LiveConfig, LiveError, Summary};
+pub use source::{Pace, ReplaySource, ScenarioSource, Source};
