@@ -419,9 +419,10 @@ impl ShaftStage {
                 continue;
             }
             self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
-            self.est
-                .update(&phi, tq[k])
-                .map_err(AppError::estim(format!("sample {i}")))?;
+            self.est.update(&phi, tq[k]).map_err(|e| AppError::Estim {
+                at: format!("sample {i}"),
+                source: e,
+            })?;
             let th = self.est.estimate();
             if self.est.std_errors_into(&mut se).is_err() {
                 se = [f64::NAN; 3];
@@ -442,9 +443,10 @@ impl ShaftStage {
                 }
                 self.det_times.push_back(t);
                 let before = self.det.alarms().len();
-                self.det
-                    .update(&th[..2])
-                    .map_err(AppError::estim(format!("sample {i}")))?;
+                self.det.update(&th[..2]).map_err(|e| AppError::Estim {
+                    at: format!("sample {i}"),
+                    source: e,
+                })?;
                 for a in &self.det.alarms()[before..] {
                     let back = (a.raised_sample - a.onset_sample) as usize;
                     let at = self.det_times.len() - 1;
