@@ -552,7 +552,7 @@ pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<Friction
         }
         let step = est
             .update(&scaled, data.tau_nm[k] - nominal)
-            .map_err(AppError::estim(format!("cycle {}", data.cycle[k])))?;
+            .map_err(|e| AppError::estim(format!("cycle {}", data.cycle[k]))(e))?;
         predicted_nominal.push(nominal);
         predicted.push(data.tau_nm[k] - step.prediction_error);
     }

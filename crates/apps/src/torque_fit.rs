@@ -415,7 +415,7 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, A
         data.row(i, &mut u);
         let step = est
             .update(&u, data.y[i])
-            .map_err(AppError::estim(format!("sample {i}")))?;
+            .map_err(|e| AppError::estim(format!("sample {i}"))(e))?;
         if i.is_multiple_of(stride) || i + 1 == n {
             out_t.push(data.t[i]);
             measured.push(data.y[i]);
