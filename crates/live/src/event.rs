@@ -35,6 +35,24 @@ pub enum Event {
         /// Its relative error (Eq. 6.3) then.
         relative_error: f64,
     },
+    /// A frame from outside was refused (it is counted as dropped; the run goes on):
+    /// `{"type": "error", "t_s": …, "line": n, "message": …}` (`t_s` the last sample taken).
+    Error {
+        /// Recording time of the last sample taken [s] (null before any).
+        t_s: f64,
+        /// The frame's line in the input.
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// Something found in the stream (a gap in time or in the frames' `seq`):
+    /// `{"type": "finding", "t_s": …, "message": …}`.
+    Finding {
+        /// Recording time of the last sample before it [s].
+        t_s: f64,
+        /// What.
+        message: String,
+    },
     /// The run ended (a replay's last sample, or the end of `--duration`): `{"type": "end",
     /// "t_s": …, "samples": n, "dropped": n}`.
     End {
@@ -42,7 +60,7 @@ pub enum Event {
         t_s: f64,
         /// Samples taken from the source.
         samples: usize,
-        /// Samples the service could not take (a bounded buffer overflowed): 0 headless.
+        /// Frames refused (bad frames from outside).
         dropped: usize,
     },
 }

@@ -28,6 +28,14 @@ pub enum LiveError {
     /// Writing the events.
     #[error("writing the events: {0}")]
     Output(String),
+    /// One frame from outside that is not valid: refused, the stream goes on.
+    #[error("frame on line {line}: {what}")]
+    BadFrame {
+        /// Its line in the input.
+        line: usize,
+        /// What was wrong.
+        what: String,
+    },
     /// Anything else, explained.
     #[error("{0}")]
     Invalid(String),
@@ -61,6 +69,8 @@ impl Default for LiveConfig {
 pub struct Summary {
     /// Samples taken from the source.
     pub samples: usize,
+    /// Frames refused.
+    pub dropped: usize,
     /// The shaft's final K, B, τ0 and their standard errors.
     pub shaft: (ShaftParams, ShaftParams),
     /// Events sent.
@@ -87,7 +97,34 @@ pub fn run_headless(
         *events += 1;
         emit(e).map_err(LiveError::Output)
     };
-    while let Some(chunk) = source.next_chunk()? {
+    let mut dropped = 0;
+    loop {
+        let chunk = match source.next_chunk() {
+            Ok(Some(c)) => c,
+            Ok(None) => break,
+            Err(LiveError::BadFrame { line, what }) => {
+                dropped += 1;
+                send(
+                    &Event::Error {
+                        t_s: last_t,
+                        line,
+                        message: what,
+                    },
+                    &mut events,
+                )?;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        if let Some(message) = source.notice() {
+            send(
+                &Event::Finding {
+                    t_s: last_t,
+                    message,
+                },
+                &mut events,
+            )?;
+        }
         if chunk.is_empty() {
             continue;
         }
@@ -124,12 +161,13 @@ pub fn run_headless(
         &Event::End {
             t_s: last_t,
             samples: taken,
-            dropped: 0,
+            dropped,
         },
         &mut events,
     )?;
     Ok(Summary {
         samples: taken,
+        dropped,
         shaft: (stage.estimate(), stage.std_err()),
         events,
     })

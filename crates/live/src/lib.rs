@@ -6,6 +6,8 @@
 //! * [`event`] — what the service emits ([`Event`]): estimates with standard errors, alarms,
 //!   the end of a run; one JSON object each (`physid live --headless --json` prints them one
 //!   per line).
+//! * [`frames`] — frames from outside (a DAQ, a script) as JSON lines ([`FrameSource`]);
+//!   a bad frame is refused with its line and the stream goes on.
 //! * [`headless`] — the loop: chunks from a source through the applications' stages (the same
 //!   stages the file verbs run), events out.
 //!
@@ -13,9 +15,11 @@
 //! yet: the web panel, frames from outside, the other applications' stages (see the issue).
 
 pub mod event;
+pub mod frames;
 pub mod headless;
 pub mod source;
 
 pub use event::Event;
+pub use frames::{FrameSource, FRAME_CHANNELS};
 pub use headless::{run_headless, LiveConfig, LiveError, Summary};
 pub use source::{Pace, ReplaySource, ScenarioSource, Source};

@@ -12,8 +12,13 @@ use std::time::{Duration, Instant};
 pub trait Source {
     /// The sample rate [Hz].
     fn rate_hz(&self) -> f64;
-    /// The next chunk (possibly empty), or `None` at the end.
+    /// The next chunk (possibly empty), or `None` at the end. A
+    /// [`LiveError::BadFrame`] refuses one chunk only: the stream goes on.
     fn next_chunk(&mut self) -> Result<Option<Recording>, LiveError>;
+    /// Something about the last chunk worth telling (a gap), once.
+    fn notice(&mut self) -> Option<String> {
+        None
+    }
 }
 
 /// The virtual test cell run as a stream ([`Run`] with [`RunOptions::stream`]): chunks of

@@ -4,7 +4,9 @@
 use super::monitor::{config, MonitorFlags};
 use crate::out::outln;
 use miette::{miette, Result};
-use physid_live::{run_headless, LiveConfig, Pace, ReplaySource, ScenarioSource, Source};
+use physid_live::{
+    run_headless, FrameSource, LiveConfig, Pace, ReplaySource, ScenarioSource, Source,
+};
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
 use std::path::PathBuf;
@@ -21,6 +23,10 @@ pub struct Args {
     /// Replay a recording (any format physid reads) instead of running the virtual cell.
     #[arg(long, conflicts_with_all = ["scenario", "faults", "duration"])]
     replay: Option<PathBuf>,
+    /// Take frames from outside: JSON lines from a file, or `-` for stdin (docs/live.md has
+    /// the format); the sample rate is --sample-rate.
+    #[arg(long, value_name = "FILE|-", conflicts_with_all = ["scenario", "faults", "duration", "replay"])]
+    frames: Option<PathBuf>,
     #[command(flatten)]
     input: super::InputArgs,
     /// The virtual cell's scenario: a built-in name or a TOML file [default: shaft-steady].
@@ -32,7 +38,7 @@ pub struct Args {
     /// Seconds of the virtual cell to run [default: the scenario's].
     #[arg(long, value_name = "S", value_parser = super::range::positive, allow_negative_numbers = true)]
     duration: Option<f64>,
-    /// The virtual cell's sample rate [Hz].
+    /// The sample rate of the virtual cell, or of the frames from outside [Hz].
     #[arg(long = "sample-rate", default_value_t = 10_000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     sample_rate: f64,
     /// Recording seconds per wall-clock second: 1 real time, 10, … or max.
@@ -60,14 +66,25 @@ pub fn run(a: &Args) -> Result<()> {
         estimate_every_s: a.estimate_every,
         pace: a.pace,
     };
-    let mut source: Box<dyn Source> = match &a.replay {
-        Some(path) => {
+    let mut source: Box<dyn Source> = match (&a.replay, &a.frames) {
+        (_, Some(path)) if path.as_os_str() == "-" => Box::new(
+            FrameSource::new(std::io::stdin().lock(), a.sample_rate).map_err(|e| miette!("{e}"))?,
+        ),
+        (_, Some(path)) => {
+            let f = std::fs::File::open(path)
+                .map_err(|e| miette!("--frames {}: {e}", path.display()))?;
+            Box::new(
+                FrameSource::new(std::io::BufReader::new(f), a.sample_rate)
+                    .map_err(|e| miette!("{e}"))?,
+            )
+        }
+        (Some(path), None) => {
             let rec = a.input.read(path, None)?;
             Box::new(
                 ReplaySource::new(rec, a.chunk).map_err(|e| miette!("{}: {e}", path.display()))?,
             )
         }
-        None => {
+        (None, None) => {
             let scenario = Scenario::load(a.scenario.as_deref().unwrap_or("shaft-steady"))
                 .map_err(|e| miette!("--scenario: {e}"))?;
             let faults = a
