@@ -305,3 +305,60 @@ fn frames_from_stdin_survive_bad_frames() {
         Some(n as u64 - 1000)
     );
 }
+
+/// Control messages on stdin while the virtual cell runs (at twice real time, so that they
+/// arrive before the fault's time): a malformed one is refused naming the field and the run
+/// goes on; a stiffness fault injected this way raises the K alarm and no B alarm.
+#[test]
+fn controls_on_stdin_inject_a_fault_and_bad_ones_are_named() {
+    let controls = concat!(
+        "{\"cmd\": \"speed\", \"rpm\": \"fast\"}\n",
+        "{\"cmd\": \"fault\", \"spec\": \"shaft.k=1000@1.5\"}\n",
+        "{\"cmd\": \"warp\"}\n",
+    );
+    let ev = events_from_stdin(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "3",
+            "--pace",
+            "2",
+            "--controls",
+            "-",
+        ],
+        controls,
+    );
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert_eq!(errors[0]["input"], "controls");
+    assert_eq!(errors[0]["line"], 1);
+    assert!(errors[0]["message"]
+        .as_str()
+        .unwrap()
+        .contains("field 'rpm'"));
+    assert!(errors[1]["message"]
+        .as_str()
+        .unwrap()
+        .contains("field 'cmd' is 'warp'"));
+    let applied = of_type(&ev, "control");
+    assert_eq!(applied.len(), 1);
+    assert_eq!(
+        (&applied[0]["cmd"], &applied[0]["line"]),
+        (&Value::from("fault"), &Value::from(2))
+    );
+    assert!(
+        applied[0]["t_s"].as_f64().is_none_or(|t| t < 1.5),
+        "{}",
+        applied[0]
+    );
+    let alarms = of_type(&ev, "alarm");
+    assert!(
+        !alarms.is_empty() && alarms.iter().all(|a| a["param"] == "K"),
+        "{alarms:?}"
+    );
+    assert_eq!(of_type(&ev, "end")[0]["t_s"], 3.0);
+}

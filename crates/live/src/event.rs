@@ -35,12 +35,15 @@ pub enum Event {
         /// Its relative error (Eq. 6.3) then.
         relative_error: f64,
     },
-    /// A frame from outside was refused (it is counted as dropped; the run goes on):
-    /// `{"type": "error", "t_s": …, "line": n, "message": …}` (`t_s` the last sample taken).
+    /// A frame from outside or a control message was refused (the run goes on; a refused frame
+    /// is counted as dropped): `{"type": "error", "t_s": …, "input": "frames", "line": n,
+    /// "message": …}` (`t_s` the last sample taken).
     Error {
         /// Recording time of the last sample taken [s] (null before any).
         t_s: f64,
-        /// The frame's line in the input.
+        /// `frames` or `controls`.
+        input: &'static str,
+        /// Its line in that input.
         line: usize,
         /// What was wrong.
         message: String,
@@ -52,6 +55,15 @@ pub enum Event {
         t_s: f64,
         /// What.
         message: String,
+    },
+    /// A control message applied: `{"type": "control", "t_s": …, "cmd": "fault", "line": n}`.
+    Control {
+        /// Recording time when it was applied [s].
+        t_s: f64,
+        /// The command.
+        cmd: &'static str,
+        /// Its line in the control input.
+        line: usize,
     },
     /// The run ended (a replay's last sample, or the end of `--duration`): `{"type": "end",
     /// "t_s": …, "samples": n, "dropped": n}`.

@@ -1,6 +1,7 @@
 //! The live loop without a panel: chunks from a [`Source`] through the applications' stages,
 //! events out — what `physid live --headless --json` runs.
 
+use crate::control::Control;
 use crate::event::Event;
 use crate::source::{Pace, Pacer, Source};
 use physid_apps::error::AppError;
@@ -8,6 +9,7 @@ use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftS
 use physid_core::{Recording, RecordingError};
 use physid_io::IoError;
 use physid_sim::run::SimError;
+use std::sync::mpsc::Receiver;
 use thiserror::Error;
 
 /// Errors of the live service.
@@ -77,12 +79,14 @@ pub struct Summary {
     pub events: usize,
 }
 
-/// Run `source` to its end through the shaft monitor's stage, handing each event to `emit`
+/// Run `source` to its end through the shaft monitor's stage, applying the control messages
+/// that arrive on `controls` between chunks, handing each event to `emit`
 /// (whose error, e.g. a closed output, stops the run). A chunk missing a channel, or a stage's
 /// error, stops the run with the error (the events so far have been sent).
 pub fn run_headless(
     source: &mut dyn Source,
     cfg: &LiveConfig,
+    controls: Option<&Receiver<String>>,
     mut emit: impl FnMut(&Event) -> Result<(), String>,
 ) -> Result<Summary, LiveError> {
     let mut stage = ShaftStage::new(&cfg.monitor, source.rate_hz())?;
@@ -98,6 +102,7 @@ pub fn run_headless(
         emit(e).map_err(LiveError::Output)
     };
     let mut dropped = 0;
+    let mut control_line = 0;
     loop {
         let chunk = match source.next_chunk() {
             Ok(Some(c)) => c,
@@ -107,6 +112,7 @@ pub fn run_headless(
                 send(
                     &Event::Error {
                         t_s: last_t,
+                        input: "frames",
                         line,
                         message: what,
                     },
@@ -116,6 +122,27 @@ pub fn run_headless(
             }
             Err(e) => return Err(e),
         };
+        // Control messages that have arrived, applied between chunks.
+        while let Some(Ok(text)) = controls.map(Receiver::try_recv) {
+            control_line += 1;
+            let event = match Control::parse(&text).and_then(|c| {
+                source.control(&c)?;
+                Ok(c.name())
+            }) {
+                Ok(cmd) => Event::Control {
+                    t_s: last_t,
+                    cmd,
+                    line: control_line,
+                },
+                Err(message) => Event::Error {
+                    t_s: last_t,
+                    input: "controls",
+                    line: control_line,
+                    message,
+                },
+            };
+            send(&event, &mut events)?;
+        }
         if let Some(message) = source.notice() {
             send(
                 &Event::Finding {

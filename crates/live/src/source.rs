@@ -1,5 +1,6 @@
 //! Where the live service's chunks come from, and how fast.
 
+use crate::control::Control;
 use crate::headless::LiveError;
 use physid_apps::acquisition::uniform_step;
 use physid_apps::shaft_monitor::on_time_basis;
@@ -19,6 +20,13 @@ pub trait Source {
     fn notice(&mut self) -> Option<String> {
         None
     }
+    /// Apply a control message, or say why not.
+    fn control(&mut self, c: &Control) -> Result<(), String> {
+        Err(format!(
+            "'{}': only the virtual test cell takes controls",
+            c.name()
+        ))
+    }
 }
 
 /// The virtual test cell run as a stream ([`Run`] with [`RunOptions::stream`]): chunks of
@@ -29,6 +37,7 @@ pub struct ScenarioSource {
     rate_hz: f64,
     chunk_s: f64,
     t: f64,
+    stop: bool,
 }
 
 impl ScenarioSource {
@@ -53,6 +62,7 @@ impl ScenarioSource {
             rate_hz,
             chunk_s,
             t: 0.0,
+            stop: false,
         })
     }
 
@@ -68,13 +78,22 @@ impl Source for ScenarioSource {
         self.rate_hz
     }
 
+    fn control(&mut self, c: &Control) -> Result<(), String> {
+        match (c, self.run.as_mut()) {
+            (Control::Stop, _) => self.stop = true,
+            (_, Some(run)) => c.apply(run),
+            (_, None) => return Err("the run has ended".into()),
+        }
+        Ok(())
+    }
+
     fn next_chunk(&mut self) -> Result<Option<Recording>, LiveError> {
         let Some(run) = self.run.as_mut() else {
             return Ok(None);
         };
         self.t += self.chunk_s;
         run.step_until(self.t)?;
-        if run.is_done() {
+        if run.is_done() || self.stop {
             let run = self
                 .run
                 .take()

@@ -27,6 +27,11 @@ pub struct Args {
     /// the format); the sample rate is --sample-rate.
     #[arg(long, value_name = "FILE|-", conflicts_with_all = ["scenario", "faults", "duration", "replay"])]
     frames: Option<PathBuf>,
+    /// Control messages for the virtual cell, one JSON object per line, from a file or `-` for
+    /// stdin: {"cmd": "speed", "rpm": 1200}, {"cmd": "throttle", "deg": 30},
+    /// {"cmd": "fault", "spec": "shaft.k=1000@12"}, {"cmd": "stop"} (docs/live.md).
+    #[arg(long, value_name = "FILE|-", conflicts_with_all = ["replay", "frames"])]
+    controls: Option<PathBuf>,
     #[command(flatten)]
     input: super::InputArgs,
     /// The virtual cell's scenario: a built-in name or a TOML file [default: shaft-steady].
@@ -101,7 +106,30 @@ pub fn run(a: &Args) -> Result<()> {
             Box::new(ScenarioSource::new(&scenario, &opts, a.chunk).map_err(|e| miette!("{e}"))?)
         }
     };
-    run_headless(source.as_mut(), &cfg, |e| {
+    // Control lines, read on their own thread so that the run never waits for them.
+    let controls = match &a.controls {
+        None => None,
+        Some(path) => {
+            let reader: Box<dyn std::io::BufRead + Send> = if path.as_os_str() == "-" {
+                Box::new(std::io::BufReader::new(std::io::stdin()))
+            } else {
+                Box::new(std::io::BufReader::new(
+                    std::fs::File::open(path)
+                        .map_err(|e| miette!("--controls {}: {e}", path.display()))?,
+                ))
+            };
+            let (tx, rx) = std::sync::mpsc::sync_channel(256);
+            std::thread::spawn(move || {
+                for line in std::io::BufRead::lines(reader).map_while(|l| l.ok()) {
+                    if !line.trim().is_empty() && tx.send(line).is_err() {
+                        break;
+                    }
+                }
+            });
+            Some(rx)
+        }
+    };
+    run_headless(source.as_mut(), &cfg, controls.as_ref(), |e| {
         let line = serde_json::to_string(e).map_err(|e| e.to_string())?;
         outln!("{line}");
         Ok(())

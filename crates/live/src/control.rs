@@ -1,0 +1,119 @@
+//! Control messages for the virtual test cell while it runs — what the panel's controls send,
+//! and what a script can send on stdin (`physid live --headless --json --controls -`): one JSON
+//! object per line.
+//!
+//! | message | effect |
+//! |---|---|
+//! | `{"cmd": "speed", "rpm": 1200}` | the speed demand from now on [rpm] (a torque demand [N·m] in torque mode) |
+//! | `{"cmd": "throttle", "deg": 30}` | the throttle opening from now on [deg] |
+//! | `{"cmd": "fault", "spec": "shaft.k=1000@12"}` | a fault, as `--fault` (its time is the recording's) |
+//! | `{"cmd": "stop"}` | end the run after the current chunk |
+//!
+//! A malformed message is refused with an error naming the field; the run goes on.
+
+use physid_sim::run::Run;
+use physid_sim::scenario::{Fault, Profile};
+use serde_json::Value;
+
+/// A control message (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Control {
+    /// Speed demand [rpm] from now on.
+    Speed(f64),
+    /// Throttle [deg] from now on.
+    Throttle(f64),
+    /// A fault.
+    Fault(Fault),
+    /// End the run.
+    Stop,
+}
+
+impl Control {
+    /// Parse one message; the error names the field that is wrong.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let v: Value =
+            serde_json::from_str(text.trim()).map_err(|e| format!("not a JSON object: {e}"))?;
+        let obj = v.as_object().ok_or("not a JSON object")?;
+        let number = |field: &str, lo: f64, hi: f64| -> Result<f64, String> {
+            let x = obj
+                .get(field)
+                .ok_or_else(|| format!("field '{field}' is missing"))?;
+            match x.as_f64() {
+                Some(f) if (lo..=hi).contains(&f) => Ok(f),
+                _ => Err(format!(
+                    "field '{field}' is {x}: expected a number in [{lo}, {hi}]"
+                )),
+            }
+        };
+        match obj.get("cmd").and_then(Value::as_str) {
+            Some("speed") => Ok(Control::Speed(number("rpm", 0.0, 10_000.0)?)),
+            Some("throttle") => Ok(Control::Throttle(number("deg", 0.0, 90.0)?)),
+            Some("fault") => {
+                let spec = obj
+                    .get("spec")
+                    .and_then(Value::as_str)
+                    .ok_or("field 'spec' is missing or not a string (PATH=VALUE@T[+RAMP])")?;
+                Ok(Control::Fault(
+                    Fault::parse(spec).map_err(|e| format!("field 'spec': {e}"))?,
+                ))
+            }
+            Some("stop") => Ok(Control::Stop),
+            other => Err(format!(
+                "field 'cmd' is {}: expected speed, throttle, fault or stop",
+                other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'"))
+            )),
+        }
+    }
+
+    /// Apply it to a running cell (a stop is the caller's to act on).
+    pub fn apply(&self, run: &mut Run) {
+        // A constant from now on: the run only evaluates its inputs ahead.
+        let forever = |v: f64| Profile::constant(v, f64::MAX);
+        match self {
+            Control::Speed(rpm) => run.set_speed(forever(*rpm)),
+            Control::Throttle(deg) => run.set_throttle(forever(*deg)),
+            Control::Fault(f) => run.add_fault(f.clone()),
+            Control::Stop => {}
+        }
+    }
+
+    /// Its name (`speed`, `throttle`, `fault`, `stop`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Control::Speed(_) => "speed",
+            Control::Throttle(_) => "throttle",
+            Control::Fault(_) => "fault",
+            Control::Stop => "stop",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn messages_parse_and_mistakes_name_the_field() {
+        assert_eq!(
+            Control::parse(r#"{"cmd":"speed","rpm":1200}"#),
+            Ok(Control::Speed(1200.0))
+        );
+        assert_eq!(Control::parse(r#"{"cmd":"stop"}"#), Ok(Control::Stop));
+        assert!(matches!(
+            Control::parse(r#"{"cmd":"fault","spec":"shaft.k=1000@2"}"#),
+            Ok(Control::Fault(f)) if f.path == "shaft.k" && f.value == 1000.0
+        ));
+        for (msg, want) in [
+            (r#"{"cmd":"speed","rpm":"fast"}"#, "field 'rpm'"),
+            (r#"{"cmd":"speed"}"#, "field 'rpm' is missing"),
+            (r#"{"cmd":"throttle","deg":120}"#, "field 'deg'"),
+            (r#"{"cmd":"fault","spec":"shaft.x=1@1"}"#, "field 'spec'"),
+            (r#"{"cmd":"warp"}"#, "field 'cmd' is 'warp'"),
+            (r#"{"rpm":1}"#, "field 'cmd' is missing"),
+            ("speed 1200", "not a JSON object"),
+        ] {
+            let e = Control::parse(msg).unwrap_err();
+            assert!(e.contains(want), "{msg}: {e}");
+        }
+    }
+}
