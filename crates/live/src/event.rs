@@ -74,7 +74,22 @@ pub enum Event {
         samples: usize,
         /// Frames refused (bad frames from outside).
         dropped: usize,
+        /// From a sample's time being due on the wall clock to its estimate being sent, when
+        /// paced (absent at `--pace max`) [ms].
+        #[serde(skip_serializing_if = "Option::is_none")]
+        latency_ms: Option<LatencyMs>,
     },
+}
+
+/// Latency quantiles [ms].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LatencyMs {
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Largest.
+    pub max: f64,
 }
 
 impl Event {

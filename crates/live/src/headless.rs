@@ -3,7 +3,8 @@
 
 use crate::control::Control;
 use crate::event::Event;
-use crate::source::{Pace, Pacer, Source};
+use crate::event::LatencyMs;
+use crate::source::{LatencyHistogram, Pace, Pacer, Source};
 use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
 use physid_core::{Recording, RecordingError};
@@ -103,6 +104,7 @@ pub fn run_headless(
     };
     let mut dropped = 0;
     let mut control_line = 0;
+    let mut latency = LatencyHistogram::default();
     loop {
         let chunk = match source.next_chunk() {
             Ok(Some(c)) => c,
@@ -163,6 +165,10 @@ pub fn run_headless(
         alarms.clear();
         stage.push(&inputs(&chunk)?, &mut samples, &mut alarms)?;
         for s in &samples {
+            // Every estimate is ready now, whether it is sent or thinned out.
+            if let Some(l) = pacer.since_due(s.t_s) {
+                latency.add(l);
+            }
             if last_sent.is_none_or(|l| s.t_s - l >= cfg.estimate_every_s) {
                 send(&Event::shaft_estimate(s), &mut events)?;
                 last_sent = Some(s.t_s);
@@ -189,6 +195,11 @@ pub fn run_headless(
             t_s: last_t,
             samples: taken,
             dropped,
+            latency_ms: latency.quantile(0.5).map(|p50| LatencyMs {
+                p50: 1e3 * p50,
+                p99: 1e3 * latency.quantile(0.99).unwrap_or(f64::NAN),
+                max: 1e3 * latency.max(),
+            }),
         },
         &mut events,
     )?;
