@@ -258,6 +258,11 @@ impl Acquisition {
 
     /// The samples taken so far, moved out (the channels keep their room).
     pub(super) fn drain(&mut self) -> Result<Recording, SimError> {
+        // The grid points placed so far in the current chunk, taken now rather than when the
+        // chunk is full (taking the points in two goes is the same as in one).
+        if self.steps > 0 {
+            self.take();
+        }
         let mut rec = Recording::new(match self.basis {
             OutputBasis::Time(_) => Basis::Time,
             OutputBasis::Crank(_) => Basis::CrankAngle,

@@ -270,8 +270,8 @@ impl Run {
     }
 
     /// The samples acquired since the last call (all channels, the recording's names and
-    /// units): a streaming run's output, chunk by chunk. Samples wait for a chunk of 256 solver
-    /// steps before they are acquired.
+    /// units): a streaming run's output, chunk by chunk — every output sample up to the last
+    /// solver step. The chunks put end to end are the recording `simulate` gives, bit for bit.
     pub fn drain(&mut self) -> Result<Recording, SimError> {
         self.acquisition.drain()
     }
