@@ -40,8 +40,8 @@ use crate::error::AppError;
 use crate::model_choice::ModelChoice;
 use physid_core::{ParamModel, ParamSet, Recording};
 use physid_estim::{
-    metrics, CovSpec, EstimatorConfig, LinearInParams, Method, MethodName, NlConfig, NlMethod,
-    NonlinearEstimator, Recursive, SigmaPoints,
+    feed, metrics, CovSpec, EstimatorConfig, FeedError, LinearInParams, Method, MethodName,
+    NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive, SigmaPoints,
 };
 use physid_ident::{
     analyse, fit_subset, Cutoff, Data, IdentConfig, RankedParam, Scaling, Selection,
@@ -596,12 +596,8 @@ fn run_with(
         scaling: p.identifiability.scaling,
         ..IdentConfig::default()
     };
-    let analysis = analyse(model, &data, &nominal, &free, config).map_err(|e| e.to_string())?;
-    let (k, _) = p
-        .identifiability
-        .cutoff
-        .resolve(model, &data, &analysis)
-        .map_err(|e| e.to_string())?;
+    let analysis = analyse(model, &data, &nominal, &free, config)?;
+    let (k, _) = p.identifiability.cutoff.resolve(model, &data, &analysis)?;
     let estimable: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
     if estimable.is_empty() {
         return Err(AppError::Invalid(
@@ -640,25 +636,24 @@ fn run_with(
             .collect(),
     };
     // R2 of the Kalman filters: given, or the batch fit's residual variance.
-    let r2 = || -> Result<f64, String> {
+    let r2 = || -> Result<f64, AppError> {
         Ok(match p.estimator.r2 {
             Some(v) => v,
             None => {
-                let fit = fit_subset(model, &data, &nominal, &estimable, 20)
-                    .map_err(|e| e.to_string())?;
+                let fit = fit_subset(model, &data, &nominal, &estimable, 20)?;
                 (fit.rss / (n.saturating_sub(estimable.len())).max(1) as f64).max(f64::MIN_POSITIVE)
             }
         })
     };
     let lambda = p.estimator.lambda.unwrap_or(1.0);
-    let linear = |method: Method| -> Result<Box<dyn Recursive>, String> {
+    let linear = |method: Method| -> Result<Box<dyn Recursive>, AppError> {
         let config = EstimatorConfig {
             p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
             ..EstimatorConfig::new(method)
         };
         Ok(Box::new(
             LinearInParams::new(model.clone(), &set, &free_set, &config)
-                .map_err(|e| e.to_string())?,
+                .map_err(AppError::estim("estimator configuration"))?,
         ))
     };
     let mut est: Box<dyn Recursive> = match p.estimator.method {
@@ -677,7 +672,7 @@ fn run_with(
             };
             Box::new(
                 NonlinearEstimator::new(model.clone(), &set, &free_set, &nl)
-                    .map_err(|e| e.to_string())?,
+                    .map_err(AppError::estim("estimator configuration"))?,
             )
         }
         MethodName::Rls => linear(Method::Rls)?,
@@ -693,16 +688,9 @@ fn run_with(
         MethodName::Dsfc => linear(Method::Dsfc { lambda })?,
     };
     let mut prediction = vec![0.0; n];
-    let mut u = vec![0.0; cols.len()];
-    for i in 0..n {
-        for (k, c) in cols.iter().enumerate() {
-            u[k] = c[i];
-        }
-        let e = est
-            .update(&u, y[i])
-            .map_err(|e| format!("sample {i}: {e}"))?
-            .prediction_error;
-        prediction[i] = y[i] - e;
+    let columns: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+    feed(est.as_mut(), &columns, &y, OnBad::Error, |i, step, est| {
+        prediction[i] = y[i] - step.prediction_error;
         // The full estimate is assembled only for the plotted samples.
         if i.is_multiple_of(stride) || i + 1 == n {
             let theta = est.estimate_full();
@@ -713,7 +701,11 @@ fn run_with(
                 out.tracks[k].1.push(theta[j]);
             }
         }
-    }
+    })
+    .map_err(|FeedError { sample, error }| AppError::Estim {
+        at: format!("sample {sample}"),
+        source: error,
+    })?;
     let (final_full, se) = (est.estimate_full(), est.std_errors().unwrap_or_default());
     // What the data resolved: an unresolved parameter gets no standard error.
     let res = est.resolution();

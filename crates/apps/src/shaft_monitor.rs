@@ -197,6 +197,32 @@ pub struct ShaftInputs<'a> {
     pub torque_shaft: &'a [f64],
 }
 
+impl<'a> ShaftInputs<'a> {
+    /// The monitor's channels of a recording (on a uniform time basis).
+    pub fn of(rec: &'a Recording) -> Result<Self, AppError> {
+        Ok(Self {
+            t: rec.values("t")?,
+            theta_dy: rec.values("theta_dy")?,
+            theta_en: rec.values("theta_en")?,
+            omega_dy: rec.values("omega_dy")?,
+            omega_en: rec.values("omega_en")?,
+            torque_shaft: rec.values("torque_shaft")?,
+        })
+    }
+
+    /// Samples `r` of every channel.
+    pub fn slice(&self, r: std::ops::Range<usize>) -> Self {
+        Self {
+            t: &self.t[r.clone()],
+            theta_dy: &self.theta_dy[r.clone()],
+            theta_en: &self.theta_en[r.clone()],
+            omega_dy: &self.omega_dy[r.clone()],
+            omega_en: &self.omega_en[r.clone()],
+            torque_shaft: &self.torque_shaft[r],
+        }
+    }
+}
+
 /// One estimator sample of the monitor.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ShaftSample {
@@ -314,7 +340,7 @@ impl ShaftStage {
 
     /// Their standard errors (NaN before they can be estimated).
     pub fn std_err(&self) -> ShaftParams {
-        let mut se = [f64::NAN; 3];
+        let mut se = [0.0; 3];
         if self.est.std_errors_into(&mut se).is_err() {
             se = [f64::NAN; 3];
         }
@@ -410,11 +436,10 @@ impl ShaftStage {
         samples: &mut Vec<ShaftSample>,
         alarms: &mut Vec<ShaftAlarm>,
     ) -> Result<(), AppError> {
-        let [dth, dw, tq] = &self.filtered;
         let mut phi = [0.0; 3];
-        let mut se = [0.0; 3];
         let t0 = self.t0.unwrap_or(0.0);
-        for k in 0..dth.len() {
+        for k in 0..self.filtered[0].len() {
+            let [dth, dw, tq] = &self.filtered;
             let i = self.next;
             self.next += 1;
             let t = self.times.pop_front().unwrap_or(f64::NAN);
@@ -426,19 +451,12 @@ impl ShaftStage {
                 at: format!("sample {i}"),
                 source: e,
             })?;
-            let th = self.est.estimate();
-            if self.est.std_errors_into(&mut se).is_err() {
-                se = [f64::NAN; 3];
-            }
+            let (estimate, se) = (self.estimate(), self.std_err());
             samples.push(ShaftSample {
                 index: i,
                 t_s: t,
-                estimate: ShaftParams {
-                    k: th[0],
-                    b: th[1],
-                    tau0: th[2],
-                },
-                std_err: PerParam { k: se[0], b: se[1] },
+                estimate,
+                std_err: PerParam { k: se.k, b: se.b },
             });
             if t - t0 >= self.cfg.settle_s {
                 if self.det_times.len() > self.cfg.dwell.max(1) as usize {
@@ -446,10 +464,12 @@ impl ShaftStage {
                 }
                 self.det_times.push_back(t);
                 let before = self.det.alarms().len();
-                self.det.update(&th[..2]).map_err(|e| AppError::Estim {
-                    at: format!("sample {i}"),
-                    source: e,
-                })?;
+                self.det
+                    .update(&[estimate.k, estimate.b])
+                    .map_err(|e| AppError::Estim {
+                        at: format!("sample {i}"),
+                        source: e,
+                    })?;
                 for a in &self.det.alarms()[before..] {
                     let back = (a.raised_sample - a.onset_sample) as usize;
                     let at = self.det_times.len() - 1;
@@ -521,15 +541,8 @@ pub fn on_time_basis(rec: &Recording) -> Result<Option<Recording>, AppError> {
 pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonitor, AppError> {
     let resampled = on_time_basis(rec)?;
     let rec = resampled.as_ref().unwrap_or(rec);
-    let t = rec.values("t")?;
-    let get = |n: &str| rec.values(n);
-    let (thd, the, wd, we, tq) = (
-        get("theta_dy")?,
-        get("theta_en")?,
-        get("omega_dy")?,
-        get("omega_en")?,
-        get("torque_shaft")?,
-    );
+    let all = ShaftInputs::of(rec)?;
+    let t = all.t;
     if t.len() < 100 {
         return Err(AppError::Invalid(format!(
             "{} samples: the monitor needs at least 100",
@@ -541,15 +554,7 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
     let mut stage = ShaftStage::new(cfg, fs)?;
     let (mut samples, mut alarms) = (Vec::new(), Vec::new());
     for start in (0..t.len()).step_by(FILE_CHUNK) {
-        let r = start..(start + FILE_CHUNK).min(t.len());
-        let chunk = ShaftInputs {
-            t: &t[r.clone()],
-            theta_dy: &thd[r.clone()],
-            theta_en: &the[r.clone()],
-            omega_dy: &wd[r.clone()],
-            omega_en: &we[r.clone()],
-            torque_shaft: &tq[r],
-        };
+        let chunk = all.slice(start..(start + FILE_CHUNK).min(t.len()));
         stage.push(&chunk, &mut samples, &mut alarms)?;
     }
     stage.finish(&mut samples, &mut alarms)?;

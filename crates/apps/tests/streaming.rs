@@ -19,20 +19,12 @@ fn stream(
     cfg: &MonitorConfig,
     chunk: usize,
 ) -> (Vec<ShaftSample>, Vec<ShaftAlarm>) {
-    let get = |n: &str| rec.values(n).unwrap();
-    let t = get("t");
+    let all = ShaftInputs::of(rec).unwrap();
+    let t = all.t;
     let mut stage = ShaftStage::new(cfg, 1.0 / (t[1] - t[0])).unwrap();
     let (mut s, mut a) = (Vec::new(), Vec::new());
     for start in (0..t.len()).step_by(chunk) {
-        let r = start..(start + chunk).min(t.len());
-        let x = ShaftInputs {
-            t: &t[r.clone()],
-            theta_dy: &get("theta_dy")[r.clone()],
-            theta_en: &get("theta_en")[r.clone()],
-            omega_dy: &get("omega_dy")[r.clone()],
-            omega_en: &get("omega_en")[r.clone()],
-            torque_shaft: &get("torque_shaft")[r],
-        };
+        let x = all.slice(start..r_end(start, chunk, t.len()));
         stage.push(&x, &mut s, &mut a).unwrap();
         // Nothing waits longer than the stated latency.
         let waiting = r_end(start, chunk, t.len()) - s.last().map_or(0, |x| x.index + 1);

@@ -169,6 +169,26 @@ impl Recording {
         self.len() == 0
     }
 
+    /// Samples `range` of every channel, with the basis and metadata (`range` is clamped to
+    /// the recording).
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Recording {
+        let end = range.end.min(self.len());
+        let start = range.start.min(end);
+        Recording {
+            basis: self.basis,
+            channels: self
+                .channels
+                .iter()
+                .map(|c| Channel {
+                    name: c.name.clone(),
+                    unit: c.unit.clone(),
+                    values: c.values[start..end].to_vec(),
+                })
+                .collect(),
+            meta: self.meta.clone(),
+        }
+    }
+
     /// All channels in order.
     pub fn channels(&self) -> &[Channel] {
         &self.channels
@@ -371,6 +391,19 @@ mod tests {
             e.contains("'torque_shaft' is in 'lbf*ft'") && e.contains("kNm"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_slice_keeps_names_units_basis_and_is_clamped() {
+        let mut r = Recording::new(Basis::CrankAngle);
+        r.push(ch("t", vec![0.0, 1.0, 2.0, 3.0])).unwrap();
+        r.push(ch("x", vec![10.0, 11.0, 12.0, 13.0])).unwrap();
+        let s = r.slice(1..3);
+        assert_eq!((s.basis, s.names()), (Basis::CrankAngle, vec!["t", "x"]));
+        assert_eq!(s.values("x").unwrap(), &[11.0, 12.0]);
+        assert_eq!(s.channel("x").unwrap().unit, r.channel("x").unwrap().unit);
+        assert_eq!(r.slice(3..9).values("t").unwrap(), &[3.0]);
+        assert!(r.slice(7..9).is_empty());
     }
 
     #[test]

@@ -196,11 +196,6 @@ impl<M: ParamModel> LinearInParams<M> {
             model,
         })
     }
-
-    /// The linear estimator inside.
-    pub fn inner(&self) -> &LinearEstimator {
-        &self.est
-    }
 }
 
 impl<M: ParamModel> Recursive for LinearInParams<M> {

@@ -4,10 +4,10 @@
 use crate::control::Control;
 use crate::event::Event;
 use crate::event::LatencyMs;
-use crate::source::{LatencyHistogram, Pace, Pacer, Source};
+use crate::source::{Pace, Pacer, Source};
 use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
-use physid_core::{Recording, RecordingError};
+use physid_core::RecordingError;
 use physid_io::IoError;
 use physid_sim::run::SimError;
 use std::sync::mpsc::Receiver;
@@ -163,7 +163,7 @@ pub fn run_headless(
         last_t = t[t.len() - 1];
         samples.clear();
         alarms.clear();
-        stage.push(&inputs(&chunk)?, &mut samples, &mut alarms)?;
+        stage.push(&ShaftInputs::of(&chunk)?, &mut samples, &mut alarms)?;
         for s in &samples {
             // Every estimate is ready now, whether it is sent or thinned out.
             if let Some(l) = pacer.since_due(s.t_s) {
@@ -211,14 +211,75 @@ pub fn run_headless(
     })
 }
 
-/// The shaft monitor's channels of a chunk.
-fn inputs(c: &Recording) -> Result<ShaftInputs<'_>, LiveError> {
-    Ok(ShaftInputs {
-        t: c.values("t")?,
-        theta_dy: c.values("theta_dy")?,
-        theta_en: c.values("theta_en")?,
-        omega_dy: c.values("omega_dy")?,
-        omega_en: c.values("omega_en")?,
-        torque_shaft: c.values("torque_shaft")?,
-    })
+/// A latency histogram: 0.1 ms bins up to 2 s (no allocation after construction).
+#[derive(Debug, Clone)]
+pub struct LatencyHistogram {
+    bins: Vec<u64>,
+    count: u64,
+    max_s: f64,
+}
+
+/// Width of a bin [s].
+const BIN_S: f64 = 1e-4;
+
+impl Default for LatencyHistogram {
+    fn default() -> Self {
+        Self {
+            bins: vec![0; 20_000],
+            count: 0,
+            max_s: 0.0,
+        }
+    }
+}
+
+impl LatencyHistogram {
+    /// Count one latency [s] (beyond 2 s in the last bin; negative as 0).
+    pub fn add(&mut self, s: f64) {
+        let k = ((s.max(0.0) / BIN_S) as usize).min(self.bins.len() - 1);
+        self.bins[k] += 1;
+        self.count += 1;
+        self.max_s = self.max_s.max(s);
+    }
+
+    /// The `q`-quantile [s] (upper edge of its bin); `None` when empty.
+    pub fn quantile(&self, q: f64) -> Option<f64> {
+        if self.count == 0 {
+            return None;
+        }
+        let want = (q * self.count as f64).ceil().max(1.0) as u64;
+        let mut seen = 0;
+        for (k, &n) in self.bins.iter().enumerate() {
+            seen += n;
+            if seen >= want {
+                return Some((k + 1) as f64 * BIN_S);
+            }
+        }
+        Some(self.max_s)
+    }
+
+    /// The largest [s].
+    pub fn max(&self) -> f64 {
+        self.max_s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Quantiles of 1 … 1000 ms: the median's bin ends at 500 ms, the 99th percentile's at
+    /// 990 ms (0.1 ms bins); beyond 2 s lands in the last bin.
+    #[test]
+    fn histogram_quantiles() {
+        let mut h = LatencyHistogram::default();
+        assert_eq!(h.quantile(0.5), None);
+        for k in 1..=1000 {
+            h.add(k as f64 * 1e-3 - 5e-5);
+        }
+        assert!((h.quantile(0.5).unwrap() - 0.5).abs() < 1e-9);
+        assert!((h.quantile(0.99).unwrap() - 0.99).abs() < 1e-9);
+        h.add(5.0);
+        assert_eq!(h.max(), 5.0);
+        assert!((h.quantile(1.0).unwrap() - 2.0).abs() < 1e-9);
+    }
 }

@@ -4,7 +4,7 @@ use crate::control::Control;
 use crate::headless::LiveError;
 use physid_apps::acquisition::uniform_step;
 use physid_apps::shaft_monitor::on_time_basis;
-use physid_core::{Channel, Recording};
+use physid_core::Recording;
 use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::Scenario;
 use std::time::{Duration, Instant};
@@ -31,7 +31,7 @@ pub trait Source {
 
 /// The virtual test cell run as a stream ([`Run`] with [`RunOptions::stream`]): chunks of
 /// `chunk_s` seconds of recording; memory flat however long it runs. Its inputs can change
-/// between chunks ([`run_mut`](Self::run_mut)).
+/// between chunks ([`Source::control`]).
 pub struct ScenarioSource {
     run: Option<Run>,
     rate_hz: f64,
@@ -64,12 +64,6 @@ impl ScenarioSource {
             t: 0.0,
             stop: false,
         })
-    }
-
-    /// The run, to change its inputs (speed, throttle, faults) between chunks; `None` once it
-    /// has ended.
-    pub fn run_mut(&mut self) -> Option<&mut Run> {
-        self.run.as_mut()
     }
 }
 
@@ -146,16 +140,9 @@ impl Source for ReplaySource {
         if self.next >= n {
             return Ok(None);
         }
-        let r = self.next..(self.next + self.chunk).min(n);
-        self.next = r.end;
-        let mut c = Recording::new(self.rec.basis);
-        for ch in self.rec.channels() {
-            c.push(Channel {
-                name: ch.name.clone(),
-                unit: ch.unit.clone(),
-                values: ch.values[r.clone()].to_vec(),
-            })?;
-        }
+        let end = (self.next + self.chunk).min(n);
+        let c = self.rec.slice(self.next..end);
+        self.next = end;
         Ok(Some(c))
     }
 }
@@ -218,76 +205,12 @@ impl Pacer {
     }
 }
 
-/// A latency histogram: 0.1 ms bins up to 2 s (no allocation after construction).
-#[derive(Debug, Clone)]
-pub struct LatencyHistogram {
-    bins: Vec<u64>,
-    count: u64,
-    max_s: f64,
-}
-
-/// Width of a bin [s].
-const BIN_S: f64 = 1e-4;
-
-impl Default for LatencyHistogram {
-    fn default() -> Self {
-        Self {
-            bins: vec![0; 20_000],
-            count: 0,
-            max_s: 0.0,
-        }
-    }
-}
-
-impl LatencyHistogram {
-    /// Count one latency [s] (beyond 2 s in the last bin; negative as 0).
-    pub fn add(&mut self, s: f64) {
-        let k = ((s.max(0.0) / BIN_S) as usize).min(self.bins.len() - 1);
-        self.bins[k] += 1;
-        self.count += 1;
-        self.max_s = self.max_s.max(s);
-    }
-
-    /// The `q`-quantile [s] (upper edge of its bin); `None` when empty.
-    pub fn quantile(&self, q: f64) -> Option<f64> {
-        if self.count == 0 {
-            return None;
-        }
-        let want = (q * self.count as f64).ceil().max(1.0) as u64;
-        let mut seen = 0;
-        for (k, &n) in self.bins.iter().enumerate() {
-            seen += n;
-            if seen >= want {
-                return Some((k + 1) as f64 * BIN_S);
-            }
-        }
-        Some(self.max_s)
-    }
-
-    /// The largest [s].
-    pub fn max(&self) -> f64 {
-        self.max_s
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Quantiles of 1 … 1000 ms: the median's bin ends at 50.0 ms, the 99th percentile's at
-    /// 990.0 ms (0.1 ms bins); beyond 2 s lands in the last bin.
     #[test]
-    fn histogram_quantiles() {
-        let mut h = LatencyHistogram::default();
-        assert_eq!(h.quantile(0.5), None);
-        for k in 1..=1000 {
-            h.add(k as f64 * 1e-3 - 5e-5);
-        }
-        assert!((h.quantile(0.5).unwrap() - 0.5).abs() < 1e-9);
-        assert!((h.quantile(0.99).unwrap() - 0.99).abs() < 1e-9);
-        h.add(5.0);
-        assert_eq!(h.max(), 5.0);
-        assert!((h.quantile(1.0).unwrap() - 2.0).abs() < 1e-9);
+    fn pace_parses() {
         assert_eq!("max".parse::<Pace>(), Ok(Pace::Max));
         assert_eq!("10".parse::<Pace>(), Ok(Pace::Factor(10.0)));
         assert!("0".parse::<Pace>().is_err() && "fast".parse::<Pace>().is_err());

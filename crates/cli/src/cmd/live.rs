@@ -9,7 +9,9 @@ use physid_live::{
 };
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
-use std::path::PathBuf;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `physid live`.
 #[derive(clap::Args)]
@@ -72,17 +74,10 @@ pub fn run(a: &Args) -> Result<()> {
         pace: a.pace,
     };
     let mut source: Box<dyn Source> = match (&a.replay, &a.frames) {
-        (_, Some(path)) if path.as_os_str() == "-" => Box::new(
-            FrameSource::new(std::io::stdin().lock(), a.sample_rate).map_err(|e| miette!("{e}"))?,
+        (_, Some(path)) => Box::new(
+            FrameSource::new(lines(path, "--frames")?, a.sample_rate)
+                .map_err(|e| miette!("{e}"))?,
         ),
-        (_, Some(path)) => {
-            let f = std::fs::File::open(path)
-                .map_err(|e| miette!("--frames {}: {e}", path.display()))?;
-            Box::new(
-                FrameSource::new(std::io::BufReader::new(f), a.sample_rate)
-                    .map_err(|e| miette!("{e}"))?,
-            )
-        }
         (Some(path), None) => {
             let rec = a.input.read(path, None)?;
             Box::new(
@@ -110,17 +105,10 @@ pub fn run(a: &Args) -> Result<()> {
     let controls = match &a.controls {
         None => None,
         Some(path) => {
-            let reader: Box<dyn std::io::BufRead + Send> = if path.as_os_str() == "-" {
-                Box::new(std::io::BufReader::new(std::io::stdin()))
-            } else {
-                Box::new(std::io::BufReader::new(
-                    std::fs::File::open(path)
-                        .map_err(|e| miette!("--controls {}: {e}", path.display()))?,
-                ))
-            };
+            let reader = lines(path, "--controls")?;
             let (tx, rx) = std::sync::mpsc::sync_channel(256);
             std::thread::spawn(move || {
-                for line in std::io::BufRead::lines(reader).map_while(|l| l.ok()) {
+                for line in reader.lines().map_while(|l| l.ok()) {
                     if !line.trim().is_empty() && tx.send(line).is_err() {
                         break;
                     }
@@ -136,4 +124,13 @@ pub fn run(a: &Args) -> Result<()> {
     })
     .map_err(|e| miette!("{e}"))?;
     Ok(())
+}
+
+/// A file's lines, or standard input's for `-` (`flag` names the option in an error).
+fn lines(path: &Path, flag: &str) -> Result<Box<dyn BufRead + Send>> {
+    if path.as_os_str() == "-" {
+        return Ok(Box::new(BufReader::new(std::io::stdin())));
+    }
+    let f = File::open(path).map_err(|e| miette!("{flag} {}: {e}", path.display()))?;
+    Ok(Box::new(BufReader::new(f)))
 }

@@ -202,11 +202,6 @@ impl Run {
         self.done
     }
 
-    /// The cell's parameters now (faults applied).
-    pub fn params(&self) -> &CellParams {
-        &self.cell.params
-    }
-
     /// The speed demand [rpm] (a torque demand [N·m] in torque mode) from now on, against the
     /// recording's time.
     pub fn set_speed(&mut self, profile: Profile) {
