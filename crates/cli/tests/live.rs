@@ -96,6 +96,27 @@ fn a_replay_ends_on_the_file_verbs_estimate_whatever_the_chunk() {
         finals.push(last);
     }
     assert!(finals.windows(2).all(|w| w[0] == w[1]));
+    // And against the simulated truth, not only the file verb (which runs the same stage): the
+    // stiffness stepped to 1000 N·m/rad at 1.5 s, the damping stayed at 0.95.
+    let k = finals[0]["params"]["K"].as_f64().unwrap();
+    let b = finals[0]["params"]["B"].as_f64().unwrap();
+    assert!(
+        (k / 1000.0 - 1.0).abs() < 0.02 && (b / 0.95 - 1.0).abs() < 0.05,
+        "K {k}, B {b}"
+    );
+    let raised: Vec<f64> = verb["alarms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| {
+            assert_eq!(a["param"], "K");
+            a["t_raised_s"].as_f64().unwrap()
+        })
+        .collect();
+    assert!(
+        !raised.is_empty() && raised.iter().all(|&t| t > 1.5),
+        "{raised:?}"
+    );
 }
 
 #[test]
