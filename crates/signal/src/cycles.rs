@@ -1,0 +1,247 @@
+//! Per-cycle statistics on a stream (thesis §4.3, its Fig. 4.8; SPEC §2.7): the samples of a
+//! time-basis recording arrive in chunks; each four-stroke cycle (720° = 4π rad of the
+//! continuous crank angle, starting at a firing TDC) is summed up when its last degree has
+//! arrived — the crank-angle mean of each channel, its minimum and maximum with the crank
+//! angle of the maximum, and optionally the channel on a crank-angle grid (the cyclic view).
+//!
+//! The means are crank-angle means, `x̄ = (1/4π) ∫ x dθ` over the cycle (trapezoidal rule, the
+//! cycle's ends interpolated linearly between the samples around them) — what a crank-angle
+//! resampled recording's per-cycle mean ([`crate::crank::cycle_stats`]) approximates. The
+//! result depends only on the sequence of samples, never on how it was chunked.
+//!
+//! A sample whose angle does not advance (an engine at rest) adds nothing; the partial cycle
+//! before the first boundary is not reported.
+
+use crate::crank::CrankError;
+use std::f64::consts::PI;
+
+/// One complete cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CycleSummary {
+    /// Cycle index `floor((θ − θ_TDC) / 4π)`.
+    pub cycle: i64,
+    /// Time at its start and end [s] (interpolated at the boundary angles).
+    pub t_start_s: f64,
+    /// Time at its end [s].
+    pub t_end_s: f64,
+    /// Crank-angle mean of each channel.
+    pub mean: Vec<f64>,
+    /// Smallest sample of each channel in the cycle.
+    pub min: Vec<f64>,
+    /// Largest sample of each channel in the cycle.
+    pub max: Vec<f64>,
+    /// Crank angle in the cycle [deg] of each channel's largest sample.
+    pub max_deg: Vec<f64>,
+    /// Each channel at 0, step, 2·step, … < 720° (interpolated), when curves were asked for.
+    pub curve: Option<Vec<Vec<f64>>>,
+}
+
+/// The stream's state between chunks (see the module docs).
+#[derive(Debug, Clone)]
+pub struct CycleStream {
+    theta_tdc: f64,
+    step: f64,
+    points: usize,
+    curves: bool,
+    /// The previous sample's angle and time (its values are `prev_x`).
+    prev: Option<(f64, f64)>,
+    prev_x: Vec<f64>,
+    /// The cycle in progress: index, whether it began at its boundary, start time.
+    cycle: i64,
+    complete: bool,
+    t_start: f64,
+    /// The next grid point's index in the cycle.
+    next_grid: usize,
+    integral: Vec<f64>,
+    min: Vec<f64>,
+    max: Vec<f64>,
+    max_deg: Vec<f64>,
+    curve: Vec<Vec<f64>>,
+    seen: usize,
+}
+
+impl CycleStream {
+    /// `channels` channels; cycles start at `theta_tdc` + k·4π [rad]; with `curve_step_deg`,
+    /// each cycle's curve on that crank-angle grid [deg] (720 must be a multiple of it).
+    pub fn new(
+        channels: usize,
+        theta_tdc: f64,
+        curve_step_deg: Option<f64>,
+    ) -> Result<Self, CrankError> {
+        if !theta_tdc.is_finite() {
+            return Err(CrankError::Invalid(format!(
+                "TDC angle {theta_tdc} rad: expected a finite number"
+            )));
+        }
+        let step_deg = curve_step_deg.unwrap_or(1.0);
+        let points = 720.0 / step_deg;
+        if !(step_deg > 0.0 && points >= 2.0 && (points - points.round()).abs() < 1e-9) {
+            return Err(CrankError::Invalid(format!(
+                "curve step {step_deg}°: expected a divisor of 720° giving at least 2 points"
+            )));
+        }
+        let points = points.round() as usize;
+        let curves = curve_step_deg.is_some();
+        Ok(Self {
+            theta_tdc,
+            step: 4.0 * PI / points as f64,
+            points,
+            curves,
+            prev: None,
+            prev_x: vec![0.0; channels],
+            cycle: 0,
+            complete: false,
+            t_start: f64::NAN,
+            next_grid: 0,
+            integral: vec![0.0; channels],
+            min: vec![f64::INFINITY; channels],
+            max: vec![f64::NEG_INFINITY; channels],
+            max_deg: vec![f64::NAN; channels],
+            curve: (0..if curves { channels } else { 0 })
+                .map(|_| Vec::with_capacity(points))
+                .collect(),
+            seen: 0,
+        })
+    }
+
+    /// The angle where cycle `c` starts [rad].
+    fn start(&self, c: i64) -> f64 {
+        self.theta_tdc + c as f64 * 4.0 * PI
+    }
+
+    /// Take a chunk: `t` [s], the continuous crank angle `theta` [rad], and the channels
+    /// (`x[j]` as long as `t`); each cycle completed is pushed onto `out`. A value that is not
+    /// finite is an error naming its sample (counted from the stream's start).
+    pub fn push(
+        &mut self,
+        t: &[f64],
+        theta: &[f64],
+        x: &[&[f64]],
+        out: &mut Vec<CycleSummary>,
+    ) -> Result<(), CrankError> {
+        let n = t.len();
+        if theta.len() != n || x.len() != self.prev_x.len() || x.iter().any(|c| c.len() != n) {
+            return Err(CrankError::Invalid(format!(
+                "a chunk of {n} samples with {} angles and {} channels of lengths {:?}: expected {} channels, all as long",
+                theta.len(),
+                x.len(),
+                x.iter().map(|c| c.len()).collect::<Vec<_>>(),
+                self.prev_x.len()
+            )));
+        }
+        for i in 0..n {
+            let index = self.seen + i;
+            let bad = |what: &str, v: f64| {
+                CrankError::Invalid(format!(
+                    "{what} is {v} at sample {index}: expected a finite number"
+                ))
+            };
+            if !t[i].is_finite() {
+                return Err(bad("the time", t[i]));
+            }
+            if !theta[i].is_finite() {
+                return Err(bad("the crank angle", theta[i]));
+            }
+            if let Some(j) = x.iter().position(|c| !c[i].is_finite()) {
+                return Err(bad(&format!("channel {j}"), x[j][i]));
+            }
+            self.sample(t[i], theta[i], |j| x[j][i], out);
+        }
+        self.seen += n;
+        Ok(())
+    }
+
+    /// One sample.
+    fn sample(&mut self, t: f64, th: f64, x: impl Fn(usize) -> f64, out: &mut Vec<CycleSummary>) {
+        let Some((th0, t0)) = self.prev else {
+            // The first sample: its cycle began before the stream unless it sits on the start.
+            self.cycle = ((th - self.theta_tdc) / (4.0 * PI)).floor() as i64;
+            let into = th - self.start(self.cycle);
+            self.complete = into == 0.0;
+            self.t_start = t;
+            self.next_grid = (into / self.step).ceil() as usize;
+            self.accept(t, th, &x, true);
+            return;
+        };
+        if th <= th0 {
+            return;
+        }
+        // Grid points and cycle boundaries between the previous sample and this one.
+        loop {
+            let g = self.start(self.cycle) + self.next_grid as f64 * self.step;
+            if g > th {
+                break;
+            }
+            let f = (g - th0) / (th - th0);
+            if self.next_grid == self.points {
+                // The boundary: close the cycle with the piece up to it …
+                for j in 0..self.prev_x.len() {
+                    let at = self.prev_x[j] + f * (x(j) - self.prev_x[j]);
+                    self.integral[j] += 0.5 * (self.prev_x[j] + at) * (g - th0);
+                    self.prev_x[j] = at;
+                }
+                let t_end = t0 + f * (t - t0);
+                self.close(t_end, out);
+                // … and start the next one there, from the interpolated values.
+                self.cycle += 1;
+                self.complete = true;
+                self.t_start = t_end;
+                self.next_grid = 0;
+                self.prev = Some((g, t_end));
+                return self.sample(t, th, x, out);
+            }
+            for (j, c) in self.curve.iter_mut().enumerate() {
+                c.push(self.prev_x[j] + f * (x(j) - self.prev_x[j]));
+            }
+            self.next_grid += 1;
+        }
+        for j in 0..self.integral.len() {
+            self.integral[j] += 0.5 * (self.prev_x[j] + x(j)) * (th - th0);
+        }
+        self.accept(t, th, &x, false);
+    }
+
+    /// Make `(t, th, x)` the previous sample and count it in the extremes.
+    fn accept(&mut self, t: f64, th: f64, x: &impl Fn(usize) -> f64, first: bool) {
+        let deg = (th - self.start(self.cycle)).to_degrees();
+        for j in 0..self.prev_x.len() {
+            let v = x(j);
+            self.prev_x[j] = v;
+            self.min[j] = self.min[j].min(v);
+            if v > self.max[j] {
+                self.max[j] = v;
+                self.max_deg[j] = deg;
+            }
+        }
+        if first && self.curves && self.next_grid == 0 {
+            for j in 0..self.curve.len() {
+                self.curve[j].push(self.prev_x[j]);
+            }
+            self.next_grid = 1;
+        }
+        self.prev = Some((th, t));
+    }
+
+    /// Report the cycle in progress (when it began at its boundary) and reset the sums.
+    fn close(&mut self, t_end: f64, out: &mut Vec<CycleSummary>) {
+        if self.complete {
+            out.push(CycleSummary {
+                cycle: self.cycle,
+                t_start_s: self.t_start,
+                t_end_s: t_end,
+                mean: self.integral.iter().map(|s| s / (4.0 * PI)).collect(),
+                min: self.min.clone(),
+                max: self.max.clone(),
+                max_deg: self.max_deg.clone(),
+                curve: self.curves.then(|| self.curve.clone()),
+            });
+        }
+        self.integral.fill(0.0);
+        self.min.fill(f64::INFINITY);
+        self.max.fill(f64::NEG_INFINITY);
+        self.max_deg.fill(f64::NAN);
+        for c in &mut self.curve {
+            c.clear();
+        }
+    }
+}

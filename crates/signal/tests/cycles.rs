@@ -1,0 +1,163 @@
+//! Per-cycle statistics on a stream against closed forms and against the whole-record path
+//! (crank-angle resampling, then per-cycle means), and the same for any chunking.
+#![allow(clippy::unwrap_used)]
+
+use physid_signal::crank::{crank_grid, cycle_stats, interp};
+use physid_signal::cycles::{CycleStream, CycleSummary};
+use std::f64::consts::PI;
+
+/// An accelerating engine from 1000 rpm (α = 400 rad/s²), 10 kHz, 2 s; θ from 0.
+fn engine() -> (Vec<f64>, Vec<f64>) {
+    let t: Vec<f64> = (0..20_000).map(|k| k as f64 * 1e-4).collect();
+    let w0 = 1000.0 * 2.0 * PI / 60.0;
+    let th = t.iter().map(|&t| w0 * t + 200.0 * t * t).collect();
+    (t, th)
+}
+
+fn stream(
+    t: &[f64],
+    th: &[f64],
+    x: &[Vec<f64>],
+    chunk: usize,
+    curve: Option<f64>,
+    tdc: f64,
+) -> Vec<CycleSummary> {
+    let mut s = CycleStream::new(x.len(), tdc, curve).unwrap();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < t.len() {
+        let e = (i + chunk).min(t.len());
+        let cols: Vec<&[f64]> = x.iter().map(|c| &c[i..e]).collect();
+        s.push(&t[i..e], &th[i..e], &cols, &mut out).unwrap();
+        i = e;
+    }
+    out
+}
+
+/// x = a + b·cos θ + c·sin(θ/2): its crank-angle mean over every cycle is `a` (the trapezoidal
+/// rule on ≈1° steps: within 1e-4·b); x = cos(θ − 1 rad) peaks at 57.3° and 417.3°.
+#[test]
+fn means_and_peaks_against_closed_forms() {
+    let (t, th) = engine();
+    let x0: Vec<f64> = th
+        .iter()
+        .map(|&a| 5.0 + 2.0 * a.cos() + 0.5 * (a / 2.0).sin())
+        .collect();
+    let x1: Vec<f64> = th.iter().map(|&a| (a - 1.0).cos()).collect();
+    let cycles = stream(&t, &th, &[x0, x1], 4096, None, 0.0);
+    // θ(2 s) = 209.4 + 800 = 1009 rad = 80.3 cycles: 80 complete.
+    assert_eq!(cycles.len(), 80);
+    for (k, c) in cycles.iter().enumerate() {
+        assert_eq!(c.cycle, k as i64);
+        assert!((c.mean[0] - 5.0).abs() < 2e-4, "cycle {k}: {}", c.mean[0]);
+        assert!((c.mean[1]).abs() < 1e-4, "cycle {k}: {}", c.mean[1]);
+        // The peak sample lies within one sample's angle of the true peak.
+        let dth = (w(c.t_end_s)).to_degrees() * 1e-4;
+        assert!(
+            (c.max_deg[1] - 57.2958).abs() < dth || (c.max_deg[1] - 417.2958).abs() < dth,
+            "cycle {k}: peak at {}°",
+            c.max_deg[1]
+        );
+        assert!(c.max[1] <= 1.0 && c.max[1] > 1.0 - (dth.to_radians()).powi(2));
+        // The boundaries are θ = 4πk: t from θ(t) = 4πk.
+        let t_at = |a: f64| {
+            let w0 = 1000.0 * 2.0 * PI / 60.0;
+            (-w0 + (w0 * w0 + 800.0 * a).sqrt()) / 400.0
+        };
+        assert!((c.t_start_s - t_at(4.0 * PI * k as f64)).abs() < 1e-6);
+        assert!((c.t_end_s - t_at(4.0 * PI * (k + 1) as f64)).abs() < 1e-6);
+    }
+}
+
+/// The engine's speed at `t` [rad/s].
+fn w(t: f64) -> f64 {
+    1000.0 * 2.0 * PI / 60.0 + 400.0 * t
+}
+
+/// A channel linear in θ is interpolated exactly: its curve is θ on the grid and its mean the
+/// cycle's middle angle; cycles start at the given TDC angle.
+#[test]
+fn curves_are_exact_for_a_linear_channel() {
+    let (t, th) = engine();
+    let tdc = 1.0;
+    let cycles = stream(&t, &th, std::slice::from_ref(&th), 17, Some(2.0), tdc);
+    // θ from 0 to 1009 rad: cycle −1 is partial, 0 … 79 complete.
+    assert_eq!(cycles.len(), 80);
+    for c in &cycles {
+        let start = tdc + 4.0 * PI * c.cycle as f64;
+        let curve = &c.curve.as_ref().unwrap()[0];
+        assert_eq!(curve.len(), 360);
+        for (k, v) in curve.iter().enumerate() {
+            let want = start + (2.0 * k as f64).to_radians();
+            assert!((v - want).abs() < 1e-10 * want, "{k}: {v} vs {want}");
+        }
+        assert!((c.mean[0] - (start + 2.0 * PI)).abs() < 1e-9 * start);
+    }
+}
+
+/// The same cycles, bit for bit, for chunks of 1, 17, 4096 samples and whole.
+#[test]
+fn any_chunking_gives_the_same_cycles() {
+    let (t, th) = engine();
+    let x: Vec<f64> = th.iter().map(|&a| (3.0 * a).sin() * a.sqrt()).collect();
+    let whole = stream(&t, &th, std::slice::from_ref(&x), t.len(), Some(1.0), 0.3);
+    assert_eq!(whole.len(), 80);
+    for chunk in [1, 17, 4096] {
+        assert_eq!(
+            stream(&t, &th, std::slice::from_ref(&x), chunk, Some(1.0), 0.3),
+            whole
+        );
+    }
+}
+
+/// Against the whole-record path (another code path): resample to 1° with `crank_grid`, then
+/// per-cycle sample means with `cycle_stats` — the two agree to the resampling's error.
+#[test]
+fn agrees_with_the_whole_record_crank_angle_path() {
+    let (t, th) = engine();
+    let x: Vec<f64> = th
+        .iter()
+        .map(|&a| 1e5 * (1.0 + 20.0 * (-(a % (4.0 * PI) - 2.0 * PI).powi(2) * 4.0).exp()))
+        .collect();
+    let cycles = stream(&t, &th, std::slice::from_ref(&x), 4096, None, 0.0);
+    let grid = crank_grid(&t, &th, 0.0, 1.0).unwrap();
+    let xg = interp(&th, &x, &grid.theta);
+    let stats = cycle_stats(&grid.cycle, &xg);
+    for c in &cycles {
+        let s = stats.iter().find(|s| s.cycle == c.cycle).unwrap();
+        assert_eq!(s.samples, 720);
+        let rel = (c.mean[0] - s.mean).abs() / s.mean;
+        assert!(
+            rel < 1e-4,
+            "cycle {}: {} vs {} ({rel:e})",
+            c.cycle,
+            c.mean[0],
+            s.mean
+        );
+        // Both take the peak from samples (the stream: ≤ 5° apart; the grid: 1°).
+        assert!((c.max[0] - s.max).abs() / s.max < 1e-2);
+    }
+}
+
+/// An engine at rest adds nothing; the partial first cycle is not reported; a NaN is an error
+/// naming its sample.
+#[test]
+fn rest_partial_cycles_and_nan() {
+    let (t, th0) = engine();
+    // Start mid-cycle, and stand still for 100 samples in cycle 3.
+    let th: Vec<f64> = (0..th0.len())
+        .map(|i| 2.0 + th0[if i < 3000 { i } else { (i - 100).max(3000) }])
+        .collect();
+    let x: Vec<f64> = th.iter().map(|&a| a.cos()).collect();
+    let cycles = stream(&t, &th, std::slice::from_ref(&x), 64, None, 0.0);
+    assert_eq!(cycles[0].cycle, 1, "the partial cycle 0 is not reported");
+    assert!(cycles.iter().all(|c| c.mean[0].abs() < 1e-4));
+    let mut s = CycleStream::new(1, 0.0, None).unwrap();
+    let mut bad = x.clone();
+    bad[70] = f64::NAN;
+    let e = s
+        .push(&t[..100], &th[..100], &[&bad[..100]], &mut Vec::new())
+        .unwrap_err();
+    assert!(e.to_string().contains("sample 70"), "{e}");
+    assert!(CycleStream::new(1, 0.0, Some(7.0)).is_err());
+}
