@@ -17,7 +17,7 @@ pub use format::{
     basis_by_channels, detect, read, write, Format, MapItem, ReadOptions, WriteOptions,
 };
 pub use mdf::{read_mdf, write_mdf, MdfCompression};
-pub use parquet_file::{read_parquet, write_parquet};
+pub use parquet_file::{read_parquet, write_parquet, ParquetWriter};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]

@@ -193,54 +193,135 @@ fn read_parquet_inner(
 
 /// Write a recording as Parquet (float64 columns, units in field metadata, Snappy).
 pub fn write_parquet(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError> {
-    let p = path.as_ref().display().to_string();
-    let fields: Vec<Field> = rec
-        .channels()
-        .iter()
-        .map(|c| {
-            Field::new(&c.name, DataType::Float64, false)
-                .with_metadata(HashMap::from([("unit".to_string(), c.unit.clone())]))
-        })
-        .collect();
-    let basis = match rec.basis {
-        Basis::Time => "time",
-        Basis::CrankAngle => "crank_angle",
-    };
-    let mut meta = HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]);
-    for (k, v) in rec
-        .meta
-        .iter()
-        .filter(|(k, _)| !crate::FILE_META.contains(&k.as_str()))
-    {
-        meta.insert(format!("{META_PREFIX}{k}"), v.clone());
-    }
-    let schema = Arc::new(Schema::new_with_metadata(fields, meta));
-    let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
-        path: p.clone(),
-        source,
-    })?;
-    let props = WriterProperties::builder()
-        .set_compression(Compression::SNAPPY)
-        .build();
-    let mut w =
-        ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq_err(&p, e))?;
     let chunk = 1 << 20;
+    let mut w = ParquetWriter::create(path, rec, chunk)?;
     let n = rec.len();
     let mut start = 0;
-    while start < n || (n == 0 && start == 0) {
+    while start < n {
         let end = (start + chunk).min(n);
+        w.append_range(rec, start..end)?;
+        start = end;
+    }
+    if n == 0 {
+        w.append_range(rec, 0..0)?;
+    }
+    w.close()
+}
+
+/// A Parquet file written chunk by chunk (the live service's logging): float64 columns, units
+/// in field metadata, Snappy; a row group every `rows_per_group` rows, so memory stays bounded
+/// however long it writes. The file is valid once closed.
+pub struct ParquetWriter {
+    path: String,
+    schema: Arc<Schema>,
+    names: Vec<String>,
+    w: ArrowWriter<std::fs::File>,
+    rows: usize,
+}
+
+impl ParquetWriter {
+    /// Create `path` for recordings with `like`'s channels, units, basis and metadata.
+    pub fn create(
+        path: impl AsRef<Path>,
+        like: &Recording,
+        rows_per_group: usize,
+    ) -> Result<Self, IoError> {
+        let p = path.as_ref().display().to_string();
+        let fields: Vec<Field> = like
+            .channels()
+            .iter()
+            .map(|c| {
+                Field::new(&c.name, DataType::Float64, false)
+                    .with_metadata(HashMap::from([("unit".to_string(), c.unit.clone())]))
+            })
+            .collect();
+        let basis = match like.basis {
+            Basis::Time => "time",
+            Basis::CrankAngle => "crank_angle",
+        };
+        let mut meta = HashMap::from([(BASIS_KEY.to_string(), basis.to_string())]);
+        for (k, v) in like
+            .meta
+            .iter()
+            .filter(|(k, _)| !crate::FILE_META.contains(&k.as_str()))
+        {
+            meta.insert(format!("{META_PREFIX}{k}"), v.clone());
+        }
+        let schema = Arc::new(Schema::new_with_metadata(fields, meta));
+        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
+            path: p.clone(),
+            source,
+        })?;
+        let props = WriterProperties::builder()
+            .set_compression(Compression::SNAPPY)
+            .set_max_row_group_row_count(Some(rows_per_group.max(1)))
+            .build();
+        let w =
+            ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq_err(&p, e))?;
+        Ok(Self {
+            names: like.channels().iter().map(|c| c.name.clone()).collect(),
+            path: p,
+            schema,
+            w,
+            rows: 0,
+        })
+    }
+
+    /// Append `rec`'s rows (the same channels, in the same order, as the file's).
+    pub fn append(&mut self, rec: &Recording) -> Result<(), IoError> {
+        self.append_range(rec, 0..rec.len())
+    }
+
+    /// Append rows `range` of `rec`.
+    fn append_range(
+        &mut self,
+        rec: &Recording,
+        range: std::ops::Range<usize>,
+    ) -> Result<(), IoError> {
+        let same = rec.channels().len() == self.names.len()
+            && rec
+                .channels()
+                .iter()
+                .zip(&self.names)
+                .all(|(c, n)| &c.name == n);
+        if !same {
+            return Err(IoError::Malformed {
+                path: self.path.clone(),
+                detail: format!(
+                    "appending channels {:?} to a file of {:?}",
+                    rec.channels()
+                        .iter()
+                        .map(|c| c.name.as_str())
+                        .collect::<Vec<_>>(),
+                    self.names
+                ),
+            });
+        }
         let cols: Vec<ArrayRef> = rec
             .channels()
             .iter()
-            .map(|c| Arc::new(Float64Array::from(c.values[start..end].to_vec())) as ArrayRef)
+            .map(|c| Arc::new(Float64Array::from(c.values[range.clone()].to_vec())) as ArrayRef)
             .collect();
-        let batch = RecordBatch::try_new(schema.clone(), cols).map_err(|e| pq_err(&p, e))?;
-        w.write(&batch).map_err(|e| pq_err(&p, e))?;
-        if n == 0 {
-            break;
-        }
-        start = end;
+        let batch =
+            RecordBatch::try_new(self.schema.clone(), cols).map_err(|e| pq_err(&self.path, e))?;
+        self.w.write(&batch).map_err(|e| pq_err(&self.path, e))?;
+        self.rows += range.len();
+        Ok(())
     }
-    w.close().map_err(|e| pq_err(&p, e))?;
-    Ok(())
+
+    /// Rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Bytes in the file so far, and buffered for the next row group.
+    pub fn bytes(&self) -> usize {
+        self.w.bytes_written() + self.w.in_progress_size()
+    }
+
+    /// Finish the file (its footer).
+    pub fn close(self) -> Result<(), IoError> {
+        self.w.close().map_err(|e| pq_err(&self.path, e))?;
+        Ok(())
+    }
 }
