@@ -168,10 +168,10 @@ fn bad_flags_are_refused_naming_them() {
         e.contains("--pace") && e.contains("expected max or a factor"),
         "{e}"
     );
-    let o = physid(&["live", "--scenario", "shaft-steady"]);
+    let o = physid(&["live", "--headless", "--scenario", "shaft-steady"]);
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("--headless --json"), "{e}");
+    assert!(e.contains("add --json"), "{e}");
     let o = physid(&[
         "live",
         "--headless",

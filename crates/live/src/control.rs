@@ -7,6 +7,8 @@
 //! | `{"cmd": "speed", "rpm": 1200}` | the speed demand from now on [rpm] (a torque demand [N·m] in torque mode) |
 //! | `{"cmd": "throttle", "deg": 30}` | the throttle opening from now on [deg] |
 //! | `{"cmd": "fault", "spec": "shaft.k=1000@12"}` | a fault, as `--fault` (its time is the recording's) |
+//! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
+//! | `{"cmd": "record", "file": "NAME.parquet"}`, `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory, and finish it |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
 //!
 //! A malformed message is refused with an error naming the field; the run goes on.
@@ -24,8 +26,31 @@ pub enum Control {
     Throttle(f64),
     /// A fault.
     Fault(Fault),
+    /// Hold the run.
+    Pause,
+    /// Go on after a pause.
+    Resume,
+    /// Start logging to this file name (`Some`) or finish the log (`None`).
+    Record(Option<String>),
     /// End the run.
     Stop,
+}
+
+/// A control message on its way to the running loop, with where to send the answer (the
+/// command's name, or what was wrong) when someone waits for it.
+#[derive(Debug)]
+pub struct ControlRequest {
+    /// The message's text (one JSON object).
+    pub text: String,
+    /// Where the answer goes.
+    pub reply: Option<tokio::sync::oneshot::Sender<Result<&'static str, String>>>,
+}
+
+impl ControlRequest {
+    /// A message nobody waits an answer for (the answer is the event).
+    pub fn fire(text: String) -> Self {
+        Self { text, reply: None }
+    }
 }
 
 impl Control {
@@ -57,15 +82,25 @@ impl Control {
                     Fault::parse(spec).map_err(|e| format!("field 'spec': {e}"))?,
                 ))
             }
+            Some("pause") => Ok(Control::Pause),
+            Some("resume") => Ok(Control::Resume),
+            Some("record") => match (obj.get("file"), obj.get("stop")) {
+                (None, Some(Value::Bool(true))) => Ok(Control::Record(None)),
+                (Some(Value::String(f)), None) => Ok(Control::Record(Some(f.clone()))),
+                _ => Err(
+                    "field 'file' (a file name ending in .parquet) or 'stop' (true): expected one of them"
+                        .into(),
+                ),
+            },
             Some("stop") => Ok(Control::Stop),
             other => Err(format!(
-                "field 'cmd' is {}: expected speed, throttle, fault or stop",
+                "field 'cmd' is {}: expected speed, throttle, fault, pause, resume, record or stop",
                 other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'"))
             )),
         }
     }
 
-    /// Apply it to a running cell (a stop is the caller's to act on).
+    /// Apply it to a running cell (stop, pause, resume and record are the caller's to act on).
     pub fn apply(&self, run: &mut Run) {
         // A constant from now on: the run only evaluates its inputs ahead.
         let forever = |v: f64| Profile::constant(v, f64::MAX);
@@ -73,7 +108,7 @@ impl Control {
             Control::Speed(rpm) => run.set_speed(forever(*rpm)),
             Control::Throttle(deg) => run.set_throttle(forever(*deg)),
             Control::Fault(f) => run.add_fault(f.clone()),
-            Control::Stop => {}
+            Control::Stop | Control::Pause | Control::Resume | Control::Record(_) => {}
         }
     }
 
@@ -83,6 +118,9 @@ impl Control {
             Control::Speed(_) => "speed",
             Control::Throttle(_) => "throttle",
             Control::Fault(_) => "fault",
+            Control::Pause => "pause",
+            Control::Resume => "resume",
+            Control::Record(_) => "record",
             Control::Stop => "stop",
         }
     }

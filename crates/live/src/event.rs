@@ -2,7 +2,9 @@
 //! recording's time). The names are stable (docs/live.md).
 
 use physid_apps::shaft_monitor::{PerParam, ShaftAlarm, ShaftSample};
+use physid_signal::cycles::CycleSummary;
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// An event.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -56,6 +58,51 @@ pub enum Event {
         /// What.
         message: String,
     },
+    /// A complete engine cycle (720° from a firing TDC): the crank-angle mean of each channel,
+    /// its largest sample and where in the cycle [deg] — `{"type": "cycle", "cycle": n,
+    /// "t_s": …, "t_start_s": …, "mean": {"p_cyl": …, …}, "max": {…}, "max_deg": {…}}`, SI
+    /// units; the panel's also carry `curve`, the channels on a crank-angle grid.
+    Cycle {
+        /// Cycle index (0: the first cycle that starts in the stream).
+        cycle: i64,
+        /// When it ended [s].
+        t_s: f64,
+        /// When it began [s].
+        t_start_s: f64,
+        /// Crank-angle mean of each channel.
+        mean: BTreeMap<&'static str, f64>,
+        /// Largest sample of each channel.
+        max: BTreeMap<&'static str, f64>,
+        /// Crank angle of each channel's largest sample in the cycle [deg].
+        max_deg: BTreeMap<&'static str, f64>,
+        /// The channels on a crank-angle grid (the panel's cyclic view).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        curve: Option<Curve>,
+    },
+    /// The panel's time traces, decimated (bin means): `{"type": "trace", "t_s": …, "t": […],
+    /// "channels": {"omega_en": […], …}}`; not printed headless.
+    Trace {
+        /// Time of the last point [s].
+        t_s: f64,
+        /// The points' times [s] (each bin's middle).
+        t: Vec<f64>,
+        /// Each channel's bin means, SI units.
+        channels: BTreeMap<&'static str, Vec<f64>>,
+    },
+    /// The live data being logged: `{"type": "log", "t_s": …, "file": …, "samples": n,
+    /// "bytes": n, "state": "recording" | "closed"}`.
+    Log {
+        /// Recording time [s].
+        t_s: f64,
+        /// The file.
+        file: String,
+        /// Samples written.
+        samples: usize,
+        /// Its size [bytes] (while recording: written and buffered).
+        bytes: usize,
+        /// `recording` or `closed`.
+        state: &'static str,
+    },
     /// A control message applied: `{"type": "control", "t_s": …, "cmd": "fault", "line": n}`.
     Control {
         /// Recording time when it was applied [s].
@@ -81,6 +128,16 @@ pub enum Event {
     },
 }
 
+/// A cycle's channels on a crank-angle grid: 0, `step_deg`, … < 720°.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Curve {
+    /// Grid step [deg].
+    pub step_deg: f64,
+    /// Each channel's values on the grid.
+    #[serde(flatten)]
+    pub channels: BTreeMap<&'static str, Vec<f64>>,
+}
+
 /// Latency quantiles [ms].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct LatencyMs {
@@ -103,6 +160,28 @@ impl Event {
                 b: s.estimate.b,
             },
             std_err: s.std_err,
+        }
+    }
+
+    /// The cycle event of a cycle summary over `channels` (the curve at `step_deg` when the
+    /// summary has one).
+    pub fn cycle(c: &CycleSummary, channels: &[&'static str], step_deg: f64) -> Self {
+        let by_name = |v: &[f64]| channels.iter().copied().zip(v.iter().copied()).collect();
+        Event::Cycle {
+            cycle: c.cycle,
+            t_s: c.t_end_s,
+            t_start_s: c.t_start_s,
+            mean: by_name(&c.mean),
+            max: by_name(&c.max),
+            max_deg: by_name(&c.max_deg),
+            curve: c.curve.as_ref().map(|curves| Curve {
+                step_deg,
+                channels: channels
+                    .iter()
+                    .copied()
+                    .zip(curves.iter().cloned())
+                    .collect(),
+            }),
         }
     }
 

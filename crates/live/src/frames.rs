@@ -19,7 +19,7 @@
 //! [`LiveError::BadFrame`] naming its line and what was wrong; the stream goes on with the next
 //! frame (the service counts it as dropped). A gap in time or `seq` is accepted and reported.
 
-use crate::headless::LiveError;
+use crate::service::LiveError;
 use crate::source::Source;
 use physid_core::{Basis, Channel, Recording};
 use serde_json::Value;

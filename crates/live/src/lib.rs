@@ -3,27 +3,35 @@
 //! * [`source`] — where chunks of samples come from: the virtual test cell run as a stream
 //!   ([`ScenarioSource`]), a recording replayed ([`ReplaySource`]); paced by the wall clock
 //!   ([`Pace`]).
-//! * [`control`] — control messages for the running cell (speed, throttle, faults, stop),
-//!   parsed with errors that name the field.
-//! * [`event`] — what the service emits ([`Event`]): estimates with standard errors, alarms,
-//!   the end of a run; one JSON object each (`physid live --headless --json` prints them one
-//!   per line).
 //! * [`frames`] — frames from outside (a DAQ, a script) as JSON lines ([`FrameSource`]);
 //!   a bad frame is refused with its line and the stream goes on.
-//! * [`headless`] — the loop: chunks from a source through the applications' stages (the same
-//!   stages the file verbs run), events out.
-//!
-//! Built so far: the shaft monitor's stage on a paced virtual cell or a replay, headless. Not
-//! yet: the web panel, frames from outside, the other applications' stages (see the issue).
+//! * [`control`] — control messages for the running cell (speed, throttle, faults, pause,
+//!   resume, stop), parsed with errors that name the field.
+//! * [`service`] — the loop: chunks from a source through the applications' stages (the same
+//!   stages the file verbs run: the shaft monitor, the cycle statistics; the panel's traces),
+//!   events out.
+//! * [`trace`] — the panel's time traces (bin means at a display rate).
+//! * [`event`] — what the service emits ([`Event`]), one JSON object each
+//!   (`physid live --headless --json` prints them one per line).
+//! * [`record`] — logging the live data to Parquet as it comes (the panel's logging control).
+//! * [`hub`] — between the loop and the panel's clients: numbered, kept for late clients,
+//!   broadcast without ever making the loop wait.
+//! * [`panel`] — the web panel's server: embedded page, event stream, controls, the token rule.
 
 pub mod control;
 pub mod event;
 pub mod frames;
-pub mod headless;
+pub mod hub;
+pub mod panel;
+pub mod record;
+pub mod service;
 pub mod source;
+pub mod trace;
 
-pub use control::Control;
+pub use control::{Control, ControlRequest};
 pub use event::Event;
 pub use frames::{FrameSource, FRAME_CHANNELS};
-pub use headless::{run_headless, LiveConfig, LiveError, Summary};
+pub use hub::Hub;
+pub use panel::Panel;
+pub use service::{run_live, LiveConfig, LiveError, PanelFeed, Summary};
 pub use source::{Pace, ReplaySource, ScenarioSource, Source};

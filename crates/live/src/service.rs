@@ -1,18 +1,23 @@
-//! The live loop without a panel: chunks from a [`Source`] through the applications' stages,
-//! events out — what `physid live --headless --json` runs.
+//! The live loop: chunks from a [`Source`] through the applications' stages (the same stages
+//! the file verbs run), events out — what `physid live --headless --json` prints and what the
+//! panel shows.
 
-use crate::control::Control;
-use crate::event::Event;
-use crate::event::LatencyMs;
+use crate::control::{Control, ControlRequest};
+use crate::event::{Event, LatencyMs};
+use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
+use crate::trace::TraceStage;
 use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
-use physid_core::RecordingError;
+use physid_core::{Recording, RecordingError};
 use physid_io::IoError;
+use physid_signal::crank::CrankError;
+use physid_signal::cycles::{CycleStream, CycleSummary};
 use physid_sim::run::SimError;
-use std::sync::mpsc::Receiver;
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::{Duration, Instant};
 use thiserror::Error;
-
 /// Errors of the live service.
 #[derive(Debug, Error)]
 pub enum LiveError {
@@ -28,6 +33,9 @@ pub enum LiveError {
     /// A chunk without a channel a stage needs.
     #[error(transparent)]
     Recording(#[from] RecordingError),
+    /// The cycle statistics.
+    #[error(transparent)]
+    Cycles(#[from] CrankError),
     /// Writing the events.
     #[error("writing the events: {0}")]
     Output(String),
@@ -54,18 +62,61 @@ pub struct LiveConfig {
     pub estimate_every_s: f64,
     /// How fast against the wall clock.
     pub pace: Pace,
+    /// The angle of a firing TDC [rad] on `theta_en` (cycles start there and every 4π; the
+    /// virtual cell's is 0).
+    pub theta_tdc: f64,
+    /// The panel's extras: time traces at this rate [Hz] and the cycles' curves at this
+    /// crank-angle step [deg]; `None` headless.
+    pub panel: Option<PanelFeed>,
+    /// Where `record` controls write their logs.
+    pub log_dir: PathBuf,
+}
+
+/// What the panel gets beyond the headless events.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PanelFeed {
+    /// Time traces: bin means at this rate [Hz].
+    pub trace_hz: f64,
+    /// Recording time per trace event [s].
+    pub trace_every_s: f64,
+    /// Crank-angle step of the cycles' curves [deg].
+    pub curve_step_deg: f64,
+}
+
+impl Default for PanelFeed {
+    /// 200 Hz traces sent every 0.05 s; curves every 2°.
+    fn default() -> Self {
+        Self {
+            trace_hz: 200.0,
+            trace_every_s: 0.05,
+            curve_step_deg: 2.0,
+        }
+    }
 }
 
 impl Default for LiveConfig {
-    /// The monitor's defaults, 10 estimate events per second, as fast as it can.
+    /// The monitor's defaults, 10 estimate events per second, as fast as it can, TDC at 0,
+    /// headless, logs in `physid-logs`.
     fn default() -> Self {
         Self {
             monitor: MonitorConfig::default(),
             estimate_every_s: 0.1,
             pace: Pace::Max,
+            theta_tdc: 0.0,
+            panel: None,
+            log_dir: PathBuf::from("physid-logs"),
         }
     }
 }
+
+/// The channels whose cycle statistics are reported (those the source has).
+pub const CYCLE_CHANNELS: [&str; 5] = [
+    "omega_en",
+    "torque_engine",
+    "torque_shaft",
+    "p_cyl",
+    "p_int",
+];
 
 /// What a run did.
 #[derive(Debug, Clone, PartialEq)]
@@ -76,139 +127,328 @@ pub struct Summary {
     pub dropped: usize,
     /// The shaft's final K, B, τ0 and their standard errors.
     pub shaft: (ShaftParams, ShaftParams),
+    /// Complete cycles reported.
+    pub cycles: usize,
     /// Events sent.
     pub events: usize,
 }
 
-/// Run `source` to its end through the shaft monitor's stage, applying the control messages
-/// that arrive on `controls` between chunks, handing each event to `emit`
-/// (whose error, e.g. a closed output, stops the run). A chunk missing a channel, or a stage's
-/// error, stops the run with the error (the events so far have been sent).
-pub fn run_headless(
+/// Run `source` to its end through the stages — the shaft monitor, the cycle statistics (when
+/// the source has `theta_en` and a channel of [`CYCLE_CHANNELS`]) and, for the panel, the
+/// time traces — applying the control messages that arrive on `controls` between chunks (each
+/// answered on its reply channel and by an event), handing each event to `emit` (whose error,
+/// e.g. a closed output, stops the run). A chunk missing a channel the shaft monitor needs, or
+/// a stage's error, stops the run with the error (the events so far have been sent).
+pub fn run_live(
     source: &mut dyn Source,
     cfg: &LiveConfig,
-    controls: Option<&Receiver<String>>,
-    mut emit: impl FnMut(&Event) -> Result<(), String>,
+    controls: Option<&Receiver<ControlRequest>>,
+    emit: impl FnMut(&Event) -> Result<(), String>,
 ) -> Result<Summary, LiveError> {
-    let mut stage = ShaftStage::new(&cfg.monitor, source.rate_hz())?;
-    let mut pacer = Pacer::new(cfg.pace);
-    let (mut samples, mut alarms) = (Vec::new(), Vec::new());
-    let (mut taken, mut events) = (0usize, 0usize);
-    let mut last_sent: Option<f64> = None;
-    // The latest estimate not sent (throttled): sent at the end.
-    let mut pending = None;
-    let mut last_t = f64::NAN;
-    let mut send = |e: &Event, events: &mut usize| -> Result<(), LiveError> {
-        *events += 1;
-        emit(e).map_err(LiveError::Output)
+    let mut live = Live {
+        rate_hz: source.rate_hz(),
+        shaft: ShaftStage::new(&cfg.monitor, source.rate_hz())?,
+        cycles: None,
+        traces: None,
+        recorder: Recorder::new(&cfg.log_dir),
+        pacer: Pacer::new(cfg.pace),
+        cfg,
+        emit,
+        events: 0,
+        taken: 0,
+        dropped: 0,
+        cycles_sent: 0,
+        control_line: 0,
+        paused: false,
+        last_t: f64::NAN,
+        last_sent: None,
+        pending: None,
+        latency: LatencyHistogram::default(),
+        samples: Vec::new(),
+        alarms: Vec::new(),
+        done_cycles: Vec::new(),
     };
-    let mut dropped = 0;
-    let mut control_line = 0;
-    let mut latency = LatencyHistogram::default();
     loop {
         let chunk = match source.next_chunk() {
             Ok(Some(c)) => c,
             Ok(None) => break,
             Err(LiveError::BadFrame { line, what }) => {
-                dropped += 1;
-                send(
-                    &Event::Error {
-                        t_s: last_t,
-                        input: "frames",
-                        line,
-                        message: what,
-                    },
-                    &mut events,
-                )?;
+                live.dropped += 1;
+                let t_s = live.last_t;
+                live.send(&Event::Error {
+                    t_s,
+                    input: "frames",
+                    line,
+                    message: what,
+                })?;
                 continue;
             }
             Err(e) => return Err(e),
         };
-        // Control messages that have arrived, applied between chunks.
-        while let Some(Ok(text)) = controls.map(Receiver::try_recv) {
-            control_line += 1;
-            let event = match Control::parse(&text).and_then(|c| {
-                source.control(&c)?;
-                Ok(c.name())
-            }) {
-                Ok(cmd) => Event::Control {
-                    t_s: last_t,
-                    cmd,
-                    line: control_line,
-                },
-                Err(message) => Event::Error {
-                    t_s: last_t,
-                    input: "controls",
-                    line: control_line,
-                    message,
-                },
-            };
-            send(&event, &mut events)?;
+        // Control messages that have arrived, applied between chunks; while paused, wait for
+        // them (the pacer does not count the pause).
+        if let Some(rx) = controls {
+            live.controls(rx, source)?;
         }
         if let Some(message) = source.notice() {
-            send(
-                &Event::Finding {
-                    t_s: last_t,
-                    message,
-                },
-                &mut events,
-            )?;
+            let t_s = live.last_t;
+            live.send(&Event::Finding { t_s, message })?;
         }
+        live.chunk(&chunk)?;
+    }
+    live.finish()
+}
+
+/// The loop's state.
+struct Live<'a, E> {
+    cfg: &'a LiveConfig,
+    rate_hz: f64,
+    shaft: ShaftStage,
+    /// The cycle statistics and the channels they cover (set up on the first chunk).
+    cycles: Option<(CycleStream, Vec<&'static str>)>,
+    traces: Option<TraceStage>,
+    recorder: Recorder,
+    pacer: Pacer,
+    emit: E,
+    events: usize,
+    taken: usize,
+    dropped: usize,
+    cycles_sent: usize,
+    control_line: usize,
+    paused: bool,
+    last_t: f64,
+    last_sent: Option<f64>,
+    /// The latest estimate not sent (thinned out): sent at the end.
+    pending: Option<physid_apps::shaft_monitor::ShaftSample>,
+    latency: LatencyHistogram,
+    samples: Vec<physid_apps::shaft_monitor::ShaftSample>,
+    alarms: Vec<physid_apps::shaft_monitor::ShaftAlarm>,
+    done_cycles: Vec<CycleSummary>,
+}
+
+impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
+    fn send(&mut self, e: &Event) -> Result<(), LiveError> {
+        self.events += 1;
+        (self.emit)(e).map_err(LiveError::Output)
+    }
+
+    /// Apply the control messages waiting on `rx`; while paused, wait for more.
+    fn controls(
+        &mut self,
+        rx: &Receiver<ControlRequest>,
+        source: &mut dyn Source,
+    ) -> Result<(), LiveError> {
+        let mut paused_at: Option<Instant> = None;
+        loop {
+            let req = if self.paused {
+                paused_at.get_or_insert_with(Instant::now);
+                match rx.recv_timeout(Duration::from_millis(50)) {
+                    Ok(r) => r,
+                    Err(RecvTimeoutError::Timeout) => continue,
+                    // Nobody can resume it any more.
+                    Err(RecvTimeoutError::Disconnected) => {
+                        self.paused = false;
+                        continue;
+                    }
+                }
+            } else {
+                match rx.try_recv() {
+                    Ok(r) => r,
+                    Err(_) => break,
+                }
+            };
+            self.control_line += 1;
+            let mut log_event = None;
+            let result = Control::parse(&req.text).and_then(|c| {
+                match &c {
+                    Control::Pause => self.paused = true,
+                    Control::Resume => self.paused = false,
+                    Control::Record(Some(name)) => {
+                        self.recorder.start(name)?;
+                    }
+                    Control::Record(None) => {
+                        log_event = self.recorder.stop(self.last_t).map_err(|e| e.to_string())?;
+                        if log_event.is_none() {
+                            return Err("field 'stop': no log is being written".into());
+                        }
+                    }
+                    _ => source.control(&c)?,
+                }
+                Ok(c.name())
+            });
+            let t_s = self.last_t;
+            let line = self.control_line;
+            let event = match &result {
+                Ok(cmd) => Event::Control { t_s, cmd, line },
+                Err(message) => Event::Error {
+                    t_s,
+                    input: "controls",
+                    line,
+                    message: message.clone(),
+                },
+            };
+            if let Some(reply) = req.reply {
+                // A client that has gone does not matter.
+                let _ = reply.send(result);
+            }
+            self.send(&event)?;
+            if let Some(e) = log_event {
+                self.send(&e)?;
+            }
+        }
+        if let Some(at) = paused_at {
+            self.pacer.shift(at.elapsed());
+        }
+        Ok(())
+    }
+
+    /// One chunk through the stages.
+    fn chunk(&mut self, chunk: &Recording) -> Result<(), LiveError> {
         if chunk.is_empty() {
-            continue;
+            return Ok(());
         }
         let t = chunk.values("t")?;
-        pacer.wait_until(t[t.len() - 1]);
-        taken += t.len();
-        last_t = t[t.len() - 1];
-        samples.clear();
-        alarms.clear();
-        stage.push(&ShaftInputs::of(&chunk)?, &mut samples, &mut alarms)?;
-        for s in &samples {
+        self.pacer.wait_until(t[t.len() - 1]);
+        self.taken += t.len();
+        self.last_t = t[t.len() - 1];
+        self.samples.clear();
+        self.alarms.clear();
+        self.shaft.push(
+            &ShaftInputs::of(chunk)?,
+            &mut self.samples,
+            &mut self.alarms,
+        )?;
+        for k in 0..self.samples.len() {
+            let s = self.samples[k];
             // Every estimate is ready now, whether it is sent or thinned out.
-            if let Some(l) = pacer.since_due(s.t_s) {
-                latency.add(l);
+            if let Some(l) = self.pacer.since_due(s.t_s) {
+                self.latency.add(l);
             }
-            if last_sent.is_none_or(|l| s.t_s - l >= cfg.estimate_every_s) {
-                send(&Event::shaft_estimate(s), &mut events)?;
-                last_sent = Some(s.t_s);
-                pending = None;
+            if self
+                .last_sent
+                .is_none_or(|l| s.t_s - l >= self.cfg.estimate_every_s)
+            {
+                self.send(&Event::shaft_estimate(&s))?;
+                self.last_sent = Some(s.t_s);
+                self.pending = None;
             } else {
-                pending = Some(*s);
+                self.pending = Some(s);
             }
         }
-        for a in &alarms {
-            send(&Event::shaft_alarm(a), &mut events)?;
+        for k in 0..self.alarms.len() {
+            let e = Event::shaft_alarm(&self.alarms[k]);
+            self.send(&e)?;
         }
+        self.cycles(chunk)?;
+        match self.recorder.push(chunk, self.last_t) {
+            Ok(Some(e)) => self.send(&e)?,
+            Ok(None) => {}
+            // A log that cannot be written stops; the run goes on.
+            Err(e) => {
+                let t_s = self.last_t;
+                let _ = self.recorder.stop(t_s);
+                self.send(&Event::Error {
+                    t_s,
+                    input: "record",
+                    line: self.control_line,
+                    message: format!("the log stopped: {e}"),
+                })?;
+            }
+        }
+        if self.traces.is_none() {
+            if let Some(p) = &self.cfg.panel {
+                self.traces = Some(TraceStage::new(chunk, p, self.rate_hz)?);
+            }
+        }
+        if let Some(tr) = self.traces.as_mut() {
+            if let Some(e) = tr.push(chunk)? {
+                self.send(&e)?;
+            }
+        }
+        Ok(())
     }
-    samples.clear();
-    alarms.clear();
-    stage.finish(&mut samples, &mut alarms)?;
-    for a in &alarms {
-        send(&Event::shaft_alarm(a), &mut events)?;
+
+    /// The cycle statistics of a chunk.
+    fn cycles(&mut self, chunk: &Recording) -> Result<(), LiveError> {
+        if self.cycles.is_none() {
+            let names: Vec<&'static str> = CYCLE_CHANNELS
+                .into_iter()
+                .filter(|c| chunk.channel(c).is_ok())
+                .collect();
+            if names.is_empty() || chunk.channel("theta_en").is_err() {
+                return Ok(());
+            }
+            let step = self.cfg.panel.map(|p| p.curve_step_deg);
+            self.cycles = Some((
+                CycleStream::new(names.len(), self.cfg.theta_tdc, step)?,
+                names,
+            ));
+        }
+        let Some((stream, names)) = self.cycles.as_mut() else {
+            return Ok(());
+        };
+        let cols = names
+            .iter()
+            .map(|n| chunk.values(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.done_cycles.clear();
+        stream.push(
+            chunk.values("t")?,
+            chunk.values("theta_en")?,
+            &cols,
+            &mut self.done_cycles,
+        )?;
+        let step = self.cfg.panel.map_or(0.0, |p| p.curve_step_deg);
+        let events: Vec<Event> = self
+            .done_cycles
+            .iter()
+            .map(|c| Event::cycle(c, names, step))
+            .collect();
+        for e in &events {
+            self.cycles_sent += 1;
+            self.send(e)?;
+        }
+        Ok(())
     }
-    if let Some(s) = samples.last().or(pending.as_ref()) {
-        send(&Event::shaft_estimate(s), &mut events)?;
-    }
-    send(
-        &Event::End {
-            t_s: last_t,
-            samples: taken,
+
+    /// The end of the stream: the stages' last output, the final estimate, `end`.
+    fn finish(mut self) -> Result<Summary, LiveError> {
+        self.samples.clear();
+        self.alarms.clear();
+        self.shaft.finish(&mut self.samples, &mut self.alarms)?;
+        for k in 0..self.alarms.len() {
+            let e = Event::shaft_alarm(&self.alarms[k]);
+            self.send(&e)?;
+        }
+        if let Some(s) = self.samples.last().copied().or(self.pending) {
+            self.send(&Event::shaft_estimate(&s))?;
+        }
+        if let Some(e) = self.traces.as_mut().and_then(TraceStage::flush) {
+            self.send(&e)?;
+        }
+        if let Some(e) = self.recorder.stop(self.last_t)? {
+            self.send(&e)?;
+        }
+        let latency_ms = self.latency.quantile(0.5).map(|p50| LatencyMs {
+            p50: 1e3 * p50,
+            p99: 1e3 * self.latency.quantile(0.99).unwrap_or(f64::NAN),
+            max: 1e3 * self.latency.max(),
+        });
+        let (t_s, samples, dropped) = (self.last_t, self.taken, self.dropped);
+        self.send(&Event::End {
+            t_s,
+            samples,
             dropped,
-            latency_ms: latency.quantile(0.5).map(|p50| LatencyMs {
-                p50: 1e3 * p50,
-                p99: 1e3 * latency.quantile(0.99).unwrap_or(f64::NAN),
-                max: 1e3 * latency.max(),
-            }),
-        },
-        &mut events,
-    )?;
-    Ok(Summary {
-        samples: taken,
-        dropped,
-        shaft: (stage.estimate(), stage.std_err()),
-        events,
-    })
+            latency_ms,
+        })?;
+        Ok(Summary {
+            samples,
+            dropped,
+            shaft: (self.shaft.estimate(), self.shaft.std_err()),
+            cycles: self.cycles_sent,
+            events: self.events,
+        })
+    }
 }
 
 /// A latency histogram: 0.1 ms bins up to 2 s (no allocation after construction).

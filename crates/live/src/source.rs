@@ -1,7 +1,7 @@
 //! Where the live service's chunks come from, and how fast.
 
 use crate::control::Control;
-use crate::headless::LiveError;
+use crate::service::LiveError;
 use physid_apps::acquisition::uniform_step;
 use physid_apps::shaft_monitor::on_time_basis;
 use physid_core::Recording;
@@ -171,6 +171,15 @@ impl std::str::FromStr for Pace {
     }
 }
 
+impl std::fmt::Display for Pace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Pace::Max => f.write_str("max"),
+            Pace::Factor(x) => write!(f, "{x}"),
+        }
+    }
+}
+
 /// Keeps a run at its pace: [`wait_until`](Self::wait_until) sleeps until the wall clock has
 /// caught up with a recording time.
 #[derive(Debug)]
@@ -192,6 +201,14 @@ impl Pacer {
         let due = Duration::from_secs_f64(((t_s - t0) / f).max(0.0));
         if let Some(left) = due.checked_sub(wall0.elapsed()) {
             std::thread::sleep(left);
+        }
+    }
+
+    /// Move the origin later by `d` (a pause): the run goes on from where it was, not racing to
+    /// catch up.
+    pub fn shift(&mut self, d: Duration) {
+        if let Some((wall0, _)) = self.start.as_mut() {
+            *wall0 += d;
         }
     }
 

@@ -10,7 +10,8 @@
 //! result depends only on the sequence of samples, never on how it was chunked.
 //!
 //! A sample whose angle does not advance (an engine at rest) adds nothing; the partial cycle
-//! before the first boundary is not reported.
+//! before the first boundary is not reported, and the first cycle that starts in the stream is
+//! cycle 0.
 
 use crate::crank::CrankError;
 use std::f64::consts::PI;
@@ -18,7 +19,8 @@ use std::f64::consts::PI;
 /// One complete cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CycleSummary {
-    /// Cycle index `floor((θ − θ_TDC) / 4π)`.
+    /// Cycle index: 0 for the first cycle that starts in the stream (as the recordings'
+    /// `cycle` channel counts from the first TDC marker).
     pub cycle: i64,
     /// Time at its start and end [s] (interpolated at the boundary angles).
     pub t_start_s: f64,
@@ -48,6 +50,8 @@ pub struct CycleStream {
     prev_x: Vec<f64>,
     /// The cycle in progress: index, whether it began at its boundary, start time.
     cycle: i64,
+    /// `floor((θ − θ_TDC) / 4π)` of the first cycle that starts in the stream.
+    first: i64,
     complete: bool,
     t_start: f64,
     /// The next grid point's index in the cycle.
@@ -90,6 +94,7 @@ impl CycleStream {
             prev: None,
             prev_x: vec![0.0; channels],
             cycle: 0,
+            first: 0,
             complete: false,
             t_start: f64::NAN,
             next_grid: 0,
@@ -158,6 +163,7 @@ impl CycleStream {
             self.cycle = ((th - self.theta_tdc) / (4.0 * PI)).floor() as i64;
             let into = th - self.start(self.cycle);
             self.complete = into == 0.0;
+            self.first = self.cycle + i64::from(!self.complete);
             self.t_start = t;
             self.next_grid = (into / self.step).ceil() as usize;
             self.accept(t, th, &x, true);
@@ -226,7 +232,7 @@ impl CycleStream {
     fn close(&mut self, t_end: f64, out: &mut Vec<CycleSummary>) {
         if self.complete {
             out.push(CycleSummary {
-                cycle: self.cycle,
+                cycle: self.cycle - self.first,
                 t_start_s: self.t_start,
                 t_end_s: t_end,
                 mean: self.integral.iter().map(|s| s / (4.0 * PI)).collect(),

@@ -69,6 +69,12 @@ fn means_and_peaks_against_closed_forms() {
     }
 }
 
+/// When the engine of [`engine`], started `offset` rad into a cycle, reaches its next cycle.
+fn t_first_boundary(offset: f64) -> f64 {
+    let w0 = 1000.0 * 2.0 * PI / 60.0;
+    (-w0 + (w0 * w0 + 800.0 * (4.0 * PI - offset)).sqrt()) / 400.0
+}
+
 /// The engine's speed at `t` [rad/s].
 fn w(t: f64) -> f64 {
     1000.0 * 2.0 * PI / 60.0 + 400.0 * t
@@ -81,9 +87,10 @@ fn curves_are_exact_for_a_linear_channel() {
     let (t, th) = engine();
     let tdc = 1.0;
     let cycles = stream(&t, &th, std::slice::from_ref(&th), 17, Some(2.0), tdc);
-    // θ from 0 to 1009 rad: cycle −1 is partial, 0 … 79 complete.
+    // θ from 0 to 1009 rad: the cycle before TDC is partial, 80 complete.
     assert_eq!(cycles.len(), 80);
     for c in &cycles {
+        // The first cycle that starts in the stream starts at the TDC angle.
         let start = tdc + 4.0 * PI * c.cycle as f64;
         let curve = &c.curve.as_ref().unwrap()[0];
         assert_eq!(curve.len(), 360);
@@ -150,7 +157,8 @@ fn rest_partial_cycles_and_nan() {
         .collect();
     let x: Vec<f64> = th.iter().map(|&a| a.cos()).collect();
     let cycles = stream(&t, &th, std::slice::from_ref(&x), 64, None, 0.0);
-    assert_eq!(cycles[0].cycle, 1, "the partial cycle 0 is not reported");
+    assert_eq!(cycles[0].cycle, 0, "the partial cycle is not reported");
+    assert!((cycles[0].t_start_s - t_first_boundary(2.0)).abs() < 1e-6);
     assert!(cycles.iter().all(|c| c.mean[0].abs() < 1e-4));
     let mut s = CycleStream::new(1, 0.0, None).unwrap();
     let mut bad = x.clone();

@@ -1,17 +1,23 @@
-//! `physid live`: the live service. Headless so far: a paced virtual test cell or a replayed
-//! recording through the applications' stages, the events printed as NDJSON.
+//! `physid live`: the live service — a paced virtual test cell, a replayed recording or frames
+//! from outside through the applications' stages; the operator's web panel on 127.0.0.1, or
+//! headless with the events printed as NDJSON.
 
 use super::monitor::{config, MonitorFlags};
 use crate::out::outln;
 use miette::{miette, Result};
 use physid_live::{
-    run_headless, FrameSource, LiveConfig, Pace, ReplaySource, ScenarioSource, Source,
+    run_live, ControlRequest, Event, FrameSource, Hub, LiveConfig, Pace, Panel, PanelFeed,
+    ReplaySource, ScenarioSource, Source,
 };
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
+use serde_json::json;
 use std::fs::File;
+use std::io::Write;
 use std::io::{BufRead, BufReader};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{Receiver, SyncSender};
 
 /// Arguments of `physid live`.
 #[derive(clap::Args)]
@@ -19,6 +25,22 @@ pub struct Args {
     /// Run without the panel, printing the events (needs --json).
     #[arg(long)]
     headless: bool,
+    /// The panel's address: 127.0.0.1 unless told otherwise; any other needs --token.
+    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST), conflicts_with = "headless")]
+    bind: IpAddr,
+    /// The panel's port (0: any free one; the address is printed).
+    #[arg(long, default_value_t = 8750, conflicts_with = "headless")]
+    port: u16,
+    /// A secret every panel request must carry (`?token=…` or `Authorization: Bearer …`); at
+    /// least 8 characters. Required with a --bind other than loopback.
+    #[arg(long, conflicts_with = "headless")]
+    token: Option<String>,
+    /// Where `record` controls (the panel's logging) write their Parquet files.
+    #[arg(long, value_name = "DIR", default_value = "physid-logs")]
+    log_dir: PathBuf,
+    /// Open the panel in the desktop's browser.
+    #[arg(long, conflicts_with = "headless")]
+    open: bool,
     /// Print one JSON object per event and line (NDJSON).
     #[arg(long)]
     json: bool,
@@ -63,30 +85,108 @@ pub struct Args {
 
 /// Run `physid live`.
 pub fn run(a: &Args) -> Result<()> {
-    if !(a.headless && a.json) {
+    if a.headless && !a.json {
         return Err(miette!(
-            "the live panel is not built yet: run headless with --headless --json (events as NDJSON on stdout)"
+            "--headless prints the events as NDJSON: add --json (or drop --headless for the panel)"
         ));
     }
-    let cfg = LiveConfig {
+    let mut cfg = LiveConfig {
         monitor: config(&a.monitor)?,
         estimate_every_s: a.estimate_every,
         pace: a.pace,
+        log_dir: a.log_dir.clone(),
+        ..LiveConfig::default()
     };
-    let mut source: Box<dyn Source> = match (&a.replay, &a.frames) {
-        (_, Some(path)) => Box::new(
-            FrameSource::new(lines(path, "--frames")?, a.sample_rate)
-                .map_err(|e| miette!("{e}"))?,
+    let (mut source, what) = source(a)?;
+    if a.headless {
+        let controls = match &a.controls {
+            None => None,
+            Some(path) => {
+                let (tx, rx) = std::sync::mpsc::sync_channel(256);
+                forward_lines(lines(path, "--controls")?, tx);
+                Some(rx)
+            }
+        };
+        run_live(source.as_mut(), &cfg, controls.as_ref(), |e| {
+            let line = serde_json::to_string(e).map_err(|e| e.to_string())?;
+            outln!("{line}");
+            Ok(())
+        })
+        .map_err(|e| miette!("{e}"))?;
+        return Ok(());
+    }
+    cfg.panel = Some(PanelFeed::default());
+    let hub = Hub::new(json!({
+        "type": "hello",
+        "version": env!("CARGO_PKG_VERSION"),
+        "source": what,
+        "pace": a.pace.to_string(),
+        "healthy": cfg.monitor.healthy,
+        "bound": cfg.monitor.bound,
+        "units": {"K": "N·m/rad", "B": "N·m·s/rad", "t_s": "s", "omega": "rad/s", "torque": "N·m", "p": "Pa", "throttle": "deg"},
+    }));
+    let (tx, rx): (SyncSender<ControlRequest>, Receiver<ControlRequest>) =
+        std::sync::mpsc::sync_channel(64);
+    if let Some(path) = &a.controls {
+        forward_lines(lines(path, "--controls")?, tx.clone());
+    }
+    let panel = Panel::start(
+        SocketAddr::new(a.bind, a.port),
+        a.token.clone(),
+        hub.clone(),
+        tx,
+    )
+    .map_err(|e| miette!("{e}"))?;
+    let url = format!(
+        "http://{}/{}",
+        panel.addr,
+        a.token
+            .as_ref()
+            .map_or(String::new(), |t| format!("?token={t}"))
+    );
+    outln!("physid live: panel at {url}");
+    let _ = std::io::stdout().flush();
+    if a.open {
+        open_browser(&url);
+    }
+    let result = run_live(source.as_mut(), &cfg, Some(&rx), |e| hub.publish(e));
+    // Controls sent from now on are answered "the run has ended".
+    drop(rx);
+    if let Err(e) = &result {
+        let _ = hub.publish(&Event::Finding {
+            t_s: f64::NAN,
+            message: format!("the run stopped: {e}"),
+        });
+        eprintln!("physid live: the run stopped: {e}");
+    }
+    eprintln!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
+    panel.wait_for_shutdown();
+    result.map(|_| ()).map_err(|e| miette!("{e}"))
+}
+
+/// The source `a` asks for, and a line saying what it is.
+fn source(a: &Args) -> Result<(Box<dyn Source>, String)> {
+    Ok(match (&a.replay, &a.frames) {
+        (_, Some(path)) => (
+            Box::new(
+                FrameSource::new(lines(path, "--frames")?, a.sample_rate)
+                    .map_err(|e| miette!("{e}"))?,
+            ),
+            format!("frames from {} at {} Hz", path.display(), a.sample_rate),
         ),
         (Some(path), None) => {
             let rec = a.input.read(path, None)?;
-            Box::new(
-                ReplaySource::new(rec, a.chunk).map_err(|e| miette!("{}: {e}", path.display()))?,
+            (
+                Box::new(
+                    ReplaySource::new(rec, a.chunk)
+                        .map_err(|e| miette!("{}: {e}", path.display()))?,
+                ),
+                format!("replay of {}", path.display()),
             )
         }
         (None, None) => {
-            let scenario = Scenario::load(a.scenario.as_deref().unwrap_or("shaft-steady"))
-                .map_err(|e| miette!("--scenario: {e}"))?;
+            let name = a.scenario.as_deref().unwrap_or("shaft-steady");
+            let scenario = Scenario::load(name).map_err(|e| miette!("--scenario: {e}"))?;
             let faults = a
                 .faults
                 .iter()
@@ -98,32 +198,40 @@ pub fn run(a: &Args) -> Result<()> {
                 basis: OutputBasis::Time(a.sample_rate),
                 ..Default::default()
             };
-            Box::new(ScenarioSource::new(&scenario, &opts, a.chunk).map_err(|e| miette!("{e}"))?)
+            (
+                Box::new(
+                    ScenarioSource::new(&scenario, &opts, a.chunk).map_err(|e| miette!("{e}"))?,
+                ),
+                format!("virtual cell, scenario {name}"),
+            )
         }
-    };
-    // Control lines, read on their own thread so that the run never waits for them.
-    let controls = match &a.controls {
-        None => None,
-        Some(path) => {
-            let reader = lines(path, "--controls")?;
-            let (tx, rx) = std::sync::mpsc::sync_channel(256);
-            std::thread::spawn(move || {
-                for line in reader.lines().map_while(|l| l.ok()) {
-                    if !line.trim().is_empty() && tx.send(line).is_err() {
-                        break;
-                    }
-                }
-            });
-            Some(rx)
-        }
-    };
-    run_headless(source.as_mut(), &cfg, controls.as_ref(), |e| {
-        let line = serde_json::to_string(e).map_err(|e| e.to_string())?;
-        outln!("{line}");
-        Ok(())
     })
-    .map_err(|e| miette!("{e}"))?;
-    Ok(())
+}
+
+/// Send each non-empty line of `reader` as a control message, on a thread of its own (the run
+/// never waits for it).
+fn forward_lines(reader: Box<dyn BufRead + Send>, tx: SyncSender<ControlRequest>) {
+    std::thread::spawn(move || {
+        for line in reader.lines().map_while(|l| l.ok()) {
+            if !line.trim().is_empty() && tx.send(ControlRequest::fire(line)).is_err() {
+                break;
+            }
+        }
+    });
+}
+
+/// Open `url` in the desktop's browser (a failure is said, not fatal).
+fn open_browser(url: &str) {
+    let opener = if cfg!(target_os = "macos") {
+        "open"
+    } else if cfg!(windows) {
+        "explorer"
+    } else {
+        "xdg-open"
+    };
+    if let Err(e) = std::process::Command::new(opener).arg(url).spawn() {
+        eprintln!("physid live: could not open a browser ({opener}: {e}); open {url} yourself");
+    }
 }
 
 /// A file's lines, or standard input's for `-` (`flag` names the option in an error).

@@ -1,0 +1,106 @@
+//! Logging the live data: `{"cmd": "record", "file": "NAME.parquet"}` starts writing every
+//! channel of every chunk to `NAME.parquet` in the log directory (`--log-dir`, default
+//! `physid-logs`), `{"cmd": "record", "stop": true}` finishes the file. The file is written as
+//! the chunks arrive, a row group every 65 536 rows, so memory stays bounded however long it
+//! records; its size is reported in `log` events (each second of recording and at the end).
+//!
+//! Only a plain file name is taken (no directory part, no overwriting): a panel that may be
+//! reached by others must not write where it likes.
+
+use crate::event::Event;
+use crate::service::LiveError;
+use physid_core::Recording;
+use physid_io::ParquetWriter;
+use std::path::{Path, PathBuf};
+
+/// Rows per row group of a log.
+const ROWS_PER_GROUP: usize = 65_536;
+
+/// The log being written, if any.
+pub struct Recorder {
+    dir: PathBuf,
+    /// The file asked for, and its writer once the first chunk has come.
+    file: Option<(PathBuf, Option<ParquetWriter>)>,
+    last_report: f64,
+}
+
+impl Recorder {
+    /// Logs go to `dir` (created when the first log starts).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self {
+            dir: dir.into(),
+            file: None,
+            last_report: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Start a log named `name`; the error names the field that is wrong.
+    pub fn start(&mut self, name: &str) -> Result<PathBuf, String> {
+        if self.file.is_some() {
+            return Err("field 'file': a log is being written; stop it first".into());
+        }
+        let plain = Path::new(name).file_name().is_some_and(|f| f == name);
+        if !plain || name.starts_with('.') {
+            return Err(format!(
+                "field 'file' is '{name}': expected a plain file name (the log directory is {})",
+                self.dir.display()
+            ));
+        }
+        if !name.ends_with(".parquet") {
+            return Err(format!(
+                "field 'file' is '{name}': expected a name ending in .parquet"
+            ));
+        }
+        std::fs::create_dir_all(&self.dir)
+            .map_err(|e| format!("the log directory {}: {e}", self.dir.display()))?;
+        let path = self.dir.join(name);
+        // Claim the name now, so that an existing file is refused at once.
+        std::fs::File::create_new(&path)
+            .map_err(|e| format!("field 'file': {}: {e}", path.display()))?;
+        self.file = Some((path.clone(), None));
+        self.last_report = f64::NEG_INFINITY;
+        Ok(path)
+    }
+
+    /// Write a chunk when a log is open; a `log` event each second of recording.
+    pub fn push(&mut self, chunk: &Recording, t_s: f64) -> Result<Option<Event>, LiveError> {
+        let Some((path, writer)) = self.file.as_mut() else {
+            return Ok(None);
+        };
+        let w = match writer {
+            Some(w) => w,
+            None => writer.insert(ParquetWriter::create(&*path, chunk, ROWS_PER_GROUP)?),
+        };
+        w.append(chunk)?;
+        if t_s - self.last_report < 1.0 {
+            return Ok(None);
+        }
+        self.last_report = t_s;
+        Ok(Some(Event::Log {
+            t_s,
+            file: path.display().to_string(),
+            samples: w.rows(),
+            bytes: w.bytes(),
+            state: "recording",
+        }))
+    }
+
+    /// Finish the log, if one is open: its last `log` event.
+    pub fn stop(&mut self, t_s: f64) -> Result<Option<Event>, LiveError> {
+        let Some((path, writer)) = self.file.take() else {
+            return Ok(None);
+        };
+        let samples = writer.as_ref().map_or(0, ParquetWriter::rows);
+        if let Some(w) = writer {
+            w.close()?;
+        }
+        let bytes = std::fs::metadata(&path).map_or(0, |m| m.len() as usize);
+        Ok(Some(Event::Log {
+            t_s,
+            file: path.display().to_string(),
+            samples,
+            bytes,
+            state: "closed",
+        }))
+    }
+}

@@ -1,0 +1,185 @@
+//! The panel's time traces: the channels an operator watches, as bin means at a display rate
+//! (a 10 kHz acquisition shown at 200 Hz), sent in [`Event::Trace`]s of a few bins each. The
+//! bins are counted in samples from the stream's start, so the traces do not depend on how
+//! the stream was chunked.
+
+use crate::event::Event;
+use crate::service::{LiveError, PanelFeed};
+use physid_core::Recording;
+use std::collections::BTreeMap;
+
+/// The channels traced (those the source has), SI units: the speeds, the shaft's and the
+/// engine's torque, the intake manifold pressure, the throttle.
+pub const TRACE_CHANNELS: [&str; 6] = [
+    "omega_en",
+    "omega_dy",
+    "torque_shaft",
+    "torque_engine",
+    "p_int",
+    "throttle",
+];
+
+/// Bin means of the traced channels.
+#[derive(Debug, Clone)]
+pub struct TraceStage {
+    names: Vec<&'static str>,
+    /// Samples per bin, bins per event.
+    bin: usize,
+    per_event: usize,
+    /// The bin in progress: sums and sample count.
+    sum_t: f64,
+    sums: Vec<f64>,
+    count: usize,
+    /// Finished bins not sent yet.
+    t: Vec<f64>,
+    values: Vec<Vec<f64>>,
+}
+
+impl TraceStage {
+    /// Traces of the channels of [`TRACE_CHANNELS`] that `first` (the stream's first chunk)
+    /// has, for a stream at `rate_hz` [Hz].
+    pub fn new(first: &Recording, feed: &PanelFeed, rate_hz: f64) -> Result<Self, LiveError> {
+        if !(feed.trace_hz > 0.0 && feed.trace_every_s > 0.0 && rate_hz > 0.0) {
+            return Err(LiveError::Invalid(format!(
+                "trace rate {} Hz every {} s at {rate_hz} Hz: expected all > 0",
+                feed.trace_hz, feed.trace_every_s
+            )));
+        }
+        let names: Vec<&'static str> = TRACE_CHANNELS
+            .into_iter()
+            .filter(|c| first.channel(c).is_ok())
+            .collect();
+        let bin = ((rate_hz / feed.trace_hz).round() as usize).max(1);
+        let per_event = ((feed.trace_every_s * rate_hz / bin as f64).round() as usize).max(1);
+        Ok(Self {
+            bin,
+            per_event,
+            sum_t: 0.0,
+            sums: vec![0.0; names.len()],
+            count: 0,
+            t: Vec::with_capacity(per_event),
+            values: vec![Vec::with_capacity(per_event); names.len()],
+            names,
+        })
+    }
+
+    /// Take a chunk; a trace event when enough bins are finished.
+    pub fn push(&mut self, chunk: &Recording) -> Result<Option<Event>, LiveError> {
+        let t = chunk.values("t")?;
+        let cols = self
+            .names
+            .iter()
+            .map(|n| chunk.values(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        for i in 0..t.len() {
+            self.sum_t += t[i];
+            for (s, c) in self.sums.iter_mut().zip(&cols) {
+                *s += c[i];
+            }
+            self.count += 1;
+            if self.count == self.bin {
+                self.close_bin();
+            }
+        }
+        Ok((self.t.len() >= self.per_event).then(|| self.take()))
+    }
+
+    /// The bins not sent yet (the last one partial), at the end of the stream.
+    pub fn flush(&mut self) -> Option<Event> {
+        if self.count > 0 {
+            self.close_bin();
+        }
+        (!self.t.is_empty()).then(|| self.take())
+    }
+
+    fn close_bin(&mut self) {
+        let n = self.count as f64;
+        self.t.push(self.sum_t / n);
+        for (v, s) in self.values.iter_mut().zip(&mut self.sums) {
+            v.push(*s / n);
+            *s = 0.0;
+        }
+        self.sum_t = 0.0;
+        self.count = 0;
+    }
+
+    fn take(&mut self) -> Event {
+        let channels: BTreeMap<&'static str, Vec<f64>> = self
+            .names
+            .iter()
+            .zip(&mut self.values)
+            .map(|(n, v)| (*n, std::mem::replace(v, Vec::with_capacity(self.per_event))))
+            .collect();
+        let t = std::mem::replace(&mut self.t, Vec::with_capacity(self.per_event));
+        Event::Trace {
+            t_s: t.last().copied().unwrap_or(f64::NAN),
+            t,
+            channels,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use physid_core::{Basis, Channel};
+
+    fn chunk(t: &[f64], x: &[f64]) -> Recording {
+        let mut r = Recording::new(Basis::Time);
+        for (name, unit, v) in [("t", "s", t), ("throttle", "deg", x)] {
+            r.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: v.to_vec(),
+            })
+            .unwrap();
+        }
+        r
+    }
+
+    /// Bin means of a ramp are the ramp at the bins' middles; the same for any chunking; the
+    /// last partial bin comes with the flush.
+    #[test]
+    fn bins_are_means_and_chunking_does_not_matter() {
+        let t: Vec<f64> = (0..1003).map(|k| k as f64 * 1e-3).collect();
+        let x: Vec<f64> = t.iter().map(|t| 2.0 * t + 1.0).collect();
+        let feed = PanelFeed {
+            trace_hz: 100.0,
+            trace_every_s: 0.1,
+            curve_step_deg: 2.0,
+        };
+        let run = |size: usize| {
+            let mut st = TraceStage::new(&chunk(&t[..1], &x[..1]), &feed, 1000.0).unwrap();
+            let (mut tt, mut xx): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
+            let mut take = |e: Event| {
+                if let Event::Trace { t, channels, .. } = e {
+                    tt.extend(t);
+                    xx.extend(&channels["throttle"]);
+                }
+            };
+            for k in (0..t.len()).step_by(size) {
+                let e = (k + size).min(t.len());
+                if let Some(ev) = st.push(&chunk(&t[k..e], &x[k..e])).unwrap() {
+                    take(ev);
+                }
+            }
+            if let Some(ev) = st.flush() {
+                take(ev);
+            }
+            (tt, xx)
+        };
+        let (tt, xx) = run(1003);
+        assert_eq!(tt.len(), 101);
+        for (k, (tk, xk)) in tt.iter().zip(&xx).enumerate().take(100) {
+            assert!((tk - (k as f64 * 0.01 + 0.0045)).abs() < 1e-12);
+            assert!((xk - (2.0 * tk + 1.0)).abs() < 1e-12);
+        }
+        assert!(
+            (tt[100] - 1.001).abs() < 1e-12,
+            "the partial bin of 3 samples"
+        );
+        for size in [1, 17, 256] {
+            assert_eq!(run(size), (tt.clone(), xx.clone()));
+        }
+    }
+}
