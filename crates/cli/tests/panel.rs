@@ -569,7 +569,9 @@ fn the_logging_control_writes_the_live_data() {
         r#"{"cmd":"record","file":"run-1.parquet"}"#,
     );
     assert_eq!(code, 400, "a log is open: {reply}");
-    sse.until(30, |e| e["type"] == "log" && e["samples"].as_u64().unwrap() > 10_000);
+    sse.until(30, |e| {
+        e["type"] == "log" && e["samples"].as_u64().unwrap() > 10_000
+    });
     let (code, _) = post(live.addr, "/api/control", r#"{"cmd":"record","stop":true}"#);
     assert_eq!(code, 200);
     let closed = sse.until(30, |e| e["type"] == "log" && e["state"] == "closed");
