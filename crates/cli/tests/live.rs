@@ -386,3 +386,71 @@ fn controls_on_stdin_inject_a_fault_and_bad_ones_are_named() {
     );
     assert!(p50 <= p99 && p99 <= max + 0.1, "{l}");
 }
+
+/// The cycle events of the virtual cell (a time basis, 10 kHz, integrated over the crank angle
+/// on the stream) against `physid simulate --basis crank` of the same run (one sample per
+/// degree from the acquisition's own crank-angle grid, its `cycle` channel): the same cycles,
+/// numbered alike, with the same per-cycle means to the sensors' noise.
+#[test]
+fn cycle_events_agree_with_the_crank_angle_recording() {
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "3",
+        "--pace",
+        "max",
+    ]);
+    let cycles = of_type(&ev, "cycle");
+    assert!(cycles.len() >= 20, "{} cycles", cycles.len());
+    assert!(
+        cycles.iter().all(|c| c.get("curve").is_none()),
+        "no curves headless"
+    );
+    let s = Scratch::new("physid-live-cycles");
+    let file = s.file("crank.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "3",
+        "--basis",
+        "crank",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rec = physid_io::read_parquet(&file, None).unwrap();
+    let cycle = rec.values("cycle").unwrap();
+    let mut worst: f64 = 0.0;
+    for c in &cycles {
+        let n = c["cycle"].as_f64().unwrap();
+        let rows: Vec<usize> = (0..cycle.len()).filter(|&i| cycle[i] == n).collect();
+        assert_eq!(rows.len(), 720, "cycle {n} complete in the file");
+        // Numbered alike: cycle n starts when the file's cycle n does (its 0° row), within
+        // the stream's sample step.
+        let t0 = rec.values("t").unwrap()[rows[0]];
+        let dt = (c["t_start_s"].as_f64().unwrap() - t0).abs();
+        assert!(dt < 1e-4, "cycle {n} starts {dt} s away from the file's");
+        for (name, scale) in [
+            ("omega_en", 104.7),
+            ("torque_engine", 30.0),
+            ("p_cyl", 2.1e6),
+        ] {
+            let x = rec.values(name).unwrap();
+            let want = rows.iter().map(|&i| x[i]).sum::<f64>() / 720.0;
+            let got = c["mean"][name].as_f64().unwrap();
+            let rel = (got - want).abs() / scale;
+            worst = worst.max(rel);
+            assert!(
+                rel < 2e-3,
+                "cycle {n} {name}: {got} vs {want} ({rel:e} of its scale)"
+            );
+        }
+    }
+    eprintln!("worst difference of a cycle mean: {worst:e} of the channel's scale");
+}

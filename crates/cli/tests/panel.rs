@@ -113,10 +113,14 @@ impl Sse {
         Sse { reader }
     }
 
-    /// The next event (its `id`, 0 when it has none), or `None` at the end of the stream.
-    fn next(&mut self) -> Option<(u64, Value)> {
+    /// The next event (its `id`, 0 when it has none), or `None` at the end of the stream or
+    /// at `deadline` (keep-alive comments do not count as events).
+    fn next(&mut self, deadline: Instant) -> Option<(u64, Value)> {
         let (mut id, mut line) = (0, String::new());
         loop {
+            let left = deadline.checked_duration_since(Instant::now())?;
+            let wait = left.max(Duration::from_millis(1));
+            self.reader.get_ref().set_read_timeout(Some(wait)).ok()?;
             line.clear();
             if self.reader.read_line(&mut line).ok()? == 0 {
                 return None;
@@ -133,8 +137,7 @@ impl Sse {
     fn until(&mut self, secs: u64, mut stop: impl FnMut(&Value) -> bool) -> Vec<(u64, Value)> {
         let deadline = Instant::now() + Duration::from_secs(secs);
         let mut out = Vec::new();
-        while Instant::now() < deadline {
-            let Some(e) = self.next() else { break };
+        while let Some(e) = self.next(deadline) {
             let done = stop(&e.1);
             out.push(e);
             if done {
@@ -319,6 +322,11 @@ fn malformed_controls_are_refused_by_name_and_the_run_goes_on() {
     sse.until(30, |e| {
         e["type"] == "estimate" && e["t_s"].as_f64().unwrap() > t_pause + 0.5
     });
+    // A stop while paused ends the run (long before its 60 s).
+    assert_eq!(post(live.addr, "/api/control", r#"{"cmd":"pause"}"#).0, 200);
+    assert_eq!(post(live.addr, "/api/control", r#"{"cmd":"stop"}"#).0, 200);
+    let end = sse.until(30, |e| e["type"] == "end");
+    assert!(end.last().unwrap().1["t_s"].as_f64().unwrap() < 30.0);
 }
 
 /// The token rule: beyond loopback only with a token; with one, the API refuses requests

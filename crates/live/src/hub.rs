@@ -134,20 +134,23 @@ impl Hub {
         );
     }
 
-    /// A message of the hub's own (`status`), kept with the other events.
+    /// A passing message of the hub's own (`status`): broadcast, not kept (a client that
+    /// connects changes the count and so gets a fresh one).
     pub fn publish_json(&self, v: &serde_json::Value) {
-        self.publish_text(Kind::Other, v.to_string());
+        self.publish_text(None, v.to_string());
     }
 
-    fn publish_text(&self, kind: Kind, text: String) {
+    fn publish_text(&self, kind: impl Into<Option<Kind>>, text: String) {
         let mut kept = self.kept();
         kept.seq += 1;
         let msg: Message = (kept.seq, text.into());
-        let ring = &mut kept.rings[kind as usize];
-        if ring.len() == kind.keep() {
-            ring.pop_front();
+        if let Some(kind) = kind.into() {
+            let ring = &mut kept.rings[kind as usize];
+            if ring.len() == kind.keep() {
+                ring.pop_front();
+            }
+            ring.push_back(msg.clone());
         }
-        ring.push_back(msg.clone());
         // Sent under the lock, so that a subscriber sees each message once: in its backlog
         // or on its receiver. No receiver is not an error.
         let _ = self.tx.send(msg);

@@ -263,6 +263,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
                 match &c {
                     Control::Pause => self.paused = true,
                     Control::Resume => self.paused = false,
+                    // A stop ends a pause too.
+                    Control::Stop => {
+                        self.paused = false;
+                        source.control(&c)?;
+                    }
                     Control::Record(Some(name)) => {
                         self.recorder.start(name)?;
                     }
