@@ -201,6 +201,15 @@ fn engine_angle(
     Ok((tt, th, tdc))
 }
 
+/// The angle of a firing TDC on the recording's `theta_en` [rad]: its value at the first TDC
+/// marker; `None` without `theta_en` or a marker (cycles then start at multiples of 4π, as
+/// [`to_crank_angle`] starts them).
+pub fn marker_tdc_angle(rec: &Recording, opts: &AcquisitionOptions) -> Option<f64> {
+    let theta = rec.values("theta_en").ok()?;
+    let i = first_marker(rec.values(&opts.marker).ok()?)?;
+    theta.get(i).copied().filter(|v| v.is_finite())
+}
+
 /// Resample a time-basis recording to one sample every `step_deg` crank degrees from the
 /// first TDC marker: channels `t`, `theta` [rad from TDC], `cycle`, `crank_deg`, then every
 /// other channel interpolated (the encoder counts and the marker are left out).

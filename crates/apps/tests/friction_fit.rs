@@ -177,3 +177,70 @@ fn bad_recordings_are_explained() {
         "{e}"
     );
 }
+
+/// The file verb is the stage over the file: streaming a time-basis recording through a
+/// [`FrictionStage`] in chunks of 1, 17, 4096 samples or whole gives the file verb's result
+/// bit for bit, its per-cycle outputs are the result's predictions, and a stage that chooses
+/// its coefficients live — once it has seen as many steady cycles as the file holds — chooses
+/// the same ones and predicts the same.
+#[test]
+fn the_stage_on_a_stream_is_the_file_verb() {
+    use physid_apps::acquisition::{marker_tdc_angle, AcquisitionOptions};
+    use physid_apps::friction_fit::{FrictionOutput, FrictionStage};
+    let rec = sweep(Some(8.0), OutputBasis::Time(10_000.0));
+    let cfg = config();
+    let file = friction_fit(&rec, &cfg).unwrap();
+    assert!(file.data.len() >= 40, "{} cycles", file.data.len());
+    let run = |chunk: usize, select_after: Option<usize>| {
+        let mut stage = FrictionStage::new(cfg.clone(), select_after).unwrap();
+        // Cycles from the first TDC marker, as the file verb takes them.
+        let tdc = marker_tdc_angle(&rec, &AcquisitionOptions::default()).unwrap();
+        stage.set_theta_tdc(tdc).unwrap();
+        let mut out = Vec::new();
+        let n = rec.len();
+        for start in (0..n).step_by(chunk) {
+            stage
+                .push(&rec.slice(start..(start + chunk).min(n)), &mut out)
+                .unwrap();
+        }
+        let fit = stage.finish(&mut out).unwrap();
+        (fit, out)
+    };
+    for chunk in [1, 17, 4096, rec.len()] {
+        let (fit, out) = run(chunk, None);
+        assert_eq!(fit.data.cycle, file.data.cycle, "chunk {chunk}");
+        assert_eq!(fit.data.tau_nm, file.data.tau_nm, "chunk {chunk}");
+        assert_eq!(fit.estimable, file.estimable, "chunk {chunk}");
+        assert_eq!(fit.params, file.params, "chunk {chunk}");
+        assert_eq!(fit.predicted, file.predicted, "chunk {chunk}");
+        let predicted: Vec<f64> = out
+            .iter()
+            .filter_map(|o| match o {
+                FrictionOutput::Cycle(s) => Some(s.predicted_nm),
+                FrictionOutput::Selected { .. } => None,
+            })
+            .collect();
+        assert_eq!(predicted, file.predicted);
+        // The choice comes first, once, over all the steady cycles.
+        assert!(
+            matches!(&out[0], FrictionOutput::Selected { cycles, .. } if *cycles == file.data.len())
+        );
+    }
+    let (live, out) = run(4096, Some(file.data.len()));
+    assert_eq!(live.estimable, file.estimable);
+    assert_eq!(live.predicted, file.predicted);
+    assert_eq!(
+        out.iter()
+            .filter(|o| matches!(o, FrictionOutput::Selected { .. }))
+            .count(),
+        1
+    );
+    // Chosen early, on the first 20 steady cycles: every later cycle is predicted as it comes.
+    let (early, out) = run(4096, Some(20));
+    assert!(matches!(
+        &out[0],
+        FrictionOutput::Selected { cycles: 20, .. }
+    ));
+    assert_eq!(early.predicted.len(), file.data.len());
+    assert_eq!(early.data.tau_nm, file.data.tau_nm);
+}

@@ -454,3 +454,95 @@ fn cycle_events_agree_with_the_crank_angle_recording() {
     }
     eprintln!("worst difference of a cycle mean: {worst:e} of the channel's scale");
 }
+
+/// The friction characterisation on the stream: a replayed motored recording ends on
+/// `physid friction fit`'s coefficients exactly (the replay is shorter than the choice, so the
+/// choice is made on all its cycles, as the file verb makes it), whatever the chunk; on the
+/// virtual cell, chosen after 20 cycles, the one-step predictions then follow the simulated
+/// friction within the thesis's ±5 %.
+#[test]
+fn friction_on_the_stream_ends_on_the_file_verbs_fit() {
+    let s = Scratch::new("physid-live-friction");
+    let file = s.file("sweep.parquet");
+    let f = file.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "friction-sweep",
+        "--duration",
+        "8",
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = physid(&["friction", "fit", "--data", f, "--preset", "cell", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
+    for chunk in ["0.0017", "10"] {
+        let ev = events(&[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            f,
+            "--pace",
+            "max",
+            "--chunk",
+            chunk,
+            "--friction",
+            "cell",
+            "--friction-after",
+            "1000",
+        ]);
+        let chosen = of_type(&ev, "identifiability");
+        assert_eq!(chosen.len(), 1, "chunk {chunk}");
+        assert_eq!(chosen[0]["app"], "friction");
+        assert_eq!(chosen[0]["estimable"], verb["estimable"], "chunk {chunk}");
+        assert_eq!(
+            chosen[0]["estimable"].as_array().unwrap().len()
+                + chosen[0]["frozen"].as_array().unwrap().len(),
+            20
+        );
+        let cycles = of_type(&ev, "friction");
+        assert_eq!(
+            cycles.len() as u64,
+            verb["cycles"]["used"].as_u64().unwrap()
+        );
+        let last = cycles.last().unwrap();
+        for p in verb["estimable"].as_array().unwrap() {
+            let p = p.as_str().unwrap();
+            assert_eq!(last["params"][p], verb["params"][p], "chunk {chunk}: {p}");
+        }
+    }
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "friction-sweep",
+        "--duration",
+        "12",
+        "--pace",
+        "max",
+        "--friction",
+        "cell",
+        "--friction-after",
+        "20",
+    ]);
+    let chosen = of_type(&ev, "identifiability");
+    assert_eq!(chosen.len(), 1);
+    let cycles = of_type(&ev, "friction");
+    assert!(cycles.len() > 60, "{} cycles", cycles.len());
+    // The last 20 cycles' predictions, made before each cycle was seen, against the truth.
+    for c in &cycles[cycles.len() - 20..] {
+        let (p, t) = (
+            c["predicted"].as_f64().unwrap(),
+            c["truth"].as_f64().unwrap(),
+        );
+        assert!(
+            (p / t - 1.0).abs() < 0.05,
+            "cycle {}: {p} vs {t}",
+            c["cycle"]
+        );
+    }
+}

@@ -495,6 +495,8 @@ fn the_panel_in_a_real_browser() {
         assert_eq!(js("window.physid.alarms").await, json!(0), "no alarm while healthy");
         assert_eq!(js("document.querySelectorAll('#plot-pcyl canvas').length > 0").await, json!(true));
         assert_eq!(js("window.physid.last.cycle.curve.p_cyl.length").await, json!(360));
+        // No friction characterisation on this run: its cards stay hidden.
+        assert_eq!(js("document.getElementById('friction-card').hidden").await, json!(true));
         // Inject the stiffness fault through the page.
         let t_click = js("window.physid.t").await.as_f64().unwrap();
         c.find(Locator::Id("fault-spec"))
@@ -526,6 +528,33 @@ fn the_panel_in_a_real_browser() {
             let docs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/live-panel.png");
             std::fs::write(docs, &png).unwrap();
         }
+        // A motored engine with the friction characterisation: the page shows the chosen
+        // coefficients (estimated and frozen) and the cycle means against their predictions.
+        let friction = Live::start(&[
+            "--scenario",
+            "friction-sweep",
+            "--duration",
+            "8",
+            "--pace",
+            "max",
+            "--friction",
+            "cell",
+            "--friction-after",
+            "20",
+        ]);
+        c.goto(&friction.url).await.unwrap();
+        wait("window.physid.state === 'ended' && window.physid.frictionCycles > 20", 40).await;
+        let chosen = js("window.physid.identifiability.friction").await;
+        let estimable = chosen["estimable"].as_array().unwrap().len();
+        assert!(estimable > 0 && estimable + chosen["frozen"].as_array().unwrap().len() == 20);
+        assert_eq!(
+            js("document.querySelectorAll('#ident span.param.estimable').length").await,
+            json!(estimable)
+        );
+        assert_eq!(js("document.getElementById('friction-card').hidden").await, json!(false));
+        assert_eq!(js("document.querySelectorAll('#plot-friction canvas').length > 0").await, json!(true));
+        let png = c.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-friction.png"), &png).unwrap();
         c.close().await.unwrap();
     });
 }

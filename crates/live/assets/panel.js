@@ -15,11 +15,16 @@
   const st = {
     state: "connecting", t: NaN, samples: 0, estimates: 0, traces: 0, tracePoints: 0,
     cycles: 0, alarms: 0, lost: 0, hellos: 0, hello: null, last: {}, first: {},
+    frictionCycles: 0, identifiability: {},
   };
   window.physid = st;
 
-  let est, tr, cyc, means;
+  let est, tr, cyc, means, fric;
   function reset() {
+    fric = { cycle: [], measured: [], predicted: [], nominal: [], truth: [] };
+    st.frictionCycles = 0; st.identifiability = {};
+    $("ident").replaceChildren();
+    $("friction-table").tBodies[0].replaceChildren();
     est = { t: [], K: [], Khi: [], Klo: [], B: [], Bhi: [], Blo: [] };
     tr = { t: [], omega_en: [], omega_dy: [], torque_shaft: [], torque_engine: [], p_int: [], throttle: [] };
     cyc = [];
@@ -71,9 +76,16 @@
     line(k === CYCLES_SHOWN - 1 ? "latest" : `−${CYCLES_SHOWN - 1 - k}`, fade(k), { width: k === CYCLES_SHOWN - 1 ? 2 : 1 }));
   makePlot("plot-pcyl", cycSeries(), { xLabel: "crank angle [deg]" });
   makePlot("plot-tcyc", cycSeries(), { xLabel: "crank angle [deg]" });
-  window.addEventListener("resize", () => {
+  makePlot("plot-friction", [line("measured", colors[0]), line("predicted (before the cycle)", colors[1]),
+    line("nominal model", colors[4], { dash: [6, 4] }), line("simulated truth", colors[2], { width: 1 })], { xLabel: "cycle" });
+  const resize = () => {
     for (const id in plots) plots[id].setSize({ width: Math.max(200, $(id).clientWidth), height: 210 });
-  });
+  };
+  window.addEventListener("resize", resize);
+  // Cards that only some runs fill (the friction characterisation) appear with their data.
+  function show(id) {
+    if ($(id).hidden) { $(id).hidden = false; resize(); }
+  }
 
   let dirty = false;
   function redraw() {
@@ -87,6 +99,7 @@
     plots["plot-torque"].setData([tr.t, tr.torque_shaft, tr.torque_engine]);
     plots["plot-pint"].setData([tr.t, tr.p_int, tr.throttle]);
     plots["plot-cycles"].setData([means.cycle, means.torque_engine, means.torque_shaft]);
+    plots["plot-friction"].setData([fric.cycle, fric.measured, fric.predicted, fric.nominal, fric.truth]);
     for (const [id, ch, scale] of [["plot-pcyl", "p_cyl", 1e-5], ["plot-tcyc", "torque_engine", 1]]) {
       const last = cyc.slice(-CYCLES_SHOWN);
       const n = last.length ? last[last.length - 1][ch] ? last[last.length - 1][ch].length : 0 : 0;
@@ -194,6 +207,39 @@
       for (const [name, v, unit, d] of rows) {
         const r = body.insertRow();
         r.insertCell().textContent = name; r.insertCell().textContent = fmt(v, d); r.insertCell().textContent = unit;
+      }
+      touch();
+    },
+    identifiability(e) {
+      st.identifiability[e.app] = e; seen(e.t_s);
+      show("ident-card");
+      const box = $("ident");
+      box.replaceChildren();
+      for (const app of Object.keys(st.identifiability).sort()) {
+        const x = st.identifiability[app];
+        const p = document.createElement("p");
+        p.dataset.app = app;
+        const tag = (name, cls) => { const s = document.createElement("span"); s.className = "param " + cls; s.textContent = name; return s; };
+        p.append(`${app}: `);
+        for (const n of x.estimable) p.append(tag(n, "estimable"), " ");
+        for (const n of x.frozen) p.append(tag(n, "frozen"), " ");
+        box.appendChild(p);
+      }
+      log(`${fmt(e.t_s, 3)} s: ${e.app} estimates ${e.estimable.join(", ")}; frozen ${e.frozen.length ? e.frozen.join(", ") : "none"}`);
+    },
+    friction(e) {
+      st.frictionCycles++; st.last.friction = e;
+      show("friction-card"); show("ident-card");
+      fric.cycle.push(e.cycle); fric.measured.push(e.measured); fric.predicted.push(e.predicted);
+      fric.nominal.push(e.nominal); fric.truth.push(e.truth ?? null);
+      if (fric.cycle.length > 1000) for (const k in fric) fric[k].shift();
+      const body = $("friction-table").tBodies[0];
+      body.replaceChildren();
+      const err = 100 * (e.predicted - e.measured) / e.measured;
+      for (const [name, v, s] of [["prediction error", err, null, "%"]].concat(Object.keys(e.params).map((n) => [n, e.params[n], e.std_err[n]]))) {
+        const r = body.insertRow();
+        r.insertCell().textContent = name;
+        r.insertCell().textContent = s === null ? `${fmt(v, 2)} %` : `${Number(v).toPrecision(4)} ± ${isFinite(s) ? Number(3 * s).toPrecision(2) : "–"}`;
       }
       touch();
     },

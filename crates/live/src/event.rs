@@ -37,6 +37,44 @@ pub enum Event {
         /// Its relative error (Eq. 6.3) then.
         relative_error: f64,
     },
+    /// Which of an application's parameters are estimated now and which are held (frozen):
+    /// `{"type": "identifiability", "app": "friction", "t_s": …, "estimable": ["c1", …],
+    /// "frozen": ["c2", …]}` — sent when it changes (the friction characterisation, once, when
+    /// it has chosen its coefficients; the others stay at their nominal values).
+    Identifiability {
+        /// The application.
+        app: &'static str,
+        /// Recording time [s].
+        t_s: f64,
+        /// The parameters estimated, in rank order.
+        estimable: Vec<String>,
+        /// The parameters held at their values.
+        frozen: Vec<String>,
+    },
+    /// A steady engine cycle through the friction characterisation: `{"type": "friction",
+    /// "cycle": n, "t_s": …, "measured": …, "predicted": …, "nominal": …, "truth": …,
+    /// "params": {"c1": …}, "std_err": {"c1": …}}` — the cycle's mean motoring torque, its
+    /// one-step-ahead prediction and the nominal model's [N·m], and the estimated coefficients
+    /// after it (`t_s`: the cycle's start).
+    Friction {
+        /// Cycle index.
+        cycle: i64,
+        /// The cycle's start [s].
+        t_s: f64,
+        /// Its mean motoring torque [N·m].
+        measured: f64,
+        /// Predicted before the estimator saw it [N·m].
+        predicted: f64,
+        /// The nominal model's prediction [N·m].
+        nominal: f64,
+        /// The simulated truth, when the source carries it [N·m].
+        #[serde(skip_serializing_if = "Option::is_none")]
+        truth: Option<f64>,
+        /// The estimated coefficients after the cycle.
+        params: BTreeMap<String, f64>,
+        /// Their standard errors (null before the estimator has them).
+        std_err: BTreeMap<String, f64>,
+    },
     /// A frame from outside or a control message was refused (the run goes on; a refused frame
     /// is counted as dropped): `{"type": "error", "t_s": …, "input": "frames", "line": n,
     /// "message": …}` (`t_s` the last sample taken).

@@ -39,7 +39,8 @@ impl Kind {
         Kind::Other,
     ];
 
-    /// How many are kept: 3000 estimates (5 min at 10 a second), 2000 alarms and
+    /// How many are kept: 3000 estimates, friction cycles and identifiability changes (5 min of
+    /// the shaft's 10 estimates a second), 2000 alarms and
     /// acknowledgements, the last 20 cycles, 30 s of traces at 20 events a second, 500 others.
     fn keep(self) -> usize {
         match self {
@@ -53,7 +54,9 @@ impl Kind {
 
     fn of(e: &Event) -> Self {
         match e {
-            Event::Estimate { .. } => Kind::Estimate,
+            Event::Estimate { .. } | Event::Friction { .. } | Event::Identifiability { .. } => {
+                Kind::Estimate
+            }
             Event::Alarm { .. } => Kind::Alarm,
             Event::Cycle { .. } => Kind::Cycle,
             Event::Trace { .. } => Kind::Trace,

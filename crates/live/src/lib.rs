@@ -33,5 +33,5 @@ pub use event::Event;
 pub use frames::{FrameSource, FRAME_CHANNELS};
 pub use hub::Hub;
 pub use panel::Panel;
-pub use service::{run_live, LiveConfig, LiveError, PanelFeed, Summary};
+pub use service::{run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Summary};
 pub use source::{Pace, ReplaySource, ScenarioSource, Source};

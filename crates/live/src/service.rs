@@ -8,9 +8,11 @@ use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
 use crate::trace::TraceStage;
 use physid_apps::error::AppError;
+use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
 use physid_core::{Recording, RecordingError};
 use physid_io::IoError;
+use physid_models::friction::REGRESSION_PARAMS;
 use physid_signal::crank::CrankError;
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use physid_sim::run::SimError;
@@ -70,6 +72,18 @@ pub struct LiveConfig {
     pub panel: Option<PanelFeed>,
     /// Where `record` controls write their logs.
     pub log_dir: PathBuf,
+    /// The friction characterisation on the stream (a motored engine), when asked for.
+    pub friction: Option<FrictionLive>,
+}
+
+/// The friction characterisation's settings live.
+#[derive(Debug, Clone)]
+pub struct FrictionLive {
+    /// The fit's settings (model, torque source, estimator).
+    pub fit: FrictionFitConfig,
+    /// Choose the estimable coefficients after this many steady cycles (at least 20); a replay
+    /// that ends sooner chooses on all of them at its end, as `physid friction fit` does.
+    pub select_after: usize,
 }
 
 /// What the panel gets beyond the headless events.
@@ -105,6 +119,7 @@ impl Default for LiveConfig {
             theta_tdc: 0.0,
             panel: None,
             log_dir: PathBuf::from("physid-logs"),
+            friction: None,
         }
     }
 }
@@ -150,6 +165,15 @@ pub fn run_live(
         shaft: ShaftStage::new(&cfg.monitor, source.rate_hz())?,
         cycles: None,
         traces: None,
+        friction: match &cfg.friction {
+            Some(f) => {
+                let mut stage = FrictionStage::new(f.fit.clone(), Some(f.select_after))?;
+                stage.set_theta_tdc(cfg.theta_tdc)?;
+                Some(stage)
+            }
+            None => None,
+        },
+        friction_out: Vec::new(),
         recorder: Recorder::new(&cfg.log_dir),
         pacer: Pacer::new(cfg.pace),
         cfg,
@@ -207,6 +231,9 @@ struct Live<'a, E> {
     /// The cycle statistics and the channels they cover (set up on the first chunk).
     cycles: Option<(CycleStream, Vec<&'static str>)>,
     traces: Option<TraceStage>,
+    /// The friction characterisation (stopped, with a finding, at its first error).
+    friction: Option<FrictionStage>,
+    friction_out: Vec<FrictionOutput>,
     recorder: Recorder,
     pacer: Pacer,
     emit: E,
@@ -345,6 +372,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
             self.send(&e)?;
         }
         self.cycles(chunk)?;
+        if let Some(stage) = self.friction.as_mut() {
+            self.friction_out.clear();
+            let result = stage.push(chunk, &mut self.friction_out);
+            self.friction_events(result)?;
+        }
         match self.recorder.push(chunk, self.last_t) {
             Ok(Some(e)) => self.send(&e)?,
             Ok(None) => {}
@@ -416,8 +448,64 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         Ok(())
     }
 
+    /// The friction stage's output as events; at its error, a finding, and the stage stops
+    /// (the run goes on).
+    fn friction_events(&mut self, result: Result<(), AppError>) -> Result<(), LiveError> {
+        let out = std::mem::take(&mut self.friction_out);
+        for o in &out {
+            let e = match o {
+                FrictionOutput::Selected { t_s, estimable, .. } => Event::Identifiability {
+                    app: "friction",
+                    t_s: *t_s,
+                    frozen: REGRESSION_PARAMS
+                        .iter()
+                        .filter(|p| !estimable.iter().any(|e| e == *p))
+                        .map(|p| p.to_string())
+                        .collect(),
+                    estimable: estimable.clone(),
+                },
+                FrictionOutput::Cycle(s) => {
+                    let names = self
+                        .friction
+                        .as_ref()
+                        .and_then(FrictionStage::estimable)
+                        .unwrap_or_default();
+                    let by_name =
+                        |v: &[f64]| names.iter().cloned().zip(v.iter().copied()).collect();
+                    Event::Friction {
+                        cycle: s.cycle,
+                        t_s: s.t_s,
+                        measured: s.measured_nm,
+                        predicted: s.predicted_nm,
+                        nominal: s.nominal_nm,
+                        truth: s.truth_nm,
+                        params: by_name(&s.params),
+                        std_err: by_name(&s.std_err),
+                    }
+                }
+            };
+            self.send(&e)?;
+        }
+        self.friction_out = out;
+        if let Err(e) = result {
+            self.friction = None;
+            let t_s = self.last_t;
+            self.send(&Event::Finding {
+                t_s,
+                message: format!("friction: {e} — the friction characterisation stopped"),
+            })?;
+        }
+        Ok(())
+    }
+
     /// The end of the stream: the stages' last output, the final estimate, `end`.
     fn finish(mut self) -> Result<Summary, LiveError> {
+        if let Some(stage) = self.friction.as_mut() {
+            self.friction_out.clear();
+            // The last cycle judged; a replay shorter than the choice chooses on all its cycles.
+            let result = stage.finish(&mut self.friction_out).map(|_| ());
+            self.friction_events(result)?;
+        }
         self.samples.clear();
         self.alarms.clear();
         self.shaft.finish(&mut self.samples, &mut self.alarms)?;

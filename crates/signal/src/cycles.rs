@@ -28,6 +28,11 @@ pub struct CycleSummary {
     pub t_end_s: f64,
     /// Crank-angle mean of each channel.
     pub mean: Vec<f64>,
+    /// Each channel at the cycle's start and end (interpolated at the boundary angles): what
+    /// changed over the cycle, e.g. its speed.
+    pub start: Vec<f64>,
+    /// See [`start`](Self::start).
+    pub end: Vec<f64>,
     /// Smallest sample of each channel in the cycle.
     pub min: Vec<f64>,
     /// Largest sample of each channel in the cycle.
@@ -57,6 +62,8 @@ pub struct CycleStream {
     /// The next grid point's index in the cycle.
     next_grid: usize,
     integral: Vec<f64>,
+    /// The channels at the start of the cycle in progress.
+    start_x: Vec<f64>,
     min: Vec<f64>,
     max: Vec<f64>,
     max_deg: Vec<f64>,
@@ -99,6 +106,7 @@ impl CycleStream {
             t_start: f64::NAN,
             next_grid: 0,
             integral: vec![0.0; channels],
+            start_x: vec![f64::NAN; channels],
             min: vec![f64::INFINITY; channels],
             max: vec![f64::NEG_INFINITY; channels],
             max_deg: vec![f64::NAN; channels],
@@ -193,6 +201,7 @@ impl CycleStream {
                 self.complete = true;
                 self.t_start = t_end;
                 self.next_grid = 0;
+                self.start_x.copy_from_slice(&self.prev_x);
                 self.prev = Some((g, t_end));
                 return self.sample(t, th, x, out);
             }
@@ -219,6 +228,9 @@ impl CycleStream {
                 self.max_deg[j] = deg;
             }
         }
+        if first && self.complete {
+            self.start_x.copy_from_slice(&self.prev_x);
+        }
         if first && self.curves && self.next_grid == 0 {
             for j in 0..self.curve.len() {
                 self.curve[j].push(self.prev_x[j]);
@@ -236,6 +248,8 @@ impl CycleStream {
                 t_start_s: self.t_start,
                 t_end_s: t_end,
                 mean: self.integral.iter().map(|s| s / (4.0 * PI)).collect(),
+                start: self.start_x.clone(),
+                end: self.prev_x.clone(),
                 min: self.min.clone(),
                 max: self.max.clone(),
                 max_deg: self.max_deg.clone(),

@@ -81,7 +81,8 @@ fn w(t: f64) -> f64 {
 }
 
 /// A channel linear in θ is interpolated exactly: its curve is θ on the grid and its mean the
-/// cycle's middle angle; cycles start at the given TDC angle.
+/// cycle's middle angle, its start and end values the boundary angles; cycles start at the
+/// given TDC angle.
 #[test]
 fn curves_are_exact_for_a_linear_channel() {
     let (t, th) = engine();
@@ -99,6 +100,9 @@ fn curves_are_exact_for_a_linear_channel() {
             assert!((v - want).abs() < 1e-10 * want, "{k}: {v} vs {want}");
         }
         assert!((c.mean[0] - (start + 2.0 * PI)).abs() < 1e-9 * start);
+        // The values at the boundaries are the boundary angles.
+        assert!((c.start[0] - start).abs() < 1e-10 * start);
+        assert!((c.end[0] - (start + 4.0 * PI)).abs() < 1e-10 * start);
     }
 }
 

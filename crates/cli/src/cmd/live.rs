@@ -5,9 +5,13 @@
 use super::monitor::{config, MonitorFlags};
 use crate::out::outln;
 use miette::{miette, Result};
+use physid_apps::acquisition::{marker_tdc_angle, AcquisitionOptions};
+use physid_apps::friction_fit::{
+    friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
+};
 use physid_live::{
-    run_live, ControlRequest, Event, FrameSource, Hub, LiveConfig, Pace, Panel, PanelFeed,
-    ReplaySource, ScenarioSource, Source,
+    run_live, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, Pace, Panel,
+    PanelFeed, ReplaySource, ScenarioSource, Source,
 };
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
@@ -81,6 +85,23 @@ pub struct Args {
     estimate_every: f64,
     #[command(flatten)]
     monitor: MonitorFlags,
+    /// Characterise the engine's friction on the stream (a motored engine, e.g. the
+    /// friction-sweep scenario) with this friction model preset: thesis, sandoval2002 or cell
+    /// (the virtual cell's engine).
+    #[arg(long, value_name = "PRESET")]
+    friction: Option<String>,
+    /// Choose the estimable friction coefficients after this many steady cycles.
+    #[arg(long, value_name = "N", default_value_t = 100, requires = "friction")]
+    friction_after: usize,
+    /// The motoring torque for the friction characterisation: engine (−torque_engine) or
+    /// shaft (+torque_shaft).
+    #[arg(
+        long,
+        value_name = "engine|shaft",
+        default_value = "engine",
+        requires = "friction"
+    )]
+    friction_source: String,
 }
 
 /// Run `physid live`.
@@ -97,7 +118,33 @@ pub fn run(a: &Args) -> Result<()> {
         log_dir: a.log_dir.clone(),
         ..LiveConfig::default()
     };
-    let (mut source, what) = source(a)?;
+    if let Some(preset) = &a.friction {
+        let (d, st) = friction_preset(preset).ok_or_else(|| {
+            miette!(
+                "--friction '{preset}': the presets are {}",
+                FRICTION_PRESETS.join(", ")
+            )
+        })?;
+        let mut fit = FrictionFitConfig::new(d, st);
+        fit.source = TorqueSource::parse(&a.friction_source).ok_or_else(|| {
+            miette!(
+                "--friction-source '{}': expected engine or shaft",
+                a.friction_source
+            )
+        })?;
+        if a.friction_after < MIN_CYCLES {
+            return Err(miette!(
+                "--friction-after {}: the choice needs at least {MIN_CYCLES} cycles",
+                a.friction_after
+            ));
+        }
+        cfg.friction = Some(FrictionLive {
+            fit,
+            select_after: a.friction_after,
+        });
+    }
+    let (mut source, what, theta_tdc) = source(a)?;
+    cfg.theta_tdc = theta_tdc;
     if a.headless {
         let controls = match &a.controls {
             None => None,
@@ -164,8 +211,9 @@ pub fn run(a: &Args) -> Result<()> {
     result.map(|_| ()).map_err(|e| miette!("{e}"))
 }
 
-/// The source `a` asks for, and a line saying what it is.
-fn source(a: &Args) -> Result<(Box<dyn Source>, String)> {
+/// The source `a` asks for, a line saying what it is, and the angle of a firing TDC on its
+/// `theta_en` (a replay's first TDC marker, as the file verbs take it; else 0).
+fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
     Ok(match (&a.replay, &a.frames) {
         (_, Some(path)) => (
             Box::new(
@@ -173,15 +221,18 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String)> {
                     .map_err(|e| miette!("{e}"))?,
             ),
             format!("frames from {} at {} Hz", path.display(), a.sample_rate),
+            0.0,
         ),
         (Some(path), None) => {
             let rec = a.input.read(path, None)?;
+            let tdc = marker_tdc_angle(&rec, &AcquisitionOptions::default()).unwrap_or(0.0);
             (
                 Box::new(
                     ReplaySource::new(rec, a.chunk)
                         .map_err(|e| miette!("{}: {e}", path.display()))?,
                 ),
                 format!("replay of {}", path.display()),
+                tdc,
             )
         }
         (None, None) => {
@@ -203,6 +254,7 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String)> {
                     ScenarioSource::new(&scenario, &opts, a.chunk).map_err(|e| miette!("{e}"))?,
                 ),
                 format!("virtual cell, scenario {name}"),
+                0.0,
             )
         }
     })
