@@ -546,3 +546,104 @@ fn friction_on_the_stream_ends_on_the_file_verbs_fit() {
         );
     }
 }
+
+/// Frames over a local socket: physid listens on a Unix socket only its user can open, a
+/// client's frames give `monitor shaft`'s very estimate, the run ends when the client closes,
+/// the socket is removed; a path in use is refused.
+#[cfg(unix)]
+#[test]
+fn frames_over_a_local_socket() {
+    use std::io::{Read, Write};
+    use std::os::unix::fs::{FileTypeExt, PermissionsExt};
+    use std::os::unix::net::UnixStream;
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let s = Scratch::new("physid-live-socket");
+    let file = s.file("t01.parquet");
+    let f = file.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "1",
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success());
+    let o = physid(&["monitor", "shaft", "--data", f, "--json"]);
+    let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rec = physid_io::read(&file, &Default::default()).unwrap();
+    let sock = s.file("daq.sock");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args([
+            "live",
+            "--headless",
+            "--json",
+            "--pace",
+            "max",
+            "--frames-socket",
+        ])
+        .arg(&sock)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while !sock.exists() {
+        assert!(Instant::now() < deadline, "the socket never appeared");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let meta = std::fs::metadata(&sock).unwrap();
+    assert!(meta.file_type().is_socket());
+    assert_eq!(meta.permissions().mode() & 0o777, 0o600);
+    // A second service on the same path is refused while the first listens.
+    let o = physid(&[
+        "live",
+        "--headless",
+        "--json",
+        "--frames-socket",
+        sock.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already exists"));
+    let mut client = UnixStream::connect(&sock).unwrap();
+    let n = rec.len();
+    for (k, start) in (0..n).step_by(700).enumerate() {
+        let mut obj = serde_json::Map::new();
+        obj.insert("seq".into(), k.into());
+        for name in physid_live::FRAME_CHANNELS {
+            let v = rec.values(name).unwrap();
+            obj.insert(name.into(), v[start..(start + 700).min(n)].into());
+        }
+        writeln!(client, "{}", Value::Object(obj)).unwrap();
+        if k == 3 {
+            // A bad client line is refused; the run goes on.
+            client.write_all(b"\xff\xfe not a frame\n").unwrap();
+        }
+    }
+    client.shutdown(std::net::Shutdown::Write).unwrap();
+    let mut out = String::new();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    let status = child.wait().unwrap();
+    assert!(status.success());
+    let ev: Vec<Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let end = of_type(&ev, "end")[0];
+    assert_eq!(
+        (end["samples"].as_u64(), end["dropped"].as_u64()),
+        (Some(n as u64), Some(1))
+    );
+    let last = of_type(&ev, "estimate").last().copied().unwrap().clone();
+    for p in ["K", "B"] {
+        assert_eq!(last["params"][p], verb["final"][p], "{p}");
+    }
+    assert!(!sock.exists(), "the socket is removed at the end");
+}

@@ -23,7 +23,7 @@ use crate::service::LiveError;
 use crate::source::Source;
 use physid_core::{Basis, Channel, Recording};
 use serde_json::Value;
-use std::io::BufRead;
+use std::io::{BufRead, Read};
 
 /// The channels a frame must carry (the shaft monitor's).
 pub const FRAME_CHANNELS: [&str; 6] = [
@@ -185,14 +185,49 @@ impl<R: BufRead> Source for FrameSource<R> {
     fn next_chunk(&mut self) -> Result<Option<Recording>, LiveError> {
         loop {
             self.buf.clear();
-            let read = self
-                .reader
+            let read = match (&mut self.reader)
+                .take(MAX_FRAME_BYTES as u64)
                 .read_line(&mut self.buf)
-                .map_err(|e| LiveError::Invalid(format!("reading frames: {e}")))?;
+            {
+                Ok(n) => n,
+                // The line was read (and is dropped): refused, the stream goes on.
+                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                    self.line += 1;
+                    return Err(self.bad("not UTF-8 text".into()));
+                }
+                Err(e) => return Err(LiveError::Invalid(format!("reading frames: {e}"))),
+            };
             if read == 0 {
                 return Ok(None);
             }
             self.line += 1;
+            if read == MAX_FRAME_BYTES && !self.buf.ends_with('\n') {
+                // Skip the rest of the line, holding nothing of it.
+                self.buf.clear();
+                let mut skipped = 0usize;
+                loop {
+                    let chunk = self
+                        .reader
+                        .fill_buf()
+                        .map_err(|e| LiveError::Invalid(format!("reading frames: {e}")))?;
+                    if chunk.is_empty() {
+                        break;
+                    }
+                    let (n, end) = match chunk.iter().position(|&b| b == b'\n') {
+                        Some(i) => (i + 1, true),
+                        None => (chunk.len(), false),
+                    };
+                    self.reader.consume(n);
+                    skipped += n;
+                    if end {
+                        break;
+                    }
+                }
+                return Err(self.bad(format!(
+                    "longer than {MAX_FRAME_BYTES} bytes ({} read): refused",
+                    read + skipped
+                )));
+            }
             if self.buf.trim().is_empty() {
                 continue;
             }
@@ -202,5 +237,153 @@ impl<R: BufRead> Source for FrameSource<R> {
 
     fn notice(&mut self) -> Option<String> {
         self.take_notice()
+    }
+}
+
+/// The longest frame line taken [bytes]: a longer one is refused (and skipped to its end), so
+/// that a client cannot make the service hold an endless line.
+pub const MAX_FRAME_BYTES: usize = 64 << 20;
+
+/// Frames over a local socket: `physid live --frames-socket PATH` listens on a Unix socket at
+/// `PATH` (created with mode 0600 — only its owner can connect — and removed when dropped; a
+/// socket left by a killed run, on which nobody answers, is replaced; any other file is not),
+/// takes the first client that sends something and reads its frames as lines, like stdin: the
+/// run ends when that client closes its connection.
+#[cfg(unix)]
+pub struct SocketFrames {
+    path: std::path::PathBuf,
+    listener: std::os::unix::net::UnixListener,
+    stream: Option<std::io::BufReader<std::os::unix::net::UnixStream>>,
+    /// Whether the client has sent anything (one that closes without a byte — a probe — is
+    /// not the client: the next one is accepted).
+    heard: bool,
+}
+
+#[cfg(unix)]
+impl SocketFrames {
+    /// Listen at `path` (which must not exist).
+    pub fn bind(path: &std::path::Path) -> Result<Self, LiveError> {
+        use std::os::unix::fs::PermissionsExt;
+        // A socket left by a run that was killed: nobody answers on it, so it is replaced.
+        if std::os::unix::net::UnixStream::connect(path)
+            .is_err_and(|e| e.kind() == std::io::ErrorKind::ConnectionRefused)
+        {
+            use std::os::unix::fs::FileTypeExt;
+            if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_socket()) {
+                let _ = std::fs::remove_file(path);
+            }
+        }
+        if path.exists() {
+            return Err(LiveError::Invalid(format!(
+                "{}: already exists; remove it or choose another path for the socket",
+                path.display()
+            )));
+        }
+        let listener = std::os::unix::net::UnixListener::bind(path)
+            .map_err(|e| LiveError::Invalid(format!("{}: {e}", path.display())))?;
+        let me = Self {
+            path: path.to_path_buf(),
+            listener,
+            stream: None,
+            heard: false,
+        };
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))
+            .map_err(|e| LiveError::Invalid(format!("{}: {e}", path.display())))?;
+        Ok(me)
+    }
+
+    /// The client's stream with data buffered (or at its end), accepted on first use.
+    fn stream(
+        &mut self,
+    ) -> std::io::Result<&mut std::io::BufReader<std::os::unix::net::UnixStream>> {
+        loop {
+            if self.stream.is_none() {
+                let (s, _) = self.listener.accept()?;
+                self.stream = Some(std::io::BufReader::new(s));
+            }
+            let Some(s) = self.stream.as_mut() else {
+                continue;
+            };
+            let empty = s.fill_buf()?.is_empty();
+            if empty && !self.heard {
+                self.stream = None;
+                continue;
+            }
+            self.heard = true;
+            return self
+                .stream
+                .as_mut()
+                .ok_or_else(|| std::io::Error::other("no client"));
+        }
+    }
+}
+
+#[cfg(unix)]
+impl std::io::Read for SocketFrames {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        self.stream()?.read(buf)
+    }
+}
+
+#[cfg(unix)]
+impl BufRead for SocketFrames {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        self.stream()?.fill_buf()
+    }
+
+    fn consume(&mut self, amt: usize) {
+        if let Some(s) = self.stream.as_mut() {
+            s.consume(amt);
+        }
+    }
+}
+
+#[cfg(unix)]
+impl Drop for SocketFrames {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn frame(t0: usize) -> String {
+        let t: Vec<f64> = (t0..t0 + 3).map(|k| k as f64 * 1e-4).collect();
+        let mut obj = serde_json::Map::new();
+        for name in FRAME_CHANNELS {
+            obj.insert(name.into(), t.clone().into());
+        }
+        Value::Object(obj).to_string()
+    }
+
+    /// A line that is not UTF-8, and one longer than [`MAX_FRAME_BYTES`], are refused by line;
+    /// the frames after them are taken.
+    #[test]
+    fn undecodable_and_endless_lines_are_refused_and_the_stream_goes_on() {
+        let mut input = Vec::new();
+        input.extend_from_slice(frame(0).as_bytes());
+        input.extend_from_slice(b"\n{\"t\": [\xff\xfe]}\n");
+        input.extend_from_slice(&vec![b' '; MAX_FRAME_BYTES + 10]);
+        input.push(b'\n');
+        input.extend_from_slice(frame(3).as_bytes());
+        input.push(b'\n');
+        let mut src = FrameSource::new(std::io::Cursor::new(input), 10_000.0).unwrap();
+        assert_eq!(src.next_chunk().unwrap().unwrap().len(), 3);
+        match src.next_chunk() {
+            Err(LiveError::BadFrame { line: 2, what }) => assert!(what.contains("UTF-8"), "{what}"),
+            other => panic!("{:?}", other.map(|r| r.map(|r| r.len()))),
+        }
+        match src.next_chunk() {
+            Err(LiveError::BadFrame { line: 3, what }) => {
+                assert!(what.contains("longer than"), "{what}")
+            }
+            other => panic!("{:?}", other.map(|r| r.map(|r| r.len()))),
+        }
+        let last = src.next_chunk().unwrap().unwrap();
+        assert!((last.values("t").unwrap()[0] - 3e-4).abs() < 1e-12);
+        assert!(src.next_chunk().unwrap().is_none());
     }
 }

@@ -30,7 +30,9 @@ pub mod trace;
 
 pub use control::{Control, ControlRequest};
 pub use event::Event;
-pub use frames::{FrameSource, FRAME_CHANNELS};
+#[cfg(unix)]
+pub use frames::SocketFrames;
+pub use frames::{FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
 pub use panel::Panel;
 pub use service::{run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Summary};

@@ -55,6 +55,11 @@ pub struct Args {
     /// the format); the sample rate is --sample-rate.
     #[arg(long, value_name = "FILE|-", conflicts_with_all = ["scenario", "faults", "duration", "replay"])]
     frames: Option<PathBuf>,
+    /// Take frames from outside over a local socket: listen on a Unix socket at PATH (mode
+    /// 0600: only this user can connect; removed at the end) and read the frames of the first
+    /// client that sends any, until it closes its connection.
+    #[arg(long, value_name = "PATH", conflicts_with_all = ["scenario", "faults", "duration", "replay", "frames"])]
+    frames_socket: Option<PathBuf>,
     /// Control messages for the virtual cell, one JSON object per line, from a file or `-` for
     /// stdin: {"cmd": "speed", "rpm": 1200}, {"cmd": "throttle", "deg": 30},
     /// {"cmd": "fault", "spec": "shaft.k=1000@12"}, {"cmd": "stop"} (docs/live.md).
@@ -214,6 +219,23 @@ pub fn run(a: &Args) -> Result<()> {
 /// The source `a` asks for, a line saying what it is, and the angle of a firing TDC on its
 /// `theta_en` (a replay's first TDC marker, as the file verbs take it; else 0).
 fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
+    #[cfg(unix)]
+    if let Some(path) = &a.frames_socket {
+        let socket =
+            physid_live::SocketFrames::bind(path).map_err(|e| miette!("--frames-socket {e}"))?;
+        eprintln!("physid live: waiting for frames on {}", path.display());
+        return Ok((
+            Box::new(FrameSource::new(socket, a.sample_rate).map_err(|e| miette!("{e}"))?),
+            format!("frames on {} at {} Hz", path.display(), a.sample_rate),
+            0.0,
+        ));
+    }
+    #[cfg(not(unix))]
+    if a.frames_socket.is_some() {
+        return Err(miette!(
+            "--frames-socket: local sockets are Unix sockets; use --frames - (stdin) here"
+        ));
+    }
     Ok(match (&a.replay, &a.frames) {
         (_, Some(path)) => (
             Box::new(
