@@ -647,3 +647,98 @@ fn frames_over_a_local_socket() {
     }
     assert!(!sock.exists(), "the socket is removed at the end");
 }
+
+/// Integrity findings on the stream: encoder pulses lost from 2 s on (a sensor fault of the
+/// virtual cell) are found revolution by revolution as the run goes, with their kind and
+/// sample — the very findings `physid inspect` makes on the recorded file, whatever the chunk —
+/// and none before the fault.
+#[test]
+fn integrity_findings_on_the_stream_are_inspects() {
+    let s = Scratch::new("physid-live-integrity");
+    let file = s.file("lossy.parquet");
+    let f = file.to_str().unwrap();
+    let fault = "sensors.lost_pulses_en=0.01@2";
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "4",
+        "--fault",
+        fault,
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success());
+    let o = physid(&["inspect", f, "--json"]);
+    let inspect: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let want: Vec<(String, u64, String)> = inspect["integrity"]["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            (
+                f["kind"].as_str().unwrap().to_string(),
+                f["index"].as_u64().unwrap(),
+                f["detail"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    assert!(
+        want.len() > 10 && want.iter().all(|w| w.0 == "pulse_loss"),
+        "{want:?}"
+    );
+    let found = |ev: &[Value]| -> Vec<(String, u64, String)> {
+        let mut v: Vec<_> = of_type(ev, "finding")
+            .iter()
+            .filter(|e| e.get("kind").is_some())
+            .map(|e| {
+                (
+                    e["kind"].as_str().unwrap().to_string(),
+                    e["sample"].as_u64().unwrap(),
+                    e["message"].as_str().unwrap().to_string(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let mut want_sorted = want.clone();
+    want_sorted.sort();
+    for chunk in ["0.0017", "10"] {
+        let ev = events(&[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            f,
+            "--pace",
+            "max",
+            "--chunk",
+            chunk,
+        ]);
+        assert_eq!(found(&ev), want_sorted, "chunk {chunk}");
+    }
+    // The virtual cell itself, live: the same findings, each at the time of its sample.
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "4",
+        "--pace",
+        "max",
+        "--fault",
+        fault,
+    ]);
+    assert_eq!(found(&ev), want_sorted);
+    for e in of_type(&ev, "finding") {
+        let t = e["t_s"].as_f64().unwrap();
+        assert!(
+            (t - e["sample"].as_f64().unwrap() * 1e-4).abs() < 1e-9 && t > 1.9,
+            "{e}"
+        );
+    }
+}

@@ -260,7 +260,10 @@
     },
     control(e) { log(`${fmt(e.t_s, 3)} s: ${e.cmd}`); if (e.cmd === "pause") setState("paused"); if (e.cmd === "resume") setState("running"); },
     error(e) { log(`${fmt(e.t_s, 3)} s: ${e.input} line ${e.line}: ${e.message}`, "error"); },
-    finding(e) { log(`${fmt(e.t_s, 3)} s: ${e.message}`); },
+    finding(e) {
+      // Integrity findings (kind, sample) stand out: the data may be wrong.
+      log(`${fmt(e.t_s, 3)} s: ${e.kind ? e.kind.replace(/_/g, " ") + " at sample " + e.sample + ": " : ""}${e.message}`, e.kind ? "error" : undefined);
+    },
     end(e) {
       st.last.end = e; st.samples = e.samples; seen(e.t_s); setState("ended");
       $("samples").textContent = String(e.samples);

@@ -3,6 +3,7 @@
 
 use physid_apps::shaft_monitor::{PerParam, ShaftAlarm, ShaftSample};
 use physid_signal::cycles::CycleSummary;
+use physid_signal::integrity::FindingKind;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -88,13 +89,21 @@ pub enum Event {
         /// What was wrong.
         message: String,
     },
-    /// Something found in the stream (a gap in time or in the frames' `seq`):
-    /// `{"type": "finding", "t_s": …, "message": …}`.
+    /// Something found in the stream: `{"type": "finding", "t_s": …, "message": …}` — a gap in
+    /// the frames' `seq`, a stage that stopped, or an integrity finding, which also names its
+    /// `kind` (as `physid inspect`: `pulse_loss`, `out_of_sync`, `lost_samples`, …) and the
+    /// `sample` it is at (counted from the stream's first).
     Finding {
-        /// Recording time of the last sample before it [s].
+        /// Recording time [s]: of the sample it is at, or of the last sample before it.
         t_s: f64,
         /// What.
         message: String,
+        /// The integrity finding's kind.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        kind: Option<FindingKind>,
+        /// The sample it is at.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        sample: Option<usize>,
     },
     /// A complete engine cycle (720° from a firing TDC): the crank-angle mean of each channel,
     /// its largest sample and where in the cycle [deg] — `{"type": "cycle", "cycle": n,
@@ -188,6 +197,16 @@ pub struct LatencyMs {
 }
 
 impl Event {
+    /// A finding that is not an integrity finding (no kind, no sample).
+    pub fn finding(t_s: f64, message: String) -> Self {
+        Event::Finding {
+            t_s,
+            message,
+            kind: None,
+            sample: None,
+        }
+    }
+
     /// The shaft monitor's estimate event of an estimator sample.
     pub fn shaft_estimate(s: &ShaftSample) -> Self {
         Event::Estimate {

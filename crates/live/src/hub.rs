@@ -209,10 +209,7 @@ mod tests {
     use super::*;
 
     fn finding(k: usize) -> Event {
-        Event::Finding {
-            t_s: k as f64,
-            message: format!("m{k}"),
-        }
+        Event::finding(k as f64, format!("m{k}"))
     }
 
     /// A late subscriber gets hello, the kept messages in order, then the live ones, none twice;

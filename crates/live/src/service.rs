@@ -7,14 +7,16 @@ use crate::event::{Event, LatencyMs};
 use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
 use crate::trace::TraceStage;
+use physid_apps::acquisition::AcquisitionOptions;
 use physid_apps::error::AppError;
 use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
-use physid_core::{Recording, RecordingError};
+use physid_core::{Basis, Recording, RecordingError};
 use physid_io::IoError;
 use physid_models::friction::REGRESSION_PARAMS;
 use physid_signal::crank::CrankError;
 use physid_signal::cycles::{CycleStream, CycleSummary};
+use physid_signal::integrity::{Finding as IntegrityFinding, IntegrityOptions, IntegrityStream};
 use physid_sim::run::SimError;
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
@@ -174,6 +176,9 @@ pub fn run_live(
             None => None,
         },
         friction_out: Vec::new(),
+        integrity: None,
+        findings: Vec::new(),
+        t_first: f64::NAN,
         recorder: Recorder::new(&cfg.log_dir),
         pacer: Pacer::new(cfg.pace),
         cfg,
@@ -216,7 +221,7 @@ pub fn run_live(
         }
         if let Some(message) = source.notice() {
             let t_s = live.last_t;
-            live.send(&Event::Finding { t_s, message })?;
+            live.send(&Event::finding(t_s, message))?;
         }
         live.chunk(&chunk)?;
     }
@@ -231,6 +236,11 @@ struct Live<'a, E> {
     /// The cycle statistics and the channels they cover (set up on the first chunk).
     cycles: Option<(CycleStream, Vec<&'static str>)>,
     traces: Option<TraceStage>,
+    /// The integrity checks on the stream (set up on the first chunk) and their findings.
+    integrity: Option<IntegrityStream>,
+    findings: Vec<IntegrityFinding>,
+    /// The time of the stream's first sample [s].
+    t_first: f64,
     /// The friction characterisation (stopped, with a finding, at its first error).
     friction: Option<FrictionStage>,
     friction_out: Vec<FrictionOutput>,
@@ -341,6 +351,10 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         }
         let t = chunk.values("t")?;
         self.pacer.wait_until(t[t.len() - 1]);
+        if self.taken == 0 {
+            self.t_first = t[0];
+        }
+        self.integrity(chunk)?;
         self.taken += t.len();
         self.last_t = t[t.len() - 1];
         self.samples.clear();
@@ -402,6 +416,51 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
                 self.send(&e)?;
             }
         }
+        Ok(())
+    }
+
+    /// The integrity checks of a chunk (`physid inspect`'s, on the stream): the encoders and
+    /// the TDC marker of [`AcquisitionOptions`] the source has, time against the sample step.
+    fn integrity(&mut self, chunk: &Recording) -> Result<(), LiveError> {
+        if self.integrity.is_none() {
+            let acq = AcquisitionOptions::default();
+            let opts = IntegrityOptions {
+                encoders: acq
+                    .encoders
+                    .iter()
+                    .filter(|(n, _)| chunk.channel(n).is_ok())
+                    .cloned()
+                    .collect(),
+                marker: chunk.channel(&acq.marker).ok().map(|_| acq.marker.clone()),
+                marker_encoder: acq.encoders.first().map(|e| e.0.clone()),
+                samples_per_cycle: None,
+            };
+            self.integrity = Some(IntegrityStream::new(
+                &opts,
+                Basis::Time,
+                Some(1.0 / self.rate_hz),
+            ));
+        }
+        let Some(stream) = self.integrity.as_mut() else {
+            return Ok(());
+        };
+        self.findings.clear();
+        stream.push(chunk, &mut self.findings);
+        self.send_findings()
+    }
+
+    /// The integrity findings made certain, as events.
+    fn send_findings(&mut self) -> Result<(), LiveError> {
+        let findings = std::mem::take(&mut self.findings);
+        for f in &findings {
+            self.send(&Event::Finding {
+                t_s: self.t_first + f.index as f64 / self.rate_hz,
+                message: f.detail.clone(),
+                kind: Some(f.kind),
+                sample: Some(f.index),
+            })?;
+        }
+        self.findings = findings;
         Ok(())
     }
 
@@ -490,16 +549,21 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         if let Err(e) = result {
             self.friction = None;
             let t_s = self.last_t;
-            self.send(&Event::Finding {
+            self.send(&Event::finding(
                 t_s,
-                message: format!("friction: {e} — the friction characterisation stopped"),
-            })?;
+                format!("friction: {e} — the friction characterisation stopped"),
+            ))?;
         }
         Ok(())
     }
 
     /// The end of the stream: the stages' last output, the final estimate, `end`.
     fn finish(mut self) -> Result<Summary, LiveError> {
+        if let Some(stream) = self.integrity.take() {
+            self.findings.clear();
+            stream.finish(&mut self.findings);
+            self.send_findings()?;
+        }
         if let Some(stage) = self.friction.as_mut() {
             self.friction_out.clear();
             // The last cycle judged; a replay shorter than the choice chooses on all its cycles.

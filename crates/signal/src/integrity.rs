@@ -26,6 +26,7 @@
 use crate::encoder::marker_edges;
 use physid_core::{Basis, Recording};
 use serde::Serialize;
+use std::collections::VecDeque;
 
 /// What kind of problem.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -94,6 +95,7 @@ pub struct Integrity {
 /// Findings listed per kind before they are summarised.
 pub const MAX_PER_KIND: usize = 50;
 
+#[derive(Debug, Clone, Default)]
 struct Collector {
     findings: Vec<Finding>,
     notes: Vec<Finding>,
@@ -125,15 +127,9 @@ impl Collector {
     }
 
     fn finish(mut self) -> Integrity {
-        for (kind, total, first) in &self.counts {
-            if *total > MAX_PER_KIND {
-                self.findings.push(Finding {
-                    kind: *kind,
-                    index: *first,
-                    detail: format!(
-                        "{total} findings of this kind in all; the first {MAX_PER_KIND} are listed"
-                    ),
-                });
+        for &(kind, total, first) in &self.counts {
+            if total > MAX_PER_KIND {
+                self.findings.push(summary(kind, total, first));
             }
         }
         self.findings.sort_by_key(|f| f.index);
@@ -177,37 +173,22 @@ pub fn check(rec: &Recording, opts: &IntegrityOptions) -> Integrity {
             );
         }
     }
-    if let Ok(t) = rec.values("t") {
-        check_time(t, rec.basis == Basis::Time, &mut c);
-    }
+    // The sample-by-sample checks: the stream the live service runs, over the whole recording
+    // (gaps against the median step).
+    let step = match (rec.basis, rec.values("t")) {
+        (Basis::Time, Ok(t)) => median_step(t),
+        _ => None,
+    };
+    let mut stream = IntegrityStream::new(opts, rec.basis, step);
+    stream.c = c;
+    stream.scan(rec);
+    stream.finish_checks();
+    let mut c = stream.c;
     let marker = opts
         .marker
         .as_ref()
         .and_then(|m| rec.values(m).ok())
         .map(marker_edges);
-    let own = opts
-        .marker_encoder
-        .as_deref()
-        .or(opts.encoders.first().map(|e| e.0.as_str()));
-    for (name, ppr) in &opts.encoders {
-        let Ok(counts) = rec.values(name) else {
-            continue;
-        };
-        check_backwards(name, counts, &mut c);
-        match &marker {
-            Some(edges) if Some(name.as_str()) == own => {
-                let tol = match (rec.basis, opts.samples_per_cycle) {
-                    (Basis::CrankAngle, Some(per)) if per > 0 => {
-                        (2.0 * f64::from(*ppr) / per as f64).ceil()
-                    }
-                    _ => 0.0,
-                };
-                check_pulses(name, counts, edges, *ppr, tol, &mut c)
-            }
-            Some(edges) => check_span(name, counts, edges, *ppr, &mut c),
-            None => {}
-        }
-    }
     match rec.basis {
         Basis::Time => {
             if let Some(edges) = &marker {
@@ -274,152 +255,8 @@ pub fn median_step(t: &[f64]) -> Option<f64> {
     Some(d[mid])
 }
 
-/// Time going back or repeating; on a time basis also gaps (on a crank-angle basis the time
-/// step follows the speed).
-fn check_time(t: &[f64], uniform: bool, c: &mut Collector) {
-    let median = median_step(t).unwrap_or(f64::INFINITY);
-    for (i, w) in t.windows(2).enumerate() {
-        let dt = w[1] - w[0];
-        if dt < 0.0 {
-            c.push(
-                FindingKind::NonMonotonicTime,
-                i + 1,
-                format!("t goes back from {} s to {} s", w[0], w[1]),
-            );
-        } else if dt == 0.0 {
-            c.push(
-                FindingKind::DuplicatedSamples,
-                i + 1,
-                format!("t = {} s repeats", w[1]),
-            );
-        } else if uniform && dt > 1.5 * median {
-            let missing = (dt / median).round() as i64 - 1;
-            c.push(
-                FindingKind::LostSamples,
-                i + 1,
-                format!(
-                    "gap of {dt:.6e} s after t = {} s: about {missing} samples missing (interval {median:.6e} s)",
-                    w[0]
-                ),
-            );
-        }
-    }
-}
-
-/// The marker's own encoder, interval by interval: `ppr` pulses between markers, within `tol`
-/// pulses (0 on a time basis; on a crank-angle basis the pulses one grid step spans, since
-/// resampling places the marker and the count to one step).
-fn check_pulses(
-    name: &str,
-    counts: &[f64],
-    edges: &[usize],
-    ppr: u32,
-    tol: f64,
-    c: &mut Collector,
-) {
-    let ppr = ppr as f64;
-    let d: Vec<f64> = edges
-        .windows(2)
-        .map(|w| counts[w[1]] - counts[w[0]])
-        .collect();
-    let mut j = 0;
-    while j < d.len() {
-        let (at, next) = (edges[j], edges[j + 1]);
-        if (d[j] - ppr).abs() <= tol {
-            j += 1;
-            continue;
-        }
-        if j + 1 < d.len() && (d[j] + d[j + 1] - 2.0 * ppr).abs() <= tol {
-            c.push(
-                FindingKind::OutOfSync,
-                next,
-                format!(
-                    "'{name}': the TDC marker at sample {next} is {:+} pulses off the encoder count",
-                    d[j] - ppr
-                ),
-            );
-            j += 2;
-            continue;
-        }
-        let (kind, what) = if d[j] < ppr {
-            (FindingKind::PulseLoss, "missing")
-        } else {
-            (FindingKind::ExtraPulses, "too many")
-        };
-        c.push(
-            kind,
-            at,
-            format!(
-                "'{name}': {} pulses between the TDC markers at samples {at} and {next}, expected {ppr} ({} {what})",
-                d[j],
-                (d[j] - ppr).abs()
-            ),
-        );
-        j += 1;
-    }
-}
-
-/// A count that decreases (an encoder runs one way on a test bed; a reversal or a counter
-/// reset is worth a look).
-fn check_backwards(name: &str, counts: &[f64], c: &mut Collector) {
-    for (i, w) in counts.windows(2).enumerate() {
-        if w[1] < w[0] {
-            c.push(
-                FindingKind::CountBackwards,
-                i + 1,
-                format!(
-                    "'{name}' goes back from {} to {} at sample {}",
-                    w[0],
-                    w[1],
-                    i + 1
-                ),
-            );
-        }
-    }
-}
-
 /// Revolutions over which an encoder that is not the marker's is checked against the marker.
 const SPAN_REVS: usize = 10;
-
-/// An encoder that is not the marker's, over spans of [`SPAN_REVS`] marker revolutions: its
-/// count must advance by that many revolutions' pulses, within a twist allowance of 1/20
-/// revolution (a twist moves the count by a bounded amount each way; lost pulses add up).
-fn check_span(name: &str, counts: &[f64], edges: &[usize], ppr: u32, c: &mut Collector) {
-    let ppr = f64::from(ppr);
-    let tol = (ppr / 20.0).max(1.0);
-    // Spans start at every marker; a run of spans off by the same sign is one finding, at the
-    // first span's start (the span where the loss first shows, which holds its start).
-    let mut previous = 0i8;
-    for j in 0..edges.len().saturating_sub(SPAN_REVS) {
-        let (a, b) = (edges[j], edges[j + SPAN_REVS]);
-        let d = counts[b] - counts[a] - SPAN_REVS as f64 * ppr;
-        let sign = if d > tol {
-            1
-        } else if d < -tol {
-            -1
-        } else {
-            0
-        };
-        if sign != 0 && sign != previous {
-            let (kind, what) = if sign < 0 {
-                (FindingKind::PulseLoss, "missing")
-            } else {
-                (FindingKind::ExtraPulses, "too many")
-            };
-            c.push(
-                kind,
-                a,
-                format!(
-                    "'{name}': {} pulses over the {SPAN_REVS} revolutions between the TDC markers at samples {a} and {b}, expected {} ({} {what}, beyond the shaft-twist allowance of {tol})",
-                    counts[b] - counts[a],
-                    SPAN_REVS as f64 * ppr,
-                    d.abs()
-                ),
-            );
-        }
-        previous = sign;
-    }
-}
 
 /// Crank-angle basis: each step of `crank_deg` is the nominal one (the most common), or wraps
 /// to the next cycle; a longer step, or a cycle skipped, means samples are missing.
@@ -454,5 +291,323 @@ fn check_crank_steps(deg: &[f64], cycle: Option<&[f64]>, c: &mut Collector) {
                 ),
             );
         }
+    }
+}
+
+/// How an encoder's count is checked.
+#[derive(Debug, Clone)]
+enum EncoderCheck {
+    /// The marker's own encoder, interval by interval: `ppr` pulses between markers, within
+    /// `tol` pulses (0 on a time basis; on a crank-angle basis the pulses one grid step spans,
+    /// since resampling places the marker and the count to one step). An interval that is off
+    /// waits for the next: if the two together hold 2·ppr, the marker between them is displaced
+    /// (out of sync); else pulses are missing or too many.
+    Pulses {
+        tol: f64,
+        last_edge: Option<(usize, f64)>,
+        /// An off interval: its pulses, its first and last marker.
+        waiting: Option<(f64, usize, usize)>,
+    },
+    /// An encoder that is not the marker's, over spans of [`SPAN_REVS`] marker revolutions:
+    /// its count must advance by that many revolutions' pulses, within a twist allowance of
+    /// 1/20 revolution (a twist moves the count by a bounded amount each way; lost pulses add
+    /// up). A run of spans off by the same sign is one finding, at the first span's start.
+    Span {
+        edges: VecDeque<(usize, f64)>,
+        previous: i8,
+    },
+    /// Without a marker: only that it never goes back.
+    Count,
+}
+
+/// One encoder's state.
+#[derive(Debug, Clone)]
+struct EncoderState {
+    name: String,
+    ppr: f64,
+    prev: Option<f64>,
+    check: EncoderCheck,
+}
+
+/// The checks of [`check`] that go sample by sample — time going back or repeating (and, with a
+/// nominal step, gaps), encoder counts going back, the marker's encoder pulse by pulse between
+/// TDC markers, other encoders over spans of marker revolutions — on a stream of chunks, for
+/// the live service. [`check`] runs this over the whole recording, so the two find the same;
+/// the stream gives each finding as soon as it is certain (a pulse count that is off, once the
+/// next interval has shown the marker was not merely displaced), at most [`MAX_PER_KIND`] per
+/// kind, and sums up the rest at [`finish`](Self::finish). No allocation per sample.
+#[derive(Debug, Clone)]
+pub struct IntegrityStream {
+    /// The nominal time step [s] for gaps (time basis), `None`: no gap check.
+    step: Option<f64>,
+    seen: usize,
+    prev_t: Option<f64>,
+    marker: Option<String>,
+    prev_marker: Option<f64>,
+    encoders: Vec<EncoderState>,
+    c: Collector,
+}
+
+impl IntegrityStream {
+    /// The checks of `opts` on a recording of `basis`; `step`: the nominal time step [s] (gaps
+    /// are steps beyond 1.5 of it).
+    pub fn new(opts: &IntegrityOptions, basis: Basis, step: Option<f64>) -> Self {
+        let own = opts
+            .marker_encoder
+            .as_deref()
+            .or(opts.encoders.first().map(|e| e.0.as_str()));
+        let encoders = opts
+            .encoders
+            .iter()
+            .map(|(name, ppr)| {
+                let check = match &opts.marker {
+                    Some(_) if Some(name.as_str()) == own => EncoderCheck::Pulses {
+                        tol: match (basis, opts.samples_per_cycle) {
+                            (Basis::CrankAngle, Some(per)) if per > 0 => {
+                                (2.0 * f64::from(*ppr) / per as f64).ceil()
+                            }
+                            _ => 0.0,
+                        },
+                        last_edge: None,
+                        waiting: None,
+                    },
+                    Some(_) => EncoderCheck::Span {
+                        edges: VecDeque::with_capacity(SPAN_REVS + 1),
+                        previous: 0,
+                    },
+                    None => EncoderCheck::Count,
+                };
+                EncoderState {
+                    name: name.clone(),
+                    ppr: f64::from(*ppr),
+                    prev: None,
+                    check,
+                }
+            })
+            .collect();
+        Self {
+            step: step.filter(|s| s.is_finite() && *s > 0.0),
+            seen: 0,
+            prev_t: None,
+            marker: opts.marker.clone(),
+            prev_marker: None,
+            encoders,
+            c: Collector::default(),
+        }
+    }
+
+    /// Take a chunk (its `t`, encoder and marker channels; the ones it lacks are not checked);
+    /// the findings it makes certain are appended to `out`.
+    pub fn push(&mut self, chunk: &Recording, out: &mut Vec<Finding>) {
+        self.scan(chunk);
+        out.append(&mut self.c.findings);
+    }
+
+    /// The end of the stream: an interval still waiting is judged, and kinds with more than
+    /// [`MAX_PER_KIND`] findings are summed up.
+    pub fn finish(mut self, out: &mut Vec<Finding>) {
+        self.finish_checks();
+        let counts = std::mem::take(&mut self.c.counts);
+        out.append(&mut self.c.findings);
+        for (kind, total, first) in counts {
+            if total > MAX_PER_KIND {
+                out.push(summary(kind, total, first));
+            }
+        }
+    }
+
+    /// Samples counted so far.
+    pub fn samples(&self) -> usize {
+        self.seen
+    }
+
+    fn scan(&mut self, chunk: &Recording) {
+        let n = chunk.len();
+        if let Ok(t) = chunk.values("t") {
+            self.scan_time(t);
+        }
+        let marker = self.marker.as_ref().and_then(|m| chunk.values(m).ok());
+        for e in 0..self.encoders.len() {
+            let Ok(counts) = chunk.values(&self.encoders[e].name) else {
+                continue;
+            };
+            let mut prev_marker = self.prev_marker;
+            for i in 0..n {
+                let index = self.seen + i;
+                let edge = marker.is_some_and(|m| {
+                    let v = m[i];
+                    let rising = v != 0.0 && prev_marker.is_none_or(|p| p == 0.0);
+                    prev_marker = Some(v);
+                    rising
+                });
+                self.encoder_sample(e, index, counts[i], edge);
+            }
+        }
+        if let Some(&last) = marker.and_then(|m| m.last()) {
+            self.prev_marker = Some(last);
+        }
+        self.seen += n;
+    }
+
+    /// Time going back or repeating; with a nominal step, gaps.
+    fn scan_time(&mut self, t: &[f64]) {
+        for (i, &now) in t.iter().enumerate() {
+            let index = self.seen + i;
+            if let Some(before) = self.prev_t {
+                let dt = now - before;
+                if dt < 0.0 {
+                    self.c.push(
+                        FindingKind::NonMonotonicTime,
+                        index,
+                        format!("t goes back from {before} s to {now} s"),
+                    );
+                } else if dt == 0.0 {
+                    self.c.push(
+                        FindingKind::DuplicatedSamples,
+                        index,
+                        format!("t = {now} s repeats"),
+                    );
+                } else if let Some(step) = self.step.filter(|s| dt > 1.5 * s) {
+                    let missing = (dt / step).round() as i64 - 1;
+                    self.c.push(
+                        FindingKind::LostSamples,
+                        index,
+                        format!(
+                            "gap of {dt:.6e} s after t = {before} s: about {missing} samples missing (interval {step:.6e} s)"
+                        ),
+                    );
+                }
+            }
+            self.prev_t = Some(now);
+        }
+    }
+
+    /// One sample of encoder `e` (`edge`: a TDC marker rises here).
+    fn encoder_sample(&mut self, e: usize, index: usize, count: f64, edge: bool) {
+        let enc = &mut self.encoders[e];
+        if let Some(p) = enc.prev {
+            if count < p {
+                let detail = format!(
+                    "'{}' goes back from {p} to {count} at sample {index}",
+                    enc.name
+                );
+                self.c.push(FindingKind::CountBackwards, index, detail);
+            }
+        }
+        enc.prev = Some(count);
+        if !edge {
+            return;
+        }
+        let (name, ppr) = (enc.name.clone(), enc.ppr);
+        match &mut enc.check {
+            EncoderCheck::Pulses {
+                tol,
+                last_edge,
+                waiting,
+            } => {
+                let tol = *tol;
+                let Some((at, c0)) = last_edge.replace((index, count)) else {
+                    return;
+                };
+                let d = count - c0;
+                if let Some((d0, at0, next0)) = waiting.take() {
+                    if (d0 + d - 2.0 * ppr).abs() <= tol {
+                        self.c.push(
+                            FindingKind::OutOfSync,
+                            next0,
+                            format!(
+                                "'{name}': the TDC marker at sample {next0} is {:+} pulses off the encoder count",
+                                d0 - ppr
+                            ),
+                        );
+                        return;
+                    }
+                    pulse_finding(&mut self.c, &name, ppr, d0, at0, next0);
+                }
+                if (d - ppr).abs() > tol {
+                    if let EncoderCheck::Pulses { waiting, .. } = &mut self.encoders[e].check {
+                        *waiting = Some((d, at, index));
+                    }
+                }
+            }
+            EncoderCheck::Span { edges, previous } => {
+                edges.push_back((index, count));
+                if edges.len() <= SPAN_REVS {
+                    return;
+                }
+                let Some((a, ca)) = edges.pop_front() else {
+                    return;
+                };
+                let (b, cb) = (index, count);
+                let tol = (ppr / 20.0).max(1.0);
+                let d = cb - ca - SPAN_REVS as f64 * ppr;
+                let sign = if d > tol {
+                    1
+                } else if d < -tol {
+                    -1
+                } else {
+                    0
+                };
+                let report = sign != 0 && sign != *previous;
+                *previous = sign;
+                if report {
+                    let (kind, what) = if sign < 0 {
+                        (FindingKind::PulseLoss, "missing")
+                    } else {
+                        (FindingKind::ExtraPulses, "too many")
+                    };
+                    self.c.push(
+                        kind,
+                        a,
+                        format!(
+                            "'{name}': {} pulses over the {SPAN_REVS} revolutions between the TDC markers at samples {a} and {b}, expected {} ({} {what}, beyond the shaft-twist allowance of {tol})",
+                            cb - ca,
+                            SPAN_REVS as f64 * ppr,
+                            d.abs()
+                        ),
+                    );
+                }
+            }
+            EncoderCheck::Count => {}
+        }
+    }
+
+    /// Judge the intervals still waiting (no next interval will come).
+    fn finish_checks(&mut self) {
+        for enc in &mut self.encoders {
+            if let EncoderCheck::Pulses { waiting, .. } = &mut enc.check {
+                if let Some((d, at, next)) = waiting.take() {
+                    pulse_finding(&mut self.c, &enc.name, enc.ppr, d, at, next);
+                }
+            }
+        }
+    }
+}
+
+/// Pulses missing or too many between the markers at samples `at` and `next`.
+fn pulse_finding(c: &mut Collector, name: &str, ppr: f64, d: f64, at: usize, next: usize) {
+    let (kind, what) = if d < ppr {
+        (FindingKind::PulseLoss, "missing")
+    } else {
+        (FindingKind::ExtraPulses, "too many")
+    };
+    c.push(
+        kind,
+        at,
+        format!(
+            "'{name}': {d} pulses between the TDC markers at samples {at} and {next}, expected {ppr} ({} {what})",
+            (d - ppr).abs()
+        ),
+    );
+}
+
+/// The finding that sums up a kind found more than [`MAX_PER_KIND`] times.
+fn summary(kind: FindingKind, total: usize, first: usize) -> Finding {
+    Finding {
+        kind,
+        index: first,
+        detail: format!(
+            "{total} findings of this kind in all; the first {MAX_PER_KIND} are listed"
+        ),
     }
 }

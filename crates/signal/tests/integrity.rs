@@ -4,7 +4,9 @@
 
 use physid_core::{Basis, Channel, Recording};
 use physid_signal::encoder::counts_from_angle;
-use physid_signal::integrity::{check, FindingKind, IntegrityOptions, MAX_PER_KIND};
+use physid_signal::integrity::{
+    check, Finding, FindingKind, IntegrityOptions, IntegrityStream, MAX_PER_KIND,
+};
 
 fn rec(channels: Vec<(&str, Vec<f64>)>, basis: Basis) -> Recording {
     let mut r = Recording::new(basis);
@@ -203,8 +205,10 @@ fn a_count_going_back_is_found_where_it_does() {
     assert_eq!((back.len(), back[0].index), (1, 4321), "{:?}", r.findings);
 }
 
-#[test]
-fn each_defect_is_found_where_it_is() {
+/// [`clean`] with defects: 3 samples lost after sample 5000, a repeated time stamp at 7000,
+/// time going back at 9000, two pulses lost around 12 000, the marker after 15 000 displaced
+/// 40 samples late (returned: where it was).
+fn defective() -> (Vec<f64>, Vec<f64>, Vec<f64>, usize) {
     let (mut t, mut c, mut m) = clean();
     // Lost samples: remove 3 samples' worth of time after sample 5000.
     for v in &mut t[5001..] {
@@ -226,7 +230,13 @@ fn each_defect_is_found_where_it_is() {
     let e = *edges.iter().find(|&&e| e > 15_000).unwrap();
     m[e] = 0.0;
     m[e + 40] = 1.0; // 40 samples ≈ 23 pulses late
-                     // A NaN in a channel.
+    (t, c, m, e)
+}
+
+#[test]
+fn each_defect_is_found_where_it_is() {
+    let (t, c, m, e) = defective();
+    // A NaN in a channel.
     let mut p = vec![1e5; t.len()];
     p[123] = f64::NAN;
     let r = check(
@@ -316,4 +326,63 @@ fn units_off_the_table_are_found() {
     assert!(i.findings[0]
         .detail
         .contains("'T_oil' is in 'degC'; physid expects 'K'"));
+}
+
+/// The stream the live service runs finds what the whole-record check finds — the same kinds
+/// at the same samples with the same words — for chunks of 1, 17, 4096 samples and whole:
+/// time defects, lost pulses, a displaced marker, a second encoder losing pulses over spans,
+/// and the cap with its summary.
+#[test]
+fn the_stream_finds_what_the_whole_record_check_finds() {
+    let (t, c, m, _) = defective();
+    let theta_dy: Vec<f64> = (0..t.len()).map(|i| i as f64 * 1e-2 - 0.05).collect();
+    let mut dy = counts_from_angle(&theta_dy, 1024);
+    let mut lost = 0.0;
+    for i in 10_000..dy.len() {
+        if i % 97 == 0 {
+            lost += 1.0;
+        }
+        dy[i] -= lost;
+    }
+    let o = IntegrityOptions {
+        encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
+        ..opts()
+    };
+    let r = rec(
+        vec![("t", t), ("count_en", c), ("tdc", m), ("count_dy", dy)],
+        Basis::Time,
+    );
+    let sorted = |mut v: Vec<Finding>| {
+        v.sort_by(|a, b| (a.index, &a.detail).cmp(&(b.index, &b.detail)));
+        v
+    };
+    let whole = sorted(check(&r, &o).findings);
+    let kinds = |k| whole.iter().filter(|f| f.kind == k).count();
+    assert!(kinds(FindingKind::OutOfSync) == 1 && kinds(FindingKind::LostSamples) == 1);
+    assert!(kinds(FindingKind::PulseLoss) >= 2, "{whole:?}");
+    for chunk in [1, 17, 4096, r.len()] {
+        let mut s = IntegrityStream::new(&o, Basis::Time, Some(1e-4));
+        let mut out = Vec::new();
+        for start in (0..r.len()).step_by(chunk) {
+            s.push(&r.slice(start..(start + chunk).min(r.len())), &mut out);
+        }
+        assert_eq!(s.samples(), r.len());
+        s.finish(&mut out);
+        assert_eq!(sorted(out), whole, "chunk {chunk}");
+    }
+    // Hundreds of duplicated samples: the cap and the summary, as the whole-record check.
+    let dup = rec(
+        vec![("t", (0..1000).map(|i| (i / 2) as f64).collect())],
+        Basis::Time,
+    );
+    let mut s = IntegrityStream::new(&IntegrityOptions::default(), Basis::Time, None);
+    let mut out = Vec::new();
+    for start in (0..1000).step_by(17) {
+        s.push(&dup.slice(start..(start + 17).min(1000)), &mut out);
+    }
+    s.finish(&mut out);
+    assert_eq!(
+        sorted(out),
+        sorted(check(&dup, &IntegrityOptions::default()).findings)
+    );
 }

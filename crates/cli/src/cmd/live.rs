@@ -205,10 +205,7 @@ pub fn run(a: &Args) -> Result<()> {
     // Controls sent from now on are answered "the run has ended".
     drop(rx);
     if let Err(e) = &result {
-        let _ = hub.publish(&Event::Finding {
-            t_s: f64::NAN,
-            message: format!("the run stopped: {e}"),
-        });
+        let _ = hub.publish(&Event::finding(f64::NAN, format!("the run stopped: {e}")));
         eprintln!("physid live: the run stopped: {e}");
     }
     eprintln!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
