@@ -338,11 +338,11 @@ fn the_stream_finds_what_the_whole_record_check_finds() {
     let theta_dy: Vec<f64> = (0..t.len()).map(|i| i as f64 * 1e-2 - 0.05).collect();
     let mut dy = counts_from_angle(&theta_dy, 1024);
     let mut lost = 0.0;
-    for i in 10_000..dy.len() {
+    for (i, v) in dy.iter_mut().enumerate().skip(10_000) {
         if i % 97 == 0 {
             lost += 1.0;
         }
-        dy[i] -= lost;
+        *v -= lost;
     }
     let o = IntegrityOptions {
         encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
