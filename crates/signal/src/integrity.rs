@@ -484,21 +484,22 @@ impl IntegrityStream {
 
     /// One sample of encoder `e` (`edge`: a TDC marker rises here).
     fn encoder_sample(&mut self, e: usize, index: usize, count: f64, edge: bool) {
-        let enc = &mut self.encoders[e];
+        let Self { encoders, c, .. } = self;
+        let enc = &mut encoders[e];
         if let Some(p) = enc.prev {
             if count < p {
                 let detail = format!(
                     "'{}' goes back from {p} to {count} at sample {index}",
                     enc.name
                 );
-                self.c.push(FindingKind::CountBackwards, index, detail);
+                c.push(FindingKind::CountBackwards, index, detail);
             }
         }
         enc.prev = Some(count);
         if !edge {
             return;
         }
-        let (name, ppr) = (enc.name.clone(), enc.ppr);
+        let (name, ppr) = (enc.name.as_str(), enc.ppr);
         match &mut enc.check {
             EncoderCheck::Pulses {
                 tol,
@@ -512,7 +513,7 @@ impl IntegrityStream {
                 let d = count - c0;
                 if let Some((d0, at0, next0)) = waiting.take() {
                     if (d0 + d - 2.0 * ppr).abs() <= tol {
-                        self.c.push(
+                        c.push(
                             FindingKind::OutOfSync,
                             next0,
                             format!(
@@ -522,12 +523,10 @@ impl IntegrityStream {
                         );
                         return;
                     }
-                    pulse_finding(&mut self.c, &name, ppr, d0, at0, next0);
+                    pulse_finding(c, name, ppr, d0, at0, next0);
                 }
                 if (d - ppr).abs() > tol {
-                    if let EncoderCheck::Pulses { waiting, .. } = &mut self.encoders[e].check {
-                        *waiting = Some((d, at, index));
-                    }
+                    *waiting = Some((d, at, index));
                 }
             }
             EncoderCheck::Span { edges, previous } => {
@@ -556,7 +555,7 @@ impl IntegrityStream {
                     } else {
                         (FindingKind::ExtraPulses, "too many")
                     };
-                    self.c.push(
+                    c.push(
                         kind,
                         a,
                         format!(
