@@ -571,7 +571,7 @@ fn the_logging_control_writes_the_live_data() {
         "--scenario",
         "shaft-steady",
         "--duration",
-        "3",
+        "6",
         "--pace",
         "3",
         "--log-dir",
@@ -583,7 +583,10 @@ fn the_logging_control_writes_the_live_data() {
     });
     for (body, want) in [
         (r#"{"cmd":"record","file":"../up.parquet"}"#, "field 'file'"),
-        (r#"{"cmd":"record","file":"run.csv"}"#, "ending in .parquet"),
+        (
+            r#"{"cmd":"record","file":"run.csv"}"#,
+            "ending in .parquet or .mf4",
+        ),
         (r#"{"cmd":"record","stop":true}"#, "no log is being written"),
         (r#"{"cmd":"record"}"#, "field 'file'"),
     ] {
@@ -629,21 +632,50 @@ fn the_logging_control_writes_the_live_data() {
         "--scenario",
         "shaft-steady",
         "--duration",
-        "3",
+        "6",
         "--out",
         sim.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let sim = physid_io::read_parquet(&sim, None).unwrap();
-    let t0 = logged.values("t").unwrap()[0];
-    let k0 = sim
-        .values("t")
-        .unwrap()
-        .iter()
-        .position(|&t| t == t0)
-        .expect("the first logged time in the simulation");
-    for c in logged.channels() {
-        let want = &sim.values(&c.name).unwrap()[k0..k0 + logged.len()];
-        assert!(c.values == want, "channel {} differs", c.name);
-    }
+    let same_as_simulated = |logged: &physid_core::Recording| {
+        let t0 = logged.values("t").unwrap()[0];
+        let k0 = sim
+            .values("t")
+            .unwrap()
+            .iter()
+            .position(|&t| t == t0)
+            .expect("the first logged time in the simulation");
+        for c in logged.channels() {
+            let want = &sim.values(&c.name).unwrap()[k0..k0 + logged.len()];
+            assert!(c.values == want, "channel {} differs", c.name);
+            assert_eq!(c.unit, sim.channel(&c.name).unwrap().unit, "{}", c.name);
+        }
+    };
+    same_as_simulated(&logged);
+    // And to MDF4, which asammdf and MATLAB users open: the same samples, every channel.
+    let (code, reply) = post(
+        live.addr,
+        "/api/control",
+        r#"{"cmd":"record","file":"run-2.mf4"}"#,
+    );
+    assert_eq!(code, 200, "{reply}");
+    sse.until(30, |e| {
+        e["type"] == "log"
+            && e["file"].as_str().unwrap().ends_with("run-2.mf4")
+            && e["samples"].as_u64().unwrap() > 5_000
+    });
+    let (code, _) = post(live.addr, "/api/control", r#"{"cmd":"record","stop":true}"#);
+    assert_eq!(code, 200);
+    let closed = sse.until(30, |e| e["type"] == "log" && e["state"] == "closed");
+    let closed = &closed.last().unwrap().1;
+    let file = dir.join("run-2.mf4");
+    assert_eq!(
+        closed["bytes"].as_u64().unwrap(),
+        std::fs::metadata(&file).unwrap().len()
+    );
+    let logged = physid_io::read_mdf(&file, None).unwrap();
+    assert_eq!(closed["samples"].as_u64().unwrap() as usize, logged.len());
+    assert_eq!(logged.channels().len(), sim.channels().len());
+    same_as_simulated(&logged);
 }

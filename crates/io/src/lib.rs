@@ -16,7 +16,7 @@ pub use csv_file::{read_csv, write_csv, CsvOptions};
 pub use format::{
     basis_by_channels, detect, read, write, Format, MapItem, ReadOptions, WriteOptions,
 };
-pub use mdf::{read_mdf, write_mdf, MdfCompression};
+pub use mdf::{read_mdf, write_mdf, MdfCompression, MdfWriter};
 pub use parquet_file::{read_parquet, write_parquet, ParquetWriter};
 
 /// Errors reading or writing recording files.

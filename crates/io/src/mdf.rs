@@ -244,3 +244,202 @@ pub fn write_mdf(
     }
     w.write_to_file(path.as_ref()).map_err(|e| mdf_err(&p, e))
 }
+
+/// An MDF4 file written as the samples arrive (the live service's log): one group, every
+/// channel as float64 after the time master, in one uncompressed data block that grows at the
+/// end of the file. The blocks before it are `falcon_mdf`'s own for a group with no samples
+/// yet; each chunk appends its records, and [`close`](Self::close) writes the block's length
+/// and the group's record count into them. Memory stays one record, however long it records,
+/// and the file is byte for byte what [`write_mdf`] writes for the same recording uncompressed.
+pub struct MdfWriter {
+    path: String,
+    names: Vec<String>,
+    out: std::io::BufWriter<std::fs::File>,
+    header_len: u64,
+    /// Where the data block starts, and where the group's record count is.
+    dt_off: u64,
+    cycle_count_off: u64,
+    record: Vec<u8>,
+    rows: usize,
+    last_t: f64,
+}
+
+/// A little-endian u64 at `at` of `b`.
+fn u64_at(b: &[u8], at: u64) -> Option<u64> {
+    let at = usize::try_from(at).ok()?;
+    Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
+}
+
+impl MdfWriter {
+    /// Create `path` for recordings with `like`'s channels (which must include the time `t`
+    /// [s]) and units; `start_time_ns` as [`write_mdf`]'s.
+    pub fn create(
+        path: impl AsRef<Path>,
+        like: &Recording,
+        start_time_ns: Option<i64>,
+    ) -> Result<Self, IoError> {
+        let p = path.as_ref().display().to_string();
+        if like.channel("t").is_err() {
+            return Err(IoError::Malformed {
+                path: p,
+                detail: "MDF4 files carry a time master: the recording needs a 't' channel [s]"
+                    .into(),
+            });
+        }
+        let mut w = match start_time_ns {
+            Some(ns) => Mf4Writer::with_start_time_ns(ns),
+            None => Mf4Writer::new(),
+        };
+        let g = w.add_group(&[]).map_err(|e| mdf_err(&p, e))?;
+        let names: Vec<String> = like
+            .channels()
+            .iter()
+            .filter(|c| c.name != "t")
+            .map(|c| c.name.clone())
+            .collect();
+        for ch in like.channels().iter().filter(|c| c.name != "t") {
+            g.add_channel(&ch.name, &ch.unit, &[])
+                .map_err(|e| mdf_err(&p, format!("channel '{}': {e}", ch.name)))?;
+        }
+        let mut header = Vec::new();
+        w.write(&mut header).map_err(|e| mdf_err(&p, e))?;
+        // Find the data block and the record count: HD (at 64) → its first DG → the DG's first
+        // CG and its data block, which must be the file's last block, still empty.
+        let bad = |what: &str| {
+            mdf_err(
+                &p,
+                format!("unexpected block layout from falcon_mdf: {what}"),
+            )
+        };
+        let id = |at: u64| {
+            usize::try_from(at)
+                .ok()
+                .and_then(|a| header.get(a..a + 4))
+                .map(|s| s.to_vec())
+        };
+        let dg = u64_at(&header, 64 + 24).ok_or_else(|| bad("no HD"))?;
+        let cg = u64_at(&header, dg + 32).ok_or_else(|| bad("no DG"))?;
+        let dt_off = u64_at(&header, dg + 40).ok_or_else(|| bad("no DG data link"))?;
+        let links = u64_at(&header, cg + 16).ok_or_else(|| bad("no CG"))?;
+        let cycle_count_off = cg + 24 + 8 * links + 8;
+        let data_bytes_off = usize::try_from(cycle_count_off + 16).map_err(|_| bad("CG"))?;
+        let data_bytes = header
+            .get(data_bytes_off..data_bytes_off + 4)
+            .and_then(|b| b.try_into().ok())
+            .map(u32::from_le_bytes)
+            .ok_or_else(|| bad("CG record size"))?;
+        let record_len = 8 * (names.len() + 1);
+        if id(dg).as_deref() != Some(b"##DG")
+            || id(cg).as_deref() != Some(b"##CG")
+            || id(dt_off).as_deref() != Some(b"##DT")
+            || dt_off + 24 != header.len() as u64
+            || data_bytes as usize != record_len
+        {
+            return Err(bad("not one empty DT block of float64 records at the end"));
+        }
+        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
+            path: p.clone(),
+            source,
+        })?;
+        let mut out = std::io::BufWriter::new(file);
+        std::io::Write::write_all(&mut out, &header).map_err(|source| IoError::Os {
+            path: p.clone(),
+            source,
+        })?;
+        Ok(Self {
+            path: p,
+            names,
+            out,
+            header_len: header.len() as u64,
+            dt_off,
+            cycle_count_off,
+            record: Vec::with_capacity(record_len),
+            rows: 0,
+            last_t: f64::NEG_INFINITY,
+        })
+    }
+
+    /// Append `rec`'s samples (the file's channels; its time must go on forward and be finite).
+    pub fn append(&mut self, rec: &Recording) -> Result<(), IoError> {
+        let bad = |detail: String| IoError::Malformed {
+            path: self.path.clone(),
+            detail,
+        };
+        let t = rec
+            .values("t")
+            .map_err(|_| bad("appending samples without 't'".into()))?;
+        let cols = self
+            .names
+            .iter()
+            .map(|n| rec.values(n))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| bad(format!("appending to an MDF4 log: {e}")))?;
+        if rec.channels().len() != self.names.len() + 1 {
+            return Err(bad(format!(
+                "appending {} channels to a file of {}",
+                rec.channels().len(),
+                self.names.len() + 1
+            )));
+        }
+        let mut last = self.last_t;
+        for (i, &ti) in t.iter().enumerate() {
+            if !(ti.is_finite() && ti >= last) {
+                return Err(bad(format!(
+                    "MDF4 orders records by their time master: 't' is {ti} after {last} (sample {i} of the chunk)"
+                )));
+            }
+            last = ti;
+        }
+        for i in 0..t.len() {
+            self.record.clear();
+            self.record.extend_from_slice(&t[i].to_le_bytes());
+            for c in &cols {
+                self.record.extend_from_slice(&c[i].to_le_bytes());
+            }
+            std::io::Write::write_all(&mut self.out, &self.record).map_err(|source| {
+                IoError::Os {
+                    path: self.path.clone(),
+                    source,
+                }
+            })?;
+        }
+        self.last_t = last;
+        self.rows += t.len();
+        Ok(())
+    }
+
+    /// Samples written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Bytes in the file so far (written and buffered).
+    pub fn bytes(&self) -> usize {
+        (self.header_len + (self.rows * 8 * (self.names.len() + 1)) as u64) as usize
+    }
+
+    /// Finish the file: the data block's length and the record count.
+    pub fn close(self) -> Result<(), IoError> {
+        use std::io::{Seek, SeekFrom, Write};
+        let Self {
+            path,
+            names,
+            out,
+            dt_off,
+            cycle_count_off,
+            rows,
+            ..
+        } = self;
+        let os = |source| IoError::Os {
+            path: path.clone(),
+            source,
+        };
+        let mut file = out.into_inner().map_err(|e| os(e.into_error()))?;
+        let dt_len = 24 + (rows * 8 * (names.len() + 1)) as u64;
+        file.seek(SeekFrom::Start(dt_off + 8)).map_err(os)?;
+        file.write_all(&dt_len.to_le_bytes()).map_err(os)?;
+        file.seek(SeekFrom::Start(cycle_count_off)).map_err(os)?;
+        file.write_all(&(rows as u64).to_le_bytes()).map_err(os)?;
+        file.sync_all().map_err(os)
+    }
+}

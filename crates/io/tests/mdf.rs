@@ -233,3 +233,44 @@ fn a_record_count_corrupted_smaller_than_the_data_is_refused() {
         );
     }
 }
+
+/// The log written as the samples arrive ([`MdfWriter`]): for chunks of 1, 17 and 64 samples
+/// and whole it is byte for byte the committed file that asammdf opened (`gen_asammdf.py
+/// --check`), i.e. what `write_mdf` writes uncompressed; time that goes back is refused
+/// naming it.
+#[test]
+fn the_streaming_writer_writes_the_file_asammdf_read() {
+    use physid_io::MdfWriter;
+    let rec = written();
+    let golden = std::fs::read(dir().join("physid_written.mf4")).unwrap();
+    let scratch = physid_testkit::Scratch::new("physid-mdf-stream");
+    for chunk in [1, 17, 64, rec.len()] {
+        let out = scratch.file(&format!("s{chunk}.mf4"));
+        let mut w = MdfWriter::create(&out, &rec, Some(1_700_000_000_000_000_000)).unwrap();
+        for start in (0..rec.len()).step_by(chunk) {
+            w.append(&rec.slice(start..(start + chunk).min(rec.len())))
+                .unwrap();
+        }
+        assert_eq!(w.rows(), rec.len());
+        let reported = w.bytes();
+        w.close().unwrap();
+        let bytes = std::fs::read(&out).unwrap();
+        assert_eq!(reported, bytes.len());
+        assert!(
+            bytes == golden,
+            "chunk {chunk}: not the asammdf-checked file"
+        );
+    }
+    // Time going back: refused, naming it; the samples before it are kept.
+    let out = scratch.file("back.mf4");
+    let mut w = MdfWriter::create(&out, &rec, None).unwrap();
+    w.append(&rec.slice(100..200)).unwrap();
+    let e = w.append(&rec.slice(0..10)).unwrap_err().to_string();
+    assert!(e.contains("time master") && e.contains("back.mf4"), "{e}");
+    w.close().unwrap();
+    let back = read_mdf(&out, None).unwrap();
+    assert_eq!(
+        back.values("t").unwrap(),
+        &rec.values("t").unwrap()[100..200]
+    );
+}

@@ -8,7 +8,7 @@
 //! | `{"cmd": "throttle", "deg": 30}` | the throttle opening from now on [deg] |
 //! | `{"cmd": "fault", "spec": "shaft.k=1000@12"}` | a fault, as `--fault` (its time is the recording's) |
 //! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
-//! | `{"cmd": "record", "file": "NAME.parquet"}`, `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory, and finish it |
+//! | `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`), `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory (Parquet or MDF4), and finish it |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
 //!
 //! A malformed message is refused with an error naming the field; the run goes on.
@@ -88,7 +88,7 @@ impl Control {
                 (None, Some(Value::Bool(true))) => Ok(Control::Record(None)),
                 (Some(Value::String(f)), None) => Ok(Control::Record(Some(f.clone()))),
                 _ => Err(
-                    "field 'file' (a file name ending in .parquet) or 'stop' (true): expected one of them"
+                    "field 'file' (a file name ending in .parquet or .mf4) or 'stop' (true): expected one of them"
                         .into(),
                 ),
             },

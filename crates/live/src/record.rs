@@ -1,7 +1,8 @@
-//! Logging the live data: `{"cmd": "record", "file": "NAME.parquet"}` starts writing every
-//! channel of every chunk to `NAME.parquet` in the log directory (`--log-dir`, default
-//! `physid-logs`), `{"cmd": "record", "stop": true}` finishes the file. The file is written as
-//! the chunks arrive, a row group every 65 536 rows, so memory stays bounded however long it
+//! Logging the live data: `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`) starts
+//! writing every channel of every chunk to that file in the log directory (`--log-dir`,
+//! default `physid-logs`), `{"cmd": "record", "stop": true}` finishes the file. The file is
+//! written as the chunks arrive — Parquet a row group every 65 536 rows, MDF4 record by record
+//! into one growing data block ([`MdfWriter`]) — so memory stays bounded however long it
 //! records; its size is reported in `log` events (each second of recording and at the end).
 //!
 //! Only a plain file name is taken (no directory part, no overwriting): a panel that may be
@@ -10,17 +11,66 @@
 use crate::event::Event;
 use crate::service::LiveError;
 use physid_core::Recording;
-use physid_io::ParquetWriter;
+use physid_io::{IoError, MdfWriter, ParquetWriter};
 use std::path::{Path, PathBuf};
 
 /// Rows per row group of a log.
 const ROWS_PER_GROUP: usize = 65_536;
 
+/// A log's writer.
+enum LogWriter {
+    Parquet(ParquetWriter),
+    Mdf(MdfWriter),
+}
+
+impl LogWriter {
+    /// The writer for `path`'s extension, for chunks like `like`.
+    fn create(path: &Path, like: &Recording) -> Result<Self, IoError> {
+        if path.extension().is_some_and(|e| e == "mf4") {
+            Ok(Self::Mdf(MdfWriter::create(path, like, None)?))
+        } else {
+            Ok(Self::Parquet(ParquetWriter::create(
+                path,
+                like,
+                ROWS_PER_GROUP,
+            )?))
+        }
+    }
+
+    fn append(&mut self, chunk: &Recording) -> Result<(), IoError> {
+        match self {
+            Self::Parquet(w) => w.append(chunk),
+            Self::Mdf(w) => w.append(chunk),
+        }
+    }
+
+    fn rows(&self) -> usize {
+        match self {
+            Self::Parquet(w) => w.rows(),
+            Self::Mdf(w) => w.rows(),
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        match self {
+            Self::Parquet(w) => w.bytes(),
+            Self::Mdf(w) => w.bytes(),
+        }
+    }
+
+    fn close(self) -> Result<(), IoError> {
+        match self {
+            Self::Parquet(w) => w.close(),
+            Self::Mdf(w) => w.close(),
+        }
+    }
+}
+
 /// The log being written, if any.
 pub struct Recorder {
     dir: PathBuf,
     /// The file asked for, and its writer once the first chunk has come.
-    file: Option<(PathBuf, Option<ParquetWriter>)>,
+    file: Option<(PathBuf, Option<LogWriter>)>,
     last_report: f64,
 }
 
@@ -46,9 +96,9 @@ impl Recorder {
                 self.dir.display()
             ));
         }
-        if !name.ends_with(".parquet") {
+        if !(name.ends_with(".parquet") || name.ends_with(".mf4")) {
             return Err(format!(
-                "field 'file' is '{name}': expected a name ending in .parquet"
+                "field 'file' is '{name}': expected a name ending in .parquet or .mf4"
             ));
         }
         std::fs::create_dir_all(&self.dir)
@@ -69,7 +119,7 @@ impl Recorder {
         };
         let w = match writer {
             Some(w) => w,
-            None => writer.insert(ParquetWriter::create(&*path, chunk, ROWS_PER_GROUP)?),
+            None => writer.insert(LogWriter::create(path, chunk)?),
         };
         w.append(chunk)?;
         if t_s - self.last_report < 1.0 {
@@ -90,7 +140,7 @@ impl Recorder {
         let Some((path, writer)) = self.file.take() else {
             return Ok(None);
         };
-        let samples = writer.as_ref().map_or(0, ParquetWriter::rows);
+        let samples = writer.as_ref().map_or(0, LogWriter::rows);
         if let Some(w) = writer {
             w.close()?;
         }
