@@ -19,7 +19,7 @@ const ROWS_PER_GROUP: usize = 65_536;
 
 /// A log's writer.
 enum LogWriter {
-    Parquet(ParquetWriter),
+    Parquet(Box<ParquetWriter>),
     Mdf(MdfWriter),
 }
 
@@ -29,11 +29,11 @@ impl LogWriter {
         if path.extension().is_some_and(|e| e == "mf4") {
             Ok(Self::Mdf(MdfWriter::create(path, like, None)?))
         } else {
-            Ok(Self::Parquet(ParquetWriter::create(
+            Ok(Self::Parquet(Box::new(ParquetWriter::create(
                 path,
                 like,
                 ROWS_PER_GROUP,
-            )?))
+            )?)))
         }
     }
 
