@@ -18,7 +18,7 @@
 //!    defines it (Eq. 6.4 — ill-defined for a torque whose mean is near zero, SPEC §5.3), and
 //!    NRMSE.
 
-use crate::acquisition::{to_crank_angle, AcquisitionOptions};
+use crate::acquisition::{marker_tdc_angle, to_crank_angle, AcquisitionOptions};
 use crate::error::AppError;
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
 use physid_estim::metrics::{nmse, nrmse};
@@ -29,10 +29,12 @@ use physid_ident::{
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
 use physid_models::friction::thesis_preset;
 use physid_models::friction_fit::fit_friction_cubic;
+use physid_signal::cycles::{CycleStream, CycleSummary};
 use physid_sim::params::CellParams;
 use physid_sim::run::parameter_truth;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::f64::consts::PI;
 
 /// The relative cut-off of the cyclic-torque ranking: residuals below 1e-6 of the first are
 /// at the level of the measured oil temperature's noise (0.1 K on 363 K, squared), which is all
@@ -330,145 +332,509 @@ impl TorqueFit {
     }
 }
 
-/// Run Application 3 on a crank-angle recording.
+/// Samples per cycle at one per crank degree.
+const PER_CYCLE: usize = 720;
+
+/// The channels a stage resamples to one per crank degree from time-basis samples, in the
+/// model's input order after θ, then the measured torque and the time, with their units.
+const CURVE_CHANNELS: [(&str, &str); 7] = [
+    ("omega_en", "rad/s"),
+    ("alpha_en", "rad/s^2"),
+    ("p_cyl", "Pa"),
+    ("p_crank", "Pa"),
+    ("T_oil", "K"),
+    ("torque_engine", "N*m"),
+    ("t", "s"),
+];
+
+/// Run Application 3 on a recording: one sample per crank degree (a crank-angle recording, or
+/// a time-basis one with `theta_en` resampled on the stream by the same [`TorqueStage`] the
+/// live service runs, cycles from its first TDC marker; one with only the encoder count is
+/// converted first), the parameters chosen on all of it.
 pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError> {
-    let data = TorqueData::from_recording(rec)?;
-    let n = data.y.len();
-    if n < 720 {
-        return Err(AppError::Invalid(format!(
-            "{n} samples: the fit needs at least one cycle (720 samples at one per crank degree)"
-        )));
-    }
-    if !(cfg.p0.is_finite() && cfg.p0 > 0.0) {
-        return Err(AppError::Invalid(format!(
-            "P0 scale {} must be a positive number",
-            cfg.p0
-        )));
-    }
-    let (analysis, estimable) =
-        torque_identifiability(&data, &cfg.nominal, &cfg.fixed, &cfg.selection)?;
-    if estimable.is_empty() {
-        return Err(AppError::Invalid(
-            "no parameter is estimable on this recording".into(),
-        ));
-    }
-    if let Some(&j) = estimable.iter().find(|&&j| cfg.nominal[j] == 0.0) {
-        return Err(AppError::Invalid(format!(
-            "'{}' has nominal value 0: scaled coordinates ϑ = ϑ0·(1 + x) cannot move it — give it a non-zero nominal value or fix it",
-            PARAMS[j]
-        )));
-    }
-    let model = CyclicTorque::default();
-    let r2 = match cfg.r2 {
-        Some(v) => v,
-        None => {
-            let fit = fit_subset(&model, &data.view(), &cfg.nominal, &estimable, 20)?;
-            // An exact fit (noise-free data) leaves no residual: keep R2 positive.
-            (fit.rss / (n - estimable.len()).max(1) as f64).max(f64::MIN_POSITIVE)
+    let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
+    let mut out = Vec::new();
+    if rec.basis == Basis::Time && rec.channel("theta_en").is_ok() {
+        let tdc = marker_tdc_angle(rec, &AcquisitionOptions::default()).unwrap_or(0.0);
+        stage.set_theta_tdc(tdc)?;
+        // The tracks keep about 4000 points: every so many of the cycles the file holds.
+        let th = rec.values_in("theta_en", "rad")?;
+        let cycles = match (th.first(), th.last()) {
+            (Some(a), Some(b)) => {
+                (((b - tdc) / (4.0 * PI)).floor() - ((a - tdc) / (4.0 * PI)).ceil()).max(0.0)
+            }
+            _ => 0.0,
+        };
+        stage.track_every = ((cycles as usize) * PER_CYCLE).div_ceil(4000).max(1);
+        let n = rec.len();
+        for start in (0..n).step_by(FILE_CHUNK) {
+            stage.push(&rec.slice(start..(start + FILE_CHUNK).min(n)), &mut out)?;
         }
-    };
-    let params = ParamSet::new(PARAMS, cfg.nominal.to_vec())
-        .map_err(|e| AppError::Invalid(e.to_string()))?;
-    let names: Vec<&str> = estimable.iter().map(|&j| PARAMS[j]).collect();
-    let free = params
-        .free(&names)
-        .map_err(|e| AppError::Invalid(e.to_string()))?;
-    let mut r1 = vec![0.0; free.free().len()];
-    for (name, v) in &cfg.track {
-        let pos = free
-            .free()
-            .iter()
-            .position(|&j| PARAMS[j] == name.as_str())
-            .ok_or_else(|| {
-                AppError::Invalid(format!(
-                    "track {name}: it is not among the estimated parameters ({})",
-                    names.join(", ")
-                ))
-            })?;
-        r1[pos] = *v;
+    } else {
+        let data = TorqueData::from_recording(rec)?;
+        stage.track_every = data.y.len().div_ceil(4000).max(1);
+        let mut u = [0.0; 6];
+        for i in 0..data.y.len() {
+            data.row(i, &mut u);
+            stage.push_sample(&u, data.y[i], data.t[i], &mut out)?;
+        }
     }
-    let nl = NlConfig {
-        p0: CovSpec::Scaled(cfg.p0),
-        r1: CovSpec::Diagonal(r1),
-        r2,
-        scaled: true,
-        bounds: Vec::new(),
-        method: cfg.method,
-    };
-    let mut est = NonlinearEstimator::new(model.clone(), &params, &free, &nl)
-        .map_err(AppError::estim("estimator configuration"))?;
-    let order: Vec<usize> = free.free().to_vec();
-    let stride = n.div_ceil(4000).max(1);
-    let mut out_t = Vec::with_capacity(n / stride + 1);
-    let mut measured = Vec::with_capacity(n / stride + 1);
-    let mut predicted = Vec::with_capacity(n / stride + 1);
-    let mut tracks: Vec<Track> = order
-        .iter()
-        .map(|&j| Track {
-            param: PARAMS[j].into(),
-            value: Vec::new(),
-            std_err: Vec::new(),
+    stage
+        .finish(&mut out)?
+        .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))
+}
+
+/// Samples per chunk when a file is streamed through the stage.
+const FILE_CHUNK: usize = 4096;
+
+/// What a [`TorqueStage`] reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum TorqueOutput {
+    /// The estimable parameters were chosen (once), on the samples so far.
+    Selected {
+        /// Time of the last sample the choice saw [s].
+        t_s: f64,
+        /// The samples it saw.
+        samples: usize,
+        /// The estimable parameters, in rank order; the others stay at their nominal values.
+        estimable: Vec<String>,
+    },
+    /// Another 720 samples (a cycle's worth) through the filter.
+    Cycle(TorqueCycle),
+}
+
+/// A cycle's worth of samples through the filter.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TorqueCycle {
+    /// Time of its last sample [s].
+    pub t_s: f64,
+    /// The estimates after it, in the order chosen ([`TorqueStage::estimable`]).
+    pub params: Vec<f64>,
+    /// Their standard errors.
+    pub std_err: Vec<f64>,
+    /// RMS of the one-step prediction errors over the cycle [N·m].
+    pub rms_error_nm: f64,
+    /// RMS of the measured torque over the cycle [N·m].
+    pub rms_measured_nm: f64,
+}
+
+/// The filter once the parameters are chosen.
+struct RunningTorque {
+    est: NonlinearEstimator<CyclicTorque>,
+    analysis: Analysis,
+    estimable: Vec<usize>,
+    r2: f64,
+}
+
+/// Application 3 as a stage: samples at one per crank degree in (or time-basis chunks,
+/// resampled on the stream through [`CycleStream`]'s crank-angle curves), chosen parameters and
+/// a cycle's estimates at a time out. The parameters are chosen on the first `select_after`
+/// samples — live — or, with `None`, on all of them at [`finish`](Self::finish) — the file verb;
+/// the filter then runs through the samples so far and every later one as it comes. With
+/// `keep`, every sample is kept for the result's prediction figures ([`TorqueFit`]); without,
+/// the samples are dropped once the filter has them, and memory stays bounded.
+pub struct TorqueStage {
+    cfg: TorqueFitConfig,
+    select_after: Option<usize>,
+    keep: bool,
+    /// Every this many samples a point of the tracks.
+    pub track_every: usize,
+    theta_tdc: f64,
+    curves: Option<CycleStream>,
+    done: Vec<CycleSummary>,
+    /// Samples taken (resampled) so far.
+    seen: usize,
+    data: TorqueData,
+    running: Option<RunningTorque>,
+    /// Samples through the filter.
+    filtered: usize,
+    out_t: Vec<f64>,
+    measured: Vec<f64>,
+    predicted: Vec<f64>,
+    tracks: Vec<Track>,
+    /// The cycle in progress: sums of squared errors and measurements.
+    sse: f64,
+    ssy: f64,
+    /// The last sample filtered: its time, measurement and one-step prediction.
+    last: (f64, f64, f64),
+}
+
+impl TorqueStage {
+    /// A stage; `select_after`: choose after that many samples (at least a cycle), `None`: at
+    /// the end; `keep`: keep every sample for the result.
+    pub fn new(
+        cfg: TorqueFitConfig,
+        select_after: Option<usize>,
+        keep: bool,
+    ) -> Result<Self, AppError> {
+        if !(cfg.p0.is_finite() && cfg.p0 > 0.0) {
+            return Err(AppError::Invalid(format!(
+                "P0 scale {} must be a positive number",
+                cfg.p0
+            )));
+        }
+        if let Some(n) = select_after.filter(|&n| n < PER_CYCLE) {
+            return Err(AppError::Invalid(format!(
+                "choosing the parameters after {n} samples: the choice needs at least one cycle ({PER_CYCLE})"
+            )));
+        }
+        Ok(Self {
+            cfg,
+            select_after,
+            keep,
+            track_every: 1,
+            theta_tdc: 0.0,
+            curves: None,
+            done: Vec::new(),
+            seen: 0,
+            data: TorqueData {
+                inputs: vec![Vec::new(); 6],
+                y: Vec::new(),
+                t: Vec::new(),
+            },
+            running: None,
+            filtered: 0,
+            out_t: Vec::new(),
+            measured: Vec::new(),
+            predicted: Vec::new(),
+            tracks: Vec::new(),
+            sse: 0.0,
+            ssy: 0.0,
+            last: (f64::NAN, f64::NAN, f64::NAN),
         })
-        .collect();
-    let mut u = [0.0; 6];
-    for i in 0..n {
-        data.row(i, &mut u);
-        let step = est
-            .update(&u, data.y[i])
+    }
+
+    /// Cycles start at this angle of `theta_en` + k·4π [rad] (default 0); before any sample.
+    pub fn set_theta_tdc(&mut self, theta_tdc: f64) -> Result<(), AppError> {
+        if self.curves.is_some() {
+            return Err(AppError::Invalid(
+                "the TDC angle is set before the first sample".into(),
+            ));
+        }
+        self.theta_tdc = theta_tdc;
+        Ok(())
+    }
+
+    /// The estimable parameters once chosen, in rank order.
+    pub fn estimable(&self) -> Option<Vec<&'static str>> {
+        self.running
+            .as_ref()
+            .map(|r| r.estimable.iter().map(|&j| PARAMS[j]).collect())
+    }
+
+    /// A chunk of time-basis samples with `t`, `theta_en`, `omega_en`, `alpha_en`, `p_cyl`,
+    /// `p_crank`, `T_oil` and `torque_engine`: each complete cycle resampled to one sample per
+    /// crank degree (linear between samples) and taken.
+    pub fn push(&mut self, chunk: &Recording, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        if self.curves.is_none() {
+            for (name, _) in CURVE_CHANNELS {
+                chunk.channel(name)?;
+            }
+            chunk.channel("theta_en")?;
+            self.curves = Some(
+                CycleStream::new(CURVE_CHANNELS.len(), self.theta_tdc, Some(1.0))
+                    .map_err(|e| AppError::Invalid(e.to_string()))?,
+            );
+        }
+        let cols = CURVE_CHANNELS
+            .iter()
+            .map(|(name, unit)| chunk.values_in(name, unit))
+            .collect::<Result<Vec<_>, _>>()?;
+        for ((name, _), v) in CURVE_CHANNELS.iter().zip(&cols) {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(AppError::Invalid(format!(
+                    "channel '{name}' sample {} is {}: the model needs finite data",
+                    self.seen + i,
+                    v[i]
+                )));
+            }
+        }
+        let views: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
+        let mut done = std::mem::take(&mut self.done);
+        done.clear();
+        if let Some(c) = self.curves.as_mut() {
+            c.push(
+                chunk.values("t")?,
+                &chunk.values_in("theta_en", "rad")?,
+                &views,
+                &mut done,
+            )
+            .map_err(|e| AppError::Invalid(e.to_string()))?;
+        }
+        self.seen += chunk.len();
+        let step = (1.0f64).to_radians();
+        let mut u = [0.0; 6];
+        for c in &done {
+            let Some(curve) = &c.curve else { continue };
+            for (k, (&y, &t)) in curve[5].iter().zip(&curve[6]).enumerate() {
+                // θ from the first TDC in the stream, as the crank-angle conversion writes it.
+                u[0] = c.cycle as f64 * 4.0 * PI + k as f64 * step;
+                for (uj, col) in u[1..5].iter_mut().zip(curve) {
+                    *uj = col[k];
+                }
+                u[5] = curve[4][k] - 273.15;
+                self.push_sample(&u, y, t, out)?;
+            }
+        }
+        self.done = done;
+        Ok(())
+    }
+
+    /// One sample at one per crank degree: the inputs in [`CyclicTorque`]'s order (θ [rad from
+    /// TDC], ω, α, p_cyl, p_crank, T_oil [°C]), the measured torque [N·m], the time [s].
+    pub fn push_sample(
+        &mut self,
+        u: &[f64; 6],
+        y: f64,
+        t: f64,
+        out: &mut Vec<TorqueOutput>,
+    ) -> Result<(), AppError> {
+        if self.keep || self.running.is_none() {
+            for (col, v) in self.data.inputs.iter_mut().zip(u) {
+                col.push(*v);
+            }
+            self.data.y.push(y);
+            self.data.t.push(t);
+        }
+        if self.running.is_some() {
+            self.filter(u, y, t, out)
+        } else if self.select_after.is_some_and(|n| self.data.y.len() >= n) {
+            self.select(out)
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Choose the parameters on the samples so far (steps 1–2), then filter them.
+    fn select(&mut self, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+        let cfg = &self.cfg;
+        let data = &self.data;
+        let n = data.y.len();
+        if n < PER_CYCLE {
+            return Err(AppError::Invalid(format!(
+                "{n} samples: the fit needs at least one cycle (720 samples at one per crank degree)"
+            )));
+        }
+        let (analysis, estimable) =
+            torque_identifiability(data, &cfg.nominal, &cfg.fixed, &cfg.selection)?;
+        if estimable.is_empty() {
+            return Err(AppError::Invalid(
+                "no parameter is estimable on this recording".into(),
+            ));
+        }
+        if let Some(&j) = estimable.iter().find(|&&j| cfg.nominal[j] == 0.0) {
+            return Err(AppError::Invalid(format!(
+                "'{}' has nominal value 0: scaled coordinates ϑ = ϑ0·(1 + x) cannot move it — give it a non-zero nominal value or fix it",
+                PARAMS[j]
+            )));
+        }
+        let model = CyclicTorque::default();
+        let r2 = match cfg.r2 {
+            Some(v) => v,
+            None => {
+                let fit = fit_subset(&model, &data.view(), &cfg.nominal, &estimable, 20)?;
+                // An exact fit (noise-free data) leaves no residual: keep R2 positive.
+                (fit.rss / (n - estimable.len()).max(1) as f64).max(f64::MIN_POSITIVE)
+            }
+        };
+        let params = ParamSet::new(PARAMS, cfg.nominal.to_vec())
+            .map_err(|e| AppError::Invalid(e.to_string()))?;
+        let names: Vec<&str> = estimable.iter().map(|&j| PARAMS[j]).collect();
+        let free = params
+            .free(&names)
+            .map_err(|e| AppError::Invalid(e.to_string()))?;
+        let mut r1 = vec![0.0; free.free().len()];
+        for (name, v) in &cfg.track {
+            let pos = free
+                .free()
+                .iter()
+                .position(|&j| PARAMS[j] == name.as_str())
+                .ok_or_else(|| {
+                    AppError::Invalid(format!(
+                        "track {name}: it is not among the estimated parameters ({})",
+                        names.join(", ")
+                    ))
+                })?;
+            r1[pos] = *v;
+        }
+        let nl = NlConfig {
+            p0: CovSpec::Scaled(cfg.p0),
+            r1: CovSpec::Diagonal(r1),
+            r2,
+            scaled: true,
+            bounds: Vec::new(),
+            method: cfg.method,
+        };
+        let est = NonlinearEstimator::new(model, &params, &free, &nl)
+            .map_err(AppError::estim("estimator configuration"))?;
+        // The estimator's order is the parameters' (free set) order.
+        let order: Vec<usize> = free.free().to_vec();
+        self.tracks = order
+            .iter()
+            .map(|&j| Track {
+                param: PARAMS[j].into(),
+                value: Vec::new(),
+                std_err: Vec::new(),
+            })
+            .collect();
+        out.push(TorqueOutput::Selected {
+            t_s: data.t[n - 1],
+            samples: n,
+            estimable: names.iter().map(|s| s.to_string()).collect(),
+        });
+        self.running = Some(RunningTorque {
+            est,
+            analysis,
+            estimable,
+            r2,
+        });
+        let mut u = [0.0; 6];
+        for i in 0..n {
+            self.data.row(i, &mut u);
+            let (y, t) = (self.data.y[i], self.data.t[i]);
+            self.filter(&u, y, t, out)?;
+        }
+        if !self.keep {
+            for c in &mut self.data.inputs {
+                *c = Vec::new();
+            }
+            self.data.y = Vec::new();
+            self.data.t = Vec::new();
+        }
+        Ok(())
+    }
+
+    /// One sample through the filter (step 2); a track point every `track_every`, a
+    /// [`TorqueOutput::Cycle`] every 720.
+    fn filter(
+        &mut self,
+        u: &[f64; 6],
+        y: f64,
+        t: f64,
+        out: &mut Vec<TorqueOutput>,
+    ) -> Result<(), AppError> {
+        let Some(r) = self.running.as_mut() else {
+            return Ok(());
+        };
+        let i = self.filtered;
+        let step = r
+            .est
+            .update(u, y)
             .map_err(|e| AppError::estim(format!("sample {i}"))(e))?;
-        if i.is_multiple_of(stride) || i + 1 == n {
-            out_t.push(data.t[i]);
-            measured.push(data.y[i]);
-            predicted.push(data.y[i] - step.prediction_error);
-            let v = est.estimate();
-            let se = est.std_errors();
-            for (k, tr) in tracks.iter_mut().enumerate() {
+        self.filtered += 1;
+        self.sse += step.prediction_error * step.prediction_error;
+        self.ssy += y * y;
+        self.last = (t, y, y - step.prediction_error);
+        // The tracks are the file verb's (kept samples); live, the cycle outputs carry them.
+        if self.keep && i.is_multiple_of(self.track_every) {
+            self.out_t.push(t);
+            self.measured.push(y);
+            self.predicted.push(y - step.prediction_error);
+            let (v, se) = (r.est.estimate(), r.est.std_errors());
+            for (k, tr) in self.tracks.iter_mut().enumerate() {
                 tr.value.push(v[k]);
                 tr.std_err.push(se[k]);
             }
         }
+        if self.filtered.is_multiple_of(PER_CYCLE) {
+            // In rank order, as chosen.
+            let (v, se) = (r.est.estimate(), r.est.std_errors());
+            let free: Vec<usize> = {
+                let mut f = r.estimable.clone();
+                f.sort_unstable();
+                f
+            };
+            let at = |j: usize| free.iter().position(|&i| i == j).unwrap_or(0);
+            out.push(TorqueOutput::Cycle(TorqueCycle {
+                t_s: t,
+                params: r.estimable.iter().map(|&j| v[at(j)]).collect(),
+                std_err: r.estimable.iter().map(|&j| se[at(j)]).collect(),
+                rms_error_nm: (self.sse / PER_CYCLE as f64).sqrt(),
+                rms_measured_nm: (self.ssy / PER_CYCLE as f64).sqrt(),
+            }));
+            self.sse = 0.0;
+            self.ssy = 0.0;
+        }
+        Ok(())
     }
-    let final_full = est.estimate_full();
-    let se = est.std_errors();
-    let std_err: Vec<Option<f64>> = (0..15)
-        .map(|j| order.iter().position(|&i| i == j).map(|k| se[k]))
-        .collect();
-    let predict = |p: &[f64]| -> Vec<f64> {
-        let mut u = [0.0; 6];
-        (0..n)
-            .map(|i| {
-                data.row(i, &mut u);
-                model.eval::<f64>(&u, p)
-            })
-            .collect()
-    };
-    let before = predict(&cfg.nominal);
-    let after = predict(&final_full);
-    let w = n.saturating_sub(1440);
-    let last_cycles = [
-        data.t[w..].to_vec(),
-        data.y[w..].to_vec(),
-        before[w..].to_vec(),
-        after[w..].to_vec(),
-    ];
-    Ok(TorqueFit {
-        method: cfg.method.name(),
-        ranking: analysis.ranked(estimable.len()),
-        estimable: names.iter().map(|s| s.to_string()).collect(),
-        nominal: cfg.nominal.to_vec(),
-        params: final_full,
-        std_err,
-        r2,
-        repairs: est.repairs(),
-        t: out_t,
-        tracks,
-        measured,
-        predicted,
-        nmse_before: nmse(&data.y, &before).unwrap_or(f64::NAN),
-        nmse_after: nmse(&data.y, &after).unwrap_or(f64::NAN),
-        nrmse_before: nrmse(&data.y, &before).unwrap_or(f64::NAN),
-        nrmse_after: nrmse(&data.y, &after).unwrap_or(f64::NAN),
-        last_cycles,
-        samples: n,
-    })
+
+    /// The end of the stream: the parameters chosen if they were not, and — with `keep` — the
+    /// result.
+    pub fn finish(&mut self, out: &mut Vec<TorqueOutput>) -> Result<Option<TorqueFit>, AppError> {
+        if self.running.is_none() {
+            self.select(out)?;
+        }
+        if !self.keep {
+            return Ok(None);
+        }
+        let (Some(r), data) = (self.running.as_ref(), &self.data) else {
+            return Ok(None);
+        };
+        let n = data.y.len();
+        let model = CyclicTorque::default();
+        let order: Vec<usize> = {
+            let mut f = r.estimable.clone();
+            f.sort_unstable();
+            f
+        };
+        // The last point of the tracks is the last sample.
+        if !(self.filtered - 1).is_multiple_of(self.track_every) {
+            let (v, se) = (r.est.estimate(), r.est.std_errors());
+            let (t, y, predicted) = self.last;
+            self.out_t.push(t);
+            self.measured.push(y);
+            self.predicted.push(predicted);
+            for (k, tr) in self.tracks.iter_mut().enumerate() {
+                tr.value.push(v[k]);
+                tr.std_err.push(se[k]);
+            }
+        }
+        let final_full = r.est.estimate_full();
+        let se = r.est.std_errors();
+        let std_err: Vec<Option<f64>> = (0..15)
+            .map(|j| order.iter().position(|&i| i == j).map(|k| se[k]))
+            .collect();
+        let predict = |p: &[f64]| -> Vec<f64> {
+            let mut u = [0.0; 6];
+            (0..n)
+                .map(|i| {
+                    data.row(i, &mut u);
+                    model.eval::<f64>(&u, p)
+                })
+                .collect()
+        };
+        let before = predict(&self.cfg.nominal);
+        let after = predict(&final_full);
+        let w = n.saturating_sub(1440);
+        let last_cycles = [
+            data.t[w..].to_vec(),
+            data.y[w..].to_vec(),
+            before[w..].to_vec(),
+            after[w..].to_vec(),
+        ];
+        Ok(Some(TorqueFit {
+            method: self.cfg.method.name(),
+            ranking: r.analysis.ranked(r.estimable.len()),
+            estimable: r.estimable.iter().map(|&j| PARAMS[j].to_string()).collect(),
+            nominal: self.cfg.nominal.to_vec(),
+            params: final_full,
+            std_err,
+            r2: r.r2,
+            repairs: r.est.repairs(),
+            t: std::mem::take(&mut self.out_t),
+            tracks: std::mem::take(&mut self.tracks),
+            measured: std::mem::take(&mut self.measured),
+            predicted: std::mem::take(&mut self.predicted),
+            nmse_before: nmse(&data.y, &before).unwrap_or(f64::NAN),
+            nmse_after: nmse(&data.y, &after).unwrap_or(f64::NAN),
+            nrmse_before: nrmse(&data.y, &before).unwrap_or(f64::NAN),
+            nrmse_after: nrmse(&data.y, &after).unwrap_or(f64::NAN),
+            last_cycles,
+            samples: n,
+        }))
+    }
 }

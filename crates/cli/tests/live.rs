@@ -742,3 +742,78 @@ fn integrity_findings_on_the_stream_are_inspects() {
         );
     }
 }
+
+/// The cyclic-torque estimation on the stream: a replayed motored recording ends on
+/// `physid torque fit`'s estimates exactly (the replay is shorter than the choice, so it is made
+/// on all of it, as the file verb makes it), whatever the chunk; on the virtual cell, chosen
+/// after 10 cycles, the estimates find the cell's true bore, crank radius and rod length.
+#[test]
+fn cyclic_torque_on_the_stream_ends_on_the_file_verbs_fit() {
+    let s = Scratch::new("physid-live-torque");
+    let file = s.file("ramp.parquet");
+    let f = file.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "torque-ramp",
+        "--duration",
+        "2",
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = physid(&["torque", "fit", "--data", f, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
+    for chunk in ["0.0017", "10"] {
+        let ev = events(&[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            f,
+            "--pace",
+            "max",
+            "--chunk",
+            chunk,
+            "--torque",
+            "--torque-after",
+            "1000",
+        ]);
+        let chosen = of_type(&ev, "identifiability");
+        assert_eq!(chosen.len(), 1, "chunk {chunk}");
+        assert_eq!(chosen[0]["app"], "torque");
+        assert_eq!(chosen[0]["estimable"], verb["estimable"], "chunk {chunk}");
+        let cycles = of_type(&ev, "torque");
+        assert_eq!(
+            cycles.len() as u64 * 720,
+            verb["samples"].as_u64().unwrap(),
+            "chunk {chunk}"
+        );
+        let last = cycles.last().unwrap();
+        for p in verb["estimable"].as_array().unwrap() {
+            let p = p.as_str().unwrap();
+            assert_eq!(last["params"][p], verb["params"][p], "chunk {chunk}: {p}");
+            assert_eq!(last["std_err"][p], verb["std_err"][p], "chunk {chunk}: {p}");
+        }
+    }
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "torque-ramp",
+        "--duration",
+        "4",
+        "--pace",
+        "max",
+        "--torque",
+    ]);
+    let last = of_type(&ev, "torque").last().copied().unwrap().clone();
+    let e = physid_sim::params::CellParams::default().engine;
+    for (name, truth) in [("b", e.bore), ("r", e.crank_radius), ("L", e.rod)] {
+        let v = last["params"][name].as_f64().unwrap();
+        assert!((v / truth - 1.0).abs() < 1e-3, "{name}: {v} vs {truth}");
+    }
+    assert!(last["rms_error"].as_f64().unwrap() < 0.02 * last["rms_measured"].as_f64().unwrap());
+}

@@ -555,6 +555,24 @@ fn the_panel_in_a_real_browser() {
         assert_eq!(js("document.querySelectorAll('#plot-friction canvas').length > 0").await, json!(true));
         let png = c.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-friction.png"), &png).unwrap();
+        // The cyclic-torque estimation: its chosen parameters and the estimates per cycle.
+        let torque = Live::start(&[
+            "--scenario",
+            "torque-ramp",
+            "--duration",
+            "3",
+            "--pace",
+            "max",
+            "--torque",
+        ]);
+        c.goto(&torque.url).await.unwrap();
+        wait("window.physid.state === 'ended' && window.physid.torqueCycles > 5", 40).await;
+        let chosen = js("window.physid.identifiability.torque").await;
+        assert!(!chosen["estimable"].as_array().unwrap().is_empty(), "{chosen}");
+        assert_eq!(
+            js("document.querySelectorAll('#torque-table tr').length").await,
+            json!(1 + chosen["estimable"].as_array().unwrap().len())
+        );
         c.close().await.unwrap();
     });
 }

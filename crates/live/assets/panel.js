@@ -15,14 +15,15 @@
   const st = {
     state: "connecting", t: NaN, samples: 0, estimates: 0, traces: 0, tracePoints: 0,
     cycles: 0, alarms: 0, lost: 0, hellos: 0, hello: null, last: {}, first: {},
-    frictionCycles: 0, identifiability: {},
+    frictionCycles: 0, torqueCycles: 0, identifiability: {},
   };
   window.physid = st;
 
   let est, tr, cyc, means, fric;
   function reset() {
     fric = { cycle: [], measured: [], predicted: [], nominal: [], truth: [] };
-    st.frictionCycles = 0; st.identifiability = {};
+    st.frictionCycles = 0; st.torqueCycles = 0; st.identifiability = {};
+    $("torque-table").tBodies[0].replaceChildren();
     $("ident").replaceChildren();
     $("friction-table").tBodies[0].replaceChildren();
     est = { t: [], K: [], Khi: [], Klo: [], B: [], Bhi: [], Blo: [] };
@@ -242,6 +243,18 @@
         r.insertCell().textContent = s === null ? `${fmt(v, 2)} %` : `${Number(v).toPrecision(4)} ± ${isFinite(s) ? Number(3 * s).toPrecision(2) : "–"}`;
       }
       touch();
+    },
+    torque(e) {
+      st.torqueCycles++; st.last.torque = e; seen(e.t_s);
+      show("ident-card");
+      const body = $("torque-table").tBodies[0];
+      body.replaceChildren();
+      const rows = [["cyclic torque: prediction error", `${fmt(100 * e.rms_error / e.rms_measured, 2)} % RMS`]]
+        .concat(Object.keys(e.params).map((n) => [n, `${Number(e.params[n]).toPrecision(5)} ± ${Number(3 * e.std_err[n]).toPrecision(2)}`]));
+      for (const [name, text] of rows) {
+        const r = body.insertRow();
+        r.insertCell().textContent = name; r.insertCell().textContent = text;
+      }
     },
     trace(e) {
       st.traces++; st.tracePoints += e.t.length; seen(e.t_s);

@@ -76,6 +76,23 @@ pub enum Event {
         /// Their standard errors (null before the estimator has them).
         std_err: BTreeMap<String, f64>,
     },
+    /// The cyclic-torque parameters after another cycle's worth of samples (720, one per crank
+    /// degree) through the filter: `{"type": "torque", "t_s": …, "params": {"b": …, …},
+    /// "std_err": {…}, "rms_error": …, "rms_measured": …}` — the estimates of the chosen
+    /// parameters (SI units), and the RMS of the cycle's one-step prediction errors and of the
+    /// measured engine torque [N·m].
+    Torque {
+        /// Time of the cycle's last sample [s].
+        t_s: f64,
+        /// The estimates.
+        params: BTreeMap<String, f64>,
+        /// Their standard errors.
+        std_err: BTreeMap<String, f64>,
+        /// RMS of the one-step prediction errors over the cycle [N·m].
+        rms_error: f64,
+        /// RMS of the measured torque over the cycle [N·m].
+        rms_measured: f64,
+    },
     /// A frame from outside or a control message was refused (the run goes on; a refused frame
     /// is counted as dropped): `{"type": "error", "t_s": …, "input": "frames", "line": n,
     /// "message": …}` (`t_s` the last sample taken).

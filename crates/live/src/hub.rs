@@ -54,9 +54,10 @@ impl Kind {
 
     fn of(e: &Event) -> Self {
         match e {
-            Event::Estimate { .. } | Event::Friction { .. } | Event::Identifiability { .. } => {
-                Kind::Estimate
-            }
+            Event::Estimate { .. }
+            | Event::Friction { .. }
+            | Event::Torque { .. }
+            | Event::Identifiability { .. } => Kind::Estimate,
             Event::Alarm { .. } => Kind::Alarm,
             Event::Cycle { .. } => Kind::Cycle,
             Event::Trace { .. } => Kind::Trace,

@@ -35,5 +35,5 @@ pub use frames::SocketFrames;
 pub use frames::{FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
 pub use panel::Panel;
-pub use service::{run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Summary};
+pub use service::{run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Summary, TorqueLive};
 pub use source::{Pace, ReplaySource, ScenarioSource, Source};

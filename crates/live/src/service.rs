@@ -11,6 +11,7 @@ use physid_apps::acquisition::AcquisitionOptions;
 use physid_apps::error::AppError;
 use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
+use physid_apps::torque_fit::{TorqueFitConfig, TorqueOutput, TorqueStage};
 use physid_core::{Basis, Recording, RecordingError};
 use physid_io::IoError;
 use physid_models::friction::REGRESSION_PARAMS;
@@ -76,6 +77,18 @@ pub struct LiveConfig {
     pub log_dir: PathBuf,
     /// The friction characterisation on the stream (a motored engine), when asked for.
     pub friction: Option<FrictionLive>,
+    /// The cyclic-torque estimation on the stream, when asked for.
+    pub torque: Option<TorqueLive>,
+}
+
+/// The cyclic-torque estimation's settings live.
+#[derive(Debug, Clone)]
+pub struct TorqueLive {
+    /// The fit's settings (nominal values, fixed parameters, filter, tracking).
+    pub fit: TorqueFitConfig,
+    /// Choose the estimable parameters after this many cycles (at least 1); a replay that ends
+    /// sooner chooses on all of it at its end, as `physid torque fit` does.
+    pub select_after_cycles: usize,
 }
 
 /// The friction characterisation's settings live.
@@ -122,6 +135,7 @@ impl Default for LiveConfig {
             panel: None,
             log_dir: PathBuf::from("physid-logs"),
             friction: None,
+            torque: None,
         }
     }
 }
@@ -176,6 +190,19 @@ pub fn run_live(
             None => None,
         },
         friction_out: Vec::new(),
+        torque: match &cfg.torque {
+            Some(t) => {
+                let mut stage = TorqueStage::new(
+                    t.fit.clone(),
+                    Some(t.select_after_cycles.max(1) * 720),
+                    false,
+                )?;
+                stage.set_theta_tdc(cfg.theta_tdc)?;
+                Some(stage)
+            }
+            None => None,
+        },
+        torque_out: Vec::new(),
         integrity: None,
         findings: Vec::new(),
         t_first: f64::NAN,
@@ -244,6 +271,9 @@ struct Live<'a, E> {
     /// The friction characterisation (stopped, with a finding, at its first error).
     friction: Option<FrictionStage>,
     friction_out: Vec<FrictionOutput>,
+    /// The cyclic-torque estimation (stopped, with a finding, at its first error).
+    torque: Option<TorqueStage>,
+    torque_out: Vec<TorqueOutput>,
     recorder: Recorder,
     pacer: Pacer,
     emit: E,
@@ -390,6 +420,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
             self.friction_out.clear();
             let result = stage.push(chunk, &mut self.friction_out);
             self.friction_events(result)?;
+        }
+        if let Some(stage) = self.torque.as_mut() {
+            self.torque_out.clear();
+            let result = stage.push(chunk, &mut self.torque_out);
+            self.torque_events(result)?;
         }
         match self.recorder.push(chunk, self.last_t) {
             Ok(Some(e)) => self.send(&e)?,
@@ -557,8 +592,64 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         Ok(())
     }
 
+    /// The torque stage's output as events; at its error, a finding, and the stage stops (the
+    /// run goes on).
+    fn torque_events(&mut self, result: Result<(), AppError>) -> Result<(), LiveError> {
+        let out = std::mem::take(&mut self.torque_out);
+        let names: Vec<String> = self
+            .torque
+            .as_ref()
+            .and_then(TorqueStage::estimable)
+            .unwrap_or_default()
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        for o in &out {
+            let e = match o {
+                TorqueOutput::Selected { t_s, estimable, .. } => Event::Identifiability {
+                    app: "torque",
+                    t_s: *t_s,
+                    frozen: physid_models::cyclic_torque::PARAMS
+                        .iter()
+                        .filter(|p| !estimable.iter().any(|e| e == *p))
+                        .map(|p| p.to_string())
+                        .collect(),
+                    estimable: estimable.clone(),
+                },
+                TorqueOutput::Cycle(c) => {
+                    let by_name =
+                        |v: &[f64]| names.iter().cloned().zip(v.iter().copied()).collect();
+                    Event::Torque {
+                        t_s: c.t_s,
+                        params: by_name(&c.params),
+                        std_err: by_name(&c.std_err),
+                        rms_error: c.rms_error_nm,
+                        rms_measured: c.rms_measured_nm,
+                    }
+                }
+            };
+            self.send(&e)?;
+        }
+        self.torque_out = out;
+        if let Err(e) = result {
+            self.torque = None;
+            let t_s = self.last_t;
+            self.send(&Event::finding(
+                t_s,
+                format!("torque: {e} — the cyclic-torque estimation stopped"),
+            ))?;
+        }
+        Ok(())
+    }
+
     /// The end of the stream: the stages' last output, the final estimate, `end`.
     fn finish(mut self) -> Result<Summary, LiveError> {
+        if let Some(stage) = self.torque.as_mut() {
+            self.torque_out.clear();
+            // A replay shorter than the choice chooses on all of it.
+            let result = stage.finish(&mut self.torque_out).map(|_| ());
+            self.torque_events(result)?;
+        }
         if let Some(stream) = self.integrity.take() {
             self.findings.clear();
             stream.finish(&mut self.findings);

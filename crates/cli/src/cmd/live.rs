@@ -9,10 +9,12 @@ use physid_apps::acquisition::{marker_tdc_angle, AcquisitionOptions};
 use physid_apps::friction_fit::{
     friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
 };
+use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
 use physid_live::{
     run_live, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, Pace, Panel,
-    PanelFeed, ReplaySource, ScenarioSource, Source,
+    PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
 };
+use physid_sim::params::CellParams;
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
 use serde_json::json;
@@ -107,6 +109,26 @@ pub struct Args {
         requires = "friction"
     )]
     friction_source: String,
+    /// Estimate the cyclic engine torque model's parameters on the stream (thesis ch. 8: a
+    /// motored engine, e.g. the torque-ramp scenario), UKF from the virtual cell's nominal
+    /// values, as `physid torque fit`.
+    #[arg(long)]
+    torque: bool,
+    /// Choose the estimable cyclic-torque parameters after this many cycles.
+    #[arg(long, value_name = "N", default_value_t = 10, requires = "torque")]
+    torque_after: usize,
+    /// Parameters held at their nominal values, as `torque fit --fix`.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "delta",
+        requires = "torque"
+    )]
+    torque_fix: Vec<String>,
+    /// Let a parameter drift, as `torque fit --track`: NAME=VARIANCE per sample in scaled
+    /// coordinates, e.g. M_rec=1e-6 to follow a reciprocating-mass change.
+    #[arg(long, value_delimiter = ',', requires = "torque")]
+    torque_track: Vec<String>,
 }
 
 /// Run `physid live`.
@@ -146,6 +168,22 @@ pub fn run(a: &Args) -> Result<()> {
         cfg.friction = Some(FrictionLive {
             fit,
             select_after: a.friction_after,
+        });
+    }
+    if a.torque {
+        let nominal = cyclic_torque_nominal(&CellParams::default()).map_err(|e| miette!("{e}"))?;
+        let mut fit = TorqueFitConfig::new(nominal);
+        fit.fixed = a.torque_fix.iter().map(|s| s.trim().to_string()).collect();
+        let (names, values) = super::named_values(&a.torque_track, "--torque-track")?;
+        fit.track = names.into_iter().zip(values).collect();
+        if a.torque_after == 0 {
+            return Err(miette!(
+                "--torque-after 0: the choice needs at least one cycle"
+            ));
+        }
+        cfg.torque = Some(TorqueLive {
+            fit,
+            select_after_cycles: a.torque_after,
         });
     }
     let (mut source, what, theta_tdc) = source(a)?;

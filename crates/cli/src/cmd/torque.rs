@@ -31,9 +31,10 @@ enum What {
 
 #[derive(clap::Args)]
 struct FitArgs {
-    /// Motored recording, one sample per crank degree (a time basis is converted from the
-    /// engine encoder and TDC marker): theta or theta_en, omega_en, alpha_en, p_cyl, p_crank,
-    /// T_oil, torque_engine.
+    /// Motored recording, one sample per crank degree, or on a time basis (resampled to one
+    /// sample per degree from its first TDC marker, on the stream as `physid live --torque`
+    /// does; with only the encoder count, converted first): theta or theta_en, omega_en,
+    /// alpha_en, p_cyl, p_crank, T_oil, torque_engine.
     #[arg(long)]
     data: PathBuf,
     #[command(flatten)]
