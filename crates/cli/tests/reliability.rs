@@ -13,10 +13,14 @@ fn fails_with(args: &[&str], want: &str) {
     assert!(e.contains(want), "{args:?}: {e}");
 }
 
+/// `simulate` writes as it goes (memory flat), so what bounds it is the disk: a recording
+/// whose float64 size exceeds the free space is refused before it starts, naming the place,
+/// and so is one a stream cannot count; no file is left behind. The live cell likewise.
 #[test]
 fn runs_that_cannot_fit_are_refused_before_they_start() {
     let s = Scratch::new("physid-rel");
     let out = s.file("x.parquet");
+    let out_path = out.clone();
     let out = out.to_str().unwrap();
     fails_with(
         &[
@@ -28,7 +32,7 @@ fn runs_that_cannot_fit_are_refused_before_they_start() {
             "--out",
             out,
         ],
-        "a recording of 1e6 s would take about",
+        "the recording would take at least 3040.000 GB",
     );
     fails_with(
         &[
@@ -42,7 +46,20 @@ fn runs_that_cannot_fit_are_refused_before_they_start() {
             "--out",
             out,
         ],
-        "would not fit in any memory",
+        "more than a stream counts exactly",
+    );
+    assert!(!out_path.exists(), "no file is left behind");
+    fails_with(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "1e308",
+        ],
+        "more than a stream counts exactly",
     );
 }
 
@@ -295,4 +312,74 @@ fn a_csv_cut_off_in_its_last_number_is_read_with_a_warning() {
         e.contains("the last line (line 4) has no line end: the file may have been cut short"),
         "{e}"
     );
+}
+
+/// `simulate` writes its recording as it goes, and the file is the whole recording's: CSV and
+/// MDF4 byte for byte what writing the recording `physid_sim::simulate` returns gives, Parquet
+/// the same channels, units, metadata and values (its row groups are smaller).
+#[test]
+fn simulate_writes_as_it_goes_the_whole_recordings_file() {
+    use physid_sim::run::{simulate, OutputBasis, RunOptions};
+    let s = Scratch::new("physid-sim-stream");
+    let scenario = physid_sim::scenario::named("shaft-steady").unwrap();
+    for basis in ["time", "crank"] {
+        let opts = RunOptions {
+            duration: Some(2.5),
+            basis: match basis {
+                "time" => OutputBasis::Time(10_000.0),
+                _ => OutputBasis::Crank(1.0),
+            },
+            ..Default::default()
+        };
+        let whole = simulate(&scenario, &opts, |_| {}).unwrap();
+        for ext in ["csv", "mf4", "parquet"] {
+            let streamed = s.file(&format!("{basis}.{ext}"));
+            let o = physid(&[
+                "simulate",
+                "--scenario",
+                "shaft-steady",
+                "--duration",
+                "2.5",
+                "--basis",
+                basis,
+                "--out",
+                streamed.to_str().unwrap(),
+            ]);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            let reference = s.file(&format!("{basis}-whole.{ext}"));
+            physid_io::write(&reference, &whole, &Default::default()).unwrap();
+            if ext == "parquet" {
+                let (mut a, mut b) = (
+                    physid_io::read_parquet(&streamed, None).unwrap(),
+                    physid_io::read_parquet(&reference, None).unwrap(),
+                );
+                // `source` is the file read.
+                a.meta.remove("source");
+                b.meta.remove("source");
+                assert_eq!(a.meta, b.meta, "{basis}");
+                assert_eq!(a.channels(), b.channels(), "{basis}");
+            } else if ext == "mf4" {
+                // The MDF4 header carries the file's creation time: compare from the blocks on.
+                let (a, b) = (
+                    std::fs::read(&streamed).unwrap(),
+                    std::fs::read(&reference).unwrap(),
+                );
+                assert_eq!(a.len(), b.len(), "{basis}.{ext}");
+                let back = physid_io::read_mdf(&streamed, None).unwrap();
+                assert_eq!(back.channels().len(), whole.channels().len());
+                for c in whole.channels() {
+                    assert!(
+                        back.values(&c.name).unwrap() == c.values.as_slice(),
+                        "{}",
+                        c.name
+                    );
+                }
+            } else {
+                assert!(
+                    std::fs::read(&streamed).unwrap() == std::fs::read(&reference).unwrap(),
+                    "{basis}.{ext}"
+                );
+            }
+        }
+    }
 }

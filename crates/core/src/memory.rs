@@ -42,6 +42,48 @@ pub fn check_fits(bytes: f64, what: &str) -> Result<(), TooLarge> {
     }
 }
 
+/// Space available to this user on the file system that holds `path` (an existing directory
+/// or file) [bytes], if known.
+pub fn disk_available(path: &std::path::Path) -> Option<u64> {
+    #[cfg(unix)]
+    {
+        let s = rustix::fs::statvfs(path).ok()?;
+        Some(s.f_bavail.saturating_mul(s.f_frsize))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = path;
+        None
+    }
+}
+
+/// A file that would not fit on its disk.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{what} would take at least {:.3} GB, and {} has {:.1} GB free", *.bytes / 1e9, .place, *.available as f64 / 1e9)]
+pub struct DiskFull {
+    /// What would take it.
+    pub what: String,
+    /// Its size, at least [bytes] (possibly infinite).
+    pub bytes: f64,
+    /// Where it would go.
+    pub place: String,
+    /// The space available [bytes].
+    pub available: u64,
+}
+
+/// Refuse writing at least `bytes` into directory `dir` when its file system has less free.
+pub fn check_disk(bytes: f64, dir: &std::path::Path, what: &str) -> Result<(), DiskFull> {
+    match disk_available(dir) {
+        Some(free) if !bytes.is_finite() || bytes > free as f64 => Err(DiskFull {
+            what: what.to_string(),
+            bytes,
+            place: dir.display().to_string(),
+            available: free,
+        }),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,5 +104,23 @@ mod tests {
             .to_string()
             .contains("would not fit in any memory"));
         assert!(check_fits(f64::NAN, "x").is_err());
+    }
+
+    /// The free space of the current directory's file system is known (on Unix), a petabyte
+    /// file is refused naming the place, a kilobyte is not.
+    #[cfg(unix)]
+    #[test]
+    fn files_that_cannot_fit_on_the_disk_are_refused() {
+        let here = std::path::Path::new(".");
+        assert!(disk_available(here).is_some_and(|b| b > 0));
+        assert!(check_disk(1e3, here, "a kilobyte").is_ok());
+        let e = check_disk(1e18, here, "a recording")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("a recording would take at least") && e.contains(" . has "),
+            "{e}"
+        );
+        assert!(disk_available(std::path::Path::new("/no/such/dir")).is_none());
     }
 }

@@ -252,31 +252,120 @@ fn ends_with_newline(path: &Path) -> std::io::Result<bool> {
 /// Write a [`Recording`] as CSV (module docs: header row, then a units row when any channel
 /// has a unit). Numbers are written in the shortest form that reads back to the same `f64`.
 pub fn write_csv(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError> {
-    let p = path.as_ref().display().to_string();
-    let os = |source| IoError::Os {
-        path: p.clone(),
-        source,
-    };
-    let file = std::fs::File::create(path.as_ref()).map_err(os)?;
-    let mut w = csv::Writer::from_writer(std::io::BufWriter::new(file));
-    let werr = |e: csv::Error| IoError::Malformed {
-        path: p.clone(),
-        detail: e.to_string(),
-    };
-    w.write_record(rec.channels().iter().map(|c| c.name.as_str()))
-        .map_err(werr)?;
-    if rec.channels().iter().any(|c| !c.unit.is_empty()) {
-        w.write_record(rec.channels().iter().map(|c| c.unit.as_str()))
+    let mut w = CsvWriter::create(path, rec)?;
+    w.append(rec)?;
+    w.close()
+}
+
+/// Counts the bytes that pass.
+struct Counting<W> {
+    inner: W,
+    bytes: usize,
+}
+
+impl<W: std::io::Write> std::io::Write for Counting<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.bytes += n;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// A CSV file written chunk by chunk: the header (and units) row from the first recording,
+/// then each chunk's rows as they come — the same bytes as [`write_csv`] of the whole.
+pub struct CsvWriter {
+    path: String,
+    names: Vec<String>,
+    w: csv::Writer<Counting<std::io::BufWriter<std::fs::File>>>,
+    row: Vec<String>,
+    rows: usize,
+}
+
+impl CsvWriter {
+    /// Create `path` for recordings with `like`'s channels and units.
+    pub fn create(path: impl AsRef<Path>, like: &Recording) -> Result<Self, IoError> {
+        let p = path.as_ref().display().to_string();
+        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
+            path: p.clone(),
+            source,
+        })?;
+        let mut w = csv::Writer::from_writer(Counting {
+            inner: std::io::BufWriter::new(file),
+            bytes: 0,
+        });
+        let werr = |e: csv::Error| IoError::Malformed {
+            path: p.clone(),
+            detail: e.to_string(),
+        };
+        w.write_record(like.channels().iter().map(|c| c.name.as_str()))
             .map_err(werr)?;
-    }
-    let mut row: Vec<String> = vec![String::new(); rec.channels().len()];
-    for i in 0..rec.len() {
-        for (cell, c) in row.iter_mut().zip(rec.channels()) {
-            cell.clear();
-            use std::fmt::Write;
-            let _ = write!(cell, "{}", c.values[i]);
+        if like.channels().iter().any(|c| !c.unit.is_empty()) {
+            w.write_record(like.channels().iter().map(|c| c.unit.as_str()))
+                .map_err(werr)?;
         }
-        w.write_record(&row).map_err(werr)?;
+        Ok(Self {
+            names: like.channels().iter().map(|c| c.name.clone()).collect(),
+            row: vec![String::new(); like.channels().len()],
+            path: p,
+            w,
+            rows: 0,
+        })
     }
-    w.flush().map_err(os)
+
+    /// Append `rec`'s rows (the file's channels, in its order).
+    pub fn append(&mut self, rec: &Recording) -> Result<(), IoError> {
+        let same = rec.channels().len() == self.names.len()
+            && rec
+                .channels()
+                .iter()
+                .zip(&self.names)
+                .all(|(c, n)| &c.name == n);
+        if !same {
+            return Err(IoError::Malformed {
+                path: self.path.clone(),
+                detail: format!(
+                    "appending channels {:?} to a file of {:?}",
+                    rec.names(),
+                    self.names
+                ),
+            });
+        }
+        for i in 0..rec.len() {
+            for (cell, c) in self.row.iter_mut().zip(rec.channels()) {
+                cell.clear();
+                use std::fmt::Write;
+                let _ = write!(cell, "{}", c.values[i]);
+            }
+            self.w
+                .write_record(&self.row)
+                .map_err(|e| IoError::Malformed {
+                    path: self.path.clone(),
+                    detail: e.to_string(),
+                })?;
+        }
+        self.rows += rec.len();
+        Ok(())
+    }
+
+    /// Rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Bytes written so far (some may still be buffered).
+    pub fn bytes(&self) -> usize {
+        self.w.get_ref().bytes
+    }
+
+    /// Finish the file.
+    pub fn close(mut self) -> Result<(), IoError> {
+        let path = self.path.clone();
+        self.w
+            .flush()
+            .map_err(|source| IoError::Os { path, source })
+    }
 }

@@ -339,3 +339,87 @@ pub fn write(path: impl AsRef<Path>, rec: &Recording, opts: &WriteOptions) -> Re
         }),
     }
 }
+
+/// Rows per Parquet row group when a recording is written as it comes: the writer holds at
+/// most this many rows (≈ 18 MB at 35 channels).
+pub const STREAM_ROWS_PER_GROUP: usize = 65_536;
+
+/// A recording written chunk by chunk in the format its extension names (`physid simulate`'s
+/// output, the live service's logs): CSV and MDF4 byte for byte what [`write`] writes for the
+/// whole (MDF4 uncompressed), Parquet the same values in row groups of
+/// [`STREAM_ROWS_PER_GROUP`]. Memory stays bounded however long it writes.
+pub enum ChunkWriter {
+    /// CSV.
+    Csv(Box<crate::CsvWriter>),
+    /// Parquet.
+    Parquet(Box<crate::ParquetWriter>),
+    /// MDF4, uncompressed.
+    Mdf(crate::MdfWriter),
+}
+
+impl ChunkWriter {
+    /// Create `path` for recordings with `like`'s channels, units, basis and metadata (the
+    /// metadata where the format keeps it: Parquet).
+    pub fn create(
+        path: impl AsRef<Path>,
+        like: &Recording,
+        opts: &WriteOptions,
+    ) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        match Format::from_extension(path) {
+            Some(Format::Csv) => Ok(Self::Csv(Box::new(crate::CsvWriter::create(path, like)?))),
+            Some(Format::Parquet) => Ok(Self::Parquet(Box::new(crate::ParquetWriter::create(
+                path,
+                like,
+                STREAM_ROWS_PER_GROUP,
+            )?))),
+            Some(Format::Mdf4) if opts.mdf_compression == MdfCompression::None => {
+                Ok(Self::Mdf(crate::MdfWriter::create(path, like, None)?))
+            }
+            Some(Format::Mdf4) => Err(IoError::Malformed {
+                path: path.display().to_string(),
+                detail: "an MDF4 file written as the samples come is uncompressed; compress it afterwards (physid convert)".into(),
+            }),
+            None => Err(IoError::Malformed {
+                path: path.display().to_string(),
+                detail: "unknown extension: expected .csv, .parquet or .mf4".into(),
+            }),
+        }
+    }
+
+    /// Append `rec`'s samples (the file's channels, in its order).
+    pub fn append(&mut self, rec: &Recording) -> Result<(), IoError> {
+        match self {
+            Self::Csv(w) => w.append(rec),
+            Self::Parquet(w) => w.append(rec),
+            Self::Mdf(w) => w.append(rec),
+        }
+    }
+
+    /// Samples written so far.
+    pub fn rows(&self) -> usize {
+        match self {
+            Self::Csv(w) => w.rows(),
+            Self::Parquet(w) => w.rows(),
+            Self::Mdf(w) => w.rows(),
+        }
+    }
+
+    /// Bytes so far (written, and for Parquet buffered for the next row group).
+    pub fn bytes(&self) -> usize {
+        match self {
+            Self::Csv(w) => w.bytes(),
+            Self::Parquet(w) => w.bytes(),
+            Self::Mdf(w) => w.bytes(),
+        }
+    }
+
+    /// Finish the file.
+    pub fn close(self) -> Result<(), IoError> {
+        match self {
+            Self::Csv(w) => w.close(),
+            Self::Parquet(w) => w.close(),
+            Self::Mdf(w) => w.close(),
+        }
+    }
+}

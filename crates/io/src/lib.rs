@@ -12,9 +12,10 @@ pub mod format;
 pub mod mdf;
 pub mod parquet_file;
 
-pub use csv_file::{read_csv, write_csv, CsvOptions};
+pub use csv_file::{read_csv, write_csv, CsvOptions, CsvWriter};
 pub use format::{
-    basis_by_channels, detect, read, write, Format, MapItem, ReadOptions, WriteOptions,
+    basis_by_channels, detect, read, write, ChunkWriter, Format, MapItem, ReadOptions,
+    WriteOptions, STREAM_ROWS_PER_GROUP,
 };
 pub use mdf::{read_mdf, write_mdf, MdfCompression, MdfWriter};
 pub use parquet_file::{read_parquet, write_parquet, ParquetWriter};

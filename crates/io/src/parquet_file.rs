@@ -254,6 +254,7 @@ impl ParquetWriter {
         })?;
         let props = WriterProperties::builder()
             .set_compression(Compression::SNAPPY)
+            .set_dictionary_enabled(false)
             .set_max_row_group_row_count(Some(rows_per_group.max(1)))
             .build();
         let w =

@@ -1,8 +1,8 @@
 //! Logging the live data: `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`) starts
 //! writing every channel of every chunk to that file in the log directory (`--log-dir`,
 //! default `physid-logs`), `{"cmd": "record", "stop": true}` finishes the file. The file is
-//! written as the chunks arrive — Parquet a row group every 65 536 rows, MDF4 record by record
-//! into one growing data block ([`MdfWriter`]) — so memory stays bounded however long it
+//! written as the chunks arrive ([`ChunkWriter`]: Parquet a row group every 65 536 rows, MDF4
+//! record by record into one growing data block) — so memory stays bounded however long it
 //! records; its size is reported in `log` events (each second of recording and at the end).
 //!
 //! Only a plain file name is taken (no directory part, no overwriting): a panel that may be
@@ -11,66 +11,14 @@
 use crate::event::Event;
 use crate::service::LiveError;
 use physid_core::Recording;
-use physid_io::{IoError, MdfWriter, ParquetWriter};
+use physid_io::{ChunkWriter, WriteOptions};
 use std::path::{Path, PathBuf};
-
-/// Rows per row group of a log.
-const ROWS_PER_GROUP: usize = 65_536;
-
-/// A log's writer.
-enum LogWriter {
-    Parquet(Box<ParquetWriter>),
-    Mdf(MdfWriter),
-}
-
-impl LogWriter {
-    /// The writer for `path`'s extension, for chunks like `like`.
-    fn create(path: &Path, like: &Recording) -> Result<Self, IoError> {
-        if path.extension().is_some_and(|e| e == "mf4") {
-            Ok(Self::Mdf(MdfWriter::create(path, like, None)?))
-        } else {
-            Ok(Self::Parquet(Box::new(ParquetWriter::create(
-                path,
-                like,
-                ROWS_PER_GROUP,
-            )?)))
-        }
-    }
-
-    fn append(&mut self, chunk: &Recording) -> Result<(), IoError> {
-        match self {
-            Self::Parquet(w) => w.append(chunk),
-            Self::Mdf(w) => w.append(chunk),
-        }
-    }
-
-    fn rows(&self) -> usize {
-        match self {
-            Self::Parquet(w) => w.rows(),
-            Self::Mdf(w) => w.rows(),
-        }
-    }
-
-    fn bytes(&self) -> usize {
-        match self {
-            Self::Parquet(w) => w.bytes(),
-            Self::Mdf(w) => w.bytes(),
-        }
-    }
-
-    fn close(self) -> Result<(), IoError> {
-        match self {
-            Self::Parquet(w) => w.close(),
-            Self::Mdf(w) => w.close(),
-        }
-    }
-}
 
 /// The log being written, if any.
 pub struct Recorder {
     dir: PathBuf,
     /// The file asked for, and its writer once the first chunk has come.
-    file: Option<(PathBuf, Option<LogWriter>)>,
+    file: Option<(PathBuf, Option<ChunkWriter>)>,
     last_report: f64,
 }
 
@@ -119,7 +67,11 @@ impl Recorder {
         };
         let w = match writer {
             Some(w) => w,
-            None => writer.insert(LogWriter::create(path, chunk)?),
+            None => writer.insert(ChunkWriter::create(
+                &*path,
+                chunk,
+                &WriteOptions::default(),
+            )?),
         };
         w.append(chunk)?;
         if t_s - self.last_report < 1.0 {
@@ -140,7 +92,7 @@ impl Recorder {
         let Some((path, writer)) = self.file.take() else {
             return Ok(None);
         };
-        let samples = writer.as_ref().map_or(0, LogWriter::rows);
+        let samples = writer.as_ref().map_or(0, ChunkWriter::rows);
         if let Some(w) = writer {
             w.close()?;
         }

@@ -3,11 +3,12 @@
 
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
+use physid_io::ChunkWriter;
 use physid_sim::params::CellParams;
-use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::{Fault, Scenario, NAMED};
 use physid_sim::studies::{compression, dyno_curve, motored_cycle};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `physid simulate`.
 #[derive(clap::Args)]
@@ -204,12 +205,14 @@ pub fn run(args: &Args) -> Result<()> {
         "crank" => OutputBasis::Crank(args.step_deg),
         b => return Err(miette!("--basis '{b}': expected time or crank")),
     };
+    // The run as a stream, each second of recording written as it comes: memory stays flat
+    // however long the recording (the file is the one the whole recording would give).
     let opts = RunOptions {
         params: args.set.params()?,
         duration: args.duration,
         faults,
         basis,
-        stream: false,
+        stream: true,
     };
     let bar = indicatif::ProgressBar::new(100);
     bar.set_style(
@@ -219,31 +222,98 @@ pub fn run(args: &Args) -> Result<()> {
     );
     bar.set_message(format!("simulating {}", scenario.name));
     let t0 = std::time::Instant::now();
-    let rec = simulate(&scenario, &opts, |f| bar.set_position((f * 100.0) as u64))
-        .map_err(|e| miette!("{e}"))?;
+    let written = write_as_it_goes(&scenario, &opts, out, |f| {
+        bar.set_position((f * 100.0) as u64)
+    });
     bar.finish_and_clear();
+    let (channels, samples) = match written {
+        Ok(Some(n)) => n,
+        Ok(None) => {
+            let why = match basis {
+                OutputBasis::Crank(_) => " (a crank-angle recording starts at the engine's first TDC after the settling time; an engine cycle at 1000 rpm lasts 0.12 s)",
+                OutputBasis::Time(_) => "",
+            };
+            return Err(miette!(
+                "--duration {recorded}: the recording would hold no sample{why}: record longer"
+            ));
+        }
+        Err(e) => return Err(e),
+    };
     let seconds = t0.elapsed().as_secs_f64();
-    if rec.is_empty() {
-        let why = match basis {
-            OutputBasis::Crank(_) => " (a crank-angle recording starts at the engine's first TDC after the settling time; an engine cycle at 1000 rpm lasts 0.12 s)",
-            OutputBasis::Time(_) => "",
-        };
-        return Err(miette!(
-            "--duration {recorded}: the recording would hold no sample{why}: record longer"
-        ));
-    }
-    physid_io::write(out, &rec, &Default::default()).into_diagnostic()?;
     let simulated = opts.duration.unwrap_or(scenario.duration) + scenario.settle;
     outln!(
         "wrote {} ({} channels × {} samples; {:.1} s simulated in {:.2} s, {:.0}× real time)",
         out.display(),
-        rec.channels().len(),
-        rec.len(),
+        channels,
+        samples,
         simulated,
         seconds,
         simulated / seconds
     );
     Ok(())
+}
+
+/// Run `scenario` as a stream and write its recording to `out` as it comes (one second of
+/// recording at a time); `progress` gets the fraction done. The number of channels and samples
+/// written, `None` (and no file) when the recording holds fewer than two samples; on an error
+/// the partial file is removed.
+fn write_as_it_goes(
+    scenario: &Scenario,
+    opts: &RunOptions,
+    out: &Path,
+    mut progress: impl FnMut(f64),
+) -> Result<Option<(usize, usize)>> {
+    let mut writer: Option<ChunkWriter> = None;
+    let (mut rows, mut channels) = (0, 0);
+    let result = (|| -> Result<()> {
+        let mut run = Run::new(scenario, opts).map_err(|e| miette!("{e}"))?;
+        // Refused when even its uncompressed float64 size cannot fit on the disk.
+        let dir = match out.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        physid_core::memory::check_disk(run.size_bytes(), dir, "the recording")
+            .map_err(|e| miette!("--out {}: {e}: record less (--duration)", out.display()))?;
+        let duration = run.duration();
+        let mut t = 0.0;
+        while !run.is_done() {
+            t += 1.0;
+            run.step_until(t).map_err(|e| miette!("{e}"))?;
+            let mut chunk = run.drain().map_err(|e| miette!("{e}"))?;
+            if !chunk.is_empty() {
+                if writer.is_none() {
+                    run.describe(&mut chunk);
+                    channels = chunk.channels().len();
+                    writer = Some(
+                        ChunkWriter::create(out, &chunk, &Default::default())
+                            .map_err(|e| miette!("{e}"))?,
+                    );
+                }
+                if let Some(w) = writer.as_mut() {
+                    w.append(&chunk).map_err(|e| miette!("{e}"))?;
+                }
+                rows += chunk.len();
+            }
+            progress((run.time() / duration).clamp(0.0, 1.0));
+        }
+        Ok(())
+    })();
+    match (result, writer) {
+        (Ok(()), Some(w)) if rows >= 2 => {
+            w.close().map_err(|e| miette!("{e}"))?;
+            Ok(Some((channels, rows)))
+        }
+        (Ok(()), w) => {
+            drop(w);
+            let _ = std::fs::remove_file(out);
+            Ok(None)
+        }
+        (Err(e), w) => {
+            drop(w);
+            let _ = std::fs::remove_file(out);
+            Err(e)
+        }
+    }
 }
 
 fn run_study(study: &Study) -> Result<()> {

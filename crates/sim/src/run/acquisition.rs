@@ -398,6 +398,7 @@ impl Acquisition {
             OutputBasis::Time(_) => Basis::Time,
             OutputBasis::Crank(_) => Basis::CrankAngle,
         });
+        self.describe(&mut rec, scenario);
         for out in self.outputs {
             rec.push(Channel {
                 name: out.name.into(),
@@ -406,6 +407,12 @@ impl Acquisition {
             })
             .map_err(|e| SimError::Invalid(e.to_string()))?;
         }
+        Ok(rec)
+    }
+
+    /// The run in `rec`'s metadata: the source, the scenario, the faults so far and the
+    /// parameters.
+    pub(super) fn describe(&self, rec: &mut Recording, scenario: &Scenario) {
         rec.meta.insert("source".into(), "physid simulate".into());
         rec.meta.insert("scenario".into(), scenario.name.clone());
         rec.meta.insert(
@@ -421,7 +428,6 @@ impl Acquisition {
                 rec.meta.insert(format!("param.{path}"), format!("{v}"));
             }
         }
-        Ok(rec)
     }
 }
 

@@ -109,7 +109,12 @@ pub struct Run {
     /// The machine frame's angle, for the phase currents and voltages.
     frame: SinCosTrack,
     done: bool,
+    /// The recording's size in memory (every channel as float64) [bytes].
+    bytes: f64,
 }
+
+/// The most samples a streaming run takes: its output grid counts them exactly below 2^53.
+const MAX_STREAM_SAMPLES: f64 = 9_007_199_254_740_992.0;
 
 impl Run {
     /// Check the scenario, options and parameters, refuse a recording that cannot fit in
@@ -151,16 +156,21 @@ impl Run {
                 rpm / 60.0 * 360.0 / step
             }
         };
+        let what = if duration < 1e5 {
+            format!("a recording of {duration} s")
+        } else {
+            format!("a recording of {duration:e} s")
+        };
+        let samples = duration * per_second;
+        let bytes = samples * OUTPUT.len() as f64 * 8.0;
         if !opts.stream {
-            physid_core::memory::check_fits(
-                duration * per_second * OUTPUT.len() as f64 * 8.0,
-                &if duration < 1e5 {
-                    format!("a recording of {duration} s")
-                } else {
-                    format!("a recording of {duration:e} s")
-                },
-            )
-            .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
+            physid_core::memory::check_fits(bytes, &what)
+                .map_err(|e| SimError::Invalid(format!("{e}: record less (duration)")))?;
+        } else if samples >= MAX_STREAM_SAMPLES {
+            // A stream holds nothing, but counts its samples exactly.
+            return Err(SimError::Invalid(format!(
+                "{what} at {per_second} samples/s is {samples:e} samples, more than a stream counts exactly (2^53): record less (duration)"
+            )));
         }
         let w0 = if torque_mode {
             1000.0 * PI / 30.0
@@ -184,6 +194,7 @@ impl Run {
             cell,
             acquisition,
             done: false,
+            bytes,
         })
     }
 
@@ -195,6 +206,12 @@ impl Run {
     /// The recorded duration [s].
     pub fn duration(&self) -> f64 {
         self.duration
+    }
+
+    /// The whole recording's size as float64 values [bytes], known in advance (a file of it
+    /// takes at least this much, uncompressed).
+    pub fn size_bytes(&self) -> f64 {
+        self.bytes
     }
 
     /// Whether the run has reached its end (one step past the duration).
@@ -269,6 +286,13 @@ impl Run {
     /// solver step. The chunks put end to end are the recording `simulate` gives, bit for bit.
     pub fn drain(&mut self) -> Result<Recording, SimError> {
         self.acquisition.drain()
+    }
+
+    /// The run in `rec`'s metadata, as [`finish`](Self::finish) puts it: the scenario, the
+    /// faults so far and the parameters (for a streaming run's first chunk, before its file is
+    /// written).
+    pub fn describe(&self, rec: &mut Recording) {
+        self.acquisition.describe(rec, &self.scenario);
     }
 
     /// The recording so far (the whole run once [`is_done`](Self::is_done)), with the
