@@ -423,7 +423,9 @@ pub struct TorqueCycle {
 struct RunningTorque {
     est: NonlinearEstimator<CyclicTorque>,
     analysis: Analysis,
+    /// The estimated parameters in rank order, and in the estimator's (index) order.
     estimable: Vec<usize>,
+    order: Vec<usize>,
     r2: f64,
 }
 
@@ -690,6 +692,7 @@ impl TorqueStage {
             est,
             analysis,
             estimable,
+            order,
             r2,
         });
         let mut u = [0.0; 6];
@@ -743,12 +746,7 @@ impl TorqueStage {
         if self.filtered.is_multiple_of(PER_CYCLE) {
             // In rank order, as chosen.
             let (v, se) = (r.est.estimate(), r.est.std_errors());
-            let free: Vec<usize> = {
-                let mut f = r.estimable.clone();
-                f.sort_unstable();
-                f
-            };
-            let at = |j: usize| free.iter().position(|&i| i == j).unwrap_or(0);
+            let at = |j: usize| r.order.iter().position(|&i| i == j).unwrap_or(0);
             out.push(TorqueOutput::Cycle(TorqueCycle {
                 t_s: t,
                 params: r.estimable.iter().map(|&j| v[at(j)]).collect(),
@@ -776,11 +774,7 @@ impl TorqueStage {
         };
         let n = data.y.len();
         let model = CyclicTorque::default();
-        let order: Vec<usize> = {
-            let mut f = r.estimable.clone();
-            f.sort_unstable();
-            f
-        };
+        let order = &r.order;
         // The last point of the tracks is the last sample.
         if !(self.filtered - 1).is_multiple_of(self.track_every) {
             let (v, se) = (r.est.estimate(), r.est.std_errors());

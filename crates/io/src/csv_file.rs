@@ -318,22 +318,7 @@ impl CsvWriter {
 
     /// Append `rec`'s rows (the file's channels, in its order).
     pub fn append(&mut self, rec: &Recording) -> Result<(), IoError> {
-        let same = rec.channels().len() == self.names.len()
-            && rec
-                .channels()
-                .iter()
-                .zip(&self.names)
-                .all(|(c, n)| &c.name == n);
-        if !same {
-            return Err(IoError::Malformed {
-                path: self.path.clone(),
-                detail: format!(
-                    "appending channels {:?} to a file of {:?}",
-                    rec.names(),
-                    self.names
-                ),
-            });
-        }
+        crate::check_appended(&self.path, &self.names, rec)?;
         for i in 0..rec.len() {
             for (cell, c) in self.row.iter_mut().zip(rec.channels()) {
                 cell.clear();

@@ -107,6 +107,27 @@ thread_local! {
 /// becomes `FILE: corrupt FORMAT (…)` instead of ending the program: the boundary the readers
 /// keep, since those crates assert on some malformed inputs (see `tests/fuzz.rs`). Allocation
 /// failure aborts and cannot be contained: the readers check claimed sizes before allocating.
+/// A chunk appended to a file written as it comes must have the file's channels, in its order.
+pub(crate) fn check_appended(
+    path: &str,
+    names: &[String],
+    rec: &physid_core::Recording,
+) -> Result<(), IoError> {
+    let same = rec.channels().len() == names.len()
+        && rec.channels().iter().zip(names).all(|(c, n)| &c.name == n);
+    if same {
+        return Ok(());
+    }
+    Err(IoError::Malformed {
+        path: path.into(),
+        detail: format!(
+            "appending channels {:?} to a file of {:?}",
+            rec.names(),
+            names
+        ),
+    })
+}
+
 pub(crate) fn contained<T>(
     path: &str,
     format: &str,

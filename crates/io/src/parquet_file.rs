@@ -279,25 +279,7 @@ impl ParquetWriter {
         rec: &Recording,
         range: std::ops::Range<usize>,
     ) -> Result<(), IoError> {
-        let same = rec.channels().len() == self.names.len()
-            && rec
-                .channels()
-                .iter()
-                .zip(&self.names)
-                .all(|(c, n)| &c.name == n);
-        if !same {
-            return Err(IoError::Malformed {
-                path: self.path.clone(),
-                detail: format!(
-                    "appending channels {:?} to a file of {:?}",
-                    rec.channels()
-                        .iter()
-                        .map(|c| c.name.as_str())
-                        .collect::<Vec<_>>(),
-                    self.names
-                ),
-            });
-        }
+        crate::check_appended(&self.path, &self.names, rec)?;
         let cols: Vec<ArrayRef> = rec
             .channels()
             .iter()
