@@ -15,7 +15,7 @@
 
 use physid_core::{FreeSet, ParamSet};
 use physid_estim::{EstimError, EstimatorConfig, LinearEstimator, Method};
-use physid_ident::{IdentError, Memory, OnlineIdent};
+use physid_ident::{IdentError, Memory, OnlineIdent, RankWorkspace};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -73,6 +73,8 @@ pub struct ExcitationSupervisor {
     /// Per universe parameter: currently estimated.
     active: Vec<bool>,
     row: Vec<f64>,
+    /// The ranking's working memory (re-ranking allocates nothing).
+    ws: RankWorkspace,
     samples: u64,
     freezes: u64,
     releases: u64,
@@ -112,6 +114,7 @@ impl ExcitationSupervisor {
             reference: vec![0.0; p],
             active: vec![true; p],
             row: vec![0.0; p],
+            ws: RankWorkspace::new(p),
             samples: 0,
             freezes: 0,
             releases: 0,
@@ -133,7 +136,7 @@ impl ExcitationSupervisor {
     }
 
     fn steer(&mut self) -> Result<(), SupervisorError> {
-        let ranking = self.ident.ranking();
+        let ranking = self.ident.ranking_into(&mut self.ws);
         let mut changed = false;
         for step in &ranking.steps {
             let j = step.param;
@@ -159,6 +162,12 @@ impl ExcitationSupervisor {
             self.estimator.set_free(&free)?;
         }
         Ok(())
+    }
+
+    /// Per parameter the estimator was built with (in its order): whether it is estimated now
+    /// (`false`: frozen).
+    pub fn active(&self) -> &[bool] {
+        &self.active
     }
 
     /// The supervised estimator.

@@ -9,6 +9,7 @@
 
 use crate::acquisition::{to_time_basis, uniform_step};
 use crate::error::AppError;
+use crate::excitation::{ExcitationSupervisor, SupervisorConfig, SupervisorError};
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::{
     CovSpec, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector, VfVariant,
@@ -83,6 +84,9 @@ pub struct MonitorConfig {
     pub rate_hz: f64,
     /// Seconds of data before the detector starts (the estimator's start-up).
     pub settle_s: f64,
+    /// Freeze K or B while the data no longer resolve them (the excitation supervisor, thesis
+    /// §9.2: on-line identifiability over the last ≈ 0.1 s), release them when they do again.
+    pub supervise: bool,
 }
 
 impl Default for MonitorConfig {
@@ -107,6 +111,7 @@ impl Default for MonitorConfig {
             cutoff_hz: 500.0,
             rate_hz: 2000.0,
             settle_s: 1.0,
+            supervise: false,
         }
     }
 }
@@ -175,7 +180,19 @@ pub struct ShaftMonitor {
     pub nmse: Option<PerParam>,
     /// First time after which the estimates stay within ±5 % of the truth [s], per parameter.
     pub within_5pct_s: Option<[Option<f64>; 2]>,
+    /// With the excitation supervisor: how long K and B were frozen [s] (estimator samples
+    /// frozen × the estimator's step).
+    pub frozen_s: Option<PerParam>,
+    /// With the excitation supervisor: K, B and τ0 frozen or not at each estimator sample.
+    pub frozen: Vec<[bool; 3]>,
 }
+
+/// How long the excitation supervisor must hold a parameter frozen (or free) before the stage
+/// reports the change [s]: longer than an engine cycle above 500 rpm, whose quiet part (no
+/// compression near bottom dead centre) the estimator's own short memory (λ = 0.98 at 2 kHz:
+/// 25 ms) cannot resolve K and B in — the estimator freezes them there (no wind-up), but that is
+/// not a loss of excitation worth telling.
+pub const FREEZE_HOLD_S: f64 = 0.25;
 
 /// Samples per chunk when a file is streamed through the stage.
 const FILE_CHUNK: usize = 4096;
@@ -234,6 +251,50 @@ pub struct ShaftSample {
     pub estimate: ShaftParams,
     /// Standard errors of K and B (NaN before they can be estimated).
     pub std_err: PerParam,
+    /// Whether K, B and τ0 are frozen by the excitation supervisor: reported once the estimator
+    /// has held one frozen (or free) for [`FREEZE_HOLD_S`] without a break.
+    pub frozen: [bool; 3],
+}
+
+/// The monitor's estimator, supervised or not.
+#[derive(Debug, Clone)]
+enum Estimator {
+    Plain(Box<LinearEstimator>),
+    Supervised(Box<ExcitationSupervisor>),
+}
+
+impl Estimator {
+    fn get(&self) -> &LinearEstimator {
+        match self {
+            Self::Plain(e) => e,
+            Self::Supervised(s) => s.estimator(),
+        }
+    }
+
+    fn update(&mut self, phi: &[f64], y: f64, at: usize) -> Result<(), AppError> {
+        let estim = |source| AppError::Estim {
+            at: format!("sample {at}"),
+            source,
+        };
+        match self {
+            Self::Plain(e) => e.update(phi, y).map(|_| ()).map_err(estim),
+            Self::Supervised(s) => s.update(phi, y).map_err(|e| match e {
+                SupervisorError::Estim(source) => estim(source),
+                SupervisorError::Ident(e) => AppError::Invalid(format!("sample {at}: {e}")),
+            }),
+        }
+    }
+
+    /// Whether K, B and τ0 are frozen now.
+    fn frozen(&self) -> [bool; 3] {
+        match self {
+            Self::Plain(_) => [false; 3],
+            Self::Supervised(s) => {
+                let a = s.active();
+                [!a[0], !a[1], !a[2]]
+            }
+        }
+    }
 }
 
 /// The shaft monitor as a stage: chunks of samples in, estimator samples and alarms out, the
@@ -251,10 +312,13 @@ pub struct ShaftStage {
     t0: Option<f64>,
     /// Index of the next filtered sample.
     next: usize,
-    est: LinearEstimator,
+    est: Estimator,
     det: RelativeErrorDetector,
     /// Times of the detector's last samples (an alarm's onset is at most a dwell back).
     det_times: VecDeque<f64>,
+    /// The reported frozen state, and since when the estimator's has differed from it.
+    held: [bool; 3],
+    differs_since: [Option<f64>; 3],
     model: Shaft,
     raw: [Vec<f64>; 3],
     filtered: [Vec<f64>; 3],
@@ -297,6 +361,21 @@ impl ShaftStage {
         };
         let est = LinearEstimator::new(&config, &params, &params.all_free())
             .map_err(AppError::estim("estimator configuration"))?;
+        let est = if cfg.supervise {
+            // The estimator's own memory (λ): what it forgets, the ranking forgets; rows scaled
+            // by the healthy values.
+            let sup = SupervisorConfig::for_lambda(cfg.lambda);
+            let scale = vec![
+                cfg.healthy.k.abs().max(1e-12),
+                cfg.healthy.b.abs().max(1e-12),
+                1.0,
+            ];
+            let s = ExcitationSupervisor::new(est, scale, sup)
+                .map_err(|e| AppError::Invalid(format!("excitation supervisor: {e}")))?;
+            Estimator::Supervised(Box::new(s))
+        } else {
+            Estimator::Plain(Box::new(est))
+        };
         let dwell = cfg.dwell.max(1);
         let det = RelativeErrorDetector::new(
             vec!["K".into(), "B".into()],
@@ -316,10 +395,26 @@ impl ShaftStage {
             est,
             det,
             det_times: VecDeque::with_capacity(dwell as usize + 1),
+            held: [false; 3],
+            differs_since: [None; 3],
             model: Shaft::new(true),
             raw: Default::default(),
             filtered: Default::default(),
         })
+    }
+
+    /// The reported frozen state at time `t` (see [`ShaftSample::frozen`]).
+    fn held(&mut self, t: f64) -> [bool; 3] {
+        let now = self.est.frozen();
+        for ((held, since), now) in self.held.iter_mut().zip(&mut self.differs_since).zip(now) {
+            if now == *held {
+                *since = None;
+            } else if t - *since.get_or_insert(t) >= FREEZE_HOLD_S {
+                *held = now;
+                *since = None;
+            }
+        }
+        self.held
     }
 
     /// The most input samples between a sample's arrival and its estimate: the low-pass's
@@ -328,9 +423,12 @@ impl ShaftStage {
         self.filters.as_ref().map_or(0, |f| f[0].latency())
     }
 
-    /// The current K, B, τ0.
+    /// The current K, B, τ0 (a frozen one at its value when it was frozen).
     pub fn estimate(&self) -> ShaftParams {
-        let th = self.est.estimate();
+        let e = self.est.get();
+        let mut th = [0.0; 3];
+        th.copy_from_slice(e.params().nominal());
+        e.free_set().scatter(e.estimate(), &mut th);
         ShaftParams {
             k: th[0],
             b: th[1],
@@ -338,11 +436,14 @@ impl ShaftStage {
         }
     }
 
-    /// Their standard errors (NaN before they can be estimated).
+    /// Their standard errors (NaN before they can be estimated, and while frozen).
     pub fn std_err(&self) -> ShaftParams {
-        let mut se = [0.0; 3];
-        if self.est.std_errors_into(&mut se).is_err() {
-            se = [f64::NAN; 3];
+        let e = self.est.get();
+        let n = e.free_set().free().len();
+        let mut free = [0.0; 3];
+        let mut se = [f64::NAN; 3];
+        if e.std_errors_into(&mut free[..n]).is_ok() {
+            e.free_set().scatter(&free[..n], &mut se);
         }
         ShaftParams {
             k: se[0],
@@ -447,16 +548,14 @@ impl ShaftStage {
                 continue;
             }
             self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
-            self.est.update(&phi, tq[k]).map_err(|e| AppError::Estim {
-                at: format!("sample {i}"),
-                source: e,
-            })?;
+            self.est.update(&phi, tq[k], i)?;
             let (estimate, se) = (self.estimate(), self.std_err());
             samples.push(ShaftSample {
                 index: i,
                 t_s: t,
                 estimate,
                 std_err: PerParam { k: se.k, b: se.b },
+                frozen: self.held(t),
             });
             if t - t0 >= self.cfg.settle_s {
                 if self.det_times.len() > self.cfg.dwell.max(1) as usize {
@@ -500,6 +599,9 @@ pub struct ShaftSummary<'a> {
     pub alarms: &'a [ShaftAlarm],
     /// NMSE (Eq. 6.4) of the tracks against the truth (simulated data).
     pub nmse: Option<PerParam>,
+    /// With the excitation supervisor: how long K and B were frozen [s].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frozen_s: Option<PerParam>,
 }
 
 impl ShaftMonitor {
@@ -511,6 +613,7 @@ impl ShaftMonitor {
             std_err: self.final_std_err,
             alarms: &self.alarms,
             nmse: self.nmse,
+            frozen_s: self.frozen_s,
         }
     }
 }
@@ -571,6 +674,19 @@ pub fn monitor_shaft(rec: &Recording, cfg: &MonitorConfig) -> Result<ShaftMonito
         truth: None,
         nmse: None,
         within_5pct_s: None,
+        frozen_s: cfg.supervise.then(|| {
+            let step = 1.0 / cfg.rate_hz;
+            let count = |j: usize| samples.iter().filter(|s| s.frozen[j]).count() as f64 * step;
+            PerParam {
+                k: count(0),
+                b: count(1),
+            }
+        }),
+        frozen: if cfg.supervise {
+            samples.iter().map(|s| s.frozen).collect()
+        } else {
+            Vec::new()
+        },
     };
     if let (Ok(tk), Ok(tb)) = (rec.values("true_shaft_k"), rec.values("true_shaft_b")) {
         let idx: Vec<usize> = samples.iter().map(|s| s.index).collect();

@@ -11,9 +11,23 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn the_shaft_stage_does_not_allocate_per_sample() {
+    steady_state_allocations(MonitorConfig::default());
+}
+
+/// The same with the excitation supervisor ranking every 10 estimator samples (re-ranking in
+/// its workspace; only a freeze or a release, which this excited shaft never needs, rebuilds
+/// the estimator).
+#[test]
+fn the_supervised_shaft_stage_does_not_allocate_per_sample() {
+    steady_state_allocations(MonitorConfig {
+        supervise: true,
+        ..Default::default()
+    });
+}
+
+fn steady_state_allocations(cfg: MonitorConfig) {
     let fs = 10_000.0;
     let n = 100;
-    let cfg = MonitorConfig::default();
     let mut stage = ShaftStage::new(&cfg, fs).unwrap();
     let (mut samples, mut alarms) = (Vec::with_capacity(4 * n), Vec::with_capacity(16));
     let mut cols: [Vec<f64>; 6] = Default::default();

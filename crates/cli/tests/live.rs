@@ -817,3 +817,45 @@ fn cyclic_torque_on_the_stream_ends_on_the_file_verbs_fit() {
     }
     assert!(last["rms_error"].as_f64().unwrap() < 0.02 * last["rms_measured"].as_f64().unwrap());
 }
+
+/// `--supervise` on a healthy, excited shaft: the live service tells the supervisor's state once
+/// (everything estimated) and never a change; `monitor shaft --supervise` reports no time
+/// frozen and the same final estimate as the replay.
+#[test]
+fn the_supervised_shaft_reports_nothing_frozen_while_excited() {
+    let s = Scratch::new("physid-live-supervise");
+    let file = s.file("t01.parquet");
+    let f = file.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-ramp",
+        "--duration",
+        "6",
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success());
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        f,
+        "--pace",
+        "max",
+        "--supervise",
+    ]);
+    let told = of_type(&ev, "identifiability");
+    assert_eq!(told.len(), 1, "{told:?}");
+    assert_eq!(told[0]["app"], "shaft");
+    assert_eq!(told[0]["estimable"], serde_json::json!(["K", "B", "tau0"]));
+    let o = physid(&["monitor", "shaft", "--data", f, "--json", "--supervise"]);
+    assert!(o.status.success());
+    let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(verb["frozen_s"], serde_json::json!({"K": 0.0, "B": 0.0}));
+    let last = of_type(&ev, "estimate").last().copied().unwrap().clone();
+    for p in ["K", "B"] {
+        assert_eq!(last["params"][p], verb["final"][p], "{p}");
+    }
+}

@@ -30,7 +30,7 @@ pub use analysis::{
 };
 pub use fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, Quantitative};
 pub use online::{Memory, OnlineIdent};
-pub use ranking::{rank, Cutoff, RankStep, Ranking};
+pub use ranking::{rank, Cutoff, RankStep, RankWorkspace, Ranking};
 pub use report::{identify, IdentReport, Identification, Num, SigmaSource};
 pub use sensitivity::{sensitivity_matrix, Data, RowScaler, Scaling};
 pub use triangular::TriangularFactor;

@@ -6,7 +6,7 @@
 //! ranking itself is O(p³) and computed on request. [`OnlineIdent::supported`] is the signal
 //! an estimator uses to freeze a parameter that has lost excitation.
 
-use crate::ranking::{rank, Cutoff, Ranking};
+use crate::ranking::{rank, Cutoff, RankWorkspace, Ranking};
 use crate::triangular::TriangularFactor;
 use crate::IdentError;
 use serde::{Deserialize, Serialize};
@@ -123,6 +123,12 @@ impl OnlineIdent {
     /// The current ranking (O(p³)).
     pub fn ranking(&self) -> Ranking {
         rank(&self.factor.r())
+    }
+
+    /// The same ranking in `ws` (made for [`p`](Self::p) parameters), allocating nothing.
+    pub fn ranking_into<'w>(&self, ws: &'w mut RankWorkspace) -> &'w Ranking {
+        self.factor.r_into(ws.factor_mut());
+        ws.rank()
     }
 
     /// Which parameters the remembered data supports under `cutoff`: `true` for the first K

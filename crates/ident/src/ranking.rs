@@ -51,49 +51,96 @@ pub enum Cutoff {
 
 /// Rank the columns of the factor `r` (p × p, `RᵀR = ZᵀZ`).
 pub fn rank(r: &DMatrix<f64>) -> Ranking {
-    let p = r.ncols();
-    let mut w = r.clone();
-    let column_ss: Vec<f64> = (0..p).map(|j| w.column(j).norm_squared()).collect();
-    let max_ss = column_ss.iter().cloned().fold(0.0, f64::max);
-    // Below this a residual is rounding noise: no direction left to orthogonalise against.
-    let zero = max_ss * (p.max(1) as f64 * f64::EPSILON).powi(2);
-    let mut selected = vec![false; p];
-    let mut steps = Vec::with_capacity(p);
-    let mut first = 0.0;
-    for _ in 0..p {
-        let norms: Vec<(usize, f64)> = (0..p)
-            .filter(|&j| !selected[j])
-            .map(|j| (j, w.column(j).norm_squared()))
-            .collect();
-        let best = norms.iter().map(|x| x.1).fold(f64::MIN, f64::max);
-        let (j, res) = norms
-            .iter()
-            .copied()
-            .find(|&(_, v)| v >= best * (1.0 - TIE))
-            .unwrap_or((0, 0.0));
-        selected[j] = true;
-        if steps.is_empty() {
-            first = res;
-        }
-        steps.push(RankStep {
-            param: j,
-            residual_ss: res,
-            relative: if first > 0.0 { res / first } else { 0.0 },
-        });
-        if res <= zero {
-            continue;
-        }
-        let q = w.column(j) / res.sqrt();
-        for k in (0..p).filter(|&k| !selected[k]) {
-            // Modified Gram–Schmidt, twice ("twice is enough", Kahan–Parlett).
-            for _ in 0..2 {
-                let c = q.dot(&w.column(k));
-                let mut col = w.column_mut(k);
-                col.axpy(-c, &q, 1.0);
-            }
+    let mut ws = RankWorkspace::new(r.ncols());
+    ws.w.copy_from(r);
+    ws.rank();
+    ws.ranking
+}
+
+/// The ranking's working memory for a fixed p, so that ranking again and again (on-line
+/// identifiability) allocates nothing: copy the factor into [`factor_mut`](Self::factor_mut),
+/// then [`rank`](Self::rank).
+#[derive(Debug, Clone)]
+pub struct RankWorkspace {
+    w: DMatrix<f64>,
+    q: nalgebra::DVector<f64>,
+    selected: Vec<bool>,
+    ranking: Ranking,
+}
+
+impl RankWorkspace {
+    /// For `p` parameters.
+    pub fn new(p: usize) -> Self {
+        Self {
+            w: DMatrix::zeros(p, p),
+            q: nalgebra::DVector::zeros(p),
+            selected: vec![false; p],
+            ranking: Ranking {
+                steps: Vec::with_capacity(p),
+                column_ss: vec![0.0; p],
+            },
         }
     }
-    Ranking { steps, column_ss }
+
+    /// The factor to rank (p × p), written in place (the ranking overwrites it).
+    pub fn factor_mut(&mut self) -> &mut DMatrix<f64> {
+        &mut self.w
+    }
+
+    /// Rank the factor written into [`factor_mut`](Self::factor_mut) (Alg. 5.1, module
+    /// documentation).
+    pub fn rank(&mut self) -> &Ranking {
+        let p = self.w.ncols();
+        let Self {
+            w,
+            q,
+            selected,
+            ranking,
+        } = self;
+        for (j, ss) in ranking.column_ss.iter_mut().enumerate() {
+            *ss = w.column(j).norm_squared();
+        }
+        let max_ss = ranking.column_ss.iter().cloned().fold(0.0, f64::max);
+        // Below this a residual is rounding noise: no direction left to orthogonalise against.
+        let zero = max_ss * (p.max(1) as f64 * f64::EPSILON).powi(2);
+        selected.fill(false);
+        ranking.steps.clear();
+        let mut first = 0.0;
+        for _ in 0..p {
+            let best = (0..p)
+                .filter(|&j| !selected[j])
+                .map(|j| w.column(j).norm_squared())
+                .fold(f64::MIN, f64::max);
+            let (j, res) = (0..p)
+                .filter(|&j| !selected[j])
+                .map(|j| (j, w.column(j).norm_squared()))
+                .find(|&(_, v)| v >= best * (1.0 - TIE))
+                .unwrap_or((0, 0.0));
+            selected[j] = true;
+            if ranking.steps.is_empty() {
+                first = res;
+            }
+            ranking.steps.push(RankStep {
+                param: j,
+                residual_ss: res,
+                relative: if first > 0.0 { res / first } else { 0.0 },
+            });
+            if res <= zero {
+                continue;
+            }
+            q.copy_from(&w.column(j));
+            *q /= res.sqrt();
+            for k in (0..p).filter(|&k| !selected[k]) {
+                // Modified Gram–Schmidt, twice ("twice is enough", Kahan–Parlett).
+                for _ in 0..2 {
+                    let c = q.dot(&w.column(k));
+                    let mut col = w.column_mut(k);
+                    col.axpy(-c, &*q, 1.0);
+                }
+            }
+        }
+        &self.ranking
+    }
 }
 
 impl Ranking {

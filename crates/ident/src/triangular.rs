@@ -138,6 +138,15 @@ impl TriangularFactor {
         DMatrix::from_row_slice(self.p, self.p, &self.r)
     }
 
+    /// `R` into `m` (p × p), allocating nothing.
+    pub fn r_into(&self, m: &mut DMatrix<f64>) {
+        for i in 0..self.p {
+            for j in 0..self.p {
+                m[(i, j)] = self.r[i * self.p + j];
+            }
+        }
+    }
+
     /// Whether every entry is finite (false after an overflow or a non-finite row).
     pub fn is_finite(&self) -> bool {
         self.r.iter().all(|v| v.is_finite())

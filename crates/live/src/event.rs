@@ -40,8 +40,10 @@ pub enum Event {
     },
     /// Which of an application's parameters are estimated now and which are held (frozen):
     /// `{"type": "identifiability", "app": "friction", "t_s": …, "estimable": ["c1", …],
-    /// "frozen": ["c2", …]}` — sent when it changes (the friction characterisation, once, when
-    /// it has chosen its coefficients; the others stay at their nominal values).
+    /// "frozen": ["c2", …]}` — sent when it changes: the friction characterisation and the
+    /// cyclic-torque estimation once, when they have chosen (the others stay at their nominal
+    /// values); the shaft monitor with `--supervise` at the start and whenever the excitation
+    /// supervisor has held a change for 0.25 s.
     Identifiability {
         /// The application.
         app: &'static str,

@@ -203,6 +203,7 @@ pub fn run_live(
             None => None,
         },
         torque_out: Vec::new(),
+        shaft_frozen: None,
         integrity: None,
         findings: Vec::new(),
         t_first: f64::NAN,
@@ -263,6 +264,8 @@ struct Live<'a, E> {
     /// The cycle statistics and the channels they cover (set up on the first chunk).
     cycles: Option<(CycleStream, Vec<&'static str>)>,
     traces: Option<TraceStage>,
+    /// K, B, τ0 frozen by the shaft's excitation supervisor, as last told.
+    shaft_frozen: Option<[bool; 3]>,
     /// The integrity checks on the stream (set up on the first chunk) and their findings.
     integrity: Option<IntegrityStream>,
     findings: Vec<IntegrityFinding>,
@@ -396,6 +399,25 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         )?;
         for k in 0..self.samples.len() {
             let s = self.samples[k];
+            // The excitation supervisor's changes (and, supervised, the start), as they happen.
+            if self.cfg.monitor.supervise && self.shaft_frozen != Some(s.frozen) {
+                self.shaft_frozen = Some(s.frozen);
+                let names = ["K", "B", "tau0"];
+                let pick = |frozen: bool| -> Vec<String> {
+                    names
+                        .iter()
+                        .zip(s.frozen)
+                        .filter(|(_, f)| *f == frozen)
+                        .map(|(n, _)| n.to_string())
+                        .collect()
+                };
+                self.send(&Event::Identifiability {
+                    app: "shaft",
+                    t_s: s.t_s,
+                    estimable: pick(false),
+                    frozen: pick(true),
+                })?;
+            }
             // Every estimate is ready now, whether it is sent or thinned out.
             if let Some(l) = self.pacer.since_due(s.t_s) {
                 self.latency.add(l);

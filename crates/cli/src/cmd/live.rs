@@ -41,7 +41,7 @@ pub struct Args {
     /// least 8 characters. Required with a --bind other than loopback.
     #[arg(long, conflicts_with = "headless")]
     token: Option<String>,
-    /// Where `record` controls (the panel's logging) write their Parquet files.
+    /// Where `record` controls (the panel's logging) write their Parquet or MDF4 files.
     #[arg(long, value_name = "DIR", default_value = "physid-logs")]
     log_dir: PathBuf,
     /// Open the panel in the desktop's browser.

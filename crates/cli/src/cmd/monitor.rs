@@ -70,6 +70,10 @@ pub struct MonitorFlags {
     /// Estimator rate [Hz], > 0 (at most the recording's sample rate: every sample).
     #[arg(long, default_value_t = 2000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     rate: f64,
+    /// Freeze K or B while the data no longer resolve them, release them when they do again
+    /// (the excitation supervisor: on-line identifiability over the last 0.1 s, thesis §9.2).
+    #[arg(long)]
+    supervise: bool,
 }
 
 /// Run `physid monitor`.
@@ -89,6 +93,7 @@ pub fn config(a: &MonitorFlags) -> Result<MonitorConfig> {
         dwell: a.dwell,
         cutoff_hz: a.cutoff,
         rate_hz: a.rate,
+        supervise: a.supervise,
         ..Default::default()
     };
     let (names, values) = super::named_values(&a.healthy, "--healthy")?;
