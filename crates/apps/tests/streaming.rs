@@ -126,3 +126,28 @@ fn the_shaft_monitor_is_the_same_however_the_file_is_chunked() {
     eprintln!("stream vs whole record: worst relative difference {worst:.2e}");
     assert!(worst < 1e-9, "{worst:e}");
 }
+
+/// With the excitation supervisor, too: the freezes and releases, the estimates and the
+/// reported state are the same whatever the chunk (the motored sweep, whose quiet cycle parts
+/// make the estimator freeze and release K and B within each cycle).
+#[test]
+fn the_supervised_monitor_is_the_same_however_the_file_is_chunked() {
+    let rec =
+        common::simulate_scenario("friction-sweep", &[], &[], 3.0, OutputBasis::Time(10_000.0));
+    let cfg = MonitorConfig {
+        supervise: true,
+        ..Default::default()
+    };
+    let (whole, alarms) = stream(&rec, &cfg, usize::MAX);
+    for chunk in [1, 17, 4096] {
+        let (s, a) = stream(&rec, &cfg, chunk);
+        same(&s, &whole, &format!("chunks of {chunk}"));
+        assert!(
+            s.iter().zip(&whole).all(|(x, y)| x.frozen == y.frozen),
+            "chunks of {chunk}"
+        );
+        assert_eq!(a, alarms, "chunks of {chunk}");
+    }
+    let r = monitor_shaft(&rec, &cfg).unwrap();
+    assert_eq!(r.k, whole.iter().map(|s| s.estimate.k).collect::<Vec<_>>());
+}

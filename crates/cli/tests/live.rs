@@ -859,3 +859,50 @@ fn the_supervised_shaft_reports_nothing_frozen_while_excited() {
         assert_eq!(last["params"][p], verb["final"][p], "{p}");
     }
 }
+
+/// The virtual cell's scenario and demand mode change while it runs: `shaft-ramp`'s demand
+/// from now on takes the engine from 750 rpm up at its 25 rpm/s; torque demand held at the
+/// dynamometer's mean torque keeps the engine near its speed (it then finds its own); an
+/// unknown scenario and a bad mode are refused by field and the run goes on.
+#[test]
+fn scenario_and_demand_mode_change_while_it_runs() {
+    let rpm = |e: &Value| e["mean"]["omega_en"].as_f64().unwrap() * 30.0 / std::f64::consts::PI;
+    let ev = events_from_stdin(
+        &[
+            "live", "--headless", "--json", "--scenario", "shaft-steady", "--duration", "6",
+            "--pace", "max", "--controls", "-",
+        ],
+        "{\"cmd\":\"scenario\",\"name\":\"warp\"}\n{\"cmd\":\"mode\",\"demand\":\"fast\"}\n{\"cmd\":\"scenario\",\"name\":\"shaft-ramp\"}\n",
+    );
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(says(errors[0], "field 'name' is 'warp'") && says(errors[0], "shaft-ramp"));
+    assert!(says(errors[1], "field 'demand'"));
+    assert_eq!(of_type(&ev, "control")[0]["cmd"], "scenario");
+    let cycles = of_type(&ev, "cycle");
+    let (first, last) = (cycles[2], cycles[cycles.len() - 1]);
+    let slope =
+        (rpm(last) - rpm(first)) / (last["t_s"].as_f64().unwrap() - first["t_s"].as_f64().unwrap());
+    assert!((slope / 25.0 - 1.0).abs() < 0.2, "{slope} rpm/s");
+    assert!((rpm(first) - 760.0).abs() < 40.0, "{}", rpm(first));
+    let ev = events_from_stdin(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "4",
+            "--pace",
+            "max",
+            "--controls",
+            "-",
+        ],
+        "{\"cmd\":\"mode\",\"demand\":\"torque\"}\n",
+    );
+    assert_eq!(of_type(&ev, "control")[0]["cmd"], "mode");
+    for c in of_type(&ev, "cycle") {
+        assert!((rpm(c) / 1000.0 - 1.0).abs() < 0.03, "{} rpm", rpm(c));
+    }
+}

@@ -334,6 +334,9 @@
     if (!spec.includes("@")) spec += "@" + (isFinite(st.t) ? st.t : 0);
     post("control", { cmd: "fault", spec });
   });
+  submit("f-scenario", () => post("control", { cmd: "scenario", name: $("scenario").value.trim() }));
+  $("mode-speed").onclick = () => post("control", { cmd: "mode", demand: "speed" });
+  $("mode-torque").onclick = () => post("control", { cmd: "mode", demand: "torque" });
   submit("f-log", () => post("control", { cmd: "record", file: $("log-file").value.trim() }));
   $("log-stop").onclick = () => post("control", { cmd: "record", stop: true });
   $("pause").onclick = () => post("control", { cmd: "pause" });

@@ -7,6 +7,8 @@
 //! | `{"cmd": "speed", "rpm": 1200}` | the speed demand from now on [rpm] (a torque demand [N·m] in torque mode) |
 //! | `{"cmd": "throttle", "deg": 30}` | the throttle opening from now on [deg] |
 //! | `{"cmd": "fault", "spec": "shaft.k=1000@12"}` | a fault, as `--fault` (its time is the recording's) |
+//! | `{"cmd": "scenario", "name": "shaft-ramp"}` | a built-in scenario's demand, throttle and demand mode from now on (its time 0 = now; the cell's parameters and faults stay) |
+//! | `{"cmd": "mode", "demand": "torque"}` (or `"speed"`) | the dynamometer follows a torque (or speed) demand, held at its present torque (or speed) |
 //! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
 //! | `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`), `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory (Parquet or MDF4), and finish it |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
@@ -14,7 +16,7 @@
 //! A malformed message is refused with an error naming the field; the run goes on.
 
 use physid_sim::run::Run;
-use physid_sim::scenario::{Fault, Profile};
+use physid_sim::scenario::{named, Fault, Profile, Scenario, NAMED};
 use serde_json::Value;
 
 /// A control message (see the module docs).
@@ -32,6 +34,10 @@ pub enum Control {
     Resume,
     /// Start logging to this file name (`Some`) or finish the log (`None`).
     Record(Option<String>),
+    /// Another built-in scenario's demand, throttle and demand mode from now on.
+    Scenario(Box<Scenario>),
+    /// The dynamometer's demand: torque (`true`) or speed, continuing from where it is.
+    TorqueMode(bool),
     /// End the run.
     Stop,
 }
@@ -92,9 +98,28 @@ impl Control {
                         .into(),
                 ),
             },
+            Some("scenario") => {
+                let name = obj
+                    .get("name")
+                    .and_then(Value::as_str)
+                    .ok_or("field 'name' is missing or not a string (a built-in scenario)")?;
+                // Built-in names only: a panel must not make the service read files.
+                let s = named(name).ok_or_else(|| {
+                    format!(
+                        "field 'name' is '{name}': the built-in scenarios are {}",
+                        NAMED.iter().map(|n| n.0).collect::<Vec<_>>().join(", ")
+                    )
+                })?;
+                Ok(Control::Scenario(Box::new(s)))
+            }
+            Some("mode") => match obj.get("demand").and_then(Value::as_str) {
+                Some("torque") => Ok(Control::TorqueMode(true)),
+                Some("speed") => Ok(Control::TorqueMode(false)),
+                _ => Err("field 'demand': expected \"speed\" or \"torque\"".into()),
+            },
             Some("stop") => Ok(Control::Stop),
             other => Err(format!(
-                "field 'cmd' is {}: expected speed, throttle, fault, pause, resume, record or stop",
+                "field 'cmd' is {}: expected speed, throttle, fault, scenario, mode, pause, resume, record or stop",
                 other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'"))
             )),
         }
@@ -108,6 +133,8 @@ impl Control {
             Control::Speed(rpm) => run.set_speed(forever(*rpm)),
             Control::Throttle(deg) => run.set_throttle(forever(*deg)),
             Control::Fault(f) => run.add_fault(f.clone()),
+            Control::Scenario(s) => run.set_scenario(s),
+            Control::TorqueMode(on) => run.set_torque_mode(*on),
             Control::Stop | Control::Pause | Control::Resume | Control::Record(_) => {}
         }
     }
@@ -118,6 +145,8 @@ impl Control {
             Control::Speed(_) => "speed",
             Control::Throttle(_) => "throttle",
             Control::Fault(_) => "fault",
+            Control::Scenario(_) => "scenario",
+            Control::TorqueMode(_) => "mode",
             Control::Pause => "pause",
             Control::Resume => "resume",
             Control::Record(_) => "record",

@@ -183,6 +183,21 @@ impl Profile {
         self
     }
 
+    /// The same profile `dt` seconds later (its start moved from 0 to `dt`).
+    pub fn shifted(&self, dt: f64) -> Self {
+        Self {
+            segments: self
+                .segments
+                .iter()
+                .map(|s| Segment {
+                    t0: s.t0 + dt,
+                    t1: s.t1 + dt,
+                    shape: s.shape.clone(),
+                })
+                .collect(),
+        }
+    }
+
     /// The value at time t (holding the nearest end outside the segments).
     pub fn value(&self, t: f64) -> f64 {
         match self.segments.iter().find(|s| t >= s.t0 && t <= s.t1) {

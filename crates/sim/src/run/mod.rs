@@ -111,6 +111,9 @@ pub struct Run {
     done: bool,
     /// The recording's size in memory (every channel as float64) [bytes].
     bytes: f64,
+    /// The dynamometer's torque averaged over the last ≈ 0.5 s [N·m], and when it was updated.
+    mean_torque_dy: f64,
+    torque_at: f64,
 }
 
 /// The most samples a streaming run takes: its output grid counts them exactly below 2^53.
@@ -195,6 +198,8 @@ impl Run {
             acquisition,
             done: false,
             bytes,
+            mean_torque_dy: 0.0,
+            torque_at: 0.0,
         })
     }
 
@@ -228,6 +233,36 @@ impl Run {
     /// The throttle opening [deg] from now on, against the recording's time.
     pub fn set_throttle(&mut self, profile: Profile) {
         self.scenario.throttle = profile;
+    }
+
+    /// Another scenario's inputs from now on: its demand and throttle profiles starting now,
+    /// and its demand mode (speed or torque). The cell's parameters and the faults stay.
+    pub fn set_scenario(&mut self, s: &Scenario) {
+        let now = self.time().max(0.0);
+        self.scenario.speed = s.speed.shifted(now);
+        self.scenario.throttle = s.throttle.shifted(now);
+        self.torque_mode = s.torque_mode || self.base.dyno.torque_mode != 0.0;
+    }
+
+    /// Switch the dynamometer between speed and torque demand, continuing from where it is:
+    /// speed demand at its present speed [rpm], or torque demand at its mean torque over the
+    /// last ≈ 0.5 s [N·m] (at a fixed throttle the engine then finds its own speed).
+    pub fn set_torque_mode(&mut self, torque: bool) {
+        if torque == self.torque_mode {
+            return;
+        }
+        let hold = if torque {
+            self.mean_torque_dy
+        } else {
+            self.cell.omega_dy() * 30.0 / PI
+        };
+        self.torque_mode = torque;
+        self.scenario.speed = Profile::constant(hold, f64::MAX);
+    }
+
+    /// Whether the dynamometer follows a torque demand (else a speed demand).
+    pub fn torque_mode(&self) -> bool {
+        self.torque_mode
     }
 
     /// A fault from its time on (relative to the recording's start, as every fault).
@@ -268,6 +303,11 @@ impl Run {
         self.measured_at = cell.time();
         let mut s = cell.step_with(&inputs, w_meas);
         check(&s, self.base.engine.active != 0.0)?;
+        // The dynamometer's mean torque over the last ≈ 0.5 s (the pulsation averaged out).
+        let dt = cell.time() - self.torque_at;
+        self.torque_at = cell.time();
+        let a = 1.0 - (-dt / 0.5).exp();
+        self.mean_torque_dy += a * (s.torque_dy - self.mean_torque_dy);
         // From the step that spans t = 0 on, so that the output grid starts at 0.
         if cell.time() - settle > 0.0 {
             s.t = t_rel;
