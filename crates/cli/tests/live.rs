@@ -906,3 +906,48 @@ fn scenario_and_demand_mode_change_while_it_runs() {
         assert!((rpm(c) / 1000.0 - 1.0).abs() < 0.03, "{} rpm", rpm(c));
     }
 }
+
+/// A stage that fails does not stop the service: a replayed recording without the shaft's
+/// channels gets a finding naming the missing channel, and its cycles are still counted to the
+/// end.
+#[test]
+fn a_stage_that_fails_stops_alone() {
+    let s = Scratch::new("physid-live-stage-fails");
+    let full = s.file("full.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "2",
+        "--out",
+        full.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    // The same recording without the dynamometer's angle.
+    let all = physid_io::read(&full, &Default::default()).unwrap();
+    let mut rec = physid_core::Recording::new(all.basis);
+    for c in all.channels().iter().filter(|c| c.name != "theta_dy") {
+        rec.push(c.clone()).unwrap();
+    }
+    let part = s.file("part.parquet");
+    physid_io::write(&part, &rec, &Default::default()).unwrap();
+    let ev = events(&[
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        part.to_str().unwrap(),
+        "--pace",
+        "max",
+    ]);
+    let stopped: Vec<&Value> = of_type(&ev, "finding")
+        .into_iter()
+        .filter(|f| says(f, "the shaft monitor stopped"))
+        .collect();
+    assert_eq!(stopped.len(), 1, "{stopped:?}");
+    assert!(says(stopped[0], "theta_dy"), "{}", stopped[0]);
+    assert!(of_type(&ev, "estimate").is_empty());
+    assert!(of_type(&ev, "cycle").len() > 10);
+    assert_eq!(of_type(&ev, "end")[0]["samples"], 20001);
+}

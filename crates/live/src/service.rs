@@ -156,8 +156,9 @@ pub struct Summary {
     pub samples: usize,
     /// Frames refused.
     pub dropped: usize,
-    /// The shaft's final K, B, τ0 and their standard errors.
-    pub shaft: (ShaftParams, ShaftParams),
+    /// The shaft's final K, B, τ0 and their standard errors (`None` when the shaft monitor
+    /// stopped: a source without its channels, or an estimator error).
+    pub shaft: Option<(ShaftParams, ShaftParams)>,
     /// Complete cycles reported.
     pub cycles: usize,
     /// Events sent.
@@ -168,8 +169,11 @@ pub struct Summary {
 /// the source has `theta_en` and a channel of [`CYCLE_CHANNELS`]) and, for the panel, the
 /// time traces — applying the control messages that arrive on `controls` between chunks (each
 /// answered on its reply channel and by an event), handing each event to `emit` (whose error,
-/// e.g. a closed output, stops the run). A chunk missing a channel the shaft monitor needs, or
-/// a stage's error, stops the run with the error (the events so far have been sent).
+/// e.g. a closed output, stops the run). An application stage that fails — a source without
+/// the channels it needs, an estimator that loses positive definiteness — stops with a `finding`
+/// saying why, and the run and the other stages go on; the source's own error (a file that
+/// cannot be read, a cell that diverges) stops the run with the error (the events so far have
+/// been sent).
 pub fn run_live(
     source: &mut dyn Source,
     cfg: &LiveConfig,
@@ -178,7 +182,7 @@ pub fn run_live(
 ) -> Result<Summary, LiveError> {
     let mut live = Live {
         rate_hz: source.rate_hz(),
-        shaft: ShaftStage::new(&cfg.monitor, source.rate_hz())?,
+        shaft: Some(ShaftStage::new(&cfg.monitor, source.rate_hz())?),
         cycles: None,
         traces: None,
         friction: match &cfg.friction {
@@ -260,7 +264,8 @@ pub fn run_live(
 struct Live<'a, E> {
     cfg: &'a LiveConfig,
     rate_hz: f64,
-    shaft: ShaftStage,
+    /// The shaft monitor (stopped, with a finding, at its first error).
+    shaft: Option<ShaftStage>,
     /// The cycle statistics and the channels they cover (set up on the first chunk).
     cycles: Option<(CycleStream, Vec<&'static str>)>,
     traces: Option<TraceStage>,
@@ -392,11 +397,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         self.last_t = t[t.len() - 1];
         self.samples.clear();
         self.alarms.clear();
-        self.shaft.push(
-            &ShaftInputs::of(chunk)?,
-            &mut self.samples,
-            &mut self.alarms,
-        )?;
+        if let Some(stage) = self.shaft.as_mut() {
+            let result = ShaftInputs::of(chunk)
+                .and_then(|x| stage.push(&x, &mut self.samples, &mut self.alarms));
+            self.shaft_error(result)?;
+        }
         for k in 0..self.samples.len() {
             let s = self.samples[k];
             // The excitation supervisor's changes (and, supervised, the start), as they happen.
@@ -564,6 +569,20 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         Ok(())
     }
 
+    /// At the shaft monitor's error (a source without its channels, an estimator that fails),
+    /// a finding, and the monitor stops; the run and the other stages go on.
+    fn shaft_error(&mut self, result: Result<(), AppError>) -> Result<(), LiveError> {
+        if let Err(e) = result {
+            self.shaft = None;
+            let t_s = self.last_t;
+            self.send(&Event::finding(
+                t_s,
+                format!("shaft: {e} — the shaft monitor stopped"),
+            ))?;
+        }
+        Ok(())
+    }
+
     /// The friction stage's output as events; at its error, a finding, and the stage stops
     /// (the run goes on).
     fn friction_events(&mut self, result: Result<(), AppError>) -> Result<(), LiveError> {
@@ -685,7 +704,10 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         }
         self.samples.clear();
         self.alarms.clear();
-        self.shaft.finish(&mut self.samples, &mut self.alarms)?;
+        if let Some(stage) = self.shaft.as_mut() {
+            let result = stage.finish(&mut self.samples, &mut self.alarms);
+            self.shaft_error(result)?;
+        }
         for k in 0..self.alarms.len() {
             let e = Event::shaft_alarm(&self.alarms[k]);
             self.send(&e)?;
@@ -714,7 +736,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
         Ok(Summary {
             samples,
             dropped,
-            shaft: (self.shaft.estimate(), self.shaft.std_err()),
+            shaft: self.shaft.as_ref().map(|s| (s.estimate(), s.std_err())),
             cycles: self.cycles_sent,
             events: self.events,
         })
