@@ -82,138 +82,267 @@ fn split_header(cell: &str) -> (String, String) {
 /// Read a CSV file into a [`Recording`] (module docs). `meta["first_data_line"]` is the file
 /// line of sample 0, so that sample `i` is on line `first_data_line + i`.
 pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, IoError> {
-    let p = path.as_ref().display().to_string();
-    let os = |source| IoError::Os {
-        path: p.clone(),
-        source,
-    };
-    let mut file = std::io::BufReader::new(std::fs::File::open(path.as_ref()).map_err(os)?);
-    // The header line decides the separator; it is read again by the CSV parser.
-    let mut first = Vec::new();
-    (&mut file)
-        .take(1 << 20)
-        .read_until(b'\n', &mut first)
-        .map_err(os)?;
-    let sep = separator(&String::from_utf8_lossy(&first));
-    let decimal_comma = sep != b',';
-    let rest = std::io::Cursor::new(first).chain(file);
-    let mut rdr = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .delimiter(sep)
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .from_reader(rest);
-    let mut record = csv::StringRecord::new();
-    let next = |rdr: &mut csv::Reader<_>, record: &mut csv::StringRecord| {
-        rdr.read_record(record).map_err(|e| IoError::Malformed {
-            path: p.clone(),
-            detail: e.to_string(),
-        })
-    };
-    if !next(&mut rdr, &mut record)? || record.iter().all(str::is_empty) {
-        return Err(IoError::Empty {
-            path: p,
-            what: "no header row (expected channel names on the first line)",
-        });
-    }
-    let (names, mut units): (Vec<String>, Vec<String>) = record.iter().map(split_header).unzip();
-    let width = names.len();
-    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); width];
-    let mut first_data_line = None;
-    let mut last_start = 0u64;
-    let mut row = 1usize;
-    while next(&mut rdr, &mut record)? {
-        row += 1;
-        // The parser's own line count is one short after `\r\n` ends (csv 1.3): lines are
-        // counted from the record's byte offset, when a line is needed (an error, the first
-        // data row), by counting the line ends up to it.
-        let at = record.position().map_or(0, |q| q.byte());
-        let line_here = || line_at(path.as_ref(), at);
-        if record.len() == 1 && record.get(0) == Some("") {
-            continue; // a blank line
+    let mut chunks = CsvChunks::open(path, opts, None)?;
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); chunks.names.len()];
+    while let Some(chunk) = chunks.next_columns(usize::MAX)? {
+        for (c, v) in columns.iter_mut().zip(chunk) {
+            c.extend(v);
         }
-        if record.len() != width {
-            return Err(IoError::Ragged {
-                path: p,
-                line: line_here(),
-                expected: width,
-                got: record.len(),
-                hint: if sep == b',' && record.len() > width {
-                    " (decimal commas? use ';' or tab separators with them)"
-                } else {
-                    ""
-                },
+    }
+    let mut rec = chunks.header();
+    let names = chunks.names.clone();
+    for ((name, unit), values) in names.into_iter().zip(chunks.units.clone()).zip(columns) {
+        rec.push(Channel { name, unit, values })
+            .map_err(|source| IoError::Recording {
+                path: chunks.p.clone(),
+                source,
+            })?;
+    }
+    Ok(rec)
+}
+
+type CsvSource = std::io::Chain<std::io::Cursor<Vec<u8>>, std::io::BufReader<std::fs::File>>;
+
+/// A CSV file read a chunk of rows at a time: the header (and units row) on opening, then the
+/// rows as they are asked for — [`read_csv`] is this, drained. Only the columns asked for are
+/// parsed as numbers; every row's width is checked.
+pub struct CsvChunks {
+    p: String,
+    path: std::path::PathBuf,
+    rdr: csv::Reader<CsvSource>,
+    record: csv::StringRecord,
+    /// The columns read, in the order asked (all, in the file's order, by default).
+    pub(crate) names: Vec<String>,
+    pub(crate) units: Vec<String>,
+    /// All of the file's columns (basis by columns is decided on them).
+    all_names: Vec<String>,
+    keep: Vec<usize>,
+    width: usize,
+    sep: u8,
+    basis: Basis,
+    /// Records read so far (the header is record 1; blank lines count).
+    row: usize,
+    /// `record` holds a data row not yet taken.
+    pending: bool,
+    first_data_line: u64,
+    last_start: u64,
+    warning: Option<String>,
+}
+
+impl CsvChunks {
+    /// Open `path`: read its header, its units row (when there is one) and up to its first data
+    /// row. `channels`: the file columns to read, in that order (all if `None`).
+    pub fn open(
+        path: impl AsRef<Path>,
+        opts: &CsvOptions,
+        channels: Option<&[String]>,
+    ) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        let p = path.display().to_string();
+        let os = |source| IoError::Os {
+            path: p.clone(),
+            source,
+        };
+        let mut file = std::io::BufReader::new(std::fs::File::open(path).map_err(os)?);
+        // The header line decides the separator; it is read again by the CSV parser.
+        let mut first = Vec::new();
+        (&mut file)
+            .take(1 << 20)
+            .read_until(b'\n', &mut first)
+            .map_err(os)?;
+        let sep = separator(&String::from_utf8_lossy(&first));
+        let rdr = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .delimiter(sep)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .from_reader(std::io::Cursor::new(first).chain(file));
+        let mut s = Self {
+            p,
+            path: path.to_path_buf(),
+            rdr,
+            record: csv::StringRecord::new(),
+            names: Vec::new(),
+            units: Vec::new(),
+            all_names: Vec::new(),
+            keep: Vec::new(),
+            width: 0,
+            sep,
+            basis: if opts.crank_angle {
+                Basis::CrankAngle
+            } else {
+                Basis::Time
+            },
+            row: 0,
+            pending: false,
+            first_data_line: 0,
+            last_start: 0,
+            warning: None,
+        };
+        if !s.next_record()? || s.record.iter().all(str::is_empty) {
+            return Err(IoError::Empty {
+                path: s.p,
+                what: "no header row (expected channel names on the first line)",
             });
         }
-        if row == 2 {
-            let cells: Vec<String> = record.iter().map(str::to_string).collect();
-            if opts.units_row || is_units_row(&cells, decimal_comma) {
+        let (names, mut units): (Vec<String>, Vec<String>) =
+            s.record.iter().map(split_header).unzip();
+        s.width = names.len();
+        s.row = 1;
+        s.advance()?;
+        if s.pending && s.row == 2 {
+            let cells: Vec<String> = s.record.iter().map(str::to_string).collect();
+            if opts.units_row || is_units_row(&cells, s.decimal_comma()) {
                 for (u, cell) in units.iter_mut().zip(cells) {
                     if !cell.is_empty() {
                         *u = cell;
                     }
                 }
-                continue;
+                s.advance()?;
             }
         }
-        if first_data_line.is_none() {
-            first_data_line = Some(line_here());
+        if !s.pending {
+            return Err(IoError::Empty {
+                path: s.p,
+                what: "no data rows after the header",
+            });
         }
-        last_start = at;
-        for (j, cell) in record.iter().enumerate() {
-            // An empty cell is a missing sample: NaN, which the integrity check reports and
-            // every consumer refuses or skips (`--on-bad`), never takes as a number.
-            if cell.is_empty() {
-                columns[j].push(f64::NAN);
-                continue;
+        s.first_data_line = s.line_here();
+        s.keep = match channels {
+            Some(list) => list
+                .iter()
+                .map(|n| {
+                    names
+                        .iter()
+                        .position(|m| m == n)
+                        .ok_or_else(|| IoError::Recording {
+                            path: s.p.clone(),
+                            source: physid_core::RecordingError::MissingChannel {
+                                name: n.clone(),
+                                available: names.join(", "),
+                            },
+                        })
+                })
+                .collect::<Result<_, _>>()?,
+            None => (0..names.len()).collect(),
+        };
+        s.names = s.keep.iter().map(|&j| names[j].clone()).collect();
+        s.units = s.keep.iter().map(|&j| units[j].clone()).collect();
+        s.all_names = names;
+        Ok(s)
+    }
+
+    fn decimal_comma(&self) -> bool {
+        self.sep != b','
+    }
+
+    fn next_record(&mut self) -> Result<bool, IoError> {
+        self.rdr
+            .read_record(&mut self.record)
+            .map_err(|e| IoError::Malformed {
+                path: self.p.clone(),
+                detail: e.to_string(),
+            })
+    }
+
+    /// The line of the record just read. The parser's own line count is one short after
+    /// `\r\n` ends (csv 1.3): lines are counted from the record's byte offset, when a line is
+    /// needed (an error, the first data row), by counting the line ends up to it.
+    fn line_here(&self) -> u64 {
+        line_at(&self.path, self.record.position().map_or(0, |q| q.byte()))
+    }
+
+    /// Read the next row that is not blank into `record` (`pending`), checking its width.
+    fn advance(&mut self) -> Result<(), IoError> {
+        self.pending = false;
+        while self.next_record()? {
+            self.row += 1;
+            if self.record.len() == 1 && self.record.get(0) == Some("") {
+                continue; // a blank line
             }
-            let v = number(cell, decimal_comma).ok_or_else(|| IoError::NotNumeric {
-                path: p.clone(),
-                line: line_here(),
-                column: names[j].clone(),
-                value: cell.to_string(),
-            })?;
-            columns[j].push(v);
+            if self.record.len() != self.width {
+                return Err(IoError::Ragged {
+                    path: self.p.clone(),
+                    line: self.line_here(),
+                    expected: self.width,
+                    got: self.record.len(),
+                    hint: if self.sep == b',' && self.record.len() > self.width {
+                        " (decimal commas? use ';' or tab separators with them)"
+                    } else {
+                        ""
+                    },
+                });
+            }
+            self.pending = true;
+            return Ok(());
         }
+        Ok(())
     }
-    if columns[0].is_empty() {
-        return Err(IoError::Empty {
-            path: p,
-            what: "no data rows after the header",
-        });
+
+    /// The recording's basis, metadata and (after the last chunk) warning, with no channels.
+    pub fn header(&self) -> Recording {
+        let mut rec = Recording::new(self.basis);
+        rec.meta.insert("source".into(), self.p.clone());
+        rec.meta
+            .insert("first_data_line".into(), self.first_data_line.to_string());
+        if self.sep != b',' {
+            rec.meta.insert(
+                "csv_separator".into(),
+                if self.sep == b';' { ";" } else { "tab" }.into(),
+            );
+        }
+        if let Some(w) = &self.warning {
+            rec.meta.insert("warning".into(), w.clone());
+        }
+        rec
     }
-    let mut rec = Recording::new(if opts.crank_angle {
-        Basis::CrankAngle
-    } else {
-        Basis::Time
-    });
-    rec.meta.insert("source".into(), p.clone());
-    if let Some(l) = first_data_line {
-        rec.meta.insert("first_data_line".into(), l.to_string());
+
+    /// Every column of the file, whether read or not.
+    pub fn file_columns(&self) -> &[String] {
+        &self.all_names
     }
-    if sep != b',' {
-        rec.meta.insert(
-            "csv_separator".into(),
-            if sep == b';' { ";" } else { "tab" }.into(),
-        );
-    }
-    if !ends_with_newline(path.as_ref()).map_err(os)? {
-        rec.meta.insert(
-            "warning".into(),
-            format!(
-                "the last line (line {}) has no line end: the file may have been cut short",
-                line_at(path.as_ref(), last_start)
-            ),
-        );
-    }
-    for ((name, unit), values) in names.into_iter().zip(units).zip(columns) {
-        rec.push(Channel { name, unit, values })
-            .map_err(|source| IoError::Recording {
-                path: p.clone(),
+
+    /// Up to `max_rows` rows of the columns read (`None` after the last row). An empty cell is a
+    /// missing sample: NaN, which the integrity check reports and every consumer refuses or
+    /// skips (`--on-bad`), never takes as a number.
+    pub fn next_columns(&mut self, max_rows: usize) -> Result<Option<Vec<Vec<f64>>>, IoError> {
+        if !self.pending {
+            return Ok(None);
+        }
+        let mut columns: Vec<Vec<f64>> = vec![Vec::new(); self.keep.len()];
+        let mut rows = 0;
+        while self.pending && rows < max_rows {
+            self.last_start = self.record.position().map_or(0, |q| q.byte());
+            for (k, &j) in self.keep.iter().enumerate() {
+                let cell = &self.record[j];
+                if cell.is_empty() {
+                    columns[k].push(f64::NAN);
+                    continue;
+                }
+                let v = number(cell, self.decimal_comma()).ok_or_else(|| IoError::NotNumeric {
+                    path: self.p.clone(),
+                    line: self.line_here(),
+                    column: self.all_names[j].clone(),
+                    value: cell.to_string(),
+                })?;
+                columns[k].push(v);
+            }
+            rows += 1;
+            self.advance()?;
+        }
+        if !self.pending
+            && !ends_with_newline(&self.path).map_err(|source| IoError::Os {
+                path: self.p.clone(),
                 source,
-            })?;
+            })?
+        {
+            self.warning = Some(format!(
+                "the last line (line {}) has no line end: the file may have been cut short",
+                line_at(&self.path, self.last_start)
+            ));
+        }
+        Ok(Some(columns))
     }
-    Ok(rec)
 }
 
 /// The 1-based line of the file on which byte `at` lies (0 when the file cannot be read again:

@@ -12,7 +12,7 @@
 //! `cycle` and `crank_deg` channels is on a crank-angle basis in every format
 //! ([`basis_by_channels`]).
 
-use crate::{read_csv, read_mdf, read_parquet, write_csv, write_mdf, write_parquet};
+use crate::{write_csv, write_mdf, write_parquet};
 use crate::{CsvOptions, IoError, MdfCompression};
 use physid_core::{Basis, Channel, Recording};
 use std::io::Read;
@@ -194,82 +194,286 @@ impl ReadOptions {
     }
 }
 
-/// Read a recording in any supported format.
-pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoError> {
-    let path = path.as_ref();
-    let format = detect(path)?;
-    let file_channels: Option<Vec<String>> = opts
-        .channels
-        .as_ref()
-        .map(|v| v.iter().map(|n| opts.file_name(n).to_string()).collect());
-    // A broken file (often truncated by an interrupted copy or logger) is reported with its
-    // length, so one can see where it ends.
-    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    let with_size = |e: IoError| match e {
-        IoError::Malformed { path, detail } => IoError::Malformed {
-            path,
-            detail: format!("{detail} (the file ends at byte {size})"),
-        },
-        other => other,
-    };
-    let mut rec = match format {
-        Format::Csv => {
-            let mut r = read_csv(
-                path,
-                &CsvOptions {
-                    units_row: opts.units_row,
-                    crank_angle: opts.crank_angle,
-                },
-            )?;
-            // The basis by the columns is decided on the whole file, before a selection.
-            r.basis = basis_by_channels(&r);
-            match &file_channels {
-                Some(names) => select(r, names, path)?,
-                None => r,
-            }
-        }
-        Format::Parquet => read_parquet(path, file_channels.as_deref()).map_err(with_size)?,
-        Format::Mdf4 => read_mdf(path, file_channels.as_deref()).map_err(with_size)?,
-    };
-    if !opts.map.is_empty() {
-        rec = rename(rec, &opts.map, path)?;
-    }
-    rec.basis = basis_by_channels(&rec);
-    if !opts.keep_units {
-        let done = rec
-            .to_standard_units()
-            .map_err(|source| IoError::Recording {
-                path: path.display().to_string(),
-                source,
-            })?;
-        if !done.is_empty() {
-            rec.meta.insert(
-                "units_converted".into(),
-                done.iter()
-                    .map(|(n, from, to)| format!("{n}: {from} → {to}"))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-            );
+/// Rows per chunk when a file is read as it comes (≈ 18 MB at 35 channels).
+pub const CHUNK_ROWS: usize = 65_536;
+
+/// A row count a file claims, checked before anything is sized from it: refused when the
+/// `channels` asked for would not fit in free memory (a corrupt footer can claim 2⁶⁰ rows);
+/// returned as a capacity hint no larger than the file's size could hold in plain values.
+pub(crate) fn claimed_fits(path: &str, claimed: i64, channels: usize) -> Result<usize, IoError> {
+    let rows = usize::try_from(claimed).map_err(|_| IoError::Malformed {
+        path: path.into(),
+        detail: format!("corrupt file: it claims {claimed} rows"),
+    })?;
+    let need = (rows as u128) * (channels.max(1) as u128) * 8;
+    if let Some(free) = physid_core::memory::available() {
+        if need > u128::from(free) {
+            return Err(IoError::Malformed {
+                path: path.into(),
+                detail: format!(
+                    "the file claims {rows} rows: {channels} channels of them would take {:.1} GB, and this machine has {:.1} GB free (read fewer channels, or the file is corrupt)",
+                    need as f64 / 1e9,
+                    free as f64 / 1e9
+                ),
+            });
         }
     }
-    Ok(rec)
+    let size = std::fs::metadata(path).map_or(0, |m| m.len()) as usize;
+    Ok(rows.min(size / 8 + 1))
 }
 
-/// Keep only `names` (in that order).
-fn select(rec: Recording, names: &[String], path: &Path) -> Result<Recording, IoError> {
-    let mut out = Recording::new(rec.basis);
-    out.meta = rec.meta.clone();
-    for n in names {
-        let ch = rec.channel(n).map_err(|source| IoError::Recording {
-            path: path.display().to_string(),
+/// Where a [`ChunkReader`]'s rows come from.
+enum Source {
+    Csv(Box<crate::csv_file::CsvChunks>),
+    Parquet(Box<crate::parquet_file::ParquetChunks>),
+    Mdf(crate::mdf::MdfChunks),
+}
+
+/// A recording read a chunk of rows at a time, in any format: only the channels asked for,
+/// mapped and brought to SI exactly as [`read`] does — [`read`] is this reader, drained. The
+/// channels, units, basis and metadata are known on opening ([`header`](Self::header)); each
+/// chunk (up to [`CHUNK_ROWS`] rows) is a [`Recording`] with those channels. Memory is that of
+/// a chunk or two, however long the file: what the file verbs stream through their stages.
+pub struct ChunkReader {
+    path: String,
+    size: u64,
+    header: Recording,
+    /// Per channel, `value · scale + offset` into its unit in the header.
+    convert: Vec<(f64, f64)>,
+    source: Source,
+    claimed: Option<i64>,
+    rows: usize,
+}
+
+impl ChunkReader {
+    /// Open `path` (any format, by [`detect`]) for `opts`' channels and map.
+    pub fn open(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        let format = detect(path)?;
+        let p = path.display().to_string();
+        let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+        let file_channels: Option<Vec<String>> = opts
+            .channels
+            .as_ref()
+            .map(|v| v.iter().map(|n| opts.file_name(n).to_string()).collect());
+        let with_size = |e| with_file_size(e, size);
+        // The file's channels, units, basis and metadata: the header as the file has it.
+        let empty = |names: &[String], units: &[String], rec: &mut Recording| {
+            for (n, u) in names.iter().zip(units) {
+                rec.push(Channel {
+                    name: n.clone(),
+                    unit: u.clone(),
+                    values: Vec::new(),
+                })
+                .map_err(|source| IoError::Recording {
+                    path: p.clone(),
+                    source,
+                })?;
+            }
+            Ok::<_, IoError>(())
+        };
+        let (mut header, source, claimed) = match format {
+            Format::Csv => {
+                let c = crate::csv_file::CsvChunks::open(
+                    path,
+                    &CsvOptions {
+                        units_row: opts.units_row,
+                        crank_angle: opts.crank_angle,
+                    },
+                    file_channels.as_deref(),
+                )?;
+                let mut h = c.header();
+                // The basis by the columns is decided on the whole file, before a selection.
+                let all = c.file_columns();
+                if all.iter().any(|n| n == "cycle") && all.iter().any(|n| n == "crank_deg") {
+                    h.basis = Basis::CrankAngle;
+                }
+                empty(&c.names, &c.units, &mut h)?;
+                (h, Source::Csv(Box::new(c)), None)
+            }
+            Format::Parquet => {
+                let c = crate::parquet_file::ParquetChunks::open(path, file_channels.as_deref())
+                    .map_err(with_size)?;
+                let mut h = c.header();
+                empty(&c.names, &c.units, &mut h)?;
+                let claimed = c.claimed_rows();
+                (h, Source::Parquet(Box::new(c)), Some(claimed))
+            }
+            Format::Mdf4 => {
+                let c = crate::mdf::MdfChunks::open(path, file_channels.as_deref())
+                    .map_err(with_size)?;
+                let h = c.header().clone();
+                let claimed = i64::try_from(c.claimed_rows()).unwrap_or(i64::MAX);
+                (h, Source::Mdf(c), Some(claimed))
+            }
+        };
+        if !opts.map.is_empty() {
+            header = rename(header, &opts.map, path)?;
+        }
+        header.basis = basis_by_channels(&header);
+        let mut convert = vec![(1.0, 0.0); header.channels().len()];
+        if !opts.keep_units {
+            let before: Vec<String> = header.channels().iter().map(|c| c.unit.clone()).collect();
+            let done = header
+                .to_standard_units()
+                .map_err(|source| IoError::Recording {
+                    path: p.clone(),
+                    source,
+                })?;
+            for ((c, from), k) in header.channels().iter().zip(&before).zip(&mut convert) {
+                if &c.unit != from {
+                    *k = physid_core::units::conversion(from, &c.unit).unwrap_or((1.0, 0.0));
+                }
+            }
+            if !done.is_empty() {
+                header.meta.insert(
+                    "units_converted".into(),
+                    done.iter()
+                        .map(|(n, from, to)| format!("{n}: {from} → {to}"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                );
+            }
+        }
+        Ok(Self {
+            path: p,
+            size,
+            header,
+            convert,
             source,
-        })?;
-        out.push(ch.clone()).map_err(|source| IoError::Recording {
-            path: path.display().to_string(),
+            claimed,
+            rows: 0,
+        })
+    }
+
+    /// The channels (with no samples), units, basis and metadata. A CSV file's warning about
+    /// its last line is here once the last chunk has been read.
+    pub fn header(&self) -> &Recording {
+        &self.header
+    }
+
+    /// The rows the file claims to hold (Parquet's footer, MDF4's channel group; none for
+    /// CSV). A claim: a corrupt file can claim anything.
+    pub fn claimed_rows(&self) -> Option<i64> {
+        self.claimed
+    }
+
+    /// Rows read so far.
+    pub fn rows_read(&self) -> usize {
+        self.rows
+    }
+
+    /// The next chunk's columns, in the header's order and units (`None` after the last).
+    pub fn next_columns(&mut self) -> Result<Option<Vec<Vec<f64>>>, IoError> {
+        let size = self.size;
+        let next = match &mut self.source {
+            Source::Csv(c) => {
+                let next = c.next_columns(CHUNK_ROWS)?;
+                if let Some(w) = c.header().meta.get("warning") {
+                    self.header.meta.insert("warning".into(), w.clone());
+                }
+                next
+            }
+            Source::Parquet(c) => c.next_columns().map_err(|e| with_file_size(e, size))?,
+            Source::Mdf(c) => c.next_columns().map_err(|e| with_file_size(e, size))?,
+        };
+        let Some(mut cols) = next else {
+            return Ok(None);
+        };
+        if cols.len() != self.convert.len() {
+            return Err(IoError::Malformed {
+                path: self.path.clone(),
+                detail: format!(
+                    "a chunk of {} channels, the file's header has {}",
+                    cols.len(),
+                    self.convert.len()
+                ),
+            });
+        }
+        for (v, &(scale, offset)) in cols.iter_mut().zip(&self.convert) {
+            if (scale, offset) != (1.0, 0.0) {
+                for x in v.iter_mut() {
+                    *x = *x * scale + offset;
+                }
+            }
+        }
+        self.rows += cols.first().map_or(0, Vec::len);
+        Ok(Some(cols))
+    }
+
+    /// The next chunk as a recording with the header's channels and basis (`None` after the
+    /// last).
+    pub fn next_chunk(&mut self) -> Result<Option<Recording>, IoError> {
+        let Some(cols) = self.next_columns()? else {
+            return Ok(None);
+        };
+        let mut rec = Recording::new(self.header.basis);
+        for (c, values) in self.header.channels().iter().zip(cols) {
+            rec.push(Channel {
+                name: c.name.clone(),
+                unit: c.unit.clone(),
+                values,
+            })
+            .map_err(|source| IoError::Recording {
+                path: self.path.clone(),
+                source,
+            })?;
+        }
+        Ok(Some(rec))
+    }
+}
+
+impl Iterator for ChunkReader {
+    type Item = Result<Recording, IoError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_chunk().transpose()
+    }
+}
+
+/// A broken file (often truncated by an interrupted copy or logger) is reported with its
+/// length, so one can see where it ends.
+fn with_file_size(e: IoError, size: u64) -> IoError {
+    match e {
+        IoError::Malformed { path, detail } if !detail.contains("(the file ends at byte") => {
+            IoError::Malformed {
+                path,
+                detail: format!("{detail} (the file ends at byte {size})"),
+            }
+        }
+        other => other,
+    }
+}
+
+/// Read a recording in any supported format: a [`ChunkReader`] drained into one recording.
+/// A row count the file claims is checked against free memory before anything is sized by it.
+pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoError> {
+    let mut r = ChunkReader::open(path, opts)?;
+    let width = r.header.channels().len();
+    let rows = match r.claimed {
+        Some(n) => claimed_fits(&r.path, n, width).map_err(|e| with_file_size(e, r.size))?,
+        None => 0,
+    };
+    let mut columns: Vec<Vec<f64>> = (0..width).map(|_| Vec::with_capacity(rows)).collect();
+    while let Some(chunk) = r.next_columns()? {
+        for (c, v) in columns.iter_mut().zip(chunk) {
+            c.extend(v);
+        }
+    }
+    let mut rec = Recording::new(r.header.basis);
+    rec.meta = r.header.meta.clone();
+    for (c, values) in r.header.channels().iter().zip(columns) {
+        rec.push(Channel {
+            name: c.name.clone(),
+            unit: c.unit.clone(),
+            values,
+        })
+        .map_err(|source| IoError::Recording {
+            path: r.path.clone(),
             source,
         })?;
     }
-    Ok(out)
+    Ok(rec)
 }
 
 /// Rename the file's columns to physid names per the map, with the units it states.

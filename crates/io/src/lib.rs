@@ -3,7 +3,9 @@
 //! File formats are adapters at the edge: each reads a file into a
 //! [`Recording`](physid_core::Recording) or writes one out — CSV ([`csv_file`]), Parquet
 //! ([`parquet_file`]) and ASAM MDF4 ([`mdf`]); [`format`] picks one by extension, checks the
-//! file's first bytes agree, selects channels and applies a channel map.
+//! file's first bytes agree, selects channels and applies a channel map. Every format is read
+//! a chunk of rows at a time ([`ChunkReader`], what the file verbs stream through their
+//! stages); reading a whole file ([`read`]) is that reader, drained.
 //!
 //! Errors name the file, the line and the column, and what was expected — never a panic.
 
@@ -12,13 +14,13 @@ pub mod format;
 pub mod mdf;
 pub mod parquet_file;
 
-pub use csv_file::{read_csv, write_csv, CsvOptions, CsvWriter};
+pub use csv_file::{read_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
 pub use format::{
-    basis_by_channels, detect, read, write, ChunkWriter, Format, MapItem, ReadOptions,
-    WriteOptions, STREAM_ROWS_PER_GROUP,
+    basis_by_channels, detect, read, write, ChunkReader, ChunkWriter, Format, MapItem, ReadOptions,
+    WriteOptions, CHUNK_ROWS, STREAM_ROWS_PER_GROUP,
 };
-pub use mdf::{read_mdf, write_mdf, MdfCompression, MdfWriter};
-pub use parquet_file::{read_parquet, write_parquet, ParquetWriter};
+pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter};
+pub use parquet_file::{read_parquet, write_parquet, ParquetChunks, ParquetWriter};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]
@@ -103,10 +105,6 @@ thread_local! {
     static CONTAINED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
-/// Run a third-party decoder (the parquet and MDF crates) so that a panic on a corrupt file
-/// becomes `FILE: corrupt FORMAT (…)` instead of ending the program: the boundary the readers
-/// keep, since those crates assert on some malformed inputs (see `tests/fuzz.rs`). Allocation
-/// failure aborts and cannot be contained: the readers check claimed sizes before allocating.
 /// A chunk appended to a file written as it comes must have the file's channels, in its order.
 pub(crate) fn check_appended(
     path: &str,
@@ -128,6 +126,10 @@ pub(crate) fn check_appended(
     })
 }
 
+/// Run a third-party decoder (the parquet and MDF crates) so that a panic on a corrupt file
+/// becomes `FILE: corrupt FORMAT (…)` instead of ending the program: the boundary the readers
+/// keep, since those crates assert on some malformed inputs (see `tests/fuzz.rs`). Allocation
+/// failure aborts and cannot be contained: the readers check claimed sizes before allocating.
 pub(crate) fn contained<T>(
     path: &str,
     format: &str,

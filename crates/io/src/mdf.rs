@@ -48,71 +48,122 @@ pub fn read_mdf(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<R
     crate::contained(&p, "MDF4", || read_mdf_inner(path.as_ref(), &p, channels))
 }
 
-fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Recording, IoError> {
-    let p = p.to_string();
-    let file = Mf4File::open_buffered(path).map_err(|e| mdf_err(&p, e))?;
-    let data: Vec<&falcon_mdf::model::Channel> = file
-        .channels()
-        .filter(|c| !c.is_master() && c.is_numeric())
-        .collect();
-    let available = || {
-        let mut v: Vec<&str> = data.iter().map(|c| c.name.as_str()).collect();
-        v.sort_unstable();
-        v.dedup();
-        v.join(", ")
-    };
-    // The master is always read (as `t` or `theta`): asking for it selects nothing more.
-    let is_master_name =
-        |n: &str| n == "t" || n == "theta" || file.channels().any(|c| c.is_master() && c.name == n);
-    let chosen: Vec<&falcon_mdf::model::Channel> = match channels {
-        Some(names) => names
-            .iter()
-            .filter(|n| !is_master_name(n))
-            .map(|n| {
-                data.iter()
-                    .copied()
-                    .find(|c| &c.name == n)
-                    .ok_or_else(|| IoError::Recording {
-                        path: p.clone(),
-                        source: physid_core::RecordingError::MissingChannel {
-                            name: n.clone(),
-                            available: available(),
-                        },
-                    })
-            })
-            .collect::<Result<_, _>>()?,
-        None => data.clone(),
-    };
-    let first = chosen.first().ok_or_else(|| IoError::Empty {
-        path: p.clone(),
-        what: "no numeric channels",
-    })?;
-    let group = (first.data_group_index, first.channel_group_index);
-    check_record_count(&file, group, &p)?;
-    let master = file.master_channel(group.0, group.1);
-    let axis = file.channel_timestamps(first).map_err(|e| mdf_err(&p, e))?;
-    // An angle master, or physid's convention for its own time-master files: `cycle` and
-    // `crank_deg` in the group (decided before a selection drops them).
-    let in_group = |n: &str| {
-        data.iter()
-            .any(|c| c.name == n && (c.data_group_index, c.channel_group_index) == group)
-    };
-    let by_columns = in_group("cycle") && in_group("crank_deg");
-    let mut rec = Recording::new(match master.map(|m| m.sync_type) {
-        Some(SyncType::Angle) => Basis::CrankAngle,
-        _ if by_columns => Basis::CrankAngle,
-        _ => Basis::Time,
-    });
-    rec.meta.insert("source".into(), p.clone());
-    // The master's name by what it measures (a time master stays `t` on a crank-angle basis).
-    let (mname, munit) = match master.map(|m| m.sync_type) {
-        Some(SyncType::Angle) => ("theta", "rad"),
-        _ => ("t", "s"),
-    };
-    if let Some(m) = master {
-        rec.meta.insert("master".into(), m.name.clone());
-        rec.meta.insert("master_unit_label".into(), m.unit.clone());
+/// What a read takes from an MDF4 file: the channels chosen, their group and its master, and
+/// the recording's basis and metadata (no channels yet).
+struct Plan<'f> {
+    chosen: Vec<&'f falcon_mdf::model::Channel>,
+    group: (usize, usize),
+    master: Option<&'f falcon_mdf::model::Channel>,
+    /// The master's name and unit in the recording (`t` [s] or `theta` [rad]).
+    axis: (&'static str, &'static str),
+    rec: Recording,
+}
+
+impl<'f> Plan<'f> {
+    fn of(file: &'f Mf4File, p: &str, channels: Option<&[String]>) -> Result<Self, IoError> {
+        let data: Vec<&falcon_mdf::model::Channel> = file
+            .channels()
+            .filter(|c| !c.is_master() && c.is_numeric())
+            .collect();
+        let available = || {
+            let mut v: Vec<&str> = data.iter().map(|c| c.name.as_str()).collect();
+            v.sort_unstable();
+            v.dedup();
+            v.join(", ")
+        };
+        // The master is always read (as `t` or `theta`): asking for it selects nothing more.
+        let is_master_name = |n: &str| {
+            n == "t" || n == "theta" || file.channels().any(|c| c.is_master() && c.name == n)
+        };
+        let chosen: Vec<&falcon_mdf::model::Channel> = match channels {
+            Some(names) => names
+                .iter()
+                .filter(|n| !is_master_name(n))
+                .map(|n| {
+                    data.iter()
+                        .copied()
+                        .find(|c| &c.name == n)
+                        .ok_or_else(|| IoError::Recording {
+                            path: p.into(),
+                            source: physid_core::RecordingError::MissingChannel {
+                                name: n.clone(),
+                                available: available(),
+                            },
+                        })
+                })
+                .collect::<Result<_, _>>()?,
+            None => data.clone(),
+        };
+        let first = chosen.first().ok_or_else(|| IoError::Empty {
+            path: p.into(),
+            what: "no numeric channels",
+        })?;
+        let group = (first.data_group_index, first.channel_group_index);
+        check_record_count(file, group, p)?;
+        let master = file.master_channel(group.0, group.1);
+        // An angle master, or physid's convention for its own time-master files: `cycle` and
+        // `crank_deg` in the group (decided before a selection drops them).
+        let in_group = |n: &str| {
+            data.iter()
+                .any(|c| c.name == n && (c.data_group_index, c.channel_group_index) == group)
+        };
+        let by_columns = in_group("cycle") && in_group("crank_deg");
+        let mut rec = Recording::new(match master.map(|m| m.sync_type) {
+            Some(SyncType::Angle) => Basis::CrankAngle,
+            _ if by_columns => Basis::CrankAngle,
+            _ => Basis::Time,
+        });
+        rec.meta.insert("source".into(), p.into());
+        // The master's name by what it measures (a time master stays `t` on a crank-angle basis).
+        let axis = match master.map(|m| m.sync_type) {
+            Some(SyncType::Angle) => ("theta", "rad"),
+            _ => ("t", "s"),
+        };
+        if let Some(m) = master {
+            rec.meta.insert("master".into(), m.name.clone());
+            rec.meta.insert("master_unit_label".into(), m.unit.clone());
+        }
+        Ok(Self {
+            chosen,
+            group,
+            master,
+            axis,
+            rec,
+        })
     }
+
+    /// Whether every channel is in the master's group under a name of its own: then the read
+    /// can go record block by record block ([`MdfChunks`]).
+    fn streams(&self) -> bool {
+        let mut names: Vec<&str> = vec![self.axis.0];
+        self.chosen.iter().all(|c| {
+            let fresh = !names.contains(&c.name.as_str());
+            names.push(&c.name);
+            fresh && (c.data_group_index, c.channel_group_index) == self.group
+        })
+    }
+}
+
+fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Recording, IoError> {
+    let file = Mf4File::open_buffered(path).map_err(|e| mdf_err(p, e))?;
+    let plan = Plan::of(&file, p, channels)?;
+    read_planned(&file, p, plan, channels.is_some())
+}
+
+/// The whole of a plan's channels; a channel of another group is taken when its time base is
+/// the master's (else refused when asked for by name, skipped and named in `meta["skipped"]`
+/// when reading everything).
+fn read_planned(file: &Mf4File, p: &str, plan: Plan, asked: bool) -> Result<Recording, IoError> {
+    let p = p.to_string();
+    let Plan {
+        chosen,
+        group,
+        axis: (mname, munit),
+        mut rec,
+        ..
+    } = plan;
+    let first = chosen[0];
+    let axis = file.channel_timestamps(first).map_err(|e| mdf_err(&p, e))?;
     let mut skipped = Vec::new();
     let mut names_seen: Vec<String> = vec![mname.to_string()];
     let mut columns = vec![Channel {
@@ -125,7 +176,7 @@ fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<R
         if !same_group {
             let other = file.channel_timestamps(c).map_err(|e| mdf_err(&p, e))?;
             if other != axis {
-                if channels.is_some() {
+                if asked {
                     return Err(IoError::Malformed {
                         path: p,
                         detail: format!(
@@ -166,6 +217,197 @@ fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<R
         })?;
     }
     Ok(rec)
+}
+
+/// What the reading thread of [`MdfChunks`] sends.
+enum MdfMsg {
+    /// The recording's channels (no samples), basis and metadata; the records claimed.
+    Header(Recording, u64),
+    Columns(Vec<Vec<f64>>),
+    Failed(IoError),
+    End,
+}
+
+/// An MDF4 file read a window of records at a time (`falcon_mdf`'s `signals_chunks`) on a
+/// thread of its own, which owns the file and hands over at most one chunk ahead: memory is
+/// bounded by two chunks. The values are those [`read_mdf`] reads (the same channels, the
+/// master validated window by window). A selection spanning channel groups, or a file whose
+/// channels cannot all go by the first group's master, is read whole and handed out in
+/// chunks (memory proportional to those channels).
+pub struct MdfChunks {
+    pub(crate) p: String,
+    rx: std::sync::mpsc::Receiver<MdfMsg>,
+    header: Recording,
+    claimed: u64,
+    done: bool,
+}
+
+impl MdfChunks {
+    /// Open `path` and read its blocks' metadata; `channels`: the channels to read (the master
+    /// comes first, as `t` or `theta`), all on the first group's master if `None`.
+    pub fn open(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<Self, IoError> {
+        let path = path.as_ref().to_path_buf();
+        let p = path.display().to_string();
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        let channels = channels.map(<[String]>::to_vec);
+        let q = p.clone();
+        std::thread::Builder::new()
+            .name("physid-mdf-reader".into())
+            .spawn(move || {
+                let r =
+                    crate::contained(&q, "MDF4", || produce(&path, &q, channels.as_deref(), &tx));
+                let _ = tx.send(match r {
+                    Ok(()) => MdfMsg::End,
+                    Err(e) => MdfMsg::Failed(e),
+                });
+            })
+            .map_err(|source| IoError::Os {
+                path: p.clone(),
+                source,
+            })?;
+        match rx.recv() {
+            Ok(MdfMsg::Header(header, claimed)) => Ok(Self {
+                p,
+                rx,
+                header,
+                claimed,
+                done: false,
+            }),
+            Ok(MdfMsg::Failed(e)) => Err(e),
+            _ => Err(mdf_err(&p, "the reader stopped before the file's header")),
+        }
+    }
+
+    /// The channels (no samples), basis and metadata.
+    pub fn header(&self) -> &Recording {
+        &self.header
+    }
+
+    /// The records the channel group claims.
+    pub fn claimed_rows(&self) -> u64 {
+        self.claimed
+    }
+
+    /// The next window of every channel, in the header's order (`None` after the last).
+    pub fn next_columns(&mut self) -> Result<Option<Vec<Vec<f64>>>, IoError> {
+        if self.done {
+            return Ok(None);
+        }
+        match self.rx.recv() {
+            Ok(MdfMsg::Columns(c)) => Ok(Some(c)),
+            Ok(MdfMsg::Failed(e)) => {
+                self.done = true;
+                Err(e)
+            }
+            Ok(MdfMsg::End) => {
+                self.done = true;
+                Ok(None)
+            }
+            Ok(MdfMsg::Header(..)) | Err(_) => {
+                self.done = true;
+                Err(mdf_err(&self.p, "the reader stopped"))
+            }
+        }
+    }
+}
+
+/// The reading thread: the header, then the windows, each sent when the reader has taken the
+/// one before. A reader gone away (dropped) ends it.
+fn produce(
+    path: &Path,
+    p: &str,
+    channels: Option<&[String]>,
+    tx: &std::sync::mpsc::SyncSender<MdfMsg>,
+) -> Result<(), IoError> {
+    let file = Mf4File::open_buffered(path).map_err(|e| mdf_err(p, e))?;
+    let plan = Plan::of(&file, p, channels)?;
+    let header_of = |rec: &Recording| {
+        let mut h = Recording::new(rec.basis);
+        h.meta = rec.meta.clone();
+        for c in rec.channels() {
+            let _ = h.push(Channel {
+                name: c.name.clone(),
+                unit: c.unit.clone(),
+                values: Vec::new(),
+            });
+        }
+        h
+    };
+    if !plan.streams() {
+        let rec = read_planned(&file, p, plan, channels.is_some())?;
+        if tx
+            .send(MdfMsg::Header(header_of(&rec), rec.len() as u64))
+            .is_err()
+        {
+            return Ok(());
+        }
+        for start in (0..rec.len()).step_by(crate::format::CHUNK_ROWS) {
+            let part = rec.slice(start..start + crate::format::CHUNK_ROWS);
+            let cols = part.channels().iter().map(|c| c.values.clone()).collect();
+            if tx.send(MdfMsg::Columns(cols)).is_err() {
+                return Ok(());
+            }
+        }
+        return Ok(());
+    }
+    let (dg, cg) = plan.group;
+    let claimed = file.data_groups()[dg].channel_groups[cg].sample_count;
+    let mut header = plan.rec.clone();
+    let mut list: Vec<falcon_mdf::model::Channel> = Vec::new();
+    let _ = header.push(Channel {
+        name: plan.axis.0.into(),
+        unit: plan.axis.1.into(),
+        values: Vec::new(),
+    });
+    if let Some(m) = plan.master {
+        list.push(m.clone());
+    }
+    for c in &plan.chosen {
+        let _ = header.push(Channel {
+            name: c.name.clone(),
+            unit: c.unit.clone(),
+            values: Vec::new(),
+        });
+        list.push((*c).clone());
+    }
+    if tx.send(MdfMsg::Header(header, claimed)).is_err() {
+        return Ok(());
+    }
+    let windows = file
+        .signals_chunks(&list, crate::format::CHUNK_ROWS)
+        .map_err(|e| mdf_err(p, e))?;
+    let (mut offset, mut previous) = (0usize, None);
+    for window in windows {
+        let signals = window.map_err(|e| mdf_err(p, e))?;
+        let mut cols = Vec::with_capacity(plan.chosen.len() + 1);
+        for s in &signals {
+            cols.push(
+                s.values_f64()
+                    .map_err(|e| mdf_err(p, format!("channel '{}': {e}", s.channel().name)))?,
+            );
+        }
+        let n = cols.first().map_or(0, Vec::len);
+        match plan.master {
+            Some(m) => {
+                falcon_mdf::time_ops::validate_master_axis(
+                    &m.name,
+                    &cols[0],
+                    signals[0].validity().as_deref(),
+                    offset,
+                    previous,
+                )
+                .map_err(|e| mdf_err(p, e))?;
+                previous = cols[0].last().copied().or(previous);
+            }
+            // No master: the sample index, as `channel_timestamps` gives it.
+            None => cols.insert(0, (offset..offset + n).map(|i| i as f64).collect()),
+        }
+        offset += n;
+        if tx.send(MdfMsg::Columns(cols)).is_err() {
+            return Ok(());
+        }
+    }
+    Ok(())
 }
 
 /// A sorted data group's record count against its data blocks' length: a count corrupted

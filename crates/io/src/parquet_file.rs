@@ -76,119 +76,178 @@ pub fn read_parquet(
     path: impl AsRef<Path>,
     channels: Option<&[String]>,
 ) -> Result<Recording, IoError> {
-    let p = path.as_ref().display().to_string();
-    crate::contained(&p, "Parquet", || {
-        read_parquet_inner(path.as_ref(), &p, channels)
-    })
-}
-
-fn read_parquet_inner(
-    path: &Path,
-    p: &str,
-    channels: Option<&[String]>,
-) -> Result<Recording, IoError> {
-    let p = p.to_string();
-    let file = std::fs::File::open(path).map_err(|source| IoError::Os {
-        path: p.clone(),
-        source,
-    })?;
-    let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq_err(&p, e))?;
-    let schema = builder.schema().clone();
-    let names: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
-    let wanted: Vec<usize> = match channels {
-        Some(list) => list
-            .iter()
-            .map(|n| {
-                names
-                    .iter()
-                    .position(|m| m == n)
-                    .ok_or_else(|| IoError::Recording {
-                        path: p.clone(),
-                        source: RecordingError::MissingChannel {
-                            name: n.clone(),
-                            available: names.join(", "),
-                        },
-                    })
-            })
-            .collect::<Result<_, _>>()?,
-        None => (0..names.len()).collect(),
-    };
-    let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
+    let mut chunks = ParquetChunks::open(path, channels)?;
     // The row count is the file's claim: checked against what the columns asked for would
     // take in memory before anything is sized from it (a corrupt footer can claim 2⁶⁰ rows).
-    let claimed = builder.metadata().file_metadata().num_rows();
-    let rows = usize::try_from(claimed).map_err(|_| IoError::Malformed {
-        path: p.clone(),
-        detail: format!("corrupt Parquet: the footer claims {claimed} rows"),
-    })?;
-    let need = (rows as u128) * (wanted.len().max(1) as u128) * 8;
-    if let Some(free) = physid_core::memory::available() {
-        if need > u128::from(free) {
-            return Err(IoError::Malformed {
-                path: p.clone(),
-                detail: format!(
-                    "the file claims {rows} rows: {} channels of them would take {:.1} GB, and this machine has {:.1} GB free (read fewer channels, or the footer is corrupt)",
-                    wanted.len(),
-                    need as f64 / 1e9,
-                    free as f64 / 1e9
-                ),
-            });
+    let rows = crate::format::claimed_fits(&chunks.p, chunks.claimed_rows(), chunks.names.len())?;
+    let mut columns: Vec<Vec<f64>> = chunks
+        .names
+        .iter()
+        .map(|_| Vec::with_capacity(rows))
+        .collect();
+    while let Some(chunk) = chunks.next_columns()? {
+        for (c, v) in columns.iter_mut().zip(chunk) {
+            c.extend(v);
         }
     }
-    // Capacity is only a hint: never more than the file's size could hold in plain values.
-    let size = std::fs::metadata(path).map_or(0, |m| m.len()) as usize;
-    let rows = rows.min(size / 8 + 1);
-    let reader = builder
-        .with_projection(mask)
-        .with_batch_size(65_536)
-        .build()
-        .map_err(|e| pq_err(&p, e))?;
-    // The projected batches keep the file's column order; map back to the order asked for.
-    let mut sorted = wanted.clone();
-    sorted.sort_unstable();
-    let mut columns: Vec<Vec<f64>> = sorted.iter().map(|_| Vec::with_capacity(rows)).collect();
-    let mut row0 = 0;
-    for batch in reader {
-        let batch = batch.map_err(|e| pq_err(&p, e))?;
-        for (k, col) in batch.columns().iter().enumerate() {
-            extend_f64(col, &mut columns[k], &names[sorted[k]], row0).map_err(|detail| {
-                IoError::Malformed {
-                    path: p.clone(),
-                    detail,
-                }
-            })?;
-        }
-        row0 += batch.num_rows();
-    }
-    let basis = match schema.metadata().get(BASIS_KEY).map(String::as_str) {
-        Some("crank_angle") => Basis::CrankAngle,
-        _ => Basis::Time,
-    };
-    let mut rec = Recording::new(basis);
-    for (k, v) in schema.metadata() {
-        if let Some(key) = k.strip_prefix(META_PREFIX) {
-            if !crate::FILE_META.contains(&key) {
-                rec.meta.insert(key.to_string(), v.clone());
-            }
-        }
-    }
-    rec.meta.insert("source".into(), p.clone());
-    let mut taken: Vec<Option<Vec<f64>>> = columns.into_iter().map(Some).collect();
-    for &j in &wanted {
-        let k = sorted.iter().position(|&s| s == j).unwrap_or(0);
-        let values = taken[k].take().unwrap_or_default();
-        let field = schema.field(j);
+    let mut rec = chunks.header();
+    for ((name, unit), values) in chunks.names.iter().zip(&chunks.units).zip(columns) {
         rec.push(Channel {
-            name: field.name().clone(),
-            unit: field.metadata().get("unit").cloned().unwrap_or_default(),
+            name: name.clone(),
+            unit: unit.clone(),
             values,
         })
         .map_err(|source| IoError::Recording {
-            path: p.clone(),
+            path: chunks.p.clone(),
             source,
         })?;
     }
     Ok(rec)
+}
+
+/// A Parquet file read a batch of rows at a time ([`read_parquet`] is this, drained): only
+/// the columns asked for are decoded, each batch converted to f64. Every call into the
+/// decoder is [`crate::contained`].
+pub struct ParquetChunks {
+    pub(crate) p: String,
+    reader: parquet::arrow::arrow_reader::ParquetRecordBatchReader,
+    /// The columns read, in the order asked.
+    pub(crate) names: Vec<String>,
+    pub(crate) units: Vec<String>,
+    /// For each column asked for, its place in a batch (batches keep the file's order).
+    place: Vec<usize>,
+    basis: Basis,
+    meta: Vec<(String, String)>,
+    claimed: i64,
+    row0: usize,
+}
+
+impl ParquetChunks {
+    /// Open `path` and read its footer; `channels`: the columns to read, in that order (all if
+    /// `None`).
+    pub fn open(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        let p = path.display().to_string();
+        crate::contained(&p, "Parquet", || Self::open_inner(path, &p, channels))
+    }
+
+    fn open_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Self, IoError> {
+        let p = p.to_string();
+        let file = std::fs::File::open(path).map_err(|source| IoError::Os {
+            path: p.clone(),
+            source,
+        })?;
+        let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq_err(&p, e))?;
+        let schema = builder.schema().clone();
+        let names: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
+        let wanted: Vec<usize> = match channels {
+            Some(list) => list
+                .iter()
+                .map(|n| {
+                    names
+                        .iter()
+                        .position(|m| m == n)
+                        .ok_or_else(|| IoError::Recording {
+                            path: p.clone(),
+                            source: RecordingError::MissingChannel {
+                                name: n.clone(),
+                                available: names.join(", "),
+                            },
+                        })
+                })
+                .collect::<Result<_, _>>()?,
+            None => (0..names.len()).collect(),
+        };
+        let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
+        let claimed = builder.metadata().file_metadata().num_rows();
+        let reader = builder
+            .with_projection(mask)
+            .with_batch_size(crate::format::CHUNK_ROWS)
+            .build()
+            .map_err(|e| pq_err(&p, e))?;
+        // The projected batches keep the file's column order; map back to the order asked for.
+        let mut sorted = wanted.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        let place = wanted
+            .iter()
+            .map(|j| sorted.iter().position(|s| s == j).unwrap_or(0))
+            .collect();
+        let basis = match schema.metadata().get(BASIS_KEY).map(String::as_str) {
+            Some("crank_angle") => Basis::CrankAngle,
+            _ => Basis::Time,
+        };
+        let meta = schema
+            .metadata()
+            .iter()
+            .filter_map(|(k, v)| {
+                let key = k.strip_prefix(META_PREFIX)?;
+                (!crate::FILE_META.contains(&key)).then(|| (key.to_string(), v.clone()))
+            })
+            .collect();
+        Ok(Self {
+            reader,
+            names: wanted.iter().map(|&j| names[j].clone()).collect(),
+            units: wanted
+                .iter()
+                .map(|&j| {
+                    schema
+                        .field(j)
+                        .metadata()
+                        .get("unit")
+                        .cloned()
+                        .unwrap_or_default()
+                })
+                .collect(),
+            place,
+            basis,
+            meta,
+            claimed,
+            row0: 0,
+            p,
+        })
+    }
+
+    /// The rows the footer claims (a claim: a corrupt footer can claim anything).
+    pub fn claimed_rows(&self) -> i64 {
+        self.claimed
+    }
+
+    /// The recording's basis and metadata, with no channels.
+    pub fn header(&self) -> Recording {
+        let mut rec = Recording::new(self.basis);
+        for (k, v) in &self.meta {
+            rec.meta.insert(k.clone(), v.clone());
+        }
+        rec.meta.insert("source".into(), self.p.clone());
+        rec
+    }
+
+    /// The next batch of the columns read (`None` after the last).
+    pub fn next_columns(&mut self) -> Result<Option<Vec<Vec<f64>>>, IoError> {
+        let p = self.p.clone();
+        crate::contained(&p, "Parquet", || {
+            let Some(batch) = self.reader.next() else {
+                return Ok(None);
+            };
+            let batch = batch.map_err(|e| pq_err(&self.p, e))?;
+            let mut out = Vec::with_capacity(self.names.len());
+            for (name, &k) in self.names.iter().zip(&self.place) {
+                let mut v = Vec::with_capacity(batch.num_rows());
+                let col = batch
+                    .columns()
+                    .get(k)
+                    .ok_or_else(|| pq_err(&self.p, format!("a batch lacks column '{name}'")))?;
+                extend_f64(col, &mut v, name, self.row0).map_err(|detail| IoError::Malformed {
+                    path: self.p.clone(),
+                    detail,
+                })?;
+                out.push(v);
+            }
+            self.row0 += batch.num_rows();
+            Ok(Some(out))
+        })
+    }
 }
 
 /// Write a recording as Parquet (float64 columns, units in field metadata, Snappy).

@@ -2,6 +2,8 @@
 
   python3 gen_asammdf.py           -> time_plain.mf4, time_deflate.mf4, time_transposed.mf4,
                                       angle.mf4 and expected.json
+  python3 gen_asammdf.py --groups  -> groups.mf4 and expected_groups.json: three channel
+                                      groups, two on the same 1 kHz time base, one at 10 Hz
   python3 gen_asammdf.py --check   -> opens physid_written*.mf4 (committed, written by
                                       physid-io's writer test: plain, deflate, transposed
                                       deflate) with asammdf and compares them with
@@ -67,6 +69,23 @@ def generate():
         json.dump({"asammdf": asammdf.__version__, "time": exp_t, "angle": exp_a}, f)
 
 
+def groups():
+    t = np.arange(1000) / 1000.0
+    slow_t = np.arange(10) / 10.0
+    omega = 104.7 + 3.0 * np.sin(2 * np.pi * 5 * t)
+    torque = 12.0 * np.cos(2 * np.pi * 30 * t)
+    temp = 350.0 + slow_t
+    m = MDF(version="4.10")
+    m.append([Signal(omega, t, name="omega_en", unit="rad/s")], comment="fast")
+    m.append([Signal(torque, t, name="torque_shaft", unit="N*m")], comment="fast too")
+    m.append([Signal(temp, slow_t, name="T_oil", unit="K")], comment="slow")
+    m.save("groups.mf4", overwrite=True)
+    with open("expected_groups.json", "w") as f:
+        json.dump({"asammdf": asammdf.__version__, "t": t.tolist(), "omega_en": omega.tolist(),
+                   "torque_shaft": torque.tolist(), "slow_t": slow_t.tolist(),
+                   "T_oil": temp.tolist()}, f)
+
+
 def check():
     exp = json.load(open("expected_physid.json"))
     for f in ["physid_written.mf4", "physid_written_deflate.mf4",
@@ -82,4 +101,9 @@ def check():
 
 
 if __name__ == "__main__":
-    check() if "--check" in sys.argv else generate()
+    if "--check" in sys.argv:
+        check()
+    elif "--groups" in sys.argv:
+        groups()
+    else:
+        generate()
