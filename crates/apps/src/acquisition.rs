@@ -7,7 +7,9 @@ use physid_core::{Basis, Channel, Recording, RecordingError};
 use physid_signal::crank::{crank_grid, interp};
 use physid_signal::encoder::{first_marker, Encoder};
 use physid_signal::filter::{butter, Band, FilterError};
-use physid_signal::integrity::{check, median_step, Integrity, IntegrityOptions};
+use physid_signal::integrity::{
+    median_step, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
+};
 use serde::Serialize;
 use std::f64::consts::PI;
 use thiserror::Error;
@@ -41,12 +43,15 @@ pub struct AcquisitionOptions {
     pub marker: String,
 }
 
+/// The TDC marker channel of the thesis's test cell (and physid's simulator).
+pub const TDC_MARKER: &str = "tdc";
+
 impl Default for AcquisitionOptions {
     /// The thesis's test cell: `count_en` (360 pulses/rev), `count_dy` (1024), marker `tdc`.
     fn default() -> Self {
         Self {
             encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
-            marker: "tdc".into(),
+            marker: TDC_MARKER.into(),
         }
     }
 }
@@ -80,79 +85,198 @@ pub struct Inspection {
     pub integrity: Integrity,
 }
 
-/// Summarise a recording and check its integrity.
+/// Summarise a recording and check its integrity: an [`Inspector`] over it, in one chunk.
 pub fn inspect(rec: &Recording, opts: &AcquisitionOptions) -> Inspection {
-    let t = rec.values("t").ok();
-    let duration_s = t.and_then(|t| Some(t.last()? - t.first()?));
-    let sample_rate_hz = match (rec.basis, t) {
-        (Basis::Time, Some(t)) => median_step(t).map(|d| 1.0 / d),
-        _ => None,
-    };
-    let per_cycle = rec.values("crank_deg").ok().and_then(|d| {
-        let step = d.windows(2).map(|w| w[1] - w[0]).find(|s| *s > 0.0)?;
-        Some((720.0 / step).round() as usize)
-    });
-    let cycles = match rec.basis {
-        Basis::CrankAngle => rec
-            .values("cycle")
-            .ok()
-            .map(|c| complete_cycles(c, per_cycle)),
-        Basis::Time => rec.values(&opts.marker).ok().map(|m| {
-            let edges = physid_signal::encoder::marker_edges(m).len();
-            edges.saturating_sub(1) / 2
-        }),
-    };
-    let integrity = check(
-        rec,
-        &IntegrityOptions {
-            encoders: opts
-                .encoders
-                .iter()
-                .filter(|(n, _)| rec.channel(n).is_ok())
-                .cloned()
-                .collect(),
-            marker: rec.channel(&opts.marker).ok().map(|_| opts.marker.clone()),
-            // The marker is the first encoder's (the engine's, by default).
-            marker_encoder: opts.encoders.first().map(|e| e.0.clone()),
-            samples_per_cycle: per_cycle,
-        },
-    );
-    Inspection {
-        basis: match rec.basis {
-            Basis::Time => "time",
-            Basis::CrankAngle => "crank_angle",
-        },
-        channels: rec
-            .channels()
-            .iter()
-            .map(|c| ChannelSummary {
-                name: c.name.clone(),
-                unit: c.unit.clone(),
-                samples: c.values.len(),
-            })
-            .collect(),
-        duration_s,
-        sample_rate_hz,
-        cycles,
-        integrity,
-    }
+    let mut i = Inspector::new(rec, opts);
+    i.push(rec);
+    i.finish()
 }
 
-/// Runs of one cycle index with the full number of samples (or every run if unknown).
-fn complete_cycles(cycle: &[f64], per: Option<usize>) -> usize {
-    let mut n = 0;
-    let mut start = 0;
-    while start < cycle.len() {
-        let mut end = start;
-        while end < cycle.len() && cycle[end] == cycle[start] {
-            end += 1;
+/// [`inspect`] on a recording read a chunk at a time (`physid inspect` on a file, whatever
+/// its length): the channels' sample counts, the duration, the sample rate (1 / the median
+/// step of the first [`NOMINAL_SAMPLES`]), the complete cycles and the integrity check
+/// ([`IntegrityCheck`]), all taken as the chunks pass. Memory does not grow with the
+/// recording: the first chunks are held only until the samples per cycle and the nominal step
+/// are known from them.
+#[derive(Debug, Clone)]
+pub struct Inspector {
+    opts: AcquisitionOptions,
+    header: Recording,
+    /// Held until the samples per cycle are known (crank-angle basis) — at most
+    /// [`NOMINAL_SAMPLES`] samples.
+    pending: Vec<Recording>,
+    pending_rows: usize,
+    check: Option<IntegrityCheck>,
+    per_cycle: Option<usize>,
+    t_head: Vec<f64>,
+    t_span: Option<(f64, f64)>,
+    rows: usize,
+    /// Cycle runs: the current (value, length) and the complete ones so far.
+    run: Option<(f64, usize)>,
+    complete: usize,
+    /// Marker rising edges so far, and the marker's last value.
+    edges: usize,
+    prev_marker: Option<f64>,
+    prev_deg: Option<f64>,
+}
+
+impl Inspector {
+    /// An inspection of a recording with `header`'s channels, units and basis.
+    pub fn new(header: &Recording, opts: &AcquisitionOptions) -> Self {
+        Self {
+            opts: opts.clone(),
+            header: header.slice(0..0),
+            pending: Vec::new(),
+            pending_rows: 0,
+            check: None,
+            per_cycle: None,
+            t_head: Vec::new(),
+            t_span: None,
+            rows: 0,
+            run: None,
+            complete: 0,
+            edges: 0,
+            prev_marker: None,
+            prev_deg: None,
         }
-        if per.is_none_or(|p| end - start == p) {
-            n += 1;
-        }
-        start = end;
     }
-    n
+
+    /// Take the next chunk.
+    pub fn push(&mut self, chunk: &Recording) {
+        if self.check.is_some() {
+            self.scan(chunk);
+            return;
+        }
+        if self.per_cycle.is_none() {
+            // The samples per cycle from the first positive step of `crank_deg`.
+            if let Ok(d) = chunk.values("crank_deg") {
+                let mut prev = self.prev_deg;
+                for &v in d {
+                    if let Some(step) = prev.map(|p| v - p).filter(|s| *s > 0.0) {
+                        self.per_cycle = Some((720.0 / step).round() as usize);
+                        break;
+                    }
+                    prev = Some(v);
+                }
+                self.prev_deg = d.last().copied().or(self.prev_deg);
+            }
+        }
+        self.pending_rows += chunk.len();
+        self.pending.push(chunk.clone());
+        if self.per_cycle.is_some()
+            || self.header.channel("crank_deg").is_err()
+            || self.pending_rows >= NOMINAL_SAMPLES
+        {
+            self.start();
+        }
+    }
+
+    fn start(&mut self) {
+        let rec = &self.header;
+        let opts = &self.opts;
+        self.check = Some(IntegrityCheck::new(
+            &IntegrityOptions {
+                encoders: opts
+                    .encoders
+                    .iter()
+                    .filter(|(n, _)| rec.channel(n).is_ok())
+                    .cloned()
+                    .collect(),
+                marker: rec.channel(&opts.marker).ok().map(|_| opts.marker.clone()),
+                // The marker is the first encoder's (the engine's, by default).
+                marker_encoder: opts.encoders.first().map(|e| e.0.clone()),
+                samples_per_cycle: self.per_cycle,
+            },
+            rec,
+        ));
+        for c in std::mem::take(&mut self.pending) {
+            self.scan(&c);
+        }
+    }
+
+    fn scan(&mut self, chunk: &Recording) {
+        if let Some(c) = self.check.as_mut() {
+            c.push(chunk);
+        }
+        self.rows += chunk.len();
+        if let Ok(t) = chunk.values("t") {
+            let room = NOMINAL_SAMPLES.saturating_sub(self.t_head.len());
+            self.t_head.extend_from_slice(&t[..t.len().min(room)]);
+            if let (Some(&a), Some(&b)) = (t.first(), t.last()) {
+                self.t_span = Some((self.t_span.map_or(a, |s| s.0), b));
+            }
+        }
+        match self.header.basis {
+            Basis::CrankAngle => {
+                if let Ok(cycle) = chunk.values("cycle") {
+                    for &v in cycle {
+                        match &mut self.run {
+                            Some((value, len)) if *value == v => *len += 1,
+                            run => {
+                                if let Some((_, len)) = run.take() {
+                                    self.complete +=
+                                        usize::from(self.per_cycle.is_none_or(|p| len == p));
+                                }
+                                *run = Some((v, 1));
+                            }
+                        }
+                    }
+                }
+            }
+            Basis::Time => {
+                if let Ok(m) = chunk.values(&self.opts.marker) {
+                    for &v in m {
+                        if v != 0.0 && self.prev_marker.is_none_or(|p| p == 0.0) {
+                            self.edges += 1;
+                        }
+                        self.prev_marker = Some(v);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The end of the recording: the inspection.
+    pub fn finish(mut self) -> Inspection {
+        if self.check.is_none() {
+            self.start();
+        }
+        let rec = &self.header;
+        let has = |n: &str| rec.channel(n).is_ok();
+        let cycles = match rec.basis {
+            Basis::CrankAngle => has("cycle").then(|| {
+                let last = self
+                    .run
+                    .is_some_and(|(_, len)| self.per_cycle.is_none_or(|p| len == p));
+                self.complete + usize::from(last)
+            }),
+            Basis::Time => has(&self.opts.marker).then(|| self.edges.saturating_sub(1) / 2),
+        };
+        Inspection {
+            basis: match rec.basis {
+                Basis::Time => "time",
+                Basis::CrankAngle => "crank_angle",
+            },
+            channels: rec
+                .channels()
+                .iter()
+                .map(|c| ChannelSummary {
+                    name: c.name.clone(),
+                    unit: c.unit.clone(),
+                    samples: self.rows,
+                })
+                .collect(),
+            duration_s: self.t_span.map(|(a, b)| b - a),
+            sample_rate_hz: match rec.basis {
+                Basis::Time => median_step(&self.t_head).map(|d| 1.0 / d),
+                Basis::CrankAngle => None,
+            },
+            cycles,
+            integrity: self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
+                IntegrityCheck::new(&IntegrityOptions::default(), &self.header).finish()
+            }),
+        }
+    }
 }
 
 /// The engine angle of a time-basis recording as strictly increasing `(t, θ)` pairs: from
@@ -208,6 +332,44 @@ pub fn marker_tdc_angle(rec: &Recording, opts: &AcquisitionOptions) -> Option<f6
     let theta = rec.values("theta_en").ok()?;
     let i = first_marker(rec.values(&opts.marker).ok()?)?;
     theta.get(i).copied().filter(|v| v.is_finite())
+}
+
+/// A time-basis stream of chunks with the firing TDC's angle on `theta_en`: what
+/// [`marker_tdc_angle`] gives on the whole recording (`0` without a marker or `theta_en`), known
+/// before the stages that index cycles from it take the first sample. The chunks up to the one
+/// with the first marker are held until it comes (an engine turning a few times in the first
+/// chunk: nothing more is held), then handed on with the rest.
+pub fn from_first_marker<I, E>(
+    chunks: I,
+    opts: &AcquisitionOptions,
+) -> Result<(f64, impl Iterator<Item = Result<Recording, E>>), E>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+{
+    let mut chunks = chunks.into_iter();
+    let mut held = Vec::new();
+    let mut prev: Option<f64> = None;
+    let mut tdc = None;
+    for chunk in chunks.by_ref() {
+        let chunk = chunk?;
+        let (Ok(marker), Ok(theta)) = (chunk.values(&opts.marker), chunk.values("theta_en")) else {
+            held.push(chunk);
+            break;
+        };
+        // The first rising edge, the sample before the chunk included (as `first_marker`).
+        let found = marker.iter().enumerate().find_map(|(i, &v)| {
+            let before = if i == 0 { prev } else { Some(marker[i - 1]) };
+            (v != 0.0 && before.is_none_or(|p| p == 0.0)).then_some(i)
+        });
+        prev = marker.last().copied().or(prev);
+        if let Some(i) = found {
+            tdc = theta.get(i).copied().filter(|v| v.is_finite());
+            held.push(chunk);
+            break;
+        }
+        held.push(chunk);
+    }
+    Ok((tdc.unwrap_or(0.0), held.into_iter().map(Ok).chain(chunks)))
 }
 
 /// Resample a time-basis recording to one sample every `step_deg` crank degrees from the

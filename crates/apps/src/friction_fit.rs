@@ -22,7 +22,7 @@
 //!    predicted before the estimator sees it — against the measured cycle mean, and against
 //!    the simulated truth when the recording carries it.
 
-use crate::acquisition::{marker_tdc_angle, to_crank_angle, AcquisitionOptions};
+use crate::acquisition::{from_first_marker, to_crank_angle, AcquisitionOptions, TDC_MARKER};
 use crate::error::AppError;
 use physid_core::{Basis, FreeSet, ParamSet, Recording};
 use physid_estim::metrics::nmse;
@@ -192,6 +192,32 @@ pub fn cycle_means(rec: &Recording, cfg: &FrictionFitConfig) -> Result<CycleMean
 /// Samples per chunk when a file is streamed through the stage.
 const FILE_CHUNK: usize = 4096;
 
+/// Whether a recording goes through the stage as a stream of samples: a time-basis one with
+/// `theta_en` (the others are cycles of their crank-angle form).
+pub fn streams(rec: &Recording) -> bool {
+    rec.basis == Basis::Time && rec.channel("cycle").is_err() && rec.channel("theta_en").is_ok()
+}
+
+/// Feed a time-basis stream to a stage, cycles from its first TDC marker
+/// ([`from_first_marker`]).
+fn feed_stream<I, E>(
+    stage: &mut FrictionStage,
+    chunks: I,
+    out: &mut Vec<FrictionOutput>,
+) -> Result<(), AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
+    let chunks = chunks.into_iter().map(|c| c.map_err(AppError::from));
+    let (tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
+    stage.set_theta_tdc(tdc)?;
+    for chunk in chunks {
+        stage.push(&chunk?, out)?;
+    }
+    Ok(())
+}
+
 /// Feed a whole recording to a stage: a time-basis recording with `theta_en` as a stream of
 /// chunks (cycles from its first TDC marker), any other one as the cycles of its crank-angle
 /// form.
@@ -201,14 +227,12 @@ fn feed(
     cfg: &FrictionFitConfig,
     out: &mut Vec<FrictionOutput>,
 ) -> Result<(), AppError> {
-    if rec.basis == Basis::Time && rec.values("cycle").is_err() && rec.channel("theta_en").is_ok() {
-        let tdc = marker_tdc_angle(rec, &AcquisitionOptions::default()).unwrap_or(0.0);
-        stage.set_theta_tdc(tdc)?;
+    if streams(rec) {
         let n = rec.len();
-        for start in (0..n).step_by(FILE_CHUNK) {
-            stage.push(&rec.slice(start..(start + FILE_CHUNK).min(n)), out)?;
-        }
-        return Ok(());
+        let chunks = (0..n)
+            .step_by(FILE_CHUNK)
+            .map(|start| Ok::<_, AppError>(rec.slice(start..start + FILE_CHUNK)));
+        return feed_stream(stage, chunks, out);
     }
     let converted;
     let rec = if rec.basis == Basis::Time && rec.values("cycle").is_err() {
@@ -485,6 +509,44 @@ pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<Friction
     let mut out = Vec::new();
     feed(&mut stage, rec, cfg, &mut out)?;
     stage.finish(&mut out)
+}
+
+/// [`friction_fit`] on a time-basis recording read a chunk at a time (a file, as it comes):
+/// memory does not grow with its length — the stage keeps a few numbers per cycle.
+pub fn friction_fit_stream<I, E>(
+    chunks: I,
+    cfg: &FrictionFitConfig,
+) -> Result<FrictionFit, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
+    let mut stage = FrictionStage::new(cfg.clone(), None)?;
+    let mut out = Vec::new();
+    feed_stream(&mut stage, chunks, &mut out)?;
+    stage.finish(&mut out)
+}
+
+/// The channels the characterisation reads from a time-basis recording (physid names): those
+/// it needs, then those it takes when they are there (ambient pressure when `p_atm_kpa` is set,
+/// the simulated truth, the TDC marker).
+pub fn sample_channels(cfg: &FrictionFitConfig) -> (Vec<&'static str>, Vec<&'static str>) {
+    let mut needed = vec![
+        "t",
+        "theta_en",
+        "omega_en",
+        "p_int",
+        "T_oil",
+        cfg.source.channel().0,
+    ];
+    let mut optional = vec![TDC_MARKER];
+    if cfg.p_atm_kpa.is_none() {
+        needed.push("p_atm");
+    } else {
+        optional.push("p_atm");
+    }
+    optional.extend(TRUTH_CHANNELS);
+    (needed, optional)
 }
 
 /// What a [`FrictionStage`] reports.

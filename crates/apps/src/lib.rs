@@ -35,3 +35,13 @@ pub mod model_choice;
 pub mod pipeline;
 pub mod shaft_monitor;
 pub mod torque_fit;
+
+/// Drop every other element of a track (the first kept): what a track bounded in length does
+/// when it is full, its step doubling.
+pub(crate) fn halve<T>(v: &mut Vec<T>) {
+    let mut keep = false;
+    v.retain(|_| {
+        keep = !keep;
+        keep
+    });
+}

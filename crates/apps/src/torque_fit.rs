@@ -18,7 +18,7 @@
 //!    defines it (Eq. 6.4 — ill-defined for a torque whose mean is near zero, SPEC §5.3), and
 //!    NRMSE.
 
-use crate::acquisition::{marker_tdc_angle, to_crank_angle, AcquisitionOptions};
+use crate::acquisition::{from_first_marker, to_crank_angle, AcquisitionOptions, TDC_MARKER};
 use crate::error::AppError;
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
 use physid_estim::metrics::{nmse, nrmse};
@@ -355,21 +355,11 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, A
     let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
     let mut out = Vec::new();
     if rec.basis == Basis::Time && rec.channel("theta_en").is_ok() {
-        let tdc = marker_tdc_angle(rec, &AcquisitionOptions::default()).unwrap_or(0.0);
-        stage.set_theta_tdc(tdc)?;
-        // The tracks keep about 4000 points: every so many of the cycles the file holds.
-        let th = rec.values_in("theta_en", "rad")?;
-        let cycles = match (th.first(), th.last()) {
-            (Some(a), Some(b)) => {
-                (((b - tdc) / (4.0 * PI)).floor() - ((a - tdc) / (4.0 * PI)).ceil()).max(0.0)
-            }
-            _ => 0.0,
-        };
-        stage.track_every = ((cycles as usize) * PER_CYCLE).div_ceil(4000).max(1);
         let n = rec.len();
-        for start in (0..n).step_by(FILE_CHUNK) {
-            stage.push(&rec.slice(start..(start + FILE_CHUNK).min(n)), &mut out)?;
-        }
+        let chunks = (0..n)
+            .step_by(FILE_CHUNK)
+            .map(|start| Ok::<_, AppError>(rec.slice(start..start + FILE_CHUNK)));
+        return torque_fit_stream(chunks, cfg);
     } else {
         let data = TorqueData::from_recording(rec)?;
         stage.track_every = data.y.len().div_ceil(4000).max(1);
@@ -384,8 +374,43 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, A
         .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))
 }
 
+/// [`torque_fit`] on a time-basis recording with `theta_en` read a chunk at a time (a file, as
+/// it comes; cycles from its first TDC marker): only the channels of
+/// [`sample_channels`] are read, resampled to one per crank degree on the stream. The
+/// parameters are chosen on all of the data, so the stage keeps the 1° samples (8 numbers a
+/// degree: 46 kB a cycle) — not the file's.
+pub fn torque_fit_stream<I, E>(chunks: I, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
+    let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
+    let mut out = Vec::new();
+    let chunks = chunks.into_iter().map(|c| c.map_err(AppError::from));
+    let (tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
+    stage.set_theta_tdc(tdc)?;
+    for chunk in chunks {
+        stage.push(&chunk?, &mut out)?;
+    }
+    stage
+        .finish(&mut out)?
+        .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))
+}
+
+/// The channels the fit reads from a time-basis recording (physid names): those it needs, then
+/// those it takes when they are there (the TDC marker).
+pub fn sample_channels() -> (Vec<&'static str>, Vec<&'static str>) {
+    let mut needed = vec!["theta_en"];
+    needed.extend(CURVE_CHANNELS.iter().map(|c| c.0));
+    (needed, vec![TDC_MARKER])
+}
+
 /// Samples per chunk when a file is streamed through the stage.
 const FILE_CHUNK: usize = 4096;
+
+/// Points the tracks keep at least; beyond twice this, every other one is dropped (the tracks'
+/// step doubles), so they take bounded memory however long the recording.
+pub const TRACK_POINTS: usize = 4000;
 
 /// What a [`TorqueStage`] reports.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -757,7 +782,23 @@ impl TorqueStage {
             self.sse = 0.0;
             self.ssy = 0.0;
         }
+        if self.out_t.len() >= 2 * TRACK_POINTS {
+            self.thin_tracks();
+        }
         Ok(())
+    }
+
+    /// Every other point of the tracks dropped; their step doubles.
+    fn thin_tracks(&mut self) {
+        use crate::halve;
+        halve(&mut self.out_t);
+        halve(&mut self.measured);
+        halve(&mut self.predicted);
+        for tr in &mut self.tracks {
+            halve(&mut tr.value);
+            halve(&mut tr.std_err);
+        }
+        self.track_every *= 2;
     }
 
     /// The end of the stream: the parameters chosen if they were not, and — with `keep` — the

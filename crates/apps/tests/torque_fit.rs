@@ -184,7 +184,7 @@ fn bad_recordings_are_explained() {
 #[test]
 fn the_stage_on_a_stream_is_the_file_verb() {
     use physid_apps::acquisition::{marker_tdc_angle, to_crank_angle, AcquisitionOptions};
-    use physid_apps::torque_fit::{TorqueOutput, TorqueStage};
+    use physid_apps::torque_fit::{TorqueOutput, TorqueStage, TRACK_POINTS};
     let rec = run_basis(OutputBasis::Time(10_000.0));
     let cfg = TorqueFitConfig::new(nominal());
     let file = torque_fit(&rec, &cfg).unwrap();
@@ -197,7 +197,6 @@ fn the_stage_on_a_stream_is_the_file_verb() {
     let run = |chunk: usize, select_after: Option<usize>, keep: bool| {
         let mut stage = TorqueStage::new(cfg.clone(), select_after, keep).unwrap();
         stage.set_theta_tdc(tdc).unwrap();
-        stage.track_every = file.samples.div_ceil(4000);
         let mut out = Vec::new();
         let n = rec.len();
         for start in (0..n).step_by(chunk) {
@@ -207,6 +206,12 @@ fn the_stage_on_a_stream_is_the_file_verb() {
         }
         (stage.finish(&mut out).unwrap(), out)
     };
+    // The tracks are bounded: thinned to between TRACK_POINTS and twice that.
+    assert!(
+        file.t.len() <= 2 * TRACK_POINTS && file.t.len() >= TRACK_POINTS.min(file.samples),
+        "{}",
+        file.t.len()
+    );
     for chunk in [1, 17, 4096, rec.len()] {
         let (fit, _) = run(chunk, None, true);
         let fit = fit.unwrap();

@@ -383,3 +383,130 @@ fn simulate_writes_as_it_goes_the_whole_recordings_file() {
         }
     }
 }
+
+/// The verbs that read recordings read them a chunk at a time, only the channels they take,
+/// and answer as on the whole recording: `inspect` (findings in the second chunk: a NaN, lost
+/// samples, a count going back) and `monitor shaft` against the library run on the recording
+/// read whole, in CSV, Parquet and MDF4; `friction fit` and `torque fit` the same in all three
+/// formats, and with the file's columns renamed through `--map`.
+#[test]
+fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
+    use physid_apps::acquisition::{inspect, AcquisitionOptions};
+    use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig};
+    use physid_sim::run::{simulate, OutputBasis, RunOptions};
+    let s = Scratch::new("physid-read-stream");
+    let sim = |name: &str, faults: Vec<&str>, seconds: f64| {
+        let opts = RunOptions {
+            duration: Some(seconds),
+            basis: OutputBasis::Time(10_000.0),
+            faults: faults
+                .iter()
+                .map(|f| physid_sim::scenario::Fault::parse(f).unwrap())
+                .collect(),
+            ..Default::default()
+        };
+        simulate(&physid_sim::scenario::named(name).unwrap(), &opts, |_| {}).unwrap()
+    };
+    let json = |args: &[&str]| -> serde_json::Value {
+        let o = physid(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    // 8 s at 10 kHz: two chunks of the reader; a stiffness fault at 4 s.
+    let shaft = sim("shaft-steady", vec!["shaft.k=1000@4"], 8.0);
+    let mut defective = shaft.clone();
+    let n = defective.len();
+    let mut t = defective.values("t").unwrap().to_vec();
+    for v in &mut t[70_010..] {
+        *v += 3e-4;
+    }
+    defective.replace_values("t", t).unwrap();
+    let mut p = defective.values("p_cyl").unwrap().to_vec();
+    p[70_500] = f64::NAN;
+    defective.replace_values("p_cyl", p).unwrap();
+    let mut c = defective.values("count_dy").unwrap().to_vec();
+    c[75_000] -= 5.0;
+    defective.replace_values("count_dy", c).unwrap();
+    assert!(n > physid_io::CHUNK_ROWS);
+    for ext in ["csv", "parquet", "mf4"] {
+        let f = s.file(&format!("defective.{ext}"));
+        physid_io::write(&f, &defective, &Default::default()).unwrap();
+        let got = json(&["inspect", f.to_str().unwrap(), "--json"]);
+        let whole = physid_io::read(&f, &Default::default()).unwrap();
+        let mut want =
+            serde_json::to_value(inspect(&whole, &AcquisitionOptions::default())).unwrap();
+        want["surfaces"] = serde_json::json!([]);
+        assert_eq!(got, want, "{ext}");
+        let kinds: Vec<&str> = got["integrity"]["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| f["kind"].as_str().unwrap())
+            .collect();
+        for k in ["lost_samples", "non_finite", "count_backwards"] {
+            assert!(kinds.contains(&k), "{ext}: {kinds:?}");
+        }
+
+        let f = s.file(&format!("shaft.{ext}"));
+        physid_io::write(&f, &shaft, &Default::default()).unwrap();
+        let got = json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"]);
+        let whole = physid_io::read(&f, &Default::default()).unwrap();
+        let want = serde_json::to_value(
+            monitor_shaft(&whole, &MonitorConfig::default())
+                .unwrap()
+                .summary(),
+        )
+        .unwrap();
+        assert_eq!(got, want, "{ext}");
+        assert_eq!(got["alarms"][0]["param"], "K", "{ext}: {got}");
+    }
+
+    // Motored and fired runs through the cycle-indexed stages.
+    let motored = sim("friction-sweep", vec![], 8.0);
+    let fired = sim("torque-steady", vec![], 3.0);
+    let mut friction: Option<serde_json::Value> = None;
+    let mut torque: Option<serde_json::Value> = None;
+    for ext in ["csv", "parquet", "mf4"] {
+        let f = s.file(&format!("motored.{ext}"));
+        physid_io::write(&f, &motored, &Default::default()).unwrap();
+        let got = json(&["friction", "fit", "--data", f.to_str().unwrap(), "--json"]);
+        assert!(got["cycles"]["used"].as_u64().unwrap() > 30, "{got}");
+        assert_eq!(friction.get_or_insert(got.clone()), &got, "{ext}");
+        let f = s.file(&format!("fired.{ext}"));
+        physid_io::write(&f, &fired, &Default::default()).unwrap();
+        let got = json(&["torque", "fit", "--data", f.to_str().unwrap(), "--json"]);
+        assert_eq!(torque.get_or_insert(got.clone()), &got, "{ext}");
+    }
+    // The columns renamed in the file, mapped back on reading.
+    let mut renamed = physid_core::Recording::new(motored.basis);
+    for ch in motored.channels() {
+        renamed
+            .push(physid_core::Channel {
+                name: format!("Log_{}", ch.name),
+                unit: ch.unit.clone(),
+                values: ch.values.clone(),
+            })
+            .unwrap();
+    }
+    let f = s.file("renamed.parquet");
+    physid_io::write(&f, &renamed, &Default::default()).unwrap();
+    let mut args = vec![
+        "friction".to_string(),
+        "fit".into(),
+        "--data".into(),
+        f.to_str().unwrap().into(),
+        "--json".into(),
+    ];
+    args.extend(
+        motored
+            .channels()
+            .iter()
+            .map(|c| format!("--map={0}=Log_{0}", c.name)),
+    );
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    assert_eq!(Some(json(&args)), friction);
+}

@@ -307,8 +307,20 @@ impl ChunkReader {
                 (h, Source::Mdf(c), Some(claimed))
             }
         };
-        if !opts.map.is_empty() {
-            header = rename(header, &opts.map, path)?;
+        // With a selection, only the map items of the channels asked for apply (a map made
+        // for a whole log serves a verb that reads part of it).
+        let map: Vec<MapItem> = opts
+            .map
+            .iter()
+            .filter(|m| {
+                opts.channels
+                    .as_ref()
+                    .is_none_or(|list| list.contains(&m.name))
+            })
+            .cloned()
+            .collect();
+        if !map.is_empty() {
+            header = rename(header, &map, path)?;
         }
         header.basis = basis_by_channels(&header);
         let mut convert = vec![(1.0, 0.0); header.channels().len()];

@@ -271,7 +271,7 @@
       trimBefore(tr, e.t_s - WINDOW_S);
       touch();
     },
-    control(e) { log(`${fmt(e.t_s, 3)} s: ${e.cmd}`); if (e.cmd === "pause") setState("paused"); if (e.cmd === "resume") setState("running"); },
+    control(e) { st.last.control = e; log(`${fmt(e.t_s, 3)} s: ${e.cmd}`); if (e.cmd === "pause") setState("paused"); if (e.cmd === "resume") setState("running"); },
     error(e) { log(`${fmt(e.t_s, 3)} s: ${e.input} line ${e.line}: ${e.message}`, "error"); },
     finding(e) {
       // Integrity findings (kind, sample) stand out: the data may be wrong.

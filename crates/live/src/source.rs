@@ -2,11 +2,14 @@
 
 use crate::control::Control;
 use crate::service::LiveError;
-use physid_apps::acquisition::uniform_step;
+use physid_apps::acquisition::{from_first_marker, uniform_step, AcquisitionOptions};
+use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::on_time_basis;
-use physid_core::Recording;
+use physid_core::{Basis, Channel, Recording};
+use physid_io::{ChunkReader, ReadOptions};
 use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::Scenario;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// A source of chunks of samples on a uniform time basis.
@@ -98,14 +101,28 @@ impl Source for ScenarioSource {
     }
 }
 
-/// A recording replayed in chunks of `chunk` samples (a crank-angle recording put on a time
-/// basis first, as the file verbs do).
+/// Chunks of a recording as they are read.
+type Chunks = Box<dyn Iterator<Item = Result<Recording, AppError>> + Send>;
+
+/// A recording replayed in chunks of `chunk_s` seconds: a file read as it comes (memory
+/// does not grow with its length), or one in memory. A crank-angle recording is put on a time
+/// basis first, as the file verbs do (which takes it whole). The sample rate is the mean step
+/// of the first chunk read; every later step is held to it.
 pub struct ReplaySource {
-    rec: Recording,
+    chunks: Chunks,
+    /// Samples read and not yet handed out: `held[at..]`.
+    held: Recording,
+    at: usize,
     rate_hz: f64,
     chunk: usize,
-    next: usize,
+    theta_tdc: f64,
+    /// Samples handed out, and the last one's time.
+    seen: usize,
+    t_prev: Option<f64>,
 }
+
+/// Rows of an in-memory recording per chunk taken (as a file is read).
+const READ_ROWS: usize = 65_536;
 
 impl ReplaySource {
     /// `rec` in chunks of `chunk_s` seconds.
@@ -114,19 +131,68 @@ impl ReplaySource {
             Some(r) => r,
             None => rec,
         };
-        let rate_hz =
-            1.0 / uniform_step(rec.values("t")?).map_err(physid_apps::error::AppError::from)?;
+        let n = rec.len();
+        let chunks = (0..n.max(1))
+            .step_by(READ_ROWS)
+            .map(move |start| Ok(rec.slice(start..start + READ_ROWS)));
+        Self::from_chunks(Box::new(chunks), chunk_s)
+    }
+
+    /// The file `path`, read as it comes with `opts`, in chunks of `chunk_s` seconds.
+    pub fn open(path: &Path, opts: &ReadOptions, chunk_s: f64) -> Result<Self, LiveError> {
+        let reader = ChunkReader::open(path, opts)?;
+        if reader.header().basis == Basis::CrankAngle {
+            return Self::new(physid_io::read(path, opts)?, chunk_s);
+        }
+        Self::from_chunks(Box::new(reader.map(|c| c.map_err(AppError::from))), chunk_s)
+    }
+
+    fn from_chunks(chunks: Chunks, chunk_s: f64) -> Result<Self, LiveError> {
         if !(chunk_s.is_finite() && chunk_s > 0.0) {
             return Err(LiveError::Invalid(format!(
                 "chunk of {chunk_s} s: expected > 0"
             )));
         }
+        let (theta_tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
+        let mut chunks: Chunks = Box::new(chunks);
+        let first = chunks
+            .next()
+            .transpose()?
+            .unwrap_or_else(|| Recording::new(Basis::Time));
+        let rate_hz = 1.0 / uniform_step(first.values("t")?).map_err(AppError::from)?;
         Ok(Self {
+            chunks,
+            held: first,
+            at: 0,
             chunk: ((chunk_s * rate_hz).round() as usize).max(1),
-            rec,
             rate_hz,
-            next: 0,
+            theta_tdc,
+            seen: 0,
+            t_prev: None,
         })
+    }
+
+    /// The angle of a firing TDC on `theta_en` [rad]: its value at the recording's first TDC
+    /// marker (`0` without one), where the stages start their cycles.
+    pub fn theta_tdc(&self) -> f64 {
+        self.theta_tdc
+    }
+
+    /// Every step of `t` within 0.1 % of the rate's (across chunks too).
+    fn check_steps(&mut self, t: &[f64]) -> Result<(), LiveError> {
+        let dt = 1.0 / self.rate_hz;
+        for (i, &now) in t.iter().enumerate() {
+            if let Some(before) = self.t_prev.replace(now) {
+                if ((now - before) - dt).abs() > 1e-3 * dt {
+                    return Err(LiveError::Invalid(format!(
+                        "the time step is not uniform at sample {} ({} s, mean {dt} s): check with physid inspect, resample with physid convert --time-basis HZ",
+                        self.seen + i,
+                        now - before
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -136,13 +202,33 @@ impl Source for ReplaySource {
     }
 
     fn next_chunk(&mut self) -> Result<Option<Recording>, LiveError> {
-        let n = self.rec.len();
-        if self.next >= n {
+        // Enough samples held for a chunk, or the end of the recording.
+        while self.held.len() - self.at < self.chunk {
+            let Some(next) = self.chunks.next().transpose()? else {
+                break;
+            };
+            let mut joined = Recording::new(self.held.basis);
+            for ch in self.held.channels() {
+                let mut values = ch.values[self.at..].to_vec();
+                values.extend_from_slice(next.values(&ch.name)?);
+                joined.push(Channel {
+                    name: ch.name.clone(),
+                    unit: ch.unit.clone(),
+                    values,
+                })?;
+            }
+            self.held = joined;
+            self.at = 0;
+        }
+        let n = self.held.len();
+        if self.at >= n {
             return Ok(None);
         }
-        let end = (self.next + self.chunk).min(n);
-        let c = self.rec.slice(self.next..end);
-        self.next = end;
+        let end = (self.at + self.chunk).min(n);
+        let c = self.held.slice(self.at..end);
+        self.at = end;
+        self.check_steps(c.values("t")?)?;
+        self.seen += c.len();
         Ok(Some(c))
     }
 }

@@ -23,7 +23,6 @@
 //! Some things are information, not problems — a recording that starts or ends mid-cycle, or
 //! has no marker to index cycles by: they are [`Integrity::notes`] and leave `ok` true.
 
-use crate::encoder::marker_edges;
 use physid_core::{Basis, Recording};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -141,102 +140,275 @@ impl Collector {
     }
 }
 
-/// Check a recording.
+/// Check a recording: [`IntegrityCheck`] over it, in one chunk.
 pub fn check(rec: &Recording, opts: &IntegrityOptions) -> Integrity {
-    let mut c = Collector {
-        findings: Vec::new(),
-        notes: Vec::new(),
-        counts: Vec::new(),
-    };
-    for ch in rec.channels() {
-        if let Some(unit) = physid_core::standard_unit(&ch.name) {
-            if !ch.unit.is_empty() && ch.unit != unit {
+    let mut c = IntegrityCheck::new(opts, rec);
+    c.push(rec);
+    c.finish()
+}
+
+/// Samples the nominal steps are taken over: the time step's median ([`median_step`]) on a
+/// time basis, the crank-angle step's on a crank-angle basis — of the first this many samples,
+/// whether the recording comes whole or in chunks.
+pub const NOMINAL_SAMPLES: usize = 65_536;
+
+/// A channel's non-finite samples: the first (index, value) and how many.
+#[derive(Debug, Clone)]
+struct NonFinite {
+    name: String,
+    first: Option<(usize, f64)>,
+    count: usize,
+}
+
+/// Runs of one `cycle` value on a crank-angle basis: their lengths against the samples per
+/// cycle.
+#[derive(Debug, Clone, Default)]
+struct CycleRuns {
+    /// The current run: its value, first sample and length.
+    run: Option<(f64, usize, usize)>,
+}
+
+/// The whole post-run check ([`check`]) as a stream of chunks, for a file read as it comes:
+/// the sample-by-sample checks of [`IntegrityStream`], plus the units, the non-finite samples,
+/// the crank-angle steps and cycle lengths, and the notes about how the recording starts and
+/// ends. Memory does not grow with the recording (the findings are capped per kind; the first
+/// [`NOMINAL_SAMPLES`] are held until the nominal steps are known from them).
+#[derive(Debug, Clone)]
+pub struct IntegrityCheck {
+    opts: IntegrityOptions,
+    basis: Basis,
+    /// Created with the first chunk, which gives the nominal time step.
+    stream: Option<IntegrityStream>,
+    /// Findings made before the stream exists (units).
+    early: Collector,
+    non_finite: Vec<NonFinite>,
+    /// The chunks held until [`NOMINAL_SAMPLES`] have come, and their samples.
+    pending: Vec<Recording>,
+    pending_rows: usize,
+    crank_step: Option<f64>,
+    prev_crank: Option<(f64, Option<f64>)>,
+    runs: CycleRuns,
+    /// The first rising edge of the marker (its index), and the marker's last value.
+    first_edge: Option<usize>,
+    prev_marker: Option<f64>,
+    has_marker: bool,
+    seen: usize,
+}
+
+impl IntegrityCheck {
+    /// The checks of `opts` on a recording with `header`'s channels, units and basis.
+    pub fn new(opts: &IntegrityOptions, header: &Recording) -> Self {
+        let mut early = Collector::default();
+        for ch in header.channels() {
+            if let Some(unit) = physid_core::standard_unit(&ch.name) {
+                if !ch.unit.is_empty() && ch.unit != unit {
+                    early.push(
+                        FindingKind::UnitMismatch,
+                        0,
+                        format!(
+                            "channel '{}' is in '{}'; physid expects '{unit}' (convert it, or map your column to another name)",
+                            ch.name, ch.unit
+                        ),
+                    );
+                }
+            }
+        }
+        Self {
+            opts: opts.clone(),
+            basis: header.basis,
+            stream: None,
+            early,
+            non_finite: header
+                .channels()
+                .iter()
+                .map(|c| NonFinite {
+                    name: c.name.clone(),
+                    first: None,
+                    count: 0,
+                })
+                .collect(),
+            pending: Vec::new(),
+            pending_rows: 0,
+            crank_step: None,
+            prev_crank: None,
+            runs: CycleRuns::default(),
+            first_edge: None,
+            prev_marker: None,
+            has_marker: opts
+                .marker
+                .as_ref()
+                .is_some_and(|m| header.channel(m).is_ok()),
+            seen: 0,
+        }
+    }
+
+    /// Take the next chunk (the header's channels). The first [`NOMINAL_SAMPLES`] are held
+    /// until the nominal steps are known from them (whatever the chunks' sizes).
+    pub fn push(&mut self, chunk: &Recording) {
+        if self.stream.is_some() {
+            self.scan(chunk);
+            return;
+        }
+        self.pending_rows += chunk.len();
+        self.pending.push(chunk.clone());
+        if self.pending_rows >= NOMINAL_SAMPLES {
+            self.start();
+        }
+    }
+
+    /// The nominal steps from the samples held, then the checks over them.
+    fn start(&mut self) {
+        let pending = std::mem::take(&mut self.pending);
+        let head = |name: &str| -> Vec<f64> {
+            let mut v = Vec::new();
+            for c in &pending {
+                if let Ok(x) = c.values(name) {
+                    let room = NOMINAL_SAMPLES.saturating_sub(v.len());
+                    v.extend_from_slice(&x[..x.len().min(room)]);
+                }
+            }
+            v
+        };
+        let step = match self.basis {
+            Basis::Time => median_step(&head("t")),
+            Basis::CrankAngle => None,
+        };
+        if self.basis == Basis::CrankAngle {
+            self.crank_step = median_step(&head("crank_deg"));
+        }
+        let mut s = IntegrityStream::new(&self.opts, self.basis, step);
+        s.c = std::mem::take(&mut self.early);
+        self.stream = Some(s);
+        for c in &pending {
+            self.scan(c);
+        }
+    }
+
+    /// One chunk through every check.
+    fn scan(&mut self, chunk: &Recording) {
+        let n = chunk.len();
+        if let Some(stream) = self.stream.as_mut() {
+            stream.scan(chunk);
+        }
+        for nf in &mut self.non_finite {
+            let Ok(v) = chunk.values(&nf.name) else {
+                continue;
+            };
+            for (i, x) in v.iter().enumerate() {
+                if !x.is_finite() {
+                    nf.first.get_or_insert((self.seen + i, *x));
+                    nf.count += 1;
+                }
+            }
+        }
+        if let Some(m) = self.opts.marker.as_ref().and_then(|m| chunk.values(m).ok()) {
+            if self.first_edge.is_none() {
+                let mut prev = self.prev_marker;
+                for (i, &v) in m.iter().enumerate() {
+                    if v != 0.0 && prev.is_none_or(|p| p == 0.0) {
+                        self.first_edge = Some(self.seen + i);
+                        break;
+                    }
+                    prev = Some(v);
+                }
+            }
+            self.prev_marker = m.last().copied().or(self.prev_marker);
+        }
+        if self.basis == Basis::CrankAngle {
+            let cycle = chunk.values("cycle").ok();
+            if let Ok(deg) = chunk.values("crank_deg") {
+                if let (Some(stream), Some(step)) = (self.stream.as_mut(), self.crank_step) {
+                    crank_steps(
+                        deg,
+                        cycle,
+                        step,
+                        self.seen,
+                        &mut self.prev_crank,
+                        &mut stream.c,
+                    );
+                }
+            }
+            if let (Some(cycle), Some(per), Some(stream)) =
+                (cycle, self.opts.samples_per_cycle, self.stream.as_mut())
+            {
+                for (i, &v) in cycle.iter().enumerate() {
+                    match &mut self.runs.run {
+                        Some((value, _, len)) if *value == v => *len += 1,
+                        run => {
+                            if let Some(done) = run.take() {
+                                cycle_run(done, per, false, &mut stream.c);
+                            }
+                            *run = Some((v, self.seen + i, 1));
+                        }
+                    }
+                }
+            }
+        }
+        self.seen += n;
+    }
+
+    /// The end of the recording: what waits for it judged, the report.
+    pub fn finish(mut self) -> Integrity {
+        if self.stream.is_none() {
+            self.start();
+        }
+        let mut stream = self
+            .stream
+            .take()
+            .unwrap_or_else(|| IntegrityStream::new(&self.opts, self.basis, None));
+        stream.finish_checks();
+        let mut c = std::mem::take(&mut stream.c);
+        for nf in &self.non_finite {
+            if let Some((i, v)) = nf.first {
                 c.push(
-                    FindingKind::UnitMismatch,
-                    0,
+                    FindingKind::NonFinite,
+                    i,
                     format!(
-                        "channel '{}' is in '{}'; physid expects '{unit}' (convert it, or map your column to another name)",
-                        ch.name, ch.unit
+                        "channel '{}' is {v} at sample {i} ({} non-finite samples in all)",
+                        nf.name, nf.count
                     ),
                 );
             }
         }
-        if let Some(i) = ch.values.iter().position(|v| !v.is_finite()) {
-            let n = ch.values.iter().filter(|v| !v.is_finite()).count();
-            c.push(
-                FindingKind::NonFinite,
-                i,
-                format!(
-                    "channel '{}' is {} at sample {i} ({n} non-finite samples in all)",
-                    ch.name, ch.values[i]
+        match self.basis {
+            Basis::Time if self.has_marker => match self.first_edge {
+                Some(m0) if m0 > 0 => c.note(
+                    0,
+                    format!("the recording starts mid-revolution: {m0} samples before the first TDC marker (left out by cycle indexing)"),
                 ),
-            );
-        }
-    }
-    // The sample-by-sample checks: the stream the live service runs, over the whole recording
-    // (gaps against the median step).
-    let step = match (rec.basis, rec.values("t")) {
-        (Basis::Time, Ok(t)) => median_step(t),
-        _ => None,
-    };
-    let mut stream = IntegrityStream::new(opts, rec.basis, step);
-    stream.c = c;
-    stream.scan(rec);
-    stream.finish_checks();
-    let mut c = stream.c;
-    let marker = opts
-        .marker
-        .as_ref()
-        .and_then(|m| rec.values(m).ok())
-        .map(marker_edges);
-    match rec.basis {
-        Basis::Time => {
-            if let Some(edges) = &marker {
-                match edges.first() {
-                    Some(&m0) if m0 > 0 => c.note(
-                        0,
-                        format!("the recording starts mid-revolution: {m0} samples before the first TDC marker (left out by cycle indexing)"),
-                    ),
-                    None => c.note(0, "no TDC marker: cycles cannot be indexed".into()),
-                    _ => {}
+                None => c.note(0, "no TDC marker: cycles cannot be indexed".into()),
+                _ => {}
+            },
+            Basis::CrankAngle => {
+                if let (Some(done), Some(per)) = (self.runs.run.take(), self.opts.samples_per_cycle)
+                {
+                    cycle_run(done, per, true, &mut c);
                 }
             }
+            Basis::Time => {}
         }
-        Basis::CrankAngle => {
-            if let Ok(deg) = rec.values("crank_deg") {
-                check_crank_steps(deg, rec.values("cycle").ok(), &mut c);
-            }
-            if let (Ok(cycle), Some(per)) = (rec.values("cycle"), opts.samples_per_cycle) {
-                let mut start = 0;
-                while start < cycle.len() {
-                    let mut end = start;
-                    while end < cycle.len() && cycle[end] == cycle[start] {
-                        end += 1;
-                    }
-                    if end - start != per {
-                        let detail = format!(
-                            "cycle {} has {} samples, expected {per}",
-                            cycle[start],
-                            end - start
-                        );
-                        if start == 0 || end == cycle.len() {
-                            c.note(
-                                start,
-                                format!(
-                                    "{detail} (the recording {} mid-cycle)",
-                                    if start == 0 { "starts" } else { "ends" }
-                                ),
-                            );
-                        } else {
-                            c.push(FindingKind::IncompleteCycle, start, detail);
-                        }
-                    }
-                    start = end;
-                }
-            }
-        }
+        c.finish()
     }
-    c.finish()
+}
+
+/// A run of one cycle value ended (`last`: by the end of the recording): its length against
+/// `per` samples per cycle — a finding inside the recording, a note at either end.
+fn cycle_run((value, start, len): (f64, usize, usize), per: usize, last: bool, c: &mut Collector) {
+    if len == per {
+        return;
+    }
+    let detail = format!("cycle {value} has {len} samples, expected {per}");
+    if start == 0 || last {
+        c.note(
+            start,
+            format!(
+                "{detail} (the recording {} mid-cycle)",
+                if start == 0 { "starts" } else { "ends" }
+            ),
+        );
+    } else {
+        c.push(FindingKind::IncompleteCycle, start, detail);
+    }
 }
 
 /// The median of the positive steps of a time channel [s] (`None` with no positive step): the
@@ -258,15 +430,27 @@ pub fn median_step(t: &[f64]) -> Option<f64> {
 /// Revolutions over which an encoder that is not the marker's is checked against the marker.
 const SPAN_REVS: usize = 10;
 
-/// Crank-angle basis: each step of `crank_deg` is the nominal one (the most common), or wraps
-/// to the next cycle; a longer step, or a cycle skipped, means samples are missing.
-fn check_crank_steps(deg: &[f64], cycle: Option<&[f64]>, c: &mut Collector) {
-    let Some(step) = median_step(deg) else {
-        return;
-    };
-    for i in 1..deg.len() {
-        let d = deg[i] - deg[i - 1];
-        let next_cycle = cycle.map(|cy| cy[i] - cy[i - 1]);
+/// Crank-angle basis: each step of `crank_deg` is the nominal one `step` (the median), or
+/// wraps to the next cycle; a longer step, or a cycle skipped, means samples are missing.
+/// `prev`: the sample before the chunk (its angle and cycle), carried from chunk to chunk.
+fn crank_steps(
+    deg: &[f64],
+    cycle: Option<&[f64]>,
+    step: f64,
+    seen: usize,
+    prev: &mut Option<(f64, Option<f64>)>,
+    c: &mut Collector,
+) {
+    for (i, &now) in deg.iter().enumerate() {
+        let cy = cycle.map(|cy| cy[i]);
+        let Some((before, cy_before)) = prev.replace((now, cy)) else {
+            continue;
+        };
+        let d = now - before;
+        let next_cycle = match (cy, cy_before) {
+            (Some(a), Some(b)) => Some(a - b),
+            _ => None,
+        };
         let missing = match next_cycle {
             Some(k) if k > 0.0 => {
                 // Across a cycle boundary: the step is d + 720° per cycle moved on.
@@ -279,11 +463,9 @@ fn check_crank_steps(deg: &[f64], cycle: Option<&[f64]>, c: &mut Collector) {
         if missing > 0 {
             c.push(
                 FindingKind::LostSamples,
-                i,
+                seen + i,
                 format!(
-                    "crank angle steps from {}° to {}°{}: about {missing} samples missing (step {step}°)",
-                    deg[i - 1],
-                    deg[i],
+                    "crank angle steps from {before}° to {now}°{}: about {missing} samples missing (step {step}°)",
                     match next_cycle {
                         Some(k) if k > 0.0 => format!(" across {k} cycle(s)"),
                         _ => String::new(),

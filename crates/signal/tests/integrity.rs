@@ -5,7 +5,8 @@
 use physid_core::{Basis, Channel, Recording};
 use physid_signal::encoder::counts_from_angle;
 use physid_signal::integrity::{
-    check, Finding, FindingKind, IntegrityOptions, IntegrityStream, MAX_PER_KIND,
+    check, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, IntegrityStream,
+    MAX_PER_KIND,
 };
 
 fn rec(channels: Vec<(&str, Vec<f64>)>, basis: Basis) -> Recording {
@@ -385,4 +386,82 @@ fn the_stream_finds_what_the_whole_record_check_finds() {
         sorted(out),
         sorted(check(&dup, &IntegrityOptions::default()).findings)
     );
+}
+
+fn in_chunks(r: &Recording, o: &IntegrityOptions, chunk: usize) -> Integrity {
+    let mut c = IntegrityCheck::new(o, &r.slice(0..0));
+    for start in (0..r.len()).step_by(chunk) {
+        c.push(&r.slice(start..start + chunk));
+    }
+    c.finish()
+}
+
+/// The whole check on a file read a chunk at a time is the check on the whole recording —
+/// findings, notes and `ok` equal — for chunks of 1, 17, 4096 and whole: time defects, a NaN,
+/// lost pulses, a displaced marker, a unit off the table; on a crank-angle basis, samples lost
+/// inside a cycle and across a cycle boundary, incomplete cycles, a recording that starts and
+/// ends mid-cycle.
+#[test]
+fn the_whole_check_in_chunks_is_the_check_on_the_whole() {
+    let (t, c, m, _) = defective();
+    let mut p = vec![1e5; t.len()];
+    p[123] = f64::NAN;
+    p[17_000] = f64::INFINITY;
+    let mut r = rec(
+        vec![("t", t), ("count_en", c), ("tdc", m), ("p_cyl", p)],
+        Basis::Time,
+    );
+    r.push(Channel {
+        name: "T_oil".into(),
+        unit: "degC".into(),
+        values: vec![90.0; r.len()],
+    })
+    .unwrap();
+    let whole = check(&r, &opts());
+    assert!(
+        whole.findings.len() >= 6 && !whole.notes.is_empty(),
+        "{whole:?}"
+    );
+    for chunk in [1, 17, 4096, r.len()] {
+        assert_eq!(in_chunks(&r, &opts(), chunk), whole, "chunk {chunk}");
+    }
+    // No marker in the recording: a note, in chunks too.
+    let no_marker = rec(
+        vec![
+            ("t", r.values("t").unwrap().to_vec()),
+            ("tdc", vec![0.0; r.len()]),
+        ],
+        Basis::Time,
+    );
+    let w = check(&no_marker, &opts());
+    assert!(w.notes[0].detail.contains("no TDC marker"));
+    assert_eq!(in_chunks(&no_marker, &opts(), 999), w);
+
+    // Crank angle: starts 100 samples into cycle 0, loses samples 999..1004 and 2158..2162
+    // (across the boundary of cycles 2 and 3: both short), ends 5 samples short.
+    let n = 5 * 720;
+    let deg: Vec<f64> = (0..n).map(|k| (k % 720) as f64).collect();
+    let cycle: Vec<f64> = (0..n).map(|k| (k / 720) as f64).collect();
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-4).collect();
+    let cut = |v: &Vec<f64>| [&v[100..999], &v[1004..2158], &v[2162..n - 5]].concat();
+    let ca = rec(
+        vec![
+            ("t", cut(&t)),
+            ("cycle", cut(&cycle)),
+            ("crank_deg", cut(&deg)),
+        ],
+        Basis::CrankAngle,
+    );
+    let o = IntegrityOptions {
+        samples_per_cycle: Some(720),
+        ..Default::default()
+    };
+    let whole = check(&ca, &o);
+    let count = |k| whole.findings.iter().filter(|f| f.kind == k).count();
+    assert_eq!(count(FindingKind::LostSamples), 2, "{whole:?}");
+    assert_eq!(count(FindingKind::IncompleteCycle), 3, "{whole:?}");
+    assert_eq!(whole.notes.len(), 2, "{whole:?}");
+    for chunk in [1, 17, 720, ca.len()] {
+        assert_eq!(in_chunks(&ca, &o, chunk), whole, "chunk {chunk}");
+    }
 }

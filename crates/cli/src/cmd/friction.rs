@@ -7,8 +7,8 @@ use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::friction_fit::{
-    friction_fit, friction_preset, FrictionFit, FrictionFitConfig, TorqueSource, FRICTION_PRESETS,
-    OBJECTIVE_PCT,
+    self, friction_fit, friction_fit_stream, friction_preset, FrictionFit, FrictionFitConfig,
+    TorqueSource, FRICTION_PRESETS, OBJECTIVE_PCT,
 };
 use physid_apps::friction_rank::{friction_rank, RankGrid, RankTable};
 use physid_ident::Selection;
@@ -182,8 +182,19 @@ fn fit(a: &FitArgs) -> Result<()> {
     cfg.lambda = a.lambda;
     cfg.transient_s = a.transient;
     cfg.p_atm_kpa = a.p_atm;
-    let rec = a.input.read(&a.data, None)?;
-    let r = friction_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
+    // A time-basis file streams through the stage, only the channels it takes; another is
+    // converted to cycles whole.
+    let header = a.input.open_all(&a.data)?.header().clone();
+    let r = if friction_fit::streams(&header) {
+        let (needed, optional) = friction_fit::sample_channels(&cfg);
+        let mut reader = a.input.open(&a.data, &needed, &optional)?;
+        let r = friction_fit_stream(&mut reader, &cfg);
+        super::warn_read(&reader, &a.data);
+        r
+    } else {
+        friction_fit(&a.input.read(&a.data, None)?, &cfg)
+    }
+    .map_err(super::app_error(&a.data))?;
     let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;

@@ -5,7 +5,7 @@ use crate::out::outln;
 use crate::plot;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{inspect, AcquisitionOptions};
+use physid_apps::acquisition::{AcquisitionOptions, Inspector};
 use physid_core::Recording;
 use std::path::{Path, PathBuf};
 
@@ -63,19 +63,27 @@ pub fn acquisition_options(encoders: &[String], marker: &str) -> Result<Acquisit
 
 /// Run `physid inspect`.
 pub fn run(args: &Args) -> Result<()> {
-    let rec = args.input.read(&args.file, None)?;
     let opts = acquisition_options(&args.encoders, &args.marker)?;
-    let i = inspect(&rec, &opts);
+    // The file read a chunk at a time: memory does not grow with its length.
+    let mut reader = args.input.open_all(&args.file)?;
+    let mut inspector = Inspector::new(reader.header(), &opts);
+    for chunk in &mut reader {
+        inspector.push(&chunk.into_diagnostic()?);
+    }
+    super::warn_read(&reader, &args.file);
+    let i = inspector.finish();
+    let header = reader.header();
+    let samples = reader.rows_read();
     let mut written = Vec::new();
     if let Some(dir) = &args.out {
-        written = surfaces(&rec, &args.surface, dir)?;
+        written = surfaces(&args.input, &args.file, header, &args.surface, dir)?;
         let mut rep = Report::new("physid — inspect", &format!("{}", args.file.display()));
         rep.section("Channels");
         rep.para(
             &format!(
                 "{} basis, {} samples{}{}{}.",
                 i.basis,
-                rec.len(),
+                samples,
                 i.duration_s
                     .map_or(String::new(), |d| format!(", {d:.6} s")),
                 i.sample_rate_hz
@@ -138,7 +146,7 @@ pub fn run(args: &Args) -> Result<()> {
             "{}: {} basis, {} samples",
             args.file.display(),
             i.basis,
-            rec.len()
+            samples
         );
         if let Some(d) = i.duration_s {
             outln!("duration {d:.6} s");
@@ -156,7 +164,7 @@ pub fn run(args: &Args) -> Result<()> {
         for n in &i.integrity.notes {
             outln!("note: {} (sample {})", n.detail, n.index);
         }
-        if let Some(u) = rec.meta.get("units_converted") {
+        if let Some(u) = header.meta.get("units_converted") {
             outln!("units converted on reading: {u}");
         }
         if i.integrity.ok {
@@ -192,21 +200,43 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// One SVG per channel: rows are cycles, columns crank degrees.
-fn surfaces(rec: &Recording, channels: &[String], dir: &Path) -> Result<Vec<String>> {
+/// One SVG per channel: rows are cycles, columns crank degrees (the file's `cycle`,
+/// `crank_deg` and those channels read whole).
+fn surfaces(
+    input: &InputArgs,
+    file: &Path,
+    header: &Recording,
+    channels: &[String],
+    dir: &Path,
+) -> Result<Vec<String>> {
     if channels.is_empty() {
         return Err(miette!(
             "--out draws surfaces: name the channels with --surface p_cyl,…"
         ));
     }
-    let (cycle, deg) = match (rec.values("cycle"), rec.values("crank_deg")) {
-        (Ok(c), Ok(d)) => (c, d),
-        _ => {
-            return Err(miette!(
-                "surfaces need crank-angle data with 'cycle' and 'crank_deg' channels: convert first (physid convert IN OUT --crank-angle)"
-            ))
-        }
-    };
+    if header.channel("cycle").is_err() || header.channel("crank_deg").is_err() {
+        return Err(miette!(
+            "surfaces need crank-angle data with 'cycle' and 'crank_deg' channels: convert first (physid convert IN OUT --crank-angle)"
+        ));
+    }
+    for name in channels {
+        header
+            .channel(name)
+            .map_err(|e| miette!("--surface: {e}"))?;
+    }
+    let mut names = vec!["cycle".to_string(), "crank_deg".to_string()];
+    names.extend(
+        channels
+            .iter()
+            .filter(|n| !names.contains(n))
+            .cloned()
+            .collect::<Vec<_>>(),
+    );
+    let rec = input.read(file, Some(names))?;
+    let (cycle, deg) = (
+        rec.values("cycle").into_diagnostic()?,
+        rec.values("crank_deg").into_diagnostic()?,
+    );
     crate::report::create_dir(dir)?;
     let mut written = Vec::new();
     for name in channels {

@@ -5,14 +5,13 @@
 use super::monitor::{config, MonitorFlags};
 use crate::out::outln;
 use miette::{miette, Result};
-use physid_apps::acquisition::{marker_tdc_angle, AcquisitionOptions};
 use physid_apps::friction_fit::{
     friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
 };
 use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
 use physid_live::{
-    run_live, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, Pace, Panel,
-    PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
+    run_live, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, LiveError, Pace,
+    Panel, PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
 };
 use physid_sim::params::CellParams;
 use physid_sim::run::{OutputBasis, RunOptions};
@@ -281,13 +280,15 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
             0.0,
         ),
         (Some(path), None) => {
-            let rec = a.input.read(path, None)?;
-            let tdc = marker_tdc_angle(&rec, &AcquisitionOptions::default()).unwrap_or(0.0);
+            let replay = ReplaySource::open(path, &a.input.options(None)?, a.chunk).map_err(
+                |e| match e {
+                    LiveError::Io(e) => miette!("{e}"),
+                    e => miette!("{}: {e}", path.display()),
+                },
+            )?;
+            let tdc = replay.theta_tdc();
             (
-                Box::new(
-                    ReplaySource::new(rec, a.chunk)
-                        .map_err(|e| miette!("{}: {e}", path.display()))?,
-                ),
+                Box::new(replay),
                 format!("replay of {}", path.display()),
                 tdc,
             )

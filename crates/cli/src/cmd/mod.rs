@@ -36,22 +36,63 @@ pub struct InputArgs {
 impl InputArgs {
     /// Read `path`, optionally only `channels` (physid names).
     pub fn read(&self, path: &Path, channels: Option<Vec<String>>) -> Result<Recording> {
-        let map = physid_io::ReadOptions::parse_map(&self.map).map_err(|e| miette!("{e}"))?;
-        let rec = physid_io::read(
-            path,
-            &physid_io::ReadOptions {
-                channels,
-                map,
-                units_row: self.units_row,
-                ..Default::default()
-            },
-        )
-        .into_diagnostic()?;
+        let rec = physid_io::read(path, &self.options(channels)?).into_diagnostic()?;
         // What the reader noticed but read all the same (a cut-short last line) is said.
         if let Some(w) = rec.meta.get("warning") {
             eprintln!("warning: {}: {w}", path.display());
         }
         Ok(rec)
+    }
+}
+
+impl InputArgs {
+    /// The reading options these flags give, for `channels` (all if `None`).
+    pub fn options(&self, channels: Option<Vec<String>>) -> Result<physid_io::ReadOptions> {
+        Ok(physid_io::ReadOptions {
+            channels,
+            map: physid_io::ReadOptions::parse_map(&self.map).map_err(|e| miette!("{e}"))?,
+            units_row: self.units_row,
+            ..Default::default()
+        })
+    }
+
+    /// Open `path` to read a chunk at a time, every channel.
+    pub fn open_all(&self, path: &Path) -> Result<physid_io::ChunkReader> {
+        physid_io::ChunkReader::open(path, &self.options(None)?).into_diagnostic()
+    }
+
+    /// Open `path` to read a chunk at a time ([`physid_io::ChunkReader`]): the `needed`
+    /// channels (physid names; the file must have them), then those of `optional` it has.
+    pub fn open(
+        &self,
+        path: &Path,
+        needed: &[&str],
+        optional: &[&str],
+    ) -> Result<physid_io::ChunkReader> {
+        let mut names: Vec<String> = needed.iter().map(|s| s.to_string()).collect();
+        if !optional.is_empty() {
+            let all = self.open_all(path)?;
+            let has = |n: &str| all.header().channel(n).is_ok();
+            names.extend(optional.iter().filter(|n| has(n)).map(|n| n.to_string()));
+        }
+        physid_io::ChunkReader::open(path, &self.options(Some(names))?).into_diagnostic()
+    }
+}
+
+/// An application's error on the file `path`, for the user (a reading error names the file
+/// already).
+pub fn app_error(path: &Path) -> impl Fn(physid_apps::error::AppError) -> miette::Report + '_ {
+    move |e| match e {
+        physid_apps::error::AppError::Io(e) => miette!("{e}"),
+        e => miette!("{}: {e}", path.display()),
+    }
+}
+
+/// What a reader noticed but read all the same (a cut-short last line), said once the file
+/// has been read to its end.
+pub fn warn_read(reader: &physid_io::ChunkReader, path: &Path) {
+    if let Some(w) = reader.header().meta.get("warning") {
+        eprintln!("warning: {}: {w}", path.display());
     }
 }
 

@@ -6,8 +6,10 @@ use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::shaft_monitor::{
-    monitor_shaft, MonitorConfig, MonitorMethod, ShaftMonitor, ShaftParams,
+    monitor_shaft, monitor_shaft_stream, MonitorConfig, MonitorMethod, ShaftMonitor, ShaftParams,
+    SHAFT_CHANNELS, SHAFT_TRUTH,
 };
+use physid_core::Basis;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid monitor`.
@@ -268,8 +270,17 @@ fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
 
 fn shaft(a: &ShaftArgs) -> Result<()> {
     let cfg = config(&a.monitor)?;
-    let rec = a.input.read(&a.data, None)?;
-    let r = monitor_shaft(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
+    // The file read a chunk at a time, only the channels the monitor takes; a crank-angle
+    // recording is put on a time basis first, which takes it whole.
+    let mut reader = a.input.open(&a.data, &SHAFT_CHANNELS, &SHAFT_TRUTH)?;
+    let r = if reader.header().basis == Basis::CrankAngle {
+        let rec = a.input.read(&a.data, None)?;
+        monitor_shaft(&rec, &cfg)
+    } else {
+        monitor_shaft_stream(&mut reader, &cfg)
+    }
+    .map_err(super::app_error(&a.data))?;
+    super::warn_read(&reader, &a.data);
     let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;

@@ -6,7 +6,10 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::torque_fit::{cyclic_torque_nominal, torque_fit, TorqueFit, TorqueFitConfig};
+use physid_apps::torque_fit::{
+    self, cyclic_torque_nominal, torque_fit, torque_fit_stream, TorqueFit, TorqueFitConfig,
+};
+use physid_core::Basis;
 use physid_estim::NlMethod;
 use physid_ident::Selection;
 use physid_models::cyclic_torque::PARAMS;
@@ -266,8 +269,19 @@ pub fn report_section(
 
 fn fit(a: &FitArgs) -> Result<()> {
     let cfg = config(a)?;
-    let rec = a.input.read(&a.data, None)?;
-    let r = torque_fit(&rec, &cfg).map_err(|e| miette!("{}: {e}", a.data.display()))?;
+    // A time-basis file with the engine angle streams through the stage, only the channels it
+    // takes; another is read whole.
+    let header = a.input.open_all(&a.data)?.header().clone();
+    let r = if header.basis == Basis::Time && header.channel("theta_en").is_ok() {
+        let (needed, optional) = torque_fit::sample_channels();
+        let mut reader = a.input.open(&a.data, &needed, &optional)?;
+        let r = torque_fit_stream(&mut reader, &cfg);
+        super::warn_read(&reader, &a.data);
+        r
+    } else {
+        torque_fit(&a.input.read(&a.data, None)?, &cfg)
+    }
+    .map_err(super::app_error(&a.data))?;
     let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
@@ -275,7 +289,7 @@ fn fit(a: &FitArgs) -> Result<()> {
             "physid — cyclic torque fit",
             &format!("{}", a.data.display()),
         );
-        report_section(&mut rep, &r, &cfg, &r.truths(&rec), dir)?;
+        report_section(&mut rep, &r, &cfg, &r.truths(&header), dir)?;
         report::finish(dir, rep, "torque_fit.json", &j)?;
     }
     if a.json {
