@@ -56,6 +56,32 @@ impl Default for AcquisitionOptions {
     }
 }
 
+impl AcquisitionOptions {
+    /// The integrity checks of these encoders and marker on a recording with `header`'s
+    /// channels (those it lacks are not checked); the marker is the first encoder's (the
+    /// engine's, by default).
+    pub fn integrity_options(
+        &self,
+        header: &Recording,
+        samples_per_cycle: Option<usize>,
+    ) -> IntegrityOptions {
+        IntegrityOptions {
+            encoders: self
+                .encoders
+                .iter()
+                .filter(|(n, _)| header.channel(n).is_ok())
+                .cloned()
+                .collect(),
+            marker: header
+                .channel(&self.marker)
+                .ok()
+                .map(|_| self.marker.clone()),
+            marker_encoder: self.encoders.first().map(|e| e.0.clone()),
+            samples_per_cycle,
+        }
+    }
+}
+
 /// One channel in the summary.
 #[derive(Debug, Clone, Serialize)]
 pub struct ChannelSummary {
@@ -172,22 +198,9 @@ impl Inspector {
     }
 
     fn start(&mut self) {
-        let rec = &self.header;
-        let opts = &self.opts;
         self.check = Some(IntegrityCheck::new(
-            &IntegrityOptions {
-                encoders: opts
-                    .encoders
-                    .iter()
-                    .filter(|(n, _)| rec.channel(n).is_ok())
-                    .cloned()
-                    .collect(),
-                marker: rec.channel(&opts.marker).ok().map(|_| opts.marker.clone()),
-                // The marker is the first encoder's (the engine's, by default).
-                marker_encoder: opts.encoders.first().map(|e| e.0.clone()),
-                samples_per_cycle: self.per_cycle,
-            },
-            rec,
+            &self.opts.integrity_options(&self.header, self.per_cycle),
+            &self.header,
         ));
         for c in std::mem::take(&mut self.pending) {
             self.scan(&c);

@@ -11,17 +11,7 @@ use physid_testkit::Scratch;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 mod common;
-use common::physid;
-
-fn ok_json(args: &[&str]) -> Value {
-    let o = physid(args);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).unwrap()
-}
+use common::{ok_json, physid};
 
 fn simulate(dir: &Path, scenario: &str, basis: &str, duration: &str, ext: &str) -> PathBuf {
     let f = dir.join(format!("{scenario}-{basis}.{ext}"));

@@ -594,7 +594,7 @@ fn the_logging_control_writes_the_live_data() {
         "--scenario",
         "shaft-steady",
         "--duration",
-        "6",
+        "10",
         "--pace",
         "3",
         "--log-dir",
@@ -648,6 +648,30 @@ fn the_logging_control_writes_the_live_data() {
     let logged = physid_io::read_parquet(&file, None).unwrap();
     assert_eq!(closed["samples"].as_u64().unwrap() as usize, logged.len());
     assert!(logged.len() > 5000, "{} samples", logged.len());
+    // And to MDF4, which asammdf and MATLAB users open: the same samples, every channel —
+    // taken while the run goes on (the comparisons after it).
+    let (code, reply) = post(
+        live.addr,
+        "/api/control",
+        r#"{"cmd":"record","file":"run-2.mf4"}"#,
+    );
+    assert_eq!(code, 200, "{reply}");
+    sse.until(30, |e| {
+        e["type"] == "log"
+            && e["file"].as_str().unwrap().ends_with("run-2.mf4")
+            && e["samples"].as_u64().unwrap() > 5_000
+    });
+    let (code, _) = post(live.addr, "/api/control", r#"{"cmd":"record","stop":true}"#);
+    assert_eq!(code, 200);
+    let closed2 = sse.until(30, |e| e["type"] == "log" && e["state"] == "closed");
+    let closed2 = &closed2.last().unwrap().1;
+    let file2 = dir.join("run-2.mf4");
+    assert_eq!(
+        closed2["bytes"].as_u64().unwrap(),
+        std::fs::metadata(&file2).unwrap().len()
+    );
+    let logged2 = physid_io::read_mdf(&file2, None).unwrap();
+    assert_eq!(closed2["samples"].as_u64().unwrap() as usize, logged2.len());
     // The same stretch of the same scenario, simulated.
     let sim = s.file("sim.parquet");
     let o = physid(&[
@@ -655,7 +679,7 @@ fn the_logging_control_writes_the_live_data() {
         "--scenario",
         "shaft-steady",
         "--duration",
-        "6",
+        "10",
         "--out",
         sim.to_str().unwrap(),
     ]);
@@ -676,29 +700,6 @@ fn the_logging_control_writes_the_live_data() {
         }
     };
     same_as_simulated(&logged);
-    // And to MDF4, which asammdf and MATLAB users open: the same samples, every channel.
-    let (code, reply) = post(
-        live.addr,
-        "/api/control",
-        r#"{"cmd":"record","file":"run-2.mf4"}"#,
-    );
-    assert_eq!(code, 200, "{reply}");
-    sse.until(30, |e| {
-        e["type"] == "log"
-            && e["file"].as_str().unwrap().ends_with("run-2.mf4")
-            && e["samples"].as_u64().unwrap() > 5_000
-    });
-    let (code, _) = post(live.addr, "/api/control", r#"{"cmd":"record","stop":true}"#);
-    assert_eq!(code, 200);
-    let closed = sse.until(30, |e| e["type"] == "log" && e["state"] == "closed");
-    let closed = &closed.last().unwrap().1;
-    let file = dir.join("run-2.mf4");
-    assert_eq!(
-        closed["bytes"].as_u64().unwrap(),
-        std::fs::metadata(&file).unwrap().len()
-    );
-    let logged = physid_io::read_mdf(&file, None).unwrap();
-    assert_eq!(closed["samples"].as_u64().unwrap() as usize, logged.len());
-    assert_eq!(logged.channels().len(), sim.channels().len());
-    same_as_simulated(&logged);
+    assert_eq!(logged2.channels().len(), sim.channels().len());
+    same_as_simulated(&logged2);
 }

@@ -4,7 +4,7 @@
 
 use physid_testkit::Scratch;
 mod common;
-use common::physid;
+use common::{ok_json, physid};
 
 fn fails_with(args: &[&str], want: &str) {
     let o = physid(args);
@@ -193,16 +193,6 @@ fn regression(path: &std::path::Path, scale: f64, collinear: bool, noise: bool) 
     std::fs::write(path, s).unwrap();
 }
 
-fn estimate_json(args: &[&str]) -> serde_json::Value {
-    let o = physid(args);
-    assert!(
-        o.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    serde_json::from_slice(&o.stdout).unwrap()
-}
-
 #[test]
 fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error() {
     let s = Scratch::new("physid-rel");
@@ -212,7 +202,7 @@ fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error()
     regression(&good, 1.0, false, true);
     for method in ["rls", "rlsf", "rlsvf", "kf", "dsfc"] {
         for (f, what) in [(&tiny, "scaled by 1e-300"), (&coll, "collinear")] {
-            let j = estimate_json(&[
+            let j = ok_json(&[
                 "estimate",
                 "--data",
                 f.to_str().unwrap(),
@@ -236,7 +226,7 @@ fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error()
             assert_eq!(j["resolution"]["x1"]["resolved"], false);
         }
         // Well-posed data: nothing flagged, the estimates within 5σ of the truth and σ small.
-        let j = estimate_json(&[
+        let j = ok_json(&[
             "estimate",
             "--data",
             good.to_str().unwrap(),
@@ -263,7 +253,7 @@ fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error()
         }
     }
     // A model whose parameters only appear as a product: A and B cannot be told apart.
-    let j = estimate_json(&[
+    let j = ok_json(&[
         "estimate",
         "--data",
         good.to_str().unwrap(),
@@ -279,7 +269,7 @@ fn parameters_the_data_cannot_resolve_are_flagged_never_given_a_standard_error()
     ]);
     assert_eq!(j["unresolved"], serde_json::json!(["A", "B"]), "{j}");
     // Separately: both resolved, near the truth.
-    let j = estimate_json(&[
+    let j = ok_json(&[
         "estimate",
         "--data",
         good.to_str().unwrap(),
@@ -388,7 +378,7 @@ fn simulate_writes_as_it_goes_the_whole_recordings_file() {
 /// and answer as on the whole recording: `inspect` (findings in the second chunk: a NaN, lost
 /// samples, a count going back) and `monitor shaft` against the library run on the recording
 /// read whole, in CSV, Parquet and MDF4; `friction fit` and `torque fit` the same in all three
-/// formats, and with the file's columns renamed through `--map`.
+/// formats, and with the file's columns renamed through `--map`; `convert` between formats.
 #[test]
 fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
     use physid_apps::acquisition::{inspect, AcquisitionOptions};
@@ -406,15 +396,6 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
             ..Default::default()
         };
         simulate(&physid_sim::scenario::named(name).unwrap(), &opts, |_| {}).unwrap()
-    };
-    let json = |args: &[&str]| -> serde_json::Value {
-        let o = physid(args);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        serde_json::from_slice(&o.stdout).unwrap()
     };
     // 8 s at 10 kHz: two chunks of the reader; a stiffness fault at 4 s.
     let shaft = sim("shaft-steady", vec!["shaft.k=1000@4"], 8.0);
@@ -435,7 +416,7 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
     for ext in ["csv", "parquet", "mf4"] {
         let f = s.file(&format!("defective.{ext}"));
         physid_io::write(&f, &defective, &Default::default()).unwrap();
-        let got = json(&["inspect", f.to_str().unwrap(), "--json"]);
+        let got = ok_json(&["inspect", f.to_str().unwrap(), "--json"]);
         let whole = physid_io::read(&f, &Default::default()).unwrap();
         let mut want =
             serde_json::to_value(inspect(&whole, &AcquisitionOptions::default())).unwrap();
@@ -453,7 +434,7 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
 
         let f = s.file(&format!("shaft.{ext}"));
         physid_io::write(&f, &shaft, &Default::default()).unwrap();
-        let got = json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"]);
+        let got = ok_json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"]);
         let whole = physid_io::read(&f, &Default::default()).unwrap();
         let want = serde_json::to_value(
             monitor_shaft(&whole, &MonitorConfig::default())
@@ -473,12 +454,12 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
     for ext in ["csv", "parquet", "mf4"] {
         let f = s.file(&format!("motored.{ext}"));
         physid_io::write(&f, &motored, &Default::default()).unwrap();
-        let got = json(&["friction", "fit", "--data", f.to_str().unwrap(), "--json"]);
+        let got = ok_json(&["friction", "fit", "--data", f.to_str().unwrap(), "--json"]);
         assert!(got["cycles"]["used"].as_u64().unwrap() > 30, "{got}");
         assert_eq!(friction.get_or_insert(got.clone()), &got, "{ext}");
         let f = s.file(&format!("fired.{ext}"));
         physid_io::write(&f, &fired, &Default::default()).unwrap();
-        let got = json(&["torque", "fit", "--data", f.to_str().unwrap(), "--json"]);
+        let got = ok_json(&["torque", "fit", "--data", f.to_str().unwrap(), "--json"]);
         assert_eq!(torque.get_or_insert(got.clone()), &got, "{ext}");
     }
     // The columns renamed in the file, mapped back on reading.
@@ -508,5 +489,30 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
             .map(|c| format!("--map={0}=Log_{0}", c.name)),
     );
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    assert_eq!(Some(json(&args)), friction);
+    assert_eq!(Some(ok_json(&args)), friction);
+
+    // `convert` between formats goes a chunk at a time: every channel, or a selection with the
+    // time channel brought along, the values as they were (units converted on reading).
+    let src = s.file("motored.parquet");
+    for ext in ["csv", "mf4", "parquet"] {
+        let out = s.file(&format!("converted.{ext}"));
+        let o = physid(&["convert", src.to_str().unwrap(), out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let (a, b) = (
+            physid_io::read(&src, &Default::default()).unwrap(),
+            physid_io::read(&out, &Default::default()).unwrap(),
+        );
+        assert_eq!(a.channels(), b.channels(), "{ext}");
+        let o = physid(&[
+            "convert",
+            src.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--channels",
+            "p_int,omega_en",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let b = physid_io::read(&out, &Default::default()).unwrap();
+        assert_eq!(b.names(), ["t", "p_int", "omega_en"], "{ext}");
+        assert_eq!(b.values("p_int").unwrap(), a.values("p_int").unwrap());
+    }
 }

@@ -22,7 +22,7 @@
 //!   missing sample, read as NaN.
 
 use crate::IoError;
-use physid_core::{Basis, Channel, Recording};
+use physid_core::{Basis, Recording};
 use std::io::{BufRead, Read};
 use std::path::Path;
 
@@ -83,21 +83,17 @@ fn split_header(cell: &str) -> (String, String) {
 /// line of sample 0, so that sample `i` is on line `first_data_line + i`.
 pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, IoError> {
     let mut chunks = CsvChunks::open(path, opts, None)?;
-    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); chunks.names.len()];
-    while let Some(chunk) = chunks.next_columns(usize::MAX)? {
-        for (c, v) in columns.iter_mut().zip(chunk) {
-            c.extend(v);
-        }
-    }
-    let mut rec = chunks.header();
-    let names = chunks.names.clone();
-    for ((name, unit), values) in names.into_iter().zip(chunks.units.clone()).zip(columns) {
-        rec.push(Channel { name, unit, values })
-            .map_err(|source| IoError::Recording {
-                path: chunks.p.clone(),
-                source,
-            })?;
-    }
+    let (names, units, p) = (chunks.names.clone(), chunks.units.clone(), chunks.p.clone());
+    let mut rec = crate::drain(
+        Recording::new(chunks.basis),
+        &names,
+        &units,
+        0,
+        || chunks.next_columns(usize::MAX),
+        &p,
+    )?;
+    // The metadata once the last row is read (a warning about it).
+    rec.meta = chunks.header().meta;
     Ok(rec)
 }
 
@@ -208,24 +204,7 @@ impl CsvChunks {
             });
         }
         s.first_data_line = s.line_here();
-        s.keep = match channels {
-            Some(list) => list
-                .iter()
-                .map(|n| {
-                    names
-                        .iter()
-                        .position(|m| m == n)
-                        .ok_or_else(|| IoError::Recording {
-                            path: s.p.clone(),
-                            source: physid_core::RecordingError::MissingChannel {
-                                name: n.clone(),
-                                available: names.join(", "),
-                            },
-                        })
-                })
-                .collect::<Result<_, _>>()?,
-            None => (0..names.len()).collect(),
-        };
+        s.keep = crate::positions(&names, channels, &s.p)?;
         s.names = s.keep.iter().map(|&j| names[j].clone()).collect();
         s.units = s.keep.iter().map(|&j| units[j].clone()).collect();
         s.all_names = names;

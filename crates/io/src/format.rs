@@ -466,25 +466,19 @@ pub fn read(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Recording, IoE
         Some(n) => claimed_fits(&r.path, n, width).map_err(|e| with_file_size(e, r.size))?,
         None => 0,
     };
-    let mut columns: Vec<Vec<f64>> = (0..width).map(|_| Vec::with_capacity(rows)).collect();
-    while let Some(chunk) = r.next_columns()? {
-        for (c, v) in columns.iter_mut().zip(chunk) {
-            c.extend(v);
-        }
-    }
-    let mut rec = Recording::new(r.header.basis);
+    let names: Vec<String> = r.header.channels().iter().map(|c| c.name.clone()).collect();
+    let units: Vec<String> = r.header.channels().iter().map(|c| c.unit.clone()).collect();
+    let path = r.path.clone();
+    let mut rec = crate::drain(
+        Recording::new(r.header.basis),
+        &names,
+        &units,
+        rows,
+        || r.next_columns(),
+        &path,
+    )?;
+    // The metadata once the last row is read (a CSV file's warning about it).
     rec.meta = r.header.meta.clone();
-    for (c, values) in r.header.channels().iter().zip(columns) {
-        rec.push(Channel {
-            name: c.name.clone(),
-            unit: c.unit.clone(),
-            values,
-        })
-        .map_err(|source| IoError::Recording {
-            path: r.path.clone(),
-            source,
-        })?;
-    }
     Ok(rec)
 }
 

@@ -105,6 +105,64 @@ thread_local! {
     static CONTAINED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
+/// Where each of `wanted` is among a file's columns `names` (all of them, in order, if `None`);
+/// a missing one is an error naming the columns there are.
+pub(crate) fn positions(
+    names: &[String],
+    wanted: Option<&[String]>,
+    path: &str,
+) -> Result<Vec<usize>, IoError> {
+    let Some(wanted) = wanted else {
+        return Ok((0..names.len()).collect());
+    };
+    wanted
+        .iter()
+        .map(|n| {
+            names
+                .iter()
+                .position(|m| m == n)
+                .ok_or_else(|| IoError::Recording {
+                    path: path.into(),
+                    source: physid_core::RecordingError::MissingChannel {
+                        name: n.clone(),
+                        available: names.join(", "),
+                    },
+                })
+        })
+        .collect()
+}
+
+/// A recording from a source read a chunk at a time, drained: `rec` (basis and metadata) with
+/// channels `names` in `units`, their values the chunks' columns one after another (`capacity`:
+/// the rows expected, a hint).
+pub(crate) fn drain(
+    mut rec: physid_core::Recording,
+    names: &[String],
+    units: &[String],
+    capacity: usize,
+    mut next: impl FnMut() -> Result<Option<Vec<Vec<f64>>>, IoError>,
+    path: &str,
+) -> Result<physid_core::Recording, IoError> {
+    let mut columns: Vec<Vec<f64>> = names.iter().map(|_| Vec::with_capacity(capacity)).collect();
+    while let Some(chunk) = next()? {
+        for (c, v) in columns.iter_mut().zip(chunk) {
+            c.extend(v);
+        }
+    }
+    for ((name, unit), values) in names.iter().zip(units).zip(columns) {
+        rec.push(physid_core::Channel {
+            name: name.clone(),
+            unit: unit.clone(),
+            values,
+        })
+        .map_err(|source| IoError::Recording {
+            path: path.into(),
+            source,
+        })?;
+    }
+    Ok(rec)
+}
+
 /// A chunk appended to a file written as it comes must have the file's channels, in its order.
 pub(crate) fn check_appended(
     path: &str,

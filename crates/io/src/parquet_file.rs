@@ -19,7 +19,7 @@ use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::{ArrowWriter, ProjectionMask};
 use parquet::basic::Compression;
 use parquet::file::properties::WriterProperties;
-use physid_core::{Basis, Channel, Recording, RecordingError};
+use physid_core::{Basis, Recording};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -80,29 +80,9 @@ pub fn read_parquet(
     // The row count is the file's claim: checked against what the columns asked for would
     // take in memory before anything is sized from it (a corrupt footer can claim 2⁶⁰ rows).
     let rows = crate::format::claimed_fits(&chunks.p, chunks.claimed_rows(), chunks.names.len())?;
-    let mut columns: Vec<Vec<f64>> = chunks
-        .names
-        .iter()
-        .map(|_| Vec::with_capacity(rows))
-        .collect();
-    while let Some(chunk) = chunks.next_columns()? {
-        for (c, v) in columns.iter_mut().zip(chunk) {
-            c.extend(v);
-        }
-    }
-    let mut rec = chunks.header();
-    for ((name, unit), values) in chunks.names.iter().zip(&chunks.units).zip(columns) {
-        rec.push(Channel {
-            name: name.clone(),
-            unit: unit.clone(),
-            values,
-        })
-        .map_err(|source| IoError::Recording {
-            path: chunks.p.clone(),
-            source,
-        })?;
-    }
-    Ok(rec)
+    let (names, units, p) = (chunks.names.clone(), chunks.units.clone(), chunks.p.clone());
+    let header = chunks.header();
+    crate::drain(header, &names, &units, rows, || chunks.next_columns(), &p)
 }
 
 /// A Parquet file read a batch of rows at a time ([`read_parquet`] is this, drained): only
@@ -140,24 +120,7 @@ impl ParquetChunks {
         let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq_err(&p, e))?;
         let schema = builder.schema().clone();
         let names: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
-        let wanted: Vec<usize> = match channels {
-            Some(list) => list
-                .iter()
-                .map(|n| {
-                    names
-                        .iter()
-                        .position(|m| m == n)
-                        .ok_or_else(|| IoError::Recording {
-                            path: p.clone(),
-                            source: RecordingError::MissingChannel {
-                                name: n.clone(),
-                                available: names.join(", "),
-                            },
-                        })
-                })
-                .collect::<Result<_, _>>()?,
-            None => (0..names.len()).collect(),
-        };
+        let wanted = crate::positions(&names, channels, &p)?;
         let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
         let claimed = builder.metadata().file_metadata().num_rows();
         let reader = builder

@@ -26,14 +26,7 @@ use serde_json::Value;
 use std::io::{BufRead, Read};
 
 /// The channels a frame must carry (the shaft monitor's).
-pub const FRAME_CHANNELS: [&str; 6] = [
-    "t",
-    "theta_dy",
-    "theta_en",
-    "omega_dy",
-    "omega_en",
-    "torque_shaft",
-];
+pub const FRAME_CHANNELS: [&str; 6] = physid_apps::shaft_monitor::SHAFT_CHANNELS;
 
 /// Frames read line by line from `R`.
 pub struct FrameSource<R: BufRead> {

@@ -17,7 +17,7 @@ use physid_io::IoError;
 use physid_models::friction::REGRESSION_PARAMS;
 use physid_signal::crank::CrankError;
 use physid_signal::cycles::{CycleStream, CycleSummary};
-use physid_signal::integrity::{Finding as IntegrityFinding, IntegrityOptions, IntegrityStream};
+use physid_signal::integrity::{Finding as IntegrityFinding, IntegrityStream};
 use physid_sim::run::SimError;
 use std::path::PathBuf;
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
@@ -485,18 +485,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Live<'_, E> {
     /// the TDC marker of [`AcquisitionOptions`] the source has, time against the sample step.
     fn integrity(&mut self, chunk: &Recording) -> Result<(), LiveError> {
         if self.integrity.is_none() {
-            let acq = AcquisitionOptions::default();
-            let opts = IntegrityOptions {
-                encoders: acq
-                    .encoders
-                    .iter()
-                    .filter(|(n, _)| chunk.channel(n).is_ok())
-                    .cloned()
-                    .collect(),
-                marker: chunk.channel(&acq.marker).ok().map(|_| acq.marker.clone()),
-                marker_encoder: acq.encoders.first().map(|e| e.0.clone()),
-                samples_per_cycle: None,
-            };
+            let opts = AcquisitionOptions::default().integrity_options(chunk, None);
             self.integrity = Some(IntegrityStream::new(
                 &opts,
                 Basis::Time,

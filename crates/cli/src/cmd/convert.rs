@@ -55,6 +55,15 @@ pub fn run(args: &Args) -> Result<()> {
             ))
         }
     };
+    // Between formats only: a chunk at a time, memory flat however long the file (an MDF4
+    // file compressed is written whole).
+    let resample = args.crank_angle || args.time_basis.is_some();
+    let compressed = physid_io::Format::from_extension(&args.output)
+        == Some(physid_io::Format::Mdf4)
+        && compression != MdfCompression::None;
+    if !resample && !compressed {
+        return stream(args);
+    }
     let mut rec = args.read.read(&args.input, None)?;
     let opts = acquisition_options(&args.encoders, &args.marker)?;
     if args.crank_angle {
@@ -64,17 +73,10 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(rate) = args.time_basis {
         rec = to_time_basis(&rec, rate).map_err(|e| miette!("{}: {e}", args.input.display()))?;
     }
-    if !args.channels.is_empty() {
+    if let Some(names) = selection(&rec, &args.channels) {
         let mut keep = physid_core::Recording::new(rec.basis);
         keep.meta = rec.meta.clone();
-        // The basis channels come along.
-        let basis_channels = ["t", "theta", "cycle", "crank_deg"];
-        for name in basis_channels
-            .iter()
-            .filter(|n| rec.channel(n).is_ok() && !args.channels.iter().any(|c| c == *n))
-            .map(|s| s.to_string())
-            .chain(args.channels.iter().cloned())
-        {
+        for name in names {
             let ch = rec
                 .channel(&name)
                 .map_err(|e| miette!("{}: {e}", args.input.display()))?;
@@ -90,15 +92,58 @@ pub fn run(args: &Args) -> Result<()> {
         },
     )
     .into_diagnostic()?;
+    wrote(&args.output, &rec, rec.len());
+    Ok(())
+}
+
+/// The channels `--channels` keeps of `rec`'s: the basis channels it has first (they come
+/// along), then those named; `None` without `--channels`.
+fn selection(rec: &physid_core::Recording, channels: &[String]) -> Option<Vec<String>> {
+    if channels.is_empty() {
+        return None;
+    }
+    let basis_channels = ["t", "theta", "cycle", "crank_deg"];
+    Some(
+        basis_channels
+            .iter()
+            .filter(|n| rec.channel(n).is_ok() && !channels.iter().any(|c| c == *n))
+            .map(|s| s.to_string())
+            .chain(channels.iter().cloned())
+            .collect(),
+    )
+}
+
+/// A conversion between formats, read and written a chunk at a time.
+fn stream(args: &Args) -> Result<()> {
+    let header = args.read.open_all(&args.input)?.header().clone();
+    let mut reader = match selection(&header, &args.channels) {
+        Some(names) => {
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            args.read.open(&args.input, &names, &[])?
+        }
+        None => args.read.open_all(&args.input)?,
+    };
+    let mut w =
+        physid_io::ChunkWriter::create(&args.output, reader.header(), &WriteOptions::default())
+            .into_diagnostic()?;
+    for chunk in &mut reader {
+        w.append(&chunk.into_diagnostic()?).into_diagnostic()?;
+    }
+    w.close().into_diagnostic()?;
+    super::warn_read(&reader, &args.input);
+    wrote(&args.output, reader.header(), reader.rows_read());
+    Ok(())
+}
+
+fn wrote(path: &std::path::Path, rec: &physid_core::Recording, samples: usize) {
     outln!(
         "wrote {} ({} channels × {} samples, {} basis)",
-        args.output.display(),
+        path.display(),
         rec.channels().len(),
-        rec.len(),
+        samples,
         match rec.basis {
             physid_core::Basis::Time => "time",
             physid_core::Basis::CrankAngle => "crank-angle",
         }
     );
-    Ok(())
 }

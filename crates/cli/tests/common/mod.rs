@@ -1,4 +1,5 @@
 //! What the end-to-end test files share: running the `physid` binary under test.
+#![allow(dead_code)]
 
 use std::process::{Command, Output};
 
@@ -8,4 +9,15 @@ pub fn physid(args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("run physid")
+}
+
+/// Run `physid` with `args`, which must succeed, and parse what it prints as JSON.
+pub fn ok_json(args: &[&str]) -> serde_json::Value {
+    let o = physid(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
 }
