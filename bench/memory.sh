@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Peak memory and wall time of the file verbs against the recording's length (BENCHMARKS.md,
+# "The file verbs read as they go"). Usage: bench/memory.sh NEW_PHYSID [OLD_PHYSID] [DIR]
+# Writes shaft-D.{parquet,mf4}, motored-D.parquet and fired-D.parquet into DIR (≈ 30 GB with
+# the one-hour files) and prints a Markdown row per measurement.
+set -euo pipefail
+NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
+mkdir -p "$DIR" && cd "$DIR"
+m() { /usr/bin/time -f "%M %e" -o t.out "$@" > /dev/null 2> err.out || { echo "failed: $(tail -1 err.out)"; return; }
+      read -r kb s < t.out; echo "$(( kb / 1024 )) MB, ${s} s"; }
+for D in 75 150 300 600 3600; do
+  for ext in parquet mf4; do
+    [ -f "shaft-$D.$ext" ] || "$NEW" simulate --scenario shaft-steady --duration "$D" --out "shaft-$D.$ext" > /dev/null
+  done
+done
+for D in 75 150 300 600; do
+  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --out "motored-$D.parquet" > /dev/null
+  [ -f "fired-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --duration "$D" --out "fired-$D.parquet" > /dev/null
+done
+for D in 75 150 300 600 3600; do
+  for ext in parquet mf4; do
+    cat "shaft-$D.$ext" > /dev/null  # into the page cache for both builds
+    row="| $D s | $ext | $(m "$NEW" inspect "shaft-$D.$ext" --json) |"
+    [ -n "$OLD" ] && [ "$D" != 3600 ] && row="$row $(m "$OLD" inspect "shaft-$D.$ext" --json) |"
+    row="$row $(m "$NEW" monitor shaft --data "shaft-$D.$ext" --json) |"
+    [ -n "$OLD" ] && [ "$D" != 3600 ] && row="$row $(m "$OLD" monitor shaft --data "shaft-$D.$ext" --json) |"
+    echo "$row"
+  done
+done
+for D in 75 150 300 600; do
+  row="| $D s | $(m "$NEW" friction fit --data "motored-$D.parquet" --json) |"
+  [ -n "$OLD" ] && row="$row $(m "$OLD" friction fit --data "motored-$D.parquet" --json) |"
+  row="$row $(m "$NEW" torque fit --data "fired-$D.parquet" --json) |"
+  [ -n "$OLD" ] && row="$row $(m "$OLD" torque fit --data "fired-$D.parquet" --json) |"
+  echo "$row"
+done
