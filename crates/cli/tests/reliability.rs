@@ -516,3 +516,75 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
         assert_eq!(b.values("p_int").unwrap(), a.values("p_int").unwrap());
     }
 }
+
+/// `estimate` feeds a file through the estimator a chunk at a time, writing its tracks as they
+/// come: RLS over 150 000 rows of a CSV file (three chunks of the reader) ends at the least
+/// squares solution of the normal equations (solved here, independently; RLS from ϑ0 = 0 and
+/// P0 = 1000·I is exactly the solution regularised by I/1000), and `--out` holds a row per
+/// sample ending at the final estimate.
+#[test]
+fn estimate_streams_a_long_file_as_one_run() {
+    let s = Scratch::new("physid-estimate-stream");
+    let f = s.file("long.csv");
+    let n = 150_000;
+    let mut text = String::from("x1,x2,y\n");
+    let (mut xtx, mut xty) = ([[0.0f64; 2]; 2], [0.0f64; 2]);
+    for i in 0..n {
+        let t = i as f64 * 1e-3;
+        let x = [(7.0 * t).sin() + 1.5, (3.1 * t).cos() * (0.5 + t / 150.0)];
+        // A deterministic disturbance, so the least squares solution is not the generator's.
+        let y = 2.0 * x[0] - 0.5 * x[1] + 0.01 * (91.0 * t).sin();
+        text.push_str(&format!("{},{},{}\n", x[0], x[1], y));
+        // The numbers as the file holds them (shortest round trip).
+        let x: [f64; 2] = [
+            format!("{}", x[0]).parse().unwrap(),
+            format!("{}", x[1]).parse().unwrap(),
+        ];
+        let y: f64 = format!("{y}").parse().unwrap();
+        for a in 0..2 {
+            xty[a] += x[a] * y;
+            for b in 0..2 {
+                xtx[a][b] += x[a] * x[b];
+            }
+        }
+    }
+    std::fs::write(&f, text).unwrap();
+    for (a, row) in xtx.iter_mut().enumerate() {
+        row[a] += 1e-3;
+    }
+    let det = xtx[0][0] * xtx[1][1] - xtx[0][1] * xtx[1][0];
+    let ls = [
+        (xtx[1][1] * xty[0] - xtx[0][1] * xty[1]) / det,
+        (xtx[0][0] * xty[1] - xtx[1][0] * xty[0]) / det,
+    ];
+    let out = s.file("tracks.csv");
+    let j = ok_json(&[
+        "estimate",
+        "--data",
+        f.to_str().unwrap(),
+        "--y",
+        "y",
+        "--phi",
+        "x1,x2",
+        "--method",
+        "rls",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(j["samples"], n);
+    for (k, name) in ["x1", "x2"].iter().enumerate() {
+        let got = j["params"][name].as_f64().unwrap();
+        assert!(
+            (got / ls[k] - 1.0).abs() < 1e-8,
+            "{name}: {got} vs {}",
+            ls[k]
+        );
+    }
+    let tracks = physid_io::read(&out, &Default::default()).unwrap();
+    assert_eq!(tracks.len(), n);
+    assert_eq!(
+        tracks.values("x1").unwrap()[n - 1],
+        j["params"]["x1"].as_f64().unwrap()
+    );
+}

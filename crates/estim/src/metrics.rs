@@ -1,53 +1,94 @@
 //! Prediction-quality metrics (thesis §6, Eq. 6.4).
 
+/// The one-step prediction metrics of a run, accumulated a sample at a time ([`push`]
+/// (Self::push)) so a stream of any length is summed in constant memory; [`nmse`], [`nrmse`] and
+/// [`fit_percent`] over whole arrays are this, fed every sample.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Prediction {
+    n: usize,
+    /// Σ(Ym − Yp)², ΣYm, ΣYp, ΣYm².
+    err: f64,
+    sum_m: f64,
+    sum_p: f64,
+    sum_m2: f64,
+    /// Welford's running mean of Ym and Σ(Ym − mean)².
+    mean_m: f64,
+    m2: f64,
+}
+
+impl Prediction {
+    /// The metrics of `predicted` against `measured` (`None` for unequal lengths).
+    pub fn of(measured: &[f64], predicted: &[f64]) -> Option<Self> {
+        if measured.len() != predicted.len() {
+            return None;
+        }
+        let mut m = Self::default();
+        for (&y, &p) in measured.iter().zip(predicted) {
+            m.push(y, p);
+        }
+        Some(m)
+    }
+
+    /// One sample: measured `y`, predicted `p`.
+    pub fn push(&mut self, y: f64, p: f64) {
+        self.n += 1;
+        self.err += (y - p) * (y - p);
+        self.sum_m += y;
+        self.sum_p += p;
+        self.sum_m2 += y * y;
+        let d = y - self.mean_m;
+        self.mean_m += d / self.n as f64;
+        self.m2 += d * (y - self.mean_m);
+    }
+
+    /// Samples taken.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    /// No sample taken.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Normalised mean square error exactly as the thesis defines it (Eq. 6.4):
+    /// `NMSE = mean((Ym − Yp)²) / (mean(Ym)·mean(Yp))`; `None` with no sample or a zero
+    /// denominator.
+    pub fn nmse(&self) -> Option<f64> {
+        let n = self.n as f64;
+        let den = (self.sum_m / n) * (self.sum_p / n);
+        (self.n > 0 && den != 0.0).then(|| (self.err / n) / den)
+    }
+
+    /// Normalised root mean square error `rms(Ym − Yp)/rms(Ym)`.
+    pub fn nrmse(&self) -> Option<f64> {
+        (self.n > 0 && self.sum_m2 != 0.0).then(|| (self.err / self.sum_m2).sqrt())
+    }
+
+    /// Fit in percent, `100·(1 − ‖Ym − Yp‖/‖Ym − mean(Ym)‖)`.
+    pub fn fit_percent(&self) -> Option<f64> {
+        (self.n > 0 && self.m2 != 0.0).then(|| 100.0 * (1.0 - (self.err / self.m2).sqrt()))
+    }
+}
+
 /// Normalised mean square error exactly as the thesis defines it (Eq. 6.4):
 /// `NMSE = mean((Ym − Yp)²) / (mean(Ym)·mean(Yp))`.
 ///
 /// Ill-defined for signals whose mean is near zero (a cyclic torque): prefer [`nrmse`] there.
 /// Returns `None` for empty or unequal-length inputs, or when the denominator is zero.
 pub fn nmse(measured: &[f64], predicted: &[f64]) -> Option<f64> {
-    if measured.is_empty() || measured.len() != predicted.len() {
-        return None;
-    }
-    let n = measured.len() as f64;
-    let mse = measured
-        .iter()
-        .zip(predicted)
-        .map(|(m, p)| (m - p) * (m - p))
-        .sum::<f64>()
-        / n;
-    let den = (measured.iter().sum::<f64>() / n) * (predicted.iter().sum::<f64>() / n);
-    (den != 0.0).then(|| mse / den)
+    Prediction::of(measured, predicted)?.nmse()
 }
 
 /// Normalised root mean square error `rms(Ym − Yp)/rms(Ym)`.
 pub fn nrmse(measured: &[f64], predicted: &[f64]) -> Option<f64> {
-    if measured.is_empty() || measured.len() != predicted.len() {
-        return None;
-    }
-    let err: f64 = measured
-        .iter()
-        .zip(predicted)
-        .map(|(m, p)| (m - p) * (m - p))
-        .sum();
-    let rms: f64 = measured.iter().map(|m| m * m).sum();
-    (rms != 0.0).then(|| (err / rms).sqrt())
+    Prediction::of(measured, predicted)?.nrmse()
 }
 
 /// Fit in percent, `100·(1 − ‖Ym − Yp‖/‖Ym − mean(Ym)‖)` (100 = perfect, 0 = no better than the
 /// mean, negative = worse).
 pub fn fit_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
-    if measured.is_empty() || measured.len() != predicted.len() {
-        return None;
-    }
-    let mean = measured.iter().sum::<f64>() / measured.len() as f64;
-    let err: f64 = measured
-        .iter()
-        .zip(predicted)
-        .map(|(m, p)| (m - p) * (m - p))
-        .sum();
-    let var: f64 = measured.iter().map(|m| (m - mean) * (m - mean)).sum();
-    (var != 0.0).then(|| 100.0 * (1.0 - (err / var).sqrt()))
+    Prediction::of(measured, predicted)?.fit_percent()
 }
 
 /// Largest relative error in per cent, `max 100·|y − ŷ|/|y|` — for a signal that keeps its
@@ -85,6 +126,23 @@ mod tests {
         // |4 − 6|/4 = 50 %; −2 predicted as −1: 50 % too (the sign of y does not matter).
         assert_eq!(max_relative_percent(&m, &p), Some(50.0));
         assert_eq!(max_relative_percent(&[-2.0], &[-1.0]), Some(50.0));
+    }
+
+    /// Welford's sum of squares against the two-pass one, on data with a large mean (where
+    /// `Σy² − n·mean²` would lose every digit).
+    #[test]
+    fn the_running_sums_agree_with_two_passes() {
+        let m: Vec<f64> = (0..10_000).map(|i| 1e6 + (i as f64 * 0.37).sin()).collect();
+        let p: Vec<f64> = m.iter().map(|y| y + 0.01 * (y * 3.0).cos()).collect();
+        let mean = m.iter().sum::<f64>() / m.len() as f64;
+        let var: f64 = m.iter().map(|y| (y - mean) * (y - mean)).sum();
+        let err: f64 = m.iter().zip(&p).map(|(y, q)| (y - q) * (y - q)).sum();
+        let two_pass = 100.0 * (1.0 - (err / var).sqrt());
+        let fit = fit_percent(&m, &p).unwrap();
+        assert!(
+            (fit - two_pass).abs() < 1e-9 * two_pass.abs(),
+            "{fit} {two_pass}"
+        );
     }
 
     #[test]

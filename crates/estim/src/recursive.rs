@@ -284,6 +284,15 @@ pub struct FeedSummary {
     pub seconds: f64,
 }
 
+impl std::ops::AddAssign for FeedSummary {
+    /// The summary of two runs of [`feed`] one after the other (a stream fed chunk by chunk).
+    fn add_assign(&mut self, other: Self) {
+        self.accepted += other.accepted;
+        self.skipped += other.skipped;
+        self.seconds += other.seconds;
+    }
+}
+
 /// A sample [`feed`] stopped at.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("sample {sample}: {error}")]
@@ -462,13 +471,12 @@ pub struct Timing {
 }
 
 impl RunSummary {
-    /// The summary of `est` after [`feed`] (`fed`), its one-step predictions `predicted` of
-    /// `measured`.
+    /// The summary of `est` after [`feed`] (`fed`), the metrics of its one-step predictions
+    /// (`prediction`).
     pub fn new(
         est: &dyn Recursive,
         fed: &FeedSummary,
-        measured: &[f64],
-        predicted: &[f64],
+        prediction: &crate::metrics::Prediction,
     ) -> Self {
         let names: Vec<String> = est.free_names().iter().map(|s| s.to_string()).collect();
         let res = est.resolution();
@@ -506,9 +514,9 @@ impl RunSummary {
                     )
                 })
                 .collect(),
-            nmse: crate::metrics::nmse(measured, predicted),
-            nrmse: crate::metrics::nrmse(measured, predicted),
-            fit_percent: crate::metrics::fit_percent(measured, predicted),
+            nmse: prediction.nmse(),
+            nrmse: prediction.nrmse(),
+            fit_percent: prediction.fit_percent(),
             timing: Timing {
                 seconds: fed.seconds,
                 updates_per_s: fed.accepted as f64 / fed.seconds.max(1e-12),

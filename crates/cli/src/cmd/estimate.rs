@@ -5,6 +5,7 @@ use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result, WrapErr};
 use physid_core::{Basis, Channel, ParamSet, Recording};
+use physid_estim::metrics::Prediction;
 use physid_estim::{
     feed, CovSpec, EstimError, EstimatorConfig, FeedError, FeedSummary, GuardAction,
     LinearEstimator, Method, MethodName, NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive,
@@ -137,12 +138,12 @@ fn free_set(args: &Args, params: &ParamSet) -> Result<physid_core::FreeSet> {
 
 /// Run the estimation.
 pub fn run(args: &Args) -> Result<()> {
-    let rec = args.input.read(&args.data, None)?;
+    // The file read a chunk at a time, only the columns the estimator takes; the tracks
+    // (--out) written as they come.
     let file = args.data.display().to_string();
-    let column = |c: &str| rec.values(c).map_err(|e| miette!("{file}: {e}"));
-    let y = column(&args.y)?;
+    let header = args.input.open_all(&args.data)?.header().clone();
 
-    let (mut est, cols, params, free): (Box<dyn Recursive>, Vec<&[f64]>, ParamSet, _) = if args
+    let (mut est, columns, params, free): (Box<dyn Recursive>, Vec<String>, ParamSet, _) = if args
         .method
         .is_model_based()
     {
@@ -158,13 +159,9 @@ pub fn run(args: &Args) -> Result<()> {
         let (names, values) = named_values(&args.params, "--params")?;
         let model = ExprModel::parse(text, &names).map_err(|e| miette!("--expr: {e}"))?;
         model
-            .check_inputs(&rec.names())
+            .check_inputs(&header.names())
             .map_err(|e| miette!("--expr: {e} (in {file})"))?;
-        let cols: Vec<&[f64]> = model
-            .inputs()
-            .iter()
-            .map(|c| column(c))
-            .collect::<Result<_>>()?;
+        let columns: Vec<String> = model.inputs().to_vec();
         let params = ParamSet::new(names, values).into_diagnostic()?;
         let free = free_set(args, &params)?;
         let sp = SigmaPoints {
@@ -196,7 +193,7 @@ pub fn run(args: &Args) -> Result<()> {
             bounds,
         };
         let est = NonlinearEstimator::new(model, &params, &free, &cfg).into_diagnostic()?;
-        (Box::new(est), cols, params, free)
+        (Box::new(est), columns, params, free)
     } else {
         if args.phi.is_empty() {
             return Err(miette!(
@@ -207,8 +204,7 @@ pub fn run(args: &Args) -> Result<()> {
         if args.expr.is_some() {
             return Err(miette!("--expr needs --method ekf, ukf or srukf"));
         }
-        let cols: Vec<&[f64]> = args.phi.iter().map(|c| column(c)).collect::<Result<_>>()?;
-        let p = cols.len();
+        let p = args.phi.len();
         let theta0 = args.theta0.clone().unwrap_or_else(|| vec![0.0; p]);
         let params = ParamSet::new(args.phi.clone(), theta0).into_diagnostic()?;
         let free = free_set(args, &params)?;
@@ -222,41 +218,113 @@ pub fn run(args: &Args) -> Result<()> {
             guard,
         };
         let est = LinearEstimator::new(&cfg, &params, &free).into_diagnostic()?;
-        (Box::new(est), cols, params, free)
+        (Box::new(est), args.phi.clone(), params, free)
     };
     let names: Vec<String> = params
         .free_names(&free)
         .into_iter()
         .map(String::from)
         .collect();
-    let nfree = names.len();
+    for c in columns.iter().chain([&args.y]) {
+        header.channel(c).map_err(|e| miette!("{file}: {e}"))?;
+    }
+    let mut wanted: Vec<&str> = vec![args.y.as_str()];
+    for c in &columns {
+        if !wanted.contains(&c.as_str()) {
+            wanted.push(c);
+        }
+    }
+    let mut reader = args.input.open(&args.data, &wanted, &[])?;
 
     let method_name = est.method_name();
-    let line = |i: usize| super::locate(&rec, i);
-    let n = y.len();
-    let mut measured = Vec::with_capacity(n);
-    let mut predicted = Vec::with_capacity(n);
-    let mut track: Vec<Vec<f64>> = vec![Vec::new(); 2 * nfree + 2];
-    let fed = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
-        measured.push(y[i]);
-        predicted.push(y[i] - step.prediction_error);
-        if args.out.is_some() {
-            let se = est.std_errors();
-            track[0].push(y[i] - step.prediction_error);
-            track[1].push(step.prediction_error);
-            for (j, v) in est.estimate().into_iter().enumerate() {
-                track[2 + j].push(v);
-                track[2 + nfree + j].push(se.as_ref().map_or(f64::NAN, |s| s[j]));
-            }
+    // --out: the tracks' columns and this chunk's rows of them.
+    let mut tracks = match &args.out {
+        Some(out) => {
+            let mut track_names = vec!["y_predicted".to_string(), "prediction_error".into()];
+            track_names.extend(names.iter().cloned());
+            track_names.extend(names.iter().map(|n| format!("{n}_std_err")));
+            let rows = |names: &[String], rows: Vec<Vec<f64>>| -> Result<Recording> {
+                let mut r = Recording::new(Basis::Time);
+                for (name, values) in names.iter().zip(rows) {
+                    r.push(Channel {
+                        name: name.clone(),
+                        unit: String::new(),
+                        values,
+                    })
+                    .into_diagnostic()?;
+                }
+                Ok(r)
+            };
+            let w = physid_io::CsvWriter::create(
+                out,
+                &rows(&track_names, vec![Vec::new(); track_names.len()])?,
+            )
+            .into_diagnostic()
+            .wrap_err("writing --out")?;
+            let buffers = vec![Vec::new(); track_names.len()];
+            Some((w, track_names, buffers, rows))
         }
-    })
-    .map_err(|FeedError { sample, error }| match error {
-        EstimError::NonFinite { what, value, .. } => miette!(
-            "{file}, {}: {what} is not finite ({value}); use --on-bad skip to skip such samples",
-            line(sample)
-        ),
-        e => miette!("{file}, {}: {e}", line(sample)),
-    })?;
+        None => None,
+    };
+    let mut prediction = Prediction::default();
+    let mut fed = FeedSummary {
+        accepted: 0,
+        skipped: 0,
+        seconds: 0.0,
+    };
+    let mut offset = 0;
+    // Sample i of the file is on this line (CSV), for the messages.
+    let at_line = reader.header().clone();
+    while let Some(chunk) = reader.next_chunk().into_diagnostic()? {
+        let y = chunk.values(&args.y).into_diagnostic()?;
+        let cols: Vec<&[f64]> = columns
+            .iter()
+            .map(|c| chunk.values(c).into_diagnostic())
+            .collect::<Result<_>>()?;
+        let part = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
+            prediction.push(y[i], y[i] - step.prediction_error);
+            if let Some((_, _, buffers, _)) = &mut tracks {
+                let se = est.std_errors();
+                let mut row = buffers.iter_mut();
+                let mut put = |v: f64| {
+                    if let Some(c) = row.next() {
+                        c.push(v);
+                    }
+                };
+                put(y[i] - step.prediction_error);
+                put(step.prediction_error);
+                let theta = est.estimate();
+                for &v in &theta {
+                    put(v);
+                }
+                for j in 0..theta.len() {
+                    put(se.as_ref().map_or(f64::NAN, |s| s[j]));
+                }
+            }
+        })
+        .map_err(|FeedError { sample, error }| {
+            let at = super::locate(&at_line, offset + sample);
+            match error {
+                EstimError::NonFinite { what, value, .. } => miette!(
+                    "{file}, {at}: {what} is not finite ({value}); use --on-bad skip to skip such samples"
+                ),
+                e => miette!("{file}, {at}: {e}"),
+            }
+        })?;
+        if let Some((w, track_names, buffers, rows)) = &mut tracks {
+            let chunk = rows(track_names, std::mem::take(buffers))?;
+            *buffers = vec![Vec::new(); track_names.len()];
+            w.append(&chunk)
+                .into_diagnostic()
+                .wrap_err("writing --out")?;
+        }
+        fed += part;
+        offset += y.len();
+    }
+    super::warn_read(&reader, &args.data);
+    if let Some((w, ..)) = tracks {
+        w.close().into_diagnostic().wrap_err("writing --out")?;
+    }
     let FeedSummary {
         accepted,
         skipped,
@@ -268,36 +336,8 @@ pub fn run(args: &Args) -> Result<()> {
     let theta = est.estimate();
     // What the data resolved (physid_estim::resolution): an unresolved parameter keeps its
     // estimate but gets no standard error — the data cannot support one.
-    let summary = RunSummary::new(est.as_ref(), &fed, &measured, &predicted);
+    let summary = RunSummary::new(est.as_ref(), &fed, &prediction);
     let has_std_err = est.std_errors().is_some();
-
-    if let Some(out) = &args.out {
-        let mut r = Recording::new(Basis::Time);
-        let mut cols: Vec<(String, Vec<f64>)> = vec![
-            ("y_predicted".into(), std::mem::take(&mut track[0])),
-            ("prediction_error".into(), std::mem::take(&mut track[1])),
-        ];
-        for (j, nm) in names.iter().enumerate() {
-            cols.push((nm.clone(), std::mem::take(&mut track[2 + j])));
-        }
-        for (j, nm) in names.iter().enumerate() {
-            cols.push((
-                format!("{nm}_std_err"),
-                std::mem::take(&mut track[2 + nfree + j]),
-            ));
-        }
-        for (name, values) in cols {
-            r.push(Channel {
-                name,
-                unit: String::new(),
-                values,
-            })
-            .into_diagnostic()?;
-        }
-        physid_io::write_csv(out, &r)
-            .into_diagnostic()
-            .wrap_err("writing --out")?;
-    }
 
     if args.json {
         outln!(
