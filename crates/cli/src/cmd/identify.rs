@@ -132,11 +132,28 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
     }
     let mut reports = Vec::new();
     for path in &args.data {
-        let rec = args.input.read(path, None)?;
+        // Only the columns the analysis takes are read (it needs all their samples).
+        let header = args.input.open_all(path)?.header().clone();
         if let ModelChoice::Expr(m) = &model {
-            m.check_inputs(&rec.names())
+            m.check_inputs(&header.names())
                 .map_err(|e| miette!("--expr: {e} (in {})", path.display()))?;
         }
+        let mut wanted: Vec<String> = Vec::new();
+        for c in model.input_names() {
+            header
+                .channel(c)
+                .map_err(|e| miette!("{}: the model needs column '{c}': {e}", path.display()))?;
+            if !wanted.contains(c) {
+                wanted.push(c.clone());
+            }
+        }
+        if let Some(c) = args.y.as_ref().filter(|c| !wanted.contains(c)) {
+            header
+                .channel(c)
+                .map_err(|e| miette!("{}: {e}", path.display()))?;
+            wanted.push(c.clone());
+        }
+        let rec = args.input.read(path, Some(wanted))?;
         let r = identify_one(&model, path, &rec, &nominal, args, config, &choice)?;
         reports.push(r);
     }
