@@ -5,6 +5,7 @@
 mod cmd;
 mod out;
 mod plot;
+mod progress;
 mod report;
 
 use clap::{Parser, Subcommand};
@@ -16,6 +17,10 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// No progress display on stderr (it is shown only on a terminal, for work longer than a
+    /// second).
+    #[arg(long, global = true)]
+    quiet: bool,
 }
 
 // Parsed once per run: the size of the largest variant does not matter.
@@ -97,6 +102,7 @@ fn main() -> miette::Result<()> {
         Box::new(miette::MietteHandlerOpts::new().wrap_lines(false).build())
     }))?;
     let cli = Cli::parse();
+    progress::set_quiet(cli.quiet);
     match cli.command {
         Command::Demo(a) => cmd::demo::run(&a),
         Command::Example(a) => cmd::example::run(&a),

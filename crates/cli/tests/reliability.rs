@@ -588,3 +588,49 @@ fn estimate_streams_a_long_file_as_one_run() {
         j["params"]["x1"].as_f64().unwrap()
     );
 }
+
+/// Progress goes to stderr only on a terminal (here a pseudo-terminal made by `script`), for
+/// work past a delay (set to 0 here), and never with `--quiet` or when stderr is a pipe.
+#[test]
+fn progress_shows_on_a_terminal_only() {
+    let s = Scratch::new("physid-progress");
+    let f = s.file("run.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "2",
+        "--out",
+        f.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    // Piped: nothing on stderr.
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let on_a_terminal = |extra: &str| {
+        let cmd = format!(
+            "PHYSID_PROGRESS_AFTER_MS=0 {} inspect {} {extra}",
+            env!("CARGO_BIN_EXE_physid"),
+            f.display()
+        );
+        let o = std::process::Command::new("script")
+            .args(["-qec", &cmd, "/dev/null"])
+            .output()
+            .expect("script (util-linux) runs a command on a pseudo-terminal");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let shown = on_a_terminal("");
+    assert!(
+        shown.contains("reading") && shown.contains("run.parquet"),
+        "{shown}"
+    );
+    assert!(shown.contains("integrity: ok"), "{shown}");
+    let quiet = on_a_terminal("--quiet");
+    assert!(!quiet.contains("reading"), "{quiet}");
+    assert!(quiet.contains("integrity: ok"), "{quiet}");
+}

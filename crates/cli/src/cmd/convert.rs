@@ -126,7 +126,7 @@ fn stream(args: &Args) -> Result<()> {
     let mut w =
         physid_io::ChunkWriter::create(&args.output, reader.header(), &WriteOptions::default())
             .into_diagnostic()?;
-    for chunk in &mut reader {
+    for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
         w.append(&chunk.into_diagnostic()?).into_diagnostic()?;
     }
     w.close().into_diagnostic()?;

@@ -27,19 +27,14 @@ pub fn run(args: &Args) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("physid-out/demo"));
     crate::report::create_dir(&dir)?;
-    let bar = indicatif::ProgressBar::new(100);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg:40} [{bar:30}] {percent}% ({elapsed})")
-            .into_diagnostic()?
-            .progress_chars("=> "),
-    );
+    let mut bar = crate::progress::Progress::new("demo", Some(100));
     let t0 = std::time::Instant::now();
     let d = run_demo(args.solver_order, |stage, f| {
-        bar.set_message(stage.to_string());
-        bar.set_position((f * 100.0) as u64);
+        bar.message(stage);
+        bar.set((f * 100.0) as u64);
     })
     .map_err(|e| miette!("{e}"))?;
-    bar.finish_and_clear();
+    drop(bar);
 
     let mut rep = Report::new(
         "physid demo — the virtual transient engine test cell",

@@ -275,7 +275,8 @@ pub fn run(args: &Args) -> Result<()> {
     let mut offset = 0;
     // Sample i of the file is on this line (CSV), for the messages.
     let at_line = reader.header().clone();
-    while let Some(chunk) = reader.next_chunk().into_diagnostic()? {
+    for chunk in crate::progress::Reading::new(&mut reader, &args.data) {
+        let chunk = chunk.into_diagnostic()?;
         let y = chunk.values(&args.y).into_diagnostic()?;
         let cols: Vec<&[f64]> = columns
             .iter()

@@ -4,6 +4,7 @@
 
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
+use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::friction_fit::{
@@ -188,7 +189,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     let r = if friction_fit::streams(&header) {
         let (needed, optional) = friction_fit::sample_channels(&cfg);
         let mut reader = a.input.open(&a.data, &needed, &optional)?;
-        let r = friction_fit_stream(&mut reader, &cfg);
+        let r = friction_fit_stream(Reading::new(&mut reader, &a.data), &cfg);
         super::warn_read(&reader, &a.data);
         r
     } else {

@@ -3,6 +3,7 @@
 use super::InputArgs;
 use crate::out::outln;
 use crate::plot;
+use crate::progress::Reading;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{AcquisitionOptions, Inspector};
@@ -67,7 +68,7 @@ pub fn run(args: &Args) -> Result<()> {
     // The file read a chunk at a time: memory does not grow with its length.
     let mut reader = args.input.open_all(&args.file)?;
     let mut inspector = Inspector::new(reader.header(), &opts);
-    for chunk in &mut reader {
+    for chunk in Reading::new(&mut reader, &args.file) {
         inspector.push(&chunk.into_diagnostic()?);
     }
     super::warn_read(&reader, &args.file);

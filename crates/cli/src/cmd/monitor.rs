@@ -3,6 +3,7 @@
 use super::InputArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
+use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::shaft_monitor::{
@@ -277,7 +278,7 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
         let rec = a.input.read(&a.data, None)?;
         monitor_shaft(&rec, &cfg)
     } else {
-        monitor_shaft_stream(&mut reader, &cfg)
+        monitor_shaft_stream(Reading::new(&mut reader, &a.data), &cfg)
     }
     .map_err(super::app_error(&a.data))?;
     super::warn_read(&reader, &a.data);

@@ -2,6 +2,7 @@
 //! engineer's checks (compression, motored cycle, the dynamometer's torque–speed curve).
 
 use crate::out::outln;
+use crate::progress::Progress;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_io::ChunkWriter;
 use physid_sim::params::CellParams;
@@ -214,18 +215,10 @@ pub fn run(args: &Args) -> Result<()> {
         basis,
         stream: true,
     };
-    let bar = indicatif::ProgressBar::new(100);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {percent}% ({elapsed})")
-            .into_diagnostic()?
-            .progress_chars("=> "),
-    );
-    bar.set_message(format!("simulating {}", scenario.name));
+    let mut bar = Progress::new(&format!("simulating {}", scenario.name), Some(100));
     let t0 = std::time::Instant::now();
-    let written = write_as_it_goes(&scenario, &opts, out, |f| {
-        bar.set_position((f * 100.0) as u64)
-    });
-    bar.finish_and_clear();
+    let written = write_as_it_goes(&scenario, &opts, out, |f| bar.set((f * 100.0) as u64));
+    drop(bar);
     let (channels, samples) = match written {
         Ok(Some(n)) => n,
         Ok(None) => {

@@ -4,6 +4,7 @@
 use super::named_values;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
+use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::torque_fit::{
@@ -275,7 +276,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     let r = if header.basis == Basis::Time && header.channel("theta_en").is_ok() {
         let (needed, optional) = torque_fit::sample_channels();
         let mut reader = a.input.open(&a.data, &needed, &optional)?;
-        let r = torque_fit_stream(&mut reader, &cfg);
+        let r = torque_fit_stream(Reading::new(&mut reader, &a.data), &cfg);
         super::warn_read(&reader, &a.data);
         r
     } else {
