@@ -634,3 +634,70 @@ fn progress_shows_on_a_terminal_only() {
     assert!(!quiet.contains("reading"), "{quiet}");
     assert!(quiet.contains("integrity: ok"), "{quiet}");
 }
+
+/// `estimate --phi` takes formulas over columns as regressors (the shaft's twist and twist
+/// rate from the two angles and speeds): the same estimates as with the differences written
+/// into the file as columns; a formula over a column that is not there names it.
+#[test]
+fn estimate_takes_formulas_over_columns_as_regressors() {
+    let s = Scratch::new("physid-estimate-derived");
+    let (raw, pre) = (s.file("raw.csv"), s.file("pre.csv"));
+    let mut a = String::from("theta_dy,theta_en,omega_dy,omega_en,tau\n");
+    let mut b = String::from("dth,dw,tau\n");
+    for i in 0..3000 {
+        let t = i as f64 * 1e-3;
+        let (te, td) = (100.0 * t, 100.0 * t + 0.01 * (7.0 * t).sin());
+        let (we, wd) = (
+            100.0,
+            100.0 + 0.07 * (7.0 * t).cos() + 0.02 * (31.0 * t).sin(),
+        );
+        let tau = 1200.0 * (td - te) + 0.9 * (wd - we);
+        a.push_str(&format!("{td},{te},{wd},{we},{tau}\n"));
+        // The differences of the numbers as the first file holds them.
+        let p = |v: f64| -> f64 { format!("{v}").parse().unwrap() };
+        b.push_str(&format!("{},{},{tau}\n", p(td) - p(te), p(wd) - p(we)));
+    }
+    std::fs::write(&raw, a).unwrap();
+    std::fs::write(&pre, b).unwrap();
+    let est = |file: &std::path::Path, phi: &str| {
+        ok_json(&[
+            "estimate",
+            "--data",
+            file.to_str().unwrap(),
+            "--y",
+            "tau",
+            "--phi",
+            phi,
+            "--method",
+            "rls",
+            "--json",
+        ])
+    };
+    let derived = est(&raw, "theta_dy-theta_en,omega_dy-omega_en");
+    let columns = est(&pre, "dth,dw");
+    assert_eq!(
+        derived["params"]["theta_dy-theta_en"],
+        columns["params"]["dth"]
+    );
+    assert_eq!(
+        derived["params"]["omega_dy-omega_en"],
+        columns["params"]["dw"]
+    );
+    let k = derived["params"]["theta_dy-theta_en"].as_f64().unwrap();
+    // Near the truth (the prior P0 = 1000·I still weighs against Σ(Δθ)² ≈ 0.15 here).
+    assert!((k / 1200.0 - 1.0).abs() < 1e-2, "{derived}");
+    fails_with(
+        &[
+            "estimate",
+            "--data",
+            raw.to_str().unwrap(),
+            "--y",
+            "tau",
+            "--phi",
+            "theta_dy-theta_xx",
+            "--method",
+            "rls",
+        ],
+        "theta_xx",
+    );
+}

@@ -99,7 +99,8 @@ pub const MAX_TREE_DEPTH: usize = 1000;
 /// Deepest nesting accepted (bounds the evaluator's recursion).
 pub const MAX_DEPTH: usize = 200;
 
-const FUNCTIONS: &str = "sqrt, exp, ln, log10, sin, cos, tan, asin, acos, atan, abs, pow, min, max";
+const FUNCTIONS: &str =
+    "sqrt, exp, ln (also log), log10, sin, cos, tan, asin, acos, atan, abs, pow, min, max";
 
 /// One-argument functions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -122,7 +123,8 @@ impl Func {
         Some(match name {
             "sqrt" => Func::Sqrt,
             "exp" => Func::Exp,
-            "ln" => Func::Ln,
+            // `log` is the natural logarithm, as in MATLAB and numpy; `log10` is base 10.
+            "ln" | "log" => Func::Ln,
             "log10" => Func::Log10,
             "sin" => Func::Sin,
             "cos" => Func::Cos,

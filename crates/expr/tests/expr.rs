@@ -108,6 +108,10 @@ fn precedence_and_associativity() {
     assert_eq!(v("--x"), 3.0);
     assert_eq!(v("+x*-2"), -6.0);
     assert_eq!(v("1.5e1 + .5 + 2E-1"), 15.7);
+    // `log` is the natural logarithm (MATLAB, numpy), `log10` base 10.
+    assert_eq!(v("log(x)"), 3f64.ln());
+    assert_eq!(v("log(x)"), v("ln(x)"));
+    assert_eq!(v("log10(x)"), 3f64.log10());
 }
 
 #[test]

@@ -25,7 +25,8 @@ pub struct Args {
     /// Column of the measured output y.
     #[arg(long)]
     pub y: String,
-    /// Linear methods: columns of the regressor φ, comma separated; they name the parameters.
+    /// Linear methods: the regressor φ, comma separated — columns, or formulas over columns
+    /// (`theta_dy-theta_en`, `omega_en^2`; without commas); they name the parameters.
     #[arg(long, value_delimiter = ',')]
     pub phi: Vec<String>,
     /// Non-linear methods: the model, e.g. 'A*exp(-B*x) + C*x'; names not in --params are
@@ -225,12 +226,16 @@ pub fn run(args: &Args) -> Result<()> {
         .into_iter()
         .map(String::from)
         .collect();
-    for c in columns.iter().chain([&args.y]) {
-        header.channel(c).map_err(|e| miette!("{file}: {e}"))?;
-    }
+    header
+        .channel(&args.y)
+        .map_err(|e| miette!("{file}: {e}"))?;
+    let regressors: Vec<Regressor> = columns
+        .iter()
+        .map(|c| Regressor::of(c, &header).map_err(|e| miette!("{file}: {e}")))
+        .collect::<Result<_>>()?;
     let mut wanted: Vec<&str> = vec![args.y.as_str()];
-    for c in &columns {
-        if !wanted.contains(&c.as_str()) {
+    for c in regressors.iter().flat_map(Regressor::columns) {
+        if !wanted.contains(&c) {
             wanted.push(c);
         }
     }
@@ -278,9 +283,18 @@ pub fn run(args: &Args) -> Result<()> {
     for chunk in crate::progress::Reading::new(&mut reader, &args.data) {
         let chunk = chunk.into_diagnostic()?;
         let y = chunk.values(&args.y).into_diagnostic()?;
-        let cols: Vec<&[f64]> = columns
+        let derived: Vec<Option<Vec<f64>>> = regressors
             .iter()
-            .map(|c| chunk.values(c).into_diagnostic())
+            .map(|r| r.derive(&chunk).map_err(|e| miette!("{file}: {e}")))
+            .collect::<Result<_>>()?;
+        let cols: Vec<&[f64]> = regressors
+            .iter()
+            .zip(&derived)
+            .map(|(r, d)| match (r, d) {
+                (_, Some(v)) => Ok(v.as_slice()),
+                (Regressor::Column(c), None) => chunk.values(c.as_str()).into_diagnostic(),
+                (Regressor::Derived(..), None) => Err(miette!("a formula without its values")),
+            })
             .collect::<Result<_>>()?;
         let part = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
             prediction.push(y[i], y[i] - step.prediction_error);
@@ -401,4 +415,66 @@ pub fn run(args: &Args) -> Result<()> {
         outln!("bounds enforced: {n} times (an estimate is at a bound)");
     }
     Ok(())
+}
+
+/// One regressor of `--phi`: a column of the file, or a formula over its columns.
+enum Regressor {
+    Column(String),
+    Derived(ExprModel),
+}
+
+impl Regressor {
+    /// `text` as a column of `header` if it is one, else as a formula over its columns.
+    fn of(text: &str, header: &Recording) -> std::result::Result<Self, String> {
+        if header.channel(text).is_ok() {
+            return Ok(Self::Column(text.to_string()));
+        }
+        let no_column = || {
+            header
+                .channel(text)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default()
+        };
+        let model = ExprModel::parse::<&str>(text, &[])
+            .map_err(|e| format!("{}; as a formula: {e}", no_column()))?;
+        if model.inputs().is_empty() {
+            return Err(no_column());
+        }
+        model
+            .check_inputs(&header.names())
+            .map_err(|e| format!("--phi '{text}': {e}"))?;
+        Ok(Self::Derived(model))
+    }
+
+    /// The columns it reads.
+    fn columns(&self) -> Vec<&str> {
+        match self {
+            Self::Column(c) => vec![c.as_str()],
+            Self::Derived(m) => m.inputs().iter().map(String::as_str).collect(),
+        }
+    }
+
+    /// A formula's values over `chunk` (`None` for a column, read as it is).
+    fn derive(&self, chunk: &Recording) -> std::result::Result<Option<Vec<f64>>, String> {
+        let Self::Derived(m) = self else {
+            return Ok(None);
+        };
+        let inputs: Vec<&[f64]> = m
+            .inputs()
+            .iter()
+            .map(|c| chunk.values(c).map_err(|e| e.to_string()))
+            .collect::<std::result::Result<_, _>>()?;
+        let mut u = vec![0.0; inputs.len()];
+        Ok(Some(
+            (0..chunk.len())
+                .map(|i| {
+                    for (x, col) in u.iter_mut().zip(&inputs) {
+                        *x = col[i];
+                    }
+                    physid_core::ParamModel::eval::<f64>(m, &u, &[])
+                })
+                .collect(),
+        ))
+    }
 }
