@@ -150,8 +150,12 @@ pub struct ShaftAlarm {
     pub t_start_s: f64,
     /// When the dwell completed [s].
     pub t_raised_s: f64,
-    /// The relative error then.
+    /// The relative error then (Eq. 6.3: `(ϑ_healthy − ϑ̂)/ϑ_healthy`, positive when the
+    /// estimate fell).
     pub relative_error: f64,
+    /// The estimate's change from its healthy value then, `(ϑ̂ − ϑ_healthy)/ϑ_healthy =
+    /// −relative_error` (K fell 12 % → −0.12): how a person reads it.
+    pub change: f64,
 }
 
 /// The monitor's result.
@@ -578,6 +582,7 @@ impl ShaftStage {
                         t_start_s: self.det_times[at.saturating_sub(back)],
                         t_raised_s: t,
                         relative_error: a.relative_error,
+                        change: -a.relative_error,
                     });
                 }
             }

@@ -140,7 +140,12 @@ fn the_virtual_cell_raises_the_stiffness_alarm_and_no_damping_alarm() {
         assert_eq!(a["param"], "K", "{a}");
         let t = a["t_s"].as_f64().unwrap();
         assert!((2.0..4.0).contains(&t), "raised at {t}");
+        // The stiffness fell: Eq. 6.3's e is positive, the change as read is its negative.
         assert!(a["relative_error"].as_f64().unwrap() > 0.1);
+        assert_eq!(
+            a["change"].as_f64(),
+            a["relative_error"].as_f64().map(|e| -e)
+        );
     }
     // Estimate events at most every 0.1 s of recording, in time order.
     let t: Vec<f64> = of_type(&ev, "estimate")

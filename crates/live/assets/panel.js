@@ -174,13 +174,13 @@
       row.dataset.seq = seq; row.dataset.param = e.param;
       row.insertCell().textContent = fmt(e.t_s, 3);
       row.insertCell().textContent = e.param;
-      row.insertCell().textContent = `${fmt(100 * e.relative_error, 1)} %`;
+      row.insertCell().textContent = `${100 * e.change >= 0 ? "+" : ""}${fmt(100 * e.change, 1)} %`;
       const b = document.createElement("button");
       b.textContent = "Ack"; b.className = "ack";
       b.onclick = () => post("ack", { seq: Number(seq) });
       row.insertCell().appendChild(b);
       $("alarm-count").textContent = String($("alarms").querySelectorAll("tbody tr:not(.acked)").length);
-      log(`${fmt(e.t_s, 3)} s: alarm ${e.param}, relative error ${fmt(100 * e.relative_error, 1)} % (left its bound at ${fmt(e.t_start_s, 3)} s)`, "error");
+      log(`${fmt(e.t_s, 3)} s: alarm ${e.param}, ${e.change < 0 ? "fell" : "rose"} ${fmt(100 * Math.abs(e.change), 1)} % from healthy (left its bound at ${fmt(e.t_start_s, 3)} s)`, "error");
     },
     ack(e) {
       const row = $("alarms").querySelector(`tr[data-seq="${e.seq}"]`);

@@ -24,8 +24,8 @@ pub enum Event {
         std_err: PerParam,
     },
     /// An alarm: `{"type": "alarm", "app": "shaft", "param": "K", "t_s": …, "t_start_s": …,
-    /// "relative_error": …}` (`t_s` when it was raised, `t_start_s` when the estimate left its
-    /// bound).
+    /// "relative_error": …, "change": …}` (`t_s` when it was raised, `t_start_s` when the
+    /// estimate left its bound; `change` = −`relative_error`, the estimate's change).
     Alarm {
         /// The application.
         app: &'static str,
@@ -37,6 +37,8 @@ pub enum Event {
         t_start_s: f64,
         /// Its relative error (Eq. 6.3) then.
         relative_error: f64,
+        /// The estimate's change from healthy then (−relative error; K fell 12 % → −0.12).
+        change: f64,
     },
     /// Which of an application's parameters are estimated now and which are held (frozen):
     /// `{"type": "identifiability", "app": "friction", "t_s": …, "estimable": ["c1", …],
@@ -269,6 +271,7 @@ impl Event {
             t_s: a.t_raised_s,
             t_start_s: a.t_start_s,
             relative_error: a.relative_error,
+            change: a.change,
         }
     }
 }

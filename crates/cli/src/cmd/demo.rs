@@ -180,10 +180,10 @@ pub fn run(args: &Args) -> Result<()> {
     );
     for a in &mon.alarms {
         outln!(
-            "    ALARM {} from t = {:.2} s ({:+.1} %)",
+            "    ALARM {} from t = {:.2} s ({:+.1} % from healthy)",
             a.param,
             a.t_start_s,
-            100.0 * a.relative_error
+            100.0 * a.change
         );
     }
     let first = &d.friction.tests[0];

@@ -161,11 +161,11 @@ pub fn report_section(
         for a in &r.alarms {
             rep.para(
                 &format!(
-                    "ALARM: {} moved — beyond the bound from t = {:.3} s (raised at {:.3} s), relative error {:+.1} %.",
+                    "ALARM: {} moved — beyond the bound from t = {:.3} s (raised at {:.3} s), changed by {:+.1} % from healthy.",
                     a.param,
                     a.t_start_s,
                     a.t_raised_s,
-                    100.0 * a.relative_error
+                    100.0 * a.change
                 ),
                 Some("alarm"),
             );
@@ -319,11 +319,11 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     }
     for al in &r.alarms {
         outln!(
-            "  ALARM {}: from t = {:.3} s (raised {:.3} s), relative error {:+.1} %",
+            "  ALARM {}: from t = {:.3} s (raised {:.3} s), changed by {:+.1} % from healthy",
             al.param,
             al.t_start_s,
             al.t_raised_s,
-            100.0 * al.relative_error
+            100.0 * al.change
         );
     }
     if let Some(dir) = &a.out {
