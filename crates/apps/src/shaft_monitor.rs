@@ -688,6 +688,23 @@ pub fn monitor_shaft_stream<E>(
 where
     AppError: From<E>,
 {
+    monitor_shaft_tracked(chunks, cfg, &mut |_, _| Ok(()))
+}
+
+/// What a [`monitor_shaft_tracked`] run hands on as it goes: the estimator samples just taken
+/// (every one, not thinned) and the alarms raised so far; an `Err` stops the run with it.
+pub type ShaftSink<'a> = dyn FnMut(&[ShaftSample], &[ShaftAlarm]) -> Result<(), String> + 'a;
+
+/// [`monitor_shaft_stream`], every estimator sample handed to `sink` as it is taken (the
+/// tracks written to a file as they come: `monitor shaft --tracks`).
+pub fn monitor_shaft_tracked<E>(
+    chunks: impl IntoIterator<Item = Result<Recording, E>>,
+    cfg: &MonitorConfig,
+    sink: &mut ShaftSink,
+) -> Result<ShaftMonitor, AppError>
+where
+    AppError: From<E>,
+{
     let mut chunks = chunks.into_iter();
     // The first samples, enough to know the rate.
     let mut first: Option<Recording> = None;
@@ -714,11 +731,11 @@ where
     }
     let dt = uniform_step(&t[..t.len().min(NOMINAL_SAMPLES)])?;
     let mut acc = Accumulated::new(cfg, t[0], dt)?;
-    acc.push(&first)?;
+    acc.push(&first, sink)?;
     for chunk in chunks {
-        acc.push(&chunk?)?;
+        acc.push(&chunk?, sink)?;
     }
-    acc.finish()
+    acc.finish(sink)
 }
 
 /// `b`'s samples after `a`'s (the same channels).
@@ -828,7 +845,7 @@ impl Accumulated {
         })
     }
 
-    fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
+    fn push(&mut self, chunk: &Recording, sink: &mut ShaftSink) -> Result<(), AppError> {
         let x = ShaftInputs::of(chunk)?;
         // The step held to the first chunks' rate, across chunk boundaries too.
         for (i, &now) in x.t.iter().enumerate() {
@@ -852,6 +869,7 @@ impl Accumulated {
         }
         self.seen += x.t.len();
         self.stage.push(&x, &mut self.samples, &mut self.alarms)?;
+        sink(&self.samples, &self.alarms).map_err(AppError::Invalid)?;
         self.take();
         Ok(())
     }
@@ -929,8 +947,9 @@ impl Accumulated {
         self.stride *= 2;
     }
 
-    fn finish(mut self) -> Result<ShaftMonitor, AppError> {
+    fn finish(mut self, sink: &mut ShaftSink) -> Result<ShaftMonitor, AppError> {
         self.stage.finish(&mut self.samples, &mut self.alarms)?;
+        sink(&self.samples, &self.alarms).map_err(AppError::Invalid)?;
         self.take();
         let mut out = self.out;
         out.final_estimate = self.stage.estimate();

@@ -7,6 +7,7 @@ mod out;
 mod plot;
 mod progress;
 mod report;
+mod tracks;
 
 use clap::{Parser, Subcommand};
 

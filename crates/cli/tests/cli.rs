@@ -82,7 +82,7 @@ fn estimate_json_recovers_the_parameters() {
             "--p0",
             "1e6",
             "--json",
-            "--out",
+            "--tracks",
             out_csv.to_str().unwrap(),
         ]);
         assert!(o.status.success(), "{method}: {}", stderr(&o));
@@ -111,10 +111,15 @@ fn estimate_json_recovers_the_parameters() {
             }
         }
         let track = std::fs::read_to_string(&out_csv).unwrap();
+        // The time, then the tracks; a units row (t in s).
         assert!(
-            track.starts_with("y_predicted,prediction_error,a,b,c,a_std_err,b_std_err,c_std_err")
+            track.starts_with(
+                "t,y_predicted,prediction_error,a,b,c,a_std_err,b_std_err,c_std_err\ns,"
+            ),
+            "{}",
+            &track[..100]
         );
-        assert_eq!(track.lines().count(), 2001);
+        assert_eq!(track.lines().count(), 2002);
         // NMSE (Eq. 6.4) of the one-step predictions in the track, computed here.
         let data = std::fs::read_to_string(&csv).unwrap();
         let y: Vec<f64> = data
@@ -124,8 +129,8 @@ fn estimate_json_recovers_the_parameters() {
             .collect();
         let yp: Vec<f64> = track
             .lines()
-            .skip(1)
-            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .skip(2)
+            .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
             .collect();
         let n = y.len() as f64;
         let mse = y
@@ -163,6 +168,45 @@ fn estimate_json_recovers_the_parameters() {
     assert_eq!(v["params"]["c"], 0.5);
     assert!(v["std_err"].get("c").is_none());
     assert!((v["params"]["a"].as_f64().unwrap() - 2.0).abs() < 1e-4);
+    // The tracks in Parquet and MDF4 (as asammdf and MATLAB users take them): the CSV's
+    // values; the old spelling --out still writes them, with a deprecation warning.
+    let csv_track = physid_io::read(&out_csv, &Default::default()).unwrap();
+    for ext in ["parquet", "mf4"] {
+        let f = d.join(format!("track.{ext}"));
+        let args = |flag: &'static str| {
+            vec![
+                "estimate".to_string(),
+                "--data".into(),
+                csv.to_str().unwrap().into(),
+                "--y".into(),
+                "y".into(),
+                "--phi".into(),
+                "a,b,c".into(),
+                "--method".into(),
+                "dsfc".into(),
+                "--p0".into(),
+                "1e6".into(),
+                flag.into(),
+                f.to_str().unwrap().into(),
+            ]
+        };
+        let a = args("--tracks");
+        let o = physid(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(o.stderr.is_empty(), "{}", stderr(&o));
+        let t = physid_io::read(&f, &Default::default()).unwrap();
+        assert_eq!(t.names(), csv_track.names(), "{ext}");
+        assert_eq!(t.channel("t").unwrap().unit, "s");
+        assert_eq!(
+            t.values("a").unwrap(),
+            csv_track.values("a").unwrap(),
+            "{ext}"
+        );
+        let a = args("--out");
+        let o = physid(&a.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--tracks"), "{}", stderr(&o));
+    }
 }
 
 #[test]

@@ -444,6 +444,38 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
         .unwrap();
         assert_eq!(got, want, "{ext}");
         assert_eq!(got["alarms"][0]["param"], "K", "{ext}: {got}");
+
+        // The tracks, every estimator sample, in the same format: K's last sample is the final
+        // estimate, and alarm_K turns 1 when the alarm was raised.
+        let tracks = s.file(&format!("shaft-tracks.{ext}"));
+        let o = physid(&[
+            "monitor",
+            "shaft",
+            "--data",
+            f.to_str().unwrap(),
+            "--tracks",
+            tracks.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let tr = physid_io::read(&tracks, &Default::default()).unwrap();
+        let (t, k, alarm) = (
+            tr.values("t").unwrap(),
+            tr.values("K").unwrap(),
+            tr.values("alarm_K").unwrap(),
+        );
+        assert_eq!(tr.channel("K").unwrap().unit, "N*m/rad");
+        assert!(
+            (t.len() as f64 - 8.0 * 2000.0).abs() < 50.0,
+            "{ext}: {}",
+            t.len()
+        );
+        assert_eq!(k[k.len() - 1], got["final"]["K"].as_f64().unwrap(), "{ext}");
+        let raised = got["alarms"][0]["t_raised_s"].as_f64().unwrap();
+        let first = t[alarm.iter().position(|&a| a == 1.0).unwrap()];
+        assert_eq!(first, raised, "{ext}");
+        assert!(alarm[t.iter().position(|&x| x >= raised).unwrap()..]
+            .iter()
+            .all(|&a| a == 1.0));
     }
 
     // Motored and fired runs through the cycle-indexed stages.

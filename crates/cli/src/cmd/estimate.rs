@@ -3,8 +3,9 @@
 
 use super::named_values;
 use crate::out::outln;
-use miette::{miette, IntoDiagnostic, Result, WrapErr};
-use physid_core::{Basis, Channel, ParamSet, Recording};
+use crate::tracks::TrackFile;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_core::{ParamSet, Recording};
 use physid_estim::metrics::Prediction;
 use physid_estim::{
     feed, CovSpec, EstimError, EstimatorConfig, FeedError, FeedSummary, GuardAction,
@@ -92,8 +93,12 @@ pub struct Args {
     /// Samples with NaN/inf: error (stop and report) or skip (count them).
     #[arg(long, default_value = "error")]
     pub on_bad: OnBad,
-    /// Write the estimates, standard errors and prediction error of every sample to this CSV.
-    #[arg(long)]
+    /// Write the time, one-step prediction, prediction error, estimates and standard errors of
+    /// every sample to this file (.csv, .parquet or .mf4), as they come.
+    #[arg(long, value_name = "FILE")]
+    pub tracks: Option<PathBuf>,
+    /// Deprecated: --tracks.
+    #[arg(long, hide = true)]
     pub out: Option<PathBuf>,
     /// Print the result as JSON.
     #[arg(long)]
@@ -239,38 +244,46 @@ pub fn run(args: &Args) -> Result<()> {
             wanted.push(c);
         }
     }
-    let mut reader = args.input.open(&args.data, &wanted, &[])?;
+    let optional: &[&str] = if tracks_wanted(args) { &["t"] } else { &[] };
+    let mut reader = args.input.open(&args.data, &wanted, optional)?;
 
     let method_name = est.method_name();
-    // --out: the tracks' columns and this chunk's rows of them.
-    let mut tracks = match &args.out {
-        Some(out) => {
-            let mut track_names = vec!["y_predicted".to_string(), "prediction_error".into()];
-            track_names.extend(names.iter().cloned());
-            track_names.extend(names.iter().map(|n| format!("{n}_std_err")));
-            let rows = |names: &[String], rows: Vec<Vec<f64>>| -> Result<Recording> {
-                let mut r = Recording::new(Basis::Time);
-                for (name, values) in names.iter().zip(rows) {
-                    r.push(Channel {
-                        name: name.clone(),
-                        unit: String::new(),
-                        values,
-                    })
-                    .into_diagnostic()?;
-                }
-                Ok(r)
-            };
-            let w = physid_io::CsvWriter::create(
-                out,
-                &rows(&track_names, vec![Vec::new(); track_names.len()])?,
-            )
-            .into_diagnostic()
-            .wrap_err("writing --out")?;
-            let buffers = vec![Vec::new(); track_names.len()];
-            Some((w, track_names, buffers, rows))
+    // --tracks (or the old --out): time, prediction, error, estimates and standard errors of
+    // every sample, written as they come.
+    let tracks_path = match (&args.tracks, &args.out) {
+        (Some(p), _) => Some(p),
+        (None, Some(p)) => {
+            eprintln!(
+                "warning: estimate --out FILE is now --tracks FILE (CSV, Parquet or MDF4 by the extension); --out will be removed"
+            );
+            Some(p)
+        }
+        (None, None) => None,
+    };
+    let y_unit = reader
+        .header()
+        .channel(&args.y)
+        .map(|c| c.unit.clone())
+        .unwrap_or_default();
+    let has_t = reader.header().channel("t").is_ok();
+    let mut tracks = match tracks_path {
+        Some(path) => {
+            let mut columns = vec![
+                ("t".to_string(), if has_t { "s" } else { "" }.to_string()),
+                ("y_predicted".into(), y_unit.clone()),
+                ("prediction_error".into(), y_unit),
+            ];
+            columns.extend(names.iter().map(|n| (n.clone(), String::new())));
+            columns.extend(
+                names
+                    .iter()
+                    .map(|n| (format!("{n}_std_err"), String::new())),
+            );
+            Some(TrackFile::create(path, columns)?)
         }
         None => None,
     };
+    let mut track_error = None;
     let mut prediction = Prediction::default();
     let mut fed = FeedSummary {
         accepted: 0,
@@ -283,6 +296,8 @@ pub fn run(args: &Args) -> Result<()> {
     for chunk in crate::progress::Reading::new(&mut reader, &args.data) {
         let chunk = chunk.into_diagnostic()?;
         let y = chunk.values(&args.y).into_diagnostic()?;
+        // The sample index stands for the time in a file without `t`.
+        let t = chunk.values("t").ok();
         let derived: Vec<Option<Vec<f64>>> = regressors
             .iter()
             .map(|r| r.derive(&chunk).map_err(|e| miette!("{file}: {e}")))
@@ -298,22 +313,16 @@ pub fn run(args: &Args) -> Result<()> {
             .collect::<Result<_>>()?;
         let part = feed(est.as_mut(), &cols, y, args.on_bad, |i, step, est| {
             prediction.push(y[i], y[i] - step.prediction_error);
-            if let Some((_, _, buffers, _)) = &mut tracks {
+            if let Some(tf) = &mut tracks {
                 let se = est.std_errors();
-                let mut row = buffers.iter_mut();
-                let mut put = |v: f64| {
-                    if let Some(c) = row.next() {
-                        c.push(v);
-                    }
-                };
-                put(y[i] - step.prediction_error);
-                put(step.prediction_error);
                 let theta = est.estimate();
-                for &v in &theta {
-                    put(v);
-                }
-                for j in 0..theta.len() {
-                    put(se.as_ref().map_or(f64::NAN, |s| s[j]));
+                let t = t.map_or((offset + i) as f64, |t| t[i]);
+                let row = [t, y[i] - step.prediction_error, step.prediction_error]
+                    .into_iter()
+                    .chain(theta.iter().copied())
+                    .chain((0..theta.len()).map(|j| se.as_ref().map_or(f64::NAN, |s| s[j])));
+                if let Err(e) = tf.row(row) {
+                    track_error.get_or_insert(e);
                 }
             }
         })
@@ -326,19 +335,15 @@ pub fn run(args: &Args) -> Result<()> {
                 e => miette!("{file}, {at}: {e}"),
             }
         })?;
-        if let Some((w, track_names, buffers, rows)) = &mut tracks {
-            let chunk = rows(track_names, std::mem::take(buffers))?;
-            *buffers = vec![Vec::new(); track_names.len()];
-            w.append(&chunk)
-                .into_diagnostic()
-                .wrap_err("writing --out")?;
+        if let Some(e) = track_error.take() {
+            return Err(e);
         }
         fed += part;
         offset += y.len();
     }
     super::warn_read(&reader, &args.data);
-    if let Some((w, ..)) = tracks {
-        w.close().into_diagnostic().wrap_err("writing --out")?;
+    if let Some(tf) = tracks {
+        tf.close()?;
     }
     let FeedSummary {
         accepted,
@@ -477,4 +482,9 @@ impl Regressor {
                 .collect(),
         ))
     }
+}
+
+/// Whether the run writes tracks (`--tracks`, or the old `--out`).
+fn tracks_wanted(args: &Args) -> bool {
+    args.tracks.is_some() || args.out.is_some()
 }

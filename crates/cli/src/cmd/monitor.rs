@@ -5,12 +5,14 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
+use crate::tracks::TrackFile;
 use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::{
-    monitor_shaft, monitor_shaft_stream, MonitorConfig, MonitorMethod, ShaftMonitor, ShaftParams,
-    SHAFT_CHANNELS, SHAFT_TRUTH,
+    monitor_shaft_tracked, on_time_basis, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
+    ShaftParams, ShaftSample, SHAFT_CHANNELS, SHAFT_TRUTH,
 };
-use physid_core::Basis;
+use physid_core::{Basis, Recording};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid monitor`.
@@ -44,6 +46,41 @@ struct ShaftArgs {
     /// Directory for the report (report.html, shaft.svg, shaft.json).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write every estimator sample — t, K, B and their standard errors, τ0, the alarms (1 once
+    /// raised) and with --supervise the frozen flags — to this file (.csv, .parquet or .mf4),
+    /// with units, as they come.
+    #[arg(long, value_name = "FILE")]
+    tracks: Option<PathBuf>,
+}
+
+/// The tracks file's columns (name, unit).
+fn track_columns(cfg: &MonitorConfig) -> Vec<(String, String)> {
+    let mut c: Vec<(String, String)> = [
+        ("t", "s"),
+        ("K", "N*m/rad"),
+        ("K_std_err", "N*m/rad"),
+        ("B", "N*m*s/rad"),
+        ("B_std_err", "N*m*s/rad"),
+        ("tau0", "N*m"),
+        ("alarm_K", "-"),
+        ("alarm_B", "-"),
+    ]
+    .iter()
+    .map(|(n, u)| (n.to_string(), u.to_string()))
+    .collect();
+    if cfg.supervise {
+        for p in ["K", "B", "tau0"] {
+            c.push((format!("frozen_{p}"), "-".into()));
+        }
+    }
+    c
+}
+
+/// A recording in memory as the chunks a file would give.
+fn slices(rec: &Recording) -> impl Iterator<Item = Result<Recording, AppError>> + '_ {
+    (0..rec.len().max(1))
+        .step_by(physid_io::CHUNK_ROWS)
+        .map(move |s| Ok(rec.slice(s..s + physid_io::CHUNK_ROWS)))
 }
 
 /// The shaft monitor's settings, shared by `monitor shaft` and `live`.
@@ -274,13 +311,52 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     // The file read a chunk at a time, only the channels the monitor takes; a crank-angle
     // recording is put on a time basis first, which takes it whole.
     let mut reader = a.input.open(&a.data, &SHAFT_CHANNELS, &SHAFT_TRUTH)?;
+    let mut tracks = match &a.tracks {
+        Some(path) => Some(TrackFile::create(path, track_columns(&cfg))?),
+        None => None,
+    };
+    let mut sink = |samples: &[ShaftSample], alarms: &[ShaftAlarm]| -> Result<(), String> {
+        let Some(tf) = tracks.as_mut() else {
+            return Ok(());
+        };
+        for s in samples {
+            let alarm = |p: &str| {
+                f64::from(u8::from(
+                    alarms
+                        .iter()
+                        .any(|al| al.param == p && al.t_raised_s <= s.t_s),
+                ))
+            };
+            let mut row = vec![
+                s.t_s,
+                s.estimate.k,
+                s.std_err.k,
+                s.estimate.b,
+                s.std_err.b,
+                s.estimate.tau0,
+                alarm("K"),
+                alarm("B"),
+            ];
+            if cfg.supervise {
+                row.extend(s.frozen.map(|f| f64::from(u8::from(f))));
+            }
+            tf.row(row).map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    };
     let r = if reader.header().basis == Basis::CrankAngle {
         let rec = a.input.read(&a.data, None)?;
-        monitor_shaft(&rec, &cfg)
+        match on_time_basis(&rec).map_err(super::app_error(&a.data))? {
+            Some(timed) => monitor_shaft_tracked(slices(&timed), &cfg, &mut sink),
+            None => monitor_shaft_tracked(slices(&rec), &cfg, &mut sink),
+        }
     } else {
-        monitor_shaft_stream(Reading::new(&mut reader, &a.data), &cfg)
+        monitor_shaft_tracked(Reading::new(&mut reader, &a.data), &cfg, &mut sink)
     }
     .map_err(super::app_error(&a.data))?;
+    if let Some(tf) = tracks {
+        tf.close()?;
+    }
     super::warn_read(&reader, &a.data);
     let j = r.summary();
     if let Some(dir) = &a.out {
