@@ -373,6 +373,10 @@ pub struct FrictionFit {
     pub nmse_nominal: f64,
     /// See [`nmse_nominal`](Self::nmse_nominal).
     pub nmse_final: f64,
+    /// Every steady cycle through the estimator, in order: the coefficients' track (the file
+    /// verb's `--tracks`).
+    #[serde(skip)]
+    pub cycles: Vec<FrictionSample>,
 }
 
 /// The model presets by name: the thesis's and the original model's
@@ -508,7 +512,7 @@ pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<Friction
     let mut stage = FrictionStage::new(cfg.clone(), None)?;
     let mut out = Vec::new();
     feed(&mut stage, rec, cfg, &mut out)?;
-    stage.finish(&mut out)
+    finish(stage, out)
 }
 
 /// [`friction_fit`] on a time-basis recording read a chunk at a time (a file, as it comes):
@@ -524,7 +528,20 @@ where
     let mut stage = FrictionStage::new(cfg.clone(), None)?;
     let mut out = Vec::new();
     feed_stream(&mut stage, chunks, &mut out)?;
-    stage.finish(&mut out)
+    finish(stage, out)
+}
+
+/// The file verb's end: the result, with every cycle the stage put out.
+fn finish(mut stage: FrictionStage, mut out: Vec<FrictionOutput>) -> Result<FrictionFit, AppError> {
+    let mut fit = stage.finish(&mut out)?;
+    fit.cycles = out
+        .into_iter()
+        .filter_map(|o| match o {
+            FrictionOutput::Cycle(c) => Some(c),
+            FrictionOutput::Selected { .. } => None,
+        })
+        .collect();
+    Ok(fit)
 }
 
 /// The channels the characterisation reads from a time-basis recording (physid names): those
@@ -1081,6 +1098,7 @@ impl FrictionStage {
             error_pct,
             truth_error_pct,
             data: data.clone(),
+            cycles: Vec::new(),
         })
     }
 }

@@ -261,6 +261,9 @@ pub struct TorqueFit {
     pub last_cycles: [Vec<f64>; 4],
     /// Samples processed.
     pub samples: usize,
+    /// Every cycle's worth (720 samples) through the filter, in order: the estimates' track
+    /// (the file verb's `--tracks`).
+    pub cycles: Vec<TorqueCycle>,
 }
 
 /// What `physid torque fit --json` prints (and the demo's summary holds).
@@ -369,9 +372,22 @@ pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, A
             stage.push_sample(&u, data.y[i], data.t[i], &mut out)?;
         }
     }
-    stage
+    finish(stage, out)
+}
+
+/// The file verb's end: the result, with every cycle the stage put out.
+fn finish(mut stage: TorqueStage, mut out: Vec<TorqueOutput>) -> Result<TorqueFit, AppError> {
+    let mut fit = stage
         .finish(&mut out)?
-        .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))
+        .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))?;
+    fit.cycles = out
+        .into_iter()
+        .filter_map(|o| match o {
+            TorqueOutput::Cycle(c) => Some(c),
+            TorqueOutput::Selected { .. } => None,
+        })
+        .collect();
+    Ok(fit)
 }
 
 /// [`torque_fit`] on a time-basis recording with `theta_en` read a chunk at a time (a file, as
@@ -392,9 +408,7 @@ where
     for chunk in chunks {
         stage.push(&chunk?, &mut out)?;
     }
-    stage
-        .finish(&mut out)?
-        .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))
+    finish(stage, out)
 }
 
 /// The channels the fit reads from a time-basis recording (physid names): those it needs, then
@@ -870,6 +884,7 @@ impl TorqueStage {
             nrmse_after: nrmse(&data.y, &after).unwrap_or(f64::NAN),
             last_cycles,
             samples: n,
+            cycles: Vec::new(),
         }))
     }
 }

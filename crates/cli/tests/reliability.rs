@@ -494,6 +494,34 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
         let got = ok_json(&["torque", "fit", "--data", f.to_str().unwrap(), "--json"]);
         assert_eq!(torque.get_or_insert(got.clone()), &got, "{ext}");
     }
+    // The tracks: a row per steady cycle (friction), per cycle's worth of samples (torque),
+    // ending at the final estimates.
+    let (fj, tj) = (friction.clone().unwrap(), torque.clone().unwrap());
+    for (verb, data, json) in [("friction", "motored", &fj), ("torque", "fired", &tj)] {
+        let tracks = s.file(&format!("{verb}-tracks.parquet"));
+        let data = s.file(&format!("{data}.parquet"));
+        let o = physid(&[
+            verb,
+            "fit",
+            "--data",
+            data.to_str().unwrap(),
+            "--tracks",
+            tracks.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let tr = physid_io::read(&tracks, &Default::default()).unwrap();
+        let rows = tr.len();
+        if verb == "friction" {
+            assert_eq!(rows as u64, json["cycles"]["used"].as_u64().unwrap());
+        } else {
+            assert_eq!(rows as u64, json["samples"].as_u64().unwrap() / 720);
+        }
+        for p in json["estimable"].as_array().unwrap() {
+            let p = p.as_str().unwrap();
+            let last = tr.values(p).unwrap()[rows - 1];
+            assert_eq!(last, json["params"][p].as_f64().unwrap(), "{verb} {p}");
+        }
+    }
     // The columns renamed in the file, mapped back on reading.
     let mut renamed = physid_core::Recording::new(motored.basis);
     for ch in motored.channels() {

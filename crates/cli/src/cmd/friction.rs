@@ -162,6 +162,11 @@ struct FitArgs {
     /// Directory for the report (report.html with its SVGs, friction_fit.json).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write every steady cycle — its operating point, the measured, one-step predicted,
+    /// nominal (and simulated) friction torque, the estimable coefficients and their standard
+    /// errors — to this file (.csv, .parquet or .mf4), with units.
+    #[arg(long, value_name = "FILE")]
+    tracks: Option<PathBuf>,
 }
 
 /// Run `physid friction`.
@@ -196,6 +201,9 @@ fn fit(a: &FitArgs) -> Result<()> {
         friction_fit(&a.input.read(&a.data, None)?, &cfg)
     }
     .map_err(super::app_error(&a.data))?;
+    if let Some(path) = &a.tracks {
+        write_tracks(path, &r)?;
+    }
     let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
@@ -583,4 +591,59 @@ pub fn heatmap(t: &RankTable, preset: &str, path: &std::path::Path) -> Result<()
         &t.parameters,
         &ranks,
     )
+}
+
+/// `--tracks`: a row per steady cycle (see the flag).
+fn write_tracks(path: &Path, r: &FrictionFit) -> Result<()> {
+    let d = &r.data;
+    let truth = d.truth_nm.is_some();
+    let mut columns: Vec<(String, String)> = [
+        ("t", "s"),
+        ("cycle", "-"),
+        ("n", "rpm"),
+        ("p_int", "kPa"),
+        ("p_atm", "kPa"),
+        ("T_oil", "degC"),
+        ("measured", "N*m"),
+        ("predicted", "N*m"),
+        ("nominal", "N*m"),
+    ]
+    .iter()
+    .map(|(n, u)| (n.to_string(), u.to_string()))
+    .collect();
+    if truth {
+        columns.push(("truth".into(), "N*m".into()));
+    }
+    columns.extend(r.estimable.iter().map(|c| (c.clone(), String::new())));
+    columns.extend(
+        r.estimable
+            .iter()
+            .map(|c| (format!("{c}_std_err"), String::new())),
+    );
+    let mut f = crate::tracks::TrackFile::create(path, columns)?;
+    for c in &r.cycles {
+        let k = d
+            .cycle
+            .iter()
+            .position(|&x| x == c.cycle)
+            .ok_or_else(|| miette!("cycle {} is not among the cycle means", c.cycle))?;
+        let mut row = vec![
+            c.t_s,
+            c.cycle as f64,
+            d.n_rpm[k],
+            d.p_int_kpa[k],
+            d.p_atm_kpa[k],
+            d.t_oil_c[k],
+            c.measured_nm,
+            c.predicted_nm,
+            c.nominal_nm,
+        ];
+        if truth {
+            row.push(c.truth_nm.unwrap_or(f64::NAN));
+        }
+        row.extend(&c.params);
+        row.extend(&c.std_err);
+        f.row(row)?;
+    }
+    f.close()
 }

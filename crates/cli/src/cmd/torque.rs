@@ -74,6 +74,11 @@ struct FitArgs {
     /// Directory for the report (report.html with its SVGs, torque_fit.json).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write every cycle's worth (720 samples) through the filter — the estimates and their
+    /// standard errors after it, the RMS one-step prediction error and the RMS measured torque —
+    /// to this file (.csv, .parquet or .mf4), with units.
+    #[arg(long, value_name = "FILE")]
+    tracks: Option<PathBuf>,
 }
 
 /// Run `physid torque`.
@@ -283,6 +288,29 @@ fn fit(a: &FitArgs) -> Result<()> {
         torque_fit(&a.input.read(&a.data, None)?, &cfg)
     }
     .map_err(super::app_error(&a.data))?;
+    if let Some(path) = &a.tracks {
+        let mut columns: Vec<(String, String)> = vec![
+            ("t".into(), "s".into()),
+            ("rms_error".into(), "N*m".into()),
+            ("rms_measured".into(), "N*m".into()),
+        ];
+        columns.extend(r.estimable.iter().map(|p| (p.clone(), String::new())));
+        columns.extend(
+            r.estimable
+                .iter()
+                .map(|p| (format!("{p}_std_err"), String::new())),
+        );
+        let mut f = crate::tracks::TrackFile::create(path, columns)?;
+        for c in &r.cycles {
+            f.row(
+                [c.t_s, c.rms_error_nm, c.rms_measured_nm]
+                    .into_iter()
+                    .chain(c.params.iter().copied())
+                    .chain(c.std_err.iter().copied()),
+            )?;
+        }
+        f.close()?;
+    }
     let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
