@@ -1335,12 +1335,15 @@ fn run_pipeline_json_report_and_exit_code() {
     let d = dir("run");
     let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../pipelines");
     let out = d.join("report");
+    let tracks = d.join("tracks.mf4");
     let o = physid(&[
         "run",
         shipped.join("shaft-expr.toml").to_str().unwrap(),
         "--json",
         "--out",
         out.to_str().unwrap(),
+        "--tracks",
+        tracks.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -1348,6 +1351,16 @@ fn run_pipeline_json_report_and_exit_code() {
     assert!(j["objective"]["value_pct"].as_f64().unwrap() < 5.0);
     let k = j["params"]["K"].as_f64().unwrap();
     assert!((k - 1340.0).abs() < 13.4, "K {k}");
+    // The tracks (MDF4): time, measured, predicted and K, its last point the final K.
+    let tr = physid_io::read(&tracks, &Default::default()).unwrap();
+    assert_eq!(&tr.names()[..3], ["t", "measured", "predicted"]);
+    let kt = tr.values("K").unwrap();
+    assert!(kt.len() > 100);
+    assert!(
+        (kt[kt.len() - 1] - k).abs() <= 1e-9 * k.abs(),
+        "{} vs {k}",
+        kt[kt.len() - 1]
+    );
     assert!(j["std_err"]["K"].is_number());
     assert!(out.join("report.html").exists() && out.join("pipeline.json").exists());
     // An objective no model meets: the run says so and exits non-zero.

@@ -21,6 +21,10 @@ pub struct Args {
     /// Directory for the report (report.html with its SVGs, pipeline.json).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write the run's tracks — time, measured output, one-step prediction and each estimated
+    /// parameter, at the report's ≈ 4000 points — to this file (.csv, .parquet or .mf4).
+    #[arg(long, value_name = "FILE")]
+    tracks: Option<PathBuf>,
 }
 
 fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<Report> {
@@ -122,6 +126,31 @@ pub fn run(args: &Args) -> Result<()> {
     let rec = load_data(&p.data).map_err(|e| miette!("{}: [data] {e}", args.pipeline.display()))?;
     let r = run_pipeline(&p, &rec).map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
     let j = r.summary();
+    if let Some(path) = &args.tracks {
+        // The output as the model takes it: CHANNEL or CHANNEL:UNIT.
+        let y_unit = match p.model.output.split_once(':') {
+            Some((_, unit)) => unit.to_string(),
+            None => rec
+                .channel(&p.model.output)
+                .map(|c| c.unit.clone())
+                .unwrap_or_default(),
+        };
+        let mut columns: Vec<(String, String)> = vec![
+            ("t".into(), "s".into()),
+            ("measured".into(), y_unit.clone()),
+            ("predicted".into(), y_unit),
+        ];
+        columns.extend(r.tracks.iter().map(|(n, _)| (n.clone(), String::new())));
+        let mut f = crate::tracks::TrackFile::create(path, columns)?;
+        for k in 0..r.t.len() {
+            f.row(
+                [r.t[k], r.measured[k], r.predicted[k]]
+                    .into_iter()
+                    .chain(r.tracks.iter().map(|(_, v)| v[k])),
+            )?;
+        }
+        f.close()?;
+    }
     if let Some(dir) = &args.out {
         report::create_dir(dir)?;
         let rep = report(&r, &p, &args.pipeline, dir)?;
