@@ -6,7 +6,7 @@ use physid_apps::acquisition::{from_first_marker, uniform_step, AcquisitionOptio
 use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::on_time_basis;
 use physid_core::{Basis, Channel, Recording};
-use physid_io::{ChunkReader, ReadOptions};
+use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::Scenario;
 use std::path::Path;
@@ -107,7 +107,8 @@ type Chunks = Box<dyn Iterator<Item = Result<Recording, AppError>> + Send>;
 /// A recording replayed in chunks of `chunk_s` seconds: a file read as it comes (memory
 /// does not grow with its length), or one in memory. A crank-angle recording is put on a time
 /// basis first, as the file verbs do (which takes it whole). The sample rate is the mean step
-/// of the first chunk read; every later step is held to it.
+/// of the first chunk read (its first [`CHUNK_ROWS`] samples, whatever the source); every later
+/// step is held to it.
 pub struct ReplaySource {
     chunks: Chunks,
     /// Samples read and not yet handed out: `held[at..]`.
@@ -121,9 +122,6 @@ pub struct ReplaySource {
     t_prev: Option<f64>,
 }
 
-/// Rows of an in-memory recording per chunk taken (as a file is read).
-const READ_ROWS: usize = 65_536;
-
 impl ReplaySource {
     /// `rec` in chunks of `chunk_s` seconds.
     pub fn new(rec: Recording, chunk_s: f64) -> Result<Self, LiveError> {
@@ -133,8 +131,8 @@ impl ReplaySource {
         };
         let n = rec.len();
         let chunks = (0..n.max(1))
-            .step_by(READ_ROWS)
-            .map(move |start| Ok(rec.slice(start..start + READ_ROWS)));
+            .step_by(CHUNK_ROWS)
+            .map(move |start| Ok(rec.slice(start..start + CHUNK_ROWS)));
         Self::from_chunks(Box::new(chunks), chunk_s)
     }
 

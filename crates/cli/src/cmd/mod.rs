@@ -43,9 +43,7 @@ impl InputArgs {
         }
         Ok(rec)
     }
-}
 
-impl InputArgs {
     /// The reading options these flags give, for `channels` (all if `None`).
     pub fn options(&self, channels: Option<Vec<String>>) -> Result<physid_io::ReadOptions> {
         Ok(physid_io::ReadOptions {
