@@ -75,6 +75,53 @@ impl Drop for Progress {
     }
 }
 
+/// Work of unknown length under way (an analysis, a fit): a spinner with the elapsed time,
+/// drawn by a watcher thread once the work has taken the delay (the same rules as
+/// [`Progress`]), cleared when this is dropped.
+pub struct Working {
+    bar: ProgressBar,
+    done: std::sync::Arc<AtomicBool>,
+    watcher: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Working {
+    /// `what` is under way.
+    pub fn new(what: &str) -> Self {
+        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden())
+            .with_style(
+                ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+                    .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            )
+            .with_message(what.to_string());
+        let done = std::sync::Arc::new(AtomicBool::new(false));
+        let watcher = (!QUIET.load(Ordering::Relaxed)).then(|| {
+            let (bar, done, after) = (bar.clone(), done.clone(), after());
+            let start = Instant::now();
+            std::thread::spawn(move || {
+                while !done.load(Ordering::Relaxed) {
+                    if start.elapsed() >= after {
+                        bar.set_draw_target(ProgressDrawTarget::stderr());
+                        bar.enable_steady_tick(Duration::from_millis(100));
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            })
+        });
+        Self { bar, done, watcher }
+    }
+}
+
+impl Drop for Working {
+    fn drop(&mut self) {
+        self.done.store(true, Ordering::Relaxed);
+        if let Some(w) = self.watcher.take() {
+            let _ = w.join();
+        }
+        self.bar.finish_and_clear();
+    }
+}
+
 /// A file read a chunk at a time, with its progress in rows (of the rows the file claims, when
 /// it says).
 pub struct Reading<'a> {

@@ -761,3 +761,30 @@ fn estimate_takes_formulas_over_columns_as_regressors() {
         "theta_xx",
     );
 }
+
+/// Work of unknown length (a pipeline run) shows a spinner on a terminal past the delay, and
+/// nothing with `--quiet`.
+#[test]
+fn a_long_analysis_shows_a_spinner_on_a_terminal() {
+    let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../pipelines");
+    let run = |extra: &str| {
+        let cmd = format!(
+            "PHYSID_PROGRESS_AFTER_MS=0 {} run {} --json {extra}",
+            env!("CARGO_BIN_EXE_physid"),
+            shipped.join("shaft-expr.toml").display()
+        );
+        let o = std::process::Command::new("script")
+            .args(["-qec", &cmd, "/dev/null"])
+            .output()
+            .expect("script (util-linux)");
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let shown = run("");
+    assert!(
+        shown.contains("running") && shown.contains("shaft-expr.toml"),
+        "{shown}"
+    );
+    assert!(shown.contains("\"objective\""), "{shown}");
+    let quiet = run("--quiet");
+    assert!(!quiet.contains("running"), "{quiet}");
+}

@@ -473,7 +473,9 @@ fn rank(a: &RankArgs) -> Result<()> {
         t_oil_c: a.t_oil.clone(),
         p_atm_kpa: a.p_atm,
     };
+    let working = crate::progress::Working::new("ranking the design parameters over the grid");
     let t = friction_rank(&d, &st, &grid, &a.params).map_err(|e| miette!("{e}"))?;
+    drop(working);
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
         let svg = dir.join("rank.svg");

@@ -123,8 +123,10 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
 /// Run `physid run`.
 pub fn run(args: &Args) -> Result<()> {
     let p = Pipeline::load(&args.pipeline).map_err(|e| miette!("{e}"))?;
+    let working = crate::progress::Working::new(&format!("running {}", args.pipeline.display()));
     let rec = load_data(&p.data).map_err(|e| miette!("{}: [data] {e}", args.pipeline.display()))?;
     let r = run_pipeline(&p, &rec).map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
+    drop(working);
     let j = r.summary();
     if let Some(path) = &args.tracks {
         // The output as the model takes it: CHANNEL or CHANNEL:UNIT.
