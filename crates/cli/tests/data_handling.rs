@@ -397,3 +397,48 @@ fn physically_impossible_inputs_are_refused_naming_the_flag_and_range() {
     // happen (shaft-steady has none; fig314's throttle steps lie beyond 1 s).
     simulate(&s, "fig314", "time", "1", "parquet");
 }
+
+/// A lab recording as it comes — a `.dat` file of space-aligned numbers in scientific
+/// notation, no header row — opens in every verb with `--columns` (and `--scale` for the
+/// pressure sensor's volts): `inspect` reports it, `convert` makes a Parquet file of it with the
+/// calibrated pressure in Pa.
+#[test]
+fn a_lab_recording_of_bare_columns_opens_with_columns_and_scale() {
+    let s = Scratch::new("physid-lab");
+    let dat = s.file("run01.dat");
+    let mut text = String::new();
+    for i in 0..2000 {
+        let t = i as f64 * 1e-5;
+        let volts = 1.0 + 0.5 * (2.0 * std::f64::consts::PI * 50.0 * t).sin();
+        text.push_str(&format!(
+            "  {t:.6e}   {:.6e}   {volts:.6e}\n",
+            (i % 7) as f64 - 0.8
+        ));
+    }
+    std::fs::write(&dat, text).unwrap();
+    let flags = ["--columns", "t,pickup,p_cyl", "--scale", "p_cyl=2e5,1e5"];
+    let mut args = vec!["inspect", dat.to_str().unwrap(), "--json"];
+    args.extend(flags);
+    let j = ok_json(&args);
+    assert_eq!(j["channels"].as_array().unwrap().len(), 3);
+    assert_eq!(j["channels"][0]["samples"], 2000);
+    assert!(
+        (j["sample_rate_hz"].as_f64().unwrap() - 1e5).abs() < 1e-3,
+        "{j}"
+    );
+    let pq = s.file("run01.parquet");
+    let mut args = vec!["convert", dat.to_str().unwrap(), pq.to_str().unwrap()];
+    args.extend(flags);
+    let o = physid(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = read(&pq, &ReadOptions::default()).unwrap();
+    let p = r.values("p_cyl").unwrap();
+    // 1 V (the first sample) → 2e5·1 + 1e5 = 3e5 Pa.
+    assert!((p[0] - 3e5).abs() < 1e-6, "{}", p[0]);
+    assert_eq!(r.channel("p_cyl").unwrap().unit, "Pa");
+    // Without --columns, numbers where names should be: a clear error says what to do.
+    let o = physid(&["inspect", dat.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("line 1 holds 3 numbers") && e.contains("--columns"), "{e}");
+}

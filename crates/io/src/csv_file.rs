@@ -12,8 +12,12 @@
 //! basis, so the file stays plain CSV.
 //!
 //! **What physid reads**, so that test-cell exports open as they are:
-//! - the separator from the header line: `;`, tab or `,` (in that order of preference);
-//!   with `;` or tab, decimal commas (`1,5`) are read as well as points;
+//! - the separator from the first line: `;`, tab or `,` (in that order of preference), or runs
+//!   of spaces (columns of numbers aligned with spaces, as `.txt`/`.dat` exports of lab
+//!   systems); with any but `,`, decimal commas (`1,5`) are read as well as points;
+//! - a file without a header row when its columns are named ([`CsvOptions::columns`],
+//!   `--columns t,enc,p_cyl`); a first line of numbers where names should be is refused with
+//!   that hint;
 //! - a units row found by its content (no number in it), or forced by
 //!   [`CsvOptions::units_row`]; units in the header as `name [unit]`;
 //! - `\n` or `\r\n` line ends, a last line without one (read, with a warning in
@@ -34,16 +38,100 @@ pub struct CsvOptions {
     /// Samples are on a crank-angle basis (also found without this by [`crate::read`]:
     /// `cycle` and `crank_deg` columns).
     pub crank_angle: bool,
+    /// The file has no header row: its columns are these (a lab recording of bare numbers).
+    pub columns: Option<Vec<String>>,
 }
 
-/// The separator a header line uses: `;` or tab when present, else `,`.
-fn separator(header: &str) -> u8 {
-    if header.contains(';') {
-        b';'
-    } else if header.contains('\t') {
-        b'\t'
-    } else {
-        b','
+/// How a line separates its cells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sep {
+    /// `,` (decimal points only).
+    Comma,
+    /// `;`.
+    Semicolon,
+    /// One tab.
+    Tab,
+    /// Runs of spaces or tabs (a `.txt`/`.dat` export of columns of numbers).
+    Whitespace,
+}
+
+impl Sep {
+    /// The separator the first line uses: `;` or tab when present; else `,` when the cells are
+    /// separated by commas (with or without a space after them); else runs of whitespace when
+    /// the line has more than one cell; else `,`.
+    fn of(line: &str) -> Self {
+        if line.contains(';') {
+            return Self::Semicolon;
+        }
+        if line.contains('\t') {
+            return Self::Tab;
+        }
+        let cells: Vec<&str> = line.split_whitespace().collect();
+        let by_commas = line.contains(',')
+            && cells[..cells.len().saturating_sub(1)]
+                .iter()
+                .all(|c| c.ends_with(','));
+        if !by_commas && cells.len() > 1 {
+            Self::Whitespace
+        } else {
+            Self::Comma
+        }
+    }
+
+    /// The byte the CSV parser splits on (whitespace runs are collapsed to one tab first).
+    fn byte(self) -> u8 {
+        match self {
+            Self::Comma => b',',
+            Self::Semicolon => b';',
+            Self::Tab | Self::Whitespace => b'\t',
+        }
+    }
+}
+
+/// A text stream in which each run of spaces and tabs between two cells of a line becomes one
+/// tab followed by spaces (those at a line's ends become spaces): columns of numbers aligned with
+/// spaces, as the CSV parser splits them on tabs (and trims the spaces). Every byte keeps its
+/// place, so a record's offset is its offset in the file and lines are counted as in any other
+/// file.
+struct Collapse<R> {
+    inner: R,
+    line: Vec<u8>,
+    at: usize,
+}
+
+impl<R: BufRead> Read for Collapse<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.at == self.line.len() {
+            self.line.clear();
+            self.at = 0;
+            if self.inner.read_until(b'\n', &mut self.line)? == 0 {
+                return Ok(0);
+            }
+            let blank = |b: u8| b == b' ' || b == b'\t';
+            let end = self
+                .line
+                .iter()
+                .rposition(|&b| !blank(b) && b != b'\n' && b != b'\r')
+                .map_or(0, |i| i + 1);
+            let start = self.line.iter().position(|&b| !blank(b)).unwrap_or(end);
+            let mut gap = false;
+            for (i, b) in self.line.iter_mut().enumerate() {
+                if !blank(*b) {
+                    gap = false;
+                    continue;
+                }
+                *b = if (start..end).contains(&i) && !gap {
+                    gap = true;
+                    b'\t'
+                } else {
+                    b' '
+                };
+            }
+        }
+        let n = buf.len().min(self.line.len() - self.at);
+        buf[..n].copy_from_slice(&self.line[self.at..self.at + n]);
+        self.at += n;
+        Ok(n)
     }
 }
 
@@ -97,7 +185,7 @@ pub fn read_csv(path: impl AsRef<Path>, opts: &CsvOptions) -> Result<Recording, 
     Ok(rec)
 }
 
-type CsvSource = std::io::Chain<std::io::Cursor<Vec<u8>>, std::io::BufReader<std::fs::File>>;
+type CsvSource = Box<dyn Read + Send>;
 
 /// A CSV file read a chunk of rows at a time: the header (and units row) on opening, then the
 /// rows as they are asked for — [`read_csv`] is this, drained. Only the columns asked for are
@@ -114,13 +202,14 @@ pub struct CsvChunks {
     all_names: Vec<String>,
     keep: Vec<usize>,
     width: usize,
-    sep: u8,
+    sep: Sep,
     basis: Basis,
     /// Records read so far (the header is record 1; blank lines count).
     row: usize,
     /// `record` holds a data row not yet taken.
     pending: bool,
     first_data_line: u64,
+    /// The byte the last data row starts at.
     last_start: u64,
     warning: Option<String>,
 }
@@ -146,13 +235,22 @@ impl CsvChunks {
             .take(1 << 20)
             .read_until(b'\n', &mut first)
             .map_err(os)?;
-        let sep = separator(&String::from_utf8_lossy(&first));
+        let sep = Sep::of(&String::from_utf8_lossy(&first));
+        let text = std::io::Cursor::new(first).chain(file);
+        let source: CsvSource = match sep {
+            Sep::Whitespace => Box::new(Collapse {
+                inner: std::io::BufReader::new(text),
+                line: Vec::new(),
+                at: 0,
+            }),
+            _ => Box::new(text),
+        };
         let rdr = csv::ReaderBuilder::new()
             .has_headers(false)
-            .delimiter(sep)
+            .delimiter(sep.byte())
             .flexible(true)
             .trim(csv::Trim::All)
-            .from_reader(std::io::Cursor::new(first).chain(file));
+            .from_reader(source);
         let mut s = Self {
             p,
             path: path.to_path_buf(),
@@ -175,18 +273,33 @@ impl CsvChunks {
             last_start: 0,
             warning: None,
         };
-        if !s.next_record()? || s.record.iter().all(str::is_empty) {
-            return Err(IoError::Empty {
-                path: s.p,
-                what: "no header row (expected channel names on the first line)",
-            });
-        }
-        let (names, mut units): (Vec<String>, Vec<String>) =
-            s.record.iter().map(split_header).unzip();
+        let (names, mut units): (Vec<String>, Vec<String>) = match &opts.columns {
+            // No header row: the columns are named by the user, the first line is data.
+            Some(columns) => (columns.clone(), vec![String::new(); columns.len()]),
+            None => {
+                if !s.next_record()? || s.record.iter().all(str::is_empty) {
+                    return Err(IoError::Empty {
+                        path: s.p,
+                        what: "no header row (expected channel names on the first line)",
+                    });
+                }
+                s.row = 1;
+                let decimal_comma = s.decimal_comma();
+                if s.record.iter().all(|c| number(c, decimal_comma).is_some()) {
+                    return Err(IoError::Malformed {
+                        path: s.p,
+                        detail: format!(
+                            "line 1 holds {} numbers, not channel names: a file without a header row? Name its columns with --columns NAME,… (e.g. --columns t,enc,p_cyl)",
+                            s.record.len()
+                        ),
+                    });
+                }
+                s.record.iter().map(split_header).unzip()
+            }
+        };
         s.width = names.len();
-        s.row = 1;
         s.advance()?;
-        if s.pending && s.row == 2 {
+        if s.pending && s.row == 2 && opts.columns.is_none() {
             let cells: Vec<String> = s.record.iter().map(str::to_string).collect();
             if opts.units_row || is_units_row(&cells, s.decimal_comma()) {
                 for (u, cell) in units.iter_mut().zip(cells) {
@@ -212,7 +325,7 @@ impl CsvChunks {
     }
 
     fn decimal_comma(&self) -> bool {
-        self.sep != b','
+        self.sep != Sep::Comma
     }
 
     fn next_record(&mut self) -> Result<bool, IoError> {
@@ -224,11 +337,13 @@ impl CsvChunks {
             })
     }
 
-    /// The line of the record just read. The parser's own line count is one short after
-    /// `\r\n` ends (csv 1.3): lines are counted from the record's byte offset, when a line is
-    /// needed (an error, the first data row), by counting the line ends up to it.
+    /// The line of the record just read. The parser's own line count is one short after `\r\n`
+    /// ends (csv 1.3): lines are counted from the record's byte offset, when a line is needed
+    /// (an error, the first data row), by counting the line ends up to it.
     fn line_here(&self) -> u64 {
-        line_at(&self.path, self.record.position().map_or(0, |q| q.byte()))
+        self.record
+            .position()
+            .map_or(0, |q| line_at(&self.path, q.byte()))
     }
 
     /// Read the next row that is not blank into `record` (`pending`), checking its width.
@@ -245,7 +360,7 @@ impl CsvChunks {
                     line: self.line_here(),
                     expected: self.width,
                     got: self.record.len(),
-                    hint: if self.sep == b',' && self.record.len() > self.width {
+                    hint: if self.sep == Sep::Comma && self.record.len() > self.width {
                         " (decimal commas? use ';' or tab separators with them)"
                     } else {
                         ""
@@ -264,11 +379,14 @@ impl CsvChunks {
         rec.meta.insert("source".into(), self.p.clone());
         rec.meta
             .insert("first_data_line".into(), self.first_data_line.to_string());
-        if self.sep != b',' {
-            rec.meta.insert(
-                "csv_separator".into(),
-                if self.sep == b';' { ";" } else { "tab" }.into(),
-            );
+        let sep = match self.sep {
+            Sep::Comma => None,
+            Sep::Semicolon => Some(";"),
+            Sep::Tab => Some("tab"),
+            Sep::Whitespace => Some("whitespace"),
+        };
+        if let Some(sep) = sep {
+            rec.meta.insert("csv_separator".into(), sep.into());
         }
         if let Some(w) = &self.warning {
             rec.meta.insert("warning".into(), w.clone());

@@ -143,6 +143,12 @@ pub struct ReadOptions {
     /// Keep every channel in the file's units (default: channels of the channel table are
     /// brought to SI).
     pub keep_units: bool,
+    /// A text file without a header row: its columns' names (`--columns t,enc,p_cyl`).
+    pub columns: Option<Vec<String>>,
+    /// Linear sensor calibrations (`--scale NAME=GAIN,OFFSET`): the file's value `v` of
+    /// channel NAME is read as `GAIN·v + OFFSET`, in the channel's unit (the file's, or the one
+    /// `--map` states; a standard channel with none: its SI unit).
+    pub scale: Vec<(String, f64, f64)>,
 }
 
 /// One `--map` item: read the file's `column` as channel `name`, optionally stating its unit.
@@ -182,6 +188,30 @@ impl ReadOptions {
                     column: column.to_string(),
                     unit,
                 })
+            })
+            .collect()
+    }
+
+    /// Parse `NAME=GAIN,OFFSET` items (the `--scale` option).
+    pub fn parse_scale(items: &[String]) -> Result<Vec<(String, f64, f64)>, String> {
+        items
+            .iter()
+            .map(|s| {
+                let bad = || {
+                    format!("--scale '{s}': expected NAME=GAIN,OFFSET with numbers, e.g. p_cyl=2.5e5,1e5")
+                };
+                let (name, rest) = s.split_once('=').ok_or_else(bad)?;
+                let (g, o) = rest.split_once(',').ok_or_else(bad)?;
+                let (g, o): (f64, f64) = (
+                    g.trim().parse().map_err(|_| bad())?,
+                    o.trim().parse().map_err(|_| bad())?,
+                );
+                if !(g.is_finite() && o.is_finite()) || g == 0.0 || name.trim().is_empty() {
+                    return Err(format!(
+                        "--scale '{s}': the gain must be a finite number other than 0, the offset finite"
+                    ));
+                }
+                Ok((name.trim().to_string(), g, o))
             })
             .collect()
     }
@@ -272,6 +302,12 @@ impl ChunkReader {
             }
             Ok::<_, IoError>(())
         };
+        if opts.columns.is_some() && format != Format::Csv {
+            return Err(IoError::Malformed {
+                path: p,
+                detail: "--columns names the columns of a text file without a header row; Parquet and MDF4 files name their own".into(),
+            });
+        }
         let (mut header, source, claimed) = match format {
             Format::Csv => {
                 let c = crate::csv_file::CsvChunks::open(
@@ -279,6 +315,7 @@ impl ChunkReader {
                     &CsvOptions {
                         units_row: opts.units_row,
                         crank_angle: opts.crank_angle,
+                        columns: opts.columns.clone(),
                     },
                     file_channels.as_deref(),
                 )?;
@@ -345,6 +382,47 @@ impl ChunkReader {
                         .collect::<Vec<_>>()
                         .join(", "),
                 );
+            }
+        }
+        // Sensor calibrations first, in the channel's unit, then that unit to SI; a standard
+        // channel without a unit is calibrated into its SI unit, and says so.
+        let mut labelled = Recording::new(header.basis);
+        labelled.meta = std::mem::take(&mut header.meta);
+        for c in header.channels() {
+            let calibrated = opts.scale.iter().any(|(n, ..)| n == &c.name);
+            let unit = match physid_core::standard_unit(&c.name) {
+                Some(si) if calibrated && c.unit.is_empty() => si.to_string(),
+                _ => c.unit.clone(),
+            };
+            labelled
+                .push(Channel {
+                    name: c.name.clone(),
+                    unit,
+                    values: Vec::new(),
+                })
+                .map_err(|source| IoError::Recording {
+                    path: p.clone(),
+                    source,
+                })?;
+        }
+        header = labelled;
+        for (name, gain, offset) in &opts.scale {
+            match header.channels().iter().position(|c| &c.name == name) {
+                Some(k) => {
+                    let (s, o) = convert[k];
+                    convert[k] = (gain * s, offset * s + o);
+                }
+                None if opts.channels.is_none() => {
+                    return Err(IoError::Recording {
+                        path: p,
+                        source: physid_core::RecordingError::MissingChannel {
+                            name: format!("{name} (in --scale)"),
+                            available: header.names().join(", "),
+                        },
+                    })
+                }
+                // A channel the verb does not read.
+                None => {}
             }
         }
         Ok(Self {

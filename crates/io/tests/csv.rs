@@ -259,3 +259,84 @@ fn pandas_reads_physids_csv() {
         assert!(pandas == ch.values, "{}", ch.name);
     }
 }
+
+/// A lab recording as it comes: a `.dat` file of columns of numbers aligned with spaces, in
+/// scientific notation, no header row (the columns named with `--columns`), leading spaces, a
+/// blank line; read with a sensor calibration (`--scale`) into the unit `--map` states, then to
+/// SI. A bad cell is placed on its line of the file.
+#[test]
+fn whitespace_columns_without_a_header_and_a_calibration() {
+    let s = Scratch::new("physid-io");
+    let f = s.file("lab.dat");
+    std::fs::write(
+        &f,
+        "  0.000000e+00   -7.812500e-01   1.250000e+00\n\
+         \x20 1.000000e-05    4.375000e+00   1.260000e+00\n\
+         \n\
+         \x20 2.000000e-05\t  -7.500000e-01   1.270000e+00\n",
+    )
+    .unwrap();
+    let opts = ReadOptions {
+        columns: Some(vec!["t".into(), "enc".into(), "p_cyl".into()]),
+        map: ReadOptions::parse_map(&["p_cyl=p_cyl:bar".into()]).unwrap(),
+        scale: ReadOptions::parse_scale(&["p_cyl=10,-2".into()]).unwrap(),
+        ..Default::default()
+    };
+    let r = read(&f, &opts).unwrap();
+    assert_eq!(r.names(), ["t", "enc", "p_cyl"]);
+    assert_eq!(r.values("t").unwrap(), [0.0, 1e-5, 2e-5]);
+    assert_eq!(r.values("enc").unwrap(), [-0.78125, 4.375, -0.75]);
+    // (10·v − 2) bar → Pa.
+    let p = r.values("p_cyl").unwrap();
+    for (got, v) in p.iter().zip([1.25, 1.26, 1.27]) {
+        assert!((got - (10.0 * v - 2.0) * 1e5).abs() < 1e-6, "{got}");
+    }
+    assert_eq!(r.channel("p_cyl").unwrap().unit, "Pa");
+    assert_eq!(r.meta["csv_separator"], "whitespace");
+    assert_eq!(r.meta["first_data_line"], "1");
+    // Decimal commas between spaces, a header row this time.
+    let g = s.file("komma.txt");
+    std::fs::write(&g, "t  x\n0,5  1,25\n1,5  2,5\n").unwrap();
+    let r = plain(&g).unwrap();
+    assert_eq!(r.values("x").unwrap(), [1.25, 2.5]);
+    // "a, b, c" is still comma-separated.
+    let h = s.file("spaced.csv");
+    std::fs::write(&h, "t, x\n0, 1.5\n1, 2.5\n").unwrap();
+    assert_eq!(plain(&h).unwrap().values("x").unwrap(), [1.5, 2.5]);
+    // A bad cell on line 4 of the file (the blank line counts).
+    std::fs::write(&f, "0 1\n1 2\n\n2 x3\n").unwrap();
+    let e = read(
+        &f,
+        &ReadOptions {
+            columns: Some(vec!["t".into(), "y".into()]),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("line 4") && e.contains("'x3'"), "{e}");
+    // --columns with a file that has a header: its first line is not numbers.
+    let e = read(
+        &g,
+        &ReadOptions {
+            columns: Some(vec!["t".into(), "x".into()]),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("line 1"), "{e}");
+    // A calibration of a channel that is not there; a bad one.
+    let e = read(
+        &g,
+        &ReadOptions {
+            scale: ReadOptions::parse_scale(&["p_cyl=1,0".into()]).unwrap(),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("p_cyl (in --scale)"), "{e}");
+    assert!(ReadOptions::parse_scale(&["p_cyl=2".into()]).is_err());
+    assert!(ReadOptions::parse_scale(&["p_cyl=0,1".into()]).is_err());
+}

@@ -31,6 +31,14 @@ pub struct InputArgs {
     /// numbers).
     #[arg(long)]
     pub units_row: bool,
+    /// A text file without a header row (columns of numbers separated by commas, semicolons,
+    /// tabs or spaces): its columns' names, e.g. --columns t,enc,p_cyl.
+    #[arg(long, value_delimiter = ',', value_name = "NAME,…")]
+    pub columns: Vec<String>,
+    /// Linear sensor calibration: read channel NAME as GAIN·value + OFFSET in its unit
+    /// (repeatable), e.g. --scale p_cyl=2.5e5,1e5 for a pressure sensor's volts into Pa.
+    #[arg(long = "scale", value_name = "NAME=GAIN,OFFSET")]
+    pub scale: Vec<String>,
 }
 
 impl InputArgs {
@@ -50,6 +58,8 @@ impl InputArgs {
             channels,
             map: physid_io::ReadOptions::parse_map(&self.map).map_err(|e| miette!("{e}"))?,
             units_row: self.units_row,
+            columns: (!self.columns.is_empty()).then(|| self.columns.clone()),
+            scale: physid_io::ReadOptions::parse_scale(&self.scale).map_err(|e| miette!("{e}"))?,
             ..Default::default()
         })
     }
