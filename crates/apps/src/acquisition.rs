@@ -316,6 +316,11 @@ fn engine_angle(
                 ))
             })?;
         let counts = rec.values(name)?;
+        if let Some(why) = physid_signal::encoder::uneven_spacing(t, counts, *ppr) {
+            return Err(AcquisitionError::Invalid(format!(
+                "'{name}' as an encoder of {ppr} pulses per revolution: {why} — decode the wheel's signal into a crank angle (theta_en) first"
+            )));
+        }
         let enc = Encoder { ppr: *ppr };
         let theta = enc.angle(counts, 0);
         let mut tt = vec![t[0]];

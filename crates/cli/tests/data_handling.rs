@@ -440,5 +440,56 @@ fn a_lab_recording_of_bare_columns_opens_with_columns_and_scale() {
     let o = physid(&["inspect", dat.to_str().unwrap()]);
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("line 1 holds 3 numbers") && e.contains("--columns"), "{e}");
+    assert!(
+        e.contains("line 1 holds 3 numbers") && e.contains("--columns"),
+        "{e}"
+    );
+}
+
+/// The tempting shortcut: a 60−3 wheel's 57 real teeth counted and given as a 57-pulse
+/// encoder. The crank angle taken from such counts is wrong by up to the gap (12.6°), so the
+/// counts are found out: `inspect` reports them (`uneven_pulses`) and the crank-angle
+/// conversion refuses them, saying why.
+#[test]
+fn a_toothed_wheel_counted_as_an_encoder_is_found_out() {
+    let s = Scratch::new("physid-wheel-counts");
+    let f = s.file("wheel.csv");
+    let mut text = String::from("t,count_en\n");
+    for i in 0..60_000 {
+        let t = i as f64 / 100_000.0;
+        let theta = 104.72 * t + 0.02 * (2.0 * std::f64::consts::PI * 8.0 * t).sin();
+        let rev = (theta / std::f64::consts::TAU).floor();
+        let k = ((theta / std::f64::consts::TAU - rev) * 60.0)
+            .floor()
+            .min(56.0);
+        text.push_str(&format!("{t},{}\n", rev * 57.0 + k));
+    }
+    std::fs::write(&f, text).unwrap();
+    let j = ok_json(&[
+        "inspect",
+        f.to_str().unwrap(),
+        "--encoder",
+        "count_en=57",
+        "--json",
+    ]);
+    let found: Vec<&Value> = j["integrity"]["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["kind"] == "uneven_pulses")
+        .collect();
+    assert_eq!(found.len(), 1, "{j}");
+    assert!(found[0]["detail"].as_str().unwrap().contains("count_en"));
+    let out = s.file("deg.parquet");
+    let o = physid(&[
+        "convert",
+        f.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--crank-angle",
+        "--encoder",
+        "count_en=57",
+    ]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("not equally spaced in angle"), "{e}");
 }

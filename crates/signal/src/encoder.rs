@@ -159,3 +159,67 @@ pub fn marker_edges(marker: &[f64]) -> Vec<usize> {
     }
     v
 }
+
+/// A revolution's longest time per pulse against its median beyond which pulses are not
+/// equally spaced in angle: a toothed wheel's gap of M missing teeth lasts M + 1 pulse
+/// periods (4× for a 60−3 wheel), while an engine's speed changes within a revolution by a few
+/// per cent.
+pub const GAP_RATIO: f64 = 1.8;
+
+/// Whether an encoder's count steps are equally spaced in angle, as `Encoder::angle` takes
+/// them: over each full revolution (`ppr` pulses) of the count `counts` against the time `t`,
+/// the longest time per pulse against the median. The counts of a trigger wheel with missing
+/// teeth (a 60−3 wheel's 57 real teeth) have one step per revolution [`GAP_RATIO`] times
+/// longer or more — a crank angle taken from them is wrong by up to the gap (12.6° for
+/// 60−3). `Some(description)` when most revolutions (at least 3) show such a gap, beyond the
+/// sample period's uncertainty on either; `None` too when the pulses are not resolved in time
+/// (less than 4 samples per pulse: the steps' timing cannot tell).
+pub fn uneven_spacing(t: &[f64], counts: &[f64], ppr: u32) -> Option<String> {
+    let ppr = ppr as usize;
+    if ppr < 4 || t.len() != counts.len() || t.len() < 3 {
+        return None;
+    }
+    let ts = crate::integrity::median_step(t)?;
+    // Time per pulse of each count step.
+    let mut per_pulse: Vec<f64> = Vec::new();
+    let mut last: Option<(f64, f64)> = None;
+    for (&ti, &c) in t.iter().zip(counts) {
+        if !(ti.is_finite() && c.is_finite()) {
+            continue;
+        }
+        match last {
+            Some((t0, c0)) if c > c0 => {
+                let pulses = (c - c0).round().max(1.0) as usize;
+                for _ in 0..pulses.min(ppr) {
+                    per_pulse.push((ti - t0) / pulses as f64);
+                }
+                last = Some((ti, c));
+            }
+            None => last = Some((ti, c)),
+            _ => {}
+        }
+    }
+    let (mut revolutions, mut gapped, mut worst) = (0usize, 0usize, 0.0f64);
+    let mut window = Vec::with_capacity(ppr);
+    for rev in per_pulse.chunks_exact(ppr) {
+        window.clear();
+        window.extend_from_slice(rev);
+        window.sort_unstable_by(f64::total_cmp);
+        let median = window[ppr / 2];
+        if median < 4.0 * ts {
+            return None;
+        }
+        // The longest against the median, each given the benefit of one sample period.
+        let ratio = (window[ppr - 1] - ts) / (median + ts);
+        revolutions += 1;
+        if ratio >= GAP_RATIO {
+            gapped += 1;
+            worst = worst.max(ratio);
+        }
+    }
+    (revolutions >= 3 && 2 * gapped > revolutions).then(|| {
+        format!(
+            "in {gapped} of {revolutions} revolutions one count step lasts {worst:.1}× the others or more: the counts are not equally spaced in angle (a trigger wheel with missing teeth?), so no crank angle can be taken from them"
+        )
+    })
+}

@@ -11,6 +11,7 @@
 //! | `extra_pulses` | more (electrical noise) |
 //! | `out_of_sync` | a TDC marker displaced against its own encoder's count (the next interval compensates) |
 //! | `count_backwards` | an encoder count that decreases |
+//! | `uneven_pulses` | an encoder whose count steps are not equally spaced in angle — one step per revolution lasting 1.8× the others or more, as a trigger wheel's missing teeth make them ([`crate::encoder::uneven_spacing`], judged on the first 65 536 samples when the pulses are resolved in time) |
 //! | `unit_mismatch` | a channel of the table (DESIGN.md) with another unit than its SI one (`T_oil` in °C) |
 //! | `incomplete_cycle` | crank-angle basis: a cycle inside the recording with the wrong number of samples |
 //!
@@ -51,6 +52,8 @@ pub enum FindingKind {
     UnitMismatch,
     /// An encoder count going backwards.
     CountBackwards,
+    /// An encoder's count steps not equally spaced in angle (a wheel with missing teeth).
+    UnevenPulses,
     /// Information (a partial cycle at either end, no marker): a note, never a finding.
     Note,
 }
@@ -278,6 +281,18 @@ impl IntegrityCheck {
         }
         let mut s = IntegrityStream::new(&self.opts, self.basis, step);
         s.c = std::mem::take(&mut self.early);
+        if self.basis == Basis::Time {
+            let t = head("t");
+            for (name, ppr) in &self.opts.encoders {
+                if let Some(why) = crate::encoder::uneven_spacing(&t, &head(name), *ppr) {
+                    s.c.push(
+                        FindingKind::UnevenPulses,
+                        0,
+                        format!("'{name}' ({ppr} pulses per revolution): {why}"),
+                    );
+                }
+            }
+        }
         self.stream = Some(s);
         for c in &pending {
             self.scan(c);

@@ -102,3 +102,43 @@ fn exact_on_quadratic_angles_and_markers() {
     assert_eq!(first_marker(&[1.0, 0.0]), Some(0));
     assert_eq!(first_marker(&[0.0; 4]), None);
 }
+
+/// The counts of a 60−3 wheel's 57 real teeth, taken for a 57-pulse encoder, are found out
+/// (one step per revolution lasts four), at constant speed and through a speed ramp and a
+/// cyclic fluctuation; an even encoder's counts, with the same speed changes and sampling, are
+/// not.
+#[test]
+fn counts_not_equally_spaced_in_angle_are_found() {
+    use physid_signal::encoder::uneven_spacing;
+    // 100 kHz, as a lab system samples a pickup (≈ 100 samples a tooth at 1000 rpm).
+    let fs = 100_000.0;
+    let t: Vec<f64> = (0..400_000).map(|i| i as f64 / fs).collect();
+    // Crank angle [rad]: 1000 rpm ramping to 1300 rpm, ±3 % cyclic fluctuation.
+    let theta: Vec<f64> = t
+        .iter()
+        .map(|&t| {
+            let w = 104.7 * (1.0 + 0.075 * t);
+            w * t + 0.03 * (2.0 * std::f64::consts::PI * 8.0 * t).sin()
+        })
+        .collect();
+    // 60−3: teeth at multiples of 6° except the three after each 0° (teeth 57, 58, 59 missing).
+    let tooth = |th: f64| {
+        let rev = (th / std::f64::consts::TAU).floor();
+        let k = ((th / std::f64::consts::TAU - rev) * 60.0)
+            .floor()
+            .min(56.0);
+        rev * 57.0 + k
+    };
+    let wheel: Vec<f64> = theta.iter().map(|&th| tooth(th)).collect();
+    let e = uneven_spacing(&t, &wheel, 57).expect("a 60−3 wheel's counts");
+    assert!(e.contains("not equally spaced"), "{e}");
+    // An even 360-pulse encoder on the same shaft: fine.
+    let even = counts_from_angle(&theta, 360);
+    assert_eq!(uneven_spacing(&t, &even, 360), None);
+    let even57 = counts_from_angle(&theta, 57);
+    assert_eq!(uneven_spacing(&t, &even57, 57), None);
+    // Pulses not resolved in time (10 kHz against 6000 pulses a second): no judgement.
+    let coarse: Vec<f64> = t.iter().step_by(10).copied().collect();
+    let even: Vec<f64> = even.iter().step_by(10).copied().collect();
+    assert_eq!(uneven_spacing(&coarse, &even, 360), None);
+}
