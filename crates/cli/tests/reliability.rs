@@ -735,6 +735,13 @@ fn estimate_takes_formulas_over_columns_as_regressors() {
     };
     let derived = est(&raw, "theta_dy-theta_en,omega_dy-omega_en");
     let columns = est(&pre, "dth,dw");
+    // `1` is an offset regressor: zero within its ±3σ here, the torque has none.
+    let with_offset = est(&raw, "theta_dy-theta_en,omega_dy-omega_en,1");
+    let (offset, se) = (
+        with_offset["params"]["1"].as_f64().unwrap(),
+        with_offset["std_err"]["1"].as_f64().unwrap(),
+    );
+    assert!(offset.abs() < 3.0 * se, "{with_offset}");
     assert_eq!(
         derived["params"]["theta_dy-theta_en"],
         columns["params"]["dth"]

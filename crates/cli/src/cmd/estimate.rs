@@ -27,7 +27,8 @@ pub struct Args {
     #[arg(long)]
     pub y: String,
     /// Linear methods: the regressor φ, comma separated — columns, or formulas over columns
-    /// (`theta_dy-theta_en`, `omega_en^2`; without commas); they name the parameters.
+    /// (`theta_dy-theta_en`, `omega_en^2`; without commas), or `1` for an offset; they name the
+    /// parameters.
     #[arg(long, value_delimiter = ',')]
     pub phi: Vec<String>,
     /// Non-linear methods: the model, e.g. 'A*exp(-B*x) + C*x'; names not in --params are
@@ -441,11 +442,9 @@ impl Regressor {
                 .map(|e| e.to_string())
                 .unwrap_or_default()
         };
+        // A formula without columns is a constant regressor (`1`: an offset).
         let model = ExprModel::parse::<&str>(text, &[])
             .map_err(|e| format!("{}; as a formula: {e}", no_column()))?;
-        if model.inputs().is_empty() {
-            return Err(no_column());
-        }
         model
             .check_inputs(&header.names())
             .map_err(|e| format!("--phi '{text}': {e}"))?;
