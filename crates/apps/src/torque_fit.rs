@@ -400,6 +400,21 @@ where
     I: IntoIterator<Item = Result<Recording, E>>,
     AppError: From<E>,
 {
+    torque_fit_phased(chunks, cfg, &mut || {})
+}
+
+/// [`torque_fit_stream`], `fitting` called once the recording has been read (the chunks
+/// dropped), before the choice and the filter run over its samples — the longer part, for a
+/// progress display.
+pub fn torque_fit_phased<I, E>(
+    chunks: I,
+    cfg: &TorqueFitConfig,
+    fitting: &mut dyn FnMut(),
+) -> Result<TorqueFit, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
     let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
     let mut out = Vec::new();
     let chunks = chunks.into_iter().map(|c| c.map_err(AppError::from));
@@ -408,6 +423,7 @@ where
     for chunk in chunks {
         stage.push(&chunk?, &mut out)?;
     }
+    fitting();
     finish(stage, out)
 }
 

@@ -8,7 +8,7 @@ use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::torque_fit::{
-    self, cyclic_torque_nominal, torque_fit, torque_fit_stream, TorqueFit, TorqueFitConfig,
+    self, cyclic_torque_nominal, torque_fit, torque_fit_phased, TorqueFit, TorqueFitConfig,
 };
 use physid_core::Basis;
 use physid_estim::NlMethod;
@@ -281,7 +281,13 @@ fn fit(a: &FitArgs) -> Result<()> {
     let r = if header.basis == Basis::Time && header.channel("theta_en").is_ok() {
         let (needed, optional) = torque_fit::sample_channels();
         let mut reader = a.input.open(&a.data, &needed, &optional)?;
-        let r = torque_fit_stream(Reading::new(&mut reader, &a.data), &cfg);
+        let mut working = None;
+        let r = torque_fit_phased(Reading::new(&mut reader, &a.data), &cfg, &mut || {
+            working = Some(crate::progress::Working::new(
+                "choosing the parameters and filtering every degree",
+            ));
+        });
+        drop(working);
         super::warn_read(&reader, &a.data);
         r
     } else {
