@@ -4,7 +4,7 @@
 
 use physid_testkit::Scratch;
 mod common;
-use common::{ok_json, physid};
+use common::{ok_json, on_a_terminal, physid};
 
 fn fails_with(args: &[&str], want: &str) {
     let o = physid(args);
@@ -671,19 +671,7 @@ fn progress_shows_on_a_terminal_only() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    let on_a_terminal = |extra: &str| {
-        let cmd = format!(
-            "PHYSID_PROGRESS_AFTER_MS=0 {} inspect {} {extra}",
-            env!("CARGO_BIN_EXE_physid"),
-            f.display()
-        );
-        let o = std::process::Command::new("script")
-            .args(["-qec", &cmd, "/dev/null"])
-            .output()
-            .expect("script (util-linux) runs a command on a pseudo-terminal");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        String::from_utf8_lossy(&o.stdout).into_owned()
-    };
+    let on_a_terminal = |extra: &str| on_a_terminal(&format!("inspect {} {extra}", f.display()));
     let shown = on_a_terminal("");
     assert!(
         shown.contains("reading") && shown.contains("run.parquet"),
@@ -775,16 +763,10 @@ fn estimate_takes_formulas_over_columns_as_regressors() {
 fn a_long_analysis_shows_a_spinner_on_a_terminal() {
     let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../pipelines");
     let run = |extra: &str| {
-        let cmd = format!(
-            "PHYSID_PROGRESS_AFTER_MS=0 {} run {} --json {extra}",
-            env!("CARGO_BIN_EXE_physid"),
+        on_a_terminal(&format!(
+            "run {} --json {extra}",
             shipped.join("shaft-expr.toml").display()
-        );
-        let o = std::process::Command::new("script")
-            .args(["-qec", &cmd, "/dev/null"])
-            .output()
-            .expect("script (util-linux)");
-        String::from_utf8_lossy(&o.stdout).into_owned()
+        ))
     };
     let shown = run("");
     assert!(

@@ -21,3 +21,18 @@ pub fn ok_json(args: &[&str]) -> serde_json::Value {
     );
     serde_json::from_slice(&o.stdout).expect("JSON on stdout")
 }
+
+/// Run `physid ARGS` (a shell word list) on a pseudo-terminal made by `script` (util-linux),
+/// progress shown at once; what the terminal showed, stdout and stderr together.
+pub fn on_a_terminal(args: &str) -> String {
+    let cmd = format!(
+        "PHYSID_PROGRESS_AFTER_MS=0 {} {args}",
+        env!("CARGO_BIN_EXE_physid")
+    );
+    let o = Command::new("script")
+        .args(["-qec", &cmd, "/dev/null"])
+        .output()
+        .expect("script (util-linux) runs a command on a pseudo-terminal");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
