@@ -202,6 +202,8 @@ pub struct CsvChunks {
     all_names: Vec<String>,
     keep: Vec<usize>,
     width: usize,
+    /// The columns are named by the user (`--columns`), not by a header row.
+    named: bool,
     sep: Sep,
     basis: Basis,
     /// Records read so far (the header is record 1; blank lines count).
@@ -261,6 +263,7 @@ impl CsvChunks {
             all_names: Vec::new(),
             keep: Vec::new(),
             width: 0,
+            named: opts.columns.is_some(),
             sep,
             basis: if opts.crank_angle {
                 Basis::CrankAngle
@@ -360,7 +363,9 @@ impl CsvChunks {
                     line: self.line_here(),
                     expected: self.width,
                     got: self.record.len(),
-                    hint: if self.sep == Sep::Comma && self.record.len() > self.width {
+                    hint: if self.named {
+                        " (the names --columns gives: name every column of the file)"
+                    } else if self.sep == Sep::Comma && self.record.len() > self.width {
                         " (decimal commas? use ';' or tab separators with them)"
                     } else {
                         ""

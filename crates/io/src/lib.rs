@@ -53,7 +53,7 @@ pub enum IoError {
         /// The cell's text.
         value: String,
     },
-    /// A row with the wrong number of cells.
+    /// A row with the wrong number of cells (than the header row has, or `--columns` names).
     #[error("{path}, line {line}: {got} cells, but the header has {expected}{hint}")]
     Ragged {
         /// The file.

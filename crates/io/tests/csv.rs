@@ -315,6 +315,18 @@ fn whitespace_columns_without_a_header_and_a_calibration() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("line 4") && e.contains("'x3'"), "{e}");
+    // Fewer names than columns.
+    std::fs::write(&f, "0 1 2\n1 2 3\n").unwrap();
+    let e = read(
+        &f,
+        &ReadOptions {
+            columns: Some(vec!["t".into(), "y".into()]),
+            ..Default::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("line 1: 3 cells") && e.contains("--columns"), "{e}");
     // --columns with a file that has a header: its first line is not numbers.
     let e = read(
         &g,
