@@ -326,7 +326,10 @@ fn whitespace_columns_without_a_header_and_a_calibration() {
     )
     .unwrap_err()
     .to_string();
-    assert!(e.contains("line 1: 3 cells") && e.contains("--columns"), "{e}");
+    assert!(
+        e.contains("line 1: 3 cells") && e.contains("--columns"),
+        "{e}"
+    );
     // --columns with a file that has a header: its first line is not numbers.
     let e = read(
         &g,
