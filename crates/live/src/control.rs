@@ -8,7 +8,7 @@
 //! | `{"cmd": "throttle", "deg": 30}` | the throttle opening from now on [deg] |
 //! | `{"cmd": "fault", "spec": "shaft.k=1000@12"}` | a fault, as `--fault` (its time is the recording's) |
 //! | `{"cmd": "scenario", "name": "shaft-ramp"}` | a built-in scenario's demand, throttle and demand mode from now on (its time 0 = now; the cell's parameters and faults stay) |
-//! | `{"cmd": "mode", "demand": "torque"}` (or `"speed"`) | the dynamometer follows a torque (or speed) demand, held at its present torque (or speed) |
+//! | `{"cmd": "mode", "demand": "torque"}` (or `"speed"`) | the dynamometer follows a torque (or speed) demand, held at its mean torque over the last whole engine cycle (or its present speed) |
 //! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
 //! | `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`), `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory (Parquet or MDF4), and finish it |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |

@@ -6,6 +6,7 @@
 use physid_core::Recording;
 use physid_sim::run::{simulate, OutputBasis, Run, RunOptions};
 use physid_sim::scenario::{named, Fault, Profile, Shape};
+use std::f64::consts::PI;
 
 fn options(duration: f64) -> RunOptions {
     RunOptions {
@@ -130,4 +131,34 @@ fn drained_chunks_put_end_to_end_are_the_recording() {
         |_| {}
     )
     .is_err());
+}
+
+/// Switched to torque demand at any moment of an engine cycle, the dynamometer holds the
+/// torque it had on average over the last whole cycle, so the engine stays near the speed it
+/// had: the speed's cycle means over the following 2 s stay within 2 % of 1000 rpm whatever
+/// the crank angle at the switch (seven switch times spread over one 120 ms cycle).
+#[test]
+fn torque_demand_holds_the_cycle_mean_torque_wherever_in_the_cycle() {
+    let scenario = named("shaft-steady").unwrap();
+    for k in 0..7 {
+        let at = 0.5 + k as f64 * 0.017;
+        let mut run = Run::new(&scenario, &options(at + 2.0)).unwrap();
+        run.step_until(at).unwrap();
+        run.set_torque_mode(true);
+        run.step_until(f64::INFINITY).unwrap();
+        let rec = run.finish().unwrap();
+        let t = rec.values("t").unwrap();
+        let w = rec.values("omega_en").unwrap();
+        // Cycle means: 1000 rpm is 0.12 s per cycle; after the switch, window by window.
+        let mut from = t.iter().position(|&ti| ti >= at).unwrap();
+        while let Some(to) = t.iter().position(|&ti| ti >= t[from] + 0.12) {
+            let rpm = w[from..to].iter().sum::<f64>() / (to - from) as f64 * 30.0 / PI;
+            assert!(
+                (rpm / 1000.0 - 1.0).abs() < 0.02,
+                "switched at {at} s: {rpm} rpm at {} s",
+                t[from]
+            );
+            from = to;
+        }
+    }
 }

@@ -111,9 +111,15 @@ pub struct Run {
     done: bool,
     /// The recording's size in memory (every channel as float64) [bytes].
     bytes: f64,
-    /// The dynamometer's torque averaged over the last ≈ 0.5 s [N·m], and when it was updated.
+    /// The dynamometer's torque averaged over the last whole engine cycle (720° of crank
+    /// angle) [N·m] — the pulsation averaged out exactly — and the running cycle's integral
+    /// [N·m·s], duration [s] and index (crank angle ÷ 4π, floored).
     mean_torque_dy: f64,
-    torque_at: f64,
+    torque_sum: f64,
+    torque_span: f64,
+    torque_cycle: f64,
+    /// Whether a cycle boundary has passed (from then on the mean is over whole cycles).
+    torque_whole: bool,
 }
 
 /// The most samples a streaming run takes: its output grid counts them exactly below 2^53.
@@ -199,7 +205,10 @@ impl Run {
             done: false,
             bytes,
             mean_torque_dy: 0.0,
-            torque_at: 0.0,
+            torque_sum: 0.0,
+            torque_span: 0.0,
+            torque_cycle: f64::NAN,
+            torque_whole: false,
         })
     }
 
@@ -246,7 +255,7 @@ impl Run {
 
     /// Switch the dynamometer between speed and torque demand, continuing from where it is:
     /// speed demand at its present speed [rpm], or torque demand at its mean torque over the
-    /// last ≈ 0.5 s [N·m] (at a fixed throttle the engine then finds its own speed).
+    /// last whole engine cycle [N·m] (at a fixed throttle the engine then finds its own speed).
     pub fn set_torque_mode(&mut self, torque: bool) {
         if torque == self.torque_mode {
             return;
@@ -301,13 +310,12 @@ impl Run {
             self.speed_sensor
                 .measure_one(&ss, cell.omega_dy(), cell.time() - self.measured_at);
         self.measured_at = cell.time();
+        let t_before = cell.time();
         let mut s = cell.step_with(&inputs, w_meas);
         check(&s, self.base.engine.active != 0.0)?;
-        // The dynamometer's mean torque over the last ≈ 0.5 s (the pulsation averaged out).
-        let dt = cell.time() - self.torque_at;
-        self.torque_at = cell.time();
-        let a = 1.0 - (-dt / 0.5).exp();
-        self.mean_torque_dy += a * (s.torque_dy - self.mean_torque_dy);
+        let dt = cell.time() - t_before;
+        self.average_torque(s.torque_dy, dt, s.theta_en);
+        let cell = &mut self.cell;
         // From the step that spans t = 0 on, so that the output grid starts at 0.
         if cell.time() - settle > 0.0 {
             s.t = t_rel;
@@ -319,6 +327,27 @@ impl Run {
             self.done = true;
         }
         Ok(())
+    }
+
+    /// The dynamometer's mean torque over the last whole engine cycle: the torque integrated
+    /// step by step (rectangle rule at the step's end) over a cycle of 720° of crank angle,
+    /// divided by the cycle's duration. Until the first cycle is whole, the mean so far.
+    fn average_torque(&mut self, torque: f64, dt: f64, theta_en: f64) {
+        let cycle = (theta_en / (4.0 * PI)).floor();
+        if cycle != self.torque_cycle {
+            if !self.torque_cycle.is_nan() {
+                self.mean_torque_dy = self.torque_sum / self.torque_span;
+                self.torque_whole = true;
+            }
+            self.torque_cycle = cycle;
+            self.torque_sum = 0.0;
+            self.torque_span = 0.0;
+        }
+        self.torque_sum += torque * dt;
+        self.torque_span += dt;
+        if !self.torque_whole {
+            self.mean_torque_dy = self.torque_sum / self.torque_span;
+        }
     }
 
     /// The samples acquired since the last call (all channels, the recording's names and
