@@ -8,10 +8,13 @@ use physid_signal::crank::{crank_grid, interp};
 use physid_signal::encoder::{first_marker, Encoder};
 use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
-    median_step, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
+    median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
+};
+use physid_signal::wheel::{
+    index_teeth, EdgeDetector, EdgeOptions, Wheel, WheelAngles, WheelError,
 };
 use serde::Serialize;
-use std::f64::consts::PI;
+use std::f64::consts::{PI, TAU};
 use thiserror::Error;
 
 /// Errors of the acquisition functions.
@@ -41,6 +44,27 @@ pub struct AcquisitionOptions {
     pub encoders: Vec<(String, u32)>,
     /// The TDC marker channel.
     pub marker: String,
+    /// A trigger wheel's raw signal, decoded into the engine angle when the recording has no
+    /// `theta_en` (`--wheel CHANNEL=N-M`).
+    pub wheel: Option<WheelSpec>,
+}
+
+/// A trigger wheel on the crankshaft and where the firing TDC lies on it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WheelSpec {
+    /// The sensor's channel (raw: analog or digital).
+    pub channel: String,
+    /// The wheel (N−M).
+    pub wheel: Wheel,
+    /// Which edges, which level.
+    pub edges: EdgeOptions,
+    /// The crank angle from the reference tooth's edge (the first after the gap) to the next
+    /// TDC [deg], in [0, 360).
+    pub tdc_offset_deg: f64,
+    /// A channel whose level is higher at the compression TDC than at the gas-exchange one a
+    /// revolution later (the cylinder pressure): which revolution fires. `None`: the TDC
+    /// `tdc_offset_deg` after the first reference edge is taken as the firing one.
+    pub phase_from: Option<String>,
 }
 
 /// The TDC marker channel of the thesis's test cell (and physid's simulator).
@@ -52,6 +76,7 @@ impl Default for AcquisitionOptions {
         Self {
             encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
             marker: TDC_MARKER.into(),
+            wheel: None,
         }
     }
 }
@@ -107,8 +132,37 @@ pub struct Inspection {
     /// Complete engine cycles (720°): counted from `cycle` on a crank-angle basis, from TDC
     /// markers (two per cycle) on a time basis.
     pub cycles: Option<usize>,
-    /// The integrity check.
+    /// The integrity check (with the trigger wheel's findings when one is decoded).
     pub integrity: Integrity,
+    /// What decoding the trigger wheel found (`--wheel`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wheel: Option<WheelSummary>,
+}
+
+/// A trigger wheel as decoded by `physid inspect --wheel`.
+#[derive(Debug, Clone, Serialize)]
+pub struct WheelSummary {
+    /// The sensor's channel.
+    pub channel: String,
+    /// The wheel given (`N-M`).
+    pub wheel: String,
+    /// Teeth per revolution (N − M) and missing teeth (M).
+    pub teeth: u32,
+    /// Missing teeth in the gap.
+    pub missing: u32,
+    /// Tooth edges decoded (extra edges dropped).
+    pub edges: usize,
+    /// Whole revolutions between the first and last gap.
+    pub revolutions: usize,
+    /// The slowest and fastest speed over a tooth [rpm].
+    pub rpm_min: f64,
+    /// See `rpm_min`.
+    pub rpm_max: f64,
+    /// Glitch pulses rejected.
+    pub glitches: usize,
+    /// Why the signal could not be decoded as the wheel given (then the rest is empty).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
 }
 
 /// Summarise a recording and check its integrity: an [`Inspector`] over it, in one chunk.
@@ -144,6 +198,8 @@ pub struct Inspector {
     edges: usize,
     prev_marker: Option<f64>,
     prev_deg: Option<f64>,
+    /// The trigger wheel's edges, found as the chunks pass.
+    wheel: Option<EdgeDetector>,
 }
 
 impl Inspector {
@@ -164,6 +220,11 @@ impl Inspector {
             edges: 0,
             prev_marker: None,
             prev_deg: None,
+            wheel: opts
+                .wheel
+                .as_ref()
+                .filter(|w| header.channel(&w.channel).is_ok() && header.basis == Basis::Time)
+                .map(|w| EdgeDetector::new(&w.edges)),
         }
     }
 
@@ -212,6 +273,11 @@ impl Inspector {
             c.push(chunk);
         }
         self.rows += chunk.len();
+        if let (Some(d), Some(w)) = (self.wheel.as_mut(), self.opts.wheel.as_ref()) {
+            if let (Ok(t), Ok(v)) = (chunk.values("t"), chunk.values(&w.channel)) {
+                d.push(t, v);
+            }
+        }
         if let Ok(t) = chunk.values("t") {
             let room = NOMINAL_SAMPLES.saturating_sub(self.t_head.len());
             self.t_head.extend_from_slice(&t[..t.len().min(room)]);
@@ -265,6 +331,13 @@ impl Inspector {
             }),
             Basis::Time => has(&self.opts.marker).then(|| self.edges.saturating_sub(1) / 2),
         };
+        let mut integrity = self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
+            IntegrityCheck::new(&IntegrityOptions::default(), &self.header).finish()
+        });
+        let wheel = match (self.wheel, &self.opts.wheel) {
+            (Some(d), Some(spec)) => Some(wheel_summary(d, spec, &mut integrity)),
+            _ => None,
+        };
         Inspection {
             basis: match rec.basis {
                 Basis::Time => "time",
@@ -285,11 +358,59 @@ impl Inspector {
                 Basis::CrankAngle => None,
             },
             cycles,
-            integrity: self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
-                IntegrityCheck::new(&IntegrityOptions::default(), &self.header).finish()
-            }),
+            integrity,
+            wheel,
         }
     }
+}
+
+/// Index the wheel's edges and add what was found to the integrity check.
+fn wheel_summary(d: EdgeDetector, spec: &WheelSpec, integrity: &mut Integrity) -> WheelSummary {
+    let mut summary = WheelSummary {
+        channel: spec.channel.clone(),
+        wheel: spec.wheel.to_string(),
+        teeth: spec.wheel.present(),
+        missing: spec.wheel.missing,
+        edges: 0,
+        revolutions: 0,
+        rpm_min: f64::NAN,
+        rpm_max: f64::NAN,
+        glitches: 0,
+        error: None,
+    };
+    let decoded = d
+        .finish()
+        .map_err(|e| format!("'{}': {e}", spec.channel))
+        .and_then(|e| {
+            summary.glitches = e.glitches.len();
+            index_teeth(&e, spec.wheel, &spec.channel).map_err(|e| e.to_string())
+        });
+    match decoded {
+        Ok(a) => {
+            summary.edges = a.t.len();
+            summary.revolutions = a.revolutions;
+            (summary.rpm_min, summary.rpm_max) = a.rpm;
+            for f in a.findings {
+                if f.kind == FindingKind::Note {
+                    integrity.notes.push(f);
+                } else {
+                    integrity.ok = false;
+                    integrity.findings.push(f);
+                }
+            }
+            integrity.findings.sort_by_key(|f| f.index);
+        }
+        Err(e) => {
+            integrity.ok = false;
+            integrity.findings.push(Finding {
+                kind: FindingKind::UnevenPulses,
+                index: 0,
+                detail: e.clone(),
+            });
+            summary.error = Some(e);
+        }
+    }
+    summary
 }
 
 /// The engine angle of a time-basis recording as strictly increasing `(t, θ)` pairs: from
@@ -299,8 +420,25 @@ impl Inspector {
 fn engine_angle(
     rec: &Recording,
     opts: &AcquisitionOptions,
-) -> Result<(Vec<f64>, Vec<f64>, f64), AcquisitionError> {
+) -> Result<EngineAngle, AcquisitionError> {
     let t = rec.values("t")?;
+    let wheel = opts
+        .wheel
+        .as_ref()
+        .filter(|w| rec.values("theta_en").is_err() && rec.channel(&w.channel).is_ok());
+    if let Some(w) = wheel {
+        let mut decoded = decode_wheel(rec, w)?;
+        let (t, theta) = (
+            std::mem::take(&mut decoded.t),
+            std::mem::take(&mut decoded.theta),
+        );
+        return Ok(EngineAngle {
+            t,
+            theta,
+            tdc: decoded.tdc,
+            wheel: Some(decoded),
+        });
+    }
     let (tt, th): (Vec<f64>, Vec<f64>) = if let Ok(theta) = rec.values("theta_en") {
         (t.to_vec(), theta.to_vec())
     } else {
@@ -310,7 +448,7 @@ fn engine_angle(
             .find(|(n, _)| rec.channel(n).is_ok())
             .ok_or_else(|| {
                 AcquisitionError::Invalid(format!(
-                    "no engine angle: the recording needs 'theta_en' [rad] or an encoder count channel ({}); the channels are {}",
+                    "no engine angle: the recording needs 'theta_en' [rad], an encoder count channel ({}) or a trigger wheel's signal (--wheel CHANNEL=N-M); the channels are {}",
                     opts.encoders.iter().map(|e| e.0.as_str()).collect::<Vec<_>>().join(", "),
                     rec.names().join(", ")
                 ))
@@ -318,7 +456,7 @@ fn engine_angle(
         let counts = rec.values(name)?;
         if let Some(why) = physid_signal::encoder::uneven_spacing(t, counts, *ppr) {
             return Err(AcquisitionError::Invalid(format!(
-                "'{name}' as an encoder of {ppr} pulses per revolution: {why} — decode the wheel's signal into a crank angle (theta_en) first"
+                "'{name}' as an encoder of {ppr} pulses per revolution: {why} — give the wheel's raw signal with --wheel CHANNEL=N-M (e.g. enc=60-2) instead"
             )));
         }
         let enc = Encoder { ppr: *ppr };
@@ -340,7 +478,120 @@ fn engine_angle(
             (first / (4.0 * PI)).ceil() * 4.0 * PI
         }
     };
-    Ok((tt, th, tdc))
+    Ok(EngineAngle {
+        t: tt,
+        theta: th,
+        tdc,
+        wheel: None,
+    })
+}
+
+/// The engine angle of a time-basis recording ([`engine_angle`]).
+struct EngineAngle {
+    /// Strictly increasing times [s] …
+    t: Vec<f64>,
+    /// … and angles [rad].
+    theta: Vec<f64>,
+    /// The first firing TDC's angle [rad].
+    tdc: f64,
+    /// What decoding a trigger wheel found, when the angle came from one.
+    wheel: Option<DecodedWheel>,
+}
+
+/// The engine angle decoded from a trigger wheel's signal.
+#[derive(Debug, Clone)]
+pub struct DecodedWheel {
+    /// The times of the samples between the first and last tooth edge [s].
+    pub t: Vec<f64>,
+    /// The crank angle there [rad], 0 at the first reference edge.
+    pub theta: Vec<f64>,
+    /// The firing TDC's angle [rad]: the first at or after the first sample.
+    pub tdc: f64,
+    /// What the decoding found (teeth, gaps, speed range, missing and extra edges).
+    pub angles: WheelAngles,
+    /// How the firing revolution was chosen, for a person.
+    pub phase: String,
+}
+
+/// Decode a trigger wheel's signal into the crank angle at every sample between its first and
+/// last edge ([`physid_signal::wheel`]), and place the firing TDC: `tdc_offset_deg` after a
+/// reference edge, in the revolution where `phase_from` is higher (its median over the
+/// recording's TDCs of each kind).
+pub fn decode_wheel(rec: &Recording, spec: &WheelSpec) -> Result<DecodedWheel, AcquisitionError> {
+    let t = rec.values("t")?;
+    let v = rec.values(&spec.channel)?;
+    let named = |e: WheelError| AcquisitionError::Invalid(format!("'{}': {e}", spec.channel));
+    let found = physid_signal::wheel::edges(t, v, &spec.edges).map_err(named)?;
+    let angles = index_teeth(&found, spec.wheel, &spec.channel)
+        .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
+    let (first, last) = (angles.t[0], angles.t[angles.t.len() - 1]);
+    let (a, b) = (
+        t.partition_point(|&x| x < first),
+        t.partition_point(|&x| x <= last),
+    );
+    let tt = t[a..b].to_vec();
+    let theta = angles.angle_at(&tt);
+    if tt.len() < 2 {
+        return Err(AcquisitionError::Invalid(format!(
+            "'{}': fewer than 2 samples between the first and last tooth edge",
+            spec.channel
+        )));
+    }
+    let offset = spec.tdc_offset_deg.to_radians();
+    // The TDCs a revolution apart: offset + 2πk; which parity fires.
+    let (parity, phase) = match &spec.phase_from {
+        None => (
+            0,
+            format!(
+                "the TDC {}° after the first reference edge taken as firing (no --phase-from)",
+                spec.tdc_offset_deg
+            ),
+        ),
+        Some(name) => {
+            let p = &rec.values(name)?[a..b];
+            let mut at = [Vec::new(), Vec::new()];
+            let mut k = ((theta[0] - offset) / TAU).ceil() as i64;
+            loop {
+                let angle = offset + TAU * k as f64;
+                if angle > theta[theta.len() - 1] {
+                    break;
+                }
+                at[k.rem_euclid(2) as usize].push(angle);
+                k += 1;
+            }
+            if at[0].is_empty() || at[1].is_empty() {
+                return Err(AcquisitionError::Invalid(format!(
+                    "--phase-from {name}: the recording spans fewer than two TDCs, so which one fires cannot be told"
+                )));
+            }
+            let level = |angles: &[f64]| {
+                let mut v = interp(&theta, p, angles);
+                v.sort_unstable_by(f64::total_cmp);
+                v[v.len() / 2]
+            };
+            let (l0, l1) = (level(&at[0]), level(&at[1]));
+            let parity = usize::from(l1 > l0);
+            let (fire, other) = if parity == 1 { (l1, l0) } else { (l0, l1) };
+            (
+                parity as i64,
+                format!(
+                    "the firing TDC {}° after the reference edge of {} revolutions ('{name}' {fire:.4e} there against {other:.4e} a revolution away, medians)",
+                    spec.tdc_offset_deg,
+                    if parity == 1 { "odd" } else { "even" }
+                ),
+            )
+        }
+    };
+    let parity = parity as f64;
+    let mut tdc = offset + TAU * parity;
+    tdc += 4.0 * PI * ((theta[0] - tdc) / (4.0 * PI)).ceil();
+    Ok(DecodedWheel {
+        t: tt,
+        theta,
+        tdc,
+        angles,
+        phase,
+    })
 }
 
 /// The angle of a firing TDC on the recording's `theta_en` [rad]: its value at the first TDC
@@ -398,14 +649,23 @@ pub fn to_crank_angle(
     opts: &AcquisitionOptions,
     step_deg: f64,
 ) -> Result<Recording, AcquisitionError> {
+    to_crank_angle_decoded(rec, opts, step_deg).map(|r| r.0)
+}
+
+/// [`to_crank_angle`], with what decoding the trigger wheel found when the angle came from one.
+pub fn to_crank_angle_decoded(
+    rec: &Recording,
+    opts: &AcquisitionOptions,
+    step_deg: f64,
+) -> Result<(Recording, Option<DecodedWheel>), AcquisitionError> {
     if rec.basis != Basis::Time {
         return Err(AcquisitionError::Invalid(
             "the recording is already on a crank-angle basis".into(),
         ));
     }
     let t = rec.values("t")?;
-    let (tt, th, tdc) = engine_angle(rec, opts)?;
-    let grid = crank_grid(&tt, &th, tdc, step_deg)
+    let angle = engine_angle(rec, opts)?;
+    let grid = crank_grid(&angle.t, &angle.theta, angle.tdc, step_deg)
         .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
     let mut out = Recording::new(Basis::CrankAngle);
     out.meta = rec.meta.clone();
@@ -416,6 +676,7 @@ pub fn to_crank_angle(
         .iter()
         .map(|e| e.0.as_str())
         .chain([opts.marker.as_str(), "t", "theta_en"])
+        .chain(opts.wheel.iter().map(|w| w.channel.as_str()))
         .collect();
     for (name, unit, values) in [
         ("t", "s", grid.t.clone()),
@@ -440,7 +701,7 @@ pub fn to_crank_angle(
             values: interp(t, &ch.values, &grid.t),
         })?;
     }
-    Ok(out)
+    Ok((out, angle.wheel))
 }
 
 /// The sample period [s] of a time channel that must be uniform: the mean step, or an error at

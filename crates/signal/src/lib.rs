@@ -12,3 +12,4 @@ pub mod encoder;
 pub mod filter;
 pub mod integrity;
 pub mod stream;
+pub mod wheel;

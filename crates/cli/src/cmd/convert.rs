@@ -2,10 +2,10 @@
 //! degree).
 
 use super::InputArgs;
-use crate::cmd::inspect::acquisition_options;
+use crate::cmd::inspect::{acquisition_options, WheelArgs};
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{to_crank_angle, to_time_basis};
+use physid_apps::acquisition::{to_crank_angle_decoded, to_time_basis, DecodedWheel};
 use physid_io::{MdfCompression, WriteOptions};
 use std::path::PathBuf;
 
@@ -22,7 +22,8 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub channels: Vec<String>,
     /// Resample to one sample every --step-deg crank degrees from the first TDC marker (engine
-    /// angle from `theta_en` or the engine encoder's counts).
+    /// angle from `theta_en`, the engine encoder's counts, or a trigger wheel's signal with
+    /// --wheel).
     #[arg(long, conflicts_with = "time_basis")]
     pub crank_angle: bool,
     /// Crank-angle step [deg].
@@ -38,6 +39,8 @@ pub struct Args {
     /// TDC marker channel.
     #[arg(long, default_value = "tdc")]
     pub marker: String,
+    #[command(flatten)]
+    pub wheel: WheelArgs,
     /// MDF4 output compression: none, deflate or transposed.
     #[arg(long, default_value = "none")]
     pub compression: String,
@@ -64,11 +67,21 @@ pub fn run(args: &Args) -> Result<()> {
     if !resample && !compressed {
         return stream(args);
     }
+    let mut opts = acquisition_options(&args.encoders, &args.marker)?;
+    opts.wheel = args.wheel.spec()?;
+    if opts.wheel.is_some() && !args.crank_angle {
+        return Err(miette!(
+            "--wheel decodes the engine angle for --crank-angle: add --crank-angle"
+        ));
+    }
     let mut rec = args.read.read(&args.input, None)?;
-    let opts = acquisition_options(&args.encoders, &args.marker)?;
     if args.crank_angle {
-        rec = to_crank_angle(&rec, &opts, args.step_deg)
+        let (out, decoded) = to_crank_angle_decoded(&rec, &opts, args.step_deg)
             .map_err(|e| miette!("{}: {e}", args.input.display()))?;
+        if let Some(d) = decoded {
+            tell_wheel(&args.input, &d);
+        }
+        rec = out;
     }
     if let Some(rate) = args.time_basis {
         rec = to_time_basis(&rec, rate).map_err(|e| miette!("{}: {e}", args.input.display()))?;
@@ -94,6 +107,25 @@ pub fn run(args: &Args) -> Result<()> {
     .into_diagnostic()?;
     wrote(&args.output, &rec, rec.len());
     Ok(())
+}
+
+/// What decoding the wheel found, on stderr: the wheel, the speed range, how the firing TDC
+/// was placed, and every finding with its sample.
+fn tell_wheel(input: &std::path::Path, d: &DecodedWheel) {
+    let a = &d.angles;
+    eprintln!(
+        "{}: wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm; {}",
+        input.display(),
+        a.wheel,
+        a.t.len(),
+        a.revolutions,
+        a.rpm.0,
+        a.rpm.1,
+        d.phase
+    );
+    for f in &a.findings {
+        eprintln!("{}: sample {}: {}", input.display(), f.index, f.detail);
+    }
 }
 
 /// The channels `--channels` keeps of `rec`'s: the basis channels it has first (they come

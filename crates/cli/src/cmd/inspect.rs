@@ -6,8 +6,9 @@ use crate::plot;
 use crate::progress::Reading;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{AcquisitionOptions, Inspector};
+use physid_apps::acquisition::{AcquisitionOptions, Inspector, WheelSpec};
 use physid_core::Recording;
+use physid_signal::wheel::{Edge, EdgeOptions, Wheel};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid inspect`.
@@ -24,6 +25,8 @@ pub struct Args {
     /// TDC marker channel.
     #[arg(long, default_value = "tdc")]
     pub marker: String,
+    #[command(flatten)]
+    pub wheel: WheelArgs,
     /// Exit with an error when the integrity check finds anything.
     #[arg(long)]
     pub strict: bool,
@@ -36,6 +39,84 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// A trigger wheel's raw signal as the engine angle (`physid_signal::wheel`).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct WheelArgs {
+    /// A trigger wheel's raw sensor channel (analog or digital) and the wheel: N tooth pitches,
+    /// M missing, e.g. enc=60-2 — decoded into the crank angle.
+    #[arg(long, value_name = "CHANNEL=N-M")]
+    pub wheel: Option<String>,
+    /// With --wheel: the crank angle [deg] from the first tooth edge after the gap to the next
+    /// TDC (read it off a plot of the raw signal).
+    #[arg(
+        long,
+        value_name = "DEG",
+        requires = "wheel",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub tdc_offset: f64,
+    /// With --wheel: the channel that is higher at the compression TDC than at the
+    /// gas-exchange TDC (the cylinder pressure) — which revolution of two fires.
+    #[arg(long, value_name = "CHANNEL", requires = "wheel")]
+    pub phase_from: Option<String>,
+    /// With --wheel: the tooth edge is the signal rising (a Hall sensor's tooth) or falling
+    /// through the level.
+    #[arg(
+        long,
+        value_name = "rising|falling",
+        requires = "wheel",
+        default_value = "rising"
+    )]
+    pub edge: String,
+    /// With --wheel: a fixed level and hysteresis (half-band) in the channel's unit instead of
+    /// the automatic level that follows the teeth's swing.
+    #[arg(long, value_name = "LEVEL,HYSTERESIS", requires = "wheel")]
+    pub threshold: Option<String>,
+}
+
+impl WheelArgs {
+    /// The wheel to decode, if one is given.
+    pub fn spec(&self) -> Result<Option<WheelSpec>> {
+        let Some(w) = &self.wheel else {
+            return Ok(None);
+        };
+        let (channel, wheel) = w
+            .split_once('=')
+            .ok_or_else(|| miette!("--wheel '{w}': expected CHANNEL=N-M, e.g. enc=60-2"))?;
+        let wheel: Wheel = wheel.trim().parse().map_err(|e| miette!("--wheel: {e}"))?;
+        let edge: Edge = self.edge.parse().map_err(|e| miette!("--edge: {e}"))?;
+        let threshold = match &self.threshold {
+            None => None,
+            Some(s) => {
+                let v: Vec<f64> = s
+                    .split(',')
+                    .map(|x| x.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .ok()
+                    .filter(|v: &Vec<f64>| v.len() == 2 && v.iter().all(|x| x.is_finite()) && v[1] > 0.0)
+                    .ok_or_else(|| {
+                        miette!("--threshold '{s}': expected LEVEL,HYSTERESIS (numbers, the hysteresis > 0), e.g. 1.5,0.3")
+                    })?;
+                Some((v[0], v[1]))
+            }
+        };
+        if !(self.tdc_offset.is_finite() && (0.0..360.0).contains(&self.tdc_offset)) {
+            return Err(miette!(
+                "--tdc-offset {}: expected an angle in [0, 360) degrees",
+                self.tdc_offset
+            ));
+        }
+        Ok(Some(WheelSpec {
+            channel: channel.trim().to_string(),
+            wheel,
+            edges: EdgeOptions { edge, threshold },
+            tdc_offset_deg: self.tdc_offset,
+            phase_from: self.phase_from.clone(),
+        }))
+    }
 }
 
 /// Encoder options from `CHANNEL=PPR` items (defaults when none).
@@ -64,7 +145,8 @@ pub fn acquisition_options(encoders: &[String], marker: &str) -> Result<Acquisit
 
 /// Run `physid inspect`.
 pub fn run(args: &Args) -> Result<()> {
-    let opts = acquisition_options(&args.encoders, &args.marker)?;
+    let mut opts = acquisition_options(&args.encoders, &args.marker)?;
+    opts.wheel = args.wheel.spec()?;
     // The file read a chunk at a time: memory does not grow with its length.
     let mut reader = args.input.open_all(&args.file)?;
     let mut inspector = Inspector::new(reader.header(), &opts);
@@ -157,6 +239,15 @@ pub fn run(args: &Args) -> Result<()> {
         }
         if let Some(c) = i.cycles {
             outln!("complete cycles (720°): {c}");
+        }
+        if let Some(w) = &i.wheel {
+            match &w.error {
+                None => outln!(
+                    "wheel '{}' ({}): {} teeth and a gap of {} per revolution, {} edges, {} revolutions, {:.0}–{:.0} rpm, {} glitch(es) rejected",
+                    w.channel, w.wheel, w.teeth, w.missing, w.edges, w.revolutions, w.rpm_min, w.rpm_max, w.glitches
+                ),
+                Some(e) => outln!("wheel '{}' ({}): not decoded — {e}", w.channel, w.wheel),
+            }
         }
         outln!("{:<24} {:<10} {:>10}", "channel", "unit", "samples");
         for c in &i.channels {
