@@ -123,6 +123,11 @@ pub const HYSTERESIS: f64 = 0.2;
 /// glitch, not a tooth.
 pub const GLITCH_WIDTH: f64 = 0.3;
 
+/// Without an edge for this many tooth periods (the last), the automatic level starts again
+/// from the signal's swing since: longer than any gap of a wheel with N − M ≥ 4 teeth
+/// between gaps and M ≤ 6.
+pub const SILENCE: f64 = 8.0;
+
 /// Errors of the decoding.
 #[derive(Debug, Clone, Error, PartialEq)]
 pub enum WheelError {
@@ -190,6 +195,11 @@ pub struct EdgeDetector {
     /// The current pulse's peak and the trough before it.
     peak: f64,
     trough: f64,
+    /// The swing since the last edge (the level starts again from it after a silence), the
+    /// last edge's time and the last tooth period [s].
+    quiet: (f64, f64),
+    last_edge: Option<f64>,
+    period: f64,
     /// The widths of the last teeth's pulses [s].
     widths: [f64; 5],
     n_widths: usize,
@@ -220,6 +230,9 @@ impl EdgeDetector {
             prev: None,
             peak: f64::NEG_INFINITY,
             trough: f64::INFINITY,
+            quiet: (f64::INFINITY, f64::NEG_INFINITY),
+            last_edge: None,
+            period: f64::INFINITY,
             widths: [0.0; 5],
             n_widths: 0,
             seen: 0,
@@ -298,6 +311,22 @@ impl EdgeDetector {
         };
         let prev = self.prev;
         self.prev = Some((t, u));
+        self.quiet = (self.quiet.0.min(u), self.quiet.1.max(u));
+        // Silent for longer than SILENCE tooth periods (the amplitude fell, as when the engine
+        // slows sharply): the level starts again from the swing seen since the last edge.
+        if self.fixed.is_none()
+            && self
+                .last_edge
+                .is_some_and(|e| t - e > SILENCE * self.period)
+            && self.quiet.1 > self.quiet.0
+        {
+            self.level = 0.5 * (self.quiet.0 + self.quiet.1);
+            self.band = HYSTERESIS * (self.quiet.1 - self.quiet.0);
+            self.last_edge = Some(t);
+            self.quiet = (u, u);
+            self.state = State::Unarmed;
+            return;
+        }
         self.state = match self.state {
             State::Unarmed => {
                 if u < level - band {
@@ -362,6 +391,11 @@ impl EdgeDetector {
         }
         self.widths[self.n_widths % self.widths.len()] = width;
         self.n_widths += 1;
+        if let Some(e) = self.last_edge {
+            self.period = c.t - e;
+        }
+        self.last_edge = Some(c.t);
+        self.quiet = (f64::INFINITY, f64::NEG_INFINITY);
         self.edges_t.push(c.t);
         self.edges_index.push(c.index);
         if self.fixed.is_none() && self.peak > self.trough {
@@ -568,29 +602,53 @@ pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAn
     let r = relative_periods(&t);
     // Pitches per period and the pitch count at each edge.
     let pitches: Vec<i64> = r.iter().map(|x| x.round().max(1.0) as i64).collect();
+    // A period whose pitch count is unsure: not near a whole number, or longer than a
+    // revolution (a dropout). The count across it may slip; it is set again at the next gap.
+    let unsure: Vec<bool> = r
+        .iter()
+        .zip(&pitches)
+        .map(|(x, &u)| off_whole(*x) > PITCH_TOLERANCE || u > n)
+        .collect();
     for (k, x) in r.iter().enumerate() {
-        if off_whole(*x) > PITCH_TOLERANCE {
-            findings.push(Finding {
-                kind: FindingKind::OutOfSync,
-                index: index[k + 1],
-                detail: format!(
+        if unsure[k] {
+            let detail = if pitches[k] > n {
+                format!(
+                    "'{channel}': no tooth edge for {:.4} s before sample {} (about {} pitches at the speed around): the angle across is uncertain and is counted again from the next gap",
+                    t[k + 1] - t[k],
+                    index[k + 1],
+                    pitches[k]
+                )
+            } else {
+                format!(
                     "'{channel}': the tooth period ending at sample {} is {x:.2} pitches, not a whole number (taken as {})",
                     index[k + 1],
                     pitches[k]
-                ),
+                )
+            };
+            findings.push(Finding {
+                kind: FindingKind::OutOfSync,
+                index: index[k + 1],
+                detail,
             });
         }
     }
-    // The gap: where, modulo N, most periods of M + 1 pitches end.
+    // The gap: where, modulo N, most periods of M + 1 pitches end — over the periods before
+    // the first unsure one when they span two revolutions, else over all.
+    let sure = unsure.iter().position(|&u| u).unwrap_or(pitches.len());
+    let voters = if sure >= 2 * wheel.present() as usize {
+        sure
+    } else {
+        pitches.len()
+    };
     let mut votes = vec![0usize; n as usize];
     let mut c = 0i64;
-    for &u in &pitches {
+    for &u in &pitches[..voters] {
         c += u;
         if u == m + 1 {
             votes[c.rem_euclid(n) as usize] += 1;
         }
     }
-    let span = (c / n) as usize;
+    let span = voters / wheel.present() as usize;
     let (residue, &best) = votes
         .iter()
         .enumerate()
@@ -604,16 +662,23 @@ pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAn
     let residue = residue as i64;
     // The pitch count at each edge. Inside a period, every pitch position that is not one of
     // the M missing teeth should have had an edge; a period of M + 1 pitches ending out of the
-    // gap's place (M ≥ 2, so it is no single missing edge) is the gap itself, and the count is
-    // set again from it.
+    // gap's place is the gap itself — when M ≥ 2 (so it is no single missing edge) or after an
+    // unsure period — and the count is set again from it.
     let mut count = vec![0i64; t.len()];
     let mut gaps = Vec::new();
     let mut c = 0i64;
+    let mut resync = false;
     for k in 0..pitches.len() {
         let start = c;
         c += pitches[k];
         let off = (c - residue).rem_euclid(n);
-        if pitches[k] == m + 1 && m >= 2 && off != 0 {
+        if unsure[k] {
+            resync = true;
+            count[k + 1] = c;
+            continue;
+        }
+        if pitches[k] == m + 1 && (m >= 2 || resync) && off != 0 {
+            resync = false;
             let correction = if off > n / 2 { n - off } else { -off };
             findings.push(Finding {
                 kind: FindingKind::OutOfSync,
@@ -642,6 +707,7 @@ pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAn
             }
             if off == 0 {
                 gaps.push(k + 1);
+                resync = false;
             }
         }
         count[k + 1] = c;
@@ -653,7 +719,7 @@ pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAn
     let angle: Vec<f64> = count.iter().map(|&c| (c - zero) as f64 * pitch).collect();
     let revolutions = gaps.len().saturating_sub(1);
     let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-    for k in 0..pitches.len() {
+    for k in (0..pitches.len()).filter(|&k| !unsure[k]) {
         let rpm = (angle[k + 1] - angle[k]) / (t[k + 1] - t[k]) * 30.0 / std::f64::consts::PI;
         lo = lo.min(rpm);
         hi = hi.max(rpm);
