@@ -590,6 +590,17 @@ fn a_trigger_wheel_s_raw_signal_gives_the_crank_angle() {
         let at = crank[peak];
         assert!(at <= 3.5 || at >= 719.0, "cycle {c}: peak at {at}°");
     }
+    let o = physid(&[
+        "inspect",
+        dat.to_str().unwrap(),
+        "--columns",
+        "t,enc,p_cyl,theta_true",
+        "--wheel",
+        "pickup=60-3",
+    ]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("--wheel names 'pickup'"), "{e}");
     // The wrong wheel, or none named right: what was found, and what to give.
     let mut args = vec!["convert", dat.to_str().unwrap(), deg.to_str().unwrap()];
     args.extend(["--columns", "t,enc,p_cyl,theta_true", "--crank-angle"]);

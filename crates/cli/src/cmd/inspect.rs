@@ -149,6 +149,16 @@ pub fn run(args: &Args) -> Result<()> {
     opts.wheel = args.wheel.spec()?;
     // The file read a chunk at a time: memory does not grow with its length.
     let mut reader = args.input.open_all(&args.file)?;
+    if let Some(w) = &opts.wheel {
+        if reader.header().channel(&w.channel).is_err() {
+            return Err(miette!(
+                "{}: --wheel names '{}', which the recording does not have; its channels are {}",
+                args.file.display(),
+                w.channel,
+                reader.header().names().join(", ")
+            ));
+        }
+    }
     let mut inspector = Inspector::new(reader.header(), &opts);
     for chunk in Reading::new(&mut reader, &args.file) {
         inspector.push(&chunk.into_diagnostic()?);
