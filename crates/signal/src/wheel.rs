@@ -579,6 +579,13 @@ pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAn
             ),
         });
     }
+    if edges.t.len() < 2 * wheel.present() as usize + 2 || edges.index.len() != edges.t.len() {
+        return Err(WheelError::Invalid(format!(
+            "'{channel}': {} tooth edges, fewer than two revolutions of a {wheel} wheel ({} edges each)",
+            edges.t.len(),
+            wheel.present()
+        )));
+    }
     let (keep, dropped) = drop_extra(&edges.t);
     for &d in &dropped {
         findings.push(Finding {

@@ -170,6 +170,14 @@ fn bad_signals_are_refused_with_the_sample() {
         edges(&t, &nan, &EdgeOptions::default()),
         Err(WheelError::NonFinite { index: 4321, .. })
     ));
+    // Too few edges (none at all included) for two revolutions: an error, not a panic.
+    let none = physid_signal::wheel::Edges {
+        t: vec![],
+        index: vec![],
+        glitches: vec![],
+        samples: 0,
+    };
+    assert!(index_teeth(&none, "60-2".parse().unwrap(), "enc").is_err());
     for bad in ["60", "60-0", "6-3", "x-1"] {
         assert!(bad.parse::<Wheel>().is_err(), "{bad}");
     }
