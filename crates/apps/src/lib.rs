@@ -19,6 +19,8 @@
 //!   grid (thesis §7.2, Table 7.1).
 //! * [`model_choice`] — a model by built-in name or formula, with its nominal values.
 //! * [`pipeline`] — the qualitative adaptive identification loop (Fig. 5.7) from a TOML file.
+//! * [`pressure`] — cylinder-pressure analysis per cycle: peak, IMEP, polytropic exponents,
+//!   pegging, CoV of IMEP (`physid cycles`).
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
 //! * [`torque_fit`] — Application 3: identifiability and EKF/UKF estimation of the cyclic
 //!   engine torque model (ch. 8).
@@ -33,6 +35,7 @@ pub mod friction_fit;
 pub mod friction_rank;
 pub mod model_choice;
 pub mod pipeline;
+pub mod pressure;
 pub mod shaft_monitor;
 pub mod torque_fit;
 

@@ -87,6 +87,11 @@ enum Command {
     ///
     /// Example: physid convert run.mf4 run-deg.parquet --crank-angle
     Convert(cmd::convert::Args),
+    /// Cylinder-pressure figures per cycle: peak and its angle, IMEP, polytropic exponents,
+    /// CoV of IMEP, with pegging.
+    ///
+    /// Example: physid cycles deg.parquet --bore 0.084 --stroke 0.09 --rod 0.15 --compression-ratio 10 --json
+    Cycles(cmd::cycles::Args),
     /// Zero-phase Butterworth filtering of chosen channels.
     ///
     /// Example: physid filter run.csv run-f.csv --lowpass 500 --order 4 --channels torque_shaft
@@ -119,5 +124,6 @@ fn main() -> miette::Result<()> {
         Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),
         Command::Filter(a) => cmd::filter::run(&a),
+        Command::Cycles(a) => cmd::cycles::run(&a),
     }
 }

@@ -111,7 +111,7 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// What decoding the wheel found, on stderr: the wheel, the speed range, how the firing TDC
 /// was placed, and every finding with its sample.
-fn tell_wheel(input: &std::path::Path, d: &DecodedWheel) {
+pub fn tell_wheel(input: &std::path::Path, d: &DecodedWheel) {
     let a = &d.angles;
     eprintln!(
         "{}: wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm; {}",

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod convert;
+pub mod cycles;
 pub mod demo;
 pub mod estimate;
 pub mod example;

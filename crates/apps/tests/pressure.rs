@@ -1,0 +1,155 @@
+//! Cylinder-pressure analysis against closed forms: an ideal cycle — polytropic compression
+//! `p·Vⁿ = C₁` from BDC to TDC, polytropic expansion `p·Vⁿ = C₃` back to BDC, gas exchange at
+//! constant pressure — whose net work is `(C₃ − C₁)·(V_c^{1−n} − V_bdc^{1−n})/(n − 1)` and whose
+//! exponents are `n` on both strokes. The volume is written here from the textbook slider
+//! crank, not taken from physid.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::pressure::{analyse, Geometry, Pegging};
+use physid_core::{Basis, Channel, Recording};
+
+const BORE: f64 = 0.084;
+const STROKE: f64 = 0.09;
+const ROD: f64 = 0.15;
+const CR: f64 = 10.0;
+const N: f64 = 1.3;
+const P0: f64 = 1e5;
+
+fn volume(atdc_deg: f64) -> f64 {
+    let r = STROKE / 2.0;
+    let a = atdc_deg.to_radians();
+    let s = r * (1.0 - a.cos()) + ROD - (ROD * ROD - (r * a.sin()).powi(2)).sqrt();
+    let area = std::f64::consts::PI * BORE * BORE / 4.0;
+    area * STROKE / (CR - 1.0) + area * s
+}
+
+/// Cycles at 0.1° steps, 1500 rpm, expansion pressures at BDC `p3` (one per cycle), the
+/// measured pressure `offset` below the true one.
+fn recording(p3: &[f64], offset: f64) -> Recording {
+    let step = 0.1;
+    let per = (720.0 / step) as usize;
+    let (mut t, mut cycle, mut deg, mut p) = (vec![], vec![], vec![], vec![]);
+    let vbdc = volume(180.0);
+    let w = 1500.0 * 6.0; // deg/s
+    for (c, &p3) in p3.iter().enumerate() {
+        for k in 0..per {
+            let d = k as f64 * step;
+            let atdc = if d >= 360.0 { d - 720.0 } else { d };
+            let v = volume(atdc);
+            let pressure = if (0.0..=180.0).contains(&atdc) {
+                p3 * (vbdc / v).powf(N)
+            } else if (-180.0..0.0).contains(&atdc) {
+                P0 * (vbdc / v).powf(N)
+            } else {
+                P0
+            };
+            t.push((c * per + k) as f64 * step / w);
+            cycle.push(c as f64);
+            deg.push(d);
+            p.push(pressure - offset);
+        }
+    }
+    let mut rec = Recording::new(Basis::CrankAngle);
+    for (name, unit, values) in [
+        ("t", "s", t),
+        ("cycle", "-", cycle),
+        ("crank_deg", "deg", deg),
+        ("p_cyl", "Pa", p),
+    ] {
+        rec.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values,
+        })
+        .unwrap();
+    }
+    rec
+}
+
+fn closed_form_imep(p3: f64) -> f64 {
+    let (vc, vbdc) = (volume(0.0), volume(180.0));
+    let (c1, c3) = (P0 * vbdc.powf(N), p3 * vbdc.powf(N));
+    let work = (c3 - c1) * (vc.powf(1.0 - N) - vbdc.powf(1.0 - N)) / (N - 1.0);
+    work / (vbdc - vc)
+}
+
+fn geometry() -> Geometry {
+    Geometry {
+        bore: BORE,
+        stroke: STROKE,
+        rod: ROD,
+        compression_ratio: CR,
+    }
+}
+
+#[test]
+fn imep_exponents_and_peak_of_an_ideal_cycle_equal_their_closed_forms() {
+    let p3 = [3e5, 3.3e5, 2.7e5];
+    let a = analyse(
+        &recording(&p3, 0.0),
+        "p_cyl",
+        Some(&geometry()),
+        Pegging::None,
+    )
+    .unwrap();
+    assert_eq!(a.cycles.len(), 3);
+    let mut want = Vec::new();
+    for (c, &p) in a.cycles.iter().zip(&p3) {
+        let imep = closed_form_imep(p);
+        want.push(imep);
+        let got = c.imep_pa.unwrap();
+        assert!((got / imep - 1.0).abs() < 1e-5, "{got} vs {imep}");
+        // Gas exchange at constant pressure does no net work: gross = net.
+        assert!((c.imep_gross_pa.unwrap() / imep - 1.0).abs() < 1e-5);
+        assert!(
+            (c.n_compression.unwrap() - N).abs() < 1e-9,
+            "{:?}",
+            c.n_compression
+        );
+        assert!((c.n_expansion.unwrap() - N).abs() < 1e-9);
+        assert_eq!(c.p_max_deg, 0.0);
+        let p_tdc = p * (volume(180.0) / volume(0.0)).powf(N);
+        assert!((c.p_max / p_tdc - 1.0).abs() < 1e-12);
+        assert!((c.rpm - 1500.0).abs() < 1e-6, "{}", c.rpm);
+    }
+    let mean = want.iter().sum::<f64>() / 3.0;
+    let sd = (want.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+    assert!((a.cov_imep.unwrap() / (sd / mean) - 1.0).abs() < 1e-4);
+}
+
+#[test]
+fn pegging_recovers_the_offset_and_leaves_imep_alone() {
+    let offset = 0.4e5;
+    let g = geometry();
+    let clean = analyse(&recording(&[3e5], 0.0), "p_cyl", Some(&g), Pegging::None).unwrap();
+    let shifted = recording(&[3e5], offset);
+    for peg in [Pegging::Bdc(P0), Pegging::Polytropic(N)] {
+        let a = analyse(&shifted, "p_cyl", Some(&g), peg).unwrap();
+        let c = &a.cycles[0];
+        assert!(
+            (c.peg_offset / offset - 1.0).abs() < 1e-9,
+            "{peg:?}: {}",
+            c.peg_offset
+        );
+        assert!((c.p_max / clean.cycles[0].p_max - 1.0).abs() < 1e-12);
+        assert!((c.imep_pa.unwrap() / clean.cycles[0].imep_pa.unwrap() - 1.0).abs() < 1e-9);
+        assert!((c.n_compression.unwrap() - N).abs() < 1e-9);
+    }
+    // Unpegged, the exponent from the offset pressure is wrong (why pegging matters).
+    let raw = analyse(&shifted, "p_cyl", Some(&g), Pegging::None).unwrap();
+    assert!((raw.cycles[0].n_compression.unwrap() - N).abs() > 0.05);
+}
+
+#[test]
+fn without_geometry_or_pa_what_is_left_out_is_said() {
+    let rec = recording(&[3e5, 3e5], 0.0);
+    let a = analyse(&rec, "p_cyl", None, Pegging::None).unwrap();
+    assert!(a.cycles[0].imep_pa.is_none() && a.cov_imep.is_none());
+    assert!(analyse(&rec, "p_cyl", None, Pegging::Polytropic(1.3)).is_err());
+    let mut bad = geometry();
+    bad.rod = 0.01;
+    let e = analyse(&rec, "p_cyl", Some(&bad), Pegging::None).unwrap_err();
+    assert!(e.to_string().contains("rod"), "{e}");
+    let e = analyse(&rec, "p_int", None, Pegging::None).unwrap_err();
+    assert!(e.to_string().contains("p_int"), "{e}");
+}

@@ -1,0 +1,176 @@
+//! `physid cycles`: cylinder-pressure figures per cycle — peak pressure and its angle, IMEP
+//! (net and gross), polytropic exponents, speed, CoV of IMEP — with pegging
+//! (`physid_apps::pressure`). A time-basis recording is taken to one sample per crank degree
+//! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
+
+use super::InputArgs;
+use crate::cmd::convert::tell_wheel;
+use crate::cmd::inspect::{acquisition_options, WheelArgs};
+use crate::out::outln;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::acquisition::to_crank_angle_decoded;
+use physid_apps::pressure::{analyse, Geometry, Pegging};
+use physid_core::Basis;
+use std::path::PathBuf;
+
+/// Arguments of `physid cycles`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Recording (CSV, Parquet, MDF4, text): on a crank-angle basis, or on a time basis with
+    /// the engine angle (theta_en, an encoder count, or --wheel).
+    pub file: PathBuf,
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// The cylinder-pressure channel.
+    #[arg(long, default_value = "p_cyl")]
+    pub channel: String,
+    /// Bore [m] (with --stroke, --rod and --compression-ratio: IMEP and polytropic exponents).
+    #[arg(long, value_name = "M", requires_all = ["stroke", "rod", "compression_ratio"])]
+    pub bore: Option<f64>,
+    /// Stroke [m].
+    #[arg(long, value_name = "M", requires = "bore")]
+    pub stroke: Option<f64>,
+    /// Connecting-rod length [m].
+    #[arg(long, value_name = "M", requires = "bore")]
+    pub rod: Option<f64>,
+    /// Compression ratio [-].
+    #[arg(long, value_name = "RATIO", requires = "bore")]
+    pub compression_ratio: Option<f64>,
+    /// Pressure referencing per cycle: `bdc=P` (P, in the channel's unit, at BDC of the intake
+    /// stroke) or `polytropic=N` (the offset that makes p·V^N constant on compression).
+    #[arg(long, value_name = "bdc=P|polytropic=N")]
+    pub peg: Option<String>,
+    /// Encoder counter channel and pulses per revolution, for a time-basis recording
+    /// [default: count_en=360, count_dy=1024].
+    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
+    pub encoders: Vec<String>,
+    /// TDC marker channel, for a time-basis recording.
+    #[arg(long, default_value = "tdc")]
+    pub marker: String,
+    #[command(flatten)]
+    pub wheel: WheelArgs,
+    /// Print JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn pegging(s: &Option<String>) -> Result<Pegging> {
+    let Some(s) = s else {
+        return Ok(Pegging::None);
+    };
+    let bad = || {
+        miette!("--peg '{s}': expected bdc=PRESSURE or polytropic=EXPONENT, e.g. bdc=1e5, polytropic=1.32")
+    };
+    let (kind, value) = s.split_once('=').ok_or_else(bad)?;
+    let v: f64 = value
+        .trim()
+        .parse()
+        .ok()
+        .filter(|v: &f64| v.is_finite())
+        .ok_or_else(bad)?;
+    match kind.trim() {
+        "bdc" => Ok(Pegging::Bdc(v)),
+        "polytropic" if v > 1.0 && v < 2.0 => Ok(Pegging::Polytropic(v)),
+        "polytropic" => Err(miette!(
+            "--peg polytropic={v}: expected an exponent between 1 and 2"
+        )),
+        _ => Err(bad()),
+    }
+}
+
+/// Run `physid cycles`.
+pub fn run(args: &Args) -> Result<()> {
+    let peg = pegging(&args.peg)?;
+    let geometry = args.bore.map(|bore| Geometry {
+        bore,
+        stroke: args.stroke.unwrap_or(f64::NAN),
+        rod: args.rod.unwrap_or(f64::NAN),
+        compression_ratio: args.compression_ratio.unwrap_or(f64::NAN),
+    });
+    let mut opts = acquisition_options(&args.encoders, &args.marker)?;
+    opts.wheel = args.wheel.spec()?;
+    let rec = args.input.read(&args.file, None)?;
+    let mut wheel = None;
+    let rec = match rec.basis {
+        Basis::CrankAngle => rec,
+        Basis::Time => {
+            let (deg, decoded) = to_crank_angle_decoded(&rec, &opts, 1.0)
+                .map_err(|e| miette!("{}: {e}", args.file.display()))?;
+            if let Some(d) = &decoded {
+                if !args.json {
+                    tell_wheel(&args.file, d);
+                }
+            }
+            wheel = decoded;
+            deg
+        }
+    };
+    let a = analyse(&rec, &args.channel, geometry.as_ref(), peg)
+        .map_err(|e| miette!("{}: {e}", args.file.display()))?;
+    if args.json {
+        let mut v = serde_json::to_value(&a).into_diagnostic()?;
+        if let (Some(o), Some(d)) = (v.as_object_mut(), &wheel) {
+            o.insert(
+                "wheel".into(),
+                serde_json::json!({
+                    "wheel": d.angles.wheel.to_string(),
+                    "teeth": d.angles.wheel.present(),
+                    "missing": d.angles.wheel.missing,
+                    "revolutions": d.angles.revolutions,
+                    "rpm_min": d.angles.rpm.0,
+                    "rpm_max": d.angles.rpm.1,
+                    "phase": d.phase,
+                }),
+            );
+            o.insert(
+                "findings".into(),
+                serde_json::to_value(&d.angles.findings).into_diagnostic()?,
+            );
+        }
+        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        return Ok(());
+    }
+    let u = &a.unit;
+    outln!(
+        "{}: {} complete cycle(s) of '{}' [{u}]",
+        args.file.display(),
+        a.cycles.len(),
+        a.channel
+    );
+    outln!(
+        "{:>6} {:>10} {:>8} {:>12} {:>9} {:>12} {:>12} {:>7} {:>7}",
+        "cycle",
+        "t [s]",
+        "rpm",
+        "p_max",
+        "at [°]",
+        "IMEP [kPa]",
+        "gross [kPa]",
+        "n_comp",
+        "n_exp"
+    );
+    let opt = |v: Option<f64>, scale: f64, prec: usize| {
+        v.map_or("-".to_string(), |v| format!("{:.*}", prec, v * scale))
+    };
+    for c in &a.cycles {
+        outln!(
+            "{:>6} {:>10.4} {:>8.1} {:>12.5e} {:>9.1} {:>12} {:>12} {:>7} {:>7}",
+            c.cycle,
+            c.t_start_s,
+            c.rpm,
+            c.p_max,
+            c.p_max_deg,
+            opt(c.imep_pa, 1e-3, 2),
+            opt(c.imep_gross_pa, 1e-3, 2),
+            opt(c.n_compression, 1.0, 3),
+            opt(c.n_expansion, 1.0, 3)
+        );
+    }
+    if let Some(cov) = a.cov_imep {
+        outln!("CoV of IMEP: {:.2} %", cov * 100.0);
+    }
+    for n in &a.notes {
+        outln!("note: {n}");
+    }
+    Ok(())
+}
