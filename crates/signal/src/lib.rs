@@ -6,10 +6,14 @@
 //! * [`stream`] — the same zero-phase filtering on a stream, in blocks with a lookahead: the
 //!   interior equal to the whole record's to ≈ 1e-13 of the signal's scale, the end exactly,
 //!   a stated latency.
+//! * [`wheel`] — the crank angle from a trigger wheel's raw signal (N−M teeth, analog or
+//!   digital): edges, teeth, gap, missing and extra edges, the angle at every sample.
+//! * [`quadrature`] — the angle, both ways, from a quadrature encoder's A/B (and Z) signals.
 pub mod crank;
 pub mod cycles;
 pub mod encoder;
 pub mod filter;
 pub mod integrity;
+pub mod quadrature;
 pub mod stream;
 pub mod wheel;

@@ -786,30 +786,35 @@ impl WheelAngles {
     /// The wheel's angle at the times `at` [s] (increasing), by the monotone cubic through the
     /// edges; NaN before the first edge and after the last.
     pub fn angle_at(&self, at: &[f64]) -> Vec<f64> {
-        let (x, y) = (&self.t, &self.angle);
-        let d = pchip_slopes(x, y);
-        let mut out = Vec::with_capacity(at.len());
-        let mut k = 0;
-        for &a in at {
-            if !(a >= x[0] && a <= x[x.len() - 1]) {
-                out.push(f64::NAN);
-                continue;
-            }
-            while k + 2 < x.len() && a > x[k + 1] {
-                k += 1;
-            }
-            let h = x[k + 1] - x[k];
-            let s = (a - x[k]) / h;
-            let (h00, h10, h01, h11) = (
-                (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
-                s * (1.0 - s) * (1.0 - s),
-                s * s * (3.0 - 2.0 * s),
-                s * s * (s - 1.0),
-            );
-            out.push(h00 * y[k] + h10 * h * d[k] + h01 * y[k + 1] + h11 * h * d[k + 1]);
-        }
-        out
+        pchip_at(&self.t, &self.angle, at)
     }
+}
+
+/// The monotone piecewise-cubic Hermite interpolant through `(x, y)` (`x` increasing, at least
+/// 2 points) at the points `at` (increasing); NaN outside `[x₀, xₙ]`.
+pub fn pchip_at(x: &[f64], y: &[f64], at: &[f64]) -> Vec<f64> {
+    let d = pchip_slopes(x, y);
+    let mut out = Vec::with_capacity(at.len());
+    let mut k = 0;
+    for &a in at {
+        if x.len() < 2 || !(a >= x[0] && a <= x[x.len() - 1]) {
+            out.push(f64::NAN);
+            continue;
+        }
+        while k + 2 < x.len() && a > x[k + 1] {
+            k += 1;
+        }
+        let h = x[k + 1] - x[k];
+        let s = (a - x[k]) / h;
+        let (h00, h10, h01, h11) = (
+            (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
+            s * (1.0 - s) * (1.0 - s),
+            s * s * (3.0 - 2.0 * s),
+            s * s * (s - 1.0),
+        );
+        out.push(h00 * y[k] + h10 * h * d[k] + h01 * y[k + 1] + h11 * h * d[k + 1]);
+    }
+    out
 }
 
 /// The slopes of the monotone piecewise-cubic Hermite interpolant (Fritsch–Carlson, with

@@ -2,7 +2,7 @@
 (`physid_signal::wheel`) — written with numpy and pyarrow only, no physid code.
 
 Run: python3 gen_wheels.py  (numpy, pyarrow) -> wheel_vr_60m3.parquet, wheel_hall_36m1.parquet,
-                                                wheels.json
+                                                quadrature_500.parquet, wheels.json
 
 The crank angle theta(t) [rad] is integrated (RK4 at 1 µs) from a mean speed that ramps, with
 a cyclic fluctuation of the four-stroke single cylinder (period 720° of crank angle):
@@ -23,6 +23,9 @@ the crankshaft).
   half a pitch wide) over a 36-1 wheel at 50 kHz, 2 s from 800 to 1500 rpm; one tooth's pulse
   is dropped (a missing edge) and one spurious pulse, 40 % of a tooth wide, is added in the
   middle of a tooth space (an extra edge).
+* quadrature_500.parquet — an A/B/Z quadrature encoder of 500 lines (digital, 200 kHz): the
+  shaft turns back 40° first, then forward up to 1200 rpm; edges jittered by up to 3 % of a
+  line; Z once per revolution (see `quadrature_file`).
 
 Channels: t [us] (int32), enc (int16 ADC counts of 0.2 mV; the Hall file: 1 mV), p_cyl
 (int16 counts of 1 mV; VR file only) — the raw channels without a unit, as a DAQ's text file, theta_true [urad] (int64: the true crank angle at the sample,
@@ -196,9 +199,79 @@ def hall_file():
     }
 
 
+def quadrature_file():
+    """A/B/Z quadrature encoder, 500 lines, digital 0/5 V at 200 kHz, 0.6 s: the shaft turns
+    back by 40° (a rocking start), then forward, speeding up to 1200 rpm with cyclic
+    fluctuation; every edge displaced by a random jitter of up to 3 % of a line."""
+    ppr = 500
+    fs = 200_000.0
+    duration = 0.6
+    dt = 1e-6
+    n = int(round(duration / dt)) + 1
+    tf = np.arange(n) * dt
+    # theta(t): back 40° over the first 0.1 s (a half-cosine), then forward from rest:
+    # 1200 rpm reached by a smooth ramp, with a 3 % fluctuation at the firing frequency.
+    back = np.deg2rad(40.0)
+    th = np.where(tf < 0.1, -back * 0.5 * (1 - np.cos(np.pi * tf / 0.1)), -back)
+    u = np.clip((tf - 0.1) / 0.5, 0.0, None)
+    w_mean = 1200 * np.pi / 30 * np.where(u < 1, u * u * (3 - 2 * u), 1.0)
+    fwd = np.cumsum(w_mean) * dt
+    th = th + fwd + 0.03 * np.sin(fwd / 2) * (fwd > 0)
+    rng = np.random.default_rng(7)
+    q = 2 * np.pi / ppr  # a line
+    # Each line's rising and falling edge displaced by its own jitter of up to 3 % of a line:
+    # high on [k + r_k, k + 1/2 + f_k) in lines.
+    jr = rng.uniform(-0.03, 0.03, size=100_000)
+    jf = rng.uniform(-0.03, 0.03, size=100_000)
+    def channel(shift):
+        x = th / q + shift
+        k = np.floor(x).astype(np.int64)
+        r0, f0 = jr[k % jr.size], jf[k % jf.size]
+        r1 = jr[(k + 1) % jr.size]
+        high = ((x >= k + r0) & (x < k + 0.5 + f0)) | (x >= k + 1 + r1)
+        return np.where(high, 5.0, 0.0)
+    a = channel(0.0)
+    b = channel(-0.25)  # B lags A by a quarter line when turning forward
+    # Z: high for a quarter line once per revolution, at the wheel's 0.
+    zx = np.mod(th, 2 * np.pi)
+    z = np.where(zx < q / 4, 5.0, 0.0)
+    idx = np.arange(int(round(duration * fs))) * int(round(1.0 / fs / dt))
+    table = pa.table(
+        {
+            "t": pa.array(np.round(tf[idx] * 1e6).astype(np.int32)),
+            "enc_a": pa.array(np.round(a[idx] / 0.001).astype(np.int16)),
+            "enc_b": pa.array(np.round(b[idx] / 0.001).astype(np.int16)),
+            "enc_z": pa.array(np.round(z[idx] / 0.001).astype(np.int16)),
+            "theta_true": pa.array(np.round(th[idx] * 1e6).astype(np.int64)),
+        }
+    )
+    schema = pa.schema(
+        [
+            pa.field("t", pa.int32(), metadata={"unit": "us"}),
+            pa.field("enc_a", pa.int16()),
+            pa.field("enc_b", pa.int16()),
+            pa.field("enc_z", pa.int16()),
+            pa.field("theta_true", pa.int64(), metadata={"unit": "urad"}),
+        ]
+    )
+    first_z = int(np.argmax(z[idx] > 0))
+    return table.cast(schema), {
+        "ppr": ppr,
+        "rate_hz": fs,
+        "samples": len(idx),
+        "back_deg": 40.0,
+        "first_index_sample": first_z,
+        "revolutions": int(np.floor(th[-1] / (2 * np.pi))),
+    }
+
+
 if __name__ == "__main__":
     out = {}
-    for name, make in [("wheel_vr_60m3", vr_file), ("wheel_hall_36m1", hall_file)]:
+    for name, make in [
+        ("wheel_vr_60m3", vr_file),
+        ("wheel_hall_36m1", hall_file),
+        ("quadrature_500", quadrature_file),
+    ]:
         table, info = make()
         pq.write_table(
             table,
