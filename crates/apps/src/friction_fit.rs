@@ -310,13 +310,8 @@ fn crank_angle_cycles(
     }
     let mean = |x: &[f64], a: usize, b: usize| x[a..b].iter().sum::<f64>() / (b - a) as f64;
     let mut out = Vec::new();
-    let mut start = 0;
-    while start < cycle.len() {
-        let c = cycle[start];
-        let mut end = start;
-        while end < cycle.len() && cycle[end] == c {
-            end += 1;
-        }
+    for (c, run) in physid_signal::crank::cycle_runs(cycle) {
+        let (start, end) = (run.start, run.end);
         out.push((c >= 0.0 && end - start == per_cycle).then(|| {
             let w = mean(&omega, start, end);
             FrictionCycle {
@@ -332,7 +327,6 @@ fn crank_angle_cycles(
                     / w.abs().max(f64::MIN_POSITIVE),
             }
         }));
-        start = end;
     }
     Ok(out)
 }

@@ -189,16 +189,10 @@ pub fn analyse(
     let mut cycles = Vec::new();
     let mut partial = 0;
     let (mut pc, mut vol, mut atdc) = (Vec::new(), Vec::new(), Vec::new());
-    let mut start = 0;
-    while start < cycle.len() {
-        let c = cycle[start];
-        let mut end = start;
-        while end < cycle.len() && cycle[end] == c {
-            end += 1;
-        }
+    for (c, run) in physid_signal::crank::cycle_runs(cycle) {
+        let (start, end) = (run.start, run.end);
         if !(c >= 0.0 && end - start == per_cycle) {
             partial += 1;
-            start = end;
             continue;
         }
         atdc.clear();
@@ -278,7 +272,6 @@ pub fn analyse(
             n_compression: nc,
             n_expansion: ne,
         });
-        start = end;
     }
     if partial > 0 {
         notes.push(format!(

@@ -185,16 +185,11 @@ pub fn cycle_stats(cycle: &[f64], x: &[f64]) -> Vec<CycleStats> {
 /// loop closed from the cycle's last sample back to its first (trapezoidal rule). A cycle is
 /// complete when it has `per_cycle` samples.
 pub fn imep(cycle: &[f64], p: &[f64], v: &[f64], vd: f64, per_cycle: usize) -> Vec<(i64, f64)> {
-    let mut out = Vec::new();
-    let mut start = 0;
     let n = cycle.len().min(p.len()).min(v.len());
-    while start < n {
-        let c = cycle[start];
-        let mut end = start;
-        while end < n && cycle[end] == c {
-            end += 1;
-        }
-        if c >= 0.0 && end - start == per_cycle {
+    let mut out = Vec::new();
+    for (c, run) in cycle_runs(&cycle[..n]) {
+        if c >= 0.0 && run.len() == per_cycle {
+            let (start, end) = (run.start, run.end);
             let mut w = 0.0;
             for i in start..end {
                 let j = if i + 1 < end { i + 1 } else { start };
@@ -202,7 +197,22 @@ pub fn imep(cycle: &[f64], p: &[f64], v: &[f64], vd: f64, per_cycle: usize) -> V
             }
             out.push((c as i64, w / vd));
         }
-        start = end;
     }
     out
+}
+
+/// The runs of one value of a crank-angle recording's `cycle` channel, in order: each cycle's
+/// index and its samples (complete when their number is the samples per cycle).
+pub fn cycle_runs(cycle: &[f64]) -> impl Iterator<Item = (f64, std::ops::Range<usize>)> + '_ {
+    let mut start = 0;
+    std::iter::from_fn(move || {
+        let c = *cycle.get(start)?;
+        let mut end = start + 1;
+        while end < cycle.len() && cycle[end] == c {
+            end += 1;
+        }
+        let run = start..end;
+        start = end;
+        Some((c, run))
+    })
 }

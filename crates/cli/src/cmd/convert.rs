@@ -2,7 +2,7 @@
 //! degree).
 
 use super::InputArgs;
-use crate::cmd::inspect::{acquisition_options, WheelArgs};
+use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{to_crank_angle_decoded, to_time_basis, DecodedWheel};
@@ -32,15 +32,8 @@ pub struct Args {
     /// Resample a crank-angle recording to a uniform time basis at this rate [Hz].
     #[arg(long, value_name = "HZ")]
     pub time_basis: Option<f64>,
-    /// Encoder counter channel and pulses per revolution (repeatable)
-    /// [default: count_en=360, count_dy=1024].
-    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
-    pub encoders: Vec<String>,
-    /// TDC marker channel.
-    #[arg(long, default_value = "tdc")]
-    pub marker: String,
     #[command(flatten)]
-    pub wheel: WheelArgs,
+    pub angle: AngleArgs,
     /// MDF4 output compression: none, deflate or transposed.
     #[arg(long, default_value = "none")]
     pub compression: String,
@@ -67,8 +60,7 @@ pub fn run(args: &Args) -> Result<()> {
     if !resample && !compressed {
         return stream(args);
     }
-    let mut opts = acquisition_options(&args.encoders, &args.marker)?;
-    opts.wheel = args.wheel.spec()?;
+    let opts = args.angle.options()?;
     if opts.wheel.is_some() && !args.crank_angle {
         return Err(miette!(
             "--wheel decodes the engine angle for --crank-angle: add --crank-angle"

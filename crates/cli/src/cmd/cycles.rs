@@ -5,7 +5,7 @@
 
 use super::InputArgs;
 use crate::cmd::convert::tell_wheel;
-use crate::cmd::inspect::{acquisition_options, WheelArgs};
+use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::to_crank_angle_decoded;
@@ -40,15 +40,8 @@ pub struct Args {
     /// stroke) or `polytropic=N` (the offset that makes p·V^N constant on compression).
     #[arg(long, value_name = "bdc=P|polytropic=N")]
     pub peg: Option<String>,
-    /// Encoder counter channel and pulses per revolution, for a time-basis recording
-    /// [default: count_en=360, count_dy=1024].
-    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
-    pub encoders: Vec<String>,
-    /// TDC marker channel, for a time-basis recording.
-    #[arg(long, default_value = "tdc")]
-    pub marker: String,
     #[command(flatten)]
-    pub wheel: WheelArgs,
+    pub angle: AngleArgs,
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
@@ -87,8 +80,7 @@ pub fn run(args: &Args) -> Result<()> {
         rod: args.rod.unwrap_or(f64::NAN),
         compression_ratio: args.compression_ratio.unwrap_or(f64::NAN),
     });
-    let mut opts = acquisition_options(&args.encoders, &args.marker)?;
-    opts.wheel = args.wheel.spec()?;
+    let opts = args.angle.options()?;
     let rec = args.input.read(&args.file, None)?;
     let mut wheel = None;
     let rec = match rec.basis {

@@ -18,15 +18,8 @@ pub struct Args {
     pub file: PathBuf,
     #[command(flatten)]
     pub input: InputArgs,
-    /// Encoder counter channel and pulses per revolution (repeatable); the TDC marker belongs
-    /// to the first [default: count_en=360, count_dy=1024].
-    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
-    pub encoders: Vec<String>,
-    /// TDC marker channel.
-    #[arg(long, default_value = "tdc")]
-    pub marker: String,
     #[command(flatten)]
-    pub wheel: WheelArgs,
+    pub angle: AngleArgs,
     /// Exit with an error when the integrity check finds anything.
     #[arg(long)]
     pub strict: bool,
@@ -39,6 +32,30 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Where the engine angle comes from on a time basis (besides `theta_en`): encoder counts with
+/// a TDC marker, or a trigger wheel's raw signal — the same flags in every verb that takes it.
+#[derive(clap::Args, Debug, Clone)]
+pub struct AngleArgs {
+    /// Encoder counter channel and pulses per revolution (repeatable); the TDC marker belongs
+    /// to the first [default: count_en=360, count_dy=1024].
+    #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
+    pub encoders: Vec<String>,
+    /// TDC marker channel.
+    #[arg(long, default_value = "tdc")]
+    pub marker: String,
+    #[command(flatten)]
+    pub wheel: WheelArgs,
+}
+
+impl AngleArgs {
+    /// The acquisition options these flags give.
+    pub fn options(&self) -> Result<AcquisitionOptions> {
+        let mut o = acquisition_options(&self.encoders, &self.marker)?;
+        o.wheel = self.wheel.spec()?;
+        Ok(o)
+    }
 }
 
 /// A trigger wheel's raw signal as the engine angle (`physid_signal::wheel`).
@@ -145,8 +162,7 @@ pub fn acquisition_options(encoders: &[String], marker: &str) -> Result<Acquisit
 
 /// Run `physid inspect`.
 pub fn run(args: &Args) -> Result<()> {
-    let mut opts = acquisition_options(&args.encoders, &args.marker)?;
-    opts.wheel = args.wheel.spec()?;
+    let opts = args.angle.options()?;
     // The file read a chunk at a time: memory does not grow with its length.
     let mut reader = args.input.open_all(&args.file)?;
     if let Some(w) = &opts.wheel {
