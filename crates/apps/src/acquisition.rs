@@ -44,22 +44,58 @@ pub struct AcquisitionOptions {
     pub encoders: Vec<(String, u32)>,
     /// The TDC marker channel.
     pub marker: String,
-    /// A trigger wheel's raw signal, decoded into the engine angle when the recording has no
-    /// `theta_en` (`--wheel CHANNEL=N-M`).
-    pub wheel: Option<WheelSpec>,
+    /// A raw angle sensor (a trigger wheel or a quadrature encoder), decoded into the engine
+    /// angle when the recording has no `theta_en` (`--wheel CHANNEL=N-M`,
+    /// `--quadrature A,B[,Z]=LINES`).
+    pub sensor: Option<AngleSpec>,
 }
 
-/// A trigger wheel on the crankshaft and where the firing TDC lies on it.
+/// A raw angle sensor on the crankshaft.
 #[derive(Debug, Clone, PartialEq)]
-pub struct WheelSpec {
-    /// The sensor's channel (raw: analog or digital).
-    pub channel: String,
-    /// The wheel (N−M).
-    pub wheel: Wheel,
-    /// Which edges, which level.
-    pub edges: EdgeOptions,
-    /// The crank angle from the reference tooth's edge (the first after the gap) to the next
-    /// TDC [deg], in [0, 360).
+pub enum AngleSensor {
+    /// A toothed wheel's sensor (analog or digital).
+    Wheel {
+        /// The sensor's channel.
+        channel: String,
+        /// The wheel (N−M).
+        wheel: Wheel,
+        /// Which edges, which level.
+        edges: EdgeOptions,
+    },
+    /// A quadrature encoder's channels A, B and optionally the index Z.
+    Quadrature {
+        /// Channel A.
+        a: String,
+        /// Channel B (a quarter line behind A turning forward).
+        b: String,
+        /// The index, once per revolution.
+        z: Option<String>,
+        /// Lines per revolution.
+        lines: u32,
+    },
+}
+
+impl AngleSensor {
+    /// The raw channels it reads.
+    pub fn channels(&self) -> Vec<&str> {
+        match self {
+            Self::Wheel { channel, .. } => vec![channel.as_str()],
+            Self::Quadrature { a, b, z, .. } => [Some(a), Some(b), z.as_ref()]
+                .into_iter()
+                .flatten()
+                .map(String::as_str)
+                .collect(),
+        }
+    }
+}
+
+/// A raw angle sensor and where the firing TDC lies on it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AngleSpec {
+    /// The sensor.
+    pub sensor: AngleSensor,
+    /// The crank angle from the sensor's reference — a wheel's first tooth edge after the gap,
+    /// an encoder's index pulse turning forward — to the next TDC [deg], in [0, 360).
     pub tdc_offset_deg: f64,
     /// A channel whose level is higher at the compression TDC than at the gas-exchange one a
     /// revolution later (the cylinder pressure): which revolution fires. `None`: the TDC
@@ -76,7 +112,7 @@ impl Default for AcquisitionOptions {
         Self {
             encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
             marker: TDC_MARKER.into(),
-            wheel: None,
+            sensor: None,
         }
     }
 }
@@ -220,11 +256,14 @@ impl Inspector {
             edges: 0,
             prev_marker: None,
             prev_deg: None,
-            wheel: opts
-                .wheel
-                .as_ref()
-                .filter(|w| header.channel(&w.channel).is_ok() && header.basis == Basis::Time)
-                .map(|w| EdgeDetector::new(&w.edges)),
+            wheel: match opts.sensor.as_ref().map(|s| &s.sensor) {
+                Some(AngleSensor::Wheel { channel, edges, .. })
+                    if header.channel(channel).is_ok() && header.basis == Basis::Time =>
+                {
+                    Some(EdgeDetector::new(edges))
+                }
+                _ => None,
+            },
         }
     }
 
@@ -273,8 +312,11 @@ impl Inspector {
             c.push(chunk);
         }
         self.rows += chunk.len();
-        if let (Some(d), Some(w)) = (self.wheel.as_mut(), self.opts.wheel.as_ref()) {
-            if let (Ok(t), Ok(v)) = (chunk.values("t"), chunk.values(&w.channel)) {
+        if let (Some(d), Some(AngleSensor::Wheel { channel, .. })) = (
+            self.wheel.as_mut(),
+            self.opts.sensor.as_ref().map(|s| &s.sensor),
+        ) {
+            if let (Ok(t), Ok(v)) = (chunk.values("t"), chunk.values(channel)) {
                 d.push(t, v);
             }
         }
@@ -334,8 +376,10 @@ impl Inspector {
         let mut integrity = self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
             IntegrityCheck::new(&IntegrityOptions::default(), &self.header).finish()
         });
-        let wheel = match (self.wheel, &self.opts.wheel) {
-            (Some(d), Some(spec)) => Some(wheel_summary(d, spec, &mut integrity)),
+        let wheel = match (self.wheel, self.opts.sensor.as_ref().map(|s| &s.sensor)) {
+            (Some(d), Some(AngleSensor::Wheel { channel, wheel, .. })) => {
+                Some(wheel_summary(d, channel, *wheel, &mut integrity))
+            }
             _ => None,
         };
         Inspection {
@@ -365,12 +409,17 @@ impl Inspector {
 }
 
 /// Index the wheel's edges and add what was found to the integrity check.
-fn wheel_summary(d: EdgeDetector, spec: &WheelSpec, integrity: &mut Integrity) -> WheelSummary {
+fn wheel_summary(
+    d: EdgeDetector,
+    channel: &str,
+    wheel: Wheel,
+    integrity: &mut Integrity,
+) -> WheelSummary {
     let mut summary = WheelSummary {
-        channel: spec.channel.clone(),
-        wheel: spec.wheel.to_string(),
-        teeth: spec.wheel.present(),
-        missing: spec.wheel.missing,
+        channel: channel.to_string(),
+        wheel: wheel.to_string(),
+        teeth: wheel.present(),
+        missing: wheel.missing,
         edges: 0,
         revolutions: 0,
         rpm_min: f64::NAN,
@@ -380,10 +429,10 @@ fn wheel_summary(d: EdgeDetector, spec: &WheelSpec, integrity: &mut Integrity) -
     };
     let decoded = d
         .finish()
-        .map_err(|e| format!("'{}': {e}", spec.channel))
+        .map_err(|e| format!("'{channel}': {e}"))
         .and_then(|e| {
             summary.glitches = e.glitches.len();
-            index_teeth(&e, spec.wheel, &spec.channel).map_err(|e| e.to_string())
+            index_teeth(&e, wheel, channel).map_err(|e| e.to_string())
         });
     match decoded {
         Ok(a) => {
@@ -422,12 +471,12 @@ fn engine_angle(
     opts: &AcquisitionOptions,
 ) -> Result<EngineAngle, AcquisitionError> {
     let t = rec.values("t")?;
-    let wheel = opts
-        .wheel
-        .as_ref()
-        .filter(|w| rec.values("theta_en").is_err() && rec.channel(&w.channel).is_ok());
-    if let Some(w) = wheel {
-        let mut decoded = decode_wheel(rec, w)?;
+    let sensor = opts.sensor.as_ref().filter(|s| {
+        rec.values("theta_en").is_err()
+            && s.sensor.channels().iter().any(|c| rec.channel(c).is_ok())
+    });
+    if let Some(spec) = sensor {
+        let mut decoded = decode_angle(rec, spec)?;
         let (t, theta) = (
             std::mem::take(&mut decoded.t),
             std::mem::take(&mut decoded.theta),
@@ -448,7 +497,7 @@ fn engine_angle(
             .find(|(n, _)| rec.channel(n).is_ok())
             .ok_or_else(|| {
                 AcquisitionError::Invalid(format!(
-                    "no engine angle: the recording needs 'theta_en' [rad], an encoder count channel ({}) or a trigger wheel's signal (--wheel CHANNEL=N-M); the channels are {}",
+                    "no engine angle: the recording needs 'theta_en' [rad], an encoder count channel ({}), a trigger wheel's signal (--wheel CHANNEL=N-M) or a quadrature encoder's (--quadrature A,B,Z=LINES); the channels are {}",
                     opts.encoders.iter().map(|e| e.0.as_str()).collect::<Vec<_>>().join(", "),
                     rec.names().join(", ")
                 ))
@@ -494,47 +543,167 @@ struct EngineAngle {
     theta: Vec<f64>,
     /// The first firing TDC's angle [rad].
     tdc: f64,
-    /// What decoding a trigger wheel found, when the angle came from one.
-    wheel: Option<DecodedWheel>,
+    /// What decoding a raw angle sensor found, when the angle came from one.
+    wheel: Option<DecodedAngle>,
 }
 
-/// The engine angle decoded from a trigger wheel's signal.
+/// The engine angle decoded from a raw angle sensor.
 #[derive(Debug, Clone)]
-pub struct DecodedWheel {
-    /// The times of the samples between the first and last tooth edge [s].
+pub struct DecodedAngle {
+    /// The times of the samples between the sensor's first and last edge [s] (a quadrature
+    /// encoder: after the last time it turned back).
     pub t: Vec<f64>,
-    /// The crank angle there [rad], 0 at the first reference edge.
+    /// The crank angle there [rad], 0 at the sensor's first reference.
     pub theta: Vec<f64>,
     /// The firing TDC's angle [rad]: the first at or after the first sample.
     pub tdc: f64,
-    /// What the decoding found (teeth, gaps, speed range, missing and extra edges).
-    pub angles: WheelAngles,
+    /// What decoding a wheel found (teeth, gaps, speed range).
+    pub wheel: Option<WheelAngles>,
+    /// What decoding a quadrature encoder found.
+    pub encoder: Option<EncoderSummary>,
+    /// Missing, extra and unresolved edges, references out of place, at their samples.
+    pub findings: Vec<Finding>,
+    /// What was decoded, for a person.
+    pub summary: String,
     /// How the firing revolution was chosen, for a person.
     pub phase: String,
 }
 
-/// Decode a trigger wheel's signal into the crank angle at every sample between its first and
-/// last edge ([`physid_signal::wheel`]), and place the firing TDC: `tdc_offset_deg` after a
-/// reference edge, in the revolution where `phase_from` is higher (its median over the
-/// recording's TDCs of each kind).
-pub fn decode_wheel(rec: &Recording, spec: &WheelSpec) -> Result<DecodedWheel, AcquisitionError> {
+/// A quadrature encoder as decoded.
+#[derive(Debug, Clone, Serialize)]
+pub struct EncoderSummary {
+    /// Lines per revolution.
+    pub lines: u32,
+    /// Index pulses turning forward.
+    pub index_pulses: usize,
+    /// Quarter-line steps turning back.
+    pub backward_steps: usize,
+}
+
+/// What a sensor's decoder gives [`decode_angle`]: the span of its edges [s], its report, and
+/// the angle at any time.
+struct SensorAngles {
+    span: (f64, f64),
+    wheel: Option<WheelAngles>,
+    encoder: Option<EncoderSummary>,
+    findings: Vec<Finding>,
+    summary: String,
+    angle_at: AngleAt,
+}
+
+/// The angle [rad] at the times given [s].
+type AngleAt = Box<dyn Fn(&[f64]) -> Vec<f64>>;
+
+/// Decode a raw angle sensor ([`physid_signal::wheel`], [`physid_signal::quadrature`]) into
+/// the crank angle at every sample between its first and last edge, and place the firing TDC:
+/// `tdc_offset_deg` after the sensor's reference, in the revolution where `phase_from` is
+/// higher (its median over the recording's TDCs of each kind). An encoder that turned back is
+/// taken from the last time it did (the crank angle must increase).
+pub fn decode_angle(rec: &Recording, spec: &AngleSpec) -> Result<DecodedAngle, AcquisitionError> {
     let t = rec.values("t")?;
-    let v = rec.values(&spec.channel)?;
-    let named = |e: WheelError| AcquisitionError::Invalid(format!("'{}': {e}", spec.channel));
-    let found = physid_signal::wheel::edges(t, v, &spec.edges).map_err(named)?;
-    let angles = index_teeth(&found, spec.wheel, &spec.channel)
-        .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
-    let (first, last) = (angles.t[0], angles.t[angles.t.len() - 1]);
+    let invalid = |e: String| AcquisitionError::Invalid(e);
+    let SensorAngles {
+        span: edge_t,
+        wheel,
+        encoder,
+        findings,
+        summary,
+        angle_at,
+    } = match &spec.sensor {
+        AngleSensor::Wheel {
+            channel,
+            wheel,
+            edges,
+        } => {
+            let v = rec.values(channel)?;
+            let found = physid_signal::wheel::edges(t, v, edges)
+                .map_err(|e: WheelError| invalid(format!("'{channel}': {e}")))?;
+            let angles =
+                index_teeth(&found, *wheel, channel).map_err(|e| invalid(e.to_string()))?;
+            let summary = format!(
+                "wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm",
+                angles.wheel,
+                angles.t.len(),
+                angles.revolutions,
+                angles.rpm.0,
+                angles.rpm.1
+            );
+            let span = (angles.t[0], angles.t[angles.t.len() - 1]);
+            let findings = angles.findings.clone();
+            let a = angles.clone();
+            SensorAngles {
+                span,
+                wheel: Some(angles),
+                encoder: None,
+                findings,
+                summary,
+                angle_at: Box::new(move |x: &[f64]| a.angle_at(x)),
+            }
+        }
+        AngleSensor::Quadrature { a, b, z, lines } => {
+            if z.is_none() {
+                return Err(invalid(format!(
+                    "--quadrature {a},{b}: without an index channel (Z) the angle has no reference to place the TDC from; give --quadrature {a},{b},Z=LINES"
+                )));
+            }
+            let za = match z {
+                Some(z) => Some(rec.values(z)?),
+                None => None,
+            };
+            let q = physid_signal::quadrature::decode(
+                t,
+                rec.values(a)?,
+                rec.values(b)?,
+                za,
+                *lines,
+                [a.as_str(), b.as_str(), z.as_deref().unwrap_or("")],
+            )
+            .map_err(|e| invalid(e.to_string()))?;
+            // From the last transition that went back on.
+            let from = q
+                .angle
+                .windows(2)
+                .rposition(|w| w[1] <= w[0])
+                .map_or(0, |k| k + 1);
+            let span = (q.t[from], q.t[q.t.len() - 1]);
+            let summary = format!(
+                "quadrature encoder of {lines} lines decoded: {} transitions, {} index pulse(s) turning forward, {} steps back{}",
+                q.t.len(),
+                q.index_t.len(),
+                q.backward,
+                if from > 0 {
+                    format!(" (the crank angle from {:.6} s, after it last turned back)", span.0)
+                } else {
+                    String::new()
+                }
+            );
+            let encoder = EncoderSummary {
+                lines: *lines,
+                index_pulses: q.index_t.len(),
+                backward_steps: q.backward,
+            };
+            let findings = q.findings.clone();
+            SensorAngles {
+                span,
+                wheel: None,
+                encoder: Some(encoder),
+                findings,
+                summary,
+                angle_at: Box::new(move |x: &[f64]| q.angle_at(x)),
+            }
+        }
+    };
+    let (first, last) = edge_t;
     let (a, b) = (
         t.partition_point(|&x| x < first),
         t.partition_point(|&x| x <= last),
     );
     let tt = t[a..b].to_vec();
-    let theta = angles.angle_at(&tt);
+    let theta = angle_at(&tt);
     if tt.len() < 2 {
-        return Err(AcquisitionError::Invalid(format!(
-            "'{}': fewer than 2 samples between the first and last tooth edge",
-            spec.channel
+        return Err(invalid(format!(
+            "{}: fewer than 2 samples between the sensor's first and last edge",
+            spec.sensor.channels().join(", ")
         )));
     }
     let offset = spec.tdc_offset_deg.to_radians();
@@ -543,7 +712,7 @@ pub fn decode_wheel(rec: &Recording, spec: &WheelSpec) -> Result<DecodedWheel, A
         None => (
             0,
             format!(
-                "the TDC {}° after the first reference edge taken as firing (no --phase-from)",
+                "the TDC {}° after the first reference taken as firing (no --phase-from)",
                 spec.tdc_offset_deg
             ),
         ),
@@ -575,7 +744,7 @@ pub fn decode_wheel(rec: &Recording, spec: &WheelSpec) -> Result<DecodedWheel, A
             (
                 parity as i64,
                 format!(
-                    "the firing TDC {}° after the reference edge of {} revolutions ('{name}' {fire:.4e} there against {other:.4e} a revolution away, medians)",
+                    "the firing TDC {}° after the reference of {} revolutions ('{name}' {fire:.4e} there against {other:.4e} a revolution away, medians)",
                     spec.tdc_offset_deg,
                     if parity == 1 { "odd" } else { "even" }
                 ),
@@ -585,11 +754,14 @@ pub fn decode_wheel(rec: &Recording, spec: &WheelSpec) -> Result<DecodedWheel, A
     let parity = parity as f64;
     let mut tdc = offset + TAU * parity;
     tdc += 4.0 * PI * ((theta[0] - tdc) / (4.0 * PI)).ceil();
-    Ok(DecodedWheel {
+    Ok(DecodedAngle {
         t: tt,
         theta,
         tdc,
-        angles,
+        wheel,
+        encoder,
+        findings,
+        summary,
         phase,
     })
 }
@@ -652,12 +824,12 @@ pub fn to_crank_angle(
     to_crank_angle_decoded(rec, opts, step_deg).map(|r| r.0)
 }
 
-/// [`to_crank_angle`], with what decoding the trigger wheel found when the angle came from one.
+/// [`to_crank_angle`], with what decoding a raw angle sensor found when the angle came from one.
 pub fn to_crank_angle_decoded(
     rec: &Recording,
     opts: &AcquisitionOptions,
     step_deg: f64,
-) -> Result<(Recording, Option<DecodedWheel>), AcquisitionError> {
+) -> Result<(Recording, Option<DecodedAngle>), AcquisitionError> {
     if rec.basis != Basis::Time {
         return Err(AcquisitionError::Invalid(
             "the recording is already on a crank-angle basis".into(),
@@ -676,7 +848,7 @@ pub fn to_crank_angle_decoded(
         .iter()
         .map(|e| e.0.as_str())
         .chain([opts.marker.as_str(), "t", "theta_en"])
-        .chain(opts.wheel.iter().map(|w| w.channel.as_str()))
+        .chain(opts.sensor.iter().flat_map(|s| s.sensor.channels()))
         .collect();
     for (name, unit, values) in [
         ("t", "s", grid.t.clone()),

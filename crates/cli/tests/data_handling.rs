@@ -719,3 +719,80 @@ fn cycles_of_a_raw_recording() {
         );
     }
 }
+
+/// A quadrature encoder's raw A/B/Z signals (`physid-signal`'s golden file: 500 lines,
+/// digital, 200 kHz, turning back 40° before running up to 1200 rpm) converted to one sample
+/// per degree with `--quadrature`: the angle is taken from after the shaft last turned back,
+/// and every cycle starts at the true angle 90° (`--tdc-offset 90` from the index) within a
+/// tenth of a degree. Without the index channel the TDC has no reference: refused.
+#[test]
+fn a_quadrature_encoder_s_raw_signals_give_the_crank_angle() {
+    let golden = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../signal/tests/golden/quadrature_500.parquet");
+    let s = Scratch::new("physid-raw-quadrature");
+    let deg = s.file("deg.parquet");
+    let o = physid(&[
+        "convert",
+        golden.to_str().unwrap(),
+        deg.to_str().unwrap(),
+        "--crank-angle",
+        "--quadrature",
+        "enc_a,enc_b,enc_z=500",
+        "--tdc-offset",
+        "90",
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains("quadrature encoder of 500 lines decoded"), "{e}");
+    assert!(e.contains("after it last turned back"), "{e}");
+    let r = read(&deg, &ReadOptions::default()).unwrap();
+    let (crank, truth) = (
+        r.values("crank_deg").unwrap(),
+        r.values("theta_true").unwrap(),
+    );
+    let starts: Vec<f64> = (0..r.len())
+        .filter(|&i| crank[i] == 0.0)
+        .map(|i| (truth[i] * 1e-6).to_degrees().rem_euclid(360.0))
+        .collect();
+    assert!(!starts.is_empty());
+    for a in &starts {
+        assert!((a - 90.0).abs() < 0.1, "{starts:?}");
+    }
+    let o = physid(&[
+        "convert",
+        golden.to_str().unwrap(),
+        deg.to_str().unwrap(),
+        "--crank-angle",
+        "--quadrature",
+        "enc_a,enc_b=500",
+    ]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("without an index channel (Z)"), "{e}");
+    for (bad, says) in [
+        ("enc_a=500", "expected A,B,Z=LINES"),
+        ("enc_a,enc_b,enc_z=0", "expected A,B,Z=LINES"),
+    ] {
+        let o = physid(&[
+            "convert",
+            golden.to_str().unwrap(),
+            deg.to_str().unwrap(),
+            "--crank-angle",
+            "--quadrature",
+            bad,
+        ]);
+        assert!(!o.status.success());
+        assert!(String::from_utf8_lossy(&o.stderr).contains(says), "{bad}");
+    }
+    let o = physid(&[
+        "convert",
+        golden.to_str().unwrap(),
+        deg.to_str().unwrap(),
+        "--crank-angle",
+        "--quadrature",
+        "enc_a,enc_b,enc_z=500",
+        "--wheel",
+        "enc_a=60-2",
+    ]);
+    assert!(!o.status.success(), "--wheel and --quadrature together");
+}

@@ -5,7 +5,7 @@ use super::InputArgs;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{to_crank_angle_decoded, to_time_basis, DecodedWheel};
+use physid_apps::acquisition::{to_crank_angle_decoded, to_time_basis, DecodedAngle};
 use physid_io::{MdfCompression, WriteOptions};
 use std::path::PathBuf;
 
@@ -61,9 +61,9 @@ pub fn run(args: &Args) -> Result<()> {
         return stream(args);
     }
     let opts = args.angle.options()?;
-    if opts.wheel.is_some() && !args.crank_angle {
+    if opts.sensor.is_some() && !args.crank_angle {
         return Err(miette!(
-            "--wheel decodes the engine angle for --crank-angle: add --crank-angle"
+            "--wheel and --quadrature decode the engine angle for --crank-angle: add --crank-angle"
         ));
     }
     let mut rec = args.read.read(&args.input, None)?;
@@ -101,21 +101,11 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// What decoding the wheel found, on stderr: the wheel, the speed range, how the firing TDC
-/// was placed, and every finding with its sample.
-pub fn tell_wheel(input: &std::path::Path, d: &DecodedWheel) {
-    let a = &d.angles;
-    eprintln!(
-        "{}: wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm; {}",
-        input.display(),
-        a.wheel,
-        a.t.len(),
-        a.revolutions,
-        a.rpm.0,
-        a.rpm.1,
-        d.phase
-    );
-    for f in &a.findings {
+/// What decoding a raw angle sensor found, on stderr: the sensor, the speed range, how the
+/// firing TDC was placed, and every finding with its sample.
+pub fn tell_wheel(input: &std::path::Path, d: &DecodedAngle) {
+    eprintln!("{}: {}; {}", input.display(), d.summary, d.phase);
+    for f in &d.findings {
         eprintln!("{}: sample {}: {}", input.display(), f.index, f.detail);
     }
 }

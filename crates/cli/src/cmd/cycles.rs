@@ -102,21 +102,26 @@ pub fn run(args: &Args) -> Result<()> {
     if args.json {
         let mut v = serde_json::to_value(&a).into_diagnostic()?;
         if let (Some(o), Some(d)) = (v.as_object_mut(), &wheel) {
-            o.insert(
-                "wheel".into(),
-                serde_json::json!({
-                    "wheel": d.angles.wheel.to_string(),
-                    "teeth": d.angles.wheel.present(),
-                    "missing": d.angles.wheel.missing,
-                    "revolutions": d.angles.revolutions,
-                    "rpm_min": d.angles.rpm.0,
-                    "rpm_max": d.angles.rpm.1,
-                    "phase": d.phase,
-                }),
-            );
+            if let Some(a) = &d.wheel {
+                o.insert(
+                    "wheel".into(),
+                    serde_json::json!({
+                        "wheel": a.wheel.to_string(),
+                        "teeth": a.wheel.present(),
+                        "missing": a.wheel.missing,
+                        "revolutions": a.revolutions,
+                        "rpm_min": a.rpm.0,
+                        "rpm_max": a.rpm.1,
+                    }),
+                );
+            }
+            if let Some(e) = &d.encoder {
+                o.insert("encoder".into(), serde_json::to_value(e).into_diagnostic()?);
+            }
+            o.insert("phase".into(), d.phase.clone().into());
             o.insert(
                 "findings".into(),
-                serde_json::to_value(&d.angles.findings).into_diagnostic()?,
+                serde_json::to_value(&d.findings).into_diagnostic()?,
             );
         }
         outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);

@@ -6,7 +6,7 @@ use crate::plot;
 use crate::progress::Reading;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{AcquisitionOptions, Inspector, WheelSpec};
+use physid_apps::acquisition::{AcquisitionOptions, AngleSensor, AngleSpec, Inspector};
 use physid_core::Recording;
 use physid_signal::wheel::{Edge, EdgeOptions, Wheel};
 use std::path::{Path, PathBuf};
@@ -53,31 +53,37 @@ impl AngleArgs {
     /// The acquisition options these flags give.
     pub fn options(&self) -> Result<AcquisitionOptions> {
         let mut o = acquisition_options(&self.encoders, &self.marker)?;
-        o.wheel = self.wheel.spec()?;
+        o.sensor = self.wheel.spec()?;
         Ok(o)
     }
 }
 
-/// A trigger wheel's raw signal as the engine angle (`physid_signal::wheel`).
+/// A raw angle sensor as the engine angle: a trigger wheel (`physid_signal::wheel`) or a
+/// quadrature encoder (`physid_signal::quadrature`).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct WheelArgs {
     /// A trigger wheel's raw sensor channel (analog or digital) and the wheel: N tooth pitches,
     /// M missing, e.g. enc=60-2 — decoded into the crank angle.
-    #[arg(long, value_name = "CHANNEL=N-M")]
+    #[arg(long, value_name = "CHANNEL=N-M", group = "sensor")]
     pub wheel: Option<String>,
-    /// With --wheel: the crank angle [deg] from the first tooth edge after the gap to the next
-    /// TDC (read it off a plot of the raw signal).
+    /// A quadrature encoder's channels A, B and index Z, and its lines per revolution, e.g.
+    /// enc_a,enc_b,enc_z=500 — decoded into the crank angle (both ways).
+    #[arg(long, value_name = "A,B,Z=LINES", group = "sensor")]
+    pub quadrature: Option<String>,
+    /// With --wheel or --quadrature: the crank angle [deg] from the sensor's reference (the
+    /// first tooth edge after the gap; the index pulse) to the next TDC (read it off a plot of
+    /// the raw signal).
     #[arg(
         long,
         value_name = "DEG",
-        requires = "wheel",
+        requires = "sensor",
         default_value_t = 0.0,
         allow_negative_numbers = true
     )]
     pub tdc_offset: f64,
-    /// With --wheel: the channel that is higher at the compression TDC than at the
-    /// gas-exchange TDC (the cylinder pressure) — which revolution of two fires.
-    #[arg(long, value_name = "CHANNEL", requires = "wheel")]
+    /// With --wheel or --quadrature: the channel that is higher at the compression TDC than at
+    /// the gas-exchange TDC (the cylinder pressure) — which revolution of two fires.
+    #[arg(long, value_name = "CHANNEL", requires = "sensor")]
     pub phase_from: Option<String>,
     /// With --wheel: the tooth edge is the signal rising (a Hall sensor's tooth) or falling
     /// through the level.
@@ -95,11 +101,27 @@ pub struct WheelArgs {
 }
 
 impl WheelArgs {
-    /// The wheel to decode, if one is given.
-    pub fn spec(&self) -> Result<Option<WheelSpec>> {
-        let Some(w) = &self.wheel else {
-            return Ok(None);
+    /// The sensor to decode, if one is given.
+    pub fn spec(&self) -> Result<Option<AngleSpec>> {
+        let sensor = match (&self.wheel, &self.quadrature) {
+            (Some(w), _) => self.wheel_sensor(w)?,
+            (None, Some(q)) => quadrature_sensor(q)?,
+            (None, None) => return Ok(None),
         };
+        if !(self.tdc_offset.is_finite() && (0.0..360.0).contains(&self.tdc_offset)) {
+            return Err(miette!(
+                "--tdc-offset {}: expected an angle in [0, 360) degrees",
+                self.tdc_offset
+            ));
+        }
+        Ok(Some(AngleSpec {
+            sensor,
+            tdc_offset_deg: self.tdc_offset,
+            phase_from: self.phase_from.clone(),
+        }))
+    }
+
+    fn wheel_sensor(&self, w: &str) -> Result<AngleSensor> {
         let (channel, wheel) = w
             .split_once('=')
             .ok_or_else(|| miette!("--wheel '{w}': expected CHANNEL=N-M, e.g. enc=60-2"))?;
@@ -120,20 +142,36 @@ impl WheelArgs {
                 Some((v[0], v[1]))
             }
         };
-        if !(self.tdc_offset.is_finite() && (0.0..360.0).contains(&self.tdc_offset)) {
-            return Err(miette!(
-                "--tdc-offset {}: expected an angle in [0, 360) degrees",
-                self.tdc_offset
-            ));
-        }
-        Ok(Some(WheelSpec {
+        Ok(AngleSensor::Wheel {
             channel: channel.trim().to_string(),
             wheel,
             edges: EdgeOptions { edge, threshold },
-            tdc_offset_deg: self.tdc_offset,
-            phase_from: self.phase_from.clone(),
-        }))
+        })
     }
+}
+
+/// `A,B[,Z]=LINES`.
+fn quadrature_sensor(q: &str) -> Result<AngleSensor> {
+    let bad = || {
+        miette!("--quadrature '{q}': expected A,B,Z=LINES (the channels, the lines per revolution > 0), e.g. enc_a,enc_b,enc_z=500")
+    };
+    let (names, lines) = q.split_once('=').ok_or_else(bad)?;
+    let lines: u32 = lines
+        .trim()
+        .parse()
+        .ok()
+        .filter(|l| *l > 0)
+        .ok_or_else(bad)?;
+    let names: Vec<String> = names.split(',').map(|n| n.trim().to_string()).collect();
+    if !(2..=3).contains(&names.len()) || names.iter().any(String::is_empty) {
+        return Err(bad());
+    }
+    Ok(AngleSensor::Quadrature {
+        a: names[0].clone(),
+        b: names[1].clone(),
+        z: names.get(2).cloned(),
+        lines,
+    })
 }
 
 /// Encoder options from `CHANNEL=PPR` items (defaults when none).
@@ -165,15 +203,22 @@ pub fn run(args: &Args) -> Result<()> {
     let opts = args.angle.options()?;
     // The file read a chunk at a time: memory does not grow with its length.
     let mut reader = args.input.open_all(&args.file)?;
-    if let Some(w) = &opts.wheel {
-        if reader.header().channel(&w.channel).is_err() {
+    match opts.sensor.as_ref().map(|s| &s.sensor) {
+        Some(AngleSensor::Wheel { channel, .. }) if reader.header().channel(channel).is_err() => {
             return Err(miette!(
-                "{}: --wheel names '{}', which the recording does not have; its channels are {}",
+                "{}: --wheel names '{channel}', which the recording does not have; its channels are {}",
                 args.file.display(),
-                w.channel,
                 reader.header().names().join(", ")
             ));
         }
+        // Decoded whole (its levels come from the whole index channel): `convert
+        // --crank-angle` and `cycles` take it; inspect reads as it goes.
+        Some(AngleSensor::Quadrature { .. }) => {
+            return Err(miette!(
+                "inspect --quadrature: not supported (inspect reads the file as it goes; the quadrature decoder takes the channels whole) — `physid convert --crank-angle --quadrature …` reports what it finds"
+            ));
+        }
+        _ => {}
     }
     let mut inspector = Inspector::new(reader.header(), &opts);
     for chunk in Reading::new(&mut reader, &args.file) {
