@@ -5,6 +5,8 @@
 //!
 //! * [`acquisition`] — the acquisition chain on a recording: inspection and integrity,
 //!   crank-angle conversion, zero-phase filtering (thesis ch. 4).
+//! * [`compression`] — the chain on a motored pressure trace: the motored model's
+//!   identifiability, its estimable parameters per TDC and recursively, the TDC and loss angle.
 //! * [`error`] — the applications' error type.
 //! * [`demo`] — the chain on the built-in virtual test cell (`physid demo`).
 //! * [`example_5_1`] — thesis Example 5.1's model in Rust (the reference for the expression
@@ -26,6 +28,7 @@
 //!   engine torque model (ch. 8).
 
 pub mod acquisition;
+pub mod compression;
 pub mod demo;
 pub mod error;
 pub mod example_5_1;

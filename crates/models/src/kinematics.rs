@@ -40,6 +40,16 @@ pub struct Crank<T> {
     pub kappa: T,
 }
 
+impl Crank<f64> {
+    /// `s(θ)` [m] (Eq. 3.29) at an angle that is itself a parameter (a dual number: a TDC
+    /// offset being estimated) on a known geometry: `√((L+r)² − δ²) − r·cos θ − √(L² − q²)`,
+    /// `q = r·sin θ − δ` — the same form as [`motion_from`](Self::motion_from).
+    pub fn s_at<A: Scalar>(&self, theta: A) -> A {
+        let q = theta.sin() * self.r - self.delta;
+        -(theta.cos() * self.r) - (-(q * q) + self.l * self.l).sqrt() + self.tdc_height()
+    }
+}
+
 impl<T: Scalar> Crank<T> {
     /// `φ = asin(δ/(r+L))`: the crank angle of TDC [rad].
     pub fn phi(&self) -> T {

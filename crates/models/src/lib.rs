@@ -11,6 +11,8 @@
 //! * [`cyclic_torque`] — the cyclic engine torque model of the cold test (Eq. 8.2, SPEC §9),
 //!   15 parameters; [`friction_fit`] — its friction cubic fitted to the mean-value model.
 //! * [`shaft`] — the coupling shaft, linear in K, B and an optional torque offset (Eq. 6.1).
+//! * [`motored`] — the motored cylinder pressure around TDC: polytropic compression through
+//!   the slider crank with a loss, a sensor offset and a TDC offset (`physid compression fit`).
 //! * [`air`] — NASA-polynomial thermodynamic properties of air (SPEC §2.2, app. B.1).
 
 pub mod air;
@@ -18,4 +20,5 @@ pub mod cyclic_torque;
 pub mod friction;
 pub mod friction_fit;
 pub mod kinematics;
+pub mod motored;
 pub mod shaft;

@@ -1,0 +1,560 @@
+//! The chain on a motored pressure trace (`physid compression fit`): the motored-pressure model
+//! ([`physid_models::motored`]: compression ratio, TDC offset, sensor offset, polytropic
+//! exponent, BDC pressure, loss rate) fitted around every firing TDC of a crank-angle
+//! recording.
+//!
+//! 1. The compression events: around each firing TDC, the samples in the window (default
+//!    −120° … 120° ATDC, valves closed) — the compression at the end of one cycle, the expansion
+//!    at the start of the next.
+//! 2. Starting values from the data: `n = 1.3`, no offsets, no loss, the compression ratio from
+//!    the ratio of the peak pressure to the pressure at the window's start
+//!    (`p_max/p_a = (V_a/V_c)ⁿ`), the BDC pressure by the polytrope back from `p_a`.
+//! 3. All the parameters not held (`--set`) fitted to every event at once (Gauss–Newton), the
+//!    identifiability ranking there (Alg. 5.1, thesis scaling) and the estimable set
+//!    (Wu et al. by default): which parameters one motored trace resolves and which trade off.
+//! 4. The estimable ones fitted per event, with 95 % intervals from each event's Fisher
+//!    information (Eq. 5.12, σ² from its residuals), and combined recursively over the events:
+//!    `I_k = I_{k−1} + J_kᵀJ_k/σ_k²`, `ϑ̄_k = I_k⁻¹(I_{k−1}ϑ̄_{k−1} + J_kᵀJ_k ϑ_k/σ_k²)` — the
+//!    information filter of a constant parameter (RLS on the events' estimates). The spread of
+//!    the per-event estimates is reported beside it: if it exceeds the fused interval, the
+//!    parameters change from cycle to cycle or the model misses something.
+//! 5. The thermodynamic loss angle: where the fitted trace peaks, `n·d ln V/dα = −k_loss`.
+
+use crate::error::AppError;
+use nalgebra::DMatrix;
+use physid_core::{Basis, Recording};
+use physid_ident::{analyse, fit_subset, quantify, Data, IdentConfig, RankedParam, Selection};
+use physid_models::motored::{Motored, DESCRIPTIONS, PARAMS, UNITS};
+use serde::Serialize;
+
+/// What to fit.
+#[derive(Debug, Clone)]
+pub struct CompressionConfig {
+    /// The cylinder-pressure channel.
+    pub channel: String,
+    /// Stroke [m].
+    pub stroke: f64,
+    /// Connecting rod [m].
+    pub rod: f64,
+    /// The fitting window around TDC [deg ATDC].
+    pub window_deg: (f64, f64),
+    /// Parameters held at a value (not fitted): name and value.
+    pub held: Vec<(String, f64)>,
+    /// How many of the ranked parameters to fit.
+    pub selection: Selection,
+}
+
+impl CompressionConfig {
+    /// The defaults for a channel and a geometry: window −120° … 120°, nothing held, the Wu
+    /// criterion.
+    pub fn new(channel: &str, stroke: f64, rod: f64) -> Self {
+        Self {
+            channel: channel.to_string(),
+            stroke,
+            rod,
+            window_deg: DEFAULT_WINDOW,
+            held: Vec::new(),
+            selection: Selection::Wu { sigma2: None },
+        }
+    }
+
+    fn validate(&self) -> Result<(), AppError> {
+        let (a, b) = self.window_deg;
+        if !(self.stroke.is_finite()
+            && self.stroke > 0.0
+            && self.rod.is_finite()
+            && self.rod > 0.5 * self.stroke)
+        {
+            return Err(AppError::Invalid(format!(
+                "stroke {} m, rod {} m: expected lengths > 0 in metres and a rod longer than half the stroke",
+                self.stroke, self.rod
+            )));
+        }
+        if !((-180.0..-10.0).contains(&a) && b > 10.0 && b <= 180.0) {
+            return Err(AppError::Invalid(format!(
+                "window {a}° … {b}° ATDC: expected from −180° … −10° to 10° … 180° (the valves closed, TDC inside)"
+            )));
+        }
+        for (name, v) in &self.held {
+            if !PARAMS.contains(&name.as_str()) {
+                return Err(AppError::Invalid(format!(
+                    "--set {name}: the motored model's parameters are {}",
+                    PARAMS.join(", ")
+                )));
+            }
+            if !v.is_finite() {
+                return Err(AppError::Invalid(format!("--set {name}={v}: not a number")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The default fitting window [deg ATDC].
+pub const DEFAULT_WINDOW: (f64, f64) = (-120.0, 120.0);
+
+/// The samples around one firing TDC.
+#[derive(Debug, Clone)]
+pub struct TdcEvent {
+    /// The cycle that starts at this TDC.
+    pub cycle: i64,
+    /// The time at TDC [s].
+    pub t_s: f64,
+    /// Mean speed over the window [rpm].
+    pub rpm: f64,
+    /// Angles [deg ATDC] …
+    pub atdc: Vec<f64>,
+    /// … and the pressure there.
+    pub p: Vec<f64>,
+}
+
+/// The events of a crank-angle recording: every firing TDC (`crank_deg` 0) with the whole
+/// window on consecutive samples; what was left out is said in `notes`.
+pub fn events(
+    rec: &Recording,
+    channel: &str,
+    window: (f64, f64),
+    notes: &mut Vec<String>,
+) -> Result<Vec<TdcEvent>, AppError> {
+    if rec.basis != Basis::CrankAngle {
+        return Err(AppError::Invalid(
+            "the recording is on a time basis: convert it with --crank-angle first (or give the engine angle: --wheel, --encoder)".into(),
+        ));
+    }
+    let (cycle, deg, t) = (
+        rec.values("cycle")?,
+        rec.values("crank_deg")?,
+        rec.values("t")?,
+    );
+    let p = rec.values(channel)?;
+    let step = deg
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .find(|d| *d > 0.0)
+        .ok_or_else(|| AppError::Invalid("crank_deg never advances".into()))?;
+    let before = (-window.0 / step).round() as usize;
+    let after = (window.1 / step).round() as usize;
+    let (mut out, mut short, mut bad) = (Vec::new(), 0, Vec::new());
+    for i in (0..deg.len()).filter(|&i| deg[i].abs() < 1e-6 * step && cycle[i] >= 0.0) {
+        if i < before || i + after >= deg.len() {
+            short += 1;
+            continue;
+        }
+        let range = i - before..=i + after;
+        let mut atdc = Vec::with_capacity(before + after + 1);
+        let mut contiguous = true;
+        for (k, j) in range.clone().enumerate() {
+            let want = (k as f64 - before as f64) * step;
+            let a = if deg[j] >= 360.0 {
+                deg[j] - 720.0
+            } else {
+                deg[j]
+            };
+            contiguous &= (a - want).abs() < 1e-3 * step;
+            atdc.push(want);
+        }
+        if !contiguous {
+            short += 1;
+            continue;
+        }
+        if let Some(j) = range.clone().find(|&j| !p[j].is_finite()) {
+            bad.push(format!("sample {j} ({})", p[j]));
+            continue;
+        }
+        let span = t[i + after] - t[i - before];
+        out.push(TdcEvent {
+            cycle: cycle[i] as i64,
+            t_s: t[i],
+            rpm: (after + before) as f64 * step / 6.0 / span,
+            atdc,
+            p: p[range].to_vec(),
+        });
+    }
+    if short > 0 {
+        notes.push(format!(
+            "{short} TDC(s) without the whole window {}° … {}° ATDC on consecutive samples left out",
+            window.0, window.1
+        ));
+    }
+    if !bad.is_empty() {
+        notes.push(format!(
+            "{} TDC(s) left out for a pressure that is not finite: '{channel}' at {}",
+            bad.len(),
+            bad.join(", ")
+        ));
+    }
+    Ok(out)
+}
+
+/// One parameter's result.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParamEstimate {
+    /// Name (as [`PARAMS`]).
+    pub name: String,
+    /// Unit (`P`: the pressure channel's).
+    pub unit: String,
+    /// What it is.
+    pub description: String,
+    /// `fitted`, `held` (given with `--set`) or `unresolved` (the data do not resolve it: held
+    /// at its starting value).
+    pub status: &'static str,
+    /// The value: fused over the events when fitted.
+    pub value: f64,
+    /// Its standard error (fitted only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub std_err: Option<f64>,
+    /// 95 % interval (fitted only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ci95: Option<(f64, f64)>,
+    /// The standard deviation of the per-event estimates over √(events): the spread's own
+    /// standard error of the mean (fitted, two events or more).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub between_events_std_err: Option<f64>,
+}
+
+/// One event's fit.
+#[derive(Debug, Clone, Serialize)]
+pub struct EventFit {
+    /// The cycle starting at this TDC.
+    pub cycle: i64,
+    /// Time at TDC [s].
+    pub t_s: f64,
+    /// Speed [rpm].
+    pub rpm: f64,
+    /// The fitted parameters' values (in [`CompressionFit::fitted`] order).
+    pub values: Vec<f64>,
+    /// Their standard errors.
+    pub std_err: Vec<f64>,
+    /// The fused estimate after this event (recursive over the events).
+    pub fused: Vec<f64>,
+    /// Its standard errors.
+    pub fused_std_err: Vec<f64>,
+    /// RMS of the fit's residual [the channel's unit].
+    pub rms_residual: f64,
+}
+
+/// A pair of parameters that trade off in the fit of all of them.
+#[derive(Debug, Clone, Serialize)]
+pub struct Confounded {
+    /// One …
+    pub a: String,
+    /// … and the other.
+    pub b: String,
+    /// Their estimates' correlation.
+    pub correlation: f64,
+}
+
+/// The result of [`compression_fit`].
+#[derive(Debug, Clone, Serialize)]
+pub struct CompressionFit {
+    /// The pressure channel …
+    pub channel: String,
+    /// … and its unit.
+    pub unit: String,
+    /// The window [deg ATDC].
+    pub window_deg: (f64, f64),
+    /// The starting values, every parameter in [`PARAMS`] order.
+    pub start: Vec<f64>,
+    /// The identifiability ranking of the parameters not held, at the fit of all of them.
+    pub ranking: Vec<RankedParam>,
+    /// The Wu criterion `J_K` per K, when it decided.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wu_j: Option<Vec<f64>>,
+    /// Pairs whose estimates correlate beyond 0.95 in the fit of all the parameters not held
+    /// (or `None` when their Fisher information is singular).
+    pub confounded: Option<Vec<Confounded>>,
+    /// Collinearity index of the fitted set (Brun et al.).
+    pub collinearity: f64,
+    /// The parameters fitted, in [`PARAMS`] order.
+    pub fitted: Vec<String>,
+    /// Every parameter's result, in [`PARAMS`] order.
+    pub estimates: Vec<ParamEstimate>,
+    /// Per event.
+    pub events: Vec<EventFit>,
+    /// Where the fitted trace peaks [deg ATDC, true]: before TDC by the loss angle.
+    pub peak_deg: Option<f64>,
+    /// RMS residual over all events [the channel's unit].
+    pub rms_residual: f64,
+    /// What was left out and why.
+    pub notes: Vec<String>,
+}
+
+impl CompressionFit {
+    /// A parameter's result by name.
+    pub fn get(&self, name: &str) -> Option<&ParamEstimate> {
+        self.estimates.iter().find(|e| e.name == name)
+    }
+
+    /// Every parameter's value, in [`PARAMS`] order.
+    pub fn theta(&self) -> Vec<f64> {
+        self.estimates.iter().map(|e| e.value).collect()
+    }
+}
+
+/// Starting values (see the module's doc) from the events' median pressures.
+fn start_values(events: &[TdcEvent], model: &Motored) -> Vec<f64> {
+    let median = |mut v: Vec<f64>| {
+        v.sort_unstable_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let p_a = median(events.iter().map(|e| e.p[0]).collect());
+    let p_max = median(
+        events
+            .iter()
+            .map(|e| e.p.iter().copied().fold(f64::MIN, f64::max))
+            .collect(),
+    );
+    let a = events[0].atdc[0].to_radians();
+    let n0 = 1.3;
+    // V_a/V_c = (p_max/p_a)^(1/n) = 1 + (ε − 1)·s(a)/S.
+    let crank = model.crank();
+    let s_a = crank.s_at(a);
+    let ratio = (p_max / p_a).max(1.0 + 1e-6).powf(1.0 / n0);
+    let eps = (1.0 + (ratio - 1.0) * crank.stroke() / s_a).clamp(1.5, 100.0);
+    let p_bdc = p_a / model.volume_ratio(eps, a).powf(n0);
+    vec![eps, 0.0, 0.0, n0, p_bdc, 0.0]
+}
+
+/// The angle [deg ATDC, true] where the model's trace peaks: `n·d ln(V(−π)/V)/dα = k` between
+/// −30° and TDC (bisection); `None` outside.
+pub fn peak_angle(model: &Motored, theta: &[f64]) -> Option<f64> {
+    let (eps, n, k) = (theta[0], theta[3], theta[5]);
+    let crank = model.crank();
+    let s_total = crank.stroke();
+    // d ln p/dα = −n·(ε − 1)·s'(α)/(S + (ε − 1)·s(α)) − k.
+    let slope = |a: f64| {
+        let (s, ds, _) = crank.motion(a);
+        -n * (eps - 1.0) * ds / (s_total + (eps - 1.0) * s) - k
+    };
+    let (mut lo, mut hi) = (-30f64.to_radians(), 0.0);
+    if !(slope(lo) > 0.0 && slope(hi) <= 0.0) {
+        return None;
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if slope(mid) > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(0.5 * (lo + hi).to_degrees())
+}
+
+/// Typical sizes of the parameters that start at 0, for the ranking's relative sensitivities
+/// (thesis scaling, Eq. 5.11): a TDC error of 1°, a sensor offset of a tenth of the BDC
+/// pressure, a loss of 2 %/rad.
+fn nominal_values(start: &[f64], held: &[usize]) -> Vec<f64> {
+    let mut v = start.to_vec();
+    for (j, typical) in [(1, 1.0), (2, 0.1 * start[4]), (5, 0.02)] {
+        if !held.contains(&j) && v[j] == 0.0 {
+            v[j] = typical;
+        }
+    }
+    v
+}
+
+fn data<'a>(atdc: &'a [f64], p: &'a [f64]) -> Data<'a> {
+    Data {
+        inputs: vec![atdc],
+        y: Some(p),
+    }
+}
+
+/// Fit the motored model to a crank-angle recording (see the module's doc).
+pub fn compression_fit(
+    rec: &Recording,
+    cfg: &CompressionConfig,
+) -> Result<CompressionFit, AppError> {
+    cfg.validate()?;
+    let unit = rec.channel(&cfg.channel)?.unit.clone();
+    let mut notes = Vec::new();
+    let events = events(rec, &cfg.channel, cfg.window_deg, &mut notes)?;
+    if events.is_empty() {
+        return Err(AppError::Invalid(format!(
+            "no firing TDC with the whole window {}° … {}° ATDC of '{}' in the recording",
+            cfg.window_deg.0, cfg.window_deg.1, cfg.channel
+        )));
+    }
+    let model = Motored::new(cfg.stroke, cfg.rod);
+    let mut start = start_values(&events, &model);
+    for (name, v) in &cfg.held {
+        let j = PARAMS.iter().position(|p| p == name).unwrap_or(0);
+        start[j] = *v;
+    }
+    let held: Vec<usize> = cfg
+        .held
+        .iter()
+        .filter_map(|(n, _)| PARAMS.iter().position(|p| p == n))
+        .collect();
+    let free: Vec<usize> = (0..PARAMS.len()).filter(|j| !held.contains(j)).collect();
+    if free.is_empty() {
+        return Err(AppError::Invalid(
+            "every parameter is held with --set: nothing to fit".into(),
+        ));
+    }
+    // All events at once.
+    let (mut all_a, mut all_p) = (Vec::new(), Vec::new());
+    for e in &events {
+        all_a.extend_from_slice(&e.atdc);
+        all_p.extend_from_slice(&e.p);
+    }
+    let pooled = data(&all_a, &all_p);
+    let full = fit_subset(&model, &pooled, &start, &free, 100)?;
+    // The ranking at nominal values, as the thesis ranks: the starting values with the three
+    // that start at 0 (and so would have no relative sensitivity) at a typical size — the Wu
+    // criterion fits the top K from there (from the full fit, every K would fit alike).
+    let nominal = nominal_values(&start, &held);
+    let analysis = analyse(&model, &pooled, &nominal, &free, IdentConfig::default())?;
+    let (k, wu) = cfg.selection.resolve(&model, &pooled, &analysis)?;
+    let ranking = analysis.ranked(k);
+    let mut fitted: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
+    fitted.sort_unstable();
+    if fitted.is_empty() {
+        return Err(AppError::Invalid(
+            "the identifiability analysis finds no parameter the data resolve".into(),
+        ));
+    }
+    let collinearity = analysis.collinearity(
+        &fitted
+            .iter()
+            .filter_map(|j| free.iter().position(|f| f == j))
+            .collect::<Vec<_>>(),
+    );
+    let dof = all_a.len().saturating_sub(free.len()).max(1);
+    let confounded = quantify(
+        &full.gram,
+        (full.rss / dof as f64).max(f64::MIN_POSITIVE),
+        &free.iter().map(|&j| full.theta[j]).collect::<Vec<_>>(),
+        all_a.len(),
+    )
+    .ok()
+    .map(|q| {
+        let mut pairs = Vec::new();
+        for a in 0..free.len() {
+            for b in a + 1..free.len() {
+                let r = q.correlation[(a, b)];
+                if r.abs() > 0.95 {
+                    pairs.push(Confounded {
+                        a: PARAMS[free[a]].into(),
+                        b: PARAMS[free[b]].into(),
+                        correlation: r,
+                    });
+                }
+            }
+        }
+        pairs
+    });
+    // The fitted set on all events, the rest at their starting values: where each event starts.
+    let pooled_fit = fit_subset(&model, &pooled, &start, &fitted, 100)?;
+    let kf = fitted.len();
+    let mut info = DMatrix::<f64>::zeros(kf, kf);
+    let mut info_theta = nalgebra::DVector::<f64>::zeros(kf);
+    let mut fused = pooled_fit.theta.clone();
+    let mut fused_se = vec![f64::NAN; kf];
+    let mut fits = Vec::with_capacity(events.len());
+    let mut rss_total = 0.0;
+    for e in &events {
+        let f = fit_subset(&model, &data(&e.atdc, &e.p), &pooled_fit.theta, &fitted, 50)?;
+        rss_total += f.rss;
+        let n = e.atdc.len();
+        let sigma2 = f.rss / n.saturating_sub(kf).max(1) as f64;
+        let values: Vec<f64> = fitted.iter().map(|&j| f.theta[j]).collect();
+        let Ok(q) = quantify(&f.gram, sigma2.max(f64::MIN_POSITIVE), &values, n) else {
+            notes.push(format!(
+                "the TDC of cycle {} (t = {:.4} s): the fitted parameters' information is singular there; left out",
+                e.cycle, e.t_s
+            ));
+            continue;
+        };
+        let fim = &q.fim;
+        info += fim;
+        info_theta += fim * nalgebra::DVector::from_column_slice(&values);
+        if let Some(ch) = info.clone().cholesky() {
+            let cov = ch.inverse();
+            let m = &cov * &info_theta;
+            for (i, &j) in fitted.iter().enumerate() {
+                fused[j] = m[i];
+                fused_se[i] = cov[(i, i)].sqrt();
+            }
+        }
+        fits.push(EventFit {
+            cycle: e.cycle,
+            t_s: e.t_s,
+            rpm: e.rpm,
+            values,
+            std_err: q.std_err.clone(),
+            fused: fitted.iter().map(|&j| fused[j]).collect(),
+            fused_std_err: fused_se.clone(),
+            rms_residual: (f.rss / n as f64).sqrt(),
+        });
+    }
+    if fits.is_empty() {
+        return Err(AppError::Invalid(
+            "no TDC could be fitted: every event's information is singular".into(),
+        ));
+    }
+    let z = 1.959963984540054;
+    let estimates = (0..PARAMS.len())
+        .map(|j| {
+            let base = ParamEstimate {
+                name: PARAMS[j].into(),
+                unit: if UNITS[j] == "P" {
+                    unit.clone()
+                } else {
+                    UNITS[j].into()
+                },
+                description: DESCRIPTIONS[j].into(),
+                status: if held.contains(&j) {
+                    "held"
+                } else {
+                    "unresolved"
+                },
+                value: start[j],
+                std_err: None,
+                ci95: None,
+                between_events_std_err: None,
+            };
+            match fitted.iter().position(|&f| f == j) {
+                None => base,
+                Some(i) => {
+                    let se = fused_se[i];
+                    let v = fused[j];
+                    let per: Vec<f64> = fits.iter().map(|f| f.values[i]).collect();
+                    let m = per.len() as f64;
+                    let between = (per.len() >= 2).then(|| {
+                        let mean = per.iter().sum::<f64>() / m;
+                        (per.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (m - 1.0) / m).sqrt()
+                    });
+                    ParamEstimate {
+                        status: "fitted",
+                        value: v,
+                        std_err: Some(se),
+                        ci95: Some((v - z * se, v + z * se)),
+                        between_events_std_err: between,
+                        ..base
+                    }
+                }
+            }
+        })
+        .collect::<Vec<_>>();
+    let theta: Vec<f64> = estimates.iter().map(|e| e.value).collect();
+    let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
+    let wu_j = wu.map(|(_, j)| j);
+    Ok(CompressionFit {
+        channel: cfg.channel.clone(),
+        unit,
+        window_deg: cfg.window_deg,
+        start,
+        ranking,
+        wu_j,
+        confounded,
+        collinearity,
+        fitted: fitted.iter().map(|&j| PARAMS[j].to_string()).collect(),
+        peak_deg: peak_angle(&model, &theta),
+        estimates,
+        events: fits,
+        rms_residual: (rss_total / rows as f64).sqrt(),
+        notes,
+    })
+}
