@@ -97,8 +97,10 @@ pub struct AngleSpec {
     /// The crank angle from the sensor's reference — a wheel's first tooth edge after the gap,
     /// an encoder's index pulse turning forward — to the next TDC [deg], in [0, 360).
     pub tdc_offset_deg: f64,
-    /// A channel whose level is higher at the compression TDC than at the gas-exchange one a
-    /// revolution later (the cylinder pressure): which revolution fires. `None`: the TDC
+    /// Which revolution of two fires: the one whose TDC has the higher mean of this channel
+    /// over the revolution centred on it — the cylinder pressure (compression and expansion
+    /// against exhaust and intake), a cam sensor high or pulsing in that revolution; with the
+    /// suffix `:low` the lower (a cam that marks the other revolution). `None`: the TDC
     /// `tdc_offset_deg` after the first reference edge is taken as the firing one.
     pub phase_from: Option<String>,
 }
@@ -596,8 +598,9 @@ type AngleAt = Box<dyn Fn(&[f64]) -> Vec<f64>>;
 
 /// Decode a raw angle sensor ([`physid_signal::wheel`], [`physid_signal::quadrature`]) into
 /// the crank angle at every sample between its first and last edge, and place the firing TDC:
-/// `tdc_offset_deg` after the sensor's reference, in the revolution where `phase_from` is
-/// higher (its median over the recording's TDCs of each kind). An encoder that turned back is
+/// `tdc_offset_deg` after the sensor's reference, in the revolution where `phase_from`'s mean
+/// over the revolution centred on the TDC is higher (lower with `:low`; the median over the
+/// recording's TDCs of each kind). An encoder that turned back is
 /// taken from the last time it did (the crank angle must increase).
 pub fn decode_angle(rec: &Recording, spec: &AngleSpec) -> Result<DecodedAngle, AcquisitionError> {
     let t = rec.values("t")?;
@@ -716,37 +719,53 @@ pub fn decode_angle(rec: &Recording, spec: &AngleSpec) -> Result<DecodedAngle, A
                 spec.tdc_offset_deg
             ),
         ),
-        Some(name) => {
+        Some(from) => {
+            // `NAME` or `NAME:low`.
+            let (name, low) = match from.strip_suffix(":low") {
+                Some(n) => (n, true),
+                None => (from.as_str(), false),
+            };
             let p = &rec.values(name)?[a..b];
-            let mut at = [Vec::new(), Vec::new()];
-            let mut k = ((theta[0] - offset) / TAU).ceil() as i64;
+            // The channel's mean over the revolution centred on each whole TDC.
+            let mut at: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+            let last = theta[theta.len() - 1];
+            let mut k = ((theta[0] + PI - offset) / TAU).ceil() as i64;
             loop {
                 let angle = offset + TAU * k as f64;
-                if angle > theta[theta.len() - 1] {
+                if angle + PI > last {
                     break;
                 }
-                at[k.rem_euclid(2) as usize].push(angle);
+                let (i, j) = (
+                    theta.partition_point(|&x| x < angle - PI),
+                    theta.partition_point(|&x| x < angle + PI),
+                );
+                if j > i {
+                    let mean = p[i..j].iter().sum::<f64>() / (j - i) as f64;
+                    if mean.is_finite() {
+                        at[k.rem_euclid(2) as usize].push(mean);
+                    }
+                }
                 k += 1;
             }
             if at[0].is_empty() || at[1].is_empty() {
                 return Err(AcquisitionError::Invalid(format!(
-                    "--phase-from {name}: the recording spans fewer than two TDCs, so which one fires cannot be told"
+                    "--phase-from {from}: the recording spans fewer than two whole revolutions around TDCs (with finite '{name}'), so which one fires cannot be told"
                 )));
             }
-            let level = |angles: &[f64]| {
-                let mut v = interp(&theta, p, angles);
+            let level = |v: &mut Vec<f64>| {
                 v.sort_unstable_by(f64::total_cmp);
                 v[v.len() / 2]
             };
-            let (l0, l1) = (level(&at[0]), level(&at[1]));
-            let parity = usize::from(l1 > l0);
+            let (l0, l1) = (level(&mut at[0]), level(&mut at[1]));
+            let parity = usize::from((l1 > l0) != low);
             let (fire, other) = if parity == 1 { (l1, l0) } else { (l0, l1) };
             (
                 parity as i64,
                 format!(
-                    "the firing TDC {}° after the reference of {} revolutions ('{name}' {fire:.4e} there against {other:.4e} a revolution away, medians)",
+                    "the firing TDC {}° after the reference of {} revolutions ('{name}' {} there: mean {fire:.4e} over the revolution around it against {other:.4e} a revolution away, medians over the TDCs)",
                     spec.tdc_offset_deg,
-                    if parity == 1 { "odd" } else { "even" }
+                    if parity == 1 { "odd" } else { "even" },
+                    if low { "lower" } else { "higher" }
                 ),
             )
         }

@@ -558,3 +558,100 @@ pub fn compression_fit(
         notes,
     })
 }
+
+/// The TDC found on a motored pressure trace ([`tdc_from_pressure`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct TdcFromPressure {
+    /// The crank angle from the sensor's reference to the firing TDC [deg], in [0, 360).
+    pub tdc_offset_deg: f64,
+    /// Its 95 % interval [deg] (from the fused fit over the TDCs).
+    pub ci95: (f64, f64),
+    /// Where the pressure peaks [deg ATDC] on the fitted trace: before TDC by the loss angle.
+    pub peak_deg: Option<f64>,
+    /// The fit it came from (on the recording with the TDC where the pressure peaks).
+    pub fit: CompressionFit,
+}
+
+/// Place the firing TDC from a motored cylinder-pressure trace: decode the raw angle sensor
+/// of `opts` with its reference as TDC, move the TDC to where `channel` peaks (the median over
+/// the cycles), then fit the motored model there ([`compression_fit`]) — whose `tdc`, fitted
+/// with the loss rate, is where the true TDC lies: `offset = peak + tdc`, not the peak (the
+/// peak comes early by the thermodynamic loss angle). Which revolution fires comes from
+/// `opts`' `phase_from`, or from `channel` when none is given.
+pub fn tdc_from_pressure(
+    rec: &Recording,
+    opts: &crate::acquisition::AcquisitionOptions,
+    cfg: &CompressionConfig,
+    step_deg: f64,
+) -> Result<TdcFromPressure, AppError> {
+    use crate::acquisition::to_crank_angle_decoded;
+    cfg.validate()?;
+    let Some(spec) = &opts.sensor else {
+        return Err(AppError::Invalid(format!(
+            "--tdc-from {}: the TDC is placed on a raw angle sensor's reference: give --wheel or --quadrature",
+            cfg.channel
+        )));
+    };
+    let mut opts = opts.clone();
+    let mut spec = spec.clone();
+    spec.tdc_offset_deg = 0.0;
+    spec.phase_from.get_or_insert_with(|| cfg.channel.clone());
+    opts.sensor = Some(spec.clone());
+    // 1. The peak's angle after the reference, the median over the complete cycles.
+    let (deg_rec, _) = to_crank_angle_decoded(rec, &opts, step_deg)?;
+    let (cycle, deg) = (deg_rec.values("cycle")?, deg_rec.values("crank_deg")?);
+    let p = deg_rec.values(&cfg.channel)?;
+    let per = (720.0 / step_deg).round() as usize;
+    let mut peaks: Vec<f64> = physid_signal::crank::cycle_runs(cycle)
+        .filter(|(c, r)| *c >= 0.0 && r.len() == per)
+        .filter_map(|(_, r)| {
+            let k = r
+                .clone()
+                .filter(|&i| p[i].is_finite())
+                .max_by(|&i, &j| p[i].total_cmp(&p[j]))?;
+            Some(deg[k])
+        })
+        .collect();
+    if peaks.is_empty() {
+        return Err(AppError::Invalid(format!(
+            "--tdc-from {}: no complete cycle to find the pressure's peak in",
+            cfg.channel
+        )));
+    }
+    // Unwrapped around the first, so that peaks either side of 0°/720° agree.
+    let first = peaks[0];
+    for x in peaks.iter_mut() {
+        *x = first + (*x - first + 360.0).rem_euclid(720.0) - 360.0;
+    }
+    peaks.sort_unstable_by(f64::total_cmp);
+    let peak = peaks[peaks.len() / 2].rem_euclid(360.0);
+    // 2. The model fitted with the TDC at the peak.
+    spec.tdc_offset_deg = peak;
+    opts.sensor = Some(spec);
+    let (deg_rec, _) = to_crank_angle_decoded(rec, &opts, step_deg)?;
+    let fit = compression_fit(&deg_rec, cfg)?;
+    let tdc = fit
+        .get("tdc")
+        .filter(|e| e.status == "fitted")
+        .cloned()
+        .ok_or_else(|| {
+            AppError::Invalid(format!(
+                "--tdc-from {}: the pressure trace does not resolve the TDC (the identifiability analysis left it out: ranking {})",
+                cfg.channel,
+                fit.ranking
+                    .iter()
+                    .map(|r| r.param.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" > ")
+            ))
+        })?;
+    let (lo, hi) = tdc.ci95.unwrap_or((tdc.value, tdc.value));
+    let offset = peak + tdc.value;
+    let wrap = offset.rem_euclid(360.0) - offset;
+    Ok(TdcFromPressure {
+        tdc_offset_deg: offset + wrap,
+        ci95: (peak + lo + wrap, peak + hi + wrap),
+        peak_deg: fit.peak_deg,
+        fit,
+    })
+}

@@ -4,8 +4,12 @@
 //! textbook curve peaks.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_apps::compression::{compression_fit, CompressionConfig, CompressionFit};
+use physid_apps::acquisition::{to_crank_angle, AcquisitionOptions, AngleSensor, AngleSpec};
+use physid_apps::compression::{
+    compression_fit, tdc_from_pressure, CompressionConfig, CompressionFit,
+};
 use physid_core::Recording;
+use physid_signal::wheel::EdgeOptions;
 use std::path::PathBuf;
 
 fn golden(name: &str) -> PathBuf {
@@ -250,4 +254,112 @@ fn with_more_noise_one_tdc_does_not_resolve_the_offset_and_several_do() {
             e.name
         );
     }
+}
+
+/// The raw 60−2 wheel recording with a cam and a motored pressure (`gen_motored.py`), its
+/// pressure sensor's volts read into Pa.
+fn raw() -> Recording {
+    let opts = physid_io::ReadOptions {
+        scale: physid_io::ReadOptions::parse_scale(&["p_cyl=1e6,0".to_string()]).unwrap(),
+        ..Default::default()
+    };
+    physid_io::read(golden("motored_wheel.parquet"), &opts).unwrap()
+}
+
+fn wheel_options(offset: f64, phase_from: Option<&str>) -> AcquisitionOptions {
+    AcquisitionOptions {
+        encoders: vec![],
+        marker: "tdc".into(),
+        sensor: Some(AngleSpec {
+            sensor: AngleSensor::Wheel {
+                channel: "enc".into(),
+                wheel: "60-2".parse().unwrap(),
+                edges: EdgeOptions::default(),
+            },
+            tdc_offset_deg: offset,
+            phase_from: phase_from.map(String::from),
+        }),
+    }
+}
+
+/// The true firing-TDC angle on the wheel [rad] and the truth of the raw file.
+fn wheel_tdc() -> (f64, serde_json::Value) {
+    let t = truth()["wheel"].clone();
+    let pitch = 360.0 / 60.0;
+    let tdc = (0.25 * pitch + t["tdc_offset_deg"].as_f64().unwrap()).to_radians();
+    (tdc, t)
+}
+
+/// The largest distance [deg] from each converted cycle's start (crank_deg 0) to the true
+/// firing TDC (the file's `theta_true` carried onto the grid), over 720°.
+fn worst_tdc_error(deg: &Recording, tdc: f64) -> f64 {
+    let (c, th) = (
+        deg.values("crank_deg").unwrap(),
+        deg.values("theta_true").unwrap(),
+    );
+    let four_pi = 4.0 * std::f64::consts::PI;
+    (0..c.len())
+        .filter(|&i| c[i] == 0.0)
+        .map(|i| {
+            let d = (th[i] * 1e-6 - tdc).rem_euclid(four_pi);
+            d.min(four_pi - d).to_degrees()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn a_cam_signal_or_the_pressure_tells_which_revolution_fires() {
+    let rec = raw();
+    let (tdc, t) = wheel_tdc();
+    let offset = t["tdc_offset_deg"].as_f64().unwrap();
+    for from in ["cam", "p_cyl"] {
+        let deg = to_crank_angle(&rec, &wheel_options(offset, Some(from)), 1.0).unwrap();
+        let e = worst_tdc_error(&deg, tdc);
+        assert!(e < 0.1, "--phase-from {from}: {e}°");
+    }
+    // The cam read the other way round, and no phase at all here: a revolution off.
+    for from in [Some("cam:low"), None] {
+        let deg = to_crank_angle(&rec, &wheel_options(offset, from), 1.0).unwrap();
+        let e = worst_tdc_error(&deg, tdc);
+        assert!((e - 360.0).abs() < 0.1, "--phase-from {from:?}: {e}°");
+    }
+}
+
+#[test]
+fn the_tdc_found_on_a_motored_trace_is_within_a_tenth_of_a_degree() {
+    let rec = raw();
+    let (tdc, t) = wheel_tdc();
+    let truth = t["tdc_offset_deg"].as_f64().unwrap();
+    let found = tdc_from_pressure(&rec, &wheel_options(0.0, Some("cam")), &config(), 1.0).unwrap();
+    let (lo, hi) = found.ci95;
+    assert!(
+        (found.tdc_offset_deg - truth).abs() < 0.1,
+        "{} [{lo}, {hi}] against {truth}",
+        found.tdc_offset_deg
+    );
+    assert!(hi - lo < 0.2 && lo < found.tdc_offset_deg && found.tdc_offset_deg < hi);
+    // The peak comes early by the loss angle: reading the TDC off it would be worse.
+    let loss = found.peak_deg.unwrap();
+    assert!(loss < -0.1, "{loss}");
+    // Converted with the offset found, every cycle starts at the true TDC.
+    let deg = to_crank_angle(&rec, &wheel_options(found.tdc_offset_deg, Some("cam")), 1.0).unwrap();
+    assert!(worst_tdc_error(&deg, tdc) < 0.1);
+    // The whole truth of the raw file comes out too.
+    let fit = &found.fit;
+    for name in ["eps", "n", "k_loss", "p_offset", "p_bdc"] {
+        let e = fit.get(name).unwrap();
+        let want = t[name].as_f64().unwrap();
+        assert!(
+            (e.value - want).abs() < 0.02 * want.abs(),
+            "{name}: {} against {want}",
+            e.value
+        );
+    }
+    // Without a sensor there is no reference to place the TDC on.
+    let mut none = wheel_options(0.0, None);
+    none.sensor = None;
+    let e = tdc_from_pressure(&rec, &none, &config(), 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--wheel"), "{e}");
 }

@@ -360,6 +360,39 @@ impl ChunkReader {
             header = rename(header, &map, path)?;
         }
         header.basis = basis_by_channels(&header);
+        // A standard channel calibrated from its sensor's own unit (V, mV, counts — a unit that
+        // does not convert to the channel's SI unit): `--scale` gives the SI unit.
+        let from_sensor_unit = |c: &Channel| {
+            opts.scale.iter().any(|(n, ..)| n == &c.name)
+                && !c.unit.is_empty()
+                && physid_core::standard_unit(&c.name)
+                    .is_some_and(|si| physid_core::units::conversion(&c.unit, si).is_none())
+        };
+        if header.channels().iter().any(from_sensor_unit) {
+            let mut relabelled = Recording::new(header.basis);
+            relabelled.meta = std::mem::take(&mut header.meta);
+            let mut said = Vec::new();
+            for c in header.channels() {
+                let mut unit = c.unit.clone();
+                if from_sensor_unit(c) {
+                    let si = physid_core::standard_unit(&c.name).unwrap_or_default();
+                    said.push(format!("{}: {unit} → {si} by --scale", c.name));
+                    unit = si.to_string();
+                }
+                relabelled
+                    .push(Channel {
+                        name: c.name.clone(),
+                        unit,
+                        values: Vec::new(),
+                    })
+                    .map_err(|source| IoError::Recording {
+                        path: p.clone(),
+                        source,
+                    })?;
+            }
+            relabelled.meta.insert("calibrated".into(), said.join(", "));
+            header = relabelled;
+        }
         let mut convert = vec![(1.0, 0.0); header.channels().len()];
         if !opts.keep_units {
             let before: Vec<String> = header.channels().iter().map(|c| c.unit.clone()).collect();

@@ -355,3 +355,29 @@ fn whitespace_columns_without_a_header_and_a_calibration() {
     assert!(ReadOptions::parse_scale(&["p_cyl=2".into()]).is_err());
     assert!(ReadOptions::parse_scale(&["p_cyl=0,1".into()]).is_err());
 }
+
+/// A pressure sensor's volts, labelled V in the file: `--scale` maps them into the channel's
+/// SI unit (a standard channel), and says so; without it, V is refused for a pressure.
+#[test]
+fn a_calibration_from_the_sensor_unit_gives_the_si_unit() {
+    let s = Scratch::new("physid-io");
+    let f = s.file("volts.csv");
+    std::fs::write(&f, "t,p_cyl,aux\ns,V,V\n0,1.5,2\n1e-5,2.0,3\n").unwrap();
+    let opts = ReadOptions {
+        scale: ReadOptions::parse_scale(&["p_cyl=2e5,1e5".into(), "aux=2,0".into()]).unwrap(),
+        ..Default::default()
+    };
+    let r = read(&f, &opts).unwrap();
+    assert_eq!(r.channel("p_cyl").unwrap().unit, "Pa");
+    assert_eq!(r.values("p_cyl").unwrap(), [4e5, 5e5]);
+    assert!(
+        r.meta["calibrated"].contains("p_cyl: V → Pa"),
+        "{:?}",
+        r.meta
+    );
+    // A channel that is not a standard one keeps its unit.
+    assert_eq!(r.channel("aux").unwrap().unit, "V");
+    assert_eq!(r.values("aux").unwrap(), [4.0, 6.0]);
+    let e = plain(&f).unwrap_err().to_string();
+    assert!(e.contains("p_cyl") && e.contains("'V'"), "{e}");
+}
