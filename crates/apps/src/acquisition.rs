@@ -762,7 +762,7 @@ pub fn decode_angle(rec: &Recording, spec: &AngleSpec) -> Result<DecodedAngle, A
             (
                 parity as i64,
                 format!(
-                    "the firing TDC {}° after the reference of {} revolutions ('{name}' {} there: mean {fire:.4e} over the revolution around it against {other:.4e} a revolution away, medians over the TDCs)",
+                    "the firing TDC {:.3}° after the reference of {} revolutions ('{name}' {} there: mean {fire:.4e} over the revolution around it against {other:.4e} a revolution away, medians over the TDCs)",
                     spec.tdc_offset_deg,
                     if parity == 1 { "odd" } else { "even" },
                     if low { "lower" } else { "higher" }

@@ -22,7 +22,7 @@
 
 use crate::error::AppError;
 use nalgebra::DMatrix;
-use physid_core::{Basis, Recording};
+use physid_core::{Basis, ParamModel, Recording};
 use physid_ident::{analyse, fit_subset, quantify, Data, IdentConfig, RankedParam, Selection};
 use physid_models::motored::{Motored, DESCRIPTIONS, PARAMS, UNITS};
 use serde::Serialize;
@@ -233,6 +233,19 @@ pub struct EventFit {
     pub rms_residual: f64,
 }
 
+/// One TDC's pressure, measured and fitted.
+#[derive(Debug, Clone, Serialize)]
+pub struct Trace {
+    /// The cycle starting at this TDC.
+    pub cycle: i64,
+    /// Angles [deg ATDC on the recording].
+    pub atdc: Vec<f64>,
+    /// The measured pressure.
+    pub measured: Vec<f64>,
+    /// The model with the fused parameters.
+    pub fitted: Vec<f64>,
+}
+
 /// A pair of parameters that trade off in the fit of all of them.
 #[derive(Debug, Clone, Serialize)]
 pub struct Confounded {
@@ -275,6 +288,8 @@ pub struct CompressionFit {
     pub peak_deg: Option<f64>,
     /// RMS residual over all events [the channel's unit].
     pub rms_residual: f64,
+    /// The last TDC fitted: measured and fitted pressure (fused parameters).
+    pub trace: Trace,
     /// What was left out and why.
     pub notes: Vec<String>,
 }
@@ -369,6 +384,7 @@ pub fn compression_fit(
     cfg.validate()?;
     let unit = rec.channel(&cfg.channel)?.unit.clone();
     let mut notes = Vec::new();
+    notes.extend(crate::pressure::check_unit(rec, &cfg.channel, false)?);
     let events = events(rec, &cfg.channel, cfg.window_deg, &mut notes)?;
     if events.is_empty() {
         return Err(AppError::Invalid(format!(
@@ -539,6 +555,21 @@ pub fn compression_fit(
         })
         .collect::<Vec<_>>();
     let theta: Vec<f64> = estimates.iter().map(|e| e.value).collect();
+    let last = fits.last().map_or(events[0].cycle, |f| f.cycle);
+    let ev = events
+        .iter()
+        .find(|e| e.cycle == last)
+        .unwrap_or(&events[0]);
+    let trace = Trace {
+        cycle: ev.cycle,
+        atdc: ev.atdc.clone(),
+        measured: ev.p.clone(),
+        fitted: ev
+            .atdc
+            .iter()
+            .map(|&a| model.eval::<f64>(&[a], &theta))
+            .collect(),
+    };
     let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
     let wu_j = wu.map(|(_, j)| j);
     Ok(CompressionFit {
@@ -555,6 +586,7 @@ pub fn compression_fit(
         estimates,
         events: fits,
         rms_residual: (rss_total / rows as f64).sqrt(),
+        trace,
         notes,
     })
 }
@@ -574,8 +606,8 @@ pub struct TdcFromPressure {
 
 /// Place the firing TDC from a motored cylinder-pressure trace: decode the raw angle sensor
 /// of `opts` with its reference as TDC, move the TDC to where `channel` peaks (the median over
-/// the cycles), then fit the motored model there ([`compression_fit`]) — whose `tdc`, fitted
-/// with the loss rate, is where the true TDC lies: `offset = peak + tdc`, not the peak (the
+/// the cycles), then fit the motored model there ([`compression_fit`]) — whose `tdc_shift`, fitted
+/// with the loss rate, is where the true TDC lies: `offset = peak + tdc_shift`, not the peak (the
 /// peak comes early by the thermodynamic loss angle). Which revolution fires comes from
 /// `opts`' `phase_from`, or from `channel` when none is given.
 pub fn tdc_from_pressure(
@@ -631,7 +663,7 @@ pub fn tdc_from_pressure(
     let (deg_rec, _) = to_crank_angle_decoded(rec, &opts, step_deg)?;
     let fit = compression_fit(&deg_rec, cfg)?;
     let tdc = fit
-        .get("tdc")
+        .get("tdc_shift")
         .filter(|e| e.status == "fitted")
         .cloned()
         .ok_or_else(|| {

@@ -135,6 +135,56 @@ pub struct CycleAnalysis {
     pub notes: Vec<String>,
 }
 
+/// A cylinder pressure in Pa peaks above this (a motored engine's compression lifts it well
+/// past atmospheric): below it, the values are in another unit labelled Pa.
+pub const PA_PLAUSIBLE: f64 = 1e3;
+
+/// Check that `channel` can be a cylinder pressure: its unit a pressure (or one physid does
+/// not know, a sensor's own: V, counts), and — in Pa — a peak above [`PA_PLAUSIBLE`]. A unit
+/// of another quantity is an error; implausible values in Pa are an error when `need_pa` (the
+/// figures would be wrong), else the returned note. Both name the channel and the sample.
+pub fn check_unit(
+    rec: &Recording,
+    channel: &str,
+    need_pa: bool,
+) -> Result<Option<String>, AppError> {
+    let ch = rec.channel(channel)?;
+    if let Some(u) = physid_core::units::lookup(&ch.unit) {
+        // A sensor's own units: volts, counts.
+        if !["pressure", "voltage", "dimensionless"].contains(&u.dimension) {
+            return Err(AppError::Invalid(format!(
+                "'{channel}' is in '{}' ({}), not a pressure: expected {} — or the sensor's own unit (V) calibrated with --scale {channel}=GAIN,OFFSET",
+                ch.unit,
+                u.dimension,
+                physid_core::units::known_for("Pa")
+            )));
+        }
+    }
+    if !(ch.unit.is_empty() || ch.unit == "Pa") {
+        return Ok(None);
+    }
+    let Some((i, peak)) = ch
+        .values
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.is_finite())
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+    else {
+        return Ok(None);
+    };
+    if peak.abs() >= PA_PLAUSIBLE {
+        return Ok(None);
+    }
+    let text = format!(
+        "'{channel}' peaks at {peak} Pa (sample {i}): a cylinder pressure in Pa peaks far above {PA_PLAUSIBLE} Pa, so these are bar, MPa or a sensor's volts labelled Pa — state the unit (--map {channel}=COLUMN:bar) or calibrate into Pa (--scale {channel}=GAIN,OFFSET)"
+    );
+    if need_pa {
+        Err(AppError::Invalid(text))
+    } else {
+        Ok(Some(text))
+    }
+}
+
 /// The figures of every complete cycle of `p` in a crank-angle recording (channels `cycle`,
 /// `crank_deg`, `t`), optionally with the geometry and pegging.
 pub fn analyse(
@@ -151,6 +201,8 @@ pub fn analyse(
     if let Some(g) = geometry {
         g.validate()?;
     }
+    let mut notes = Vec::new();
+    notes.extend(check_unit(rec, p_channel, geometry.is_some())?);
     let ch = rec.channel(p_channel).map_err(AppError::from)?;
     let (cycle, deg, t) = (
         rec.values("cycle").map_err(AppError::from)?,
@@ -171,7 +223,6 @@ pub fn analyse(
         .ok_or_else(|| AppError::Invalid("crank_deg never advances".into()))?;
     let per_cycle = (720.0 / step).round() as usize;
     let in_pa = ch.unit == "Pa";
-    let mut notes = Vec::new();
     if geometry.is_some() && !in_pa {
         notes.push(format!(
             "'{p_channel}' is in '{}', not Pa: no IMEP (calibrate it with --scale {p_channel}=GAIN,OFFSET into Pa)",

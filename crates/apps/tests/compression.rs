@@ -131,7 +131,7 @@ fn a_parameter_held_is_not_fitted_and_the_rest_still_are() {
     assert_eq!((eps.status, eps.value, eps.ci95), ("held", 10.5, None));
     assert_eq!(fit.get("k_loss").unwrap().status, "held");
     assert_eq!(fit.ranking.len(), 4);
-    let tdc = fit.get("tdc").unwrap();
+    let tdc = fit.get("tdc_shift").unwrap();
     let (lo, hi) = tdc.ci95.unwrap();
     assert!(lo <= 0.6 && 0.6 <= hi, "{tdc:?}");
 }
@@ -143,7 +143,7 @@ fn without_the_loss_the_tdc_comes_out_early_and_its_interval_misses_the_truth() 
     let mut cfg = config();
     cfg.held = vec![("k_loss".into(), 0.0)];
     let fit = compression_fit(&recording(), &cfg).unwrap();
-    let tdc = fit.get("tdc").unwrap();
+    let tdc = fit.get("tdc_shift").unwrap();
     let full = self::fit();
     let loss = full.peak_deg.unwrap();
     assert!(
@@ -170,7 +170,7 @@ fn bad_input_is_refused_with_the_reason() {
     let mut cfg = config();
     cfg.held = vec![("bore".into(), 0.08)];
     let e = compression_fit(&rec, &cfg).unwrap_err().to_string();
-    assert!(e.contains("eps, tdc, p_offset"), "{e}");
+    assert!(e.contains("eps, tdc_shift, p_offset"), "{e}");
     let mut cfg = config();
     cfg.stroke = 0.4;
     let e = compression_fit(&rec, &cfg).unwrap_err().to_string();
@@ -299,7 +299,7 @@ fn worst_tdc_error(deg: &Recording, tdc: f64) -> f64 {
     );
     let four_pi = 4.0 * std::f64::consts::PI;
     (0..c.len())
-        .filter(|&i| c[i] == 0.0)
+        .filter(|&i| c[i].abs() < 1e-6)
         .map(|i| {
             let d = (th[i] * 1e-6 - tdc).rem_euclid(four_pi);
             d.min(four_pi - d).to_degrees()

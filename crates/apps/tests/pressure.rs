@@ -153,3 +153,53 @@ fn without_geometry_or_pa_what_is_left_out_is_said() {
     let e = analyse(&rec, "p_int", None, Pegging::None).unwrap_err();
     assert!(e.to_string().contains("p_int"), "{e}");
 }
+
+/// A pressure channel in the wrong unit: a unit of another quantity is refused; values that
+/// cannot be Pa (bar labelled Pa) are refused where IMEP needs Pa, else noted — naming the
+/// channel and the sample.
+#[test]
+fn a_pressure_in_the_wrong_unit_is_named_with_its_sample() {
+    let mut rec = recording(&[3e5, 3e5], 0.0);
+    let bar: Vec<f64> = rec
+        .values("p_cyl")
+        .unwrap()
+        .iter()
+        .map(|p| p / 1e5)
+        .collect();
+    let peak = bar
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap()
+        .0;
+    rec.replace_values("p_cyl", bar).unwrap();
+    let e = analyse(&rec, "p_cyl", Some(&geometry()), Pegging::None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("'p_cyl'") && e.contains(&format!("sample {peak}")) && e.contains("--scale"),
+        "{e}"
+    );
+    let a = analyse(&rec, "p_cyl", None, Pegging::None).unwrap();
+    assert!(
+        a.notes.iter().any(|n| n.contains("sample")),
+        "{:?}",
+        a.notes
+    );
+    // Degrees Celsius are not a pressure.
+    let mut hot = Recording::new(Basis::CrankAngle);
+    for c in rec.channels() {
+        let mut c = c.clone();
+        if c.name == "p_cyl" {
+            c.unit = "degC".into();
+        }
+        hot.push(c).unwrap();
+    }
+    let e = analyse(&hot, "p_cyl", None, Pegging::None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("'p_cyl' is in 'degC'") && e.contains("not a pressure"),
+        "{e}"
+    );
+}

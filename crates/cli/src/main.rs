@@ -53,6 +53,12 @@ enum Command {
     ///
     /// Example: physid friction eval --n 1000 --p-int 100 --t-oil 35
     Friction(cmd::friction::Args),
+    /// The chain on a motored pressure trace: which of the motored model's physical
+    /// parameters (compression ratio, TDC, sensor offset, polytropic exponent, BDC pressure,
+    /// loss rate) the trace resolves, those fitted per TDC with 95 % intervals and fused.
+    ///
+    /// Example: physid compression fit --data deg.parquet --stroke 0.09 --rod 0.15 --out comp
+    Compression(cmd::compression::Args),
     /// Application 3: the cyclic engine torque model's identifiability and EKF/UKF estimation
     /// on a motored recording (thesis ch. 8).
     ///
@@ -115,6 +121,7 @@ fn main() -> miette::Result<()> {
         Command::Estimate(a) => cmd::estimate::run(&a),
         Command::Bench(a) => cmd::bench::run(&a),
         Command::Friction(a) => cmd::friction::run(&a),
+        Command::Compression(a) => cmd::compression::run(&a),
         Command::Torque(a) => cmd::torque::run(&a),
         Command::Identify(a) => cmd::identify::run(&a),
         Command::Inspect(a) => cmd::inspect::run(&a),

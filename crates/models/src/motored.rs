@@ -4,7 +4,7 @@
 //! puts it. Every parameter is physical:
 //!
 //! ```text
-//! p_m(θ) = p_bdc · (V(−π)/V(α))ⁿ · exp(−k_loss·(α + π)) + p_offset,   α = (θ − tdc)·π/180
+//! p_m(θ) = p_bdc · (V(−π)/V(α))ⁿ · exp(−k_loss·(α + π)) + p_offset,   α = (θ − tdc_shift)·π/180
 //! V(−π)/V(α) = ε·S / (S + (ε − 1)·s(α))                               (V_c = V_d/(ε − 1))
 //! ```
 //!
@@ -14,7 +14,7 @@
 //! | name       | unit          | meaning                                                        |
 //! |------------|---------------|----------------------------------------------------------------|
 //! | `eps`      | –             | compression ratio ε                                            |
-//! | `tdc`      | deg           | where the true TDC lies on the recording's crank angle        |
+//! | `tdc_shift`| deg           | where the true TDC lies on the recording's crank angle        |
 //! | `p_offset` | pressure unit | what the sensor reads above the true pressure (pegging offset) |
 //! | `n`        | –             | polytropic exponent                                            |
 //! | `p_bdc`    | pressure unit | the pressure at BDC before compression                         |
@@ -22,7 +22,7 @@
 //!
 //! Without loss (`k_loss = 0`) the trace is symmetric about TDC; with it the peak comes before
 //! TDC — the *thermodynamic loss angle* — where `n·V'/V = −k_loss`, so that reading the TDC off
-//! the peak is wrong by that angle and fitting `tdc` with `k_loss` is not. Only the ratio
+//! the peak is wrong by that angle and fitting `tdc_shift` with `k_loss` is not. Only the ratio
 //! `r/L` and ε enter (`V(−π)/V(α)` is dimensionless): the bore does not, the stroke only scales.
 //!
 //! The model describes the closed part of the cycle only; fit it over a window inside IVC…EVO
@@ -33,7 +33,7 @@ use physid_core::{ParamModel, Scalar};
 use std::f64::consts::PI;
 
 /// The parameter names, in order.
-pub const PARAMS: [&str; 6] = ["eps", "tdc", "p_offset", "n", "p_bdc", "k_loss"];
+pub const PARAMS: [&str; 6] = ["eps", "tdc_shift", "p_offset", "n", "p_bdc", "k_loss"];
 /// Their units (`P` for the pressure channel's unit).
 pub const UNITS: [&str; 6] = ["-", "deg", "P", "-", "P", "1/rad"];
 /// One line each.
@@ -98,8 +98,8 @@ impl ParamModel for Motored {
     }
 
     fn eval<T: Scalar>(&self, u: &[f64], p: &[T]) -> T {
-        let (eps, tdc, offset, n, p_bdc, k) = (p[0], p[1], p[2], p[3], p[4], p[5]);
-        let alpha = (-tdc + u[0]) * (PI / 180.0);
+        let (eps, shift, offset, n, p_bdc, k) = (p[0], p[1], p[2], p[3], p[4], p[5]);
+        let alpha = (-shift + u[0]) * (PI / 180.0);
         let ln_ratio = self.volume_ratio(eps, alpha).ln();
         p_bdc * (n * ln_ratio - k * (alpha + PI)).exp() + offset
     }

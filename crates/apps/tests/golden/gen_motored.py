@@ -12,8 +12,8 @@ reads p + p_offset, with white noise.
 
 * motored_deg.parquet — a crank-angle recording as physid writes one (schema metadata
   physid.basis = crank_angle; channels t [s], cycle [-], crank_deg [deg], p_cyl [Pa]): 12
-  cycles at 1 deg steps, 1500 rpm, the recording's crank angle 0 `tdc` degrees BEFORE the
-  true TDC (the true TDC at crank_deg = tdc), noise 300 Pa.
+  cycles at 1 deg steps, 1500 rpm, the recording's crank angle 0 `tdc_shift` degrees BEFORE the
+  true TDC (the true TDC at crank_deg = tdc_shift), noise 300 Pa.
 * motored_wheel.parquet — a raw time recording at 100 kHz, 1 s at 1500 rpm with a cyclic
   speed fluctuation: t [us] (int32), enc (int8: a digital Hall sensor, 0/5 V, over a 60-2
   wheel, high from a quarter to three quarters of each tooth's pitch), cam (int8: 0/5 V, high
@@ -23,7 +23,7 @@ reads p + p_offset, with white noise.
   tooth 0's rising edge (at a quarter pitch), in the revolutions 0, 2, 4, … counted from
   the wheel's reference.
 
-motored.json: the truth of both (eps, tdc or tdc_offset_deg, p_offset, n, p_bdc, k_loss,
+motored.json: the truth of both (eps, tdc_shift or tdc_offset_deg, p_offset, n, p_bdc, k_loss,
 geometry, noise).
 """
 import json
@@ -57,7 +57,7 @@ def pressure(a, t):
 
 
 def crank_angle_file(rng):
-    truth = dict(eps=10.5, tdc=0.6, p_offset=3.0e4, n=1.31, p_bdc=0.95e5, k_loss=0.05,
+    truth = dict(eps=10.5, tdc_shift=0.6, p_offset=3.0e4, n=1.31, p_bdc=0.95e5, k_loss=0.05,
                  noise=300.0, rpm=1500.0, cycles=12, step_deg=1.0)
     per = 720
     k = np.arange(truth["cycles"] * per)
@@ -65,7 +65,7 @@ def crank_angle_file(rng):
     cycle = (k // per).astype(float)
     theta = k * 1.0  # continuous recording angle [deg] from the first TDC
     t = theta / (truth["rpm"] * 6.0)
-    a = np.radians(theta - truth["tdc"])
+    a = np.radians(theta - truth["tdc_shift"])
     p = pressure(a, truth) + truth["p_offset"] + rng.normal(0, truth["noise"], k.size)
     schema = pa.schema(
         [

@@ -1,11 +1,11 @@
 //! `physid convert`: between formats (by extension) and bases (time ↔ one sample per crank
 //! degree).
 
-use super::InputArgs;
+use super::{CrankArgs, InputArgs};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{to_crank_angle_decoded, to_time_basis, DecodedAngle};
+use physid_apps::acquisition::{to_time_basis, DecodedAngle};
 use physid_io::{MdfCompression, WriteOptions};
 use std::path::PathBuf;
 
@@ -34,6 +34,8 @@ pub struct Args {
     pub time_basis: Option<f64>,
     #[command(flatten)]
     pub angle: AngleArgs,
+    #[command(flatten)]
+    pub crank: CrankArgs,
     /// MDF4 output compression: none, deflate or transposed.
     #[arg(long, default_value = "none")]
     pub compression: String,
@@ -68,8 +70,9 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let mut rec = args.read.read(&args.input, None)?;
     if args.crank_angle {
-        let (out, decoded) = to_crank_angle_decoded(&rec, &opts, args.step_deg)
-            .map_err(|e| miette!("{}: {e}", args.input.display()))?;
+        let (out, decoded) =
+            args.angle
+                .to_crank_angle(&rec, &args.crank, args.step_deg, &args.input, false)?;
         if let Some(d) = decoded {
             tell_wheel(&args.input, &d);
         }

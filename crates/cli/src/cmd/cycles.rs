@@ -3,13 +3,12 @@
 //! (`physid_apps::pressure`). A time-basis recording is taken to one sample per crank degree
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
-use super::InputArgs;
+use super::{GeometryArgs, InputArgs};
 use crate::cmd::convert::tell_wheel;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::to_crank_angle_decoded;
-use physid_apps::pressure::{analyse, Geometry, Pegging};
+use physid_apps::pressure::{analyse, Pegging};
 use physid_core::Basis;
 use std::path::PathBuf;
 
@@ -24,18 +23,10 @@ pub struct Args {
     /// The cylinder-pressure channel.
     #[arg(long, default_value = "p_cyl")]
     pub channel: String,
-    /// Bore [m] (with --stroke, --rod and --compression-ratio: IMEP and polytropic exponents).
-    #[arg(long, value_name = "M", requires_all = ["stroke", "rod", "compression_ratio"])]
-    pub bore: Option<f64>,
-    /// Stroke [m].
-    #[arg(long, value_name = "M", requires = "bore")]
-    pub stroke: Option<f64>,
-    /// Connecting-rod length [m].
-    #[arg(long, value_name = "M", requires = "bore")]
-    pub rod: Option<f64>,
-    /// Compression ratio [-].
-    #[arg(long, value_name = "RATIO", requires = "bore")]
-    pub compression_ratio: Option<f64>,
+    /// The cylinder's geometry (all four: IMEP and polytropic exponents; --stroke and --rod
+    /// alone serve --tdc-from).
+    #[command(flatten)]
+    pub geometry: GeometryArgs,
     /// Pressure referencing per cycle: `bdc=P` (P, in the channel's unit, at BDC of the intake
     /// stroke) or `polytropic=N` (the offset that makes p·V^N constant on compression).
     #[arg(long, value_name = "bdc=P|polytropic=N")]
@@ -74,20 +65,19 @@ fn pegging(s: &Option<String>) -> Result<Pegging> {
 /// Run `physid cycles`.
 pub fn run(args: &Args) -> Result<()> {
     let peg = pegging(&args.peg)?;
-    let geometry = args.bore.map(|bore| Geometry {
-        bore,
-        stroke: args.stroke.unwrap_or(f64::NAN),
-        rod: args.rod.unwrap_or(f64::NAN),
-        compression_ratio: args.compression_ratio.unwrap_or(f64::NAN),
-    });
-    let opts = args.angle.options()?;
+    let geometry = args.geometry.full()?;
     let rec = args.input.read(&args.file, None)?;
     let mut wheel = None;
     let rec = match rec.basis {
         Basis::CrankAngle => rec,
         Basis::Time => {
-            let (deg, decoded) = to_crank_angle_decoded(&rec, &opts, 1.0)
-                .map_err(|e| miette!("{}: {e}", args.file.display()))?;
+            let (deg, decoded) = args.angle.to_crank_angle(
+                &rec,
+                &args.geometry.crank,
+                1.0,
+                &args.file,
+                args.json,
+            )?;
             if let Some(d) = &decoded {
                 if !args.json {
                     tell_wheel(&args.file, d);

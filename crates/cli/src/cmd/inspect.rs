@@ -1,12 +1,15 @@
 //! `physid inspect`: what is in a recording, and the post-run integrity check (thesis ch. 4).
 
-use super::InputArgs;
+use super::{CrankArgs, InputArgs};
 use crate::out::outln;
 use crate::plot;
 use crate::progress::Reading;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{AcquisitionOptions, AngleSensor, AngleSpec, Inspector};
+use physid_apps::acquisition::{
+    to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec, DecodedAngle, Inspector,
+};
+use physid_apps::compression::{tdc_from_pressure, CompressionConfig};
 use physid_core::Recording;
 use physid_signal::wheel::{Edge, EdgeOptions, Wheel};
 use std::path::{Path, PathBuf};
@@ -56,6 +59,42 @@ impl AngleArgs {
         o.sensor = self.wheel.spec()?;
         Ok(o)
     }
+
+    /// A time-basis recording of `input` taken to one sample every `step_deg` crank degrees,
+    /// with what decoding a raw angle sensor found; with `--tdc-from`, the TDC placed from the
+    /// motored pressure first (on stderr, with its interval, unless `quiet`).
+    pub fn to_crank_angle(
+        &self,
+        rec: &Recording,
+        crank: &CrankArgs,
+        step_deg: f64,
+        input: &Path,
+        quiet: bool,
+    ) -> Result<(Recording, Option<DecodedAngle>)> {
+        let mut opts = self.options()?;
+        let at = |e: &dyn std::fmt::Display| miette!("{}: {e}", input.display());
+        if let Some(channel) = &self.wheel.tdc_from {
+            let (stroke, rod) = crank.lengths(&format!("--tdc-from {channel}"))?;
+            let cfg = CompressionConfig::new(channel, stroke, rod);
+            let found = tdc_from_pressure(rec, &opts, &cfg, step_deg).map_err(|e| at(&e))?;
+            if !quiet {
+                eprintln!(
+                    "{}: TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°); the pressure peaks {:.3}° before it (the loss angle)",
+                    input.display(),
+                    found.fit.events.len(),
+                    found.tdc_offset_deg,
+                    found.ci95.0,
+                    found.ci95.1,
+                    -found.peak_deg.unwrap_or(f64::NAN)
+                );
+            }
+            if let Some(spec) = opts.sensor.as_mut() {
+                spec.tdc_offset_deg = found.tdc_offset_deg;
+                spec.phase_from.get_or_insert_with(|| channel.clone());
+            }
+        }
+        to_crank_angle_decoded(rec, &opts, step_deg).map_err(|e| at(&e))
+    }
 }
 
 /// A raw angle sensor as the engine angle: a trigger wheel (`physid_signal::wheel`) or a
@@ -81,10 +120,21 @@ pub struct WheelArgs {
         allow_negative_numbers = true
     )]
     pub tdc_offset: f64,
-    /// With --wheel or --quadrature: the channel that is higher at the compression TDC than at
-    /// the gas-exchange TDC (the cylinder pressure) — which revolution of two fires.
-    #[arg(long, value_name = "CHANNEL", requires = "sensor")]
+    /// With --wheel or --quadrature: which revolution of two fires — the one whose TDC has the
+    /// higher mean of CHANNEL over the revolution around it: the cylinder pressure, or a cam
+    /// sensor high (or pulsing) there; CHANNEL:low for a cam that marks the other revolution.
+    #[arg(long, value_name = "CHANNEL[:low]", requires = "sensor")]
     pub phase_from: Option<String>,
+    /// With --wheel or --quadrature: place the TDC from this motored cylinder-pressure channel
+    /// instead of --tdc-offset — the motored model's TDC (with the thermodynamic loss angle,
+    /// not the pressure's peak), reported with its 95 % interval. Needs --stroke and --rod.
+    #[arg(
+        long,
+        value_name = "CHANNEL",
+        requires = "sensor",
+        conflicts_with = "tdc_offset"
+    )]
+    pub tdc_from: Option<String>,
     /// With --wheel: the tooth edge is the signal rising (a Hall sensor's tooth) or falling
     /// through the level.
     #[arg(
@@ -200,6 +250,11 @@ pub fn acquisition_options(encoders: &[String], marker: &str) -> Result<Acquisit
 
 /// Run `physid inspect`.
 pub fn run(args: &Args) -> Result<()> {
+    if args.angle.wheel.tdc_from.is_some() {
+        return Err(miette!(
+            "inspect --tdc-from: inspect reports what the wheel shows; the TDC is placed from the pressure by `physid convert --crank-angle`, `cycles` and `compression fit` with --tdc-from"
+        ));
+    }
     let opts = args.angle.options()?;
     // The file read a chunk at a time: memory does not grow with its length.
     let mut reader = args.input.open_all(&args.file)?;

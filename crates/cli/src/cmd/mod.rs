@@ -1,6 +1,7 @@
 //! One module per verb.
 
 pub mod bench;
+pub mod compression;
 pub mod convert;
 pub mod cycles;
 pub mod demo;
@@ -40,6 +41,77 @@ pub struct InputArgs {
     /// (repeatable), e.g. --scale p_cyl=2.5e5,1e5 for a pressure sensor's volts into Pa.
     #[arg(long = "scale", value_name = "NAME=GAIN,OFFSET")]
     pub scale: Vec<String>,
+}
+
+/// The slider crank's lengths (`physid_models::kinematics`): what the motored-pressure model
+/// needs (`--tdc-from`, `physid compression fit`).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct CrankArgs {
+    /// Stroke [m].
+    #[arg(long, value_name = "M")]
+    pub stroke: Option<f64>,
+    /// Connecting-rod length [m].
+    #[arg(long, value_name = "M")]
+    pub rod: Option<f64>,
+}
+
+impl CrankArgs {
+    /// Stroke and rod, both needed `for` what is said.
+    pub fn lengths(&self, what: &str) -> Result<(f64, f64)> {
+        match (self.stroke, self.rod) {
+            (Some(s), Some(r)) => Ok((s, r)),
+            _ => Err(miette!(
+                "{what} needs the crank's lengths: --stroke and --rod [m] (e.g. --stroke 0.09 --rod 0.15)"
+            )),
+        }
+    }
+}
+
+/// The cylinder's geometry: the crank's lengths, the bore and the compression ratio.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct GeometryArgs {
+    /// Bore [m].
+    #[arg(long, value_name = "M")]
+    pub bore: Option<f64>,
+    #[command(flatten)]
+    pub crank: CrankArgs,
+    /// Compression ratio [-].
+    #[arg(long, value_name = "RATIO")]
+    pub compression_ratio: Option<f64>,
+}
+
+impl GeometryArgs {
+    /// The whole geometry when any of --bore and --compression-ratio is given (then all four
+    /// are needed); `None` without them.
+    pub fn full(&self) -> Result<Option<physid_apps::pressure::Geometry>> {
+        if self.bore.is_none() && self.compression_ratio.is_none() {
+            return Ok(None);
+        }
+        let missing: Vec<&str> = [
+            ("--bore", self.bore.is_none()),
+            ("--stroke", self.crank.stroke.is_none()),
+            ("--rod", self.crank.rod.is_none()),
+            ("--compression-ratio", self.compression_ratio.is_none()),
+        ]
+        .iter()
+        .filter(|(_, m)| *m)
+        .map(|(n, _)| *n)
+        .collect();
+        if !missing.is_empty() {
+            return Err(miette!(
+                "the cylinder's geometry needs --bore, --stroke, --rod and --compression-ratio; missing {}",
+                missing.join(", ")
+            ));
+        }
+        let g = physid_apps::pressure::Geometry {
+            bore: self.bore.unwrap_or(f64::NAN),
+            stroke: self.crank.stroke.unwrap_or(f64::NAN),
+            rod: self.crank.rod.unwrap_or(f64::NAN),
+            compression_ratio: self.compression_ratio.unwrap_or(f64::NAN),
+        };
+        g.validate().map_err(|e| miette!("{e}"))?;
+        Ok(Some(g))
+    }
 }
 
 impl InputArgs {

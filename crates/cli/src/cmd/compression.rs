@@ -1,0 +1,472 @@
+//! `physid compression fit`: the chain on a motored pressure trace
+//! (`physid_apps::compression`) — which of the motored model's physical parameters (compression
+//! ratio, TDC, sensor offset, polytropic exponent, BDC pressure, loss rate) the trace resolves,
+//! those fitted per TDC with 95 % intervals and fused over the TDCs, the loss angle.
+
+use super::{GeometryArgs, InputArgs};
+use crate::cmd::convert::tell_wheel;
+use crate::cmd::inspect::AngleArgs;
+use crate::out::outln;
+use crate::plot::{self, Panel, Series, PALETTE};
+use crate::report::{self, Report};
+use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::compression::{compression_fit, CompressionConfig, CompressionFit};
+use physid_apps::pressure::{analyse, Geometry, Pegging};
+use physid_core::Basis;
+use physid_ident::Selection;
+use physid_models::motored::PARAMS;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `physid compression`.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(clap::Subcommand)]
+enum Command {
+    /// Fit the motored-pressure model around every firing TDC of a motored recording: the
+    /// identifiability ranking of its six physical parameters, the estimable ones per TDC with
+    /// 95 % intervals and fused over the TDCs, the thermodynamic loss angle.
+    ///
+    /// Example: physid compression fit --data deg.parquet --stroke 0.09 --rod 0.15 --out comp
+    Fit(FitArgs),
+}
+
+#[derive(clap::Args)]
+struct FitArgs {
+    /// Motored recording: on a crank-angle basis (`cycle`, `crank_deg`), or on a time basis with
+    /// the engine angle (theta_en, an encoder count, or --wheel / --quadrature).
+    #[arg(long)]
+    data: PathBuf,
+    #[command(flatten)]
+    input: InputArgs,
+    /// The cylinder-pressure channel.
+    #[arg(long, default_value = "p_cyl")]
+    channel: String,
+    /// The crank's lengths (needed); with the bore, the motored cycles' net IMEP (the pressure
+    /// in Pa).
+    #[command(flatten)]
+    geometry: GeometryArgs,
+    /// The fitting window [deg ATDC], inside IVC … EVO.
+    #[arg(
+        long,
+        value_name = "FROM,TO",
+        default_value = "-120,120",
+        allow_hyphen_values = true
+    )]
+    window: String,
+    /// Hold a parameter at a value instead of fitting it (repeatable): eps, tdc_shift [deg],
+    /// p_offset, n, p_bdc [the channel's unit], k_loss [1/rad]; e.g. --set eps=10.5.
+    #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    set: Vec<String>,
+    /// How many ranked parameters to fit: wu (Wu et al.), repeat, rel:FRACTION or an absolute
+    /// residual.
+    #[arg(long, default_value = "wu")]
+    cutoff: Selection,
+    #[command(flatten)]
+    angle: AngleArgs,
+    /// Print JSON: {"ranking", "fitted", "estimates": [{"name", "unit", "status", "value",
+    /// "std_err", "ci95"}, …], "events": […], "peak_deg", …}.
+    #[arg(long)]
+    json: bool,
+    /// Directory for the report (report.html with its SVGs, compression_fit.json,
+    /// tracks.csv: per TDC the estimates, their standard errors and the fused track).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+/// Run `physid compression`.
+pub fn run(args: &Args) -> Result<()> {
+    match &args.command {
+        Command::Fit(a) => fit(a),
+    }
+}
+
+fn window(s: &str) -> Result<(f64, f64)> {
+    let bad = || miette!("--window '{s}': expected FROM,TO in degrees ATDC, e.g. -120,120");
+    let (a, b) = s.split_once(',').ok_or_else(bad)?;
+    let a: f64 = a.trim().parse().map_err(|_| bad())?;
+    let b: f64 = b.trim().parse().map_err(|_| bad())?;
+    Ok((a, b))
+}
+
+fn held(items: &[String]) -> Result<Vec<(String, f64)>> {
+    items
+        .iter()
+        .map(|s| {
+            let bad = || {
+                miette!(
+                    "--set '{s}': expected NAME=VALUE with NAME one of {}",
+                    PARAMS.join(", ")
+                )
+            };
+            let (n, v) = s.split_once('=').ok_or_else(bad)?;
+            let v: f64 = v.trim().parse().map_err(|_| bad())?;
+            Ok((n.trim().to_string(), v))
+        })
+        .collect()
+}
+
+fn fit(a: &FitArgs) -> Result<()> {
+    let (stroke, rod) = a.geometry.crank.lengths("compression fit")?;
+    let mut cfg = CompressionConfig::new(&a.channel, stroke, rod);
+    cfg.window_deg = window(&a.window)?;
+    cfg.held = held(&a.set)?;
+    cfg.selection = a.cutoff;
+    let rec = a.input.read(&a.data, None)?;
+    let rec = match rec.basis {
+        Basis::CrankAngle => rec,
+        Basis::Time => {
+            let (deg, decoded) =
+                a.angle
+                    .to_crank_angle(&rec, &a.geometry.crank, 1.0, &a.data, a.json)?;
+            if let (Some(d), false) = (&decoded, a.json) {
+                tell_wheel(&a.data, d);
+            }
+            deg
+        }
+    };
+    let r = compression_fit(&rec, &cfg).map_err(super::app_error(&a.data))?;
+    let imep = motored_imep(&rec, &r, &a.geometry)?;
+    let mut json = serde_json::to_value(&r).into_diagnostic()?;
+    if let (Some(o), Some(v)) = (json.as_object_mut(), imep) {
+        o.insert("motored_imep_pa".into(), v.into());
+    }
+    if let Some(dir) = &a.out {
+        report::create_dir(dir)?;
+        let mut rep = Report::new("physid — compression fit", &format!("{}", a.data.display()));
+        report_section(&mut rep, &r, &cfg, dir)?;
+        if let Some(v) = imep {
+            rep.para(&imep_text(v), None);
+        }
+        report::finish(dir, rep, "compression_fit.json", &json)?;
+        write_tracks(&dir.join("tracks.csv"), &r)?;
+    }
+    if a.json {
+        outln!("{}", serde_json::to_string_pretty(&json).into_diagnostic()?);
+        return Ok(());
+    }
+    outln!(
+        "{}: {} TDC(s) of '{}' [{}] fitted over {}° … {}° ATDC; RMS residual {:.4e}",
+        a.data.display(),
+        r.events.len(),
+        r.channel,
+        r.unit,
+        r.window_deg.0,
+        r.window_deg.1,
+        r.rms_residual
+    );
+    outln!(
+        "  identifiability (Alg. 5.1 at the starting values): {}",
+        r.ranking
+            .iter()
+            .map(|p| format!("{} {:.1e}", p.param, p.relative_residual))
+            .collect::<Vec<_>>()
+            .join(" > ")
+    );
+    if let Some(pairs) = &r.confounded {
+        if !pairs.is_empty() {
+            outln!(
+                "  trade off (|correlation| > 0.95 fitting all): {}",
+                pairs
+                    .iter()
+                    .map(|c| format!("{}–{} {:+.3}", c.a, c.b, c.correlation))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    outln!(
+        "  {:<9} {:>14} {:>10} {:>29} {:>11}  {}",
+        "parameter",
+        "value",
+        "unit",
+        "95 % interval",
+        "status",
+        "meaning"
+    );
+    for e in &r.estimates {
+        outln!(
+            "  {:<9} {:>14.6} {:>10} {:>29} {:>11}  {}",
+            e.name,
+            e.value,
+            e.unit,
+            e.ci95
+                .map_or("—".into(), |(lo, hi)| format!("{lo:.6} … {hi:.6}")),
+            e.status,
+            e.description
+        );
+    }
+    if let Some(p) = r.peak_deg {
+        outln!(
+            "  the fitted trace peaks {:.3}° before TDC (the loss angle)",
+            -p
+        );
+    }
+    if let Some(v) = imep {
+        outln!("  {}", imep_text(v));
+    }
+    for n in &r.notes {
+        outln!("note: {n}");
+    }
+    if let Some(dir) = &a.out {
+        outln!("wrote {}", dir.join("report.html").display());
+    }
+    Ok(())
+}
+
+/// The mean net IMEP of the motored cycles [Pa] (`physid_apps::pressure`, the volume with the
+/// fitted compression ratio): the work the motored loop loses, heat and gas exchange — with
+/// --bore and the pressure in Pa. A constant sensor offset does not change a closed loop's work.
+fn motored_imep(
+    rec: &physid_core::Recording,
+    r: &CompressionFit,
+    g: &GeometryArgs,
+) -> Result<Option<f64>> {
+    let (Some(bore), Some(stroke), Some(rod)) = (g.bore, g.crank.stroke, g.crank.rod) else {
+        return Ok(None);
+    };
+    if r.unit != "Pa" {
+        return Ok(None);
+    }
+    let eps = r.get("eps").map_or(f64::NAN, |e| e.value);
+    let geometry = Geometry {
+        bore,
+        stroke,
+        rod,
+        compression_ratio: eps,
+    };
+    let a = analyse(rec, &r.channel, Some(&geometry), Pegging::None).map_err(|e| miette!("{e}"))?;
+    let v: Vec<f64> = a.cycles.iter().filter_map(|c| c.imep_pa).collect();
+    Ok((!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64))
+}
+
+fn imep_text(v: f64) -> String {
+    format!(
+        "Net IMEP of the motored cycles: {:.2} kPa (the loop's loss: heat and gas exchange; with the fitted compression ratio).",
+        v * 1e-3
+    )
+}
+
+/// The report: the ranking, the estimates with units and meanings, the per-TDC tracks with the
+/// fused estimate and its interval, the last TDC measured and fitted.
+fn report_section(
+    rep: &mut Report,
+    r: &CompressionFit,
+    cfg: &CompressionConfig,
+    dir: &Path,
+) -> Result<()> {
+    rep.section("The motored-pressure model");
+    rep.para(
+        &format!(
+            "p(θ) = p_bdc·(V(−180°)/V(θ − tdc_shift))ⁿ·exp(−k_loss·(θ − tdc_shift + 180°)) + p_offset over {}° … {}° ATDC of '{}' [{}], \
+             the volume of the slider crank (stroke {} m, rod {} m) with compression ratio eps. {} TDC(s); RMS residual {:.4e} {}.",
+            r.window_deg.0, r.window_deg.1, r.channel, r.unit, cfg.stroke, cfg.rod, r.events.len(), r.rms_residual, r.unit
+        ),
+        None,
+    );
+    rep.section("Which parameters the trace resolves");
+    rep.ranking(
+        &r.ranking,
+        "Motored model: residual profile (Alg. 5.1)",
+        &dir.join("compression_residuals.svg"),
+    )?;
+    if let Some(pairs) = &r.confounded {
+        rep.para(
+            &if pairs.is_empty() {
+                "No pair of parameters correlates beyond 0.95 in the fit of all of them.".into()
+            } else {
+                format!(
+                    "Trade off in the fit of all of them (|correlation| > 0.95): {}.",
+                    pairs
+                        .iter()
+                        .map(|c| format!("{} and {} ({:+.3})", c.a, c.b, c.correlation))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            },
+            Some("note"),
+        );
+    }
+    rep.section("Estimates (fused over the TDCs)");
+    rep.table(
+        &[
+            "parameter",
+            "meaning",
+            "unit",
+            "status",
+            "value",
+            "95 % interval",
+            "spread over TDCs (s.e.)",
+        ],
+        &r.estimates
+            .iter()
+            .map(|e| {
+                vec![
+                    e.name.clone(),
+                    e.description.clone(),
+                    e.unit.clone(),
+                    e.status.into(),
+                    format!("{:.6}", e.value),
+                    e.ci95
+                        .map_or("—".into(), |(lo, hi)| format!("{lo:.6} … {hi:.6}")),
+                    e.between_events_std_err
+                        .map_or("—".into(), |s| format!("{s:.3e}")),
+                ]
+            })
+            .collect::<Vec<_>>(),
+    );
+    if let Some(p) = r.peak_deg {
+        rep.para(
+            &format!(
+                "The fitted trace peaks {:.3}° before TDC: the thermodynamic loss angle.",
+                -p
+            ),
+            None,
+        );
+    }
+    for n in &r.notes {
+        rep.para(n, Some("note"));
+    }
+    // Per-TDC estimates and the fused track with its interval.
+    let x: Vec<f64> = r.events.iter().map(|e| e.t_s).collect();
+    // Per parameter: [per TDC, fused, fused + 1.96σ, fused − 1.96σ].
+    let columns: Vec<[Vec<f64>; 4]> = (0..r.fitted.len())
+        .map(|i| {
+            let track = |f: &dyn Fn(&physid_apps::compression::EventFit) -> f64| {
+                r.events.iter().map(f).collect::<Vec<f64>>()
+            };
+            [
+                track(&|e| e.values[i]),
+                track(&|e| e.fused[i]),
+                track(&|e| e.fused[i] + 1.96 * e.fused_std_err[i]),
+                track(&|e| e.fused[i] - 1.96 * e.fused_std_err[i]),
+            ]
+        })
+        .collect();
+    let panels: Vec<Panel> = r
+        .fitted
+        .iter()
+        .zip(&columns)
+        .map(|(name, [per, fused, hi, lo])| {
+            let unit = r.get(name).map_or(String::new(), |e| e.unit.clone());
+            Panel {
+                ylabel: format!("{name} [{unit}]"),
+                series: vec![
+                    Series {
+                        name: "per TDC".into(),
+                        x: &x,
+                        y: per,
+                        color: PALETTE[1],
+                        reference: false,
+                    },
+                    Series {
+                        name: "fused".into(),
+                        x: &x,
+                        y: fused,
+                        color: PALETTE[0],
+                        reference: false,
+                    },
+                    Series {
+                        name: "fused ± 95 %".into(),
+                        x: &x,
+                        y: hi,
+                        color: PALETTE[2],
+                        reference: true,
+                    },
+                    Series {
+                        name: String::new(),
+                        x: &x,
+                        y: lo,
+                        color: PALETTE[2],
+                        reference: true,
+                    },
+                ],
+            }
+        })
+        .collect();
+    let svg = dir.join("compression_tracks.svg");
+    plot::panels(
+        &svg,
+        "Estimates per TDC and fused over the TDCs",
+        "time at TDC [s]",
+        &panels,
+    )?;
+    rep.svg(&svg)?;
+    let t = &r.trace;
+    let residual: Vec<f64> = t
+        .measured
+        .iter()
+        .zip(&t.fitted)
+        .map(|(m, f)| m - f)
+        .collect();
+    let svg = dir.join("compression_trace.svg");
+    plot::panels(
+        &svg,
+        &format!("The last TDC (cycle {}): measured and fitted", t.cycle),
+        "crank angle [deg ATDC]",
+        &[
+            Panel {
+                ylabel: format!("{} [{}]", r.channel, r.unit),
+                series: vec![
+                    Series {
+                        name: "measured".into(),
+                        x: &t.atdc,
+                        y: &t.measured,
+                        color: PALETTE[1],
+                        reference: true,
+                    },
+                    Series {
+                        name: "fitted".into(),
+                        x: &t.atdc,
+                        y: &t.fitted,
+                        color: PALETTE[0],
+                        reference: false,
+                    },
+                ],
+            },
+            Panel {
+                ylabel: format!("residual [{}]", r.unit),
+                series: vec![Series {
+                    name: "measured − fitted".into(),
+                    x: &t.atdc,
+                    y: &residual,
+                    color: PALETTE[0],
+                    reference: false,
+                }],
+            },
+        ],
+    )?;
+    rep.svg(&svg)
+}
+
+/// `tracks.csv`: per TDC its time, cycle, speed, residual, each fitted parameter, its standard
+/// error and the fused estimate, with units.
+fn write_tracks(path: &Path, r: &CompressionFit) -> Result<()> {
+    let mut columns: Vec<(String, String)> = vec![
+        ("t".into(), "s".into()),
+        ("cycle".into(), "-".into()),
+        ("rpm".into(), "rpm".into()),
+        ("rms_residual".into(), r.unit.clone()),
+    ];
+    for name in &r.fitted {
+        let unit = r
+            .get(name)
+            .map(|e| e.unit.clone())
+            .ok_or_else(|| miette!("{name} has no estimate"))?;
+        columns.push((name.clone(), unit.clone()));
+        columns.push((format!("{name}_std_err"), unit.clone()));
+        columns.push((format!("{name}_fused"), unit));
+    }
+    let mut f = crate::tracks::TrackFile::create(path, columns)?;
+    for e in &r.events {
+        let mut row = vec![e.t_s, e.cycle as f64, e.rpm, e.rms_residual];
+        for i in 0..r.fitted.len() {
+            row.extend([e.values[i], e.std_err[i], e.fused[i]]);
+        }
+        f.row(row)?;
+    }
+    f.close()
+}
