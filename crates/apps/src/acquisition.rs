@@ -11,7 +11,7 @@ use physid_signal::integrity::{
     median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
 };
 use physid_signal::wheel::{
-    index_teeth, EdgeDetector, EdgeOptions, Wheel, WheelAngles, WheelError,
+    index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelAngles, WheelError,
 };
 use serde::Serialize;
 use std::f64::consts::{PI, TAU};
@@ -175,6 +175,24 @@ pub struct Inspection {
     /// What decoding the trigger wheel found (`--wheel`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wheel: Option<WheelSummary>,
+    /// Without an engine angle: the channels whose signal is a trigger wheel's, and which.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub recognised: Vec<RecognisedWheel>,
+}
+
+/// A channel recognised as a trigger wheel's signal.
+#[derive(Debug, Clone, Serialize)]
+pub struct RecognisedWheel {
+    /// The channel.
+    pub channel: String,
+    /// The wheel, `N-M` (what `--wheel CHANNEL=N-M` takes).
+    pub wheel: String,
+    /// Teeth per revolution (N − M).
+    pub teeth: u32,
+    /// Missing teeth in the gap (M).
+    pub missing: u32,
+    /// Gaps seen.
+    pub gaps: usize,
 }
 
 /// A trigger wheel as decoded by `physid inspect --wheel`.
@@ -238,6 +256,36 @@ pub struct Inspector {
     prev_deg: Option<f64>,
     /// The trigger wheel's edges, found as the chunks pass.
     wheel: Option<EdgeDetector>,
+    /// Without an engine angle: the edges of the channels that may be a wheel's signal, over
+    /// their first [`RECOGNISE_SAMPLES`], to recognise one ([`physid_signal::wheel::recognise`]).
+    candidates: Vec<(String, EdgeDetector)>,
+}
+
+/// The samples of a channel [`Inspector`] looks at to recognise a trigger wheel.
+pub const RECOGNISE_SAMPLES: usize = 1 << 21;
+
+/// Channels [`Inspector`] tries as a trigger wheel's signal: on a time basis with no engine
+/// angle given or present, those without a standard name whose unit is none, a voltage or a
+/// count (at most 8).
+fn wheel_candidates(header: &Recording, opts: &AcquisitionOptions) -> Vec<(String, EdgeDetector)> {
+    let has_angle = header.channel("theta_en").is_ok()
+        || opts.encoders.iter().any(|(n, _)| header.channel(n).is_ok());
+    if opts.sensor.is_some() || has_angle || header.basis != Basis::Time {
+        return Vec::new();
+    }
+    header
+        .channels()
+        .iter()
+        .filter(|c| {
+            c.name != "t"
+                && physid_core::standard_unit(&c.name).is_none()
+                && (c.unit.is_empty()
+                    || physid_core::units::lookup(&c.unit)
+                        .is_some_and(|u| ["voltage", "dimensionless"].contains(&u.dimension)))
+        })
+        .take(8)
+        .map(|c| (c.name.clone(), EdgeDetector::new(&EdgeOptions::default())))
+        .collect()
 }
 
 impl Inspector {
@@ -266,6 +314,7 @@ impl Inspector {
                 }
                 _ => None,
             },
+            candidates: wheel_candidates(header, opts),
         }
     }
 
@@ -320,6 +369,15 @@ impl Inspector {
         ) {
             if let (Ok(t), Ok(v)) = (chunk.values("t"), chunk.values(channel)) {
                 d.push(t, v);
+            }
+        }
+        if let Ok(t) = chunk.values("t") {
+            let room = RECOGNISE_SAMPLES.saturating_sub(self.rows - chunk.len());
+            let n = t.len().min(room);
+            for (name, d) in self.candidates.iter_mut() {
+                if let (Ok(v), true) = (chunk.values(name), n > 0) {
+                    d.push(&t[..n], &v[..n]);
+                }
             }
         }
         if let Ok(t) = chunk.values("t") {
@@ -384,6 +442,20 @@ impl Inspector {
             }
             _ => None,
         };
+        let recognised = self
+            .candidates
+            .into_iter()
+            .filter_map(|(channel, d)| {
+                let r = recognise(&d.finish().ok()?)?;
+                Some(RecognisedWheel {
+                    channel,
+                    wheel: r.wheel.to_string(),
+                    teeth: r.wheel.present(),
+                    missing: r.wheel.missing,
+                    gaps: r.gaps,
+                })
+            })
+            .collect();
         Inspection {
             basis: match rec.basis {
                 Basis::Time => "time",
@@ -406,6 +478,7 @@ impl Inspector {
             cycles,
             integrity,
             wheel,
+            recognised,
         }
     }
 }
@@ -499,7 +572,7 @@ fn engine_angle(
             .find(|(n, _)| rec.channel(n).is_ok())
             .ok_or_else(|| {
                 AcquisitionError::Invalid(format!(
-                    "no engine angle: the recording needs 'theta_en' [rad], an encoder count channel ({}), a trigger wheel's signal (--wheel CHANNEL=N-M) or a quadrature encoder's (--quadrature A,B,Z=LINES); the channels are {}",
+                    "no engine angle: the recording needs 'theta_en' [rad], an encoder count channel ({}), a trigger wheel's signal (--wheel CHANNEL=N-M) or a quadrature encoder's (--quadrature A,B,Z=LINES) — `physid inspect` names a channel that is a trigger wheel's; the channels are {}",
                     opts.encoders.iter().map(|e| e.0.as_str()).collect::<Vec<_>>().join(", "),
                     rec.names().join(", ")
                 ))

@@ -912,6 +912,20 @@ fn convert_places_the_tdc_from_a_motored_pressure_trace() {
     ]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("inspect --tdc-from"));
+    // Without --wheel, inspect recognises the wheel (and not the cam or the pressure).
+    let j = ok_json(&[
+        "inspect",
+        raw.to_str().unwrap(),
+        "--scale",
+        "p_cyl=1e6,0",
+        "--json",
+    ]);
+    let r = j["recognised"].as_array().unwrap();
+    assert_eq!(r.len(), 1, "{j}");
+    assert_eq!(
+        (r[0]["channel"].as_str(), r[0]["wheel"].as_str()),
+        (Some("enc"), Some("60-2"))
+    );
 }
 
 /// `physid compression fit` on the numpy motored trace: every parameter's 95 % interval

@@ -6,7 +6,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use physid_signal::integrity::FindingKind;
-use physid_signal::wheel::{edges, index_teeth, EdgeDetector, EdgeOptions, Wheel, WheelError};
+use physid_signal::wheel::{
+    edges, index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelError,
+};
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -213,4 +215,27 @@ fn the_level_recovers_when_the_amplitude_falls_at_once() {
     let angle = a.angle_at(&t2[from..]);
     let (worst, _, _) = error_deg(&angle, &truth[from - n..]);
     assert!(worst < 0.1, "{worst}° off the truth after the joint");
+}
+
+/// The golden raw signals are recognised as the wheels they are, without being told; a
+/// regular pulse train without a gap and a sine are not wheels.
+#[test]
+fn a_wheel_is_recognised_from_its_signal_alone() {
+    for (file, want) in [("wheel_vr_60m3", "60-3"), ("wheel_hall_36m1", "36-1")] {
+        let (t, v, _) = load(file);
+        let e = edges(&t, &v, &EdgeOptions::default()).unwrap();
+        let r = recognise(&e).unwrap_or_else(|| panic!("{file}: not recognised"));
+        assert_eq!(r.wheel.to_string(), want, "{file}");
+        assert!(r.gaps >= 3);
+    }
+    let t: Vec<f64> = (0..100_000).map(|i| f64::from(i) * 1e-5).collect();
+    let square: Vec<f64> = t
+        .iter()
+        .map(|x| f64::from(u8::from((x * 1e3).fract() < 0.5)))
+        .collect();
+    let e = edges(&t, &square, &EdgeOptions::default()).unwrap();
+    assert!(e.t.len() > 50 && recognise(&e).is_none());
+    let sine: Vec<f64> = t.iter().map(|x| (x * 50.0).sin()).collect();
+    let e = edges(&t, &sine, &EdgeOptions::default()).unwrap();
+    assert!(recognise(&e).is_none());
 }

@@ -375,6 +375,12 @@ pub fn run(args: &Args) -> Result<()> {
                 Some(e) => outln!("wheel '{}' ({}): not decoded — {e}", w.channel, w.wheel),
             }
         }
+        for w in &i.recognised {
+            outln!(
+                "'{}' looks like a {} trigger wheel's signal ({} teeth and a gap of {} per revolution, {} gaps seen): decode it with --wheel {}={}",
+                w.channel, w.wheel, w.teeth, w.missing, w.gaps, w.channel, w.wheel
+            );
+        }
         outln!("{:<24} {:<10} {:>10}", "channel", "unit", "samples");
         for c in &i.channels {
             outln!("{:<24} {:<10} {:>10}", c.name, c.unit, c.samples);
