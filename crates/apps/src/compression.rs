@@ -10,19 +10,26 @@
 //!    the ratio of the peak pressure to the pressure at the window's start
 //!    (`p_max/p_a = (V_a/V_c)ⁿ`), the BDC pressure by the polytrope back from `p_a`.
 //! 3. All the parameters not held (`--set`) fitted to every event at once (Gauss–Newton), the
-//!    identifiability ranking there (Alg. 5.1, thesis scaling) and the estimable set
-//!    (Wu et al. by default): which parameters one motored trace resolves and which trade off.
-//! 4. The estimable ones fitted per event, with 95 % intervals from each event's Fisher
-//!    information (Eq. 5.12, σ² from its residuals), and combined recursively over the events:
-//!    `I_k = I_{k−1} + J_kᵀJ_k/σ_k²`, `ϑ̄_k = I_k⁻¹(I_{k−1}ϑ̄_{k−1} + J_kᵀJ_k ϑ_k/σ_k²)` — the
-//!    information filter of a constant parameter (RLS on the events' estimates). The spread of
-//!    the per-event estimates is reported beside it: if it exceeds the fused interval, the
-//!    parameters change from cycle to cycle or the model misses something.
+//!    identifiability ranking at nominal values (Alg. 5.1, thesis scaling) and the estimable
+//!    set (Wu et al. by default): which parameters the trace resolves and which trade off.
+//! 4. The estimable ones, the rest held at their starting values:
+//!    - fitted to all the events at once — the estimate, with 95 % intervals from the Fisher
+//!      information of all of them (Eq. 5.12, σ² from the residuals);
+//!    - fitted per event, with intervals from each event's information;
+//!    - combined recursively over the events by Gauss–Newton — the first event's own fit,
+//!      then each event linearised at the estimate so far (`J_k`, `r_k` there):
+//!      `I_k = I_{k−1} + J_kᵀJ_k/σ_k²`, `ϑ̄_k = ϑ̄_{k−1} + I_k⁻¹·J_kᵀr_k/σ_k²` (the extended
+//!      Kalman filter of a constant parameter): the on-line track. When one event resolves
+//!      the parameters well it ends at the fit of all; when it does not (much noise), its
+//!      first linearisations are poor and it lags — the fit of all is the estimate.
+//!
+//!    The spread of the per-event estimates is reported beside the interval: if it exceeds
+//!    it, the parameters change from cycle to cycle or the model misses something.
 //! 5. The thermodynamic loss angle: where the fitted trace peaks, `n·d ln V/dα = −k_loss`.
 
 use crate::error::AppError;
-use nalgebra::DMatrix;
-use physid_core::{Basis, ParamModel, Recording};
+use nalgebra::{DMatrix, DVector};
+use physid_core::{Basis, GradientEngine, ParamModel, Recording};
 use physid_ident::{analyse, fit_subset, quantify, Data, IdentConfig, RankedParam, Selection};
 use physid_models::motored::{Motored, DESCRIPTIONS, PARAMS, UNITS};
 use serde::Serialize;
@@ -198,7 +205,7 @@ pub struct ParamEstimate {
     /// `fitted`, `held` (given with `--set`) or `unresolved` (the data do not resolve it: held
     /// at its starting value).
     pub status: &'static str,
-    /// The value: fused over the events when fitted.
+    /// The value: fitted to all the events at once when fitted.
     pub value: f64,
     /// Its standard error (fitted only).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -225,10 +232,10 @@ pub struct EventFit {
     pub values: Vec<f64>,
     /// Their standard errors.
     pub std_err: Vec<f64>,
-    /// The fused estimate after this event (recursive over the events).
-    pub fused: Vec<f64>,
+    /// The recursive estimate after this event (Gauss–Newton over the events so far).
+    pub recursive: Vec<f64>,
     /// Its standard errors.
-    pub fused_std_err: Vec<f64>,
+    pub recursive_std_err: Vec<f64>,
     /// RMS of the fit's residual [the channel's unit].
     pub rms_residual: f64,
 }
@@ -242,7 +249,7 @@ pub struct Trace {
     pub atdc: Vec<f64>,
     /// The measured pressure.
     pub measured: Vec<f64>,
-    /// The model with the fused parameters.
+    /// The model with the estimate.
     pub fitted: Vec<f64>,
 }
 
@@ -288,7 +295,7 @@ pub struct CompressionFit {
     pub peak_deg: Option<f64>,
     /// RMS residual over all events [the channel's unit].
     pub rms_residual: f64,
-    /// The last TDC fitted: measured and fitted pressure (fused parameters).
+    /// The last TDC fitted: measured and fitted pressure (the estimate).
     pub trace: Trace,
     /// What was left out and why.
     pub notes: Vec<String>,
@@ -465,52 +472,84 @@ pub fn compression_fit(
     let pooled_fit = fit_subset(&model, &pooled, &start, &fitted, 100)?;
     let kf = fitted.len();
     let mut info = DMatrix::<f64>::zeros(kf, kf);
-    let mut info_theta = nalgebra::DVector::<f64>::zeros(kf);
-    let mut fused = pooled_fit.theta.clone();
+    let mut fused: Option<Vec<f64>> = None;
     let mut fused_se = vec![f64::NAN; kf];
     let mut fits = Vec::with_capacity(events.len());
     let mut rss_total = 0.0;
+    let mut engine = GradientEngine::new(PARAMS.len());
+    let mut g = vec![0.0; kf];
     for e in &events {
         let f = fit_subset(&model, &data(&e.atdc, &e.p), &pooled_fit.theta, &fitted, 50)?;
         rss_total += f.rss;
         let n = e.atdc.len();
-        let sigma2 = f.rss / n.saturating_sub(kf).max(1) as f64;
+        let sigma2 = (f.rss / n.saturating_sub(kf).max(1) as f64).max(f64::MIN_POSITIVE);
         let values: Vec<f64> = fitted.iter().map(|&j| f.theta[j]).collect();
-        let Ok(q) = quantify(&f.gram, sigma2.max(f64::MIN_POSITIVE), &values, n) else {
+        let Ok(q) = quantify(&f.gram, sigma2, &values, n) else {
             notes.push(format!(
                 "the TDC of cycle {} (t = {:.4} s): the fitted parameters' information is singular there; left out",
                 e.cycle, e.t_s
             ));
             continue;
         };
-        let fim = &q.fim;
-        info += fim;
-        info_theta += fim * nalgebra::DVector::from_column_slice(&values);
+        // Recursive Gauss–Newton: the first TDC's own fit, then each TDC linearised at the
+        // estimate so far.
+        let theta = match fused.take() {
+            None => {
+                info = q.fim.clone();
+                f.theta.clone()
+            }
+            Some(mut th) => {
+                let mut jtj = DMatrix::<f64>::zeros(kf, kf);
+                let mut jtr = DVector::<f64>::zeros(kf);
+                for (&a, &y) in e.atdc.iter().zip(&e.p) {
+                    let h = engine.value_and_gradient(&model, &[a], &th, &fitted, &mut g);
+                    let gv = DVector::from_column_slice(&g);
+                    jtj += &gv * gv.transpose();
+                    jtr += gv * (y - h);
+                }
+                info += jtj / sigma2;
+                if let Some(ch) = info.clone().cholesky() {
+                    let step = ch.solve(&(jtr / sigma2));
+                    for (i, &j) in fitted.iter().enumerate() {
+                        th[j] += step[i];
+                    }
+                }
+                th
+            }
+        };
         if let Some(ch) = info.clone().cholesky() {
             let cov = ch.inverse();
-            let m = &cov * &info_theta;
-            for (i, &j) in fitted.iter().enumerate() {
-                fused[j] = m[i];
-                fused_se[i] = cov[(i, i)].sqrt();
+            for (i, se) in fused_se.iter_mut().enumerate() {
+                *se = cov[(i, i)].sqrt();
             }
         }
+        let fused_now: Vec<f64> = fitted.iter().map(|&j| theta[j]).collect();
+        fused = Some(theta);
         fits.push(EventFit {
             cycle: e.cycle,
             t_s: e.t_s,
             rpm: e.rpm,
             values,
             std_err: q.std_err.clone(),
-            fused: fitted.iter().map(|&j| fused[j]).collect(),
-            fused_std_err: fused_se.clone(),
+            recursive: fused_now,
+            recursive_std_err: fused_se.clone(),
             rms_residual: (f.rss / n as f64).sqrt(),
         });
     }
-    if fits.is_empty() {
+    if fused.is_none() {
         return Err(AppError::Invalid(
             "no TDC could be fitted: every event's information is singular".into(),
         ));
-    }
-    let z = 1.959963984540054;
+    };
+    // The estimate: the fit over all the TDCs at once, its intervals from their information.
+    let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
+    let batch_values: Vec<f64> = fitted.iter().map(|&j| pooled_fit.theta[j]).collect();
+    let batch = quantify(
+        &pooled_fit.gram,
+        (pooled_fit.rss / rows.saturating_sub(kf).max(1) as f64).max(f64::MIN_POSITIVE),
+        &batch_values,
+        rows,
+    )?;
     let estimates = (0..PARAMS.len())
         .map(|j| {
             let base = ParamEstimate {
@@ -534,8 +573,7 @@ pub fn compression_fit(
             match fitted.iter().position(|&f| f == j) {
                 None => base,
                 Some(i) => {
-                    let se = fused_se[i];
-                    let v = fused[j];
+                    let v = pooled_fit.theta[j];
                     let per: Vec<f64> = fits.iter().map(|f| f.values[i]).collect();
                     let m = per.len() as f64;
                     let between = (per.len() >= 2).then(|| {
@@ -545,8 +583,8 @@ pub fn compression_fit(
                     ParamEstimate {
                         status: "fitted",
                         value: v,
-                        std_err: Some(se),
-                        ci95: Some((v - z * se, v + z * se)),
+                        std_err: Some(batch.std_err[i]),
+                        ci95: Some(batch.ci95[i]),
                         between_events_std_err: between,
                         ..base
                     }
@@ -570,7 +608,6 @@ pub fn compression_fit(
             .map(|&a| model.eval::<f64>(&[a], &theta))
             .collect(),
     };
-    let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
     let wu_j = wu.map(|(_, j)| j);
     Ok(CompressionFit {
         channel: cfg.channel.clone(),
@@ -596,7 +633,7 @@ pub fn compression_fit(
 pub struct TdcFromPressure {
     /// The crank angle from the sensor's reference to the firing TDC [deg], in [0, 360).
     pub tdc_offset_deg: f64,
-    /// Its 95 % interval [deg] (from the fused fit over the TDCs).
+    /// Its 95 % interval [deg] (from the fit over all the TDCs).
     pub ci95: (f64, f64),
     /// Where the pressure peaks [deg ATDC] on the fitted trace: before TDC by the loss angle.
     pub peak_deg: Option<f64>,

@@ -1,7 +1,7 @@
 //! `physid compression fit`: the chain on a motored pressure trace
 //! (`physid_apps::compression`) — which of the motored model's physical parameters (compression
 //! ratio, TDC, sensor offset, polytropic exponent, BDC pressure, loss rate) the trace resolves,
-//! those fitted per TDC with 95 % intervals and fused over the TDCs, the loss angle.
+//! those fitted to all the TDCs with 95 % intervals, per TDC and recursively, the loss angle.
 
 use super::{GeometryArgs, InputArgs};
 use crate::cmd::convert::tell_wheel;
@@ -28,7 +28,8 @@ pub struct Args {
 enum Command {
     /// Fit the motored-pressure model around every firing TDC of a motored recording: the
     /// identifiability ranking of its six physical parameters, the estimable ones per TDC with
-    /// 95 % intervals and fused over the TDCs, the thermodynamic loss angle.
+    /// 95 % intervals (all the TDCs at once, per TDC, recursively), the thermodynamic loss
+    /// angle.
     ///
     /// Example: physid compression fit --data deg.parquet --stroke 0.09 --rod 0.15 --out comp
     Fit(FitArgs),
@@ -72,7 +73,7 @@ struct FitArgs {
     #[arg(long)]
     json: bool,
     /// Directory for the report (report.html with its SVGs, compression_fit.json,
-    /// tracks.csv: per TDC the estimates, their standard errors and the fused track).
+    /// tracks.csv: per TDC the estimates, their standard errors and the recursive track).
     #[arg(long)]
     out: Option<PathBuf>,
 }
@@ -251,7 +252,7 @@ fn imep_text(v: f64) -> String {
 }
 
 /// The report: the ranking, the estimates with units and meanings, the per-TDC tracks with the
-/// fused estimate and its interval, the last TDC measured and fitted.
+/// recursive estimate and its interval, the last TDC measured and fitted.
 fn report_section(
     rep: &mut Report,
     r: &CompressionFit,
@@ -290,7 +291,7 @@ fn report_section(
             Some("note"),
         );
     }
-    rep.section("Estimates (fused over the TDCs)");
+    rep.section("Estimates (fitted to all the TDCs at once)");
     rep.table(
         &[
             "parameter",
@@ -330,9 +331,9 @@ fn report_section(
     for n in &r.notes {
         rep.para(n, Some("note"));
     }
-    // Per-TDC estimates and the fused track with its interval.
+    // Per-TDC estimates and the recursive track with its interval.
     let x: Vec<f64> = r.events.iter().map(|e| e.t_s).collect();
-    // Per parameter: [per TDC, fused, fused + 1.96σ, fused − 1.96σ].
+    // Per parameter: [per TDC, recursive, its ± 1.96σ].
     let columns: Vec<[Vec<f64>; 4]> = (0..r.fitted.len())
         .map(|i| {
             let track = |f: &dyn Fn(&physid_apps::compression::EventFit) -> f64| {
@@ -340,9 +341,9 @@ fn report_section(
             };
             [
                 track(&|e| e.values[i]),
-                track(&|e| e.fused[i]),
-                track(&|e| e.fused[i] + 1.96 * e.fused_std_err[i]),
-                track(&|e| e.fused[i] - 1.96 * e.fused_std_err[i]),
+                track(&|e| e.recursive[i]),
+                track(&|e| e.recursive[i] + 1.96 * e.recursive_std_err[i]),
+                track(&|e| e.recursive[i] - 1.96 * e.recursive_std_err[i]),
             ]
         })
         .collect();
@@ -363,14 +364,14 @@ fn report_section(
                         reference: false,
                     },
                     Series {
-                        name: "fused".into(),
+                        name: "recursive".into(),
                         x: &x,
                         y: fused,
                         color: PALETTE[0],
                         reference: false,
                     },
                     Series {
-                        name: "fused ± 95 %".into(),
+                        name: "recursive ± 95 %".into(),
                         x: &x,
                         y: hi,
                         color: PALETTE[2],
@@ -390,7 +391,7 @@ fn report_section(
     let svg = dir.join("compression_tracks.svg");
     plot::panels(
         &svg,
-        "Estimates per TDC and fused over the TDCs",
+        "Estimates per TDC and recursively over the TDCs",
         "time at TDC [s]",
         &panels,
     )?;
@@ -443,7 +444,7 @@ fn report_section(
 }
 
 /// `tracks.csv`: per TDC its time, cycle, speed, residual, each fitted parameter, its standard
-/// error and the fused estimate, with units.
+/// error and the recursive estimate, with units.
 fn write_tracks(path: &Path, r: &CompressionFit) -> Result<()> {
     let mut columns: Vec<(String, String)> = vec![
         ("t".into(), "s".into()),
@@ -458,13 +459,13 @@ fn write_tracks(path: &Path, r: &CompressionFit) -> Result<()> {
             .ok_or_else(|| miette!("{name} has no estimate"))?;
         columns.push((name.clone(), unit.clone()));
         columns.push((format!("{name}_std_err"), unit.clone()));
-        columns.push((format!("{name}_fused"), unit));
+        columns.push((format!("{name}_recursive"), unit));
     }
     let mut f = crate::tracks::TrackFile::create(path, columns)?;
     for e in &r.events {
         let mut row = vec![e.t_s, e.cycle as f64, e.rpm, e.rms_residual];
         for i in 0..r.fitted.len() {
-            row.extend([e.values[i], e.std_err[i], e.fused[i]]);
+            row.extend([e.values[i], e.std_err[i], e.recursive[i]]);
         }
         f.row(row)?;
     }
