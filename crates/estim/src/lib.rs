@@ -18,6 +18,8 @@
 //!   estimator fed with a model's exact gradient.
 //! * [`cov`] — the covariance with its form (P or its Cholesky factor S) in the type, and the
 //!   factorisations and the jitter repair the estimators share.
+//! * [`tracks`] — an estimator over whole arrays, recording its estimate, standard errors and
+//!   prediction errors after every row (the Python package's `run`).
 //! * [`metrics`] — NMSE (Eq. 6.4), NRMSE, fit %.
 //! * [`workload`] — the standard benchmark workloads (criterion and `physid bench`).
 //! * [`detect`] — the relative-error change detector (Eq. 6.3) with a dwell, and the CUSUM test
@@ -33,6 +35,7 @@ pub mod metrics;
 pub mod nonlinear;
 pub mod recursive;
 pub mod resolution;
+pub mod tracks;
 pub mod workload;
 
 pub use cov::{Cov, CovForm};

@@ -718,12 +718,18 @@ impl<M: ParamModel> NonlinearEstimator<M> {
 
     /// The free parameters' estimates, physical units.
     pub fn estimate(&self) -> Vec<f64> {
+        let mut out = vec![0.0; self.scale.len()];
+        self.estimate_into(&mut out);
+        out
+    }
+
+    /// [`estimate`](Self::estimate) into `out` (one value per free parameter), without
+    /// allocating — for a caller that records it after every update.
+    pub fn estimate_into(&self, out: &mut [f64]) {
         let c = self.coords();
-        self.state()
-            .iter()
-            .enumerate()
-            .map(|(k, &x)| c.physical(k, x))
-            .collect()
+        for (k, (o, &x)) in out.iter_mut().zip(self.state().iter()).enumerate() {
+            *o = c.physical(k, x);
+        }
     }
 
     /// The full parameter vector (fixed ones at nominal), physical units.
@@ -744,17 +750,26 @@ impl<M: ParamModel> NonlinearEstimator<M> {
     /// Standard errors of the free parameters in physical units: `√P_ii` (times `|ϑ0_i|` in
     /// scaled coordinates). R1 and R2 are taken as given (absolute).
     pub fn std_errors(&self) -> Vec<f64> {
-        let p = self.covariance();
-        (0..self.scale.len())
-            .map(|k| {
-                let s = p[(k, k)].max(0.0).sqrt();
-                if self.scaled {
-                    s * self.scale[k].abs()
-                } else {
-                    s
-                }
-            })
-            .collect()
+        let mut out = vec![0.0; self.scale.len()];
+        self.std_errors_into(&mut out);
+        out
+    }
+
+    /// [`std_errors`](Self::std_errors) into `out` (one value per free parameter), without
+    /// allocating.
+    pub fn std_errors_into(&self, out: &mut [f64]) {
+        let cov = match &self.engine {
+            Engine::Ekf(kf) => kf.held_covariance(),
+            Engine::Ukf(u) => &u.p,
+        };
+        for (k, o) in out.iter_mut().enumerate().take(self.scale.len()) {
+            let s = cov.variance(k).max(0.0).sqrt();
+            *o = if self.scaled {
+                s * self.scale[k].abs()
+            } else {
+                s
+            };
+        }
     }
 
     /// How many covariance repairs the UKF needed (see the module docs).

@@ -90,6 +90,38 @@ pub fn run(args: &Args) -> Result<()> {
             results.push(json!({"name": name, "p": p, "updates_per_s": r}));
         }
     }
+    // RLS over whole arrays, its tracks recorded after every row (what `run` does from
+    // Python: crates/py, physid_estim::tracks) — the native reference of the Python package.
+    {
+        let (rows, y) = physid_estim::workload::data(2, 4096);
+        let names = ["p1", "p2"];
+        let params = physid_core::ParamSet::zeros(names).into_diagnostic()?;
+        let config = physid_estim::EstimatorConfig::new(physid_estim::Method::Rls);
+        for std_err in [false, true] {
+            let mut e = physid_estim::LinearEstimator::new(&config, &params, &params.all_free())
+                .into_diagnostic()?;
+            let r = rate(4096, budget, || {
+                let t = physid_estim::tracks::track(&mut e, &rows, &y, 2, 2, false, std_err)
+                    .map_err(|m| miette::miette!("{m}"))?;
+                std::hint::black_box(t);
+                Ok(())
+            })?;
+            let name = if std_err {
+                "rls_tracks_se"
+            } else {
+                "rls_tracks"
+            };
+            if !args.json {
+                outln!(
+                    "{name:<8} {:>4} {r:>16.0} {:>14.0}   (run over arrays: estimate{} after every row)",
+                    2,
+                    r / REALTIME_SAMPLES_PER_S,
+                    if std_err { " and standard errors" } else { "" }
+                );
+            }
+            results.push(json!({"name": name, "p": 2, "updates_per_s": r}));
+        }
+    }
     // Non-linear estimators on the 10-parameter benchmark model (the cyclic-torque model's
     // cost profile), scaled coordinates.
     for method in [

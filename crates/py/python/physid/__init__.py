@@ -1,0 +1,445 @@
+"""physid from Python: qualitative adaptive identification for powertrains.
+
+physid's own library (Rust, through the extension module ``physid._physid``), with numpy
+arrays in and out:
+
+* :func:`read` a recording (CSV, text, Parquet, MDF4) into a :class:`Recording`; write one
+  with :meth:`Recording.write`; :meth:`Recording.to_pandas`.
+* The recursive estimators of the thesis's §5.3: :class:`RLS` (Alg. 5.2), :class:`RLSF`
+  (Alg. 5.3), :class:`DSFC` (Alg. 5.5), :class:`KalmanRW` (Eq. 5.19) for models linear in
+  their parameters ``y = φᵀϑ + ε`` (Eq. 5.14); :class:`EKF` (Alg. 5.6), :class:`UKF` and
+  :class:`SRUKF` (Alg. 5.7) over a formula model ``y = h(u, ϑ)``. ``update`` takes one
+  sample, ``run`` whole arrays (without the GIL) and returns the estimate and standard-error
+  tracks.
+* :func:`identify`: which parameters the data can resolve (Alg. 5.1, Eq. 5.9–5.13).
+* :func:`simulate`: the virtual test cell.
+
+Errors are :class:`Error` (a ``ValueError``) carrying physid's message: the file, the
+channel, the sample or row.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from . import _physid
+from ._physid import Error, Recording
+
+__version__ = _physid.__version__
+
+__all__ = [
+    "Error",
+    "Recording",
+    "read",
+    "RLS",
+    "RLSF",
+    "DSFC",
+    "KalmanRW",
+    "EKF",
+    "UKF",
+    "SRUKF",
+    "Run",
+    "identify",
+    "Identification",
+    "simulate",
+]
+
+
+def _array(name: str, x: Any, ndim: int) -> np.ndarray:
+    """``x`` as a C-contiguous float64 array of ``ndim`` dimensions, or :class:`Error` saying
+    what was wrong (numbers are converted, non-contiguous arrays copied)."""
+    a = np.asarray(x)
+    if a.dtype.kind not in "biuf":
+        raise Error(f"{name}: expected numbers, got an array of dtype {a.dtype}")
+    if a.ndim != ndim:
+        raise Error(f"{name}: expected a {ndim}-D array, got shape {a.shape}")
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def read(
+    path: str | "os.PathLike[str]",
+    channels: Sequence[str] | None = None,
+    map: Mapping[str, str] | None = None,
+    columns: Sequence[str] | None = None,
+    scale: Mapping[str, tuple[float, float]] | None = None,
+) -> Recording:
+    """Read a recording: CSV (also ``;`` with decimal commas, header-less text with
+    ``columns``), Parquet or MDF4, by extension.
+
+    ``channels``: the physid names to read (after ``map``; all if ``None``). ``map``:
+    ``{name: "COLUMN[:UNIT]"}`` — read the file's column as the channel, stating its unit.
+    ``scale``: ``{name: (gain, offset)}`` — a sensor's calibration. Standard channels
+    (``omega_en``, ``p_cyl`` …) are converted to SI on reading, as every physid verb does.
+    """
+    import os
+
+    return _physid.read(
+        os.fspath(path),
+        list(channels) if channels is not None else None,
+        dict(map) if map is not None else None,
+        list(columns) if columns is not None else None,
+        {k: (float(g), float(o)) for k, (g, o) in scale.items()} if scale else None,
+    )
+
+
+def _recording_to_pandas(self: Recording):
+    """The recording as a ``pandas.DataFrame`` (a column per channel; units in
+    ``df.attrs["units"]``, the basis in ``df.attrs["basis"]``). Needs pandas."""
+    import pandas as pd
+
+    df = pd.DataFrame({name: self[name] for name in self.channels})
+    df.attrs["units"] = self.units
+    df.attrs["basis"] = self.basis
+    df.attrs["meta"] = self.meta
+    return df
+
+
+def _recording_t(self: Recording) -> np.ndarray:
+    """The time channel ``t`` [s]."""
+    return self["t"]
+
+
+def _recording_from_pandas(df, units: Mapping[str, str] | None = None, basis: str = "time") -> Recording:
+    """A recording from a ``pandas.DataFrame`` (numeric columns), units from ``units`` or
+    ``df.attrs["units"]``."""
+    units = dict(units if units is not None else df.attrs.get("units", {}))
+    return Recording(
+        [(str(c), _array(str(c), df[c].to_numpy(), 1)) for c in df.columns],
+        units=units,
+        basis=df.attrs.get("basis", basis),
+    )
+
+
+Recording.to_pandas = _recording_to_pandas
+Recording.t = property(_recording_t)
+Recording.from_pandas = staticmethod(_recording_from_pandas)
+
+
+@dataclass
+class Run:
+    """What :meth:`RLS.run` (and every estimator's ``run``) returns.
+
+    ``theta`` and ``std_err``: n × p arrays, the estimate and its standard error after each
+    row (NaN while not estimable yet); ``errors``: the a-priori prediction error per row;
+    ``skipped``: rows refused and skipped (``skip_bad=True``); ``names``: the parameters.
+    """
+
+    theta: np.ndarray
+    std_err: np.ndarray
+    errors: np.ndarray
+    skipped: list[int]
+    names: list[str]
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The final estimate (the last row of ``theta``)."""
+        return self.theta[-1].copy()
+
+    def to_dict(self) -> dict:
+        return {
+            "names": self.names,
+            "theta": self.theta.tolist(),
+            "std_err": self.std_err.tolist(),
+            "errors": self.errors.tolist(),
+            "skipped": self.skipped,
+        }
+
+
+class _Estimator:
+    """The methods every recursive estimator has."""
+
+    _e: Any
+    _width: int
+
+    @property
+    def names(self) -> list[str]:
+        """The estimated parameters' names."""
+        return self._e.names
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """The current estimate ϑ."""
+        return self._e.estimate
+
+    @property
+    def std_err(self) -> np.ndarray:
+        """The current standard errors (NaN while not estimable yet)."""
+        return self._e.std_err
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """The covariance P over the estimated parameters (the RLS family: in units of the
+        noise variance σ²; the filters: absolute, in their coordinates)."""
+        return self._e.covariance
+
+    @property
+    def samples(self) -> int:
+        """Samples taken."""
+        return self._e.samples
+
+    def update(self, x: Any, y: float) -> float:
+        """One sample: the regressor φ (linear estimators) or the model's inputs (filters),
+        and the measured output ``y``. Returns the a-priori prediction error. A sample the
+        estimator refuses (NaN, infinite) raises :class:`Error` and leaves it as it was."""
+        x = _array("x", x, 1)
+        y = float(y)
+        return self._e.update(x, y)
+
+    def run(self, X: Any, y: Any, skip_bad: bool = False, std_err: bool = True) -> Run:
+        """All rows of ``X`` (n × inputs) and ``y`` (n), in Rust without the GIL. Returns a
+        :class:`Run` with the estimate and standard-error tracks. A refused row raises
+        :class:`Error` naming it, or with ``skip_bad=True`` is skipped (its track row repeats
+        the previous one) and listed in ``Run.skipped``. ``std_err=False`` skips the
+        standard-error track (left NaN) where only the estimates are wanted."""
+        X = _array("X", X, 2)
+        y = _array("y", y, 1)
+        if X.shape[0] != y.shape[0]:
+            raise Error(f"X has {X.shape[0]} rows, y {y.shape[0]}")
+        theta, se, errors, skipped = self._e.run(X, y, skip_bad, std_err)
+        return Run(theta, se, errors, list(skipped), self.names)
+
+    def __repr__(self) -> str:
+        return f"<physid.{type(self).__name__} of {', '.join(self.names)}: {self.samples} samples>"
+
+
+def _names(p: int | Sequence[str], names: Sequence[str] | None) -> list[str]:
+    if names is not None:
+        return list(names)
+    if isinstance(p, int):
+        if p < 1:
+            raise Error(f"p = {p}: expected at least one parameter")
+        return [f"theta{i}" for i in range(p)]
+    return list(p)
+
+
+def _theta0(names: list[str], theta0: Any) -> list[float]:
+    if theta0 is None:
+        return [0.0] * len(names)
+    t = _array("theta0", theta0, 1)
+    if t.shape[0] != len(names):
+        raise Error(f"theta0: {t.shape[0]} values for {len(names)} parameters")
+    return t.tolist()
+
+
+def _p0(p0: Any) -> Any:
+    return float(p0) if np.isscalar(p0) else np.asarray(p0, dtype=float).tolist()
+
+
+class RLS(_Estimator):
+    """Recursive least squares (thesis Alg. 5.2) for ``y = φᵀϑ + ε`` (Eq. 5.14):
+    ``K = Pφ/(λ + φᵀPφ)``, ``ϑ ← ϑ + K(y − φᵀϑ)``, ``P ← (P − KφᵀP)/λ``.
+
+    ``p``: the number of parameters, or their names. ``lam``: the forgetting factor λ ∈ (0, 1]
+    (1: none; below 1 this is :class:`RLSF`). ``p0``: the initial covariance P(0) — a number
+    (``p0·I``), a diagonal or a matrix (default 1000·I). ``theta0``: the starting estimate
+    (zeros). Standard errors are ``√(σ̂²·P_ii)`` with σ̂² from the prediction errors.
+    """
+
+    _method = "rls"
+
+    def __init__(self, p: int | Sequence[str], lam: float = 1.0, p0: Any = 1000.0,
+                 theta0: Any = None, names: Sequence[str] | None = None):
+        names = _names(p, names)
+        method = self._method if lam == 1.0 or self._method != "rls" else "rlsf"
+        self._e = _physid.Estimator.linear(method, names, _theta0(names, theta0), float(lam), _p0(p0))
+        self._width = len(names)
+
+
+class RLSF(RLS):
+    """RLS with a constant forgetting factor λ (thesis Alg. 5.3): old samples weigh λᵏ, so the
+    estimate tracks slowly changing parameters. Same arguments as :class:`RLS`, ``lam``
+    defaulting to 0.98 (the thesis's ch. 6 value)."""
+
+    _method = "rlsf"
+
+    def __init__(self, p: int | Sequence[str], lam: float = 0.98, p0: Any = 1000.0,
+                 theta0: Any = None, names: Sequence[str] | None = None):
+        super().__init__(p, lam=lam, p0=p0, theta0=theta0, names=names)
+
+
+class DSFC(RLS):
+    """The DSFC square-root filter with forgetting λ (thesis Alg. 5.5): RLS with forgetting
+    carried by the Cholesky factor S of P — the same estimates as :class:`RLSF` where both are
+    well conditioned, and still positive definite where RLS loses it. ``p0``: P(0) (S(0) is
+    its Cholesky factor)."""
+
+    _method = "dsfc"
+
+    def __init__(self, p: int | Sequence[str], lam: float = 0.98, p0: Any = 1000.0,
+                 theta0: Any = None, names: Sequence[str] | None = None):
+        super().__init__(p, lam=lam, p0=p0, theta0=theta0, names=names)
+
+
+class KalmanRW(_Estimator):
+    """The Kalman filter for random-walk parameters (thesis Eq. 5.19): ``ϑ(t) = ϑ(t−1) + w``,
+    ``Cov w = R1``, ``y = φᵀϑ + e``, ``Var e = R2``. ``r1``: a number (``r1·I``), a diagonal or
+    a matrix; ``r2`` > 0; ``p0`` as :class:`RLS`. P is absolute: standard errors ``√P_ii``."""
+
+    def __init__(self, p: int | Sequence[str], r1: Any = 0.0, r2: float = 1.0, p0: Any = 1000.0,
+                 theta0: Any = None, names: Sequence[str] | None = None):
+        names = _names(p, names)
+        self._e = _physid.Estimator.linear("kalman", names, _theta0(names, theta0), 1.0, _p0(p0),
+                                           _p0(r1), float(r2))
+        self._width = len(names)
+
+
+class EKF(_Estimator):
+    """The extended Kalman filter (thesis Alg. 5.6) of the parameters of a formula model
+    ``y = h(u, ϑ)``, e.g. ``"A*sin(x) + B*y^2"``: the names not among ``params`` are the
+    inputs, in the order of :attr:`inputs` (``update(u, y)`` takes them in that order).
+
+    ``params``: ``{name: starting value}``. ``free``: the names estimated (all if ``None``).
+    ``p0``: the initial covariance (default 100·I, thesis ch. 8); ``r1``: the parameters'
+    random walk (0); ``r2``: the measurement variance (1). ``scaled``: estimate ϑ/ϑ0 (the
+    thesis's scaled coordinates). Jacobians are exact (automatic differentiation).
+    """
+
+    _method = "ekf"
+
+    def __init__(self, expr: str, params: Mapping[str, float], free: Sequence[str] | None = None,
+                 p0: Any = 100.0, r1: Any = 0.0, r2: float = 1.0, scaled: bool = False,
+                 alpha: float = 1.0, beta: float = 2.0, kappa: float | None = None):
+        names = list(params.keys())
+        theta0 = [float(v) for v in params.values()]
+        self._e = _physid.Estimator.model(self._method, expr, names, theta0,
+                                          list(free) if free is not None else None,
+                                          _p0(p0), _p0(r1), float(r2), bool(scaled),
+                                          float(alpha), float(beta), kappa)
+        self._width = len(self._e.inputs)
+
+    @property
+    def inputs(self) -> list[str]:
+        """The model's inputs, in the order ``update`` and ``run`` take them."""
+        return self._e.inputs
+
+
+class UKF(EKF):
+    """The unscented Kalman filter (thesis Alg. 5.7) over a formula model: sigma points with
+    spread ``alpha`` (1), ``beta`` (2, Gaussian), ``kappa`` (3 − l), covariance repair. Same
+    arguments as :class:`EKF`."""
+
+    _method = "ukf"
+
+
+class SRUKF(EKF):
+    """The square-root UKF (van der Merwe & Wan 2001): :class:`UKF` carrying the Cholesky
+    factor of P — the robust option. Same arguments as :class:`EKF`."""
+
+    _method = "srukf"
+
+
+@dataclass
+class Identification:
+    """What :func:`identify` found.
+
+    ``ranking``: every analysed parameter, most estimable first (Alg. 5.1); ``estimable``: the
+    first K (the cut-off's); ``unidentifiable``: the rest; ``residual_ss`` and ``relative``:
+    each one's residual sum of squares at its selection (and relative to the first), in
+    ranking order; ``values``, ``std_err``, ``ci95``: the estimable ones' fitted (or nominal)
+    values and precision (Eq. 5.12–5.13); ``collinearity``: the collinearity index of the
+    estimable set; ``report``: physid's whole identify report (as ``physid identify --json``).
+    """
+
+    ranking: list[str]
+    estimable: list[str]
+    unidentifiable: list[str]
+    residual_ss: list[float]
+    relative: list[float]
+    values: dict[str, float]
+    std_err: dict[str, float]
+    ci95: dict[str, tuple[float, float]]
+    collinearity: float | None
+    report: dict = field(repr=False)
+
+    def to_dict(self) -> dict:
+        return dict(self.report)
+
+
+def _num(x):
+    """A number of physid's JSON: finite ones as numbers, the others as text ("inf")."""
+    if isinstance(x, (int, float)):
+        return float(x)
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return None
+
+
+def identify(
+    expr: str,
+    params: Mapping[str, float],
+    data: Recording | Mapping[str, Any],
+    y: str | Any | None = None,
+    scaling: str = "thesis",
+    cutoff: str = "repeat",
+    free: Sequence[str] | None = None,
+    sigma: float | None = None,
+) -> Identification:
+    """Which parameters of the formula model ``expr`` the data can resolve.
+
+    ``params``: ``{name: nominal value}``; the other names in ``expr`` are inputs, taken from
+    ``data`` (a :class:`Recording` or ``{name: array}``). ``y``: the measured output (a
+    channel name or an array) — then the estimable parameters are fitted and their precision
+    comes from the residuals; without it, from ``sigma`` (the noise's standard deviation) or
+    1. ``scaling``: ``thesis`` (Eq. 5.11, ``J·ϑ0/y``), ``sigma`` or ``none``; ``cutoff``:
+    ``repeat`` (the thesis's code), ``wu`` (Wu et al.), ``rel:F`` or an absolute residual;
+    ``free``: the parameters analysed (all if ``None``).
+    """
+    names = list(params.keys())
+    nominal = [float(v) for v in params.values()]
+
+    def column(name: str) -> np.ndarray:
+        try:
+            return _array(name, data[name], 1)
+        except KeyError as e:
+            raise Error(str(e.args[0]) if e.args else f"no channel '{name}'") from None
+
+    keys = data.channels if isinstance(data, Recording) else list(data.keys())
+    inputs = {k: column(k) for k in keys if k != y}
+    if isinstance(y, str):
+        yv = column(y)
+    elif y is None:
+        yv = None
+    else:
+        yv = _array("y", y, 1)
+    text = _physid.identify(expr, names, nominal, inputs, yv, list(free or []), scaling, cutoff,
+                            float(sigma) if sigma is not None else None)
+    r = json.loads(text)
+    steps = list(r.get("ranking", [])) + list(r.get("remainder", []))
+    estimable = [s["param"] for s in r.get("ranking", [])]
+    values = {k: _num(v) for k, v in (r.get("params") or {}).items()}
+    se = {k: _num(v) for k, v in (r.get("std_err") or {}).items()}
+    ci = {k: tuple(v) for k, v in (r.get("ci95") or {}).items()}
+    return Identification(
+        ranking=[s["param"] for s in steps],
+        estimable=estimable,
+        unidentifiable=list(r.get("unidentifiable", [])),
+        residual_ss=[s["residual_ss"] for s in steps],
+        relative=[s["relative"] for s in steps],
+        values=values,
+        std_err=se,
+        ci95=ci,
+        collinearity=_num(r.get("collinearity")),
+        report=r,
+    )
+
+
+def simulate(
+    scenario: str,
+    duration: float | None = None,
+    faults: Iterable[str] = (),
+    set: Mapping[str, float] | None = None,
+    basis: str = "time",
+    rate: float | None = None,
+    step_deg: float = 1.0,
+) -> Recording:
+    """Run the virtual test cell: a built-in scenario (``physid simulate --list``) or a
+    scenario file, for ``duration`` seconds (the scenario's by default), with ``faults``
+    (``"PATH=VALUE@T[+RAMP]"``, e.g. ``"shaft.k=1100@5+0.5"``) and parameter settings ``set``
+    (``{"shaft.k": 1340}``), on a time basis at ``rate`` Hz (10 kHz) or one sample per
+    ``step_deg`` crank degrees (``basis="crank_angle"``)."""
+    return _physid.simulate(scenario, duration, list(faults), dict(set) if set else None, basis,
+                            rate, float(step_deg))

@@ -1,0 +1,83 @@
+"""Recordings: read, channels as float64 arrays with units; written by physid, read by
+pandas, pyarrow and asammdf (the users' own tools) and back."""
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+import physid
+
+MOTORED = "crates/apps/tests/golden/motored_deg.parquet"
+
+
+def test_read_gives_float64_channels_units_and_basis(golden):
+    rec = physid.read(golden(MOTORED))
+    assert rec.channels == ["t", "cycle", "crank_deg", "p_cyl"]
+    assert rec.basis == "crank_angle"
+    assert rec.units["p_cyl"] == "Pa" and rec.units["crank_deg"] == "deg"
+    p = rec["p_cyl"]
+    assert p.dtype == np.float64 and p.shape == (len(rec),) and len(rec) == 8640
+    # The same numbers pyarrow reads.
+    np.testing.assert_array_equal(p, pq.read_table(golden(MOTORED))["p_cyl"].to_numpy())
+    np.testing.assert_array_equal(rec.t, rec["t"])
+    assert "p_cyl" in rec and "nope" not in rec
+
+
+def test_a_selection_a_map_and_a_calibration(golden, tmp_path):
+    f = tmp_path / "lab.csv"
+    f.write_text("time,P\ns,V\n0,1.5\n0.001,2.0\n")
+    rec = physid.read(f, map={"t": "time", "p_cyl": "P:V"}, scale={"p_cyl": (1e5, 0.0)})
+    assert rec.channels == ["t", "p_cyl"]
+    np.testing.assert_allclose(rec["p_cyl"], [1.5e5, 2.0e5])
+    assert rec.units["p_cyl"] == "Pa"
+    only = physid.read(golden(MOTORED), channels=["t", "p_cyl"])
+    assert only.channels == ["t", "p_cyl"]
+
+
+def test_written_by_physid_read_by_pandas_pyarrow_and_asammdf(golden, tmp_path):
+    from asammdf import MDF
+
+    rec = physid.read(golden(MOTORED), channels=["t", "p_cyl"])
+    p = rec["p_cyl"]
+    csv, parquet, mf4 = tmp_path / "r.csv", tmp_path / "r.parquet", tmp_path / "r.mf4"
+    for f in (csv, parquet, mf4):
+        rec.write(f)
+    np.testing.assert_allclose(pd.read_csv(csv, skiprows=[1])["p_cyl"].to_numpy(), p, rtol=1e-12)
+    np.testing.assert_array_equal(pq.read_table(parquet)["p_cyl"].to_numpy(), p)
+    with MDF(mf4) as m:
+        np.testing.assert_array_equal(m.get("p_cyl").samples, p)
+        assert m.get("p_cyl").unit == "Pa"
+    # And back.
+    for f in (csv, parquet, mf4):
+        np.testing.assert_allclose(physid.read(f)["p_cyl"], p, rtol=1e-12)
+
+
+def test_to_pandas_and_from_pandas(golden):
+    rec = physid.read(golden(MOTORED))
+    df = rec.to_pandas()
+    assert list(df.columns) == rec.channels and df.attrs["units"]["p_cyl"] == "Pa"
+    back = physid.Recording.from_pandas(df)
+    assert back.basis == "crank_angle"
+    np.testing.assert_array_equal(back["p_cyl"], rec["p_cyl"])
+
+
+def test_a_recording_from_arrays():
+    rec = physid.Recording([("t", np.arange(3) * 0.1), ("x", [1.0, 2.0, 3.0])], units={"t": "s"})
+    assert rec.units == {"t": "s", "x": ""} and len(rec) == 3
+    with pytest.raises(physid.Error, match="basis"):
+        physid.Recording([("t", [0.0])], basis="sideways")
+    with pytest.raises(physid.Error):
+        physid.Recording([("t", [0.0, 1.0]), ("x", [1.0])])
+
+
+def test_bad_input_names_what_is_wrong(tmp_path):
+    with pytest.raises(physid.Error, match="nope.csv"):
+        physid.read(tmp_path / "nope.csv")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,x\n0,1\n0.1,abc\n")
+    with pytest.raises(physid.Error, match="line 3"):
+        physid.read(bad)
+    rec = physid.Recording([("t", [0.0, 1.0])])
+    with pytest.raises(KeyError, match="the channels are: t"):
+        rec["x"]
+    assert isinstance(physid.Error("x"), ValueError)
