@@ -580,6 +580,206 @@ fn simulate(
     Ok(Recording { inner })
 }
 
+/// A dict of arrays (the tracks of an application), built from named columns.
+fn arrays<'py>(py: Python<'py>, columns: Vec<(String, Vec<f64>)>) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (name, v) in columns {
+        d.set_item(name, v.into_pyarray(py))?;
+    }
+    Ok(d)
+}
+
+/// Application 1, the coupling-shaft monitor (thesis ch. 6): K and B of Eq. 6.1 tracked by
+/// `method` (rls, rlsvf, dsfc) with forgetting `lam` from a time-basis recording low-passed at
+/// `cutoff_hz` and taken at `rate_hz`; the relative-error detector (Eq. 6.3) with `bound` and
+/// `dwell` against the `healthy` (K, B). Returns the summary (JSON text) and the tracks.
+#[pyfunction]
+#[pyo3(signature = (rec, method, lam, p0, healthy, theta0, bound, dwell, cutoff_hz, rate_hz, settle_s, supervise))]
+#[allow(clippy::too_many_arguments)]
+fn monitor_shaft<'py>(
+    py: Python<'py>,
+    rec: &Recording,
+    method: &str,
+    lam: f64,
+    p0: f64,
+    healthy: (f64, f64),
+    theta0: (f64, f64, f64),
+    bound: f64,
+    dwell: u64,
+    cutoff_hz: f64,
+    rate_hz: f64,
+    settle_s: f64,
+    supervise: bool,
+) -> PyResult<(String, Bound<'py, PyDict>)> {
+    use physid_apps::shaft_monitor::{
+        monitor_shaft, MonitorConfig, MonitorMethod, PerParam, ShaftParams,
+    };
+    let cfg = MonitorConfig {
+        method: method
+            .parse::<MonitorMethod>()
+            .map_err(|e| err(format!("method {e}")))?,
+        lambda: lam,
+        p0,
+        healthy: PerParam {
+            k: healthy.0,
+            b: healthy.1,
+        },
+        theta0: ShaftParams {
+            k: theta0.0,
+            b: theta0.1,
+            tau0: theta0.2,
+        },
+        bound,
+        dwell,
+        cutoff_hz,
+        rate_hz,
+        settle_s,
+        supervise,
+    };
+    let inner = &rec.inner;
+    let r = py.detach(|| monitor_shaft(inner, &cfg)).map_err(err)?;
+    let summary = serde_json::to_string(&r.summary()).map_err(err)?;
+    let mut cols = vec![
+        ("t".to_string(), r.t),
+        ("K".to_string(), r.k),
+        ("B".to_string(), r.b),
+        ("tau0".to_string(), r.tau0),
+        (
+            "K_std_err".to_string(),
+            r.std_err.iter().map(|s| s[0]).collect(),
+        ),
+        (
+            "B_std_err".to_string(),
+            r.std_err.iter().map(|s| s[1]).collect(),
+        ),
+    ];
+    if let Some((k, b)) = r.truth {
+        cols.push(("K_true".into(), k));
+        cols.push(("B_true".into(), b));
+    }
+    Ok((summary, arrays(py, cols)?))
+}
+
+/// Application 2, the engine's friction from motored cycles (thesis §7.3): the preset model
+/// (`thesis`, `sandoval2002`, `cell`) with `set` overrides, the motoring torque from `source`
+/// (engine, shaft), the coefficients' ranking with `cutoff`, DSFC (`lam`, `s0`). Returns the
+/// summary (JSON text) and the per-cycle tracks.
+#[pyfunction]
+#[pyo3(signature = (rec, preset, set, source, cutoff, s0, lam, transient_s, p_atm_kpa))]
+#[allow(clippy::too_many_arguments)]
+fn friction_fit<'py>(
+    py: Python<'py>,
+    rec: &Recording,
+    preset: &str,
+    set: BTreeMap<String, String>,
+    source: &str,
+    cutoff: &str,
+    s0: f64,
+    lam: f64,
+    transient_s: f64,
+    p_atm_kpa: Option<f64>,
+) -> PyResult<(String, Bound<'py, PyDict>)> {
+    use physid_apps::friction_fit::{
+        friction_fit, friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS,
+    };
+    let (mut d, mut st) = friction_preset(preset).ok_or_else(|| {
+        err(format!(
+            "no friction preset '{preset}'; the presets are {}",
+            FRICTION_PRESETS.join(", ")
+        ))
+    })?;
+    for (name, value) in &set {
+        physid_models::friction::set_by_name(&mut d, &mut st, name, value).map_err(err)?;
+    }
+    let mut cfg = FrictionFitConfig::new(d, st);
+    cfg.source = TorqueSource::parse(source)
+        .ok_or_else(|| err(format!("source '{source}': expected engine or shaft")))?;
+    cfg.selection = physid_ident::Selection::parse(cutoff).map_err(err)?;
+    cfg.s0 = s0;
+    cfg.lambda = lam;
+    cfg.transient_s = transient_s;
+    cfg.p_atm_kpa = p_atm_kpa;
+    let inner = &rec.inner;
+    let r = py.detach(|| friction_fit(inner, &cfg)).map_err(err)?;
+    let summary = serde_json::to_string(&r.summary()).map_err(err)?;
+    let d = &r.data;
+    let mut cols = vec![
+        ("t".to_string(), d.t_s.clone()),
+        (
+            "cycle".to_string(),
+            d.cycle.iter().map(|&c| c as f64).collect(),
+        ),
+        ("n_rpm".to_string(), d.n_rpm.clone()),
+        ("p_int_kpa".to_string(), d.p_int_kpa.clone()),
+        ("t_oil_c".to_string(), d.t_oil_c.clone()),
+        ("measured".to_string(), d.tau_nm.clone()),
+        ("predicted".to_string(), r.predicted.clone()),
+        ("nominal".to_string(), r.predicted_nominal.clone()),
+        ("error_pct".to_string(), r.error_pct.clone()),
+    ];
+    if let Some(t) = &d.truth_nm {
+        cols.push(("truth".into(), t.clone()));
+    }
+    Ok((summary, arrays(py, cols)?))
+}
+
+/// Application 3, the cyclic engine torque (thesis ch. 8, Eq. 8.2): the ranking of its 15
+/// parameters (nominal: the test cell's engine, overridden by `nominal`), the estimable ones
+/// (`cutoff`, the application's default if `None`; `fixed` held) estimated by `method` (ekf, ukf, srukf) with `p0`, `r2` (the batch
+/// fit's residual variance if `None`), random walks `track`. Returns the summary (JSON text)
+/// and the tracks.
+#[pyfunction]
+#[pyo3(signature = (rec, method, nominal, fixed, cutoff, p0, r2, track))]
+#[allow(clippy::too_many_arguments)]
+fn torque_fit<'py>(
+    py: Python<'py>,
+    rec: &Recording,
+    method: &str,
+    nominal: BTreeMap<String, f64>,
+    fixed: Vec<String>,
+    cutoff: Option<&str>,
+    p0: f64,
+    r2: Option<f64>,
+    track: BTreeMap<String, f64>,
+) -> PyResult<(String, Bound<'py, PyDict>)> {
+    use physid_apps::torque_fit::{cyclic_torque_nominal, torque_fit, TorqueFitConfig};
+    use physid_models::cyclic_torque::PARAMS;
+    let mut nom = cyclic_torque_nominal(&physid_sim::params::CellParams::default()).map_err(err)?;
+    for (name, v) in &nominal {
+        let j = PARAMS.iter().position(|p| p == name).ok_or_else(|| {
+            err(format!(
+                "nominal '{name}': the parameters are {}",
+                PARAMS.join(", ")
+            ))
+        })?;
+        nom[j] = *v;
+    }
+    let mut cfg = TorqueFitConfig::new(nom);
+    cfg.method = method
+        .parse::<NlMethod>()
+        .map_err(|e| err(format!("method {e}")))?;
+    cfg.fixed = fixed;
+    if let Some(c) = cutoff {
+        cfg.selection = physid_ident::Selection::parse(c).map_err(err)?;
+    }
+    cfg.p0 = p0;
+    cfg.r2 = r2;
+    cfg.track = track.into_iter().collect();
+    let inner = &rec.inner;
+    let r = py.detach(|| torque_fit(inner, &cfg)).map_err(err)?;
+    let summary = serde_json::to_string(&r.summary()).map_err(err)?;
+    let mut cols = vec![
+        ("t".to_string(), r.t.clone()),
+        ("measured".to_string(), r.measured.clone()),
+        ("predicted".to_string(), r.predicted.clone()),
+    ];
+    for tr in &r.tracks {
+        cols.push((tr.param.clone(), tr.value.clone()));
+        cols.push((format!("{}_std_err", tr.param), tr.std_err.clone()));
+    }
+    Ok((summary, arrays(py, cols)?))
+}
+
 /// The module.
 #[pymodule]
 fn _physid(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -589,6 +789,9 @@ fn _physid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(monitor_shaft, m)?)?;
+    m.add_function(wrap_pyfunction!(friction_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(torque_fit, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

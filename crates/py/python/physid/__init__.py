@@ -443,3 +443,134 @@ def simulate(
     ``step_deg`` crank degrees (``basis="crank_angle"``)."""
     return _physid.simulate(scenario, duration, list(faults), dict(set) if set else None, basis,
                             rate, float(step_deg))
+
+
+class Result:
+    """An application's result: the fields of its summary (as ``physid … --json`` prints them)
+    as attributes, ``tracks`` (``{name: array}``: what it tracked, over time or cycles), and
+    ``to_dict()`` (the summary)."""
+
+    def __init__(self, summary: dict, tracks: dict):
+        self._summary = summary
+        self.tracks = tracks
+
+    def __getattr__(self, name: str):
+        try:
+            return self.__dict__["_summary"][name]
+        except KeyError:
+            raise AttributeError(
+                f"{type(self).__name__} has no '{name}'; it has {', '.join(self._summary)} and tracks"
+            ) from None
+
+    def __dir__(self):
+        return sorted(set(super().__dir__()) | set(self._summary))
+
+    def to_dict(self) -> dict:
+        return json.loads(json.dumps(self._summary))
+
+    def __repr__(self) -> str:
+        return f"<physid.{type(self).__name__}: {', '.join(self._summary)}; tracks {', '.join(self.tracks)}>"
+
+
+class ShaftMonitorResult(Result):
+    """:func:`monitor_shaft`'s result: ``method``, ``final`` (K, B, tau0), ``std_err``,
+    ``alarms`` (param, t_start_s, t_raised_s, relative_error, change), ``nmse`` and
+    ``within_5pct_s`` against the truth of simulated data; ``tracks``: ``t``, ``K``, ``B``,
+    ``tau0``, ``K_std_err``, ``B_std_err`` (and ``K_true``, ``B_true`` when known)."""
+
+
+class FrictionFitResult(Result):
+    """:func:`friction_fit`'s result: ``estimable``, ``ranking``, ``params``, ``nominal``,
+    ``std_err`` (by coefficient c1 … c20), ``prediction_error_pct``, ``nmse``, ``cycles``;
+    ``tracks`` per steady cycle: ``t``, ``cycle``, ``n_rpm``, ``p_int_kpa``, ``t_oil_c``,
+    ``measured``, ``predicted``, ``nominal``, ``error_pct`` (and ``truth``)."""
+
+
+class TorqueFitResult(Result):
+    """:func:`torque_fit`'s result: ``method``, ``estimable``, ``ranking``, ``params``,
+    ``std_err``, ``nmse_before``/``after``, ``nrmse_before``/``after``, ``r2``, ``repairs``,
+    ``samples``; ``tracks``: ``t``, ``measured``, ``predicted`` torque and each estimated
+    parameter with its ``_std_err``."""
+
+
+def _pair(x, n: int, what: str) -> tuple:
+    t = tuple(float(v) for v in x)
+    if len(t) != n:
+        raise Error(f"{what}: expected {n} numbers, got {len(t)}")
+    return t
+
+
+def monitor_shaft(
+    rec: Recording,
+    method: str = "rls",
+    lam: float = 0.98,
+    p0: float = 1000.0,
+    healthy: Sequence[float] = (1250.0, 0.95),
+    theta0: Sequence[float] = (0.0, 0.0, 0.0),
+    bound: float = 0.1,
+    dwell: int = 200,
+    cutoff_hz: float = 500.0,
+    rate_hz: float = 2000.0,
+    settle_s: float = 1.0,
+    supervise: bool = False,
+) -> ShaftMonitorResult:
+    """Application 1 (thesis ch. 6): monitor the coupling shaft's stiffness K and damping B
+    (Eq. 6.1) in a time-basis recording — low-passed at ``cutoff_hz``, taken at ``rate_hz``,
+    tracked by ``method`` (``rls`` with forgetting ``lam``, ``rlsvf``, ``dsfc``) from
+    ``theta0`` (K, B, τ0) with ``P0 = p0·I``; an alarm when the relative error against
+    ``healthy`` (K, B) stays beyond ``bound`` for ``dwell`` samples (Eq. 6.3) after
+    ``settle_s``. ``supervise``: freeze K or B while the data no longer resolve them."""
+    s, tracks = _physid.monitor_shaft(rec, method, float(lam), float(p0),
+                                      _pair(healthy, 2, "healthy"), _pair(theta0, 3, "theta0"),
+                                      float(bound), int(dwell), float(cutoff_hz), float(rate_hz),
+                                      float(settle_s), bool(supervise))
+    return ShaftMonitorResult(json.loads(s), dict(tracks))
+
+
+def friction_fit(
+    rec: Recording,
+    preset: str = "thesis",
+    set: Mapping[str, Any] | None = None,
+    source: str = "engine",
+    cutoff: str = "repeat",
+    s0: float = 10.0,
+    lam: float = 1.0,
+    transient_s: float = 5.0,
+    p_atm_kpa: float | None = None,
+) -> FrictionFitResult:
+    """Application 2 (thesis §7.3): the engine's friction from a motored recording — the
+    cycle-mean motoring torque (``source``: ``engine`` load cell or ``shaft``), the ranking of
+    the regression coefficients c1 … c20 of the mean-value model (``preset``: thesis,
+    sandoval2002, cell; ``set``: design overrides, e.g. ``{"B": 56, "oil": "SAE30"}``) with
+    ``cutoff``, DSFC (λ = ``lam``, S0 = ``s0``·I) on the estimable ones, the prediction error
+    after ``transient_s``."""
+    s, tracks = _physid.friction_fit(rec, preset, {k: str(v) for k, v in (set or {}).items()},
+                                     source, cutoff, float(s0), float(lam), float(transient_s),
+                                     p_atm_kpa)
+    return FrictionFitResult(json.loads(s), dict(tracks))
+
+
+def torque_fit(
+    rec: Recording,
+    method: str = "ukf",
+    nominal: Mapping[str, float] | None = None,
+    fixed: Sequence[str] = ("delta",),
+    cutoff: str | None = None,
+    p0: float = 0.01,
+    r2: float | None = None,
+    track: Mapping[str, float] | None = None,
+) -> TorqueFitResult:
+    """Application 3 (thesis ch. 8): the cyclic engine torque model (Eq. 8.2, 15 parameters:
+    M_rec, b, L, r, delta, c1 … c10) on a motored recording — the ranking at ``nominal`` (the
+    test cell's engine, overridden by name), the estimable ones (``cutoff``: ``rel:1e-6`` by
+    default, as ``physid torque fit``; ``fixed`` held)
+    estimated by ``method`` (ekf, ukf, srukf) in scaled coordinates with ``P0 = p0·I``, ``r2``
+    (the batch fit's residual variance if ``None``) and random walks ``track``
+    (``{name: variance per sample}``) for parameters that change."""
+    s, tracks = _physid.torque_fit(rec, method, dict(nominal or {}), list(fixed), cutoff,
+                                   float(p0), r2, dict(track or {}))
+    return TorqueFitResult(json.loads(s), dict(tracks))
+
+
+__all__ += ["Result", "ShaftMonitorResult", "FrictionFitResult", "TorqueFitResult",
+            "monitor_shaft", "friction_fit", "torque_fit"]

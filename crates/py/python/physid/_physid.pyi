@@ -75,3 +75,13 @@ def identify(expr: str, names: list[str], nominal: list[float],
 def simulate(scenario: str, duration: float | None = ..., faults: list[str] | None = ...,
              set: dict[str, float] | None = ..., basis: str = ..., rate: float | None = ...,
              step_deg: float = ...) -> Recording: ...
+def monitor_shaft(rec: Recording, method: str, lam: float, p0: float, healthy: tuple[float, float],
+                  theta0: tuple[float, float, float], bound: float, dwell: int, cutoff_hz: float,
+                  rate_hz: float, settle_s: float, supervise: bool
+                  ) -> tuple[str, dict[str, npt.NDArray[np.float64]]]: ...
+def friction_fit(rec: Recording, preset: str, set: dict[str, str], source: str, cutoff: str,
+                 s0: float, lam: float, transient_s: float, p_atm_kpa: float | None
+                 ) -> tuple[str, dict[str, npt.NDArray[np.float64]]]: ...
+def torque_fit(rec: Recording, method: str, nominal: dict[str, float], fixed: list[str],
+               cutoff: str | None, p0: float, r2: float | None, track: dict[str, float]
+               ) -> tuple[str, dict[str, npt.NDArray[np.float64]]]: ...

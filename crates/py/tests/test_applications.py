@@ -1,0 +1,73 @@
+"""The three applications from Python on the virtual test cell's runs: the shaft monitor
+finds the injected stiffness fault (and gives what `physid monitor shaft` gives on the same
+file), the friction fit predicts the simulated friction, the cyclic-torque fit's estimable
+parameters."""
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import physid
+
+
+@pytest.fixture(scope="module")
+def shaft_run():
+    return physid.simulate("shaft-steady", duration=10.0, faults=["shaft.k=1100@5+0.5"])
+
+
+def test_the_shaft_monitor_raises_the_stiffness_alarm_after_the_fault(shaft_run):
+    r = physid.monitor_shaft(shaft_run)
+    assert isinstance(r, physid.ShaftMonitorResult)
+    assert [a["param"] for a in r.alarms] == ["K"]
+    alarm = r.alarms[0]
+    assert 5.0 < alarm["t_raised_s"] < 6.5 and alarm["change"] == pytest.approx(-0.12, abs=0.02)
+    assert r.final["K"] == pytest.approx(1100.0, rel=0.01)
+    t = r.tracks
+    assert len(t["t"]) == len(t["K"]) == len(t["K_std_err"]) == len(t["K_true"])
+    assert t["K_true"][-1] == 1100.0
+    assert r.to_dict()["final"]["K"] == r.final["K"]
+    with pytest.raises(AttributeError, match="has no 'nope'"):
+        r.nope
+    with pytest.raises(physid.Error, match="method"):
+        physid.monitor_shaft(shaft_run, method="magic")
+    with pytest.raises(physid.Error, match="healthy"):
+        physid.monitor_shaft(shaft_run, healthy=(1.0,))
+
+
+@pytest.mark.skipif(not os.environ.get("PHYSID_BIN"), reason="PHYSID_BIN (physid's binary) not given")
+def test_the_shaft_monitor_gives_what_the_command_line_gives(shaft_run, tmp_path):
+    f = tmp_path / "run.parquet"
+    shaft_run.write(f)
+    j = json.loads(subprocess.run([os.environ["PHYSID_BIN"], "monitor", "shaft", "--data", str(f),
+                                   "--json"], check=True, capture_output=True, text=True).stdout)
+    r = physid.monitor_shaft(shaft_run)
+    for k in ("K", "B"):
+        assert r.final[k] == pytest.approx(j["final"][k], rel=1e-12)
+    assert [a["t_raised_s"] for a in r.alarms] == [a["t_raised_s"] for a in j["alarms"]]
+
+
+def test_the_friction_fit_predicts_the_simulated_friction():
+    rec = physid.simulate("friction-sweep")
+    r = physid.friction_fit(rec, preset="cell", source="shaft")
+    assert isinstance(r, physid.FrictionFitResult)
+    assert len(r.estimable) >= 3 and set(r.estimable) <= {f"c{i}" for i in range(1, 21)}
+    # Against the simulated truth the prediction stays within 5 % after the transient.
+    assert r.prediction_error_pct["max_after_transient_vs_truth"] < 5.0
+    t = r.tracks
+    assert len(t["measured"]) == len(t["predicted"]) == len(t["truth"]) > 10
+    with pytest.raises(physid.Error, match="preset"):
+        physid.friction_fit(rec, preset="none")
+
+
+def test_the_cyclic_torque_fit_estimates_the_supported_parameters():
+    rec = physid.simulate("torque-steady", basis="crank_angle", duration=4.0)
+    r = physid.torque_fit(rec)
+    assert isinstance(r, physid.TorqueFitResult)
+    assert "delta" not in r.estimable and len(r.estimable) >= 3
+    assert r.nmse_after < r.nmse_before
+    for p in r.estimable:
+        assert len(r.tracks[p]) == len(r.tracks["t"]) == len(r.tracks[f"{p}_std_err"])
+    with pytest.raises(physid.Error, match="nominal 'bogus'"):
+        physid.torque_fit(rec, nominal={"bogus": 1.0})
