@@ -13,6 +13,8 @@ py="$work/venv/bin/python"
 "$py" -m pip install -q --disable-pip-version-check maturin pytest numpy pandas pyarrow statsmodels filterpy asammdf
 (cd "$here" && "$work/venv/bin/maturin" build -q --out "$work/wheels")
 "$py" -m pip install -q --disable-pip-version-check "$work"/wheels/physid-*.whl
-export PHYSID_BIN="${PHYSID_BIN:-$root/target/debug/physid}"
+PHYSID_BIN="${PHYSID_BIN:-$root/target/debug/physid}"
+[ -x "$PHYSID_BIN" ] || (cd "$root" && cargo build -q -p physid)
+export PHYSID_BIN="$(realpath "$PHYSID_BIN")"
 cd "$here"
 "$py" -m pytest -q -p no:cacheprovider tests
