@@ -340,7 +340,13 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    assert_eq!(r.len(), 15 + 3 + 4 + 1 + 3 + 2 + 2);
+    // 15 linear, 2 RLS over arrays (tracks), 3 filters, 4 model evaluations, 1 gradient,
+    // 3 identifiability, 2 + 2 test cell.
+    assert_eq!(r.len(), 15 + 2 + 3 + 4 + 1 + 3 + 2 + 2);
+    for name in ["rls_tracks", "rls_tracks_se"] {
+        let e = r.iter().find(|e| e["name"] == name && e["p"] == 2).unwrap();
+        assert!(e["updates_per_s"].as_f64().unwrap() > 0.0, "{name}");
+    }
     for (name, order) in [
         ("testcell", 2.0),
         ("testcell_rk4", 4.0),
