@@ -360,23 +360,27 @@ impl ChunkReader {
             header = rename(header, &map, path)?;
         }
         header.basis = basis_by_channels(&header);
-        // A standard channel calibrated from its sensor's own unit (V, mV, counts — a unit that
-        // does not convert to the channel's SI unit): `--scale` gives the SI unit.
-        let from_sensor_unit = |c: &Channel| {
+        // Sensor calibrations (`--scale`) map the file's values into the channel's unit, then
+        // that unit goes to SI. A standard channel calibrated from no unit, or from its sensor's
+        // own (V, mV, counts — one that does not convert to the channel's SI unit), is
+        // calibrated into its SI unit, and says so.
+        let into_si = |c: &Channel| {
             opts.scale.iter().any(|(n, ..)| n == &c.name)
-                && !c.unit.is_empty()
-                && physid_core::standard_unit(&c.name)
-                    .is_some_and(|si| physid_core::units::conversion(&c.unit, si).is_none())
+                && physid_core::standard_unit(&c.name).is_some_and(|si| {
+                    c.unit.is_empty() || physid_core::units::conversion(&c.unit, si).is_none()
+                })
         };
-        if header.channels().iter().any(from_sensor_unit) {
+        if header.channels().iter().any(into_si) {
             let mut relabelled = Recording::new(header.basis);
             relabelled.meta = std::mem::take(&mut header.meta);
             let mut said = Vec::new();
             for c in header.channels() {
                 let mut unit = c.unit.clone();
-                if from_sensor_unit(c) {
+                if into_si(c) {
                     let si = physid_core::standard_unit(&c.name).unwrap_or_default();
-                    said.push(format!("{}: {unit} → {si} by --scale", c.name));
+                    if !unit.is_empty() {
+                        said.push(format!("{}: {unit} → {si} by --scale", c.name));
+                    }
                     unit = si.to_string();
                 }
                 relabelled
@@ -390,7 +394,9 @@ impl ChunkReader {
                         source,
                     })?;
             }
-            relabelled.meta.insert("calibrated".into(), said.join(", "));
+            if !said.is_empty() {
+                relabelled.meta.insert("calibrated".into(), said.join(", "));
+            }
             header = relabelled;
         }
         let mut convert = vec![(1.0, 0.0); header.channels().len()];
@@ -417,28 +423,6 @@ impl ChunkReader {
                 );
             }
         }
-        // Sensor calibrations first, in the channel's unit, then that unit to SI; a standard
-        // channel without a unit is calibrated into its SI unit, and says so.
-        let mut labelled = Recording::new(header.basis);
-        labelled.meta = std::mem::take(&mut header.meta);
-        for c in header.channels() {
-            let calibrated = opts.scale.iter().any(|(n, ..)| n == &c.name);
-            let unit = match physid_core::standard_unit(&c.name) {
-                Some(si) if calibrated && c.unit.is_empty() => si.to_string(),
-                _ => c.unit.clone(),
-            };
-            labelled
-                .push(Channel {
-                    name: c.name.clone(),
-                    unit,
-                    values: Vec::new(),
-                })
-                .map_err(|source| IoError::Recording {
-                    path: p.clone(),
-                    source,
-                })?;
-        }
-        header = labelled;
         for (name, gain, offset) in &opts.scale {
             match header.channels().iter().position(|c| &c.name == name) {
                 Some(k) => {
