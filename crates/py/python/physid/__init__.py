@@ -574,3 +574,62 @@ def torque_fit(
 
 __all__ += ["Result", "ShaftMonitorResult", "FrictionFitResult", "TorqueFitResult",
             "monitor_shaft", "friction_fit", "torque_fit"]
+
+
+class LiveStream:
+    """The live service's events as they come (``physid live --headless --json``): iterate
+    for one ``dict`` per event (``type``: ``estimate``, ``alarm``, ``cycle``, ``control``,
+    ``finding``, ``end`` …); :meth:`control` sends a control message to the running cell
+    (``{"cmd": "speed", "rpm": 1200}``, ``{"cmd": "fault", "spec": "shaft.k=1000@2"}``,
+    ``{"cmd": "stop"}``); :meth:`close` (or leaving a ``with`` block) stops the run. A run that
+    fails raises :class:`Error` when its events are exhausted."""
+
+    def __init__(self, inner):
+        self._s = inner
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> dict:
+        line = next(self._s)
+        return json.loads(line)
+
+    def control(self, message: Mapping[str, Any] | str) -> None:
+        self._s.control(message if isinstance(message, str) else json.dumps(dict(message)))
+
+    def close(self) -> None:
+        self._s.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
+
+def live(
+    scenario: str | None = None,
+    replay: str | "os.PathLike[str]" | None = None,
+    duration: float | None = None,
+    faults: Iterable[str] = (),
+    set: Mapping[str, float] | None = None,
+    pace: str | float = "max",
+    rate: float = 10_000.0,
+    chunk_s: float = 0.05,
+    estimate_every_s: float = 0.1,
+) -> LiveStream:
+    """Start a live run — the virtual cell (``scenario``, ``shaft-steady`` by default, with
+    ``duration``, ``faults``, ``set``, sampled at ``rate`` Hz) or a recording replayed
+    (``replay``) — through the live service's stages (the shaft monitor and its alarms, the
+    cycle statistics), at ``pace`` (``"max"`` or a factor of real time: 1 = real time), and
+    iterate over its events (:class:`LiveStream`)."""
+    import os
+
+    return LiveStream(_physid.live(
+        scenario, os.fspath(replay) if replay is not None else None, duration, list(faults),
+        {k: float(v) for k, v in (set or {}).items()}, str(pace), float(rate), float(chunk_s),
+        float(estimate_every_s)))
+
+
+__all__ += ["LiveStream", "live"]
