@@ -446,7 +446,10 @@ impl Estimator {
             return Err(err(format!("{n} rows of inputs, {} outputs", y.len())));
         }
         let xs = x.as_slice().map_err(err)?;
-        let k = self.rec().free_names().len();
+        let k = match &self.kind {
+            Kind::Linear(e) => e.estimate().len(),
+            Kind::Model(e) => e.free_names().len(),
+        };
         let kind = &mut self.kind;
         let t = py
             .detach(|| match kind {

@@ -157,7 +157,10 @@ class _Estimator:
     @property
     def names(self) -> list[str]:
         """The estimated parameters' names."""
-        return self._e.names
+        names = self.__dict__.get("_names")
+        if names is None:
+            names = self.__dict__["_names"] = self._e.names
+        return list(names)
 
     @property
     def estimate(self) -> np.ndarray:
