@@ -11,6 +11,9 @@
 //!   UKF, SR-UKF, Alg. 5.6–5.7); `run` over whole arrays without the GIL.
 //! * [`identify`] — the identifiability analysis of `physid-ident` (Alg. 5.1, Eq. 5.11–5.13).
 //! * [`simulate`] — the virtual test cell of `physid-sim`.
+//! * [`monitor_shaft`], [`friction_fit`], [`torque_fit`] — the three applications of
+//!   `physid-apps` (thesis ch. 6–8): their summaries and tracks.
+//! * [`live`] — the live service of `physid-live`: its events as an iterator ([`LiveStream`]).
 //!
 //! Errors are `physid.Error` (a `ValueError`) with physid's message: the file, the channel,
 //! the sample.

@@ -20,6 +20,7 @@ channel, the sample or row.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -401,7 +402,9 @@ def identify(
             raise Error(str(e.args[0]) if e.args else f"no channel '{name}'") from None
 
     keys = data.channels if isinstance(data, Recording) else list(data.keys())
-    inputs = {k: column(k) for k in keys if k != y}
+    # Only the columns the formula names (a recording's other channels are not copied).
+    named = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", expr))
+    inputs = {k: column(k) for k in keys if k in named and k != y}
     if isinstance(y, str):
         yv = column(y)
     elif y is None:
