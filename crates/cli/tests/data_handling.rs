@@ -976,6 +976,30 @@ fn compression_fit_recovers_the_motored_trace_s_parameters() {
     assert_eq!(tracks.channel("tdc_shift").unwrap().unit, "deg");
     let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
     assert!(html.contains("compression ratio") && html.contains("loss angle"));
+    // A known compression ratio is held, not fitted.
+    let held = ok_json(&[
+        "compression",
+        "fit",
+        "--data",
+        data.to_str().unwrap(),
+        "--stroke",
+        "0.09",
+        "--rod",
+        "0.15",
+        "--compression-ratio",
+        "10.5",
+        "--json",
+    ]);
+    let eps = held["estimates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == "eps")
+        .unwrap();
+    assert_eq!(
+        (eps["status"].as_str(), eps["value"].as_f64()),
+        (Some("held"), Some(10.5))
+    );
     // Geometry missing; a parameter that is not the model's.
     let o = physid(&["compression", "fit", "--data", data.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("--stroke and --rod"));

@@ -47,7 +47,7 @@ struct FitArgs {
     #[arg(long, default_value = "p_cyl")]
     channel: String,
     /// The crank's lengths (needed); with the bore, the motored cycles' net IMEP (the pressure
-    /// in Pa).
+    /// in Pa); a compression ratio given is held (as --set eps=R), not fitted.
     #[command(flatten)]
     geometry: GeometryArgs,
     /// The fitting window [deg ATDC], inside IVC … EVO.
@@ -115,6 +115,12 @@ fn fit(a: &FitArgs) -> Result<()> {
     let mut cfg = CompressionConfig::new(&a.channel, stroke, rod);
     cfg.window_deg = window(&a.window)?;
     cfg.held = held(&a.set)?;
+    // A known compression ratio is held, as `--set eps=R` would.
+    if let Some(r) = a.geometry.compression_ratio {
+        if !cfg.held.iter().any(|(n, _)| n == "eps") {
+            cfg.held.push(("eps".into(), r));
+        }
+    }
     cfg.selection = a.cutoff;
     let rec = a.input.read(&a.data, None)?;
     let rec = match rec.basis {
