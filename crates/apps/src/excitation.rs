@@ -33,7 +33,7 @@ pub enum SupervisorError {
 }
 
 /// How the supervisor judges and acts.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct SupervisorConfig {
     /// What the ranking remembers (match the estimator's forgetting).
     pub memory: Memory,
@@ -59,7 +59,7 @@ impl SupervisorConfig {
 }
 
 /// A linear estimator whose free set follows the on-line identifiability of its parameters.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ExcitationSupervisor {
     estimator: LinearEstimator,
     ident: OnlineIdent,

@@ -22,7 +22,7 @@ use serde::Serialize;
 use std::collections::VecDeque;
 
 /// The estimator.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum MonitorMethod {
     /// Recursive least squares with exponential forgetting λ.
@@ -62,7 +62,7 @@ impl std::str::FromStr for MonitorMethod {
 }
 
 /// How to monitor.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct MonitorConfig {
     /// Estimator.
     pub method: MonitorMethod,
@@ -118,7 +118,7 @@ impl Default for MonitorConfig {
 }
 
 /// The coupling shaft's parameters by name (JSON: `K`, `B`, `tau0`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct ShaftParams {
     /// Stiffness K [N·m/rad].
     #[serde(rename = "K")]
@@ -131,7 +131,7 @@ pub struct ShaftParams {
 }
 
 /// A figure per monitored parameter (JSON: `K`, `B`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct PerParam {
     /// For K.
     #[serde(rename = "K")]
@@ -246,7 +246,7 @@ impl<'a> ShaftInputs<'a> {
 }
 
 /// One estimator sample of the monitor.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct ShaftSample {
     /// The input sample it was taken at (0 = the stream's first).
     pub index: usize,
@@ -262,7 +262,7 @@ pub struct ShaftSample {
 }
 
 /// The monitor's estimator, supervised or not.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 enum Estimator {
     Plain(Box<LinearEstimator>),
     Supervised(Box<ExcitationSupervisor>),
@@ -307,7 +307,7 @@ impl Estimator {
 /// ([`monitor_shaft`]) and the live service run this same code; its output does not depend on
 /// how the input is chunked, and a sample's estimate leaves [`latency`](Self::latency) samples
 /// after it arrived at the most. Allocation-free per sample once the output vectors have room.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ShaftStage {
     cfg: MonitorConfig,
     every: usize,

@@ -70,6 +70,12 @@ enum Command {
     /// Example: physid live --headless --json --scenario shaft-steady --fault shaft.k=1000@5
     /// --pace max --duration 8
     Live(cmd::live::Args),
+    /// A fleet worker: the applications' stages for the cells publishing to a NATS JetStream
+    /// server (physid live --nats), one worker per cell at a time, checkpointed so that
+    /// another worker takes a cell over without loss (docs/fleet.md).
+    ///
+    /// Example: physid worker --nats nats://127.0.0.1:4222
+    Worker(cmd::worker::Args),
     /// The virtual transient engine test cell: scenario runs into recordings, and the
     /// compression, motored-cycle and torque–speed checks.
     ///
@@ -127,6 +133,7 @@ fn main() -> miette::Result<()> {
         Command::Inspect(a) => cmd::inspect::run(&a),
         Command::Simulate(a) => cmd::simulate::run(&a),
         Command::Live(a) => cmd::live::run(&a),
+        Command::Worker(a) => cmd::worker::run(&a),
         Command::Monitor(a) => cmd::monitor::run(&a),
         Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),

@@ -26,7 +26,7 @@ pub struct Alarm {
 }
 
 /// The relative-error change detector of Eq. 6.3 with a per-parameter bound and a dwell.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct RelativeErrorDetector {
     names: Vec<String>,
     healthy: Vec<f64>,

@@ -272,7 +272,7 @@ impl Step {
 }
 
 /// The method with its per-step constants resolved.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 enum Kind {
     Rls,
     Rlsf { lambda: f64, inv_lambda: f64 },
@@ -284,7 +284,7 @@ enum Kind {
 
 /// A recursive estimator for a model linear in the parameters: RLS, RLSF (constant or
 /// time-varying λ), vector forgetting, Kalman or DSFC, over a free subset of a parameter set.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct LinearEstimator {
     method: Method,
     /// The configuration as built, over `universe` (for [`set_free`](Self::set_free)).

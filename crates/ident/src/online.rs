@@ -22,7 +22,7 @@ pub enum Memory {
 }
 
 /// Recursive orthogonal ranking.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct OnlineIdent {
     factor: TriangularFactor,
     memory: Memory,

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 const TIE: f64 = 1e-12;
 
 /// One step of the ranking.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct RankStep {
     /// Index of the selected parameter (into the analysed parameter list).
     pub param: usize,
@@ -27,7 +27,7 @@ pub struct RankStep {
 }
 
 /// The full ranking: every parameter, in selection order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct Ranking {
     /// The steps, most estimable first.
     pub steps: Vec<RankStep>,
@@ -60,7 +60,7 @@ pub fn rank(r: &DMatrix<f64>) -> Ranking {
 /// The ranking's working memory for a fixed p, so that ranking again and again (on-line
 /// identifiability) allocates nothing: copy the factor into [`factor_mut`](Self::factor_mut),
 /// then [`rank`](Self::rank).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct RankWorkspace {
     w: DMatrix<f64>,
     q: nalgebra::DVector<f64>,

@@ -11,7 +11,7 @@
 use nalgebra::DMatrix;
 
 /// Upper-triangular `R` with `RᵀR = Σ λ^(n−i) z_i z_iᵀ` over the rows folded in.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TriangularFactor {
     p: usize,
     /// Row-major upper triangle (the lower part stays zero).

@@ -20,6 +20,7 @@
 
 pub mod control;
 pub mod event;
+pub mod fleet;
 pub mod frames;
 pub mod hub;
 pub mod panel;
@@ -27,6 +28,7 @@ pub mod record;
 pub mod service;
 pub mod source;
 pub mod trace;
+pub mod wire;
 
 pub use control::{Control, ControlRequest};
 pub use event::Event;
@@ -35,5 +37,7 @@ pub use frames::SocketFrames;
 pub use frames::{FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
 pub use panel::Panel;
-pub use service::{run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Summary, TorqueLive};
+pub use service::{
+    run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Stages, Summary, TorqueLive,
+};
 pub use source::{Pace, ReplaySource, ScenarioSource, Source};

@@ -32,6 +32,11 @@ impl Recorder {
         }
     }
 
+    /// Whether a log is being written.
+    pub fn is_recording(&self) -> bool {
+        self.file.is_some()
+    }
+
     /// Start a log named `name`; the error names the field that is wrong.
     pub fn start(&mut self, name: &str) -> Result<PathBuf, String> {
         if self.file.is_some() {

@@ -30,7 +30,7 @@ pub fn torque<T: Scalar>(k: T, b: T, delta_theta: f64, delta_omega: f64) -> T {
 }
 
 /// The shaft model: parameters `K`, `B` and, with an offset, `tau0`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Shaft {
     params: Vec<String>,
     inputs: Vec<String>,

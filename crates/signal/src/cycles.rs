@@ -44,7 +44,7 @@ pub struct CycleSummary {
 }
 
 /// The stream's state between chunks (see the module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CycleStream {
     theta_tdc: f64,
     step: f64,

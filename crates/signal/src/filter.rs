@@ -259,7 +259,7 @@ pub struct TransferFunction {
 }
 
 /// Second-order sections `[b0, b1, b2, a0, a1, a2]` (a0 = 1), applied in order.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sos {
     /// The sections.
     pub sections: Vec<[f64; 6]>,

@@ -29,7 +29,7 @@ use serde::Serialize;
 use std::collections::VecDeque;
 
 /// What kind of problem.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FindingKind {
     /// NaN or ±inf.
@@ -59,7 +59,7 @@ pub enum FindingKind {
 }
 
 /// One finding.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct Finding {
     /// The kind.
     pub kind: FindingKind,
@@ -97,7 +97,7 @@ pub struct Integrity {
 /// Findings listed per kind before they are summarised.
 pub const MAX_PER_KIND: usize = 50;
 
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 struct Collector {
     findings: Vec<Finding>,
     notes: Vec<Finding>,
@@ -492,7 +492,7 @@ fn crank_steps(
 }
 
 /// How an encoder's count is checked.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 enum EncoderCheck {
     /// The marker's own encoder, interval by interval: `ppr` pulses between markers, within
     /// `tol` pulses (0 on a time basis; on a crank-angle basis the pulses one grid step spans,
@@ -518,7 +518,7 @@ enum EncoderCheck {
 }
 
 /// One encoder's state.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct EncoderState {
     name: String,
     ppr: f64,
@@ -533,7 +533,7 @@ struct EncoderState {
 /// the stream gives each finding as soon as it is certain (a pulse count that is off, once the
 /// next interval has shown the marker was not merely displaced), at most [`MAX_PER_KIND`] per
 /// kind, and sums up the rest at [`finish`](Self::finish). No allocation per sample.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct IntegrityStream {
     /// The nominal time step [s] for gaps (time basis), `None`: no gap check.
     step: Option<f64>,

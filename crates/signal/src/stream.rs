@@ -24,7 +24,7 @@ use crate::filter::{FilterError, Sos};
 const TAIL: f64 = 1e-14;
 
 /// Zero-phase filtering of a stream (see the module docs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ZeroPhaseStream {
     sos: Sos,
     zi: Vec<[f64; 2]>,

@@ -9,6 +9,7 @@ use physid_apps::friction_fit::{
     friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
 };
 use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
+use physid_live::fleet::{publish::PublishConfig, NatsTarget};
 use physid_live::{
     run_live, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, LiveError, Pace,
     Panel, PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
@@ -128,11 +129,22 @@ pub struct Args {
     /// coordinates, e.g. M_rec=1e-6 to follow a reciprocating-mass change.
     #[arg(long, value_delimiter = ',', requires = "torque")]
     torque_track: Vec<String>,
+    /// Publish this cell's samples to a NATS JetStream fleet instead of running the stages
+    /// here (docs/fleet.md): nats://HOST:PORT, credentials as nats://USER:PASSWORD@HOST:PORT
+    /// or nats://TOKEN@HOST:PORT or --nats-credentials.
+    #[arg(long, value_name = "URL", requires = "cell", conflicts_with_all = ["friction", "torque", "controls"])]
+    nats: Option<String>,
+    /// The cell id on the fleet (1–64 of A–Z a–z 0–9 - _).
+    #[arg(long, value_name = "ID", requires = "nats")]
+    cell: Option<String>,
+    /// A file with the NATS credentials: `user = …` and `password = …`, or `token = …`.
+    #[arg(long, value_name = "FILE", requires = "nats")]
+    nats_credentials: Option<PathBuf>,
 }
 
 /// Run `physid live`.
 pub fn run(a: &Args) -> Result<()> {
-    if a.headless && !a.json {
+    if a.headless && !a.json && a.nats.is_none() {
         return Err(miette!(
             "--headless prints the events as NDJSON: add --json (or drop --headless for the panel)"
         ));
@@ -187,6 +199,9 @@ pub fn run(a: &Args) -> Result<()> {
     }
     let (mut source, what, theta_tdc) = source(a)?;
     cfg.theta_tdc = theta_tdc;
+    if let (Some(url), Some(cell)) = (&a.nats, &a.cell) {
+        return publish(a, url, cell, source.as_mut(), what, theta_tdc);
+    }
     if a.headless {
         let controls = match &a.controls {
             None => None,
@@ -248,6 +263,43 @@ pub fn run(a: &Args) -> Result<()> {
     eprintln!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
     panel.wait_for_shutdown();
     result.map(|_| ()).map_err(|e| miette!("{e}"))
+}
+
+/// `physid live --nats URL --cell ID`: the source's samples published to the fleet until its
+/// end or SIGTERM/SIGINT (then an end frame, and exit 0).
+fn publish(
+    a: &Args,
+    url: &str,
+    cell: &str,
+    source: &mut dyn Source,
+    what: String,
+    theta_tdc: f64,
+) -> Result<()> {
+    let target = NatsTarget::new(url, a.nats_credentials.as_deref()).map_err(|e| miette!("{e}"))?;
+    let cfg = PublishConfig {
+        cell: cell.to_string(),
+        pace: a.pace,
+        source_name: what,
+        theta_tdc,
+        give_up: std::time::Duration::from_secs(60),
+    };
+    let stop = super::stop_on_signal()?;
+    eprintln!("physid live: cell {cell} publishing to {}", target.address);
+    let s = physid_live::fleet::publish::publish(source, &target, &cfg, stop)
+        .map_err(|e| miette!("{e}"))?;
+    let line = json!({
+        "type": "published", "cell": cell, "frames": s.frames, "samples": s.samples,
+        "controls": s.controls, "retries": s.retries,
+    });
+    if a.json {
+        outln!("{line}");
+    } else {
+        eprintln!(
+            "physid live: cell {cell}: {} samples in {} frames published ({} resent after a lost acknowledgement)",
+            s.samples, s.frames, s.retries
+        );
+    }
+    Ok(())
 }
 
 /// The source `a` asks for, a line saying what it is, and the angle of a firing TDC on its

@@ -16,6 +16,7 @@ pub mod monitor;
 pub mod run;
 pub mod simulate;
 pub mod torque;
+pub mod worker;
 
 use miette::{miette, IntoDiagnostic, Result};
 use physid_core::Recording;
@@ -278,4 +279,14 @@ pub mod range {
             Err(format!("a temperature in °C is in [−50, 250], got {v}"))
         }
     }
+}
+
+/// A flag set at SIGTERM or SIGINT (Ctrl-C): a long-running verb checks it and ends cleanly.
+pub fn stop_on_signal() -> miette::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        signal_hook::flag::register(sig, stop.clone())
+            .map_err(|e| miette::miette!("installing the signal handler: {e}"))?;
+    }
+    Ok(stop)
 }

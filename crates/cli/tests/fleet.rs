@@ -1,0 +1,605 @@
+//! The fleet on a real NATS JetStream server, started by each test on a free loopback port with
+//! its own store directory: a worker killed with SIGKILL mid-stream and another taking the cell
+//! over, the server restarted mid-run, bad frames, authentication. The fleet's events are
+//! compared with `physid live --headless --json` on the same source — the same stages run in one
+//! process without NATS: every event equal, none lost, none twice.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use futures_util::StreamExt;
+use physid_core::{Basis, Channel, Recording};
+use physid_live::fleet::{CellInfo, CELLS_BUCKET};
+use physid_live::wire::{self, Frame};
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+const PHYSID: &str = env!("CARGO_BIN_EXE_physid");
+
+/// A nats-server with JetStream on 127.0.0.1, file storage in a temporary directory; killed
+/// when dropped.
+struct NatsServer {
+    port: u16,
+    dir: tempfile::TempDir,
+    auth: Vec<String>,
+    child: Option<Child>,
+}
+
+fn nats_server_bin() -> Option<PathBuf> {
+    [
+        "/usr/sbin/nats-server",
+        "/usr/bin/nats-server",
+        "/usr/local/bin/nats-server",
+    ]
+    .iter()
+    .map(PathBuf::from)
+    .find(|p| p.exists())
+}
+
+impl NatsServer {
+    /// Started with `auth` (e.g. `--user U --pass P`); `None` when nats-server is not installed
+    /// (and not on CI, where it must be).
+    fn start(auth: &[&str]) -> Option<Self> {
+        if nats_server_bin().is_none() {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI needs nats-server (apt-get install nats-server)"
+            );
+            eprintln!("SKIPPED: nats-server not installed");
+            return None;
+        }
+        let port = TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .expect("a free port")
+            .port();
+        let mut s = Self {
+            port,
+            dir: tempfile::tempdir().expect("temp dir"),
+            auth: auth.iter().map(|s| s.to_string()).collect(),
+            child: None,
+        };
+        s.spawn();
+        Some(s)
+    }
+
+    fn spawn(&mut self) {
+        let bin = nats_server_bin().expect("nats-server");
+        let child = Command::new(bin)
+            .args([
+                "-js",
+                "-a",
+                "127.0.0.1",
+                "-p",
+                &self.port.to_string(),
+                "-sd",
+            ])
+            .arg(self.dir.path())
+            .args(&self.auth)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start nats-server");
+        self.child = Some(child);
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while std::net::TcpStream::connect(("127.0.0.1", self.port)).is_err() {
+            assert!(Instant::now() < deadline, "nats-server did not start");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// SIGKILL, then the same server again on the same port and store.
+    fn restart(&mut self, down: Duration) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+        std::thread::sleep(down);
+        self.spawn();
+    }
+
+    fn url(&self, userinfo: &str) -> String {
+        format!("nats://{userinfo}127.0.0.1:{}", self.port)
+    }
+}
+
+impl Drop for NatsServer {
+    fn drop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// A `physid` process, killed when dropped; its stderr collected on a thread.
+struct Proc {
+    child: Child,
+    stderr: std::sync::Arc<std::sync::Mutex<String>>,
+}
+
+impl Proc {
+    fn start(args: &[&str]) -> Self {
+        let mut child = Command::new(PHYSID)
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("start physid");
+        let stderr = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let err = child.stderr.take().expect("stderr");
+        let sink = stderr.clone();
+        std::thread::spawn(move || {
+            for line in BufReader::new(err).lines().map_while(Result::ok) {
+                sink.lock().expect("lock").push_str(&(line + "\n"));
+            }
+        });
+        Self { child, stderr }
+    }
+
+    fn stderr(&self) -> String {
+        self.stderr.lock().expect("lock").clone()
+    }
+
+    /// Wait for the exit (at most `secs`); its status and stdout.
+    fn wait(mut self, secs: u64) -> (std::process::ExitStatus, String) {
+        let deadline = Instant::now() + Duration::from_secs(secs);
+        loop {
+            if let Some(status) = self.child.try_wait().expect("wait") {
+                let mut out = String::new();
+                if let Some(mut o) = self.child.stdout.take() {
+                    let _ = std::io::Read::read_to_string(&mut o, &mut out);
+                }
+                return (status, out);
+            }
+            assert!(
+                Instant::now() < deadline,
+                "physid did not end within {secs} s; stderr:\n{}",
+                self.stderr()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn sigterm(&self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn rt() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime")
+}
+
+async fn client(url: &str) -> async_nats::Client {
+    let (user, rest) = url
+        .strip_prefix("nats://")
+        .and_then(|r| r.split_once('@'))
+        .map_or((None, url.to_string()), |(u, h)| {
+            (Some(u.to_string()), format!("nats://{h}"))
+        });
+    let opts = match user.as_deref().map(|u| u.split_once(':').ok_or(u)) {
+        Some(Ok((u, p))) => async_nats::ConnectOptions::new().user_and_password(u.into(), p.into()),
+        Some(Err(token)) => async_nats::ConnectOptions::new().token(token.into()),
+        None => async_nats::ConnectOptions::new(),
+    };
+    opts.connect(rest).await.expect("connect to nats-server")
+}
+
+/// Every event stored for `cell` so far, in order.
+fn events(url: &str, cell: &str) -> Vec<Value> {
+    rt().block_on(async {
+        let js = async_nats::jetstream::new(client(url).await);
+        let Ok(stream) = js.get_stream("PHYSID_EVENTS").await else {
+            return Vec::new();
+        };
+        let subject = format!("physid.cell.{cell}.events");
+        let mut count = 0;
+        if let Ok(mut s) = stream.info_with_subjects(&subject).await {
+            while let Some(Ok((_, n))) = s.next().await {
+                count += n;
+            }
+        }
+        let mut out = Vec::new();
+        if count == 0 {
+            return out;
+        }
+        let consumer = stream
+            .create_consumer(async_nats::jetstream::consumer::pull::OrderedConfig {
+                filter_subject: subject,
+                ..Default::default()
+            })
+            .await
+            .expect("consumer");
+        let mut messages = consumer.messages().await.expect("messages");
+        while out.len() < count {
+            match tokio::time::timeout(Duration::from_secs(5), messages.next()).await {
+                Ok(Some(Ok(m))) => {
+                    out.push(serde_json::from_slice(&m.payload).expect("an event is JSON"))
+                }
+                other => panic!("reading events: {:?}", other.map(|o| o.map(|r| r.is_ok()))),
+            }
+        }
+        out
+    })
+}
+
+/// Wait until `cell`'s events satisfy `done` (at most `secs`).
+fn wait_events(url: &str, cell: &str, secs: u64, done: impl Fn(&[Value]) -> bool) -> Vec<Value> {
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    loop {
+        let e = events(url, cell);
+        if done(&e) {
+            return e;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "events of {cell} not as awaited within {secs} s: {} so far, last {:?}",
+            e.len(),
+            e.last()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn has_end(e: &[Value]) -> bool {
+    e.iter().any(|e| e["type"] == "end")
+}
+
+/// `physid live --headless --json` on the same source: the events of one process, no NATS.
+fn reference(source: &[&str]) -> Vec<Value> {
+    let mut args = vec!["live", "--headless", "--json", "--pace", "max"];
+    args.extend_from_slice(source);
+    let out = Command::new(PHYSID)
+        .args(&args)
+        .output()
+        .expect("physid live");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("JSON"))
+        .collect()
+}
+
+fn credentials(dir: &Path) -> PathBuf {
+    let f = dir.join("fleet.creds");
+    std::fs::write(
+        &f,
+        "# the fleet's account\nuser = physid\npassword = s3cret-pw\n",
+    )
+    .expect("write");
+    f
+}
+
+const SOURCE: [&str; 4] = ["--scenario", "shaft-steady", "--duration", "6"];
+
+/// A worker killed with SIGKILL mid-stream: another takes the cell over from the checkpoint and
+/// the fleet's events are exactly those of an uninterrupted run — equal JSON, none lost, none
+/// twice (the replayed frames give the same events from the same state, and their message ids
+/// let the stream keep one of each); the end event counts every sample published.
+#[test]
+fn a_killed_worker_is_replaced_without_loss() {
+    let Some(server) = NatsServer::start(&["--user", "physid", "--pass", "s3cret-pw"]) else {
+        return;
+    };
+    let url = server.url("physid:s3cret-pw@");
+    let creds = credentials(server.dir.path());
+    let expected = reference(&SOURCE);
+    let a = Proc::start(&["worker", "--nats", &url, "--name", "a"]);
+    let bare = server.url("");
+    let mut args = vec!["live", "--nats", &bare];
+    args.extend_from_slice(&["--nats-credentials", creds.to_str().expect("utf-8")]);
+    args.extend_from_slice(&["--cell", "c1", "--pace", "3", "--json"]);
+    args.extend_from_slice(&SOURCE);
+    let publisher = Proc::start(&args);
+    // A's first checkpoint is written after a second; kill it after its second.
+    wait_events(&url, "c1", 30, |e| {
+        e.iter().filter(|e| e["type"] == "estimate").count() >= 15
+    });
+    std::thread::sleep(Duration::from_millis(1200));
+    let b = Proc::start(&["worker", "--nats", &url, "--name", "b"]);
+    let mut a = a;
+    a.child.kill().expect("kill -9 worker a");
+    let _ = a.child.wait();
+    assert!(
+        !has_end(&events(&url, "c1")),
+        "the run ended before the kill"
+    );
+    let (status, out) = publisher.wait(60);
+    assert!(status.success());
+    let published: Value = serde_json::from_str(out.trim()).expect("summary");
+    let got = wait_events(&url, "c1", 60, has_end);
+    let took = b.stderr();
+    eprintln!("worker b: {took}");
+    assert!(
+        took.contains("took cell c1") && !took.contains("after frame 0\n"),
+        "b took over from a checkpoint: {took}"
+    );
+    let end = got.iter().find(|e| e["type"] == "end").expect("end");
+    assert_eq!(end["samples"], published["samples"], "every sample once");
+    assert_eq!(end["dropped"], 0);
+    assert_eq!(
+        got.len(),
+        expected.len(),
+        "as many events as the uninterrupted run"
+    );
+    for (k, (g, x)) in got.iter().zip(&expected).enumerate() {
+        assert_eq!(g, x, "event {k}");
+    }
+    b.sigterm();
+    let (status, _) = b.wait(20);
+    assert!(status.success(), "the worker ends cleanly at SIGTERM");
+}
+
+/// nats-server killed and restarted (same store) mid-run: the publisher and the worker
+/// reconnect, nothing is lost or doubled — the events equal the uninterrupted run's.
+#[test]
+fn a_server_restart_loses_nothing() {
+    let Some(mut server) = NatsServer::start(&["--auth", "tok3n-secret"]) else {
+        return;
+    };
+    let url = server.url("tok3n-secret@");
+    let expected = reference(&SOURCE);
+    let _w = Proc::start(&["worker", "--nats", &url, "--name", "w"]);
+    let mut args = vec![
+        "live", "--nats", &url, "--cell", "c2", "--pace", "3", "--json",
+    ];
+    args.extend_from_slice(&SOURCE);
+    let publisher = Proc::start(&args);
+    wait_events(&url, "c2", 30, |e| e.len() >= 10);
+    let t0 = Instant::now();
+    server.restart(Duration::from_millis(1500));
+    let (status, out) = publisher.wait(90);
+    eprintln!(
+        "publisher done {:?} after the restart; worker: {}",
+        t0.elapsed(),
+        _w.stderr()
+    );
+    assert!(status.success());
+    let published: Value = serde_json::from_str(out.trim()).expect("summary");
+    let got = wait_events(&url, "c2", 60, has_end);
+    let end = got.iter().find(|e| e["type"] == "end").expect("end");
+    assert_eq!(end["samples"], published["samples"]);
+    assert_eq!(got.len(), expected.len());
+    for (k, (g, x)) in got.iter().zip(&expected).enumerate() {
+        assert_eq!(g, x, "event {k}");
+    }
+}
+
+fn chunk(t0: usize, n: usize) -> Recording {
+    let mut r = Recording::new(Basis::Time);
+    let t: Vec<f64> = (t0..t0 + n).map(|k| k as f64 * 1e-3).collect();
+    for (name, unit, v) in [
+        ("t", "s", t.clone()),
+        ("omega_en", "rad/s", t.iter().map(|_| 100.0).collect()),
+    ] {
+        r.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: v,
+        })
+        .expect("channel");
+    }
+    r
+}
+
+fn frame(cell: &str, run: u64, seq: u64, first: usize, n: usize, end: bool) -> Vec<u8> {
+    wire::encode(&Frame {
+        cell: cell.into(),
+        run,
+        seq,
+        first_sample: first as u64,
+        rate_hz: 1000.0,
+        end,
+        chunk: chunk(first, n),
+    })
+    .expect("encode")
+}
+
+/// Bad input on the wire — bytes that are no frame, another cell's frame, a frame without `t`,
+/// a column of the wrong type, a frame again and one out of order, frames for a cell nobody
+/// registered: each counted and reported as an `error` event with its reason, none in an
+/// estimate, and the worker goes on to the cell's end.
+#[test]
+fn bad_frames_are_refused_and_reported() {
+    let Some(server) = NatsServer::start(&[]) else {
+        return;
+    };
+    let url = server.url("");
+    let w = Proc::start(&["worker", "--nats", &url, "--name", "w"]);
+    // The worker makes the buckets; wait for them.
+    wait_for_bucket(&url);
+    let run = 7;
+    let info = CellInfo {
+        cell: "bad".into(),
+        run,
+        rate_hz: 1000.0,
+        source: "a test".into(),
+        theta_tdc: 0.0,
+    };
+    let mut no_t = chunk(100, 10);
+    no_t = {
+        let mut r = Recording::new(Basis::Time);
+        r.push(no_t.channel("omega_en").expect("ch").clone())
+            .expect("push");
+        r
+    };
+    let no_t = wire::encode(&Frame {
+        cell: "bad".into(),
+        run,
+        seq: 3,
+        first_sample: 100,
+        rate_hz: 1000.0,
+        end: false,
+        chunk: no_t,
+    })
+    .expect("encode");
+    let wrong_type = {
+        use arrow_array::{Int64Array, RecordBatch};
+        use arrow_schema::{DataType, Field, Schema};
+        let meta = std::collections::HashMap::from([
+            ("physid.wire".to_string(), "1".to_string()),
+            ("physid.cell".to_string(), "bad".to_string()),
+            ("physid.run".to_string(), run.to_string()),
+            ("physid.seq".to_string(), "3".to_string()),
+            ("physid.first_sample".to_string(), "100".to_string()),
+            ("physid.rate_hz".to_string(), "1000".to_string()),
+            ("physid.basis".to_string(), "time".to_string()),
+        ]);
+        let schema = std::sync::Arc::new(Schema::new_with_metadata(
+            vec![Field::new("t", DataType::Int64, false)],
+            meta,
+        ));
+        let batch = RecordBatch::try_new(
+            schema.clone(),
+            vec![std::sync::Arc::new(Int64Array::from(vec![1, 2, 3]))],
+        )
+        .expect("batch");
+        let mut w = arrow_ipc::writer::StreamWriter::try_new(Vec::new(), &schema).expect("w");
+        w.write(&batch).expect("write");
+        w.finish().expect("finish");
+        w.into_inner().expect("bytes")
+    };
+    let sent: Vec<(&str, Vec<u8>)> = vec![
+        ("bad", frame("bad", run, 1, 0, 50, false)),
+        ("bad", b"this is not a frame".to_vec()),
+        ("bad", frame("other", run, 2, 50, 50, false)),
+        ("bad", no_t),
+        ("bad", wrong_type),
+        ("bad", frame("bad", run, 2, 50, 50, false)),
+        ("bad", frame("bad", run, 2, 50, 50, false)),
+        ("bad", frame("bad", run, 4, 150, 50, false)),
+        ("bad", frame("bad", run, 3, 100, 50, false)),
+        ("bad", frame("bad", run, 5, 200, 0, true)),
+        ("ghost", frame("ghost", run, 1, 0, 50, false)),
+    ];
+    rt().block_on(async {
+        let js = async_nats::jetstream::new(client(&url).await);
+        let cells = js.get_key_value(CELLS_BUCKET).await.expect("bucket");
+        cells
+            .put("bad", serde_json::to_vec(&info).expect("json").into())
+            .await
+            .expect("register");
+        for (k, (cell, bytes)) in sent.into_iter().enumerate() {
+            js.send_publish(
+                format!("physid.cell.{cell}.samples"),
+                async_nats::jetstream::message::PublishMessage::build()
+                    .payload(bytes.into())
+                    .message_id(format!("test-{k}")),
+            )
+            .await
+            .expect("publish")
+            .await
+            .expect("ack");
+        }
+    });
+    let got = wait_events(&url, "bad", 30, has_end);
+    let errors: Vec<String> = got
+        .iter()
+        .filter(|e| e["type"] == "error")
+        .map(|e| e["message"].as_str().unwrap_or_default().to_string())
+        .collect();
+    let expect = [
+        "not a readable Arrow IPC stream",
+        "a frame of cell 'other' on cell 'bad''s subject",
+        "no column 't'",
+        "column 't' is Int64: expected float64",
+        "frame 2 again or out of order",
+        "frame 3 again or out of order",
+    ];
+    assert_eq!(errors.len(), expect.len(), "{errors:#?}");
+    for (e, x) in errors.iter().zip(expect) {
+        assert!(e.contains(x), "'{e}' should say '{x}'");
+    }
+    assert!(
+        got.iter().any(|e| e["type"] == "finding"
+            && e["message"]
+                .as_str()
+                .unwrap_or("")
+                .contains("frames 3–3 are missing")),
+        "{got:#?}"
+    );
+    let end = got.iter().find(|e| e["type"] == "end").expect("end");
+    assert_eq!(
+        end["samples"], 150,
+        "frames 1, 2 and 4: 150 samples, nothing else"
+    );
+    assert_eq!(end["dropped"], expect.len());
+    let ghost = wait_events(&url, "ghost", 30, |e| !e.is_empty());
+    assert!(
+        ghost[0]["message"]
+            .as_str()
+            .unwrap_or("")
+            .contains("unknown cell 'ghost'"),
+        "{ghost:?}"
+    );
+    w.sigterm();
+    let (status, _) = w.wait(20);
+    assert!(status.success(), "the worker went on and ends cleanly");
+}
+
+fn wait_for_bucket(url: &str) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while rt().block_on(async {
+        let js = async_nats::jetstream::new(client(url).await);
+        js.get_key_value(CELLS_BUCKET).await.is_err()
+    }) {
+        assert!(Instant::now() < deadline, "the worker made no buckets");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// A server that requires credentials refuses a client without them or with wrong ones: the
+/// worker and the publisher exit at once with an authentication error that shows no secret.
+#[test]
+fn a_client_without_credentials_is_refused() {
+    let Some(server) = NatsServer::start(&["--user", "physid", "--pass", "s3cret-pw"]) else {
+        return;
+    };
+    for url in [server.url(""), server.url("physid:wrong@")] {
+        let w = Proc::start(&["worker", "--nats", &url]);
+        let (status, _) = w.wait(20);
+        assert!(!status.success());
+        let p = Proc::start(&["live", "--nats", &url, "--cell", "c", "--duration", "1"]);
+        let err = p.stderr();
+        let (status, _) = p.wait(20);
+        assert!(!status.success());
+        let _ = err;
+    }
+    let w = Proc::start(&["worker", "--nats", &server.url("")]);
+    let stderr_at_end = {
+        let (_, _) = (w.child.id(), ());
+        let deadline = Instant::now() + Duration::from_secs(20);
+        let mut w = w;
+        loop {
+            if w.child.try_wait().expect("wait").is_some() {
+                std::thread::sleep(Duration::from_millis(100));
+                break w.stderr();
+            }
+            assert!(Instant::now() < deadline);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    assert!(
+        stderr_at_end.to_lowercase().contains("authorization")
+            || stderr_at_end.to_lowercase().contains("authentication"),
+        "{stderr_at_end}"
+    );
+    assert!(!stderr_at_end.contains("s3cret"), "{stderr_at_end}");
+}

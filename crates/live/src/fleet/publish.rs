@@ -1,0 +1,311 @@
+//! `physid live --nats URL --cell ID`: a cell's samples on the fleet. The source's chunks (the
+//! virtual test cell, a replayed recording) are cut into frames small enough for the server's
+//! message size, numbered, and published to `physid.cell.<ID>.samples` with the message id
+//! `<ID>/<run>/<seq>` — a frame sent again after a lost acknowledgement (a server restart) is
+//! stored once. Each frame is sent until the stream acknowledges it: none is lost while the
+//! server is away; the source waits. Control messages (`physid.cell.<ID>.control`, request and
+//! reply, the JSON of `physid live`'s controls) are applied between chunks; each is answered
+//! and reported on the events subject as the local live service reports it.
+
+use super::{nats, send_until_acked, subject, CellInfo, Fleet, FleetError, NatsTarget};
+use crate::control::Control;
+use crate::event::Event;
+use crate::source::{Pace, Pacer, Source};
+use crate::wire::{self, Frame};
+use futures_util::StreamExt;
+use physid_core::{Basis, Recording};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// How a cell publishes.
+#[derive(Debug, Clone)]
+pub struct PublishConfig {
+    /// The cell id (see [`wire::valid_cell`]).
+    pub cell: String,
+    /// How fast against the wall clock.
+    pub pace: Pace,
+    /// What is published, for the registry (a scenario's name, a file).
+    pub source_name: String,
+    /// The angle of a firing TDC on `theta_en` [rad], for the workers' cycle statistics.
+    pub theta_tdc: f64,
+    /// Give up a frame the server has not acknowledged for this long (the server is gone).
+    pub give_up: Duration,
+}
+
+/// What a publisher did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PublishSummary {
+    /// Frames published (the end frame included).
+    pub frames: u64,
+    /// Samples published.
+    pub samples: u64,
+    /// Control messages taken.
+    pub controls: u64,
+    /// Frames sent more than once (an acknowledgement lost: stored once all the same).
+    pub retries: u64,
+}
+
+/// A control message from NATS with where its answer goes.
+struct Request {
+    text: String,
+    reply: tokio::sync::oneshot::Sender<String>,
+}
+
+/// Publish `source` as cell `cfg.cell` until its end or `stop` (SIGTERM): the run is
+/// registered in [`super::CELLS_BUCKET`], its frames published in order, an end frame last.
+pub fn publish(
+    source: &mut dyn Source,
+    target: &NatsTarget,
+    cfg: &PublishConfig,
+    stop: Arc<AtomicBool>,
+) -> Result<PublishSummary, FleetError> {
+    if !wire::valid_cell(&cfg.cell) {
+        return Err(FleetError::Invalid(format!(
+            "--cell '{}': expected 1–64 of A–Z a–z 0–9 - _",
+            cfg.cell
+        )));
+    }
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .map_err(|e| FleetError::Invalid(format!("starting the NATS client: {e}")))?;
+    let client = rt.block_on(target.connect(
+        &format!("physid live {}", cfg.cell),
+        Duration::from_secs(10),
+        Arc::default(),
+    ))?;
+    let fleet = rt.block_on(Fleet::open(client.clone()))?;
+    let run = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64);
+    let info = CellInfo {
+        cell: cfg.cell.clone(),
+        run,
+        rate_hz: source.rate_hz(),
+        source: cfg.source_name.clone(),
+        theta_tdc: cfg.theta_tdc,
+    };
+    let json = serde_json::to_vec(&info).map_err(|e| FleetError::Invalid(e.to_string()))?;
+    rt.block_on(fleet.cells.put(&cfg.cell, json.into()))
+        .map_err(|e| nats(format!("registering cell {}", cfg.cell))(e.into()))?;
+    // Controls: answered by the loop between chunks.
+    let (tx, rx) = std::sync::mpsc::channel::<Request>();
+    let control_subject = subject(&cfg.cell, "control");
+    let mut sub = rt
+        .block_on(client.subscribe(control_subject.clone()))
+        .map_err(|e| nats(format!("subscribing to {control_subject}"))(e.into()))?;
+    let answer_client = client.clone();
+    rt.spawn(async move {
+        while let Some(msg) = sub.next().await {
+            let Some(reply_to) = msg.reply.clone() else {
+                continue;
+            };
+            let (reply, answer) = tokio::sync::oneshot::channel();
+            let text = String::from_utf8_lossy(&msg.payload).into_owned();
+            if tx.send(Request { text, reply }).is_err() {
+                break;
+            }
+            let a = answer
+                .await
+                .unwrap_or_else(|_| r#"{"ok":false,"error":"the run has ended"}"#.into());
+            let _ = answer_client.publish(reply_to, a.into()).await;
+        }
+    });
+    let mut p = Publisher {
+        rt: &rt,
+        fleet: &fleet,
+        cfg,
+        run,
+        rate_hz: source.rate_hz(),
+        seq: 0,
+        samples: 0,
+        controls: 0,
+        retries: 0,
+        control_line: 0,
+        last_t: f64::NAN,
+        max_rows: max_rows(client.server_info().max_payload),
+        stop,
+    };
+    let mut pacer = Pacer::new(cfg.pace);
+    let mut paused = false;
+    loop {
+        if p.stop.load(Ordering::Relaxed) {
+            break;
+        }
+        if p.controls(&rx, source, &mut paused, &mut pacer)? {
+            break;
+        }
+        if paused {
+            continue;
+        }
+        let chunk = match source.next_chunk() {
+            Ok(Some(c)) => c,
+            Ok(None) => break,
+            Err(crate::LiveError::BadFrame { line, what }) => {
+                p.event(&Event::Error {
+                    t_s: p.last_t,
+                    input: "frames",
+                    line,
+                    message: what,
+                })?;
+                continue;
+            }
+            Err(e) => return Err(e.into()),
+        };
+        if chunk.is_empty() {
+            continue;
+        }
+        let t = chunk.values("t").map_err(crate::LiveError::from)?;
+        pacer.wait_until(t[t.len() - 1]);
+        p.last_t = t[t.len() - 1];
+        let mut at = 0;
+        while at < chunk.len() {
+            let n = (chunk.len() - at).min(p.max_rows);
+            p.frame(chunk.slice(at..at + n), false)?;
+            at += n;
+        }
+    }
+    p.frame(Recording::new(Basis::Time), true)?;
+    Ok(PublishSummary {
+        frames: p.seq,
+        samples: p.samples,
+        controls: p.controls,
+        retries: p.retries,
+    })
+}
+
+/// Rows per frame: three quarters of the server's largest message at the widest recording
+/// physid writes (64 channels of 8 bytes).
+fn max_rows(max_payload: usize) -> usize {
+    (max_payload * 3 / 4 / (64 * 8)).max(1)
+}
+
+struct Publisher<'a> {
+    rt: &'a tokio::runtime::Runtime,
+    fleet: &'a Fleet,
+    cfg: &'a PublishConfig,
+    run: u64,
+    rate_hz: f64,
+    seq: u64,
+    samples: u64,
+    controls: u64,
+    retries: u64,
+    control_line: usize,
+    last_t: f64,
+    max_rows: usize,
+    stop: Arc<AtomicBool>,
+}
+
+impl Publisher<'_> {
+    /// Publish one frame, until the stream has it.
+    fn frame(&mut self, chunk: Recording, end: bool) -> Result<(), FleetError> {
+        self.seq += 1;
+        let frame = Frame {
+            cell: self.cfg.cell.clone(),
+            run: self.run,
+            seq: self.seq,
+            first_sample: self.samples,
+            rate_hz: self.rate_hz,
+            end,
+            chunk,
+        };
+        let bytes = wire::encode(&frame).map_err(|e| FleetError::Invalid(e.to_string()))?;
+        let id = format!("{}/{}/{}", self.cfg.cell, self.run, self.seq);
+        self.samples += frame.chunk.len() as u64;
+        self.send(subject(&self.cfg.cell, "samples"), bytes, id)
+    }
+
+    /// One event of this cell (a control's answer) on its events subject.
+    fn event(&mut self, e: &Event) -> Result<(), FleetError> {
+        let json = serde_json::to_vec(e).map_err(|e| FleetError::Invalid(e.to_string()))?;
+        let id = format!("{}/{}/c{}", self.cfg.cell, self.run, self.control_line);
+        self.send(subject(&self.cfg.cell, "events"), json, id)
+    }
+
+    /// Publish to JetStream until acknowledged (see [`send_until_acked`]).
+    fn send(&mut self, subject: String, bytes: Vec<u8>, id: String) -> Result<(), FleetError> {
+        let retries = self.rt.block_on(send_until_acked(
+            &self.fleet.js,
+            subject,
+            bytes.into(),
+            id,
+            self.cfg.give_up,
+        ))?;
+        self.retries += u64::from(retries > 0);
+        Ok(())
+    }
+
+    /// Apply the control messages waiting; while paused, wait for them. `true`: stop.
+    fn controls(
+        &mut self,
+        rx: &Receiver<Request>,
+        source: &mut dyn Source,
+        paused: &mut bool,
+        pacer: &mut Pacer,
+    ) -> Result<bool, FleetError> {
+        let mut paused_at: Option<Instant> = None;
+        let mut stop = false;
+        loop {
+            let req = if *paused && !stop {
+                paused_at.get_or_insert_with(Instant::now);
+                match rx.recv_timeout(Duration::from_millis(50)) {
+                    Ok(r) => r,
+                    Err(RecvTimeoutError::Timeout) if self.stop.load(Ordering::Relaxed) => {
+                        return Ok(true)
+                    }
+                    Err(RecvTimeoutError::Timeout) => continue,
+                    Err(RecvTimeoutError::Disconnected) => return Ok(true),
+                }
+            } else {
+                match rx.try_recv() {
+                    Ok(r) => r,
+                    Err(_) => break,
+                }
+            };
+            self.controls += 1;
+            self.control_line += 1;
+            let result = Control::parse(&req.text).and_then(|c| {
+                match &c {
+                    Control::Pause => *paused = true,
+                    Control::Resume => *paused = false,
+                    Control::Stop => {
+                        *paused = false;
+                        stop = true;
+                    }
+                    Control::Record(_) => {
+                        return Err(
+                            "'record': a fleet cell's data is in its samples stream already".into(),
+                        )
+                    }
+                    _ => source.control(&c)?,
+                }
+                Ok(c.name())
+            });
+            let (t_s, line) = (self.last_t, self.control_line);
+            let (event, answer) = match result {
+                Ok(cmd) => (
+                    Event::Control { t_s, cmd, line },
+                    serde_json::json!({ "ok": true, "cmd": cmd }),
+                ),
+                Err(message) => (
+                    Event::Error {
+                        t_s,
+                        input: "controls",
+                        line,
+                        message: message.clone(),
+                    },
+                    serde_json::json!({ "ok": false, "error": message }),
+                ),
+            };
+            let _ = req.reply.send(answer.to_string());
+            self.event(&event)?;
+        }
+        if let Some(at) = paused_at {
+            pacer.shift(at.elapsed());
+        }
+        Ok(stop)
+    }
+}

@@ -1,0 +1,545 @@
+//! `physid worker --nats URL`: the applications' stages for whichever cells need them.
+//!
+//! * **One worker per cell at a time.** A worker takes a cell by creating its key in
+//!   [`LEASES_BUCKET`] (which fails while another holds it) and renews it every second; the
+//!   bucket forgets a key not renewed for [`LEASE_TTL`], so a worker that dies — `kill -9`, a
+//!   lost machine — frees its cells within that time.
+//! * **In order, each frame once.** A cell's frames are read from its samples subject in stream
+//!   order by an ordered consumer; a frame whose number is not the next is refused (a duplicate,
+//!   out of order) or, ahead, taken with a finding naming the frames missing.
+//! * **Failover without loss.** Every [`CHECKPOINT_EVERY`] (and when stopped) the worker writes
+//!   the cell's checkpoint — the stages' state ([`Stages::checkpoint`]: estimator, detector,
+//!   filter memory, cycle statistics), the run, the last frame and its stream sequence — after
+//!   the events so far are stored. A worker taking a cell over restores the checkpoint and reads
+//!   on from the next stream sequence: the frames after the checkpoint are processed again from
+//!   the same state, so they give the same events, and the events' message ids
+//!   (`<cell>/<run>/<stream sequence>/<k>`) make the stream store each once. The checkpoint is
+//!   written only over the revision this worker wrote (compare and set): a worker that lost its
+//!   cell cannot overwrite its successor's.
+//! * **Bad input** — a frame that is not a frame, another cell's frame, a wrong schema, frames on
+//!   the subject of a cell nobody registered — is counted and reported as an `error` event with
+//!   the reason, never absorbed into an estimate, and the worker goes on.
+
+use super::{
+    nats, send_until_acked, subject, CellInfo, Fleet, FleetError, NatsTarget, CELLS_BUCKET,
+    LEASE_TTL,
+};
+use crate::event::Event;
+use crate::service::{LiveConfig, Stages};
+use crate::wire;
+use async_nats::jetstream::consumer::{pull::OrderedConfig, DeliverPolicy};
+use futures_util::StreamExt;
+use serde::{Deserialize, Serialize};
+use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// How often a cell's checkpoint is written.
+pub const CHECKPOINT_EVERY: Duration = Duration::from_secs(1);
+
+/// How a worker runs.
+#[derive(Debug, Clone)]
+pub struct WorkerConfig {
+    /// The worker's name (in leases and logs).
+    pub name: String,
+    /// The stages' settings (the shaft monitor's; headless, as fast as the frames come).
+    pub live: LiveConfig,
+    /// Give up an event the server has not acknowledged for this long.
+    pub give_up: Duration,
+}
+
+/// What a worker did.
+#[derive(Debug, Default)]
+pub struct WorkerStats {
+    /// Cells taken (a cell taken again after losing it counts again).
+    pub taken: AtomicU64,
+    /// Frames processed.
+    pub frames: AtomicU64,
+    /// Frames refused.
+    pub refused: AtomicU64,
+    /// Events published.
+    pub events: AtomicU64,
+}
+
+/// A cell's checkpoint (MessagePack in [`super::CHECKPOINTS_BUCKET`]).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Checkpoint {
+    /// The run it belongs to.
+    run: u64,
+    /// The last frame processed.
+    seq: u64,
+    /// Its stream sequence: the next worker reads on from the one after.
+    stream_seq: u64,
+    /// The run's end frame has been processed.
+    done: bool,
+    /// [`Stages::checkpoint`] (empty when done).
+    state: Vec<u8>,
+}
+
+/// Run a worker until `stop` (SIGTERM): take the cells that need one, process their frames,
+/// checkpoint them; at `stop`, checkpoint every cell and free it for another worker.
+pub fn run_worker(
+    target: &NatsTarget,
+    cfg: &WorkerConfig,
+    stop: Arc<AtomicBool>,
+    stats: Arc<WorkerStats>,
+) -> Result<(), FleetError> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| FleetError::Invalid(format!("starting the NATS client: {e}")))?;
+    rt.block_on(supervise(target, cfg, stop, stats))
+}
+
+/// A cell this worker has: its lease's revision and its task.
+struct Owned {
+    revision: u64,
+    stop: Arc<AtomicBool>,
+    task: tokio::task::JoinHandle<Result<(), FleetError>>,
+}
+
+async fn supervise(
+    target: &NatsTarget,
+    cfg: &WorkerConfig,
+    stop: Arc<AtomicBool>,
+    stats: Arc<WorkerStats>,
+) -> Result<(), FleetError> {
+    let connections = Arc::new(AtomicU64::new(0));
+    let client = target
+        .connect(
+            &format!("physid worker {}", cfg.name),
+            Duration::from_secs(10),
+            connections.clone(),
+        )
+        .await?;
+    let fleet = Arc::new(Fleet::open(client).await?);
+    let mut owned: HashMap<String, Owned> = HashMap::new();
+    let mut unknown_told: HashSet<String> = HashSet::new();
+    let mut tick = tokio::time::interval(Duration::from_millis(250));
+    let mut renew_due = tokio::time::Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        tick.tick().await;
+        // Cells whose task has ended (the run is done, or it failed): freed.
+        let ended: Vec<String> = owned
+            .iter()
+            .filter(|(_, o)| o.task.is_finished())
+            .map(|(c, _)| c.clone())
+            .collect();
+        for cell in ended {
+            if let Some(o) = owned.remove(&cell) {
+                if let Ok(Err(e)) = o.task.await {
+                    eprintln!("physid worker {}: cell {cell}: {e}", cfg.name);
+                }
+                let _ = fleet.leases.delete(&cell).await;
+            }
+        }
+        // Renew the leases (a third of their life); one not renewed is lost: stop its task.
+        if tokio::time::Instant::now() >= renew_due {
+            renew_due = tokio::time::Instant::now() + LEASE_TTL / 3;
+            let mut lost = Vec::new();
+            for (cell, o) in owned.iter_mut() {
+                match fleet
+                    .leases
+                    .update(cell, cfg.name.clone().into(), o.revision)
+                    .await
+                {
+                    Ok(r) => o.revision = r,
+                    Err(_) => lost.push(cell.clone()),
+                }
+            }
+            for cell in lost {
+                if let Some(o) = owned.remove(&cell) {
+                    eprintln!("physid worker {}: lost the lease on cell {cell}", cfg.name);
+                    o.stop.store(true, Ordering::Relaxed);
+                    let _ = o.task.await;
+                }
+            }
+        }
+        // The registered cells: take those nobody has.
+        let Ok(registry) = registered(&fleet).await else {
+            continue;
+        };
+        for (cell, info) in &registry {
+            if owned.contains_key(cell) || finished(&fleet, info).await {
+                continue;
+            }
+            let Ok(revision) = fleet.leases.create(cell, cfg.name.clone().into()).await else {
+                continue;
+            };
+            stats.taken.fetch_add(1, Ordering::Relaxed);
+            let task_stop = Arc::new(AtomicBool::new(false));
+            let task = tokio::spawn(process_cell(
+                fleet.clone(),
+                info.clone(),
+                cfg.clone(),
+                connections.clone(),
+                task_stop.clone(),
+                stats.clone(),
+            ));
+            owned.insert(
+                cell.clone(),
+                Owned {
+                    revision,
+                    stop: task_stop,
+                    task,
+                },
+            );
+        }
+        // Frames on the subject of a cell nobody registered: told once per worker.
+        if let Ok(mut subjects) = fleet
+            .samples
+            .clone()
+            .info_with_subjects("physid.cell.*.samples")
+            .await
+        {
+            while let Some(Ok((subj, count))) = subjects.next().await {
+                let Some(cell) = subj
+                    .strip_prefix("physid.cell.")
+                    .and_then(|s| s.strip_suffix(".samples"))
+                else {
+                    continue;
+                };
+                if registry.contains_key(cell) || !unknown_told.insert(cell.to_string()) {
+                    continue;
+                }
+                stats.refused.fetch_add(count as u64, Ordering::Relaxed);
+                let e = Event::Error {
+                    t_s: f64::NAN,
+                    input: "frames",
+                    line: 0,
+                    message: format!(
+                        "unknown cell '{cell}': {count} frame(s) on {subj} but no entry in the \
+                         {CELLS_BUCKET} bucket — a publisher registers its cell first \
+                         (physid live --nats does); these frames are not processed"
+                    ),
+                };
+                let json = serde_json::to_vec(&e).unwrap_or_default();
+                let _ = send_until_acked(
+                    &fleet.js,
+                    subject(cell, "events"),
+                    json.into(),
+                    format!("{cell}/unknown"),
+                    cfg.give_up,
+                )
+                .await;
+            }
+        }
+    }
+    // Stopped: every cell checkpointed and freed at once (not after the lease's expiry).
+    for (cell, o) in owned {
+        o.stop.store(true, Ordering::Relaxed);
+        if let Ok(Err(e)) = o.task.await {
+            eprintln!("physid worker {}: cell {cell}: {e}", cfg.name);
+        }
+        let _ = fleet.leases.delete(&cell).await;
+    }
+    Ok(())
+}
+
+/// The registry: every cell's entry that reads.
+async fn registered(fleet: &Fleet) -> Result<HashMap<String, CellInfo>, FleetError> {
+    let mut keys = fleet
+        .cells
+        .keys()
+        .await
+        .map_err(|e| nats(format!("listing {CELLS_BUCKET}"))(e.into()))?;
+    let mut out = HashMap::new();
+    while let Some(Ok(key)) = keys.next().await {
+        if let Ok(Some(v)) = fleet.cells.get(&key).await {
+            if let Ok(info) = serde_json::from_slice::<CellInfo>(&v) {
+                out.insert(key, info);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Whether the cell's current run has been processed to its end.
+async fn finished(fleet: &Fleet, info: &CellInfo) -> bool {
+    match fleet.checkpoints.get(&info.cell).await {
+        Ok(Some(v)) => {
+            rmp_serde::from_slice::<Checkpoint>(&v).is_ok_and(|c| c.run == info.run && c.done)
+        }
+        _ => false,
+    }
+}
+
+type Emit = Box<dyn FnMut(&Event) -> Result<(), String> + Send>;
+
+/// One cell's frames through the stages, from its checkpoint on, until its end frame or `stop`.
+async fn process_cell(
+    fleet: Arc<Fleet>,
+    info: CellInfo,
+    cfg: WorkerConfig,
+    connections: Arc<AtomicU64>,
+    stop: Arc<AtomicBool>,
+    stats: Arc<WorkerStats>,
+) -> Result<(), FleetError> {
+    let cell = info.cell.clone();
+    let (tx, rx) = std::sync::mpsc::channel::<Event>();
+    let emit: Emit = Box::new(move |e: &Event| tx.send(e.clone()).map_err(|e| e.to_string()));
+    let mut live = cfg.live.clone();
+    live.theta_tdc = info.theta_tdc;
+    live.panel = None;
+    live.friction = None;
+    live.torque = None;
+    live.pace = crate::source::Pace::Max;
+    let entry = fleet
+        .checkpoints
+        .entry(&cell)
+        .await
+        .map_err(|e| nats(format!("reading the checkpoint of {cell}"))(e.into()))?;
+    let mut revision = entry.as_ref().map(|e| e.revision);
+    let previous = entry
+        .and_then(|e| rmp_serde::from_slice::<Checkpoint>(&e.value).ok())
+        .filter(|c| c.run == info.run);
+    let (stages, mut seq, start) = match &previous {
+        Some(c) if c.done => return Ok(()),
+        Some(c) => (
+            Stages::restore(live, &c.state, emit)?,
+            c.seq,
+            c.stream_seq + 1,
+        ),
+        None => (Stages::new(live, info.rate_hz, emit)?, 0, 1),
+    };
+    let mut stages = Some(stages);
+    eprintln!(
+        "physid worker {}: took cell {cell} (run {}) at stream sequence {start}, after frame {seq}",
+        cfg.name, info.run
+    );
+    let mut last_stream_seq = start - 1;
+    let mut checkpoint_due = tokio::time::Instant::now() + CHECKPOINT_EVERY;
+    let mut done = false;
+    let events_subject = subject(&cell, "events");
+    // The frames from `last_stream_seq + 1` on, read again after every reconnection (a
+    // server restart) or consumer error.
+    let mut frames = None;
+    let mut opened_at = 0;
+    while !stop.load(Ordering::Relaxed) && !done {
+        let now = connections.load(Ordering::Relaxed);
+        if frames.is_none() || opened_at != now {
+            opened_at = now;
+            frames = open_frames(&fleet, &cell, last_stream_seq + 1).await.ok();
+            if frames.is_none() {
+                tokio::time::sleep(Duration::from_millis(200)).await;
+                continue;
+            }
+        }
+        let Some(messages) = frames.as_mut() else {
+            continue;
+        };
+        let msg = match tokio::time::timeout(Duration::from_millis(200), messages.next()).await {
+            Ok(Some(Ok(m))) => Some(m),
+            Ok(Some(Err(_)) | None) => {
+                frames = None;
+                None
+            }
+            Err(_) => None,
+        };
+        if let Some(msg) = msg {
+            let stream_seq = msg
+                .info()
+                .map_or(last_stream_seq + 1, |i| i.stream_sequence);
+            last_stream_seq = stream_seq;
+            let Some(st) = stages.as_mut() else { break };
+            let outcome = take_frame(st, &info, &mut seq, stream_seq, &msg.payload)?;
+            match outcome {
+                Outcome::Taken => {
+                    stats.frames.fetch_add(1, Ordering::Relaxed);
+                }
+                Outcome::Refused => {
+                    stats.refused.fetch_add(1, Ordering::Relaxed);
+                }
+                Outcome::OldRun => {}
+                Outcome::End => {
+                    stats.frames.fetch_add(1, Ordering::Relaxed);
+                    done = true;
+                    // The stages' last output and the `end` event.
+                    if let Some(st) = stages.take() {
+                        st.finish()?;
+                    }
+                }
+            }
+            let mut k = 0;
+            while let Ok(e) = rx.try_recv() {
+                let json = serde_json::to_vec(&e)
+                    .map_err(|e| FleetError::Invalid(format!("an event as JSON: {e}")))?;
+                let id = format!("{cell}/{}/{stream_seq}/{k}", info.run);
+                send_until_acked(
+                    &fleet.js,
+                    events_subject.clone(),
+                    json.into(),
+                    id,
+                    cfg.give_up,
+                )
+                .await?;
+                stats.events.fetch_add(1, Ordering::Relaxed);
+                k += 1;
+            }
+        }
+        if let (Some(st), true) = (&stages, tokio::time::Instant::now() >= checkpoint_due) {
+            checkpoint_due = tokio::time::Instant::now() + CHECKPOINT_EVERY;
+            let c = Checkpoint {
+                run: info.run,
+                seq,
+                stream_seq: last_stream_seq,
+                done: false,
+                state: st.checkpoint()?,
+            };
+            revision = Some(put_checkpoint(&fleet, &cell, &c, revision).await?);
+        }
+    }
+    let state = match (&stages, done) {
+        (Some(st), false) => st.checkpoint()?,
+        _ => Vec::new(),
+    };
+    let c = Checkpoint {
+        run: info.run,
+        seq,
+        stream_seq: last_stream_seq,
+        done,
+        state,
+    };
+    put_checkpoint(&fleet, &cell, &c, revision).await?;
+    Ok(())
+}
+
+/// An ordered consumer of `cell`'s frames from stream sequence `start` on.
+async fn open_frames(
+    fleet: &Fleet,
+    cell: &str,
+    start: u64,
+) -> Result<async_nats::jetstream::consumer::pull::Ordered, FleetError> {
+    let what = || format!("reading the frames of {cell}");
+    fleet
+        .samples
+        .create_consumer(OrderedConfig {
+            filter_subject: subject(cell, "samples"),
+            deliver_policy: DeliverPolicy::ByStartSequence {
+                start_sequence: start,
+            },
+            ..Default::default()
+        })
+        .await
+        .map_err(|e| nats(what())(e.into()))?
+        .messages()
+        .await
+        .map_err(|e| nats(what())(e.into()))
+}
+
+/// Write a checkpoint over `revision` (the one this worker wrote or read; `None`: none yet).
+async fn put_checkpoint(
+    fleet: &Fleet,
+    cell: &str,
+    c: &Checkpoint,
+    revision: Option<u64>,
+) -> Result<u64, FleetError> {
+    let bytes = rmp_serde::to_vec(c)
+        .map_err(|e| FleetError::Invalid(format!("writing the checkpoint of {cell}: {e}")))?;
+    let what = format!("writing the checkpoint of {cell} (another worker may have the cell now)");
+    match revision {
+        Some(r) => fleet
+            .checkpoints
+            .update(cell, bytes.into(), r)
+            .await
+            .map_err(|e| nats(what)(e.into())),
+        None => fleet
+            .checkpoints
+            .create(cell, bytes.into())
+            .await
+            .map_err(|e| nats(what)(e.into())),
+    }
+}
+
+/// What became of a frame.
+enum Outcome {
+    Taken,
+    Refused,
+    /// A frame of an earlier run of the cell (before its current run started): passed over.
+    OldRun,
+    End,
+}
+
+/// One frame checked and through the stages (or refused, with an `error` event).
+fn take_frame(
+    stages: &mut Stages<Emit>,
+    info: &CellInfo,
+    seq: &mut u64,
+    stream_seq: u64,
+    payload: &[u8],
+) -> Result<Outcome, FleetError> {
+    let refuse = |stages: &mut Stages<Emit>, why: String| -> Result<Outcome, FleetError> {
+        stages.refuse(
+            "frames",
+            stream_seq as usize,
+            format!("frame at stream sequence {stream_seq}: {why}"),
+        )?;
+        Ok(Outcome::Refused)
+    };
+    let frame = match wire::decode(payload) {
+        Ok(f) => f,
+        Err(e) => return refuse(stages, e.0),
+    };
+    if frame.cell != info.cell {
+        return refuse(
+            stages,
+            format!(
+                "a frame of cell '{}' on cell '{}''s subject",
+                frame.cell, info.cell
+            ),
+        );
+    }
+    if frame.run < info.run {
+        return Ok(Outcome::OldRun);
+    }
+    if frame.run > info.run {
+        return refuse(
+            stages,
+            format!(
+                "a frame of run {} while the registry's run is {}",
+                frame.run, info.run
+            ),
+        );
+    }
+    if frame.seq <= *seq {
+        return refuse(
+            stages,
+            format!(
+                "frame {} again or out of order (frames up to {} are processed): not counted",
+                frame.seq, *seq
+            ),
+        );
+    }
+    if frame.rate_hz != info.rate_hz {
+        return refuse(
+            stages,
+            format!(
+                "a rate of {} Hz; the cell's is {} Hz",
+                frame.rate_hz, info.rate_hz
+            ),
+        );
+    }
+    if frame.seq > *seq + 1 || frame.first_sample != stages.samples() as u64 {
+        let t_s = f64::NAN;
+        stages.send(&Event::finding(
+            t_s,
+            format!(
+                "frames {}–{} are missing (samples {}–{}): the stream has a gap",
+                *seq + 1,
+                frame.seq - 1,
+                stages.samples(),
+                frame.first_sample.saturating_sub(1)
+            ),
+        ))?;
+    }
+    *seq = frame.seq;
+    if !frame.chunk.is_empty() {
+        stages.chunk(&frame.chunk)?;
+    }
+    if frame.end {
+        return Ok(Outcome::End);
+    }
+    Ok(Outcome::Taken)
+}
