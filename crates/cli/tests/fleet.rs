@@ -5,112 +5,34 @@
 //! process without NATS: every event equal, none lost, none twice.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
 use futures_util::StreamExt;
 use physid_core::{Basis, Channel, Recording};
+use physid_live::fleet::local::{nats_server_bin, LocalServer};
 use physid_live::fleet::{CellInfo, CELLS_BUCKET};
 use physid_live::wire::{self, Frame};
-use serde_json::Value;
+use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
-use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 const PHYSID: &str = env!("CARGO_BIN_EXE_physid");
 
-/// A nats-server with JetStream on 127.0.0.1, file storage in a temporary directory; killed
-/// when dropped.
-struct NatsServer {
-    port: u16,
-    dir: tempfile::TempDir,
-    auth: Vec<String>,
-    child: Option<Child>,
-}
-
-fn nats_server_bin() -> Option<PathBuf> {
-    [
-        "/usr/sbin/nats-server",
-        "/usr/bin/nats-server",
-        "/usr/local/bin/nats-server",
-    ]
-    .iter()
-    .map(PathBuf::from)
-    .find(|p| p.exists())
-}
-
-impl NatsServer {
-    /// Started with `auth` (e.g. `--user U --pass P`); `None` when nats-server is not installed
-    /// (and not on CI, where it must be).
-    fn start(auth: &[&str]) -> Option<Self> {
-        if nats_server_bin().is_none() {
-            assert!(
-                std::env::var_os("CI").is_none(),
-                "CI needs nats-server (apt-get install nats-server)"
-            );
-            eprintln!("SKIPPED: nats-server not installed");
-            return None;
-        }
-        let port = TcpListener::bind("127.0.0.1:0")
-            .and_then(|l| l.local_addr())
-            .expect("a free port")
-            .port();
-        let mut s = Self {
-            port,
-            dir: tempfile::tempdir().expect("temp dir"),
-            auth: auth.iter().map(|s| s.to_string()).collect(),
-            child: None,
-        };
-        s.spawn();
-        Some(s)
+/// A local nats-server (JetStream, file storage in a temporary directory, loopback, a free
+/// port) with `auth`; `None` when nats-server is not installed (and not on CI, where it must
+/// be: `.ci/run` installs it).
+fn nats_server(auth: &[&str]) -> Option<LocalServer> {
+    if nats_server_bin().is_none() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI needs nats-server (apt-get install nats-server)"
+        );
+        eprintln!("SKIPPED: nats-server not installed");
+        return None;
     }
-
-    fn spawn(&mut self) {
-        let bin = nats_server_bin().expect("nats-server");
-        let child = Command::new(bin)
-            .args([
-                "-js",
-                "-a",
-                "127.0.0.1",
-                "-p",
-                &self.port.to_string(),
-                "-sd",
-            ])
-            .arg(self.dir.path())
-            .args(&self.auth)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("start nats-server");
-        self.child = Some(child);
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while std::net::TcpStream::connect(("127.0.0.1", self.port)).is_err() {
-            assert!(Instant::now() < deadline, "nats-server did not start");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    /// SIGKILL, then the same server again on the same port and store.
-    fn restart(&mut self, down: Duration) {
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-        std::thread::sleep(down);
-        self.spawn();
-    }
-
-    fn url(&self, userinfo: &str) -> String {
-        format!("nats://{userinfo}127.0.0.1:{}", self.port)
-    }
-}
-
-impl Drop for NatsServer {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
+    Some(LocalServer::start(auth).expect("start nats-server"))
 }
 
 /// A `physid` process, killed when dropped; its stderr collected on a thread.
@@ -295,11 +217,11 @@ const SOURCE: [&str; 4] = ["--scenario", "shaft-steady", "--duration", "6"];
 /// let the stream keep one of each); the end event counts every sample published.
 #[test]
 fn a_killed_worker_is_replaced_without_loss() {
-    let Some(server) = NatsServer::start(&["--user", "physid", "--pass", "s3cret-pw"]) else {
+    let Some(server) = nats_server(&["--user", "physid", "--pass", "s3cret-pw"]) else {
         return;
     };
     let url = server.url("physid:s3cret-pw@");
-    let creds = credentials(server.dir.path());
+    let creds = credentials(server.dir());
     let expected = reference(&SOURCE);
     let a = Proc::start(&["worker", "--nats", &url, "--name", "a"]);
     let bare = server.url("");
@@ -351,7 +273,7 @@ fn a_killed_worker_is_replaced_without_loss() {
 /// reconnect, nothing is lost or doubled — the events equal the uninterrupted run's.
 #[test]
 fn a_server_restart_loses_nothing() {
-    let Some(mut server) = NatsServer::start(&["--auth", "tok3n-secret"]) else {
+    let Some(mut server) = nats_server(&["--auth", "tok3n-secret"]) else {
         return;
     };
     let url = server.url("tok3n-secret@");
@@ -364,7 +286,9 @@ fn a_server_restart_loses_nothing() {
     let publisher = Proc::start(&args);
     wait_events(&url, "c2", 30, |e| e.len() >= 10);
     let t0 = Instant::now();
-    server.restart(Duration::from_millis(1500));
+    server
+        .restart(Duration::from_millis(1500))
+        .expect("restart");
     let (status, out) = publisher.wait(90);
     eprintln!(
         "publisher done {:?} after the restart; worker: {}",
@@ -418,7 +342,7 @@ fn frame(cell: &str, run: u64, seq: u64, first: usize, n: usize, end: bool) -> V
 /// estimate, and the worker goes on to the cell's end.
 #[test]
 fn bad_frames_are_refused_and_reported() {
-    let Some(server) = NatsServer::start(&[]) else {
+    let Some(server) = nats_server(&[]) else {
         return;
     };
     let url = server.url("");
@@ -569,7 +493,7 @@ fn wait_for_bucket(url: &str) {
 /// worker and the publisher exit at once with an authentication error that shows no secret.
 #[test]
 fn a_client_without_credentials_is_refused() {
-    let Some(server) = NatsServer::start(&["--user", "physid", "--pass", "s3cret-pw"]) else {
+    let Some(server) = nats_server(&["--user", "physid", "--pass", "s3cret-pw"]) else {
         return;
     };
     for url in [server.url(""), server.url("physid:wrong@")] {
@@ -602,4 +526,118 @@ fn a_client_without_credentials_is_refused() {
         "{stderr_at_end}"
     );
     assert!(!stderr_at_end.contains("s3cret"), "{stderr_at_end}");
+}
+
+/// The fleet view in a real Chromium: two cells (one with a stiffness fault) through a worker;
+/// the view lists both with their state, K and B, the alarm of the faulty one; its name opens
+/// the cell's live view, fed from NATS, which shows the K alarm; a control sent from that view
+/// reaches the cell's publisher and is answered.
+#[test]
+fn the_fleet_view_in_a_real_browser() {
+    let Some(server) = nats_server(&[]) else {
+        return;
+    };
+    let url = server.url("");
+    let _w = Proc::start(&["worker", "--nats", &url, "--name", "w"]);
+    let common_args = [
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "30",
+        "--pace",
+        "2",
+    ];
+    let mut a = vec!["live", "--nats", &url, "--cell", "cell-1"];
+    a.extend_from_slice(&common_args);
+    let _c1 = Proc::start(&a);
+    let mut b = vec![
+        "live",
+        "--nats",
+        &url,
+        "--cell",
+        "cell-2",
+        "--fault",
+        "shaft.k=1000@3",
+    ];
+    b.extend_from_slice(&common_args);
+    let _c2 = Proc::start(&b);
+    let mut view = Command::new(PHYSID)
+        .args(["live", "--fleet", &url, "--port", "0"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("physid live --fleet");
+    let mut line = String::new();
+    BufReader::new(view.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("the address");
+    let page = line.trim().rsplit(' ').next().expect("url").to_string();
+    assert!(page.starts_with("http://127.0.0.1:"), "{line}");
+    rt().block_on(async {
+        let Some(browser) = common::Browser::start("1400,900").await else {
+            return;
+        };
+        let c = browser.client.clone();
+        c.goto(&page).await.expect("open the fleet view");
+        let two = "window.physidFleet.cells.length === 2 && window.physidFleet.cells.every(c => c.estimate && c.state === 'running')";
+        browser.wait(two, 40).await;
+        browser
+            .wait("window.physidFleet.cells.some(c => c.cell === 'cell-2' && c.alarms > 0)", 40)
+            .await;
+        let cells = browser.js("window.physidFleet.cells").await;
+        let k = |i: usize| cells[i]["estimate"]["params"]["K"].as_f64().expect("K");
+        assert_eq!(cells[0]["cell"], "cell-1");
+        assert_eq!(cells[0]["alarms"], 0);
+        assert!((k(0) - 1250.0).abs() < 10.0, "cell-1 K {}", k(0));
+        assert_eq!(cells[1]["last_alarm"]["param"], "K");
+        assert_eq!(
+            browser.js("document.querySelectorAll('#cells tbody tr').length").await,
+            json!(2)
+        );
+        let png = c.screenshot().await.expect("screenshot");
+        std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fleet-view.png"), &png)
+            .expect("write");
+        if std::env::var_os("PHYSID_UPDATE_DOCS").is_some() {
+            let docs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/fleet-view.png");
+            std::fs::write(docs, &png).expect("write");
+        }
+        // A click on cell-2 opens its live view, fed from NATS: its K alarm is there.
+        c.find(fantoccini::Locator::Css("#cells tr[data-cell='cell-2'] a"))
+            .await
+            .expect("the link")
+            .click()
+            .await
+            .expect("click");
+        browser
+            .wait("window.physid && window.physid.estimates > 5 && window.physid.alarms > 0", 30)
+            .await;
+        assert!(browser.js("location.search").await.as_str().unwrap_or("").contains("cell=cell-2"));
+        assert_eq!(browser.js("window.physid.first.alarm.param").await, json!("K"));
+        let k2 = browser.js("window.physid.last.estimate.params.K").await.as_f64().expect("K");
+        assert!((k2 - 1000.0).abs() < 10.0, "cell-2 K {k2}");
+        // A control from the cell's view goes to its publisher and is answered.
+        let answer = browser
+            .client
+            .execute_async(
+                "const done = arguments[0]; fetch('api/control?cell=cell-2', {method: 'POST', headers: {'Content-Type': 'application/json'}, body: JSON.stringify({cmd: 'speed', rpm: 1100})}).then(r => r.json()).then(done);",
+                vec![],
+            )
+            .await
+            .expect("control");
+        assert_eq!(answer["ok"], true, "{answer}");
+        assert_eq!(answer["cmd"], "speed");
+        // A cell the fleet does not have is refused.
+        let missing = browser
+            .client
+            .execute_async(
+                "const done = arguments[0]; fetch('api/events?cell=nope').then(r => done(r.status));",
+                vec![],
+            )
+            .await
+            .expect("status");
+        assert_eq!(missing, json!(404));
+        c.close().await.expect("close");
+    });
+    let _ = view.kill();
+    let _ = view.wait();
 }

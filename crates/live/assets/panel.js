@@ -3,8 +3,11 @@
 // SI units; the page shows speeds in rpm and pressures in kPa/bar, as labelled.
 "use strict";
 (() => {
-  const token = new URLSearchParams(location.search).get("token");
-  const api = (p) => "api/" + p + (token ? "?token=" + encodeURIComponent(token) : "");
+  // The token, and on a fleet panel the cell this page shows (?cell=ID), go with every call.
+  const query = new URLSearchParams(location.search);
+  const pass = new URLSearchParams();
+  for (const k of ["token", "cell"]) if (query.get(k)) pass.set(k, query.get(k));
+  const api = (p) => "api/" + p + (pass.toString() ? "?" + pass.toString() : "");
   const WINDOW_S = 10;       // the time traces' rolling window [s of recording]
   const EST_WINDOW_S = 120;  // the estimates' window [s]
   const CYCLES_SHOWN = 10;   // cycles overlaid in the cyclic view

@@ -64,6 +64,17 @@ impl Kind {
             _ => Kind::Other,
         }
     }
+
+    /// The kind of an event by its `type` (one received as JSON from another process).
+    fn named(t: &str) -> Self {
+        match t {
+            "estimate" | "friction" | "torque" | "identifiability" => Kind::Estimate,
+            "alarm" => Kind::Alarm,
+            "cycle" => Kind::Cycle,
+            "trace" => Kind::Trace,
+            _ => Kind::Other,
+        }
+    }
 }
 
 #[derive(Debug, Default)]
@@ -127,6 +138,13 @@ impl Hub {
         let text = serde_json::to_string(e).map_err(|e| e.to_string())?;
         self.publish_text(Kind::of(e), text);
         Ok(())
+    }
+
+    /// Number, keep and broadcast an event received as JSON (a fleet cell's, from NATS), kept
+    /// as its `type` says.
+    pub fn publish_value(&self, v: &serde_json::Value) {
+        let kind = Kind::named(v["type"].as_str().unwrap_or(""));
+        self.publish_text(kind, v.to_string());
     }
 
     /// An alarm (by its number) acknowledged by an operator: `{"type": "ack", "seq": n}`,

@@ -18,6 +18,8 @@
 //! cell.
 
 use crate::control::ControlRequest;
+use crate::fleet::view::FleetView;
+use crate::fleet::NatsTarget;
 use crate::hub::Hub;
 use crate::service::LiveError;
 use axum::extract::{Query, Request, State};
@@ -38,7 +40,12 @@ use std::time::Duration;
 use tokio::sync::broadcast::error::RecvError;
 
 /// The embedded assets: name, content type, content.
-const ASSETS: [(&str, &str, &str); 5] = [
+const ASSETS: [(&str, &str, &str); 6] = [
+    (
+        "fleet.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../assets/fleet.js"),
+    ),
     (
         "panel.js",
         "text/javascript; charset=utf-8",
@@ -67,6 +74,28 @@ const ASSETS: [(&str, &str, &str); 5] = [
 ];
 
 const INDEX: &str = include_str!("../assets/index.html");
+const FLEET: &str = include_str!("../assets/fleet.html");
+
+/// The page: a fleet panel's fleet view, or the live view (of a run, or of `?cell=ID`).
+async fn index(State(app): State<App>, Query(q): Query<HashMap<String, String>>) -> Response {
+    let page = if app.fleet.is_some() && !q.contains_key("cell") {
+        FLEET
+    } else {
+        INDEX
+    };
+    ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page).into_response()
+}
+
+/// `GET /api/fleet`: the fleet's cells (404 on a single-run panel).
+async fn fleet_summary(State(app): State<App>) -> Response {
+    match &app.fleet {
+        Some(f) => Json(f.summary()).into_response(),
+        None => refuse(
+            StatusCode::NOT_FOUND,
+            "this panel shows one run, not a fleet",
+        ),
+    }
+}
 
 /// How long a control request waits for the loop's answer.
 const CONTROL_TIMEOUT: Duration = Duration::from_secs(5);
@@ -77,6 +106,24 @@ struct App {
     hub: Arc<Hub>,
     controls: SyncSender<ControlRequest>,
     token: Option<Arc<str>>,
+    /// A fleet panel's cells.
+    fleet: Option<Arc<FleetView>>,
+}
+
+impl App {
+    /// The hub a request is for: a fleet cell's (`cell=ID`) or the run's; a cell the fleet does
+    /// not have is a 404.
+    fn hub(&self, q: &HashMap<String, String>) -> Result<Arc<Hub>, Box<Response>> {
+        match (&self.fleet, q.get("cell")) {
+            (Some(f), Some(cell)) => f.hub(cell).ok_or_else(|| {
+                Box::new(refuse(
+                    StatusCode::NOT_FOUND,
+                    format!("the fleet has no cell '{cell}'"),
+                ))
+            }),
+            _ => Ok(self.hub.clone()),
+        }
+    }
 }
 
 /// A running panel server (on its own runtime threads).
@@ -94,6 +141,28 @@ impl Panel {
         token: Option<String>,
         hub: Arc<Hub>,
         controls: SyncSender<ControlRequest>,
+    ) -> Result<Self, LiveError> {
+        Self::launch(bind, token, hub, controls, None)
+    }
+
+    /// Serve the fleet view of the fleet at `target` on `bind` (the same rules).
+    pub fn start_fleet(
+        bind: SocketAddr,
+        token: Option<String>,
+        target: &NatsTarget,
+    ) -> Result<Self, LiveError> {
+        let hub = Hub::new(json!({"type": "hello", "source": "the fleet view: open a cell"}));
+        // The fleet view's own controls go to the cells, never here.
+        let (controls, _) = std::sync::mpsc::sync_channel(1);
+        Self::launch(bind, token, hub, controls, Some(target))
+    }
+
+    fn launch(
+        bind: SocketAddr,
+        token: Option<String>,
+        hub: Arc<Hub>,
+        controls: SyncSender<ControlRequest>,
+        fleet: Option<&NatsTarget>,
     ) -> Result<Self, LiveError> {
         if !bind.ip().is_loopback() && token.is_none() {
             return Err(LiveError::Invalid(format!(
@@ -119,22 +188,28 @@ impl Panel {
         let addr = listener
             .local_addr()
             .map_err(|e| LiveError::Invalid(format!("listening on {bind}: {e}")))?;
+        let fleet = match fleet {
+            Some(t) => Some(
+                rt.block_on(FleetView::start(t))
+                    .map_err(|e| LiveError::Invalid(e.to_string()))?,
+            ),
+            None => None,
+        };
         let app = App {
             hub: hub.clone(),
             controls,
             token: token.map(Into::into),
+            fleet,
         };
         let api = Router::new()
             .route("/events", get(events))
             .route("/control", post(control))
             .route("/ack", post(ack))
             .route("/status", get(status))
+            .route("/fleet", get(fleet_summary))
             .route_layer(middleware::from_fn_with_state(app.clone(), guard));
         let router = Router::new()
-            .route(
-                "/",
-                get(|| async { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX) }),
-            )
+            .route("/", get(index))
             .route("/assets/{name}", get(asset))
             .nest("/api", api)
             .with_state(app);
@@ -248,8 +323,11 @@ async fn asset(axum::extract::Path(name): axum::extract::Path<String>) -> Respon
     }
 }
 
-async fn status(State(app): State<App>) -> Json<Value> {
-    Json(json!({"clients": app.hub.clients(), "lagged": app.hub.lagged()}))
+async fn status(State(app): State<App>, Query(q): Query<HashMap<String, String>>) -> Response {
+    match app.hub(&q) {
+        Ok(hub) => Json(json!({"clients": hub.clients(), "lagged": hub.lagged()})).into_response(),
+        Err(r) => *r,
+    }
 }
 
 /// The body must be declared JSON (a cross-site form cannot do that without the panel's
@@ -269,9 +347,21 @@ fn json_body(headers: &HeaderMap, body: &str) -> Result<Value, (StatusCode, Stri
         .map_err(|e| (StatusCode::BAD_REQUEST, format!("not a JSON object: {e}")))
 }
 
-async fn control(State(app): State<App>, headers: HeaderMap, body: String) -> Response {
+async fn control(
+    State(app): State<App>,
+    Query(q): Query<HashMap<String, String>>,
+    headers: HeaderMap,
+    body: String,
+) -> Response {
     if let Err((code, e)) = json_body(&headers, &body) {
         return refuse(code, e);
+    }
+    if let (Some(f), Some(cell)) = (&app.fleet, q.get("cell")) {
+        return match f.control(cell, body).await {
+            Ok(v) if v["ok"] == true => Json(v).into_response(),
+            Ok(v) => (StatusCode::BAD_REQUEST, Json(v)).into_response(),
+            Err(e) => refuse(StatusCode::BAD_GATEWAY, e),
+        };
     }
     let (tx, rx) = tokio::sync::oneshot::channel();
     let req = ControlRequest {
@@ -301,14 +391,23 @@ async fn control(State(app): State<App>, headers: HeaderMap, body: String) -> Re
     }
 }
 
-async fn ack(State(app): State<App>, headers: HeaderMap, body: String) -> Response {
+async fn ack(
+    State(app): State<App>,
+    Query(q): Query<HashMap<String, String>>,
+    headers: HeaderMap,
+    body: String,
+) -> Response {
     let v = match json_body(&headers, &body) {
         Ok(v) => v,
         Err((code, e)) => return refuse(code, e),
     };
+    let hub = match app.hub(&q) {
+        Ok(h) => h,
+        Err(r) => return *r,
+    };
     match v.get("seq").and_then(Value::as_u64) {
-        Some(seq) if app.hub.is_alarm(seq) => {
-            app.hub.acknowledge(seq);
+        Some(seq) if hub.is_alarm(seq) => {
+            hub.acknowledge(seq);
             Json(json!({"ok": true, "seq": seq})).into_response()
         }
         Some(seq) => refuse(
@@ -322,13 +421,19 @@ async fn ack(State(app): State<App>, headers: HeaderMap, body: String) -> Respon
     }
 }
 
-async fn events(State(app): State<App>) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
-    let sub = app.hub.subscribe();
+async fn events(State(app): State<App>, Query(q): Query<HashMap<String, String>>) -> Response {
+    match app.hub(&q) {
+        Ok(hub) => event_stream(hub).into_response(),
+        Err(r) => *r,
+    }
+}
+
+fn event_stream(hub: Arc<Hub>) -> Sse<impl Stream<Item = Result<SseEvent, Infallible>>> {
+    let sub = hub.subscribe();
     let sse = |(seq, text): &(u64, Arc<str>)| -> Result<SseEvent, Infallible> {
         Ok(SseEvent::default().id(seq.to_string()).data(&**text))
     };
     let backlog = stream::iter(sub.backlog.iter().map(sse).collect::<Vec<_>>());
-    let hub = app.hub.clone();
     let live = stream::unfold(
         (sub.rx, sub.after, sub.guard, hub),
         move |(mut rx, after, guard, hub)| async move {

@@ -24,6 +24,124 @@ pub struct Args {
     /// Time spent on each measurement [s].
     #[arg(long, default_value_t = 0.5)]
     pub seconds: f64,
+    #[command(subcommand)]
+    what: Option<What>,
+}
+
+/// What else to measure.
+#[derive(clap::Subcommand)]
+enum What {
+    /// The fleet under load: N cells publishing at real time (one sample per crank degree at
+    /// 1000–3000 rpm) to a NATS JetStream server, workers processing the shaft monitor and the
+    /// cycle statistics; event latency, messages and bytes through the server, samples lost or
+    /// doubled. Starts its own nats-server on 127.0.0.1 unless --nats is given.
+    ///
+    /// Example: physid bench fleet --cells 10,25,50 --seconds 20 --json
+    Fleet(FleetArgs),
+}
+
+/// Arguments of `physid bench fleet`.
+#[derive(clap::Args)]
+struct FleetArgs {
+    /// Cells, or a list of cell counts run one after another (each on a fresh server).
+    #[arg(long, value_delimiter = ',', default_value = "10")]
+    cells: Vec<usize>,
+    /// Recording seconds each cell publishes.
+    #[arg(long, default_value_t = 20.0, value_parser = super::range::positive)]
+    seconds: f64,
+    /// The slowest cell [rpm].
+    #[arg(long, default_value_t = 1000.0, value_parser = super::range::positive)]
+    rpm_min: f64,
+    /// The fastest cell [rpm].
+    #[arg(long, default_value_t = 3000.0, value_parser = super::range::positive)]
+    rpm_max: f64,
+    /// Workers (threads of this process).
+    #[arg(long, default_value_t = 1)]
+    workers: usize,
+    /// A publisher's chunk [s].
+    #[arg(long, default_value_t = 0.02, value_parser = super::range::positive)]
+    chunk: f64,
+    /// An existing server instead of a local one (its traffic is then not reported).
+    #[arg(long, value_name = "URL")]
+    nats: Option<String>,
+    /// Print one JSON object per run.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `physid bench fleet`.
+fn fleet(a: &FleetArgs) -> Result<()> {
+    use physid_live::fleet::{load, local::LocalServer, NatsTarget};
+    if !a.json {
+        outln!("machine: {}", machine());
+        outln!(
+            "{:>5} {:>8} {:>10} {:>9} {:>9} {:>9} {:>8} {:>10} {:>11} {:>9} {:>10}",
+            "cells",
+            "workers",
+            "samples/s",
+            "p50 ms",
+            "p99 ms",
+            "max ms",
+            "lag s",
+            "msgs/s in",
+            "MB/s in",
+            "real time",
+            "take-on ms"
+        );
+    }
+    for &cells in &a.cells {
+        let server = match &a.nats {
+            Some(_) => None,
+            None => Some(LocalServer::start(&[]).map_err(|e| miette::miette!("{e}"))?),
+        };
+        let url = a
+            .nats
+            .clone()
+            .or_else(|| server.as_ref().map(|s| s.url("")))
+            .unwrap_or_default();
+        let target = NatsTarget::new(&url, None).map_err(|e| miette::miette!("{e}"))?;
+        let cfg = load::LoadConfig {
+            cells,
+            seconds: a.seconds,
+            rpm: (a.rpm_min, a.rpm_max),
+            workers: a.workers,
+            chunk_s: a.chunk,
+        };
+        let r =
+            load::run_load(&target, server.as_ref(), &cfg).map_err(|e| miette::miette!("{e}"))?;
+        if a.json {
+            let mut v = serde_json::to_value(&r).into_diagnostic()?;
+            v["machine"] = json!(machine());
+            outln!("{v}");
+        } else {
+            outln!(
+                "{:>5} {:>8} {:>10.0} {:>9.1} {:>9.1} {:>9.1} {:>8.3} {:>10.0} {:>11.2} {:>9} {:>10.0}",
+                r.cells,
+                r.workers,
+                r.samples_per_s,
+                r.latency_ms[0],
+                r.latency_ms[1],
+                r.latency_ms[2],
+                r.publisher_lag_s,
+                r.msgs_per_s.map_or(f64::NAN, |m| m[0]),
+                r.bytes_per_s.map_or(f64::NAN, |b| b[0] / 1e6),
+                if r.real_time { "yes" } else { "no" },
+                r.first_estimate_ms
+            );
+            if r.samples_processed != r.samples_published || r.frames_refused > 0 {
+                outln!(
+                    "      samples published {}, processed {}; frames refused {}",
+                    r.samples_published,
+                    r.samples_processed,
+                    r.frames_refused
+                );
+            }
+            for n in &r.notes {
+                outln!("      {n}");
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The machine: CPU model and core count.
@@ -61,6 +179,9 @@ fn rate(batch: usize, budget: Duration, mut batch_fn: impl FnMut() -> Result<()>
 
 /// Run the benchmark.
 pub fn run(args: &Args) -> Result<()> {
+    if let Some(What::Fleet(a)) = &args.what {
+        return fleet(a);
+    }
     let budget = Duration::from_secs_f64(args.seconds.clamp(0.01, 60.0));
     let mut results = Vec::new();
     if !args.json {

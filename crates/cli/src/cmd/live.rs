@@ -138,12 +138,25 @@ pub struct Args {
     #[arg(long, value_name = "ID", requires = "nats")]
     cell: Option<String>,
     /// A file with the NATS credentials: `user = …` and `password = …`, or `token = …`.
-    #[arg(long, value_name = "FILE", requires = "nats")]
+    #[arg(long, value_name = "FILE")]
     nats_credentials: Option<PathBuf>,
+    /// Serve the fleet view of a NATS JetStream fleet instead of running a cell: every cell,
+    /// its state, latest estimates and alarms; a cell's name opens its live view (controls go
+    /// to the cell). nats://HOST:PORT as --nats.
+    #[arg(long, value_name = "URL", conflicts_with_all = ["nats", "headless", "replay", "frames", "frames_socket", "controls", "friction", "torque"])]
+    fleet: Option<String>,
 }
 
 /// Run `physid live`.
 pub fn run(a: &Args) -> Result<()> {
+    if a.nats_credentials.is_some() && a.nats.is_none() && a.fleet.is_none() {
+        return Err(miette!(
+            "--nats-credentials: for --nats (publishing a cell) or --fleet (the fleet view)"
+        ));
+    }
+    if let Some(url) = &a.fleet {
+        return fleet_view(a, url);
+    }
     if a.headless && !a.json && a.nats.is_none() {
         return Err(miette!(
             "--headless prints the events as NDJSON: add --json (or drop --headless for the panel)"
@@ -265,6 +278,27 @@ pub fn run(a: &Args) -> Result<()> {
     result.map(|_| ()).map_err(|e| miette!("{e}"))
 }
 
+/// `physid live --fleet URL`: the fleet view until SIGINT/SIGTERM.
+fn fleet_view(a: &Args, url: &str) -> Result<()> {
+    let target = NatsTarget::new(url, a.nats_credentials.as_deref()).map_err(|e| miette!("{e}"))?;
+    let panel = Panel::start_fleet(SocketAddr::new(a.bind, a.port), a.token.clone(), &target)
+        .map_err(|e| miette!("{e}"))?;
+    let url = format!(
+        "http://{}/{}",
+        panel.addr,
+        a.token
+            .as_ref()
+            .map_or(String::new(), |t| format!("?token={t}"))
+    );
+    outln!("physid live: fleet view of {} at {url}", target.address);
+    let _ = std::io::stdout().flush();
+    if a.open {
+        open_browser(&url);
+    }
+    panel.wait_for_shutdown();
+    Ok(())
+}
+
 /// `physid live --nats URL --cell ID`: the source's samples published to the fleet until its
 /// end or SIGTERM/SIGINT (then an end frame, and exit 0).
 fn publish(
@@ -289,7 +323,7 @@ fn publish(
         .map_err(|e| miette!("{e}"))?;
     let line = json!({
         "type": "published", "cell": cell, "frames": s.frames, "samples": s.samples,
-        "controls": s.controls, "retries": s.retries,
+        "controls": s.controls, "retries": s.retries, "max_behind_s": s.max_behind_s,
     });
     if a.json {
         outln!("{line}");

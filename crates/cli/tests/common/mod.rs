@@ -36,3 +36,103 @@ pub fn on_a_terminal(args: &str) -> String {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
+
+/// Where a program is on PATH.
+pub fn which(names: &[&str]) -> Option<std::path::PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    names.iter().find_map(|n| {
+        std::env::split_paths(&path)
+            .map(|d| d.join(n))
+            .find(|p| p.is_file())
+    })
+}
+
+/// Headless Chromium driven over WebDriver (chromedriver on a free loopback port, killed when
+/// dropped).
+pub struct Browser {
+    driver: std::process::Child,
+    /// The WebDriver session.
+    pub client: fantoccini::Client,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.driver.kill();
+        let _ = self.driver.wait();
+    }
+}
+
+impl Browser {
+    /// A session with a window of `size` ("W,H"); `None` when Chromium or chromedriver is not
+    /// installed (and not on CI, where they must be: `.ci/run` installs them).
+    pub async fn start(size: &str) -> Option<Self> {
+        let (Some(driver), Some(browser)) = (
+            which(&["chromedriver"]),
+            which(&["chromium", "chromium-browser", "google-chrome"]),
+        ) else {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI needs chromium and chromedriver (apt-get install chromium chromium-driver)"
+            );
+            eprintln!("SKIPPED: chromium or chromedriver not installed");
+            return None;
+        };
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let driver = std::process::Command::new(driver)
+            .args([format!("--port={port}"), "--allowed-ips=127.0.0.1".into()])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("start chromedriver");
+        let mut caps = serde_json::Map::new();
+        caps.insert(
+            "goog:chromeOptions".into(),
+            serde_json::json!({
+                "binary": browser,
+                "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", format!("--window-size={size}")],
+            }),
+        );
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+        let client = loop {
+            match fantoccini::ClientBuilder::new(
+                hyper_util::client::legacy::connect::HttpConnector::new(),
+            )
+            .capabilities(caps.clone())
+            .connect(&format!("http://127.0.0.1:{port}"))
+            .await
+            {
+                Ok(c) => break c,
+                Err(e) if std::time::Instant::now() > deadline => panic!("chromedriver: {e}"),
+                Err(_) => tokio::time::sleep(std::time::Duration::from_millis(200)).await,
+            }
+        };
+        Some(Self { driver, client })
+    }
+
+    /// The value of the JavaScript expression `expr` in the page.
+    pub async fn js(&self, expr: &str) -> serde_json::Value {
+        self.client
+            .execute(&format!("return {expr};"), vec![])
+            .await
+            .unwrap()
+    }
+
+    /// Wait (at most `secs`) until `expr` is true in the page.
+    pub async fn wait(&self, expr: &str, secs: u64) {
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(secs);
+        loop {
+            if self.js(expr).await == serde_json::json!(true) {
+                return;
+            }
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the page never had {expr}"
+            );
+            tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+        }
+    }
+}

@@ -2,6 +2,9 @@
 //!
 //! * [`publish`] — `physid live --nats URL --cell ID`: a source's chunks as frames
 //!   ([`crate::wire`]) on the cell's samples subject, controls taken on its control subject.
+//! * [`load`] — `physid bench fleet`: N cells at real time, measured; [`local`] — a local
+//!   `nats-server` for the tests and the benchmark.
+//! * [`view`] — the panel's fleet view (`physid live --fleet URL`).
 //! * [`worker`] — `physid worker --nats URL`: the applications' stages ([`crate::Stages`]) for
 //!   whichever cells need them, one worker per cell at a time (a lease), the stages' state
 //!   checkpointed so that another worker takes a cell over where it was.
@@ -17,7 +20,10 @@
 //! | which worker has a cell      | key-value bucket `physid_leases`, key `<ID>` (expires)      |
 //! | a cell's checkpoint          | key-value bucket `physid_checkpoints`, key `<ID>`           |
 
+pub mod load;
+pub mod local;
 pub mod publish;
+pub mod view;
 pub mod worker;
 
 use async_nats::jetstream::{self, kv, stream};

@@ -35,7 +35,7 @@ pub struct PublishConfig {
 }
 
 /// What a publisher did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PublishSummary {
     /// Frames published (the end frame included).
     pub frames: u64,
@@ -45,6 +45,9 @@ pub struct PublishSummary {
     pub controls: u64,
     /// Frames sent more than once (an acknowledgement lost: stored once all the same).
     pub retries: u64,
+    /// How far behind the wall clock a chunk got out at worst [s]: from its last sample being
+    /// due (paced) to the stream having it all (`None` at `--pace max`).
+    pub max_behind_s: Option<f64>,
 }
 
 /// A control message from NATS with where its answer goes.
@@ -131,6 +134,7 @@ pub fn publish(
     };
     let mut pacer = Pacer::new(cfg.pace);
     let mut paused = false;
+    let mut behind = None;
     loop {
         if p.stop.load(Ordering::Relaxed) {
             break;
@@ -167,6 +171,9 @@ pub fn publish(
             p.frame(chunk.slice(at..at + n), false)?;
             at += n;
         }
+        if let Some(late) = pacer.since_due(p.last_t) {
+            behind = Some(behind.map_or(late, |b: f64| b.max(late)));
+        }
     }
     p.frame(Recording::new(Basis::Time), true)?;
     Ok(PublishSummary {
@@ -174,6 +181,7 @@ pub fn publish(
         samples: p.samples,
         controls: p.controls,
         retries: p.retries,
+        max_behind_s: behind,
     })
 }
 

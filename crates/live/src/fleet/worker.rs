@@ -35,6 +35,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+/// How often a worker looks for frames of cells nobody registered.
+pub const UNKNOWN_SCAN: Duration = Duration::from_secs(2);
+
 /// How often a cell's checkpoint is written.
 pub const CHECKPOINT_EVERY: Duration = Duration::from_secs(1);
 
@@ -119,6 +122,7 @@ async fn supervise(
     let mut unknown_told: HashSet<String> = HashSet::new();
     let mut tick = tokio::time::interval(Duration::from_millis(250));
     let mut renew_due = tokio::time::Instant::now();
+    let mut scan_due = tokio::time::Instant::now();
     while !stop.load(Ordering::Relaxed) {
         tick.tick().await;
         // Cells whose task has ended (the run is done, or it failed): freed.
@@ -157,6 +161,24 @@ async fn supervise(
                 }
             }
         }
+        // Subjects with frames, listed before the registry is read (a publisher registers
+        // its cell before its first frame: a subject listed here whose cell is not in the
+        // registry read after it has none).
+        let scan = tokio::time::Instant::now() >= scan_due;
+        let mut subjects = Vec::new();
+        if scan {
+            scan_due = tokio::time::Instant::now() + UNKNOWN_SCAN;
+            if let Ok(mut list) = fleet
+                .samples
+                .clone()
+                .info_with_subjects("physid.cell.*.samples")
+                .await
+            {
+                while let Some(Ok(s)) = list.next().await {
+                    subjects.push(s);
+                }
+            }
+        }
         // The registered cells: take those nobody has.
         let Ok(registry) = registered(&fleet).await else {
             continue;
@@ -188,43 +210,36 @@ async fn supervise(
             );
         }
         // Frames on the subject of a cell nobody registered: told once per worker.
-        if let Ok(mut subjects) = fleet
-            .samples
-            .clone()
-            .info_with_subjects("physid.cell.*.samples")
-            .await
-        {
-            while let Some(Ok((subj, count))) = subjects.next().await {
-                let Some(cell) = subj
-                    .strip_prefix("physid.cell.")
-                    .and_then(|s| s.strip_suffix(".samples"))
-                else {
-                    continue;
-                };
-                if registry.contains_key(cell) || !unknown_told.insert(cell.to_string()) {
-                    continue;
-                }
-                stats.refused.fetch_add(count as u64, Ordering::Relaxed);
-                let e = Event::Error {
-                    t_s: f64::NAN,
-                    input: "frames",
-                    line: 0,
-                    message: format!(
-                        "unknown cell '{cell}': {count} frame(s) on {subj} but no entry in the \
-                         {CELLS_BUCKET} bucket — a publisher registers its cell first \
-                         (physid live --nats does); these frames are not processed"
-                    ),
-                };
-                let json = serde_json::to_vec(&e).unwrap_or_default();
-                let _ = send_until_acked(
-                    &fleet.js,
-                    subject(cell, "events"),
-                    json.into(),
-                    format!("{cell}/unknown"),
-                    cfg.give_up,
-                )
-                .await;
+        for (subj, count) in subjects {
+            let Some(cell) = subj
+                .strip_prefix("physid.cell.")
+                .and_then(|s| s.strip_suffix(".samples"))
+            else {
+                continue;
+            };
+            if registry.contains_key(cell) || !unknown_told.insert(cell.to_string()) {
+                continue;
             }
+            stats.refused.fetch_add(count as u64, Ordering::Relaxed);
+            let e = Event::Error {
+                t_s: f64::NAN,
+                input: "frames",
+                line: 0,
+                message: format!(
+                    "unknown cell '{cell}': {count} frame(s) on {subj} but no entry in the \
+                     {CELLS_BUCKET} bucket — a publisher registers its cell first \
+                     (physid live --nats does); these frames are not processed"
+                ),
+            };
+            let json = serde_json::to_vec(&e).unwrap_or_default();
+            let _ = send_until_acked(
+                &fleet.js,
+                subject(cell, "events"),
+                json.into(),
+                format!("{cell}/unknown"),
+                cfg.give_up,
+            )
+            .await;
         }
     }
     // Stopped: every cell checkpointed and freed at once (not after the lease's expiry).
