@@ -338,7 +338,7 @@ fn frame(cell: &str, run: u64, seq: u64, first: usize, n: usize, end: bool) -> V
 
 /// Bad input on the wire — bytes that are no frame, another cell's frame, a frame without `t`,
 /// a column of the wrong type, a frame again and one out of order, frames for a cell nobody
-/// registered: each counted and reported as an `error` event with its reason, none in an
+/// registered, a registry entry with a rate of 0: each counted and reported as an `error` event with its reason, none in an
 /// estimate, and the worker goes on to the cell's end.
 #[test]
 fn bad_frames_are_refused_and_reported() {
@@ -420,6 +420,16 @@ fn bad_frames_are_refused_and_reported() {
             .put("bad", serde_json::to_vec(&info).expect("json").into())
             .await
             .expect("register");
+        let mut zero_rate = info.clone();
+        zero_rate.cell = "badreg".into();
+        zero_rate.rate_hz = 0.0;
+        cells
+            .put(
+                "badreg",
+                serde_json::to_vec(&zero_rate).expect("json").into(),
+            )
+            .await
+            .expect("register");
         for (k, (cell, bytes)) in sent.into_iter().enumerate() {
             js.send_publish(
                 format!("physid.cell.{cell}.samples"),
@@ -472,6 +482,15 @@ fn bad_frames_are_refused_and_reported() {
             .unwrap_or("")
             .contains("unknown cell 'ghost'"),
         "{ghost:?}"
+    );
+    // A registry entry that is not a valid cell's is told, not processed.
+    let badreg = wait_events(&url, "badreg", 30, |e| !e.is_empty());
+    assert!(
+        badreg[0]["message"]
+            .as_str()
+            .unwrap_or("")
+            .contains("'rate_hz' is 0"),
+        "{badreg:?}"
     );
     w.sigterm();
     let (status, _) = w.wait(20);

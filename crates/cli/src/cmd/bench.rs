@@ -75,7 +75,7 @@ fn fleet(a: &FleetArgs) -> Result<()> {
     if !a.json {
         outln!("machine: {}", machine());
         outln!(
-            "{:>5} {:>8} {:>10} {:>9} {:>9} {:>9} {:>8} {:>10} {:>11} {:>9} {:>10}",
+            "{:>5} {:>8} {:>10} {:>9} {:>9} {:>9} {:>8} {:>10} {:>11} {:>9} {:>10} {:>10} {:>10}",
             "cells",
             "workers",
             "samples/s",
@@ -86,7 +86,9 @@ fn fleet(a: &FleetArgs) -> Result<()> {
             "msgs/s in",
             "MB/s in",
             "real time",
-            "take-on ms"
+            "take-on ms",
+            "CPU physid",
+            "CPU server"
         );
     }
     for &cells in &a.cells {
@@ -115,7 +117,7 @@ fn fleet(a: &FleetArgs) -> Result<()> {
             outln!("{v}");
         } else {
             outln!(
-                "{:>5} {:>8} {:>10.0} {:>9.1} {:>9.1} {:>9.1} {:>8.3} {:>10.0} {:>11.2} {:>9} {:>10.0}",
+                "{:>5} {:>8} {:>10.0} {:>9.1} {:>9.1} {:>9.1} {:>8.3} {:>10.0} {:>11.2} {:>9} {:>10.0} {:>10.2} {:>10.2}",
                 r.cells,
                 r.workers,
                 r.samples_per_s,
@@ -126,7 +128,9 @@ fn fleet(a: &FleetArgs) -> Result<()> {
                 r.msgs_per_s.map_or(f64::NAN, |m| m[0]),
                 r.bytes_per_s.map_or(f64::NAN, |b| b[0] / 1e6),
                 if r.real_time { "yes" } else { "no" },
-                r.first_estimate_ms
+                r.first_estimate_ms,
+                r.cpu_physid.unwrap_or(f64::NAN),
+                r.cpu_server.unwrap_or(f64::NAN)
             );
             if r.samples_processed != r.samples_published || r.frames_refused > 0 {
                 outln!(

@@ -98,10 +98,26 @@ pub struct LoadReport {
     /// The p99 latency ≤ 250 ms, no publisher more than 250 ms behind, every sample
     /// processed once.
     pub real_time: bool,
+    /// CPU used by this process (publishers, workers, the bench's subscriber) over the run, in
+    /// cores (CPU seconds per wall-clock second).
+    pub cpu_physid: Option<f64>,
+    /// CPU used by the nats-server this run started, in cores.
+    pub cpu_server: Option<f64>,
     /// Through the server: messages in and out per second.
     pub msgs_per_s: Option<[f64; 2]>,
     /// Through the server: bytes in and out per second.
     pub bytes_per_s: Option<[f64; 2]>,
+}
+
+/// CPU seconds (user + system) a process has used, from `/proc/PID/stat` (Linux; its clock
+/// ticks are USER_HZ = 100 per second); `None` elsewhere.
+fn cpu_seconds(pid: &str) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The fields after the command name (which may contain spaces) in parentheses.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
 
 /// The events seen by the bench's subscriber.
@@ -244,6 +260,12 @@ pub fn run_load(
         });
     }
     let varz0 = server.and_then(|s| s.varz().ok());
+    let cpu0 = (
+        cpu_seconds("self"),
+        server
+            .and_then(LocalServer::pid)
+            .and_then(|p| cpu_seconds(&p.to_string())),
+    );
     let t0 = Instant::now();
     let mut publishers = Vec::new();
     for k in 0..cfg.cells {
@@ -291,6 +313,13 @@ pub fn run_load(
     }
     let wall = t0.elapsed().as_secs_f64();
     let varz1 = server.and_then(|s| s.varz().ok());
+    let cpu1 = (
+        cpu_seconds("self"),
+        server
+            .and_then(LocalServer::pid)
+            .and_then(|p| cpu_seconds(&p.to_string())),
+    );
+    let cores = |a: Option<f64>, b: Option<f64>| Some((b? - a?) / wall);
     stop.store(true, Ordering::Relaxed);
     for w in workers {
         let _ = w.join();
@@ -340,6 +369,8 @@ pub fn run_load(
             && processed == published
             && ends.len() == cfg.cells
             && refused == 0,
+        cpu_physid: cores(cpu0.0, cpu1.0),
+        cpu_server: cores(cpu0.1, cpu1.1),
         msgs_per_s: rate_of("msgs"),
         bytes_per_s: rate_of("bytes"),
     })

@@ -116,6 +116,11 @@ impl LocalServer {
         format!("nats://{userinfo}127.0.0.1:{}", self.port)
     }
 
+    /// The server's process id, while it runs.
+    pub fn pid(&self) -> Option<u32> {
+        self.child.as_ref().map(Child::id)
+    }
+
     /// The server's counters from its monitoring endpoint (`/varz`).
     pub fn varz(&self) -> Result<serde_json::Value, FleetError> {
         use std::io::{Read, Write};

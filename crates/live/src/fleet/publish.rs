@@ -129,7 +129,7 @@ pub fn publish(
         retries: 0,
         control_line: 0,
         last_t: f64::NAN,
-        max_rows: max_rows(client.server_info().max_payload),
+        max_payload: client.server_info().max_payload,
         stop,
     };
     let mut pacer = Pacer::new(cfg.pace);
@@ -167,7 +167,7 @@ pub fn publish(
         p.last_t = t[t.len() - 1];
         let mut at = 0;
         while at < chunk.len() {
-            let n = (chunk.len() - at).min(p.max_rows);
+            let n = (chunk.len() - at).min(max_rows(p.max_payload, chunk.channels().len()));
             p.frame(chunk.slice(at..at + n), false)?;
             at += n;
         }
@@ -185,10 +185,10 @@ pub fn publish(
     })
 }
 
-/// Rows per frame: three quarters of the server's largest message at the widest recording
-/// physid writes (64 channels of 8 bytes).
-fn max_rows(max_payload: usize) -> usize {
-    (max_payload * 3 / 4 / (64 * 8)).max(1)
+/// Rows per frame of `channels` columns: at most three quarters of the server's largest
+/// message in samples (8 bytes each; the rest is room for the schema).
+fn max_rows(max_payload: usize, channels: usize) -> usize {
+    (max_payload * 3 / 4 / (8 * channels.max(1))).max(1)
 }
 
 struct Publisher<'a> {
@@ -203,7 +203,7 @@ struct Publisher<'a> {
     retries: u64,
     control_line: usize,
     last_t: f64,
-    max_rows: usize,
+    max_payload: usize,
     stop: Arc<AtomicBool>,
 }
 

@@ -35,6 +35,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+/// How often a worker looks for cells that need a worker.
+pub const DISCOVER_EVERY: Duration = Duration::from_millis(500);
+
 /// How often a worker looks for frames of cells nobody registered.
 pub const UNKNOWN_SCAN: Duration = Duration::from_secs(2);
 
@@ -120,7 +123,10 @@ async fn supervise(
     let fleet = Arc::new(Fleet::open(client).await?);
     let mut owned: HashMap<String, Owned> = HashMap::new();
     let mut unknown_told: HashSet<String> = HashSet::new();
-    let mut tick = tokio::time::interval(Duration::from_millis(250));
+    let mut bad_told: HashSet<String> = HashSet::new();
+    let mut tick = tokio::time::interval(DISCOVER_EVERY);
+    // Runs known to be processed to their end (not looked up again).
+    let mut done_runs: HashMap<String, u64> = HashMap::new();
     let mut renew_due = tokio::time::Instant::now();
     let mut scan_due = tokio::time::Instant::now();
     while !stop.load(Ordering::Relaxed) {
@@ -184,7 +190,37 @@ async fn supervise(
             continue;
         };
         for (cell, info) in &registry {
-            if owned.contains_key(cell) || finished(&fleet, info).await {
+            let info = match info {
+                Ok(i) => i,
+                Err(why) => {
+                    // Told once per worker and reason; the cell is not processed.
+                    if bad_told.insert(format!("{cell}: {why}")) && wire::valid_cell(cell) {
+                        let e = Event::Error {
+                            t_s: f64::NAN,
+                            input: "registry",
+                            line: 0,
+                            message: format!(
+                                "the {CELLS_BUCKET} entry of '{cell}': {why}; the cell is not processed"
+                            ),
+                        };
+                        let json = serde_json::to_vec(&e).unwrap_or_default();
+                        let _ = send_until_acked(
+                            &fleet.js,
+                            subject(cell, "events"),
+                            json.into(),
+                            format!("{cell}/registry/{}", bad_told.len()),
+                            cfg.give_up,
+                        )
+                        .await;
+                    }
+                    continue;
+                }
+            };
+            if owned.contains_key(cell) || done_runs.get(cell) == Some(&info.run) {
+                continue;
+            }
+            if finished(&fleet, info).await {
+                done_runs.insert(cell.clone(), info.run);
                 continue;
             }
             let Ok(revision) = fleet.leases.create(cell, cfg.name.clone().into()).await else {
@@ -253,8 +289,11 @@ async fn supervise(
     Ok(())
 }
 
-/// The registry: every cell's entry that reads.
-async fn registered(fleet: &Fleet) -> Result<HashMap<String, CellInfo>, FleetError> {
+/// The registry: every entry, read and checked (an entry that is not a valid cell's: the
+/// reason).
+async fn registered(
+    fleet: &Fleet,
+) -> Result<HashMap<String, Result<CellInfo, String>>, FleetError> {
     let mut keys = fleet
         .cells
         .keys()
@@ -263,9 +302,20 @@ async fn registered(fleet: &Fleet) -> Result<HashMap<String, CellInfo>, FleetErr
     let mut out = HashMap::new();
     while let Some(Ok(key)) = keys.next().await {
         if let Ok(Some(v)) = fleet.cells.get(&key).await {
-            if let Ok(info) = serde_json::from_slice::<CellInfo>(&v) {
-                out.insert(key, info);
-            }
+            let info = serde_json::from_slice::<CellInfo>(&v)
+                .map_err(|e| format!("not a registry entry ({e})"))
+                .and_then(|i| {
+                    if i.cell != key {
+                        Err(format!("its 'cell' is '{}', its key '{key}'", i.cell))
+                    } else if !(i.rate_hz.is_finite() && i.rate_hz > 0.0) {
+                        Err(format!("'rate_hz' is {}: expected > 0", i.rate_hz))
+                    } else if !i.theta_tdc.is_finite() {
+                        Err(format!("'theta_tdc' is {}: expected a number", i.theta_tdc))
+                    } else {
+                        Ok(i)
+                    }
+                });
+            out.insert(key, info);
         }
     }
     Ok(out)
