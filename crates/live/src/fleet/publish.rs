@@ -128,6 +128,7 @@ pub fn publish(
         controls: 0,
         retries: 0,
         control_line: 0,
+        events: 0,
         last_t: f64::NAN,
         max_payload: client.server_info().max_payload,
         stop,
@@ -202,6 +203,8 @@ struct Publisher<'a> {
     controls: u64,
     retries: u64,
     control_line: usize,
+    /// Events the publisher has sent (their message ids).
+    events: u64,
     last_t: f64,
     max_payload: usize,
     stop: Arc<AtomicBool>,
@@ -226,10 +229,12 @@ impl Publisher<'_> {
         self.send(subject(&self.cfg.cell, "samples"), bytes, id)
     }
 
-    /// One event of this cell (a control's answer) on its events subject.
+    /// One event of the publisher's (a control's answer, a refused frame) on the cell's events
+    /// subject.
     fn event(&mut self, e: &Event) -> Result<(), FleetError> {
         let json = serde_json::to_vec(e).map_err(|e| FleetError::Invalid(e.to_string()))?;
-        let id = format!("{}/{}/c{}", self.cfg.cell, self.run, self.control_line);
+        self.events += 1;
+        let id = format!("{}/{}/p{}", self.cfg.cell, self.run, self.events);
         self.send(subject(&self.cfg.cell, "events"), json, id)
     }
 
