@@ -49,6 +49,12 @@ pub const LEASE_TTL: Duration = Duration::from_secs(3);
 /// publisher's retry, a worker's replay after a takeover) is stored once.
 pub const DUPLICATE_WINDOW: Duration = Duration::from_secs(600);
 
+/// How long the samples stream keeps a frame: a worker down for longer misses the frames before
+/// (it reports them as missing, and goes on); the recordings themselves are logged elsewhere.
+pub const SAMPLES_MAX_AGE: Duration = Duration::from_secs(3600);
+/// How long the events stream keeps an event.
+pub const EVENTS_MAX_AGE: Duration = Duration::from_secs(7 * 24 * 3600);
+
 /// A cell's subject of `kind` (`samples`, `events`, `control`).
 pub fn subject(cell: &str, kind: &str) -> String {
     format!("physid.cell.{cell}.{kind}")
@@ -357,18 +363,19 @@ impl Fleet {
     /// Open (creating what is missing) the fleet's streams and buckets on `client`.
     pub async fn open(client: async_nats::Client) -> Result<Self, FleetError> {
         let js = jetstream::new(client);
-        let stream_of = |name: &str, kind: &str| stream::Config {
+        let stream_of = |name: &str, kind: &str, max_age: Duration| stream::Config {
             name: name.to_string(),
             subjects: vec![format!("physid.cell.*.{kind}")],
             storage: stream::StorageType::File,
             duplicate_window: DUPLICATE_WINDOW,
+            max_age,
             ..Default::default()
         };
         let samples = js
-            .get_or_create_stream(stream_of(SAMPLES_STREAM, "samples"))
+            .get_or_create_stream(stream_of(SAMPLES_STREAM, "samples", SAMPLES_MAX_AGE))
             .await
             .map_err(|e| nats(format!("opening the stream {SAMPLES_STREAM}"))(e.into()))?;
-        js.get_or_create_stream(stream_of(EVENTS_STREAM, "events"))
+        js.get_or_create_stream(stream_of(EVENTS_STREAM, "events", EVENTS_MAX_AGE))
             .await
             .map_err(|e| nats(format!("opening the stream {EVENTS_STREAM}"))(e.into()))?;
         // A bucket is the stream the client's `create_key_value` makes; made here because that
