@@ -51,7 +51,7 @@ pub const DUPLICATE_WINDOW: Duration = Duration::from_secs(600);
 
 /// How long the samples stream keeps a frame: a worker down for longer misses the frames before
 /// (it reports them as missing, and goes on); the recordings themselves are logged elsewhere.
-pub const SAMPLES_MAX_AGE: Duration = Duration::from_secs(3600);
+pub const SAMPLES_MAX_AGE: Duration = Duration::from_secs(600);
 /// How long the events stream keeps an event.
 pub const EVENTS_MAX_AGE: Duration = Duration::from_secs(7 * 24 * 3600);
 
