@@ -35,6 +35,18 @@ fn pq_err(path: &str, e: impl std::fmt::Display) -> IoError {
     }
 }
 
+/// The Arrow fields of `rec`'s channels as physid writes them (Parquet files, the fleet's
+/// frames): non-null float64, the unit in the field's metadata under `unit`.
+pub fn arrow_fields(rec: &Recording) -> Vec<Field> {
+    rec.channels()
+        .iter()
+        .map(|c| {
+            Field::new(&c.name, DataType::Float64, false)
+                .with_metadata(HashMap::from([("unit".to_string(), c.unit.clone())]))
+        })
+        .collect()
+}
+
 /// Append an Arrow column to `out` as f64; an error names the first null.
 fn extend_f64(col: &ArrayRef, out: &mut Vec<f64>, name: &str, row0: usize) -> Result<(), String> {
     if col.null_count() > 0 {
@@ -249,14 +261,7 @@ impl ParquetWriter {
         rows_per_group: usize,
     ) -> Result<Self, IoError> {
         let p = path.as_ref().display().to_string();
-        let fields: Vec<Field> = like
-            .channels()
-            .iter()
-            .map(|c| {
-                Field::new(&c.name, DataType::Float64, false)
-                    .with_metadata(HashMap::from([("unit".to_string(), c.unit.clone())]))
-            })
-            .collect();
+        let fields = arrow_fields(like);
         let basis = match like.basis {
             Basis::Time => "time",
             Basis::CrankAngle => "crank_angle",

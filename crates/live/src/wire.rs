@@ -23,7 +23,7 @@ use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch};
 use arrow_buffer::Buffer;
 use arrow_ipc::reader::StreamDecoder;
 use arrow_ipc::writer::StreamWriter;
-use arrow_schema::{DataType, Field, Schema};
+use arrow_schema::{DataType, Schema};
 use physid_core::{Basis, Channel, Recording};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -98,15 +98,7 @@ pub fn encode(frame: &Frame) -> Result<Vec<u8>, WireError> {
     if frame.chunk.basis != Basis::Time {
         return Err(bad("a frame's samples are on a time basis"));
     }
-    let fields: Vec<Field> = frame
-        .chunk
-        .channels()
-        .iter()
-        .map(|c| {
-            Field::new(&c.name, DataType::Float64, false)
-                .with_metadata(HashMap::from([("unit".to_string(), c.unit.clone())]))
-        })
-        .collect();
+    let fields = physid_io::parquet_file::arrow_fields(&frame.chunk);
     let meta = HashMap::from([
         (key::WIRE.to_string(), WIRE_VERSION.to_string()),
         (key::CELL.to_string(), frame.cell.clone()),

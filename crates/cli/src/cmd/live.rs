@@ -254,18 +254,7 @@ pub fn run(a: &Args) -> Result<()> {
         tx,
     )
     .map_err(|e| miette!("{e}"))?;
-    let url = format!(
-        "http://{}/{}",
-        panel.addr,
-        a.token
-            .as_ref()
-            .map_or(String::new(), |t| format!("?token={t}"))
-    );
-    outln!("physid live: panel at {url}");
-    let _ = std::io::stdout().flush();
-    if a.open {
-        open_browser(&url);
-    }
+    let url = announce(a, &panel, "panel")?;
     let result = run_live(source.as_mut(), &cfg, Some(&rx), |e| hub.publish(e));
     // Controls sent from now on are answered "the run has ended".
     drop(rx);
@@ -283,18 +272,7 @@ fn fleet_view(a: &Args, url: &str) -> Result<()> {
     let target = NatsTarget::new(url, a.nats_credentials.as_deref()).map_err(|e| miette!("{e}"))?;
     let panel = Panel::start_fleet(SocketAddr::new(a.bind, a.port), a.token.clone(), &target)
         .map_err(|e| miette!("{e}"))?;
-    let url = format!(
-        "http://{}/{}",
-        panel.addr,
-        a.token
-            .as_ref()
-            .map_or(String::new(), |t| format!("?token={t}"))
-    );
-    outln!("physid live: fleet view of {} at {url}", target.address);
-    let _ = std::io::stdout().flush();
-    if a.open {
-        open_browser(&url);
-    }
+    announce(a, &panel, &format!("fleet view of {}", target.address))?;
     panel.wait_for_shutdown();
     Ok(())
 }
@@ -414,6 +392,24 @@ fn forward_lines(reader: Box<dyn BufRead + Send>, tx: SyncSender<ControlRequest>
             }
         }
     });
+}
+
+/// The panel's address (with its token), printed as the first line on stdout (`physid live:
+/// WHAT at URL`, which scripts and the tests read) and opened with `--open`.
+fn announce(a: &Args, panel: &Panel, what: &str) -> Result<String> {
+    let url = format!(
+        "http://{}/{}",
+        panel.addr,
+        a.token
+            .as_ref()
+            .map_or(String::new(), |t| format!("?token={t}"))
+    );
+    outln!("physid live: {what} at {url}");
+    let _ = std::io::stdout().flush();
+    if a.open {
+        open_browser(&url);
+    }
+    Ok(url)
 }
 
 /// Open `url` in the desktop's browser (a failure is said, not fatal).
