@@ -601,7 +601,12 @@ fn take_frame(
     }
     *seq = frame.seq;
     if !frame.chunk.is_empty() {
-        stages.chunk(&frame.chunk)?;
+        // A frame the stages cannot take (e.g. an angle that is not finite for the cycle
+        // statistics) is reported; the cell goes on with the next (run_live would stop: a
+        // worker must not stop a cell, nor retake it to fail on the same frame for ever).
+        if let Err(e) = stages.chunk(&frame.chunk) {
+            return refuse(stages, format!("the stages could not take it: {e}"));
+        }
     }
     if frame.end {
         return Ok(Outcome::End);
