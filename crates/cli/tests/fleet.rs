@@ -236,6 +236,21 @@ const SOURCE: [&str; 4] = ["--scenario", "shaft-steady", "--duration", "6"];
 /// let the stream keep one of each); the end event counts every sample published.
 #[test]
 fn a_killed_worker_is_replaced_without_loss() {
+    failover(false);
+}
+
+/// A worker stopped with SIGTERM mid-stream checkpoints its cell and frees it at once: the
+/// other takes it over well within the lease's 3 s, and the events are again exactly those of
+/// an uninterrupted run.
+#[test]
+fn a_stopped_worker_hands_its_cell_over_at_once() {
+    failover(true);
+}
+
+/// Worker a processes cell c1 until it is killed (`term`: SIGTERM, else SIGKILL); worker b
+/// takes over.
+fn failover(term: bool) {
+    let cell = if term { "c3" } else { "c1" };
     let Some(server) = nats_server(&["--user", "physid", "--pass", "s3cret-pw"]) else {
         return;
     };
@@ -246,30 +261,48 @@ fn a_killed_worker_is_replaced_without_loss() {
     let bare = server.url("");
     let mut args = vec!["live", "--nats", &bare];
     args.extend_from_slice(&["--nats-credentials", creds.to_str().expect("utf-8")]);
-    args.extend_from_slice(&["--cell", "c1", "--pace", "3", "--json"]);
+    args.extend_from_slice(&["--cell", cell, "--pace", "3", "--json"]);
     args.extend_from_slice(&SOURCE);
     let publisher = Proc::start(&args);
     // A's first checkpoint is written after a second; kill it after its second.
-    wait_events(&url, "c1", 30, |e| {
+    wait_events(&url, cell, 30, |e| {
         e.iter().filter(|e| e["type"] == "estimate").count() >= 15
     });
     std::thread::sleep(Duration::from_millis(1200));
     let b = Proc::start(&["worker", "--nats", &url, "--name", "b"]);
-    let mut a = a;
-    a.child.kill().expect("kill -9 worker a");
-    let _ = a.child.wait();
     assert!(
-        !has_end(&events(&url, "c1")),
-        "the run ended before the kill"
+        !has_end(&events(&url, cell)),
+        "the run ended before the stop"
     );
+    let stopped = Instant::now();
+    let handed_over = if term {
+        a.sigterm();
+        let exit = a.wait(20);
+        assert!(exit.status.success(), "{}", exit.stderr);
+        // b has the cell within its next look (0.5 s) of a's exit.
+        let deadline = Instant::now() + Duration::from_millis(1500);
+        loop {
+            if b.stderr().contains(&format!("took cell {cell}")) {
+                break true;
+            }
+            assert!(Instant::now() < deadline, "b did not take the cell at once");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    } else {
+        let mut a = a;
+        a.child.kill().expect("kill -9 worker a");
+        let _ = a.child.wait();
+        false
+    };
+    eprintln!("handed over: {handed_over} after {:?}", stopped.elapsed());
     let done = publisher.wait(60);
     assert!(done.status.success(), "{}", done.stderr);
     let published: Value = serde_json::from_str(done.stdout.trim()).expect("summary");
-    let got = wait_events(&url, "c1", 60, has_end);
+    let got = wait_events(&url, cell, 60, has_end);
     let took = b.stderr();
     eprintln!("worker b: {took}");
     assert!(
-        took.contains("took cell c1") && !took.contains("after frame 0\n"),
+        took.contains(&format!("took cell {cell}")) && !took.contains("after frame 0\n"),
         "b took over from a checkpoint: {took}"
     );
     let end = got.iter().find(|e| e["type"] == "end").expect("end");
