@@ -10,12 +10,12 @@ m() { /usr/bin/time -f "%M %e" -o t.out "$@" > /dev/null 2> err.out || { echo "f
       read -r kb s < t.out; echo "$(( kb / 1024 )) MB, ${s} s"; }
 for D in 75 150 300 600 3600; do
   for ext in parquet mf4; do
-    [ -f "shaft-$D.$ext" ] || "$NEW" simulate --scenario shaft-steady --duration "$D" --out "shaft-$D.$ext" > /dev/null
+    [ -f "shaft-$D.$ext" ] || "$NEW" simulate --scenario shaft-steady --duration "$D" --recording "shaft-$D.$ext" > /dev/null
   done
 done
 for D in 75 150 300 600; do
-  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --out "motored-$D.parquet" > /dev/null
-  [ -f "fired-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --duration "$D" --out "fired-$D.parquet" > /dev/null
+  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
+  [ -f "fired-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --duration "$D" --recording "fired-$D.parquet" > /dev/null
 done
 for D in 75 150 300 600 3600; do
   for ext in parquet mf4; do

@@ -109,7 +109,7 @@ pub fn run_demo(solver_order: f64, mut progress: impl FnMut(&str, f64)) -> Resul
     let mon = monitor_shaft(&rec, &cfg).map_err(|e| err("shaft")(e.to_string()))?;
     let mut shaft_methods = Vec::new();
     for method in [
-        MonitorMethod::Rls,
+        MonitorMethod::Rlsf,
         MonitorMethod::Rlsvf,
         MonitorMethod::Dsfc,
     ] {

@@ -16,6 +16,32 @@ use physid_models::friction::FrictionRegression;
 use physid_models::shaft::{Shaft, NOMINAL as NOMINAL_SHAFT};
 use physid_sim::params::CellParams;
 
+/// The parameters of the built-in model `name`: their names, units and one-line meanings
+/// (`None` for a name that is not built in, or whose parameters have no units: Example 5.1).
+pub fn glossary(
+    name: &str,
+) -> Option<(
+    &'static [&'static str],
+    &'static [&'static str],
+    &'static [&'static str],
+)> {
+    use physid_models::{cyclic_torque, friction, shaft};
+    match name {
+        "shaft" | "shaft-offset" => Some((&shaft::PARAMS, &shaft::UNITS, &shaft::DESCRIPTIONS)),
+        "cyclic-torque" => Some((
+            &cyclic_torque::PARAMS,
+            &cyclic_torque::UNITS,
+            &cyclic_torque::DESCRIPTIONS,
+        )),
+        "friction-regression" => Some((
+            &friction::REGRESSION_PARAMS,
+            &friction::REGRESSION_UNITS,
+            &friction::REGRESSION_DESCRIPTIONS,
+        )),
+        _ => None,
+    }
+}
+
 /// The built-in models: name, parameters with their nominal values, inputs.
 pub const BUILTIN: [(&str, &str, &str); 5] = [
     (

@@ -25,8 +25,10 @@ use std::collections::VecDeque;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum MonitorMethod {
-    /// Recursive least squares with exponential forgetting λ.
-    Rls,
+    /// Recursive least squares with exponential forgetting λ (`rlsf`, as in `physid estimate`;
+    /// `rls` was its name here before the one vocabulary of docs/cli.md and is still read).
+    #[serde(alias = "rls")]
+    Rlsf,
     /// Vector forgetting: λ on K and B, 1 on the offset.
     Rlsvf,
     /// The square-root form (Alg. 5.5).
@@ -34,20 +36,27 @@ pub enum MonitorMethod {
 }
 
 impl MonitorMethod {
-    /// Parse `rls|rlsvf|dsfc`.
+    /// Parse `rlsf|rlsvf|dsfc` (and `rls`, the old name of `rlsf` here: see
+    /// [`MonitorMethod::is_old_name`]).
     pub fn parse(s: &str) -> Option<Self> {
         match s {
-            "rls" => Some(Self::Rls),
+            "rlsf" | "rls" => Some(Self::Rlsf),
             "rlsvf" => Some(Self::Rlsvf),
             "dsfc" => Some(Self::Dsfc),
             _ => None,
         }
     }
 
-    /// The name (`rls`, `rlsvf`, `dsfc`).
+    /// `rls` meant RLS *with* forgetting in the shaft monitor, but RLS without it in
+    /// `physid estimate`: it is still taken as `rlsf` for this release, with a warning.
+    pub fn is_old_name(s: &str) -> bool {
+        s == "rls"
+    }
+
+    /// The name (`rlsf`, `rlsvf`, `dsfc`).
     pub fn name(self) -> &'static str {
         match self {
-            Self::Rls => "rls",
+            Self::Rlsf => "rlsf",
             Self::Rlsvf => "rlsvf",
             Self::Dsfc => "dsfc",
         }
@@ -57,7 +66,7 @@ impl MonitorMethod {
 impl std::str::FromStr for MonitorMethod {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        Self::parse(s).ok_or_else(|| format!("'{s}': expected rls, rlsvf or dsfc"))
+        Self::parse(s).ok_or_else(|| format!("'{s}': expected rlsf, rlsvf or dsfc"))
     }
 }
 
@@ -95,7 +104,7 @@ impl Default for MonitorConfig {
     /// ±10 %, 0.1 s dwell, 500 Hz low-pass, 2 kHz estimator rate, 1 s settling.
     fn default() -> Self {
         Self {
-            method: MonitorMethod::Rls,
+            method: MonitorMethod::Rlsf,
             lambda: 0.98,
             p0: 1000.0,
             healthy: PerParam {
@@ -163,6 +172,13 @@ pub struct ShaftAlarm {
 pub struct ShaftMonitor {
     /// The method.
     pub method: &'static str,
+    /// The recording's sample rate [Hz].
+    pub input_rate_hz: f64,
+    /// The zero-phase low-pass cut-off applied before estimation [Hz] (`None`: the cut-off was
+    /// at or above the Nyquist frequency, and the signals went in unfiltered).
+    pub lowpass_hz: Option<f64>,
+    /// One input sample in `every` goes to the estimator.
+    pub every: usize,
     /// Estimator sample times [s].
     pub t: Vec<f64>,
     /// K estimates.
@@ -353,7 +369,7 @@ impl ShaftStage {
         let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
             .map_err(|e| AppError::Invalid(e.to_string()))?;
         let method = match cfg.method {
-            MonitorMethod::Rls => Method::Rlsf { lambda: cfg.lambda },
+            MonitorMethod::Rlsf => Method::Rlsf { lambda: cfg.lambda },
             MonitorMethod::Rlsvf => Method::Rlsvf {
                 lambdas: vec![cfg.lambda, cfg.lambda, 1.0],
                 variant: VfVariant::Symmetric,
@@ -810,9 +826,9 @@ struct Accumulated {
 
 impl Accumulated {
     fn new(cfg: &MonitorConfig, t0: f64, dt: f64) -> Result<Self, AppError> {
+        let stage = ShaftStage::new(cfg, 1.0 / dt)?;
         Ok(Self {
             cfg: cfg.clone(),
-            stage: ShaftStage::new(cfg, 1.0 / dt)?,
             t0,
             dt,
             seen: 0,
@@ -821,6 +837,9 @@ impl Accumulated {
             alarms: Vec::new(),
             out: ShaftMonitor {
                 method: cfg.method.name(),
+                input_rate_hz: 1.0 / dt,
+                lowpass_hz: stage.filters.is_some().then_some(cfg.cutoff_hz),
+                every: stage.every,
                 t: Vec::new(),
                 k: Vec::new(),
                 b: Vec::new(),
@@ -835,6 +854,7 @@ impl Accumulated {
                 frozen_s: None,
                 frozen: Vec::new(),
             },
+            stage,
             taken: 0,
             stride: 1,
             truth: None,

@@ -18,7 +18,7 @@ fn run(scenario: &str, set: &[(&str, f64)], faults: &[&str], seconds: f64) -> Re
 }
 
 const METHODS: [MonitorMethod; 3] = [
-    MonitorMethod::Rls,
+    MonitorMethod::Rlsf,
     MonitorMethod::Rlsvf,
     MonitorMethod::Dsfc,
 ];

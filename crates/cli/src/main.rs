@@ -6,6 +6,7 @@ mod cmd;
 mod out;
 mod plot;
 mod progress;
+mod provenance;
 mod report;
 mod tracks;
 
@@ -37,7 +38,8 @@ enum Command {
     ///
     /// Example: physid example 5.2 --out ex52
     Example(cmd::example::Args),
-    /// Estimate the parameters of a linear regression y = φᵀϑ in a CSV file, recursively.
+    /// Estimate parameters recursively: a regression y = φᵀϑ (φ columns or formulas over
+    /// columns) or a formula model (EKF, UKF, SR-UKF), from a recording (CSV, Parquet, MDF4).
     ///
     /// Example: physid estimate --data shaft.csv --y torque_shaft --phi dtheta,domega
     /// --method rlsf --lambda 0.98 --json
@@ -64,8 +66,9 @@ enum Command {
     ///
     /// Example: physid torque fit --data t2.parquet --fix delta,r --out torque
     Torque(cmd::torque::Args),
-    /// The live service: the virtual test cell (paced by the wall clock) or a replayed
-    /// recording through the shaft monitor's stage, events out. Headless so far.
+    /// The live service: the virtual test cell (paced by the wall clock), a replayed recording
+    /// or frames from outside through the applications' stages; the web panel with live
+    /// controls and logging (127.0.0.1, a token elsewhere), or NDJSON events with --headless.
     ///
     /// Example: physid live --headless --json --scenario shaft-steady --fault shaft.k=1000@5
     /// --pace max --duration 8
@@ -79,7 +82,7 @@ enum Command {
     /// The virtual transient engine test cell: scenario runs into recordings, and the
     /// compression, motored-cycle and torque–speed checks.
     ///
-    /// Example: physid simulate --scenario shaft-steady --fault shaft.k=1200@10 --out t01.parquet
+    /// Example: physid simulate --scenario shaft-steady --fault shaft.k=1200@10 --recording t01.parquet
     Simulate(cmd::simulate::Args),
     /// The qualitative adaptive identification loop (thesis Fig. 5.7) from a pipeline file:
     /// identifiability, estimation of the estimable subset, the objective. Exits 1 when the

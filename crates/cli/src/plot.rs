@@ -30,13 +30,81 @@ pub struct Series<'a> {
     pub reference: bool,
 }
 
-/// One panel: a y-axis label and its curves.
+/// One panel: a y-axis label, its curves and marks.
+#[derive(Default)]
 pub struct Panel<'a> {
     /// Y-axis label.
     pub ylabel: String,
     /// Curves.
     pub series: Vec<Series<'a>>,
+    /// Dashed lines across the panel: reference values and instants, in the legend.
+    pub marks: Vec<Mark>,
+    /// The y-axis range, when the data's own would be set by something a reader should not
+    /// look at (a start-up transient); data beyond it is clipped at the frame.
+    pub y_range: Option<(f64, f64)>,
 }
+
+/// A dashed line across a panel: a value (horizontal) or an instant (vertical).
+pub struct Mark {
+    /// Legend text (marks with the same text and colour share one legend entry).
+    pub name: String,
+    /// The value or the instant.
+    pub at: f64,
+    /// An instant (a vertical line) rather than a value.
+    pub vertical: bool,
+    /// Colour.
+    pub color: RGBColor,
+}
+
+impl Mark {
+    /// A horizontal line at the value `at`.
+    pub fn value(name: impl Into<String>, at: f64, color: RGBColor) -> Self {
+        Self {
+            name: name.into(),
+            at,
+            vertical: false,
+            color,
+        }
+    }
+
+    /// A vertical line at the instant `at`.
+    pub fn instant(name: impl Into<String>, at: f64, color: RGBColor) -> Self {
+        Self {
+            name: name.into(),
+            at,
+            vertical: true,
+            color,
+        }
+    }
+}
+
+/// Tick labels for an axis over `lo..hi` that differ from one another: plotters places about
+/// ten labels at a step of 1, 2 or 5 × 10^k no smaller than a tenth of the span, so the labels
+/// carry the digits down to that decade (in scientific notation for very small or large
+/// values).
+pub fn tick_labels(lo: f64, hi: f64) -> impl Fn(&f64) -> String {
+    let span = (hi - lo).abs().max(f64::MIN_POSITIVE);
+    let finest = (span / 10.0).log10().floor();
+    let mag = lo.abs().max(hi.abs());
+    let sci = mag > 0.0 && !(1e-3..1e6).contains(&mag);
+    move |v: &f64| {
+        // A label at zero computed as a tiny residue reads 0.
+        let v = if v.abs() < span * 1e-9 { 0.0 } else { *v };
+        if sci && v == 0.0 {
+            "0".into()
+        } else if sci {
+            let exp = v.abs().log10().floor();
+            let digits = (exp - finest).clamp(0.0, 15.0) as usize;
+            format!("{v:.digits$e}")
+        } else {
+            let digits = (-finest).clamp(0.0, 15.0) as usize;
+            format!("{v:.digits$}")
+        }
+    }
+}
+
+/// Width of the legend column to the right of every panel: legends never cover data.
+const LEGEND_WIDTH: u32 = 200;
 
 /// Colours for successive estimators (colour-blind-safe Okabe–Ito palette).
 pub const PALETTE: [RGBColor; 5] = [
@@ -46,6 +114,13 @@ pub const PALETTE: [RGBColor; 5] = [
     RGBColor(204, 121, 167),
     RGBColor(230, 159, 0),
 ];
+
+/// A ±3σ band (Okabe–Ito sky blue: apart from the estimate's blue and the truth's orange).
+pub const BAND: RGBColor = RGBColor(86, 180, 233);
+/// A reference value (dark grey).
+pub const REFERENCE: RGBColor = RGBColor(60, 60, 60);
+/// An alarm (red).
+pub const ALARM: RGBColor = RGBColor(200, 0, 0);
 
 /// Keep at most ~2·`buckets` points: the min and max of each bucket, in order, so that short
 /// spikes survive decimation.
@@ -78,6 +153,15 @@ fn decimate(x: &[f64], y: &[f64], buckets: usize) -> Vec<(f64, f64)> {
 
 fn range(panel: &Panel) -> (f64, f64, f64, f64) {
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for m in panel.marks.iter().filter(|m| m.at.is_finite()) {
+        if m.vertical {
+            x0 = x0.min(m.at);
+            x1 = x1.max(m.at);
+        } else {
+            y0 = y0.min(m.at);
+            y1 = y1.max(m.at);
+        }
+    }
     for s in &panel.series {
         for (&a, &b) in s.x.iter().zip(s.y) {
             if a.is_finite() && b.is_finite() {
@@ -88,62 +172,106 @@ fn range(panel: &Panel) -> (f64, f64, f64, f64) {
             }
         }
     }
-    if x0 > x1 {
+    if x0 > x1 || y0 > y1 {
         return (0.0, 1.0, 0.0, 1.0);
+    }
+    if let Some((lo, hi)) = panel.y_range {
+        (y0, y1) = (lo, hi);
     }
     let pad = ((y1 - y0) * 0.05).max(1e-9 * y1.abs().max(1.0));
     (x0, x1.max(x0 + 1e-12), y0 - pad, y1 + pad)
 }
 
-/// Stacked panels sharing the x label, written as one SVG file.
+/// Stacked panels sharing the x label, written as one SVG file; each panel's legend in a
+/// column to its right, so that it never covers data.
 pub fn panels(path: &Path, title: &str, xlabel: &str, panels: &[Panel]) -> Result<()> {
     register_font();
     let err = |e: &dyn std::fmt::Display| miette!("writing {}: {e}", path.display());
     let height = 60 + 300 * panels.len() as u32;
-    let root = SVGBackend::new(path, (960, height)).into_drawing_area();
+    let width = 960 + LEGEND_WIDTH;
+    let root = SVGBackend::new(path, (width, height)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let (top, body) = root.split_vertically(50);
     top.titled(title, ("sans-serif", 22)).map_err(|e| err(&e))?;
     let areas = body.split_evenly((panels.len(), 1));
     for (area, panel) in areas.iter().zip(panels) {
+        let (plot_area, legend_area) = area.split_horizontally(width - LEGEND_WIDTH);
         let (x0, x1, y0, y1) = range(panel);
-        let mut chart = ChartBuilder::on(area)
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(12)
             .x_label_area_size(40)
-            .y_label_area_size(70)
+            .y_label_area_size(80)
             .build_cartesian_2d(x0..x1, y0..y1)
             .map_err(|e| err(&e))?;
+        let (fx, fy) = (tick_labels(x0, x1), tick_labels(y0, y1));
         chart
             .configure_mesh()
             .x_desc(xlabel)
             .y_desc(panel.ylabel.as_str())
+            .x_label_formatter(&fx)
+            .y_label_formatter(&fy)
             .label_style(("sans-serif", 14))
             .draw()
             .map_err(|e| err(&e))?;
+        // Legend entries: a name, its line's style and whether it is dashed.
+        let mut legend: Vec<(String, ShapeStyle, bool)> = Vec::new();
         for s in &panel.series {
             let style = if s.reference {
                 ShapeStyle::from(&s.color.mix(0.55)).stroke_width(3)
             } else {
                 ShapeStyle::from(&s.color).stroke_width(1)
             };
-            let drawn = chart
-                .draw_series(LineSeries::new(decimate(s.x, s.y, 1500), style))
+            // Points beyond a fixed y range are clipped to the frame.
+            let points = decimate(s.x, s.y, 1500)
+                .into_iter()
+                .map(|(x, y)| (x, y.clamp(y0, y1)));
+            chart
+                .draw_series(LineSeries::new(points, style))
                 .map_err(|e| err(&e))?;
             // A series without a name (the second line of a band) stays out of the legend.
             if !s.name.is_empty() {
-                drawn
-                    .label(s.name.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+                legend.push((s.name.clone(), style, false));
             }
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .position(SeriesLabelPosition::LowerLeft)
-            .draw()
-            .map_err(|e| err(&e))?;
+        for m in panel.marks.iter().filter(|m| m.at.is_finite()) {
+            let style = ShapeStyle::from(&m.color).stroke_width(2);
+            let line = if m.vertical {
+                [(m.at, y0), (m.at, y1)]
+            } else {
+                [(x0, m.at), (x1, m.at)]
+            };
+            chart
+                .draw_series(DashedLineSeries::new(line, 8, 5, style))
+                .map_err(|e| err(&e))?;
+            if !legend
+                .iter()
+                .any(|(n, s, _)| *n == m.name && s.color == style.color)
+            {
+                legend.push((m.name.clone(), style, true));
+            }
+        }
+        for (i, (name, style, dashed)) in legend.iter().enumerate() {
+            let y = 30 + 22 * i as i32;
+            let sample = [(4, y), (34, y)];
+            if *dashed {
+                legend_area
+                    .draw(&plotters::element::DashedPathElement::new(
+                        sample, 6, 4, *style,
+                    ))
+                    .map_err(|e| err(&e))?;
+            } else {
+                legend_area
+                    .draw(&PathElement::new(sample.to_vec(), *style))
+                    .map_err(|e| err(&e))?;
+            }
+            legend_area
+                .draw(&Text::new(
+                    name.clone(),
+                    (42, y - 8),
+                    ("sans-serif", 14).into_font(),
+                ))
+                .map_err(|e| err(&e))?;
+        }
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())
@@ -412,5 +540,44 @@ mod tests {
         assert!(d.len() <= 201);
         assert!(d.contains(&(5003.0, 7.0)) && d.contains(&(7001.0, -3.0)));
         assert!(d.windows(2).all(|w| w[0].0 < w[1].0));
+    }
+
+    /// Tick labels differ from one another for every step plotters may choose (1, 2 or 5 ×
+    /// 10^k, at least a tenth of the span), over spans from 1e-9 to 1e9 and offsets far from
+    /// zero — the duplicated `0.0001, 0.0001, 0.00008` of c4's axis cannot come back.
+    #[test]
+    fn tick_labels_differ() {
+        let mut checked = 0;
+        for lo_exp in -9..=9 {
+            for offset in [0.0, 1.0, -3.7, 1250.0, 2.5e-4] {
+                for span_mul in [1.0, 1.7, 3.3, 7.9] {
+                    let span = span_mul * 10f64.powi(lo_exp);
+                    let lo = offset * 10f64.powi(lo_exp.max(0)) + span * 0.123;
+                    let hi = lo + span;
+                    let label = tick_labels(lo, hi);
+                    let decade = 10f64.powf((span / 10.0).log10().floor());
+                    for mult in [1.0, 2.0, 5.0, 10.0] {
+                        let step = mult * decade;
+                        if step < span / 10.0 {
+                            continue;
+                        }
+                        let first = (lo / step).ceil() as i64;
+                        let last = (hi / step).floor() as i64;
+                        let labels: Vec<String> =
+                            (first..=last).map(|i| label(&(i as f64 * step))).collect();
+                        let mut unique = labels.clone();
+                        unique.dedup();
+                        assert_eq!(unique, labels, "{lo}..{hi}, step {step}: {labels:?}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(checked > 500);
+        // The reported case: c4 between 8e-5 and 1e-4.
+        let l = tick_labels(8e-5, 1e-4);
+        assert_ne!(l(&1e-4), l(&9e-5));
+        assert_eq!(l(&0.0), "0");
+        assert_eq!(tick_labels(-1.0, 1.0)(&-2.7755575615628914e-17), "0.0");
     }
 }

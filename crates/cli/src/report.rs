@@ -6,6 +6,32 @@ use physid_ident::RankedParam;
 use std::fmt::Write as _;
 use std::path::Path;
 
+/// Parameters' units and one-line meanings, by name (the models' `PARAMS`, `UNITS` and
+/// `DESCRIPTIONS`): every table of parameters carries them.
+#[derive(Clone, Copy, Default)]
+pub struct Glossary<'a> {
+    /// The names.
+    pub names: &'a [&'a str],
+    /// Their units.
+    pub units: &'a [&'a str],
+    /// What each stands for.
+    pub descriptions: &'a [&'a str],
+}
+
+impl Glossary<'_> {
+    /// The unit and meaning of `name` ("—" and "" for a name it does not know: a user's formula
+    /// parameter).
+    pub fn of(&self, name: &str) -> (String, String) {
+        match self.names.iter().position(|n| *n == name) {
+            Some(j) => (
+                self.units.get(j).copied().unwrap_or("—").to_string(),
+                self.descriptions.get(j).copied().unwrap_or("").to_string(),
+            ),
+            None => ("—".into(), String::new()),
+        }
+    }
+}
+
 /// A report under construction.
 pub struct Report {
     html: String,
@@ -27,7 +53,7 @@ impl Report {
 body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222;line-height:1.45}}\
 h1{{font-size:1.6em}}h2{{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}}\
 table{{border-collapse:collapse;margin:.6em 0}}td,th{{border:1px solid #ccc;padding:.25em .6em;text-align:right}}\
-th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.note{{color:#555;font-size:.92em}}\
+th{{background:#f3f3f3}}td{{white-space:nowrap}}td.t{{white-space:normal}}td:first-child,th:first-child,td.t,th.t{{text-align:left}}.note{{color:#555;font-size:.92em}}\
 .ok{{color:#0a7a3a;font-weight:bold}}.alarm{{color:#b00020;font-weight:bold}}svg{{max-width:100%;height:auto}}\
 </style></head><body><h1>{t}</h1><p class=\"note\">{s}</p>",
             t = esc(title),
@@ -55,15 +81,31 @@ th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.note{{c
 
     /// A table.
     pub fn table(&mut self, header: &[&str], rows: &[Vec<String>]) {
+        // Numbers line up on the right, words read from the left (a column's header as its
+        // first cell).
+        let number = |c: &str| {
+            c.trim_start_matches(['+', '-', '−'])
+                .starts_with(|ch: char| ch.is_ascii_digit())
+                || c == "—"
+        };
         self.html.push_str("<table><tr>");
-        for h in header {
-            let _ = write!(self.html, "<th>{}</th>", esc(h));
+        for (j, h) in header.iter().enumerate() {
+            let text = rows
+                .first()
+                .and_then(|r| r.get(j))
+                .is_some_and(|c| !number(c));
+            let class = if text { " class=\"t\"" } else { "" };
+            let _ = write!(self.html, "<th{class}>{}</th>", esc(h));
         }
         self.html.push_str("</tr>");
         for r in rows {
             self.html.push_str("<tr>");
             for c in r {
-                let _ = write!(self.html, "<td>{}</td>", esc(c));
+                if number(c) {
+                    let _ = write!(self.html, "<td>{}</td>", esc(c));
+                } else {
+                    let _ = write!(self.html, "<td class=\"t\">{}</td>", esc(c));
+                }
             }
             self.html.push_str("</tr>");
         }
@@ -81,14 +123,30 @@ th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.note{{c
 
     /// An identifiability ranking (thesis Tables 7.3, 8.1): the table of parameters in
     /// selection order and the residual profile, drawn into `svg`.
-    pub fn ranking(&mut self, ranked: &[RankedParam], title: &str, svg: &Path) -> Result<()> {
+    pub fn ranking(
+        &mut self,
+        ranked: &[RankedParam],
+        glossary: Glossary,
+        title: &str,
+        svg: &Path,
+    ) -> Result<()> {
         self.table(
-            &["parameter", "rank", "relative residual", "estimable"],
+            &[
+                "parameter",
+                "unit",
+                "meaning",
+                "rank",
+                "relative residual",
+                "estimable",
+            ],
             &ranked
                 .iter()
                 .map(|row| {
+                    let (unit, meaning) = glossary.of(&row.param);
                     vec![
                         row.param.clone(),
+                        unit,
+                        meaning,
                         row.rank.to_string(),
                         format!("{:.2e}", row.relative_residual),
                         if row.estimable { "yes" } else { "—" }.into(),
@@ -100,8 +158,34 @@ th{{background:#f3f3f3}}td:first-child,th:first-child{{text-align:left}}.note{{c
         self.svg(svg)
     }
 
-    /// Write `report.html` to `path`.
+    /// Write `report.html` to `path`, its provenance last (crate::provenance).
     pub fn write(mut self, path: &Path) -> Result<()> {
+        let p = crate::provenance::current();
+        self.section("Provenance");
+        let mut rows = vec![
+            vec!["physid".to_string(), p.physid.to_string()],
+            vec!["written".into(), p.date.clone()],
+            vec!["command".into(), p.command.clone()],
+        ];
+        for f in &p.inputs {
+            rows.push(vec![
+                "input".into(),
+                match (&f.sha256, f.bytes, &f.error) {
+                    (Some(h), Some(b), _) => format!("{} ({b} bytes, SHA-256 {h})", f.path),
+                    (_, _, Some(e)) => format!("{} (no checksum: {e})", f.path),
+                    _ => f.path.clone(),
+                },
+            ]);
+        }
+        rows.push(vec![
+            "--map".into(),
+            if p.map.is_empty() {
+                "none (the file's own column names)".into()
+            } else {
+                p.map.join(", ")
+            },
+        ]);
+        self.table(&["", ""], &rows);
         self.html.push_str("</body></html>\n");
         std::fs::write(path, self.html).map_err(|e| miette!("writing {}: {e}", path.display()))
     }
@@ -123,6 +207,10 @@ pub fn finish(
 ) -> Result<()> {
     report.write(&dir.join("report.html"))?;
     let path = dir.join(json_name);
-    std::fs::write(&path, serde_json::to_string_pretty(json).into_diagnostic()?)
-        .map_err(|e| miette!("writing {}: {e}", path.display()))
+    let json = crate::provenance::with(json);
+    std::fs::write(
+        &path,
+        serde_json::to_string_pretty(&json).into_diagnostic()?,
+    )
+    .map_err(|e| miette!("writing {}: {e}", path.display()))
 }

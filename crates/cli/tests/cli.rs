@@ -157,8 +157,8 @@ fn estimate_json_recovers_the_parameters() {
         "a,b,c",
         "--method",
         "rls",
-        "--theta0",
-        "0,0,0.5",
+        "--params",
+        "c=0.5",
         "--free",
         "a,b",
         "--json",
@@ -225,7 +225,7 @@ fn estimate_errors_name_the_problem() {
         ),
         (
             vec!["--y", "y", "--phi", "a", "--lambda", "1.5"],
-            "λ = 1.5 is outside (0, 1]",
+            "'--lambda <LAMBDA>': a forgetting factor is in (0, 1], got 1.5",
         ),
         (
             vec!["--y", "y", "--phi", "a", "--method", "lms"],
@@ -507,9 +507,9 @@ fn estimate_nonlinear_expression_models() {
             "1",
             "--r2",
             "1e-6",
-            "--bound",
+            "--limits",
             "A=1.9:2.5",
-            "--bound",
+            "--limits",
             "B=0.01:5",
             "--json",
         ]);
@@ -535,7 +535,7 @@ fn estimate_nonlinear_expression_models() {
             "1",
             "--r2",
             "1e-6",
-            "--bound",
+            "--limits",
             "A=0:1.8",
             "--json",
         ]);
@@ -554,7 +554,7 @@ fn estimate_nonlinear_expression_models() {
         (vec!["--method", "ukf", "--params", "A=1"], "needs a model: --expr"),
         (vec!["--method", "rls", "--expr", "A*x", "--phi", "x"], "--expr needs --method ekf, ukf or srukf"),
         (vec!["--method", "rls"], "needs the regressor columns: --phi"),
-        (vec!["--method", "ekf", "--expr", "A*x", "--params", "A=1", "--bound", "A=3"], "expected NAME=LOW:HIGH"),
+        (vec!["--method", "ekf", "--expr", "A*x", "--params", "A=1", "--limits", "A=3"], "expected NAME=LOW:HIGH"),
     ];
     for (extra, expect) in cases {
         let mut args = vec!["estimate", "--data", c, "--y", "y"];
@@ -655,8 +655,7 @@ fn friction_rank_json_table_and_heatmap() {
 
     // The human table: a header and 27 rows; a chosen grid and parameter list.
     let o = physid(&[
-        "friction", "rank", "--n", "2000", "--p-int", "40,80", "--t-oil", "60", "--params",
-        "B,r,Lv",
+        "friction", "rank", "--n", "2000", "--p-int", "40,80", "--t-oil", "60", "--free", "B,r,Lv",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = String::from_utf8(o.stdout).unwrap();
@@ -698,7 +697,7 @@ fn friction_errors_name_the_problem() {
             "the grades are",
         ),
         (
-            &["friction", "rank", "--params", "B,bore"],
+            &["friction", "rank", "--free", "B,bore"],
             "'bore' is not a design parameter",
         ),
     ];
@@ -1004,7 +1003,7 @@ fn simulate_runs_and_studies() {
     ] {
         assert!(text.contains(name), "{name}");
     }
-    let o = physid(&["simulate", "--params", "--set", "shaft.k=1340"]);
+    let o = physid(&["simulate", "--list-params", "--set", "shaft.k=1340"]);
     let text = String::from_utf8(o.stdout).unwrap();
     assert!(text.contains("shaft.k") && text.contains("1340") && text.contains("Table 6.1"));
     // A short run with a fault, on a crank-angle basis, to Parquet; inspect reads it back.
@@ -1019,7 +1018,7 @@ fn simulate_runs_and_studies() {
         "shaft.k=1200@0.2",
         "--basis",
         "crank",
-        "--out",
+        "--recording",
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -1037,7 +1036,7 @@ fn simulate_runs_and_studies() {
         "0.2",
         "--set",
         "engine.friction_scale=0.3",
-        "--out",
+        "--recording",
         out.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -1089,9 +1088,9 @@ fn simulate_runs_and_studies() {
     let o = physid(&[
         "simulate",
         "compression",
-        "--p0",
+        "--p-bdc",
         "100000",
-        "--t0",
+        "--t-bdc",
         "300",
         "--rpm",
         "1000",
@@ -1105,12 +1104,21 @@ fn simulate_runs_and_studies() {
     // Errors.
     for (args, want) in [
         (
-            vec!["simulate", "--scenario", "warp", "--out", "x.csv"],
+            vec!["simulate", "--scenario", "warp", "--recording", "x.csv"],
             "neither a built-in scenario",
         ),
-        (vec!["simulate", "--scenario", "shaft-steady"], "--out FILE"),
         (
-            vec!["simulate", "--scenario", "shaft-steady", "--out", "x.txt"],
+            vec!["simulate", "--scenario", "shaft-steady"],
+            "--recording FILE",
+        ),
+        (
+            vec![
+                "simulate",
+                "--scenario",
+                "shaft-steady",
+                "--recording",
+                "x.txt",
+            ],
             "the extension picks the format",
         ),
         (
@@ -1118,7 +1126,7 @@ fn simulate_runs_and_studies() {
                 "simulate",
                 "--scenario",
                 "shaft-steady",
-                "--out",
+                "--recording",
                 "x.csv",
                 "--fault",
                 "shaft.k=1@x",
@@ -1130,7 +1138,7 @@ fn simulate_runs_and_studies() {
                 "simulate",
                 "--scenario",
                 "shaft-steady",
-                "--out",
+                "--recording",
                 "x.csv",
                 "--set",
                 "shaft.q=1",
@@ -1142,7 +1150,7 @@ fn simulate_runs_and_studies() {
                 "simulate",
                 "--scenario",
                 "shaft-steady",
-                "--out",
+                "--recording",
                 "x.csv",
                 "--set",
                 "engine.kappa=0.5",
@@ -1214,7 +1222,7 @@ fn monitor_shaft_json_and_errors() {
         "3",
         "--fault",
         "shaft.b=1.4@1.5",
-        "--out",
+        "--recording",
         f.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -1250,7 +1258,7 @@ fn monitor_shaft_json_and_errors() {
         "--method",
         "kf",
     ]);
-    assert!(stderr(&o).contains("expected rls, rlsvf or dsfc"));
+    assert!(stderr(&o).contains("expected rlsf, rlsvf or dsfc"));
     let o = physid(&[
         "monitor",
         "shaft",
@@ -1274,7 +1282,7 @@ fn friction_fit_json_report_and_errors() {
         "20",
         "--basis",
         "crank",
-        "--out",
+        "--recording",
         f.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -23,7 +23,7 @@ fn simulate(dir: &Path, scenario: &str, basis: &str, duration: &str, ext: &str) 
         basis,
         "--duration",
         duration,
-        "--out",
+        "--recording",
         f.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -331,7 +331,7 @@ fn every_injected_defect_is_found_at_its_sample() {
         "1.5",
         "--fault",
         "sensors.lost_pulses_en=0.01@1.0",
-        "--out",
+        "--recording",
         p.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -355,19 +355,19 @@ fn physically_impossible_inputs_are_refused_naming_the_flag_and_range() {
     let out = out.to_str().unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
-            vec!["simulate", "--scenario", "shaft-steady", "--set", "engine.m_rec=-1", "--out", out],
+            vec!["simulate", "--scenario", "shaft-steady", "--set", "engine.m_rec=-1", "--recording", out],
             "engine.m_rec = -1: expected ≥ 0 (kg)",
         ),
         (
-            vec!["simulate", "--scenario", "shaft-steady", "--duration", "1", "--fault", "shaft.k=1000@5", "--out", out],
+            vec!["simulate", "--scenario", "shaft-steady", "--duration", "1", "--fault", "shaft.k=1000@5", "--recording", out],
             "--fault shaft.k=1000@5: at 5 s, outside the recording (0 to 1 s)",
         ),
         (
-            vec!["simulate", "--scenario", "torque-ramp", "--basis", "crank", "--duration", "0.05", "--out", out],
+            vec!["simulate", "--scenario", "torque-ramp", "--basis", "crank", "--duration", "0.05", "--recording", out],
             "--duration 0.05: the recording would hold no sample",
         ),
         (
-            vec!["simulate", "--scenario", "shaft-steady", "--duration", "-5", "--out", out],
+            vec!["simulate", "--scenario", "shaft-steady", "--duration", "-5", "--recording", out],
             "invalid value '-5' for '--duration <S>': expected a number > 0",
         ),
         (
@@ -379,8 +379,8 @@ fn physically_impossible_inputs_are_refused_naming_the_flag_and_range() {
             "looks like K",
         ),
         (
-            vec!["monitor", "shaft", "--data", st.to_str().unwrap(), "--rate", "0"],
-            "invalid value '0' for '--rate <RATE>': expected a number > 0",
+            vec!["monitor", "shaft", "--data", st.to_str().unwrap(), "--update-rate", "0"],
+            "invalid value '0' for '--update-rate <HZ>': expected a number > 0",
         ),
         (
             vec!["monitor", "shaft", "--data", st.to_str().unwrap(), "--lambda", "1.5"],

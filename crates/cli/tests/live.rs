@@ -52,7 +52,7 @@ fn a_replay_ends_on_the_file_verbs_estimate_whatever_the_chunk() {
         "3",
         "--fault",
         "shaft.k=1000@1.5",
-        "--out",
+        "--recording",
         file.to_str().unwrap(),
     ]);
     assert!(o.status.success());
@@ -230,7 +230,7 @@ fn frames_from_stdin_survive_bad_frames() {
         "shaft-steady",
         "--duration",
         "1.5",
-        "--out",
+        "--recording",
         f,
     ]);
     assert!(o.status.success());
@@ -425,7 +425,7 @@ fn cycle_events_agree_with_the_crank_angle_recording() {
         "3",
         "--basis",
         "crank",
-        "--out",
+        "--recording",
         file.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -476,7 +476,7 @@ fn friction_on_the_stream_ends_on_the_file_verbs_fit() {
         "friction-sweep",
         "--duration",
         "8",
-        "--out",
+        "--recording",
         f,
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -572,7 +572,7 @@ fn frames_over_a_local_socket() {
         "shaft-steady",
         "--duration",
         "1",
-        "--out",
+        "--recording",
         f,
     ]);
     assert!(o.status.success());
@@ -671,7 +671,7 @@ fn integrity_findings_on_the_stream_are_inspects() {
         "4",
         "--fault",
         fault,
-        "--out",
+        "--recording",
         f,
     ]);
     assert!(o.status.success());
@@ -763,7 +763,7 @@ fn cyclic_torque_on_the_stream_ends_on_the_file_verbs_fit() {
         "torque-ramp",
         "--duration",
         "2",
-        "--out",
+        "--recording",
         f,
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -837,7 +837,7 @@ fn the_supervised_shaft_reports_nothing_frozen_while_excited() {
         "shaft-ramp",
         "--duration",
         "6",
-        "--out",
+        "--recording",
         f,
     ]);
     assert!(o.status.success());
@@ -949,7 +949,7 @@ fn a_stage_that_fails_stops_alone() {
         "shaft-steady",
         "--duration",
         "2",
-        "--out",
+        "--recording",
         full.to_str().unwrap(),
     ]);
     assert!(o.status.success());

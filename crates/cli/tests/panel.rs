@@ -595,7 +595,7 @@ fn the_logging_control_writes_the_live_data() {
         "shaft-steady",
         "--duration",
         "10",
-        "--out",
+        "--recording",
         sim.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

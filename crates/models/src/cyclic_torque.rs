@@ -21,6 +21,42 @@ use physid_core::{GradientEngine, ParamModel, Scalar};
 pub const PARAMS: [&str; 15] = [
     "M_rec", "b", "L", "r", "delta", "c1", "c2", "c3", "c4", "c5", "c6", "c7", "c8", "c9", "c10",
 ];
+/// Their units (the friction cubic's coefficients give fmep in kPa from N in rpm and T in °C).
+pub const UNITS: [&str; 15] = [
+    "kg",
+    "m",
+    "m",
+    "m",
+    "m",
+    "kPa",
+    "kPa/rpm",
+    "kPa/°C",
+    "kPa/rpm²",
+    "kPa/(rpm·°C)",
+    "kPa/°C²",
+    "kPa/rpm³",
+    "kPa/(rpm²·°C)",
+    "kPa/(rpm·°C²)",
+    "kPa/°C³",
+];
+/// One line each (`b` here is the bore).
+pub const DESCRIPTIONS: [&str; 15] = [
+    "reciprocating mass (piston, rings, pin, part of the rod)",
+    "bore",
+    "connecting-rod length",
+    "crank radius",
+    "piston-pin offset",
+    "friction cubic: constant",
+    "friction cubic: N",
+    "friction cubic: −T",
+    "friction cubic: N²",
+    "friction cubic: −N·T",
+    "friction cubic: T²",
+    "friction cubic: −N³",
+    "friction cubic: N²·T",
+    "friction cubic: N·T²",
+    "friction cubic: −T³",
+];
 /// Input names, in order.
 pub const INPUTS: [&str; 6] = ["theta", "omega", "alpha", "p_cyl", "p_crank", "T_oil"];
 

@@ -528,6 +528,20 @@ pub fn tau_nm<T: Scalar>(fmep_kpa: T, d: &Design<T>) -> T {
 
 /// Names of the design parameters, in [`Design`] order (thesis app. B.2: `rc` is κ).
 pub const DESIGN_PARAMS: [&str; 9] = ["B", "S", "kappa", "Di", "De", "Lv", "Db", "Lb", "r"];
+/// Their units.
+pub const DESIGN_UNITS: [&str; 9] = ["mm", "mm", "-", "mm", "mm", "mm", "mm", "mm", "mm"];
+/// One line each (`B` here is the bore, not the coupling shaft's damping).
+pub const DESIGN_DESCRIPTIONS: [&str; 9] = [
+    "bore",
+    "stroke",
+    "compression ratio",
+    "intake valve diameter",
+    "exhaust valve diameter",
+    "valve lift",
+    "main bearing diameter",
+    "main bearing length",
+    "crank radius (for the torque)",
+];
 
 impl<T: Scalar> Design<T> {
     /// The design from values in [`DESIGN_PARAMS`] order.
@@ -618,6 +632,55 @@ impl ParamModel for FrictionTorque {
         tau_nm(total, &d)
     }
 }
+
+/// The units of c1 … c20: each multiplies its term of [`regressors`] into fmep [kPa], the term
+/// in the design's mm, the speed N in rpm, the mean piston speed S_p in m/s and pressures in
+/// kPa (the viscosity factors and the valve count ratios are dimensionless).
+pub const REGRESSION_UNITS: [&str; 20] = [
+    "kPa·mm²",
+    "kPa/(mm·rpm)",
+    "kPa/(mm²·rpm²)",
+    "kPa·mm·s/m",
+    "kPa·mm²",
+    "kPa/(mm·rpm)",
+    "kPa",
+    "kPa",
+    "kPa·mm³/rpm",
+    "kPa·mm",
+    "kPa·mm/rpm",
+    "kPa·mm^0.5/rpm^0.5",
+    "kPa",
+    "kPa",
+    "kPa/rpm",
+    "kPa/rpm²",
+    "-",
+    "kPa·s²/m²",
+    "kPa·s²/m²",
+    "kPa·s²/m²",
+];
+/// What each of c1 … c20 stands for: the friction source and its term (thesis Eq. 7.4–7.9).
+pub const REGRESSION_DESCRIPTIONS: [&str; 20] = [
+    "crankshaft seals: Db/(B²·S·nc)",
+    "main bearings, hydrodynamic: Db³·Lb·s_μ·N·nb/(B²·S·nc)",
+    "bearing seals, turbulent: Db²·N²·nb/nc",
+    "piston skirt: S_p·s_μ/B",
+    "ring tension: (ft/fto)·cr·(1 + 500/N)/B²",
+    "con-rod bearings: Db³·Lb·h·N·nb/(B²·S·nc)",
+    "gas-pressure loading of the rings: ring factor·p_int/p_atm",
+    "constant (the 4.12 kPa cam seal)",
+    "camshaft bearings: h·N·nb/(B²·S·nc)",
+    "flat followers: (1 + 500/N)·nv/(S·nc)",
+    "roller followers: N·nv/(S·nc)",
+    "oscillating hydrodynamic: Lv^1.5·h·√N·nv/(B·S·nc)",
+    "oscillating mixed: Lv·(1 + 500/N)·nv/(S·nc)",
+    "auxiliaries, constant",
+    "auxiliaries: N",
+    "auxiliaries: N²",
+    "throttling: p_atm − p_int",
+    "intake valves: S_p²·(p_int/p_atm)²/((Di/B)⁴·nv²)",
+    "intake system: S_p²·(p_int/p_atm)²",
+    "exhaust valves: S_p²·(p_int/p_atm)²/((De/B)⁴·nv²)",
+];
 
 /// Names of the regression coefficients c1 … c20, in order.
 pub const REGRESSION_PARAMS: [&str; 20] = [

@@ -14,6 +14,16 @@
 
 use physid_core::{ParamModel, Scalar};
 
+/// Parameter names (with the offset), in order.
+pub const PARAMS: [&str; 3] = ["K", "B", "tau0"];
+/// Their units.
+pub const UNITS: [&str; 3] = ["N·m/rad", "N·m·s/rad", "N·m"];
+/// One line each (`B` here is the shaft's damping, not a bore).
+pub const DESCRIPTIONS: [&str; 3] = [
+    "coupling-shaft stiffness",
+    "coupling-shaft damping",
+    "torque offset (encoders' zero offset, transducer zero)",
+];
 /// Input channel names, in order.
 pub const INPUTS: [&str; 4] = ["theta_dy", "theta_en", "omega_dy", "omega_en"];
 /// Nominal K [N·m/rad] and B [N·m·s/rad]: the yellow spider of thesis Table 6.1, the default

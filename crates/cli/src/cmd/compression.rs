@@ -39,7 +39,7 @@ enum Command {
 struct FitArgs {
     /// Motored recording: on a crank-angle basis (`cycle`, `crank_deg`), or on a time basis with
     /// the engine angle (theta_en, an encoder count, or --wheel / --quadrature).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     data: PathBuf,
     #[command(flatten)]
     input: InputArgs,
@@ -47,7 +47,7 @@ struct FitArgs {
     #[arg(long, default_value = "p_cyl")]
     channel: String,
     /// The crank's lengths (needed); with the bore, the motored cycles' net IMEP (the pressure
-    /// in Pa); a compression ratio given is held (as --set eps=R), not fitted.
+    /// in Pa); a compression ratio given is held (as --fix eps=R), not fitted.
     #[command(flatten)]
     geometry: GeometryArgs,
     /// The fitting window [deg ATDC], inside IVC … EVO.
@@ -58,10 +58,18 @@ struct FitArgs {
         allow_hyphen_values = true
     )]
     window: String,
-    /// Hold a parameter at a value instead of fitting it (repeatable): eps, tdc_shift [deg],
-    /// p_offset, n, p_bdc [the channel's unit], k_loss [1/rad]; e.g. --set eps=10.5.
-    #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
-    set: Vec<String>,
+    /// Hold parameters at values instead of fitting them: eps, tdc_shift [deg], p_offset, n,
+    /// p_bdc [the channel's unit], k_loss [1/rad]; e.g. --fix eps=10.5,tdc_shift=-0.4.
+    #[arg(
+        long,
+        value_name = "NAME=VALUE,…",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    fix: Vec<String>,
+    /// Deprecated: --fix (--set configures a model or the virtual cell in the other verbs).
+    #[arg(long = "set", hide = true, allow_hyphen_values = true)]
+    set_old: Vec<String>,
     /// How many ranked parameters to fit: wu (Wu et al.), repeat, rel:FRACTION or an absolute
     /// residual.
     #[arg(long, default_value = "wu")]
@@ -74,7 +82,7 @@ struct FitArgs {
     json: bool,
     /// Directory for the report (report.html with its SVGs, compression_fit.json,
     /// tracks.csv: per TDC the estimates, their standard errors and the recursive track).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
 }
 
@@ -99,7 +107,7 @@ fn held(items: &[String]) -> Result<Vec<(String, f64)>> {
         .map(|s| {
             let bad = || {
                 miette!(
-                    "--set '{s}': expected NAME=VALUE with NAME one of {}",
+                    "--fix '{s}': expected NAME=VALUE with NAME one of {}",
                     PARAMS.join(", ")
                 )
             };
@@ -114,8 +122,11 @@ fn fit(a: &FitArgs) -> Result<()> {
     let (stroke, rod) = a.geometry.crank.lengths("compression fit")?;
     let mut cfg = CompressionConfig::new(&a.channel, stroke, rod);
     cfg.window_deg = window(&a.window)?;
-    cfg.held = held(&a.set)?;
-    // A known compression ratio is held, as `--set eps=R` would.
+    if !a.set_old.is_empty() {
+        super::deprecated("--set NAME=VALUE in compression fit is now --fix NAME=VALUE");
+    }
+    cfg.held = held(&[a.fix.as_slice(), a.set_old.as_slice()].concat())?;
+    // A known compression ratio is held, as `--fix eps=R` would.
     if let Some(r) = a.geometry.compression_ratio {
         if !cfg.held.iter().any(|(n, _)| n == "eps") {
             cfg.held.push(("eps".into(), r));
@@ -152,7 +163,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         write_tracks(&dir.join("tracks.csv"), &r)?;
     }
     if a.json {
-        outln!("{}", serde_json::to_string_pretty(&json).into_diagnostic()?);
+        crate::provenance::print_json(&json)?;
         return Ok(());
     }
     outln!(
@@ -275,8 +286,18 @@ fn report_section(
         None,
     );
     rep.section("Which parameters the trace resolves");
+    // `P` in the model's units is the pressure channel's.
+    let units: Vec<&str> = physid_models::motored::UNITS
+        .iter()
+        .map(|u| if *u == "P" { r.unit.as_str() } else { u })
+        .collect();
     rep.ranking(
         &r.ranking,
+        report::Glossary {
+            names: &PARAMS,
+            units: &units,
+            descriptions: &physid_models::motored::DESCRIPTIONS,
+        },
         "Motored model: residual profile (Alg. 5.1)",
         &dir.join("compression_residuals.svg"),
     )?;
@@ -391,6 +412,7 @@ fn report_section(
                         reference: true,
                     },
                 ],
+                ..Default::default()
             }
         })
         .collect();
@@ -433,6 +455,7 @@ fn report_section(
                         reference: false,
                     },
                 ],
+                ..Default::default()
             },
             Panel {
                 ylabel: format!("residual [{}]", r.unit),
@@ -443,6 +466,7 @@ fn report_section(
                     color: PALETTE[0],
                     reference: false,
                 }],
+                ..Default::default()
             },
         ],
     )?;

@@ -114,7 +114,7 @@ pub fn run(args: &Args) -> Result<()> {
                 serde_json::to_value(&d.findings).into_diagnostic()?,
             );
         }
-        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        crate::provenance::print_json(&v)?;
         return Ok(());
     }
     let u = &a.unit;

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// Directory for report.html and summary.json [default: physid-out/demo].
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// The test cell's solver: 2, linearly implicit ROS2 (the default); 4, RK4 (the reference,
     /// ≈ 2× slower; docs/simulate.md).
@@ -82,6 +82,7 @@ pub fn run(args: &Args) -> Result<()> {
     let svg = dir.join("friction-rank.svg");
     super::friction::heatmap(&d.friction, "thesis", &svg)?;
     rep.svg(&svg)?;
+    super::friction::design_table(&mut rep, &d.friction.parameters);
     // 3. Cyclic torque identifiability.
     rep.section(
         "Cyclic engine torque: which parameters can the data resolve? (thesis §8, Table 8.1)",
@@ -164,7 +165,7 @@ pub fn run(args: &Args) -> Result<()> {
     });
     std::fs::write(
         dir.join("summary.json"),
-        serde_json::to_string_pretty(&summary).into_diagnostic()?,
+        serde_json::to_string_pretty(&crate::provenance::with(&summary)).into_diagnostic()?,
     )
     .into_diagnostic()?;
 

@@ -19,12 +19,12 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// Recording (CSV with a header row, Parquet or MDF4).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
     #[command(flatten)]
     pub input: super::InputArgs,
     /// Column of the measured output y.
-    #[arg(long)]
+    #[arg(long, value_name = "COL")]
     pub y: String,
     /// Linear methods: the regressor φ, comma separated — columns, or formulas over columns
     /// (`theta_dy-theta_en`, `omega_en^2`; without commas), or `1` for an offset; they name the
@@ -33,20 +33,22 @@ pub struct Args {
     pub phi: Vec<String>,
     /// Non-linear methods: the model, e.g. 'A*exp(-B*x) + C*x'; names not in --params are
     /// data columns.
-    #[arg(long)]
+    #[arg(long, value_name = "FORMULA")]
     pub expr: Option<String>,
-    /// Non-linear methods: parameters with their initial (nominal) values, e.g. A=1,B=0.5.
-    #[arg(long, value_delimiter = ',')]
+    /// The parameters' initial (nominal) values NAME=VALUE: with --expr every parameter, e.g.
+    /// A=1,B=0.5; with --phi any of the regressors' parameters, named as in --phi (the others
+    /// start at 0).
+    #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
     pub params: Vec<String>,
     /// Estimator: rls, rlsf (constant or, with --lambda0, time-varying λ), rlsvf, kf, dsfc;
     /// ekf, ukf, srukf for --expr models.
     #[arg(long, default_value = "rlsf")]
     pub method: MethodName,
     /// Forgetting factor λ ∈ (0, 1] (rlsf, dsfc; with --lambda0 it is λ(0)) [default: 0.98].
-    #[arg(long)]
+    #[arg(long, value_name = "LAMBDA", value_parser = super::range::forgetting, allow_negative_numbers = true)]
     pub lambda: Option<f64>,
     /// Time-varying forgetting λ(t) = λ0·λ(t−1) + 1 − λ0 (Eq. 5.24) for rlsf.
-    #[arg(long)]
+    #[arg(long, value_parser = super::range::forgetting, allow_negative_numbers = true)]
     pub lambda0: Option<f64>,
     /// Per-parameter forgetting factors for rlsvf, in --phi order.
     #[arg(long, value_delimiter = ',')]
@@ -55,19 +57,25 @@ pub struct Args {
     #[arg(long, default_value = "published")]
     pub vf_variant: VfVariant,
     /// Initial covariance P0 = C·I [default: 1000 for linear methods, 100 for ekf/ukf/srukf].
-    #[arg(long)]
+    #[arg(long, value_name = "P0", value_parser = super::range::positive, allow_negative_numbers = true)]
     pub p0: Option<f64>,
-    /// Linear methods: initial (nominal) values, in --phi order [default: all 0].
-    #[arg(long, value_delimiter = ',')]
+    /// Deprecated: --params NAME=VALUE (the values in --phi order).
+    #[arg(
+        long,
+        hide = true,
+        value_delimiter = ',',
+        allow_negative_numbers = true,
+        conflicts_with = "params"
+    )]
     pub theta0: Option<Vec<f64>>,
     /// Estimate only these parameters; the others stay at their initial values.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "NAME,…", value_delimiter = ',')]
     pub free: Option<Vec<String>>,
     /// Kalman-type methods (kf, ekf, ukf, srukf): parameter random-walk variance, R1 = X·I.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = super::range::nonnegative, allow_negative_numbers = true)]
     pub r1: f64,
     /// Kalman-type methods: measurement noise variance R2.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, value_name = "R2", default_value_t = 1.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     pub r2: f64,
     /// UKF sigma points: α [default: 1, the thesis's].
     #[arg(long, default_value_t = 1.0)]
@@ -82,11 +90,14 @@ pub struct Args {
     /// units).
     #[arg(long)]
     pub scaled: bool,
-    /// Non-linear methods: bound a parameter, NAME=LOW:HIGH (repeatable).
-    #[arg(long)]
-    pub bound: Vec<String>,
+    /// Non-linear methods: keep a parameter within limits, NAME=LOW:HIGH (repeatable).
+    #[arg(long, value_name = "NAME=LOW:HIGH")]
+    pub limits: Vec<String>,
+    /// Deprecated: --limits (--bound is the alarms' relative-error bound in the other verbs).
+    #[arg(long = "bound", hide = true, conflicts_with = "limits")]
+    pub bound_old: Vec<String>,
     /// Wind-up guard (linear methods): bound on trace(P).
-    #[arg(long)]
+    #[arg(long, value_parser = super::range::positive, allow_negative_numbers = true)]
     pub max_trace: Option<f64>,
     /// Wind-up guard action beyond the bound: scale or reset.
     #[arg(long, default_value = "scale")]
@@ -177,14 +188,20 @@ pub fn run(args: &Args) -> Result<()> {
             kappa: args.kappa,
         };
         let mut bounds = Vec::new();
-        for b in &args.bound {
+        let (flag, limits) = if args.bound_old.is_empty() {
+            ("--limits", &args.limits)
+        } else {
+            super::deprecated("--bound NAME=LOW:HIGH in estimate is now --limits NAME=LOW:HIGH");
+            ("--bound", &args.bound_old)
+        };
+        for b in limits {
             let (n, range) = b
                 .split_once('=')
-                .ok_or_else(|| miette!("--bound '{b}': expected NAME=LOW:HIGH"))?;
+                .ok_or_else(|| miette!("{flag} '{b}': expected NAME=LOW:HIGH"))?;
             let (lo, hi) = range
                 .split_once(':')
                 .and_then(|(l, h)| Some((l.trim().parse().ok()?, h.trim().parse().ok()?)))
-                .ok_or_else(|| miette!("--bound '{b}': expected NAME=LOW:HIGH with numbers"))?;
+                .ok_or_else(|| miette!("{flag} '{b}': expected NAME=LOW:HIGH with numbers"))?;
             bounds.push((n.trim().to_string(), lo, hi));
         }
         let cfg = NlConfig {
@@ -211,8 +228,33 @@ pub fn run(args: &Args) -> Result<()> {
         if args.expr.is_some() {
             return Err(miette!("--expr needs --method ekf, ukf or srukf"));
         }
+        if !args.limits.is_empty() || !args.bound_old.is_empty() {
+            return Err(miette!(
+                "--limits is for the non-linear methods (ekf, ukf, srukf with --expr)"
+            ));
+        }
         let p = args.phi.len();
-        let theta0 = args.theta0.clone().unwrap_or_else(|| vec![0.0; p]);
+        let mut theta0 = vec![0.0; p];
+        if let Some(old) = &args.theta0 {
+            super::deprecated("--theta0 V,… is now --params NAME=VALUE,… (names as in --phi)");
+            if old.len() != p {
+                return Err(miette!(
+                    "--theta0: {} values for the {p} regressors of --phi",
+                    old.len()
+                ));
+            }
+            theta0.clone_from(old);
+        }
+        let (names, values) = named_values(&args.params, "--params")?;
+        for (n, v) in names.iter().zip(values) {
+            let j = args.phi.iter().position(|c| c == n).ok_or_else(|| {
+                miette!(
+                    "--params {n}: the parameters are the regressors of --phi: {}",
+                    args.phi.join(", ")
+                )
+            })?;
+            theta0[j] = v;
+        }
         let params = ParamSet::new(args.phi.clone(), theta0).into_diagnostic()?;
         let free = free_set(args, &params)?;
         let guard = args.max_trace.map(|max_trace| WindupGuard {
@@ -361,10 +403,7 @@ pub fn run(args: &Args) -> Result<()> {
     let has_std_err = est.std_errors().is_some();
 
     if args.json {
-        outln!(
-            "{}",
-            serde_json::to_string_pretty(&summary).into_diagnostic()?
-        );
+        crate::provenance::print_json(&summary)?;
         return Ok(());
     }
     outln!(

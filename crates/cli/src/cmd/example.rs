@@ -16,7 +16,7 @@ pub struct Args {
     /// (RLS, RLSF and vector forgetting tracking a parameter step).
     pub id: String,
     /// Directory for the CSV and SVG [default: physid-out/example-<id>].
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -71,7 +71,8 @@ fn run_5_1(args: &Args) -> Result<()> {
         model: Some("example-5.1".into()),
         y: None,
         scaling: physid_ident::Scaling::Thesis,
-        guard: 1e-3,
+        scaling_guard: 1e-3,
+        guard_old: None,
         centre: false,
         cutoff: physid_ident::Selection::Rule(physid_ident::Cutoff::Repeat),
         cutoff_rel: None,
@@ -124,14 +125,11 @@ fn run_5_1(args: &Args) -> Result<()> {
     rep.write(&dir.join("report.html"))?;
     std::fs::write(
         dir.join("example-5.1.json"),
-        serde_json::to_string_pretty(&report).into_diagnostic()?,
+        serde_json::to_string_pretty(&crate::provenance::with(&report)).into_diagnostic()?,
     )
     .into_diagnostic()?;
     if args.json {
-        outln!(
-            "{}",
-            serde_json::to_string_pretty(&report).into_diagnostic()?
-        );
+        crate::provenance::print_json(&report)?;
     } else {
         outln!(
             "\nwrote {} and {}",
@@ -204,7 +202,8 @@ fn run_5_2(args: &Args) -> Result<()> {
         }
         let out = serde_json::json!({"example": "5.2", "estimates": methods,
             "csv": csv.display().to_string(), "svg": svg.display().to_string()});
-        let text = serde_json::to_string_pretty(&out).into_diagnostic()?;
+        let text =
+            serde_json::to_string_pretty(&crate::provenance::with(&out)).into_diagnostic()?;
         std::fs::write(dir.join("example-5.2.json"), &text).into_diagnostic()?;
         outln!("{text}");
         return Ok(());
@@ -290,6 +289,7 @@ fn plot_5_2(r: &Example52, path: &std::path::Path) -> Result<()> {
         panels.push(Panel {
             ylabel: name.into(),
             series,
+            ..Default::default()
         });
     }
     plot::panels(

@@ -6,7 +6,7 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_apps::friction_fit::{
     self, friction_fit, friction_fit_stream, friction_preset, FrictionFit, FrictionFitConfig,
     TorqueSource, FRICTION_PRESETS, OBJECTIVE_PCT,
@@ -14,7 +14,8 @@ use physid_apps::friction_fit::{
 use physid_apps::friction_rank::{friction_rank, RankGrid, RankTable};
 use physid_ident::Selection;
 use physid_models::friction::{
-    fmep, set_by_name, tau_nm, Design, OperatingPoint, Settings, REGRESSION_PARAMS,
+    fmep, set_by_name, tau_nm, Design, OperatingPoint, Settings, REGRESSION_DESCRIPTIONS,
+    REGRESSION_PARAMS, REGRESSION_UNITS,
 };
 use std::path::{Path, PathBuf};
 
@@ -88,7 +89,7 @@ struct EvalArgs {
     #[arg(long, value_parser = super::range::celsius, allow_negative_numbers = true)]
     t_oil: f64,
     /// Ambient pressure [kPa] (the thesis code's 101 kPa).
-    #[arg(long, default_value_t = 101.0, value_parser = super::range::kpa, allow_negative_numbers = true)]
+    #[arg(long, value_name = "KPA", default_value_t = 101.0, value_parser = super::range::kpa, allow_negative_numbers = true)]
     p_atm: f64,
     #[command(flatten)]
     model: ModelArgs,
@@ -109,18 +110,26 @@ struct RankArgs {
     #[arg(long, value_delimiter = ',', default_values_t = [20.0, 55.0, 90.0], value_parser = super::range::celsius, allow_negative_numbers = true)]
     t_oil: Vec<f64>,
     /// Ambient pressure [kPa].
-    #[arg(long, default_value_t = 101.0, value_parser = super::range::kpa, allow_negative_numbers = true)]
+    #[arg(long, value_name = "KPA", default_value_t = 101.0, value_parser = super::range::kpa, allow_negative_numbers = true)]
     p_atm: f64,
-    /// The parameters to rank [default: B,S,kappa,Di,De,Lv,Db,Lb,r].
-    #[arg(long, value_delimiter = ',')]
-    params: Vec<String>,
+    /// The parameters to rank (the others held) [default: B,S,kappa,Di,De,Lv,Db,Lb,r].
+    #[arg(long, value_name = "NAME,…", value_delimiter = ',')]
+    free: Vec<String>,
+    /// Deprecated: --free (--params gives parameter values in the other verbs).
+    #[arg(
+        long = "params",
+        hide = true,
+        value_delimiter = ',',
+        conflicts_with = "free"
+    )]
+    params_old: Vec<String>,
     #[command(flatten)]
     model: ModelArgs,
     /// Print JSON: {"parameters": [...], "tests": [{n_rpm, p_int_kpa, t_oil_c, ranking}]}.
     #[arg(long)]
     json: bool,
     /// Directory for the report: report.html, the heat map rank.svg (like the thesis's Fig. 7.1), rank.json.
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
 }
 
@@ -129,7 +138,7 @@ struct FitArgs {
     /// Motored recording: crank-angle basis with `cycle` (or a time basis with the engine
     /// encoder `count_en` and the TDC marker `tdc`), `omega_en`, `p_int`, `T_oil`, `p_atm` and
     /// the torque channel.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     data: PathBuf,
     #[command(flatten)]
     input: super::InputArgs,
@@ -144,23 +153,23 @@ struct FitArgs {
     #[arg(long, default_value = "repeat")]
     cutoff: Selection,
     /// DSFC initial square-root covariance S0 = s0·I, in relative coordinates c = c0·(1 + x).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     s0: f64,
     /// DSFC forgetting factor λ ∈ (0, 1].
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, value_name = "LAMBDA", default_value_t = 1.0, value_parser = super::range::forgetting, allow_negative_numbers = true)]
     lambda: f64,
     /// Start-up transient excluded from the maximum error [s].
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = super::range::nonnegative, allow_negative_numbers = true)]
     transient: f64,
     /// Ambient pressure [kPa] if the recording has no p_atm channel.
-    #[arg(long)]
+    #[arg(long, value_name = "KPA")]
     p_atm: Option<f64>,
     /// Print JSON: {"estimable", "params", "std_err", "prediction_error_pct": {"final",
     /// "max_after_transient"}, …}.
     #[arg(long)]
     json: bool,
     /// Directory for the report (report.html with its SVGs, friction_fit.json).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Write every steady cycle — its operating point, the measured, one-step predicted,
     /// nominal (and simulated) friction torque, the estimable coefficients and their standard
@@ -212,7 +221,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         report::finish(dir, rep, "friction_fit.json", &j)?;
     }
     if a.json {
-        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        crate::provenance::print_json(&j)?;
         return Ok(());
     }
     outln!(
@@ -262,6 +271,23 @@ fn coefficient_index(name: &str) -> usize {
         .unwrap_or(0)
 }
 
+/// The friction model's design parameters `names` with their units and meanings, as a table.
+pub fn design_table(rep: &mut Report, names: &[String]) {
+    let g = report::Glossary {
+        names: &physid_models::friction::DESIGN_PARAMS,
+        units: &physid_models::friction::DESIGN_UNITS,
+        descriptions: &physid_models::friction::DESIGN_DESCRIPTIONS,
+    };
+    let rows: Vec<Vec<String>> = names
+        .iter()
+        .map(|n| {
+            let (unit, meaning) = g.of(n);
+            vec![n.clone(), unit, meaning]
+        })
+        .collect();
+    rep.table(&["parameter", "unit", "meaning"], &rows);
+}
+
 /// Write the friction-fit section of a report (and its SVG into `dir`).
 pub fn fit_report_section(
     rep: &mut Report,
@@ -287,19 +313,36 @@ pub fn fit_report_section(
         ),
         None,
     );
+    let glossary = report::Glossary {
+        names: &REGRESSION_PARAMS,
+        units: &REGRESSION_UNITS,
+        descriptions: &REGRESSION_DESCRIPTIONS,
+    };
     rep.ranking(
         &r.ranking,
+        glossary,
         "Identifiability of c1 … c20: residual profile (Alg. 5.1)",
         &dir.join("friction_fit_residuals.svg"),
     )?;
     rep.table(
-        &["coefficient", "nominal", "final", "change", "std error"],
+        &[
+            "coefficient",
+            "unit",
+            "meaning",
+            "nominal",
+            "final",
+            "change",
+            "std error",
+        ],
         &r.estimable
             .iter()
             .map(|n| {
                 let j = coefficient_index(n);
+                let (unit, meaning) = glossary.of(n);
                 vec![
                     n.clone(),
+                    unit,
+                    meaning,
                     format!("{:.4e}", r.nominal[j]),
                     format!("{:.4e}", r.params[j]),
                     format!(
@@ -311,17 +354,26 @@ pub fn fit_report_section(
             })
             .collect::<Vec<_>>(),
     );
-    let verdict = r.error_after_transient_pct();
+    // The headline is what a user has: the error against the measured cycle means; the
+    // simulated truth, when the recording carries it, comes second.
+    let truth = r.max_truth_error_after_transient_pct.map_or(String::new(), |t| {
+        format!(
+            " Against the simulated friction (known here, not in a real test): at most {t:.2} %; the ±{} % objective is judged on it, since the measured means carry the sensors' noise.",
+            physid_apps::friction_fit::OBJECTIVE_PCT
+        )
+    });
     rep.para(
         &format!(
-            "Prediction error after the {} s start-up transient: at most {:.2} % (final {:+.2} %); NMSE {:.3e} (nominal) → {:.3e} (fitted).",
-            cfg.transient_s, verdict, r.final_error_pct, r.nmse_nominal, r.nmse_final
+            "Prediction error against the measured cycle means after the {} s start-up transient: at most {:.2} % (final {:+.2} %); NMSE {:.3e} (nominal) → {:.3e} (fitted).{truth}",
+            cfg.transient_s,
+            r.max_error_after_transient_pct,
+            r.final_error_pct,
+            r.nmse_nominal,
+            r.nmse_final
         ),
         Some(if r.objective_met() { "ok" } else { "alarm" }),
     );
     let svg = dir.join("friction_fit.svg");
-    let band_hi = vec![OBJECTIVE_PCT; r.data.len()];
-    let band_lo = vec![-OBJECTIVE_PCT; r.data.len()];
     let mut torque = vec![
         Series {
             name: "measured".into(),
@@ -354,29 +406,38 @@ pub fn fit_report_section(
             reference: true,
         });
     }
-    let errors = vec![
-        Series {
-            name: "prediction error".into(),
-            x: &r.data.t_s,
-            y: &r.error_pct,
-            color: PALETTE[0],
-            reference: false,
-        },
-        Series {
-            name: "±5 %".into(),
-            x: &r.data.t_s,
-            y: &band_hi,
-            color: PALETTE[3],
-            reference: true,
-        },
-        Series {
-            name: "".into(),
-            x: &r.data.t_s,
-            y: &band_lo,
-            color: PALETTE[3],
-            reference: true,
-        },
+    let errors = vec![Series {
+        name: "prediction error vs measured".into(),
+        x: &r.data.t_s,
+        y: &r.error_pct,
+        color: PALETTE[0],
+        reference: false,
+    }];
+    // The error axis is set by the error after the start-up transient (the estimator's first
+    // cycles, from the nominal coefficients, are clipped at the frame) and the objective.
+    let t0 = r.data.t_s.first().copied().unwrap_or(0.0);
+    let after: Vec<f64> = r
+        .data
+        .t_s
+        .iter()
+        .zip(&r.error_pct)
+        .filter(|(t, e)| **t - t0 >= cfg.transient_s && e.is_finite())
+        .map(|(_, e)| *e)
+        .collect();
+    let objective = format!("objective ±{OBJECTIVE_PCT} %");
+    let error_marks = vec![
+        plot::Mark::value(objective.as_str(), OBJECTIVE_PCT, PALETTE[3]),
+        plot::Mark::value(objective.as_str(), -OBJECTIVE_PCT, PALETTE[3]),
+        plot::Mark::instant(
+            "end of start-up transient",
+            t0 + cfg.transient_s,
+            plot::REFERENCE,
+        ),
     ];
+    let error_range = (
+        after.iter().copied().fold(-OBJECTIVE_PCT, f64::min) * 1.2,
+        after.iter().copied().fold(OBJECTIVE_PCT, f64::max) * 1.2,
+    );
     let inputs = vec![Series {
         name: "speed [rpm]".into(),
         x: &r.data.t_s,
@@ -399,18 +460,23 @@ pub fn fit_report_section(
             Panel {
                 ylabel: "friction torque [N·m]".into(),
                 series: torque,
+                ..Default::default()
             },
             Panel {
                 ylabel: "error [%]".into(),
                 series: errors,
+                marks: error_marks,
+                y_range: Some(error_range),
             },
             Panel {
                 ylabel: "N [rpm]".into(),
                 series: inputs,
+                ..Default::default()
             },
             Panel {
                 ylabel: "p_int [kPa]".into(),
                 series: p_int,
+                ..Default::default()
             },
         ],
     )?;
@@ -436,7 +502,7 @@ fn eval(a: &EvalArgs) -> Result<()> {
             },
             "tau_fri_nm": tau,
         });
-        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        crate::provenance::print_json(&j)?;
         return Ok(());
     }
     outln!(
@@ -474,7 +540,13 @@ fn rank(a: &RankArgs) -> Result<()> {
         p_atm_kpa: a.p_atm,
     };
     let working = crate::progress::Working::new("ranking the design parameters over the grid");
-    let t = friction_rank(&d, &st, &grid, &a.params).map_err(|e| miette!("{e}"))?;
+    let free = if a.params_old.is_empty() {
+        &a.free
+    } else {
+        super::deprecated("--params NAME,… in friction rank is now --free NAME,…");
+        &a.params_old
+    };
+    let t = friction_rank(&d, &st, &grid, free).map_err(|e| miette!("{e}"))?;
     drop(working);
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
@@ -515,6 +587,7 @@ fn rank(a: &RankArgs) -> Result<()> {
             .collect();
         rep.table(&header, &rows);
         rep.svg(&svg)?;
+        design_table(&mut rep, &t.parameters);
         report::finish(dir, rep, "rank.json", &t.summary())?;
         if !a.json {
             outln!(
@@ -525,10 +598,7 @@ fn rank(a: &RankArgs) -> Result<()> {
         }
     }
     if a.json {
-        outln!(
-            "{}",
-            serde_json::to_string_pretty(&t.summary()).into_diagnostic()?
-        );
+        crate::provenance::print_json(&t.summary())?;
         return Ok(());
     }
     outln!(

@@ -16,27 +16,30 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args)]
 pub struct Args {
     /// Recording (CSV, Parquet or MDF4); give several to compare experiments.
-    #[arg(long, required = true)]
+    #[arg(long, value_name = "FILE", required = true)]
     pub data: Vec<PathBuf>,
     /// The model as a formula; its data columns are the names that are not parameters.
-    #[arg(long, conflicts_with = "model")]
+    #[arg(long, value_name = "FORMULA", conflicts_with = "model")]
     pub expr: Option<String>,
     /// Nominal values NAME=VALUE,… (all parameters with --expr; overrides with --model).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
     pub params: Vec<String>,
     /// A built-in model: example-5.1, shaft, shaft-offset, cyclic-torque, friction-regression.
     #[arg(long)]
     pub model: Option<String>,
     /// The measured output column: thesis scaling then divides by it, and the precision comes
     /// from a least-squares fit (without it: the model's output at the nominal values).
-    #[arg(long)]
+    #[arg(long, value_name = "COL")]
     pub y: Option<String>,
     /// Sensitivity scaling: thesis (ϑ0/y, Eq. 5.11), sigma (ϑ0/σ_y) or none.
     #[arg(long, default_value = "thesis")]
     pub scaling: Scaling,
     /// Thesis-scaling guard: rows with |y| below this fraction of rms(y) divide by it instead.
-    #[arg(long, default_value_t = 1e-3)]
-    pub guard: f64,
+    #[arg(long, value_name = "FRACTION", default_value_t = 1e-3)]
+    pub scaling_guard: f64,
+    /// Deprecated: --scaling-guard (--guard is the wind-up guard's action in estimate).
+    #[arg(long = "guard", hide = true, conflicts_with = "scaling_guard")]
+    pub guard_old: Option<f64>,
     /// Subtract each sensitivity column's mean first (Eq. 5.9 as printed).
     #[arg(long)]
     pub centre: bool,
@@ -48,7 +51,7 @@ pub struct Args {
     #[arg(long)]
     pub cutoff_rel: Option<f64>,
     /// Analyse only these parameters (the rest held at their nominal values).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "NAME,…", value_delimiter = ',')]
     pub free: Vec<String>,
     /// Measurement noise standard deviation for the Fisher information [output units]
     /// (default: estimated from the fit with --y; otherwise 1).
@@ -107,7 +110,7 @@ pub fn run(args: &Args) -> Result<()> {
         } else {
             json!({ "experiments": reports })
         };
-        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        crate::provenance::print_json(&v)?;
         return Ok(());
     }
     if reports.len() > 1 {
@@ -121,7 +124,8 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
     let (model, nominal) = build(args)?;
     let config = IdentConfig {
         scaling: args.scaling,
-        guard: args.guard,
+        guard: super::renamed(args.guard_old, "--guard", "--scaling-guard")
+            .unwrap_or(args.scaling_guard),
         centre: args.centre,
     };
     let choice = cutoff(args)?;

@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long)]
     pub strict: bool,
     /// Directory for cycle-by-crank-angle surface views (thesis Fig. 4.8) of --surface channels.
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Channels to draw as surfaces (needs crank-angle data: `cycle` and `crank_deg`).
     #[arg(long, value_delimiter = ',')]
@@ -340,7 +340,7 @@ pub fn run(args: &Args) -> Result<()> {
         rep.write(&dir.join("report.html"))?;
         std::fs::write(
             dir.join("inspect.json"),
-            serde_json::to_string_pretty(&i).into_diagnostic()?,
+            serde_json::to_string_pretty(&crate::provenance::with(&i)).into_diagnostic()?,
         )
         .into_diagnostic()?;
     }
@@ -349,7 +349,7 @@ pub fn run(args: &Args) -> Result<()> {
         if let Some(o) = v.as_object_mut() {
             o.insert("surfaces".into(), serde_json::json!(written));
         }
-        outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+        crate::provenance::print_json(&v)?;
     } else {
         outln!(
             "{}: {} basis, {} samples",

@@ -79,7 +79,7 @@ pub struct Args {
     #[arg(long, value_name = "S", value_parser = super::range::positive, allow_negative_numbers = true)]
     duration: Option<f64>,
     /// The sample rate of the virtual cell, or of the frames from outside [Hz].
-    #[arg(long = "sample-rate", default_value_t = 10_000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
+    #[arg(long = "sample-rate", value_name = "HZ", default_value_t = 10_000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     sample_rate: f64,
     /// Recording seconds per wall-clock second: 1 real time, 10, … or max.
     #[arg(long, default_value = "1")]

@@ -118,6 +118,7 @@ impl GeometryArgs {
 impl InputArgs {
     /// Read `path`, optionally only `channels` (physid names).
     pub fn read(&self, path: &Path, channels: Option<Vec<String>>) -> Result<Recording> {
+        crate::provenance::record_input(path, &self.map);
         let rec = physid_io::read(path, &self.options(channels)?).into_diagnostic()?;
         // What the reader noticed but read all the same (a cut-short last line) is said.
         if let Some(w) = rec.meta.get("warning") {
@@ -140,6 +141,7 @@ impl InputArgs {
 
     /// Open `path` to read a chunk at a time, every channel.
     pub fn open_all(&self, path: &Path) -> Result<physid_io::ChunkReader> {
+        crate::provenance::record_input(path, &self.map);
         physid_io::ChunkReader::open(path, &self.options(None)?).into_diagnostic()
     }
 
@@ -157,6 +159,7 @@ impl InputArgs {
             let has = |n: &str| all.header().channel(n).is_ok();
             names.extend(optional.iter().filter(|n| has(n)).map(|n| n.to_string()));
         }
+        crate::provenance::record_input(path, &self.map);
         physid_io::ChunkReader::open(path, &self.options(Some(names))?).into_diagnostic()
     }
 }
@@ -189,6 +192,22 @@ pub fn locate(rec: &Recording, i: usize) -> String {
         Some(l) => format!("line {} (sample {i})", l + i),
         None => format!("sample {i}"),
     }
+}
+
+/// A flag's old spelling, still taken for this release (docs/cli.md lists them): the value
+/// given under it, if any, with a warning on stderr naming the new spelling. The two are
+/// declared `conflicts_with` each other, so at most one was given.
+pub fn renamed<T>(old: Option<T>, old_flag: &str, new_flag: &str) -> Option<T> {
+    if old.is_some() {
+        deprecated(&format!("{old_flag} is now {new_flag}"));
+    }
+    old
+}
+
+/// A deprecation warning on stderr: `what` (an old spelling and its new one), taken for this
+/// release only.
+pub fn deprecated(what: &str) {
+    eprintln!("warning: {what} (the old spelling is taken for this release only; docs/cli.md)");
 }
 
 /// `NAME=VALUE,…` into names and values.
@@ -227,6 +246,16 @@ pub mod range {
             Ok(v)
         } else {
             Err(format!("expected a number > 0, got {v}"))
+        }
+    }
+
+    /// A variance or a time that may be zero: ≥ 0.
+    pub fn nonnegative(s: &str) -> Result<f64, String> {
+        let v = number(s)?;
+        if v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("expected a number ≥ 0, got {v}"))
         }
     }
 

@@ -2,11 +2,11 @@
 
 use super::InputArgs;
 use crate::out::outln;
-use crate::plot::{self, Panel, Series, PALETTE};
+use crate::plot::{self, Mark, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
 use crate::tracks::TrackFile;
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_apps::error::AppError;
 use physid_apps::shaft_monitor::{
     monitor_shaft_tracked, on_time_basis, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
@@ -34,7 +34,7 @@ enum What {
 struct ShaftArgs {
     /// Recording with theta_dy, theta_en, omega_dy, omega_en, torque_shaft on a uniform time
     /// basis (CSV, Parquet or MDF4).
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     data: PathBuf,
     #[command(flatten)]
     input: InputArgs,
@@ -44,7 +44,7 @@ struct ShaftArgs {
     #[arg(long)]
     json: bool,
     /// Directory for the report (report.html, shaft.svg, shaft.json).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Write every estimator sample — t, K, B and their standard errors, τ0, the alarms (1 once
     /// raised) and with --supervise the frozen flags — to this file (.csv, .parquet or .mf4),
@@ -86,30 +86,39 @@ fn slices(rec: &Recording) -> impl Iterator<Item = Result<Recording, AppError>> 
 /// The shaft monitor's settings, shared by `monitor shaft` and `live`.
 #[derive(clap::Args, Clone)]
 pub struct MonitorFlags {
-    /// Estimator: rls, rlsvf or dsfc.
-    #[arg(long, default_value = "rls")]
-    method: MonitorMethod,
+    /// Estimator: rlsf (RLS with forgetting λ), rlsvf (vector forgetting) or dsfc — the names
+    /// `physid estimate` gives them ('rls', the old name of rlsf here, is taken for this
+    /// release with a warning).
+    #[arg(long, default_value = "rlsf")]
+    method: String,
     /// Forgetting factor, 0 < λ ≤ 1.
-    #[arg(long, default_value_t = 0.98, value_parser = super::range::forgetting, allow_negative_numbers = true)]
+    #[arg(long, value_name = "LAMBDA", default_value_t = 0.98, value_parser = super::range::forgetting, allow_negative_numbers = true)]
     lambda: f64,
     /// Healthy values K=…,B=… (the alarms' reference) [default: Table 6.1, 1250 and 0.95].
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_name = "K=…,B=…", value_delimiter = ',')]
     healthy: Vec<String>,
     /// Start the estimator at the healthy values instead of 0.
     #[arg(long)]
     start_healthy: bool,
     /// Relative-error bound (Eq. 6.3), > 0.
-    #[arg(long, default_value_t = 0.1, value_parser = super::range::positive, allow_negative_numbers = true)]
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.1, value_parser = super::range::positive, allow_negative_numbers = true)]
     bound: f64,
     /// Estimator samples beyond the bound before an alarm.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, value_name = "N", default_value_t = 200)]
     dwell: u64,
     /// Zero-phase low-pass cut-off before estimation [Hz].
-    #[arg(long, default_value_t = 500.0, value_parser = super::range::positive, allow_negative_numbers = true)]
-    cutoff: f64,
-    /// Estimator rate [Hz], > 0 (at most the recording's sample rate: every sample).
-    #[arg(long, default_value_t = 2000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
-    rate: f64,
+    #[arg(long, value_name = "HZ", default_value_t = 500.0, value_parser = super::range::positive, allow_negative_numbers = true)]
+    lowpass: f64,
+    /// Deprecated: --lowpass.
+    #[arg(long = "cutoff", hide = true, conflicts_with = "lowpass", value_parser = super::range::positive, allow_negative_numbers = true)]
+    cutoff_old: Option<f64>,
+    /// Estimator updates per second [Hz], > 0 (the low-passed signals are taken at this rate;
+    /// at most the recording's sample rate: every sample).
+    #[arg(long, value_name = "HZ", default_value_t = 2000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
+    update_rate: f64,
+    /// Deprecated: --update-rate.
+    #[arg(long = "rate", hide = true, conflicts_with = "update_rate", value_parser = super::range::positive, allow_negative_numbers = true)]
+    rate_old: Option<f64>,
     /// Freeze K or B while the data no longer resolve them, release them when they do again
     /// (the excitation supervisor: on-line identifiability over the last 0.1 s, thesis §9.2).
     #[arg(long)]
@@ -125,14 +134,22 @@ pub fn run(args: &Args) -> Result<()> {
 
 /// The monitor's configuration from the flags.
 pub fn config(a: &MonitorFlags) -> Result<MonitorConfig> {
-    let method = a.method;
+    let method = a
+        .method
+        .parse::<MonitorMethod>()
+        .map_err(|e| miette!("--method {e}"))?;
+    if MonitorMethod::is_old_name(&a.method) {
+        super::deprecated(
+            "--method rls is RLS with forgetting in the shaft monitor, now called rlsf as in physid estimate (where rls has no forgetting)",
+        );
+    }
     let mut cfg = MonitorConfig {
         method,
         lambda: a.lambda,
         bound: a.bound,
         dwell: a.dwell,
-        cutoff_hz: a.cutoff,
-        rate_hz: a.rate,
+        cutoff_hz: super::renamed(a.cutoff_old, "--cutoff", "--lowpass").unwrap_or(a.lowpass),
+        rate_hz: super::renamed(a.rate_old, "--rate", "--update-rate").unwrap_or(a.update_rate),
         supervise: a.supervise,
         ..Default::default()
     };
@@ -164,8 +181,20 @@ pub fn report_section(
     rep.section("Coupling-shaft health (thesis ch. 6)");
     rep.para(
         &format!(
-            "τ_sh = K·Δθ + B·Δω + τ0 (Eq. 6.1) tracked by {} (λ = {}); alarms when |ϑ_healthy − ϑ̂|/ϑ_healthy > {} for {} samples (Eq. 6.3), healthy K = {}, B = {}.",
-            r.method, cfg.lambda, cfg.bound, cfg.dwell, cfg.healthy.k, cfg.healthy.b
+            "τ_sh = K·Δθ + B·Δω + τ0 (Eq. 6.1) tracked by {} (λ = {}) at {} Hz: {}, then one sample in {} taken from the recording's {} Hz. Alarms when |ϑ_healthy − ϑ̂|/ϑ_healthy > {} for {} samples (Eq. 6.3; the change reported is (ϑ̂ − ϑ_healthy)/ϑ_healthy), healthy K = {} N·m/rad, B = {} N·m·s/rad.",
+            r.method,
+            cfg.lambda,
+            r.input_rate_hz / r.every as f64,
+            r.lowpass_hz.map_or_else(
+                || "Δθ, Δω and τ_sh unfiltered (the low-pass cut-off is above the Nyquist frequency)".to_string(),
+                |f| format!("Δθ, Δω and τ_sh low-passed at {f} Hz (zero phase, Butterworth of order 4)")
+            ),
+            r.every,
+            r.input_rate_hz,
+            cfg.bound,
+            cfg.dwell,
+            cfg.healthy.k,
+            cfg.healthy.b
         ),
         None,
     );
@@ -209,11 +238,13 @@ pub fn report_section(
         }
     }
     let svg = dir.join("shaft.svg");
-    plot_tracks(r, &svg)?;
+    plot_tracks(r, cfg, &svg)?;
     rep.svg(&svg)
 }
 
-fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
+/// K and B over time: the estimate, its ±3σ band, the truth when known, the healthy value and
+/// the alarm bounds around it (Eq. 6.3), and the instants alarms were raised.
+fn plot_tracks(r: &ShaftMonitor, cfg: &MonitorConfig, path: &Path) -> Result<()> {
     // Leave out the estimator's first 0.1 s: from ϑ0 = 0 its start-up spans orders of
     // magnitude and would flatten everything after it.
     let start = r.t.iter().position(|&t| t - r.t[0] >= 0.1).unwrap_or(0);
@@ -242,23 +273,43 @@ fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
         band(&r.b, 1, -1.0),
     );
     let mut panels = Vec::new();
-    for (label, est, hi, lo, truth) in [
+    for (param, label, est, hi, lo, truth, healthy) in [
         (
+            "K",
             "K [N·m/rad]",
             &r.k,
             &k_hi,
             &k_lo,
             r.truth.as_ref().map(|t| &t.0),
+            cfg.healthy.k,
         ),
         (
+            "B",
             "B [N·m·s/rad]",
             &r.b,
             &b_hi,
             &b_lo,
             r.truth.as_ref().map(|t| &t.1),
+            cfg.healthy.b,
         ),
     ] {
+        // The band first, light; the estimate over it; the truth thick and pale.
+        let band = plot::BAND;
         let mut series = vec![
+            Series {
+                name: "±3σ".into(),
+                x: &r.t,
+                y: hi,
+                color: band,
+                reference: false,
+            },
+            Series {
+                name: String::new(),
+                x: &r.t,
+                y: lo,
+                color: band,
+                reference: false,
+            },
             Series {
                 name: "estimate".into(),
                 x: &r.t,
@@ -266,26 +317,12 @@ fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
                 color: PALETTE[0],
                 reference: false,
             },
-            Series {
-                name: "+3σ".into(),
-                x: &r.t,
-                y: hi,
-                color: PALETTE[4],
-                reference: false,
-            },
-            Series {
-                name: "−3σ".into(),
-                x: &r.t,
-                y: lo,
-                color: PALETTE[4],
-                reference: false,
-            },
         ];
         if let Some(tv) = truth {
             series.insert(
                 0,
                 Series {
-                    name: "truth".into(),
+                    name: "truth (simulated)".into(),
                     x: &r.t,
                     y: tv,
                     color: PALETTE[1],
@@ -293,9 +330,20 @@ fn plot_tracks(r: &ShaftMonitor, path: &Path) -> Result<()> {
                 },
             );
         }
+        let bound = format!("alarm bounds (±{} %)", 100.0 * cfg.bound);
+        let mut marks = vec![
+            Mark::value("healthy", healthy, plot::REFERENCE),
+            Mark::value(bound.as_str(), healthy * (1.0 + cfg.bound), PALETTE[3]),
+            Mark::value(bound.as_str(), healthy * (1.0 - cfg.bound), PALETTE[3]),
+        ];
+        for a in r.alarms.iter().filter(|a| a.param == param) {
+            marks.push(Mark::instant("alarm raised", a.t_raised_s, plot::ALARM));
+        }
         panels.push(Panel {
             ylabel: label.into(),
             series,
+            marks,
+            ..Default::default()
         });
     }
     plot::panels(
@@ -366,7 +414,7 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
         report::finish(dir, rep, "shaft.json", &j)?;
     }
     if a.json {
-        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        crate::provenance::print_json(&j)?;
         return Ok(());
     }
     outln!(

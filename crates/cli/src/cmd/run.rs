@@ -4,7 +4,7 @@
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_apps::pipeline::{load_data, run_pipeline, Pipeline, PipelineResult};
 use std::path::{Path, PathBuf};
 
@@ -19,7 +19,7 @@ pub struct Args {
     #[arg(long)]
     json: bool,
     /// Directory for the report (report.html with its SVGs, pipeline.json).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Write the run's tracks — time, measured output, one-step prediction and each estimated
     /// parameter, at the report's ≈ 4000 points — to this file (.csv, .parquet or .mf4).
@@ -47,21 +47,45 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
         ),
         None,
     );
+    // A built-in model's parameters have units and meanings; a formula's are the user's.
+    let glossary = p
+        .model
+        .builtin
+        .as_deref()
+        .and_then(physid_apps::model_choice::glossary)
+        .map_or_else(report::Glossary::default, |(names, units, descriptions)| {
+            report::Glossary {
+                names,
+                units,
+                descriptions,
+            }
+        });
     rep.ranking(
         &r.ranking,
+        glossary,
         "Residual profile (Alg. 5.1)",
         &dir.join("pipeline_residuals.svg"),
     )?;
     rep.section(&format!("Estimation ({})", r.method));
     rep.table(
-        &["parameter", "nominal", "final", "std error"],
+        &[
+            "parameter",
+            "unit",
+            "meaning",
+            "nominal",
+            "final",
+            "std error",
+        ],
         &r.names
             .iter()
             .enumerate()
             .filter(|(_, n)| r.estimable.contains(n))
             .map(|(j, n)| {
+                let (unit, meaning) = glossary.of(n);
                 vec![
                     n.clone(),
+                    unit,
+                    meaning,
                     format!("{:.6e}", r.nominal[j]),
                     format!("{:.6e}", r.params[j]),
                     r.std_err[j].map_or("unresolved by the data".into(), |s| format!("{s:.2e}")),
@@ -102,6 +126,7 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
                 reference: false,
             },
         ],
+        ..Default::default()
     }];
     for (name, v) in &r.tracks {
         panels.push(Panel {
@@ -113,6 +138,7 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
                 color: PALETTE[0],
                 reference: false,
             }],
+            ..Default::default()
         });
     }
     plot::panels(&svg, "Prediction and parameter tracks", "time [s]", &panels)?;
@@ -159,7 +185,7 @@ pub fn run(args: &Args) -> Result<()> {
         report::finish(dir, rep, "pipeline.json", &j)?;
     }
     if args.json {
-        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        crate::provenance::print_json(&j)?;
     } else {
         outln!("{}: {} rows", args.pipeline.display(), r.rows);
         outln!("  estimable: {}", r.estimable.join(", "));

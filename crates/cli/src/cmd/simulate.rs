@@ -3,7 +3,7 @@
 
 use crate::out::outln;
 use crate::progress::Progress;
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_io::ChunkWriter;
 use physid_sim::params::CellParams;
 use physid_sim::run::{OutputBasis, Run, RunOptions};
@@ -28,30 +28,40 @@ pub struct Args {
     faults: Vec<String>,
     #[command(flatten)]
     set: SetArgs,
-    /// Output basis: time (uniform at --rate) or crank (one sample per --step-deg).
+    /// Output basis: time (uniform at --sample-rate) or crank (one sample per --step-deg).
     #[arg(long, default_value = "time")]
     basis: String,
     /// Output sample rate on a time basis [Hz].
-    #[arg(long, default_value_t = 10_000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
-    rate: f64,
+    #[arg(long, value_name = "HZ", default_value_t = 10_000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
+    sample_rate: f64,
+    /// Deprecated: --sample-rate.
+    #[arg(long = "rate", hide = true, conflicts_with = "sample_rate", value_parser = super::range::positive, allow_negative_numbers = true)]
+    rate_old: Option<f64>,
     /// Output crank-angle step on a crank basis [deg].
     #[arg(long, default_value_t = 1.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     step_deg: f64,
-    /// Output file (.parquet, .csv or .mf4).
-    #[arg(long)]
-    out: Option<PathBuf>,
+    /// The recording to write (.parquet, .csv or .mf4 by the extension).
+    #[arg(long, value_name = "FILE")]
+    recording: Option<PathBuf>,
+    /// Deprecated: --recording (--out names a report directory in every other verb).
+    #[arg(long = "out", hide = true, conflicts_with = "recording")]
+    out_old: Option<PathBuf>,
     /// List the built-in scenarios.
     #[arg(long)]
     list: bool,
-    /// List every parameter with its value, unit and source.
+    /// List every parameter of the virtual test cell with its value, unit and source (the
+    /// paths --set takes).
     #[arg(long)]
-    params: bool,
+    list_params: bool,
+    /// Deprecated: --list-params (--params gives parameter values in every other verb).
+    #[arg(long = "params", hide = true, conflicts_with = "list_params")]
+    params_old: bool,
 }
 
 /// `--set PATH=VALUE`.
 #[derive(clap::Args, Clone, Default)]
 struct SetArgs {
-    /// Set a parameter PATH=VALUE (repeatable), e.g. --set shaft.k=1340 (see --params).
+    /// Set a parameter PATH=VALUE (repeatable), e.g. --set shaft.k=1340 (see --list-params).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     set: Vec<String>,
 }
@@ -125,14 +135,20 @@ enum Study {
     },
     /// Closed cylinder from BDC with the valves shut: the compression check.
     ///
-    /// Example: physid simulate compression --p0 100000 --t0 300 --rpm 1000 --json
+    /// Example: physid simulate compression --p-bdc 100000 --t-bdc 300 --rpm 1000 --json
     Compression {
         /// Pressure at BDC [Pa].
-        #[arg(long, default_value_t = 100_000.0)]
-        p0: f64,
+        #[arg(long, value_name = "PA", default_value_t = 100_000.0)]
+        p_bdc: f64,
+        /// Deprecated: --p-bdc (--p0 is the initial covariance in every other verb).
+        #[arg(long = "p0", hide = true, conflicts_with = "p_bdc")]
+        p0_old: Option<f64>,
         /// Temperature at BDC [K].
-        #[arg(long, default_value_t = 300.0)]
-        t0: f64,
+        #[arg(long, value_name = "K", default_value_t = 300.0)]
+        t_bdc: f64,
+        /// Deprecated: --t-bdc.
+        #[arg(long = "t0", hide = true, conflicts_with = "t_bdc")]
+        t0_old: Option<f64>,
         /// Engine speed [rpm].
         #[arg(long, default_value_t = 1000.0)]
         rpm: f64,
@@ -158,7 +174,9 @@ pub fn run(args: &Args) -> Result<()> {
         }
         return Ok(());
     }
-    if args.params {
+    if args.list_params
+        || super::renamed(args.params_old.then_some(()), "--params", "--list-params").is_some()
+    {
         let p = args.set.params()?;
         outln!("{:<32} {:>14} {:<12} source", "parameter", "value", "unit");
         for (path, unit, source) in CellParams::TABLE {
@@ -172,13 +190,12 @@ pub fn run(args: &Args) -> Result<()> {
     let name = args.scenario.as_deref().ok_or_else(|| {
         miette!("choose a scenario: --scenario NAME|FILE (physid simulate --list)")
     })?;
-    let out = args
-        .out
-        .as_ref()
-        .ok_or_else(|| miette!("where to? --out FILE.parquet|.csv|.mf4"))?;
+    let out = super::renamed(args.out_old.as_ref(), "--out FILE", "--recording FILE")
+        .or(args.recording.as_ref())
+        .ok_or_else(|| miette!("where to? --recording FILE.parquet|.csv|.mf4"))?;
     if physid_io::Format::from_extension(out).is_none() {
         return Err(miette!(
-            "--out {}: the extension picks the format: .parquet, .csv or .mf4",
+            "--recording {}: the extension picks the format: .parquet, .csv or .mf4",
             out.display()
         ));
     }
@@ -202,7 +219,9 @@ pub fn run(args: &Args) -> Result<()> {
         }
     }
     let basis = match args.basis.as_str() {
-        "time" => OutputBasis::Time(args.rate),
+        "time" => OutputBasis::Time(
+            super::renamed(args.rate_old, "--rate", "--sample-rate").unwrap_or(args.sample_rate),
+        ),
         "crank" => OutputBasis::Crank(args.step_deg),
         b => return Err(miette!("--basis '{b}': expected time or crank")),
     };
@@ -328,7 +347,7 @@ fn run_study(study: &Study) -> Result<()> {
             let pts = dyno_curve(&p, *voltage, *freq, &speeds).map_err(|e| miette!("{e}"))?;
             if *json {
                 let v = serde_json::json!({ "points": pts });
-                outln!("{}", serde_json::to_string_pretty(&v).into_diagnostic()?);
+                crate::provenance::print_json(&v)?;
             } else {
                 outln!("dynamometer at {voltage} V, {freq} Hz (synchronous {n_sync:.0} rpm)");
                 outln!(
@@ -360,7 +379,7 @@ fn run_study(study: &Study) -> Result<()> {
             let p = set.params()?;
             let c = motored_cycle(&p, *rpm, *throttle).map_err(|e| miette!("{e}"))?;
             if *json {
-                outln!("{}", serde_json::to_string_pretty(&c).into_diagnostic()?);
+                crate::provenance::print_json(&c)?;
             } else {
                 outln!(
                     "motored cycle at {rpm} rpm, throttle {throttle}° ({} cycles to converge)",
@@ -391,18 +410,22 @@ fn run_study(study: &Study) -> Result<()> {
             }
         }
         Study::Compression {
-            p0,
-            t0,
+            p_bdc,
+            p0_old,
+            t_bdc,
+            t0_old,
             rpm,
             no_heat_transfer,
             set,
             json,
         } => {
+            let p0 = &super::renamed(*p0_old, "--p0", "--p-bdc").unwrap_or(*p_bdc);
+            let t0 = &super::renamed(*t0_old, "--t0", "--t-bdc").unwrap_or(*t_bdc);
             let p = set.params()?;
             let c =
                 compression(&p, *p0, *t0, *rpm, !no_heat_transfer).map_err(|e| miette!("{e}"))?;
             if *json {
-                outln!("{}", serde_json::to_string_pretty(&c).into_diagnostic()?);
+                crate::provenance::print_json(&c)?;
             } else {
                 outln!(
                     "closed cylinder from BDC at {p0} Pa, {t0} K, {rpm} rpm{}:",

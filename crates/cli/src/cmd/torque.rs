@@ -6,7 +6,7 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_apps::torque_fit::{
     self, cyclic_torque_nominal, torque_fit, torque_fit_phased, TorqueFit, TorqueFitConfig,
 };
@@ -39,30 +39,43 @@ struct FitArgs {
     /// sample per degree from its first TDC marker, on the stream as `physid live --torque`
     /// does; with only the encoder count, converted first): theta or theta_en, omega_en,
     /// alpha_en, p_cyl, p_crank, T_oil, torque_engine.
-    #[arg(long)]
+    #[arg(long, value_name = "FILE")]
     data: PathBuf,
     #[command(flatten)]
     input: super::InputArgs,
     /// Filter: ekf, ukf or srukf.
     #[arg(long, default_value = "ukf")]
     method: NlMethod,
-    /// Parameters known by design, held at their nominal values (δ's nominal value is 0 and
-    /// cannot be scaled).
-    #[arg(long, value_delimiter = ',', default_value = "delta")]
+    /// Parameters known by design, held: NAME at its nominal value, NAME=VALUE at that value
+    /// (δ's nominal value is 0 and cannot be scaled), e.g. --fix delta,r=0.0457.
+    #[arg(
+        long,
+        value_name = "NAME[=VALUE],…",
+        value_delimiter = ',',
+        default_value = "delta"
+    )]
     fix: Vec<String>,
     /// How many ranked parameters to estimate: rel:FRACTION (default rel:1e-6), repeat, wu or
     /// an absolute residual.
     #[arg(long, default_value = "rel:1e-6")]
     cutoff: Selection,
-    /// Nominal (initial) values NAME=VALUE (SI: kg, m; c in kPa units) over the built-in test
-    /// cell's engine, e.g. --nominal M_rec=0.82,b=0.0541.
-    #[arg(long, value_delimiter = ',')]
-    nominal: Vec<String>,
+    /// The parameters' nominal (initial) values NAME=VALUE (SI: kg, m; c in kPa units) over
+    /// the built-in test cell's engine, e.g. --params M_rec=0.82,b=0.0541.
+    #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
+    params: Vec<String>,
+    /// Deprecated: --params.
+    #[arg(
+        long = "nominal",
+        hide = true,
+        value_delimiter = ',',
+        conflicts_with = "params"
+    )]
+    nominal_old: Vec<String>,
     /// P0 = p0·I over the scaled coordinates x, ϑ = ϑ0·(1 + x).
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, value_name = "P0", default_value_t = 0.01, value_parser = super::range::positive, allow_negative_numbers = true)]
     p0: f64,
     /// Measurement-noise variance R2 [N²·m²] (default: the batch fit's residual variance).
-    #[arg(long)]
+    #[arg(long, value_name = "R2", value_parser = super::range::positive, allow_negative_numbers = true)]
     r2: Option<f64>,
     /// Let a parameter drift: NAME=VARIANCE per sample in scaled coordinates, e.g.
     /// --track M_rec=1e-6 to follow a reciprocating-mass change.
@@ -72,7 +85,7 @@ struct FitArgs {
     #[arg(long)]
     json: bool,
     /// Directory for the report (report.html with its SVGs, torque_fit.json).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Write every cycle's worth (720 samples) through the filter — the estimates and their
     /// standard errors after it, the RMS one-step prediction error and the RMS measured torque —
@@ -90,17 +103,36 @@ pub fn run(args: &Args) -> Result<()> {
 
 fn config(a: &FitArgs) -> Result<TorqueFitConfig> {
     let mut nominal = cyclic_torque_nominal(&CellParams::default()).map_err(|e| miette!("{e}"))?;
-    let (names, values) = named_values(&a.nominal, "--nominal")?;
-    for (n, v) in names.iter().zip(values) {
+    let (flag, given) = if a.nominal_old.is_empty() {
+        ("--params", &a.params)
+    } else {
+        super::deprecated("--nominal is now --params");
+        ("--nominal", &a.nominal_old)
+    };
+    // `--fix NAME=VALUE` sets the value it holds.
+    let held: Vec<String> = a.fix.iter().filter(|s| s.contains('=')).cloned().collect();
+    let (names, values) = named_values(given, flag)?;
+    let (held_names, held_values) = named_values(&held, "--fix")?;
+    let flags = std::iter::repeat_n(flag, names.len())
+        .chain(std::iter::repeat_n("--fix", held_names.len()));
+    let pairs = names
+        .iter()
+        .chain(&held_names)
+        .zip(values.into_iter().chain(held_values));
+    for ((n, v), flag) in pairs.zip(flags) {
         let j = PARAMS
             .iter()
             .position(|p| p == n)
-            .ok_or_else(|| miette!("--nominal {n}: the parameters are {}", PARAMS.join(", ")))?;
+            .ok_or_else(|| miette!("{flag} {n}: the parameters are {}", PARAMS.join(", ")))?;
         nominal[j] = v;
     }
     let mut cfg = TorqueFitConfig::new(nominal);
     cfg.method = a.method;
-    cfg.fixed = a.fix.iter().map(|s| s.trim().to_string()).collect();
+    cfg.fixed = a
+        .fix
+        .iter()
+        .map(|s| s.split('=').next().unwrap_or_default().trim().to_string())
+        .collect();
     cfg.selection = a.cutoff;
     cfg.p0 = a.p0;
     if let Some(r2) = a.r2 {
@@ -137,8 +169,14 @@ pub fn report_section(
         ),
         None,
     );
+    let glossary = report::Glossary {
+        names: &PARAMS,
+        units: &physid_models::cyclic_torque::UNITS,
+        descriptions: &physid_models::cyclic_torque::DESCRIPTIONS,
+    };
     rep.ranking(
         &r.ranking,
+        glossary,
         "Identifiability of Eq. 8.2: residual profile (Alg. 5.1)",
         &dir.join("torque_residuals.svg"),
     )?;
@@ -150,8 +188,11 @@ pub fn report_section(
             .get(k)
             .and_then(|t| t.as_ref())
             .and_then(|t| t.last().copied());
+        let (unit, meaning) = glossary.of(&tr.param);
         rows.push(vec![
             tr.param.clone(),
+            unit,
+            meaning,
             format!("{:.6e}", r.nominal[j]),
             format!("{:.6e}", r.params[j]),
             format!("{se:.2e}"),
@@ -160,7 +201,18 @@ pub fn report_section(
             }),
         ]);
     }
-    rep.table(&["parameter", "nominal", "final", "σ", "truth"], &rows);
+    rep.table(
+        &[
+            "parameter",
+            "unit",
+            "meaning",
+            "nominal",
+            "final",
+            "σ",
+            "truth",
+        ],
+        &rows,
+    );
     rep.para(
         &format!(
             "NMSE (Eq. 6.4) {:.3e} before → {:.3e} after; NRMSE {:.3e} → {:.3e}. (Eq. 6.4 divides by the product of the means, which is near zero for a cyclic torque: NRMSE is the robust measure.)",
@@ -201,14 +253,14 @@ pub fn report_section(
                 name: "±3σ".into(),
                 x: &r.t,
                 y: &bands[k].0,
-                color: PALETTE[4],
+                color: plot::BAND,
                 reference: false,
             },
             Series {
                 name: "".into(),
                 x: &r.t,
                 y: &bands[k].1,
-                color: PALETTE[4],
+                color: plot::BAND,
                 reference: false,
             },
         ];
@@ -216,7 +268,7 @@ pub fn report_section(
             series.insert(
                 0,
                 Series {
-                    name: "truth".into(),
+                    name: "truth (simulated)".into(),
                     x: &r.t,
                     y: t,
                     color: PALETTE[1],
@@ -224,9 +276,11 @@ pub fn report_section(
                 },
             );
         }
+        let (unit, _) = glossary.of(&tr.param);
         panels.push(Panel {
-            ylabel: tr.param.clone(),
+            ylabel: format!("{} [{unit}]", tr.param),
             series,
+            ..Default::default()
         });
     }
     let svg = dir.join("torque_tracks.svg");
@@ -268,6 +322,7 @@ pub fn report_section(
                     reference: false,
                 },
             ],
+            ..Default::default()
         }],
     )?;
     rep.svg(&svg)
@@ -328,7 +383,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         report::finish(dir, rep, "torque_fit.json", &j)?;
     }
     if a.json {
-        outln!("{}", serde_json::to_string_pretty(&j).into_diagnostic()?);
+        crate::provenance::print_json(&j)?;
         return Ok(());
     }
     outln!(

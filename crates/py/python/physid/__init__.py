@@ -508,7 +508,7 @@ def _pair(x, n: int, what: str) -> tuple:
 
 def monitor_shaft(
     rec: Recording,
-    method: str = "rls",
+    method: str = "rlsf",
     lam: float = 0.98,
     p0: float = 1000.0,
     healthy: Sequence[float] = (1250.0, 0.95),
@@ -522,10 +522,17 @@ def monitor_shaft(
 ) -> ShaftMonitorResult:
     """Application 1 (thesis ch. 6): monitor the coupling shaft's stiffness K and damping B
     (Eq. 6.1) in a time-basis recording — low-passed at ``cutoff_hz``, taken at ``rate_hz``,
-    tracked by ``method`` (``rls`` with forgetting ``lam``, ``rlsvf``, ``dsfc``) from
+    tracked by ``method`` (``rlsf``: RLS with forgetting ``lam``; ``rlsvf``; ``dsfc``) from
     ``theta0`` (K, B, τ0) with ``P0 = p0·I``; an alarm when the relative error against
     ``healthy`` (K, B) stays beyond ``bound`` for ``dwell`` samples (Eq. 6.3) after
-    ``settle_s``. ``supervise``: freeze K or B while the data no longer resolve them."""
+    ``settle_s``. ``supervise``: freeze K or B while the data no longer resolve them.
+    ``method="rls"``, the old name of ``rlsf`` here, is still taken, with a DeprecationWarning
+    (``rls`` is RLS without forgetting everywhere else: docs/cli.md)."""
+    if method == "rls":
+        import warnings
+        warnings.warn("monitor_shaft(method='rls') is RLS with forgetting here: say 'rlsf' "
+                      "(the old name is taken for this release only)", DeprecationWarning,
+                      stacklevel=2)
     s, tracks = _physid.monitor_shaft(rec, method, float(lam), float(p0),
                                       _pair(healthy, 2, "healthy"), _pair(theta0, 3, "theta0"),
                                       float(bound), int(dwell), float(cutoff_hz), float(rate_hz),

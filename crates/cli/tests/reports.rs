@@ -1,0 +1,158 @@
+//! Reports that read right (docs/cli.md, issue "one vocabulary … reports"): every report and
+//! JSON result states its provenance, checked against coreutils' `sha256sum`; parameters carry
+//! a unit and a meaning; the shaft plot shows the healthy value, the alarm bounds and the alarm
+//! instant, its legend beside the plot (never over the data); the friction headline quotes the
+//! error against the measurement.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use common::physid;
+
+fn sha256sum(path: &std::path::Path) -> String {
+    let o = std::process::Command::new("sha256sum")
+        .arg(path)
+        .output()
+        .expect("sha256sum (coreutils)");
+    String::from_utf8(o.stdout)
+        .unwrap()
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .to_string()
+}
+
+/// The x coordinates of the SVG `<text>` elements whose content is `label`.
+fn text_x(svg: &str, label: &str) -> Vec<f64> {
+    let mut xs = Vec::new();
+    for part in svg.split("<text").skip(1) {
+        let Some((attrs, rest)) = part.split_once('>') else {
+            continue;
+        };
+        let content = rest.split('<').next().unwrap_or("");
+        if content.trim() != label {
+            continue;
+        }
+        if let Some(x) = attrs
+            .split("x=\"")
+            .nth(1)
+            .and_then(|v| v.split('"').next())
+            .and_then(|v| v.parse().ok())
+        {
+            xs.push(x);
+        }
+    }
+    xs
+}
+
+#[test]
+fn a_result_states_where_it_came_from() {
+    let dir = physid_testkit::Scratch::new("physid-reports");
+    let rec = dir.file("t01.csv");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "4",
+        "--fault",
+        "shaft.k=1100@2",
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    // A --map that renames a column to itself is still a --map the reader was given.
+    let out = dir.file("report");
+    let o = physid(&[
+        "monitor",
+        "shaft",
+        "--data",
+        rec.to_str().unwrap(),
+        "--map",
+        "torque_shaft=torque_shaft",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let p = &j["provenance"];
+    let version = String::from_utf8(physid(&["--version"]).stdout).unwrap();
+    assert_eq!(
+        version.trim(),
+        format!("physid {}", p["physid"].as_str().unwrap())
+    );
+    let date = p["date"].as_str().unwrap();
+    assert!(date.starts_with("20") && date.ends_with('Z'), "{date}");
+    let command = p["command"].as_str().unwrap();
+    assert!(
+        command.starts_with("physid monitor shaft --data ")
+            && command.contains("--map torque_shaft=torque_shaft"),
+        "{command}"
+    );
+    let input = &p["inputs"][0];
+    assert_eq!(input["path"], rec.to_str().unwrap());
+    assert_eq!(input["sha256"], sha256sum(&rec).as_str());
+    assert_eq!(
+        input["bytes"].as_u64().unwrap(),
+        std::fs::metadata(&rec).unwrap().len()
+    );
+    assert_eq!(p["map"][0], "torque_shaft=torque_shaft");
+    // The report's JSON and its HTML say the same.
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("shaft.json")).unwrap()).unwrap();
+    assert_eq!(saved["provenance"]["inputs"], p["inputs"]);
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("<h2>Provenance</h2>"));
+    assert!(html.contains(&sha256sum(&rec)));
+    assert!(html.contains("torque_shaft=torque_shaft"));
+    // What was done to the signals before the estimator is stated.
+    assert!(
+        html.contains("low-passed at 500 Hz (zero phase, Butterworth of order 4), then one sample in 5 taken from the recording's 10000 Hz"),
+        "{html}"
+    );
+    // The plot: the healthy value, the alarm bounds and the alarm's instant in the legend,
+    // which sits right of the 960-pixel plotting column.
+    let svg = std::fs::read_to_string(out.join("shaft.svg")).unwrap();
+    for label in [
+        "estimate",
+        "±3σ",
+        "truth (simulated)",
+        "healthy",
+        "alarm bounds (±10 %)",
+        "alarm raised",
+    ] {
+        let xs = text_x(&svg, label);
+        assert!(!xs.is_empty(), "no legend entry '{label}'");
+        assert!(xs.iter().all(|&x| x >= 960.0), "'{label}' at {xs:?}");
+    }
+}
+
+#[test]
+fn the_demo_report_explains_its_parameters() {
+    let dir = physid_testkit::Scratch::new("physid-reports-demo");
+    let out = dir.file("demo");
+    let o = physid(&["demo", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    // Every parameter table has a unit and a meaning: the friction model's design (B is the
+    // bore there), its regression coefficients, the cyclic torque's parameters.
+    for row in [
+        "<td class=\"t\">B</td><td class=\"t\">mm</td><td class=\"t\">bore</td>",
+        "<td class=\"t\">c1</td><td class=\"t\">kPa·mm²</td><td class=\"t\">crankshaft seals: Db/(B²·S·nc)</td>",
+        "<td class=\"t\">M_rec</td><td class=\"t\">kg</td><td class=\"t\">reciprocating mass",
+        "<td class=\"t\">b</td><td class=\"t\">m</td><td class=\"t\">bore</td>",
+    ] {
+        assert!(html.contains(row), "missing {row}");
+    }
+    // The friction headline is the error a user has: against the measured cycle means.
+    assert!(html.contains("Prediction error against the measured cycle means"));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["provenance"]["command"]
+        .as_str()
+        .unwrap()
+        .starts_with("physid demo --out "));
+    // The demo reads no file: it simulates its recordings.
+    assert_eq!(summary["provenance"]["inputs"], serde_json::json!([]));
+}
