@@ -1,6 +1,7 @@
 """physid from Python against the native Rust rate and the users' Python tools (issue 21).
 
-Run: python bench.py PHYSID_BIN   (numpy, physid; statsmodels and filterpy for the peers)
+Run: python bench.py PHYSID_BIN [--rls]   (numpy, physid; statsmodels and filterpy for the
+peers; --rls: the RLS part only)
 
 * RLS p = 2: `run(X, y)` from Python against `physid bench`'s native rate of the same loop
   (`rls_tracks`, `rls_tracks_se`: physid_estim::tracks over 4096-row arrays) measured in the
@@ -86,6 +87,8 @@ print(f"         from Python, run(X, y, std_err=False)             {py_est:12.0f
 print(f"         native run over arrays, + std errors              {nat_se:12.0f}")
 print(f"         from Python, run(X, y)                            {py_se:12.0f}   ratio {py_se / nat_se:.2f}")
 print(f"         from Python, run(X, y) on 2 000 000 rows          {py_big:12.0f}")
+if "--rls" in sys.argv[2:]:
+    sys.exit(0)  # the RLS part only (the wheel's build against the native rate)
 
 # UKF p = 10 over Bench10 as a formula.
 BENCH10 = ("(b^2*0.7853981633974483)*r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))*f"
