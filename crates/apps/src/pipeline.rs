@@ -9,6 +9,8 @@
 //! inputs = { omega = "omega_en", alpha = "alpha_en", T_oil = "T_oil:degC" }
 //! fixed = ["delta", "r"]             # known by design
 //! params = { M_rec = 0.8 }           # nominal values (override the built-in's)
+//! units = { K = "N·m/rad" }          # a formula's parameters: units and one-line meanings
+//! descriptions = { K = "shaft stiffness" }   # for the report (a built-in's are known)
 //!
 //! [data]
 //! scenario = "torque-ramp"           # or: file = "run.parquet"
@@ -72,6 +74,12 @@ pub struct ModelSpec {
     /// Parameters known by design, never estimated.
     #[serde(default)]
     pub fixed: Vec<String>,
+    /// A formula's parameters' units, for the report (a built-in model's are known).
+    #[serde(default)]
+    pub units: BTreeMap<String, String>,
+    /// A formula's parameters' one-line meanings, for the report.
+    #[serde(default)]
+    pub descriptions: BTreeMap<String, String>,
 }
 
 /// The data section: a file, or a scenario of the virtual test cell.
@@ -574,6 +582,17 @@ fn run_with(
         if !names.contains(f) {
             return Err(AppError::Invalid(format!(
                 "fixed parameter '{f}': the parameters are {}",
+                names.join(", ")
+            )));
+        }
+    }
+    for (key, given) in [
+        ("units", &p.model.units),
+        ("descriptions", &p.model.descriptions),
+    ] {
+        if let Some(n) = given.keys().find(|n| !names.contains(n)) {
+            return Err(AppError::Invalid(format!(
+                "model.{key}: '{n}' is not a parameter; the parameters are {}",
                 names.join(", ")
             )));
         }

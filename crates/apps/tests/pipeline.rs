@@ -97,6 +97,14 @@ fn an_unmet_objective_and_bad_pipelines_are_reported() {
     let p = Pipeline::parse(&text(nonlinear, "dsfc", 5.0), base).unwrap();
     let e = error_of(&p);
     assert!(e.contains("not linear in its parameters"), "{e}");
+    // Units and meanings for the report name parameters of the model.
+    let misnamed = "expr = \"K*(theta_dy - theta_en) + B*(omega_dy - omega_en)\"\nparams = { K = 1250.0, B = 0.95 }\nunits = { K = \"N·m/rad\", Q = \"m\" }";
+    let p = Pipeline::parse(&text(misnamed, "dsfc", 5.0), base).unwrap();
+    let e = error_of(&p);
+    assert!(
+        e.contains("model.units: 'Q' is not a parameter; the parameters are B, K"),
+        "{e}"
+    );
     // Unknown keys, methods, channels.
     let e = Pipeline::parse(
         "[model]\nbuiltin = \"shaft\"\noutput = \"y\"\nmodle = 1\n[data]\n",

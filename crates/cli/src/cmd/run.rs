@@ -27,7 +27,7 @@ pub struct Args {
     tracks: Option<PathBuf>,
 }
 
-fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<Report> {
+fn report<'a>(r: &'a PipelineResult, p: &'a Pipeline, file: &Path, dir: &Path) -> Result<Report> {
     let mut rep = Report::new(
         "physid — qualitative adaptive identification",
         &format!("{}", file.display()),
@@ -47,19 +47,33 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
         ),
         None,
     );
-    // A built-in model's parameters have units and meanings; a formula's are the user's.
+    // A built-in model's parameters have units and meanings; a formula's are the user's
+    // (model.units, model.descriptions).
+    let names: Vec<&str> = r.names.iter().map(String::as_str).collect();
+    let text = |m: &'a std::collections::BTreeMap<String, String>, none: &'a str| -> Vec<&'a str> {
+        r.names
+            .iter()
+            .map(|n| m.get(n).map_or(none, String::as_str))
+            .collect()
+    };
+    let (units, descriptions) = (text(&p.model.units, "—"), text(&p.model.descriptions, ""));
     let glossary = p
         .model
         .builtin
         .as_deref()
         .and_then(physid_apps::model_choice::glossary)
-        .map_or_else(report::Glossary::default, |(names, units, descriptions)| {
+        .map_or(
             report::Glossary {
+                names: &names,
+                units: &units,
+                descriptions: &descriptions,
+            },
+            |(names, units, descriptions)| report::Glossary {
                 names,
                 units,
                 descriptions,
-            }
-        });
+            },
+        );
     rep.ranking(
         &r.ranking,
         glossary,
@@ -109,7 +123,7 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
     );
     let svg = dir.join("pipeline.svg");
     let mut panels = vec![Panel {
-        ylabel: "output".into(),
+        ylabel: format!("{} (output)", p.model.output),
         series: vec![
             Series {
                 name: "measured".into(),
@@ -129,8 +143,13 @@ fn report(r: &PipelineResult, p: &Pipeline, file: &Path, dir: &Path) -> Result<R
         ..Default::default()
     }];
     for (name, v) in &r.tracks {
+        let (unit, _) = glossary.of(name);
         panels.push(Panel {
-            ylabel: name.clone(),
+            ylabel: if unit == "—" {
+                name.clone()
+            } else {
+                format!("{name} [{unit}]")
+            },
             series: vec![Series {
                 name: "estimate".into(),
                 x: &r.t,
