@@ -156,3 +156,60 @@ fn the_demo_report_explains_its_parameters() {
     // The demo reads no file: it simulates its recordings.
     assert_eq!(summary["provenance"]["inputs"], serde_json::json!([]));
 }
+
+/// `cycles --tracks` and `compression fit --tracks`: the per-cycle and per-TDC tables a user
+/// takes away, in the format the extension names, equal to the JSON result.
+#[test]
+fn per_cycle_results_are_written_as_tracks() {
+    let dir = physid_testkit::Scratch::new("physid-reports-cycles");
+    let rec = dir.file("motored.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "friction-sweep",
+        "--basis",
+        "crank",
+        "--duration",
+        "2",
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let tracks = dir.file("cycles.mf4");
+    let o = physid(&[
+        "cycles",
+        rec.to_str().unwrap(),
+        "--json",
+        "--tracks",
+        tracks.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let cycles = j["cycles"].as_array().unwrap();
+    assert!(cycles.len() >= 10, "{}", cycles.len());
+    let t = physid_io::read(&tracks, &Default::default()).unwrap();
+    assert_eq!(t.channel("p_max").unwrap().unit, "Pa");
+    for (k, c) in cycles.iter().enumerate() {
+        assert_eq!(t.values("p_max").unwrap()[k], c["p_max"].as_f64().unwrap());
+        assert_eq!(t.values("rpm").unwrap()[k], c["rpm"].as_f64().unwrap());
+        assert_eq!(t.values("cycle").unwrap()[k], c["cycle"].as_f64().unwrap());
+    }
+    let tracks = dir.file("tdc.csv");
+    let o = physid(&[
+        "compression",
+        "fit",
+        "--data",
+        rec.to_str().unwrap(),
+        "--stroke",
+        "0.0514",
+        "--rod",
+        "0.088",
+        "--json",
+        "--tracks",
+        tracks.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = physid_io::read(&tracks, &Default::default()).unwrap();
+    assert_eq!(t.len(), j["events"].as_array().unwrap().len());
+}

@@ -84,6 +84,10 @@ struct FitArgs {
     /// tracks.csv: per TDC the estimates, their standard errors and the recursive track).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Write per TDC its time, cycle, speed, residual, each fitted parameter, its standard
+    /// error and the recursive track to this file (.csv, .parquet or .mf4), with units.
+    #[arg(long, value_name = "FILE")]
+    tracks: Option<PathBuf>,
 }
 
 /// Run `physid compression`.
@@ -161,6 +165,9 @@ fn fit(a: &FitArgs) -> Result<()> {
         }
         report::finish(dir, rep, "compression_fit.json", &json)?;
         write_tracks(&dir.join("tracks.csv"), &r)?;
+    }
+    if let Some(path) = &a.tracks {
+        write_tracks(path, &r)?;
     }
     if a.json {
         crate::provenance::print_json(&json)?;

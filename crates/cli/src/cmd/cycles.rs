@@ -36,6 +36,48 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
+    /// Write a row per cycle — t, cycle, rpm, the peak pressure and its angle, the pegging
+    /// offset, net and gross IMEP, the polytropic exponents (NaN where not computed) — to this
+    /// file (.csv, .parquet or .mf4), with units.
+    #[arg(long, value_name = "FILE")]
+    pub tracks: Option<PathBuf>,
+}
+
+/// The per-cycle table as a tracks file (crate::tracks).
+fn write_tracks(path: &std::path::Path, a: &physid_apps::pressure::CycleAnalysis) -> Result<()> {
+    let u = a.unit.as_str();
+    let columns = [
+        ("t", "s"),
+        ("cycle", "-"),
+        ("rpm", "rpm"),
+        ("p_max", u),
+        ("p_max_deg", "deg"),
+        ("peg_offset", u),
+        ("imep", "Pa"),
+        ("imep_gross", "Pa"),
+        ("n_compression", "-"),
+        ("n_expansion", "-"),
+    ]
+    .iter()
+    .map(|(n, u)| (n.to_string(), u.to_string()))
+    .collect();
+    let mut f = crate::tracks::TrackFile::create(path, columns)?;
+    let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
+    for c in &a.cycles {
+        f.row([
+            c.t_start_s,
+            c.cycle as f64,
+            c.rpm,
+            c.p_max,
+            c.p_max_deg,
+            c.peg_offset,
+            nan(c.imep_pa),
+            nan(c.imep_gross_pa),
+            nan(c.n_compression),
+            nan(c.n_expansion),
+        ])?;
+    }
+    f.close()
 }
 
 fn pegging(s: &Option<String>) -> Result<Pegging> {
@@ -89,6 +131,9 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let a = analyse(&rec, &args.channel, geometry.as_ref(), peg)
         .map_err(|e| miette!("{}: {e}", args.file.display()))?;
+    if let Some(path) = &args.tracks {
+        write_tracks(path, &a)?;
+    }
     if args.json {
         let mut v = serde_json::to_value(&a).into_diagnostic()?;
         if let (Some(o), Some(d)) = (v.as_object_mut(), &wheel) {
