@@ -7,6 +7,7 @@
 
 use physid_apps::acquisition::{
     filter_channels, inspect, to_crank_angle, to_time_basis, AcquisitionOptions, FilterSpec,
+    FilterStream,
 };
 use physid_core::{Basis, Channel, Recording};
 use physid_signal::encoder::counts_from_angle;
@@ -144,4 +145,75 @@ fn filtering_channels() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("no channel 'p_cyl'"), "{e}");
+}
+
+/// `physid filter`'s stream (FilterStream) against the whole-record zero-phase filter: the
+/// filtered channel within 1e-12 of the signal's scale however the recording is chunked (the
+/// last samples bit for bit), the other channels untouched and row-aligned; a step in time at
+/// a chunk boundary refused with its sample.
+#[test]
+fn the_filter_stream_is_the_whole_record_filter() {
+    let rec = recording();
+    let spec = FilterSpec {
+        band: Band::Lowpass,
+        cutoff_hz: vec![100.0],
+        order: 4,
+        transfer_function: false,
+    };
+    let mut whole = rec.clone();
+    filter_channels(&mut whole, &["p_int".into()], &spec).unwrap();
+    let want = whole.values("p_int").unwrap();
+    let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for chunk in [2, 17, 4096, rec.len()] {
+        let mut s = FilterStream::new(&["p_int".into()], &spec).unwrap();
+        let mut parts = Vec::new();
+        for start in (0..rec.len()).step_by(chunk) {
+            parts.extend(s.push(&rec.slice(start..start + chunk)).unwrap());
+        }
+        parts.extend(s.finish().unwrap());
+        let got: Vec<f64> = parts
+            .iter()
+            .flat_map(|p| p.values("p_int").unwrap().to_vec())
+            .collect();
+        assert_eq!(got.len(), want.len(), "chunk {chunk}");
+        let worst = got
+            .iter()
+            .zip(want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= 1e-12 * scale, "chunk {chunk}: {worst}");
+        assert_eq!(
+            got[got.len() - 10..],
+            want[want.len() - 10..],
+            "chunk {chunk}"
+        );
+        for name in ["t", "count_en", "tdc"] {
+            let passed: Vec<f64> = parts
+                .iter()
+                .flat_map(|p| p.values(name).unwrap().to_vec())
+                .collect();
+            assert_eq!(passed, rec.values(name).unwrap(), "chunk {chunk}: {name}");
+        }
+    }
+    // A step in time where a chunk starts.
+    let mut t = rec.values("t").unwrap().to_vec();
+    for v in &mut t[1000..] {
+        *v += 1e-3;
+    }
+    let mut bad = rec.clone();
+    bad.replace_values("t", t).unwrap();
+    let mut s = FilterStream::new(&["p_int".into()], &spec).unwrap();
+    s.push(&bad.slice(0..1000)).unwrap();
+    let e = s.push(&bad.slice(1000..2000)).unwrap_err().to_string();
+    assert!(e.contains("not uniform at sample 1000"), "{e}");
+    let e = FilterStream::new(
+        &["p_int".into()],
+        &FilterSpec {
+            transfer_function: true,
+            ..spec
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("whole recordings only"), "{e}");
 }

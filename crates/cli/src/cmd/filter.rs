@@ -5,7 +5,7 @@
 use super::InputArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{filter_channels, FilterSpec};
+use physid_apps::acquisition::{filter_channels, FilterSpec, FilterStream};
 use physid_signal::filter::Band;
 use std::path::PathBuf;
 
@@ -51,16 +51,27 @@ pub fn run(args: &Args) -> Result<()> {
         }
         _ => return Err(miette!("--bandpass takes two frequencies: LOW,HIGH")),
     };
-    let mut rec = args.read.read(&args.input, None)?;
     let spec = FilterSpec {
         band,
         cutoff_hz,
         order: args.order,
         transfer_function: args.ba,
     };
-    filter_channels(&mut rec, &args.channels, &spec)
-        .map_err(|e| miette!("{}: {e}", args.input.display()))?;
-    physid_io::write(&args.output, &rec, &Default::default()).into_diagnostic()?;
+    if args.ba {
+        // The transfer-function form filters the whole recording (kept to compare with
+        // scipy's and MATLAB's filtfilt(b, a)): its memory grows with the recording.
+        let mut rec = args.read.read(&args.input, None)?;
+        filter_channels(&mut rec, &args.channels, &spec)
+            .map_err(|e| miette!("{}: {e}", args.input.display()))?;
+        physid_io::write(&args.output, &rec, &Default::default()).into_diagnostic()?;
+    } else {
+        let written = stream_filter(args, &spec);
+        if written.is_err() {
+            // No partial file left behind.
+            let _ = std::fs::remove_file(&args.output);
+        }
+        written?;
+    }
     outln!(
         "wrote {} ({} filtered: {:?} Butterworth, order {}, zero phase)",
         args.output.display(),
@@ -68,5 +79,34 @@ pub fn run(args: &Args) -> Result<()> {
         spec.band,
         spec.order
     );
+    Ok(())
+}
+
+/// Second-order sections on the stream: read, filter and write a chunk at a time, memory flat
+/// however long the recording ([`FilterStream`]).
+fn stream_filter(args: &Args, spec: &FilterSpec) -> Result<()> {
+    let at =
+        |e: physid_apps::acquisition::AcquisitionError| miette!("{}: {e}", args.input.display());
+    let mut reader = args.read.open_all(&args.input)?;
+    for c in &args.channels {
+        reader
+            .header()
+            .channel(c)
+            .map_err(|e| miette!("{}: {e}", args.input.display()))?;
+    }
+    let mut stream = FilterStream::new(&args.channels, spec).map_err(at)?;
+    let mut writer =
+        physid_io::ChunkWriter::create(&args.output, reader.header(), &Default::default())
+            .into_diagnostic()?;
+    for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
+        if let Some(out) = stream.push(&chunk.into_diagnostic()?).map_err(at)? {
+            writer.append(&out).into_diagnostic()?;
+        }
+    }
+    if let Some(out) = stream.finish().map_err(at)? {
+        writer.append(&out).into_diagnostic()?;
+    }
+    writer.close().into_diagnostic()?;
+    super::warn_read(&reader, &args.input);
     Ok(())
 }
