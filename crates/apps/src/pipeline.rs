@@ -500,6 +500,52 @@ impl PipelineResult {
     }
 }
 
+/// The pipeline's recording, of a file only the channels the run takes: the model's inputs
+/// (through `model.inputs`), its output and the time — the file's other channels are never
+/// decoded. A scenario is simulated as [`load_data`] does.
+pub fn load_for(p: &Pipeline) -> Result<Recording, AppError> {
+    let Some(file) = p.data.file.as_ref().filter(|_| p.data.scenario.is_none()) else {
+        return load_data(&p.data);
+    };
+    let params: Vec<(String, f64)> = p
+        .model
+        .params
+        .iter()
+        .map(|(k, v)| (k.clone(), *v))
+        .collect();
+    let (model, _) =
+        ModelChoice::build(p.model.expr.as_deref(), p.model.builtin.as_deref(), &params)?;
+    let channel = |spec: &str| {
+        spec.split_once(':')
+            .map_or(spec, |(c, _)| c)
+            .trim()
+            .to_string()
+    };
+    let mut wanted = vec!["t".to_string()];
+    for input in model.input_names() {
+        wanted.push(channel(p.model.inputs.get(input).unwrap_or(input)));
+    }
+    wanted.push(channel(&p.model.output));
+    wanted.dedup();
+    // Channels the file lacks are left for the run to name (as the model's input or output).
+    let header = physid_io::ChunkReader::open(file, &Default::default())?
+        .header()
+        .clone();
+    let mut channels: Vec<String> = Vec::new();
+    for w in wanted {
+        if header.channel(&w).is_ok() && !channels.contains(&w) {
+            channels.push(w);
+        }
+    }
+    Ok(physid_io::read(
+        file,
+        &physid_io::ReadOptions {
+            channels: Some(channels),
+            ..Default::default()
+        },
+    )?)
+}
+
 /// Load (or simulate) the pipeline's recording.
 pub fn load_data(spec: &DataSpec) -> Result<Recording, AppError> {
     match (&spec.file, &spec.scenario) {

@@ -3,7 +3,7 @@
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_apps::pipeline::{load_data, run_pipeline, Pipeline};
+use physid_apps::pipeline::{load_data, load_for, run_pipeline, Pipeline};
 use std::path::{Path, PathBuf};
 
 fn shipped(name: &str) -> PathBuf {
@@ -233,4 +233,47 @@ fn settings_without_a_valid_value_or_a_use_are_refused_naming_the_key() {
     let p = Pipeline::parse(&huge, base).unwrap();
     let e = load_data(&p.data).unwrap_err().to_string();
     assert!(e.contains("would not fit in any memory"), "{e}");
+}
+
+/// A pipeline over a file reads only the channels the run takes — the model's inputs (through
+/// `model.inputs`), its output and the time — and answers as on the whole recording.
+#[test]
+fn a_pipeline_over_a_file_reads_only_its_channels() {
+    let dir = physid_testkit::Scratch::new("physid-pipeline-file");
+    let file = dir.file("t01.parquet");
+    let scenario = Pipeline::load(&shipped("shaft-expr.toml")).unwrap();
+    let rec = load_data(&scenario.data).unwrap();
+    assert!(rec.channels().len() > 30);
+    physid_io::write(&file, &rec, &Default::default()).unwrap();
+    let text = std::fs::read_to_string(shipped("shaft-expr.toml"))
+        .unwrap()
+        .replace(
+            "scenario = \"shaft-steady\"",
+            &format!("file = {:?}", file.to_str().unwrap()),
+        )
+        .lines()
+        .filter(|l| {
+            !["duration", "basis", "rate_hz", "set"]
+                .iter()
+                .any(|k| l.starts_with(k))
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let p = Pipeline::parse(&text, Path::new(".")).unwrap();
+    let few = load_for(&p).unwrap();
+    assert_eq!(
+        few.names(),
+        [
+            "t",
+            "theta_dy",
+            "theta_en",
+            "omega_dy",
+            "omega_en",
+            "torque_shaft"
+        ]
+    );
+    let a = run_pipeline(&p, &few).unwrap();
+    let b = run_pipeline(&p, &physid_io::read(&file, &Default::default()).unwrap()).unwrap();
+    assert_eq!(a.params, b.params);
+    assert_eq!(a.std_err, b.std_err);
 }
