@@ -2,7 +2,7 @@
 # Peak memory and wall time of the file verbs against the recording's length (BENCHMARKS.md,
 # "The file verbs read as they go"). Usage: bench/memory.sh NEW_PHYSID [OLD_PHYSID] [DIR]
 # Writes shaft-D.{parquet,mf4}, motored-D.parquet and fired-D.parquet into DIR (≈ 30 GB with
-# the one-hour files) and prints a Markdown row per measurement.
+# the one-hour files) and prints a Markdown row per measurement (inspect/monitor, the fits, filter).
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
 mkdir -p "$DIR" && cd "$DIR"
@@ -32,5 +32,11 @@ for D in 75 150 300 600; do
   [ -n "$OLD" ] && row="$row $(m "$OLD" friction fit --data "motored-$D.parquet" --json) |"
   row="$row $(m "$NEW" torque fit --data "fired-$D.parquet" --json) |"
   [ -n "$OLD" ] && row="$row $(m "$OLD" torque fit --data "fired-$D.parquet" --json) |"
+  echo "$row"
+done
+for D in 75 150 300 600; do
+  cat "shaft-$D.parquet" > /dev/null
+  row="| $D s | $(m "$NEW" filter "shaft-$D.parquet" f.parquet --lowpass 500 --channels torque_shaft,theta_en) |"
+  [ -n "$OLD" ] && row="$row $(m "$OLD" filter "shaft-$D.parquet" f.parquet --lowpass 500 --channels torque_shaft,theta_en) |"
   echo "$row"
 done

@@ -507,14 +507,7 @@ pub fn load_for(p: &Pipeline) -> Result<Recording, AppError> {
     let Some(file) = p.data.file.as_ref().filter(|_| p.data.scenario.is_none()) else {
         return load_data(&p.data);
     };
-    let params: Vec<(String, f64)> = p
-        .model
-        .params
-        .iter()
-        .map(|(k, v)| (k.clone(), *v))
-        .collect();
-    let (model, _) =
-        ModelChoice::build(p.model.expr.as_deref(), p.model.builtin.as_deref(), &params)?;
+    let (model, _) = build_model(p)?;
     let channel = |spec: &str| {
         spec.split_once(':')
             .map_or(spec, |(c, _)| c)
@@ -576,15 +569,19 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, AppError> {
 
 /// Run the loop on a recording.
 pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, AppError> {
+    let (model, nominal) = build_model(p)?;
+    run_with(&model, p, rec, nominal)
+}
+
+/// The pipeline's model and its nominal values (the built-in's, overridden by `model.params`).
+fn build_model(p: &Pipeline) -> Result<(ModelChoice, Vec<f64>), AppError> {
     let params: Vec<(String, f64)> = p
         .model
         .params
         .iter()
         .map(|(k, v)| (k.clone(), *v))
         .collect();
-    let (model, nominal) =
-        ModelChoice::build(p.model.expr.as_deref(), p.model.builtin.as_deref(), &params)?;
-    run_with(&model, p, rec, nominal)
+    ModelChoice::build(p.model.expr.as_deref(), p.model.builtin.as_deref(), &params)
 }
 
 fn run_with(

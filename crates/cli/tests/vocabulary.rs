@@ -263,6 +263,16 @@ fn old_spellings_are_still_taken_and_hidden() {
     }
 }
 
+/// A JSON result without what differs between two runs by nature: the time taken, the
+/// command line and the date.
+fn answer(o: &std::process::Output) -> serde_json::Value {
+    let mut v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in ["timing", "provenance"] {
+        v.as_object_mut().unwrap().remove(key);
+    }
+    v
+}
+
 fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -312,12 +322,7 @@ fn old_spellings_mean_what_the_new_ones_mean() {
         let mut args = vec!["monitor", "shaft", "--data", f, "--json"];
         args.extend(extra);
         let o = run(&args);
-        let mut v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        // What differs between two runs by nature: the time taken, the command line, the date.
-        for key in ["timing", "provenance"] {
-            v.as_object_mut().unwrap().remove(key);
-        }
-        (v, stderr(&o))
+        (answer(&o), stderr(&o))
     };
     let (old, e) = monitor(&["--method", "rls", "--cutoff", "400", "--rate", "1000"]);
     for w in [
@@ -358,12 +363,7 @@ fn old_spellings_mean_what_the_new_ones_mean() {
         ];
         args.extend(extra);
         let o = run(&args);
-        let mut v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        // What differs between two runs by nature: the time taken, the command line, the date.
-        for key in ["timing", "provenance"] {
-            v.as_object_mut().unwrap().remove(key);
-        }
-        (v, stderr(&o))
+        (answer(&o), stderr(&o))
     };
     let (old, e) = est(&["--theta0", "0,0.95"]);
     assert!(
