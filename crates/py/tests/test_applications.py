@@ -34,6 +34,10 @@ def test_the_shaft_monitor_raises_the_stiffness_alarm_after_the_fault(shaft_run)
         physid.monitor_shaft(shaft_run, method="magic")
     with pytest.raises(physid.Error, match="healthy"):
         physid.monitor_shaft(shaft_run, healthy=(1.0,))
+    # 'rls', the shaft monitor's old name of RLS with forgetting: the same estimator, warned.
+    with pytest.warns(DeprecationWarning, match="say 'rlsf'"):
+        old_name = physid.monitor_shaft(shaft_run, method="rls")
+    assert old_name.final == r.final
 
 
 @pytest.mark.skipif(not os.environ.get("PHYSID_BIN"), reason="PHYSID_BIN (physid's binary) not given")
