@@ -185,7 +185,17 @@ th{{background:#f3f3f3}}td{{white-space:nowrap}}td.t{{white-space:normal}}td:fir
                 p.map.join(", ")
             },
         ]);
-        self.table(&["", ""], &rows);
+        // Names and values, both read from the left: no header row.
+        self.html.push_str("<table>");
+        for r in &rows {
+            let _ = write!(
+                self.html,
+                "<tr><th class=\"t\">{}</th><td class=\"t\">{}</td></tr>",
+                esc(&r[0]),
+                esc(&r[1])
+            );
+        }
+        self.html.push_str("</table>");
         self.html.push_str("</body></html>\n");
         std::fs::write(path, self.html).map_err(|e| miette!("writing {}: {e}", path.display()))
     }
