@@ -475,3 +475,47 @@ fn a_wrong_value_names_its_flag() {
         assert!(!stderr(&o).contains("nofile"), "{args:?}: {}", stderr(&o));
     }
 }
+
+/// torque fit: `--nominal` (old) and `--params` give the same fit; `--fix NAME=VALUE` holds a
+/// parameter at that value.
+#[test]
+fn torque_fit_takes_params_and_fix_with_a_value() {
+    let dir = physid_testkit::Scratch::new("physid-vocabulary-torque");
+    let file = dir.file("fired.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "torque-steady",
+        "--basis",
+        "crank",
+        "--duration",
+        "2",
+        "--recording",
+        file.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let f = file.to_str().unwrap();
+    let fit = |extra: &[&str]| {
+        let mut args = vec!["torque", "fit", "--data", f, "--json"];
+        args.extend(extra);
+        let o = physid(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        (answer(&o), stderr(&o))
+    };
+    let (old, e) = fit(&["--nominal", "M_rec=0.82"]);
+    assert!(e.contains("--nominal is now --params"), "{e}");
+    let (new, _) = fit(&["--params", "M_rec=0.82"]);
+    assert_eq!(old, new);
+    // M_rec is not estimable on this recording: it stays at the value given.
+    assert_eq!(new["params"]["M_rec"], 0.82, "{new}");
+    let (held, _) = fit(&["--fix", "delta,r=0.0258"]);
+    assert_eq!(held["params"]["r"], 0.0258, "{held}");
+    assert!(
+        !held["estimable"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n == "r"),
+        "{held}"
+    );
+}
