@@ -137,7 +137,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         }
     }
     cfg.selection = a.cutoff;
-    let rec = a.input.read(&a.data, None)?;
+    let rec = a.input.read_for_pressure(&a.data, &a.channel)?;
     let rec = match rec.basis {
         Basis::CrankAngle => rec,
         Basis::Time => {

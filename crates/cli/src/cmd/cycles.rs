@@ -108,7 +108,7 @@ fn pegging(s: &Option<String>) -> Result<Pegging> {
 pub fn run(args: &Args) -> Result<()> {
     let peg = pegging(&args.peg)?;
     let geometry = args.geometry.full()?;
-    let rec = args.input.read(&args.file, None)?;
+    let rec = args.input.read_for_pressure(&args.file, &args.channel)?;
     let mut wheel = None;
     let rec = match rec.basis {
         Basis::CrankAngle => rec,

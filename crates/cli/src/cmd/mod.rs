@@ -164,6 +164,27 @@ impl InputArgs {
     }
 }
 
+impl InputArgs {
+    /// The recording of a cylinder-pressure analysis (`cycles`, `compression fit`): of a
+    /// crank-angle file only the channels the analysis takes — the pressure `channel`, `cycle`,
+    /// `crank_deg` and `t` (those the file has; the analysis names any missing) — of a
+    /// time-basis file every channel (the engine angle is decoded from them first).
+    pub fn read_for_pressure(&self, path: &Path, channel: &str) -> Result<Recording> {
+        let header = self.open_all(path)?.header().clone();
+        match header.basis {
+            physid_core::Basis::CrankAngle => {
+                let names = [channel, "cycle", "crank_deg", "t"]
+                    .into_iter()
+                    .filter(|n| header.channel(n).is_ok())
+                    .map(String::from)
+                    .collect();
+                self.read(path, Some(names))
+            }
+            physid_core::Basis::Time => self.read(path, None),
+        }
+    }
+}
+
 /// An application's error on the file `path`, for the user (a reading error names the file
 /// already).
 pub fn app_error(path: &Path) -> impl Fn(physid_apps::error::AppError) -> miette::Report + '_ {
