@@ -1162,7 +1162,7 @@ impl FilterStream {
             }
         }
         s.taken += t.len();
-        Self::ready(s, false)
+        Self::ready(s)
     }
 
     /// The end of the stream: the last rows.
@@ -1181,13 +1181,14 @@ impl FilterStream {
                 s.pending[j].extend(s.out.iter().copied());
             }
         }
-        Self::ready(s, true)
+        Self::ready(s)
     }
 
-    /// The rows every channel has (at the end: all of them).
-    fn ready(s: &mut Started, end: bool) -> Result<Option<Recording>, AcquisitionError> {
+    /// The rows every channel has (after [`finish`](Self::finish): all of them); `None` when
+    /// there are none.
+    fn ready(s: &mut Started) -> Result<Option<Recording>, AcquisitionError> {
         let n = s.pending.iter().map(|p| p.len()).min().unwrap_or(0);
-        if n == 0 && !end {
+        if n == 0 {
             return Ok(None);
         }
         let mut out = Recording::new(Basis::Time);
