@@ -31,7 +31,6 @@ use physid_ident::{analyse, Cutoff, Data, IdentConfig, RankedParam, Selection};
 use physid_models::friction::{
     Design, FrictionRegression, OperatingPoint, Settings, REGRESSION_PARAMS,
 };
-use physid_signal::crank::cycle_stats;
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -256,79 +255,166 @@ fn crank_angle_cycles(
     rec: &Recording,
     cfg: &FrictionFitConfig,
 ) -> Result<Vec<Option<FrictionCycle>>, AppError> {
-    let cycle = rec.values("cycle")?;
-    let (tq_name, sign) = cfg.source.channel();
-    let omega = rec.values_in("omega_en", "rad/s")?;
-    let p_int = rec.values_in("p_int", "Pa")?;
-    let t_oil = rec.values_in("T_oil", "K")?;
-    let tau = rec.values_in(tq_name, "N*m")?;
-    let t = rec.values("t")?;
-    let p_atm = match (rec.values_in("p_atm", "Pa"), cfg.p_atm_kpa) {
-        (Ok(v), _) => v,
-        (Err(_), Some(kpa)) => vec![kpa * 1e3; cycle.len()],
-        (Err(e), None) => return Err(e.into()),
-    };
-    let truth = match (
-        rec.values("true_torque_friction"),
-        rec.values("true_torque_indicated"),
-        rec.values("true_torque_reciprocating"),
-    ) {
-        (Ok(f), Ok(i), Ok(r)) => Some(
-            f.iter()
-                .zip(i)
-                .zip(r)
-                .map(|((f, i), r)| f - i + r)
-                .collect::<Vec<f64>>(),
-        ),
-        _ => None,
-    };
-    for (name, v) in [
-        ("omega_en", &omega),
-        ("p_int", &p_int),
-        ("T_oil", &t_oil),
-        (tq_name, &tau),
-        ("p_atm", &p_atm),
-    ] {
-        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+    let mut runs = CrankRuns::default();
+    runs.push(rec, cfg)?;
+    runs.finish(cfg.source.channel().1)
+}
+
+/// Sums over each run of equal `cycle` values of a crank-angle recording, taken a chunk at a
+/// time ([`crank_angle_cycles`] is one chunk): a few numbers per cycle, whatever the
+/// recording's length. The sums run in sample order, so the means are those of the whole
+/// recording bit for bit.
+#[derive(Default)]
+struct CrankRuns {
+    /// Finished runs and the one still open (the last).
+    runs: Vec<Run>,
+    /// Samples per run of each non-negative whole cycle number (`cycle_stats`' counts), the
+    /// last one open.
+    counts: Vec<(i64, usize)>,
+    samples: usize,
+    truth: Option<bool>,
+}
+
+/// One run: its cycle value, its first time and speed, sums and its last speed.
+struct Run {
+    cycle: f64,
+    t0: f64,
+    n: usize,
+    omega: (f64, f64, f64),
+    p_int: f64,
+    p_atm: f64,
+    t_oil: f64,
+    tau: f64,
+    truth: f64,
+}
+
+impl CrankRuns {
+    fn push(&mut self, rec: &Recording, cfg: &FrictionFitConfig) -> Result<(), AppError> {
+        let cycle = rec.values("cycle")?;
+        let (tq_name, _) = cfg.source.channel();
+        let omega = rec.values_in("omega_en", "rad/s")?;
+        let p_int = rec.values_in("p_int", "Pa")?;
+        let t_oil = rec.values_in("T_oil", "K")?;
+        let tau = rec.values_in(tq_name, "N*m")?;
+        let t = rec.values("t")?;
+        let p_atm = match (rec.values_in("p_atm", "Pa"), cfg.p_atm_kpa) {
+            (Ok(v), _) => v,
+            (Err(_), Some(kpa)) => vec![kpa * 1e3; cycle.len()],
+            (Err(e), None) => return Err(e.into()),
+        };
+        let truth = match (
+            rec.values("true_torque_friction"),
+            rec.values("true_torque_indicated"),
+            rec.values("true_torque_reciprocating"),
+        ) {
+            (Ok(f), Ok(i), Ok(r)) => Some(
+                f.iter()
+                    .zip(i)
+                    .zip(r)
+                    .map(|((f, i), r)| f - i + r)
+                    .collect::<Vec<f64>>(),
+            ),
+            _ => None,
+        };
+        // The truth is there in every chunk or in none.
+        if *self.truth.get_or_insert(truth.is_some()) != truth.is_some() {
+            return Err(AppError::Invalid(
+                "the simulated truth's channels come and go between chunks".into(),
+            ));
+        }
+        for (name, v) in [
+            ("omega_en", &omega),
+            ("p_int", &p_int),
+            ("T_oil", &t_oil),
+            (tq_name, &tau),
+            ("p_atm", &p_atm),
+        ] {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(AppError::Invalid(format!(
+                    "channel '{name}' sample {} is {} — the cycle means need finite data",
+                    self.samples + i,
+                    v[i]
+                )));
+            }
+        }
+        for i in 0..cycle.len() {
+            let c = cycle[i];
+            if c >= 0.0 && c.is_finite() {
+                let ci = c as i64;
+                match self.counts.last_mut() {
+                    Some((last, k)) if *last == ci => *k += 1,
+                    _ => self.counts.push((ci, 1)),
+                }
+            }
+            let tr = truth.as_ref().map_or(0.0, |v| v[i]);
+            match self.runs.last_mut() {
+                // NaN never equals itself: each NaN sample is a run of its own, as in
+                // `cycle_runs`.
+                Some(r) if r.cycle == c => {
+                    r.n += 1;
+                    r.omega.1 += omega[i];
+                    r.omega.2 = omega[i];
+                    r.p_int += p_int[i];
+                    r.p_atm += p_atm[i];
+                    r.t_oil += t_oil[i];
+                    r.tau += tau[i];
+                    r.truth += tr;
+                }
+                _ => self.runs.push(Run {
+                    cycle: c,
+                    t0: t[i],
+                    n: 1,
+                    omega: (omega[i], omega[i], omega[i]),
+                    p_int: p_int[i],
+                    p_atm: p_atm[i],
+                    t_oil: t_oil[i],
+                    tau: tau[i],
+                    truth: tr,
+                }),
+            }
+        }
+        self.samples += cycle.len();
+        Ok(())
+    }
+
+    /// The cycles, once every chunk is in: a complete cycle has the most common count of
+    /// samples.
+    /// `sign`: the torque source's sign (the motoring torque from the engine's load cell is
+    /// its negative).
+    fn finish(self, sign: f64) -> Result<Vec<Option<FrictionCycle>>, AppError> {
+        let mut counts: Vec<usize> = self.counts.iter().map(|(_, k)| *k).collect();
+        counts.sort_unstable();
+        let per_cycle = counts.get(counts.len() / 2).copied().unwrap_or(0);
+        if per_cycle < 8 {
             return Err(AppError::Invalid(format!(
-                "channel '{name}' sample {i} is {} — the cycle means need finite data",
-                v[i]
+                "{} complete cycles with {per_cycle} samples each: the fit needs a crank-angle \
+                 recording with several samples per cycle",
+                counts.len()
             )));
         }
+        Ok(self
+            .runs
+            .iter()
+            .map(|r| {
+                (r.cycle >= 0.0 && r.n == per_cycle).then(|| {
+                    let n = r.n as f64;
+                    let w = r.omega.1 / n;
+                    FrictionCycle {
+                        cycle: r.cycle as i64,
+                        t_s: r.t0,
+                        n_rpm: w * 30.0 / std::f64::consts::PI,
+                        p_int_kpa: r.p_int / n / 1e3,
+                        p_atm_kpa: r.p_atm / n / 1e3,
+                        t_oil_c: r.t_oil / n - 273.15,
+                        tau_nm: sign * (r.tau / n),
+                        truth_nm: self.truth.unwrap_or(false).then_some(r.truth / n),
+                        speed_change: (r.omega.2 - r.omega.0).abs()
+                            / w.abs().max(f64::MIN_POSITIVE),
+                    }
+                })
+            })
+            .collect())
     }
-    // Samples per complete cycle: the most common count.
-    let stats = cycle_stats(cycle, &omega);
-    let mut counts: Vec<usize> = stats.iter().map(|s| s.samples).collect();
-    counts.sort_unstable();
-    let per_cycle = counts.get(counts.len() / 2).copied().unwrap_or(0);
-    if per_cycle < 8 {
-        return Err(AppError::Invalid(format!(
-            "{} complete cycles with {per_cycle} samples each: the fit needs a crank-angle \
-             recording with several samples per cycle",
-            stats.len()
-        )));
-    }
-    let mean = |x: &[f64], a: usize, b: usize| x[a..b].iter().sum::<f64>() / (b - a) as f64;
-    let mut out = Vec::new();
-    for (c, run) in physid_signal::crank::cycle_runs(cycle) {
-        let (start, end) = (run.start, run.end);
-        out.push((c >= 0.0 && end - start == per_cycle).then(|| {
-            let w = mean(&omega, start, end);
-            FrictionCycle {
-                cycle: c as i64,
-                t_s: t[start],
-                n_rpm: w * 30.0 / std::f64::consts::PI,
-                p_int_kpa: mean(&p_int, start, end) / 1e3,
-                p_atm_kpa: mean(&p_atm, start, end) / 1e3,
-                t_oil_c: mean(&t_oil, start, end) - 273.15,
-                tau_nm: sign * mean(&tau, start, end),
-                truth_nm: truth.as_ref().map(|tr| mean(tr, start, end)),
-                speed_change: (omega[end - 1] - omega[start]).abs()
-                    / w.abs().max(f64::MIN_POSITIVE),
-            }
-        }));
-    }
-    Ok(out)
 }
 
 /// The characterisation's result.
@@ -523,6 +609,55 @@ where
     let mut out = Vec::new();
     feed_stream(&mut stage, chunks, &mut out)?;
     finish(stage, out)
+}
+
+/// [`friction_fit`] on a crank-angle recording (with `cycle`) read a chunk at a time: the
+/// cycle means are summed as the chunks come, a few numbers per cycle, so memory does not grow
+/// with the samples; the coefficients are then chosen on all the steady cycles, as for the
+/// whole recording (the same numbers bit for bit).
+pub fn friction_fit_cycles<I, E>(
+    chunks: I,
+    cfg: &FrictionFitConfig,
+) -> Result<FrictionFit, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
+    let mut runs = CrankRuns::default();
+    for chunk in chunks {
+        runs.push(&chunk?, cfg)?;
+    }
+    let mut stage = FrictionStage::new(cfg.clone(), None)?;
+    let mut out = Vec::new();
+    for c in runs.finish(cfg.source.channel().1)? {
+        match c {
+            Some(c) => stage.push_cycle(c, &mut out)?,
+            None => stage.push_gap(&mut out)?,
+        }
+    }
+    finish(stage, out)
+}
+
+/// The channels [`friction_fit_cycles`] reads from a crank-angle recording: those it needs,
+/// then those it takes when they are there (ambient pressure when `p_atm_kpa` is set, the
+/// simulated truth).
+pub fn cycle_channels(cfg: &FrictionFitConfig) -> (Vec<&'static str>, Vec<&'static str>) {
+    let mut needed = vec![
+        "t",
+        "cycle",
+        "omega_en",
+        "p_int",
+        "T_oil",
+        cfg.source.channel().0,
+    ];
+    let mut optional = Vec::new();
+    if cfg.p_atm_kpa.is_none() {
+        needed.push("p_atm");
+    } else {
+        optional.push("p_atm");
+    }
+    optional.extend(TRUTH_CHANNELS);
+    (needed, optional)
 }
 
 /// The file verb's end: the result, with every cycle the stage put out.

@@ -244,3 +244,49 @@ fn the_stage_on_a_stream_is_the_file_verb() {
     assert_eq!(early.predicted.len(), file.data.len());
     assert_eq!(early.data.tau_nm, file.data.tau_nm);
 }
+
+/// A crank-angle recording read a chunk at a time (friction_fit_cycles, `physid friction fit`
+/// on such a file) gives the whole recording's fit for every chunking; its cycle means are the
+/// plain means over each complete cycle, computed here on their own.
+#[test]
+fn a_crank_angle_recording_in_chunks_is_the_whole_one() {
+    use physid_apps::friction_fit::friction_fit_cycles;
+    let rec = sweep(Some(6.0), OutputBasis::Crank(1.0));
+    let cfg = config();
+    let whole = friction_fit(&rec, &cfg).unwrap();
+    assert!(whole.data.len() >= 30, "{} cycles", whole.data.len());
+    for chunk in [1, 17, 1000, rec.len()] {
+        let n = rec.len();
+        let chunks = (0..n)
+            .step_by(chunk)
+            .map(|s| Ok::<_, physid_apps::error::AppError>(rec.slice(s..(s + chunk).min(n))));
+        let fit = friction_fit_cycles(chunks, &cfg).unwrap();
+        assert_eq!(fit.data.cycle, whole.data.cycle, "chunk {chunk}");
+        assert_eq!(fit.data.tau_nm, whole.data.tau_nm, "chunk {chunk}");
+        assert_eq!(fit.data.n_rpm, whole.data.n_rpm, "chunk {chunk}");
+        assert_eq!(fit.data.truth_nm, whole.data.truth_nm, "chunk {chunk}");
+        assert_eq!(fit.params, whole.params, "chunk {chunk}");
+        assert_eq!(fit.predicted, whole.predicted, "chunk {chunk}");
+    }
+    // The means, independently: each cycle's samples (720 at 1°), the engine's load cell
+    // torque negated.
+    let (cycle, tau) = (
+        rec.values("cycle").unwrap(),
+        rec.values("torque_engine").unwrap(),
+    );
+    for (k, &c) in whole.data.cycle.iter().enumerate() {
+        let samples: Vec<f64> = cycle
+            .iter()
+            .zip(tau)
+            .filter(|(cc, _)| **cc == c as f64)
+            .map(|(_, t)| *t)
+            .collect();
+        assert_eq!(samples.len(), 720);
+        let mean = -samples.iter().sum::<f64>() / 720.0;
+        assert!(
+            (mean - whole.data.tau_nm[k]).abs() <= 1e-12 * mean.abs(),
+            "cycle {c}: {mean} against {}",
+            whole.data.tau_nm[k]
+        );
+    }
+}

@@ -197,13 +197,20 @@ fn fit(a: &FitArgs) -> Result<()> {
     cfg.lambda = a.lambda;
     cfg.transient_s = a.transient;
     cfg.p_atm_kpa = a.p_atm;
-    // A time-basis file streams through the stage, only the channels it takes; another is
-    // converted to cycles whole.
+    // A time-basis file streams through the stage, a crank-angle one (with `cycle`) through
+    // the cycle means, each reading only the channels it takes; another (a time basis without
+    // the engine angle) is converted to cycles whole.
     let header = a.input.open_all(&a.data)?.header().clone();
     let r = if friction_fit::streams(&header) {
         let (needed, optional) = friction_fit::sample_channels(&cfg);
         let mut reader = a.input.open(&a.data, &needed, &optional)?;
         let r = friction_fit_stream(Reading::new(&mut reader, &a.data), &cfg);
+        super::warn_read(&reader, &a.data);
+        r
+    } else if header.channel("cycle").is_ok() {
+        let (needed, optional) = friction_fit::cycle_channels(&cfg);
+        let mut reader = a.input.open(&a.data, &needed, &optional)?;
+        let r = friction_fit::friction_fit_cycles(Reading::new(&mut reader, &a.data), &cfg);
         super::warn_read(&reader, &a.data);
         r
     } else {
