@@ -40,3 +40,10 @@ for D in 75 150 300 600; do
   [ -n "$OLD" ] && row="$row $(m "$OLD" filter "shaft-$D.parquet" f.parquet --lowpass 500 --channels torque_shaft,theta_en) |"
   echo "$row"
 done
+for D in 75 150 300 600; do
+  [ -f "deg-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --basis crank --duration "$D" --recording "deg-$D.parquet" > /dev/null
+  cat "deg-$D.parquet" > /dev/null
+  row="| $D s | $(m "$NEW" friction fit --data "deg-$D.parquet" --json) |"
+  [ -n "$OLD" ] && row="$row $(m "$OLD" friction fit --data "deg-$D.parquet" --json) |"
+  echo "$row"
+done
