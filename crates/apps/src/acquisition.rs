@@ -4,7 +4,7 @@
 //! `filter` verbs are thin wrappers over these.
 
 use physid_core::{Basis, Channel, Recording, RecordingError};
-use physid_signal::crank::{crank_grid, interp};
+use physid_signal::crank::interp;
 use physid_signal::encoder::{first_marker, Encoder};
 use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
@@ -563,6 +563,7 @@ fn engine_angle(
             wheel: Some(decoded),
         });
     }
+    let on_theta_en = rec.values("theta_en").is_ok();
     let (tt, th): (Vec<f64>, Vec<f64>) = if let Ok(theta) = rec.values("theta_en") {
         (t.to_vec(), theta.to_vec())
     } else {
@@ -596,11 +597,10 @@ fn engine_angle(
         (tt, th)
     };
     let tdc = match rec.values(&opts.marker).ok().and_then(first_marker) {
+        // On theta_en, its value at the marker (as `from_first_marker` takes it on a stream).
+        Some(i) if on_theta_en => th[i],
         Some(i) => interp(&tt, &th, &[t[i]])[0],
-        None => {
-            let first = th.first().copied().unwrap_or(0.0);
-            (first / (4.0 * PI)).ceil() * 4.0 * PI
-        }
+        None => first_tdc(th.first().copied().unwrap_or(0.0)),
     };
     Ok(EngineAngle {
         t: tt,
@@ -608,6 +608,12 @@ fn engine_angle(
         tdc,
         wheel: None,
     })
+}
+
+/// The firing TDC's angle without a marker: the first multiple of 4π at or after the engine
+/// angle's first value `theta0` [rad] (cycles start there).
+pub fn first_tdc(theta0: f64) -> f64 {
+    (theta0 / (4.0 * PI)).ceil() * 4.0 * PI
 }
 
 /// The engine angle of a time-basis recording ([`engine_angle`]).
@@ -868,14 +874,14 @@ pub fn marker_tdc_angle(rec: &Recording, opts: &AcquisitionOptions) -> Option<f6
 }
 
 /// A time-basis stream of chunks with the firing TDC's angle on `theta_en`: what
-/// [`marker_tdc_angle`] gives on the whole recording (`0` without a marker or `theta_en`), known
+/// [`marker_tdc_angle`] gives on the whole recording (`None` without a marker or `theta_en`), known
 /// before the stages that index cycles from it take the first sample. The chunks up to the one
 /// with the first marker are held until it comes (an engine turning a few times in the first
 /// chunk: nothing more is held), then handed on with the rest.
 pub fn from_first_marker<I, E>(
     chunks: I,
     opts: &AcquisitionOptions,
-) -> Result<(f64, impl Iterator<Item = Result<Recording, E>>), E>
+) -> Result<(Option<f64>, impl Iterator<Item = Result<Recording, E>>), E>
 where
     I: IntoIterator<Item = Result<Recording, E>>,
 {
@@ -902,7 +908,7 @@ where
         }
         held.push(chunk);
     }
-    Ok((tdc.unwrap_or(0.0), held.into_iter().map(Ok).chain(chunks)))
+    Ok((tdc, held.into_iter().map(Ok).chain(chunks)))
 }
 
 /// Resample a time-basis recording to one sample every `step_deg` crank degrees from the
@@ -917,6 +923,7 @@ pub fn to_crank_angle(
 }
 
 /// [`to_crank_angle`], with what decoding a raw angle sensor found when the angle came from one.
+/// The same resampling as [`CrankAngleStream`], on the whole recording as one chunk.
 pub fn to_crank_angle_decoded(
     rec: &Recording,
     opts: &AcquisitionOptions,
@@ -927,45 +934,133 @@ pub fn to_crank_angle_decoded(
             "the recording is already on a crank-angle basis".into(),
         ));
     }
-    let t = rec.values("t")?;
     let angle = engine_angle(rec, opts)?;
-    let grid = crank_grid(&angle.t, &angle.theta, angle.tdc, step_deg)
-        .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
-    let mut out = Recording::new(Basis::CrankAngle);
-    out.meta = rec.meta.clone();
-    out.meta
-        .insert("crank_step_deg".into(), format!("{step_deg}"));
-    let skip: Vec<&str> = opts
-        .encoders
-        .iter()
-        .map(|e| e.0.as_str())
-        .chain([opts.marker.as_str(), "t", "theta_en"])
-        .chain(opts.sensor.iter().flat_map(|s| s.sensor.channels()))
-        .collect();
-    for (name, unit, values) in [
-        ("t", "s", grid.t.clone()),
-        ("theta", "rad", grid.theta.clone()),
-        ("cycle", "-", grid.cycle.clone()),
-        ("crank_deg", "deg", grid.crank_deg.clone()),
-    ] {
-        out.push(Channel {
-            name: name.into(),
-            unit: unit.into(),
-            values,
-        })?;
+    if angle.t.len() < 2 {
+        return Err(AcquisitionError::Invalid(format!(
+            "time ({}) and angle ({}) need the same length, at least 2",
+            angle.t.len(),
+            angle.theta.len()
+        )));
     }
-    for ch in rec
-        .channels()
-        .iter()
-        .filter(|c| !skip.contains(&c.name.as_str()))
-    {
-        out.push(Channel {
-            name: ch.name.clone(),
-            unit: ch.unit.clone(),
-            values: interp(t, &ch.values, &grid.t),
-        })?;
-    }
+    let mut stream = CrankAngleStream::new(rec, opts, angle.tdc, step_deg)?;
+    stream.push_angle(&angle.t, &angle.theta)?;
+    stream.resampler.finish_angle();
+    let mut out = stream.push_channels(rec)?;
+    out.append(&stream.finish()?)?;
     Ok((out, angle.wheel))
+}
+
+/// A time-basis recording to one sample every `step_deg` crank degrees from the firing TDC, a
+/// chunk at a time ([`physid_signal::resample::CrankResampler`]): channels `t`, `theta` [rad
+/// from TDC], `cycle`, `crank_deg`, then every other channel interpolated at the grid's times
+/// (the engine angle's channels — `theta_en`, encoder counts, a raw sensor's — and the marker
+/// are left out). On a stream the angle is `theta_en` ([`push`](Self::push)), the TDC's angle
+/// from [`from_first_marker`]; [`to_crank_angle_decoded`] gives it a decoded angle whole. What
+/// it holds: the last two samples and the grid points of less than a chunk.
+#[derive(Debug)]
+pub struct CrankAngleStream {
+    resampler: physid_signal::resample::CrankResampler,
+    /// The channels carried over (name, unit).
+    carried: Vec<(String, String)>,
+    meta: std::collections::BTreeMap<String, String>,
+    out: physid_signal::resample::CrankChunk,
+}
+
+impl CrankAngleStream {
+    /// The stage for recordings with `header`'s channels, the firing TDC at `theta_tdc` [rad]
+    /// on the engine angle.
+    pub fn new(
+        header: &Recording,
+        opts: &AcquisitionOptions,
+        theta_tdc: f64,
+        step_deg: f64,
+    ) -> Result<Self, AcquisitionError> {
+        if header.basis != Basis::Time {
+            return Err(AcquisitionError::Invalid(
+                "the recording is already on a crank-angle basis".into(),
+            ));
+        }
+        let skip: Vec<&str> = opts
+            .encoders
+            .iter()
+            .map(|e| e.0.as_str())
+            .chain([opts.marker.as_str(), "t", "theta_en"])
+            .chain(opts.sensor.iter().flat_map(|s| s.sensor.channels()))
+            .collect();
+        let carried: Vec<(String, String)> = header
+            .channels()
+            .iter()
+            .filter(|c| !skip.contains(&c.name.as_str()))
+            .map(|c| (c.name.clone(), c.unit.clone()))
+            .collect();
+        let resampler =
+            physid_signal::resample::CrankResampler::new(theta_tdc, step_deg, carried.len())
+                .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
+        let mut meta = header.meta.clone();
+        meta.insert("crank_step_deg".into(), format!("{step_deg}"));
+        Ok(Self {
+            resampler,
+            carried,
+            meta,
+            out: Default::default(),
+        })
+    }
+
+    /// The next chunk, its angle from `theta_en`: the crank-angle samples it completes.
+    pub fn push(&mut self, chunk: &Recording) -> Result<Recording, AcquisitionError> {
+        self.push_angle(chunk.values("t")?, chunk.values("theta_en")?)?;
+        self.push_channels(chunk)
+    }
+
+    fn push_angle(&mut self, t: &[f64], theta: &[f64]) -> Result<(), AcquisitionError> {
+        self.resampler
+            .push_angle(t, theta)
+            .map_err(|e| AcquisitionError::Invalid(e.to_string()))
+    }
+
+    fn push_channels(&mut self, chunk: &Recording) -> Result<Recording, AcquisitionError> {
+        let ys = self
+            .carried
+            .iter()
+            .map(|(n, _)| chunk.values(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.resampler
+            .push_channels(chunk.values("t")?, &ys, &mut self.out)
+            .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
+        self.emit()
+    }
+
+    /// The end of the recording: the last crank-angle samples.
+    pub fn finish(&mut self) -> Result<Recording, AcquisitionError> {
+        self.resampler.finish(&mut self.out);
+        self.emit()
+    }
+
+    fn emit(&mut self) -> Result<Recording, AcquisitionError> {
+        let mut out = Recording::new(Basis::CrankAngle);
+        out.meta = self.meta.clone();
+        let o = &self.out;
+        for (name, unit, values) in [
+            ("t", "s", &o.t),
+            ("theta", "rad", &o.theta),
+            ("cycle", "-", &o.cycle),
+            ("crank_deg", "deg", &o.crank_deg),
+        ] {
+            out.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: values.clone(),
+            })?;
+        }
+        for ((name, unit), values) in self.carried.iter().zip(&o.channels) {
+            out.push(Channel {
+                name: name.clone(),
+                unit: unit.clone(),
+                values: values.clone(),
+            })?;
+        }
+        Ok(out)
+    }
 }
 
 /// The sample period [s] of a time channel that must be uniform: the mean step, or an error at
@@ -989,34 +1084,84 @@ pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
 }
 
 /// Resample a crank-angle recording (with its `t` channel) to a uniform time basis at
-/// `rate_hz`.
+/// `rate_hz`: [`TimeBasisStream`] on the whole recording as one chunk.
 pub fn to_time_basis(rec: &Recording, rate_hz: f64) -> Result<Recording, AcquisitionError> {
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(AcquisitionError::Invalid(format!(
-            "sample rate {rate_hz} Hz: expected > 0"
-        )));
-    }
-    let t = rec.values("t")?;
-    physid_signal::crank::check_increasing(t, "time")
-        .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
-    let (t0, t1) = (t[0], t[t.len() - 1]);
-    let n = ((t1 - t0) * rate_hz).floor() as usize + 1;
-    let grid: Vec<f64> = (0..n).map(|i| t0 + i as f64 / rate_hz).collect();
-    let mut out = Recording::new(Basis::Time);
-    out.meta = rec.meta.clone();
-    out.push(Channel {
-        name: "t".into(),
-        unit: "s".into(),
-        values: grid.clone(),
-    })?;
-    for ch in rec.channels().iter().filter(|c| c.name != "t") {
-        out.push(Channel {
-            name: ch.name.clone(),
-            unit: ch.unit.clone(),
-            values: interp(t, &ch.values, &grid),
-        })?;
-    }
+    let mut stream = TimeBasisStream::new(rec, rate_hz)?;
+    let mut out = stream.push(rec)?;
+    out.append(&stream.finish()?)?;
     Ok(out)
+}
+
+/// A recording to a uniform time basis at `rate_hz` from its first time, a chunk at a time
+/// ([`physid_signal::resample::TimeResampler`]): `t`, then every other channel interpolated.
+/// What it holds: the last two samples and the times of less than a chunk.
+#[derive(Debug)]
+pub struct TimeBasisStream {
+    resampler: physid_signal::resample::TimeResampler,
+    /// The channels carried over (name, unit).
+    carried: Vec<(String, String)>,
+    meta: std::collections::BTreeMap<String, String>,
+    t: Vec<f64>,
+    out: Vec<Vec<f64>>,
+}
+
+impl TimeBasisStream {
+    /// The stage for recordings with `header`'s channels (a `t` among them).
+    pub fn new(header: &Recording, rate_hz: f64) -> Result<Self, AcquisitionError> {
+        header.channel("t")?;
+        let carried: Vec<(String, String)> = header
+            .channels()
+            .iter()
+            .filter(|c| c.name != "t")
+            .map(|c| (c.name.clone(), c.unit.clone()))
+            .collect();
+        let resampler = physid_signal::resample::TimeResampler::new(rate_hz, carried.len())
+            .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
+        Ok(Self {
+            resampler,
+            out: vec![Vec::new(); carried.len()],
+            carried,
+            meta: header.meta.clone(),
+            t: Vec::new(),
+        })
+    }
+
+    /// The next chunk: the time-basis samples it completes.
+    pub fn push(&mut self, chunk: &Recording) -> Result<Recording, AcquisitionError> {
+        let ys = self
+            .carried
+            .iter()
+            .map(|(n, _)| chunk.values(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.resampler
+            .push(chunk.values("t")?, &ys, &mut self.t, &mut self.out)
+            .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
+        self.emit()
+    }
+
+    /// The end of the recording: the last samples.
+    pub fn finish(&mut self) -> Result<Recording, AcquisitionError> {
+        self.resampler.finish(&mut self.t, &mut self.out);
+        self.emit()
+    }
+
+    fn emit(&self) -> Result<Recording, AcquisitionError> {
+        let mut out = Recording::new(Basis::Time);
+        out.meta = self.meta.clone();
+        out.push(Channel {
+            name: "t".into(),
+            unit: "s".into(),
+            values: self.t.clone(),
+        })?;
+        for ((name, unit), values) in self.carried.iter().zip(&self.out) {
+            out.push(Channel {
+                name: name.clone(),
+                unit: unit.clone(),
+                values: values.clone(),
+            })?;
+        }
+        Ok(out)
+    }
 }
 
 /// A zero-phase Butterworth filter for [`filter_channels`].

@@ -210,6 +210,7 @@ where
 {
     let chunks = chunks.into_iter().map(|c| c.map_err(AppError::from));
     let (tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
+    let tdc = tdc.unwrap_or(0.0);
     stage.set_theta_tdc(tdc)?;
     for chunk in chunks {
         stage.push(&chunk?, out)?;

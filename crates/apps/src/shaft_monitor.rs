@@ -732,7 +732,7 @@ where
         first = Some(match first.take() {
             None => next,
             Some(mut f) => {
-                append(&mut f, &next)?;
+                f.append(&next)?;
                 f
             }
         });
@@ -752,23 +752,6 @@ where
         acc.push(&chunk?, sink)?;
     }
     acc.finish(sink)
-}
-
-/// `b`'s samples after `a`'s (the same channels).
-fn append(a: &mut Recording, b: &Recording) -> Result<(), AppError> {
-    let mut out = Recording::new(a.basis);
-    out.meta = std::mem::take(&mut a.meta);
-    for ch in a.channels() {
-        let mut values = ch.values.clone();
-        values.extend_from_slice(b.values(&ch.name)?);
-        out.push(physid_core::Channel {
-            name: ch.name.clone(),
-            unit: ch.unit.clone(),
-            values,
-        })?;
-    }
-    *a = out;
-    Ok(())
 }
 
 /// Whether an estimate has stayed within ±5 % of the truth, as the samples pass.

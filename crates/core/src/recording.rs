@@ -189,6 +189,32 @@ impl Recording {
         }
     }
 
+    /// `other`'s samples after this recording's, channel by channel (by name; `other` must
+    /// have every channel of this one).
+    pub fn append(&mut self, other: &Recording) -> Result<(), RecordingError> {
+        let sources = self
+            .channels
+            .iter()
+            .map(|c| other.values(&c.name).map(|v| v.len()))
+            .collect::<Result<Vec<_>, _>>()?;
+        if let Some((c, &len)) = self
+            .channels
+            .iter()
+            .zip(&sources)
+            .find(|(_, &l)| l != other.len())
+        {
+            return Err(RecordingError::LengthMismatch {
+                name: c.name.clone(),
+                len,
+                expected: other.len(),
+            });
+        }
+        for c in &mut self.channels {
+            c.values.extend_from_slice(other.values(&c.name)?);
+        }
+        Ok(())
+    }
+
     /// All channels in order.
     pub fn channels(&self) -> &[Channel] {
         &self.channels

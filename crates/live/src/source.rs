@@ -152,6 +152,7 @@ impl ReplaySource {
             )));
         }
         let (theta_tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
+        let theta_tdc = theta_tdc.unwrap_or(0.0);
         let mut chunks: Chunks = Box::new(chunks);
         let first = chunks
             .next()

@@ -9,11 +9,14 @@
 //! * [`wheel`] — the crank angle from a trigger wheel's raw signal (N−M teeth, analog or
 //!   digital): edges, teeth, gap, missing and extra edges, the angle at every sample.
 //! * [`quadrature`] — the angle, both ways, from a quadrature encoder's A/B (and Z) signals.
+//! * [`resample`] — a time basis to one sample per crank step and back, on a stream, equal to
+//!   the whole record.
 pub mod crank;
 pub mod cycles;
 pub mod encoder;
 pub mod filter;
 pub mod integrity;
 pub mod quadrature;
+pub mod resample;
 pub mod stream;
 pub mod wheel;
