@@ -32,8 +32,10 @@ fn engine() -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
 
 fn crank_chunked(t: &[f64], theta: &[f64], ys: &[&[f64]], tdc: f64, sizes: &[usize]) -> CrankChunk {
     let mut r = CrankResampler::new(tdc, 1.0, ys.len()).unwrap();
-    let mut all = CrankChunk::default();
-    all.channels = vec![Vec::new(); ys.len()];
+    let mut all = CrankChunk {
+        channels: vec![Vec::new(); ys.len()],
+        ..Default::default()
+    };
     let mut out = CrankChunk::default();
     let append = |out: &CrankChunk, all: &mut CrankChunk| {
         all.theta.extend(&out.theta);
