@@ -3,6 +3,7 @@
 //! degree, zero-phase filtering of chosen channels. The `physid inspect`, `convert` and
 //! `filter` verbs are thin wrappers over these.
 
+use crate::error::AppError;
 use physid_core::{Basis, Channel, Recording, RecordingError};
 use physid_signal::crank::interp;
 use physid_signal::encoder::{first_marker, Encoder};
@@ -950,6 +951,70 @@ pub fn to_crank_angle_decoded(
     Ok((out, angle.wheel))
 }
 
+/// A time-basis stream with `theta_en` (`header` its channels) on one sample every `step_deg`
+/// crank degrees, resampled as it comes ([`CrankAngleStream`]): the firing TDC at the first
+/// marker ([`from_first_marker`]), without one at the first multiple of 4π ([`first_tdc`]) —
+/// what [`to_crank_angle`] gives on the whole recording. Returns the crank-angle recording's
+/// header (its channels, no samples) and its chunks.
+pub fn crank_angle_chunks<'a, I, E>(
+    header: &Recording,
+    chunks: I,
+    opts: &AcquisitionOptions,
+    step_deg: f64,
+) -> Result<
+    (
+        Recording,
+        impl Iterator<Item = Result<Recording, AppError>> + 'a,
+    ),
+    AppError,
+>
+where
+    I: IntoIterator<Item = Result<Recording, E>> + 'a,
+    I::IntoIter: 'a,
+    E: 'a,
+    AppError: From<E>,
+{
+    header.channel("theta_en")?;
+    let (tdc, chunks) = from_first_marker(chunks, opts)?;
+    let mut chunks = chunks.peekable();
+    let tdc = match (tdc, chunks.peek()) {
+        (Some(tdc), _) => tdc,
+        (None, Some(Ok(first))) => {
+            first_tdc(first.values("theta_en")?.first().copied().unwrap_or(0.0))
+        }
+        (None, _) => 0.0,
+    };
+    let mut stream = CrankAngleStream::new(header, opts, tdc, step_deg)?;
+    let out_header = stream.header()?;
+    let (mut done, mut samples) = (false, 0);
+    let iter = std::iter::from_fn(move || {
+        if done {
+            return None;
+        }
+        match chunks.next() {
+            Some(Ok(c)) => {
+                samples += c.len();
+                Some(stream.push(&c).map_err(AppError::Acquisition))
+            }
+            Some(Err(e)) => {
+                done = true;
+                Some(Err(e.into()))
+            }
+            None => {
+                done = true;
+                Some(if samples < 2 {
+                    Err(AppError::Invalid(format!(
+                        "{samples} sample(s): the crank angle needs at least 2"
+                    )))
+                } else {
+                    stream.finish().map_err(AppError::Acquisition)
+                })
+            }
+        }
+    });
+    Ok((out_header, iter))
+}
+
 /// A time-basis recording to one sample every `step_deg` crank degrees from the firing TDC, a
 /// chunk at a time ([`physid_signal::resample::CrankResampler`]): channels `t`, `theta` [rad
 /// from TDC], `cycle`, `crank_deg`, then every other channel interpolated at the grid's times
@@ -1036,6 +1101,28 @@ impl CrankAngleStream {
         self.emit()
     }
 
+    /// The crank-angle recording's channels, without samples.
+    pub fn header(&self) -> Result<Recording, AcquisitionError> {
+        let mut h = Recording::new(Basis::CrankAngle);
+        h.meta = self.meta.clone();
+        for (name, unit) in [
+            ("t", "s"),
+            ("theta", "rad"),
+            ("cycle", "-"),
+            ("crank_deg", "deg"),
+        ]
+        .into_iter()
+        .chain(self.carried.iter().map(|(n, u)| (n.as_str(), u.as_str())))
+        {
+            h.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: Vec::new(),
+            })?;
+        }
+        Ok(h)
+    }
+
     fn emit(&mut self) -> Result<Recording, AcquisitionError> {
         let mut out = Recording::new(Basis::CrankAngle);
         out.meta = self.meta.clone();
@@ -1092,6 +1179,58 @@ pub fn to_time_basis(rec: &Recording, rate_hz: f64) -> Result<Recording, Acquisi
     Ok(out)
 }
 
+/// A stream of crank-angle chunks (`header` their channels) on a uniform time basis at
+/// `rate_hz` ([`TimeBasisStream`]), handed on in chunks of `rows` samples (the last shorter,
+/// one empty chunk for an empty stream) — the chunks [`to_time_basis`] on the whole recording
+/// cut in `rows` would give.
+pub fn time_basis_chunks<'a, I, E>(
+    header: &Recording,
+    chunks: I,
+    rate_hz: f64,
+    rows: usize,
+) -> Result<impl Iterator<Item = Result<Recording, AppError>> + 'a, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>> + 'a,
+    I::IntoIter: 'a,
+    E: 'a,
+    AppError: From<E>,
+{
+    let mut stream = TimeBasisStream::new(header, rate_hz)?;
+    let mut pending = stream.header()?;
+    let mut chunks = chunks.into_iter();
+    let rows = rows.max(1);
+    let (mut finished, mut emitted) = (false, false);
+    Ok(std::iter::from_fn(move || loop {
+        if pending.len() >= rows || (finished && (!pending.is_empty() || !emitted)) {
+            let n = pending.len().min(rows);
+            let out = pending.slice(0..n);
+            pending = pending.slice(n..pending.len());
+            emitted = true;
+            return Some(Ok(out));
+        }
+        if finished {
+            return None;
+        }
+        let next = match chunks.next() {
+            Some(Ok(c)) => stream.push(&c),
+            Some(Err(e)) => {
+                (finished, emitted) = (true, true);
+                pending = pending.slice(0..0);
+                return Some(Err(e.into()));
+            }
+            None => {
+                finished = true;
+                stream.finish()
+            }
+        };
+        if let Err(e) = next.and_then(|out| pending.append(&out).map_err(AcquisitionError::from)) {
+            (finished, emitted) = (true, true);
+            pending = pending.slice(0..0);
+            return Some(Err(e.into()));
+        }
+    }))
+}
+
 /// A recording to a uniform time basis at `rate_hz` from its first time, a chunk at a time
 /// ([`physid_signal::resample::TimeResampler`]): `t`, then every other channel interpolated.
 /// What it holds: the last two samples and the times of less than a chunk.
@@ -1143,6 +1282,11 @@ impl TimeBasisStream {
     pub fn finish(&mut self) -> Result<Recording, AcquisitionError> {
         self.resampler.finish(&mut self.t, &mut self.out);
         self.emit()
+    }
+
+    /// The time-basis recording's channels, without samples.
+    pub fn header(&self) -> Result<Recording, AcquisitionError> {
+        Ok(self.emit()?.slice(0..0))
     }
 
     fn emit(&self) -> Result<Recording, AcquisitionError> {

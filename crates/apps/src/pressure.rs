@@ -148,123 +148,294 @@ pub fn check_unit(
     channel: &str,
     need_pa: bool,
 ) -> Result<Option<String>, AppError> {
-    let ch = rec.channel(channel)?;
-    if let Some(u) = physid_core::units::lookup(&ch.unit) {
-        // A sensor's own units: volts, counts.
-        if !["pressure", "voltage", "dimensionless"].contains(&u.dimension) {
-            return Err(AppError::Invalid(format!(
-                "'{channel}' is in '{}' ({}), not a pressure: expected {} — or the sensor's own unit (V) calibrated with --scale {channel}=GAIN,OFFSET",
-                ch.unit,
-                u.dimension,
-                physid_core::units::known_for("Pa")
-            )));
+    let mut check = UnitCheck::new(rec, channel)?;
+    check.push(&rec.channel(channel)?.values);
+    check.finish(need_pa)
+}
+
+/// [`check_unit`] on a stream: the unit from the header, the peak as the samples come.
+#[derive(Debug, Clone)]
+pub struct UnitCheck {
+    channel: String,
+    in_pa: bool,
+    /// The largest finite |value| and its sample.
+    peak: Option<(usize, f64)>,
+    seen: usize,
+}
+
+impl UnitCheck {
+    /// The check of `channel` in recordings with `header`'s channels: an error now when its
+    /// unit is of another quantity.
+    pub fn new(header: &Recording, channel: &str) -> Result<Self, AppError> {
+        let ch = header.channel(channel)?;
+        if let Some(u) = physid_core::units::lookup(&ch.unit) {
+            // A sensor's own units: volts, counts.
+            if !["pressure", "voltage", "dimensionless"].contains(&u.dimension) {
+                return Err(AppError::Invalid(format!(
+                    "'{channel}' is in '{}' ({}), not a pressure: expected {} — or the sensor's own unit (V) calibrated with --scale {channel}=GAIN,OFFSET",
+                    ch.unit,
+                    u.dimension,
+                    physid_core::units::known_for("Pa")
+                )));
+            }
         }
+        Ok(Self {
+            channel: channel.to_string(),
+            in_pa: ch.unit.is_empty() || ch.unit == "Pa",
+            peak: None,
+            seen: 0,
+        })
     }
-    if !(ch.unit.is_empty() || ch.unit == "Pa") {
-        return Ok(None);
+
+    /// The next samples of the channel.
+    pub fn push(&mut self, values: &[f64]) {
+        if self.in_pa {
+            for (i, &v) in values.iter().enumerate() {
+                if v.is_finite() && self.peak.is_none_or(|(_, p)| v.abs() >= p.abs()) {
+                    self.peak = Some((self.seen + i, v));
+                }
+            }
+        }
+        self.seen += values.len();
     }
-    let Some((i, peak)) = ch
-        .values
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.is_finite())
-        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-    else {
-        return Ok(None);
-    };
-    if peak.abs() >= PA_PLAUSIBLE {
-        return Ok(None);
-    }
-    let text = format!(
-        "'{channel}' peaks at {peak} Pa (sample {i}): a cylinder pressure in Pa peaks far above {PA_PLAUSIBLE} Pa, so these are bar, MPa or a sensor's volts labelled Pa — state the unit (--map {channel}=COLUMN:bar) or calibrate into Pa (--scale {channel}=GAIN,OFFSET)"
-    );
-    if need_pa {
-        Err(AppError::Invalid(text))
-    } else {
-        Ok(Some(text))
+
+    /// The verdict: implausible values in Pa are an error when `need_pa`, else the note.
+    pub fn finish(&self, need_pa: bool) -> Result<Option<String>, AppError> {
+        let Some((i, peak)) = self.peak else {
+            return Ok(None);
+        };
+        if peak.abs() >= PA_PLAUSIBLE {
+            return Ok(None);
+        }
+        let channel = &self.channel;
+        let text = format!(
+            "'{channel}' peaks at {peak} Pa (sample {i}): a cylinder pressure in Pa peaks far above {PA_PLAUSIBLE} Pa, so these are bar, MPa or a sensor's volts labelled Pa — state the unit (--map {channel}=COLUMN:bar) or calibrate into Pa (--scale {channel}=GAIN,OFFSET)"
+        );
+        if need_pa {
+            Err(AppError::Invalid(text))
+        } else {
+            Ok(Some(text))
+        }
     }
 }
 
 /// The figures of every complete cycle of `p` in a crank-angle recording (channels `cycle`,
-/// `crank_deg`, `t`), optionally with the geometry and pegging.
+/// `crank_deg`, `t`), optionally with the geometry and pegging: [`CycleAnalyser`] on the whole
+/// recording as one chunk.
 pub fn analyse(
     rec: &Recording,
     p_channel: &str,
     geometry: Option<&Geometry>,
     peg: Pegging,
 ) -> Result<CycleAnalysis, AppError> {
-    if rec.basis != Basis::CrankAngle {
-        return Err(AppError::Invalid(
-            "the recording is on a time basis: convert it with --crank-angle first (or give the engine angle: --wheel, --encoder)".into(),
-        ));
-    }
-    if let Some(g) = geometry {
-        g.validate()?;
-    }
-    let mut notes = Vec::new();
-    notes.extend(check_unit(rec, p_channel, geometry.is_some())?);
-    let ch = rec.channel(p_channel).map_err(AppError::from)?;
-    let (cycle, deg, t) = (
-        rec.values("cycle").map_err(AppError::from)?,
-        rec.values("crank_deg").map_err(AppError::from)?,
-        rec.values("t").map_err(AppError::from)?,
-    );
-    let p = &ch.values;
-    if let Some(i) = p.iter().position(|v| !v.is_finite()) {
-        return Err(AppError::Invalid(format!(
-            "'{p_channel}' is {} at sample {i}: the pressure must be finite",
-            p[i]
-        )));
-    }
-    let step = deg
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .find(|d| *d > 0.0)
-        .ok_or_else(|| AppError::Invalid("crank_deg never advances".into()))?;
-    let per_cycle = (720.0 / step).round() as usize;
-    let in_pa = ch.unit == "Pa";
-    if geometry.is_some() && !in_pa {
-        notes.push(format!(
-            "'{p_channel}' is in '{}', not Pa: no IMEP (calibrate it with --scale {p_channel}=GAIN,OFFSET into Pa)",
-            ch.unit
-        ));
-    }
-    if matches!(peg, Pegging::Polytropic(_)) && geometry.is_none() {
-        return Err(AppError::Invalid(
-            "polytropic pegging needs the geometry (--bore, --stroke, --rod, --compression-ratio)"
-                .into(),
-        ));
-    }
-    let crank = geometry.map(Geometry::crank);
-    let vd = crank.map(|c| c.piston_area() * c.stroke());
-    let mut cycles = Vec::new();
-    let mut partial = 0;
-    let (mut pc, mut vol, mut atdc) = (Vec::new(), Vec::new(), Vec::new());
-    for (c, run) in physid_signal::crank::cycle_runs(cycle) {
-        let (start, end) = (run.start, run.end);
-        if !(c >= 0.0 && end - start == per_cycle) {
-            partial += 1;
-            continue;
+    let mut a = CycleAnalyser::new(rec, p_channel, geometry, peg)?;
+    a.push(rec)?;
+    a.finish()
+}
+
+/// A longest run of one `cycle` value kept before the step of `crank_deg` is known (a file
+/// whose angle never advances): beyond it the run is partial whatever its length.
+const MAX_RUN: usize = 1 << 20;
+
+/// The cycles' figures on a stream of crank-angle chunks: each cycle's samples are gathered
+/// until the next cycle starts, its figures computed, the samples dropped — it holds one
+/// cycle's samples and a few numbers per cycle, whatever the recording's length.
+#[derive(Debug, Clone)]
+pub struct CycleAnalyser {
+    channel: String,
+    unit: String,
+    crank: Option<Crank<f64>>,
+    peg: Pegging,
+    need_pa: bool,
+    unit_check: UnitCheck,
+    /// The step of `crank_deg` (its first advance) and the last angle seen.
+    step: Option<f64>,
+    last_deg: Option<f64>,
+    /// The current cycle's index and samples.
+    run: Option<f64>,
+    run_len: usize,
+    run_t: Vec<f64>,
+    run_deg: Vec<f64>,
+    run_p: Vec<f64>,
+    seen: usize,
+    cycles: Vec<CycleFigures>,
+    partial: usize,
+    notes: Vec<String>,
+    /// Scratch for a cycle: pegged pressure, volume, angle ATDC.
+    pc: Vec<f64>,
+    vol: Vec<f64>,
+    atdc: Vec<f64>,
+}
+
+impl CycleAnalyser {
+    /// The analysis of `p_channel` in crank-angle recordings with `header`'s channels.
+    pub fn new(
+        header: &Recording,
+        p_channel: &str,
+        geometry: Option<&Geometry>,
+        peg: Pegging,
+    ) -> Result<Self, AppError> {
+        if header.basis != Basis::CrankAngle {
+            return Err(AppError::Invalid(
+                "the recording is on a time basis: convert it with --crank-angle first (or give the engine angle: --wheel, --encoder)".into(),
+            ));
         }
-        atdc.clear();
-        atdc.extend(
-            deg[start..end]
-                .iter()
-                .map(|&d| if d >= 360.0 { d - 720.0 } else { d }),
+        if let Some(g) = geometry {
+            g.validate()?;
+        }
+        let unit_check = UnitCheck::new(header, p_channel)?;
+        for name in ["cycle", "crank_deg", "t"] {
+            header.channel(name)?;
+        }
+        let unit = header.channel(p_channel)?.unit.clone();
+        let mut notes = Vec::new();
+        if geometry.is_some() && unit != "Pa" {
+            notes.push(format!(
+                "'{p_channel}' is in '{unit}', not Pa: no IMEP (calibrate it with --scale {p_channel}=GAIN,OFFSET into Pa)"
+            ));
+        }
+        if matches!(peg, Pegging::Polytropic(_)) && geometry.is_none() {
+            return Err(AppError::Invalid(
+                "polytropic pegging needs the geometry (--bore, --stroke, --rod, --compression-ratio)"
+                    .into(),
+            ));
+        }
+        Ok(Self {
+            channel: p_channel.to_string(),
+            unit,
+            crank: geometry.map(Geometry::crank),
+            peg,
+            need_pa: geometry.is_some(),
+            unit_check,
+            step: None,
+            last_deg: None,
+            run: None,
+            run_len: 0,
+            run_t: Vec::new(),
+            run_deg: Vec::new(),
+            run_p: Vec::new(),
+            seen: 0,
+            cycles: Vec::new(),
+            partial: 0,
+            notes,
+            pc: Vec::new(),
+            vol: Vec::new(),
+            atdc: Vec::new(),
+        })
+    }
+
+    /// The next chunk of the recording.
+    pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
+        let (cycle, deg, t, p) = (
+            chunk.values("cycle")?,
+            chunk.values("crank_deg")?,
+            chunk.values("t")?,
+            chunk.values(&self.channel)?,
         );
+        if let Some(i) = p.iter().position(|v| !v.is_finite()) {
+            return Err(AppError::Invalid(format!(
+                "'{}' is {} at sample {}: the pressure must be finite",
+                self.channel,
+                p[i],
+                self.seen + i
+            )));
+        }
+        self.unit_check.push(p);
+        for i in 0..cycle.len() {
+            if self.step.is_none() {
+                self.step = self.last_deg.map(|l| deg[i] - l).filter(|d| *d > 0.0);
+            }
+            self.last_deg = Some(deg[i]);
+            if self.run.is_some_and(|c| c != cycle[i]) {
+                self.close_run();
+            }
+            self.run = Some(cycle[i]);
+            self.run_len += 1;
+            let cap = self.per_cycle().map_or(MAX_RUN, |n| n + 1);
+            if self.run_t.len() < cap {
+                self.run_t.push(t[i]);
+                self.run_deg.push(deg[i]);
+                self.run_p.push(p[i]);
+            }
+        }
+        self.seen += cycle.len();
+        Ok(())
+    }
+
+    /// The samples per cycle, once `crank_deg` has advanced.
+    fn per_cycle(&self) -> Option<usize> {
+        self.step.map(|s| (720.0 / s).round() as usize)
+    }
+
+    /// The end of the recording: the figures and their spread.
+    pub fn finish(mut self) -> Result<CycleAnalysis, AppError> {
+        if self.step.is_none() {
+            return Err(AppError::Invalid("crank_deg never advances".into()));
+        }
+        self.close_run();
+        let mut notes = Vec::new();
+        notes.extend(self.unit_check.finish(self.need_pa)?);
+        notes.append(&mut self.notes);
+        if self.partial > 0 {
+            notes.push(format!(
+                "{} partial cycle(s) left out (fewer than {} samples)",
+                self.partial,
+                self.per_cycle().unwrap_or(0)
+            ));
+        }
+        let cycles = self.cycles;
+        let imeps: Vec<f64> = cycles.iter().filter_map(|c| c.imep_pa).collect();
+        let cov_imep = (imeps.len() >= 2).then(|| {
+            let n = imeps.len() as f64;
+            let mean = imeps.iter().sum::<f64>() / n;
+            let var = imeps.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
+            var.sqrt() / mean.abs()
+        });
+        Ok(CycleAnalysis {
+            channel: self.channel,
+            unit: self.unit,
+            cycles,
+            cov_imep,
+            notes,
+        })
+    }
+
+    /// The current cycle is over: its figures when complete, else one partial more.
+    fn close_run(&mut self) {
+        let (Some(c), len) = (self.run.take(), std::mem::take(&mut self.run_len)) else {
+            return;
+        };
+        match self.per_cycle() {
+            Some(per_cycle) if c >= 0.0 && len == per_cycle => {
+                let f = self.figures(c, per_cycle);
+                self.cycles.push(f);
+            }
+            _ => self.partial += 1,
+        }
+        self.run_t.clear();
+        self.run_deg.clear();
+        self.run_p.clear();
+    }
+
+    /// The figures of the cycle `c` in the run's samples (`per_cycle` of them).
+    fn figures(&mut self, c: f64, per_cycle: usize) -> CycleFigures {
+        let (t, deg) = (&self.run_t, &self.run_deg);
+        let (pc, vol, atdc) = (&mut self.pc, &mut self.vol, &mut self.atdc);
+        atdc.clear();
+        atdc.extend(deg.iter().map(|&d| if d >= 360.0 { d - 720.0 } else { d }));
         vol.clear();
-        if let Some(k) = &crank {
+        if let Some(k) = &self.crank {
             vol.extend(atdc.iter().map(|a| k.volume(a.to_radians())));
         }
         pc.clear();
-        pc.extend_from_slice(&p[start..end]);
-        let offset = match peg {
+        pc.extend_from_slice(&self.run_p);
+        let offset = match self.peg {
             Pegging::None => 0.0,
-            Pegging::Bdc(p_ref) => p_ref - at(&atdc, &pc, -180.0),
+            Pegging::Bdc(p_ref) => p_ref - at(atdc, pc, -180.0),
             Pegging::Polytropic(n) => {
                 let (a1, a2) = PEG_ANGLES;
-                let (p1, p2) = (at(&atdc, &pc, a1), at(&atdc, &pc, a2));
-                let (v1, v2) = (at(&atdc, &vol, a1).powf(n), at(&atdc, &vol, a2).powf(n));
+                let (p1, p2) = (at(atdc, pc, a1), at(atdc, pc, a2));
+                let (v1, v2) = (at(atdc, vol, a1).powf(n), at(atdc, vol, a2).powf(n));
                 (p2 * v2 - p1 * v1) / (v1 - v2)
             }
         };
@@ -276,8 +447,10 @@ pub fn analyse(
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(b.1))
             .unwrap_or((0, &f64::NAN));
-        let span = t[end - 1] - t[start];
+        let span = t[per_cycle - 1] - t[0];
         let rpm = 2.0 * 60.0 / (span * per_cycle as f64 / (per_cycle - 1) as f64);
+        let in_pa = self.unit == "Pa";
+        let vd = self.crank.map(|c| c.piston_area() * c.stroke());
         let (imep, gross, nc, ne) = match vd {
             Some(vd) => {
                 // In crank-angle order from −360° ATDC (crank_deg 360) round to 360°.
@@ -305,15 +478,15 @@ pub fn analyse(
                 (
                     in_pa.then(|| work(-360.0, 360.0, true)),
                     in_pa.then(|| work(-180.0, 180.0, false)),
-                    polytropic(&atdc, &pc, &vol, COMPRESSION_WINDOW),
-                    polytropic(&atdc, &pc, &vol, EXPANSION_WINDOW),
+                    polytropic(atdc, pc, vol, COMPRESSION_WINDOW),
+                    polytropic(atdc, pc, vol, EXPANSION_WINDOW),
                 )
             }
             None => (None, None, None, None),
         };
-        cycles.push(CycleFigures {
+        CycleFigures {
             cycle: c as i64,
-            t_start_s: t[start],
+            t_start_s: t[0],
             rpm,
             p_max,
             p_max_deg: atdc[k_max],
@@ -322,27 +495,8 @@ pub fn analyse(
             imep_gross_pa: gross,
             n_compression: nc,
             n_expansion: ne,
-        });
+        }
     }
-    if partial > 0 {
-        notes.push(format!(
-            "{partial} partial cycle(s) left out (fewer than {per_cycle} samples)"
-        ));
-    }
-    let imeps: Vec<f64> = cycles.iter().filter_map(|c| c.imep_pa).collect();
-    let cov_imep = (imeps.len() >= 2).then(|| {
-        let n = imeps.len() as f64;
-        let mean = imeps.iter().sum::<f64>() / n;
-        let var = imeps.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
-        var.sqrt() / mean.abs()
-    });
-    Ok(CycleAnalysis {
-        channel: p_channel.to_string(),
-        unit: ch.unit.clone(),
-        cycles,
-        cov_imep,
-        notes,
-    })
 }
 
 /// `y` at the angle `a` [deg ATDC], linearly between the samples around it (the cycle's

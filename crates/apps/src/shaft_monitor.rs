@@ -641,21 +641,33 @@ impl ShaftMonitor {
 }
 
 /// A crank-angle recording (one sample per crank step, so its time step follows the speed) on
-/// a uniform time basis at its mean sample rate, as the monitor takes it; `None` for a
-/// recording already on a time basis.
+/// a uniform time basis at its mean sample rate ([`mean_rate`]), as the monitor takes it;
+/// `None` for a recording already on a time basis.
 pub fn on_time_basis(rec: &Recording) -> Result<Option<Recording>, AppError> {
     if rec.basis != Basis::CrankAngle {
         return Ok(None);
     }
     let t = rec.values("t")?;
-    let span = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
-    if t.len() < 2 || span.is_nan() || span <= 0.0 {
+    let rate = mean_rate(
+        t.len(),
+        t.first().copied().unwrap_or(f64::NAN),
+        t.last().copied().unwrap_or(f64::NAN),
+    )?;
+    Ok(Some(to_time_basis(rec, rate)?))
+}
+
+/// The mean sample rate [Hz] of a crank-angle recording's `n` samples of `t`, from `first` to
+/// `last`: `(n − 1)/(last − first)` — what [`on_time_basis`] puts it on, and what a stream
+/// takes from a first pass over `t` alone.
+pub fn mean_rate(n: usize, first: f64, last: f64) -> Result<f64, AppError> {
+    let span = last - first;
+    if n < 2 || span.is_nan() || span <= 0.0 {
         return Err(AppError::Invalid(
             "a crank-angle recording whose time 't' does not advance cannot be put on a time basis"
                 .into(),
         ));
     }
-    Ok(Some(to_time_basis(rec, (t.len() - 1) as f64 / span)?))
+    Ok((n - 1) as f64 / span)
 }
 
 /// The channels the monitor reads: its inputs, then the simulated truth when the recording

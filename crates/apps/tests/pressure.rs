@@ -203,3 +203,33 @@ fn a_pressure_in_the_wrong_unit_is_named_with_its_sample() {
         "{e}"
     );
 }
+
+/// The analysis on a stream: however the recording is cut into chunks — one sample, a prime
+/// number, a cycle less one, more than a cycle, the whole — the figures are those of the whole
+/// recording, bit for bit (a partial last cycle included; its notes too).
+#[test]
+fn the_analysis_is_the_same_however_the_recording_is_chunked() {
+    use physid_apps::pressure::CycleAnalyser;
+    let full = recording(&[3e5, 3.2e5, 2.9e5, 3.1e5], 2e4);
+    // A partial cycle at the end.
+    let rec = full.slice(0..full.len() - 1000);
+    let g = geometry();
+    for peg in [Pegging::None, Pegging::Polytropic(N), Pegging::Bdc(P0)] {
+        let want = analyse(&rec, "p_cyl", Some(&g), peg).unwrap();
+        assert_eq!(want.cycles.len(), 3);
+        assert!(
+            want.notes.iter().any(|n| n.contains("1 partial")),
+            "{:?}",
+            want.notes
+        );
+        for size in [1, 13, 7199, 7201, rec.len()] {
+            let mut a = CycleAnalyser::new(&rec.slice(0..0), "p_cyl", Some(&g), peg).unwrap();
+            let mut start = 0;
+            while start < rec.len() {
+                a.push(&rec.slice(start..start + size)).unwrap();
+                start += size;
+            }
+            assert_eq!(a.finish().unwrap(), want, "{peg:?} {size}");
+        }
+    }
+}

@@ -807,3 +807,134 @@ fn a_long_analysis_shows_a_spinner_on_a_terminal() {
     let quiet = run("--quiet");
     assert!(!quiet.contains("running"), "{quiet}");
 }
+
+/// The verbs on a crank-angle basis read as they go too, and answer as on the whole recording
+/// (the library on the file read whole, put on a crank-angle basis with `to_crank_angle`):
+/// `cycles` (with the geometry: IMEP, polytropic exponents) and `compression fit` on a
+/// time-basis file with `theta_en` (resampled as it is read), `convert --crank-angle` bit for
+/// bit, in CSV, Parquet and MDF4; on a crank-angle file `convert --time-basis` bit for bit and
+/// `monitor shaft` (put on a time basis as it is read, at the whole recording's mean rate).
+/// Every file is longer than one chunk of the reader.
+#[test]
+fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
+    use physid_apps::acquisition::{to_crank_angle, to_time_basis, AcquisitionOptions};
+    use physid_apps::compression::{compression_fit, CompressionConfig};
+    use physid_apps::pressure::{analyse, Geometry, Pegging};
+    use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig};
+    use physid_sim::run::{simulate, OutputBasis, RunOptions};
+    let s = Scratch::new("physid-crank-stream");
+    let sim = |name: &str, seconds: f64, basis: OutputBasis| {
+        let opts = RunOptions {
+            duration: Some(seconds),
+            basis,
+            ..Default::default()
+        };
+        simulate(&physid_sim::scenario::named(name).unwrap(), &opts, |_| {}).unwrap()
+    };
+    let opts = AcquisitionOptions::default();
+    let motored = sim("friction-sweep", 8.0, OutputBasis::Time(10_000.0));
+    assert!(motored.len() > physid_io::CHUNK_ROWS);
+    let deg = to_crank_angle(&motored, &opts, 1.0).unwrap();
+    let geometry = Geometry {
+        bore: 0.054,
+        stroke: 0.0514,
+        rod: 0.088,
+        compression_ratio: 9.5,
+    };
+    let want_cycles =
+        serde_json::to_value(analyse(&deg, "p_cyl", Some(&geometry), Pegging::Bdc(1e5)).unwrap())
+            .unwrap();
+    assert!(want_cycles["cycles"].as_array().unwrap().len() > 40);
+    assert!(want_cycles["cycles"][3]["imep_pa"].is_number());
+    let want_fit = {
+        let r = compression_fit(&deg, &CompressionConfig::new("p_cyl", 0.0514, 0.088)).unwrap();
+        serde_json::to_value(&r).unwrap()
+    };
+    for ext in ["csv", "parquet", "mf4"] {
+        let f = s.file(&format!("motored.{ext}"));
+        physid_io::write(&f, &motored, &Default::default()).unwrap();
+        let f = f.to_str().unwrap();
+        let got = without_provenance(ok_json(&[
+            "cycles",
+            f,
+            "--bore",
+            "0.054",
+            "--stroke",
+            "0.0514",
+            "--rod",
+            "0.088",
+            "--compression-ratio",
+            "9.5",
+            "--peg",
+            "bdc=1e5",
+            "--json",
+        ]));
+        assert_eq!(got, want_cycles, "{ext}");
+        let mut got = without_provenance(ok_json(&[
+            "compression",
+            "fit",
+            "--data",
+            f,
+            "--stroke",
+            "0.0514",
+            "--rod",
+            "0.088",
+            "--json",
+        ]));
+        got.as_object_mut().unwrap().remove("motored_imep_pa");
+        assert_eq!(got, want_fit, "{ext}");
+        let out = s.file(&format!("deg-{ext}.{ext}"));
+        let o = physid(&["convert", f, out.to_str().unwrap(), "--crank-angle"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let back = physid_io::read(&out, &Default::default()).unwrap();
+        assert_eq!(back.names(), deg.names(), "{ext}");
+        for ch in deg.channels() {
+            assert_eq!(
+                back.values(&ch.name).unwrap(),
+                &ch.values[..],
+                "{ext} {}",
+                ch.name
+            );
+        }
+    }
+
+    // A crank-angle file back to a time basis, and the shaft monitored on it.
+    let shaft = sim("shaft-steady", 12.0, OutputBasis::Crank(1.0));
+    assert!(shaft.len() > physid_io::CHUNK_ROWS, "{}", shaft.len());
+    let f = s.file("shaft-deg.parquet");
+    physid_io::write(&f, &shaft, &Default::default()).unwrap();
+    let out = s.file("shaft-time.parquet");
+    let o = physid(&[
+        "convert",
+        f.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--time-basis",
+        "7000",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let want = to_time_basis(&shaft, 7000.0).unwrap();
+    let back = physid_io::read(&out, &Default::default()).unwrap();
+    assert_eq!(back.names(), want.names());
+    for ch in want.channels() {
+        assert_eq!(
+            back.values(&ch.name).unwrap(),
+            &ch.values[..],
+            "{}",
+            ch.name
+        );
+    }
+    let got = without_provenance(ok_json(&[
+        "monitor",
+        "shaft",
+        "--data",
+        f.to_str().unwrap(),
+        "--json",
+    ]));
+    let want = serde_json::to_value(
+        monitor_shaft(&shaft, &MonitorConfig::default())
+            .unwrap()
+            .summary(),
+    )
+    .unwrap();
+    assert_eq!(got, want);
+}

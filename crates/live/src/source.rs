@@ -2,9 +2,11 @@
 
 use crate::control::Control;
 use crate::service::LiveError;
-use physid_apps::acquisition::{from_first_marker, uniform_step, AcquisitionOptions};
+use physid_apps::acquisition::{
+    from_first_marker, time_basis_chunks, uniform_step, AcquisitionOptions,
+};
 use physid_apps::error::AppError;
-use physid_apps::shaft_monitor::on_time_basis;
+use physid_apps::shaft_monitor::{mean_rate, on_time_basis};
 use physid_core::{Basis, Channel, Recording};
 use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_sim::run::{OutputBasis, Run, RunOptions};
@@ -106,7 +108,7 @@ type Chunks = Box<dyn Iterator<Item = Result<Recording, AppError>> + Send>;
 
 /// A recording replayed in chunks of `chunk_s` seconds: a file read as it comes (memory
 /// does not grow with its length), or one in memory. A crank-angle recording is put on a time
-/// basis first, as the file verbs do (which takes it whole). The sample rate is the mean step
+/// basis at its mean rate first, as the file verbs do (a file: as it is read). The sample rate is the mean step
 /// of the first chunk read (its first [`CHUNK_ROWS`] samples, whatever the source); every later
 /// step is held to it.
 pub struct ReplaySource {
@@ -140,7 +142,26 @@ impl ReplaySource {
     pub fn open(path: &Path, opts: &ReadOptions, chunk_s: f64) -> Result<Self, LiveError> {
         let reader = ChunkReader::open(path, opts)?;
         if reader.header().basis == Basis::CrankAngle {
-            return Self::new(physid_io::read(path, opts)?, chunk_s);
+            // At the mean rate of the whole recording (a first pass over `t` alone), resampled
+            // as it is read, in the chunks the recording put on a time basis whole would give.
+            let t_only = ReadOptions {
+                channels: Some(vec!["t".into()]),
+                ..opts.clone()
+            };
+            let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
+            for chunk in ChunkReader::open(path, &t_only)? {
+                let chunk = chunk?;
+                let t = chunk.values("t")?;
+                if n == 0 {
+                    first = t.first().copied().unwrap_or(f64::NAN);
+                }
+                last = t.last().copied().unwrap_or(last);
+                n += t.len();
+            }
+            let header = reader.header().clone();
+            let chunks =
+                time_basis_chunks(&header, reader, mean_rate(n, first, last)?, CHUNK_ROWS)?;
+            return Self::from_chunks(Box::new(chunks), chunk_s);
         }
         Self::from_chunks(Box::new(reader.map(|c| c.map_err(AppError::from))), chunk_s)
     }

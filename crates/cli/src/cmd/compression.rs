@@ -4,7 +4,7 @@
 //! those fitted to all the TDCs with 95 % intervals, per TDC and recursively, the loss angle.
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::convert::tell_wheel;
+use crate::cmd::crank_input::CrankInput;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
@@ -12,7 +12,6 @@ use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::compression::{compression_fit, CompressionConfig, CompressionFit};
 use physid_apps::pressure::{analyse, Geometry, Pegging};
-use physid_core::Basis;
 use physid_ident::Selection;
 use physid_models::motored::PARAMS;
 use std::path::{Path, PathBuf};
@@ -137,19 +136,15 @@ fn fit(a: &FitArgs) -> Result<()> {
         }
     }
     cfg.selection = a.cutoff;
-    let rec = a.input.read_for_pressure(&a.data, &a.channel)?;
-    let rec = match rec.basis {
-        Basis::CrankAngle => rec,
-        Basis::Time => {
-            let (deg, decoded) =
-                a.angle
-                    .to_crank_angle(&rec, &a.geometry.crank, 1.0, &a.data, a.json)?;
-            if let (Some(d), false) = (&decoded, a.json) {
-                tell_wheel(&a.data, d);
-            }
-            deg
-        }
+    let input = CrankInput {
+        input: &a.input,
+        angle: &a.angle,
+        crank: &a.geometry.crank,
+        path: &a.data,
+        step_deg: 1.0,
+        quiet: a.json,
     };
+    let (rec, _) = input.collect(Some(&[a.channel.as_str()]))?;
     let r = compression_fit(&rec, &cfg).map_err(super::app_error(&a.data))?;
     let imep = motored_imep(&rec, &r, &a.geometry)?;
     let mut json = serde_json::to_value(&r).into_diagnostic()?;

@@ -2,10 +2,12 @@
 //! degree).
 
 use super::{CrankArgs, InputArgs};
+use crate::cmd::crank_input::CrankInput;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::acquisition::{to_time_basis, DecodedAngle};
+use physid_apps::acquisition::{DecodedAngle, TimeBasisStream};
+use physid_apps::error::AppError;
 use physid_io::{MdfCompression, WriteOptions};
 use std::path::PathBuf;
 
@@ -68,40 +70,164 @@ pub fn run(args: &Args) -> Result<()> {
             "--wheel and --quadrature decode the engine angle for --crank-angle: add --crank-angle"
         ));
     }
-    let mut rec = args.read.read(&args.input, None)?;
-    if args.crank_angle {
-        let (out, decoded) =
-            args.angle
-                .to_crank_angle(&rec, &args.crank, args.step_deg, &args.input, false)?;
-        if let Some(d) = decoded {
-            tell_wheel(&args.input, &d);
+    let write = WriteOptions {
+        mdf_compression: compression,
+    };
+    let at = super::app_error(&args.input);
+    let chosen: Vec<&str> = args.channels.iter().map(String::as_str).collect();
+    let chosen = (!chosen.is_empty()).then_some(chosen.as_slice());
+    let sink = if args.crank_angle {
+        let header = args.read.open_all(&args.input)?.header().clone();
+        if header.basis == physid_core::Basis::CrankAngle {
+            return Err(miette!(
+                "{}: the recording is already on a crank-angle basis",
+                args.input.display()
+            ));
         }
-        rec = out;
-    }
-    if let Some(rate) = args.time_basis {
-        rec = to_time_basis(&rec, rate).map_err(|e| miette!("{}: {e}", args.input.display()))?;
-    }
-    if let Some(names) = selection(&rec, &args.channels) {
-        let mut keep = physid_core::Recording::new(rec.basis);
-        keep.meta = rec.meta.clone();
-        for name in names {
-            let ch = rec
-                .channel(&name)
-                .map_err(|e| miette!("{}: {e}", args.input.display()))?;
-            keep.push(ch.clone()).into_diagnostic()?;
+        let input = CrankInput {
+            input: &args.read,
+            angle: &args.angle,
+            crank: &args.crank,
+            path: &args.input,
+            step_deg: args.step_deg,
+            quiet: false,
+        };
+        input
+            .read(
+                chosen,
+                |h| Sink::create(&args.output, h, &args.channels, &write),
+                |s, chunk| s.append(chunk),
+            )?
+            .0
+    } else if let Some(rate) = args.time_basis {
+        let mut reader = match chosen {
+            Some(c) => {
+                let mut names = vec!["t"];
+                names.extend(c.iter().filter(|n| **n != "t"));
+                args.read.open(&args.input, &names, &[])?
+            }
+            None => args.read.open_all(&args.input)?,
+        };
+        let mut to_time = TimeBasisStream::new(reader.header(), rate).map_err(|e| at(e.into()))?;
+        let header = to_time.header().map_err(|e| at(e.into()))?;
+        let mut sink = Sink::create(&args.output, &header, &args.channels, &write).map_err(&at)?;
+        for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
+            let chunk = chunk.into_diagnostic()?;
+            let out = to_time.push(&chunk).map_err(|e| at(e.into()))?;
+            sink.append(&out).map_err(&at)?;
         }
-        rec = keep;
+        let out = to_time.finish().map_err(|e| at(e.into()))?;
+        sink.append(&out).map_err(&at)?;
+        super::warn_read(&reader, &args.input);
+        sink
+    } else {
+        // Between formats into a compressed MDF4 file: written whole.
+        let rec = args.read.read(&args.input, None)?;
+        let mut sink = Sink::create(&args.output, &rec, &args.channels, &write).map_err(&at)?;
+        sink.append(&rec).map_err(&at)?;
+        sink
+    };
+    sink.close().map_err(&at)
+}
+
+/// Where the converted recording goes: a chunk at a time, or whole for a compressed MDF4 file;
+/// `--channels` picked from each chunk.
+enum Sink {
+    Chunks {
+        writer: physid_io::ChunkWriter,
+        names: Vec<String>,
+        path: PathBuf,
+        header: physid_core::Recording,
+        samples: usize,
+    },
+    Whole {
+        rec: physid_core::Recording,
+        names: Vec<String>,
+        path: PathBuf,
+        opts: WriteOptions,
+    },
+}
+
+impl Sink {
+    fn create(
+        path: &std::path::Path,
+        header: &physid_core::Recording,
+        channels: &[String],
+        opts: &WriteOptions,
+    ) -> Result<Self, AppError> {
+        let names = selection(header, channels)
+            .unwrap_or_else(|| header.names().iter().map(|n| n.to_string()).collect());
+        let header = pick(header, &names)?;
+        let compressed = physid_io::Format::from_extension(path) == Some(physid_io::Format::Mdf4)
+            && opts.mdf_compression != MdfCompression::None;
+        Ok(if compressed {
+            Sink::Whole {
+                rec: header.slice(0..0),
+                names,
+                path: path.to_path_buf(),
+                opts: *opts,
+            }
+        } else {
+            Sink::Chunks {
+                writer: physid_io::ChunkWriter::create(path, &header, opts)?,
+                names,
+                path: path.to_path_buf(),
+                header,
+                samples: 0,
+            }
+        })
     }
-    physid_io::write(
-        &args.output,
-        &rec,
-        &WriteOptions {
-            mdf_compression: compression,
-        },
-    )
-    .into_diagnostic()?;
-    wrote(&args.output, &rec, rec.len());
-    Ok(())
+
+    fn append(&mut self, chunk: &physid_core::Recording) -> Result<(), AppError> {
+        match self {
+            Sink::Chunks {
+                writer,
+                names,
+                samples,
+                ..
+            } => {
+                writer.append(&pick(chunk, names)?)?;
+                *samples += chunk.len();
+            }
+            Sink::Whole { rec, names, .. } => rec.append(&pick(chunk, names)?)?,
+        }
+        Ok(())
+    }
+
+    fn close(self) -> Result<(), AppError> {
+        match self {
+            Sink::Chunks {
+                writer,
+                path,
+                header,
+                samples,
+                ..
+            } => {
+                writer.close()?;
+                wrote(&path, &header, samples);
+            }
+            Sink::Whole {
+                rec, path, opts, ..
+            } => {
+                physid_io::write(&path, &rec, &opts)?;
+                wrote(&path, &rec, rec.len());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The channels `names` of `rec`, in that order.
+fn pick(
+    rec: &physid_core::Recording,
+    names: &[String],
+) -> Result<physid_core::Recording, AppError> {
+    let mut out = physid_core::Recording::new(rec.basis);
+    out.meta = rec.meta.clone();
+    for n in names {
+        out.push(rec.channel(n)?.clone())?;
+    }
+    Ok(out)
 }
 
 /// What decoding a raw angle sensor found, on stderr: the sensor, the speed range, how the

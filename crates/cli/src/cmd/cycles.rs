@@ -4,12 +4,11 @@
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::convert::tell_wheel;
+use crate::cmd::crank_input::CrankInput;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::pressure::{analyse, Pegging};
-use physid_core::Basis;
+use physid_apps::pressure::{CycleAnalyser, Pegging};
 use std::path::PathBuf;
 
 /// Arguments of `physid cycles`.
@@ -108,29 +107,20 @@ fn pegging(s: &Option<String>) -> Result<Pegging> {
 pub fn run(args: &Args) -> Result<()> {
     let peg = pegging(&args.peg)?;
     let geometry = args.geometry.full()?;
-    let rec = args.input.read_for_pressure(&args.file, &args.channel)?;
-    let mut wheel = None;
-    let rec = match rec.basis {
-        Basis::CrankAngle => rec,
-        Basis::Time => {
-            let (deg, decoded) = args.angle.to_crank_angle(
-                &rec,
-                &args.geometry.crank,
-                1.0,
-                &args.file,
-                args.json,
-            )?;
-            if let Some(d) = &decoded {
-                if !args.json {
-                    tell_wheel(&args.file, d);
-                }
-            }
-            wheel = decoded;
-            deg
-        }
+    let input = CrankInput {
+        input: &args.input,
+        angle: &args.angle,
+        crank: &args.geometry.crank,
+        path: &args.file,
+        step_deg: 1.0,
+        quiet: args.json,
     };
-    let a = analyse(&rec, &args.channel, geometry.as_ref(), peg)
-        .map_err(|e| miette!("{}: {e}", args.file.display()))?;
+    let (analyser, wheel) = input.read(
+        Some(&[args.channel.as_str()]),
+        |h| CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg),
+        |a, chunk| a.push(chunk),
+    )?;
+    let a = analyser.finish().map_err(super::app_error(&args.file))?;
     if let Some(path) = &args.tracks {
         write_tracks(path, &a)?;
     }

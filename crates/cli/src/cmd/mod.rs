@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod compression;
 pub mod convert;
+pub mod crank_input;
 pub mod cycles;
 pub mod demo;
 pub mod estimate;
@@ -161,27 +162,6 @@ impl InputArgs {
         }
         crate::provenance::record_input(path, &self.map);
         physid_io::ChunkReader::open(path, &self.options(Some(names))?).into_diagnostic()
-    }
-}
-
-impl InputArgs {
-    /// The recording of a cylinder-pressure analysis (`cycles`, `compression fit`): of a
-    /// crank-angle file only the channels the analysis takes — the pressure `channel`, `cycle`,
-    /// `crank_deg` and `t` (those the file has; the analysis names any missing) — of a
-    /// time-basis file every channel (the engine angle is decoded from them first).
-    pub fn read_for_pressure(&self, path: &Path, channel: &str) -> Result<Recording> {
-        let header = self.open_all(path)?.header().clone();
-        match header.basis {
-            physid_core::Basis::CrankAngle => {
-                let names = [channel, "cycle", "crank_deg", "t"]
-                    .into_iter()
-                    .filter(|n| header.channel(n).is_ok())
-                    .map(String::from)
-                    .collect();
-                self.read(path, Some(names))
-            }
-            physid_core::Basis::Time => self.read(path, None),
-        }
     }
 }
 

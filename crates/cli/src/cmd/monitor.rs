@@ -6,13 +6,13 @@ use crate::plot::{self, Mark, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
 use crate::tracks::TrackFile;
-use miette::{miette, Result};
-use physid_apps::error::AppError;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::acquisition::time_basis_chunks;
 use physid_apps::shaft_monitor::{
-    monitor_shaft_tracked, on_time_basis, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
+    mean_rate, monitor_shaft_tracked, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
     ShaftParams, ShaftSample, SHAFT_CHANNELS, SHAFT_TRUTH,
 };
-use physid_core::{Basis, Recording};
+use physid_core::Basis;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid monitor`.
@@ -76,11 +76,19 @@ fn track_columns(cfg: &MonitorConfig) -> Vec<(String, String)> {
     c
 }
 
-/// A recording in memory as the chunks a file would give.
-fn slices(rec: &Recording) -> impl Iterator<Item = Result<Recording, AppError>> + '_ {
-    (0..rec.len().max(1))
-        .step_by(physid_io::CHUNK_ROWS)
-        .map(move |s| Ok(rec.slice(s..s + physid_io::CHUNK_ROWS)))
+/// The mean sample rate of the crank-angle file `path` ([`mean_rate`]): a pass over its `t`.
+fn crank_angle_rate(input: &InputArgs, path: &std::path::Path) -> Result<f64> {
+    let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
+    for chunk in input.open(path, &["t"], &[])? {
+        let chunk = chunk.into_diagnostic()?;
+        let t = chunk.values("t").into_diagnostic()?;
+        if n == 0 {
+            first = t.first().copied().unwrap_or(f64::NAN);
+        }
+        last = t.last().copied().unwrap_or(last);
+        n += t.len();
+    }
+    mean_rate(n, first, last).map_err(super::app_error(path))
 }
 
 /// The shaft monitor's settings, shared by `monitor shaft` and `live`.
@@ -357,7 +365,7 @@ fn plot_tracks(r: &ShaftMonitor, cfg: &MonitorConfig, path: &Path) -> Result<()>
 fn shaft(a: &ShaftArgs) -> Result<()> {
     let cfg = config(&a.monitor)?;
     // The file read a chunk at a time, only the channels the monitor takes; a crank-angle
-    // recording is put on a time basis first, which takes it whole.
+    // recording is put on a time basis as it is read.
     let mut reader = a.input.open(&a.data, &SHAFT_CHANNELS, &SHAFT_TRUTH)?;
     let mut tracks = match &a.tracks {
         Some(path) => Some(TrackFile::create(path, track_columns(&cfg))?),
@@ -393,11 +401,18 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
         Ok(())
     };
     let r = if reader.header().basis == Basis::CrankAngle {
-        let rec = a.input.read(&a.data, None)?;
-        match on_time_basis(&rec).map_err(super::app_error(&a.data))? {
-            Some(timed) => monitor_shaft_tracked(slices(&timed), &cfg, &mut sink),
-            None => monitor_shaft_tracked(slices(&rec), &cfg, &mut sink),
-        }
+        // At the mean rate of the whole recording (a first pass over `t` alone), resampled as
+        // it is read.
+        let rate = crank_angle_rate(&a.input, &a.data)?;
+        let header = reader.header().clone();
+        let timed = time_basis_chunks(
+            &header,
+            Reading::new(&mut reader, &a.data),
+            rate,
+            physid_io::CHUNK_ROWS,
+        )
+        .map_err(super::app_error(&a.data))?;
+        monitor_shaft_tracked(timed, &cfg, &mut sink)
     } else {
         monitor_shaft_tracked(Reading::new(&mut reader, &a.data), &cfg, &mut sink)
     }

@@ -1,0 +1,140 @@
+//! A recording read on a crank-angle basis, as it comes where it can — what `cycles`,
+//! `compression fit` and `convert --crank-angle` read:
+//!
+//! * a crank-angle file: a chunk at a time, only the channels asked for (and `t`, `cycle`,
+//!   `crank_deg`);
+//! * a time-basis file with `theta_en`: a chunk at a time, resampled as it comes
+//!   ([`physid_apps::acquisition::crank_angle_chunks`]) — memory flat in the recording's length;
+//! * a time-basis file whose angle is decoded from a raw sensor (`--wheel`, `--quadrature`), an
+//!   encoder's counts, or with the TDC placed from the pressure (`--tdc-from`): read whole —
+//!   the decoders see the whole signal — but only the channels the angle and the analysis take.
+
+use super::{CrankArgs, InputArgs};
+use crate::cmd::convert::tell_wheel;
+use crate::cmd::inspect::AngleArgs;
+use crate::progress::Reading;
+use miette::Result;
+use physid_apps::acquisition::{crank_angle_chunks, DecodedAngle};
+use physid_apps::error::AppError;
+use physid_core::{Basis, Recording};
+use std::path::Path;
+
+/// Where the crank angle comes from and how finely it is sampled.
+pub struct CrankInput<'a> {
+    /// How to read the file.
+    pub input: &'a InputArgs,
+    /// The engine angle on a time basis.
+    pub angle: &'a AngleArgs,
+    /// The slider crank (for `--tdc-from`).
+    pub crank: &'a CrankArgs,
+    /// The file.
+    pub path: &'a Path,
+    /// One sample every this many crank degrees (a time-basis file).
+    pub step_deg: f64,
+    /// No word on stderr about the decoded angle.
+    pub quiet: bool,
+}
+
+impl CrankInput<'_> {
+    /// Read the file on a crank-angle basis: `start` gets the recording's channels (no
+    /// samples), then `push` every chunk in order. `channels`: the ones the caller takes
+    /// (besides `t`, `cycle`, `crank_deg` and the angle's), or `None` for every channel. What
+    /// decoding a raw angle sensor found comes back with the caller's state.
+    pub fn read<S>(
+        &self,
+        channels: Option<&[&str]>,
+        start: impl FnOnce(&Recording) -> Result<S, AppError>,
+        mut push: impl FnMut(&mut S, &Recording) -> Result<(), AppError>,
+    ) -> Result<(S, Option<DecodedAngle>)> {
+        let at = super::app_error(self.path);
+        let header = self.input.open_all(self.path)?.header().clone();
+        let present = |names: &mut Vec<String>, extra: &[&str]| {
+            for n in extra {
+                if header.channel(n).is_ok() && !names.iter().any(|m| m == n) {
+                    names.push(n.to_string());
+                }
+            }
+        };
+        let wanted = |basis: &[&str]| -> Option<Vec<String>> {
+            channels.map(|c| {
+                let mut names = Vec::new();
+                present(&mut names, basis);
+                present(&mut names, c);
+                names
+            })
+        };
+        let opts = self.angle.options()?;
+        let streams = header.basis == Basis::CrankAngle
+            || (header.channel("theta_en").is_ok() && self.angle.wheel.tdc_from.is_none());
+        if streams {
+            let names = match header.basis {
+                Basis::CrankAngle => wanted(&["t", "cycle", "crank_deg"]),
+                Basis::Time => wanted(&["t", "theta_en", opts.marker.as_str()]),
+            };
+            let mut reader = match &names {
+                Some(n) => {
+                    let n: Vec<&str> = n.iter().map(String::as_str).collect();
+                    self.input.open(self.path, &n, &[])?
+                }
+                None => self.input.open_all(self.path)?,
+            };
+            let file_header = reader.header().clone();
+            let chunks = Reading::new(&mut reader, self.path);
+            let state = match file_header.basis {
+                Basis::CrankAngle => {
+                    let mut s = start(&file_header).map_err(&at)?;
+                    for chunk in chunks {
+                        let chunk = chunk.map_err(AppError::from).map_err(&at)?;
+                        push(&mut s, &chunk).map_err(&at)?;
+                    }
+                    s
+                }
+                Basis::Time => {
+                    let (h, chunks) =
+                        crank_angle_chunks(&file_header, chunks, &opts, self.step_deg)
+                            .map_err(&at)?;
+                    let mut s = start(&h).map_err(&at)?;
+                    for chunk in chunks {
+                        push(&mut s, &chunk.map_err(&at)?).map_err(&at)?;
+                    }
+                    s
+                }
+            };
+            super::warn_read(&reader, self.path);
+            return Ok((state, None));
+        }
+        // Decoded whole: only the channels the angle and the caller take.
+        let mut angle_channels: Vec<&str> = vec!["t", "theta_en", opts.marker.as_str()];
+        angle_channels.extend(opts.encoders.iter().map(|e| e.0.as_str()));
+        if let Some(spec) = &opts.sensor {
+            angle_channels.extend(spec.sensor.channels());
+            if let Some(p) = &spec.phase_from {
+                angle_channels.push(p.strip_suffix(":low").unwrap_or(p));
+            }
+        }
+        if let Some(c) = &self.angle.wheel.tdc_from {
+            angle_channels.push(c);
+        }
+        let rec = self.input.read(self.path, wanted(&angle_channels))?;
+        let (deg, decoded) =
+            self.angle
+                .to_crank_angle(&rec, self.crank, self.step_deg, self.path, self.quiet)?;
+        drop(rec);
+        if let (Some(d), false) = (&decoded, self.quiet) {
+            tell_wheel(self.path, d);
+        }
+        let header = deg.slice(0..0);
+        let mut s = start(&header).map_err(&at)?;
+        push(&mut s, &deg).map_err(&at)?;
+        Ok((s, decoded))
+    }
+
+    /// The whole recording on a crank-angle basis, of `channels` (see [`read`](Self::read)).
+    pub fn collect(&self, channels: Option<&[&str]>) -> Result<(Recording, Option<DecodedAngle>)> {
+        self.read(
+            channels,
+            |h| Ok(h.clone()),
+            |rec, chunk| rec.append(chunk).map_err(AppError::from),
+        )
+    }
+}
