@@ -2,12 +2,14 @@
 # Peak memory and wall time of the file verbs against the recording's length (BENCHMARKS.md,
 # "The file verbs read as they go"). Usage: bench/memory.sh NEW_PHYSID [OLD_PHYSID] [DIR]
 # Writes shaft-D.{parquet,mf4}, motored-D.parquet and fired-D.parquet into DIR (≈ 30 GB with
-# the one-hour files) and prints a Markdown row per measurement (inspect/monitor, the fits, filter).
+# the one-hour files) and prints a Markdown row per measurement (inspect/monitor, the fits, filter,
+# the crank-angle verbs). ONLY=crank measures the crank-angle verbs alone (the last part).
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
 mkdir -p "$DIR" && cd "$DIR"
 m() { /usr/bin/time -f "%M %e" -o t.out "$@" > /dev/null 2> err.out || { echo "failed: $(tail -1 err.out)"; return; }
       read -r kb s < t.out; echo "$(( kb / 1024 )) MB, ${s} s"; }
+if [ "${ONLY:-}" != crank ]; then
 for D in 75 150 300 600 3600; do
   for ext in parquet mf4; do
     [ -f "shaft-$D.$ext" ] || "$NEW" simulate --scenario shaft-steady --duration "$D" --recording "shaft-$D.$ext" > /dev/null
@@ -46,4 +48,26 @@ for D in 75 150 300 600; do
   row="| $D s | $(m "$NEW" friction fit --data "deg-$D.parquet" --json) |"
   [ -n "$OLD" ] && row="$row $(m "$OLD" friction fit --data "deg-$D.parquet" --json) |"
   echo "$row"
+done
+fi
+# The crank-angle verbs (ONLY=crank runs this part alone): on a time-basis file with theta_en
+# (cycles, compression fit, convert --crank-angle), on a crank-angle file (cycles, monitor
+# shaft, convert --time-basis).
+for D in 75 150 300 600; do
+  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
+  [ -f "deg-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --basis crank --duration "$D" --recording "deg-$D.parquet" > /dev/null
+  [ -f "shaftdeg-$D.parquet" ] || "$NEW" simulate --scenario shaft-steady --basis crank --duration "$D" --recording "shaftdeg-$D.parquet" > /dev/null
+  cat "motored-$D.parquet" "deg-$D.parquet" "shaftdeg-$D.parquet" > /dev/null
+  for cmd in "cycles motored-$D.parquet --json" \
+             "compression fit --data motored-$D.parquet --stroke 0.0514 --rod 0.088 --json" \
+             "convert motored-$D.parquet c.parquet --crank-angle" \
+             "cycles deg-$D.parquet --json" \
+             "monitor shaft --data shaftdeg-$D.parquet --json" \
+             "convert deg-$D.parquet c.parquet --time-basis 10000"; do
+    # shellcheck disable=SC2086
+    row="| $D s | \`$cmd\` | $(m "$NEW" $cmd) |"
+    # shellcheck disable=SC2086
+    [ -n "$OLD" ] && row="$row $(m "$OLD" $cmd) |"
+    echo "$row"
+  done
 done

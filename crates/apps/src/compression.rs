@@ -116,81 +116,198 @@ pub struct TdcEvent {
 }
 
 /// The events of a crank-angle recording: every firing TDC (`crank_deg` 0) with the whole
-/// window on consecutive samples; what was left out is said in `notes`.
+/// window on consecutive samples; what was left out is said in `notes` ([`EventCollector`] on
+/// the whole recording as one chunk).
 pub fn events(
     rec: &Recording,
     channel: &str,
     window: (f64, f64),
     notes: &mut Vec<String>,
 ) -> Result<Vec<TdcEvent>, AppError> {
-    if rec.basis != Basis::CrankAngle {
-        return Err(AppError::Invalid(
-            "the recording is on a time basis: convert it with --crank-angle first (or give the engine angle: --wheel, --encoder)".into(),
-        ));
-    }
-    let (cycle, deg, t) = (
-        rec.values("cycle")?,
-        rec.values("crank_deg")?,
-        rec.values("t")?,
-    );
-    let p = rec.values(channel)?;
-    let step = deg
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .find(|d| *d > 0.0)
-        .ok_or_else(|| AppError::Invalid("crank_deg never advances".into()))?;
-    let before = (-window.0 / step).round() as usize;
-    let after = (window.1 / step).round() as usize;
-    let (mut out, mut short, mut bad) = (Vec::new(), 0, Vec::new());
-    for i in (0..deg.len()).filter(|&i| deg[i].abs() < 1e-6 * step && cycle[i] >= 0.0) {
-        if i < before || i + after >= deg.len() {
-            short += 1;
-            continue;
+    let mut c = EventCollector::new(rec, channel, window)?;
+    c.push(rec)?;
+    let (events, mut said) = c.finish()?;
+    notes.append(&mut said);
+    Ok(events)
+}
+
+/// One sample of a crank-angle recording as the events take it.
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    cycle: f64,
+    deg: f64,
+    t: f64,
+    p: f64,
+}
+
+/// The firing TDCs' windows on a stream of crank-angle chunks: it holds the last
+/// `before + after + 1` samples and takes each TDC once its window has come — the events, a few
+/// hundred numbers per TDC, whatever the recording's length.
+#[derive(Debug, Clone)]
+pub struct EventCollector {
+    channel: String,
+    window: (f64, f64),
+    /// The step of `crank_deg` (its first advance) and the last angle seen.
+    step: Option<f64>,
+    last_deg: Option<f64>,
+    /// The samples from `ring_start` on.
+    ring: std::collections::VecDeque<Sample>,
+    ring_start: usize,
+    /// The next sample to look at as a TDC.
+    next: usize,
+    seen: usize,
+    events: Vec<TdcEvent>,
+    short: usize,
+    bad: Vec<String>,
+}
+
+/// Samples held before the step of `crank_deg` is known (a file whose angle never advances).
+const MAX_HELD: usize = 1 << 20;
+
+impl EventCollector {
+    /// The events of `channel` in crank-angle recordings with `header`'s channels.
+    pub fn new(header: &Recording, channel: &str, window: (f64, f64)) -> Result<Self, AppError> {
+        if header.basis != Basis::CrankAngle {
+            return Err(AppError::Invalid(
+                "the recording is on a time basis: convert it with --crank-angle first (or give the engine angle: --wheel, --encoder)".into(),
+            ));
         }
-        let range = i - before..=i + after;
-        let mut atdc = Vec::with_capacity(before + after + 1);
-        let mut contiguous = true;
-        for (k, j) in range.clone().enumerate() {
-            let want = (k as f64 - before as f64) * step;
-            let a = if deg[j] >= 360.0 {
-                deg[j] - 720.0
-            } else {
-                deg[j]
-            };
-            contiguous &= (a - want).abs() < 1e-3 * step;
-            atdc.push(want);
+        for name in ["cycle", "crank_deg", "t", channel] {
+            header.channel(name)?;
         }
-        if !contiguous {
-            short += 1;
-            continue;
+        Ok(Self {
+            channel: channel.to_string(),
+            window,
+            step: None,
+            last_deg: None,
+            ring: Default::default(),
+            ring_start: 0,
+            next: 0,
+            seen: 0,
+            events: Vec::new(),
+            short: 0,
+            bad: Vec::new(),
+        })
+    }
+
+    /// Samples before and after TDC in the window.
+    fn span(&self) -> Option<(usize, usize, f64)> {
+        let step = self.step?;
+        Some((
+            (-self.window.0 / step).round() as usize,
+            (self.window.1 / step).round() as usize,
+            step,
+        ))
+    }
+
+    /// The next chunk of the recording.
+    pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
+        let (cycle, deg, t, p) = (
+            chunk.values("cycle")?,
+            chunk.values("crank_deg")?,
+            chunk.values("t")?,
+            chunk.values(&self.channel)?,
+        );
+        for i in 0..cycle.len() {
+            if self.step.is_none() {
+                self.step = self.last_deg.map(|l| deg[i] - l).filter(|d| *d > 0.0);
+            }
+            self.last_deg = Some(deg[i]);
+            self.ring.push_back(Sample {
+                cycle: cycle[i],
+                deg: deg[i],
+                t: t[i],
+                p: p[i],
+            });
+            self.seen += 1;
+            if self.step.is_none() && self.ring.len() > MAX_HELD {
+                return Err(AppError::Invalid(format!(
+                    "crank_deg does not advance over its first {MAX_HELD} samples"
+                )));
+            }
+            self.take(false);
         }
-        if let Some(j) = range.clone().find(|&j| !p[j].is_finite()) {
-            bad.push(format!("sample {j} ({})", p[j]));
-            continue;
+        Ok(())
+    }
+
+    /// Look at every sample whose window has come (all that are left `at_end`).
+    fn take(&mut self, at_end: bool) {
+        let Some((before, after, step)) = self.span() else {
+            return;
+        };
+        while self.next < self.seen && (at_end || self.next + after < self.seen) {
+            let i = self.next;
+            self.next += 1;
+            let s = self.ring[i - self.ring_start];
+            if !(s.deg.abs() < 1e-6 * step && s.cycle >= 0.0) {
+                continue;
+            }
+            if i < before || i + after >= self.seen {
+                self.short += 1;
+                continue;
+            }
+            let w = (i - before - self.ring_start)..=(i + after - self.ring_start);
+            let contiguous = self.ring.range(w.clone()).enumerate().all(|(k, x)| {
+                let want = (k as f64 - before as f64) * step;
+                let a = if x.deg >= 360.0 { x.deg - 720.0 } else { x.deg };
+                (a - want).abs() < 1e-3 * step
+            });
+            if !contiguous {
+                self.short += 1;
+                continue;
+            }
+            if let Some((k, x)) = self
+                .ring
+                .range(w.clone())
+                .enumerate()
+                .find(|(_, x)| !x.p.is_finite())
+            {
+                self.bad
+                    .push(format!("sample {} ({})", i - before + k, x.p));
+                continue;
+            }
+            let (first, last) = (self.ring[*w.start()], self.ring[*w.end()]);
+            self.events.push(TdcEvent {
+                cycle: s.cycle as i64,
+                t_s: s.t,
+                rpm: (after + before) as f64 * step / 6.0 / (last.t - first.t),
+                atdc: (0..=before + after)
+                    .map(|k| (k as f64 - before as f64) * step)
+                    .collect(),
+                p: self.ring.range(w).map(|x| x.p).collect(),
+            });
         }
-        let span = t[i + after] - t[i - before];
-        out.push(TdcEvent {
-            cycle: cycle[i] as i64,
-            t_s: t[i],
-            rpm: (after + before) as f64 * step / 6.0 / span,
-            atdc,
-            p: p[range].to_vec(),
-        });
+        // Keep what a later TDC's window can reach back to.
+        let keep_from = self.next.saturating_sub(before);
+        while self.ring_start < keep_from {
+            self.ring.pop_front();
+            self.ring_start += 1;
+        }
     }
-    if short > 0 {
-        notes.push(format!(
-            "{short} TDC(s) without the whole window {}° … {}° ATDC on consecutive samples left out",
-            window.0, window.1
-        ));
+
+    /// The end of the recording: the events, and what was left out (for `notes`).
+    pub fn finish(mut self) -> Result<(Vec<TdcEvent>, Vec<String>), AppError> {
+        if self.step.is_none() {
+            return Err(AppError::Invalid("crank_deg never advances".into()));
+        }
+        self.take(true);
+        let mut notes = Vec::new();
+        if self.short > 0 {
+            notes.push(format!(
+                "{} TDC(s) without the whole window {}° … {}° ATDC on consecutive samples left out",
+                self.short, self.window.0, self.window.1
+            ));
+        }
+        if !self.bad.is_empty() {
+            notes.push(format!(
+                "{} TDC(s) left out for a pressure that is not finite: '{}' at {}",
+                self.bad.len(),
+                self.channel,
+                self.bad.join(", ")
+            ));
+        }
+        Ok((self.events, notes))
     }
-    if !bad.is_empty() {
-        notes.push(format!(
-            "{} TDC(s) left out for a pressure that is not finite: '{channel}' at {}",
-            bad.len(),
-            bad.join(", ")
-        ));
-    }
-    Ok(out)
 }
 
 /// One parameter's result.
@@ -383,16 +500,63 @@ fn data<'a>(atdc: &'a [f64], p: &'a [f64]) -> Data<'a> {
     }
 }
 
-/// Fit the motored model to a crank-angle recording (see the module's doc).
+/// Fit the motored model to a crank-angle recording (see the module's doc):
+/// [`CompressionStream`] on the whole recording as one chunk.
 pub fn compression_fit(
     rec: &Recording,
     cfg: &CompressionConfig,
 ) -> Result<CompressionFit, AppError> {
-    cfg.validate()?;
-    let unit = rec.channel(&cfg.channel)?.unit.clone();
-    let mut notes = Vec::new();
-    notes.extend(crate::pressure::check_unit(rec, &cfg.channel, false)?);
-    let events = events(rec, &cfg.channel, cfg.window_deg, &mut notes)?;
+    let mut s = CompressionStream::new(rec, cfg)?;
+    s.push(rec)?;
+    s.finish()
+}
+
+/// [`compression_fit`] on a stream of crank-angle chunks: the TDCs' windows are gathered as
+/// the chunks come ([`EventCollector`]), then fitted — it holds the windows (2 × 241 numbers
+/// per TDC in the default window at 1°), not the recording.
+#[derive(Debug, Clone)]
+pub struct CompressionStream {
+    cfg: CompressionConfig,
+    unit: String,
+    unit_check: crate::pressure::UnitCheck,
+    events: EventCollector,
+}
+
+impl CompressionStream {
+    /// The fit of `cfg` on crank-angle recordings with `header`'s channels.
+    pub fn new(header: &Recording, cfg: &CompressionConfig) -> Result<Self, AppError> {
+        cfg.validate()?;
+        Ok(Self {
+            unit: header.channel(&cfg.channel)?.unit.clone(),
+            unit_check: crate::pressure::UnitCheck::new(header, &cfg.channel)?,
+            events: EventCollector::new(header, &cfg.channel, cfg.window_deg)?,
+            cfg: cfg.clone(),
+        })
+    }
+
+    /// The next chunk of the recording.
+    pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
+        self.unit_check.push(chunk.values(&self.cfg.channel)?);
+        self.events.push(chunk)
+    }
+
+    /// The end of the recording: the fit.
+    pub fn finish(self) -> Result<CompressionFit, AppError> {
+        let mut notes = Vec::new();
+        notes.extend(self.unit_check.finish(false)?);
+        let (events, mut said) = self.events.finish()?;
+        notes.append(&mut said);
+        fit_events(&events, self.unit, notes, &self.cfg)
+    }
+}
+
+/// The fit over the TDCs' windows (steps 2–5 of the module's doc).
+fn fit_events(
+    events: &[TdcEvent],
+    unit: String,
+    mut notes: Vec<String>,
+    cfg: &CompressionConfig,
+) -> Result<CompressionFit, AppError> {
     if events.is_empty() {
         return Err(AppError::Invalid(format!(
             "no firing TDC with the whole window {}° … {}° ATDC of '{}' in the recording",
@@ -400,7 +564,7 @@ pub fn compression_fit(
         )));
     }
     let model = Motored::new(cfg.stroke, cfg.rod);
-    let mut start = start_values(&events, &model);
+    let mut start = start_values(events, &model);
     for (name, v) in &cfg.held {
         let j = PARAMS.iter().position(|p| p == name).unwrap_or(0);
         start[j] = *v;
@@ -418,7 +582,7 @@ pub fn compression_fit(
     }
     // All events at once.
     let (mut all_a, mut all_p) = (Vec::new(), Vec::new());
-    for e in &events {
+    for e in events {
         all_a.extend_from_slice(&e.atdc);
         all_p.extend_from_slice(&e.p);
     }
@@ -478,7 +642,7 @@ pub fn compression_fit(
     let mut rss_total = 0.0;
     let mut engine = GradientEngine::new(PARAMS.len());
     let mut g = vec![0.0; kf];
-    for e in &events {
+    for e in events {
         let f = fit_subset(&model, &data(&e.atdc, &e.p), &pooled_fit.theta, &fitted, 50)?;
         rss_total += f.rss;
         let n = e.atdc.len();

@@ -670,6 +670,31 @@ pub fn mean_rate(n: usize, first: f64, last: f64) -> Result<f64, AppError> {
     Ok((n - 1) as f64 / span)
 }
 
+/// The mean sample rate ([`mean_rate`]) of the crank-angle file `path`, read with `opts`: a
+/// pass over its `t` alone (and `anchor`, another of its channels — an MDF4 file finds `t`'s
+/// channel group by it).
+pub fn file_mean_rate(
+    path: &std::path::Path,
+    opts: &physid_io::ReadOptions,
+    anchor: &str,
+) -> Result<f64, AppError> {
+    let opts = physid_io::ReadOptions {
+        channels: Some(vec!["t".into(), anchor.into()]),
+        ..opts.clone()
+    };
+    let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
+    for chunk in physid_io::ChunkReader::open(path, &opts)? {
+        let chunk = chunk?;
+        let t = chunk.values("t")?;
+        if n == 0 {
+            first = t.first().copied().unwrap_or(f64::NAN);
+        }
+        last = t.last().copied().unwrap_or(last);
+        n += t.len();
+    }
+    mean_rate(n, first, last)
+}
+
 /// The channels the monitor reads: its inputs, then the simulated truth when the recording
 /// carries it.
 pub const SHAFT_CHANNELS: [&str; 6] = [

@@ -416,3 +416,50 @@ fn the_intervals_hold_the_truth_as_often_as_they_say() {
 fn fit_name(k: usize) -> &'static str {
     physid_models::motored::PARAMS[k]
 }
+
+/// The TDCs' windows gathered on a stream: however the recording is cut — one sample, a prime
+/// number, a window less one, more than a cycle, the whole — the same events (a TDC too close to
+/// either end left out and said, a NaN in one window named with its sample) and so the same fit.
+#[test]
+fn the_events_and_the_fit_are_the_same_however_the_recording_is_chunked() {
+    use physid_apps::compression::{events, CompressionStream, EventCollector};
+    let mut rec = recording();
+    // A NaN inside one TDC's window.
+    let mut p = rec.values("p_cyl").unwrap().to_vec();
+    let deg = rec.values("crank_deg").unwrap().to_vec();
+    let tdc = (1..deg.len()).filter(|&i| deg[i] == 0.0).nth(2).unwrap();
+    p[tdc + 17] = f64::NAN;
+    rec.replace_values("p_cyl", p).unwrap();
+    // Cut inside a window at both ends.
+    let first = (0..deg.len()).find(|&i| deg[i] == 0.0).unwrap();
+    let rec = rec.slice(first.saturating_sub(60)..rec.len() - 50);
+    let cfg = config();
+    let mut notes = Vec::new();
+    let want = events(&rec, "p_cyl", cfg.window_deg, &mut notes).unwrap();
+    assert!(
+        notes.iter().any(|n| n.contains("without the whole window")),
+        "{notes:?}"
+    );
+    assert!(notes.iter().any(|n| n.contains("not finite")), "{notes:?}");
+    let want_fit = serde_json::to_value(compression_fit(&rec, &cfg).unwrap()).unwrap();
+    for size in [1, 13, 240, 721, rec.len()] {
+        let mut c = EventCollector::new(&rec, "p_cyl", cfg.window_deg).unwrap();
+        let mut s = CompressionStream::new(&rec, &cfg).unwrap();
+        let mut start = 0;
+        while start < rec.len() {
+            let chunk = rec.slice(start..start + size);
+            c.push(&chunk).unwrap();
+            s.push(&chunk).unwrap();
+            start += size;
+        }
+        let (got, got_notes) = c.finish().unwrap();
+        assert_eq!(got_notes, notes, "{size}");
+        assert_eq!(got.len(), want.len(), "{size}");
+        for (a, b) in got.iter().zip(&want) {
+            assert_eq!((a.cycle, a.t_s, a.rpm), (b.cycle, b.t_s, b.rpm), "{size}");
+            assert_eq!((&a.atdc, &a.p), (&b.atdc, &b.p), "{size}");
+        }
+        let got_fit = serde_json::to_value(s.finish().unwrap()).unwrap();
+        assert_eq!(got_fit, want_fit, "{size}");
+    }
+}

@@ -6,7 +6,7 @@ use physid_apps::acquisition::{
     from_first_marker, time_basis_chunks, uniform_step, AcquisitionOptions,
 };
 use physid_apps::error::AppError;
-use physid_apps::shaft_monitor::{mean_rate, on_time_basis};
+use physid_apps::shaft_monitor::{file_mean_rate, on_time_basis};
 use physid_core::{Basis, Channel, Recording};
 use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_sim::run::{OutputBasis, Run, RunOptions};
@@ -144,23 +144,16 @@ impl ReplaySource {
         if reader.header().basis == Basis::CrankAngle {
             // At the mean rate of the whole recording (a first pass over `t` alone), resampled
             // as it is read, in the chunks the recording put on a time basis whole would give.
-            let t_only = ReadOptions {
-                channels: Some(vec!["t".into()]),
-                ..opts.clone()
-            };
-            let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
-            for chunk in ChunkReader::open(path, &t_only)? {
-                let chunk = chunk?;
-                let t = chunk.values("t")?;
-                if n == 0 {
-                    first = t.first().copied().unwrap_or(f64::NAN);
-                }
-                last = t.last().copied().unwrap_or(last);
-                n += t.len();
-            }
+            let anchor = reader
+                .header()
+                .names()
+                .into_iter()
+                .find(|n| *n != "t")
+                .unwrap_or("t")
+                .to_string();
+            let rate = file_mean_rate(path, opts, &anchor)?;
             let header = reader.header().clone();
-            let chunks =
-                time_basis_chunks(&header, reader, mean_rate(n, first, last)?, CHUNK_ROWS)?;
+            let chunks = time_basis_chunks(&header, reader, rate, CHUNK_ROWS)?;
             return Self::from_chunks(Box::new(chunks), chunk_s);
         }
         Self::from_chunks(Box::new(reader.map(|c| c.map_err(AppError::from))), chunk_s)

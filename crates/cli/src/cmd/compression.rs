@@ -10,8 +10,8 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::compression::{compression_fit, CompressionConfig, CompressionFit};
-use physid_apps::pressure::{analyse, Geometry, Pegging};
+use physid_apps::compression::{CompressionConfig, CompressionFit, CompressionStream};
+use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
 use physid_ident::Selection;
 use physid_models::motored::PARAMS;
 use std::path::{Path, PathBuf};
@@ -144,9 +144,13 @@ fn fit(a: &FitArgs) -> Result<()> {
         step_deg: 1.0,
         quiet: a.json,
     };
-    let (rec, _) = input.collect(Some(&[a.channel.as_str()]))?;
-    let r = compression_fit(&rec, &cfg).map_err(super::app_error(&a.data))?;
-    let imep = motored_imep(&rec, &r, &a.geometry)?;
+    let (fit, _) = input.read(
+        Some(&[a.channel.as_str()]),
+        |h| CompressionStream::new(h, &cfg),
+        |s, chunk| s.push(chunk),
+    )?;
+    let r = fit.finish().map_err(super::app_error(&a.data))?;
+    let imep = motored_imep(&input, &r, &a.geometry)?;
     let mut json = serde_json::to_value(&r).into_diagnostic()?;
     if let (Some(o), Some(v)) = (json.as_object_mut(), imep) {
         o.insert("motored_imep_pa".into(), v.into());
@@ -240,11 +244,7 @@ fn fit(a: &FitArgs) -> Result<()> {
 /// The mean net IMEP of the motored cycles [Pa] (`physid_apps::pressure`, the volume with the
 /// fitted compression ratio): the work the motored loop loses, heat and gas exchange — with
 /// --bore and the pressure in Pa. A constant sensor offset does not change a closed loop's work.
-fn motored_imep(
-    rec: &physid_core::Recording,
-    r: &CompressionFit,
-    g: &GeometryArgs,
-) -> Result<Option<f64>> {
+fn motored_imep(input: &CrankInput, r: &CompressionFit, g: &GeometryArgs) -> Result<Option<f64>> {
     let (Some(bore), Some(stroke), Some(rod)) = (g.bore, g.crank.stroke, g.crank.rod) else {
         return Ok(None);
     };
@@ -258,7 +258,17 @@ fn motored_imep(
         rod,
         compression_ratio: eps,
     };
-    let a = analyse(rec, &r.channel, Some(&geometry), Pegging::None).map_err(|e| miette!("{e}"))?;
+    // A second pass over the recording, the cycles with the fitted compression ratio.
+    let quiet = CrankInput {
+        quiet: true,
+        ..*input
+    };
+    let (cycles, _) = quiet.read(
+        Some(&[r.channel.as_str()]),
+        |h| CycleAnalyser::new(h, &r.channel, Some(&geometry), Pegging::None),
+        |c, chunk| c.push(chunk),
+    )?;
+    let a = cycles.finish().map_err(|e| miette!("{e}"))?;
     let v: Vec<f64> = a.cycles.iter().filter_map(|c| c.imep_pa).collect();
     Ok((!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64))
 }

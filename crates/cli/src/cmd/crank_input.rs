@@ -20,6 +20,7 @@ use physid_core::{Basis, Recording};
 use std::path::Path;
 
 /// Where the crank angle comes from and how finely it is sampled.
+#[derive(Clone, Copy)]
 pub struct CrankInput<'a> {
     /// How to read the file.
     pub input: &'a InputArgs,
@@ -127,14 +128,5 @@ impl CrankInput<'_> {
         let mut s = start(&header).map_err(&at)?;
         push(&mut s, &deg).map_err(&at)?;
         Ok((s, decoded))
-    }
-
-    /// The whole recording on a crank-angle basis, of `channels` (see [`read`](Self::read)).
-    pub fn collect(&self, channels: Option<&[&str]>) -> Result<(Recording, Option<DecodedAngle>)> {
-        self.read(
-            channels,
-            |h| Ok(h.clone()),
-            |rec, chunk| rec.append(chunk).map_err(AppError::from),
-        )
     }
 }

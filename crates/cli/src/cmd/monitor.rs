@@ -6,10 +6,10 @@ use crate::plot::{self, Mark, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
 use crate::tracks::TrackFile;
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_apps::acquisition::time_basis_chunks;
 use physid_apps::shaft_monitor::{
-    mean_rate, monitor_shaft_tracked, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
+    file_mean_rate, monitor_shaft_tracked, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
     ShaftParams, ShaftSample, SHAFT_CHANNELS, SHAFT_TRUTH,
 };
 use physid_core::Basis;
@@ -74,21 +74,6 @@ fn track_columns(cfg: &MonitorConfig) -> Vec<(String, String)> {
         }
     }
     c
-}
-
-/// The mean sample rate of the crank-angle file `path` ([`mean_rate`]): a pass over its `t`.
-fn crank_angle_rate(input: &InputArgs, path: &std::path::Path) -> Result<f64> {
-    let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
-    for chunk in input.open(path, &["t"], &[])? {
-        let chunk = chunk.into_diagnostic()?;
-        let t = chunk.values("t").into_diagnostic()?;
-        if n == 0 {
-            first = t.first().copied().unwrap_or(f64::NAN);
-        }
-        last = t.last().copied().unwrap_or(last);
-        n += t.len();
-    }
-    mean_rate(n, first, last).map_err(super::app_error(path))
 }
 
 /// The shaft monitor's settings, shared by `monitor shaft` and `live`.
@@ -403,7 +388,8 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     let r = if reader.header().basis == Basis::CrankAngle {
         // At the mean rate of the whole recording (a first pass over `t` alone), resampled as
         // it is read.
-        let rate = crank_angle_rate(&a.input, &a.data)?;
+        let rate = file_mean_rate(&a.data, &a.input.options(None)?, SHAFT_CHANNELS[1])
+            .map_err(super::app_error(&a.data))?;
         let header = reader.header().clone();
         let timed = time_basis_chunks(
             &header,
