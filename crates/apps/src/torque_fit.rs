@@ -81,6 +81,12 @@ impl TorqueData {
         } else {
             rec
         };
+        Self::from_crank_angle(rec, 0)
+    }
+
+    /// The columns of a crank-angle recording, or of a chunk of one whose first sample is the
+    /// recording's `offset`-th (an error names the sample in the recording).
+    pub fn from_crank_angle(rec: &Recording, offset: usize) -> Result<Self, AppError> {
         let theta = if rec.values("theta").is_ok() {
             "theta"
         } else {
@@ -105,7 +111,8 @@ impl TorqueData {
         for (name, col) in names.iter().zip(&inputs).chain([(&"torque_engine", &y)]) {
             if let Some(i) = col.iter().position(|v| !v.is_finite()) {
                 return Err(AppError::Invalid(format!(
-                    "channel '{name}' sample {i} is {}: the model needs finite data",
+                    "channel '{name}' sample {} is {}: the model needs finite data",
+                    offset + i,
                     col[i]
                 )));
             }
@@ -355,24 +362,65 @@ const CURVE_CHANNELS: [(&str, &str); 7] = [
 /// live service runs, cycles from its first TDC marker; one with only the encoder count is
 /// converted first), the parameters chosen on all of it.
 pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError> {
+    let slices = |rec: &Recording| {
+        let n = rec.len();
+        (0..n.max(1))
+            .step_by(FILE_CHUNK)
+            .map(|start| Ok::<_, AppError>(rec.slice(start..start + FILE_CHUNK)))
+            .collect::<Vec<_>>()
+    };
+    if rec.basis == Basis::Time && rec.channel("theta_en").is_ok() {
+        return torque_fit_stream(slices(rec), cfg);
+    }
+    let converted;
+    let rec = if rec.basis == Basis::Time {
+        converted = to_crank_angle(rec, &AcquisitionOptions::default(), 1.0)?;
+        &converted
+    } else {
+        rec
+    };
+    torque_fit_crank(slices(rec), cfg, &mut || {})
+}
+
+/// [`torque_fit`] on a crank-angle recording (one sample per degree) read a chunk at a time:
+/// only the channels of [`crank_channels`] are read, and the stage keeps the 1° samples (the
+/// parameters are chosen on all of them) — not the file's. `fitting` is called once the
+/// recording has been read, as in [`torque_fit_phased`].
+pub fn torque_fit_crank<I, E>(
+    chunks: I,
+    cfg: &TorqueFitConfig,
+    fitting: &mut dyn FnMut(),
+) -> Result<TorqueFit, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
     let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
     let mut out = Vec::new();
-    if rec.basis == Basis::Time && rec.channel("theta_en").is_ok() {
-        let n = rec.len();
-        let chunks = (0..n)
-            .step_by(FILE_CHUNK)
-            .map(|start| Ok::<_, AppError>(rec.slice(start..start + FILE_CHUNK)));
-        return torque_fit_stream(chunks, cfg);
-    } else {
-        let data = TorqueData::from_recording(rec)?;
-        stage.track_every = data.y.len().div_ceil(4000).max(1);
-        let mut u = [0.0; 6];
+    let (mut seen, mut u) = (0, [0.0; 6]);
+    for chunk in chunks {
+        let data = TorqueData::from_crank_angle(&chunk?, seen)?;
         for i in 0..data.y.len() {
             data.row(i, &mut u);
             stage.push_sample(&u, data.y[i], data.t[i], &mut out)?;
         }
+        seen += data.y.len();
     }
+    fitting();
     finish(stage, out)
+}
+
+/// The channels the fit reads from a crank-angle recording with `header`'s channels (physid
+/// names): the crank angle — `theta`, else `theta_en` — and the curves'.
+pub fn crank_channels(header: &Recording) -> Vec<&'static str> {
+    let theta = if header.channel("theta").is_ok() {
+        "theta"
+    } else {
+        "theta_en"
+    };
+    let mut names = vec![theta];
+    names.extend(CURVE_CHANNELS.iter().map(|c| c.0));
+    names
 }
 
 /// The file verb's end: the result, with every cycle the stage put out.

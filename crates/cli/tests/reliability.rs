@@ -812,8 +812,9 @@ fn a_long_analysis_shows_a_spinner_on_a_terminal() {
 /// (the library on the file read whole, put on a crank-angle basis with `to_crank_angle`):
 /// `cycles` (with the geometry: IMEP, polytropic exponents) and `compression fit` on a
 /// time-basis file with `theta_en` (resampled as it is read), `convert --crank-angle` bit for
-/// bit, in CSV, Parquet and MDF4; on a crank-angle file `convert --time-basis` bit for bit and
-/// `monitor shaft` (put on a time basis as it is read, at the whole recording's mean rate).
+/// bit, in CSV, Parquet and MDF4; on a crank-angle file `torque fit`, `convert --time-basis`
+/// bit for bit and `monitor shaft` (put on a time basis as it is read, at the whole
+/// recording's mean rate).
 /// Every file is longer than one chunk of the reader.
 #[test]
 fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
@@ -897,6 +898,24 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
             );
         }
     }
+
+    // A fired crank-angle file: the torque fit reads its 1° samples as they come (the library
+    // cuts the recording in chunks of its own).
+    let fired = sim("torque-steady", 3.0, OutputBasis::Crank(1.0));
+    let f = s.file("fired-deg.parquet");
+    physid_io::write(&f, &fired, &Default::default()).unwrap();
+    let got = without_provenance(ok_json(&[
+        "torque",
+        "fit",
+        "--data",
+        f.to_str().unwrap(),
+        "--json",
+    ]));
+    let cfg = physid_apps::torque_fit::TorqueFitConfig::new(
+        physid_apps::torque_fit::cyclic_torque_nominal(&Default::default()).unwrap(),
+    );
+    let want = physid_apps::torque_fit::torque_fit(&fired, &cfg).unwrap();
+    assert_eq!(got, serde_json::to_value(want.summary()).unwrap());
 
     // A crank-angle file back to a time basis, and the shaft monitored on it.
     let shaft = sim("shaft-steady", 12.0, OutputBasis::Crank(1.0));

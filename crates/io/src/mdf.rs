@@ -71,9 +71,17 @@ impl<'f> Plan<'f> {
             v.dedup();
             v.join(", ")
         };
-        // The master is always read (as `t` or `theta`): asking for it selects nothing more.
+        // The master is always read (as `t`, or `theta` for an angle master): asking for it
+        // selects nothing more. `theta` on a time master is a data channel, and so is `t` on
+        // an angle master when the file has one.
+        let angle_master = file
+            .channels()
+            .any(|c| c.is_master() && matches!(c.sync_type, SyncType::Angle));
+        let has_data = |n: &str| data.iter().any(|c| c.name == n);
         let is_master_name = |n: &str| {
-            n == "t" || n == "theta" || file.channels().any(|c| c.is_master() && c.name == n)
+            (n == "t" && !(angle_master && has_data("t")))
+                || (n == "theta" && angle_master)
+                || file.channels().any(|c| c.is_master() && c.name == n)
         };
         let chosen: Vec<&falcon_mdf::model::Channel> = match channels {
             Some(names) => names

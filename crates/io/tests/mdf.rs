@@ -274,3 +274,49 @@ fn the_streaming_writer_writes_the_file_asammdf_read() {
         &rec.values("t").unwrap()[100..200]
     );
 }
+
+/// A crank-angle recording as physid writes it (a time master, `theta` a data channel): a
+/// selection that names `theta` reads it; on an angle master `theta` is the master.
+#[test]
+fn theta_is_read_by_name_on_a_time_master_and_is_the_master_on_an_angle_master() {
+    let scratch = physid_testkit::Scratch::new("physid-mdf-theta");
+    let mut r = Recording::new(Basis::CrankAngle);
+    let theta: Vec<f64> = (0..1440).map(|k| (k as f64).to_radians()).collect();
+    for (name, unit, values) in [
+        (
+            "t",
+            "s",
+            theta.iter().map(|th| th / 150.0).collect::<Vec<_>>(),
+        ),
+        ("theta", "rad", theta.clone()),
+        ("cycle", "-", (0..1440).map(|k| (k / 720) as f64).collect()),
+        (
+            "crank_deg",
+            "deg",
+            (0..1440).map(|k| (k % 720) as f64).collect(),
+        ),
+        ("p_cyl", "Pa", theta.iter().map(|th| 1e5 + th).collect()),
+    ] {
+        r.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values,
+        })
+        .unwrap();
+    }
+    let f = scratch.file("deg.mf4");
+    write_mdf(&f, &r, MdfCompression::None, None).unwrap();
+    let names: Vec<String> = ["t", "theta", "p_cyl"].map(String::from).to_vec();
+    let got = read_mdf(&f, Some(&names)).unwrap();
+    assert_eq!(got.basis, Basis::CrankAngle);
+    assert_eq!(got.names(), ["t", "theta", "p_cyl"]);
+    assert_eq!(got.values("theta").unwrap(), &theta[..]);
+    let missing: Vec<String> = ["t", "theta"].map(String::from).to_vec();
+    let e = read_mdf(dir().join("time_plain.mf4"), Some(&missing))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no channel 'theta'"), "{e}");
+    let angle: Vec<String> = ["theta", "p_cyl"].map(String::from).to_vec();
+    let a = read_mdf(dir().join("angle.mf4"), Some(&angle)).unwrap();
+    assert_eq!(a.names(), ["theta", "p_cyl"]);
+}

@@ -8,7 +8,8 @@ use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, Result};
 use physid_apps::torque_fit::{
-    self, cyclic_torque_nominal, torque_fit, torque_fit_phased, TorqueFit, TorqueFitConfig,
+    self, cyclic_torque_nominal, torque_fit, torque_fit_crank, torque_fit_phased, TorqueFit,
+    TorqueFitConfig,
 };
 use physid_core::Basis;
 use physid_estim::NlMethod;
@@ -330,14 +331,28 @@ pub fn report_section(
 
 fn fit(a: &FitArgs) -> Result<()> {
     let cfg = config(a)?;
-    // A time-basis file with the engine angle streams through the stage, only the channels it
-    // takes; another is read whole.
+    // A time-basis file with the engine angle streams through the stage, a crank-angle file
+    // through the 1° samples, each reading only the channels it takes; another (a time basis
+    // with an encoder's counts) is read whole.
     let header = a.input.open_all(&a.data)?.header().clone();
     let r = if header.basis == Basis::Time && header.channel("theta_en").is_ok() {
         let (needed, optional) = torque_fit::sample_channels();
         let mut reader = a.input.open(&a.data, &needed, &optional)?;
         let mut working = None;
         let r = torque_fit_phased(Reading::new(&mut reader, &a.data), &cfg, &mut || {
+            working = Some(crate::progress::Working::new(
+                "choosing the parameters and filtering every degree",
+            ));
+        });
+        drop(working);
+        super::warn_read(&reader, &a.data);
+        r
+    } else if header.basis == Basis::CrankAngle {
+        let mut reader = a
+            .input
+            .open(&a.data, &torque_fit::crank_channels(&header), &[])?;
+        let mut working = None;
+        let r = torque_fit_crank(Reading::new(&mut reader, &a.data), &cfg, &mut || {
             working = Some(crate::progress::Working::new(
                 "choosing the parameters and filtering every degree",
             ));
