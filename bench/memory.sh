@@ -52,17 +52,19 @@ done
 fi
 # The crank-angle verbs (ONLY=crank runs this part alone): on a time-basis file with theta_en
 # (cycles, compression fit, convert --crank-angle), on a crank-angle file (cycles, monitor
-# shaft, convert --time-basis).
+# shaft, torque fit, convert --time-basis).
 for D in 75 150 300 600; do
   [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
   [ -f "deg-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --basis crank --duration "$D" --recording "deg-$D.parquet" > /dev/null
   [ -f "shaftdeg-$D.parquet" ] || "$NEW" simulate --scenario shaft-steady --basis crank --duration "$D" --recording "shaftdeg-$D.parquet" > /dev/null
-  cat "motored-$D.parquet" "deg-$D.parquet" "shaftdeg-$D.parquet" > /dev/null
+  [ -f "fireddeg-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --basis crank --duration "$D" --recording "fireddeg-$D.parquet" > /dev/null
+  cat "motored-$D.parquet" "deg-$D.parquet" "shaftdeg-$D.parquet" "fireddeg-$D.parquet" > /dev/null
   for cmd in "cycles motored-$D.parquet --json" \
              "compression fit --data motored-$D.parquet --stroke 0.0514 --rod 0.088 --json" \
              "convert motored-$D.parquet c.parquet --crank-angle" \
              "cycles deg-$D.parquet --json" \
              "monitor shaft --data shaftdeg-$D.parquet --json" \
+             "torque fit --data fireddeg-$D.parquet --json" \
              "convert deg-$D.parquet c.parquet --time-basis 10000"; do
     # shellcheck disable=SC2086
     row="| $D s | \`$cmd\` | $(m "$NEW" $cmd) |"
