@@ -1102,51 +1102,25 @@ impl CrankAngleStream {
     }
 
     /// The crank-angle recording's channels, without samples.
-    pub fn header(&self) -> Result<Recording, AcquisitionError> {
-        let mut h = Recording::new(Basis::CrankAngle);
-        h.meta = self.meta.clone();
-        for (name, unit) in [
-            ("t", "s"),
-            ("theta", "rad"),
-            ("cycle", "-"),
-            ("crank_deg", "deg"),
-        ]
-        .into_iter()
-        .chain(self.carried.iter().map(|(n, u)| (n.as_str(), u.as_str())))
-        {
-            h.push(Channel {
-                name: name.into(),
-                unit: unit.into(),
-                values: Vec::new(),
-            })?;
-        }
-        Ok(h)
+    pub fn header(&mut self) -> Result<Recording, AcquisitionError> {
+        Ok(self.emit()?.slice(0..0))
     }
 
     fn emit(&mut self) -> Result<Recording, AcquisitionError> {
-        let mut out = Recording::new(Basis::CrankAngle);
-        out.meta = self.meta.clone();
         let o = &self.out;
-        for (name, unit, values) in [
+        let basis = [
             ("t", "s", &o.t),
             ("theta", "rad", &o.theta),
             ("cycle", "-", &o.cycle),
-            ("crank_deg", "deg", &o.crank_deg),
-        ] {
-            out.push(Channel {
-                name: name.into(),
-                unit: unit.into(),
-                values: values.clone(),
-            })?;
-        }
-        for ((name, unit), values) in self.carried.iter().zip(&o.channels) {
-            out.push(Channel {
-                name: name.clone(),
-                unit: unit.clone(),
-                values: values.clone(),
-            })?;
-        }
-        Ok(out)
+        ]
+        .into_iter()
+        .chain([("crank_deg", "deg", &o.crank_deg)]);
+        let carried = self
+            .carried
+            .iter()
+            .zip(&o.channels)
+            .map(|((n, u), v)| (n.as_str(), u.as_str(), v));
+        assemble(Basis::CrankAngle, &self.meta, basis.chain(carried))
     }
 }
 
@@ -1290,22 +1264,35 @@ impl TimeBasisStream {
     }
 
     fn emit(&self) -> Result<Recording, AcquisitionError> {
-        let mut out = Recording::new(Basis::Time);
-        out.meta = self.meta.clone();
-        out.push(Channel {
-            name: "t".into(),
-            unit: "s".into(),
-            values: self.t.clone(),
-        })?;
-        for ((name, unit), values) in self.carried.iter().zip(&self.out) {
-            out.push(Channel {
-                name: name.clone(),
-                unit: unit.clone(),
-                values: values.clone(),
-            })?;
-        }
-        Ok(out)
+        let carried = self
+            .carried
+            .iter()
+            .zip(&self.out)
+            .map(|((n, u), v)| (n.as_str(), u.as_str(), v));
+        assemble(
+            Basis::Time,
+            &self.meta,
+            std::iter::once(("t", "s", &self.t)).chain(carried),
+        )
     }
+}
+
+/// A recording on `basis` with `meta` and the columns (name, unit, values) in order.
+fn assemble<'a>(
+    basis: Basis,
+    meta: &std::collections::BTreeMap<String, String>,
+    columns: impl IntoIterator<Item = (&'a str, &'a str, &'a Vec<f64>)>,
+) -> Result<Recording, AcquisitionError> {
+    let mut out = Recording::new(basis);
+    out.meta = meta.clone();
+    for (name, unit, values) in columns {
+        out.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: values.clone(),
+        })?;
+    }
+    Ok(out)
 }
 
 /// A zero-phase Butterworth filter for [`filter_channels`].

@@ -147,9 +147,7 @@ struct Sample {
 pub struct EventCollector {
     channel: String,
     window: (f64, f64),
-    /// The step of `crank_deg` (its first advance) and the last angle seen.
-    step: Option<f64>,
-    last_deg: Option<f64>,
+    step: crate::pressure::FirstAdvance,
     /// The samples from `ring_start` on.
     ring: std::collections::VecDeque<Sample>,
     ring_start: usize,
@@ -178,8 +176,7 @@ impl EventCollector {
         Ok(Self {
             channel: channel.to_string(),
             window,
-            step: None,
-            last_deg: None,
+            step: Default::default(),
             ring: Default::default(),
             ring_start: 0,
             next: 0,
@@ -192,7 +189,7 @@ impl EventCollector {
 
     /// Samples before and after TDC in the window.
     fn span(&self) -> Option<(usize, usize, f64)> {
-        let step = self.step?;
+        let step = self.step.step()?;
         Some((
             (-self.window.0 / step).round() as usize,
             (self.window.1 / step).round() as usize,
@@ -209,10 +206,7 @@ impl EventCollector {
             chunk.values(&self.channel)?,
         );
         for i in 0..cycle.len() {
-            if self.step.is_none() {
-                self.step = self.last_deg.map(|l| deg[i] - l).filter(|d| *d > 0.0);
-            }
-            self.last_deg = Some(deg[i]);
+            self.step.see(deg[i]);
             self.ring.push_back(Sample {
                 cycle: cycle[i],
                 deg: deg[i],
@@ -220,7 +214,7 @@ impl EventCollector {
                 p: p[i],
             });
             self.seen += 1;
-            if self.step.is_none() && self.ring.len() > MAX_HELD {
+            if self.step.step().is_none() && self.ring.len() > MAX_HELD {
                 return Err(AppError::Invalid(format!(
                     "crank_deg does not advance over its first {MAX_HELD} samples"
                 )));
@@ -287,7 +281,7 @@ impl EventCollector {
 
     /// The end of the recording: the events, and what was left out (for `notes`).
     pub fn finish(mut self) -> Result<(Vec<TdcEvent>, Vec<String>), AppError> {
-        if self.step.is_none() {
+        if self.step.step().is_none() {
             return Err(AppError::Invalid("crank_deg never advances".into()));
         }
         self.take(true);

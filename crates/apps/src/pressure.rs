@@ -233,6 +233,29 @@ pub fn analyse(
     a.finish()
 }
 
+/// The step of a crank-angle recording's `crank_deg`: its first advance, found as the samples
+/// come.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FirstAdvance {
+    step: Option<f64>,
+    last: Option<f64>,
+}
+
+impl FirstAdvance {
+    /// The next sample's `crank_deg`.
+    pub fn see(&mut self, deg: f64) {
+        if self.step.is_none() {
+            self.step = self.last.map(|l| deg - l).filter(|d| *d > 0.0);
+        }
+        self.last = Some(deg);
+    }
+
+    /// The step, once `crank_deg` has advanced.
+    pub fn step(&self) -> Option<f64> {
+        self.step
+    }
+}
+
 /// A longest run of one `cycle` value kept before the step of `crank_deg` is known (a file
 /// whose angle never advances): beyond it the run is partial whatever its length.
 const MAX_RUN: usize = 1 << 20;
@@ -248,9 +271,7 @@ pub struct CycleAnalyser {
     peg: Pegging,
     need_pa: bool,
     unit_check: UnitCheck,
-    /// The step of `crank_deg` (its first advance) and the last angle seen.
-    step: Option<f64>,
-    last_deg: Option<f64>,
+    step: FirstAdvance,
     /// The current cycle's index and samples.
     run: Option<f64>,
     run_len: usize,
@@ -307,8 +328,7 @@ impl CycleAnalyser {
             peg,
             need_pa: geometry.is_some(),
             unit_check,
-            step: None,
-            last_deg: None,
+            step: FirstAdvance::default(),
             run: None,
             run_len: 0,
             run_t: Vec::new(),
@@ -342,10 +362,7 @@ impl CycleAnalyser {
         }
         self.unit_check.push(p);
         for i in 0..cycle.len() {
-            if self.step.is_none() {
-                self.step = self.last_deg.map(|l| deg[i] - l).filter(|d| *d > 0.0);
-            }
-            self.last_deg = Some(deg[i]);
+            self.step.see(deg[i]);
             if self.run.is_some_and(|c| c != cycle[i]) {
                 self.close_run();
             }
@@ -364,12 +381,12 @@ impl CycleAnalyser {
 
     /// The samples per cycle, once `crank_deg` has advanced.
     fn per_cycle(&self) -> Option<usize> {
-        self.step.map(|s| (720.0 / s).round() as usize)
+        self.step.step().map(|s| (720.0 / s).round() as usize)
     }
 
     /// The end of the recording: the figures and their spread.
     pub fn finish(mut self) -> Result<CycleAnalysis, AppError> {
-        if self.step.is_none() {
+        if self.step.step().is_none() {
             return Err(AppError::Invalid("crank_deg never advances".into()));
         }
         self.close_run();

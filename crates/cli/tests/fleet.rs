@@ -619,10 +619,12 @@ fn the_fleet_view_in_a_real_browser() {
     ];
     b.extend_from_slice(&common_args);
     let _c2 = Proc::start(&b);
+    let scratch = physid_testkit::Scratch::new("physid-fleet-view");
+    let view_err = scratch.file("view.err");
     let mut view = Command::new(PHYSID)
         .args(["live", "--fleet", &url, "--port", "0"])
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(std::fs::File::create(&view_err).expect("view.err"))
         .spawn()
         .expect("physid live --fleet");
     let mut line = String::new();
@@ -630,7 +632,11 @@ fn the_fleet_view_in_a_real_browser() {
         .read_line(&mut line)
         .expect("the address");
     let page = line.trim().rsplit(' ').next().expect("url").to_string();
-    assert!(page.starts_with("http://127.0.0.1:"), "{line}");
+    assert!(
+        page.starts_with("http://127.0.0.1:"),
+        "{line}: {}",
+        std::fs::read_to_string(&view_err).unwrap_or_default()
+    );
     rt().block_on(async {
         let Some(browser) = common::Browser::start("1400,900").await else {
             return;

@@ -359,9 +359,31 @@ pub struct Fleet {
     pub checkpoints: kv::Store,
 }
 
+/// Attempts at opening the fleet's streams and buckets before giving up: a JetStream request
+/// can time out on a loaded server, and processes starting together race to create them.
+const OPEN_ATTEMPTS: u32 = 5;
+
 impl Fleet {
-    /// Open (creating what is missing) the fleet's streams and buckets on `client`.
+    /// Open (creating what is missing) the fleet's streams and buckets on `client`, trying again
+    /// ([`OPEN_ATTEMPTS`] in all, 0.2, 0.4, 0.8 … s apart) when JetStream does not answer or
+    /// another process created one meanwhile.
     pub async fn open(client: async_nats::Client) -> Result<Self, FleetError> {
+        let mut wait = Duration::from_millis(200);
+        let mut attempt = 1;
+        loop {
+            match Self::open_once(client.clone()).await {
+                Ok(f) => return Ok(f),
+                Err(e) if attempt >= OPEN_ATTEMPTS => return Err(e),
+                Err(_) => {
+                    tokio::time::sleep(wait).await;
+                    wait *= 2;
+                    attempt += 1;
+                }
+            }
+        }
+    }
+
+    async fn open_once(client: async_nats::Client) -> Result<Self, FleetError> {
         let js = jetstream::new(client);
         let stream_of = |name: &str, kind: &str, max_age: Duration| stream::Config {
             name: name.to_string(),
