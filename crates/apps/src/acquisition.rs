@@ -1112,15 +1112,18 @@ impl CrankAngleStream {
             ("t", "s", &o.t),
             ("theta", "rad", &o.theta),
             ("cycle", "-", &o.cycle),
-        ]
-        .into_iter()
-        .chain([("crank_deg", "deg", &o.crank_deg)]);
+            ("crank_deg", "deg", &o.crank_deg),
+        ];
         let carried = self
             .carried
             .iter()
             .zip(&o.channels)
             .map(|((n, u), v)| (n.as_str(), u.as_str(), v));
-        assemble(Basis::CrankAngle, &self.meta, basis.chain(carried))
+        assemble(
+            Basis::CrankAngle,
+            &self.meta,
+            basis.into_iter().chain(carried),
+        )
     }
 }
 

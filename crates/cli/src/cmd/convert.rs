@@ -55,15 +55,6 @@ pub fn run(args: &Args) -> Result<()> {
             ))
         }
     };
-    // Between formats only: a chunk at a time, memory flat however long the file (an MDF4
-    // file compressed is written whole).
-    let resample = args.crank_angle || args.time_basis.is_some();
-    let compressed = physid_io::Format::from_extension(&args.output)
-        == Some(physid_io::Format::Mdf4)
-        && compression != MdfCompression::None;
-    if !resample && !compressed {
-        return stream(args);
-    }
     let opts = args.angle.options()?;
     if opts.sensor.is_some() && !args.crank_angle {
         return Err(miette!(
@@ -121,17 +112,28 @@ pub fn run(args: &Args) -> Result<()> {
         super::warn_read(&reader, &args.input);
         sink
     } else {
-        // Between formats into a compressed MDF4 file: written whole.
-        let rec = args.read.read(&args.input, None)?;
-        let mut sink = Sink::create(&args.output, &rec, &args.channels, &write).map_err(&at)?;
-        sink.append(&rec).map_err(&at)?;
+        // Between formats: only the channels kept.
+        let header = args.read.open_all(&args.input)?.header().clone();
+        let mut reader = match selection(&header, &args.channels) {
+            Some(names) => {
+                let names: Vec<&str> = names.iter().map(String::as_str).collect();
+                args.read.open(&args.input, &names, &[])?
+            }
+            None => args.read.open_all(&args.input)?,
+        };
+        let mut sink =
+            Sink::create(&args.output, reader.header(), &args.channels, &write).map_err(&at)?;
+        for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
+            sink.append(&chunk.into_diagnostic()?).map_err(&at)?;
+        }
+        super::warn_read(&reader, &args.input);
         sink
     };
     sink.close().map_err(&at)
 }
 
-/// Where the converted recording goes: a chunk at a time, or whole for a compressed MDF4 file;
-/// `--channels` picked from each chunk.
+/// Where the converted recording goes: a chunk at a time, memory flat however long the file,
+/// or — an MDF4 file written compressed — whole; `--channels` picked from each chunk.
 enum Sink {
     Chunks {
         writer: physid_io::ChunkWriter,
@@ -254,28 +256,6 @@ fn selection(rec: &physid_core::Recording, channels: &[String]) -> Option<Vec<St
             .chain(channels.iter().cloned())
             .collect(),
     )
-}
-
-/// A conversion between formats, read and written a chunk at a time.
-fn stream(args: &Args) -> Result<()> {
-    let header = args.read.open_all(&args.input)?.header().clone();
-    let mut reader = match selection(&header, &args.channels) {
-        Some(names) => {
-            let names: Vec<&str> = names.iter().map(String::as_str).collect();
-            args.read.open(&args.input, &names, &[])?
-        }
-        None => args.read.open_all(&args.input)?,
-    };
-    let mut w =
-        physid_io::ChunkWriter::create(&args.output, reader.header(), &WriteOptions::default())
-            .into_diagnostic()?;
-    for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
-        w.append(&chunk.into_diagnostic()?).into_diagnostic()?;
-    }
-    w.close().into_diagnostic()?;
-    super::warn_read(&reader, &args.input);
-    wrote(&args.output, reader.header(), reader.rows_read());
-    Ok(())
 }
 
 fn wrote(path: &std::path::Path, rec: &physid_core::Recording, samples: usize) {
