@@ -1063,11 +1063,15 @@ impl CrankAngleStream {
                 .map_err(|e| AcquisitionError::Invalid(e.to_string()))?;
         let mut meta = header.meta.clone();
         meta.insert("crank_step_deg".into(), format!("{step_deg}"));
+        let out = physid_signal::resample::CrankChunk {
+            channels: vec![Vec::new(); carried.len()],
+            ..Default::default()
+        };
         Ok(Self {
             resampler,
             carried,
             meta,
-            out: Default::default(),
+            out,
         })
     }
 
