@@ -540,13 +540,13 @@ impl CompressionStream {
         notes.extend(self.unit_check.finish(false)?);
         let (events, mut said) = self.events.finish()?;
         notes.append(&mut said);
-        fit_events(&events, self.unit, notes, &self.cfg)
+        fit_events(events, self.unit, notes, &self.cfg)
     }
 }
 
 /// The fit over the TDCs' windows (steps 2–5 of the module's doc).
 fn fit_events(
-    events: &[TdcEvent],
+    mut events: Vec<TdcEvent>,
     unit: String,
     mut notes: Vec<String>,
     cfg: &CompressionConfig,
@@ -558,7 +558,7 @@ fn fit_events(
         )));
     }
     let model = Motored::new(cfg.stroke, cfg.rod);
-    let mut start = start_values(events, &model);
+    let mut start = start_values(&events, &model);
     for (name, v) in &cfg.held {
         let j = PARAMS.iter().position(|p| p == name).unwrap_or(0);
         start[j] = *v;
@@ -574,11 +574,17 @@ fn fit_events(
             "every parameter is held with --set: nothing to fit".into(),
         ));
     }
-    // All events at once.
-    let (mut all_a, mut all_p) = (Vec::new(), Vec::new());
-    for e in events {
-        all_a.extend_from_slice(&e.atdc);
-        all_p.extend_from_slice(&e.p);
+    // All events at once: their samples moved into one pooled pair (the events keep their
+    // place in it), so that they are held once.
+    let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
+    let (mut all_a, mut all_p) = (Vec::with_capacity(rows), Vec::with_capacity(rows));
+    let mut spans = Vec::with_capacity(events.len());
+    for e in &mut events {
+        spans.push(all_a.len()..all_a.len() + e.atdc.len());
+        all_a.append(&mut e.atdc);
+        all_p.append(&mut e.p);
+        e.atdc.shrink_to_fit();
+        e.p.shrink_to_fit();
     }
     let pooled = data(&all_a, &all_p);
     let full = fit_subset(&model, &pooled, &start, &free, 100)?;
@@ -636,10 +642,11 @@ fn fit_events(
     let mut rss_total = 0.0;
     let mut engine = GradientEngine::new(PARAMS.len());
     let mut g = vec![0.0; kf];
-    for e in events {
-        let f = fit_subset(&model, &data(&e.atdc, &e.p), &pooled_fit.theta, &fitted, 50)?;
+    for (e, span) in events.iter().zip(&spans) {
+        let (atdc, p) = (&all_a[span.clone()], &all_p[span.clone()]);
+        let f = fit_subset(&model, &data(atdc, p), &pooled_fit.theta, &fitted, 50)?;
         rss_total += f.rss;
-        let n = e.atdc.len();
+        let n = atdc.len();
         let sigma2 = (f.rss / n.saturating_sub(kf).max(1) as f64).max(f64::MIN_POSITIVE);
         let values: Vec<f64> = fitted.iter().map(|&j| f.theta[j]).collect();
         let Ok(q) = quantify(&f.gram, sigma2, &values, n) else {
@@ -659,7 +666,7 @@ fn fit_events(
             Some(mut th) => {
                 let mut jtj = DMatrix::<f64>::zeros(kf, kf);
                 let mut jtr = DVector::<f64>::zeros(kf);
-                for (&a, &y) in e.atdc.iter().zip(&e.p) {
+                for (&a, &y) in atdc.iter().zip(p) {
                     let h = engine.value_and_gradient(&model, &[a], &th, &fitted, &mut g);
                     let gv = DVector::from_column_slice(&g);
                     jtj += &gv * gv.transpose();
@@ -700,7 +707,6 @@ fn fit_events(
         ));
     };
     // The estimate: the fit over all the TDCs at once, its intervals from their information.
-    let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
     let batch_values: Vec<f64> = fitted.iter().map(|&j| pooled_fit.theta[j]).collect();
     let batch = quantify(
         &pooled_fit.gram,
@@ -752,16 +758,13 @@ fn fit_events(
         .collect::<Vec<_>>();
     let theta: Vec<f64> = estimates.iter().map(|e| e.value).collect();
     let last = fits.last().map_or(events[0].cycle, |f| f.cycle);
-    let ev = events
-        .iter()
-        .find(|e| e.cycle == last)
-        .unwrap_or(&events[0]);
+    let k = events.iter().position(|e| e.cycle == last).unwrap_or(0);
+    let (atdc, measured) = (&all_a[spans[k].clone()], &all_p[spans[k].clone()]);
     let trace = Trace {
-        cycle: ev.cycle,
-        atdc: ev.atdc.clone(),
-        measured: ev.p.clone(),
-        fitted: ev
-            .atdc
+        cycle: events[k].cycle,
+        atdc: atdc.to_vec(),
+        measured: measured.to_vec(),
+        fitted: atdc
             .iter()
             .map(|&a| model.eval::<f64>(&[a], &theta))
             .collect(),
