@@ -39,6 +39,7 @@ pub mod friction_rank;
 pub mod model_choice;
 pub mod pipeline;
 pub mod pressure;
+pub mod recording_rows;
 pub mod shaft_monitor;
 pub mod torque_fit;
 

@@ -40,13 +40,14 @@
 
 use crate::error::AppError;
 use crate::model_choice::ModelChoice;
+use crate::recording_rows::{Column, RecordingRows};
 use physid_core::{ParamModel, ParamSet, Recording};
 use physid_estim::{
     feed, metrics, CovSpec, EstimatorConfig, FeedError, LinearInParams, Method, MethodName,
     NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive, SigmaPoints,
 };
 use physid_ident::{
-    analyse, fit_subset, Cutoff, Data, IdentConfig, RankedParam, Scaling, Selection,
+    analyse, fit_subset, Cutoff, IdentConfig, IdentError, RankedParam, Scaling, Selection,
 };
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
@@ -215,9 +216,15 @@ impl Metric {
     /// The metric of `y` predicted by `yhat`, in per cent ([`metrics`]); NaN where it is
     /// undefined (no samples, an all-zero signal).
     pub fn percent(self, y: &[f64], yhat: &[f64]) -> f64 {
+        metrics::Prediction::of(y, yhat).map_or(f64::NAN, |m| self.of(&m))
+    }
+
+    /// The metric of predictions accumulated a sample at a time, in per cent; NaN where it is
+    /// undefined.
+    pub fn of(self, m: &metrics::Prediction) -> f64 {
         match self {
-            Self::Nrmse => metrics::nrmse(y, yhat).map_or(f64::NAN, |v| 100.0 * v),
-            Self::MaxRelative => metrics::max_relative_percent(y, yhat).unwrap_or(f64::NAN),
+            Self::Nrmse => m.nrmse().map_or(f64::NAN, |v| 100.0 * v),
+            Self::MaxRelative => m.max_relative_percent().unwrap_or(f64::NAN),
         }
     }
 }
@@ -500,45 +507,6 @@ impl PipelineResult {
     }
 }
 
-/// The pipeline's recording, of a file only the channels the run takes: the model's inputs
-/// (through `model.inputs`), its output and the time — the file's other channels are never
-/// decoded. A scenario is simulated as [`load_data`] does.
-pub fn load_for(p: &Pipeline) -> Result<Recording, AppError> {
-    let Some(file) = p.data.file.as_ref().filter(|_| p.data.scenario.is_none()) else {
-        return load_data(&p.data);
-    };
-    let (model, _) = build_model(p)?;
-    let channel = |spec: &str| {
-        spec.split_once(':')
-            .map_or(spec, |(c, _)| c)
-            .trim()
-            .to_string()
-    };
-    let mut wanted = vec!["t".to_string()];
-    for input in model.input_names() {
-        wanted.push(channel(p.model.inputs.get(input).unwrap_or(input)));
-    }
-    wanted.push(channel(&p.model.output));
-    wanted.dedup();
-    // Channels the file lacks are left for the run to name (as the model's input or output).
-    let header = physid_io::ChunkReader::open(file, &Default::default())?
-        .header()
-        .clone();
-    let mut channels: Vec<String> = Vec::new();
-    for w in wanted {
-        if header.channel(&w).is_ok() && !channels.contains(&w) {
-            channels.push(w);
-        }
-    }
-    Ok(physid_io::read(
-        file,
-        &physid_io::ReadOptions {
-            channels: Some(channels),
-            ..Default::default()
-        },
-    )?)
-}
-
 /// Load (or simulate) the pipeline's recording.
 pub fn load_data(spec: &DataSpec) -> Result<Recording, AppError> {
     match (&spec.file, &spec.scenario) {
@@ -567,10 +535,76 @@ pub fn load_data(spec: &DataSpec) -> Result<Recording, AppError> {
     }
 }
 
-/// Run the loop on a recording.
+/// Run the loop on a recording in memory.
 pub fn run_pipeline(p: &Pipeline, rec: &Recording) -> Result<PipelineResult, AppError> {
     let (model, nominal) = build_model(p)?;
-    run_with(&model, p, rec, nominal)
+    let (inputs, y) = columns(p, &model);
+    run_with(
+        &model,
+        p,
+        &RecordingRows::memory(rec, inputs, Some(y)),
+        nominal,
+    )
+}
+
+/// Run the loop on the pipeline's own data: of a file only the channels the run takes (the
+/// model's inputs through `model.inputs`, its output, the time), gone over in passes — held
+/// after the first when they fit `hold_bytes`, else read again on each; a scenario simulated
+/// first. Also returns the channels read, without samples (their units).
+pub fn run_pipeline_data(
+    p: &Pipeline,
+    hold_bytes: usize,
+) -> Result<(PipelineResult, Recording), AppError> {
+    let (model, nominal) = build_model(p)?;
+    let (inputs, y) = columns(p, &model);
+    match p.data.file.as_ref().filter(|_| p.data.scenario.is_none()) {
+        Some(file) => {
+            // A column the file lacks is named as the model's input or output.
+            let header = physid_io::ChunkReader::open(file, &Default::default())?
+                .header()
+                .clone();
+            check_columns(p, &model, &header)?;
+            let rows = RecordingRows::file(
+                file,
+                &Default::default(),
+                inputs,
+                Some(y),
+                &["t"],
+                hold_bytes,
+            )?;
+            let r = run_with(&model, p, &rows, nominal)?;
+            Ok((r, rows.header().clone()))
+        }
+        None => {
+            let rec = load_data(&p.data)?;
+            let rows = RecordingRows::memory(&rec, inputs, Some(y));
+            let r = run_with(&model, p, &rows, nominal)?;
+            Ok((r, rows.header().clone()))
+        }
+    }
+}
+
+/// The model's columns: each input through `model.inputs` (`CHANNEL` as recorded, or
+/// `CHANNEL:UNIT` converted to the unit the model expects), and the output.
+fn columns(p: &Pipeline, model: &ModelChoice) -> (Vec<Column>, Column) {
+    let inputs = model
+        .input_names()
+        .iter()
+        .map(|input| Column::parse(p.model.inputs.get(input).unwrap_or(input)))
+        .collect();
+    (inputs, Column::parse(&p.model.output))
+}
+
+/// Every column is in the recording (`header`: its channels, samples or not), in a unit that
+/// converts to the one asked for; the error names the model's input or output.
+fn check_columns(p: &Pipeline, model: &ModelChoice, header: &Recording) -> Result<(), AppError> {
+    let (inputs, y) = columns(p, model);
+    for (input, c) in model.input_names().iter().zip(&inputs) {
+        c.values(header)
+            .map_err(|e| format!("model input '{input}': {e}"))?;
+    }
+    y.values(header).map_err(|e| format!("model output: {e}"))?;
+    Ok(())
 }
 
 /// The pipeline's model and its nominal values (the built-in's, overridden by `model.params`).
@@ -587,40 +621,11 @@ fn build_model(p: &Pipeline) -> Result<(ModelChoice, Vec<f64>), AppError> {
 fn run_with(
     model: &ModelChoice,
     p: &Pipeline,
-    rec: &Recording,
+    rows: &RecordingRows,
     nominal: Vec<f64>,
 ) -> Result<PipelineResult, AppError> {
     let names = model.param_names().to_vec();
-    // Data columns.
-    // `CHANNEL` as recorded, or `CHANNEL:UNIT` converted to the unit the model expects.
-    let column = |spec: &str| match spec.split_once(':') {
-        Some((ch, unit)) => rec.values_in(ch.trim(), unit.trim()),
-        None => rec.values(spec).map(|v| v.to_vec()),
-    };
-    let mut cols = Vec::new();
-    for input in model.input_names() {
-        let spec = p.model.inputs.get(input).unwrap_or(input);
-        cols.push(column(spec).map_err(|e| format!("model input '{input}': {e}"))?);
-    }
-    let y = column(&p.model.output).map_err(|e| format!("model output: {e}"))?;
-    let n = y.len();
-    let t: Vec<f64> = match rec.values("t") {
-        Ok(t) => t.to_vec(),
-        Err(_) => (0..n).map(|i| i as f64).collect(),
-    };
-    for (name, col) in model
-        .input_names()
-        .iter()
-        .zip(&cols)
-        .chain([(&p.model.output, &y)])
-    {
-        if let Some(i) = col.iter().position(|v| !v.is_finite()) {
-            return Err(AppError::Invalid(format!(
-                "channel for '{name}' sample {i} is {}",
-                col[i]
-            )));
-        }
-    }
+    check_columns(p, model, rows.header())?;
     for f in &p.model.fixed {
         if !names.contains(f) {
             return Err(AppError::Invalid(format!(
@@ -649,17 +654,32 @@ fn run_with(
             names.join(", ")
         )));
     }
-    // 1. Identifiability.
-    let data = Data {
-        inputs: cols.iter().map(|c| c.as_slice()).collect(),
-        y: Some(&y),
-    };
+    // 1. Identifiability (a non-finite value is found on its first pass).
     let config = IdentConfig {
         scaling: p.identifiability.scaling,
         ..IdentConfig::default()
     };
-    let analysis = analyse(model, &data, &nominal, &free, config)?;
-    let (k, _) = p.identifiability.cutoff.resolve(model, &data, &analysis)?;
+    let analysis = analyse(model, rows, &nominal, &free, config).map_err(|e| match e {
+        IdentError::BadValue { row, column, value } => {
+            let what = match model.input_names().iter().position(|c| *c == column) {
+                Some(k) => format!(
+                    "model input '{column}' ({})",
+                    p.model
+                        .inputs
+                        .get(&column)
+                        .unwrap_or(&model.input_names()[k])
+                ),
+                None if column == "output" => format!("model output ({})", p.model.output),
+                None => column,
+            };
+            AppError::Invalid(format!(
+                "{what}, sample {row}: {value} (expected a finite number)"
+            ))
+        }
+        e => e.into(),
+    })?;
+    let n = analysis.rows;
+    let (k, _) = p.identifiability.cutoff.resolve(model, rows, &analysis)?;
     let estimable: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
     if estimable.is_empty() {
         return Err(AppError::Invalid(
@@ -702,7 +722,7 @@ fn run_with(
         Ok(match p.estimator.r2 {
             Some(v) => v,
             None => {
-                let fit = fit_subset(model, &data, &nominal, &estimable, 20)?;
+                let fit = fit_subset(model, rows, &nominal, &estimable, 20)?;
                 (fit.rss / (n.saturating_sub(estimable.len())).max(1) as f64).max(f64::MIN_POSITIVE)
             }
         })
@@ -749,25 +769,46 @@ fn run_with(
         })?,
         MethodName::Dsfc => linear(Method::Dsfc { lambda })?,
     };
-    let mut prediction = vec![0.0; n];
-    let columns: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
-    feed(est.as_mut(), &columns, &y, OnBad::Error, |i, step, est| {
-        prediction[i] = y[i] - step.prediction_error;
-        // The full estimate is assembled only for the plotted samples.
-        if i.is_multiple_of(stride) || i + 1 == n {
-            let theta = est.estimate_full();
-            out.t.push(t[i]);
-            out.measured.push(y[i]);
-            out.predicted.push(prediction[i]);
-            for (k, &j) in order.iter().enumerate() {
-                out.tracks[k].1.push(theta[j]);
+    // 3. The run, a chunk at a time; the objective on the one-step-ahead predictions after
+    // the transient, summed as they come.
+    let mut objective = metrics::Prediction::default();
+    let (mut offset, mut t0, mut after) = (0, None, false);
+    rows.chunks(&mut |chunk: &Recording| -> Result<(), AppError> {
+        let (cols, y) = rows.columns(chunk)?;
+        let y = y.ok_or_else(|| AppError::Invalid("the output column is missing".into()))?;
+        // The sample index stands for the time in a file without `t`.
+        let t = chunk.values("t").ok();
+        let columns: Vec<&[f64]> = cols.iter().map(|c| c.as_ref()).collect();
+        feed(est.as_mut(), &columns, &y, OnBad::Error, |i, step, est| {
+            let ti = t.map_or((offset + i) as f64, |t| t[i]);
+            let predicted = y[i] - step.prediction_error;
+            after = after || ti - *t0.get_or_insert(ti) >= p.objective.after_s;
+            if after {
+                objective.push(y[i], predicted);
             }
-        }
-    })
-    .map_err(|FeedError { sample, error }| AppError::Estim {
-        at: format!("sample {sample}"),
-        source: error,
+            // The full estimate is assembled only for the plotted samples.
+            if (offset + i).is_multiple_of(stride) || offset + i + 1 == n {
+                let theta = est.estimate_full();
+                out.t.push(ti);
+                out.measured.push(y[i]);
+                out.predicted.push(predicted);
+                for (k, &j) in order.iter().enumerate() {
+                    out.tracks[k].1.push(theta[j]);
+                }
+            }
+        })
+        .map_err(|FeedError { sample, error }| AppError::Estim {
+            at: format!("sample {}", offset + sample),
+            source: error,
+        })?;
+        offset += y.len();
+        Ok(())
     })?;
+    if offset != n {
+        return Err(AppError::Invalid(format!(
+            "the data gave {offset} rows to the estimator, {n} to the analysis"
+        )));
+    }
     let (final_full, se) = (est.estimate_full(), est.std_errors().unwrap_or_default());
     // What the data resolved: an unresolved parameter gets no standard error.
     let res = est.resolution();
@@ -780,15 +821,9 @@ fn run_with(
         .map(|&k| names[order[k]].clone())
         .collect();
     out.params = final_full;
-    // 3. The objective, on the one-step-ahead predictions after the transient.
-    let start = t
-        .iter()
-        .position(|&ti| ti - t[0] >= p.objective.after_s)
-        .unwrap_or(n);
-    let (ys, ps) = (&y[start..], &prediction[start..]);
-    let value = p.objective.metric.percent(ys, ps);
+    let value = p.objective.metric.of(&objective);
     out.objective.value_pct = value;
-    out.objective.samples = ys.len();
-    out.objective.met = !ys.is_empty() && value <= p.objective.prediction_within_pct;
+    out.objective.samples = objective.len();
+    out.objective.met = !objective.is_empty() && value <= p.objective.prediction_within_pct;
     Ok(out)
 }

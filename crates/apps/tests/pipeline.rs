@@ -3,7 +3,7 @@
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_apps::pipeline::{load_data, load_for, run_pipeline, Pipeline};
+use physid_apps::pipeline::{load_data, run_pipeline, run_pipeline_data, Pipeline};
 use std::path::{Path, PathBuf};
 
 fn shipped(name: &str) -> PathBuf {
@@ -241,9 +241,12 @@ fn settings_without_a_valid_value_or_a_use_are_refused_naming_the_key() {
 fn a_pipeline_over_a_file_reads_only_its_channels() {
     let dir = physid_testkit::Scratch::new("physid-pipeline-file");
     let file = dir.file("t01.parquet");
-    let scenario = Pipeline::load(&shipped("shaft-expr.toml")).unwrap();
+    let mut scenario = Pipeline::load(&shipped("shaft-expr.toml")).unwrap();
+    // Longer than a reader's chunk, several times.
+    scenario.data.rate_hz = Some(20_000.0);
     let rec = load_data(&scenario.data).unwrap();
     assert!(rec.channels().len() > 30);
+    assert!(rec.len() > 3 * physid_io::CHUNK_ROWS);
     physid_io::write(&file, &rec, &Default::default()).unwrap();
     let text = std::fs::read_to_string(shipped("shaft-expr.toml"))
         .unwrap()
@@ -260,20 +263,33 @@ fn a_pipeline_over_a_file_reads_only_its_channels() {
         .collect::<Vec<_>>()
         .join("\n");
     let p = Pipeline::parse(&text, Path::new(".")).unwrap();
-    let few = load_for(&p).unwrap();
-    assert_eq!(
-        few.names(),
-        [
-            "t",
-            "theta_dy",
-            "theta_en",
-            "omega_dy",
-            "omega_en",
-            "torque_shaft"
-        ]
-    );
-    let a = run_pipeline(&p, &few).unwrap();
-    let b = run_pipeline(&p, &physid_io::read(&file, &Default::default()).unwrap()).unwrap();
-    assert_eq!(a.params, b.params);
-    assert_eq!(a.std_err, b.std_err);
+    // Only the run's channels are read; the file is gone over in passes, held or read again
+    // on each, and the result is the one on the whole recording in memory.
+    let whole = run_pipeline(&p, &physid_io::read(&file, &Default::default()).unwrap()).unwrap();
+    for hold in [usize::MAX, 0] {
+        let (r, read) = run_pipeline_data(&p, hold).unwrap();
+        assert_eq!(
+            read.names(),
+            [
+                "theta_dy",
+                "theta_en",
+                "omega_dy",
+                "omega_en",
+                "torque_shaft",
+                "t"
+            ],
+            "hold {hold}"
+        );
+        assert_eq!(r.params, whole.params, "hold {hold}");
+        assert_eq!(r.std_err, whole.std_err, "hold {hold}");
+        assert_eq!(r.ranking, whole.ranking, "hold {hold}");
+        assert_eq!(r.t, whole.t, "hold {hold}");
+        assert_eq!(r.predicted, whole.predicted, "hold {hold}");
+        assert_eq!(r.tracks, whole.tracks, "hold {hold}");
+        assert_eq!(
+            r.objective.value_pct.to_bits(),
+            whole.objective.value_pct.to_bits(),
+            "hold {hold}"
+        );
+    }
 }

@@ -957,3 +957,105 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
     .unwrap();
     assert_eq!(got, want);
 }
+
+/// `identify` goes over its file in passes (the output's level, the ranking's factors, each
+/// Gauss–Newton iteration of the fit and of Wu's criterion): held after the first when the
+/// columns fit `PHYSID_HOLD_MB`, else read again on every pass. Either way the result is the
+/// library's on the whole recording, for CSV, Parquet and MDF4 files longer than a reader's
+/// chunk; a bad value met on a pass read again is placed by its line; a bad limit is refused.
+#[test]
+fn identify_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
+    use physid_core::{Basis, Channel, Recording};
+    use physid_ident::{identify, Data, IdentConfig, Selection};
+    let s = Scratch::new("physid-ident-passes");
+    let n = physid_io::CHUNK_ROWS * 2 + 777;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-4).collect();
+    let x: Vec<f64> = (0..n)
+        .map(|i| 0.5 + ((i * 7919 % 10_007) as f64 / 10_007.0))
+        .collect();
+    let y: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(i, x)| {
+            2.0 * (-0.8 * x).exp() + 0.3 * x + 1e-3 * ((i * 104_729 % 1000) as f64 / 1000.0 - 0.5)
+        })
+        .collect();
+    let mut rec = Recording::new(Basis::Time);
+    for (name, unit, values) in [("t", "s", &t), ("x", "", &x), ("y", "", &y), ("z", "", &x)] {
+        rec.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: values.clone(),
+        })
+        .unwrap();
+    }
+    let (expr, params) = ("A*exp(-B*x) + C*x + D*x^2", "A=2,B=0.8,C=0.3,D=0.01");
+    let model = physid_expr::ExprModel::parse(expr, &["A", "B", "C", "D"]).unwrap();
+    let whole = Data {
+        inputs: vec![&x],
+        y: Some(&y),
+    };
+    let id = identify(
+        &model,
+        &whole,
+        &[2.0, 0.8, 0.3, 0.01],
+        &[],
+        IdentConfig::default(),
+        Selection::Wu { sigma2: None },
+        None,
+    )
+    .unwrap();
+    let want = serde_json::to_value(id.report()).unwrap();
+    assert_eq!(want["rows"], n);
+    let run = |f: &str, hold: &str| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_physid"))
+            .env("PHYSID_HOLD_MB", hold)
+            .args([
+                "identify", "--data", f, "--expr", expr, "--params", params, "--y", "y",
+                "--cutoff", "wu", "--json",
+            ])
+            .output()
+            .unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+            o.stdout,
+        )
+    };
+    for ext in ["csv", "parquet", "mf4"] {
+        let f = s.file(&format!("xy.{ext}"));
+        physid_io::write(&f, &rec, &Default::default()).unwrap();
+        let f = f.to_str().unwrap();
+        for hold in ["256", "0"] {
+            let (code, err, out) = run(f, hold);
+            assert_eq!(code, Some(0), "{ext}, hold {hold}: {err}");
+            let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
+            assert_eq!(got.as_object_mut().unwrap().remove("data").unwrap(), f);
+            assert_eq!(got, want, "{ext}, hold {hold}");
+        }
+    }
+    // A value that is not finite, in a chunk after the first: its line, counted from the file's
+    // start.
+    let mut bad = rec.clone();
+    let mut v = y.clone();
+    v[physid_io::CHUNK_ROWS + 5] = f64::INFINITY;
+    bad.replace_values("y", v).unwrap();
+    let f = s.file("bad.csv");
+    physid_io::write(&f, &bad, &Default::default()).unwrap();
+    let (code, err, _) = run(f.to_str().unwrap(), "0");
+    assert_eq!(code, Some(1), "{err}");
+    let sample = physid_io::CHUNK_ROWS + 5;
+    assert!(
+        err.contains(&format!(
+            "line {} (sample {sample}): 'output' is inf",
+            sample + 3
+        )),
+        "{err}"
+    );
+    let (code, err, _) = run(f.to_str().unwrap(), "lots");
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("PHYSID_HOLD_MB=lots: expected a whole number of MiB"),
+        "{err}"
+    );
+}

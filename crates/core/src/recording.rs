@@ -189,6 +189,13 @@ impl Recording {
         }
     }
 
+    /// Room for `rows` more samples in every channel, exactly (no doubling).
+    pub fn reserve_exact(&mut self, rows: usize) {
+        for c in &mut self.channels {
+            c.values.reserve_exact(rows);
+        }
+    }
+
     /// `other`'s samples after this recording's, channel by channel (by name; `other` must
     /// have every channel of this one).
     pub fn append(&mut self, other: &Recording) -> Result<(), RecordingError> {

@@ -14,6 +14,8 @@ pub struct Prediction {
     /// Welford's running mean of Ym and Σ(Ym − mean)².
     mean_m: f64,
     m2: f64,
+    /// max 100·|Ym − Yp|/|Ym|.
+    max_rel: f64,
 }
 
 impl Prediction {
@@ -39,6 +41,7 @@ impl Prediction {
         let d = y - self.mean_m;
         self.mean_m += d / self.n as f64;
         self.m2 += d * (y - self.mean_m);
+        self.max_rel = self.max_rel.max(100.0 * (y - p).abs() / y.abs());
     }
 
     /// Samples taken.
@@ -69,6 +72,12 @@ impl Prediction {
     pub fn fit_percent(&self) -> Option<f64> {
         (self.n > 0 && self.m2 != 0.0).then(|| 100.0 * (1.0 - (self.err / self.m2).sqrt()))
     }
+
+    /// Largest relative error in per cent, `max 100·|Ym − Yp|/|Ym|` (∞ if a measured sample is
+    /// 0 and mispredicted; a 0 predicted as 0 counts as no error); `None` with no sample.
+    pub fn max_relative_percent(&self) -> Option<f64> {
+        (self.n > 0).then_some(self.max_rel)
+    }
 }
 
 /// Normalised mean square error exactly as the thesis defines it (Eq. 6.4):
@@ -95,16 +104,7 @@ pub fn fit_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
 /// sign (a friction torque); `None` if empty or of different lengths (∞ if a measured sample
 /// is 0 and mispredicted).
 pub fn max_relative_percent(measured: &[f64], predicted: &[f64]) -> Option<f64> {
-    if measured.is_empty() || measured.len() != predicted.len() {
-        return None;
-    }
-    Some(
-        measured
-            .iter()
-            .zip(predicted)
-            .map(|(m, p)| 100.0 * (m - p).abs() / m.abs())
-            .fold(0.0, f64::max),
-    )
+    Prediction::of(measured, predicted)?.max_relative_percent()
 }
 
 #[cfg(test)]

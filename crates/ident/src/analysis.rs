@@ -1,11 +1,14 @@
 //! Batch identifiability of a [`ParamModel`] over a recording: one streaming pass folds the
 //! scaled sensitivity rows into the triangular factor that the ranking needs, and the unscaled
 //! rows (with the output residual when the output is measured) into a second one for the
-//! quantitative results — O(p²) memory for any number of rows.
+//! quantitative results — O(p²) memory for any number of rows. Every function here goes over
+//! its [`Rows`] in passes (the output's level, the factors, each Gauss–Newton iteration), so a
+//! source that reads its file again on each pass keeps nothing of the recording.
 
 use crate::fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, Quantitative};
 use crate::ranking::{rank, Cutoff, Ranking};
-use crate::sensitivity::{output_levels, Data, OutputLevels, RowScaler, Scaling};
+use crate::rows::{for_each_row, Rows};
+use crate::sensitivity::{output_levels, OutputLevels, RowScaler, Scaling};
 use crate::triangular::TriangularFactor;
 use crate::wu::{wu_criterion, WuCriterion};
 use crate::IdentError;
@@ -63,10 +66,11 @@ pub struct Analysis {
     has_y: bool,
 }
 
-/// Analyse `model` at `theta0` over `data`, for the parameters `free` (indices; all if empty).
-pub fn analyse<M: ParamModel>(
+/// Analyse `model` at `theta0` over `data`, for the parameters `free` (indices; all if empty):
+/// two passes.
+pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
     model: &M,
-    data: &Data,
+    data: &R,
     theta0: &[f64],
     free: &[usize],
     config: IdentConfig,
@@ -102,7 +106,6 @@ pub fn analyse<M: ParamModel>(
             config.guard
         )));
     }
-    let n = data.rows(model)?;
     let p = free.len();
     let levels = output_levels(model, data, theta0)?;
     let theta_free: Vec<f64> = free.iter().map(|&j| theta0[j]).collect();
@@ -111,19 +114,17 @@ pub fn analyse<M: ParamModel>(
         &theta_free,
         levels.level(config.scaling, config.guard),
     )?;
-    let has_y = data.y.is_some();
+    let has_y = data.has_y();
     let mut fz = TriangularFactor::new(p);
     let mut fj = TriangularFactor::new(p + usize::from(has_y));
     let mut engine = GradientEngine::new(theta0.len());
-    let mut u = vec![0.0; model.input_names().len()];
     let mut g = vec![0.0; p];
     let mut z = vec![0.0; p];
     let mut jr = vec![0.0; p + usize::from(has_y)];
     let mut mean = vec![0.0; p];
     let mut guarded = 0;
-    for i in 0..n {
-        data.row(model, i, &mut u)?;
-        let h = engine.value_and_gradient(model, &u, theta0, &free, &mut g);
+    let n = for_each_row(model, data, |i, u, y| {
+        let h = engine.value_and_gradient(model, u, theta0, &free, &mut g);
         if let Some(k) = g.iter().position(|v| !v.is_finite()) {
             return Err(IdentError::BadValue {
                 row: i,
@@ -131,7 +132,6 @@ pub fn analyse<M: ParamModel>(
                 value: g[k],
             });
         }
-        let y = data.y_at(i)?;
         guarded += usize::from(scaler.scale(&g, y.unwrap_or(h), &mut z));
         if config.centre {
             // Centred scatter without cancellation (Welford's update as a rank-one row):
@@ -150,6 +150,13 @@ pub fn analyse<M: ParamModel>(
             jr[p] = y - h;
         }
         fj.add_row(&jr);
+        Ok(())
+    })?;
+    if n != levels.rows {
+        return Err(IdentError::Read(format!(
+            "the data gave {n} rows on a second pass, {} on the first",
+            levels.rows
+        )));
     }
     if !(fz.is_finite() && fj.is_finite()) {
         return Err(IdentError::Invalid(
@@ -269,23 +276,21 @@ pub struct Fit {
 
 /// Fit `subset` (model parameter indices) by Gauss–Newton with step halving, streaming the rows
 /// (`[J | r]` folded into a triangular factor each iteration), at most `max_iter` iterations.
-pub fn fit_subset<M: ParamModel>(
+pub fn fit_subset<M: ParamModel, R: Rows + ?Sized>(
     model: &M,
-    data: &Data,
+    data: &R,
     theta0: &[f64],
     subset: &[usize],
     max_iter: usize,
 ) -> Result<Fit, IdentError> {
-    if data.y.is_none() {
+    if !data.has_y() {
         return Err(IdentError::Invalid(
             "fitting needs the measured output column".into(),
         ));
     }
-    let n = data.rows(model)?;
     let k = subset.len();
     let mut theta = theta0.to_vec();
     let mut engine = GradientEngine::new(theta0.len());
-    let mut u = vec![0.0; model.input_names().len()];
     let mut g = vec![0.0; k];
     let mut row = vec![0.0; k + 1];
     let mut factor = TriangularFactor::new(k + 1);
@@ -293,26 +298,24 @@ pub fn fit_subset<M: ParamModel>(
     let mut pass = |theta: &[f64], factor: &mut TriangularFactor| -> Result<f64, IdentError> {
         factor.clear();
         let mut rss = 0.0;
-        for i in 0..n {
-            data.row(model, i, &mut u)?;
-            let h = engine.value_and_gradient(model, &u, theta, subset, &mut g);
-            let y = data.y_at(i)?.unwrap_or(h);
+        for_each_row(model, data, |_, u, y| {
+            let h = engine.value_and_gradient(model, u, theta, subset, &mut g);
             row[..k].copy_from_slice(&g);
-            row[k] = y - h;
+            row[k] = y.unwrap_or(h) - h;
             rss += row[k] * row[k];
             factor.add_row(&row);
-        }
+            Ok(())
+        })?;
         Ok(rss)
     };
     let rss_at = |theta: &[f64]| -> Result<f64, IdentError> {
-        let mut u = vec![0.0; model.input_names().len()];
         let mut rss = 0.0;
-        for i in 0..n {
-            data.row(model, i, &mut u)?;
-            let h = model.eval::<f64>(&u, theta);
-            let y = data.y_at(i)?.unwrap_or(h);
-            rss += (y - h) * (y - h);
-        }
+        for_each_row(model, data, |_, u, y| {
+            let h = model.eval::<f64>(u, theta);
+            let r = y.unwrap_or(h) - h;
+            rss += r * r;
+            Ok(())
+        })?;
         Ok(rss)
     };
     let mut rss = pass(&theta, &mut factor)?;
@@ -366,9 +369,9 @@ pub fn fit_subset<M: ParamModel>(
 /// The Wu et al. (2011) criterion along a ranking: fit the top K parameters for K = 1 … p
 /// ([`fit_subset`], at most `max_iter` Gauss–Newton iterations each), `J_K = rss_K/σ²` with
 /// `σ² = sigma2` if given, else `rss_p/(n − p)`.
-pub fn wu_along_ranking<M: ParamModel>(
+pub fn wu_along_ranking<M: ParamModel, R: Rows + ?Sized>(
     model: &M,
-    data: &Data,
+    data: &R,
     analysis: &Analysis,
     sigma2: Option<f64>,
     max_iter: usize,
@@ -496,16 +499,16 @@ impl Selection {
 
     /// The number of top-ranked parameters to estimate, with the Wu criterion's details when
     /// it decided.
-    pub fn resolve<M: ParamModel>(
+    pub fn resolve<M: ParamModel, R: Rows + ?Sized>(
         &self,
         model: &M,
-        data: &Data,
+        data: &R,
         analysis: &Analysis,
     ) -> Result<(usize, Option<WuDecision>), IdentError> {
         match *self {
             Self::Rule(c) => Ok((analysis.estimable(c), None)),
             Self::Wu { sigma2 } => {
-                if data.y.is_none() {
+                if !data.has_y() {
                     return Err(IdentError::Invalid(
                         "the Wu criterion fits the top-ranked parameters: it needs the measured output"
                             .into(),

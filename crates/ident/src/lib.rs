@@ -3,6 +3,7 @@
 //! Identifiability analysis for any [`ParamModel`](physid_core::ParamModel) (thesis §5.2,
 //! SPEC §4), knowing nothing of engines:
 //!
+//! * [`rows`] — the data: columns in memory, or rows gone over in passes (a file read again);
 //! * [`sensitivity`] — exact sensitivity rows through the model seam, scaled (Eq. 5.11);
 //! * [`triangular`] — the row-streaming triangular factor (Givens; forgetting; downdating);
 //! * [`ranking`] — the orthogonal ranking of Alg. 5.1 from that factor, and its cut-offs;
@@ -19,6 +20,7 @@ pub mod fisher;
 pub mod online;
 pub mod ranking;
 pub mod report;
+pub mod rows;
 pub mod sensitivity;
 pub mod triangular;
 pub mod workload;
@@ -32,7 +34,8 @@ pub use fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, 
 pub use online::{Memory, OnlineIdent};
 pub use ranking::{rank, Cutoff, RankStep, RankWorkspace, Ranking};
 pub use report::{identify, IdentReport, Identification, Num, SigmaSource};
-pub use sensitivity::{sensitivity_matrix, Data, RowScaler, Scaling};
+pub use rows::{for_each_row, Data, Rows};
+pub use sensitivity::{sensitivity_matrix, RowScaler, Scaling};
 pub use triangular::TriangularFactor;
 pub use wu::{wu_criterion, WuCriterion};
 
@@ -54,6 +57,9 @@ pub enum IdentError {
         /// The value.
         value: f64,
     },
+    /// The rows could not be read (a [`Rows`] source's own error, which names its file).
+    #[error("{0}")]
+    Read(String),
     /// A matrix that must be invertible is not.
     #[error("{what} is singular: the parameters are not jointly identifiable")]
     Singular {

@@ -9,7 +9,8 @@
 use crate::analysis::{fit_subset, Analysis, IdentConfig, Selection, WuDecision};
 use crate::fisher::{design_criteria, quantify, DesignCriteria, Quantitative};
 use crate::ranking::{Cutoff, RankStep};
-use crate::sensitivity::{Data, Scaling};
+use crate::rows::Rows;
+use crate::sensitivity::Scaling;
 use crate::{analyse, IdentError};
 use nalgebra::DMatrix;
 use physid_core::ParamModel;
@@ -55,9 +56,9 @@ pub struct Identification {
 
 /// Identify the `free` parameters of `model` on `data` (nominal values `nominal`): rank, select
 /// by `selection`, quantify with the noise standard deviation `sigma` if given.
-pub fn identify<M: ParamModel>(
+pub fn identify<M: ParamModel, R: Rows + ?Sized>(
     model: &M,
-    data: &Data,
+    data: &R,
     nominal: &[f64],
     free: &[usize],
     config: IdentConfig,
@@ -69,7 +70,7 @@ pub fn identify<M: ParamModel>(
     let selected = a.top(k);
     let subset: Vec<usize> = selected.iter().map(|&i| a.free[i]).collect();
     let mut values: Vec<f64> = subset.iter().map(|&j| nominal[j]).collect();
-    let (gram, sigma2, sigma_source) = if data.y.is_some() && k > 0 {
+    let (gram, sigma2, sigma_source) = if data.has_y() && k > 0 {
         let fit = fit_subset(model, data, nominal, &subset, 30)?;
         values = subset.iter().map(|&j| fit.theta[j]).collect();
         let dof = a.rows.saturating_sub(k).max(1) as f64;

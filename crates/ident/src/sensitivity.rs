@@ -18,6 +18,7 @@
 //! the cyclic torque crosses zero twice a revolution, and one such row would otherwise dominate
 //! the whole ranking; how many rows hit the guard is reported.
 
+use crate::rows::{for_each_row, Data, Rows};
 use crate::IdentError;
 use physid_core::{GradientEngine, ParamModel};
 use serde::{Deserialize, Serialize};
@@ -66,87 +67,6 @@ impl std::str::FromStr for Scaling {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
         Self::parse(s).ok_or_else(|| format!("'{s}': expected thesis, sigma or none"))
-    }
-}
-
-/// Columns of data: one slice per model input (in the model's input order), all the same
-/// length, and optionally the measured output.
-#[derive(Debug, Clone)]
-pub struct Data<'a> {
-    /// Input columns.
-    pub inputs: Vec<&'a [f64]>,
-    /// Measured output, if any.
-    pub y: Option<&'a [f64]>,
-}
-
-impl<'a> Data<'a> {
-    /// Number of rows; checks that every column has it and that there are as many input columns
-    /// as the model has inputs.
-    pub fn rows<M: ParamModel>(&self, model: &M) -> Result<usize, IdentError> {
-        let names = model.input_names();
-        if self.inputs.len() != names.len() {
-            return Err(IdentError::Invalid(format!(
-                "the model has {} inputs ({}), the data {} columns",
-                names.len(),
-                names.join(", "),
-                self.inputs.len()
-            )));
-        }
-        let n = self
-            .inputs
-            .first()
-            .map(|c| c.len())
-            .or(self.y.map(|y| y.len()))
-            .unwrap_or(0);
-        for (c, name) in self.inputs.iter().zip(names) {
-            if c.len() != n {
-                return Err(IdentError::Invalid(format!(
-                    "column '{name}' has {} rows, expected {n}",
-                    c.len()
-                )));
-            }
-        }
-        if let Some(y) = self.y {
-            if y.len() != n {
-                return Err(IdentError::Invalid(format!(
-                    "the output column has {} rows, expected {n}",
-                    y.len()
-                )));
-            }
-        }
-        if n == 0 {
-            return Err(IdentError::Invalid("no data rows".into()));
-        }
-        Ok(n)
-    }
-
-    /// Row `i`'s inputs into `u`; an error names a non-finite value's column and row.
-    pub fn row<M: ParamModel>(&self, model: &M, i: usize, u: &mut [f64]) -> Result<(), IdentError> {
-        for (k, (c, slot)) in self.inputs.iter().zip(u.iter_mut()).enumerate() {
-            let v = c[i];
-            if !v.is_finite() {
-                return Err(IdentError::BadValue {
-                    row: i,
-                    column: model.input_names()[k].clone(),
-                    value: v,
-                });
-            }
-            *slot = v;
-        }
-        Ok(())
-    }
-
-    /// The measured output at row `i`, checked.
-    pub fn y_at(&self, i: usize) -> Result<Option<f64>, IdentError> {
-        match self.y {
-            Some(y) if !y[i].is_finite() => Err(IdentError::BadValue {
-                row: i,
-                column: "output".into(),
-                value: y[i],
-            }),
-            Some(y) => Ok(Some(y[i])),
-            None => Ok(None),
-        }
     }
 }
 
@@ -248,13 +168,15 @@ pub fn sensitivity_matrix<M: ParamModel>(
 }
 
 /// Output statistics for the scalings: rms and standard deviation of `y` (measured, or the
-/// model at `ϑ0`).
+/// model at `ϑ0`), over how many rows.
 #[derive(Debug, Clone, Copy)]
 pub struct OutputLevels {
     /// √mean(y²).
     pub rms: f64,
     /// Standard deviation of y.
     pub std: f64,
+    /// Rows.
+    pub rows: usize,
 }
 
 impl OutputLevels {
@@ -268,22 +190,19 @@ impl OutputLevels {
     }
 }
 
-/// First pass over the data: the output's rms and standard deviation (Welford), checking every
+/// First pass over the rows: the output's rms and standard deviation (Welford), checking every
 /// value.
-pub fn output_levels<M: ParamModel>(
+pub fn output_levels<M: ParamModel, R: Rows + ?Sized>(
     model: &M,
-    data: &Data,
+    rows: &R,
     theta0: &[f64],
 ) -> Result<OutputLevels, IdentError> {
-    let n = data.rows(model)?;
-    let mut u = vec![0.0; model.input_names().len()];
     let (mut mean, mut m2, mut sq) = (0.0, 0.0, 0.0);
-    for i in 0..n {
-        let y = match data.y_at(i)? {
+    let n = for_each_row(model, rows, |i, u, y| {
+        let y = match y {
             Some(y) => y,
             None => {
-                data.row(model, i, &mut u)?;
-                let h = model.eval::<f64>(&u, theta0);
+                let h = model.eval::<f64>(u, theta0);
                 if !h.is_finite() {
                     return Err(IdentError::BadValue {
                         row: i,
@@ -299,9 +218,11 @@ pub fn output_levels<M: ParamModel>(
         mean += d / k;
         m2 += d * (y - mean);
         sq += (y * y - sq) / k;
-    }
+        Ok(())
+    })?;
     Ok(OutputLevels {
         rms: sq.sqrt(),
         std: (m2 / n as f64).sqrt(),
+        rows: n,
     })
 }

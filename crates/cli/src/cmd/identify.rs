@@ -5,9 +5,10 @@ use super::named_values;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::model_choice::ModelChoice;
-use physid_core::{ParamModel, Recording};
+use physid_apps::recording_rows::{Column, RecordingRows};
+use physid_core::ParamModel;
 use physid_ident::{
-    identify, Cutoff, Data, IdentConfig, Identification, Scaling, Selection, SigmaSource,
+    identify, Cutoff, IdentConfig, Identification, Scaling, Selection, SigmaSource,
 };
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -136,29 +137,42 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
     }
     let mut reports = Vec::new();
     for path in &args.data {
-        // Only the columns the analysis takes are read (it needs all their samples).
+        // Only the columns the analysis takes are read.
         let header = args.input.open_all(path)?.header().clone();
         if let ModelChoice::Expr(m) = &model {
             m.check_inputs(&header.names())
                 .map_err(|e| miette!("--expr: {e} (in {})", path.display()))?;
         }
-        let mut wanted: Vec<String> = Vec::new();
         for c in model.input_names() {
             header
                 .channel(c)
                 .map_err(|e| miette!("{}: the model needs column '{c}': {e}", path.display()))?;
-            if !wanted.contains(c) {
-                wanted.push(c.clone());
-            }
         }
-        if let Some(c) = args.y.as_ref().filter(|c| !wanted.contains(c)) {
+        if let Some(c) = &args.y {
             header
                 .channel(c)
                 .map_err(|e| miette!("{}: {e}", path.display()))?;
-            wanted.push(c.clone());
         }
-        let rec = args.input.read(path, Some(wanted))?;
-        let r = identify_one(&model, path, &rec, &nominal, args, config, &choice)?;
+        // The analyses go over the file in passes: held after the first when it fits the
+        // hold limit, else read again each time.
+        let rows = RecordingRows::file(
+            path,
+            &args.input.options(None)?,
+            model
+                .input_names()
+                .iter()
+                .map(|c| Column::named(c))
+                .collect(),
+            args.y.as_deref().map(Column::named),
+            &[],
+            super::hold_bytes()?,
+        )
+        .map_err(super::app_error(path))?;
+        crate::provenance::record_input(path, &args.input.map);
+        let r = identify_one(&model, path, &rows, &nominal, args, config, &choice)?;
+        if let Some(w) = rows.warning() {
+            eprintln!("warning: {}: {w}", path.display());
+        }
         reports.push(r);
     }
     Ok(reports)
@@ -168,7 +182,7 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
 fn identify_one<M: ParamModel>(
     model: &M,
     path: &Path,
-    rec: &Recording,
+    rows: &RecordingRows,
     nominal: &[f64],
     args: &Args,
     config: IdentConfig,
@@ -176,18 +190,6 @@ fn identify_one<M: ParamModel>(
 ) -> Result<Value> {
     let file = path.display().to_string();
     let names = model.param_names();
-    let inputs: Vec<&[f64]> = model
-        .input_names()
-        .iter()
-        .map(|c| {
-            rec.values(c)
-                .map_err(|e| miette!("{file}: the model needs column '{c}': {e}"))
-        })
-        .collect::<Result<_>>()?;
-    let y = match &args.y {
-        Some(c) => Some(rec.values(c).map_err(|e| miette!("{file}: {e}"))?),
-        None => None,
-    };
     let free: Vec<usize> = args
         .free
         .iter()
@@ -198,18 +200,18 @@ fn identify_one<M: ParamModel>(
                 .ok_or_else(|| miette!("--free {f}: the parameters are {}", names.join(", ")))
         })
         .collect::<Result<_>>()?;
-    let data = Data { inputs, y };
-    let id =
-        identify(model, &data, nominal, &free, config, *choice, args.sigma).map_err(
-            |e| match e {
-                // Placed by file line, as every verb does.
-                physid_ident::IdentError::BadValue { row, column, value } => miette!(
-                    "{file}, {}: '{column}' is {value} (expected a finite number)",
-                    super::locate(rec, row)
-                ),
-                e => miette!("{file}: {e}"),
-            },
-        )?;
+    let id = identify(model, rows, nominal, &free, config, *choice, args.sigma).map_err(
+        |e| match e {
+            // Placed by file line, as every verb does.
+            physid_ident::IdentError::BadValue { row, column, value } => miette!(
+                "{file}, {}: '{column}' is {value} (expected a finite number)",
+                super::locate(rows.header(), row)
+            ),
+            // A reading error names the file.
+            physid_ident::IdentError::Read(e) => miette!("{e}"),
+            e => miette!("{file}: {e}"),
+        },
+    )?;
     if !args.json {
         print_report(&id, &file);
     }

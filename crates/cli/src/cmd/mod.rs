@@ -182,6 +182,23 @@ pub fn warn_read(reader: &physid_io::ChunkReader, path: &Path) {
     }
 }
 
+/// How much of a recording's columns a verb that goes over them in passes (`identify`, `run`)
+/// holds after the first: `PHYSID_HOLD_MB` (default 256); beyond it, each pass reads the file
+/// again — slower, in memory independent of the recording's length.
+pub fn hold_bytes() -> Result<usize> {
+    match std::env::var("PHYSID_HOLD_MB") {
+        Err(_) => Ok(physid_apps::recording_rows::DEFAULT_HOLD_BYTES),
+        Ok(v) => v
+            .trim()
+            .parse::<usize>()
+            .ok()
+            .and_then(|mb| mb.checked_mul(1 << 20))
+            .ok_or_else(|| {
+                miette!("PHYSID_HOLD_MB={v}: expected a whole number of MiB (0: always read again)")
+            }),
+    }
+}
+
 /// Where sample `i` of a recording read from a file is, for error messages: the CSV line
 /// (from the reader's `first_data_line`), else the index.
 pub fn locate(rec: &Recording, i: usize) -> String {

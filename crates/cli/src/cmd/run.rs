@@ -5,7 +5,7 @@ use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, Result};
-use physid_apps::pipeline::{load_for, run_pipeline, Pipeline, PipelineResult};
+use physid_apps::pipeline::{run_pipeline_data, Pipeline, PipelineResult};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid run`.
@@ -169,8 +169,11 @@ fn report<'a>(r: &'a PipelineResult, p: &'a Pipeline, file: &Path, dir: &Path) -
 pub fn run(args: &Args) -> Result<()> {
     let p = Pipeline::load(&args.pipeline).map_err(|e| miette!("{e}"))?;
     let working = crate::progress::Working::new(&format!("running {}", args.pipeline.display()));
-    let rec = load_for(&p).map_err(|e| miette!("{}: [data] {e}", args.pipeline.display()))?;
-    let r = run_pipeline(&p, &rec).map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
+    if let Some(f) = p.data.file.as_ref().filter(|_| p.data.scenario.is_none()) {
+        crate::provenance::record_input(f, &[]);
+    }
+    let (r, rec) = run_pipeline_data(&p, super::hold_bytes()?)
+        .map_err(|e| miette!("{}: {e}", args.pipeline.display()))?;
     drop(working);
     let j = r.summary();
     if let Some(path) = &args.tracks {
