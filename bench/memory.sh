@@ -3,13 +3,14 @@
 # "The file verbs read as they go"). Usage: bench/memory.sh NEW_PHYSID [OLD_PHYSID] [DIR]
 # Writes shaft-D.{parquet,mf4}, motored-D.parquet and fired-D.parquet into DIR (≈ 30 GB with
 # the one-hour files) and prints a Markdown row per measurement (inspect/monitor, the fits, filter,
-# the crank-angle verbs). ONLY=crank measures the crank-angle verbs alone (the last part).
+# the crank-angle verbs, identify and run). ONLY=crank measures the crank-angle verbs alone,
+# ONLY=passes identify and run alone (the last part; DURATIONS="75 600" to choose).
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
 mkdir -p "$DIR" && cd "$DIR"
 m() { /usr/bin/time -f "%M %e" -o t.out "$@" > /dev/null 2> err.out || { echo "failed: $(tail -1 err.out)"; return; }
       read -r kb s < t.out; echo "$(( kb / 1024 )) MB, ${s} s"; }
-if [ "${ONLY:-}" != crank ]; then
+if [ -z "${ONLY:-}" ]; then
 for D in 75 150 300 600 3600; do
   for ext in parquet mf4; do
     [ -f "shaft-$D.$ext" ] || "$NEW" simulate --scenario shaft-steady --duration "$D" --recording "shaft-$D.$ext" > /dev/null
@@ -50,6 +51,7 @@ for D in 75 150 300 600; do
   echo "$row"
 done
 fi
+if [ "${ONLY:-}" != passes ]; then
 # The crank-angle verbs (ONLY=crank runs this part alone): on a time-basis file with theta_en
 # (cycles, compression fit, convert --crank-angle), on a crank-angle file (cycles, monitor
 # shaft, torque fit, convert --time-basis).
@@ -73,3 +75,23 @@ for D in 75 150 300 600; do
     echo "$row"
   done
 done
+fi
+# identify and run go over their file in passes (ONLY=passes runs this part alone): the shaft
+# model on shaft-D.parquet, its five columns held within PHYSID_HOLD_MB (default 256) or read
+# again on every pass (PHYSID_HOLD_MB=0).
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = passes ]; then
+SHAFT='K*(theta_dy - theta_en) + B*(omega_dy - omega_en) + tau0'
+for D in ${DURATIONS:-75 150 300 600 3600}; do
+  [ -f "shaft-$D.parquet" ] || "$NEW" simulate --scenario shaft-steady --duration "$D" --recording "shaft-$D.parquet" > /dev/null
+  cat "shaft-$D.parquet" > /dev/null
+  printf '[model]\nexpr = "%s"\nparams = { K = 1250.0, B = 0.95, tau0 = 0.1 }\noutput = "torque_shaft"\n[data]\nfile = "%s"\n[estimator]\nmethod = "dsfc"\nlambda = 0.999\n[objective]\nafter_s = 1.0\n' \
+    "$SHAFT" "$DIR/shaft-$D.parquet" > "run-$D.toml"
+  for what in identify run; do
+    if [ $what = identify ]; then set -- identify --data "shaft-$D.parquet" --expr "$SHAFT" --params K=1250,B=0.95,tau0=0.1 --y torque_shaft --cutoff wu --json
+    else set -- run "run-$D.toml" --json; fi
+    row="| $D s | $what | $(m "$NEW" "$@") | $(PHYSID_HOLD_MB=0 m "$NEW" "$@") |"
+    [ -n "$OLD" ] && [ "$D" != 3600 ] && row="$row $(m "$OLD" "$@") |"
+    echo "$row"
+  done
+done
+fi

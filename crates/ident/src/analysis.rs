@@ -335,6 +335,17 @@ pub fn fit_subset<M: ParamModel, R: Rows + ?Sized>(
             }
             delta[i] = s / r[(i, i)];
         }
+        // The decrease the linearised model predicts for the full step, Σ R[i,k]² over the
+        // directions taken: when it is below rounding the fit has converged, and no trial pass
+        // over the data is made (the line search would halve down to nothing, each halving a
+        // pass — over a file read again on every pass, minutes).
+        let predicted: f64 = (0..k)
+            .filter(|&i| r[(i, i)].abs() > rmax * 1e-10)
+            .map(|i| r[(i, k)] * r[(i, k)])
+            .sum();
+        if predicted.is_nan() || predicted <= 1e-12 * rss {
+            break;
+        }
         let mut alpha = 1.0;
         let mut trial = theta.clone();
         let mut rss_try = f64::INFINITY;
