@@ -295,19 +295,20 @@ pub fn fit_subset<M: ParamModel, R: Rows + ?Sized>(
     let mut row = vec![0.0; k + 1];
     let mut factor = TriangularFactor::new(k + 1);
     // One pass: the factor of [J | r] at `theta`, and the rss.
-    let mut pass = |theta: &[f64], factor: &mut TriangularFactor| -> Result<f64, IdentError> {
-        factor.clear();
-        let mut rss = 0.0;
-        for_each_row(model, data, |_, u, y| {
-            let h = engine.value_and_gradient(model, u, theta, subset, &mut g);
-            row[..k].copy_from_slice(&g);
-            row[k] = y.unwrap_or(h) - h;
-            rss += row[k] * row[k];
-            factor.add_row(&row);
-            Ok(())
-        })?;
-        Ok(rss)
-    };
+    let mut pass =
+        |theta: &[f64], factor: &mut TriangularFactor| -> Result<(f64, usize), IdentError> {
+            factor.clear();
+            let mut rss = 0.0;
+            let n = for_each_row(model, data, |_, u, y| {
+                let h = engine.value_and_gradient(model, u, theta, subset, &mut g);
+                row[..k].copy_from_slice(&g);
+                row[k] = y.unwrap_or(h) - h;
+                rss += row[k] * row[k];
+                factor.add_row(&row);
+                Ok(())
+            })?;
+            Ok((rss, n))
+        };
     let rss_at = |theta: &[f64]| -> Result<f64, IdentError> {
         let mut rss = 0.0;
         for_each_row(model, data, |_, u, y| {
@@ -318,7 +319,10 @@ pub fn fit_subset<M: ParamModel, R: Rows + ?Sized>(
         })?;
         Ok(rss)
     };
-    let mut rss = pass(&theta, &mut factor)?;
+    let (mut rss, n) = pass(&theta, &mut factor)?;
+    // What counts as a decrease: more than the rounding of sums over n rows (n·ε relative), and
+    // at least 1e-12 — below it a step is noise, and taking it would go on iterating.
+    let tol = 1e-12_f64.max(n as f64 * f64::EPSILON);
     let mut iterations = 0;
     for _ in 0..max_iter {
         let r = factor.r();
@@ -336,14 +340,14 @@ pub fn fit_subset<M: ParamModel, R: Rows + ?Sized>(
             delta[i] = s / r[(i, i)];
         }
         // The decrease the linearised model predicts for the full step, Σ R[i,k]² over the
-        // directions taken: when it is below rounding the fit has converged, and no trial pass
+        // directions taken: when it is within rounding the fit has converged, and no trial pass
         // over the data is made (the line search would halve down to nothing, each halving a
         // pass — over a file read again on every pass, minutes).
         let predicted: f64 = (0..k)
             .filter(|&i| r[(i, i)].abs() > rmax * 1e-10)
             .map(|i| r[(i, k)] * r[(i, k)])
             .sum();
-        if predicted.is_nan() || predicted <= 1e-12 * rss {
+        if predicted.is_nan() || predicted <= tol * rss {
             break;
         }
         let mut alpha = 1.0;
@@ -360,12 +364,12 @@ pub fn fit_subset<M: ParamModel, R: Rows + ?Sized>(
             alpha *= 0.5;
         }
         // Converged: no decrease beyond rounding (then the step is not taken).
-        if !(rss_try.is_finite() && rss - rss_try > 1e-12 * rss) {
+        if !(rss_try.is_finite() && rss - rss_try > tol * rss) {
             break;
         }
         iterations += 1;
         theta = trial;
-        rss = pass(&theta, &mut factor)?;
+        rss = pass(&theta, &mut factor)?.0;
     }
     let r = factor.r();
     let jk = r.view((0, 0), (k, k)).into_owned();
