@@ -888,28 +888,44 @@ where
 {
     let mut chunks = chunks.into_iter();
     let mut held = Vec::new();
-    let mut prev: Option<f64> = None;
+    let mut scan = FirstMarker::default();
     let mut tdc = None;
     for chunk in chunks.by_ref() {
         let chunk = chunk?;
-        let (Ok(marker), Ok(theta)) = (chunk.values(&opts.marker), chunk.values("theta_en")) else {
-            held.push(chunk);
-            break;
-        };
-        // The first rising edge, the sample before the chunk included (as `first_marker`).
-        let found = marker.iter().enumerate().find_map(|(i, &v)| {
-            let before = if i == 0 { prev } else { Some(marker[i - 1]) };
-            (v != 0.0 && before.is_none_or(|p| p == 0.0)).then_some(i)
-        });
-        prev = marker.last().copied().or(prev);
-        if let Some(i) = found {
-            tdc = theta.get(i).copied().filter(|v| v.is_finite());
-            held.push(chunk);
+        let found = scan.scan(&chunk, &opts.marker);
+        held.push(chunk);
+        if let Some(found) = found {
+            tdc = found;
             break;
         }
-        held.push(chunk);
     }
     Ok((tdc, held.into_iter().map(Ok).chain(chunks)))
+}
+
+/// The firing TDC's angle on `theta_en` at a stream's first TDC marker, a chunk at a time: the
+/// rule of [`marker_tdc_angle`] on the whole recording.
+#[derive(Debug, Clone, Default)]
+pub struct FirstMarker {
+    /// The marker's last sample in the chunks so far.
+    prev: Option<f64>,
+}
+
+impl FirstMarker {
+    /// Look in the next chunk for the first rising edge of the marker channel `marker` (the
+    /// sample before the chunk included): `Some(angle)` once found — `Some(None)` when the
+    /// chunk has no `marker` or `theta_en` channel, or `theta_en` is not finite there (no angle
+    /// will come) — `None` while it has not come.
+    pub fn scan(&mut self, chunk: &Recording, marker: &str) -> Option<Option<f64>> {
+        let (Ok(m), Ok(theta)) = (chunk.values(marker), chunk.values("theta_en")) else {
+            return Some(None);
+        };
+        let found = m.iter().enumerate().find_map(|(i, &v)| {
+            let before = if i == 0 { self.prev } else { Some(m[i - 1]) };
+            (v != 0.0 && before.is_none_or(|p| p == 0.0)).then_some(i)
+        });
+        self.prev = m.last().copied().or(self.prev);
+        found.map(|i| theta.get(i).copied().filter(|v| v.is_finite()))
+    }
 }
 
 /// Resample a time-basis recording to one sample every `step_deg` crank degrees from the

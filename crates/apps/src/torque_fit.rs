@@ -18,14 +18,17 @@
 //!    defines it (Eq. 6.4 — ill-defined for a torque whose mean is near zero, SPEC §5.3), and
 //!    NRMSE.
 
-use crate::acquisition::{from_first_marker, to_crank_angle, AcquisitionOptions, TDC_MARKER};
+use crate::acquisition::{to_crank_angle, AcquisitionOptions, FirstMarker, TDC_MARKER};
 use crate::error::AppError;
+use crate::recording_rows::{Column, RecordingRows};
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
-use physid_estim::metrics::{nmse, nrmse};
+use physid_estim::metrics::Prediction;
 use physid_estim::{CovSpec, NlConfig, NlMethod, NonlinearEstimator};
 use physid_ident::{
-    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, RankedParam, Selection,
+    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, IdentError, RankedParam, Rows,
+    Selection,
 };
+use physid_io::{ChunkReader, ReadOptions};
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
 use physid_models::friction::thesis_preset;
 use physid_models::friction_fit::fit_friction_cubic;
@@ -33,8 +36,10 @@ use physid_signal::cycles::{CycleStream, CycleSummary};
 use physid_sim::params::CellParams;
 use physid_sim::run::parameter_truth;
 use serde::Serialize;
+use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
+use std::path::Path;
 
 /// The relative cut-off of the cyclic-torque ranking: residuals below 1e-6 of the first are
 /// at the level of the measured oil temperature's noise (0.1 K on 363 K, squared), which is all
@@ -133,13 +138,53 @@ impl TorqueData {
             u[k] = col[i];
         }
     }
+
+    /// No samples, room for `n`.
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            inputs: (0..6).map(|_| Vec::with_capacity(n)).collect(),
+            y: Vec::with_capacity(n),
+            t: Vec::with_capacity(n),
+        }
+    }
+
+    /// One sample: the inputs, the measured torque, the time.
+    fn push(&mut self, u: &[f64; 6], y: f64, t: f64) {
+        for (col, v) in self.inputs.iter_mut().zip(u) {
+            col.push(*v);
+        }
+        self.y.push(y);
+        self.t.push(t);
+    }
+
+    /// Every sample dropped, the room kept.
+    fn clear(&mut self) {
+        for col in &mut self.inputs {
+            col.clear();
+        }
+        self.y.clear();
+        self.t.clear();
+    }
 }
 
-/// Identifiability of the cyclic-torque parameters on a recording: the analysis over every
-/// parameter not in `fixed`, and the indices (into [`PARAMS`]) of the estimable ones in rank
-/// order.
-pub fn torque_identifiability(
-    data: &TorqueData,
+impl Rows for TorqueData {
+    fn has_y(&self) -> bool {
+        true
+    }
+
+    fn pass(
+        &self,
+        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+    ) -> Result<(), IdentError> {
+        visit(&self.view())
+    }
+}
+
+/// Identifiability of the cyclic-torque parameters on a recording's 1° samples (in memory,
+/// [`TorqueData`], or gone over in passes, [`Degrees`]): the analysis over every parameter not
+/// in `fixed`, and the indices (into [`PARAMS`]) of the estimable ones in rank order.
+pub fn torque_identifiability<R: Rows + ?Sized>(
+    data: &R,
     nominal: &[f64; 15],
     fixed: &[String],
     selection: &Selection,
@@ -161,9 +206,8 @@ pub fn torque_identifiability(
         ));
     }
     let model = CyclicTorque::default();
-    let view = data.view();
-    let a = analyse(&model, &view, nominal, &free, IdentConfig::default())?;
-    let (k, _) = selection.resolve(&model, &view, &a)?;
+    let a = analyse(&model, data, nominal, &free, IdentConfig::default())?;
+    let (k, _) = selection.resolve(&model, data, &a)?;
     let estimable = a.top(k).iter().map(|&i| free[i]).collect();
     Ok((a, estimable))
 }
@@ -345,8 +389,8 @@ impl TorqueFit {
 /// Samples per cycle at one per crank degree.
 const PER_CYCLE: usize = 720;
 
-/// The channels a stage resamples to one per crank degree from time-basis samples, in the
-/// model's input order after θ, then the measured torque and the time, with their units.
+/// The channels resampled to one per crank degree from time-basis samples, in the model's
+/// input order after θ, then the measured torque and the time, with their units.
 const CURVE_CHANNELS: [(&str, &str); 7] = [
     ("omega_en", "rad/s"),
     ("alpha_en", "rad/s^2"),
@@ -357,57 +401,60 @@ const CURVE_CHANNELS: [(&str, &str); 7] = [
     ("t", "s"),
 ];
 
-/// Run Application 3 on a recording: one sample per crank degree (a crank-angle recording, or
-/// a time-basis one with `theta_en` resampled on the stream by the same [`TorqueStage`] the
-/// live service runs, cycles from its first TDC marker; one with only the encoder count is
-/// converted first), the parameters chosen on all of it.
+/// Samples per chunk of 1° samples handed to the analyses and the filter.
+const FILE_CHUNK: usize = 4096;
+
+/// Points the tracks keep at least; beyond twice this, every other one is dropped (the tracks'
+/// step doubles), so they take bounded memory however long the recording.
+pub const TRACK_POINTS: usize = 4000;
+
+/// Run Application 3 on a recording in memory: one sample per crank degree (a crank-angle
+/// recording, or a time-basis one with `theta_en` resampled as it is gone over, cycles from its
+/// first TDC marker; one with only the encoder count is converted first), the parameters chosen
+/// on all of it ([`torque_fit_degrees`]).
 pub fn torque_fit(rec: &Recording, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError> {
-    let slices = |rec: &Recording| {
-        let n = rec.len();
-        (0..n.max(1))
-            .step_by(FILE_CHUNK)
-            .map(|start| Ok::<_, AppError>(rec.slice(start..start + FILE_CHUNK)))
-            .collect::<Vec<_>>()
-    };
-    if rec.basis == Basis::Time && rec.channel("theta_en").is_ok() {
-        return torque_fit_stream(slices(rec), cfg);
+    if rec.basis == Basis::Time && rec.channel("theta_en").is_err() {
+        let converted = to_crank_angle(rec, &AcquisitionOptions::default(), 1.0)?;
+        return torque_fit_degrees(&Degrees::memory(&converted)?, cfg);
     }
-    let converted;
-    let rec = if rec.basis == Basis::Time {
-        converted = to_crank_angle(rec, &AcquisitionOptions::default(), 1.0)?;
-        &converted
-    } else {
-        rec
-    };
-    torque_fit_crank(slices(rec), cfg, &mut || {})
+    torque_fit_degrees(&Degrees::memory(rec)?, cfg)
 }
 
-/// [`torque_fit`] on a crank-angle recording (one sample per degree) read a chunk at a time:
-/// only the channels of [`crank_channels`] are read, and the stage keeps the 1° samples (the
-/// parameters are chosen on all of them) — not the file's. `fitting` is called once the
-/// recording has been read, as in [`torque_fit_phased`].
-pub fn torque_fit_crank<I, E>(
-    chunks: I,
-    cfg: &TorqueFitConfig,
-    fitting: &mut dyn FnMut(),
-) -> Result<TorqueFit, AppError>
-where
-    I: IntoIterator<Item = Result<Recording, E>>,
-    AppError: From<E>,
-{
-    let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
+/// Application 3 over a recording's 1° samples, gone over in passes: the parameters chosen on
+/// all of them (the analyses and the batch fit fold them a chunk at a time), the filter run
+/// through them once, the prediction of the nominal and the final model summed over them once.
+/// Memory is that of the source ([`Degrees`]) and the bounded tracks, whatever the length.
+pub fn torque_fit_degrees(src: &Degrees, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError> {
+    let n = src.len()?;
+    at_least_a_cycle(n)?;
+    let mut filter = TorqueFilter::choose(cfg, src, true)?;
     let mut out = Vec::new();
-    let (mut seen, mut u) = (0, [0.0; 6]);
-    for chunk in chunks {
-        let data = TorqueData::from_crank_angle(&chunk?, seen)?;
-        for i in 0..data.y.len() {
-            data.row(i, &mut u);
-            stage.push_sample(&u, data.y[i], data.t[i], &mut out)?;
+    let mut u = [0.0; 6];
+    src.samples::<AppError>(&mut |d| {
+        for i in 0..d.y.len() {
+            d.row(i, &mut u);
+            filter.step(&u, d.y[i], d.t[i], &mut out)?;
         }
-        seen += data.y.len();
+        Ok(())
+    })?;
+    let mut fit = filter.result(cfg, src, n)?;
+    fit.cycles = out
+        .into_iter()
+        .filter_map(|o| match o {
+            TorqueOutput::Cycle(c) => Some(c),
+            TorqueOutput::Selected { .. } => None,
+        })
+        .collect();
+    Ok(fit)
+}
+
+fn at_least_a_cycle(n: usize) -> Result<(), AppError> {
+    if n < PER_CYCLE {
+        return Err(AppError::Invalid(format!(
+            "{n} samples: the fit needs at least one cycle (720 samples at one per crank degree)"
+        )));
     }
-    fitting();
-    finish(stage, out)
+    Ok(())
 }
 
 /// The channels the fit reads from a crank-angle recording with `header`'s channels (physid
@@ -423,59 +470,6 @@ pub fn crank_channels(header: &Recording) -> Vec<&'static str> {
     names
 }
 
-/// The file verb's end: the result, with every cycle the stage put out.
-fn finish(mut stage: TorqueStage, mut out: Vec<TorqueOutput>) -> Result<TorqueFit, AppError> {
-    let mut fit = stage
-        .finish(&mut out)?
-        .ok_or_else(|| AppError::Invalid("the fit kept no data".into()))?;
-    fit.cycles = out
-        .into_iter()
-        .filter_map(|o| match o {
-            TorqueOutput::Cycle(c) => Some(c),
-            TorqueOutput::Selected { .. } => None,
-        })
-        .collect();
-    Ok(fit)
-}
-
-/// [`torque_fit`] on a time-basis recording with `theta_en` read a chunk at a time (a file, as
-/// it comes; cycles from its first TDC marker): only the channels of
-/// [`sample_channels`] are read, resampled to one per crank degree on the stream. The
-/// parameters are chosen on all of the data, so the stage keeps the 1° samples (8 numbers a
-/// degree: 46 kB a cycle) — not the file's.
-pub fn torque_fit_stream<I, E>(chunks: I, cfg: &TorqueFitConfig) -> Result<TorqueFit, AppError>
-where
-    I: IntoIterator<Item = Result<Recording, E>>,
-    AppError: From<E>,
-{
-    torque_fit_phased(chunks, cfg, &mut || {})
-}
-
-/// [`torque_fit_stream`], `fitting` called once the recording has been read (the chunks
-/// dropped), before the choice and the filter run over its samples — the longer part, for a
-/// progress display.
-pub fn torque_fit_phased<I, E>(
-    chunks: I,
-    cfg: &TorqueFitConfig,
-    fitting: &mut dyn FnMut(),
-) -> Result<TorqueFit, AppError>
-where
-    I: IntoIterator<Item = Result<Recording, E>>,
-    AppError: From<E>,
-{
-    let mut stage = TorqueStage::new(cfg.clone(), None, true)?;
-    let mut out = Vec::new();
-    let chunks = chunks.into_iter().map(|c| c.map_err(AppError::from));
-    let (tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
-    let tdc = tdc.unwrap_or(0.0);
-    stage.set_theta_tdc(tdc)?;
-    for chunk in chunks {
-        stage.push(&chunk?, &mut out)?;
-    }
-    fitting();
-    finish(stage, out)
-}
-
 /// The channels the fit reads from a time-basis recording (physid names): those it needs, then
 /// those it takes when they are there (the TDC marker).
 pub fn sample_channels() -> (Vec<&'static str>, Vec<&'static str>) {
@@ -484,12 +478,288 @@ pub fn sample_channels() -> (Vec<&'static str>, Vec<&'static str>) {
     (needed, vec![TDC_MARKER])
 }
 
-/// Samples per chunk when a file is streamed through the stage.
-const FILE_CHUNK: usize = 4096;
+/// What takes each 1° sample: the model's inputs, the measured torque [N·m], the time [s].
+type EachDegree<'f, E> = dyn FnMut(&[f64; 6], f64, f64) -> Result<(), E> + 'f;
 
-/// Points the tracks keep at least; beyond twice this, every other one is dropped (the tracks'
-/// step doubles), so they take bounded memory however long the recording.
-pub const TRACK_POINTS: usize = 4000;
+/// A time-basis stream resampled to one sample per crank degree, cycles from a TDC angle on
+/// `theta_en` (linear between samples, [`CycleStream`]'s crank-angle curves): what the live
+/// stage and every pass of the file verb over a time-basis recording run.
+struct DegreeCurves {
+    theta_tdc: f64,
+    curves: Option<CycleStream>,
+    done: Vec<CycleSummary>,
+    /// Time-basis samples taken so far.
+    seen: usize,
+}
+
+impl DegreeCurves {
+    fn new(theta_tdc: f64) -> Self {
+        Self {
+            theta_tdc,
+            curves: None,
+            done: Vec::new(),
+            seen: 0,
+        }
+    }
+
+    /// A chunk of time-basis samples with `t`, `theta_en` and [`CURVE_CHANNELS`]: every cycle
+    /// it completes resampled, `each(u, y, t)` for each degree — the inputs in [`CyclicTorque`]'s
+    /// order (θ [rad from the first TDC], ω, α, p_cyl, p_crank, T_oil [°C]), the measured torque
+    /// [N·m], the time [s].
+    fn push<E: From<AppError>>(
+        &mut self,
+        chunk: &Recording,
+        each: &mut EachDegree<'_, E>,
+    ) -> Result<(), E> {
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        let invalid = |e: String| E::from(AppError::Invalid(e));
+        if self.curves.is_none() {
+            for (name, _) in CURVE_CHANNELS {
+                chunk.channel(name).map_err(AppError::from)?;
+            }
+            chunk.channel("theta_en").map_err(AppError::from)?;
+            self.curves = Some(
+                CycleStream::new(CURVE_CHANNELS.len(), self.theta_tdc, Some(1.0))
+                    .map_err(|e| invalid(e.to_string()))?,
+            );
+        }
+        let cols = CURVE_CHANNELS
+            .iter()
+            .map(|(name, unit)| chunk.values_in(name, unit))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(AppError::from)?;
+        for ((name, _), v) in CURVE_CHANNELS.iter().zip(&cols) {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(invalid(format!(
+                    "channel '{name}' sample {} is {}: the model needs finite data",
+                    self.seen + i,
+                    v[i]
+                )));
+            }
+        }
+        let views: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
+        let theta = chunk.values_in("theta_en", "rad").map_err(AppError::from)?;
+        let t = chunk.values("t").map_err(AppError::from)?;
+        self.done.clear();
+        if let Some(c) = self.curves.as_mut() {
+            c.push(t, &theta, &views, &mut self.done)
+                .map_err(|e| invalid(e.to_string()))?;
+        }
+        self.seen += chunk.len();
+        let step = (1.0f64).to_radians();
+        let mut u = [0.0; 6];
+        for c in &self.done {
+            let Some(curve) = &c.curve else { continue };
+            for (k, (&y, &t)) in curve[5].iter().zip(&curve[6]).enumerate() {
+                // θ from the first TDC in the stream, as the crank-angle conversion writes it.
+                u[0] = c.cycle as f64 * 4.0 * PI + k as f64 * step;
+                for (uj, col) in u[1..5].iter_mut().zip(curve) {
+                    *uj = col[k];
+                }
+                u[5] = curve[4][k] - 273.15;
+                each(&u, y, t)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How a [`Degrees`] makes its 1° samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Angle {
+    /// The recording is on a crank-angle basis: its rows are the samples.
+    Crank,
+    /// A time basis with `theta_en`: resampled on every pass ([`DegreeCurves`]) from the
+    /// first TDC marker (found by a first pass).
+    Time,
+}
+
+/// A recording's 1° samples as [`Rows`] — made again on every pass from the recording's
+/// channels ([`RecordingRows`]: a file read again a chunk at a time, or its channels held after
+/// the first pass within a limit): a crank-angle recording's rows, or a time-basis one's
+/// resampled from its first TDC marker. The cyclic-torque model's analyses, batch fit, filter
+/// and prediction each go over them in passes, so the fit keeps memory independent of the
+/// recording's length.
+pub struct Degrees<'a> {
+    rows: RecordingRows<'a>,
+    angle: Angle,
+    /// The TDC angle on `theta_en` (time basis), once found.
+    tdc: Cell<Option<f64>>,
+    /// Samples in a pass, once one has been made.
+    len: Cell<Option<usize>>,
+}
+
+impl<'a> Degrees<'a> {
+    /// The 1° samples of the file `path` read with `options` (its channel selection replaced by
+    /// the fit's channels), the channels held after the first pass within `hold_bytes`. A
+    /// time-basis file needs `theta_en` (one with only an encoder's counts is decoded whole:
+    /// read it and use [`torque_fit`]).
+    pub fn file(path: &Path, options: &ReadOptions, hold_bytes: usize) -> Result<Self, AppError> {
+        let header = ChunkReader::open(path, options)?.header().clone();
+        let (angle, needed, also) = Self::channels(&header)?;
+        let rows = RecordingRows::file(
+            path,
+            options,
+            needed.iter().map(|c| Column::named(c)).collect(),
+            None,
+            &also,
+            hold_bytes,
+        )?;
+        Ok(Self::over(rows, angle))
+    }
+
+    /// The 1° samples of a recording in memory.
+    pub fn memory(rec: &'a Recording) -> Result<Self, AppError> {
+        let (angle, _, _) = Self::channels(rec)?;
+        Ok(Self::over(
+            RecordingRows::memory(rec, Vec::new(), None),
+            angle,
+        ))
+    }
+
+    /// How the samples are made from a recording with `header`'s channels, and the channels
+    /// read: needed, and taken when there.
+    fn channels(header: &Recording) -> Result<(Angle, Vec<&str>, Vec<&str>), AppError> {
+        match header.basis {
+            Basis::CrankAngle => Ok((Angle::Crank, crank_channels(header), Vec::new())),
+            Basis::Time if header.channel("theta_en").is_ok() => {
+                let (needed, also) = sample_channels();
+                Ok((Angle::Time, needed, also))
+            }
+            Basis::Time => Err(AppError::Invalid(
+                "a time-basis recording without 'theta_en': its angle is decoded from the whole recording (convert it with `physid convert --crank-angle` first)".into(),
+            )),
+        }
+    }
+
+    fn over(rows: RecordingRows<'a>, angle: Angle) -> Self {
+        Self {
+            rows,
+            angle,
+            tdc: Cell::new(None),
+            len: Cell::new(None),
+        }
+    }
+
+    /// What the reader noticed but read all the same (a cut-short last line), once the file
+    /// has been read to its end.
+    pub fn warning(&self) -> Option<String> {
+        self.rows.warning()
+    }
+
+    /// Whether the channels are held (after a first pass, within the limit).
+    pub fn held(&self) -> bool {
+        self.rows.held()
+    }
+
+    /// The number of 1° samples (a pass, the first time).
+    pub fn len(&self) -> Result<usize, AppError> {
+        if let Some(n) = self.len.get() {
+            return Ok(n);
+        }
+        self.samples::<AppError>(&mut |_| Ok(()))?;
+        Ok(self.len.get().unwrap_or(0))
+    }
+
+    /// Whether there are no 1° samples.
+    pub fn is_empty(&self) -> Result<bool, AppError> {
+        Ok(self.len()? == 0)
+    }
+
+    /// The firing TDC's angle on `theta_en` at the first marker (0 without one), found by a
+    /// pass the first time — the rule of
+    /// [`from_first_marker`](crate::acquisition::from_first_marker).
+    fn tdc(&self) -> Result<f64, AppError> {
+        if let Some(t) = self.tdc.get() {
+            return Ok(t);
+        }
+        let mut scan = FirstMarker::default();
+        let mut found = None;
+        self.rows.chunks::<AppError>(&mut |chunk| {
+            if found.is_none() {
+                found = scan.scan(chunk, TDC_MARKER);
+            }
+            Ok(())
+        })?;
+        let t = found.flatten().unwrap_or(0.0);
+        self.tdc.set(Some(t));
+        Ok(t)
+    }
+
+    /// Go over every 1° sample once, in chunks of columns ([`TorqueData`], at most
+    /// [`FILE_CHUNK`] samples from a time basis, a reader chunk's from a crank-angle basis); an
+    /// error of `visit` ends the pass and is returned. A pass that makes a different number of
+    /// samples than the first is an error (the file changed).
+    pub fn samples<E>(&self, visit: &mut dyn FnMut(&TorqueData) -> Result<(), E>) -> Result<(), E>
+    where
+        E: From<AppError> + From<IdentError>,
+    {
+        let mut n = 0;
+        match self.angle {
+            Angle::Crank => self.rows.chunks::<E>(&mut |chunk| {
+                let data = TorqueData::from_crank_angle(chunk, n)?;
+                n += data.y.len();
+                visit(&data)
+            })?,
+            Angle::Time => {
+                let mut curves = DegreeCurves::new(self.tdc()?);
+                let mut buf = TorqueData::with_capacity(FILE_CHUNK);
+                self.rows.chunks::<E>(&mut |chunk| {
+                    curves.push::<E>(chunk, &mut |u, y, t| {
+                        buf.push(u, y, t);
+                        if buf.y.len() == FILE_CHUNK {
+                            n += buf.y.len();
+                            visit(&buf)?;
+                            buf.clear();
+                        }
+                        Ok(())
+                    })
+                })?;
+                if !buf.y.is_empty() {
+                    n += buf.y.len();
+                    visit(&buf)?;
+                }
+            }
+        }
+        match self.len.get() {
+            None => self.len.set(Some(n)),
+            Some(m) if m != n => {
+                return Err(E::from(AppError::Invalid(format!(
+                    "the recording gave {n} samples at one per crank degree on a later pass, {m} on the first: was the file changed while it was read?"
+                ))))
+            }
+            Some(_) => {}
+        }
+        Ok(())
+    }
+}
+
+impl Rows for Degrees<'_> {
+    fn has_y(&self) -> bool {
+        true
+    }
+
+    fn pass(
+        &self,
+        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+    ) -> Result<(), IdentError> {
+        self.samples::<IdentError>(&mut |d| visit(&d.view()))
+    }
+}
+
+/// An application's error met while a [`Rows`] source makes its rows: a reading error as
+/// [`IdentError::Read`] (it names its file), an analysis' as itself, another explained.
+impl From<AppError> for IdentError {
+    fn from(e: AppError) -> Self {
+        match e {
+            AppError::Ident(e) => e,
+            AppError::Io(e) => IdentError::Read(e.to_string()),
+            e => IdentError::Invalid(e.to_string()),
+        }
+    }
+}
 
 /// What a [`TorqueStage`] reports.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -523,42 +793,56 @@ pub struct TorqueCycle {
     pub rms_measured_nm: f64,
 }
 
-/// The filter once the parameters are chosen.
-struct RunningTorque {
+/// The file verb's tracks: a point every `every` samples, thinned as they grow.
+struct Tracks {
+    every: usize,
+    t: Vec<f64>,
+    measured: Vec<f64>,
+    predicted: Vec<f64>,
+    params: Vec<Track>,
+}
+
+impl Tracks {
+    /// A point: the sample's time, measurement and prediction, the estimates.
+    fn push(&mut self, (t, y, predicted): (f64, f64, f64), v: &[f64], se: &[f64]) {
+        self.t.push(t);
+        self.measured.push(y);
+        self.predicted.push(predicted);
+        for (k, tr) in self.params.iter_mut().enumerate() {
+            tr.value.push(v[k]);
+            tr.std_err.push(se[k]);
+        }
+    }
+
+    /// Every other point dropped beyond twice [`TRACK_POINTS`]; the step doubles.
+    fn bound(&mut self) {
+        use crate::halve;
+        if self.t.len() < 2 * TRACK_POINTS {
+            return;
+        }
+        halve(&mut self.t);
+        halve(&mut self.measured);
+        halve(&mut self.predicted);
+        for tr in &mut self.params {
+            halve(&mut tr.value);
+            halve(&mut tr.std_err);
+        }
+        self.every *= 2;
+    }
+}
+
+/// Step 2, once the parameters are chosen: the filter over the estimable ones, a sample at a
+/// time, a [`TorqueOutput::Cycle`] every 720 samples, and — for the file verb — bounded tracks.
+struct TorqueFilter {
     est: NonlinearEstimator<CyclicTorque>,
     analysis: Analysis,
     /// The estimated parameters in rank order, and in the estimator's (index) order.
     estimable: Vec<usize>,
     order: Vec<usize>,
     r2: f64,
-}
-
-/// Application 3 as a stage: samples at one per crank degree in (or time-basis chunks,
-/// resampled on the stream through [`CycleStream`]'s crank-angle curves), chosen parameters and
-/// a cycle's estimates at a time out. The parameters are chosen on the first `select_after`
-/// samples — live — or, with `None`, on all of them at [`finish`](Self::finish) — the file verb;
-/// the filter then runs through the samples so far and every later one as it comes. With
-/// `keep`, every sample is kept for the result's prediction figures ([`TorqueFit`]); without,
-/// the samples are dropped once the filter has them, and memory stays bounded.
-pub struct TorqueStage {
-    cfg: TorqueFitConfig,
-    select_after: Option<usize>,
-    keep: bool,
-    /// Every this many samples a point of the tracks.
-    pub track_every: usize,
-    theta_tdc: f64,
-    curves: Option<CycleStream>,
-    done: Vec<CycleSummary>,
-    /// Samples taken (resampled) so far.
-    seen: usize,
-    data: TorqueData,
-    running: Option<RunningTorque>,
+    tracks: Option<Tracks>,
     /// Samples through the filter.
     filtered: usize,
-    out_t: Vec<f64>,
-    measured: Vec<f64>,
-    predicted: Vec<f64>,
-    tracks: Vec<Track>,
     /// The cycle in progress: sums of squared errors and measurements.
     sse: f64,
     ssy: f64,
@@ -566,167 +850,17 @@ pub struct TorqueStage {
     last: (f64, f64, f64),
 }
 
-impl TorqueStage {
-    /// A stage; `select_after`: choose after that many samples (at least a cycle), `None`: at
-    /// the end; `keep`: keep every sample for the result.
-    pub fn new(
-        cfg: TorqueFitConfig,
-        select_after: Option<usize>,
-        keep: bool,
+impl TorqueFilter {
+    /// Choose the parameters on `rows` (step 1: the analysis, the selection, and — without a
+    /// given R2 — the batch fit of the chosen ones for its residual variance) and set up the
+    /// filter on them; `tracks`: record the file verb's tracks.
+    fn choose<R: Rows + ?Sized>(
+        cfg: &TorqueFitConfig,
+        rows: &R,
+        tracks: bool,
     ) -> Result<Self, AppError> {
-        if !(cfg.p0.is_finite() && cfg.p0 > 0.0) {
-            return Err(AppError::Invalid(format!(
-                "P0 scale {} must be a positive number",
-                cfg.p0
-            )));
-        }
-        if let Some(n) = select_after.filter(|&n| n < PER_CYCLE) {
-            return Err(AppError::Invalid(format!(
-                "choosing the parameters after {n} samples: the choice needs at least one cycle ({PER_CYCLE})"
-            )));
-        }
-        Ok(Self {
-            cfg,
-            select_after,
-            keep,
-            track_every: 1,
-            theta_tdc: 0.0,
-            curves: None,
-            done: Vec::new(),
-            seen: 0,
-            data: TorqueData {
-                inputs: vec![Vec::new(); 6],
-                y: Vec::new(),
-                t: Vec::new(),
-            },
-            running: None,
-            filtered: 0,
-            out_t: Vec::new(),
-            measured: Vec::new(),
-            predicted: Vec::new(),
-            tracks: Vec::new(),
-            sse: 0.0,
-            ssy: 0.0,
-            last: (f64::NAN, f64::NAN, f64::NAN),
-        })
-    }
-
-    /// Cycles start at this angle of `theta_en` + k·4π [rad] (default 0); before any sample.
-    pub fn set_theta_tdc(&mut self, theta_tdc: f64) -> Result<(), AppError> {
-        if self.curves.is_some() {
-            return Err(AppError::Invalid(
-                "the TDC angle is set before the first sample".into(),
-            ));
-        }
-        self.theta_tdc = theta_tdc;
-        Ok(())
-    }
-
-    /// The estimable parameters once chosen, in rank order.
-    pub fn estimable(&self) -> Option<Vec<&'static str>> {
-        self.running
-            .as_ref()
-            .map(|r| r.estimable.iter().map(|&j| PARAMS[j]).collect())
-    }
-
-    /// A chunk of time-basis samples with `t`, `theta_en`, `omega_en`, `alpha_en`, `p_cyl`,
-    /// `p_crank`, `T_oil` and `torque_engine`: each complete cycle resampled to one sample per
-    /// crank degree (linear between samples) and taken.
-    pub fn push(&mut self, chunk: &Recording, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
-        if chunk.is_empty() {
-            return Ok(());
-        }
-        if self.curves.is_none() {
-            for (name, _) in CURVE_CHANNELS {
-                chunk.channel(name)?;
-            }
-            chunk.channel("theta_en")?;
-            self.curves = Some(
-                CycleStream::new(CURVE_CHANNELS.len(), self.theta_tdc, Some(1.0))
-                    .map_err(|e| AppError::Invalid(e.to_string()))?,
-            );
-        }
-        let cols = CURVE_CHANNELS
-            .iter()
-            .map(|(name, unit)| chunk.values_in(name, unit))
-            .collect::<Result<Vec<_>, _>>()?;
-        for ((name, _), v) in CURVE_CHANNELS.iter().zip(&cols) {
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(AppError::Invalid(format!(
-                    "channel '{name}' sample {} is {}: the model needs finite data",
-                    self.seen + i,
-                    v[i]
-                )));
-            }
-        }
-        let views: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
-        let mut done = std::mem::take(&mut self.done);
-        done.clear();
-        if let Some(c) = self.curves.as_mut() {
-            c.push(
-                chunk.values("t")?,
-                &chunk.values_in("theta_en", "rad")?,
-                &views,
-                &mut done,
-            )
-            .map_err(|e| AppError::Invalid(e.to_string()))?;
-        }
-        self.seen += chunk.len();
-        let step = (1.0f64).to_radians();
-        let mut u = [0.0; 6];
-        for c in &done {
-            let Some(curve) = &c.curve else { continue };
-            for (k, (&y, &t)) in curve[5].iter().zip(&curve[6]).enumerate() {
-                // θ from the first TDC in the stream, as the crank-angle conversion writes it.
-                u[0] = c.cycle as f64 * 4.0 * PI + k as f64 * step;
-                for (uj, col) in u[1..5].iter_mut().zip(curve) {
-                    *uj = col[k];
-                }
-                u[5] = curve[4][k] - 273.15;
-                self.push_sample(&u, y, t, out)?;
-            }
-        }
-        self.done = done;
-        Ok(())
-    }
-
-    /// One sample at one per crank degree: the inputs in [`CyclicTorque`]'s order (θ [rad from
-    /// TDC], ω, α, p_cyl, p_crank, T_oil [°C]), the measured torque [N·m], the time [s].
-    pub fn push_sample(
-        &mut self,
-        u: &[f64; 6],
-        y: f64,
-        t: f64,
-        out: &mut Vec<TorqueOutput>,
-    ) -> Result<(), AppError> {
-        if self.keep || self.running.is_none() {
-            for (col, v) in self.data.inputs.iter_mut().zip(u) {
-                col.push(*v);
-            }
-            self.data.y.push(y);
-            self.data.t.push(t);
-        }
-        if self.running.is_some() {
-            self.filter(u, y, t, out)
-        } else if self.select_after.is_some_and(|n| self.data.y.len() >= n) {
-            self.select(out)
-        } else {
-            Ok(())
-        }
-    }
-
-    /// Choose the parameters on the samples so far (steps 1–2), then filter them.
-    fn select(&mut self, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
-        let cfg = &self.cfg;
-        let data = &self.data;
-        let n = data.y.len();
-        if n < PER_CYCLE {
-            return Err(AppError::Invalid(format!(
-                "{n} samples: the fit needs at least one cycle (720 samples at one per crank degree)"
-            )));
-        }
         let (analysis, estimable) =
-            torque_identifiability(data, &cfg.nominal, &cfg.fixed, &cfg.selection)?;
+            torque_identifiability(rows, &cfg.nominal, &cfg.fixed, &cfg.selection)?;
         if estimable.is_empty() {
             return Err(AppError::Invalid(
                 "no parameter is estimable on this recording".into(),
@@ -739,10 +873,11 @@ impl TorqueStage {
             )));
         }
         let model = CyclicTorque::default();
+        let n = analysis.rows;
         let r2 = match cfg.r2 {
             Some(v) => v,
             None => {
-                let fit = fit_subset(&model, &data.view(), &cfg.nominal, &estimable, 20)?;
+                let fit = fit_subset(&model, rows, &cfg.nominal, &estimable, 20)?;
                 // An exact fit (noise-free data) leaves no residual: keep R2 positive.
                 (fit.rss / (n - estimable.len()).max(1) as f64).max(f64::MIN_POSITIVE)
             }
@@ -779,56 +914,50 @@ impl TorqueStage {
             .map_err(AppError::estim("estimator configuration"))?;
         // The estimator's order is the parameters' (free set) order.
         let order: Vec<usize> = free.free().to_vec();
-        self.tracks = order
-            .iter()
-            .map(|&j| Track {
-                param: PARAMS[j].into(),
-                value: Vec::new(),
-                std_err: Vec::new(),
-            })
-            .collect();
-        out.push(TorqueOutput::Selected {
-            t_s: data.t[n - 1],
-            samples: n,
-            estimable: names.iter().map(|s| s.to_string()).collect(),
+        let tracks = tracks.then(|| Tracks {
+            every: 1,
+            t: Vec::new(),
+            measured: Vec::new(),
+            predicted: Vec::new(),
+            params: order
+                .iter()
+                .map(|&j| Track {
+                    param: PARAMS[j].into(),
+                    value: Vec::new(),
+                    std_err: Vec::new(),
+                })
+                .collect(),
         });
-        self.running = Some(RunningTorque {
+        Ok(Self {
             est,
             analysis,
             estimable,
             order,
             r2,
-        });
-        let mut u = [0.0; 6];
-        for i in 0..n {
-            self.data.row(i, &mut u);
-            let (y, t) = (self.data.y[i], self.data.t[i]);
-            self.filter(&u, y, t, out)?;
-        }
-        if !self.keep {
-            for c in &mut self.data.inputs {
-                *c = Vec::new();
-            }
-            self.data.y = Vec::new();
-            self.data.t = Vec::new();
-        }
-        Ok(())
+            tracks,
+            filtered: 0,
+            sse: 0.0,
+            ssy: 0.0,
+            last: (f64::NAN, f64::NAN, f64::NAN),
+        })
     }
 
-    /// One sample through the filter (step 2); a track point every `track_every`, a
+    /// The estimable parameters' names, in rank order.
+    fn names(&self) -> Vec<&'static str> {
+        self.estimable.iter().map(|&j| PARAMS[j]).collect()
+    }
+
+    /// One sample through the filter (step 2); a track point every `every`, a
     /// [`TorqueOutput::Cycle`] every 720.
-    fn filter(
+    fn step(
         &mut self,
         u: &[f64; 6],
         y: f64,
         t: f64,
         out: &mut Vec<TorqueOutput>,
     ) -> Result<(), AppError> {
-        let Some(r) = self.running.as_mut() else {
-            return Ok(());
-        };
         let i = self.filtered;
-        let step = r
+        let step = self
             .est
             .update(u, y)
             .map_err(|e| AppError::estim(format!("sample {i}"))(e))?;
@@ -836,120 +965,216 @@ impl TorqueStage {
         self.sse += step.prediction_error * step.prediction_error;
         self.ssy += y * y;
         self.last = (t, y, y - step.prediction_error);
-        // The tracks are the file verb's (kept samples); live, the cycle outputs carry them.
-        if self.keep && i.is_multiple_of(self.track_every) {
-            self.out_t.push(t);
-            self.measured.push(y);
-            self.predicted.push(y - step.prediction_error);
-            let (v, se) = (r.est.estimate(), r.est.std_errors());
-            for (k, tr) in self.tracks.iter_mut().enumerate() {
-                tr.value.push(v[k]);
-                tr.std_err.push(se[k]);
+        // The tracks are the file verb's; live, the cycle outputs carry them.
+        if let Some(tr) = self.tracks.as_mut() {
+            if i.is_multiple_of(tr.every) {
+                tr.push(self.last, &self.est.estimate(), &self.est.std_errors());
+                tr.bound();
             }
         }
         if self.filtered.is_multiple_of(PER_CYCLE) {
             // In rank order, as chosen.
-            let (v, se) = (r.est.estimate(), r.est.std_errors());
-            let at = |j: usize| r.order.iter().position(|&i| i == j).unwrap_or(0);
+            let (v, se) = (self.est.estimate(), self.est.std_errors());
+            let at = |j: usize| self.order.iter().position(|&i| i == j).unwrap_or(0);
             out.push(TorqueOutput::Cycle(TorqueCycle {
                 t_s: t,
-                params: r.estimable.iter().map(|&j| v[at(j)]).collect(),
-                std_err: r.estimable.iter().map(|&j| se[at(j)]).collect(),
+                params: self.estimable.iter().map(|&j| v[at(j)]).collect(),
+                std_err: self.estimable.iter().map(|&j| se[at(j)]).collect(),
                 rms_error_nm: (self.sse / PER_CYCLE as f64).sqrt(),
                 rms_measured_nm: (self.ssy / PER_CYCLE as f64).sqrt(),
             }));
             self.sse = 0.0;
             self.ssy = 0.0;
         }
-        if self.out_t.len() >= 2 * TRACK_POINTS {
-            self.thin_tracks();
+        Ok(())
+    }
+
+    /// The file verb's result once every sample has been filtered (step 3): the final
+    /// estimates, and — a pass over `src`'s `n` samples — the prediction of the nominal and the
+    /// final model (NMSE, NRMSE) and the last two cycles at full resolution.
+    fn result(
+        mut self,
+        cfg: &TorqueFitConfig,
+        src: &Degrees,
+        n: usize,
+    ) -> Result<TorqueFit, AppError> {
+        let mut tracks = self
+            .tracks
+            .take()
+            .ok_or_else(|| AppError::Invalid("the filter kept no tracks".into()))?;
+        // The last point of the tracks is the last sample.
+        if !(self.filtered - 1).is_multiple_of(tracks.every) {
+            tracks.push(self.last, &self.est.estimate(), &self.est.std_errors());
+        }
+        let final_full = self.est.estimate_full();
+        let se = self.est.std_errors();
+        let std_err: Vec<Option<f64>> = (0..15)
+            .map(|j| self.order.iter().position(|&i| i == j).map(|k| se[k]))
+            .collect();
+        let model = CyclicTorque::default();
+        let (mut before, mut after) = (Prediction::default(), Prediction::default());
+        let w = n.saturating_sub(2 * PER_CYCLE);
+        let mut last_cycles: [Vec<f64>; 4] = Default::default();
+        for v in &mut last_cycles {
+            v.reserve_exact(n - w);
+        }
+        let (mut i, mut u) = (0, [0.0; 6]);
+        src.samples::<AppError>(&mut |d| {
+            for k in 0..d.y.len() {
+                d.row(k, &mut u);
+                let (y, b, a) = (
+                    d.y[k],
+                    model.eval::<f64>(&u, &cfg.nominal),
+                    model.eval::<f64>(&u, &final_full),
+                );
+                before.push(y, b);
+                after.push(y, a);
+                if i >= w {
+                    for (col, v) in last_cycles.iter_mut().zip([d.t[k], y, b, a]) {
+                        col.push(v);
+                    }
+                }
+                i += 1;
+            }
+            Ok(())
+        })?;
+        Ok(TorqueFit {
+            method: cfg.method.name(),
+            ranking: self.analysis.ranked(self.estimable.len()),
+            estimable: self.names().iter().map(|s| s.to_string()).collect(),
+            nominal: cfg.nominal.to_vec(),
+            params: final_full,
+            std_err,
+            r2: self.r2,
+            repairs: self.est.repairs(),
+            t: tracks.t,
+            tracks: tracks.params,
+            measured: tracks.measured,
+            predicted: tracks.predicted,
+            nmse_before: before.nmse().unwrap_or(f64::NAN),
+            nmse_after: after.nmse().unwrap_or(f64::NAN),
+            nrmse_before: before.nrmse().unwrap_or(f64::NAN),
+            nrmse_after: after.nrmse().unwrap_or(f64::NAN),
+            last_cycles,
+            samples: n,
+            cycles: Vec::new(),
+        })
+    }
+}
+
+/// The samples a live stage keeps until it chooses, and the filter after.
+struct Choosing {
+    cfg: TorqueFitConfig,
+    select_after: usize,
+    data: TorqueData,
+    filter: Option<TorqueFilter>,
+}
+
+impl Choosing {
+    /// One sample: kept until the choice, filtered after.
+    fn take(
+        &mut self,
+        u: &[f64; 6],
+        y: f64,
+        t: f64,
+        out: &mut Vec<TorqueOutput>,
+    ) -> Result<(), AppError> {
+        if let Some(f) = self.filter.as_mut() {
+            return f.step(u, y, t, out);
+        }
+        self.data.push(u, y, t);
+        if self.data.y.len() >= self.select_after {
+            self.select(out)?;
         }
         Ok(())
     }
 
-    /// Every other point of the tracks dropped; their step doubles.
-    fn thin_tracks(&mut self) {
-        use crate::halve;
-        halve(&mut self.out_t);
-        halve(&mut self.measured);
-        halve(&mut self.predicted);
-        for tr in &mut self.tracks {
-            halve(&mut tr.value);
-            halve(&mut tr.std_err);
+    /// Choose the parameters on the samples kept, filter them, and drop them.
+    fn select(&mut self, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+        let n = self.data.y.len();
+        at_least_a_cycle(n)?;
+        let mut f = TorqueFilter::choose(&self.cfg, &self.data, false)?;
+        out.push(TorqueOutput::Selected {
+            t_s: self.data.t[n - 1],
+            samples: n,
+            estimable: f.names().iter().map(|s| s.to_string()).collect(),
+        });
+        let data = std::mem::replace(&mut self.data, TorqueData::with_capacity(0));
+        let mut u = [0.0; 6];
+        for i in 0..n {
+            data.row(i, &mut u);
+            f.step(&u, data.y[i], data.t[i], out)?;
         }
-        self.track_every *= 2;
+        self.filter = Some(f);
+        Ok(())
+    }
+}
+
+/// Application 3 live: time-basis chunks in, resampled on the stream to one sample per crank
+/// degree (the same [`DegreeCurves`] every pass of the file verb runs), the parameters chosen
+/// on the first `select_after` samples ([`TorqueFilter::choose`], as the file verb chooses on
+/// all), then a cycle's estimates at a time out. The samples are kept until the choice and
+/// dropped after it: memory stays bounded.
+pub struct TorqueStage {
+    curves: DegreeCurves,
+    choosing: Choosing,
+}
+
+impl TorqueStage {
+    /// A stage that chooses after `select_after` samples (at least a cycle).
+    pub fn new(cfg: TorqueFitConfig, select_after: usize) -> Result<Self, AppError> {
+        if !(cfg.p0.is_finite() && cfg.p0 > 0.0) {
+            return Err(AppError::Invalid(format!(
+                "P0 scale {} must be a positive number",
+                cfg.p0
+            )));
+        }
+        if select_after < PER_CYCLE {
+            return Err(AppError::Invalid(format!(
+                "choosing the parameters after {select_after} samples: the choice needs at least one cycle ({PER_CYCLE})"
+            )));
+        }
+        Ok(Self {
+            curves: DegreeCurves::new(0.0),
+            choosing: Choosing {
+                cfg,
+                select_after,
+                data: TorqueData::with_capacity(0),
+                filter: None,
+            },
+        })
     }
 
-    /// The end of the stream: the parameters chosen if they were not, and — with `keep` — the
-    /// result.
-    pub fn finish(&mut self, out: &mut Vec<TorqueOutput>) -> Result<Option<TorqueFit>, AppError> {
-        if self.running.is_none() {
-            self.select(out)?;
+    /// Cycles start at this angle of `theta_en` + k·4π [rad] (default 0); before any sample.
+    pub fn set_theta_tdc(&mut self, theta_tdc: f64) -> Result<(), AppError> {
+        if self.curves.curves.is_some() {
+            return Err(AppError::Invalid(
+                "the TDC angle is set before the first sample".into(),
+            ));
         }
-        if !self.keep {
-            return Ok(None);
+        self.curves.theta_tdc = theta_tdc;
+        Ok(())
+    }
+
+    /// The estimable parameters once chosen, in rank order.
+    pub fn estimable(&self) -> Option<Vec<&'static str>> {
+        self.choosing.filter.as_ref().map(TorqueFilter::names)
+    }
+
+    /// A chunk of time-basis samples with `t`, `theta_en`, `omega_en`, `alpha_en`, `p_cyl`,
+    /// `p_crank`, `T_oil` and `torque_engine`: each complete cycle resampled to one sample per
+    /// crank degree and taken.
+    pub fn push(&mut self, chunk: &Recording, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+        let choosing = &mut self.choosing;
+        self.curves
+            .push::<AppError>(chunk, &mut |u, y, t| choosing.take(u, y, t, out))
+    }
+
+    /// The end of the stream: the parameters chosen on all of it if they were not yet.
+    pub fn finish(&mut self, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+        if self.choosing.filter.is_none() {
+            self.choosing.select(out)?;
         }
-        let (Some(r), data) = (self.running.as_ref(), &self.data) else {
-            return Ok(None);
-        };
-        let n = data.y.len();
-        let model = CyclicTorque::default();
-        let order = &r.order;
-        // The last point of the tracks is the last sample.
-        if !(self.filtered - 1).is_multiple_of(self.track_every) {
-            let (v, se) = (r.est.estimate(), r.est.std_errors());
-            let (t, y, predicted) = self.last;
-            self.out_t.push(t);
-            self.measured.push(y);
-            self.predicted.push(predicted);
-            for (k, tr) in self.tracks.iter_mut().enumerate() {
-                tr.value.push(v[k]);
-                tr.std_err.push(se[k]);
-            }
-        }
-        let final_full = r.est.estimate_full();
-        let se = r.est.std_errors();
-        let std_err: Vec<Option<f64>> = (0..15)
-            .map(|j| order.iter().position(|&i| i == j).map(|k| se[k]))
-            .collect();
-        let predict = |p: &[f64]| -> Vec<f64> {
-            let mut u = [0.0; 6];
-            (0..n)
-                .map(|i| {
-                    data.row(i, &mut u);
-                    model.eval::<f64>(&u, p)
-                })
-                .collect()
-        };
-        let before = predict(&self.cfg.nominal);
-        let after = predict(&final_full);
-        let w = n.saturating_sub(1440);
-        let last_cycles = [
-            data.t[w..].to_vec(),
-            data.y[w..].to_vec(),
-            before[w..].to_vec(),
-            after[w..].to_vec(),
-        ];
-        Ok(Some(TorqueFit {
-            method: self.cfg.method.name(),
-            ranking: r.analysis.ranked(r.estimable.len()),
-            estimable: r.estimable.iter().map(|&j| PARAMS[j].to_string()).collect(),
-            nominal: self.cfg.nominal.to_vec(),
-            params: final_full,
-            std_err,
-            r2: r.r2,
-            repairs: r.est.repairs(),
-            t: std::mem::take(&mut self.out_t),
-            tracks: std::mem::take(&mut self.tracks),
-            measured: std::mem::take(&mut self.measured),
-            predicted: std::mem::take(&mut self.predicted),
-            nmse_before: nmse(&data.y, &before).unwrap_or(f64::NAN),
-            nmse_after: nmse(&data.y, &after).unwrap_or(f64::NAN),
-            nrmse_before: nrmse(&data.y, &before).unwrap_or(f64::NAN),
-            nrmse_after: nrmse(&data.y, &after).unwrap_or(f64::NAN),
-            last_cycles,
-            samples: n,
-            cycles: Vec::new(),
-        }))
+        Ok(())
     }
 }

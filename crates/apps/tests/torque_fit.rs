@@ -175,10 +175,10 @@ fn bad_recordings_are_explained() {
     assert!(e.contains("'p_cyl' sample 100"), "{e}");
 }
 
-/// The file verb is the stage over the file: a time-basis recording streamed through a
-/// [`TorqueStage`] in chunks of 1, 17, 4096 samples or whole gives the file verb's result bit
-/// for bit; a stage that chooses live — once it has as many samples as the file holds — and
-/// keeps nothing ends on the same estimates; the time-basis path (crank-angle curves on the
+/// The file verb and the live stage are one code path: a time-basis recording streamed through
+/// a [`TorqueStage`] in chunks of 1, 17, 4096 samples or whole — choosing once it has as many
+/// samples as the file verb saw, keeping nothing after — gives the file verb's every cycle,
+/// hence its final estimates, bit for bit; the time-basis path (crank-angle curves on the
 /// stream) agrees with the whole-record conversion within the estimates' ±3σ, and with the
 /// cell's true geometry.
 #[test]
@@ -193,9 +193,16 @@ fn the_stage_on_a_stream_is_the_file_verb() {
         "{}",
         file.samples
     );
+    assert_eq!(file.cycles.len(), file.samples / 720);
     let tdc = marker_tdc_angle(&rec, &AcquisitionOptions::default()).unwrap();
-    let run = |chunk: usize, select_after: Option<usize>, keep: bool| {
-        let mut stage = TorqueStage::new(cfg.clone(), select_after, keep).unwrap();
+    // The tracks are bounded: thinned to between TRACK_POINTS and twice that.
+    assert!(
+        file.t.len() <= 2 * TRACK_POINTS && file.t.len() >= TRACK_POINTS.min(file.samples),
+        "{}",
+        file.t.len()
+    );
+    for chunk in [1, 17, 4096, rec.len()] {
+        let mut stage = TorqueStage::new(cfg.clone(), file.samples).unwrap();
         stage.set_theta_tdc(tdc).unwrap();
         let mut out = Vec::new();
         let n = rec.len();
@@ -204,42 +211,33 @@ fn the_stage_on_a_stream_is_the_file_verb() {
                 .push(&rec.slice(start..(start + chunk).min(n)), &mut out)
                 .unwrap();
         }
-        (stage.finish(&mut out).unwrap(), out)
-    };
-    // The tracks are bounded: thinned to between TRACK_POINTS and twice that.
-    assert!(
-        file.t.len() <= 2 * TRACK_POINTS && file.t.len() >= TRACK_POINTS.min(file.samples),
-        "{}",
-        file.t.len()
-    );
-    for chunk in [1, 17, 4096, rec.len()] {
-        let (fit, _) = run(chunk, None, true);
-        let fit = fit.unwrap();
-        assert_eq!(fit.estimable, file.estimable, "chunk {chunk}");
-        assert_eq!(fit.params, file.params, "chunk {chunk}");
-        assert_eq!(fit.predicted, file.predicted, "chunk {chunk}");
-        assert_eq!(fit.nrmse_after, file.nrmse_after, "chunk {chunk}");
-    }
-    let (none, out) = run(4096, Some(file.samples), false);
-    assert!(none.is_none());
-    let chosen: Vec<&TorqueOutput> = out
-        .iter()
-        .filter(|o| matches!(o, TorqueOutput::Selected { .. }))
-        .collect();
-    assert_eq!(chosen.len(), 1);
-    let cycles: Vec<_> = out
-        .iter()
-        .filter_map(|o| match o {
-            TorqueOutput::Cycle(c) => Some(c),
-            TorqueOutput::Selected { .. } => None,
-        })
-        .collect();
-    assert_eq!(cycles.len(), file.samples / 720);
-    let last = cycles.last().unwrap();
-    for (k, name) in file.estimable.iter().enumerate() {
-        let j = PARAMS.iter().position(|p| p == name).unwrap();
-        assert_eq!(last.params[k], file.params[j], "{name}");
-        assert_eq!(Some(last.std_err[k]), file.std_err[j], "{name}");
+        stage.finish(&mut out).unwrap();
+        let chosen: Vec<&TorqueOutput> = out
+            .iter()
+            .filter(|o| matches!(o, TorqueOutput::Selected { .. }))
+            .collect();
+        assert_eq!(chosen.len(), 1, "chunk {chunk}");
+        let cycles: Vec<_> = out
+            .iter()
+            .filter_map(|o| match o {
+                TorqueOutput::Cycle(c) => Some(c.clone()),
+                TorqueOutput::Selected { .. } => None,
+            })
+            .collect();
+        assert_eq!(cycles, file.cycles, "chunk {chunk}");
+        assert_eq!(
+            stage.estimable().unwrap(),
+            file.estimable
+                .iter()
+                .map(|s| s.as_str())
+                .collect::<Vec<_>>()
+        );
+        let last = cycles.last().unwrap();
+        for (k, name) in file.estimable.iter().enumerate() {
+            let j = PARAMS.iter().position(|p| p == name).unwrap();
+            assert_eq!(last.params[k], file.params[j], "{name}");
+            assert_eq!(Some(last.std_err[k]), file.std_err[j], "{name}");
+        }
     }
     // Against the whole-record path — the same recording converted to one sample per degree
     // by `to_crank_angle` (crank_grid, interpolation in time), fitted as a crank-angle
@@ -276,4 +274,76 @@ fn the_stage_on_a_stream_is_the_file_verb() {
 
 fn run_basis(basis: OutputBasis) -> Recording {
     common::simulate_scenario("torque-ramp", &[], &[], 2.0, basis)
+}
+
+/// The file verb goes over its file in passes ([`Degrees`]): its 1° samples made again on each
+/// — resampled again from a time basis, or a crank-angle file's rows read again — or held after
+/// the first. Over files of more than one reader chunk (Parquet and CSV, both bases), held and
+/// read again every pass, it equals the fit of the recording in memory bit for bit: the choice,
+/// the estimates, every cycle, the tracks, the prediction figures and the last two cycles. A bad
+/// value beyond the first reader chunk is named by its sample, on every path.
+#[test]
+fn the_fit_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
+    use physid_apps::torque_fit::{torque_fit_degrees, Degrees};
+    let s = physid_testkit::Scratch::new("physid-torque-passes");
+    let cfg = TorqueFitConfig::new(nominal());
+    let time = common::simulate_scenario("torque-ramp", &[], &[], 7.0, OutputBasis::Time(10_000.0));
+    assert!(time.len() > physid_io::CHUNK_ROWS, "{}", time.len());
+    // 1° samples over more than one reader chunk.
+    let crank = run("torque-ramp", &[], &[], 9.0);
+    assert!(crank.len() > physid_io::CHUNK_ROWS, "{}", crank.len());
+    for (rec, name) in [(&time, "time"), (&crank, "crank")] {
+        let want = torque_fit(rec, &cfg).unwrap();
+        for ext in ["parquet", "csv"] {
+            let path = s.file(&format!("{name}.{ext}"));
+            let opts = physid_io::WriteOptions::default();
+            physid_io::write(&path, rec, &opts).unwrap();
+            let read = physid_io::ReadOptions {
+                crank_angle: name == "crank" && ext == "csv",
+                ..Default::default()
+            };
+            for hold in [usize::MAX, 0] {
+                let src = Degrees::file(&path, &read, hold).unwrap();
+                let got = torque_fit_degrees(&src, &cfg).unwrap();
+                let at = format!("{name}.{ext}, hold {hold}");
+                assert_eq!(src.held(), hold > 0, "{at}");
+                assert_eq!(got.samples, want.samples, "{at}");
+                assert_eq!(got.estimable, want.estimable, "{at}");
+                assert_eq!(got.params, want.params, "{at}");
+                assert_eq!(got.std_err, want.std_err, "{at}");
+                assert_eq!(got.r2, want.r2, "{at}");
+                assert_eq!(got.cycles, want.cycles, "{at}");
+                assert_eq!(got.t, want.t, "{at}");
+                assert_eq!(got.predicted, want.predicted, "{at}");
+                assert_eq!(got.nmse_after, want.nmse_after, "{at}");
+                assert_eq!(got.nrmse_before, want.nrmse_before, "{at}");
+                assert_eq!(got.last_cycles, want.last_cycles, "{at}");
+            }
+        }
+    }
+    // A value that is not finite in the second reader chunk, named by its sample.
+    let mut bad = time.clone();
+    let k = physid_io::CHUNK_ROWS + 123;
+    let mut v = bad.values("p_cyl").unwrap().to_vec();
+    v[k] = f64::NAN;
+    bad.replace_values("p_cyl", v).unwrap();
+    let path = s.file("bad.parquet");
+    physid_io::write(&path, &bad, &Default::default()).unwrap();
+    for hold in [usize::MAX, 0] {
+        let src = Degrees::file(&path, &Default::default(), hold).unwrap();
+        let e = torque_fit_degrees(&src, &cfg).unwrap_err().to_string();
+        assert!(e.contains(&format!("'p_cyl' sample {k} is NaN")), "{e}");
+    }
+    // A time basis without the engine angle is decoded whole, not in passes.
+    let mut no_angle = Recording::new(time.basis);
+    for c in time.channels().iter().filter(|c| c.name != "theta_en") {
+        no_angle.push(c.clone()).unwrap();
+    }
+    let path = s.file("no-angle.parquet");
+    physid_io::write(&path, &no_angle, &Default::default()).unwrap();
+    let e = Degrees::file(&path, &Default::default(), 0)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("without 'theta_en'"), "{e}");
 }

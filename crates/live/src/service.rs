@@ -297,11 +297,8 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         };
         let torque = match &cfg.torque {
             Some(t) => {
-                let mut stage = TorqueStage::new(
-                    t.fit.clone(),
-                    Some(t.select_after_cycles.max(1) * 720),
-                    false,
-                )?;
+                let mut stage =
+                    TorqueStage::new(t.fit.clone(), t.select_after_cycles.max(1) * 720)?;
                 stage.set_theta_tdc(cfg.theta_tdc)?;
                 Some(stage)
             }
@@ -759,7 +756,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         if let Some(stage) = self.torque.as_mut() {
             self.torque_out.clear();
             // A replay shorter than the choice chooses on all of it.
-            let result = stage.finish(&mut self.torque_out).map(|_| ());
+            let result = stage.finish(&mut self.torque_out);
             self.torque_events(result)?;
         }
         if let Some(stream) = self.st.integrity.take() {

@@ -169,7 +169,9 @@ impl InputArgs {
 /// already).
 pub fn app_error(path: &Path) -> impl Fn(physid_apps::error::AppError) -> miette::Report + '_ {
     move |e| match e {
+        // A reading error names the file.
         physid_apps::error::AppError::Io(e) => miette!("{e}"),
+        physid_apps::error::AppError::Ident(physid_ident::IdentError::Read(e)) => miette!("{e}"),
         e => miette!("{}: {e}", path.display()),
     }
 }

@@ -4,12 +4,10 @@
 use super::named_values;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
-use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, Result};
 use physid_apps::torque_fit::{
-    self, cyclic_torque_nominal, torque_fit, torque_fit_crank, torque_fit_phased, TorqueFit,
-    TorqueFitConfig,
+    cyclic_torque_nominal, torque_fit, torque_fit_degrees, Degrees, TorqueFit, TorqueFitConfig,
 };
 use physid_core::Basis;
 use physid_estim::NlMethod;
@@ -331,34 +329,20 @@ pub fn report_section(
 
 fn fit(a: &FitArgs) -> Result<()> {
     let cfg = config(a)?;
-    // A time-basis file with the engine angle streams through the stage, a crank-angle file
-    // through the 1° samples, each reading only the channels it takes; another (a time basis
-    // with an encoder's counts) is read whole.
+    // A crank-angle file, or a time-basis one with the engine angle, is gone over in passes
+    // (its 1° samples made again on each, the channels held within PHYSID_HOLD_MB): memory
+    // independent of its length. Another (a time basis with an encoder's counts) is read whole.
     let header = a.input.open_all(&a.data)?.header().clone();
-    let r = if header.basis == Basis::Time && header.channel("theta_en").is_ok() {
-        let (needed, optional) = torque_fit::sample_channels();
-        let mut reader = a.input.open(&a.data, &needed, &optional)?;
-        let mut working = None;
-        let r = torque_fit_phased(Reading::new(&mut reader, &a.data), &cfg, &mut || {
-            working = Some(crate::progress::Working::new(
-                "choosing the parameters and filtering every degree",
-            ));
-        });
+    let r = if header.basis == Basis::CrankAngle || header.channel("theta_en").is_ok() {
+        let src = Degrees::file(&a.data, &a.input.options(None)?, super::hold_bytes()?)
+            .map_err(super::app_error(&a.data))?;
+        let working =
+            crate::progress::Working::new("choosing the parameters and filtering every degree");
+        let r = torque_fit_degrees(&src, &cfg);
         drop(working);
-        super::warn_read(&reader, &a.data);
-        r
-    } else if header.basis == Basis::CrankAngle {
-        let mut reader = a
-            .input
-            .open(&a.data, &torque_fit::crank_channels(&header), &[])?;
-        let mut working = None;
-        let r = torque_fit_crank(Reading::new(&mut reader, &a.data), &cfg, &mut || {
-            working = Some(crate::progress::Working::new(
-                "choosing the parameters and filtering every degree",
-            ));
-        });
-        drop(working);
-        super::warn_read(&reader, &a.data);
+        if let Some(w) = src.warning() {
+            eprintln!("warning: {}: {w}", a.data.display());
+        }
         r
     } else {
         torque_fit(&a.input.read(&a.data, None)?, &cfg)
