@@ -4,7 +4,8 @@
 # Writes shaft-D.{parquet,mf4}, motored-D.parquet and fired-D.parquet into DIR (≈ 30 GB with
 # the one-hour files) and prints a Markdown row per measurement (inspect/monitor, the fits, filter,
 # the crank-angle verbs, identify and run). ONLY=crank measures the crank-angle verbs alone,
-# ONLY=passes identify and run alone (the last part; DURATIONS="75 600" to choose).
+# ONLY=passes identify and run alone (the last part; DURATIONS="75 600" to choose), ONLY=torque
+# torque fit in passes alone (DURATIONS likewise).
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
 mkdir -p "$DIR" && cd "$DIR"
@@ -51,7 +52,7 @@ for D in 75 150 300 600; do
   echo "$row"
 done
 fi
-if [ "${ONLY:-}" != passes ]; then
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = crank ]; then
 # The crank-angle verbs (ONLY=crank runs this part alone): on a time-basis file with theta_en
 # (cycles, compression fit, convert --crank-angle), on a crank-angle file (cycles, monitor
 # shaft, torque fit, convert --time-basis).
@@ -91,6 +92,25 @@ for D in ${DURATIONS:-75 150 300 600 3600}; do
     else set -- run "run-$D.toml" --json; fi
     row="| $D s | $what | $(m "$NEW" "$@") | $(PHYSID_HOLD_MB=0 m "$NEW" "$@") |"
     [ -n "$OLD" ] && [ "$D" != 3600 ] && row="$row $(m "$OLD" "$@") |"
+    echo "$row"
+  done
+done
+fi
+# torque fit goes over its 1° samples in passes (ONLY=torque runs this part alone): a
+# crank-angle file's rows read again, a time-basis file's read and resampled again, unless the
+# channels fit PHYSID_HOLD_MB (default 256; 0: always read again).
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = torque ]; then
+for D in ${DURATIONS:-75 600 3600}; do
+  [ -f "fireddeg-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --basis crank --duration "$D" --recording "fireddeg-$D.parquet" > /dev/null
+  files="fireddeg-$D.parquet"
+  if [ "$D" != 3600 ]; then
+    [ -f "fired-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --duration "$D" --recording "fired-$D.parquet" > /dev/null
+    files="$files fired-$D.parquet"
+  fi
+  for f in $files; do
+    cat "$f" > /dev/null
+    row="| $D s | $f | $(m "$NEW" torque fit --data "$f" --json) | $(PHYSID_HOLD_MB=0 m "$NEW" torque fit --data "$f" --json) |"
+    [ -n "$OLD" ] && row="$row $(m "$OLD" torque fit --data "$f" --json) |"
     echo "$row"
   done
 done

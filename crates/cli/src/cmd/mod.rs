@@ -184,9 +184,9 @@ pub fn warn_read(reader: &physid_io::ChunkReader, path: &Path) {
     }
 }
 
-/// How much of a recording's columns a verb that goes over them in passes (`identify`, `run`)
-/// holds after the first: `PHYSID_HOLD_MB` (default 256); beyond it, each pass reads the file
-/// again — slower, in memory independent of the recording's length.
+/// How much of a recording's columns a verb that goes over them in passes (`identify`, `run`,
+/// `torque fit`) holds after the first: `PHYSID_HOLD_MB` (default 256); beyond it, each pass
+/// reads the file again — slower, in memory independent of the recording's length.
 pub fn hold_bytes() -> Result<usize> {
     match std::env::var("PHYSID_HOLD_MB") {
         Err(_) => Ok(physid_apps::recording_rows::DEFAULT_HOLD_BYTES),
