@@ -28,7 +28,7 @@ use physid_ident::{
     analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, IdentError, RankedParam, Rows,
     Selection,
 };
-use physid_io::{ChunkReader, ReadOptions};
+use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
 use physid_models::friction::thesis_preset;
 use physid_models::friction_fit::fit_friction_cubic;
@@ -689,7 +689,7 @@ impl<'a> Degrees<'a> {
     }
 
     /// Go over every 1° sample once, in chunks of columns ([`TorqueData`], at most
-    /// [`FILE_CHUNK`] samples from a time basis, a reader chunk's from a crank-angle basis); an
+    /// [`FILE_CHUNK`] samples from a time basis, [`CHUNK_ROWS`] from a crank-angle basis); an
     /// error of `visit` ends the pass and is returned. A pass that makes a different number of
     /// samples than the first is an error (the file changed).
     pub fn samples<E>(&self, visit: &mut dyn FnMut(&TorqueData) -> Result<(), E>) -> Result<(), E>
@@ -699,22 +699,26 @@ impl<'a> Degrees<'a> {
         let mut n = 0;
         match self.angle {
             Angle::Crank => self.rows.chunks::<E>(&mut |chunk| {
-                let data = TorqueData::from_crank_angle(chunk, n)?;
-                n += data.y.len();
-                visit(&data)
+                in_pieces(chunk, &mut |piece| {
+                    let data = TorqueData::from_crank_angle(piece, n)?;
+                    n += data.y.len();
+                    visit(&data)
+                })
             })?,
             Angle::Time => {
                 let mut curves = DegreeCurves::new(self.tdc()?);
                 let mut buf = TorqueData::with_capacity(FILE_CHUNK);
                 self.rows.chunks::<E>(&mut |chunk| {
-                    curves.push::<E>(chunk, &mut |u, y, t| {
-                        buf.push(u, y, t);
-                        if buf.y.len() == FILE_CHUNK {
-                            n += buf.y.len();
-                            visit(&buf)?;
-                            buf.clear();
-                        }
-                        Ok(())
+                    in_pieces(chunk, &mut |piece| {
+                        curves.push::<E>(piece, &mut |u, y, t| {
+                            buf.push(u, y, t);
+                            if buf.y.len() == FILE_CHUNK {
+                                n += buf.y.len();
+                                visit(&buf)?;
+                                buf.clear();
+                            }
+                            Ok(())
+                        })
                     })
                 })?;
                 if !buf.y.is_empty() {
@@ -734,6 +738,21 @@ impl<'a> Degrees<'a> {
         }
         Ok(())
     }
+}
+
+/// `each` piece of at most [`CHUNK_ROWS`] rows of `chunk` in order: the channels held whole
+/// are converted a reader chunk's worth at a time, not copied whole.
+fn in_pieces<E>(
+    chunk: &Recording,
+    each: &mut dyn FnMut(&Recording) -> Result<(), E>,
+) -> Result<(), E> {
+    if chunk.len() <= CHUNK_ROWS {
+        return each(chunk);
+    }
+    for start in (0..chunk.len()).step_by(CHUNK_ROWS) {
+        each(&chunk.slice(start..start + CHUNK_ROWS))?;
+    }
+    Ok(())
 }
 
 impl Rows for Degrees<'_> {
