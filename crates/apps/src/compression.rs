@@ -30,7 +30,9 @@
 use crate::error::AppError;
 use nalgebra::{DMatrix, DVector};
 use physid_core::{Basis, GradientEngine, ParamModel, Recording};
-use physid_ident::{analyse, fit_subset, quantify, Data, IdentConfig, RankedParam, Selection};
+use physid_ident::{
+    analyse, fit_subset, quantify, Data, IdentConfig, IdentError, RankedParam, Rows, Selection,
+};
 use physid_models::motored::{Motored, DESCRIPTIONS, PARAMS, UNITS};
 use serde::Serialize;
 
@@ -279,7 +281,13 @@ impl EventCollector {
         }
     }
 
-    /// The end of the recording: the events, and what was left out (for `notes`).
+    /// The events found so far and not yet taken, in order.
+    pub fn drain(&mut self) -> impl Iterator<Item = TdcEvent> + '_ {
+        self.events.drain(..)
+    }
+
+    /// The end of the recording: the events not yet taken, and what was left out (for
+    /// `notes`).
     pub fn finish(mut self) -> Result<(Vec<TdcEvent>, Vec<String>), AppError> {
         if self.step.step().is_none() {
             return Err(AppError::Invalid("crank_deg never advances".into()));
@@ -424,20 +432,15 @@ impl CompressionFit {
     }
 }
 
-/// Starting values (see the module's doc) from the events' median pressures.
-fn start_values(events: &[TdcEvent], model: &Motored) -> Vec<f64> {
+/// Starting values (see the module's doc) from the median over the TDCs of the pressure at the
+/// window's start, `p_a`, and of its peak, `p_max`; the window starts at `a0` [deg ATDC].
+fn start_values(p_a: Vec<f64>, p_max: Vec<f64>, a0: f64, model: &Motored) -> Vec<f64> {
     let median = |mut v: Vec<f64>| {
         v.sort_unstable_by(f64::total_cmp);
         v[v.len() / 2]
     };
-    let p_a = median(events.iter().map(|e| e.p[0]).collect());
-    let p_max = median(
-        events
-            .iter()
-            .map(|e| e.p.iter().copied().fold(f64::MIN, f64::max))
-            .collect(),
-    );
-    let a = events[0].atdc[0].to_radians();
+    let (p_a, p_max) = (median(p_a), median(p_max));
+    let a = a0.to_radians();
     let n0 = 1.3;
     // V_a/V_c = (p_max/p_a)^(1/n) = 1 + (ε − 1)·s(a)/S.
     let crank = model.crank();
@@ -495,70 +498,301 @@ fn data<'a>(atdc: &'a [f64], p: &'a [f64]) -> Data<'a> {
 }
 
 /// Fit the motored model to a crank-angle recording (see the module's doc):
-/// [`CompressionStream`] on the whole recording as one chunk.
+/// [`compression_fit_events`] on its TDCs' windows, held.
 pub fn compression_fit(
     rec: &Recording,
     cfg: &CompressionConfig,
 ) -> Result<CompressionFit, AppError> {
-    let mut s = CompressionStream::new(rec, cfg)?;
-    s.push(rec)?;
-    s.finish()
+    let events = TdcEvents::new(rec, &cfg.channel, cfg.window_deg, usize::MAX);
+    compression_fit_events(&events, cfg)
 }
 
-/// [`compression_fit`] on a stream of crank-angle chunks: the TDCs' windows are gathered as
-/// the chunks come ([`EventCollector`]), then fitted — it holds the windows (2 × 241 numbers
-/// per TDC in the default window at 1°), not the recording.
-#[derive(Debug, Clone)]
-pub struct CompressionStream {
-    cfg: CompressionConfig,
-    unit: String,
-    unit_check: crate::pressure::UnitCheck,
-    events: EventCollector,
+/// A crank-angle recording that can be gone over again and again: a file read again, a
+/// recording in memory.
+pub trait CrankPasses {
+    /// Go over the recording once: `visit` every chunk in order (the first may be the header
+    /// alone, without samples). An error of `visit` ends the pass and is returned.
+    fn chunks(
+        &self,
+        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError>;
 }
 
-impl CompressionStream {
-    /// The fit of `cfg` on crank-angle recordings with `header`'s channels.
-    pub fn new(header: &Recording, cfg: &CompressionConfig) -> Result<Self, AppError> {
-        cfg.validate()?;
-        Ok(Self {
-            unit: header.channel(&cfg.channel)?.unit.clone(),
-            unit_check: crate::pressure::UnitCheck::new(header, &cfg.channel)?,
-            events: EventCollector::new(header, &cfg.channel, cfg.window_deg)?,
-            cfg: cfg.clone(),
+impl CrankPasses for Recording {
+    fn chunks(
+        &self,
+        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError> {
+        visit(self)
+    }
+}
+
+/// One TDC's window as a pass over [`TdcEvents`] shows it.
+#[derive(Debug, Clone, Copy)]
+pub struct Window<'w> {
+    /// The cycle that starts at this TDC.
+    pub cycle: i64,
+    /// The time at TDC [s].
+    pub t_s: f64,
+    /// Mean speed over the window [rpm].
+    pub rpm: f64,
+    /// Angles [deg ATDC] …
+    pub atdc: &'w [f64],
+    /// … and the pressure there.
+    pub p: &'w [f64],
+}
+
+/// What the first pass over [`TdcEvents`] found.
+#[derive(Debug, Clone, Default)]
+pub struct FirstPass {
+    /// The pressure channel's unit.
+    pub unit: String,
+    /// What was left out, and a unit that looks wrong.
+    pub notes: Vec<String>,
+    /// How many TDCs' windows …
+    pub events: usize,
+    /// … and their samples.
+    pub rows: usize,
+}
+
+/// The TDCs' windows, held in one pooled buffer: the angle grid once, the pressures one
+/// window after another.
+#[derive(Debug, Default)]
+struct HeldWindows {
+    atdc: Vec<f64>,
+    at: Vec<(i64, f64, f64)>,
+    p: Vec<f64>,
+}
+
+#[derive(Debug)]
+enum Held {
+    NotYet,
+    Whole(HeldWindows),
+    TooLarge,
+}
+
+/// The firing TDCs' windows of a crank-angle recording ([`EventCollector`]) gone over in
+/// passes — the fit over all of them is a pass per Gauss–Newton iteration: held after the first
+/// pass when they take at most a limit (8 bytes a sample, the angles once), else gathered again
+/// from the recording on every pass — so that memory is at most the limit, or a reader's
+/// chunk, whatever the recording's length. Each window is one chunk of its [`Rows`] (the
+/// motored model's input `atdc`, the pressure as the output).
+pub struct TdcEvents<'a> {
+    source: &'a dyn CrankPasses,
+    channel: String,
+    window: (f64, f64),
+    hold_bytes: usize,
+    held: std::cell::RefCell<Held>,
+    first: std::cell::RefCell<Option<FirstPass>>,
+}
+
+/// One pass's handling of the windows as they are gathered.
+struct Gathering<'v, E> {
+    visit: &'v mut dyn FnMut(&Window) -> Result<(), E>,
+    keep: Option<HeldWindows>,
+    hold_bytes: usize,
+    events: usize,
+    rows: usize,
+    failed: Option<E>,
+}
+
+impl<E> Gathering<'_, E> {
+    fn take(&mut self, e: TdcEvent) -> Result<(), AppError> {
+        self.events += 1;
+        self.rows += e.p.len();
+        let w = Window {
+            cycle: e.cycle,
+            t_s: e.t_s,
+            rpm: e.rpm,
+            atdc: &e.atdc,
+            p: &e.p,
+        };
+        if let Err(err) = (self.visit)(&w) {
+            self.failed = Some(err);
+            return Err(AppError::Invalid("the pass was stopped".into()));
+        }
+        if let Some(k) = &mut self.keep {
+            let bytes = (k.p.len() + e.p.len() + e.atdc.len()) * 8 + (k.at.len() + 1) * 24;
+            if bytes > self.hold_bytes {
+                self.keep = None;
+            } else {
+                if k.atdc.is_empty() {
+                    k.atdc = e.atdc;
+                }
+                k.at.push((e.cycle, e.t_s, e.rpm));
+                k.p.extend_from_slice(&e.p);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<'a> TdcEvents<'a> {
+    /// The windows `window` [deg ATDC] of `channel` around the firing TDCs of `source`, held
+    /// after the first pass if they take at most `hold_bytes`.
+    pub fn new(
+        source: &'a dyn CrankPasses,
+        channel: &str,
+        window: (f64, f64),
+        hold_bytes: usize,
+    ) -> Self {
+        Self {
+            source,
+            channel: channel.to_string(),
+            window,
+            hold_bytes,
+            held: std::cell::RefCell::new(Held::NotYet),
+            first: std::cell::RefCell::new(None),
+        }
+    }
+
+    /// What the first pass found (making it now if none was made).
+    pub fn first_pass(&self) -> Result<FirstPass, AppError> {
+        if self.first.borrow().is_none() {
+            self.each::<AppError>(&mut |_| Ok(()))?;
+        }
+        Ok(self.first.borrow().clone().unwrap_or_default())
+    }
+
+    /// Whether the windows are held (after a first pass, within the limit).
+    pub fn held(&self) -> bool {
+        matches!(*self.held.borrow(), Held::Whole(_))
+    }
+
+    /// Go over the windows once, in order: `visit` each. An error of `visit` ends the pass
+    /// and is returned.
+    pub fn each<E: From<AppError>>(
+        &self,
+        visit: &mut dyn FnMut(&Window) -> Result<(), E>,
+    ) -> Result<(), E> {
+        if let Held::Whole(h) = &*self.held.borrow() {
+            let n = h.atdc.len();
+            for (k, &(cycle, t_s, rpm)) in h.at.iter().enumerate() {
+                visit(&Window {
+                    cycle,
+                    t_s,
+                    rpm,
+                    atdc: &h.atdc,
+                    p: &h.p[k * n..(k + 1) * n],
+                })?;
+            }
+            return Ok(());
+        }
+        let first = matches!(*self.held.borrow(), Held::NotYet);
+        let mut g = Gathering {
+            visit,
+            keep: first.then(HeldWindows::default),
+            hold_bytes: self.hold_bytes,
+            events: 0,
+            rows: 0,
+            failed: None,
+        };
+        let mut collector: Option<EventCollector> = None;
+        let mut unit: Option<(String, crate::pressure::UnitCheck)> = None;
+        let mut gather = || -> Result<Vec<String>, AppError> {
+            self.source.chunks(&mut |chunk| {
+                let c = match &mut collector {
+                    Some(c) => c,
+                    None => {
+                        if first {
+                            unit = Some((
+                                chunk.channel(&self.channel)?.unit.clone(),
+                                crate::pressure::UnitCheck::new(chunk, &self.channel)?,
+                            ));
+                        }
+                        collector.insert(EventCollector::new(chunk, &self.channel, self.window)?)
+                    }
+                };
+                if let Some((_, check)) = &mut unit {
+                    check.push(chunk.values(&self.channel)?);
+                }
+                c.push(chunk)?;
+                c.drain().try_for_each(|e| g.take(e))
+            })?;
+            let Some(c) = collector.take() else {
+                return Err(AppError::Invalid("the recording has no channels".into()));
+            };
+            let (rest, mut notes) = c.finish()?;
+            rest.into_iter().try_for_each(|e| g.take(e))?;
+            if let Some((_, check)) = &unit {
+                if let Some(n) = check.finish(false)? {
+                    notes.insert(0, n);
+                }
+            }
+            Ok(notes)
+        };
+        let notes = match gather() {
+            Ok(notes) => notes,
+            Err(e) => return Err(g.failed.take().unwrap_or_else(|| e.into())),
+        };
+        if first {
+            *self.first.borrow_mut() = Some(FirstPass {
+                unit: unit.map(|(u, _)| u).unwrap_or_default(),
+                notes,
+                events: g.events,
+                rows: g.rows,
+            });
+            *self.held.borrow_mut() = g.keep.map_or(Held::TooLarge, Held::Whole);
+        } else if let Some(f) = &*self.first.borrow() {
+            if (f.events, f.rows) != (g.events, g.rows) {
+                return Err(AppError::Invalid(format!(
+                    "the recording changed between passes: {} TDC window(s) of {} samples, then {} of {}",
+                    f.events, f.rows, g.events, g.rows
+                ))
+                .into());
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Rows for TdcEvents<'_> {
+    fn has_y(&self) -> bool {
+        true
+    }
+
+    fn pass(
+        &self,
+        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+    ) -> Result<(), IdentError> {
+        self.each(&mut |w| {
+            visit(&Data {
+                inputs: vec![w.atdc],
+                y: Some(w.p),
+            })
         })
     }
-
-    /// The next chunk of the recording.
-    pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
-        self.unit_check.push(chunk.values(&self.cfg.channel)?);
-        self.events.push(chunk)
-    }
-
-    /// The end of the recording: the fit.
-    pub fn finish(self) -> Result<CompressionFit, AppError> {
-        let mut notes = Vec::new();
-        notes.extend(self.unit_check.finish(false)?);
-        let (events, mut said) = self.events.finish()?;
-        notes.append(&mut said);
-        fit_events(events, self.unit, notes, &self.cfg)
-    }
 }
 
-/// The fit over the TDCs' windows (steps 2–5 of the module's doc).
-fn fit_events(
-    mut events: Vec<TdcEvent>,
-    unit: String,
-    mut notes: Vec<String>,
+/// The fit over the TDCs' windows (steps 2–5 of the module's doc), a pass over them for the
+/// starting values, one per Gauss–Newton iteration and one for the fit per event.
+pub fn compression_fit_events(
+    events: &TdcEvents,
     cfg: &CompressionConfig,
 ) -> Result<CompressionFit, AppError> {
-    if events.is_empty() {
+    cfg.validate()?;
+    // The first pass: the pressures the starting values take, per TDC.
+    let (mut p_a, mut p_max, mut a0) = (Vec::new(), Vec::new(), f64::NAN);
+    events.each::<AppError>(&mut |w| {
+        p_a.push(w.p[0]);
+        p_max.push(w.p.iter().copied().fold(f64::MIN, f64::max));
+        a0 = w.atdc[0];
+        Ok(())
+    })?;
+    let FirstPass {
+        unit,
+        mut notes,
+        rows,
+        events: n_events,
+    } = events.first_pass()?;
+    if p_a.is_empty() {
         return Err(AppError::Invalid(format!(
             "no firing TDC with the whole window {}° … {}° ATDC of '{}' in the recording",
             cfg.window_deg.0, cfg.window_deg.1, cfg.channel
         )));
     }
     let model = Motored::new(cfg.stroke, cfg.rod);
-    let mut start = start_values(&events, &model);
+    let mut start = start_values(p_a, p_max, a0, &model);
     for (name, v) in &cfg.held {
         let j = PARAMS.iter().position(|p| p == name).unwrap_or(0);
         start[j] = *v;
@@ -574,26 +808,15 @@ fn fit_events(
             "every parameter is held with --set: nothing to fit".into(),
         ));
     }
-    // All events at once: their samples moved into one pooled pair (the events keep their
-    // place in it), so that they are held once.
-    let rows: usize = events.iter().map(|e| e.atdc.len()).sum();
-    let (mut all_a, mut all_p) = (Vec::with_capacity(rows), Vec::with_capacity(rows));
-    let mut spans = Vec::with_capacity(events.len());
-    for e in &mut events {
-        spans.push(all_a.len()..all_a.len() + e.atdc.len());
-        all_a.append(&mut e.atdc);
-        all_p.append(&mut e.p);
-        e.atdc.shrink_to_fit();
-        e.p.shrink_to_fit();
-    }
-    let pooled = data(&all_a, &all_p);
-    let full = fit_subset(&model, &pooled, &start, &free, 100)?;
+    // All events at once: the windows as rows, a pass per Gauss–Newton iteration.
+    let pooled = events;
+    let full = fit_subset(&model, pooled, &start, &free, 100)?;
     // The ranking at nominal values, as the thesis ranks: the starting values with the three
     // that start at 0 (and so would have no relative sensitivity) at a typical size — the Wu
     // criterion fits the top K from there (from the full fit, every K would fit alike).
     let nominal = nominal_values(&start, &held);
-    let analysis = analyse(&model, &pooled, &nominal, &free, IdentConfig::default())?;
-    let (k, wu) = cfg.selection.resolve(&model, &pooled, &analysis)?;
+    let analysis = analyse(&model, pooled, &nominal, &free, IdentConfig::default())?;
+    let (k, wu) = cfg.selection.resolve(&model, pooled, &analysis)?;
     let ranking = analysis.ranked(k);
     let mut fitted: Vec<usize> = analysis.top(k).iter().map(|&i| free[i]).collect();
     fitted.sort_unstable();
@@ -608,12 +831,12 @@ fn fit_events(
             .filter_map(|j| free.iter().position(|f| f == j))
             .collect::<Vec<_>>(),
     );
-    let dof = all_a.len().saturating_sub(free.len()).max(1);
+    let dof = rows.saturating_sub(free.len()).max(1);
     let confounded = quantify(
         &full.gram,
         (full.rss / dof as f64).max(f64::MIN_POSITIVE),
         &free.iter().map(|&j| full.theta[j]).collect::<Vec<_>>(),
-        all_a.len(),
+        rows,
     )
     .ok()
     .map(|q| {
@@ -633,17 +856,19 @@ fn fit_events(
         pairs
     });
     // The fitted set on all events, the rest at their starting values: where each event starts.
-    let pooled_fit = fit_subset(&model, &pooled, &start, &fitted, 100)?;
+    let pooled_fit = fit_subset(&model, pooled, &start, &fitted, 100)?;
     let kf = fitted.len();
     let mut info = DMatrix::<f64>::zeros(kf, kf);
     let mut fused: Option<Vec<f64>> = None;
     let mut fused_se = vec![f64::NAN; kf];
-    let mut fits = Vec::with_capacity(events.len());
+    let mut fits = Vec::with_capacity(n_events);
     let mut rss_total = 0.0;
     let mut engine = GradientEngine::new(PARAMS.len());
     let mut g = vec![0.0; kf];
-    for (e, span) in events.iter().zip(&spans) {
-        let (atdc, p) = (&all_a[span.clone()], &all_p[span.clone()]);
+    // The last TDC fitted: its cycle, angles and pressures.
+    let mut last = (0_i64, Vec::new(), Vec::new());
+    events.each::<AppError>(&mut |e| {
+        let (atdc, p) = (e.atdc, e.p);
         let f = fit_subset(&model, &data(atdc, p), &pooled_fit.theta, &fitted, 50)?;
         rss_total += f.rss;
         let n = atdc.len();
@@ -654,7 +879,7 @@ fn fit_events(
                 "the TDC of cycle {} (t = {:.4} s): the fitted parameters' information is singular there; left out",
                 e.cycle, e.t_s
             ));
-            continue;
+            return Ok(());
         };
         // Recursive Gauss–Newton: the first TDC's own fit, then each TDC linearised at the
         // estimate so far.
@@ -700,7 +925,13 @@ fn fit_events(
             recursive_std_err: fused_se.clone(),
             rms_residual: (f.rss / n as f64).sqrt(),
         });
-    }
+        last.0 = e.cycle;
+        last.1.clear();
+        last.1.extend_from_slice(atdc);
+        last.2.clear();
+        last.2.extend_from_slice(p);
+        Ok(())
+    })?;
     if fused.is_none() {
         return Err(AppError::Invalid(
             "no TDC could be fitted: every event's information is singular".into(),
@@ -757,17 +988,15 @@ fn fit_events(
         })
         .collect::<Vec<_>>();
     let theta: Vec<f64> = estimates.iter().map(|e| e.value).collect();
-    let last = fits.last().map_or(events[0].cycle, |f| f.cycle);
-    let k = events.iter().position(|e| e.cycle == last).unwrap_or(0);
-    let (atdc, measured) = (&all_a[spans[k].clone()], &all_p[spans[k].clone()]);
+    let (cycle, atdc, measured) = last;
     let trace = Trace {
-        cycle: events[k].cycle,
-        atdc: atdc.to_vec(),
-        measured: measured.to_vec(),
+        cycle,
         fitted: atdc
             .iter()
             .map(|&a| model.eval::<f64>(&[a], &theta))
             .collect(),
+        atdc,
+        measured,
     };
     let wu_j = wu.map(|(_, j)| j);
     Ok(CompressionFit {

@@ -419,10 +419,44 @@ fn fit_name(k: usize) -> &'static str {
 
 /// The TDCs' windows gathered on a stream: however the recording is cut — one sample, a prime
 /// number, a window less one, more than a cycle, the whole — the same events (a TDC too close to
-/// either end left out and said, a NaN in one window named with its sample) and so the same fit.
+/// either end left out and said, a NaN in one window named with its sample) and so the same fit,
+/// whether the windows are held after the first pass or gathered again on every pass (the fit
+/// goes over them in passes). A recording that changes between passes is an error.
 #[test]
 fn the_events_and_the_fit_are_the_same_however_the_recording_is_chunked() {
-    use physid_apps::compression::{events, CompressionStream, EventCollector};
+    use physid_apps::compression::{
+        compression_fit_events, events, CrankPasses, EventCollector, TdcEvents,
+    };
+    use physid_apps::error::AppError;
+    use std::cell::Cell;
+    /// The recording in chunks of `size`, counting the passes; from pass `change_at` on, the
+    /// last cycle cut off.
+    struct Chunked<'r> {
+        rec: &'r Recording,
+        size: usize,
+        passes: Cell<usize>,
+        change_at: usize,
+    }
+    impl CrankPasses for Chunked<'_> {
+        fn chunks(
+            &self,
+            visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+        ) -> Result<(), AppError> {
+            self.passes.set(self.passes.get() + 1);
+            let end = if self.passes.get() >= self.change_at {
+                self.rec.len() - 720
+            } else {
+                self.rec.len()
+            };
+            visit(&self.rec.slice(0..0))?;
+            let mut start = 0;
+            while start < end {
+                visit(&self.rec.slice(start..(start + self.size).min(end)))?;
+                start += self.size;
+            }
+            Ok(())
+        }
+    }
     let mut rec = recording();
     // A NaN inside one TDC's window.
     let mut p = rec.values("p_cyl").unwrap().to_vec();
@@ -442,24 +476,64 @@ fn the_events_and_the_fit_are_the_same_however_the_recording_is_chunked() {
     );
     assert!(notes.iter().any(|n| n.contains("not finite")), "{notes:?}");
     let want_fit = serde_json::to_value(compression_fit(&rec, &cfg).unwrap()).unwrap();
+    assert_eq!(want_fit["unit"], "Pa");
+    assert_eq!(want_fit["estimates"][2]["unit"], "Pa");
     for size in [1, 13, 240, 721, rec.len()] {
         let mut c = EventCollector::new(&rec, "p_cyl", cfg.window_deg).unwrap();
-        let mut s = CompressionStream::new(&rec, &cfg).unwrap();
+        let mut got = Vec::new();
         let mut start = 0;
         while start < rec.len() {
-            let chunk = rec.slice(start..start + size);
-            c.push(&chunk).unwrap();
-            s.push(&chunk).unwrap();
+            c.push(&rec.slice(start..start + size)).unwrap();
+            got.extend(c.drain());
             start += size;
         }
-        let (got, got_notes) = c.finish().unwrap();
+        let (rest, got_notes) = c.finish().unwrap();
+        got.extend(rest);
         assert_eq!(got_notes, notes, "{size}");
         assert_eq!(got.len(), want.len(), "{size}");
         for (a, b) in got.iter().zip(&want) {
             assert_eq!((a.cycle, a.t_s, a.rpm), (b.cycle, b.t_s, b.rpm), "{size}");
             assert_eq!((&a.atdc, &a.p), (&b.atdc, &b.p), "{size}");
         }
-        let got_fit = serde_json::to_value(s.finish().unwrap()).unwrap();
-        assert_eq!(got_fit, want_fit, "{size}");
+        for hold in [usize::MAX, 0] {
+            let source = Chunked {
+                rec: &rec,
+                size,
+                passes: Cell::new(0),
+                change_at: usize::MAX,
+            };
+            let ev = TdcEvents::new(&source, "p_cyl", cfg.window_deg, hold);
+            let got_fit = serde_json::to_value(compression_fit_events(&ev, &cfg).unwrap()).unwrap();
+            assert_eq!(got_fit, want_fit, "{size}, hold {hold}");
+            assert_eq!(ev.held(), hold > 0);
+            // Held: the recording gone over once; else once per pass of the fit.
+            if hold > 0 {
+                assert_eq!(source.passes.get(), 1);
+            } else {
+                assert!(source.passes.get() > 10, "{}", source.passes.get());
+            }
+        }
     }
+    // Gathered again on every pass, a recording that changes in between is named.
+    let source = Chunked {
+        rec: &rec,
+        size: 1000,
+        passes: Cell::new(0),
+        change_at: 3,
+    };
+    let ev = TdcEvents::new(&source, "p_cyl", cfg.window_deg, 0);
+    let e = compression_fit_events(&ev, &cfg).unwrap_err().to_string();
+    assert!(e.contains("the recording changed between passes"), "{e}");
+    // A limit that holds some windows but not all: read again, the same fit.
+    let one = want.len() / 2 * want[0].p.len() * 8;
+    let source = Chunked {
+        rec: &rec,
+        size: 500,
+        passes: Cell::new(0),
+        change_at: usize::MAX,
+    };
+    let ev = TdcEvents::new(&source, "p_cyl", cfg.window_deg, one);
+    let got_fit = serde_json::to_value(compression_fit_events(&ev, &cfg).unwrap()).unwrap();
+    assert!(!ev.held());
+    assert_eq!(got_fit, want_fit);
 }

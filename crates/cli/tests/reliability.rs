@@ -808,10 +808,35 @@ fn a_long_analysis_shows_a_spinner_on_a_terminal() {
     assert!(!quiet.contains("running"), "{quiet}");
 }
 
+/// `compression fit --json` on `f` with `PHYSID_HOLD_MB=0`: its exit code, stderr and stdout.
+fn compression_fit_without_holding(f: &str) -> (Option<i32>, String, Vec<u8>) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_physid"))
+        .env("PHYSID_HOLD_MB", "0")
+        .args([
+            "compression",
+            "fit",
+            "--data",
+            f,
+            "--stroke",
+            "0.0514",
+            "--rod",
+            "0.088",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stderr).to_string(),
+        o.stdout,
+    )
+}
+
 /// The verbs on a crank-angle basis read as they go too, and answer as on the whole recording
 /// (the library on the file read whole, put on a crank-angle basis with `to_crank_angle`):
 /// `cycles` (with the geometry: IMEP, polytropic exponents) and `compression fit` on a
-/// time-basis file with `theta_en` (resampled as it is read), `convert --crank-angle` bit for
+/// time-basis file with `theta_en` (resampled as it is read; the fit's windows held, or
+/// gathered again on every pass), `convert --crank-angle` bit for
 /// bit, in CSV, Parquet and MDF4; on a crank-angle file `torque fit`, `convert --time-basis`
 /// bit for bit and `monitor shaft` (put on a time basis as it is read, at the whole
 /// recording's mean rate).
@@ -884,6 +909,12 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
         ]));
         got.as_object_mut().unwrap().remove("motored_imep_pa");
         assert_eq!(got, want_fit, "{ext}");
+        // The windows not held: gathered again from the file on every pass of the fit.
+        let (code, err, out) = compression_fit_without_holding(f);
+        assert_eq!(code, Some(0), "{ext}: {err}");
+        let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
+        got.as_object_mut().unwrap().remove("motored_imep_pa");
+        assert_eq!(got, want_fit, "{ext}, PHYSID_HOLD_MB=0");
         let out = s.file(&format!("deg-{ext}.{ext}"));
         let o = physid(&["convert", f, out.to_str().unwrap(), "--crank-angle"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -898,6 +929,19 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
             );
         }
     }
+
+    // A crank-angle file, its windows gathered again on every pass; a cut-short last line is
+    // said once, not on every pass.
+    let f = s.file("motored-deg.csv");
+    physid_io::write(&f, &deg, &Default::default()).unwrap();
+    let text = std::fs::read_to_string(&f).unwrap();
+    std::fs::write(&f, text.trim_end()).unwrap();
+    let (code, err, out) = compression_fit_without_holding(f.to_str().unwrap());
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(err.matches("warning:").count(), 1, "{err}");
+    let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
+    got.as_object_mut().unwrap().remove("motored_imep_pa");
+    assert_eq!(got, want_fit, "crank-angle CSV, PHYSID_HOLD_MB=0");
 
     // A fired crank-angle file: the torque fit reads its 1° samples as they come (the library
     // cuts the recording in chunks of its own).

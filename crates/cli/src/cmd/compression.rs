@@ -4,13 +4,15 @@
 //! those fitted to all the TDCs with 95 % intervals, per TDC and recursively, the loss angle.
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::crank_input::CrankInput;
+use crate::cmd::crank_input::{CrankFile, CrankInput};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::compression::{CompressionConfig, CompressionFit, CompressionStream};
+use physid_apps::compression::{
+    compression_fit_events, CompressionConfig, CompressionFit, TdcEvents,
+};
 use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
 use physid_ident::Selection;
 use physid_models::motored::PARAMS;
@@ -143,13 +145,11 @@ fn fit(a: &FitArgs) -> Result<()> {
         path: &a.data,
         step_deg: 1.0,
         quiet: a.json,
+        again: false,
     };
-    let (fit, _) = input.read(
-        Some(&[a.channel.as_str()]),
-        |h| CompressionStream::new(h, &cfg),
-        |s, chunk| s.push(chunk),
-    )?;
-    let r = fit.finish().map_err(super::app_error(&a.data))?;
+    let file = CrankFile::new(input, vec![a.channel.as_str()]);
+    let events = TdcEvents::new(&file, &a.channel, cfg.window_deg, super::hold_bytes()?);
+    let r = compression_fit_events(&events, &cfg).map_err(super::app_error(&a.data))?;
     let imep = motored_imep(&input, &r, &a.geometry)?;
     let mut json = serde_json::to_value(&r).into_diagnostic()?;
     if let (Some(o), Some(v)) = (json.as_object_mut(), imep) {
@@ -261,6 +261,7 @@ fn motored_imep(input: &CrankInput, r: &CompressionFit, g: &GeometryArgs) -> Res
     // A second pass over the recording, the cycles with the fitted compression ratio.
     let quiet = CrankInput {
         quiet: true,
+        again: true,
         ..*input
     };
     let (cycles, _) = quiet.read(

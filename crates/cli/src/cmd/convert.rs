@@ -82,6 +82,7 @@ pub fn run(args: &Args) -> Result<()> {
             path: &args.input,
             step_deg: args.step_deg,
             quiet: false,
+            again: false,
         };
         input
             .read(

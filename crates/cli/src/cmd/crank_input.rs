@@ -15,8 +15,10 @@ use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
 use physid_apps::acquisition::{crank_angle_chunks, DecodedAngle};
+use physid_apps::compression::CrankPasses;
 use physid_apps::error::AppError;
 use physid_core::{Basis, Recording};
+use std::cell::{Cell, RefCell};
 use std::path::Path;
 
 /// Where the crank angle comes from and how finely it is sampled.
@@ -34,6 +36,9 @@ pub struct CrankInput<'a> {
     pub step_deg: f64,
     /// No word on stderr about the decoded angle.
     pub quiet: bool,
+    /// A pass after the first: what the reader noticed (a cut-short last line) was said on
+    /// the first and is not said again.
+    pub again: bool,
 }
 
 impl CrankInput<'_> {
@@ -101,7 +106,9 @@ impl CrankInput<'_> {
                     s
                 }
             };
-            super::warn_read(&reader, self.path);
+            if !self.again {
+                super::warn_read(&reader, self.path);
+            }
             return Ok((state, None));
         }
         // Decoded whole: only the channels the angle and the caller take.
@@ -128,5 +135,59 @@ impl CrankInput<'_> {
         let mut s = start(&header).map_err(&at)?;
         push(&mut s, &deg).map_err(&at)?;
         Ok((s, decoded))
+    }
+}
+
+/// A [`CrankInput`] gone over in passes (`compression fit`'s windows, when they are not held):
+/// read again on each, the channels `channels` (and the angle's); what the first pass said on
+/// stderr is not said again.
+pub struct CrankFile<'a> {
+    input: CrankInput<'a>,
+    channels: Vec<&'a str>,
+    passes: Cell<usize>,
+}
+
+impl<'a> CrankFile<'a> {
+    /// `input`'s channels `channels`, gone over in passes.
+    pub fn new(input: CrankInput<'a>, channels: Vec<&'a str>) -> Self {
+        Self {
+            input,
+            channels,
+            passes: Cell::new(0),
+        }
+    }
+}
+
+impl CrankPasses for CrankFile<'_> {
+    fn chunks(
+        &self,
+        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError> {
+        let again = self.passes.get() > 0;
+        self.passes.set(self.passes.get() + 1);
+        let input = CrankInput {
+            quiet: self.input.quiet || again,
+            again,
+            ..self.input
+        };
+        // An error of `visit` comes back as it is; the reader's names the file.
+        let failed = RefCell::new(None);
+        let keep = |e: AppError| {
+            *failed.borrow_mut() = Some(e);
+            AppError::Invalid(String::new())
+        };
+        let visit = RefCell::new(visit);
+        let read = input.read(
+            Some(&self.channels),
+            |h| (visit.borrow_mut())(h).map_err(keep),
+            |_, chunk| (visit.borrow_mut())(chunk).map_err(keep),
+        );
+        match (read, failed.into_inner()) {
+            (Ok(_), _) => Ok(()),
+            (Err(_), Some(e)) => Err(e),
+            (Err(e), None) => Err(AppError::Ident(physid_ident::IdentError::Read(
+                e.to_string(),
+            ))),
+        }
     }
 }

@@ -114,6 +114,7 @@ pub fn run(args: &Args) -> Result<()> {
         path: &args.file,
         step_deg: 1.0,
         quiet: args.json,
+        again: false,
     };
     let (analyser, wheel) = input.read(
         Some(&[args.channel.as_str()]),
