@@ -378,7 +378,8 @@ fn simulate_writes_as_it_goes_the_whole_recordings_file() {
 /// and answer as on the whole recording: `inspect` (findings in the second chunk: a NaN, lost
 /// samples, a count going back) and `monitor shaft` against the library run on the recording
 /// read whole, in CSV, Parquet and MDF4; `friction fit` and `torque fit` the same in all three
-/// formats, and with the file's columns renamed through `--map`; `convert` between formats.
+/// formats, and with the file's columns renamed through `--map`; `convert` between formats
+/// (MDF4 compressed too).
 /// A result's own answer, its provenance (the command line, the date, the input's checksum)
 /// taken off after checking it names one input with a SHA-256.
 fn without_provenance(mut v: serde_json::Value) -> serde_json::Value {
@@ -604,6 +605,29 @@ fn the_file_verbs_read_as_they_go_and_answer_as_on_the_whole() {
         let b = physid_io::read(&out, &Default::default()).unwrap();
         assert_eq!(b.names(), ["t", "p_int", "omega_en"], "{ext}");
         assert_eq!(b.values("p_int").unwrap(), a.values("p_int").unwrap());
+    }
+    // MDF4 written compressed goes a chunk at a time too: 80 000 records of 35 channels, a
+    // deflated block per 4 MiB of them; the values read back as they were.
+    let a = physid_io::read(&src, &Default::default()).unwrap();
+    for comp in ["deflate", "transposed"] {
+        let out = s.file(&format!("converted-{comp}.mf4"));
+        let o = physid(&[
+            "convert",
+            src.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--compression",
+            comp,
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let bytes = std::fs::read(&out).unwrap();
+        let raw = a.len() * 8 * a.channels().len();
+        assert!(
+            bytes.windows(4).filter(|w| w == b"##DZ").count() >= raw / physid_io::MDF_BLOCK_BYTES,
+            "{comp}"
+        );
+        assert!(bytes.len() < raw, "{comp}: {} bytes", bytes.len());
+        let b = physid_io::read(&out, &Default::default()).unwrap();
+        assert_eq!(a.channels(), b.channels(), "{comp}");
     }
 }
 

@@ -650,16 +650,17 @@ pub fn write(path: impl AsRef<Path>, rec: &Recording, opts: &WriteOptions) -> Re
 pub const STREAM_ROWS_PER_GROUP: usize = 65_536;
 
 /// A recording written chunk by chunk in the format its extension names (`physid simulate`'s
-/// output, the live service's logs): CSV and MDF4 byte for byte what [`write`] writes for the
-/// whole (MDF4 uncompressed), Parquet the same values in row groups of
+/// output, `convert`'s, the live service's logs): CSV and MDF4 byte for byte what [`write`]
+/// writes for the whole (MDF4 uncompressed; compressed, the same values in deflated blocks of
+/// [`crate::MDF_BLOCK_BYTES`]), Parquet the same values in row groups of
 /// [`STREAM_ROWS_PER_GROUP`]. Memory stays bounded however long it writes.
 pub enum ChunkWriter {
     /// CSV.
     Csv(Box<crate::CsvWriter>),
     /// Parquet.
     Parquet(Box<crate::ParquetWriter>),
-    /// MDF4, uncompressed.
-    Mdf(crate::MdfWriter),
+    /// MDF4.
+    Mdf(Box<crate::MdfWriter>),
 }
 
 impl ChunkWriter {
@@ -678,13 +679,13 @@ impl ChunkWriter {
                 like,
                 STREAM_ROWS_PER_GROUP,
             )?))),
-            Some(Format::Mdf4) if opts.mdf_compression == MdfCompression::None => {
-                Ok(Self::Mdf(crate::MdfWriter::create(path, like, None)?))
-            }
-            Some(Format::Mdf4) => Err(IoError::Malformed {
-                path: path.display().to_string(),
-                detail: "an MDF4 file written as the samples come is uncompressed; compress it afterwards (physid convert)".into(),
-            }),
+            Some(Format::Mdf4) => Ok(Self::Mdf(Box::new(crate::MdfWriter::create_compressed(
+                path,
+                like,
+                None,
+                opts.mdf_compression,
+                crate::MDF_BLOCK_BYTES,
+            )?))),
             None => Err(IoError::Malformed {
                 path: path.display().to_string(),
                 detail: "unknown extension: expected .csv, .parquet or .mf4".into(),
@@ -724,7 +725,7 @@ impl ChunkWriter {
         match self {
             Self::Csv(w) => w.close(),
             Self::Parquet(w) => w.close(),
-            Self::Mdf(w) => w.close(),
+            Self::Mdf(w) => (*w).close(),
         }
     }
 }

@@ -19,7 +19,7 @@ pub use format::{
     basis_by_channels, detect, read, write, ChunkReader, ChunkWriter, Format, MapItem, ReadOptions,
     WriteOptions, CHUNK_ROWS, STREAM_ROWS_PER_GROUP,
 };
-pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter};
+pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLOCK_BYTES};
 pub use parquet_file::{read_parquet, write_parquet, ParquetChunks, ParquetWriter};
 
 /// Errors reading or writing recording files.

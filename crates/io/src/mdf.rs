@@ -13,7 +13,10 @@
 //! Writing: one group, every channel as float64, the time master from the recording's `t`
 //! channel (MDF4 files carry a time master; a crank-angle recording keeps its angle in
 //! `theta`, its `cycle` and `crank_deg` as ordinary channels). Optional deflate or
-//! transposed-deflate compression.
+//! transposed-deflate compression: [`write_mdf`] (`falcon_mdf`) deflates a whole recording into
+//! one `##DZ` block; [`MdfWriter`] writes as the samples come, in blocks of at most
+//! [`MDF_BLOCK_BYTES`] of records each deflated into a `##DZ`, listed at the end by a
+//! `##HL`/`##DL` pair.
 
 use crate::IoError;
 use falcon_mdf::blocks::channel::SyncType;
@@ -139,17 +142,6 @@ impl<'f> Plan<'f> {
             rec,
         })
     }
-
-    /// Whether every channel is in the master's group under a name of its own: then the read
-    /// can go record block by record block ([`MdfChunks`]).
-    fn streams(&self) -> bool {
-        let mut names: Vec<&str> = vec![self.axis.0];
-        self.chosen.iter().all(|c| {
-            let fresh = !names.contains(&c.name.as_str());
-            names.push(&c.name);
-            fresh && (c.data_group_index, c.channel_group_index) == self.group
-        })
-    }
 }
 
 fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Recording, IoError> {
@@ -187,13 +179,7 @@ fn read_planned(file: &Mf4File, p: &str, plan: Plan, asked: bool) -> Result<Reco
                 if asked {
                     return Err(IoError::Malformed {
                         path: p,
-                        detail: format!(
-                            "channels '{}' and '{}' are on different time bases ({} and {} samples): read them separately",
-                            first.name,
-                            c.name,
-                            axis.len(),
-                            other.len()
-                        ),
+                        detail: different_bases(&first.name, &c.name, axis.len(), other.len()),
                     });
                 }
                 skipped.push(c.name.clone());
@@ -239,9 +225,9 @@ enum MdfMsg {
 /// An MDF4 file read a window of records at a time (`falcon_mdf`'s `signals_chunks`) on a
 /// thread of its own, which owns the file and hands over at most one chunk ahead: memory is
 /// bounded by two chunks. The values are those [`read_mdf`] reads (the same channels, the
-/// master validated window by window). A selection spanning channel groups, or a file whose
-/// channels cannot all go by the first group's master, is read whole and handed out in
-/// chunks (memory proportional to those channels).
+/// master validated window by window). Channels of several groups on one time base are read
+/// side by side, a window of each group at a time ([`Layout`]); only when the first group has
+/// no master to compare the others' times with are they read whole and handed out in chunks.
 pub struct MdfChunks {
     pub(crate) p: String,
     rx: std::sync::mpsc::Receiver<MdfMsg>,
@@ -341,7 +327,8 @@ fn produce(
         }
         h
     };
-    if !plan.streams() {
+    let Some(layout) = Layout::of(&file, p, &plan, channels.is_some())? else {
+        // Channels of another group while the first has no master: read whole.
         let rec = read_planned(&file, p, plan, channels.is_some())?;
         if tx
             .send(MdfMsg::Header(header_of(&rec), rec.len() as u64))
@@ -357,58 +344,90 @@ fn produce(
             }
         }
         return Ok(());
-    }
+    };
     let (dg, cg) = plan.group;
     let claimed = file.data_groups()[dg].channel_groups[cg].sample_count;
     let mut header = plan.rec.clone();
-    let mut list: Vec<falcon_mdf::model::Channel> = Vec::new();
+    if !layout.skipped.is_empty() {
+        header
+            .meta
+            .insert("skipped".into(), layout.skipped.join(", "));
+    }
     let _ = header.push(Channel {
         name: plan.axis.0.into(),
         unit: plan.axis.1.into(),
         values: Vec::new(),
     });
-    if let Some(m) = plan.master {
-        list.push(m.clone());
-    }
-    for c in &plan.chosen {
+    for &(k, j) in &layout.columns {
+        let c = &layout.lists[k][j];
         let _ = header.push(Channel {
             name: c.name.clone(),
             unit: c.unit.clone(),
             values: Vec::new(),
         });
-        list.push((*c).clone());
     }
     if tx.send(MdfMsg::Header(header, claimed)).is_err() {
         return Ok(());
     }
-    let windows = file
-        .signals_chunks(&list, crate::format::CHUNK_ROWS)
+    // The groups side by side, a window of the same records of each.
+    let mut windows = layout
+        .lists
+        .iter()
+        .map(|l| file.signals_chunks(l, crate::format::CHUNK_ROWS))
+        .collect::<Result<Vec<_>, _>>()
         .map_err(|e| mdf_err(p, e))?;
     let (mut offset, mut previous) = (0usize, None);
-    for window in windows {
-        let signals = window.map_err(|e| mdf_err(p, e))?;
-        let mut cols = Vec::with_capacity(plan.chosen.len() + 1);
-        for s in &signals {
-            cols.push(
-                s.values_f64()
-                    .map_err(|e| mdf_err(p, format!("channel '{}': {e}", s.channel().name)))?,
-            );
+    loop {
+        let mut signals = Vec::with_capacity(windows.len());
+        for w in &mut windows {
+            signals.push(w.next().transpose().map_err(|e| mdf_err(p, e))?);
         }
-        let n = cols.first().map_or(0, Vec::len);
-        match plan.master {
+        let signals = match signals.iter().filter(|s| s.is_some()).count() {
+            0 => break,
+            n if n == signals.len() => signals.into_iter().flatten().collect::<Vec<_>>(),
+            _ => {
+                return Err(mdf_err(
+                    p,
+                    "channel groups on one time base ended at different records",
+                ))
+            }
+        };
+        let values = |k: usize, j: usize| {
+            let s = &signals[k][j];
+            s.values_f64()
+                .map_err(|e| mdf_err(p, format!("channel '{}': {e}", s.channel().name)))
+        };
+        let mut cols = Vec::with_capacity(layout.columns.len() + 1);
+        cols.push(Vec::new());
+        for &(k, j) in &layout.columns {
+            cols.push(values(k, j)?);
+        }
+        cols[0] = match plan.master {
             Some(m) => {
+                let t = values(0, 0)?;
                 falcon_mdf::time_ops::validate_master_axis(
                     &m.name,
-                    &cols[0],
-                    signals[0].validity().as_deref(),
+                    &t,
+                    signals[0][0].validity().as_deref(),
                     offset,
                     previous,
                 )
                 .map_err(|e| mdf_err(p, e))?;
-                previous = cols[0].last().copied().or(previous);
+                previous = t.last().copied().or(previous);
+                t
             }
             // No master: the sample index, as `channel_timestamps` gives it.
-            None => cols.insert(0, (offset..offset + n).map(|i| i as f64).collect()),
+            None => {
+                let n = cols.get(1).map_or(0, Vec::len);
+                (offset..offset + n).map(|i| i as f64).collect()
+            }
+        };
+        let n = cols[0].len();
+        if cols.iter().any(|c| c.len() != n) {
+            return Err(mdf_err(
+                p,
+                "channel groups on one time base hold windows of different lengths",
+            ));
         }
         offset += n;
         if tx.send(MdfMsg::Columns(cols)).is_err() {
@@ -416,6 +435,136 @@ fn produce(
         }
     }
     Ok(())
+}
+
+/// How a read goes window by window: the groups read side by side — the master's first, led by
+/// the master — and where each of the recording's channels comes from. A channel of another
+/// group is taken when that group's time base is the master's (as many records, the same
+/// times: compared window by window before reading), as [`read_planned`] takes it; a name seen
+/// already is skipped.
+struct Layout {
+    /// Per group, the channels read from it.
+    lists: Vec<Vec<falcon_mdf::model::Channel>>,
+    /// The recording's channels after the master: (group, place in its list).
+    columns: Vec<(usize, usize)>,
+    /// What was left out, for `meta["skipped"]`.
+    skipped: Vec<String>,
+}
+
+impl Layout {
+    /// The layout of `plan`, or `None` when it takes channels of another group and the first
+    /// has no master to compare times by.
+    fn of(file: &Mf4File, p: &str, plan: &Plan, asked: bool) -> Result<Option<Self>, IoError> {
+        let count =
+            |(dg, cg): (usize, usize)| file.data_groups()[dg].channel_groups[cg].sample_count;
+        let first = plan.chosen[0];
+        let mut groups = vec![plan.group];
+        let mut lists = vec![plan.master.map(|m| vec![m.clone()]).unwrap_or_default()];
+        let (mut columns, mut skipped) = (Vec::new(), Vec::new());
+        let mut names_seen: Vec<&str> = vec![plan.axis.0];
+        let mut bases: Vec<((usize, usize), bool)> = Vec::new();
+        for c in &plan.chosen {
+            let g = (c.data_group_index, c.channel_group_index);
+            if g != plan.group {
+                let same = match bases.iter().find(|(h, _)| *h == g) {
+                    Some(&(_, same)) => same,
+                    None => {
+                        let (Some(m), Some(other)) = (plan.master, file.master_channel(g.0, g.1))
+                        else {
+                            return Ok(None);
+                        };
+                        let same = count(g) == count(plan.group) && same_times(file, p, m, other)?;
+                        bases.push((g, same));
+                        same
+                    }
+                };
+                if !same {
+                    if asked {
+                        return Err(IoError::Malformed {
+                            path: p.into(),
+                            detail: different_bases(
+                                &first.name,
+                                &c.name,
+                                count(plan.group) as usize,
+                                count(g) as usize,
+                            ),
+                        });
+                    }
+                    skipped.push(c.name.clone());
+                    continue;
+                }
+            }
+            if names_seen.contains(&c.name.as_str()) {
+                skipped.push(format!("{} (duplicate name)", c.name));
+                continue;
+            }
+            names_seen.push(&c.name);
+            let k = match groups.iter().position(|h| *h == g) {
+                Some(k) => k,
+                None => {
+                    groups.push(g);
+                    lists.push(Vec::new());
+                    lists.len() - 1
+                }
+            };
+            lists[k].push((*c).clone());
+            columns.push((k, lists[k].len() - 1));
+        }
+        Ok(Some(Self {
+            lists,
+            columns,
+            skipped,
+        }))
+    }
+}
+
+/// Channels `a` and `b` asked for together, on time bases of `na` and `nb` samples that differ.
+fn different_bases(a: &str, b: &str, na: usize, nb: usize) -> String {
+    let how = if na == nb {
+        format!("{na} samples each, at different times")
+    } else {
+        format!("{na} and {nb} samples")
+    };
+    format!("channels '{a}' and '{b}' are on different time bases ({how}): read them separately")
+}
+
+/// Whether two masters hold the same times, compared a window at a time (the other validated
+/// as [`Mf4File::channel_timestamps`] validates it).
+fn same_times(
+    file: &Mf4File,
+    p: &str,
+    master: &falcon_mdf::model::Channel,
+    other: &falcon_mdf::model::Channel,
+) -> Result<bool, IoError> {
+    let err = |e| mdf_err(p, e);
+    let a = file
+        .signals_chunks(&[master], crate::format::CHUNK_ROWS)
+        .map_err(err)?;
+    let b = file
+        .signals_chunks(&[other], crate::format::CHUNK_ROWS)
+        .map_err(err)?;
+    let (mut offset, mut previous) = (0usize, None);
+    for (x, y) in a.zip(b) {
+        let (x, y) = (x.map_err(err)?, y.map_err(err)?);
+        let (tx, ty) = (
+            x[0].values_f64().map_err(err)?,
+            y[0].values_f64().map_err(err)?,
+        );
+        falcon_mdf::time_ops::validate_master_axis(
+            &other.name,
+            &ty,
+            y[0].validity().as_deref(),
+            offset,
+            previous,
+        )
+        .map_err(err)?;
+        previous = ty.last().copied().or(previous);
+        offset += ty.len();
+        if tx != ty {
+            return Ok(false);
+        }
+    }
+    Ok(true)
 }
 
 /// A sorted data group's record count against its data blocks' length: a count corrupted
@@ -495,23 +644,53 @@ pub fn write_mdf(
     w.write_to_file(path.as_ref()).map_err(|e| mdf_err(&p, e))
 }
 
-/// An MDF4 file written as the samples arrive (the live service's log): one group, every
-/// channel as float64 after the time master, in one uncompressed data block that grows at the
-/// end of the file. The blocks before it are `falcon_mdf`'s own for a group with no samples
-/// yet; each chunk appends its records, and [`close`](Self::close) writes the block's length
-/// and the group's record count into them. Memory stays one record, however long it records,
-/// and the file is byte for byte what [`write_mdf`] writes for the same recording uncompressed.
+/// The most record bytes [`MdfWriter`] deflates into one `##DZ` block: 4 MiB, the size the
+/// MDF 4.1 standard recommends a compressed block's original data not exceed.
+pub const MDF_BLOCK_BYTES: usize = 4 << 20;
+
+/// An MDF4 file written as the samples arrive (the live service's log, `convert`'s output):
+/// one group, every channel as float64 after the time master. The blocks before the data are
+/// `falcon_mdf`'s own for a group with no samples yet; [`close`](Self::close) writes the
+/// group's record count into them.
+///
+/// - Uncompressed ([`create`](Self::create)): one data block that grows at the end of the
+///   file, its length written at the close. Memory stays one record, however long it records,
+///   and the file is byte for byte what [`write_mdf`] writes for the same recording.
+/// - Compressed ([`create_compressed`](Self::create_compressed)): the records gathered into
+///   blocks of at most `block_bytes`, each deflated (transposed first for
+///   [`MdfCompression::TransposedDeflate`], MDF4 zip type 1) into a `##DZ` as it fills; the
+///   close lists them in a `##DL` (equal length: every block but the last holds as many
+///   records) behind a `##HL` that names the zip type, and links the group to it. Memory stays
+///   about three blocks.
 pub struct MdfWriter {
     path: String,
     names: Vec<String>,
     out: std::io::BufWriter<std::fs::File>,
     header_len: u64,
-    /// Where the data block starts, and where the group's record count is.
+    /// Where the data block starts, where the group links to it, and where the group's record
+    /// count is.
     dt_off: u64,
+    dg_data_link_off: u64,
     cycle_count_off: u64,
     record: Vec<u8>,
     rows: usize,
     last_t: f64,
+    zip: Option<Zip>,
+}
+
+/// The compressed blocks of an [`MdfWriter`].
+struct Zip {
+    transposed: bool,
+    /// Records gathered for the next block, at most `block_bytes`.
+    block: Vec<u8>,
+    block_bytes: usize,
+    /// The deflated stream of the last block written (its buffer kept).
+    packed: Vec<u8>,
+    /// Where the next block starts in the file.
+    at: u64,
+    /// Where each block starts, and the last one's original length.
+    blocks: Vec<u64>,
+    last_len: u64,
 }
 
 /// A little-endian u64 at `at` of `b`.
@@ -527,6 +706,18 @@ impl MdfWriter {
         path: impl AsRef<Path>,
         like: &Recording,
         start_time_ns: Option<i64>,
+    ) -> Result<Self, IoError> {
+        Self::create_compressed(path, like, start_time_ns, MdfCompression::None, 0)
+    }
+
+    /// Create `path` as [`create`](Self::create) does, its records compressed by `compression`
+    /// in blocks of at most `block_bytes` ([`MDF_BLOCK_BYTES`]; at least one record).
+    pub fn create_compressed(
+        path: impl AsRef<Path>,
+        like: &Recording,
+        start_time_ns: Option<i64>,
+        compression: MdfCompression,
+        block_bytes: usize,
     ) -> Result<Self, IoError> {
         let p = path.as_ref().display().to_string();
         if like.channel("t").is_err() {
@@ -592,7 +783,22 @@ impl MdfWriter {
             source,
         })?;
         let mut out = std::io::BufWriter::new(file);
-        std::io::Write::write_all(&mut out, &header).map_err(|source| IoError::Os {
+        // Compressed, the empty data block is left out: the blocks go in its place.
+        let zip = (compression != MdfCompression::None).then(|| Zip {
+            transposed: compression == MdfCompression::TransposedDeflate,
+            block: Vec::new(),
+            block_bytes: block_bytes.max(record_len) / record_len * record_len,
+            packed: Vec::new(),
+            at: dt_off,
+            blocks: Vec::new(),
+            last_len: 0,
+        });
+        let kept = if zip.is_some() {
+            &header[..dt_off as usize]
+        } else {
+            &header[..]
+        };
+        std::io::Write::write_all(&mut out, kept).map_err(|source| IoError::Os {
             path: p.clone(),
             source,
         })?;
@@ -602,10 +808,12 @@ impl MdfWriter {
             out,
             header_len: header.len() as u64,
             dt_off,
+            dg_data_link_off: dg + 40,
             cycle_count_off,
             record: Vec::with_capacity(record_len),
             rows: 0,
             last_t: f64::NEG_INFINITY,
+            zip,
         })
     }
 
@@ -646,12 +854,23 @@ impl MdfWriter {
             for c in &cols {
                 self.record.extend_from_slice(&c[i].to_le_bytes());
             }
-            std::io::Write::write_all(&mut self.out, &self.record).map_err(|source| {
-                IoError::Os {
-                    path: self.path.clone(),
-                    source,
+            match &mut self.zip {
+                None => {
+                    std::io::Write::write_all(&mut self.out, &self.record).map_err(|source| {
+                        IoError::Os {
+                            path: self.path.clone(),
+                            source,
+                        }
+                    })?
                 }
-            })?;
+                Some(z) => {
+                    z.block.extend_from_slice(&self.record);
+                    if z.block.len() >= z.block_bytes {
+                        z.flush(&mut self.out, self.record.len())
+                            .map_err(|e| mdf_err(&self.path, e))?;
+                    }
+                }
+            }
         }
         self.last_t = last;
         self.rows += t.len();
@@ -663,9 +882,13 @@ impl MdfWriter {
         self.rows
     }
 
-    /// Bytes in the file so far (written and buffered).
+    /// Bytes in the file so far (written and buffered; compressed: the records not yet
+    /// deflated as they are).
     pub fn bytes(&self) -> usize {
-        (self.header_len + (self.rows * 8 * (self.names.len() + 1)) as u64) as usize
+        match &self.zip {
+            None => (self.header_len + (self.rows * 8 * (self.names.len() + 1)) as u64) as usize,
+            Some(z) => z.at as usize + z.block.len(),
+        }
     }
 
     /// Finish the file: the data block's length and the record count.
@@ -674,22 +897,132 @@ impl MdfWriter {
         let Self {
             path,
             names,
-            out,
+            mut out,
             dt_off,
+            dg_data_link_off,
             cycle_count_off,
             rows,
+            zip,
             ..
         } = self;
         let os = |source| IoError::Os {
             path: path.clone(),
             source,
         };
+        // Compressed: the last block, then the list of them; the group links to the list.
+        let data_link = match zip {
+            Some(mut z) => {
+                let record_len = 8 * (names.len() + 1);
+                z.flush(&mut out, record_len)
+                    .map_err(|e| mdf_err(&path, e))?;
+                z.list(&mut out).map_err(os)?
+            }
+            None => None,
+        };
         let mut file = out.into_inner().map_err(|e| os(e.into_error()))?;
-        let dt_len = 24 + (rows * 8 * (names.len() + 1)) as u64;
-        file.seek(SeekFrom::Start(dt_off + 8)).map_err(os)?;
-        file.write_all(&dt_len.to_le_bytes()).map_err(os)?;
+        match data_link {
+            Some(hl) => {
+                file.seek(SeekFrom::Start(dg_data_link_off)).map_err(os)?;
+                file.write_all(&hl.to_le_bytes()).map_err(os)?;
+            }
+            None => {
+                let dt_len = 24 + (rows * 8 * (names.len() + 1)) as u64;
+                file.seek(SeekFrom::Start(dt_off + 8)).map_err(os)?;
+                file.write_all(&dt_len.to_le_bytes()).map_err(os)?;
+            }
+        }
         file.seek(SeekFrom::Start(cycle_count_off)).map_err(os)?;
         file.write_all(&(rows as u64).to_le_bytes()).map_err(os)?;
         file.sync_all().map_err(os)
+    }
+}
+
+/// An MDF4 block's header: its id, reserved bytes, length and link count.
+fn block_header(buf: &mut Vec<u8>, id: &[u8; 4], length: u64, links: u64) {
+    buf.extend_from_slice(id);
+    buf.extend_from_slice(&[0u8; 4]);
+    buf.extend_from_slice(&length.to_le_bytes());
+    buf.extend_from_slice(&links.to_le_bytes());
+}
+
+impl Zip {
+    /// Deflate the records gathered (if any) into a `##DZ` at the end of the file.
+    fn flush(
+        &mut self,
+        out: &mut impl std::io::Write,
+        record_len: usize,
+    ) -> Result<(), std::io::Error> {
+        if self.block.is_empty() {
+            return Ok(());
+        }
+        let transposed;
+        let data = if self.transposed {
+            transposed = falcon_mdf::write::transpose(&self.block, record_len);
+            &transposed[..]
+        } else {
+            &self.block[..]
+        };
+        let mut packed = std::mem::take(&mut self.packed);
+        packed.clear();
+        let mut z = flate2::write::ZlibEncoder::new(packed, flate2::Compression::default());
+        std::io::Write::write_all(&mut z, data)?;
+        self.packed = z.finish()?;
+        let mut head = Vec::with_capacity(48);
+        block_header(&mut head, b"##DZ", 48 + self.packed.len() as u64, 0);
+        head.extend_from_slice(b"DT");
+        head.push(u8::from(self.transposed)); // dz_zip_type: 0 deflate, 1 transposed
+        head.push(0);
+        let parameter = if self.transposed {
+            record_len as u32
+        } else {
+            0
+        };
+        head.extend_from_slice(&parameter.to_le_bytes());
+        head.extend_from_slice(&(self.block.len() as u64).to_le_bytes());
+        head.extend_from_slice(&(self.packed.len() as u64).to_le_bytes());
+        out.write_all(&head)?;
+        out.write_all(&self.packed)?;
+        self.blocks.push(self.at);
+        self.last_len = self.block.len() as u64;
+        self.at += head.len() as u64 + self.packed.len() as u64;
+        self.block.clear();
+        Ok(())
+    }
+
+    /// The `##DL` listing the blocks and the `##HL` in front of it, at the end of the file:
+    /// where the `##HL` is, or `None` when no record was written (then an empty `##DT`
+    /// stands where the blocks would).
+    fn list(&self, out: &mut impl std::io::Write) -> Result<Option<u64>, std::io::Error> {
+        let mut buf = Vec::new();
+        if self.blocks.is_empty() {
+            block_header(&mut buf, b"##DT", 24, 0);
+            out.write_all(&buf)?;
+            return Ok(None);
+        }
+        let n = self.blocks.len() as u64;
+        let dl_len = 24 + 8 * (n + 1) + 16;
+        block_header(&mut buf, b"##DL", dl_len, n + 1);
+        buf.extend_from_slice(&0u64.to_le_bytes()); // dl_dl_next
+        for b in &self.blocks {
+            buf.extend_from_slice(&b.to_le_bytes());
+        }
+        buf.push(0x01); // dl_flags: equal length
+        buf.extend_from_slice(&[0u8; 3]);
+        buf.extend_from_slice(&(n as u32).to_le_bytes());
+        // Every block but the last holds a full block; one block: its own length.
+        let equal = if n == 1 {
+            self.last_len
+        } else {
+            self.block_bytes as u64
+        };
+        buf.extend_from_slice(&equal.to_le_bytes());
+        let hl = self.at + dl_len;
+        block_header(&mut buf, b"##HL", 40, 1);
+        buf.extend_from_slice(&self.at.to_le_bytes()); // hl_dl_first
+        buf.extend_from_slice(&0u16.to_le_bytes()); // hl_flags
+        buf.push(u8::from(self.transposed)); // hl_zip_type
+        buf.extend_from_slice(&[0u8; 5]);
+        out.write_all(&buf)?;
+        Ok(Some(hl))
     }
 }

@@ -312,3 +312,83 @@ fn an_mdf_file_of_several_channel_groups_reads_by_its_first_groups_master() {
     .to_string();
     assert!(e.contains("different time bases"), "{e}");
 }
+
+/// Channel groups on one time base are read side by side, a window of each at a time, not
+/// whole: a file of five groups longer than two reader chunks (written here with
+/// `falcon_mdf`'s writer). The second group's times are the first's: its channel is read,
+/// its `a` skipped as a duplicate; the third's are shifted by a microsecond, the fourth's
+/// differ only after the first window, the fifth is slow: skipped, named. The values are
+/// those written, bit for bit, in chunks as whole; asked for by name, a channel of the
+/// second group comes with the first's, one of the fourth is refused.
+#[test]
+fn channel_groups_on_one_time_base_are_read_side_by_side_in_windows() {
+    let s = Scratch::new("physid-mdf-groups");
+    let n = 2 * CHUNK_ROWS + 123;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-4).collect();
+    let wave = |k: f64| -> Vec<f64> { (0..n).map(|i| (i as f64 * k).sin() * 10.0).collect() };
+    let (a, b, c, d, x) = (wave(1e-3), wave(2e-3), wave(3e-3), wave(4e-3), wave(5e-3));
+    let shifted: Vec<f64> = t.iter().map(|v| v + 1e-6).collect();
+    let mut late = t.clone();
+    for v in &mut late[CHUNK_ROWS + 7..] {
+        *v += 1e-6;
+    }
+    let slow_t: Vec<f64> = (0..10).map(|i| i as f64 * 0.1).collect();
+    let slow: Vec<f64> = (0..10).map(|i| 350.0 + i as f64).collect();
+    let mut w = falcon_mdf::Mf4Writer::with_start_time_ns(1_700_000_000_000_000_000);
+    let g = w.add_group(&t).unwrap();
+    g.add_channel("a", "V", &a).unwrap();
+    g.add_channel("b", "N*m", &b).unwrap();
+    let g = w.add_group(&t).unwrap();
+    g.add_channel("c", "rad/s", &c).unwrap();
+    g.add_channel("a", "V", &x).unwrap();
+    let g = w.add_group(&shifted).unwrap();
+    g.add_channel("d", "K", &d).unwrap();
+    let g = w.add_group(&late).unwrap();
+    g.add_channel("late", "K", &d).unwrap();
+    let g = w.add_group(&slow_t).unwrap();
+    g.add_channel("T_oil", "K", &slow).unwrap();
+    let f = s.file("groups.mf4");
+    w.write_to_file(&f).unwrap();
+
+    let all = ReadOptions::default();
+    let (rec, chunks) = drained(&f, &all);
+    assert!(chunks >= 3, "{chunks}");
+    assert_eq!(rec.names(), ["t", "a", "b", "c"]);
+    assert_eq!(rec.meta["skipped"], "a (duplicate name), d, late, T_oil");
+    for (name, unit, want) in [
+        ("t", "s", &t),
+        ("a", "V", &a),
+        ("b", "N*m", &b),
+        ("c", "rad/s", &c),
+    ] {
+        assert_eq!(rec.channel(name).unwrap().unit, unit, "{name}");
+        assert!(same_values(rec.values(name).unwrap(), want), "{name}");
+    }
+    assert_same(&read(&f, &all).unwrap(), &rec, "whole");
+    assert_same(&read_mdf(&f, None).unwrap(), &rec, "read_mdf");
+    // By name: across the two groups of one time base, in the order asked.
+    let asked = ReadOptions {
+        channels: Some(vec!["c".into(), "b".into()]),
+        ..Default::default()
+    };
+    let (got, _) = drained(&f, &asked);
+    assert_eq!(got.names(), ["t", "c", "b"]);
+    assert!(same_values(got.values("c").unwrap(), &c));
+    assert!(same_values(got.values("b").unwrap(), &b));
+    for other in ["late", "d"] {
+        let e = ChunkReader::open(
+            &f,
+            &ReadOptions {
+                channels: Some(vec!["a".into(), other.into()]),
+                ..Default::default()
+            },
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(
+            e.contains("different time bases") && e.contains("samples each, at different times"),
+            "{other}: {e}"
+        );
+    }
+}

@@ -133,22 +133,14 @@ pub fn run(args: &Args) -> Result<()> {
     sink.close().map_err(&at)
 }
 
-/// Where the converted recording goes: a chunk at a time, memory flat however long the file,
-/// or — an MDF4 file written compressed — whole; `--channels` picked from each chunk.
-enum Sink {
-    Chunks {
-        writer: physid_io::ChunkWriter,
-        names: Vec<String>,
-        path: PathBuf,
-        header: physid_core::Recording,
-        samples: usize,
-    },
-    Whole {
-        rec: physid_core::Recording,
-        names: Vec<String>,
-        path: PathBuf,
-        opts: WriteOptions,
-    },
+/// Where the converted recording goes: a chunk at a time, memory flat however long the file
+/// (an MDF4 file written compressed too: block by block); `--channels` picked from each chunk.
+struct Sink {
+    writer: physid_io::ChunkWriter,
+    names: Vec<String>,
+    path: PathBuf,
+    header: physid_core::Recording,
+    samples: usize,
 }
 
 impl Sink {
@@ -161,61 +153,24 @@ impl Sink {
         let names = selection(header, channels)
             .unwrap_or_else(|| header.names().iter().map(|n| n.to_string()).collect());
         let header = pick(header, &names)?;
-        let compressed = physid_io::Format::from_extension(path) == Some(physid_io::Format::Mdf4)
-            && opts.mdf_compression != MdfCompression::None;
-        Ok(if compressed {
-            Sink::Whole {
-                rec: header.slice(0..0),
-                names,
-                path: path.to_path_buf(),
-                opts: *opts,
-            }
-        } else {
-            Sink::Chunks {
-                writer: physid_io::ChunkWriter::create(path, &header, opts)?,
-                names,
-                path: path.to_path_buf(),
-                header,
-                samples: 0,
-            }
+        Ok(Sink {
+            writer: physid_io::ChunkWriter::create(path, &header, opts)?,
+            names,
+            path: path.to_path_buf(),
+            header,
+            samples: 0,
         })
     }
 
     fn append(&mut self, chunk: &physid_core::Recording) -> Result<(), AppError> {
-        match self {
-            Sink::Chunks {
-                writer,
-                names,
-                samples,
-                ..
-            } => {
-                writer.append(&pick(chunk, names)?)?;
-                *samples += chunk.len();
-            }
-            Sink::Whole { rec, names, .. } => rec.append(&pick(chunk, names)?)?,
-        }
+        self.writer.append(&pick(chunk, &self.names)?)?;
+        self.samples += chunk.len();
         Ok(())
     }
 
     fn close(self) -> Result<(), AppError> {
-        match self {
-            Sink::Chunks {
-                writer,
-                path,
-                header,
-                samples,
-                ..
-            } => {
-                writer.close()?;
-                wrote(&path, &header, samples);
-            }
-            Sink::Whole {
-                rec, path, opts, ..
-            } => {
-                physid_io::write(&path, &rec, &opts)?;
-                wrote(&path, &rec, rec.len());
-            }
-        }
+        self.writer.close()?;
+        wrote(&self.path, &self.header, self.samples);
         Ok(())
     }
 }

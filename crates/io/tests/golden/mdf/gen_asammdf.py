@@ -6,8 +6,9 @@
                                       groups, two on the same 1 kHz time base, one at 10 Hz
   python3 gen_asammdf.py --check   -> opens physid_written*.mf4 (committed, written by
                                       physid-io's writer test: plain, deflate, transposed
-                                      deflate) with asammdf and compares them with
-                                      expected_physid.json
+                                      deflate) and physid_streamed*.mf4 (its streaming writer,
+                                      compressed in 13 blocks) with asammdf and compares them
+                                      with expected_physid.json
 
 asammdf 8.8 (pip install asammdf).
 """
@@ -89,7 +90,8 @@ def groups():
 def check():
     exp = json.load(open("expected_physid.json"))
     for f in ["physid_written.mf4", "physid_written_deflate.mf4",
-              "physid_written_transposed.mf4"]:
+              "physid_written_transposed.mf4", "physid_streamed_deflate.mf4",
+              "physid_streamed_transposed.mf4"]:
         m = MDF(f)
         for name, values in exp["channels"].items():
             s = m.get(name)
