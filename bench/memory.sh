@@ -5,9 +5,11 @@
 # the one-hour files) and prints a Markdown row per measurement (inspect/monitor, the fits, filter,
 # the crank-angle verbs, identify and run). ONLY=crank measures the crank-angle verbs alone,
 # ONLY=passes identify and run alone (the last part; DURATIONS="75 600" to choose), ONLY=torque
-# torque fit in passes alone (DURATIONS likewise).
+# torque fit in passes alone (DURATIONS likewise), ONLY=compression compression fit in passes,
+# ONLY=mdf MDF4 in several groups and written compressed (bench/mdf_groups.py needs asammdf).
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
+HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 mkdir -p "$DIR" && cd "$DIR"
 m() { /usr/bin/time -f "%M %e" -o t.out "$@" > /dev/null 2> err.out || { echo "failed: $(tail -1 err.out)"; return; }
       read -r kb s < t.out; echo "$(( kb / 1024 )) MB, ${s} s"; }
@@ -71,8 +73,9 @@ for D in 75 150 300 600; do
              "convert deg-$D.parquet c.parquet --time-basis 10000"; do
     # shellcheck disable=SC2086
     row="| $D s | \`$cmd\` | $(m "$NEW" $cmd) |"
+    # The old build holds a compressed file's recording whole: ≈ 20 GB at one hour.
     # shellcheck disable=SC2086
-    [ -n "$OLD" ] && row="$row $(m "$OLD" $cmd) |"
+    [ -n "$OLD" ] && { [ "$D" != 3600 ] || [ "${cmd#*--compression}" = "$cmd" ]; } && row="$row $(m "$OLD" $cmd) |"
     echo "$row"
   done
 done
@@ -111,6 +114,37 @@ for D in ${DURATIONS:-75 600 3600}; do
     cat "$f" > /dev/null
     row="| $D s | $f | $(m "$NEW" torque fit --data "$f" --json) | $(PHYSID_HOLD_MB=0 m "$NEW" torque fit --data "$f" --json) |"
     [ -n "$OLD" ] && row="$row $(m "$OLD" torque fit --data "$f" --json) |"
+    echo "$row"
+  done
+done
+fi
+# compression fit goes over its TDCs' windows in passes (ONLY=compression): held within
+# PHYSID_HOLD_MB or gathered again from the file (PHYSID_HOLD_MB=0), on motored-D (a time basis
+# with theta_en, resampled as it is read).
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = compression ]; then
+for D in ${DURATIONS:-75 600 3600}; do
+  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
+  cat "motored-$D.parquet" > /dev/null
+  set -- compression fit --data "motored-$D.parquet" --stroke 0.0514 --rod 0.088 --json
+  row="| $D s | $(m "$NEW" "$@") | $(PHYSID_HOLD_MB=0 m "$NEW" "$@") |"
+  [ -n "$OLD" ] && row="$row $(m "$OLD" "$@") |"
+  echo "$row"
+done
+fi
+# MDF4 as it comes (ONLY=mdf): groups-D.mf4 (bench/mdf_groups.py, asammdf: two groups on one
+# 10 kHz time base and a slow one) read by inspect and convert; motored-D written compressed.
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = mdf ]; then
+for D in ${DURATIONS:-75 600 3600}; do
+  [ -f "groups-$D.mf4" ] || python3 "$HERE/mdf_groups.py" "$D" "groups-$D.mf4"
+  cat "groups-$D.mf4" > /dev/null
+  for cmd in "inspect groups-$D.mf4 --json" "convert groups-$D.mf4 g.parquet" \
+             "convert motored-$D.parquet z.mf4 --compression deflate" \
+             "convert motored-$D.parquet z.mf4 --compression transposed"; do
+    # shellcheck disable=SC2086
+    row="| $D s | \`$cmd\` | $(m "$NEW" $cmd) |"
+    # The old build holds a compressed file's recording whole: ≈ 20 GB at one hour.
+    # shellcheck disable=SC2086
+    [ -n "$OLD" ] && { [ "$D" != 3600 ] || [ "${cmd#*--compression}" = "$cmd" ]; } && row="$row $(m "$OLD" $cmd) |"
     echo "$row"
   done
 done

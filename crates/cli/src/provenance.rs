@@ -177,7 +177,11 @@ fn command_line(args: impl Iterator<Item = String>) -> String {
 /// `value` as JSON with the provenance added (as `"provenance"` when it is an object; an
 /// array or a plain value is wrapped as `{"result": …, "provenance": …}`).
 pub fn with(value: &impl Serialize) -> serde_json::Value {
-    let mut v = serde_json::to_value(value).unwrap_or(serde_json::Value::Null);
+    with_value(serde_json::to_value(value).unwrap_or(serde_json::Value::Null))
+}
+
+/// [`with`] on JSON made already, without copying it.
+pub fn with_value(mut v: serde_json::Value) -> serde_json::Value {
     let p = serde_json::to_value(current()).unwrap_or(serde_json::Value::Null);
     match v.as_object_mut() {
         Some(o) => {
@@ -190,7 +194,14 @@ pub fn with(value: &impl Serialize) -> serde_json::Value {
 
 /// Print `value` as pretty JSON on stdout, with the provenance.
 pub fn print_json(value: &impl Serialize) -> miette::Result<()> {
-    let text = serde_json::to_string_pretty(&with(value))
+    print_json_value(
+        serde_json::to_value(value).map_err(|e| miette::miette!("writing the JSON result: {e}"))?,
+    )
+}
+
+/// [`print_json`] of JSON made already, without copying it.
+pub fn print_json_value(value: serde_json::Value) -> miette::Result<()> {
+    let text = serde_json::to_string_pretty(&with_value(value))
         .map_err(|e| miette::miette!("writing the JSON result: {e}"))?;
     crate::out::outln!("{text}");
     Ok(())

@@ -9,7 +9,7 @@ use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
-use miette::{miette, IntoDiagnostic, Result};
+use miette::{miette, Result};
 use physid_apps::compression::{
     compression_fit_events, CompressionConfig, CompressionFit, TdcEvents,
 };
@@ -151,10 +151,11 @@ fn fit(a: &FitArgs) -> Result<()> {
     let events = TdcEvents::new(&file, &a.channel, cfg.window_deg, super::hold_bytes()?);
     let r = compression_fit_events(&events, &cfg).map_err(super::app_error(&a.data))?;
     let imep = motored_imep(&input, &r, &a.geometry)?;
-    let mut json = serde_json::to_value(&r).into_diagnostic()?;
-    if let (Some(o), Some(v)) = (json.as_object_mut(), imep) {
-        o.insert("motored_imep_pa".into(), v.into());
-    }
+    // Made JSON only where it is written (the events' list grows with the recording).
+    let json = FitOutput {
+        fit: &r,
+        motored_imep_pa: imep,
+    };
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
         let mut rep = Report::new("physid — compression fit", &format!("{}", a.data.display()));
@@ -239,6 +240,15 @@ fn fit(a: &FitArgs) -> Result<()> {
         outln!("wrote {}", dir.join("report.html").display());
     }
     Ok(())
+}
+
+/// The JSON of `compression fit`: the fit, and the motored IMEP when it was worked out.
+#[derive(serde::Serialize)]
+struct FitOutput<'a> {
+    #[serde(flatten)]
+    fit: &'a CompressionFit,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    motored_imep_pa: Option<f64>,
 }
 
 /// The mean net IMEP of the motored cycles [Pa] (`physid_apps::pressure`, the volume with the

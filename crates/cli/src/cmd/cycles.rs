@@ -150,7 +150,7 @@ pub fn run(args: &Args) -> Result<()> {
                 serde_json::to_value(&d.findings).into_diagnostic()?,
             );
         }
-        crate::provenance::print_json(&v)?;
+        crate::provenance::print_json_value(v)?;
         return Ok(());
     }
     let u = &a.unit;

@@ -111,7 +111,7 @@ pub fn run(args: &Args) -> Result<()> {
         } else {
             json!({ "experiments": reports })
         };
-        crate::provenance::print_json(&v)?;
+        crate::provenance::print_json_value(v)?;
         return Ok(());
     }
     if reports.len() > 1 {

@@ -349,7 +349,7 @@ pub fn run(args: &Args) -> Result<()> {
         if let Some(o) = v.as_object_mut() {
             o.insert("surfaces".into(), serde_json::json!(written));
         }
-        crate::provenance::print_json(&v)?;
+        crate::provenance::print_json_value(v)?;
     } else {
         outln!(
             "{}: {} basis, {} samples",

@@ -347,7 +347,7 @@ fn run_study(study: &Study) -> Result<()> {
             let pts = dyno_curve(&p, *voltage, *freq, &speeds).map_err(|e| miette!("{e}"))?;
             if *json {
                 let v = serde_json::json!({ "points": pts });
-                crate::provenance::print_json(&v)?;
+                crate::provenance::print_json_value(v)?;
             } else {
                 outln!("dynamometer at {voltage} V, {freq} Hz (synchronous {n_sync:.0} rpm)");
                 outln!(
