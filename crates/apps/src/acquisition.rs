@@ -5,8 +5,7 @@
 
 use crate::error::AppError;
 use physid_core::{Basis, Channel, Recording, RecordingError};
-use physid_signal::crank::interp;
-use physid_signal::encoder::{first_marker, Encoder};
+use physid_signal::encoder::{first_marker, CountSteps, Encoder, SpacingCheck};
 use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
     median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
@@ -564,51 +563,194 @@ fn engine_angle(
             wheel: Some(decoded),
         });
     }
-    let on_theta_en = rec.values("theta_en").is_ok();
-    let (tt, th): (Vec<f64>, Vec<f64>) = if let Ok(theta) = rec.values("theta_en") {
-        (t.to_vec(), theta.to_vec())
-    } else {
+    if let Ok(theta) = rec.values("theta_en") {
+        // Its value at the marker (as `from_first_marker` takes it on a stream).
+        let tdc = match rec.values(&opts.marker).ok().and_then(first_marker) {
+            Some(i) => theta[i],
+            None => first_tdc(theta.first().copied().unwrap_or(0.0)),
+        };
+        return Ok(EngineAngle {
+            t: t.to_vec(),
+            theta: theta.to_vec(),
+            tdc,
+            wheel: None,
+        });
+    }
+    // An encoder's counts: the same scan as on a stream, in one chunk.
+    let mut scan = CountsScan::new(rec, opts)?;
+    let (t, theta) = scan.push(rec)?;
+    let (t, theta) = (t.to_vec(), theta.to_vec());
+    Ok(EngineAngle {
+        tdc: scan.finish()?,
+        t,
+        theta,
+        wheel: None,
+    })
+}
+
+/// The first pass over a time-basis recording whose engine angle is an encoder's counts
+/// (thesis Eq. 4.2), a chunk at a time: the check that the counts are equally spaced in angle
+/// ([`SpacingCheck`]) and the firing TDC's angle — at the first TDC marker, interpolated
+/// between the count steps around it ([`interp`](physid_signal::crank::interp)'s rule), without a marker the first multiple
+/// of 4π ([`first_tdc`]). The angle itself is the count steps ([`CountSteps`]), which
+/// [`push`](Self::push) gives too. What it holds: a few numbers, the spacing check's, and the
+/// steps of the last chunk.
+#[derive(Debug, Clone)]
+pub struct CountsScan {
+    /// The encoder: its count channel and pulses per revolution.
+    name: String,
+    ppr: u32,
+    marker: String,
+    steps: CountSteps,
+    spacing: SpacingCheck,
+    edge: FirstMarker,
+    /// The angle at the marker's time.
+    at: MarkerAngle,
+    /// Samples seen.
+    samples: usize,
+    /// Count steps seen.
+    stepped: usize,
+    /// The last chunk's count steps: times [s] and angles [rad].
+    t: Vec<f64>,
+    theta: Vec<f64>,
+}
+
+impl CountsScan {
+    /// The scan of the first of `opts.encoders` that `header` has — or the error that the
+    /// recording has no engine angle at all.
+    pub fn new(header: &Recording, opts: &AcquisitionOptions) -> Result<Self, AcquisitionError> {
         let (name, ppr) = opts
             .encoders
             .iter()
-            .find(|(n, _)| rec.channel(n).is_ok())
+            .find(|(n, _)| header.channel(n).is_ok())
             .ok_or_else(|| {
                 AcquisitionError::Invalid(format!(
                     "no engine angle: the recording needs 'theta_en' [rad], an encoder count channel ({}), a trigger wheel's signal (--wheel CHANNEL=N-M) or a quadrature encoder's (--quadrature A,B,Z=LINES) — `physid inspect` names a channel that is a trigger wheel's; the channels are {}",
                     opts.encoders.iter().map(|e| e.0.as_str()).collect::<Vec<_>>().join(", "),
-                    rec.names().join(", ")
+                    header.names().join(", ")
                 ))
             })?;
-        let counts = rec.values(name)?;
-        if let Some(why) = physid_signal::encoder::uneven_spacing(t, counts, *ppr) {
+        let encoder = Encoder { ppr: *ppr };
+        Ok(Self {
+            name: name.clone(),
+            ppr: *ppr,
+            marker: opts.marker.clone(),
+            steps: CountSteps::new(encoder),
+            spacing: SpacingCheck::new(*ppr),
+            edge: FirstMarker::default(),
+            at: MarkerAngle::default(),
+            samples: 0,
+            stepped: 0,
+            t: Vec::new(),
+            theta: Vec::new(),
+        })
+    }
+
+    /// The count channel and its pulses per revolution.
+    pub fn encoder(&self) -> (&str, u32) {
+        (&self.name, self.ppr)
+    }
+
+    /// The next chunk (with `t`, the counts and, when the recording has one, the marker): the
+    /// count steps in it — their times [s] and angles [rad].
+    pub fn push(&mut self, chunk: &Recording) -> Result<(&[f64], &[f64]), AcquisitionError> {
+        let t = chunk.values("t")?;
+        let counts = chunk.values(&self.name)?;
+        self.spacing.push(t, counts);
+        if self.at.a.is_none() {
+            if let Some(i) = chunk
+                .values(&self.marker)
+                .ok()
+                .and_then(|m| self.edge.edge(m))
+            {
+                self.at.a = Some((t[i], self.samples + i));
+            }
+        }
+        self.steps.push(t, counts, &mut self.t, &mut self.theta);
+        for (&x, &y) in self.t.iter().zip(&self.theta) {
+            self.at.point(x, y);
+        }
+        self.samples += t.len();
+        self.stepped += self.t.len();
+        Ok((&self.t, &self.theta))
+    }
+
+    /// The firing TDC's angle [rad] — or why no crank angle can be taken from the counts.
+    pub fn finish(self) -> Result<f64, AcquisitionError> {
+        let (name, ppr) = (&self.name, self.ppr);
+        if let Some(why) = self.spacing.finish() {
             return Err(AcquisitionError::Invalid(format!(
                 "'{name}' as an encoder of {ppr} pulses per revolution: {why} — give the wheel's raw signal with --wheel CHANNEL=N-M (e.g. enc=60-2) instead"
             )));
         }
-        let enc = Encoder { ppr: *ppr };
-        let theta = enc.angle(counts, 0);
-        let mut tt = vec![t[0]];
-        let mut th = vec![theta[0]];
-        for i in 1..counts.len() {
-            if counts[i] > counts[i - 1] {
-                tt.push(t[i]);
-                th.push(theta[i]);
+        if self.stepped < 2 {
+            return Err(AcquisitionError::Invalid(format!(
+                "time ({0}) and angle ({0}) need the same length, at least 2",
+                self.stepped
+            )));
+        }
+        match self.at.value() {
+            Some(Ok(tdc)) => Ok(tdc),
+            Some(Err((a, i))) => Err(AcquisitionError::Invalid(format!(
+                "the time at the first TDC marker ('{}', sample {i}) is {a}: the crank angle there cannot be interpolated",
+                self.marker
+            ))),
+            None => Ok(first_tdc(self.at.first.map_or(0.0, |p| p.1))),
+        }
+    }
+}
+
+/// `interp(x, y, &[a])` over points `(x, y)` that come one at a time, `a` told before the
+/// points after it: `y` of the first point at or before it, of the last at or after it,
+/// between them `y[j] + f·(y[j+1] − y[j])` on the first pair with `x[j] < a ≤ x[j+1]`.
+#[derive(Debug, Clone, Default)]
+struct MarkerAngle {
+    /// The abscissa asked for, and the sample it is at.
+    a: Option<(f64, usize)>,
+    /// The first point.
+    first: Option<(f64, f64)>,
+    /// The last point.
+    last: Option<(f64, f64)>,
+    /// The first point at or after `a` (not the first), with the one before it.
+    bracket: Option<((f64, f64), (f64, f64))>,
+}
+
+impl MarkerAngle {
+    fn point(&mut self, x: f64, y: f64) {
+        if self.first.is_none() {
+            self.first = Some((x, y));
+        }
+        if let (Some((a, _)), None, Some(prev)) = (self.a, self.bracket, self.last) {
+            if x >= a {
+                self.bracket = Some((prev, (x, y)));
             }
         }
-        (tt, th)
-    };
-    let tdc = match rec.values(&opts.marker).ok().and_then(first_marker) {
-        // On theta_en, its value at the marker (as `from_first_marker` takes it on a stream).
-        Some(i) if on_theta_en => th[i],
-        Some(i) => interp(&tt, &th, &[t[i]])[0],
-        None => first_tdc(th.first().copied().unwrap_or(0.0)),
-    };
-    Ok(EngineAngle {
-        t: tt,
-        theta: th,
-        tdc,
-        wheel: None,
-    })
+        self.last = Some((x, y));
+    }
+
+    /// `y` at `a` (`None` when nothing was asked; `Err` with it and its sample when it is not
+    /// a number).
+    fn value(&self) -> Option<Result<f64, (f64, usize)>> {
+        let (a, i) = self.a?;
+        if !a.is_finite() {
+            return Some(Err((a, i)));
+        }
+        let ((x0, y0), (xn, yn)) = (self.first?, self.last?);
+        Some(Ok(if a <= x0 {
+            y0
+        } else if a >= xn {
+            yn
+        } else {
+            match self.bracket {
+                Some(((xj, yj), (xk, yk))) => {
+                    let f = (a - xj) / (xk - xj);
+                    yj + f * (yk - yj)
+                }
+                // Points that do not increase: as `interp` on them, the first pair.
+                None => f64::NAN,
+            }
+        }))
+    }
 }
 
 /// The firing TDC's angle without a marker: the first multiple of 4π at or after the engine
@@ -919,12 +1061,19 @@ impl FirstMarker {
         let (Ok(m), Ok(theta)) = (chunk.values(marker), chunk.values("theta_en")) else {
             return Some(None);
         };
+        let found = self.edge(m);
+        found.map(|i| theta.get(i).copied().filter(|v| v.is_finite()))
+    }
+
+    /// The first rising edge in the next samples `m` of the marker (the sample before them
+    /// included), [`first_marker`]'s rule: its index in `m`.
+    pub fn edge(&mut self, m: &[f64]) -> Option<usize> {
         let found = m.iter().enumerate().find_map(|(i, &v)| {
             let before = if i == 0 { self.prev } else { Some(m[i - 1]) };
             (v != 0.0 && before.is_none_or(|p| p == 0.0)).then_some(i)
         });
         self.prev = m.last().copied().or(self.prev);
-        found.map(|i| theta.get(i).copied().filter(|v| v.is_finite()))
+        found
     }
 }
 
@@ -1029,6 +1178,135 @@ where
         }
     });
     Ok((out_header, iter))
+}
+
+/// A time-basis stream whose engine angle is an encoder's counts on one sample every `step_deg`
+/// crank degrees, resampled as it comes — what [`to_crank_angle`] gives on the whole
+/// recording — in two passes over the file:
+///
+/// 1. `scan_chunks` (`t`, the counts and the marker) through `scan` ([`CountsScan`], made on
+///    the recording's header): the spacing check and the firing TDC's angle, before anything
+///    is resampled (its errors come from this call);
+/// 2. `chunks`, the channels (`header` their channels, with `t`), with `angle`, the counts
+///    again (`t` and the count channel), read ahead of them: a chunk of channels is resampled
+///    once the angle has come past its last time ([`CrankAngleStream`]).
+///
+/// What it holds: a chunk of each, and the grid points of an angle chunk ahead; the angle is
+/// read ahead, not held, however long the engine stands still. Returns the crank-angle
+/// recording's header (its channels, no samples) and its chunks.
+pub fn counts_crank_angle_chunks<'a, S, A, C, E>(
+    mut scan: CountsScan,
+    scan_chunks: S,
+    header: &Recording,
+    angle: A,
+    chunks: C,
+    opts: &AcquisitionOptions,
+    step_deg: f64,
+) -> Result<
+    (
+        Recording,
+        impl Iterator<Item = Result<Recording, AppError>> + 'a,
+    ),
+    AppError,
+>
+where
+    S: IntoIterator<Item = Result<Recording, E>>,
+    A: IntoIterator<Item = Result<Recording, E>> + 'a,
+    A::IntoIter: 'a,
+    C: IntoIterator<Item = Result<Recording, E>> + 'a,
+    C::IntoIter: 'a,
+    E: 'a,
+    AppError: From<E>,
+{
+    for chunk in scan_chunks {
+        scan.push(&chunk?)?;
+    }
+    let (name, ppr) = (scan.name.clone(), scan.ppr);
+    let tdc = scan.finish()?;
+    let mut stream = CrankAngleStream::new(header, opts, tdc, step_deg)?;
+    let out_header = stream.header()?;
+    let mut ahead = CountsAhead {
+        angle: angle.into_iter(),
+        steps: CountSteps::new(Encoder { ppr }),
+        name,
+        until: f64::NEG_INFINITY,
+        done: false,
+        t: Vec::new(),
+        theta: Vec::new(),
+    };
+    let mut chunks = chunks.into_iter();
+    let mut done = false;
+    let iter = std::iter::from_fn(move || {
+        if done {
+            return None;
+        }
+        let next = match chunks.next() {
+            Some(Ok(c)) => c
+                .values("t")
+                .map_err(AppError::Recording)
+                .and_then(|t| ahead.past(t.last().copied(), &mut stream))
+                .and_then(|()| stream.push_channels(&c).map_err(AppError::Acquisition)),
+            Some(Err(e)) => Err(e.into()),
+            None => ahead
+                .past(Some(f64::INFINITY), &mut stream)
+                .and_then(|()| stream.finish().map_err(AppError::Acquisition))
+                .inspect(|_| done = true),
+        };
+        done |= next.is_err();
+        Some(next)
+    });
+    Ok((out_header, iter))
+}
+
+/// The angle of [`counts_crank_angle_chunks`]: the counts read ahead of the channels.
+struct CountsAhead<A> {
+    angle: A,
+    steps: CountSteps,
+    /// The count channel.
+    name: String,
+    /// The last count step's time pushed [s].
+    until: f64,
+    /// The angle is finished.
+    done: bool,
+    /// Scratch: an angle chunk's count steps.
+    t: Vec<f64>,
+    theta: Vec<f64>,
+}
+
+impl<A, E> CountsAhead<A>
+where
+    A: Iterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
+    /// Push the angle until it has come past `last` [s] (a chunk's last time; not a number:
+    /// nothing, the channels say what is wrong), or to its end.
+    fn past(&mut self, last: Option<f64>, stream: &mut CrankAngleStream) -> Result<(), AppError> {
+        let Some(last) = last.filter(|l| !l.is_nan()) else {
+            return Ok(());
+        };
+        while !self.done && self.until < last {
+            match self.angle.next() {
+                Some(chunk) => {
+                    let chunk = chunk?;
+                    self.steps.push(
+                        chunk.values("t")?,
+                        chunk.values(&self.name)?,
+                        &mut self.t,
+                        &mut self.theta,
+                    );
+                    stream.push_angle(&self.t, &self.theta)?;
+                    if let Some(&x) = self.t.last() {
+                        self.until = x;
+                    }
+                }
+                None => {
+                    self.done = true;
+                    stream.resampler.finish_angle();
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// A time-basis recording to one sample every `step_deg` crank degrees from the firing TDC, a

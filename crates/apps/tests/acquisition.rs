@@ -217,3 +217,112 @@ fn the_filter_stream_is_the_whole_record_filter() {
     .to_string();
     assert!(e.contains("whole recordings only"), "{e}");
 }
+
+/// `rec`'s channels `names`.
+fn pick(rec: &Recording, names: &[&str]) -> Recording {
+    let mut r = Recording::new(rec.basis);
+    for n in names {
+        r.push(rec.channel(n).unwrap().clone()).unwrap();
+    }
+    r
+}
+
+/// Cut `rec` into chunks of `n` samples (0: whole).
+fn cut(rec: &Recording, n: usize) -> Vec<Result<Recording, physid_apps::error::AppError>> {
+    if n == 0 {
+        return vec![Ok(rec.clone())];
+    }
+    (0..rec.len())
+        .step_by(n)
+        .map(|s| Ok(rec.slice(s..(s + n).min(rec.len()))))
+        .collect()
+}
+
+/// An encoder's counts resampled as they come, in two passes over the file (the counts and the
+/// marker; then the channels with the counts read ahead of them), give the whole recording's
+/// crank-angle samples bit for bit, however each pass is cut — with the engine standing still
+/// for 0.3 s (no count step for 6000 samples), without a marker, and when the counts are a
+/// trigger wheel's (the same error).
+#[test]
+fn counts_resampled_as_they_come_equal_the_whole() {
+    use physid_apps::acquisition::{counts_crank_angle_chunks, CountsScan};
+    let mut rec = recording();
+    // The engine stands still from 0.8 s to 1.1 s.
+    let t = rec.values("t").unwrap().to_vec();
+    let theta: Vec<f64> = t
+        .iter()
+        .map(|&t| 105.0 * (t.min(0.8) + (t - 1.1).max(0.0)) - 0.2)
+        .collect();
+    rec.replace_values("count_en", counts_from_angle(&theta, 360))
+        .unwrap();
+    let stream = |rec: &Recording, cuts: [usize; 3]| {
+        let (header, chunks) = counts_crank_angle_chunks(
+            CountsScan::new(rec, &AcquisitionOptions::default())?,
+            cut(rec, cuts[0]),
+            &pick(rec, &["t", "p_int"]),
+            cut(&pick(rec, &["t", "count_en"]), cuts[1]),
+            cut(&pick(rec, &["t", "p_int"]), cuts[2]),
+            &AcquisitionOptions::default(),
+            1.0,
+        )?;
+        let mut out = header;
+        for c in chunks {
+            out.append(&c?)?;
+        }
+        Ok::<_, physid_apps::error::AppError>(out)
+    };
+    let no_marker = pick(&rec, &["t", "count_en", "p_int"]);
+    for rec in [&rec, &no_marker] {
+        let whole = to_crank_angle(rec, &AcquisitionOptions::default(), 1.0).unwrap();
+        assert!(whole.len() > 1000);
+        for cuts in [
+            [0, 0, 0],
+            [1, 7, 13],
+            [4096, 1, 997],
+            [997, 4096, 1],
+            [7, 0, 4096],
+        ] {
+            let got = stream(rec, cuts).unwrap();
+            assert_eq!(got.names(), whole.names(), "{cuts:?}");
+            for name in whole.names() {
+                let (a, b) = (got.values(name).unwrap(), whole.values(name).unwrap());
+                assert_eq!(a.len(), b.len(), "{name} {cuts:?}");
+                assert!(
+                    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{name} {cuts:?}"
+                );
+            }
+            assert_eq!(got.meta, whole.meta);
+        }
+    }
+    // A 60−2 wheel's 58 teeth counted as a 58-pulse encoder: the same error, before anything.
+    let mut wheel = rec.clone();
+    let teeth: Vec<f64> = theta
+        .iter()
+        .map(|&th| {
+            let rev = (th / TAU).floor();
+            rev * 58.0 + ((th / TAU - rev) * 60.0).floor().min(57.0)
+        })
+        .collect();
+    wheel.replace_values("count_en", teeth).unwrap();
+    let opts = AcquisitionOptions {
+        encoders: vec![("count_en".into(), 58)],
+        ..Default::default()
+    };
+    let whole = to_crank_angle(&wheel, &opts, 1.0).unwrap_err().to_string();
+    assert!(whole.contains("not equally spaced"), "{whole}");
+    for cuts in [[1, 1, 1], [997, 13, 4096]] {
+        let e = counts_crank_angle_chunks(
+            CountsScan::new(&wheel, &opts).unwrap(),
+            cut(&wheel, cuts[0]),
+            &wheel,
+            cut(&wheel, cuts[1]),
+            cut(&wheel, cuts[2]),
+            &opts,
+            1.0,
+        )
+        .err()
+        .unwrap();
+        assert_eq!(e.to_string(), whole);
+    }
+}

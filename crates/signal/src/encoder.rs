@@ -173,53 +173,210 @@ pub const GAP_RATIO: f64 = 1.8;
 /// longer or more — a crank angle taken from them is wrong by up to the gap (12.6° for
 /// 60−3). `Some(description)` when most revolutions (at least 3) show such a gap, beyond the
 /// sample period's uncertainty on either; `None` too when the pulses are not resolved in time
-/// (less than 4 samples per pulse: the steps' timing cannot tell).
+/// (less than 4 samples per pulse: the steps' timing cannot tell). [`SpacingCheck`] on the
+/// whole recording as one chunk.
 pub fn uneven_spacing(t: &[f64], counts: &[f64], ppr: u32) -> Option<String> {
-    let ppr = ppr as usize;
-    if ppr < 4 || t.len() != counts.len() || t.len() < 3 {
+    if t.len() != counts.len() {
         return None;
     }
-    let ts = crate::integrity::median_step(t)?;
-    // Time per pulse of each count step.
-    let mut per_pulse: Vec<f64> = Vec::new();
-    let mut last: Option<(f64, f64)> = None;
-    for (&ti, &c) in t.iter().zip(counts) {
-        if !(ti.is_finite() && c.is_finite()) {
-            continue;
-        }
-        match last {
-            Some((t0, c0)) if c > c0 => {
-                let pulses = (c - c0).round().max(1.0) as usize;
-                for _ in 0..pulses.min(ppr) {
-                    per_pulse.push((ti - t0) / pulses as f64);
-                }
-                last = Some((ti, c));
-            }
-            None => last = Some((ti, c)),
-            _ => {}
+    let mut check = SpacingCheck::new(ppr);
+    check.push(t, counts);
+    check.finish()
+}
+
+/// [`uneven_spacing`] a chunk at a time. The sample period is the median time step of the
+/// first [`NOMINAL_SAMPLES`](crate::integrity::NOMINAL_SAMPLES) samples (as `physid inspect`
+/// takes it), so the answer is the same however the recording is cut. What it holds: those
+/// steps, and the revolutions completed before they are all in (at most one a sample), until
+/// then; one revolution's times per pulse after.
+#[derive(Debug, Clone)]
+pub struct SpacingCheck {
+    ppr: usize,
+    samples: usize,
+    /// The last time seen, for the steps.
+    t_prev: Option<f64>,
+    /// The positive time steps of the first samples, until the sample period is taken.
+    steps: Vec<f64>,
+    /// The sample period: `None` until taken, `Some(None)` when there is none.
+    ts: Option<Option<f64>>,
+    /// The last count step's time and count.
+    last: Option<(f64, f64)>,
+    /// The revolution going: its times per pulse.
+    window: Vec<f64>,
+    /// Revolutions completed before the sample period was taken: (median, longest).
+    early: Vec<(f64, f64)>,
+    revolutions: usize,
+    gapped: usize,
+    worst: f64,
+    /// A revolution's pulses are not resolved in time: no judgement.
+    unresolved: bool,
+}
+
+impl SpacingCheck {
+    /// The check of an encoder of `ppr` pulses per revolution.
+    pub fn new(ppr: u32) -> Self {
+        Self {
+            ppr: ppr as usize,
+            samples: 0,
+            t_prev: None,
+            steps: Vec::new(),
+            ts: None,
+            last: None,
+            window: Vec::new(),
+            early: Vec::new(),
+            revolutions: 0,
+            gapped: 0,
+            worst: 0.0,
+            unresolved: false,
         }
     }
-    let (mut revolutions, mut gapped, mut worst) = (0usize, 0usize, 0.0f64);
-    let mut window = Vec::with_capacity(ppr);
-    for rev in per_pulse.chunks_exact(ppr) {
-        window.clear();
-        window.extend_from_slice(rev);
-        window.sort_unstable_by(f64::total_cmp);
-        let median = window[ppr / 2];
-        if median < 4.0 * ts {
+
+    /// The next samples: times `t` [s] and counts (as long).
+    pub fn push(&mut self, t: &[f64], counts: &[f64]) {
+        let nominal = crate::integrity::NOMINAL_SAMPLES;
+        for (&ti, &c) in t.iter().zip(counts) {
+            if self.samples < nominal {
+                if let Some(d) = self.t_prev.map(|p| ti - p).filter(|d| *d > 0.0) {
+                    self.steps.push(d);
+                }
+                self.t_prev = Some(ti);
+                if self.samples + 1 == nominal {
+                    self.take_period();
+                }
+            }
+            self.samples += 1;
+            if !(ti.is_finite() && c.is_finite()) || self.ppr < 4 {
+                continue;
+            }
+            match self.last {
+                Some((t0, c0)) if c > c0 => {
+                    let pulses = (c - c0).round().max(1.0) as usize;
+                    for _ in 0..pulses.min(self.ppr) {
+                        self.window.push((ti - t0) / pulses as f64);
+                        if self.window.len() == self.ppr {
+                            self.revolution();
+                        }
+                    }
+                    self.last = Some((ti, c));
+                }
+                None => self.last = Some((ti, c)),
+                _ => {}
+            }
+        }
+    }
+
+    /// The verdict at the end of the recording.
+    pub fn finish(mut self) -> Option<String> {
+        if self.ts.is_none() {
+            self.take_period();
+        }
+        if self.ppr < 4 || self.samples < 3 || self.unresolved {
             return None;
         }
-        // The longest against the median, each given the benefit of one sample period.
-        let ratio = (window[ppr - 1] - ts) / (median + ts);
-        revolutions += 1;
-        if ratio >= GAP_RATIO {
-            gapped += 1;
-            worst = worst.max(ratio);
+        let (gapped, revolutions, worst) = (self.gapped, self.revolutions, self.worst);
+        (revolutions >= 3 && 2 * gapped > revolutions).then(|| {
+            format!(
+                "in {gapped} of {revolutions} revolutions one count step lasts {worst:.1}× the others or more: the counts are not equally spaced in angle (a trigger wheel with missing teeth?), so no crank angle can be taken from them"
+            )
+        })
+    }
+
+    /// The sample period from the steps so far; the revolutions waiting for it judged.
+    fn take_period(&mut self) {
+        let steps = std::mem::take(&mut self.steps);
+        let ts = if steps.is_empty() {
+            None
+        } else {
+            let mut d = steps;
+            let mid = d.len() / 2;
+            d.select_nth_unstable_by(mid, f64::total_cmp);
+            Some(d[mid])
+        };
+        self.ts = Some(ts);
+        for (median, longest) in std::mem::take(&mut self.early) {
+            self.judge(median, longest);
         }
     }
-    (revolutions >= 3 && 2 * gapped > revolutions).then(|| {
-        format!(
-            "in {gapped} of {revolutions} revolutions one count step lasts {worst:.1}× the others or more: the counts are not equally spaced in angle (a trigger wheel with missing teeth?), so no crank angle can be taken from them"
-        )
-    })
+
+    /// A revolution's `ppr` times per pulse are in: its median and longest.
+    fn revolution(&mut self) {
+        self.window.sort_unstable_by(f64::total_cmp);
+        let (median, longest) = (self.window[self.ppr / 2], self.window[self.ppr - 1]);
+        self.window.clear();
+        match self.ts {
+            Some(_) => self.judge(median, longest),
+            None => self.early.push((median, longest)),
+        }
+    }
+
+    /// One revolution, the longest time per pulse against the median, each given the benefit
+    /// of one sample period.
+    fn judge(&mut self, median: f64, longest: f64) {
+        let Some(Some(ts)) = self.ts else {
+            // No sample period: nothing can be judged.
+            self.unresolved = true;
+            return;
+        };
+        if self.unresolved {
+            return;
+        }
+        if median < 4.0 * ts {
+            self.unresolved = true;
+            return;
+        }
+        let ratio = (longest - ts) / (median + ts);
+        self.revolutions += 1;
+        if ratio >= GAP_RATIO {
+            self.gapped += 1;
+            self.worst = self.worst.max(ratio);
+        }
+    }
+}
+
+/// The engine angle at an encoder's count steps, a chunk at a time: `θ = q·(c − c₀)` (Eq. 4.2,
+/// [`Encoder::angle`]), `c₀` the first sample's count, at the first sample and at every sample
+/// whose count is above the one before — the points between which the angle is interpolated.
+#[derive(Debug, Clone)]
+pub struct CountSteps {
+    q: f64,
+    /// The first sample's count.
+    c0: Option<f64>,
+    /// The count of the sample before.
+    prev: Option<f64>,
+}
+
+impl CountSteps {
+    /// The steps of `encoder`'s counts.
+    pub fn new(encoder: Encoder) -> Self {
+        Self {
+            q: encoder.quantum(),
+            c0: None,
+            prev: None,
+        }
+    }
+
+    /// The next samples' times `t` [s] and counts: the steps among them to `t_out` and
+    /// `theta_out` [rad] (cleared first).
+    pub fn push(
+        &mut self,
+        t: &[f64],
+        counts: &[f64],
+        t_out: &mut Vec<f64>,
+        theta_out: &mut Vec<f64>,
+    ) {
+        t_out.clear();
+        theta_out.clear();
+        for (&ti, &c) in t.iter().zip(counts) {
+            let step = match self.prev {
+                None => true,
+                Some(p) => c > p,
+            };
+            let c0 = *self.c0.get_or_insert(c);
+            if step {
+                t_out.push(ti);
+                theta_out.push(self.q * (c - c0));
+            }
+            self.prev = Some(c);
+        }
+    }
 }

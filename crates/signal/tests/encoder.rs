@@ -132,6 +132,20 @@ fn counts_not_equally_spaced_in_angle_are_found() {
     let wheel: Vec<f64> = theta.iter().map(|&th| tooth(th)).collect();
     let e = uneven_spacing(&t, &wheel, 57).expect("a 60−3 wheel's counts");
     assert!(e.contains("not equally spaced"), "{e}");
+    // A chunk at a time, however cut (the sample period is the first 65 536 samples'), the
+    // same verdict.
+    let chunked = |t: &[f64], counts: &[f64], ppr: u32, n: usize| {
+        let mut check = physid_signal::encoder::SpacingCheck::new(ppr);
+        for (t, c) in t.chunks(n).zip(counts.chunks(n)) {
+            check.push(t, c);
+        }
+        check.finish()
+    };
+    for n in [1, 57, 4096, 65_549, 400_000] {
+        assert_eq!(chunked(&t, &wheel, 57, n), Some(e.clone()), "{n}");
+        let even = counts_from_angle(&theta, 360);
+        assert_eq!(chunked(&t, &even, 360, n), None, "{n}");
+    }
     // An even 360-pulse encoder on the same shaft: fine.
     let even = counts_from_angle(&theta, 360);
     assert_eq!(uneven_spacing(&t, &even, 360), None);

@@ -5,16 +5,22 @@
 //!   `crank_deg`);
 //! * a time-basis file with `theta_en`: a chunk at a time, resampled as it comes
 //!   ([`physid_apps::acquisition::crank_angle_chunks`]) — memory flat in the recording's length;
-//! * a time-basis file whose angle is decoded from a raw sensor (`--wheel`, `--quadrature`), an
-//!   encoder's counts, or with the TDC placed from the pressure (`--tdc-from`): read whole —
-//!   the decoders see the whole signal — but only the channels the angle and the analysis take.
+//! * a time-basis file with an encoder's counts: read three times over, a chunk at a time — the
+//!   counts and the marker (the spacing check, the TDC's angle), then the channels with the
+//!   counts read ahead of them ([`physid_apps::acquisition::counts_crank_angle_chunks`]) —
+//!   memory flat in the recording's length;
+//! * a time-basis file whose angle is decoded from a raw sensor (`--wheel`, `--quadrature`), or
+//!   with the TDC placed from the pressure (`--tdc-from`): read whole — the decoders see the
+//!   whole signal — but only the channels the angle and the analysis take.
 
 use super::{CrankArgs, InputArgs};
 use crate::cmd::convert::tell_wheel;
 use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
-use physid_apps::acquisition::{crank_angle_chunks, DecodedAngle};
+use physid_apps::acquisition::{
+    counts_crank_angle_chunks, crank_angle_chunks, CountsScan, DecodedAngle,
+};
 use physid_apps::compression::CrankPasses;
 use physid_apps::error::AppError;
 use physid_core::{Basis, Recording};
@@ -110,6 +116,60 @@ impl CrankInput<'_> {
                 super::warn_read(&reader, self.path);
             }
             return Ok((state, None));
+        }
+        // An encoder's counts: read three times over — the counts and the marker first, then
+        // the channels with the counts read ahead of them.
+        let sensor = opts.sensor.as_ref().is_some_and(|s| {
+            s.sensor
+                .channels()
+                .iter()
+                .any(|c| header.channel(c).is_ok())
+        });
+        let encoder = opts
+            .encoders
+            .iter()
+            .map(|e| e.0.as_str())
+            .find(|n| header.channel(n).is_ok());
+        if let (Basis::Time, false, None, Some(encoder)) = (
+            header.basis,
+            sensor,
+            self.angle.wheel.tdc_from.as_ref(),
+            encoder,
+        ) {
+            let mut scan_names = vec!["t", encoder];
+            if header.channel(&opts.marker).is_ok() {
+                scan_names.push(opts.marker.as_str());
+            }
+            let mut scan = self.input.open(self.path, &scan_names, &[])?;
+            let mut angle = self.input.open(self.path, &["t", encoder], &[])?;
+            let mut reader = match wanted(&["t"]) {
+                Some(n) => {
+                    let n: Vec<&str> = n.iter().map(String::as_str).collect();
+                    self.input.open(self.path, &n, &[])?
+                }
+                None => self.input.open_all(self.path)?,
+            };
+            let file_header = reader.header().clone();
+            let (h, chunks) = counts_crank_angle_chunks(
+                CountsScan::new(&header, &opts)
+                    .map_err(AppError::from)
+                    .map_err(&at)?,
+                Reading::new(&mut scan, self.path),
+                &file_header,
+                angle.by_ref(),
+                Reading::new(&mut reader, self.path),
+                &opts,
+                self.step_deg,
+            )
+            .map_err(&at)?;
+            let mut s = start(&h).map_err(&at)?;
+            for chunk in chunks {
+                push(&mut s, &chunk.map_err(&at)?).map_err(&at)?;
+            }
+            if !self.again {
+                super::warn_read(&reader, self.path);
+            }
+            return Ok((s, None));
         }
         // Decoded whole: only the channels the angle and the caller take.
         let mut angle_channels: Vec<&str> = vec!["t", "theta_en", opts.marker.as_str()];
