@@ -624,19 +624,46 @@ where
     I: IntoIterator<Item = Result<Recording, E>>,
     AppError: From<E>,
 {
-    let mut runs = CrankRuns::default();
+    let mut cycles = FrictionCycles::new(cfg);
     for chunk in chunks {
-        runs.push(&chunk?, cfg)?;
+        cycles.push(&chunk?)?;
     }
-    let mut stage = FrictionStage::new(cfg.clone(), None)?;
-    let mut out = Vec::new();
-    for c in runs.finish(cfg.source.channel().1)? {
-        match c {
-            Some(c) => stage.push_cycle(c, &mut out)?,
-            None => stage.push_gap(&mut out)?,
+    cycles.fit()
+}
+
+/// [`friction_fit_cycles`] for chunks that are pushed (a crank-angle recording made as a
+/// time-basis file is read): the cycle means summed as they come, the fit at the end.
+pub struct FrictionCycles {
+    runs: CrankRuns,
+    cfg: FrictionFitConfig,
+}
+
+impl FrictionCycles {
+    /// The fit `cfg`, no cycle yet.
+    pub fn new(cfg: &FrictionFitConfig) -> Self {
+        Self {
+            runs: CrankRuns::default(),
+            cfg: cfg.clone(),
         }
     }
-    finish(stage, out)
+
+    /// The next chunk of the crank-angle recording (with `cycle`).
+    pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
+        self.runs.push(chunk, &self.cfg)
+    }
+
+    /// The coefficients, chosen on all the steady cycles.
+    pub fn fit(self) -> Result<FrictionFit, AppError> {
+        let mut stage = FrictionStage::new(self.cfg.clone(), None)?;
+        let mut out = Vec::new();
+        for c in self.runs.finish(self.cfg.source.channel().1)? {
+            match c {
+                Some(c) => stage.push_cycle(c, &mut out)?,
+                None => stage.push_gap(&mut out)?,
+            }
+        }
+        finish(stage, out)
+    }
 }
 
 /// The channels [`friction_fit_cycles`] reads from a crank-angle recording: those it needs,

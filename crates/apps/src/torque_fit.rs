@@ -19,6 +19,7 @@
 //!    NRMSE.
 
 use crate::acquisition::{to_crank_angle, AcquisitionOptions, FirstMarker, TDC_MARKER};
+use crate::compression::CrankPasses;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
@@ -583,7 +584,7 @@ enum Angle {
 /// and prediction each go over them in passes, so the fit keeps memory independent of the
 /// recording's length.
 pub struct Degrees<'a> {
-    rows: RecordingRows<'a>,
+    rows: DegreeSource<'a>,
     angle: Angle,
     /// The TDC angle on `theta_en` (time basis), once found.
     tdc: Cell<Option<f64>>,
@@ -594,8 +595,8 @@ pub struct Degrees<'a> {
 impl<'a> Degrees<'a> {
     /// The 1° samples of the file `path` read with `options` (its channel selection replaced by
     /// the fit's channels), the channels held after the first pass within `hold_bytes`. A
-    /// time-basis file needs `theta_en` (one with only an encoder's counts is decoded whole:
-    /// read it and use [`torque_fit`]).
+    /// time-basis file needs `theta_en` (one whose angle is an encoder's counts: [`Degrees::crank`]
+    /// over its crank-angle samples made as it is read).
     pub fn file(path: &Path, options: &ReadOptions, hold_bytes: usize) -> Result<Self, AppError> {
         let header = ChunkReader::open(path, options)?.header().clone();
         let (angle, needed, also) = Self::channels(&header)?;
@@ -619,6 +620,17 @@ impl<'a> Degrees<'a> {
         ))
     }
 
+    /// The 1° samples of a crank-angle recording made again on every pass (a time-basis file
+    /// whose angle is an encoder's counts, resampled as it is read: the CLI's `CrankFile`).
+    pub fn crank(source: &'a dyn CrankPasses) -> Self {
+        Self {
+            rows: DegreeSource::Passes(source),
+            angle: Angle::Crank,
+            tdc: Cell::new(None),
+            len: Cell::new(None),
+        }
+    }
+
     /// How the samples are made from a recording with `header`'s channels, and the channels
     /// read: needed, and taken when there.
     fn channels(header: &Recording) -> Result<(Angle, Vec<&str>, Vec<&str>), AppError> {
@@ -629,14 +641,14 @@ impl<'a> Degrees<'a> {
                 Ok((Angle::Time, needed, also))
             }
             Basis::Time => Err(AppError::Invalid(
-                "a time-basis recording without 'theta_en': its angle is decoded from the whole recording (convert it with `physid convert --crank-angle` first)".into(),
+                "a time-basis recording without 'theta_en': its crank-angle samples are made from the encoder's counts as it is read (`physid torque fit` does), or convert it with `physid convert --crank-angle` first".into(),
             )),
         }
     }
 
     fn over(rows: RecordingRows<'a>, angle: Angle) -> Self {
         Self {
-            rows,
+            rows: DegreeSource::Rows(rows),
             angle,
             tdc: Cell::new(None),
             len: Cell::new(None),
@@ -737,6 +749,55 @@ impl<'a> Degrees<'a> {
             Some(_) => {}
         }
         Ok(())
+    }
+}
+
+/// Where a [`Degrees`] reads its recording on each pass.
+enum DegreeSource<'a> {
+    /// The channels of a file or a recording in memory ([`RecordingRows`]).
+    Rows(RecordingRows<'a>),
+    /// A crank-angle recording made again on every pass.
+    Passes(&'a dyn CrankPasses),
+}
+
+impl DegreeSource<'_> {
+    /// `visit` every chunk in order; an error of `visit` ends the pass and is returned.
+    fn chunks<E: From<IdentError> + From<AppError>>(
+        &self,
+        visit: &mut dyn FnMut(&Recording) -> Result<(), E>,
+    ) -> Result<(), E> {
+        match self {
+            Self::Rows(rows) => rows.chunks(visit),
+            Self::Passes(source) => {
+                // `visit`'s error comes back as it is; the source's as an application error.
+                let mut failed = None;
+                let read = source.chunks(&mut |chunk| {
+                    visit(chunk).map_err(|e| {
+                        failed = Some(e);
+                        AppError::Invalid(String::new())
+                    })
+                });
+                match (read, failed) {
+                    (Ok(()), _) => Ok(()),
+                    (Err(_), Some(e)) => Err(e),
+                    (Err(e), None) => Err(E::from(e)),
+                }
+            }
+        }
+    }
+
+    fn warning(&self) -> Option<String> {
+        match self {
+            Self::Rows(rows) => rows.warning(),
+            Self::Passes(_) => None,
+        }
+    }
+
+    fn held(&self) -> bool {
+        match self {
+            Self::Rows(rows) => rows.held(),
+            Self::Passes(_) => false,
+        }
     }
 }
 

@@ -956,6 +956,35 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
             }
         }
     }
+    // `friction fit` and `torque fit` on the counts of every channel (without `theta_en`) answer
+    // as on the crank-angle file the library makes of them whole.
+    let fired = sim("torque-steady", 3.0, OutputBasis::Time(10_000.0));
+    for (verb, rec) in [("friction", &motored), ("torque", &fired)] {
+        let mut counts = Recording::new(rec.basis);
+        for c in rec.channels().iter().filter(|c| c.name != "theta_en") {
+            counts.push(c.clone()).unwrap();
+        }
+        let (f, g) = (
+            s.file(&format!("{verb}-counts.parquet")),
+            s.file(&format!("{verb}-deg.parquet")),
+        );
+        physid_io::write(&f, &counts, &Default::default()).unwrap();
+        let whole = to_crank_angle(&counts, &opts, 1.0).unwrap();
+        physid_io::write(&g, &whole, &Default::default()).unwrap();
+        let fit = |f: &std::path::Path| {
+            without_provenance(ok_json(&[
+                verb,
+                "fit",
+                "--data",
+                f.to_str().unwrap(),
+                "--json",
+            ]))
+        };
+        let got = fit(&f);
+        assert_eq!(got, fit(&g), "{verb}");
+        assert!(got["params"].is_object(), "{verb}: {got}");
+    }
+
     // From here on, the crank-angle recording of the counts (which the fit's wants match).
     let want_fit = {
         let r = compression_fit(&deg, &CompressionConfig::new("p_cyl", 0.0514, 0.088)).unwrap();

@@ -48,6 +48,26 @@ pub struct CrankInput<'a> {
 }
 
 impl CrankInput<'_> {
+    /// Check before reading that a time-basis file has an engine angle and the channels
+    /// `needed` (besides those the resampling makes): an error names every channel of the file.
+    pub fn require(&self, needed: &[&str]) -> Result<()> {
+        let at = super::app_error(self.path);
+        let header = self.input.open_all(self.path)?.header().clone();
+        let opts = self.angle.options()?;
+        if header.basis == Basis::Time
+            && header.channel("theta_en").is_err()
+            && opts.sensor.is_none()
+        {
+            CountsScan::new(&header, &opts)
+                .map_err(AppError::from)
+                .map_err(&at)?;
+        }
+        for name in needed {
+            header.channel(name).map_err(AppError::from).map_err(&at)?;
+        }
+        Ok(())
+    }
+
     /// Read the file on a crank-angle basis: `start` gets the recording's channels (no
     /// samples), then `push` every chunk in order. `channels`: the ones the caller takes
     /// (besides `t`, `cycle`, `crank_deg` and the angle's), or `None` for every channel. What
@@ -125,23 +145,20 @@ impl CrankInput<'_> {
                 .iter()
                 .any(|c| header.channel(c).is_ok())
         });
-        let encoder = opts
-            .encoders
-            .iter()
-            .map(|e| e.0.as_str())
-            .find(|n| header.channel(n).is_ok());
-        if let (Basis::Time, false, None, Some(encoder)) = (
-            header.basis,
-            sensor,
-            self.angle.wheel.tdc_from.as_ref(),
-            encoder,
-        ) {
-            let mut scan_names = vec!["t", encoder];
+        if let (Basis::Time, false, None) =
+            (header.basis, sensor, self.angle.wheel.tdc_from.as_ref())
+        {
+            // No encoder either: the error names every channel of the file.
+            let counts = CountsScan::new(&header, &opts)
+                .map_err(AppError::from)
+                .map_err(&at)?;
+            let encoder = counts.encoder().0.to_string();
+            let mut scan_names = vec!["t", encoder.as_str()];
             if header.channel(&opts.marker).is_ok() {
                 scan_names.push(opts.marker.as_str());
             }
             let mut scan = self.input.open(self.path, &scan_names, &[])?;
-            let mut angle = self.input.open(self.path, &["t", encoder], &[])?;
+            let mut angle = self.input.open(self.path, &["t", &encoder], &[])?;
             let mut reader = match wanted(&["t"]) {
                 Some(n) => {
                     let n: Vec<&str> = n.iter().map(String::as_str).collect();

@@ -2,14 +2,17 @@
 //! `rank` of its design parameters over an operating grid (thesis §7.2, Table 7.1, Fig. 7.1),
 //! `fit` of its regression coefficients to a motored recording (thesis §7.3, Application 2).
 
+use super::crank_input::CrankInput;
+use super::inspect::AngleArgs;
+use super::CrankArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::progress::Reading;
 use crate::report::{self, Report};
 use miette::{miette, Result};
 use physid_apps::friction_fit::{
-    self, friction_fit, friction_fit_stream, friction_preset, FrictionFit, FrictionFitConfig,
-    TorqueSource, FRICTION_PRESETS, OBJECTIVE_PCT,
+    self, friction_fit, friction_fit_stream, friction_preset, FrictionCycles, FrictionFit,
+    FrictionFitConfig, TorqueSource, FRICTION_PRESETS, OBJECTIVE_PCT,
 };
 use physid_apps::friction_rank::{friction_rank, RankGrid, RankTable};
 use physid_ident::Selection;
@@ -198,8 +201,8 @@ fn fit(a: &FitArgs) -> Result<()> {
     cfg.transient_s = a.transient;
     cfg.p_atm_kpa = a.p_atm;
     // A time-basis file streams through the stage, a crank-angle one (with `cycle`) through
-    // the cycle means, each reading only the channels it takes; another (a time basis without
-    // the engine angle) is converted to cycles whole.
+    // the cycle means, each reading only the channels it takes; a time basis whose angle is an
+    // encoder's counts is resampled to 1° as it is read (`CrankInput`), into the cycle means.
     let header = a.input.open_all(&a.data)?.header().clone();
     let r = if friction_fit::streams(&header) {
         let (needed, optional) = friction_fit::sample_channels(&cfg);
@@ -213,6 +216,34 @@ fn fit(a: &FitArgs) -> Result<()> {
         let r = friction_fit::friction_fit_cycles(Reading::new(&mut reader, &a.data), &cfg);
         super::warn_read(&reader, &a.data);
         r
+    } else if header.basis == physid_core::Basis::Time {
+        // The engine angle from an encoder's counts: the crank-angle samples as they are made.
+        let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
+        let input = CrankInput {
+            input: &a.input,
+            angle: &angle,
+            crank: &crank,
+            path: &a.data,
+            step_deg: 1.0,
+            quiet: false,
+            again: false,
+        };
+        let (needed, optional) = friction_fit::cycle_channels(&cfg);
+        let made = ["cycle"];
+        input.require(
+            &needed
+                .iter()
+                .filter(|n| !made.contains(n))
+                .copied()
+                .collect::<Vec<_>>(),
+        )?;
+        let channels: Vec<&str> = needed.into_iter().chain(optional).collect();
+        let (cycles, _) = input.read(
+            Some(&channels),
+            |_| Ok(FrictionCycles::new(&cfg)),
+            |s, chunk| s.push(chunk),
+        )?;
+        cycles.fit()
     } else {
         friction_fit(&a.input.read(&a.data, None)?, &cfg)
     }

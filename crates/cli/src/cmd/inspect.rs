@@ -52,6 +52,18 @@ pub struct AngleArgs {
     pub wheel: WheelArgs,
 }
 
+impl Default for AngleArgs {
+    /// The thesis's test cell: `count_en` (360 pulses/rev), `count_dy` (1024), marker `tdc`,
+    /// no raw sensor — what the flags give when none is set.
+    fn default() -> Self {
+        Self {
+            encoders: Vec::new(),
+            marker: physid_apps::acquisition::TDC_MARKER.into(),
+            wheel: WheelArgs::default(),
+        }
+    }
+}
+
 impl AngleArgs {
     /// The acquisition options these flags give.
     pub fn options(&self) -> Result<AcquisitionOptions> {

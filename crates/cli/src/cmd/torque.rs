@@ -1,13 +1,15 @@
 //! `physid torque fit`: Application 3 — identifiability and EKF/UKF estimation of the cyclic
 //! engine torque model (thesis ch. 8).
 
-use super::named_values;
+use super::crank_input::{CrankFile, CrankInput};
+use super::inspect::AngleArgs;
+use super::{named_values, CrankArgs};
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, Result};
 use physid_apps::torque_fit::{
-    cyclic_torque_nominal, torque_fit, torque_fit_degrees, Degrees, TorqueFit, TorqueFitConfig,
+    cyclic_torque_nominal, torque_fit_degrees, Degrees, TorqueFit, TorqueFitConfig,
 };
 use physid_core::Basis;
 use physid_estim::NlMethod;
@@ -331,7 +333,8 @@ fn fit(a: &FitArgs) -> Result<()> {
     let cfg = config(a)?;
     // A crank-angle file, or a time-basis one with the engine angle, is gone over in passes
     // (its 1° samples made again on each, the channels held within PHYSID_HOLD_MB): memory
-    // independent of its length. Another (a time basis with an encoder's counts) is read whole.
+    // independent of its length. A time basis with an encoder's counts likewise, its 1° samples
+    // made again from the file on each pass (`CrankFile`).
     let header = a.input.open_all(&a.data)?.header().clone();
     let r = if header.basis == Basis::CrankAngle || header.channel("theta_en").is_ok() {
         let src = Degrees::file(&a.data, &a.input.options(None)?, super::hold_bytes()?)
@@ -345,7 +348,27 @@ fn fit(a: &FitArgs) -> Result<()> {
         }
         r
     } else {
-        torque_fit(&a.input.read(&a.data, None)?, &cfg)
+        // The engine angle from an encoder's counts: the 1° samples made as the file is read,
+        // again on every pass.
+        let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
+        let input = CrankInput {
+            input: &a.input,
+            angle: &angle,
+            crank: &crank,
+            path: &a.data,
+            step_deg: 1.0,
+            quiet: false,
+            again: false,
+        };
+        let mut channels = physid_apps::torque_fit::crank_channels(&header);
+        channels.retain(|n| *n != "theta_en");
+        input.require(&channels)?;
+        let file = CrankFile::new(input, channels);
+        let working =
+            crate::progress::Working::new("choosing the parameters and filtering every degree");
+        let r = torque_fit_degrees(&Degrees::crank(&file), &cfg);
+        drop(working);
+        r
     }
     .map_err(super::app_error(&a.data))?;
     if let Some(path) = &a.tracks {
