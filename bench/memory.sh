@@ -6,7 +6,8 @@
 # the crank-angle verbs, identify and run). ONLY=crank measures the crank-angle verbs alone,
 # ONLY=passes identify and run alone (the last part; DURATIONS="75 600" to choose), ONLY=torque
 # torque fit in passes alone (DURATIONS likewise), ONLY=compression compression fit in passes,
-# ONLY=mdf MDF4 in several groups and written compressed (bench/mdf_groups.py needs asammdf).
+# ONLY=mdf MDF4 in several groups and written compressed (bench/mdf_groups.py needs asammdf),
+# ONLY=counts the verbs on a time-basis file whose angle is an encoder's counts.
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -147,5 +148,35 @@ for D in ${DURATIONS:-75 600 3600}; do
     [ -n "$OLD" ] && { [ "$D" != 3600 ] || [ "${cmd#*--compression}" = "$cmd" ]; } && row="$row $(m "$OLD" $cmd) |"
     echo "$row"
   done
+done
+fi
+# A time-basis file whose angle is an encoder's counts (ONLY=counts): counts-D.parquet, 13 of
+# the motored run's 35 channels (not theta_en), read three times over by the crank-angle verbs
+# (the counts and the marker; then the channels with the counts read ahead); fcounts-D.parquet
+# the fired run's channels without theta_en, for torque fit (no one-hour fired run: 75 and 600 s).
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = counts ]; then
+CH=t,count_en,count_dy,tdc,omega_en,alpha_en,p_cyl,p_int,p_crank,p_atm,T_oil,torque_engine,torque_shaft
+for D in ${DURATIONS:-75 600 3600}; do
+  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
+  [ -f "counts-$D.parquet" ] || "$NEW" convert "motored-$D.parquet" "counts-$D.parquet" --channels "$CH" > /dev/null
+  cat "counts-$D.parquet" > /dev/null
+  for cmd in "cycles counts-$D.parquet" "convert counts-$D.parquet cdeg.parquet --crank-angle" \
+             "compression fit --data counts-$D.parquet --stroke 0.0514 --rod 0.088" \
+             "friction fit --data counts-$D.parquet --json"; do
+    # shellcheck disable=SC2086
+    row="| $D s | \`$cmd\` | $(m "$NEW" $cmd) |"
+    # shellcheck disable=SC2086
+    [ -n "$OLD" ] && [ "$D" != 3600 ] && row="$row $(m "$OLD" $cmd) |"
+    echo "$row"
+  done
+  # Not held: every pass of the fit reads the file three times (one hour: ≈ 30 min).
+  [ "$D" != 3600 ] && echo "| $D s | \`compression fit\`, PHYSID_HOLD_MB=0 | $(PHYSID_HOLD_MB=0 m "$NEW" compression fit --data "counts-$D.parquet" --stroke 0.0514 --rod 0.088) |"
+  if [ "$D" != 3600 ]; then
+    [ -f "fired-$D.parquet" ] || "$NEW" simulate --scenario torque-steady --duration "$D" --recording "fired-$D.parquet" > /dev/null
+    [ -f "fcounts-$D.parquet" ] || "$NEW" convert "fired-$D.parquet" "fcounts-$D.parquet" --channels "$CH" > /dev/null
+    row="| $D s | \`torque fit --data fcounts-$D.parquet --json\` | $(m "$NEW" torque fit --data "fcounts-$D.parquet" --json) |"
+    [ -n "$OLD" ] && row="$row $(m "$OLD" torque fit --data "fcounts-$D.parquet" --json) |"
+    echo "$row"
+  fi
 done
 fi

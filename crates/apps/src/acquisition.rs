@@ -591,8 +591,9 @@ fn engine_angle(
 /// The first pass over a time-basis recording whose engine angle is an encoder's counts
 /// (thesis Eq. 4.2), a chunk at a time: the check that the counts are equally spaced in angle
 /// ([`SpacingCheck`]) and the firing TDC's angle — at the first TDC marker, interpolated
-/// between the count steps around it ([`interp`](physid_signal::crank::interp)'s rule), without a marker the first multiple
-/// of 4π ([`first_tdc`]). The angle itself is the count steps ([`CountSteps`]), which
+/// between the count steps around it by the rule of
+/// [`interp`](physid_signal::crank::interp), without a marker the first multiple of 4π
+/// ([`first_tdc`]). The angle itself is the count steps ([`CountSteps`]), which
 /// [`push`](Self::push) gives too. What it holds: a few numbers, the spacing check's, and the
 /// steps of the last chunk.
 #[derive(Debug, Clone)]
@@ -701,8 +702,9 @@ impl CountsScan {
 }
 
 /// `interp(x, y, &[a])` over points `(x, y)` that come one at a time, `a` told before the
-/// points after it: `y` of the first point at or before it, of the last at or after it,
-/// between them `y[j] + f·(y[j+1] − y[j])` on the first pair with `x[j] < a ≤ x[j+1]`.
+/// points after it: the first point's `y` when `a` is at or before it, the last point's when
+/// at or after it, between them `y[j] + f·(y[j+1] − y[j])` on the first pair with
+/// `x[j] < a ≤ x[j+1]`.
 #[derive(Debug, Clone, Default)]
 struct MarkerAngle {
     /// The abscissa asked for, and the sample it is at.
@@ -746,7 +748,8 @@ impl MarkerAngle {
                     let f = (a - xj) / (xk - xj);
                     yj + f * (yk - yj)
                 }
-                // Points that do not increase: as `interp` on them, the first pair.
+                // Times that do not increase: no pair brackets it (the resampling then says
+                // where they stop increasing).
                 None => f64::NAN,
             }
         }))

@@ -19,7 +19,7 @@ use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
 use physid_apps::acquisition::{
-    counts_crank_angle_chunks, crank_angle_chunks, CountsScan, DecodedAngle,
+    counts_crank_angle_chunks, crank_angle_chunks, AcquisitionOptions, CountsScan, DecodedAngle,
 };
 use physid_apps::compression::CrankPasses;
 use physid_apps::error::AppError;
@@ -56,7 +56,7 @@ impl CrankInput<'_> {
         let opts = self.angle.options()?;
         if header.basis == Basis::Time
             && header.channel("theta_en").is_err()
-            && opts.sensor.is_none()
+            && !sensor_present(&opts, &header)
         {
             CountsScan::new(&header, &opts)
                 .map_err(AppError::from)
@@ -139,15 +139,11 @@ impl CrankInput<'_> {
         }
         // An encoder's counts: read three times over — the counts and the marker first, then
         // the channels with the counts read ahead of them.
-        let sensor = opts.sensor.as_ref().is_some_and(|s| {
-            s.sensor
-                .channels()
-                .iter()
-                .any(|c| header.channel(c).is_ok())
-        });
-        if let (Basis::Time, false, None) =
-            (header.basis, sensor, self.angle.wheel.tdc_from.as_ref())
-        {
+        if let (Basis::Time, false, None) = (
+            header.basis,
+            sensor_present(&opts, &header),
+            self.angle.wheel.tdc_from.as_ref(),
+        ) {
             // No encoder either: the error names every channel of the file.
             let counts = CountsScan::new(&header, &opts)
                 .map_err(AppError::from)
@@ -168,9 +164,7 @@ impl CrankInput<'_> {
             };
             let file_header = reader.header().clone();
             let (h, chunks) = counts_crank_angle_chunks(
-                CountsScan::new(&header, &opts)
-                    .map_err(AppError::from)
-                    .map_err(&at)?,
+                counts,
                 Reading::new(&mut scan, self.path),
                 &file_header,
                 angle.by_ref(),
@@ -213,6 +207,17 @@ impl CrankInput<'_> {
         push(&mut s, &deg).map_err(&at)?;
         Ok((s, decoded))
     }
+}
+
+/// Whether the engine angle is a raw sensor's (`--wheel`, `--quadrature`) whose channels the
+/// file has.
+fn sensor_present(opts: &AcquisitionOptions, header: &Recording) -> bool {
+    opts.sensor.as_ref().is_some_and(|s| {
+        s.sensor
+            .channels()
+            .iter()
+            .any(|c| header.channel(c).is_ok())
+    })
 }
 
 /// A [`CrankInput`] gone over in passes (`compression fit`'s windows, when they are not held):
