@@ -676,6 +676,24 @@ impl CountsScan {
         Ok((&self.t, &self.theta))
     }
 
+    /// The first pass over a recording's chunks (`t`, the counts and the marker): the encoder
+    /// and the firing TDC's angle — or why no crank angle can be taken from the counts.
+    pub fn scan<S, E>(mut self, chunks: S) -> Result<CountsAngle, AppError>
+    where
+        S: IntoIterator<Item = Result<Recording, E>>,
+        AppError: From<E>,
+    {
+        for chunk in chunks {
+            self.push(&chunk?)?;
+        }
+        let (encoder, ppr) = (self.name.clone(), self.ppr);
+        Ok(CountsAngle {
+            encoder,
+            ppr,
+            tdc: self.finish()?,
+        })
+    }
+
     /// The firing TDC's angle [rad] — or why no crank angle can be taken from the counts.
     pub fn finish(self) -> Result<f64, AcquisitionError> {
         let (name, ppr) = (&self.name, self.ppr);
@@ -699,6 +717,18 @@ impl CountsScan {
             None => Ok(first_tdc(self.at.first.map_or(0.0, |p| p.1))),
         }
     }
+}
+
+/// What the first pass over an encoder's counts found ([`CountsScan::scan`]): what the
+/// second, the resampling, needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CountsAngle {
+    /// The count channel.
+    pub encoder: String,
+    /// Its pulses per revolution.
+    pub ppr: u32,
+    /// The firing TDC's angle on the counts' angle [rad].
+    pub tdc: f64,
 }
 
 /// `interp(x, y, &[a])` over points `(x, y)` that come one at a time, `a` told before the
@@ -1187,9 +1217,9 @@ where
 /// crank degrees, resampled as it comes — what [`to_crank_angle`] gives on the whole
 /// recording — in two passes over the file:
 ///
-/// 1. `scan_chunks` (`t`, the counts and the marker) through `scan` ([`CountsScan`], made on
-///    the recording's header): the spacing check and the firing TDC's angle, before anything
-///    is resampled (its errors come from this call);
+/// 1. `t`, the counts and the marker through a [`CountsScan`] ([`CountsScan::scan`]): the
+///    spacing check and the firing TDC's angle, `counts`, before anything is resampled (once:
+///    a verb that goes over the file in passes keeps it);
 /// 2. `chunks`, the channels (`header` their channels, with `t`), with `angle`, the counts
 ///    again (`t` and the count channel), read ahead of them: a chunk of channels is resampled
 ///    once the angle has come past its last time ([`CrankAngleStream`]).
@@ -1197,9 +1227,8 @@ where
 /// What it holds: a chunk of each, and the grid points of an angle chunk ahead; the angle is
 /// read ahead, not held, however long the engine stands still. Returns the crank-angle
 /// recording's header (its channels, no samples) and its chunks.
-pub fn counts_crank_angle_chunks<'a, S, A, C, E>(
-    mut scan: CountsScan,
-    scan_chunks: S,
+pub fn counts_crank_angle_chunks<'a, A, C, E>(
+    counts: &CountsAngle,
     header: &Recording,
     angle: A,
     chunks: C,
@@ -1213,7 +1242,6 @@ pub fn counts_crank_angle_chunks<'a, S, A, C, E>(
     AppError,
 >
 where
-    S: IntoIterator<Item = Result<Recording, E>>,
     A: IntoIterator<Item = Result<Recording, E>> + 'a,
     A::IntoIter: 'a,
     C: IntoIterator<Item = Result<Recording, E>> + 'a,
@@ -1221,17 +1249,12 @@ where
     E: 'a,
     AppError: From<E>,
 {
-    for chunk in scan_chunks {
-        scan.push(&chunk?)?;
-    }
-    let (name, ppr) = (scan.name.clone(), scan.ppr);
-    let tdc = scan.finish()?;
-    let mut stream = CrankAngleStream::new(header, opts, tdc, step_deg)?;
+    let mut stream = CrankAngleStream::new(header, opts, counts.tdc, step_deg)?;
     let out_header = stream.header()?;
     let mut ahead = CountsAhead {
         angle: angle.into_iter(),
-        steps: CountSteps::new(Encoder { ppr }),
-        name,
+        steps: CountSteps::new(Encoder { ppr: counts.ppr }),
+        name: counts.encoder.clone(),
         until: f64::NEG_INFINITY,
         done: false,
         t: Vec::new(),

@@ -146,6 +146,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         step_deg: 1.0,
         quiet: a.json,
         again: false,
+        scanned: None,
     };
     let file = CrankFile::new(input, vec![a.channel.as_str()]);
     let events = TdcEvents::new(&file, &a.channel, cfg.window_deg, super::hold_bytes()?);
@@ -272,6 +273,7 @@ fn motored_imep(input: &CrankInput, r: &CompressionFit, g: &GeometryArgs) -> Res
     let quiet = CrankInput {
         quiet: true,
         again: true,
+        scanned: None,
         ..*input
     };
     let (cycles, _) = quiet.read(

@@ -83,6 +83,7 @@ pub fn run(args: &Args) -> Result<()> {
             step_deg: args.step_deg,
             quiet: false,
             again: false,
+            scanned: None,
         };
         input
             .read(

@@ -19,7 +19,8 @@ use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
 use physid_apps::acquisition::{
-    counts_crank_angle_chunks, crank_angle_chunks, AcquisitionOptions, CountsScan, DecodedAngle,
+    counts_crank_angle_chunks, crank_angle_chunks, AcquisitionOptions, CountsAngle, CountsScan,
+    DecodedAngle,
 };
 use physid_apps::compression::CrankPasses;
 use physid_apps::error::AppError;
@@ -45,6 +46,9 @@ pub struct CrankInput<'a> {
     /// A pass after the first: what the reader noticed (a cut-short last line) was said on
     /// the first and is not said again.
     pub again: bool,
+    /// What the first pass over an encoder's counts found, kept from one pass over the file to
+    /// the next (`None`: made on every read).
+    pub scanned: Option<&'a RefCell<Option<CountsAngle>>>,
 }
 
 impl CrankInput<'_> {
@@ -145,16 +149,29 @@ impl CrankInput<'_> {
             self.angle.wheel.tdc_from.as_ref(),
         ) {
             // No encoder either: the error names every channel of the file.
-            let counts = CountsScan::new(&header, &opts)
+            let scan = CountsScan::new(&header, &opts)
                 .map_err(AppError::from)
                 .map_err(&at)?;
-            let encoder = counts.encoder().0.to_string();
-            let mut scan_names = vec!["t", encoder.as_str()];
-            if header.channel(&opts.marker).is_ok() {
-                scan_names.push(opts.marker.as_str());
-            }
-            let mut scan = self.input.open(self.path, &scan_names, &[])?;
-            let mut angle = self.input.open(self.path, &["t", &encoder], &[])?;
+            // The first pass, unless an earlier pass over the file made it.
+            let known = self.scanned.and_then(|s| s.borrow().clone());
+            let counts = match known {
+                Some(c) => c,
+                None => {
+                    let mut names = vec!["t", scan.encoder().0];
+                    if header.channel(&opts.marker).is_ok() {
+                        names.push(opts.marker.as_str());
+                    }
+                    let mut reader = self.input.open(self.path, &names, &[])?;
+                    let c = scan
+                        .scan(Reading::new(&mut reader, self.path))
+                        .map_err(&at)?;
+                    if let Some(s) = self.scanned {
+                        *s.borrow_mut() = Some(c.clone());
+                    }
+                    c
+                }
+            };
+            let mut angle = self.input.open(self.path, &["t", &counts.encoder], &[])?;
             let mut reader = match wanted(&["t"]) {
                 Some(n) => {
                     let n: Vec<&str> = n.iter().map(String::as_str).collect();
@@ -164,8 +181,7 @@ impl CrankInput<'_> {
             };
             let file_header = reader.header().clone();
             let (h, chunks) = counts_crank_angle_chunks(
-                counts,
-                Reading::new(&mut scan, self.path),
+                &counts,
                 &file_header,
                 angle.by_ref(),
                 Reading::new(&mut reader, self.path),
@@ -227,6 +243,8 @@ pub struct CrankFile<'a> {
     input: CrankInput<'a>,
     channels: Vec<&'a str>,
     passes: Cell<usize>,
+    /// An encoder's counts: the first pass's finding, kept for the next.
+    scanned: RefCell<Option<CountsAngle>>,
 }
 
 impl<'a> CrankFile<'a> {
@@ -236,6 +254,7 @@ impl<'a> CrankFile<'a> {
             input,
             channels,
             passes: Cell::new(0),
+            scanned: RefCell::new(None),
         }
     }
 }
@@ -250,6 +269,7 @@ impl CrankPasses for CrankFile<'_> {
         let input = CrankInput {
             quiet: self.input.quiet || again,
             again,
+            scanned: Some(&self.scanned),
             ..self.input
         };
         // An error of `visit` comes back as it is; the reader's names the file.

@@ -115,6 +115,7 @@ pub fn run(args: &Args) -> Result<()> {
         step_deg: 1.0,
         quiet: args.json,
         again: false,
+        scanned: None,
     };
     let (analyser, wheel) = input.read(
         Some(&[args.channel.as_str()]),

@@ -227,6 +227,7 @@ fn fit(a: &FitArgs) -> Result<()> {
             step_deg: 1.0,
             quiet: false,
             again: false,
+            scanned: None,
         };
         let (needed, optional) = friction_fit::cycle_channels(&cfg);
         let made = ["cycle"];

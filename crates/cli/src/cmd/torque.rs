@@ -359,6 +359,7 @@ fn fit(a: &FitArgs) -> Result<()> {
             step_deg: 1.0,
             quiet: false,
             again: false,
+            scanned: None,
         };
         let mut channels = physid_apps::torque_fit::crank_channels(&header);
         channels.retain(|n| *n != "theta_en");
