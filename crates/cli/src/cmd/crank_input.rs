@@ -51,7 +51,27 @@ pub struct CrankInput<'a> {
     pub scanned: Option<&'a RefCell<Option<CountsAngle>>>,
 }
 
-impl CrankInput<'_> {
+impl<'a> CrankInput<'a> {
+    /// The file `path` at one sample per crank degree, its angle found as `angle` says (the
+    /// defaults: the thesis's encoders and marker), a first read.
+    pub fn degrees(
+        input: &'a InputArgs,
+        path: &'a Path,
+        angle: &'a AngleArgs,
+        crank: &'a CrankArgs,
+    ) -> Self {
+        Self {
+            input,
+            angle,
+            crank,
+            path,
+            step_deg: 1.0,
+            quiet: false,
+            again: false,
+            scanned: None,
+        }
+    }
+
     /// Check before reading that a time-basis file has an engine angle and the channels
     /// `needed` (besides those the resampling makes): an error names every channel of the file.
     pub fn require(&self, needed: &[&str]) -> Result<()> {
@@ -129,11 +149,7 @@ impl CrankInput<'_> {
                     let (h, chunks) =
                         crank_angle_chunks(&file_header, chunks, &opts, self.step_deg)
                             .map_err(&at)?;
-                    let mut s = start(&h).map_err(&at)?;
-                    for chunk in chunks {
-                        push(&mut s, &chunk.map_err(&at)?).map_err(&at)?;
-                    }
-                    s
+                    feed(&h, chunks, start, push).map_err(&at)?
                 }
             };
             if !self.again {
@@ -189,10 +205,7 @@ impl CrankInput<'_> {
                 self.step_deg,
             )
             .map_err(&at)?;
-            let mut s = start(&h).map_err(&at)?;
-            for chunk in chunks {
-                push(&mut s, &chunk.map_err(&at)?).map_err(&at)?;
-            }
+            let s = feed(&h, chunks, start, push).map_err(&at)?;
             if !self.again {
                 super::warn_read(&reader, self.path);
             }
@@ -223,6 +236,20 @@ impl CrankInput<'_> {
         push(&mut s, &deg).map_err(&at)?;
         Ok((s, decoded))
     }
+}
+
+/// `start` on the crank-angle recording's header `h`, then `push` every chunk in order.
+fn feed<S>(
+    h: &Recording,
+    chunks: impl Iterator<Item = Result<Recording, AppError>>,
+    start: impl FnOnce(&Recording) -> Result<S, AppError>,
+    mut push: impl FnMut(&mut S, &Recording) -> Result<(), AppError>,
+) -> Result<S, AppError> {
+    let mut s = start(h)?;
+    for chunk in chunks {
+        push(&mut s, &chunk?)?;
+    }
+    Ok(s)
 }
 
 /// Whether the engine angle is a raw sensor's (`--wheel`, `--quadrature`) whose channels the

@@ -219,16 +219,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     } else if header.basis == physid_core::Basis::Time {
         // The engine angle from an encoder's counts: the crank-angle samples as they are made.
         let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
-        let input = CrankInput {
-            input: &a.input,
-            angle: &angle,
-            crank: &crank,
-            path: &a.data,
-            step_deg: 1.0,
-            quiet: false,
-            again: false,
-            scanned: None,
-        };
+        let input = CrankInput::degrees(&a.input, &a.data, &angle, &crank);
         let (needed, optional) = friction_fit::cycle_channels(&cfg);
         let made = ["cycle"];
         input.require(

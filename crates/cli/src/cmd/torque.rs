@@ -351,16 +351,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         // The engine angle from an encoder's counts: the 1° samples made as the file is read,
         // again on every pass.
         let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
-        let input = CrankInput {
-            input: &a.input,
-            angle: &angle,
-            crank: &crank,
-            path: &a.data,
-            step_deg: 1.0,
-            quiet: false,
-            again: false,
-            scanned: None,
-        };
+        let input = CrankInput::degrees(&a.input, &a.data, &angle, &crank);
         let mut channels = physid_apps::torque_fit::crank_channels(&header);
         channels.retain(|n| *n != "theta_en");
         input.require(&channels)?;
