@@ -4,17 +4,19 @@
 //! `filter` verbs are thin wrappers over these.
 
 use crate::error::AppError;
+use crate::wheel_angle::{
+    firing_tdc, no_phase, wheel_crank_angle_chunks, wheel_decoded, wheel_gap, PhaseWindows,
+    WheelFound,
+};
 use physid_core::{Basis, Channel, Recording, RecordingError};
 use physid_signal::encoder::{first_marker, CountSteps, Encoder, SpacingCheck};
 use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
     median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
 };
-use physid_signal::wheel::{
-    index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelAngles, WheelError,
-};
+use physid_signal::wheel::{index_teeth, recognise, EdgeDetector, EdgeOptions, ToothReport, Wheel};
 use serde::Serialize;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::PI;
 use thiserror::Error;
 
 /// Errors of the acquisition functions.
@@ -551,11 +553,7 @@ fn engine_angle(
             && s.sensor.channels().iter().any(|c| rec.channel(c).is_ok())
     });
     if let Some(spec) = sensor {
-        let mut decoded = decode_angle(rec, spec)?;
-        let (t, theta) = (
-            std::mem::take(&mut decoded.t),
-            std::mem::take(&mut decoded.theta),
-        );
+        let (t, theta, decoded) = decode_quadrature(rec, spec).map_err(acquisition)?;
         return Ok(EngineAngle {
             t,
             theta,
@@ -804,18 +802,13 @@ struct EngineAngle {
     wheel: Option<DecodedAngle>,
 }
 
-/// The engine angle decoded from a raw angle sensor.
+/// What decoding a raw angle sensor found, and where the firing TDC lies on its angle.
 #[derive(Debug, Clone)]
 pub struct DecodedAngle {
-    /// The times of the samples between the sensor's first and last edge [s] (a quadrature
-    /// encoder: after the last time it turned back).
-    pub t: Vec<f64>,
-    /// The crank angle there [rad], 0 at the sensor's first reference.
-    pub theta: Vec<f64>,
     /// The firing TDC's angle [rad]: the first at or after the first sample.
     pub tdc: f64,
     /// What decoding a wheel found (teeth, gaps, speed range).
-    pub wheel: Option<WheelAngles>,
+    pub wheel: Option<ToothReport>,
     /// What decoding a quadrature encoder found.
     pub encoder: Option<EncoderSummary>,
     /// Missing, extra and unresolved edges, references out of place, at their samples.
@@ -837,127 +830,66 @@ pub struct EncoderSummary {
     pub backward_steps: usize,
 }
 
-/// What a sensor's decoder gives [`decode_angle`]: the span of its edges [s], its report, and
-/// the angle at any time.
-struct SensorAngles {
-    span: (f64, f64),
-    wheel: Option<WheelAngles>,
-    encoder: Option<EncoderSummary>,
-    findings: Vec<Finding>,
-    summary: String,
-    angle_at: AngleAt,
-}
-
-/// The angle [rad] at the times given [s].
-type AngleAt = Box<dyn Fn(&[f64]) -> Vec<f64>>;
-
-/// Decode a raw angle sensor ([`physid_signal::wheel`], [`physid_signal::quadrature`]) into
-/// the crank angle at every sample between its first and last edge, and place the firing TDC:
-/// `tdc_offset_deg` after the sensor's reference, in the revolution where `phase_from`'s mean
-/// over the revolution centred on the TDC is higher (lower with `:low`; the median over the
-/// recording's TDCs of each kind). An encoder that turned back is
-/// taken from the last time it did (the crank angle must increase).
-pub fn decode_angle(rec: &Recording, spec: &AngleSpec) -> Result<DecodedAngle, AcquisitionError> {
+/// A quadrature encoder's channels ([`physid_signal::quadrature`]) decoded whole into the crank
+/// angle at every sample between its first and last transition — after the last time it
+/// turned back (the crank angle must increase) — and the firing TDC placed:
+/// `tdc_offset_deg` after the index, in the revolution `phase_from` picks ([`PhaseWindows`]).
+/// Returns the samples' times [s], their angles [rad] and what was found. (A trigger wheel is
+/// decoded as it is read: [`crate::wheel_angle`].)
+fn decode_quadrature(
+    rec: &Recording,
+    spec: &AngleSpec,
+) -> Result<(Vec<f64>, Vec<f64>, DecodedAngle), AppError> {
     let t = rec.values("t")?;
-    let invalid = |e: String| AcquisitionError::Invalid(e);
-    let SensorAngles {
-        span: edge_t,
-        wheel,
-        encoder,
-        findings,
-        summary,
-        angle_at,
-    } = match &spec.sensor {
-        AngleSensor::Wheel {
-            channel,
-            wheel,
-            edges,
-        } => {
-            let v = rec.values(channel)?;
-            let found = physid_signal::wheel::edges(t, v, edges)
-                .map_err(|e: WheelError| invalid(format!("'{channel}': {e}")))?;
-            let angles =
-                index_teeth(&found, *wheel, channel).map_err(|e| invalid(e.to_string()))?;
-            let summary = format!(
-                "wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm",
-                angles.wheel,
-                angles.t.len(),
-                angles.revolutions,
-                angles.rpm.0,
-                angles.rpm.1
-            );
-            let span = (angles.t[0], angles.t[angles.t.len() - 1]);
-            let findings = angles.findings.clone();
-            let a = angles.clone();
-            SensorAngles {
-                span,
-                wheel: Some(angles),
-                encoder: None,
-                findings,
-                summary,
-                angle_at: Box::new(move |x: &[f64]| a.angle_at(x)),
-            }
-        }
-        AngleSensor::Quadrature { a, b, z, lines } => {
-            if z.is_none() {
-                return Err(invalid(format!(
-                    "--quadrature {a},{b}: without an index channel (Z) the angle has no reference to place the TDC from; give --quadrature {a},{b},Z=LINES"
-                )));
-            }
-            let za = match z {
-                Some(z) => Some(rec.values(z)?),
-                None => None,
-            };
-            let q = physid_signal::quadrature::decode(
-                t,
-                rec.values(a)?,
-                rec.values(b)?,
-                za,
-                *lines,
-                [a.as_str(), b.as_str(), z.as_deref().unwrap_or("")],
-            )
-            .map_err(|e| invalid(e.to_string()))?;
-            // From the last transition that went back on.
-            let from = q
-                .angle
-                .windows(2)
-                .rposition(|w| w[1] <= w[0])
-                .map_or(0, |k| k + 1);
-            let span = (q.t[from], q.t[q.t.len() - 1]);
-            let summary = format!(
-                "quadrature encoder of {lines} lines decoded: {} transitions, {} index pulse(s) turning forward, {} steps back{}",
-                q.t.len(),
-                q.index_t.len(),
-                q.backward,
-                if from > 0 {
-                    format!(" (the crank angle from {:.6} s, after it last turned back)", span.0)
-                } else {
-                    String::new()
-                }
-            );
-            let encoder = EncoderSummary {
-                lines: *lines,
-                index_pulses: q.index_t.len(),
-                backward_steps: q.backward,
-            };
-            let findings = q.findings.clone();
-            SensorAngles {
-                span,
-                wheel: None,
-                encoder: Some(encoder),
-                findings,
-                summary,
-                angle_at: Box::new(move |x: &[f64]| q.angle_at(x)),
-            }
-        }
+    let AngleSensor::Quadrature { a, b, z, lines } = &spec.sensor else {
+        return Err(AppError::Invalid(
+            "the angle sensor is a trigger wheel, decoded as it is read".into(),
+        ));
     };
-    let (first, last) = edge_t;
-    let (a, b) = (
+    let invalid = |e: String| AppError::Acquisition(AcquisitionError::Invalid(e));
+    let Some(z) = z else {
+        return Err(invalid(format!(
+            "--quadrature {a},{b}: without an index channel (Z) the angle has no reference to place the TDC from; give --quadrature {a},{b},Z=LINES"
+        )));
+    };
+    let q = physid_signal::quadrature::decode(
+        t,
+        rec.values(a)?,
+        rec.values(b)?,
+        Some(rec.values(z)?),
+        *lines,
+        [a.as_str(), b.as_str(), z.as_str()],
+    )
+    .map_err(|e| invalid(e.to_string()))?;
+    // From the last transition that went back on.
+    let from = q
+        .angle
+        .windows(2)
+        .rposition(|w| w[1] <= w[0])
+        .map_or(0, |k| k + 1);
+    let (first, last) = (q.t[from], q.t[q.t.len() - 1]);
+    let summary = format!(
+        "quadrature encoder of {lines} lines decoded: {} transitions, {} index pulse(s) turning forward, {} steps back{}",
+        q.t.len(),
+        q.index_t.len(),
+        q.backward,
+        if from > 0 {
+            format!(" (the crank angle from {first:.6} s, after it last turned back)")
+        } else {
+            String::new()
+        }
+    );
+    let encoder = EncoderSummary {
+        lines: *lines,
+        index_pulses: q.index_t.len(),
+        backward_steps: q.backward,
+    };
+    let (i, j) = (
         t.partition_point(|&x| x < first),
         t.partition_point(|&x| x <= last),
     );
-    let tt = t[a..b].to_vec();
-    let theta = angle_at(&tt);
+    let tt = t[i..j].to_vec();
+    let theta = q.angle_at(&tt);
     if tt.len() < 2 {
         return Err(invalid(format!(
             "{}: fewer than 2 samples between the sensor's first and last edge",
@@ -965,79 +897,45 @@ pub fn decode_angle(rec: &Recording, spec: &AngleSpec) -> Result<DecodedAngle, A
         )));
     }
     let offset = spec.tdc_offset_deg.to_radians();
-    // The TDCs a revolution apart: offset + 2πk; which parity fires.
     let (parity, phase) = match &spec.phase_from {
-        None => (
-            0,
-            format!(
-                "the TDC {}° after the first reference taken as firing (no --phase-from)",
-                spec.tdc_offset_deg
-            ),
-        ),
+        None => (0, no_phase(spec.tdc_offset_deg)),
         Some(from) => {
-            // `NAME` or `NAME:low`.
-            let (name, low) = match from.strip_suffix(":low") {
-                Some(n) => (n, true),
-                None => (from.as_str(), false),
-            };
-            let p = &rec.values(name)?[a..b];
-            // The channel's mean over the revolution centred on each whole TDC.
-            let mut at: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
-            let last = theta[theta.len() - 1];
-            let mut k = ((theta[0] + PI - offset) / TAU).ceil() as i64;
-            loop {
-                let angle = offset + TAU * k as f64;
-                if angle + PI > last {
-                    break;
-                }
-                let (i, j) = (
-                    theta.partition_point(|&x| x < angle - PI),
-                    theta.partition_point(|&x| x < angle + PI),
-                );
-                if j > i {
-                    let mean = p[i..j].iter().sum::<f64>() / (j - i) as f64;
-                    if mean.is_finite() {
-                        at[k.rem_euclid(2) as usize].push(mean);
-                    }
-                }
-                k += 1;
+            let p = &rec.values(from.strip_suffix(":low").unwrap_or(from))?[i..j];
+            let mut windows = PhaseWindows::new(offset);
+            for (&th, &p) in theta.iter().zip(p) {
+                windows.push(th, p);
             }
-            if at[0].is_empty() || at[1].is_empty() {
-                return Err(AcquisitionError::Invalid(format!(
-                    "--phase-from {from}: the recording spans fewer than two whole revolutions around TDCs (with finite '{name}'), so which one fires cannot be told"
-                )));
-            }
-            let level = |v: &mut Vec<f64>| {
-                v.sort_unstable_by(f64::total_cmp);
-                v[v.len() / 2]
-            };
-            let (l0, l1) = (level(&mut at[0]), level(&mut at[1]));
-            let parity = usize::from((l1 > l0) != low);
-            let (fire, other) = if parity == 1 { (l1, l0) } else { (l0, l1) };
-            (
-                parity as i64,
-                format!(
-                    "the firing TDC {:.3}° after the reference of {} revolutions ('{name}' {} there: mean {fire:.4e} over the revolution around it against {other:.4e} a revolution away, medians over the TDCs)",
-                    spec.tdc_offset_deg,
-                    if parity == 1 { "odd" } else { "even" },
-                    if low { "lower" } else { "higher" }
-                ),
-            )
+            windows.finish(from, spec.tdc_offset_deg)?
         }
     };
-    let parity = parity as f64;
-    let mut tdc = offset + TAU * parity;
-    tdc += 4.0 * PI * ((theta[0] - tdc) / (4.0 * PI)).ceil();
-    Ok(DecodedAngle {
-        t: tt,
-        theta,
-        tdc,
-        wheel,
-        encoder,
-        findings,
+    let decoded = DecodedAngle {
+        tdc: firing_tdc(offset, parity, theta[0]),
+        wheel: None,
+        encoder: Some(encoder),
+        findings: q.findings,
         summary,
         phase,
+    };
+    Ok((tt, theta, decoded))
+}
+
+/// The trigger wheel whose raw signal is the engine angle of a time-basis recording without
+/// `theta_en`, when the options name one the recording has.
+pub fn raw_wheel<'a>(header: &Recording, opts: &'a AcquisitionOptions) -> Option<&'a AngleSpec> {
+    opts.sensor.as_ref().filter(|s| {
+        header.channel("theta_en").is_err()
+            && matches!(&s.sensor, AngleSensor::Wheel { channel, .. } if header.channel(channel).is_ok())
     })
+}
+
+/// An application error as one of the acquisition chain's (the wheel's passes on a recording
+/// held whole).
+fn acquisition(e: AppError) -> AcquisitionError {
+    match e {
+        AppError::Acquisition(e) => e,
+        AppError::Recording(e) => AcquisitionError::Recording(e),
+        e => AcquisitionError::Invalid(e.to_string()),
+    }
 }
 
 /// The angle of a firing TDC on the recording's `theta_en` [rad]: its value at the first TDC
@@ -1132,6 +1030,22 @@ pub fn to_crank_angle_decoded(
         return Err(AcquisitionError::Invalid(
             "the recording is already on a crank-angle basis".into(),
         ));
+    }
+    if let Some(spec) = raw_wheel(rec, opts) {
+        // The wheel's three passes, over the recording as one chunk.
+        let one = || std::iter::once(Ok::<&Recording, AppError>(rec));
+        let run = || -> Result<_, AppError> {
+            let gap = wheel_gap(spec, one())?;
+            let decoded = wheel_decoded(spec, &gap, one(), one())?;
+            let found = WheelFound { gap, decoded };
+            let (mut out, chunks) =
+                wheel_crank_angle_chunks(spec, &found, rec, one(), one(), opts, step_deg)?;
+            for chunk in chunks {
+                out.append(&chunk?)?;
+            }
+            Ok((out, Some(found.decoded)))
+        };
+        return run().map_err(acquisition);
     }
     let angle = engine_angle(rec, opts)?;
     if angle.t.len() < 2 {
@@ -1401,13 +1315,16 @@ impl CrankAngleStream {
         self.push_channels(chunk)
     }
 
-    fn push_angle(&mut self, t: &[f64], theta: &[f64]) -> Result<(), AcquisitionError> {
+    pub(crate) fn push_angle(&mut self, t: &[f64], theta: &[f64]) -> Result<(), AcquisitionError> {
         self.resampler
             .push_angle(t, theta)
             .map_err(|e| AcquisitionError::Invalid(e.to_string()))
     }
 
-    fn push_channels(&mut self, chunk: &Recording) -> Result<Recording, AcquisitionError> {
+    pub(crate) fn push_channels(
+        &mut self,
+        chunk: &Recording,
+    ) -> Result<Recording, AcquisitionError> {
         let ys = self
             .carried
             .iter()

@@ -42,6 +42,7 @@ pub mod pressure;
 pub mod recording_rows;
 pub mod shaft_monitor;
 pub mod torque_fit;
+pub mod wheel_angle;
 
 /// Drop every other element of a track (the first kept): what a track bounded in length does
 /// when it is full, its step doubling.

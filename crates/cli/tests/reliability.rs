@@ -834,7 +834,7 @@ fn a_long_analysis_shows_a_spinner_on_a_terminal() {
 
 /// `compression fit --json` on `f` with `PHYSID_HOLD_MB=hold`: its exit code, stderr and
 /// stdout.
-fn compression_fit_holding(f: &str, hold: &str) -> (Option<i32>, String, Vec<u8>) {
+fn compression_fit_holding(f: &str, hold: &str, extra: &[&str]) -> (Option<i32>, String, Vec<u8>) {
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_physid"))
         .env("PHYSID_HOLD_MB", hold)
         .args([
@@ -848,6 +848,7 @@ fn compression_fit_holding(f: &str, hold: &str) -> (Option<i32>, String, Vec<u8>
             "0.088",
             "--json",
         ])
+        .args(extra)
         .output()
         .unwrap();
     (
@@ -935,7 +936,7 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
             assert_eq!(got, want_cycles, "{angle} {ext}");
             // The windows held, and not: gathered again from the file on every pass of the fit.
             for hold in ["256", "0"] {
-                let (code, err, out) = compression_fit_holding(f, hold);
+                let (code, err, out) = compression_fit_holding(f, hold, &[]);
                 assert_eq!(code, Some(0), "{angle} {ext}: {err}");
                 let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
                 got.as_object_mut().unwrap().remove("motored_imep_pa");
@@ -997,7 +998,7 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
     physid_io::write(&f, &deg, &Default::default()).unwrap();
     let text = std::fs::read_to_string(&f).unwrap();
     std::fs::write(&f, text.trim_end()).unwrap();
-    let (code, err, out) = compression_fit_holding(f.to_str().unwrap(), "0");
+    let (code, err, out) = compression_fit_holding(f.to_str().unwrap(), "0", &[]);
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(err.matches("warning:").count(), 1, "{err}");
     let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
@@ -1163,4 +1164,154 @@ fn identify_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
         err.contains("PHYSID_HOLD_MB=lots: expected a whole number of MiB"),
         "{err}"
     );
+}
+
+/// A time-basis file whose angle is a trigger wheel's raw signal (a Hall sensor over a 36−1
+/// wheel, made from the simulator's angle; no `theta_en`, no counts) is read as it goes —
+/// where the gap is, then what the decoding found and where the firing TDC lies (with the
+/// pressure), then the channels with the wheel read ahead of them — and `cycles`,
+/// `compression fit` (the windows held and not) and `convert --crank-angle` answer as the
+/// library on the whole recording does, in CSV, Parquet and MDF4.
+#[test]
+fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
+    use physid_apps::acquisition::{
+        to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec,
+    };
+    use physid_apps::compression::{compression_fit, CompressionConfig};
+    use physid_apps::pressure::{analyse, Geometry, Pegging};
+    use physid_core::{Channel, Recording};
+    use physid_sim::run::{simulate, OutputBasis, RunOptions};
+    use std::f64::consts::TAU;
+    let s = Scratch::new("physid-wheel-stream");
+    let opts = RunOptions {
+        duration: Some(6.0),
+        basis: OutputBasis::Time(20_000.0),
+        ..Default::default()
+    };
+    let sim = simulate(
+        &physid_sim::scenario::named("friction-sweep").unwrap(),
+        &opts,
+        |_| {},
+    )
+    .unwrap();
+    assert!(sim.len() > physid_io::CHUNK_ROWS);
+    let pitch = TAU / 36.0;
+    let enc: Vec<f64> = sim
+        .values("theta_en")
+        .unwrap()
+        .iter()
+        .map(|&th| {
+            let tooth = (th / pitch).floor();
+            f64::from(tooth.rem_euclid(36.0) < 35.0 && th / pitch - tooth < 0.5)
+        })
+        .collect();
+    let mut rec = Recording::new(sim.basis);
+    for name in ["t", "p_cyl", "omega_en"] {
+        rec.push(sim.channel(name).unwrap().clone()).unwrap();
+    }
+    rec.push(Channel {
+        name: "enc".into(),
+        unit: "V".into(),
+        values: enc,
+    })
+    .unwrap();
+    let wheel = [
+        "--wheel",
+        "enc=36-1",
+        "--tdc-offset",
+        "0",
+        "--phase-from",
+        "p_cyl",
+    ];
+    let aopts = AcquisitionOptions {
+        sensor: Some(AngleSpec {
+            sensor: AngleSensor::Wheel {
+                channel: "enc".into(),
+                wheel: "36-1".parse().unwrap(),
+                edges: Default::default(),
+            },
+            tdc_offset_deg: 0.0,
+            phase_from: Some("p_cyl".into()),
+        }),
+        ..Default::default()
+    };
+    let (deg, decoded) = to_crank_angle_decoded(&rec, &aopts, 1.0).unwrap();
+    let decoded = decoded.unwrap();
+    assert!(
+        decoded.summary.contains("wheel 36-1 decoded"),
+        "{}",
+        decoded.summary
+    );
+    let geometry = Geometry {
+        bore: 0.054,
+        stroke: 0.0514,
+        rod: 0.088,
+        compression_ratio: 9.5,
+    };
+    let want_cycles =
+        serde_json::to_value(analyse(&deg, "p_cyl", Some(&geometry), Pegging::Bdc(1e5)).unwrap())
+            .unwrap();
+    assert!(want_cycles["cycles"].as_array().unwrap().len() > 30);
+    let want_fit = serde_json::to_value(
+        compression_fit(&deg, &CompressionConfig::new("p_cyl", 0.0514, 0.088)).unwrap(),
+    )
+    .unwrap();
+    for ext in ["csv", "parquet", "mf4"] {
+        let f = s.file(&format!("wheel.{ext}"));
+        physid_io::write(&f, &rec, &Default::default()).unwrap();
+        let f = f.to_str().unwrap();
+        let mut args = vec![
+            "cycles",
+            f,
+            "--bore",
+            "0.054",
+            "--stroke",
+            "0.0514",
+            "--rod",
+            "0.088",
+            "--compression-ratio",
+            "9.5",
+            "--peg",
+            "bdc=1e5",
+            "--json",
+        ];
+        args.extend(wheel);
+        let mut got = without_provenance(ok_json(&args));
+        let o = got.as_object_mut().unwrap();
+        assert_eq!(o.remove("phase").unwrap(), decoded.phase.as_str(), "{ext}");
+        assert_eq!(
+            o.remove("wheel").unwrap()["revolutions"],
+            decoded.wheel.as_ref().unwrap().revolutions,
+            "{ext}"
+        );
+        assert_eq!(
+            o.remove("findings").unwrap(),
+            serde_json::to_value(&decoded.findings).unwrap(),
+            "{ext}"
+        );
+        assert_eq!(got, want_cycles, "{ext}");
+        for hold in ["256", "0"] {
+            let (code, err, out) = compression_fit_holding(f, hold, &wheel);
+            assert_eq!(code, Some(0), "{ext}: {err}");
+            assert!(err.matches("wheel 36-1 decoded").count() < 2, "{ext}: {err}");
+            let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
+            got.as_object_mut().unwrap().remove("motored_imep_pa");
+            assert_eq!(got, want_fit, "{ext}, PHYSID_HOLD_MB={hold}");
+        }
+        let out = s.file(&format!("wheel-deg-{ext}.{ext}"));
+        let mut args = vec!["convert", f, out.to_str().unwrap(), "--crank-angle"];
+        args.extend(wheel);
+        let o = physid(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let back = physid_io::read(&out, &Default::default()).unwrap();
+        assert_eq!(back.names(), deg.names(), "{ext}");
+        for ch in deg.channels() {
+            assert_eq!(
+                back.values(&ch.name).unwrap(),
+                &ch.values[..],
+                "{ext} {}",
+                ch.name
+            );
+        }
+    }
 }

@@ -21,6 +21,7 @@
 //!    so that a speed changing within a tooth (or across the gap) bends the curve.
 
 use crate::integrity::{Finding, FindingKind};
+use std::collections::VecDeque;
 use std::f64::consts::TAU;
 use std::str::FromStr;
 use thiserror::Error;
@@ -204,6 +205,8 @@ pub struct EdgeDetector {
     widths: [f64; 5],
     n_widths: usize,
     seen: usize,
+    /// Edges found, those handed on included.
+    found: usize,
     edges_t: Vec<f64>,
     edges_index: Vec<usize>,
     glitches: Vec<usize>,
@@ -236,6 +239,7 @@ impl EdgeDetector {
             widths: [0.0; 5],
             n_widths: 0,
             seen: 0,
+            found: 0,
             edges_t: Vec::new(),
             edges_index: Vec::new(),
             glitches: Vec::new(),
@@ -398,6 +402,7 @@ impl EdgeDetector {
         self.quiet = (f64::INFINITY, f64::NEG_INFINITY);
         self.edges_t.push(c.t);
         self.edges_index.push(c.index);
+        self.found += 1;
         if self.fixed.is_none() && self.peak > self.trough {
             // Half the way to this tooth's own swing: smooth through noise, quick enough for an
             // amplitude that grows with speed.
@@ -410,7 +415,16 @@ impl EdgeDetector {
         }
     }
 
-    /// The edges found (a recording shorter than [`START_SAMPLES`] is taken whole).
+    /// Hand on the edges found so far, `(time [s], sample)` in order, and forget them: what it
+    /// holds is then a few numbers, whatever the recording's length.
+    pub fn drain(&mut self, mut f: impl FnMut(f64, usize)) {
+        for (t, i) in self.edges_t.drain(..).zip(self.edges_index.drain(..)) {
+            f(t, i);
+        }
+    }
+
+    /// The edges found (a recording shorter than [`START_SAMPLES`] is taken whole), those
+    /// [`drain`](Self::drain) handed on left out.
     pub fn finish(mut self) -> Result<Edges, WheelError> {
         if self.level.is_nan() && !self.start.is_empty() {
             self.begin();
@@ -418,7 +432,7 @@ impl EdgeDetector {
         if let Some(e) = self.error {
             return Err(e);
         }
-        if self.edges_t.is_empty() {
+        if self.found == 0 {
             return Err(WheelError::Invalid(if self.band <= 0.0 {
                 format!(
                     "the signal is flat over its first {} samples: no tooth passes",
@@ -560,19 +574,67 @@ fn median(v: &mut [f64]) -> f64 {
 
 /// Each period's length against the median of up to three periods either side of it.
 fn relative_periods(t: &[f64]) -> Vec<f64> {
-    let p: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let mut buf = Vec::with_capacity(6);
-    (0..p.len())
-        .map(|k| {
-            buf.clear();
-            buf.extend(p[k.saturating_sub(3)..k].iter());
-            buf.extend(p[(k + 1).min(p.len())..(k + 4).min(p.len())].iter());
-            if buf.is_empty() {
-                return 1.0;
-            }
-            p[k] / median(&mut buf)
-        })
-        .collect()
+    let mut rel = Relative::default();
+    let mut r = Vec::with_capacity(t.len().saturating_sub(1));
+    for &x in t {
+        rel.push(x);
+        while let Some((_, x)) = rel.next(false) {
+            r.push(x);
+        }
+    }
+    while let Some((_, x)) = rel.next(true) {
+        r.push(x);
+    }
+    r
+}
+
+/// [`relative_periods`] as the edge times come: period `k` (from edge `k` to `k + 1`) is
+/// known once three more periods have come, or the edges have ended. Holds seven periods.
+#[derive(Debug, Clone, Default)]
+struct Relative {
+    /// The periods from `from` on [s].
+    p: VecDeque<f64>,
+    from: usize,
+    /// Periods so far, the next to give, the last edge's time.
+    periods: usize,
+    next: usize,
+    last: Option<f64>,
+}
+
+impl Relative {
+    fn push(&mut self, t: f64) {
+        if let Some(last) = self.last {
+            self.p.push_back(t - last);
+            self.periods += 1;
+        }
+        self.last = Some(t);
+    }
+
+    /// The next period's index and ratio, once known (`end`: no more edges will come).
+    fn next(&mut self, end: bool) -> Option<(usize, f64)> {
+        let (k, n) = (self.next, self.periods);
+        if k >= n || (!end && k + 3 >= n) {
+            return None;
+        }
+        let p = |i: usize| self.p[i - self.from];
+        let mut buf = [0.0; 6];
+        let mut m = 0;
+        for i in (k.saturating_sub(3)..k).chain((k + 1).min(n)..(k + 4).min(n)) {
+            buf[m] = p(i);
+            m += 1;
+        }
+        let r = if m == 0 {
+            1.0
+        } else {
+            p(k) / median(&mut buf[..m])
+        };
+        self.next += 1;
+        while self.from + 3 < self.next {
+            self.p.pop_front();
+            self.from += 1;
+        }
+        Some((k, r))
+    }
 }
 
 /// The distance of `x` from the nearest whole number of at least 1.
@@ -580,264 +642,613 @@ fn off_whole(x: f64) -> f64 {
     (x - x.round().max(1.0)).abs()
 }
 
-/// Drop extra edges: where a period is shorter than [`EXTRA_EDGE`] pitches, drop whichever of
-/// its two ends leaves the period across it nearer a whole number of pitches. Returns the kept
-/// edges' positions in `t` and the dropped ones.
-fn drop_extra(t: &[f64]) -> (Vec<usize>, Vec<usize>) {
-    let r = relative_periods(t);
-    // The local pitch [s] at each period (its length over its ratio).
-    let pitch: Vec<f64> = t
-        .windows(2)
-        .zip(&r)
-        .map(|(w, r)| (w[1] - w[0]) / r)
-        .collect();
-    let mut keep: Vec<usize> = vec![0];
-    let mut dropped = Vec::new();
-    for j in 1..t.len() {
-        let last = keep[keep.len() - 1];
-        let q = pitch[j - 1];
-        if (t[j] - t[last]) / q >= EXTRA_EDGE {
-            keep.push(j);
-            continue;
-        }
-        // Drop the edge before (its predecessor → j), or j (the edge before → j + 1).
-        let drop_last = match keep.len() {
-            1 => f64::INFINITY,
-            k => off_whole((t[j] - t[keep[k - 2]]) / q),
-        };
-        let drop_j = t
-            .get(j + 1)
-            .map_or(0.0, |&next| off_whole((next - t[last]) / q));
-        if drop_last < drop_j {
-            dropped.push(last);
-            keep.pop();
-            keep.push(j);
-        } else {
-            dropped.push(j);
-        }
-    }
-    (keep, dropped)
+/// A tooth period between two kept edges, as [`Teeth`] gives it.
+#[derive(Debug, Clone, Copy)]
+struct Period {
+    /// Its number (from 0) and the edges at its ends: times [s], samples.
+    k: usize,
+    t: (f64, f64),
+    index: (usize, usize),
+    /// Its length against its neighbours', and the pitches counted across it.
+    r: f64,
+    pitches: i64,
+    /// Its pitch count is unsure: not near a whole number, or longer than a revolution (a
+    /// dropout). The count across it may slip; it is set again at the next gap.
+    unsure: bool,
 }
 
-/// The angle of every edge on the wheel `wheel` (see the module docs), from edges found on
-/// the channel `channel` (named in the findings and errors).
-pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAngles, WheelError> {
-    let n = wheel.teeth as i64;
-    let m = wheel.missing as i64;
-    let mut findings = Vec::new();
-    if !edges.glitches.is_empty() {
-        findings.push(Finding {
-            kind: FindingKind::Note,
-            index: edges.glitches[0],
-            detail: format!(
-                "'{channel}': {} glitch pulse(s) narrower than {:.0} % of a tooth rejected (the first at sample {})",
-                edges.glitches.len(),
-                GLITCH_WIDTH * 100.0,
-                edges.glitches[0]
-            ),
-        });
+/// What [`Teeth`] gives as the edges come.
+#[derive(Debug, Clone, Copy)]
+enum Tooth {
+    /// An extra edge dropped, at its sample.
+    Extra(usize),
+    /// A period between kept edges.
+    Period(Period),
+}
+
+/// The first step of the indexing, as the edges come: drop extra edges — where a period is
+/// shorter than [`EXTRA_EDGE`] pitches, whichever of its two ends leaves the period across it
+/// nearer a whole number of pitches — then count the pitches across each period between the
+/// edges kept. Holds a few edges.
+#[derive(Debug, Clone)]
+struct Teeth {
+    teeth: i64,
+    /// The ratios of the edges' periods; the edges from `raw_from` on (times, samples).
+    raw_rel: Relative,
+    raw: VecDeque<(f64, usize)>,
+    raw_from: usize,
+    /// The kept edges not yet final: the last two.
+    top: Option<(f64, usize)>,
+    second: Option<(f64, usize)>,
+    /// The ratios of the kept edges' periods; the kept edges from `kept_from` on.
+    kept_rel: Relative,
+    kept: VecDeque<(f64, usize)>,
+    kept_from: usize,
+    /// Edges seen, and kept.
+    edges: usize,
+    n_kept: usize,
+}
+
+impl Teeth {
+    fn new(wheel: Wheel) -> Self {
+        Self {
+            teeth: i64::from(wheel.teeth),
+            raw_rel: Relative::default(),
+            raw: VecDeque::new(),
+            raw_from: 0,
+            top: None,
+            second: None,
+            kept_rel: Relative::default(),
+            kept: VecDeque::new(),
+            kept_from: 0,
+            edges: 0,
+            n_kept: 0,
+        }
     }
-    if edges.t.len() < 2 * wheel.present() as usize + 2 || edges.index.len() != edges.t.len() {
+
+    /// The next edge: time [s] and sample.
+    fn push(&mut self, t: f64, index: usize, out: &mut impl FnMut(Tooth)) {
+        self.edges += 1;
+        self.raw.push_back((t, index));
+        self.raw_rel.push(t);
+        if self.top.is_none() {
+            self.top = Some((t, index));
+        }
+        while let Some((k, r)) = self.raw_rel.next(false) {
+            self.extra(k + 1, r, out);
+        }
+    }
+
+    /// No more edges.
+    fn finish(&mut self, out: &mut impl FnMut(Tooth)) {
+        while let Some((k, r)) = self.raw_rel.next(true) {
+            self.extra(k + 1, r, out);
+        }
+        for e in [self.second.take(), self.top.take()].into_iter().flatten() {
+            self.keep(e, out);
+        }
+        self.second = None;
+        while let Some((k, r)) = self.kept_rel.next(true) {
+            self.period(k, r, out);
+        }
+    }
+
+    /// The edge `j`, the ratio of the period before it `r`: kept, or it or the edge before
+    /// dropped.
+    fn extra(&mut self, j: usize, r: f64, out: &mut impl FnMut(Tooth)) {
+        let raw = |i: usize| self.raw[i - self.raw_from];
+        let (tj, ij) = raw(j);
+        let q = (tj - raw(j - 1).0) / r;
+        let next = (j + 1 < self.edges).then(|| raw(j + 1).0);
+        let Some(last) = self.top else { return };
+        if (tj - last.0) / q >= EXTRA_EDGE {
+            if let Some(below) = self.top.replace((tj, ij)) {
+                if let Some(final_) = self.second.replace(below) {
+                    self.keep(final_, out);
+                }
+            }
+        } else {
+            // Drop the edge before (its predecessor → j), or j (the edge before → j + 1).
+            let drop_last = self
+                .second
+                .map_or(f64::INFINITY, |s| off_whole((tj - s.0) / q));
+            let drop_j = next.map_or(0.0, |next| off_whole((next - last.0) / q));
+            if drop_last < drop_j {
+                out(Tooth::Extra(last.1));
+                self.top = Some((tj, ij));
+            } else {
+                out(Tooth::Extra(ij));
+            }
+        }
+        while self.raw_from < j {
+            self.raw.pop_front();
+            self.raw_from += 1;
+        }
+    }
+
+    /// A kept edge, final.
+    fn keep(&mut self, e: (f64, usize), out: &mut impl FnMut(Tooth)) {
+        self.n_kept += 1;
+        self.kept.push_back(e);
+        self.kept_rel.push(e.0);
+        while let Some((k, r)) = self.kept_rel.next(false) {
+            self.period(k, r, out);
+        }
+    }
+
+    fn period(&mut self, k: usize, r: f64, out: &mut impl FnMut(Tooth)) {
+        let (a, b) = (
+            self.kept[k - self.kept_from],
+            self.kept[k + 1 - self.kept_from],
+        );
+        let pitches = r.round().max(1.0) as i64;
+        out(Tooth::Period(Period {
+            k,
+            t: (a.0, b.0),
+            index: (a.1, b.1),
+            r,
+            pitches,
+            unsure: off_whole(r) > PITCH_TOLERANCE || pitches > self.teeth,
+        }));
+        while self.kept_from < k + 1 {
+            self.kept.pop_front();
+            self.kept_from += 1;
+        }
+    }
+}
+
+/// Fewer edges than two revolutions: the error.
+fn too_few(edges: usize, wheel: Wheel, channel: &str) -> Result<(), WheelError> {
+    if edges < 2 * wheel.present() as usize + 2 {
         return Err(WheelError::Invalid(format!(
-            "'{channel}': {} tooth edges, fewer than two revolutions of a {wheel} wheel ({} edges each)",
-            edges.t.len(),
+            "'{channel}': {edges} tooth edges, fewer than two revolutions of a {wheel} wheel ({} edges each)",
             wheel.present()
         )));
     }
-    let (keep, dropped) = drop_extra(&edges.t);
-    for &d in &dropped {
-        findings.push(Finding {
-            kind: FindingKind::ExtraPulses,
-            index: edges.index[d],
-            detail: format!(
-                "'{channel}': an extra edge at sample {} (less than {EXTRA_EDGE} of a tooth pitch after the one before), dropped",
-                edges.index[d]
-            ),
-        });
+    Ok(())
+}
+
+/// The first pass of the indexing ([`index_teeth`]): where the gap is, modulo N pitches — where
+/// most periods of M + 1 pitches end, over the periods before the first unsure one when they
+/// span two revolutions, else over all. Holds N votes twice, and the places of the longest
+/// periods (for the error that says what the periods show, about one a revolution).
+#[derive(Debug, Clone)]
+pub struct GapSurvey {
+    teeth: Teeth,
+    tally: Tally,
+}
+
+/// [`GapSurvey`]'s count of the periods.
+#[derive(Debug, Clone)]
+struct Tally {
+    wheel: Wheel,
+    channel: String,
+    /// The pitch count so far, and the votes over all periods and before the first unsure.
+    count: i64,
+    votes: Vec<usize>,
+    votes_sure: Vec<usize>,
+    periods: usize,
+    sure: Option<usize>,
+    /// The longest periods' pitches and places.
+    longest: i64,
+    longest_at: Vec<usize>,
+}
+
+/// Where a wheel's gap is: what [`GapSurvey`] found, for [`ToothIndex`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gap {
+    /// The wheel.
+    pub wheel: Wheel,
+    /// The pitch count, modulo N, where the gap ends.
+    pub residue: i64,
+    /// The error to give if no period turns out to be the gap (what the periods show).
+    mismatch: String,
+}
+
+impl GapSurvey {
+    /// A survey of the edges of a `wheel` on the channel `channel` (named in the errors).
+    pub fn new(wheel: Wheel, channel: &str) -> Self {
+        let n = wheel.teeth as usize;
+        Self {
+            teeth: Teeth::new(wheel),
+            tally: Tally {
+                wheel,
+                channel: channel.to_string(),
+                count: 0,
+                votes: vec![0; n],
+                votes_sure: vec![0; n],
+                periods: 0,
+                sure: None,
+                longest: 1,
+                longest_at: Vec::new(),
+            },
+        }
     }
-    let t: Vec<f64> = keep.iter().map(|&k| edges.t[k]).collect();
-    let index: Vec<usize> = keep.iter().map(|&k| edges.index[k]).collect();
-    if t.len() < 2 * wheel.present() as usize + 2 {
-        return Err(WheelError::Invalid(format!(
-            "'{channel}': {} tooth edges, fewer than two revolutions of a {wheel} wheel ({} edges each)",
-            t.len(),
+
+    /// The next edge: time [s] and sample.
+    pub fn push(&mut self, t: f64, index: usize) {
+        let tally = &mut self.tally;
+        self.teeth.push(t, index, &mut |tooth| tally.take(tooth));
+    }
+
+    /// Where the gap is, or why it cannot be told (too few edges; no gap where the wheel has
+    /// it).
+    pub fn finish(mut self) -> Result<Gap, WheelError> {
+        let tally = &mut self.tally;
+        self.teeth.finish(&mut |tooth| tally.take(tooth));
+        let (wheel, channel) = (tally.wheel, tally.channel.as_str());
+        too_few(self.teeth.edges, wheel, channel)?;
+        too_few(self.teeth.n_kept, wheel, channel)?;
+        let sure = tally.sure.unwrap_or(tally.periods);
+        let (voters, votes) = if sure >= 2 * wheel.present() as usize {
+            (sure, &tally.votes_sure)
+        } else {
+            (tally.periods, &tally.votes)
+        };
+        let span = voters / wheel.present() as usize;
+        let (residue, &best) = votes
+            .iter()
+            .enumerate()
+            .max_by_key(|v| *v.1)
+            .unwrap_or((0, &0));
+        let mismatch = tally.mismatch(span);
+        if 2 * best < span.max(1) {
+            return Err(WheelError::Invalid(mismatch));
+        }
+        Ok(Gap {
+            wheel,
+            residue: residue as i64,
+            mismatch,
+        })
+    }
+}
+
+impl Tally {
+    fn take(&mut self, tooth: Tooth) {
+        let Tooth::Period(p) = tooth else { return };
+        let (n, m) = (i64::from(self.wheel.teeth), i64::from(self.wheel.missing));
+        self.periods += 1;
+        if p.unsure && self.sure.is_none() {
+            self.sure = Some(p.k);
+        }
+        self.count += p.pitches;
+        if p.pitches == m + 1 {
+            let at = self.count.rem_euclid(n) as usize;
+            self.votes[at] += 1;
+            if self.sure.is_none() {
+                self.votes_sure[at] += 1;
+            }
+        }
+        if p.pitches > self.longest {
+            self.longest = p.pitches;
+            self.longest_at.clear();
+        }
+        if p.pitches > 1 && p.pitches == self.longest {
+            self.longest_at.push(p.k);
+        }
+    }
+
+    /// Why the periods do not show the wheel's gap: what they show instead.
+    fn mismatch(&self, span: usize) -> String {
+        let (wheel, channel, longest) = (self.wheel, &self.channel, self.longest);
+        let expected = format!(
+            "a {wheel} wheel has a gap of {} pitches every {} teeth",
+            wheel.missing + 1,
             wheel.present()
-        )));
+        );
+        // The longest periods that recur, and the teeth between them.
+        if longest <= 1 {
+            return format!(
+                "'{channel}': no gap — every tooth period is within {PITCH_TOLERANCE} of its neighbours over {} edges, but {expected}",
+                self.periods + 1
+            );
+        }
+        let at = &self.longest_at;
+        let mut between: Vec<f64> = at.windows(2).map(|w| (w[1] - w[0]) as f64).collect();
+        let teeth = if between.is_empty() {
+            None
+        } else {
+            Some(median(&mut between))
+        };
+        match teeth {
+            Some(teeth) if at.len() * 2 >= span => format!(
+                "'{channel}': {teeth:.0} teeth between gaps of {longest} pitches, expected {} ({expected}) — is it a {}-{} wheel?",
+                wheel.present(),
+                teeth as i64 + longest - 1,
+                longest - 1
+            ),
+            _ => format!(
+                "'{channel}': no regular gap of {} pitches; the longest periods, of {longest} pitches, come {} times over {span} revolutions — {expected}",
+                wheel.missing + 1,
+                at.len()
+            ),
+        }
     }
-    let r = relative_periods(&t);
-    // Pitches per period and the pitch count at each edge.
-    let pitches: Vec<i64> = r.iter().map(|x| x.round().max(1.0) as i64).collect();
-    // A period whose pitch count is unsure: not near a whole number, or longer than a
-    // revolution (a dropout). The count across it may slip; it is set again at the next gap.
-    let unsure: Vec<bool> = r
-        .iter()
-        .zip(&pitches)
-        .map(|(x, &u)| off_whole(*x) > PITCH_TOLERANCE || u > n)
-        .collect();
-    for (k, x) in r.iter().enumerate() {
-        if unsure[k] {
-            let detail = if pitches[k] > n {
+}
+
+/// The second pass of the indexing ([`index_teeth`]), as the edges come: each kept edge's
+/// angle on the wheel, the gap placed by the [`Gap`] the first pass found. Inside a period,
+/// every pitch position that is not one of the M missing teeth should have had an edge; a
+/// period of M + 1 pitches ending out of the gap's place is the gap itself — when M ≥ 2 (so it
+/// is no single missing edge) or after an unsure period — and the count is set again from it.
+/// Angle 0 is the first gap's edge: the edges before it are held until it comes (less than a
+/// revolution). Holds the findings.
+#[derive(Debug, Clone)]
+pub struct ToothIndex {
+    teeth: Teeth,
+    counting: Counting,
+}
+
+/// [`ToothIndex`]'s count of the pitches.
+#[derive(Debug, Clone)]
+struct Counting {
+    gap: Gap,
+    channel: String,
+    count: i64,
+    resync: bool,
+    /// The count at the first gap's edge, once it has come, and the edges before it: time [s],
+    /// count, sample, and whether the period ending there was sure.
+    zero: Option<i64>,
+    held: VecDeque<(f64, i64, usize, bool)>,
+    /// The angles ready: time [s], angle [rad], sample.
+    ready: VecDeque<(f64, f64, usize)>,
+    /// The last edge given: time, angle.
+    last: Option<(f64, f64)>,
+    gaps: usize,
+    rpm: (f64, f64),
+    glitches: Option<(usize, usize)>,
+    extras: Vec<Finding>,
+    findings: Vec<Finding>,
+}
+
+/// What the indexing found besides the angles ([`ToothIndex::finish`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToothReport {
+    /// The wheel.
+    pub wheel: Wheel,
+    /// Edges kept (the extra ones dropped).
+    pub edges: usize,
+    /// Whole revolutions between the first and last gap.
+    pub revolutions: usize,
+    /// The slowest and fastest speed over a tooth period [rpm].
+    pub rpm: (f64, f64),
+    /// Missing and extra edges, gaps out of place (findings, by sample), glitches rejected
+    /// (a note).
+    pub findings: Vec<Finding>,
+}
+
+impl ToothIndex {
+    /// The indexing of the edges on `channel` with the gap found by a first pass over them.
+    pub fn new(gap: &Gap, channel: &str) -> Self {
+        Self {
+            teeth: Teeth::new(gap.wheel),
+            counting: Counting {
+                gap: gap.clone(),
+                channel: channel.to_string(),
+                count: 0,
+                resync: false,
+                zero: None,
+                held: VecDeque::new(),
+                ready: VecDeque::new(),
+                last: None,
+                gaps: 0,
+                rpm: (f64::INFINITY, 0.0),
+                glitches: None,
+                extras: Vec::new(),
+                findings: Vec::new(),
+            },
+        }
+    }
+
+    /// The next edge: time [s] and sample.
+    pub fn push(&mut self, t: f64, index: usize) {
+        let counting = &mut self.counting;
+        self.teeth.push(t, index, &mut |tooth| counting.take(tooth));
+    }
+
+    /// Glitch pulses rejected by the edge detector: how many, the first's sample (a note).
+    pub fn glitches(&mut self, count: usize, first: usize) {
+        if count > 0 {
+            self.counting.glitches = Some((count, first));
+        }
+    }
+
+    /// The next edge whose angle is known: time [s], angle [rad], sample.
+    pub fn pop(&mut self) -> Option<(f64, f64, usize)> {
+        self.counting.ready.pop_front()
+    }
+
+    /// No more edges: what was found (the findings sorted by sample), or the error when no
+    /// period was the gap. The last angles are then ready ([`pop`](Self::pop)).
+    pub fn finish(&mut self) -> Result<ToothReport, WheelError> {
+        let counting = &mut self.counting;
+        self.teeth.finish(&mut |tooth| counting.take(tooth));
+        counting.report(self.teeth.n_kept)
+    }
+}
+
+impl Counting {
+    fn take(&mut self, tooth: Tooth) {
+        let p = match tooth {
+            Tooth::Extra(i) => {
+                let channel = &self.channel;
+                self.extras.push(Finding {
+                    kind: FindingKind::ExtraPulses,
+                    index: i,
+                    detail: format!(
+                        "'{channel}': an extra edge at sample {i} (less than {EXTRA_EDGE} of a tooth pitch after the one before), dropped"
+                    ),
+                });
+                return;
+            }
+            Tooth::Period(p) => p,
+        };
+        if p.k == 0 {
+            self.edge(p.t.0, 0, p.index.0, true, false);
+        }
+        let (n, m) = (
+            i64::from(self.gap.wheel.teeth),
+            i64::from(self.gap.wheel.missing),
+        );
+        let residue = self.gap.residue;
+        let channel = &self.channel;
+        let start = self.count;
+        self.count += p.pitches;
+        let c = self.count;
+        let off = (c - residue).rem_euclid(n);
+        let mut gap = false;
+        if p.unsure {
+            let detail = if p.pitches > n {
                 format!(
                     "'{channel}': no tooth edge for {:.4} s before sample {} (about {} pitches at the speed around): the angle across is uncertain and is counted again from the next gap",
-                    t[k + 1] - t[k],
-                    index[k + 1],
-                    pitches[k]
+                    p.t.1 - p.t.0,
+                    p.index.1,
+                    p.pitches
                 )
             } else {
                 format!(
-                    "'{channel}': the tooth period ending at sample {} is {x:.2} pitches, not a whole number (taken as {})",
-                    index[k + 1],
-                    pitches[k]
+                    "'{channel}': the tooth period ending at sample {} is {:.2} pitches, not a whole number (taken as {})",
+                    p.index.1, p.r, p.pitches
                 )
             };
-            findings.push(Finding {
+            self.findings.push(Finding {
                 kind: FindingKind::OutOfSync,
-                index: index[k + 1],
+                index: p.index.1,
                 detail,
             });
-        }
-    }
-    // The gap: where, modulo N, most periods of M + 1 pitches end — over the periods before
-    // the first unsure one when they span two revolutions, else over all.
-    let sure = unsure.iter().position(|&u| u).unwrap_or(pitches.len());
-    let voters = if sure >= 2 * wheel.present() as usize {
-        sure
-    } else {
-        pitches.len()
-    };
-    let mut votes = vec![0usize; n as usize];
-    let mut c = 0i64;
-    for &u in &pitches[..voters] {
-        c += u;
-        if u == m + 1 {
-            votes[c.rem_euclid(n) as usize] += 1;
-        }
-    }
-    let span = voters / wheel.present() as usize;
-    let (residue, &best) = votes
-        .iter()
-        .enumerate()
-        .max_by_key(|v| *v.1)
-        .unwrap_or((0, &0));
-    if 2 * best < span.max(1) {
-        return Err(WheelError::Invalid(mismatch(
-            &pitches, wheel, channel, span,
-        )));
-    }
-    let residue = residue as i64;
-    // The pitch count at each edge. Inside a period, every pitch position that is not one of
-    // the M missing teeth should have had an edge; a period of M + 1 pitches ending out of the
-    // gap's place is the gap itself — when M ≥ 2 (so it is no single missing edge) or after an
-    // unsure period — and the count is set again from it.
-    let mut count = vec![0i64; t.len()];
-    let mut gaps = Vec::new();
-    let mut c = 0i64;
-    let mut resync = false;
-    for k in 0..pitches.len() {
-        let start = c;
-        c += pitches[k];
-        let off = (c - residue).rem_euclid(n);
-        if unsure[k] {
-            resync = true;
-            count[k + 1] = c;
-            continue;
-        }
-        if pitches[k] == m + 1 && (m >= 2 || resync) && off != 0 {
-            resync = false;
+            self.resync = true;
+        } else if p.pitches == m + 1 && (m >= 2 || self.resync) && off != 0 {
+            self.resync = false;
             let correction = if off > n / 2 { n - off } else { -off };
-            findings.push(Finding {
+            self.findings.push(Finding {
                 kind: FindingKind::OutOfSync,
-                index: index[k + 1],
+                index: p.index.1,
                 detail: format!(
                     "'{channel}': the gap ends at sample {} {} pitch(es) from where the teeth before place it: the angle is counted again from it",
-                    index[k + 1],
+                    p.index.1,
                     -correction
                 ),
             });
-            c += correction;
-            gaps.push(k + 1);
+            self.count += correction;
+            gap = true;
         } else {
             let lost = (start + 1..c)
-                .filter(|p| (p - residue).rem_euclid(n) < n - m)
+                .filter(|q| (q - residue).rem_euclid(n) < n - m)
                 .count();
             if lost > 0 {
-                findings.push(Finding {
+                self.findings.push(Finding {
                     kind: FindingKind::PulseLoss,
-                    index: index[k + 1],
+                    index: p.index.1,
                     detail: format!(
                         "'{channel}': {lost} tooth edge(s) missing before sample {} (the angle counts the pitches across)",
-                        index[k + 1]
+                        p.index.1
                     ),
                 });
             }
             if off == 0 {
-                gaps.push(k + 1);
-                resync = false;
+                gap = true;
+                self.resync = false;
             }
         }
-        count[k + 1] = c;
+        self.edge(p.t.1, self.count, p.index.1, !p.unsure, gap);
     }
-    let zero = count[*gaps
-        .first()
-        .ok_or_else(|| WheelError::Invalid(mismatch(&pitches, wheel, channel, span)))?];
-    let pitch = wheel.pitch();
-    let angle: Vec<f64> = count.iter().map(|&c| (c - zero) as f64 * pitch).collect();
-    let revolutions = gaps.len().saturating_sub(1);
-    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
-    for k in (0..pitches.len()).filter(|&k| !unsure[k]) {
-        let rpm = (angle[k + 1] - angle[k]) / (t[k + 1] - t[k]) * 30.0 / std::f64::consts::PI;
-        lo = lo.min(rpm);
-        hi = hi.max(rpm);
+
+    /// A kept edge's count (`sure`: the period ending there; `gap`: it ends the gap).
+    fn edge(&mut self, t: f64, count: i64, index: usize, sure: bool, gap: bool) {
+        self.held.push_back((t, count, index, sure));
+        if gap {
+            self.gaps += 1;
+            self.zero.get_or_insert(count);
+        }
+        let Some(zero) = self.zero else { return };
+        let pitch = self.gap.wheel.pitch();
+        while let Some((t, c, index, sure)) = self.held.pop_front() {
+            let angle = (c - zero) as f64 * pitch;
+            if let (Some((tp, ap)), true) = (self.last, sure) {
+                let rpm = (angle - ap) / (t - tp) * 30.0 / std::f64::consts::PI;
+                self.rpm = (self.rpm.0.min(rpm), self.rpm.1.max(rpm));
+            }
+            self.last = Some((t, angle));
+            self.ready.push_back((t, angle, index));
+        }
     }
-    findings.sort_by_key(|f| f.index);
+
+    /// What was found, once the edges have ended.
+    fn report(&mut self, edges: usize) -> Result<ToothReport, WheelError> {
+        if self.zero.is_none() {
+            return Err(WheelError::Invalid(self.gap.mismatch.clone()));
+        }
+        let channel = &self.channel;
+        let mut findings: Vec<Finding> = self
+            .glitches
+            .map(|(count, first)| Finding {
+                kind: FindingKind::Note,
+                index: first,
+                detail: format!(
+                    "'{channel}': {count} glitch pulse(s) narrower than {:.0} % of a tooth rejected (the first at sample {first})",
+                    GLITCH_WIDTH * 100.0,
+                ),
+            })
+            .into_iter()
+            .collect();
+        findings.append(&mut self.extras);
+        findings.append(&mut self.findings);
+        findings.sort_by_key(|f| f.index);
+        Ok(ToothReport {
+            wheel: self.gap.wheel,
+            edges,
+            revolutions: self.gaps.saturating_sub(1),
+            rpm: self.rpm,
+            findings,
+        })
+    }
+}
+
+/// The angle of every edge on the wheel `wheel` (see the module docs), from edges found on
+/// the channel `channel` (named in the findings and errors): [`GapSurvey`] over them, then
+/// [`ToothIndex`] — the two passes a stream makes, over the edges held.
+pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAngles, WheelError> {
+    if edges.index.len() != edges.t.len() {
+        return Err(WheelError::Invalid(format!(
+            "'{channel}': {} edge times but {} samples",
+            edges.t.len(),
+            edges.index.len()
+        )));
+    }
+    let pairs = || edges.t.iter().copied().zip(edges.index.iter().copied());
+    let mut survey = GapSurvey::new(wheel, channel);
+    for (t, i) in pairs() {
+        survey.push(t, i);
+    }
+    let gap = survey.finish()?;
+    let mut index = ToothIndex::new(&gap, channel);
+    index.glitches(
+        edges.glitches.len(),
+        edges.glitches.first().copied().unwrap_or(0),
+    );
+    let (mut t, mut angle, mut at) = (Vec::new(), Vec::new(), Vec::new());
+    let mut take = |index: &mut ToothIndex| {
+        while let Some((x, a, i)) = index.pop() {
+            t.push(x);
+            angle.push(a);
+            at.push(i);
+        }
+    };
+    for (x, i) in pairs() {
+        index.push(x, i);
+        take(&mut index);
+    }
+    let report = index.finish()?;
+    take(&mut index);
     Ok(WheelAngles {
         wheel,
         t,
         angle,
-        index,
-        revolutions,
-        rpm: (lo, hi),
-        findings,
+        index: at,
+        revolutions: report.revolutions,
+        rpm: report.rpm,
+        findings: report.findings,
     })
-}
-
-/// Why the periods do not show the wheel's gap: what they show instead.
-fn mismatch(pitches: &[i64], wheel: Wheel, channel: &str, span: usize) -> String {
-    let expected = format!(
-        "a {wheel} wheel has a gap of {} pitches every {} teeth",
-        wheel.missing + 1,
-        wheel.present()
-    );
-    // The longest periods that recur, and the teeth between them.
-    let longest = pitches.iter().copied().max().unwrap_or(1);
-    if longest <= 1 {
-        return format!(
-            "'{channel}': no gap — every tooth period is within {PITCH_TOLERANCE} of its neighbours over {} edges, but {expected}",
-            pitches.len() + 1
-        );
-    }
-    let at: Vec<usize> = (0..pitches.len())
-        .filter(|&k| pitches[k] == longest)
-        .collect();
-    let mut between: Vec<f64> = at.windows(2).map(|w| (w[1] - w[0]) as f64).collect();
-    let teeth = if between.is_empty() {
-        None
-    } else {
-        Some(median(&mut between))
-    };
-    match teeth {
-        Some(teeth) if at.len() * 2 >= span => format!(
-            "'{channel}': {teeth:.0} teeth between gaps of {longest} pitches, expected {} ({expected}) — is it a {}-{} wheel?",
-            wheel.present(),
-            teeth as i64 + longest - 1,
-            longest - 1
-        ),
-        _ => format!(
-            "'{channel}': no regular gap of {} pitches; the longest periods, of {longest} pitches, come {} times over {span} revolutions — {expected}",
-            wheel.missing + 1,
-            at.len()
-        ),
-    }
 }
 
 impl WheelAngles {
@@ -849,67 +1260,130 @@ impl WheelAngles {
 }
 
 /// The monotone piecewise-cubic Hermite interpolant through `(x, y)` (`x` increasing, at least
-/// 2 points) at the points `at` (increasing); NaN outside `[x₀, xₙ]`.
+/// 2 points) at the points `at` (increasing); NaN outside `[x₀, xₙ]`: [`Pchip`] over the
+/// points all given.
 pub fn pchip_at(x: &[f64], y: &[f64], at: &[f64]) -> Vec<f64> {
-    let d = pchip_slopes(x, y);
-    let mut out = Vec::with_capacity(at.len());
-    let mut k = 0;
-    for &a in at {
-        if x.len() < 2 || !(a >= x[0] && a <= x[x.len() - 1]) {
-            out.push(f64::NAN);
-            continue;
+    let mut p = Pchip::default();
+    for (&x, &y) in x.iter().zip(y) {
+        p.push(x, y);
+    }
+    p.end();
+    at.iter().map(|&a| p.at(a).unwrap_or(f64::NAN)).collect()
+}
+
+/// The monotone piecewise-cubic Hermite interpolant (Fritsch–Carlson, with scipy
+/// `PchipInterpolator`'s weighted harmonic mean of the slopes inside and its shape-preserving
+/// three-point formula at the ends) as its points come: a value between two points is known
+/// once the point after them has come (or the points have ended). Holds four points.
+#[derive(Debug, Clone, Default)]
+pub struct Pchip {
+    /// The points from `from` on.
+    x: VecDeque<f64>,
+    y: VecDeque<f64>,
+    from: usize,
+    /// The first point's `x`; points so far; no more will come.
+    first: f64,
+    n: usize,
+    ended: bool,
+    /// The interval of the last value: from point `k` to `k + 1`.
+    k: usize,
+}
+
+impl Pchip {
+    /// The next point (`x` above the last).
+    pub fn push(&mut self, x: f64, y: f64) {
+        if self.n == 0 {
+            self.first = x;
         }
-        while k + 2 < x.len() && a > x[k + 1] {
+        self.x.push_back(x);
+        self.y.push_back(y);
+        self.n += 1;
+    }
+
+    /// No more points.
+    pub fn end(&mut self) {
+        self.ended = true;
+    }
+
+    /// The last point's `x`.
+    pub fn last_x(&self) -> Option<f64> {
+        self.x.back().copied()
+    }
+
+    /// The value at `a` (the queries increasing): NaN outside the points' span; `None` while
+    /// points after `a` are still to come.
+    pub fn at(&mut self, a: f64) -> Option<f64> {
+        let n = self.n;
+        if n == 0 {
+            return (self.ended || a.is_nan()).then_some(f64::NAN);
+        }
+        if a.is_nan() || a < self.first {
+            return Some(f64::NAN);
+        }
+        let x = |i: usize| self.x[i - self.from];
+        if a > x(n - 1) {
+            return self.ended.then_some(f64::NAN);
+        }
+        if self.ended && n < 2 {
+            return Some(f64::NAN);
+        }
+        let mut k = self.k;
+        while k + 2 < n && a > x(k + 1) {
             k += 1;
         }
-        let h = x[k + 1] - x[k];
-        let s = (a - x[k]) / h;
+        if !self.ended && k + 2 >= n {
+            return None;
+        }
+        self.k = k;
+        while self.from + 1 < k {
+            self.x.pop_front();
+            self.y.pop_front();
+            self.from += 1;
+        }
+        let (xk, xk1) = (self.x[k - self.from], self.x[k + 1 - self.from]);
+        let (yk, yk1) = (self.y[k - self.from], self.y[k + 1 - self.from]);
+        let h = xk1 - xk;
+        let s = (a - xk) / h;
         let (h00, h10, h01, h11) = (
             (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s),
             s * (1.0 - s) * (1.0 - s),
             s * s * (3.0 - 2.0 * s),
             s * s * (s - 1.0),
         );
-        out.push(h00 * y[k] + h10 * h * d[k] + h01 * y[k + 1] + h11 * h * d[k + 1]);
+        Some(h00 * yk + h10 * h * self.slope(k) + h01 * yk1 + h11 * h * self.slope(k + 1))
     }
-    out
-}
 
-/// The slopes of the monotone piecewise-cubic Hermite interpolant (Fritsch–Carlson, with
-/// scipy `PchipInterpolator`'s weighted harmonic mean inside and its shape-preserving
-/// three-point formula at the ends).
-pub fn pchip_slopes(x: &[f64], y: &[f64]) -> Vec<f64> {
-    let n = x.len();
-    if n < 2 {
-        return vec![0.0; n];
-    }
-    let h: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
-    let delta: Vec<f64> = (0..n - 1).map(|k| (y[k + 1] - y[k]) / h[k]).collect();
-    if n == 2 {
-        return vec![delta[0]; 2];
-    }
-    let mut d = vec![0.0; n];
-    for k in 1..n - 1 {
-        let (a, b) = (delta[k - 1], delta[k]);
+    /// The slope at point `i` (its neighbours here).
+    fn slope(&self, i: usize) -> f64 {
+        let h = |j: usize| self.x[j + 1 - self.from] - self.x[j - self.from];
+        let delta = |j: usize| (self.y[j + 1 - self.from] - self.y[j - self.from]) / h(j);
+        let end = |h0: f64, h1: f64, m0: f64, m1: f64| {
+            let d = ((2.0 * h0 + h1) * m0 - h0 * m1) / (h0 + h1);
+            if d.signum() != m0.signum() {
+                0.0
+            } else if m0.signum() != m1.signum() && d.abs() > 3.0 * m0.abs() {
+                3.0 * m0
+            } else {
+                d
+            }
+        };
+        let n = self.n;
+        if self.ended && n == 2 {
+            return delta(0);
+        }
+        if i == 0 {
+            return end(h(0), h(1), delta(0), delta(1));
+        }
+        if self.ended && i == n - 1 {
+            return end(h(n - 2), h(n - 3), delta(n - 2), delta(n - 3));
+        }
+        let (a, b) = (delta(i - 1), delta(i));
         if a * b <= 0.0 {
-            d[k] = 0.0;
+            0.0
         } else {
-            let w1 = 2.0 * h[k] + h[k - 1];
-            let w2 = h[k] + 2.0 * h[k - 1];
-            d[k] = (w1 + w2) / (w1 / a + w2 / b);
+            let w1 = 2.0 * h(i) + h(i - 1);
+            let w2 = h(i) + 2.0 * h(i - 1);
+            (w1 + w2) / (w1 / a + w2 / b)
         }
     }
-    let end = |h0: f64, h1: f64, m0: f64, m1: f64| {
-        let d = ((2.0 * h0 + h1) * m0 - h0 * m1) / (h0 + h1);
-        if d.signum() != m0.signum() {
-            0.0
-        } else if m0.signum() != m1.signum() && d.abs() > 3.0 * m0.abs() {
-            3.0 * m0
-        } else {
-            d
-        }
-    };
-    d[0] = end(h[0], h[1], delta[0], delta[1]);
-    d[n - 1] = end(h[n - 2], h[n - 3], delta[n - 2], delta[n - 3]);
-    d
 }

@@ -19,11 +19,12 @@ use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
 use physid_apps::acquisition::{
-    counts_crank_angle_chunks, crank_angle_chunks, AcquisitionOptions, CountsAngle, CountsScan,
-    DecodedAngle,
+    counts_crank_angle_chunks, crank_angle_chunks, raw_wheel, AcquisitionOptions, CountsAngle,
+    CountsScan, DecodedAngle,
 };
 use physid_apps::compression::CrankPasses;
 use physid_apps::error::AppError;
+use physid_apps::wheel_angle::{wheel_crank_angle_chunks, wheel_decoded, wheel_gap, WheelFound};
 use physid_core::{Basis, Recording};
 use std::cell::{Cell, RefCell};
 use std::path::Path;
@@ -46,9 +47,18 @@ pub struct CrankInput<'a> {
     /// A pass after the first: what the reader noticed (a cut-short last line) was said on
     /// the first and is not said again.
     pub again: bool,
-    /// What the first pass over an encoder's counts found, kept from one pass over the file to
-    /// the next (`None`: made on every read).
-    pub scanned: Option<&'a RefCell<Option<CountsAngle>>>,
+    /// What the first passes over an encoder's counts or a wheel's signal found, kept from one
+    /// pass over the file to the next (`None`: made on every read).
+    pub scanned: Option<&'a RefCell<Option<Scanned>>>,
+}
+
+/// What the first passes over a file found about its engine angle, before any resampling.
+#[derive(Clone)]
+pub enum Scanned {
+    /// An encoder's counts: the encoder and the TDC's angle.
+    Counts(CountsAngle),
+    /// A trigger wheel: where its gap is, what decoding found, where the TDC is.
+    Wheel(WheelFound),
 }
 
 impl<'a> CrankInput<'a> {
@@ -171,8 +181,8 @@ impl<'a> CrankInput<'a> {
             // The first pass, unless an earlier pass over the file made it.
             let known = self.scanned.and_then(|s| s.borrow().clone());
             let counts = match known {
-                Some(c) => c,
-                None => {
+                Some(Scanned::Counts(c)) => c,
+                _ => {
                     let mut names = vec!["t", scan.encoder().0];
                     if header.channel(&opts.marker).is_ok() {
                         names.push(opts.marker.as_str());
@@ -182,7 +192,7 @@ impl<'a> CrankInput<'a> {
                         .scan(Reading::new(&mut reader, self.path))
                         .map_err(&at)?;
                     if let Some(s) = self.scanned {
-                        *s.borrow_mut() = Some(c.clone());
+                        *s.borrow_mut() = Some(Scanned::Counts(c.clone()));
                     }
                     c
                 }
@@ -210,6 +220,68 @@ impl<'a> CrankInput<'a> {
                 super::warn_read(&reader, self.path);
             }
             return Ok((s, None));
+        }
+        // A trigger wheel's raw signal: read four times over — its edges (where the gap is),
+        // then again with the samples' times (what the decoding found, where the TDC is),
+        // then ahead of the channels.
+        if let (Some(spec), None) = (
+            raw_wheel(&header, &opts),
+            self.angle.wheel.tdc_from.as_ref(),
+        ) {
+            let channel = spec.sensor.channels()[0];
+            let known = self.scanned.and_then(|s| s.borrow().clone());
+            let found = match known {
+                Some(Scanned::Wheel(found)) => found,
+                _ => {
+                    let mut reader = self.input.open(self.path, &["t", channel], &[])?;
+                    let gap = wheel_gap(spec, Reading::new(&mut reader, self.path)).map_err(&at)?;
+                    let mut angle = self.input.open(self.path, &["t", channel], &[])?;
+                    let mut names = vec!["t"];
+                    if let Some(p) = &spec.phase_from {
+                        names.push(p.strip_suffix(":low").unwrap_or(p));
+                    }
+                    let mut samples = self.input.open(self.path, &names, &[])?;
+                    let decoded = wheel_decoded(
+                        spec,
+                        &gap,
+                        angle.by_ref(),
+                        Reading::new(&mut samples, self.path),
+                    )
+                    .map_err(&at)?;
+                    let found = WheelFound { gap, decoded };
+                    if let Some(s) = self.scanned {
+                        *s.borrow_mut() = Some(Scanned::Wheel(found.clone()));
+                    }
+                    found
+                }
+            };
+            if !self.quiet {
+                tell_wheel(self.path, &found.decoded);
+            }
+            let mut angle = self.input.open(self.path, &["t", channel], &[])?;
+            let mut reader = match wanted(&["t"]) {
+                Some(n) => {
+                    let n: Vec<&str> = n.iter().map(String::as_str).collect();
+                    self.input.open(self.path, &n, &[])?
+                }
+                None => self.input.open_all(self.path)?,
+            };
+            let file_header = reader.header().clone();
+            let (h, chunks) = wheel_crank_angle_chunks(
+                spec,
+                &found,
+                &file_header,
+                angle.by_ref(),
+                Reading::new(&mut reader, self.path),
+                &opts,
+                self.step_deg,
+            )
+            .map_err(&at)?;
+            let s = feed(&h, chunks, start, push).map_err(&at)?;
+            if !self.again {
+                super::warn_read(&reader, self.path);
+            }
+            return Ok((s, Some(found.decoded)));
         }
         // Decoded whole: only the channels the angle and the caller take.
         let mut angle_channels: Vec<&str> = vec!["t", "theta_en", opts.marker.as_str()];
@@ -270,8 +342,8 @@ pub struct CrankFile<'a> {
     input: CrankInput<'a>,
     channels: Vec<&'a str>,
     passes: Cell<usize>,
-    /// An encoder's counts: the first pass's finding, kept for the next.
-    scanned: RefCell<Option<CountsAngle>>,
+    /// An encoder's counts or a wheel: the first passes' findings, kept for the next.
+    scanned: RefCell<Option<Scanned>>,
 }
 
 impl<'a> CrankFile<'a> {
