@@ -7,7 +7,8 @@
 # ONLY=passes identify and run alone (the last part; DURATIONS="75 600" to choose), ONLY=torque
 # torque fit in passes alone (DURATIONS likewise), ONLY=compression compression fit in passes,
 # ONLY=mdf MDF4 in several groups and written compressed (bench/mdf_groups.py needs asammdf),
-# ONLY=counts the verbs on a time-basis file whose angle is an encoder's counts.
+# ONLY=counts the verbs on a time-basis file whose angle is an encoder's counts, ONLY=wheel on
+# one whose angle is a trigger wheel's raw signal (bench/wheel_file.py needs pyarrow, numpy).
 set -euo pipefail
 NEW=$(realpath "$1"); OLD=${2:+$(realpath "$2")}; DIR=${3:-/tmp/physid-memory}
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -178,5 +179,28 @@ for D in ${DURATIONS:-75 600 3600}; do
     [ -n "$OLD" ] && row="$row $(m "$OLD" torque fit --data "fcounts-$D.parquet" --json) |"
     echo "$row"
   fi
+done
+fi
+# A time-basis file whose angle is a trigger wheel's raw signal (ONLY=wheel): wheel-D.parquet,
+# 10 of the motored run's channels and a Hall sensor over a 60-2 wheel (bench/wheel_file.py),
+# read four times over by the crank-angle verbs (the edges; the edges and the pressure; then
+# the channels with the wheel read ahead).
+if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = wheel ]; then
+W="--wheel enc=60-2 --phase-from p_cyl"
+for D in ${DURATIONS:-75 600 3600}; do
+  [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
+  [ -f "wheel-$D.parquet" ] || python3 "$HERE/wheel_file.py" "motored-$D.parquet" "wheel-$D.parquet"
+  cat "wheel-$D.parquet" > /dev/null
+  for cmd in "cycles wheel-$D.parquet $W" "convert wheel-$D.parquet wdeg.parquet --crank-angle $W" \
+             "compression fit --data wheel-$D.parquet --stroke 0.0514 --rod 0.088 $W"; do
+    # shellcheck disable=SC2086
+    row="| $D s | \`${cmd% --wheel*}\` | $(m "$NEW" $cmd) |"
+    # shellcheck disable=SC2086
+    [ -n "$OLD" ] && row="$row $(m "$OLD" $cmd) |"
+    echo "$row"
+  done
+  # Not held: every pass of the fit reads the file twice (it keeps what the first passes found).
+  # shellcheck disable=SC2086
+  [ "$D" != 3600 ] && echo "| $D s | \`compression fit\`, PHYSID_HOLD_MB=0 | $(PHYSID_HOLD_MB=0 m "$NEW" compression fit --data "wheel-$D.parquet" --stroke 0.0514 --rod 0.088 $W) |"
 done
 fi

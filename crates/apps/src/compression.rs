@@ -1036,7 +1036,8 @@ pub struct TdcFromPressure {
 /// the cycles), then fit the motored model there ([`compression_fit`]) — whose `tdc_shift`, fitted
 /// with the loss rate, is where the true TDC lies: `offset = peak + tdc_shift`, not the peak (the
 /// peak comes early by the thermodynamic loss angle). Which revolution fires comes from
-/// `opts`' `phase_from`, or from `channel` when none is given.
+/// `opts`' `phase_from`, or from `channel` when none is given. [`tdc_from_pressure_in`] on the
+/// recording held whole.
 pub fn tdc_from_pressure(
     rec: &Recording,
     opts: &crate::acquisition::AcquisitionOptions,
@@ -1044,6 +1045,32 @@ pub fn tdc_from_pressure(
     step_deg: f64,
 ) -> Result<TdcFromPressure, AppError> {
     use crate::acquisition::to_crank_angle_decoded;
+    let read = |o: &crate::acquisition::AcquisitionOptions,
+                visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>| {
+        visit(&to_crank_angle_decoded(rec, o, step_deg)?.0)
+    };
+    tdc_from_pressure_in(&read, opts, cfg, step_deg, usize::MAX)
+}
+
+/// One pass over a time-basis recording put on a crank-angle basis with the options given:
+/// every chunk to `visit`.
+pub type CrankRead<'r> = dyn Fn(
+        &crate::acquisition::AcquisitionOptions,
+        &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError>
+    + 'r;
+
+/// [`tdc_from_pressure`] on a recording read in passes — `read` puts it on a crank-angle basis
+/// (every `step_deg`) with the options given, a chunk at a time: a pass for the pressure's peak
+/// in every cycle ([`PeakAngles`]), then the motored fit's passes over the TDCs' windows, held
+/// when they take at most `hold_bytes` ([`TdcEvents`]).
+pub fn tdc_from_pressure_in(
+    read: &CrankRead,
+    opts: &crate::acquisition::AcquisitionOptions,
+    cfg: &CompressionConfig,
+    step_deg: f64,
+    hold_bytes: usize,
+) -> Result<TdcFromPressure, AppError> {
     cfg.validate()?;
     let Some(spec) = &opts.sensor else {
         return Err(AppError::Invalid(format!(
@@ -1057,38 +1084,27 @@ pub fn tdc_from_pressure(
     spec.phase_from.get_or_insert_with(|| cfg.channel.clone());
     opts.sensor = Some(spec.clone());
     // 1. The peak's angle after the reference, the median over the complete cycles.
-    let (deg_rec, _) = to_crank_angle_decoded(rec, &opts, step_deg)?;
-    let (cycle, deg) = (deg_rec.values("cycle")?, deg_rec.values("crank_deg")?);
-    let p = deg_rec.values(&cfg.channel)?;
-    let per = (720.0 / step_deg).round() as usize;
-    let mut peaks: Vec<f64> = physid_signal::crank::cycle_runs(cycle)
-        .filter(|(c, r)| *c >= 0.0 && r.len() == per)
-        .filter_map(|(_, r)| {
-            let k = r
-                .clone()
-                .filter(|&i| p[i].is_finite())
-                .max_by(|&i, &j| p[i].total_cmp(&p[j]))?;
-            Some(deg[k])
-        })
-        .collect();
-    if peaks.is_empty() {
-        return Err(AppError::Invalid(format!(
-            "--tdc-from {}: no complete cycle to find the pressure's peak in",
-            cfg.channel
-        )));
-    }
-    // Unwrapped around the first, so that peaks either side of 0°/720° agree.
-    let first = peaks[0];
-    for x in peaks.iter_mut() {
-        *x = first + (*x - first + 360.0).rem_euclid(720.0) - 360.0;
-    }
-    peaks.sort_unstable_by(f64::total_cmp);
-    let peak = peaks[peaks.len() / 2].rem_euclid(360.0);
+    let mut peaks = PeakAngles::new(&cfg.channel, step_deg);
+    read(&opts, &mut |chunk| peaks.push(chunk))?;
+    let peak = peaks.finish()?;
     // 2. The model fitted with the TDC at the peak.
     spec.tdc_offset_deg = peak;
     opts.sensor = Some(spec);
-    let (deg_rec, _) = to_crank_angle_decoded(rec, &opts, step_deg)?;
-    let fit = compression_fit(&deg_rec, cfg)?;
+    struct Passes<'r> {
+        read: &'r CrankRead<'r>,
+        opts: crate::acquisition::AcquisitionOptions,
+    }
+    impl CrankPasses for Passes<'_> {
+        fn chunks(
+            &self,
+            visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+        ) -> Result<(), AppError> {
+            (self.read)(&self.opts, visit)
+        }
+    }
+    let passes = Passes { read, opts };
+    let events = TdcEvents::new(&passes, &cfg.channel, cfg.window_deg, hold_bytes);
+    let fit = compression_fit_events(&events, cfg)?;
     let tdc = fit
         .get("tdc_shift")
         .filter(|e| e.status == "fitted")
@@ -1113,4 +1129,79 @@ pub fn tdc_from_pressure(
         peak_deg: fit.peak_deg,
         fit,
     })
+}
+
+/// The angle [deg after the reference] where a channel peaks in every complete cycle of a
+/// crank-angle recording (`720/step` samples, cycle ≥ 0; the last of equal peaks), a chunk at a
+/// time; the median of them, unwrapped around the first so that peaks either side of 0°/720°
+/// agree, modulo 360° ([`tdc_from_pressure`]'s first step). Holds a number per cycle.
+#[derive(Debug, Clone)]
+pub struct PeakAngles {
+    channel: String,
+    per: usize,
+    /// The cycle being gone over: its number, samples, and its highest finite sample's value
+    /// and angle.
+    run: Option<(f64, usize, Option<(f64, f64)>)>,
+    peaks: Vec<f64>,
+}
+
+impl PeakAngles {
+    /// The peaks of `channel` on a recording of a sample every `step_deg`.
+    pub fn new(channel: &str, step_deg: f64) -> Self {
+        Self {
+            channel: channel.to_string(),
+            per: (720.0 / step_deg).round() as usize,
+            run: None,
+            peaks: Vec::new(),
+        }
+    }
+
+    /// The next chunk (`cycle`, `crank_deg` and the channel).
+    pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
+        let (cycle, deg) = (chunk.values("cycle")?, chunk.values("crank_deg")?);
+        let p = chunk.values(&self.channel)?;
+        for i in 0..cycle.len() {
+            match &mut self.run {
+                Some((c, n, best)) if *c == cycle[i] => {
+                    *n += 1;
+                    if p[i].is_finite() && best.is_none_or(|(b, _)| p[i].total_cmp(&b).is_ge()) {
+                        *best = Some((p[i], deg[i]));
+                    }
+                }
+                _ => {
+                    self.close();
+                    let best = p[i].is_finite().then_some((p[i], deg[i]));
+                    self.run = Some((cycle[i], 1, best));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The cycle gone over: its peak, when it is complete.
+    fn close(&mut self) {
+        if let Some((c, n, Some((_, at)))) = self.run.take() {
+            if c >= 0.0 && n == self.per {
+                self.peaks.push(at);
+            }
+        }
+    }
+
+    /// The median peak angle [deg], in [0, 360).
+    pub fn finish(mut self) -> Result<f64, AppError> {
+        self.close();
+        let peaks = &mut self.peaks;
+        if peaks.is_empty() {
+            return Err(AppError::Invalid(format!(
+                "--tdc-from {}: no complete cycle to find the pressure's peak in",
+                self.channel
+            )));
+        }
+        let first = peaks[0];
+        for x in peaks.iter_mut() {
+            *x = first + (*x - first + 360.0).rem_euclid(720.0) - 360.0;
+        }
+        peaks.sort_unstable_by(f64::total_cmp);
+        Ok(peaks[peaks.len() / 2].rem_euclid(360.0))
+    }
 }

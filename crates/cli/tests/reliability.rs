@@ -1171,7 +1171,8 @@ fn identify_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
 /// where the gap is, then what the decoding found and where the firing TDC lies (with the
 /// pressure), then the channels with the wheel read ahead of them — and `cycles`,
 /// `compression fit` (the windows held and not) and `convert --crank-angle` answer as the
-/// library on the whole recording does, in CSV, Parquet and MDF4.
+/// library on the whole recording does, in CSV, Parquet and MDF4; with `--tdc-from`, the TDC
+/// is placed from the pressure as the library places it.
 #[test]
 fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
     use physid_apps::acquisition::{
@@ -1293,7 +1294,10 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
         for hold in ["256", "0"] {
             let (code, err, out) = compression_fit_holding(f, hold, &wheel);
             assert_eq!(code, Some(0), "{ext}: {err}");
-            assert!(err.matches("wheel 36-1 decoded").count() < 2, "{ext}: {err}");
+            assert!(
+                err.matches("wheel 36-1 decoded").count() < 2,
+                "{ext}: {err}"
+            );
             let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
             got.as_object_mut().unwrap().remove("motored_imep_pa");
             assert_eq!(got, want_fit, "{ext}, PHYSID_HOLD_MB={hold}");
@@ -1310,6 +1314,58 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
                 back.values(&ch.name).unwrap(),
                 &ch.values[..],
                 "{ext} {}",
+                ch.name
+            );
+        }
+    }
+    // `--tdc-from`: the TDC placed from the motored pressure as the file is read (the fit's
+    // windows held, and gathered again on every pass), as the library places it on the whole.
+    let found = physid_apps::compression::tdc_from_pressure(
+        &rec,
+        &aopts,
+        &CompressionConfig::new("p_cyl", 0.0514, 0.088),
+        1.0,
+    )
+    .unwrap();
+    let mut placed = aopts.clone();
+    if let Some(spec) = placed.sensor.as_mut() {
+        spec.tdc_offset_deg = found.tdc_offset_deg;
+    }
+    let (deg, _) = to_crank_angle_decoded(&rec, &placed, 1.0).unwrap();
+    let f = s.file("wheel.parquet");
+    for hold in ["256", "0"] {
+        let out = s.file(&format!("wheel-tdc-from-{hold}.parquet"));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_physid"))
+            .env("PHYSID_HOLD_MB", hold)
+            .args([
+                "convert",
+                f.to_str().unwrap(),
+                out.to_str().unwrap(),
+                "--crank-angle",
+                "--wheel",
+                "enc=36-1",
+                "--phase-from",
+                "p_cyl",
+                "--tdc-from",
+                "p_cyl",
+                "--stroke",
+                "0.0514",
+                "--rod",
+                "0.088",
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        let said = format!("{:.3}° after the sensor's reference", found.tdc_offset_deg);
+        assert!(err.contains(&said), "{err}");
+        let back = physid_io::read(&out, &Default::default()).unwrap();
+        assert_eq!(back.names(), deg.names());
+        for ch in deg.channels() {
+            assert_eq!(
+                back.values(&ch.name).unwrap(),
+                &ch.values[..],
+                "{hold} {}",
                 ch.name
             );
         }

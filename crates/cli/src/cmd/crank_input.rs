@@ -15,14 +15,15 @@
 
 use super::{CrankArgs, InputArgs};
 use crate::cmd::convert::tell_wheel;
+use crate::cmd::inspect::tell_tdc_from;
 use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
 use physid_apps::acquisition::{
-    counts_crank_angle_chunks, crank_angle_chunks, raw_wheel, AcquisitionOptions, CountsAngle,
-    CountsScan, DecodedAngle,
+    counts_crank_angle_chunks, crank_angle_chunks, raw_wheel, AcquisitionOptions, AngleSpec,
+    CountsAngle, CountsScan, DecodedAngle,
 };
-use physid_apps::compression::CrankPasses;
+use physid_apps::compression::{tdc_from_pressure_in, CompressionConfig, CrankPasses};
 use physid_apps::error::AppError;
 use physid_apps::wheel_angle::{wheel_crank_angle_chunks, wheel_decoded, wheel_gap, WheelFound};
 use physid_core::{Basis, Recording};
@@ -223,16 +224,19 @@ impl<'a> CrankInput<'a> {
         }
         // A trigger wheel's raw signal: read four times over — its edges (where the gap is),
         // then again with the samples' times (what the decoding found, where the TDC is),
-        // then ahead of the channels.
-        if let (Some(spec), None) = (
-            raw_wheel(&header, &opts),
-            self.angle.wheel.tdc_from.as_ref(),
-        ) {
+        // then ahead of the channels; with --tdc-from, the TDC placed from the pressure first
+        // (the same reads, in passes).
+        if let Some(spec) = raw_wheel(&header, &opts) {
             let channel = spec.sensor.channels()[0];
             let known = self.scanned.and_then(|s| s.borrow().clone());
             let found = match known {
                 Some(Scanned::Wheel(found)) => found,
                 _ => {
+                    let placed = match &self.angle.wheel.tdc_from {
+                        Some(from) => self.tdc_from_wheel(&opts, from)?,
+                        None => spec.clone(),
+                    };
+                    let spec = &placed;
                     let mut reader = self.input.open(self.path, &["t", channel], &[])?;
                     let gap = wheel_gap(spec, Reading::new(&mut reader, self.path)).map_err(&at)?;
                     let mut angle = self.input.open(self.path, &["t", channel], &[])?;
@@ -307,6 +311,46 @@ impl<'a> CrankInput<'a> {
         let mut s = start(&header).map_err(&at)?;
         push(&mut s, &deg).map_err(&at)?;
         Ok((s, decoded))
+    }
+}
+
+impl CrankInput<'_> {
+    /// `--tdc-from CHANNEL` on a trigger wheel's file, read as it goes: the wheel's angle spec
+    /// with the TDC where the motored model puts it ([`tdc_from_pressure_in`]: a read for the
+    /// pressure's peak, then the fit's passes — each a [`CrankFile`] pass with the TDC given).
+    fn tdc_from_wheel(&self, opts: &AcquisitionOptions, channel: &str) -> Result<AngleSpec> {
+        let (stroke, rod) = self.crank.lengths(&format!("--tdc-from {channel}"))?;
+        let cfg = CompressionConfig::new(channel, stroke, rod);
+        let read = |o: &AcquisitionOptions,
+                    visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>|
+         -> Result<(), AppError> {
+            let mut angle = self.angle.clone();
+            if let Some(spec) = &o.sensor {
+                angle.wheel.tdc_offset = spec.tdc_offset_deg;
+                angle.wheel.phase_from.clone_from(&spec.phase_from);
+            }
+            angle.wheel.tdc_from = None;
+            let input = CrankInput {
+                angle: &angle,
+                quiet: true,
+                again: true,
+                scanned: None,
+                ..*self
+            };
+            CrankFile::new(input, vec![channel]).chunks(visit)
+        };
+        let found = tdc_from_pressure_in(&read, opts, &cfg, self.step_deg, super::hold_bytes()?)
+            .map_err(super::app_error(self.path))?;
+        if !self.quiet {
+            tell_tdc_from(self.path, channel, &found);
+        }
+        let mut spec = opts
+            .sensor
+            .clone()
+            .ok_or_else(|| miette::miette!("--tdc-from {channel}: no --wheel"))?;
+        spec.tdc_offset_deg = found.tdc_offset_deg;
+        spec.phase_from.get_or_insert_with(|| channel.to_string());
+        Ok(spec)
     }
 }
 

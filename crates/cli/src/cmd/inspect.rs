@@ -9,7 +9,7 @@ use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{
     to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec, DecodedAngle, Inspector,
 };
-use physid_apps::compression::{tdc_from_pressure, CompressionConfig};
+use physid_apps::compression::{tdc_from_pressure, CompressionConfig, TdcFromPressure};
 use physid_core::Recording;
 use physid_signal::wheel::{Edge, EdgeOptions, Wheel};
 use std::path::{Path, PathBuf};
@@ -90,15 +90,7 @@ impl AngleArgs {
             let cfg = CompressionConfig::new(channel, stroke, rod);
             let found = tdc_from_pressure(rec, &opts, &cfg, step_deg).map_err(|e| at(&e))?;
             if !quiet {
-                eprintln!(
-                    "{}: TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°); the pressure peaks {:.3}° before it (the loss angle)",
-                    input.display(),
-                    found.fit.events.len(),
-                    found.tdc_offset_deg,
-                    found.ci95.0,
-                    found.ci95.1,
-                    -found.peak_deg.unwrap_or(f64::NAN)
-                );
+                tell_tdc_from(input, channel, &found);
             }
             if let Some(spec) = opts.sensor.as_mut() {
                 spec.tdc_offset_deg = found.tdc_offset_deg;
@@ -107,6 +99,19 @@ impl AngleArgs {
         }
         to_crank_angle_decoded(rec, &opts, step_deg).map_err(|e| at(&e))
     }
+}
+
+/// Where `--tdc-from CHANNEL` placed the TDC, on stderr: with its interval and the loss angle.
+pub fn tell_tdc_from(input: &Path, channel: &str, found: &TdcFromPressure) {
+    eprintln!(
+        "{}: TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°); the pressure peaks {:.3}° before it (the loss angle)",
+        input.display(),
+        found.fit.events.len(),
+        found.tdc_offset_deg,
+        found.ci95.0,
+        found.ci95.1,
+        -found.peak_deg.unwrap_or(f64::NAN)
+    );
 }
 
 /// A raw angle sensor as the engine angle: a trigger wheel (`physid_signal::wheel`) or a
