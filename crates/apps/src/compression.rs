@@ -1139,10 +1139,18 @@ pub fn tdc_from_pressure_in(
 pub struct PeakAngles {
     channel: String,
     per: usize,
-    /// The cycle being gone over: its number, samples, and its highest finite sample's value
-    /// and angle.
-    run: Option<(f64, usize, Option<(f64, f64)>)>,
+    /// The cycle being gone over.
+    run: Option<CycleRun>,
     peaks: Vec<f64>,
+}
+
+/// A cycle as [`PeakAngles`] goes over it: its number, samples, and its highest finite sample's
+/// value and angle.
+#[derive(Debug, Clone, Copy)]
+struct CycleRun {
+    cycle: f64,
+    samples: usize,
+    best: Option<(f64, f64)>,
 }
 
 impl PeakAngles {
@@ -1162,16 +1170,19 @@ impl PeakAngles {
         let p = chunk.values(&self.channel)?;
         for i in 0..cycle.len() {
             match &mut self.run {
-                Some((c, n, best)) if *c == cycle[i] => {
-                    *n += 1;
-                    if p[i].is_finite() && best.is_none_or(|(b, _)| p[i].total_cmp(&b).is_ge()) {
-                        *best = Some((p[i], deg[i]));
+                Some(r) if r.cycle == cycle[i] => {
+                    r.samples += 1;
+                    if p[i].is_finite() && r.best.is_none_or(|(b, _)| p[i].total_cmp(&b).is_ge()) {
+                        r.best = Some((p[i], deg[i]));
                     }
                 }
                 _ => {
                     self.close();
-                    let best = p[i].is_finite().then_some((p[i], deg[i]));
-                    self.run = Some((cycle[i], 1, best));
+                    self.run = Some(CycleRun {
+                        cycle: cycle[i],
+                        samples: 1,
+                        best: p[i].is_finite().then_some((p[i], deg[i])),
+                    });
                 }
             }
         }
@@ -1180,8 +1191,13 @@ impl PeakAngles {
 
     /// The cycle gone over: its peak, when it is complete.
     fn close(&mut self) {
-        if let Some((c, n, Some((_, at)))) = self.run.take() {
-            if c >= 0.0 && n == self.per {
+        if let Some(CycleRun {
+            cycle,
+            samples,
+            best: Some((_, at)),
+        }) = self.run.take()
+        {
+            if cycle >= 0.0 && samples == self.per {
                 self.peaks.push(at);
             }
         }
