@@ -4,9 +4,8 @@
 //! `filter` verbs are thin wrappers over these.
 
 use crate::error::AppError;
-use crate::wheel_angle::{
-    firing_tdc, no_phase, wheel_crank_angle_chunks, wheel_decoded, wheel_gap, PhaseWindows,
-    WheelFound,
+use crate::sensor_angle::{
+    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
 };
 use physid_core::{Basis, Channel, Recording, RecordingError};
 use physid_signal::encoder::{first_marker, CountSteps, Encoder, SpacingCheck};
@@ -548,19 +547,6 @@ fn engine_angle(
     opts: &AcquisitionOptions,
 ) -> Result<EngineAngle, AcquisitionError> {
     let t = rec.values("t")?;
-    let sensor = opts.sensor.as_ref().filter(|s| {
-        rec.values("theta_en").is_err()
-            && s.sensor.channels().iter().any(|c| rec.channel(c).is_ok())
-    });
-    if let Some(spec) = sensor {
-        let (t, theta, decoded) = decode_quadrature(rec, spec).map_err(acquisition)?;
-        return Ok(EngineAngle {
-            t,
-            theta,
-            tdc: decoded.tdc,
-            wheel: Some(decoded),
-        });
-    }
     if let Ok(theta) = rec.values("theta_en") {
         // Its value at the marker (as `from_first_marker` takes it on a stream).
         let tdc = match rec.values(&opts.marker).ok().and_then(first_marker) {
@@ -571,7 +557,6 @@ fn engine_angle(
             t: t.to_vec(),
             theta: theta.to_vec(),
             tdc,
-            wheel: None,
         });
     }
     // An encoder's counts: the same scan as on a stream, in one chunk.
@@ -582,7 +567,6 @@ fn engine_angle(
         tdc: scan.finish()?,
         t,
         theta,
-        wheel: None,
     })
 }
 
@@ -798,8 +782,6 @@ struct EngineAngle {
     theta: Vec<f64>,
     /// The first firing TDC's angle [rad].
     tdc: f64,
-    /// What decoding a raw angle sensor found, when the angle came from one.
-    wheel: Option<DecodedAngle>,
 }
 
 /// What decoding a raw angle sensor found, and where the firing TDC lies on its angle.
@@ -830,101 +812,16 @@ pub struct EncoderSummary {
     pub backward_steps: usize,
 }
 
-/// A quadrature encoder's channels ([`physid_signal::quadrature`]) decoded whole into the crank
-/// angle at every sample between its first and last transition — after the last time it
-/// turned back (the crank angle must increase) — and the firing TDC placed:
-/// `tdc_offset_deg` after the index, in the revolution `phase_from` picks ([`PhaseWindows`]).
-/// Returns the samples' times [s], their angles [rad] and what was found. (A trigger wheel is
-/// decoded as it is read: [`crate::wheel_angle`].)
-fn decode_quadrature(
-    rec: &Recording,
-    spec: &AngleSpec,
-) -> Result<(Vec<f64>, Vec<f64>, DecodedAngle), AppError> {
-    let t = rec.values("t")?;
-    let AngleSensor::Quadrature { a, b, z, lines } = &spec.sensor else {
-        return Err(AppError::Invalid(
-            "the angle sensor is a trigger wheel, decoded as it is read".into(),
-        ));
-    };
-    let invalid = |e: String| AppError::Acquisition(AcquisitionError::Invalid(e));
-    let Some(z) = z else {
-        return Err(invalid(format!(
-            "--quadrature {a},{b}: without an index channel (Z) the angle has no reference to place the TDC from; give --quadrature {a},{b},Z=LINES"
-        )));
-    };
-    let q = physid_signal::quadrature::decode(
-        t,
-        rec.values(a)?,
-        rec.values(b)?,
-        Some(rec.values(z)?),
-        *lines,
-        [a.as_str(), b.as_str(), z.as_str()],
-    )
-    .map_err(|e| invalid(e.to_string()))?;
-    // From the last transition that went back on.
-    let from = q
-        .angle
-        .windows(2)
-        .rposition(|w| w[1] <= w[0])
-        .map_or(0, |k| k + 1);
-    let (first, last) = (q.t[from], q.t[q.t.len() - 1]);
-    let summary = format!(
-        "quadrature encoder of {lines} lines decoded: {} transitions, {} index pulse(s) turning forward, {} steps back{}",
-        q.t.len(),
-        q.index_t.len(),
-        q.backward,
-        if from > 0 {
-            format!(" (the crank angle from {first:.6} s, after it last turned back)")
-        } else {
-            String::new()
-        }
-    );
-    let encoder = EncoderSummary {
-        lines: *lines,
-        index_pulses: q.index_t.len(),
-        backward_steps: q.backward,
-    };
-    let (i, j) = (
-        t.partition_point(|&x| x < first),
-        t.partition_point(|&x| x <= last),
-    );
-    let tt = t[i..j].to_vec();
-    let theta = q.angle_at(&tt);
-    if tt.len() < 2 {
-        return Err(invalid(format!(
-            "{}: fewer than 2 samples between the sensor's first and last edge",
-            spec.sensor.channels().join(", ")
-        )));
-    }
-    let offset = spec.tdc_offset_deg.to_radians();
-    let (parity, phase) = match &spec.phase_from {
-        None => (0, no_phase(spec.tdc_offset_deg)),
-        Some(from) => {
-            let p = &rec.values(from.strip_suffix(":low").unwrap_or(from))?[i..j];
-            let mut windows = PhaseWindows::new(offset);
-            for (&th, &p) in theta.iter().zip(p) {
-                windows.push(th, p);
-            }
-            windows.finish(from, spec.tdc_offset_deg)?
-        }
-    };
-    let decoded = DecodedAngle {
-        tdc: firing_tdc(offset, parity, theta[0]),
-        wheel: None,
-        encoder: Some(encoder),
-        findings: q.findings,
-        summary,
-        phase,
-    };
-    Ok((tt, theta, decoded))
-}
-
-/// The trigger wheel whose raw signal is the engine angle of a time-basis recording without
-/// `theta_en`, when the options name one the recording has.
-pub fn raw_wheel<'a>(header: &Recording, opts: &'a AcquisitionOptions) -> Option<&'a AngleSpec> {
+/// The raw angle sensor (a trigger wheel, a quadrature encoder) whose signal is the engine
+/// angle of a time-basis recording without `theta_en`, when the options name one whose
+/// channels the recording has (any of them: a missing one is named when it is read).
+pub fn raw_sensor<'a>(header: &Recording, opts: &'a AcquisitionOptions) -> Option<&'a AngleSpec> {
     opts.sensor.as_ref().filter(|s| {
         header.channel("theta_en").is_err()
-            && matches!(&s.sensor, AngleSensor::Wheel { channel, .. } if header.channel(channel).is_ok())
+            && s.sensor
+                .channels()
+                .iter()
+                .any(|c| header.channel(c).is_ok())
     })
 }
 
@@ -1031,15 +928,15 @@ pub fn to_crank_angle_decoded(
             "the recording is already on a crank-angle basis".into(),
         ));
     }
-    if let Some(spec) = raw_wheel(rec, opts) {
-        // The wheel's three passes, over the recording as one chunk.
+    if let Some(spec) = raw_sensor(rec, opts) {
+        // The sensor's passes, over the recording as one chunk.
         let one = || std::iter::once(Ok::<&Recording, AppError>(rec));
         let run = || -> Result<_, AppError> {
-            let gap = wheel_gap(spec, one())?;
-            let decoded = wheel_decoded(spec, &gap, one(), one())?;
-            let found = WheelFound { gap, decoded };
+            let cal = sensor_calibration(spec, || Ok(one()))?;
+            let decoded = sensor_decoded(spec, &cal, one(), one())?;
+            let found = SensorFound { cal, decoded };
             let (mut out, chunks) =
-                wheel_crank_angle_chunks(spec, &found, rec, one(), one(), opts, step_deg)?;
+                sensor_crank_angle_chunks(spec, &found, rec, one(), one(), opts, step_deg)?;
             for chunk in chunks {
                 out.append(&chunk?)?;
             }
@@ -1060,7 +957,7 @@ pub fn to_crank_angle_decoded(
     stream.resampler.finish_angle();
     let mut out = stream.push_channels(rec)?;
     out.append(&stream.finish()?)?;
-    Ok((out, angle.wheel))
+    Ok((out, None))
 }
 
 /// A time-basis stream with `theta_en` (`header` its channels) on one sample every `step_deg`

@@ -40,9 +40,9 @@ pub mod model_choice;
 pub mod pipeline;
 pub mod pressure;
 pub mod recording_rows;
+pub mod sensor_angle;
 pub mod shaft_monitor;
 pub mod torque_fit;
-pub mod wheel_angle;
 
 /// Drop every other element of a track (the first kept): what a track bounded in length does
 /// when it is full, its step doubling.

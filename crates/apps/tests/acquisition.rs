@@ -379,8 +379,8 @@ fn wheel_recording() -> Recording {
 #[test]
 fn a_wheel_resampled_as_it_comes_equals_the_whole() {
     use physid_apps::acquisition::{to_crank_angle_decoded, AngleSensor, AngleSpec};
-    use physid_apps::wheel_angle::{
-        wheel_crank_angle_chunks, wheel_decoded, wheel_gap, WheelFound,
+    use physid_apps::sensor_angle::{
+        sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
     };
     let rec = wheel_recording();
     let spec = AngleSpec {
@@ -434,16 +434,16 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
     assert!(worst < 0.1, "{worst}° off the true angle");
     let stream = |cuts: [usize; 5]| {
         let wheel = pick(&rec, &["t", "enc"]);
-        let gap = wheel_gap(&spec, cut(&wheel, cuts[0]))?;
-        let decoded = wheel_decoded(
+        let cal = sensor_calibration(&spec, || Ok(cut(&wheel, cuts[0])))?;
+        let decoded = sensor_decoded(
             &spec,
-            &gap,
+            &cal,
             cut(&wheel, cuts[1]),
             cut(&pick(&rec, &["t", "p_cyl"]), cuts[2]),
         )?;
         let channels = pick(&rec, &["t", "p_cyl"]);
-        let found = WheelFound { gap, decoded };
-        let (header, chunks) = wheel_crank_angle_chunks(
+        let found = SensorFound { cal, decoded };
+        let (header, chunks) = sensor_crank_angle_chunks(
             &spec,
             &found,
             &channels,
@@ -502,6 +502,110 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
         },
         ..spec.clone()
     };
-    let e = wheel_gap(&wrong, cut(&pick(&rec, &["t", "enc"]), 997)).unwrap_err();
+    let e = sensor_calibration(&wrong, || Ok(cut(&pick(&rec, &["t", "enc"]), 997))).unwrap_err();
     assert!(e.to_string().contains("'enc'"), "{e}");
+}
+
+/// A quadrature encoder's channels resampled as they come — the index's level, then the
+/// decoding (the angle 0, the span after the shaft last turned back), then the samples' angle,
+/// then the channels with the encoder read ahead — give the whole recording's crank-angle
+/// samples and report bit for bit, however each input is cut: `physid-signal`'s golden
+/// encoder (500 lines at 200 kHz, turning back 40° first; numpy), its true angle carried as a
+/// channel and within 0.1° of the crank angle the resampling gives.
+#[test]
+fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
+    use physid_apps::acquisition::{to_crank_angle_decoded, AngleSensor, AngleSpec};
+    use physid_apps::sensor_angle::{
+        sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
+    };
+    let golden = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../signal/tests/golden/quadrature_500.parquet");
+    let rec = physid_io::read(&golden, &Default::default()).unwrap();
+    let spec = AngleSpec {
+        sensor: AngleSensor::Quadrature {
+            a: "enc_a".into(),
+            b: "enc_b".into(),
+            z: Some("enc_z".into()),
+            lines: 500,
+        },
+        tdc_offset_deg: 30.0,
+        phase_from: None,
+    };
+    let opts = AcquisitionOptions {
+        sensor: Some(spec.clone()),
+        ..Default::default()
+    };
+    let (whole, report) = to_crank_angle_decoded(&rec, &opts, 1.0).unwrap();
+    let report = report.unwrap();
+    assert!(
+        report.summary.contains("after it last turned back"),
+        "{}",
+        report.summary
+    );
+    assert!(whole.len() > 300, "{}", whole.len());
+    // The true angle [µrad] at each crank-angle sample: 30° + 720°·k + crank_deg from the
+    // index (the truth's 0), within 0.1°.
+    let (deg, truth) = (
+        whole.values("crank_deg").unwrap(),
+        whole.values("theta_true").unwrap(),
+    );
+    let cycle = whole.values("cycle").unwrap();
+    for i in 0..whole.len() {
+        let want = 30.0 + 720.0 * cycle[i] + deg[i];
+        let off = (truth[i] * 1e-6).to_degrees() - want;
+        assert!(off.abs() < 0.1, "sample {i}: {off}°");
+    }
+    let sensor = pick(&rec, &["t", "enc_a", "enc_b", "enc_z"]);
+    let channels = pick(&rec, &["t", "theta_true"]);
+    let stream = |cuts: [usize; 5]| {
+        let mut pass = 0;
+        let cal = sensor_calibration(&spec, || {
+            pass += 1;
+            Ok(cut(&sensor, cuts[0] * pass))
+        })?;
+        let decoded = sensor_decoded(
+            &spec,
+            &cal,
+            cut(&sensor, cuts[1]),
+            cut(&pick(&rec, &["t"]), cuts[2]),
+        )?;
+        let found = SensorFound { cal, decoded };
+        let (header, chunks) = sensor_crank_angle_chunks(
+            &spec,
+            &found,
+            &channels,
+            cut(&sensor, cuts[3]),
+            cut(&channels, cuts[4]),
+            &opts,
+            1.0,
+        )?;
+        let mut out = header;
+        for c in chunks {
+            out.append(&c?)?;
+        }
+        Ok::<_, physid_apps::error::AppError>((out, found.decoded))
+    };
+    for cuts in [
+        [0, 0, 0, 0, 0],
+        [1, 7, 13, 997, 1],
+        [4096, 1, 997, 13, 4096],
+        [997, 4095, 1, 1, 7],
+    ] {
+        let (got, decoded) = stream(cuts).unwrap();
+        assert_eq!(got.names(), whole.names(), "{cuts:?}");
+        for name in whole.names() {
+            let (a, b) = (got.values(name).unwrap(), whole.values(name).unwrap());
+            assert_eq!(a.len(), b.len(), "{name} {cuts:?}");
+            assert!(
+                a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{name} {cuts:?}"
+            );
+        }
+        assert_eq!(decoded.tdc.to_bits(), report.tdc.to_bits(), "{cuts:?}");
+        assert_eq!(
+            (&decoded.summary, &decoded.phase, &decoded.findings),
+            (&report.summary, &report.phase, &report.findings),
+            "{cuts:?}"
+        );
+    }
 }

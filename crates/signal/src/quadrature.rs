@@ -4,8 +4,9 @@
 //!
 //! * Each channel through a comparator with hysteresis: the level midway between the 2nd and
 //!   98th percentiles of its first [`START_SAMPLES`](crate::wheel::START_SAMPLES) samples (Z:
-//!   its smallest and largest sample), ±20 % of their distance; each transition's time
-//!   interpolated between the samples either side.
+//!   its smallest and largest sample over the whole signal, [`IndexRange`] — a first pass on a
+//!   stream), ±20 % of their distance; each transition's time interpolated between the samples
+//!   either side.
 //! * ×4 decoding: every transition of A or B moves the count by one quarter line, forward when
 //!   the Gray sequence (A, B) = 00 → 10 → 11 → 01 runs that way (A leads), back otherwise. Both
 //!   channels changing between two samples is a transition the samples could not resolve: an
@@ -17,7 +18,7 @@
 //!   the shaft turns back, stay flat).
 
 use crate::integrity::{Finding, FindingKind};
-use crate::wheel::{pchip_at, WheelError, HYSTERESIS, START_SAMPLES};
+use crate::wheel::{pchip_at, Pchip, WheelError, HYSTERESIS, START_SAMPLES};
 use std::f64::consts::TAU;
 
 /// A comparator with hysteresis on one channel, started from its first samples.
@@ -30,9 +31,9 @@ struct Comparator {
 }
 
 impl Comparator {
-    /// From the 2nd and 98th percentiles of the first samples (`pulse`: the smallest and
-    /// largest of all — an index is high a few samples a revolution).
-    fn start(v: &[f64], pulse: bool) -> Result<Self, String> {
+    /// From the 2nd and 98th percentiles of the first samples `v` (`range`: the smallest and
+    /// largest of all the samples instead — an index is high a few samples a revolution).
+    fn start(v: &[f64], range: Option<(f64, f64)>) -> Result<Self, String> {
         let mut u: Vec<f64> = v.iter().take(START_SAMPLES).copied().collect();
         if u.is_empty() {
             return Err("no samples".into());
@@ -41,13 +42,9 @@ impl Comparator {
             let k = ((u.len() - 1) as f64 * p).round() as usize;
             *u.select_nth_unstable_by(k, f64::total_cmp).1
         };
-        let (lo, hi) = if pulse {
-            v.iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                    (a.min(x), b.max(x))
-                })
-        } else {
-            (q(&mut u, 0.02), q(&mut u, 0.98))
+        let (lo, hi) = match range {
+            Some(r) => r,
+            None => (q(&mut u, 0.02), q(&mut u, 0.98)),
         };
         if hi <= lo {
             return Err(format!("flat over its first {} samples (at {lo})", u.len()));
@@ -117,8 +114,401 @@ impl QuadratureAngles {
     }
 }
 
+/// The smallest and largest sample of an index channel, a chunk at a time: its comparator's
+/// level ([`QuadratureDecoder`]'s first pass).
+#[derive(Debug, Clone, Copy)]
+pub struct IndexRange {
+    /// Smallest and largest so far.
+    pub range: (f64, f64),
+}
+
+impl Default for IndexRange {
+    fn default() -> Self {
+        Self {
+            range: (f64::INFINITY, f64::NEG_INFINITY),
+        }
+    }
+}
+
+impl IndexRange {
+    /// The next samples.
+    pub fn push(&mut self, z: &[f64]) {
+        self.range = z.iter().fold(self.range, |(a, b), &x| (a.min(x), b.max(x)));
+    }
+}
+
+/// A transition of A or B as [`QuadratureDecoder`] gives it: its time [s] and the edge crossed
+/// (between counts `c − 1` and `c`, called `c`, whichever the way).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Transition {
+    /// Time [s].
+    pub t: f64,
+    /// The edge crossed, in quarter lines.
+    pub edge: i64,
+}
+
+/// An index pulse turning forward: its time [s] and sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IndexPulse {
+    /// Time [s].
+    pub t: f64,
+    /// Sample.
+    pub index: usize,
+}
+
+/// The ×4 decoding of A/B (and Z) as samples come (see the module docs): the comparators
+/// started from the first [`START_SAMPLES`] samples (held until then) — Z's from its smallest
+/// and largest sample over the whole signal, found by a first pass ([`IndexRange`]) — then the
+/// transitions and index pulses in order ([`pop`](Self::pop)). Holds the first samples, the
+/// transitions and pulses not yet taken, and the findings.
+#[derive(Debug, Clone)]
+pub struct QuadratureDecoder {
+    names: [String; 3],
+    z_range: Option<(f64, f64)>,
+    start: Vec<[f64; 4]>,
+    comparators: Option<[Comparator; 2]>,
+    cz: Option<Comparator>,
+    sa: Option<bool>,
+    sb: Option<bool>,
+    count: i64,
+    last_dir: i64,
+    /// Transitions so far, the last one's time, steps back.
+    transitions: usize,
+    last_t: Option<f64>,
+    backward: usize,
+    /// The sample before, its time; samples seen.
+    prev_t: Option<f64>,
+    seen: usize,
+    out: std::collections::VecDeque<Transition>,
+    pulses: std::collections::VecDeque<IndexPulse>,
+    findings: Vec<Finding>,
+    error: Option<WheelError>,
+}
+
+impl QuadratureDecoder {
+    /// A decoder for channels `names` (A, B, Z; Z's `z_range` from a first pass, `None`
+    /// without Z).
+    pub fn new(names: [&str; 3], z_range: Option<(f64, f64)>) -> Self {
+        Self {
+            names: names.map(str::to_string),
+            z_range,
+            start: Vec::new(),
+            comparators: None,
+            cz: None,
+            sa: None,
+            sb: None,
+            count: 0,
+            last_dir: 1,
+            transitions: 0,
+            last_t: None,
+            backward: 0,
+            prev_t: None,
+            seen: 0,
+            out: std::collections::VecDeque::new(),
+            pulses: std::collections::VecDeque::new(),
+            findings: Vec::new(),
+            error: None,
+        }
+    }
+
+    /// The next samples: times `t` [s], A, B and Z (empty without Z).
+    pub fn push(&mut self, t: &[f64], a: &[f64], b: &[f64], z: &[f64]) {
+        for i in 0..t.len() {
+            if self.error.is_some() {
+                return;
+            }
+            let index = self.seen;
+            self.seen += 1;
+            let zi = z.get(i).copied().unwrap_or(0.0);
+            for (k, x) in [a[i], b[i], zi].into_iter().enumerate() {
+                if !x.is_finite() {
+                    self.error = Some(WheelError::Invalid(format!(
+                        "'{}': sample {index} is {x}: the encoder's signal must be finite",
+                        self.names[k]
+                    )));
+                    return;
+                }
+            }
+            if let Some(prev) = self
+                .prev_t
+                .filter(|&p| t[i].partial_cmp(&p) != Some(std::cmp::Ordering::Greater))
+            {
+                self.error = Some(WheelError::Time {
+                    index,
+                    prev,
+                    next: t[i],
+                });
+                return;
+            }
+            let sample = [t[i], a[i], b[i], zi];
+            if self.comparators.is_none() {
+                self.start.push(sample);
+                self.prev_t = Some(t[i]);
+                if self.start.len() == START_SAMPLES {
+                    self.begin();
+                }
+                continue;
+            }
+            self.step(sample, index);
+            self.prev_t = Some(t[i]);
+        }
+    }
+
+    /// The comparators from the first samples, then those samples through them.
+    fn begin(&mut self) {
+        let start = std::mem::take(&mut self.start);
+        // The channel `k` (A, B, Z) of the samples held: after the time.
+        let column = |k: usize| start.iter().map(|s| s[k + 1]).collect::<Vec<f64>>();
+        let names = &self.names;
+        let comparator = |k: usize, range| {
+            Comparator::start(&column(k), range)
+                .map_err(|e| WheelError::Invalid(format!("'{}': {e}", names[k])))
+        };
+        let started = comparator(0, None).and_then(|a| Ok([a, comparator(1, None)?]));
+        let z = match self.z_range {
+            Some(r) => comparator(2, Some(r)).map(Some),
+            None => Ok(None),
+        };
+        match (started, z) {
+            (Ok(c), Ok(z)) => {
+                self.comparators = Some(c);
+                self.cz = z;
+            }
+            (Err(e), _) | (_, Err(e)) => {
+                self.error = Some(e);
+                return;
+            }
+        }
+        self.prev_t = None;
+        for (i, s) in start.into_iter().enumerate() {
+            self.step(s, i);
+            self.prev_t = Some(s[0]);
+        }
+    }
+
+    fn step(&mut self, [t, a, b, z]: [f64; 4], i: usize) {
+        let Some([ca, cb]) = self.comparators.as_mut() else {
+            return;
+        };
+        let ea = ca.step(t, a);
+        let eb = cb.step(t, b);
+        if self.sa.is_none() {
+            self.sa = ca.high;
+        }
+        if self.sb.is_none() {
+            self.sb = cb.high;
+        }
+        let (high_a, high_b) = (ca.high, cb.high);
+        match (ea, eb) {
+            (Some(_), Some(_)) => {
+                self.findings.push(Finding {
+                    kind: FindingKind::PulseLoss,
+                    index: i,
+                    detail: format!(
+                        "'{}' and '{}' both changed at sample {i}: a transition the samples cannot resolve, taken as two steps the way the shaft last turned (sample faster)",
+                        self.names[0], self.names[1]
+                    ),
+                });
+                // Taken as two steps on in the direction of the last one.
+                self.count += 2 * self.last_dir;
+                if let (Some((ta, _)), Some((tb, _))) = (ea, eb) {
+                    let edge = if self.last_dir > 0 {
+                        self.count
+                    } else {
+                        self.count + 1
+                    };
+                    self.transition(0.5 * (ta + tb), edge);
+                }
+                self.sa = high_a;
+                self.sb = high_b;
+            }
+            (Some((te, s)), None) | (None, Some((te, s))) => {
+                // Strictly after the transition before (a level hit exactly by two samples).
+                let te = match self.last_t {
+                    Some(last) if te <= last => last + 1e-6 * (t - self.prev_t.unwrap_or(t)),
+                    _ => te,
+                };
+                let (Some(pa), Some(pb)) = (self.sa, self.sb) else {
+                    self.sa = high_a;
+                    self.sb = high_b;
+                    return;
+                };
+                // Forward (A leads): A rises when B is low, falls when B is high; B rises when
+                // A is high, falls when A is low.
+                let forward = if ea.is_some() { s != pb } else { s == pa };
+                let dir = if forward { 1 } else { -1 };
+                self.count += dir;
+                if dir < 0 {
+                    self.backward += 1;
+                }
+                self.last_dir = dir;
+                let edge = if forward { self.count } else { self.count + 1 };
+                self.transition(te, edge);
+                if ea.is_some() {
+                    self.sa = Some(s);
+                } else {
+                    self.sb = Some(s);
+                }
+            }
+            (None, None) => {}
+        }
+        if let Some(c) = self.cz.as_mut() {
+            if let Some((te, true)) = c.step(t, z) {
+                if self.last_dir > 0 {
+                    self.pulses.push_back(IndexPulse { t: te, index: i });
+                }
+            }
+        }
+    }
+
+    fn transition(&mut self, t: f64, edge: i64) {
+        self.transitions += 1;
+        self.last_t = Some(t);
+        self.out.push_back(Transition { t, edge });
+    }
+
+    /// The next transition found.
+    pub fn pop(&mut self) -> Option<Transition> {
+        self.out.pop_front()
+    }
+
+    /// The next index pulse found (turning forward).
+    pub fn pop_pulse(&mut self) -> Option<IndexPulse> {
+        self.pulses.pop_front()
+    }
+
+    /// No more samples: the comparators started if fewer than [`START_SAMPLES`] came, the
+    /// error that stopped the decoding, or fewer than two transitions.
+    pub fn finish(&mut self) -> Result<(), WheelError> {
+        if self.comparators.is_none() && self.error.is_none() {
+            if self.start.is_empty() {
+                let e = format!("'{}': no samples", self.names[0]);
+                self.error = Some(WheelError::Invalid(e));
+            } else {
+                self.begin();
+            }
+        }
+        if let Some(e) = self.error.clone() {
+            return Err(e);
+        }
+        if self.transitions < 2 {
+            return Err(WheelError::Invalid(format!(
+                "'{}', '{}': {} transitions — the shaft does not turn, or the channels do not cross their levels",
+                self.names[0], self.names[1], self.transitions
+            )));
+        }
+        Ok(())
+    }
+
+    /// Steps back (the shaft turning back), and the findings so far (unresolved transitions).
+    pub fn backward(&self) -> usize {
+        self.backward
+    }
+
+    /// The unresolved transitions found, at their samples.
+    pub fn take_findings(&mut self) -> Vec<Finding> {
+        std::mem::take(&mut self.findings)
+    }
+}
+
+/// The angle 0 of a decoded encoder and the index pulses out of place, as transitions and
+/// pulses come: the angle at the first index pulse turning forward (by the monotone cubic
+/// through the transitions, [`Pchip`]), or without one the first transition's; every later
+/// pulse a whole revolution on within 1.5 counts, else a finding. Holds the pulses not yet
+/// placed.
+#[derive(Debug, Clone)]
+pub struct IndexZero {
+    q: f64,
+    lines: u32,
+    name: String,
+    pchip: Pchip,
+    pending: std::collections::VecDeque<IndexPulse>,
+    first_angle: Option<f64>,
+    zero: Option<f64>,
+    pulses: usize,
+    findings: Vec<Finding>,
+}
+
+impl IndexZero {
+    /// For an encoder of `lines` lines whose index channel is `name`.
+    pub fn new(lines: u32, name: &str) -> Self {
+        Self {
+            q: TAU / (4.0 * lines as f64),
+            lines,
+            name: name.to_string(),
+            pchip: Pchip::default(),
+            pending: std::collections::VecDeque::new(),
+            first_angle: None,
+            zero: None,
+            pulses: 0,
+            findings: Vec::new(),
+        }
+    }
+
+    /// The next transition.
+    pub fn transition(&mut self, tr: Transition) {
+        let angle = tr.edge as f64 * self.q;
+        self.first_angle.get_or_insert(angle);
+        self.pchip.push(tr.t, angle);
+        self.place();
+    }
+
+    /// The next index pulse.
+    pub fn pulse(&mut self, p: IndexPulse) {
+        self.pulses += 1;
+        self.pending.push_back(p);
+        self.place();
+    }
+
+    /// The pulses whose angle is known.
+    fn place(&mut self) {
+        while let Some(p) = self.pending.front().copied() {
+            let Some(at) = self.pchip.at(p.t) else {
+                return;
+            };
+            self.pending.pop_front();
+            match self.zero {
+                None => {
+                    self.zero = Some(if at.is_finite() {
+                        at
+                    } else {
+                        self.first_angle.unwrap_or(0.0)
+                    });
+                }
+                Some(zero) => {
+                    let revs = (at - zero) / TAU;
+                    let off = (revs - revs.round()) * 4.0 * self.lines as f64;
+                    if off.abs() > 1.5 {
+                        self.findings.push(Finding {
+                            kind: FindingKind::OutOfSync,
+                            index: p.index,
+                            detail: format!(
+                                "'{}': index pulse at sample {} {:.1} counts after the first, not a whole number of revolutions of {}",
+                                self.name,
+                                p.index,
+                                revs * 4.0 * self.lines as f64,
+                                4 * self.lines
+                            ),
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    /// No more transitions or pulses: the angle 0 [rad on the counts' scale], the pulses turning
+    /// forward, and the pulses out of place.
+    pub fn finish(mut self) -> (f64, usize, Vec<Finding>) {
+        self.pchip.end();
+        self.place();
+        let zero = self.zero.or(self.first_angle).unwrap_or(0.0);
+        (zero, self.pulses, self.findings)
+    }
+}
+
 /// Decode A/B (and Z) sampled at the times `t` [s]; `lines` per revolution; `names` the
-/// channels (for the findings and errors).
+/// channels (for the findings and errors): [`QuadratureDecoder`] and [`IndexZero`] over the
+/// whole signal.
 pub fn decode(
     t: &[f64],
     a: &[f64],
@@ -150,147 +540,38 @@ pub fn decode(
             )));
         }
     }
-    if let Some(i) = t
-        .windows(2)
-        .position(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
-    {
-        return Err(WheelError::Time {
-            index: i + 1,
-            prev: t[i],
-            next: t[i + 1],
-        });
+    let z_range = z.map(|z| {
+        let mut r = IndexRange::default();
+        r.push(z);
+        r.range
+    });
+    let mut d = QuadratureDecoder::new(names, z_range);
+    d.push(t, a, b, z.unwrap_or(&[]));
+    d.finish()?;
+    let mut zero = IndexZero::new(lines, names[2]);
+    let (mut tt, mut edges, mut index_t) = (Vec::new(), Vec::new(), Vec::new());
+    // Transitions and pulses in time order (a pulse placed once the transitions after it came).
+    while let Some(tr) = d.pop() {
+        tt.push(tr.t);
+        edges.push(tr.edge);
+        zero.transition(tr);
     }
-    let comparator = |x: &[f64], name: &str, pulse: bool| {
-        Comparator::start(x, pulse).map_err(|e| WheelError::Invalid(format!("'{name}': {e}")))
-    };
-    let (mut ca, mut cb) = (
-        comparator(a, names[0], false)?,
-        comparator(b, names[1], false)?,
-    );
-    let mut cz = match z {
-        Some(z) => Some(comparator(z, names[2], true)?),
-        None => None,
-    };
+    while let Some(p) = d.pop_pulse() {
+        index_t.push(p.t);
+        zero.pulse(p);
+    }
+    let (zero, _, mut out_of_place) = zero.finish();
     let q = TAU / (4.0 * lines as f64);
-    let (mut sa, mut sb) = (None::<bool>, None::<bool>);
-    let mut count: i64 = 0;
-    let (mut tt, mut edges) = (Vec::new(), Vec::new());
-    let mut index: Vec<(f64, i64, usize)> = Vec::new();
-    let mut findings = Vec::new();
-    let mut backward = 0;
-    let mut last_dir = 1i64;
-    for i in 0..t.len() {
-        let ea = ca.step(t[i], a[i]);
-        let eb = cb.step(t[i], b[i]);
-        if sa.is_none() {
-            sa = ca.high;
-        }
-        if sb.is_none() {
-            sb = cb.high;
-        }
-        match (ea, eb) {
-            (Some(_), Some(_)) => {
-                findings.push(Finding {
-                    kind: FindingKind::PulseLoss,
-                    index: i,
-                    detail: format!(
-                                        "'{}' and '{}' both changed at sample {i}: a transition the samples cannot resolve, taken as two steps the way the shaft last turned (sample faster)",
-                        names[0], names[1]
-                    ),
-                });
-                // Taken as two steps on in the direction of the last one.
-                count += 2 * last_dir;
-                if let (Some((ta, _)), Some((tb, _))) = (ea, eb) {
-                    tt.push(0.5 * (ta + tb));
-                    edges.push(if last_dir > 0 { count } else { count + 1 });
-                }
-                sa = ca.high;
-                sb = cb.high;
-            }
-            (Some((te, s)), None) | (None, Some((te, s))) => {
-                // Strictly after the transition before (a level hit exactly by two samples).
-                let te = match tt.last() {
-                    Some(&last) if te <= last => last + 1e-6 * (t[i] - t[i.saturating_sub(1)]),
-                    _ => te,
-                };
-                let (Some(pa), Some(pb)) = (sa, sb) else {
-                    sa = ca.high;
-                    sb = cb.high;
-                    continue;
-                };
-                // Forward (A leads): A rises when B is low, falls when B is high; B rises when
-                // A is high, falls when A is low.
-                let forward = if ea.is_some() { s != pb } else { s == pa };
-                let dir = if forward { 1 } else { -1 };
-                count += dir;
-                if dir < 0 {
-                    backward += 1;
-                }
-                last_dir = dir;
-                tt.push(te);
-                // The edge crossed: between counts c − 1 and c, called c, whichever the way.
-                edges.push(if forward { count } else { count + 1 });
-                if ea.is_some() {
-                    sa = Some(s);
-                } else {
-                    sb = Some(s);
-                }
-            }
-            (None, None) => {}
-        }
-        if let (Some(c), Some(z)) = (cz.as_mut(), z) {
-            if let Some((te, true)) = c.step(t[i], z[i]) {
-                if last_dir > 0 {
-                    index.push((te, count, i));
-                }
-            }
-        }
-    }
-    if tt.len() < 2 {
-        return Err(WheelError::Invalid(format!(
-            "'{}', '{}': {} transitions — the shaft does not turn, or the channels do not cross their levels",
-            names[0],
-            names[1],
-            tt.len()
-        )));
-    }
-    // The angle at the transitions, then 0 at the first index pulse's time.
-    let mut angle: Vec<f64> = edges.iter().map(|&c| c as f64 * q).collect();
-    let index_t: Vec<f64> = index.iter().map(|x| x.0).collect();
-    let at_index = pchip_at(&tt, &angle, &index_t);
-    let zero = at_index
-        .first()
-        .copied()
-        .filter(|z| z.is_finite())
-        .unwrap_or(angle[0]);
-    for x in angle.iter_mut() {
-        *x -= zero;
-    }
-    // Every later index a whole revolution on (within 1.5 counts: the index edge may fall on
-    // either side of an A/B transition).
-    for (k, &(_, _, i)) in index.iter().enumerate().skip(1) {
-        let revs = (at_index[k] - zero) / TAU;
-        let off = (revs - revs.round()) * 4.0 * lines as f64;
-        if off.abs() > 1.5 {
-            findings.push(Finding {
-                kind: FindingKind::OutOfSync,
-                index: i,
-                detail: format!(
-                    "'{}': index pulse at sample {i} {:.1} counts after the first, not a whole number of revolutions of {}",
-                    names[2],
-                    revs * 4.0 * lines as f64,
-                    4 * lines
-                ),
-            });
-        }
-    }
+    let angle: Vec<f64> = edges.iter().map(|&c| c as f64 * q - zero).collect();
+    let mut findings = d.take_findings();
+    findings.append(&mut out_of_place);
     findings.sort_by_key(|f| f.index);
     Ok(QuadratureAngles {
         lines,
         angle,
         t: tt,
         index_t,
-        backward,
+        backward: d.backward(),
         findings,
     })
 }

@@ -9,9 +9,12 @@
 //!   counts and the marker (the spacing check, the TDC's angle), then the channels with the
 //!   counts read ahead of them ([`physid_apps::acquisition::counts_crank_angle_chunks`]) —
 //!   memory flat in the recording's length;
-//! * a time-basis file whose angle is decoded from a raw sensor (`--wheel`, `--quadrature`), or
-//!   with the TDC placed from the pressure (`--tdc-from`): read whole — the decoders see the
-//!   whole signal — but only the channels the angle and the analysis take.
+//! * a time-basis file whose angle is a raw sensor's signal (`--wheel`, `--quadrature`): read
+//!   over in passes, a chunk at a time — what must be known before any angle (a wheel's gap; an
+//!   encoder's index level, then its angle 0 and span); the sensor and the samples' times (what
+//!   the decoding found, where the firing TDC is); then the channels with the sensor read ahead
+//!   of them ([`physid_apps::sensor_angle`]) — memory flat in the recording's length; with
+//!   `--tdc-from`, the TDC placed from the pressure first by the same reads in passes.
 
 use super::{CrankArgs, InputArgs};
 use crate::cmd::convert::tell_wheel;
@@ -20,12 +23,14 @@ use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
 use physid_apps::acquisition::{
-    counts_crank_angle_chunks, crank_angle_chunks, raw_wheel, AcquisitionOptions, AngleSpec,
-    CountsAngle, CountsScan, DecodedAngle,
+    counts_crank_angle_chunks, crank_angle_chunks, raw_sensor, AcquisitionOptions, AngleSensor,
+    AngleSpec, CountsAngle, CountsScan, DecodedAngle,
 };
 use physid_apps::compression::{tdc_from_pressure_in, CompressionConfig, CrankPasses};
 use physid_apps::error::AppError;
-use physid_apps::wheel_angle::{wheel_crank_angle_chunks, wheel_decoded, wheel_gap, WheelFound};
+use physid_apps::sensor_angle::{
+    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
+};
 use physid_core::{Basis, Recording};
 use std::cell::{Cell, RefCell};
 use std::path::Path;
@@ -58,8 +63,8 @@ pub struct CrankInput<'a> {
 pub enum Scanned {
     /// An encoder's counts: the encoder and the TDC's angle.
     Counts(CountsAngle),
-    /// A trigger wheel: where its gap is, what decoding found, where the TDC is.
-    Wheel(WheelFound),
+    /// A raw angle sensor: its calibration, what decoding found, where the TDC is.
+    Sensor(Box<SensorFound>),
 }
 
 impl<'a> CrankInput<'a> {
@@ -130,6 +135,14 @@ impl<'a> CrankInput<'a> {
                 names
             })
         };
+        // A reader of these channels, or of every one.
+        let open = |names: Option<Vec<String>>| match names {
+            Some(n) => {
+                let n: Vec<&str> = n.iter().map(String::as_str).collect();
+                self.input.open(self.path, &n, &[])
+            }
+            None => self.input.open_all(self.path),
+        };
         let opts = self.angle.options()?;
         let streams = header.basis == Basis::CrankAngle
             || (header.channel("theta_en").is_ok() && self.angle.wheel.tdc_from.is_none());
@@ -138,13 +151,7 @@ impl<'a> CrankInput<'a> {
                 Basis::CrankAngle => wanted(&["t", "cycle", "crank_deg"]),
                 Basis::Time => wanted(&["t", "theta_en", opts.marker.as_str()]),
             };
-            let mut reader = match &names {
-                Some(n) => {
-                    let n: Vec<&str> = n.iter().map(String::as_str).collect();
-                    self.input.open(self.path, &n, &[])?
-                }
-                None => self.input.open_all(self.path)?,
-            };
+            let mut reader = open(names)?;
             let file_header = reader.header().clone();
             let chunks = Reading::new(&mut reader, self.path);
             let state = match file_header.basis {
@@ -199,13 +206,7 @@ impl<'a> CrankInput<'a> {
                 }
             };
             let mut angle = self.input.open(self.path, &["t", &counts.encoder], &[])?;
-            let mut reader = match wanted(&["t"]) {
-                Some(n) => {
-                    let n: Vec<&str> = n.iter().map(String::as_str).collect();
-                    self.input.open(self.path, &n, &[])?
-                }
-                None => self.input.open_all(self.path)?,
-            };
+            let mut reader = open(wanted(&["t"]))?;
             let file_header = reader.header().clone();
             let (h, chunks) = counts_crank_angle_chunks(
                 &counts,
@@ -222,39 +223,54 @@ impl<'a> CrankInput<'a> {
             }
             return Ok((s, None));
         }
-        // A trigger wheel's raw signal: read four times over — its edges (where the gap is),
-        // then again with the samples' times (what the decoding found, where the TDC is),
-        // then ahead of the channels; with --tdc-from, the TDC placed from the pressure first
-        // (the same reads, in passes).
-        if let Some(spec) = raw_wheel(&header, &opts) {
-            let channel = spec.sensor.channels()[0];
+        // A raw angle sensor's signal, a trigger wheel's or a quadrature encoder's: read over
+        // in passes — what must be known before any angle (a wheel's gap; an encoder's index
+        // level, then its angle 0 and span), then with the samples' times (what the decoding
+        // found, where the TDC is), then ahead of the channels; with --tdc-from, the TDC
+        // placed from the pressure first (the same reads, in passes).
+        if let Some(spec) = raw_sensor(&header, &opts) {
+            let mut sensor = vec!["t"];
+            sensor.extend(spec.sensor.channels());
             let known = self.scanned.and_then(|s| s.borrow().clone());
             let found = match known {
-                Some(Scanned::Wheel(found)) => found,
+                Some(Scanned::Sensor(found)) => *found,
                 _ => {
                     let placed = match &self.angle.wheel.tdc_from {
-                        Some(from) => self.tdc_from_wheel(&opts, from)?,
+                        Some(from) => self.tdc_from_sensor(&opts, from)?,
                         None => spec.clone(),
                     };
                     let spec = &placed;
-                    let mut reader = self.input.open(self.path, &["t", channel], &[])?;
-                    let gap = wheel_gap(spec, Reading::new(&mut reader, self.path)).map_err(&at)?;
-                    let mut angle = self.input.open(self.path, &["t", channel], &[])?;
+                    // A reader for each of the calibration's passes (an encoder's two).
+                    let passes = match spec.sensor {
+                        AngleSensor::Wheel { .. } => 1,
+                        AngleSensor::Quadrature { .. } => 2,
+                    };
+                    let mut readers = (0..passes)
+                        .map(|_| self.input.open(self.path, &sensor, &[]))
+                        .collect::<Result<Vec<_>>>()?;
+                    readers.reverse();
+                    let cal = sensor_calibration(spec, || {
+                        readers
+                            .pop()
+                            .ok_or_else(|| AppError::Invalid("a pass too many".into()))
+                    })
+                    .map_err(&at)?;
+                    let mut angle = self.input.open(self.path, &sensor, &[])?;
                     let mut names = vec!["t"];
                     if let Some(p) = &spec.phase_from {
                         names.push(p.strip_suffix(":low").unwrap_or(p));
                     }
                     let mut samples = self.input.open(self.path, &names, &[])?;
-                    let decoded = wheel_decoded(
+                    let decoded = sensor_decoded(
                         spec,
-                        &gap,
+                        &cal,
                         angle.by_ref(),
                         Reading::new(&mut samples, self.path),
                     )
                     .map_err(&at)?;
-                    let found = WheelFound { gap, decoded };
+                    let found = SensorFound { cal, decoded };
                     if let Some(s) = self.scanned {
-                        *s.borrow_mut() = Some(Scanned::Wheel(found.clone()));
+                        *s.borrow_mut() = Some(Scanned::Sensor(Box::new(found.clone())));
                     }
                     found
                 }
@@ -262,16 +278,10 @@ impl<'a> CrankInput<'a> {
             if !self.quiet {
                 tell_wheel(self.path, &found.decoded);
             }
-            let mut angle = self.input.open(self.path, &["t", channel], &[])?;
-            let mut reader = match wanted(&["t"]) {
-                Some(n) => {
-                    let n: Vec<&str> = n.iter().map(String::as_str).collect();
-                    self.input.open(self.path, &n, &[])?
-                }
-                None => self.input.open_all(self.path)?,
-            };
+            let mut angle = self.input.open(self.path, &sensor, &[])?;
+            let mut reader = open(wanted(&["t"]))?;
             let file_header = reader.header().clone();
-            let (h, chunks) = wheel_crank_angle_chunks(
+            let (h, chunks) = sensor_crank_angle_chunks(
                 spec,
                 &found,
                 &file_header,
@@ -315,10 +325,10 @@ impl<'a> CrankInput<'a> {
 }
 
 impl CrankInput<'_> {
-    /// `--tdc-from CHANNEL` on a trigger wheel's file, read as it goes: the wheel's angle spec
+    /// `--tdc-from CHANNEL` on a raw sensor's file, read as it goes: the sensor's angle spec
     /// with the TDC where the motored model puts it ([`tdc_from_pressure_in`]: a read for the
     /// pressure's peak, then the fit's passes — each a [`CrankFile`] pass with the TDC given).
-    fn tdc_from_wheel(&self, opts: &AcquisitionOptions, channel: &str) -> Result<AngleSpec> {
+    fn tdc_from_sensor(&self, opts: &AcquisitionOptions, channel: &str) -> Result<AngleSpec> {
         let (stroke, rod) = self.crank.lengths(&format!("--tdc-from {channel}"))?;
         let cfg = CompressionConfig::new(channel, stroke, rod);
         let read = |o: &AcquisitionOptions,
@@ -347,7 +357,7 @@ impl CrankInput<'_> {
         let mut spec = opts
             .sensor
             .clone()
-            .ok_or_else(|| miette::miette!("--tdc-from {channel}: no --wheel"))?;
+            .ok_or_else(|| miette::miette!("--tdc-from {channel}: no --wheel or --quadrature"))?;
         spec.tdc_offset_deg = found.tdc_offset_deg;
         spec.phase_from.get_or_insert_with(|| channel.to_string());
         Ok(spec)

@@ -1,0 +1,659 @@
+//! The crank angle decoded from a raw angle sensor — a trigger wheel ([`physid_signal::wheel`])
+//! or a quadrature encoder ([`physid_signal::quadrature`]) — read as it comes: one code path
+//! for a whole recording (one chunk) and a file read a chunk at a time. Passes over `t` and the
+//! sensor's channels, each holding a few numbers (per revolution at most), never the samples:
+//!
+//! 1. [`sensor_calibration`]: what must be known before any angle is given — a wheel's gap, from
+//!    the edges ([`EdgeDetector`]) through the first pass of the indexing ([`GapSurvey`]); an
+//!    encoder's index level (its smallest and largest sample, [`IndexRange`]), then the
+//!    decoding ([`QuadratureDecoder`]) for the angle 0 at the first index pulse ([`IndexZero`]),
+//!    the span after the last time the shaft turned back, and what was found;
+//! 2. [`sensor_decoded`]: the angle at every sample by the monotone cubic through the edges
+//!    ([`Pchip`]), the sensor read ahead of the samples ([`SensorAhead`]): what a wheel's
+//!    decoding found ([`ToothIndex`]), the angle at the first sample and — with
+//!    `--phase-from` — the channel's mean over the revolution around each TDC
+//!    ([`PhaseWindows`]): where the firing TDC lies;
+//! 3. [`sensor_crank_angle_chunks`]: the channels resampled to the crank angle, the sensor read
+//!    ahead of them: a standstill holds nothing.
+
+use crate::acquisition::{
+    AcquisitionError, AcquisitionOptions, AngleSensor, AngleSpec, CrankAngleStream, DecodedAngle,
+    EncoderSummary,
+};
+use crate::error::AppError;
+use physid_core::Recording;
+use physid_signal::integrity::Finding;
+use physid_signal::quadrature::{IndexRange, IndexZero, QuadratureDecoder};
+use physid_signal::wheel::{EdgeDetector, Gap, GapSurvey, Pchip, ToothIndex, ToothReport};
+use std::borrow::Borrow;
+use std::f64::consts::{PI, TAU};
+
+fn invalid(e: String) -> AppError {
+    AppError::Acquisition(AcquisitionError::Invalid(e))
+}
+
+/// What must be known of a raw sensor before any angle is given ([`sensor_calibration`]).
+#[derive(Debug, Clone)]
+pub enum Calibration {
+    /// A trigger wheel: where its gap is.
+    Wheel(Gap),
+    /// A quadrature encoder.
+    Quadrature(EncoderCalibration),
+}
+
+/// A quadrature encoder's calibration: its index level, its angle 0, the span of the samples
+/// whose angle is given, and what the decoding found.
+#[derive(Debug, Clone)]
+pub struct EncoderCalibration {
+    /// The index channel's smallest and largest sample.
+    pub z_range: (f64, f64),
+    /// The angle at the first index pulse turning forward, on the counts' scale [rad].
+    pub zero: f64,
+    /// From the transition after the last time the shaft turned back to the last transition
+    /// [s].
+    pub span: (f64, f64),
+    /// Whether it turned back (the span starts after the first transition).
+    pub turned_back: bool,
+    /// Transitions, index pulses turning forward.
+    pub transitions: usize,
+    /// What was decoded (lines, pulses, steps back).
+    pub encoder: EncoderSummary,
+    /// Unresolved transitions and index pulses out of place, at their samples.
+    pub findings: Vec<Finding>,
+}
+
+/// The channels of a quadrature encoder spec — A, B, Z — and its lines; the error without Z.
+fn encoder_of(spec: &AngleSpec) -> Result<([&str; 3], u32), AppError> {
+    match &spec.sensor {
+        AngleSensor::Quadrature { a, b, z, lines } => match z {
+            Some(z) => Ok(([a.as_str(), b.as_str(), z.as_str()], *lines)),
+            None => Err(invalid(format!(
+                "--quadrature {a},{b}: without an index channel (Z) the angle has no reference to place the TDC from; give --quadrature {a},{b},Z=LINES"
+            ))),
+        },
+        AngleSensor::Wheel { .. } => Err(AppError::Invalid(
+            "the angle sensor is a trigger wheel, not a quadrature encoder".into(),
+        )),
+    }
+}
+
+/// Pass 1: what must be known of the sensor `spec` names before any angle is given — `chunks`
+/// makes a reader of `t` and the sensor's channels each time it is called (once for a wheel,
+/// twice for an encoder: the index's level, then the decoding). The decoders' errors — a
+/// sample not finite, time not increasing, the wrong wheel — name the channel and the sample.
+pub fn sensor_calibration<F, I, R, E>(
+    spec: &AngleSpec,
+    mut chunks: F,
+) -> Result<Calibration, AppError>
+where
+    F: FnMut() -> Result<I, AppError>,
+    I: IntoIterator<Item = Result<R, E>>,
+    R: Borrow<Recording>,
+    AppError: From<E>,
+{
+    match &spec.sensor {
+        AngleSensor::Wheel {
+            channel,
+            wheel,
+            edges,
+        } => {
+            let mut detector = EdgeDetector::new(edges);
+            let mut survey = GapSurvey::new(*wheel, channel);
+            for chunk in chunks()? {
+                let chunk = chunk?;
+                let c = chunk.borrow();
+                detector.push(c.values("t")?, c.values(channel)?);
+                detector.drain(|t, i| survey.push(t, i));
+            }
+            let rest = detector
+                .finish()
+                .map_err(|e| invalid(format!("'{channel}': {e}")))?;
+            for (&t, &i) in rest.t.iter().zip(&rest.index) {
+                survey.push(t, i);
+            }
+            Ok(Calibration::Wheel(
+                survey.finish().map_err(|e| invalid(e.to_string()))?,
+            ))
+        }
+        AngleSensor::Quadrature { .. } => {
+            let (names, lines) = encoder_of(spec)?;
+            if lines == 0 {
+                return Err(invalid("an encoder needs 1 line or more".into()));
+            }
+            let mut range = IndexRange::default();
+            for chunk in chunks()? {
+                range.push(chunk?.borrow().values(names[2])?);
+            }
+            let mut decoder = QuadratureDecoder::new(names, Some(range.range));
+            let mut zero = IndexZero::new(lines, names[2]);
+            let (mut transitions, mut last, mut from) = (0usize, None, (0usize, f64::NAN));
+            let mut last_t = f64::NAN;
+            let mut take = |d: &mut QuadratureDecoder, zero: &mut IndexZero| {
+                while let Some(tr) = d.pop() {
+                    // After the last time it turned back (the crank angle must increase).
+                    if transitions == 0 || last.is_some_and(|e| tr.edge <= e) {
+                        from = (transitions, tr.t);
+                    }
+                    transitions += 1;
+                    last = Some(tr.edge);
+                    last_t = tr.t;
+                    zero.transition(tr);
+                }
+                while let Some(p) = d.pop_pulse() {
+                    zero.pulse(p);
+                }
+            };
+            for chunk in chunks()? {
+                let chunk = chunk?;
+                let c = chunk.borrow();
+                let cols = names.map(|n| c.values(n));
+                let [a, b, z] = cols;
+                decoder.push(c.values("t")?, a?, b?, z?);
+                take(&mut decoder, &mut zero);
+            }
+            decoder.finish().map_err(|e| invalid(e.to_string()))?;
+            take(&mut decoder, &mut zero);
+            let (zero, pulses, mut out_of_place) = zero.finish();
+            let mut findings = decoder.take_findings();
+            findings.append(&mut out_of_place);
+            findings.sort_by_key(|f| f.index);
+            Ok(Calibration::Quadrature(EncoderCalibration {
+                z_range: range.range,
+                zero,
+                span: (from.1, last_t),
+                turned_back: from.0 > 0,
+                transitions,
+                encoder: EncoderSummary {
+                    lines,
+                    index_pulses: pulses,
+                    backward_steps: decoder.backward(),
+                },
+                findings,
+            }))
+        }
+    }
+}
+
+/// The decoder of a raw sensor that gives its angle's points — a wheel's edges or an encoder's
+/// transitions, with their angle [rad].
+enum PointDecoder {
+    Wheel {
+        channel: String,
+        /// `None` once the signal has ended.
+        detector: Option<EdgeDetector>,
+        index: Box<ToothIndex>,
+        report: Option<ToothReport>,
+    },
+    Quadrature {
+        names: [String; 3],
+        decoder: QuadratureDecoder,
+        q: f64,
+        zero: f64,
+        ended: bool,
+    },
+}
+
+/// A raw sensor's angle at any time, from a reader of `t` and its channels running ahead as far
+/// as the times asked for: its points ([`sensor_calibration`]'s calibration fixed), the
+/// monotone cubic through them ([`Pchip`]). Holds a chunk and a few points.
+pub struct SensorAhead<A> {
+    chunks: A,
+    decoder: PointDecoder,
+    pchip: Pchip,
+}
+
+impl<A, R, E> SensorAhead<A>
+where
+    A: Iterator<Item = Result<R, E>>,
+    R: Borrow<Recording>,
+    AppError: From<E>,
+{
+    /// The sensor `spec` names, calibrated by `cal`, read from `chunks`.
+    pub fn new(spec: &AngleSpec, cal: &Calibration, chunks: A) -> Result<Self, AppError> {
+        let decoder = match (&spec.sensor, cal) {
+            (AngleSensor::Wheel { channel, edges, .. }, Calibration::Wheel(gap)) => {
+                PointDecoder::Wheel {
+                    channel: channel.clone(),
+                    detector: Some(EdgeDetector::new(edges)),
+                    index: Box::new(ToothIndex::new(gap, channel)),
+                    report: None,
+                }
+            }
+            (AngleSensor::Quadrature { .. }, Calibration::Quadrature(c)) => {
+                let (names, lines) = encoder_of(spec)?;
+                PointDecoder::Quadrature {
+                    names: names.map(str::to_string),
+                    decoder: QuadratureDecoder::new(names, Some(c.z_range)),
+                    q: TAU / (4.0 * lines as f64),
+                    zero: c.zero,
+                    ended: false,
+                }
+            }
+            _ => {
+                return Err(AppError::Invalid(
+                    "the calibration is of another sensor".into(),
+                ))
+            }
+        };
+        Ok(Self {
+            chunks,
+            decoder,
+            pchip: Pchip::default(),
+        })
+    }
+
+    /// The angle [rad] at the time `a` [s] (the times asked for increasing): NaN before the
+    /// first point and after the last.
+    pub fn at(&mut self, a: f64) -> Result<f64, AppError> {
+        loop {
+            if let Some(v) = self.pchip.at(a) {
+                return Ok(v);
+            }
+            if !self.next_point() {
+                self.read()?;
+            }
+        }
+    }
+
+    /// A point decoded into the cubic: whether there was one (or the points ended).
+    fn next_point(&mut self) -> bool {
+        match &mut self.decoder {
+            PointDecoder::Wheel { index, report, .. } => match index.pop() {
+                Some((t, angle, _)) => self.pchip.push(t, angle),
+                None if report.is_some() => self.pchip.end(),
+                None => return false,
+            },
+            PointDecoder::Quadrature {
+                decoder,
+                q,
+                zero,
+                ended,
+                ..
+            } => match decoder.pop() {
+                Some(tr) => self.pchip.push(tr.t, tr.edge as f64 * *q - *zero),
+                None if *ended => self.pchip.end(),
+                None => return false,
+            },
+        }
+        true
+    }
+
+    /// The next chunk of the signal, or its end.
+    fn read(&mut self) -> Result<(), AppError> {
+        let chunk = match self.chunks.next() {
+            Some(c) => Some(c?),
+            None => None,
+        };
+        let c = chunk.as_ref().map(Borrow::borrow);
+        match &mut self.decoder {
+            PointDecoder::Wheel {
+                channel,
+                detector,
+                index,
+                report,
+            } => {
+                let Some(d) = detector.as_mut() else {
+                    return Ok(());
+                };
+                if let Some(c) = c {
+                    d.push(c.values("t")?, c.values(channel)?);
+                    d.drain(|t, i| index.push(t, i));
+                    return Ok(());
+                }
+                let rest = detector
+                    .take()
+                    .map(EdgeDetector::finish)
+                    .transpose()
+                    .map_err(|e| invalid(format!("'{channel}': {e}")))?;
+                if let Some(rest) = rest {
+                    for (&t, &i) in rest.t.iter().zip(&rest.index) {
+                        index.push(t, i);
+                    }
+                    index.glitches(
+                        rest.glitches.len(),
+                        rest.glitches.first().copied().unwrap_or(0),
+                    );
+                }
+                *report = Some(index.finish().map_err(|e| invalid(e.to_string()))?);
+            }
+            PointDecoder::Quadrature {
+                names,
+                decoder,
+                ended,
+                ..
+            } => match c {
+                Some(c) => {
+                    let [a, b, z] = [0, 1, 2].map(|k| c.values(&names[k]));
+                    decoder.push(c.values("t")?, a?, b?, z?);
+                    // The pulses placed the angle 0 in the calibration.
+                    while decoder.pop_pulse().is_some() {}
+                }
+                None => {
+                    decoder.finish().map_err(|e| invalid(e.to_string()))?;
+                    *ended = true;
+                }
+            },
+        }
+        Ok(())
+    }
+
+    /// Read the signal to its end (its points no longer needed): what a wheel's decoding
+    /// found.
+    pub fn finish(mut self) -> Result<Option<ToothReport>, AppError> {
+        loop {
+            match &mut self.decoder {
+                PointDecoder::Wheel { index, report, .. } => {
+                    while index.pop().is_some() {}
+                    if report.is_some() {
+                        break;
+                    }
+                }
+                PointDecoder::Quadrature { decoder, ended, .. } => {
+                    while decoder.pop().is_some() {}
+                    if *ended {
+                        break;
+                    }
+                }
+            }
+            self.read()?;
+        }
+        Ok(match self.decoder {
+            PointDecoder::Wheel { report, .. } => report,
+            PointDecoder::Quadrature { .. } => None,
+        })
+    }
+}
+
+/// Which of two revolutions fires, a sample at a time: the mean of a channel over the
+/// revolution centred on each TDC a revolution apart (`offset + 2πk`: the samples whose angle
+/// is in `[offset + 2πk − π, offset + 2πk + π)`, from the first whole one), the median over the
+/// TDCs of each parity; the higher (lower with `:low`) fires. Holds two means per revolution.
+#[derive(Debug, Clone)]
+pub struct PhaseWindows {
+    offset: f64,
+    /// The first revolution not yet closed (from the first sample's angle), and the sum and
+    /// count of the samples in it and in the next (they may share a sample at the border).
+    k: Option<i64>,
+    open: [(f64, usize); 2],
+    /// The means of the closed revolutions, by the parity of `k`.
+    means: [Vec<f64>; 2],
+}
+
+impl PhaseWindows {
+    /// The TDCs `offset` [rad] after the sensor's reference, a revolution apart.
+    pub fn new(offset: f64) -> Self {
+        Self {
+            offset,
+            k: None,
+            open: [(-0.0, 0); 2],
+            means: [Vec::new(), Vec::new()],
+        }
+    }
+
+    fn centre(&self, k: i64) -> f64 {
+        self.offset + TAU * k as f64
+    }
+
+    /// The next sample: its angle `theta` [rad] (not decreasing) and the channel's value `p`.
+    pub fn push(&mut self, theta: f64, p: f64) {
+        let offset = self.offset;
+        let mut k = *self
+            .k
+            .get_or_insert_with(|| ((theta + PI - offset) / TAU).ceil() as i64);
+        // The revolutions this sample is past: their means (the samples in them, not NaN).
+        while self.centre(k) + PI <= theta {
+            let (sum, n) = self.open[0];
+            if n > 0 {
+                let mean = sum / n as f64;
+                if mean.is_finite() {
+                    self.means[k.rem_euclid(2) as usize].push(mean);
+                }
+            }
+            self.open = [self.open[1], (-0.0, 0)];
+            k += 1;
+        }
+        self.k = Some(k);
+        for j in 0..2 {
+            let angle = self.centre(k + j);
+            if angle - PI <= theta && theta < angle + PI {
+                let o = &mut self.open[j as usize];
+                *o = (o.0 + p, o.1 + 1);
+            }
+        }
+    }
+
+    /// The firing parity (0: the TDCs `offset + 4πk`; 1: a revolution on) and how it was
+    /// told, for a person; `from` is the channel as given (`NAME` or `NAME:low`).
+    pub fn finish(mut self, from: &str, tdc_offset_deg: f64) -> Result<(i64, String), AppError> {
+        let (name, low) = match from.strip_suffix(":low") {
+            Some(n) => (n, true),
+            None => (from, false),
+        };
+        if self.means[0].is_empty() || self.means[1].is_empty() {
+            return Err(invalid(format!(
+                "--phase-from {from}: the recording spans fewer than two whole revolutions around TDCs (with finite '{name}'), so which one fires cannot be told"
+            )));
+        }
+        let level = |v: &mut Vec<f64>| {
+            v.sort_unstable_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (l0, l1) = (level(&mut self.means[0]), level(&mut self.means[1]));
+        let parity = usize::from((l1 > l0) != low);
+        let (fire, other) = if parity == 1 { (l1, l0) } else { (l0, l1) };
+        Ok((
+            parity as i64,
+            format!(
+                "the firing TDC {tdc_offset_deg:.3}° after the reference of {} revolutions ('{name}' {} there: mean {fire:.4e} over the revolution around it against {other:.4e} a revolution away, medians over the TDCs)",
+                if parity == 1 { "odd" } else { "even" },
+                if low { "lower" } else { "higher" }
+            ),
+        ))
+    }
+}
+
+/// How the firing revolution is told without `--phase-from`, for a person.
+pub fn no_phase(tdc_offset_deg: f64) -> String {
+    format!("the TDC {tdc_offset_deg}° after the first reference taken as firing (no --phase-from)")
+}
+
+/// The firing TDC's angle [rad]: the first of parity `parity` (see [`PhaseWindows::finish`])
+/// at or after the first sample's angle `theta0`.
+pub fn firing_tdc(offset: f64, parity: i64, theta0: f64) -> f64 {
+    let mut tdc = offset + TAU * parity as f64;
+    tdc += 4.0 * PI * ((theta0 - tdc) / (4.0 * PI)).ceil();
+    tdc
+}
+
+impl Calibration {
+    /// The span of the samples whose angle is given [s]: an encoder's after the last time it
+    /// turned back; a wheel's every sample between its first and last edge (where its angle is
+    /// a number).
+    fn span(&self) -> (f64, f64) {
+        match self {
+            Self::Wheel(_) => (f64::NEG_INFINITY, f64::INFINITY),
+            Self::Quadrature(c) => c.span,
+        }
+    }
+}
+
+/// Pass 2: what decoding the sensor found and where the firing TDC lies — `angle` the chunks of
+/// `t` and the sensor's channels, `samples` those of `t` (and the `--phase-from` channel): the
+/// angle at every sample in the sensor's span.
+pub fn sensor_decoded<A, S, R1, R2, E1, E2>(
+    spec: &AngleSpec,
+    cal: &Calibration,
+    angle: A,
+    samples: S,
+) -> Result<DecodedAngle, AppError>
+where
+    A: IntoIterator<Item = Result<R1, E1>>,
+    S: IntoIterator<Item = Result<R2, E2>>,
+    R1: Borrow<Recording>,
+    R2: Borrow<Recording>,
+    AppError: From<E1> + From<E2>,
+{
+    let mut ahead = SensorAhead::new(spec, cal, angle.into_iter())?;
+    let (first, last) = cal.span();
+    let offset = spec.tdc_offset_deg.to_radians();
+    let phase_name = spec
+        .phase_from
+        .as_deref()
+        .map(|p| p.strip_suffix(":low").unwrap_or(p));
+    let mut windows = PhaseWindows::new(offset);
+    let (mut theta0, mut inside) = (None, 0usize);
+    for chunk in samples {
+        let chunk = chunk?;
+        let c = chunk.borrow();
+        let t = c.values("t")?;
+        let p = match phase_name {
+            Some(name) => Some(c.values(name)?),
+            None => None,
+        };
+        for (i, &x) in t.iter().enumerate() {
+            if !(first..=last).contains(&x) {
+                continue;
+            }
+            let theta = ahead.at(x)?;
+            if theta.is_nan() {
+                continue;
+            }
+            inside += 1;
+            theta0.get_or_insert(theta);
+            if let Some(p) = p {
+                windows.push(theta, p[i]);
+            }
+        }
+    }
+    let report = ahead.finish()?;
+    let theta0 = match theta0 {
+        Some(t) if inside >= 2 => t,
+        _ => {
+            return Err(invalid(format!(
+                "{}: fewer than 2 samples between the sensor's first and last edge",
+                spec.sensor.channels().join(", ")
+            )))
+        }
+    };
+    let (parity, phase) = match &spec.phase_from {
+        None => (0, no_phase(spec.tdc_offset_deg)),
+        Some(from) => windows.finish(from, spec.tdc_offset_deg)?,
+    };
+    let tdc = firing_tdc(offset, parity, theta0);
+    Ok(match (report, cal) {
+        (Some(report), _) => DecodedAngle {
+            tdc,
+            summary: format!(
+                "wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm",
+                report.wheel, report.edges, report.revolutions, report.rpm.0, report.rpm.1
+            ),
+            findings: report.findings.clone(),
+            wheel: Some(report),
+            encoder: None,
+            phase,
+        },
+        (None, Calibration::Quadrature(c)) => DecodedAngle {
+            tdc,
+            summary: format!(
+                "quadrature encoder of {} lines decoded: {} transitions, {} index pulse(s) turning forward, {} steps back{}",
+                c.encoder.lines,
+                c.transitions,
+                c.encoder.index_pulses,
+                c.encoder.backward_steps,
+                if c.turned_back {
+                    format!(" (the crank angle from {:.6} s, after it last turned back)", c.span.0)
+                } else {
+                    String::new()
+                }
+            ),
+            findings: c.findings.clone(),
+            wheel: None,
+            encoder: Some(c.encoder.clone()),
+            phase,
+        },
+        (None, Calibration::Wheel(_)) => {
+            return Err(AppError::Invalid("the wheel's decoding has no report".into()))
+        }
+    })
+}
+
+/// What passes 1 and 2 found: the sensor's calibration; what the decoding found, and where the
+/// firing TDC lies.
+#[derive(Debug, Clone)]
+pub struct SensorFound {
+    /// What must be known before any angle is given ([`sensor_calibration`]).
+    pub cal: Calibration,
+    /// What the decoding found, the firing TDC ([`sensor_decoded`]).
+    pub decoded: DecodedAngle,
+}
+
+/// Pass 3: a time-basis stream (`header` its channels, `chunks` them) on one sample every
+/// `step_deg` crank degrees ([`CrankAngleStream`]), the firing TDC where pass 2 placed it
+/// (`found`), the angle at each chunk's samples from `angle` — a second reader of `t` and
+/// the sensor's channels — read ahead of it ([`SensorAhead`]). Returns the crank-angle
+/// recording's header (its channels, no samples) and its chunks.
+pub fn sensor_crank_angle_chunks<'a, A, C, R1, R2, E1, E2>(
+    spec: &AngleSpec,
+    found: &SensorFound,
+    header: &Recording,
+    angle: A,
+    chunks: C,
+    opts: &AcquisitionOptions,
+    step_deg: f64,
+) -> Result<
+    (
+        Recording,
+        impl Iterator<Item = Result<Recording, AppError>> + 'a,
+    ),
+    AppError,
+>
+where
+    A: IntoIterator<Item = Result<R1, E1>> + 'a,
+    A::IntoIter: 'a,
+    R1: Borrow<Recording>,
+    C: IntoIterator<Item = Result<R2, E2>> + 'a,
+    C::IntoIter: 'a,
+    R2: Borrow<Recording>,
+    E1: 'a,
+    E2: 'a,
+    AppError: From<E1> + From<E2>,
+{
+    let mut stream = CrankAngleStream::new(header, opts, found.decoded.tdc, step_deg)?;
+    let out_header = stream.header()?;
+    let mut ahead = SensorAhead::new(spec, &found.cal, angle.into_iter())?;
+    let (first, last) = found.cal.span();
+    let mut chunks = chunks.into_iter();
+    let (mut t_in, mut theta) = (Vec::new(), Vec::new());
+    let mut done = false;
+    let iter = std::iter::from_fn(move || {
+        if done {
+            return None;
+        }
+        let mut resample = |c: R2| -> Result<Recording, AppError> {
+            let c = c.borrow();
+            let t = c.values("t")?;
+            t_in.clear();
+            theta.clear();
+            for &x in t.iter().filter(|x| (first..=last).contains(*x)) {
+                let a = ahead.at(x)?;
+                if !a.is_nan() {
+                    t_in.push(x);
+                    theta.push(a);
+                }
+            }
+            stream.push_angle(&t_in, &theta)?;
+            Ok(stream.push_channels(c)?)
+        };
+        let next = match chunks.next() {
+            Some(Ok(c)) => resample(c),
+            Some(Err(e)) => Err(e.into()),
+            None => {
+                done = true;
+                stream.finish().map_err(AppError::Acquisition)
+            }
+        };
+        done |= next.is_err();
+        Some(next)
+    });
+    Ok((out_header, iter))
+}
