@@ -1166,24 +1166,19 @@ fn identify_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
     );
 }
 
-/// A time-basis file whose angle is a trigger wheel's raw signal (a Hall sensor over a 36−1
-/// wheel, made from the simulator's angle; no `theta_en`, no counts) is read as it goes —
-/// where the gap is, then what the decoding found and where the firing TDC lies (with the
-/// pressure), then the channels with the wheel read ahead of them — and `cycles`,
-/// `compression fit` (the windows held and not) and `convert --crank-angle` answer as the
-/// library on the whole recording does, in CSV, Parquet and MDF4; with `--tdc-from`, the TDC
-/// is placed from the pressure as the library places it.
+/// A time-basis file whose angle is a raw sensor's signal, made from the simulator's angle (no
+/// `theta_en`, no counts) — a Hall sensor over a 36−1 wheel; a 36-line quadrature encoder with
+/// its index — is read as it goes (what must be known before any angle, then what the decoding
+/// found and where the firing TDC lies, with the pressure, then the channels with the sensor
+/// read ahead of them), and `cycles`, `compression fit` (the windows held and not) and `convert
+/// --crank-angle` answer as the library on the whole recording does — the wheel in CSV, Parquet
+/// and MDF4; with `--tdc-from`, the TDC is placed from the pressure as the library places it.
 #[test]
-fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
-    use physid_apps::acquisition::{
-        to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec,
-    };
-    use physid_apps::compression::{compression_fit, CompressionConfig};
-    use physid_apps::pressure::{analyse, Geometry, Pegging};
-    use physid_core::{Channel, Recording};
+fn a_raw_sensor_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
+    use physid_apps::acquisition::{AngleSensor, AngleSpec};
+    use physid_core::Channel;
     use physid_sim::run::{simulate, OutputBasis, RunOptions};
     use std::f64::consts::TAU;
-    let s = Scratch::new("physid-wheel-stream");
     let opts = RunOptions {
         duration: Some(6.0),
         basis: OutputBasis::Time(20_000.0),
@@ -1196,50 +1191,85 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
     )
     .unwrap();
     assert!(sim.len() > physid_io::CHUNK_ROWS);
+    let theta = sim.values("theta_en").unwrap();
+    let channel = |name: &str, f: &dyn Fn(f64) -> bool| Channel {
+        name: name.into(),
+        unit: "V".into(),
+        values: theta.iter().map(|&th| f64::from(f(th))).collect(),
+    };
     let pitch = TAU / 36.0;
-    let enc: Vec<f64> = sim
-        .values("theta_en")
-        .unwrap()
-        .iter()
-        .map(|&th| {
-            let tooth = (th / pitch).floor();
-            f64::from(tooth.rem_euclid(36.0) < 35.0 && th / pitch - tooth < 0.5)
-        })
-        .collect();
+    let wheel = channel("enc", &|th| {
+        let tooth = (th / pitch).floor();
+        tooth.rem_euclid(36.0) < 35.0 && th / pitch - tooth < 0.5
+    });
+    let line = |th: f64| (th / pitch).rem_euclid(1.0);
+    let quadrature = [
+        channel("qa", &|th| line(th) < 0.5),
+        channel("qb", &|th| (line(th) - 0.25).rem_euclid(1.0) < 0.5),
+        channel("qz", &|th| (th / TAU).rem_euclid(1.0) < 0.02),
+    ];
+    let spec = |sensor| AngleSpec {
+        sensor,
+        tdc_offset_deg: 0.0,
+        phase_from: Some("p_cyl".into()),
+    };
+    sensor_file_answers_as_the_whole(
+        &sim,
+        &[wheel],
+        &["--wheel", "enc=36-1"],
+        spec(AngleSensor::Wheel {
+            channel: "enc".into(),
+            wheel: "36-1".parse().unwrap(),
+            edges: Default::default(),
+        }),
+        &["csv", "parquet", "mf4"],
+    );
+    sensor_file_answers_as_the_whole(
+        &sim,
+        &quadrature,
+        &["--quadrature", "qa,qb,qz=36"],
+        spec(AngleSensor::Quadrature {
+            a: "qa".into(),
+            b: "qb".into(),
+            z: Some("qz".into()),
+            lines: 36,
+        }),
+        &["parquet"],
+    );
+}
+
+/// The raw sensor's channels `sensor` with `sim`'s `t`, `p_cyl` and `omega_en`, written as
+/// `exts`: the verbs with `flags` (and `--phase-from p_cyl`) answer as the library with `spec`.
+fn sensor_file_answers_as_the_whole(
+    sim: &physid_core::Recording,
+    sensor: &[physid_core::Channel],
+    flags: &[&str],
+    spec: physid_apps::acquisition::AngleSpec,
+    exts: &[&str],
+) {
+    use physid_apps::acquisition::{to_crank_angle_decoded, AcquisitionOptions};
+    use physid_apps::compression::{compression_fit, CompressionConfig};
+    use physid_apps::pressure::{analyse, Geometry, Pegging};
+    use physid_core::Recording;
+    let s = Scratch::new("physid-sensor-stream");
     let mut rec = Recording::new(sim.basis);
     for name in ["t", "p_cyl", "omega_en"] {
         rec.push(sim.channel(name).unwrap().clone()).unwrap();
     }
-    rec.push(Channel {
-        name: "enc".into(),
-        unit: "V".into(),
-        values: enc,
-    })
-    .unwrap();
-    let wheel = [
-        "--wheel",
-        "enc=36-1",
-        "--tdc-offset",
-        "0",
-        "--phase-from",
-        "p_cyl",
-    ];
+    for c in sensor {
+        rec.push(c.clone()).unwrap();
+    }
+    let mut wheel: Vec<&str> = flags.to_vec();
+    wheel.extend(["--tdc-offset", "0", "--phase-from", "p_cyl"]);
+    let sensor_flags = &wheel[..flags.len()];
     let aopts = AcquisitionOptions {
-        sensor: Some(AngleSpec {
-            sensor: AngleSensor::Wheel {
-                channel: "enc".into(),
-                wheel: "36-1".parse().unwrap(),
-                edges: Default::default(),
-            },
-            tdc_offset_deg: 0.0,
-            phase_from: Some("p_cyl".into()),
-        }),
+        sensor: Some(spec),
         ..Default::default()
     };
     let (deg, decoded) = to_crank_angle_decoded(&rec, &aopts, 1.0).unwrap();
     let decoded = decoded.unwrap();
     assert!(
-        decoded.summary.contains("wheel 36-1 decoded"),
+        decoded.summary.contains(" decoded: "),
         "{}",
         decoded.summary
     );
@@ -1257,8 +1287,8 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
         compression_fit(&deg, &CompressionConfig::new("p_cyl", 0.0514, 0.088)).unwrap(),
     )
     .unwrap();
-    for ext in ["csv", "parquet", "mf4"] {
-        let f = s.file(&format!("wheel.{ext}"));
+    for &ext in exts {
+        let f = s.file(&format!("sensor.{ext}"));
         physid_io::write(&f, &rec, &Default::default()).unwrap();
         let f = f.to_str().unwrap();
         let mut args = vec![
@@ -1276,15 +1306,17 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
             "bdc=1e5",
             "--json",
         ];
-        args.extend(wheel);
+        args.extend(&wheel);
         let mut got = without_provenance(ok_json(&args));
         let o = got.as_object_mut().unwrap();
         assert_eq!(o.remove("phase").unwrap(), decoded.phase.as_str(), "{ext}");
-        assert_eq!(
-            o.remove("wheel").unwrap()["revolutions"],
-            decoded.wheel.as_ref().unwrap().revolutions,
-            "{ext}"
-        );
+        match (o.remove("wheel"), o.remove("encoder"), &decoded.wheel) {
+            (Some(w), None, Some(d)) => assert_eq!(w["revolutions"], d.revolutions, "{ext}"),
+            (None, Some(e), None) => {
+                assert_eq!(e, serde_json::to_value(&decoded.encoder).unwrap(), "{ext}")
+            }
+            other => panic!("{ext}: {other:?}"),
+        }
         assert_eq!(
             o.remove("findings").unwrap(),
             serde_json::to_value(&decoded.findings).unwrap(),
@@ -1294,17 +1326,14 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
         for hold in ["256", "0"] {
             let (code, err, out) = compression_fit_holding(f, hold, &wheel);
             assert_eq!(code, Some(0), "{ext}: {err}");
-            assert!(
-                err.matches("wheel 36-1 decoded").count() < 2,
-                "{ext}: {err}"
-            );
+            assert!(err.matches(" decoded: ").count() < 2, "{ext}: {err}");
             let mut got = without_provenance(serde_json::from_slice(&out).unwrap());
             got.as_object_mut().unwrap().remove("motored_imep_pa");
             assert_eq!(got, want_fit, "{ext}, PHYSID_HOLD_MB={hold}");
         }
-        let out = s.file(&format!("wheel-deg-{ext}.{ext}"));
+        let out = s.file(&format!("deg-{ext}.{ext}"));
         let mut args = vec!["convert", f, out.to_str().unwrap(), "--crank-angle"];
-        args.extend(wheel);
+        args.extend(&wheel);
         let o = physid(&args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let back = physid_io::read(&out, &Default::default()).unwrap();
@@ -1332,27 +1361,21 @@ fn a_trigger_wheel_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
         spec.tdc_offset_deg = found.tdc_offset_deg;
     }
     let (deg, _) = to_crank_angle_decoded(&rec, &placed, 1.0).unwrap();
-    let f = s.file("wheel.parquet");
+    let f = s.file("sensor.parquet");
     for hold in ["256", "0"] {
-        let out = s.file(&format!("wheel-tdc-from-{hold}.parquet"));
+        let out = s.file(&format!("tdc-from-{hold}.parquet"));
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_physid"))
             .env("PHYSID_HOLD_MB", hold)
+            .args(["convert", f.to_str().unwrap(), out.to_str().unwrap()])
             .args([
-                "convert",
-                f.to_str().unwrap(),
-                out.to_str().unwrap(),
                 "--crank-angle",
-                "--wheel",
-                "enc=36-1",
                 "--phase-from",
                 "p_cyl",
                 "--tdc-from",
                 "p_cyl",
-                "--stroke",
-                "0.0514",
-                "--rod",
-                "0.088",
             ])
+            .args(["--stroke", "0.0514", "--rod", "0.088"])
+            .args(sensor_flags)
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
