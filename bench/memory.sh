@@ -181,26 +181,43 @@ for D in ${DURATIONS:-75 600 3600}; do
   fi
 done
 fi
-# A time-basis file whose angle is a trigger wheel's raw signal (ONLY=wheel): wheel-D.parquet,
-# 10 of the motored run's channels and a Hall sensor over a 60-2 wheel (bench/wheel_file.py),
-# read four times over by the crank-angle verbs (the edges; the edges and the pressure; then
-# the channels with the wheel read ahead).
+# A time-basis file whose angle is a raw sensor's signal (ONLY=wheel): wheel-D.parquet, 10 of
+# the motored run's channels and a Hall sensor over a 60-2 wheel, quad-D.parquet the same with a
+# 36-line quadrature encoder (bench/wheel_file.py; SENSORS="wheel quad" chooses), read over in
+# passes by the crank-angle verbs (what must be known before any angle; the sensor and the
+# pressure; then the channels with the sensor read ahead); then --tdc-from on the wheel
+# (TDC_FROM=0 leaves it out).
 if [ -z "${ONLY:-}" ] || [ "${ONLY:-}" = wheel ]; then
-W="--wheel enc=60-2 --phase-from p_cyl"
 for D in ${DURATIONS:-75 600 3600}; do
   [ -f "motored-$D.parquet" ] || "$NEW" simulate --scenario friction-sweep --duration "$D" --recording "motored-$D.parquet" > /dev/null
-  [ -f "wheel-$D.parquet" ] || python3 "$HERE/wheel_file.py" "motored-$D.parquet" "wheel-$D.parquet"
-  cat "wheel-$D.parquet" > /dev/null
-  for cmd in "cycles wheel-$D.parquet $W" "convert wheel-$D.parquet wdeg.parquet --crank-angle $W" \
-             "compression fit --data wheel-$D.parquet --stroke 0.0514 --rod 0.088 $W"; do
+  for S in ${SENSORS:-wheel quad}; do
+    case $S in
+      wheel) W="--wheel enc=60-2 --phase-from p_cyl"; X= ;;
+      *) W="--quadrature qa,qb,qz=36 --phase-from p_cyl"; X=--quadrature ;;
+    esac
     # shellcheck disable=SC2086
-    row="| $D s | \`${cmd% --wheel*}\` | $(m "$NEW" $cmd) |"
+    [ -f "$S-$D.parquet" ] || python3 "$HERE/wheel_file.py" "motored-$D.parquet" "$S-$D.parquet" $X
+    cat "$S-$D.parquet" > /dev/null
+    for cmd in "cycles $S-$D.parquet $W" "convert $S-$D.parquet wdeg.parquet --crank-angle $W" \
+               "compression fit --data $S-$D.parquet --stroke 0.0514 --rod 0.088 $W"; do
+      # shellcheck disable=SC2086
+      row="| $D s | \`${cmd% --*=*}\` | $(m "$NEW" $cmd) |"
+      # shellcheck disable=SC2086
+      [ -n "$OLD" ] && row="$row $(m "$OLD" $cmd) |"
+      echo "$row"
+    done
+    # Not held: every pass of the fit reads the file twice (it keeps what the first passes found).
+    # shellcheck disable=SC2086
+    [ "$D" != 3600 ] && echo "| $D s | \`compression fit --data $S-$D.parquet\`, PHYSID_HOLD_MB=0 | $(PHYSID_HOLD_MB=0 m "$NEW" compression fit --data "$S-$D.parquet" --stroke 0.0514 --rod 0.088 $W) |"
+  done
+  if [ "${TDC_FROM:-1}" = 1 ]; then
+    cmd="convert wheel-$D.parquet wdeg.parquet --crank-angle --wheel enc=60-2 --phase-from p_cyl --tdc-from p_cyl --stroke 0.0514 --rod 0.088"
+    # shellcheck disable=SC2086
+    row="| $D s | \`convert wheel-$D.parquet --crank-angle --tdc-from p_cyl\` | $(m "$NEW" $cmd) |"
     # shellcheck disable=SC2086
     [ -n "$OLD" ] && row="$row $(m "$OLD" $cmd) |"
     echo "$row"
-  done
-  # Not held: every pass of the fit reads the file twice (it keeps what the first passes found).
-  # shellcheck disable=SC2086
-  [ "$D" != 3600 ] && echo "| $D s | \`compression fit\`, PHYSID_HOLD_MB=0 | $(PHYSID_HOLD_MB=0 m "$NEW" compression fit --data "wheel-$D.parquet" --stroke 0.0514 --rod 0.088 $W) |"
+  fi
+  rm -f wdeg.parquet
 done
 fi
