@@ -5,7 +5,7 @@
 
 use crate::error::AppError;
 use crate::sensor_angle::{
-    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
+    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorAhead, SensorFound,
 };
 use physid_core::{Basis, Channel, Recording, RecordingError};
 use physid_signal::encoder::{first_marker, CountSteps, Encoder, SpacingCheck};
@@ -13,7 +13,7 @@ use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
     median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
 };
-use physid_signal::wheel::{index_teeth, recognise, EdgeDetector, EdgeOptions, ToothReport, Wheel};
+use physid_signal::wheel::{recognise, EdgeDetector, EdgeOptions, ToothReport, Wheel};
 use serde::Serialize;
 use std::f64::consts::PI;
 use thiserror::Error;
@@ -222,11 +222,16 @@ pub struct WheelSummary {
     pub error: Option<String>,
 }
 
-/// Summarise a recording and check its integrity: an [`Inspector`] over it, in one chunk.
+/// Summarise a recording and check its integrity: an [`Inspector`] over it, in one chunk (and
+/// a trigger wheel named decoded, [`inspect_wheel`]).
 pub fn inspect(rec: &Recording, opts: &AcquisitionOptions) -> Inspection {
     let mut i = Inspector::new(rec, opts);
     i.push(rec);
-    i.finish()
+    let mut i = i.finish();
+    inspect_wheel(&mut i, rec, opts, || {
+        Ok(std::iter::once(Ok::<&Recording, AppError>(rec)))
+    });
+    i
 }
 
 /// [`inspect`] on a recording read a chunk at a time (`physid inspect` on a file, whatever
@@ -255,8 +260,6 @@ pub struct Inspector {
     edges: usize,
     prev_marker: Option<f64>,
     prev_deg: Option<f64>,
-    /// The trigger wheel's edges, found as the chunks pass.
-    wheel: Option<EdgeDetector>,
     /// Without an engine angle: the edges of the channels that may be a wheel's signal, over
     /// their first [`RECOGNISE_SAMPLES`], to recognise one ([`physid_signal::wheel::recognise`]).
     candidates: Vec<(String, EdgeDetector)>,
@@ -307,14 +310,6 @@ impl Inspector {
             edges: 0,
             prev_marker: None,
             prev_deg: None,
-            wheel: match opts.sensor.as_ref().map(|s| &s.sensor) {
-                Some(AngleSensor::Wheel { channel, edges, .. })
-                    if header.channel(channel).is_ok() && header.basis == Basis::Time =>
-                {
-                    Some(EdgeDetector::new(edges))
-                }
-                _ => None,
-            },
             candidates: wheel_candidates(header, opts),
         }
     }
@@ -364,14 +359,6 @@ impl Inspector {
             c.push(chunk);
         }
         self.rows += chunk.len();
-        if let (Some(d), Some(AngleSensor::Wheel { channel, .. })) = (
-            self.wheel.as_mut(),
-            self.opts.sensor.as_ref().map(|s| &s.sensor),
-        ) {
-            if let (Ok(t), Ok(v)) = (chunk.values("t"), chunk.values(channel)) {
-                d.push(t, v);
-            }
-        }
         if let Ok(t) = chunk.values("t") {
             let room = RECOGNISE_SAMPLES.saturating_sub(self.rows - chunk.len());
             let n = t.len().min(room);
@@ -434,15 +421,9 @@ impl Inspector {
             }),
             Basis::Time => has(&self.opts.marker).then(|| self.edges.saturating_sub(1) / 2),
         };
-        let mut integrity = self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
+        let integrity = self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
             IntegrityCheck::new(&IntegrityOptions::default(), &self.header).finish()
         });
-        let wheel = match (self.wheel, self.opts.sensor.as_ref().map(|s| &s.sensor)) {
-            (Some(d), Some(AngleSensor::Wheel { channel, wheel, .. })) => {
-                Some(wheel_summary(d, channel, *wheel, &mut integrity))
-            }
-            _ => None,
-        };
         let recognised = self
             .candidates
             .into_iter()
@@ -478,19 +459,37 @@ impl Inspector {
             },
             cycles,
             integrity,
-            wheel,
+            wheel: None,
             recognised,
         }
     }
 }
 
-/// Index the wheel's edges and add what was found to the integrity check.
-fn wheel_summary(
-    d: EdgeDetector,
-    channel: &str,
-    wheel: Wheel,
-    integrity: &mut Integrity,
-) -> WheelSummary {
+/// The trigger wheel `opts` names (`--wheel`), decoded as the file is read — `chunks` makes a
+/// reader of `t` and its channel each time it is called (twice: where the gap is, then each
+/// edge's angle, [`crate::sensor_angle`]) — into the inspection `i`: its summary, and what the
+/// decoding found among the integrity findings (why it could not be decoded, when not). Nothing
+/// without a wheel in `opts` or on a time basis without its channel.
+pub fn inspect_wheel<F, I, R, E>(
+    i: &mut Inspection,
+    header: &Recording,
+    opts: &AcquisitionOptions,
+    mut chunks: F,
+) where
+    F: FnMut() -> Result<I, AppError>,
+    I: IntoIterator<Item = Result<R, E>>,
+    R: std::borrow::Borrow<Recording>,
+    AppError: From<E>,
+{
+    let Some(spec) = opts.sensor.as_ref() else {
+        return;
+    };
+    let AngleSensor::Wheel { channel, wheel, .. } = &spec.sensor else {
+        return;
+    };
+    if header.channel(channel).is_err() || header.basis != Basis::Time {
+        return;
+    }
     let mut summary = WheelSummary {
         channel: channel.to_string(),
         wheel: wheel.to_string(),
@@ -503,17 +502,14 @@ fn wheel_summary(
         glitches: 0,
         error: None,
     };
-    let decoded = d
-        .finish()
-        .map_err(|e| format!("'{channel}': {e}"))
-        .and_then(|e| {
-            summary.glitches = e.glitches.len();
-            index_teeth(&e, wheel, channel).map_err(|e| e.to_string())
-        });
+    let integrity = &mut i.integrity;
+    let decoded = sensor_calibration(spec, &mut chunks)
+        .and_then(|cal| SensorAhead::new(spec, &cal, chunks()?.into_iter())?.finish());
     match decoded {
-        Ok(a) => {
-            summary.edges = a.t.len();
+        Ok(Some(a)) => {
+            summary.edges = a.edges;
             summary.revolutions = a.revolutions;
+            summary.glitches = a.glitches;
             (summary.rpm_min, summary.rpm_max) = a.rpm;
             for f in a.findings {
                 if f.kind == FindingKind::Note {
@@ -525,7 +521,9 @@ fn wheel_summary(
             }
             integrity.findings.sort_by_key(|f| f.index);
         }
+        Ok(None) => {}
         Err(e) => {
+            let e = e.to_string();
             integrity.ok = false;
             integrity.findings.push(Finding {
                 kind: FindingKind::UnevenPulses,
@@ -535,7 +533,7 @@ fn wheel_summary(
             summary.error = Some(e);
         }
     }
-    summary
+    i.wheel = Some(summary);
 }
 
 /// The engine angle of a time-basis recording as strictly increasing `(t, θ)` pairs: from
@@ -1071,28 +1069,50 @@ where
         t: Vec::new(),
         theta: Vec::new(),
     };
+    let iter = resampled(stream, chunks, move |c, stream| match c {
+        Some(c) => ahead.past(c.values("t")?.last().copied(), stream),
+        None => ahead.past(Some(f64::INFINITY), stream),
+    });
+    Ok((out_header, iter))
+}
+
+/// The chunks of a time-basis stream's channels through `stream` as they come: `angle` gives
+/// the stream the engine angle up to (at least) each chunk's last time before its channels
+/// are resampled, and at the end (`None`) the rest; then the last crank-angle samples.
+pub(crate) fn resampled<'a, C, R, E>(
+    mut stream: CrankAngleStream,
+    chunks: C,
+    mut angle: impl FnMut(Option<&Recording>, &mut CrankAngleStream) -> Result<(), AppError> + 'a,
+) -> impl Iterator<Item = Result<Recording, AppError>> + 'a
+where
+    C: IntoIterator<Item = Result<R, E>> + 'a,
+    C::IntoIter: 'a,
+    R: std::borrow::Borrow<Recording>,
+    E: 'a,
+    AppError: From<E>,
+{
     let mut chunks = chunks.into_iter();
     let mut done = false;
-    let iter = std::iter::from_fn(move || {
+    std::iter::from_fn(move || {
         if done {
             return None;
         }
         let next = match chunks.next() {
-            Some(Ok(c)) => c
-                .values("t")
-                .map_err(AppError::Recording)
-                .and_then(|t| ahead.past(t.last().copied(), &mut stream))
-                .and_then(|()| stream.push_channels(&c).map_err(AppError::Acquisition)),
+            Some(Ok(c)) => {
+                let c = c.borrow();
+                angle(Some(c), &mut stream)
+                    .and_then(|()| stream.push_channels(c).map_err(AppError::Acquisition))
+            }
             Some(Err(e)) => Err(e.into()),
-            None => ahead
-                .past(Some(f64::INFINITY), &mut stream)
-                .and_then(|()| stream.finish().map_err(AppError::Acquisition))
-                .inspect(|_| done = true),
+            None => {
+                done = true;
+                angle(None, &mut stream)
+                    .and_then(|()| stream.finish().map_err(AppError::Acquisition))
+            }
         };
         done |= next.is_err();
         Some(next)
-    });
-    Ok((out_header, iter))
+    })
 }
 
 /// The angle of [`counts_crank_angle_chunks`]: the counts read ahead of the channels.

@@ -17,8 +17,8 @@
 //!    ahead of them: a standstill holds nothing.
 
 use crate::acquisition::{
-    AcquisitionError, AcquisitionOptions, AngleSensor, AngleSpec, CrankAngleStream, DecodedAngle,
-    EncoderSummary,
+    resampled, AcquisitionError, AcquisitionOptions, AngleSensor, AngleSpec, CrankAngleStream,
+    DecodedAngle, EncoderSummary,
 };
 use crate::error::AppError;
 use physid_core::Recording;
@@ -622,38 +622,23 @@ where
     let out_header = stream.header()?;
     let mut ahead = SensorAhead::new(spec, &found.cal, angle.into_iter())?;
     let (first, last) = found.cal.span();
-    let mut chunks = chunks.into_iter();
     let (mut t_in, mut theta) = (Vec::new(), Vec::new());
-    let mut done = false;
-    let iter = std::iter::from_fn(move || {
-        if done {
-            return None;
+    let iter = resampled(stream, chunks, move |c, stream| {
+        let Some(c) = c else { return Ok(()) };
+        t_in.clear();
+        theta.clear();
+        for &x in c
+            .values("t")?
+            .iter()
+            .filter(|x| (first..=last).contains(*x))
+        {
+            let a = ahead.at(x)?;
+            if !a.is_nan() {
+                t_in.push(x);
+                theta.push(a);
+            }
         }
-        let mut resample = |c: R2| -> Result<Recording, AppError> {
-            let c = c.borrow();
-            let t = c.values("t")?;
-            t_in.clear();
-            theta.clear();
-            for &x in t.iter().filter(|x| (first..=last).contains(*x)) {
-                let a = ahead.at(x)?;
-                if !a.is_nan() {
-                    t_in.push(x);
-                    theta.push(a);
-                }
-            }
-            stream.push_angle(&t_in, &theta)?;
-            Ok(stream.push_channels(c)?)
-        };
-        let next = match chunks.next() {
-            Some(Ok(c)) => resample(c),
-            Some(Err(e)) => Err(e.into()),
-            None => {
-                done = true;
-                stream.finish().map_err(AppError::Acquisition)
-            }
-        };
-        done |= next.is_err();
-        Some(next)
+        Ok(stream.push_angle(&t_in, &theta)?)
     });
     Ok((out_header, iter))
 }

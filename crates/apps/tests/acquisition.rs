@@ -228,6 +228,20 @@ fn pick(rec: &Recording, names: &[&str]) -> Recording {
     r
 }
 
+/// `got` has `whole`'s channels, each equal bit for bit, and its metadata (`what`: the case).
+fn same_bits(got: &Recording, whole: &Recording, what: &str) {
+    assert_eq!(got.names(), whole.names(), "{what}");
+    for name in whole.names() {
+        let (a, b) = (got.values(name).unwrap(), whole.values(name).unwrap());
+        assert_eq!(a.len(), b.len(), "{name} {what}");
+        assert!(
+            a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{name} {what}"
+        );
+    }
+    assert_eq!(got.meta, whole.meta, "{what}");
+}
+
 /// Cut `rec` into chunks of `n` samples (0: whole).
 fn cut(rec: &Recording, n: usize) -> Vec<Result<Recording, physid_apps::error::AppError>> {
     if n == 0 {
@@ -285,16 +299,7 @@ fn counts_resampled_as_they_come_equal_the_whole() {
             [7, 0, 4096],
         ] {
             let got = stream(rec, cuts).unwrap();
-            assert_eq!(got.names(), whole.names(), "{cuts:?}");
-            for name in whole.names() {
-                let (a, b) = (got.values(name).unwrap(), whole.values(name).unwrap());
-                assert_eq!(a.len(), b.len(), "{name} {cuts:?}");
-                assert!(
-                    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
-                    "{name} {cuts:?}"
-                );
-            }
-            assert_eq!(got.meta, whole.meta);
+            same_bits(&got, &whole, &format!("{cuts:?}"));
         }
     }
     // A 60−2 wheel's 58 teeth counted as a 58-pulse encoder: the same error, before anything.
@@ -466,16 +471,7 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
         [7, 0, 4096, 4096, 0],
     ] {
         let (got, decoded) = stream(cuts).unwrap();
-        assert_eq!(got.names(), whole.names(), "{cuts:?}");
-        for name in whole.names() {
-            let (a, b) = (got.values(name).unwrap(), whole.values(name).unwrap());
-            assert_eq!(a.len(), b.len(), "{name} {cuts:?}");
-            assert!(
-                a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
-                "{name} {cuts:?}"
-            );
-        }
-        assert_eq!(got.meta, whole.meta);
+        same_bits(&got, &whole, &format!("{cuts:?}"));
         assert_eq!(decoded.tdc.to_bits(), report.tdc.to_bits(), "{cuts:?}");
         assert_eq!(
             (
@@ -556,7 +552,8 @@ fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
         assert!(off.abs() < 0.1, "sample {i}: {off}°");
     }
     let sensor = pick(&rec, &["t", "enc_a", "enc_b", "enc_z"]);
-    let channels = pick(&rec, &["t", "theta_true"]);
+    let mut channels = pick(&rec, &["t", "theta_true"]);
+    channels.meta.clone_from(&rec.meta);
     let stream = |cuts: [usize; 5]| {
         let mut pass = 0;
         let cal = sensor_calibration(&spec, || {
@@ -592,15 +589,7 @@ fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
         [997, 4095, 1, 1, 7],
     ] {
         let (got, decoded) = stream(cuts).unwrap();
-        assert_eq!(got.names(), whole.names(), "{cuts:?}");
-        for name in whole.names() {
-            let (a, b) = (got.values(name).unwrap(), whole.values(name).unwrap());
-            assert_eq!(a.len(), b.len(), "{name} {cuts:?}");
-            assert!(
-                a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
-                "{name} {cuts:?}"
-            );
-        }
+        same_bits(&got, &whole, &format!("{cuts:?}"));
         assert_eq!(decoded.tdc.to_bits(), report.tdc.to_bits(), "{cuts:?}");
         assert_eq!(
             (&decoded.summary, &decoded.phase, &decoded.findings),

@@ -1012,6 +1012,8 @@ pub struct ToothReport {
     pub revolutions: usize,
     /// The slowest and fastest speed over a tooth period [rpm].
     pub rpm: (f64, f64),
+    /// Glitch pulses the edge detector rejected.
+    pub glitches: usize,
     /// Missing and extra edges, gaps out of place (findings, by sample), glitches rejected
     /// (a note).
     pub findings: Vec<Finding>,
@@ -1199,6 +1201,7 @@ impl Counting {
             edges,
             revolutions: self.gaps.saturating_sub(1),
             rpm: self.rpm,
+            glitches: self.glitches.map_or(0, |g| g.0),
             findings,
         })
     }

@@ -7,9 +7,11 @@ use crate::progress::Reading;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{
-    to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec, DecodedAngle, Inspector,
+    inspect_wheel, to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec,
+    DecodedAngle, Inspector,
 };
 use physid_apps::compression::{tdc_from_pressure, CompressionConfig, TdcFromPressure};
+use physid_apps::error::AppError;
 use physid_core::Recording;
 use physid_signal::wheel::{Edge, EdgeOptions, Wheel};
 use std::path::{Path, PathBuf};
@@ -283,11 +285,10 @@ pub fn run(args: &Args) -> Result<()> {
                 reader.header().names().join(", ")
             ));
         }
-        // Decoded whole (its levels come from the whole index channel): `convert
-        // --crank-angle` and `cycles` take it; inspect reads as it goes.
+        // `convert --crank-angle` and `cycles` decode it and say what they found.
         Some(AngleSensor::Quadrature { .. }) => {
             return Err(miette!(
-                "inspect --quadrature: not supported (inspect reads the file as it goes; the quadrature decoder takes the channels whole) — `physid convert --crank-angle --quadrature …` reports what it finds"
+                "inspect --quadrature: not supported — `physid convert --crank-angle --quadrature …` reports what it finds"
             ));
         }
         _ => {}
@@ -297,8 +298,22 @@ pub fn run(args: &Args) -> Result<()> {
         inspector.push(&chunk.into_diagnostic()?);
     }
     super::warn_read(&reader, &args.file);
-    let i = inspector.finish();
+    let mut i = inspector.finish();
     let header = reader.header();
+    // A wheel named: decoded as it is read again (where the gap is, then every edge's angle).
+    if let Some(AngleSensor::Wheel { channel, .. }) = opts.sensor.as_ref().map(|s| &s.sensor) {
+        let mut readers = Vec::new();
+        if header.channel(channel).is_ok() {
+            for _ in 0..2 {
+                readers.push(args.input.open(&args.file, &["t", channel], &[])?);
+            }
+        }
+        inspect_wheel(&mut i, header, &opts, || {
+            readers
+                .pop()
+                .ok_or_else(|| AppError::Invalid("a pass too many".into()))
+        });
+    }
     let samples = reader.rows_read();
     let mut written = Vec::new();
     if let Some(dir) = &args.out {
