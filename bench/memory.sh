@@ -206,6 +206,8 @@ for D in ${DURATIONS:-75 600 3600}; do
       [ -n "$OLD" ] && row="$row $(m "$OLD" $cmd) |"
       echo "$row"
     done
+    # shellcheck disable=SC2086
+    [ "$S" = wheel ] && echo "| $D s | \`inspect $S-$D.parquet --wheel enc=60-2 --json\` | $(m "$NEW" inspect "$S-$D.parquet" --wheel enc=60-2 --json) | ${OLD:+$(m "$OLD" inspect "$S-$D.parquet" --wheel enc=60-2 --json) |}"
     # Not held: every pass of the fit reads the file twice (it keeps what the first passes found).
     # shellcheck disable=SC2086
     [ "$D" != 3600 ] && echo "| $D s | \`compression fit --data $S-$D.parquet\`, PHYSID_HOLD_MB=0 | $(PHYSID_HOLD_MB=0 m "$NEW" compression fit --data "$S-$D.parquet" --stroke 0.0514 --rod 0.088 $W) |"
