@@ -107,6 +107,11 @@ enum Command {
     ///
     /// Example: physid cycles deg.parquet --bore 0.084 --stroke 0.09 --rod 0.15 --compression-ratio 10 --json
     Cycles(cmd::cycles::Args),
+    /// Make a recording whose writer was killed (kill -9, a power loss) readable up to its
+    /// last commit: a live log, simulate's or convert's output (changed in place).
+    ///
+    /// Example: physid recover physid-logs/run.parquet
+    Recover(cmd::recover::Args),
     /// Zero-phase Butterworth filtering of chosen channels.
     ///
     /// Example: physid filter run.csv run-f.csv --lowpass 500 --order 4 --channels torque_shaft
@@ -141,6 +146,7 @@ fn main() -> miette::Result<()> {
         Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),
         Command::Filter(a) => cmd::filter::run(&a),
+        Command::Recover(a) => cmd::recover::run(&a),
         Command::Cycles(a) => cmd::cycles::run(&a),
     }
 }

@@ -192,6 +192,11 @@ fn bad_flags_are_refused_naming_them() {
 
 /// Run `physid live` with `input` on stdin; its events.
 fn events_from_stdin(args: &[&str], input: &str) -> Vec<Value> {
+    events_from_stdin_bytes(args, input.as_bytes())
+}
+
+/// [`events_from_stdin`] with any bytes on stdin.
+fn events_from_stdin_bytes(args: &[&str], input: &[u8]) -> Vec<Value> {
     use std::io::Write;
     use std::process::{Command, Stdio};
     let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
@@ -201,12 +206,7 @@ fn events_from_stdin(args: &[&str], input: &str) -> Vec<Value> {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
+    child.stdin.take().unwrap().write_all(input).unwrap();
     let o = child.wait_with_output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     String::from_utf8(o.stdout)
@@ -1028,4 +1028,56 @@ fn a_crank_angle_file_replays_as_read_as_the_whole_recording_does() {
             ch.name
         );
     }
+}
+
+/// One unreadable control line — not UTF-8, or longer than the 64 KiB cap (never held whole)
+/// — is refused with an error event naming its line, and the lines after it still act: the
+/// `stop` ends a 30 s run at once.
+#[test]
+fn an_unreadable_control_line_is_refused_and_the_next_ones_act() {
+    let mut input = b"{\"cmd\":\"spe\xff\xfeed\"}\n".to_vec();
+    input.extend_from_slice(
+        format!(
+            "{{\"cmd\":\"fault\",\"spec\":\"{}\"}}\n",
+            "x".repeat(200_000)
+        )
+        .as_bytes(),
+    );
+    input.extend_from_slice(b"{\"cmd\":\"stop\"}\n");
+    let t0 = std::time::Instant::now();
+    let ev = events_from_stdin_bytes(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "30",
+            "--pace",
+            "3",
+            "--controls",
+            "-",
+        ],
+        &input,
+    );
+    assert!(t0.elapsed().as_secs() < 8, "the stop was not taken");
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(
+        says(errors[0], "line 1 of the controls is not UTF-8 (byte 12"),
+        "{}",
+        errors[0]
+    );
+    assert!(
+        says(errors[1], "line 2 of the controls is 200025 bytes long"),
+        "{}",
+        errors[1]
+    );
+    assert!(errors[1]["message"].as_str().unwrap().len() < 300);
+    let controls = of_type(&ev, "control");
+    assert_eq!(controls.len(), 1);
+    assert_eq!(controls[0]["cmd"], "stop");
+    let end = of_type(&ev, "end");
+    assert!(end[0]["t_s"].as_f64().unwrap() < 10.0, "{}", end[0]);
 }

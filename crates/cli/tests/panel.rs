@@ -64,9 +64,21 @@ impl Drop for Live {
 
 /// One HTTP/1.0 request; the status and the body.
 fn http(addr: SocketAddr, method: &str, path: &str, headers: &[&str], body: &str) -> (u16, String) {
+    http_to(addr, &addr.to_string(), method, path, headers, body)
+}
+
+/// One HTTP/1.0 request to `addr` naming `host` in its `Host` header.
+fn http_to(
+    addr: SocketAddr,
+    host: &str,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+    body: &str,
+) -> (u16, String) {
     let mut s = TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-    let mut req = format!("{method} {path} HTTP/1.0\r\nHost: {addr}\r\n");
+    let mut req = format!("{method} {path} HTTP/1.0\r\nHost: {host}\r\n");
     for h in headers {
         req += &format!("{h}\r\n");
     }
@@ -375,6 +387,132 @@ fn the_token_rule() {
         r#"{"cmd":"stop"}"#,
     );
     assert_eq!(code, 401, "{body}");
+}
+
+/// The Host rule (DNS rebinding): a page of another site whose name resolves to 127.0.0.1
+/// sends its own name as `Host` and is refused on every route — though it comes from
+/// 127.0.0.1, and though its `Origin` matches its `Host`; the panel's own names pass
+/// (127.0.0.1, localhost, [::1] on loopback, a name given to --bind or --allow-host). The
+/// token from PHYSID_TOKEN or --token-file, kept out of the process list; an error quotes at
+/// most a few hundred bytes of what it was sent; a 1 MB control is refused unread.
+#[test]
+fn the_host_rule_refuses_dns_rebinding() {
+    let live = Live::start(&["--duration", "60", "--allow-host", "cell-7.lab.example"]);
+    let port = live.addr.port();
+    let fault = r#"{"cmd":"fault","spec":"shaft.b=5@0"}"#;
+    for host in [
+        format!("evil.example:{port}"),
+        "evil.example".into(),
+        format!("127.0.0.1.evil.example:{port}"),
+        format!("localhost.evil.example:{port}"),
+        String::new(),
+    ] {
+        for (method, path, headers, body) in [
+            (
+                "POST",
+                "/api/control",
+                vec![
+                    "Content-Type: application/json".to_string(),
+                    format!("Origin: http://{host}"),
+                ],
+                fault,
+            ),
+            ("GET", "/api/events", vec![], ""),
+            ("GET", "/api/status", vec![], ""),
+            ("GET", "/", vec![], ""),
+            ("GET", "/assets/panel.js", vec![], ""),
+        ] {
+            let h: Vec<&str> = headers.iter().map(String::as_str).collect();
+            let (code, text) = http_to(live.addr, &host, method, path, &h, body);
+            assert_eq!(code, 421, "Host {host:?}: {method} {path}: {text}");
+        }
+    }
+    for host in [
+        format!("127.0.0.1:{port}"),
+        format!("localhost:{port}"),
+        format!("LOCALHOST.:{port}"),
+        format!("[::1]:{port}"),
+        "cell-7.lab.example".into(),
+    ] {
+        let (code, text) = http_to(live.addr, &host, "GET", "/api/status", &[], "");
+        assert_eq!(code, 200, "Host {host}: {text}");
+    }
+    // The right Host with a foreign Origin: refused too.
+    let (code, text) = http(
+        live.addr,
+        "POST",
+        "/api/control",
+        &[
+            "Content-Type: application/json",
+            "Origin: http://evil.example",
+        ],
+        fault,
+    );
+    assert_eq!(code, 403, "{text}");
+    // What an error quotes of a message is capped; a huge message is refused unread.
+    let long = format!(r#"{{"cmd":"fault","spec":"{}"}}"#, "x".repeat(10_000));
+    let (code, reply) = post(live.addr, "/api/control", &long);
+    assert_eq!(code, 400);
+    let error = reply["error"].as_str().unwrap();
+    assert!(error.len() < 500 && error.contains("bytes)"), "{error}");
+    let huge = format!(r#"{{"cmd":"fault","spec":"{}"}}"#, "x".repeat(1 << 20));
+    assert_eq!(post(live.addr, "/api/control", &huge).0, 413);
+    let mut sse = Sse::connect(live.addr, "/api/events");
+    let refused = sse.until(30, |e| e["type"] == "error");
+    let message = refused.last().unwrap().1["message"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(message.len() < 500, "{} bytes", message.len());
+    drop(live);
+
+    // --bind takes a name; requests may name it.
+    let named = Live::start(&["--bind", "localhost", "--duration", "60"]);
+    assert!(named.addr.ip().is_loopback(), "{}", named.url);
+    let host = format!("localhost:{}", named.addr.port());
+    assert_eq!(
+        http_to(named.addr, &host, "GET", "/api/status", &[], "").0,
+        200
+    );
+    drop(named);
+
+    // The token from the environment or a file: in force, and not on the command line.
+    let s = physid_testkit::Scratch::new("physid-token");
+    let file = s.file("token");
+    std::fs::write(&file, "from-a-file-token\n").unwrap();
+    for (args, env, token) in [
+        (
+            vec!["--token-file", file.to_str().unwrap()],
+            None,
+            "from-a-file-token",
+        ),
+        (vec![], Some("from-the-environment"), "from-the-environment"),
+    ] {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_physid"));
+        cmd.args(["live", "--duration", "60", "--port", "0"])
+            .args(&args);
+        if let Some(t) = env {
+            cmd.env("PHYSID_TOKEN", t);
+        }
+        let mut child = cmd
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let url = line.trim().strip_prefix("physid live: panel at ").unwrap();
+        let addr: SocketAddr = url[7..].split('/').next().unwrap().parse().unwrap();
+        assert_eq!(http(addr, "GET", "/api/status", &[], "").0, 401, "{args:?}");
+        let path = format!("/api/status?token={token}");
+        assert_eq!(http(addr, "GET", &path, &[], "").0, 200, "{args:?}");
+        let cmdline = std::fs::read(format!("/proc/{}/cmdline", child.id())).unwrap();
+        assert!(!String::from_utf8_lossy(&cmdline).contains(token));
+        let _ = child.kill();
+        let _ = child.wait();
+    }
 }
 
 // ---- the real browser ----

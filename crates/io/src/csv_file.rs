@@ -488,32 +488,75 @@ pub fn write_csv(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError>
     w.close()
 }
 
-/// Counts the bytes that pass.
-struct Counting<W> {
-    inner: W,
-    bytes: usize,
-}
-
-impl<W: std::io::Write> std::io::Write for Counting<W> {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        let n = self.inner.write(buf)?;
-        self.bytes += n;
-        Ok(n)
+/// Cut a torn last line (one without its line end: the writer was killed while writing it)
+/// off a CSV file; the number of bytes cut.
+pub fn recover_csv(path: impl AsRef<Path>) -> Result<u64, IoError> {
+    use std::io::{Read, Seek, SeekFrom};
+    let p = path.as_ref().display().to_string();
+    let os = |source| IoError::Os {
+        path: p.clone(),
+        source,
+    };
+    let mut f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path.as_ref())
+        .map_err(os)?;
+    let size = f.metadata().map_err(os)?.len();
+    // Back from the end a block at a time to the last line end.
+    let mut end = size;
+    let mut buf = vec![0u8; 64 * 1024];
+    while end > 0 {
+        let lo = end.saturating_sub(buf.len() as u64);
+        let part = &mut buf[..(end - lo) as usize];
+        f.seek(SeekFrom::Start(lo)).map_err(os)?;
+        f.read_exact(part).map_err(os)?;
+        if let Some(k) = part.iter().rposition(|&b| b == b'\n') {
+            let keep = lo + k as u64 + 1;
+            if keep < size {
+                f.set_len(keep).map_err(os)?;
+                f.sync_all().map_err(os)?;
+            }
+            return Ok(size - keep);
+        }
+        end = lo;
     }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        self.inner.flush()
-    }
+    Err(IoError::Malformed {
+        path: p,
+        detail: "no whole line: not a CSV recording physid wrote".into(),
+    })
 }
 
 /// A CSV file written chunk by chunk: the header (and units) row from the first recording,
-/// then each chunk's rows as they come — the same bytes as [`write_csv`] of the whole.
+/// then each chunk's rows as they come — the same bytes as [`write_csv`] of the whole. Each
+/// chunk's rows reach the file whole, in one write: a writer killed leaves whole lines.
 pub struct CsvWriter {
     path: String,
     names: Vec<String>,
-    w: csv::Writer<Counting<std::io::BufWriter<std::fs::File>>>,
+    w: csv::Writer<Lines>,
     row: Vec<String>,
     rows: usize,
+}
+
+/// The file under a [`CsvWriter`]: bytes gathered until a flush, then written in one go.
+struct Lines {
+    file: std::fs::File,
+    pending: Vec<u8>,
+    bytes: usize,
+}
+
+impl std::io::Write for Lines {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.pending.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.file.write_all(&self.pending)?;
+        self.bytes += self.pending.len();
+        self.pending.clear();
+        Ok(())
+    }
 }
 
 impl CsvWriter {
@@ -524,8 +567,9 @@ impl CsvWriter {
             path: p.clone(),
             source,
         })?;
-        let mut w = csv::Writer::from_writer(Counting {
-            inner: std::io::BufWriter::new(file),
+        let mut w = csv::Writer::from_writer(Lines {
+            file,
+            pending: Vec::new(),
             bytes: 0,
         });
         let werr = |e: csv::Error| IoError::Malformed {
@@ -538,12 +582,22 @@ impl CsvWriter {
             w.write_record(like.channels().iter().map(|c| c.unit.as_str()))
                 .map_err(werr)?;
         }
-        Ok(Self {
+        let mut me = Self {
             names: like.channels().iter().map(|c| c.name.clone()).collect(),
             row: vec![String::new(); like.channels().len()],
             path: p,
             w,
             rows: 0,
+        };
+        me.write_out()?;
+        Ok(me)
+    }
+
+    /// The lines gathered, to the file in one write.
+    fn write_out(&mut self) -> Result<(), IoError> {
+        self.w.flush().map_err(|source| IoError::Os {
+            path: self.path.clone(),
+            source,
         })
     }
 
@@ -564,7 +618,19 @@ impl CsvWriter {
                 })?;
         }
         self.rows += rec.len();
-        Ok(())
+        self.write_out()
+    }
+
+    /// Make every row appended so far survive a power loss too (they are in the file already).
+    pub fn commit(&mut self) -> Result<(), IoError> {
+        self.w
+            .get_ref()
+            .file
+            .sync_data()
+            .map_err(|source| IoError::Os {
+                path: self.path.clone(),
+                source,
+            })
     }
 
     /// Rows written so far.
@@ -572,16 +638,13 @@ impl CsvWriter {
         self.rows
     }
 
-    /// Bytes written so far (some may still be buffered).
+    /// Bytes written so far.
     pub fn bytes(&self) -> usize {
         self.w.get_ref().bytes
     }
 
     /// Finish the file.
     pub fn close(mut self) -> Result<(), IoError> {
-        let path = self.path.clone();
-        self.w
-            .flush()
-            .map_err(|source| IoError::Os { path, source })
+        self.write_out()
     }
 }

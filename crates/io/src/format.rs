@@ -702,6 +702,17 @@ impl ChunkWriter {
         }
     }
 
+    /// Make every sample appended so far survive a crash or a power loss: a writer killed
+    /// from now on leaves a file readable up to here (CSV and uncompressed MDF4 as they are,
+    /// Parquet through [`crate::recover_parquet`]); a compressed MDF4 file is only flushed.
+    pub fn commit(&mut self) -> Result<(), IoError> {
+        match self {
+            Self::Csv(w) => w.commit(),
+            Self::Parquet(w) => w.commit(),
+            Self::Mdf(w) => w.commit(),
+        }
+    }
+
     /// Samples written so far.
     pub fn rows(&self) -> usize {
         match self {

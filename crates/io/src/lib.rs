@@ -14,13 +14,15 @@ pub mod format;
 pub mod mdf;
 pub mod parquet_file;
 
-pub use csv_file::{read_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
+pub use csv_file::{read_csv, recover_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
 pub use format::{
     basis_by_channels, detect, read, write, ChunkReader, ChunkWriter, Format, MapItem, ReadOptions,
     WriteOptions, CHUNK_ROWS, STREAM_ROWS_PER_GROUP,
 };
 pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLOCK_BYTES};
-pub use parquet_file::{read_parquet, write_parquet, ParquetChunks, ParquetWriter};
+pub use parquet_file::{
+    read_parquet, recover_parquet, write_parquet, ParquetChunks, ParquetWriter, Recovered,
+};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]

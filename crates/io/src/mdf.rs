@@ -877,6 +877,32 @@ impl MdfWriter {
         Ok(())
     }
 
+    /// Make every sample appended so far survive a crash (uncompressed files): the records
+    /// are written and on the disk, then the data block's length and the record count say so
+    /// — in that order, so the file never claims a record it does not hold, and a reader
+    /// (asammdf, physid) of a file whose writer was killed reads every sample committed. A
+    /// compressed file lists its blocks only when closed: it is flushed, not made readable.
+    pub fn commit(&mut self) -> Result<(), IoError> {
+        use std::io::{Seek, SeekFrom, Write};
+        let os = |source| IoError::Os {
+            path: self.path.clone(),
+            source,
+        };
+        self.out.flush().map_err(os)?;
+        if self.zip.is_some() {
+            return Ok(());
+        }
+        let mut f = self.out.get_ref();
+        f.sync_data().map_err(os)?;
+        let dt_len = 24 + (self.rows * 8 * (self.names.len() + 1)) as u64;
+        f.seek(SeekFrom::Start(self.dt_off + 8)).map_err(os)?;
+        f.write_all(&dt_len.to_le_bytes()).map_err(os)?;
+        f.seek(SeekFrom::Start(self.cycle_count_off)).map_err(os)?;
+        f.write_all(&(self.rows as u64).to_le_bytes()).map_err(os)?;
+        f.seek(SeekFrom::End(0)).map_err(os)?;
+        Ok(())
+    }
+
     /// Samples written so far.
     pub fn rows(&self) -> usize {
         self.rows

@@ -18,6 +18,9 @@ use arrow_schema::{DataType, Field, Schema};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::{ArrowWriter, ProjectionMask};
 use parquet::basic::Compression;
+use parquet::file::metadata::{
+    FileMetaData, ParquetMetaData, ParquetMetaDataReader, ParquetMetaDataWriter, RowGroupMetaData,
+};
 use parquet::file::properties::WriterProperties;
 use physid_core::{Basis, Recording};
 use std::collections::HashMap;
@@ -242,15 +245,31 @@ pub fn write_parquet(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoEr
     w.close()
 }
 
-/// A Parquet file written chunk by chunk (the live service's logging): float64 columns, units
-/// in field metadata, Snappy; a row group every `rows_per_group` rows, so memory stays bounded
-/// however long it writes. The file is valid once closed.
+/// The four bytes that end a journal entry (a footer naming one row group, which a Parquet
+/// reader must not take for the file's own footer: that ends in `PAR1`).
+const JOURNAL_MAGIC: &[u8; 4] = b"PHJ1";
+
+/// A Parquet file written chunk by chunk (`simulate`, `convert`, the live service's logs):
+/// float64 columns, units in field metadata, Snappy; a row group every `rows_per_group` rows,
+/// so memory stays bounded however long it writes. The file is valid once closed.
+///
+/// **Crash safety.** After each row group ([`commit`](Self::commit), or every
+/// `rows_per_group` rows) a *journal entry* follows it in the file: a Parquet footer naming
+/// that row group alone, ending in `PHJ1` instead of `PAR1`. Readers skip the entries (they read
+/// row groups where the final footer says they are); a file whose writer was killed before
+/// closing it ends without a footer, and [`recover_parquet`] chains the entries back from the
+/// last complete one and writes the footer of every row group committed — nothing after the
+/// last commit is lost beyond it.
 pub struct ParquetWriter {
     path: String,
     schema: Arc<Schema>,
     names: Vec<String>,
     w: ArrowWriter<std::fs::File>,
     rows: usize,
+    rows_per_group: usize,
+    /// The file's metadata as its footer will carry it (schema, key-value metadata): what
+    /// each journal entry names beside its row group.
+    template: FileMetaData,
 }
 
 impl ParquetWriter {
@@ -275,15 +294,23 @@ impl ParquetWriter {
             meta.insert(format!("{META_PREFIX}{k}"), v.clone());
         }
         let schema = Arc::new(Schema::new_with_metadata(fields, meta));
+        // Row groups are cut here, not by the writer: each is followed by its journal entry.
+        let props = WriterProperties::builder()
+            .set_compression(Compression::SNAPPY)
+            .set_dictionary_enabled(false)
+            .set_max_row_group_row_count(None)
+            .set_max_row_group_bytes(None)
+            .build();
+        // The footer's metadata, from an empty file written the same way.
+        let template = ArrowWriter::try_new(Vec::new(), schema.clone(), Some(props.clone()))
+            .and_then(ArrowWriter::close)
+            .map_err(|e| pq_err(&p, e))?
+            .file_metadata()
+            .clone();
         let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
             path: p.clone(),
             source,
         })?;
-        let props = WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
-            .set_dictionary_enabled(false)
-            .set_max_row_group_row_count(Some(rows_per_group.max(1)))
-            .build();
         let w =
             ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq_err(&p, e))?;
         Ok(Self {
@@ -292,6 +319,8 @@ impl ParquetWriter {
             schema,
             w,
             rows: 0,
+            rows_per_group: rows_per_group.max(1),
+            template,
         })
     }
 
@@ -300,23 +329,69 @@ impl ParquetWriter {
         self.append_range(rec, 0..rec.len())
     }
 
-    /// Append rows `range` of `rec`.
+    /// Append rows `range` of `rec`, a row group committed each `rows_per_group` rows.
     fn append_range(
         &mut self,
         rec: &Recording,
         range: std::ops::Range<usize>,
     ) -> Result<(), IoError> {
         crate::check_appended(&self.path, &self.names, rec)?;
-        let cols: Vec<ArrayRef> = rec
-            .channels()
-            .iter()
-            .map(|c| Arc::new(Float64Array::from(c.values[range.clone()].to_vec())) as ArrayRef)
-            .collect();
-        let batch =
-            RecordBatch::try_new(self.schema.clone(), cols).map_err(|e| pq_err(&self.path, e))?;
-        self.w.write(&batch).map_err(|e| pq_err(&self.path, e))?;
-        self.rows += range.len();
-        Ok(())
+        let mut start = range.start;
+        loop {
+            let room = self.rows_per_group - self.w.in_progress_rows();
+            let end = range.end.min(start + room);
+            let cols: Vec<ArrayRef> = rec
+                .channels()
+                .iter()
+                .map(|c| Arc::new(Float64Array::from(c.values[start..end].to_vec())) as ArrayRef)
+                .collect();
+            let batch = RecordBatch::try_new(self.schema.clone(), cols)
+                .map_err(|e| pq_err(&self.path, e))?;
+            self.w.write(&batch).map_err(|e| pq_err(&self.path, e))?;
+            self.rows += end - start;
+            if self.w.in_progress_rows() >= self.rows_per_group {
+                self.group()?;
+            }
+            start = end;
+            if start >= range.end {
+                return Ok(());
+            }
+        }
+    }
+
+    /// Make every row appended so far survive a crash: the rows buffered become a row group,
+    /// its journal entry follows it, and both are on the disk (a writer killed, or a machine
+    /// that loses power, from now on leaves a file [`recover_parquet`] restores up to here).
+    pub fn commit(&mut self) -> Result<(), IoError> {
+        self.group()?;
+        self.w.inner().sync_data().map_err(|source| IoError::Os {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
+    /// The rows buffered as a row group with its journal entry, handed to the operating system
+    /// (a writer killed from now on leaves a file [`recover_parquet`] restores up to here).
+    fn group(&mut self) -> Result<(), IoError> {
+        if self.w.in_progress_rows() == 0 {
+            return Ok(());
+        }
+        self.w.flush().map_err(|e| pq_err(&self.path, e))?;
+        let group = self
+            .w
+            .flushed_row_groups()
+            .last()
+            .cloned()
+            .ok_or_else(|| pq_err(&self.path, "no row group after a flush"))?;
+        let entry = footer(&self.template, vec![group], JOURNAL_MAGIC)
+            .map_err(|e| pq_err(&self.path, e))?;
+        self.w
+            .write_all(&entry)
+            .and_then(|()| self.w.sync())
+            .map_err(|source| IoError::Os {
+                path: self.path.clone(),
+                source,
+            })
     }
 
     /// Rows written so far.
@@ -329,9 +404,211 @@ impl ParquetWriter {
         self.w.bytes_written() + self.w.in_progress_size()
     }
 
-    /// Finish the file (its footer).
-    pub fn close(self) -> Result<(), IoError> {
+    /// Finish the file (the last row group, and the footer naming every row group).
+    pub fn close(mut self) -> Result<(), IoError> {
+        self.group()?;
         self.w.close().map_err(|e| pq_err(&self.path, e))?;
         Ok(())
     }
+}
+
+/// A Parquet footer for `groups` with `template`'s schema and key-value metadata, ending in
+/// `magic` (`PAR1` for a file's footer, [`JOURNAL_MAGIC`] for a journal entry).
+fn footer(
+    template: &FileMetaData,
+    groups: Vec<RowGroupMetaData>,
+    magic: &[u8; 4],
+) -> Result<Vec<u8>, parquet::errors::ParquetError> {
+    let rows = groups.iter().map(RowGroupMetaData::num_rows).sum();
+    let meta = ParquetMetaData::new(
+        FileMetaData::new(
+            template.version(),
+            rows,
+            template.created_by().map(str::to_string),
+            template.key_value_metadata().cloned(),
+            template.schema_descr_ptr(),
+            template.column_orders().cloned(),
+        ),
+        groups,
+    );
+    let mut out = Vec::new();
+    ParquetMetaDataWriter::new(&mut out, &meta).finish()?;
+    let n = out.len();
+    out[n - 4..].copy_from_slice(magic);
+    Ok(out)
+}
+
+/// What [`recover_parquet`] did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Recovered {
+    /// The file was closed properly: nothing to do.
+    Closed,
+    /// The footer was written: `rows` rows in `groups` row groups kept, `dropped` bytes after
+    /// the last committed row group cut off.
+    Restored {
+        /// Rows kept.
+        rows: u64,
+        /// Row groups kept.
+        groups: usize,
+        /// Bytes of the torn end cut off.
+        dropped: u64,
+    },
+}
+
+/// `len` bytes of `f` at `at` (`None` past its end).
+fn bytes_at(mut f: &std::fs::File, at: u64, len: usize) -> Option<Vec<u8>> {
+    use std::io::{Read, Seek};
+    let mut buf = vec![0; len];
+    f.seek(std::io::SeekFrom::Start(at)).ok()?;
+    f.read_exact(&mut buf).ok()?;
+    Some(buf)
+}
+
+/// Where a journal entry ending at byte `end` of `f` starts, its row group and the file's
+/// metadata, if a complete entry ends there.
+fn journal_entry(f: &std::fs::File, end: u64) -> Option<(u64, RowGroupMetaData, FileMetaData)> {
+    let tail = bytes_at(f, end.checked_sub(8)?, 8)?;
+    if tail[4..] != *JOURNAL_MAGIC {
+        return None;
+    }
+    let len = u32::from_le_bytes(tail[..4].try_into().ok()?) as u64;
+    let start = end.checked_sub(8 + len)?;
+    let meta = ParquetMetaDataReader::decode_metadata(&bytes_at(f, start, len as usize)?).ok()?;
+    let group = match meta.row_groups() {
+        [g] => g.clone(),
+        _ => return None,
+    };
+    Some((start, group, meta.file_metadata().clone()))
+}
+
+/// The end of the last complete journal entry in `f` (of `size` bytes), searched back from
+/// its end a window at a time (a torn row group may follow it).
+fn last_entry(
+    f: &std::fs::File,
+    size: u64,
+) -> Option<(u64, (u64, RowGroupMetaData, FileMetaData))> {
+    const WINDOW: u64 = 16 << 20;
+    let mut hi = size;
+    while hi >= 12 {
+        let lo = hi.saturating_sub(WINDOW);
+        let buf = bytes_at(f, lo, (hi - lo) as usize)?;
+        for k in (4..=buf.len()).rev() {
+            if buf[k - 4..k] == *JOURNAL_MAGIC {
+                let end = lo + k as u64;
+                if let Some(e) = journal_entry(f, end) {
+                    return Some((end, e));
+                }
+            }
+        }
+        if lo == 0 {
+            break;
+        }
+        // Overlap by three bytes: a magic across the windows' border is found.
+        hi = lo + 3;
+    }
+    None
+}
+
+/// Where a row group's bytes start and end in the file (`None` when its metadata says
+/// nothing sensible).
+fn group_span(g: &RowGroupMetaData) -> Option<(u64, u64)> {
+    let mut span: Option<(u64, u64)> = None;
+    for c in g.columns() {
+        let start = c.dictionary_page_offset().unwrap_or(c.data_page_offset());
+        let (start, len) = (
+            u64::try_from(start).ok()?,
+            u64::try_from(c.compressed_size()).ok()?,
+        );
+        let (lo, hi) = span.unwrap_or((start, start + len));
+        span = Some((lo.min(start), hi.max(start + len)));
+    }
+    span
+}
+
+/// Make a Parquet file physid was writing when it was killed (or the machine lost power)
+/// readable again: the row groups up to the last journal entry complete on disk (see
+/// [`ParquetWriter`]) are kept, the torn end after it is cut off, and the footer naming them
+/// is written. A file closed properly is left as it is; a file without a complete entry is
+/// refused, naming what is missing.
+pub fn recover_parquet(path: impl AsRef<Path>) -> Result<Recovered, IoError> {
+    let p = path.as_ref().display().to_string();
+    let os = |source| IoError::Os {
+        path: p.clone(),
+        source,
+    };
+    let mut f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path.as_ref())
+        .map_err(os)?;
+    let size = f.metadata().map_err(os)?.len();
+    if bytes_at(&f, 0, 4).as_deref() != Some(b"PAR1") {
+        return Err(pq_err(
+            &p,
+            "not a Parquet file (it does not start with PAR1)",
+        ));
+    }
+    if size >= 12 {
+        let tail = bytes_at(&f, size - 8, 8).unwrap_or_default();
+        let len = u32::from_le_bytes(tail[..4].try_into().unwrap_or([0; 4])) as u64;
+        if tail[4..] == *b"PAR1"
+            && len + 12 <= size
+            && bytes_at(&f, size - 8 - len, len as usize)
+                .is_some_and(|m| ParquetMetaDataReader::decode_metadata(&m).is_ok())
+        {
+            return Ok(Recovered::Closed);
+        }
+    }
+    let Some((keep, (mut start, group, template))) = last_entry(&f, size) else {
+        return Err(pq_err(
+            &p,
+            "no committed row group: the writer was stopped before its first commit (physid \
+             commits a row group each second of a live log, and every 65 536 rows)",
+        ));
+    };
+    // Back along the chain: each entry ends where the next row group starts, the first row
+    // group starts after the leading PAR1.
+    let mut groups = vec![group];
+    loop {
+        let Some((lo, hi)) = group_span(&groups[groups.len() - 1]) else {
+            return Err(pq_err(
+                &p,
+                "a journal entry names a row group with no columns",
+            ));
+        };
+        if hi != start {
+            return Err(pq_err(
+                &p,
+                format!(
+                    "a journal entry at byte {start} does not follow its row group (which ends at \
+                     byte {hi})"
+                ),
+            ));
+        }
+        if lo == 4 {
+            break;
+        }
+        let Some((s, g, _)) = journal_entry(&f, lo) else {
+            return Err(pq_err(
+                &p,
+                format!("no journal entry ends at byte {lo}, where a row group starts"),
+            ));
+        };
+        start = s;
+        groups.push(g);
+    }
+    groups.reverse();
+    let rows = groups.iter().map(|g| g.num_rows() as u64).sum();
+    let n = groups.len();
+    let foot = footer(&template, groups, b"PAR1").map_err(|e| pq_err(&p, e))?;
+    use std::io::{Seek, Write};
+    f.set_len(keep).map_err(os)?;
+    f.seek(std::io::SeekFrom::Start(keep)).map_err(os)?;
+    f.write_all(&foot).map_err(os)?;
+    f.sync_all().map_err(os)?;
+    Ok(Recovered::Restored {
+        rows,
+        groups: n,
+        dropped: size - keep,
+    })
 }

@@ -18,6 +18,7 @@
 use physid_sim::run::Run;
 use physid_sim::scenario::{named, Fault, Profile, Scenario, NAMED};
 use serde_json::Value;
+use std::sync::mpsc::SyncSender;
 
 /// A control message (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -46,8 +47,9 @@ pub enum Control {
 /// command's name, or what was wrong) when someone waits for it.
 #[derive(Debug)]
 pub struct ControlRequest {
-    /// The message's text (one JSON object).
-    pub text: String,
+    /// The message's text (one JSON object), or why a line could not be taken as one (it is
+    /// refused with an `error` event, and the run goes on).
+    pub text: Result<String, String>,
     /// Where the answer goes.
     pub reply: Option<tokio::sync::oneshot::Sender<Result<&'static str, String>>>,
 }
@@ -55,7 +57,83 @@ pub struct ControlRequest {
 impl ControlRequest {
     /// A message nobody waits an answer for (the answer is the event).
     pub fn fire(text: String) -> Self {
-        Self { text, reply: None }
+        Self {
+            text: Ok(text),
+            reply: None,
+        }
+    }
+
+    /// A line that is not a message (not UTF-8, too long): refused by the loop as it comes.
+    pub fn unreadable(why: String) -> Self {
+        Self {
+            text: Err(why),
+            reply: None,
+        }
+    }
+}
+
+/// The longest control line or body taken [bytes] (a message is a few dozen bytes).
+pub const MAX_CONTROL_BYTES: usize = 64 * 1024;
+
+/// Send each non-empty line of `reader` to `tx` as a control message until the end of the
+/// input or until nobody receives (blocking: run it on a thread of its own). A line that is
+/// not UTF-8, or longer than [`MAX_CONTROL_BYTES`] (never held whole), is sent as
+/// [`ControlRequest::unreadable`]: refused with an `error` event, and the lines after it go on.
+pub fn forward_control_lines(mut reader: impl std::io::BufRead, tx: SyncSender<ControlRequest>) {
+    use std::io::{BufRead, Read};
+    let mut line = Vec::with_capacity(256);
+    let mut number = 0usize;
+    loop {
+        line.clear();
+        match (&mut reader)
+            .take(MAX_CONTROL_BYTES as u64 + 1)
+            .read_until(b'\n', &mut line)
+        {
+            Ok(0) => return,
+            Ok(_) => {}
+            Err(e) => {
+                let _ = tx.send(ControlRequest::unreadable(format!(
+                    "reading the controls after line {number}: {e}"
+                )));
+                return;
+            }
+        }
+        number += 1;
+        let req = if line.len() > MAX_CONTROL_BYTES && !line.ends_with(b"\n") {
+            // The rest of the line, read and dropped.
+            let mut rest = line.len();
+            loop {
+                line.clear();
+                match (&mut reader)
+                    .take(MAX_CONTROL_BYTES as u64)
+                    .read_until(b'\n', &mut line)
+                {
+                    Ok(0) | Err(_) => break,
+                    Ok(n) => rest += n,
+                }
+                if line.ends_with(b"\n") {
+                    rest -= 1;
+                    break;
+                }
+            }
+            ControlRequest::unreadable(format!(
+                "line {number} of the controls is {rest} bytes long: expected at most \
+                 {MAX_CONTROL_BYTES} (one JSON object)"
+            ))
+        } else {
+            match std::str::from_utf8(&line) {
+                Ok(text) if text.trim().is_empty() => continue,
+                Ok(text) => ControlRequest::fire(text.trim_end().to_string()),
+                Err(e) => ControlRequest::unreadable(format!(
+                    "line {number} of the controls is not UTF-8 (byte {} of the line): expected \
+                     one JSON object",
+                    e.valid_up_to() + 1
+                )),
+            }
+        };
+        if tx.send(req).is_err() {
+            return;
+        }
     }
 }
 

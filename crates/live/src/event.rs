@@ -275,3 +275,16 @@ impl Event {
         }
     }
 }
+
+/// At most `max` bytes of `text` (cut at a character), followed by how long it was: what an
+/// error quotes of a client's input.
+pub fn quote(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
+    if text.len() <= max {
+        return text.into();
+    }
+    let mut end = max;
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}… ({} bytes)", &text[..end], text.len()).into()
+}

@@ -30,13 +30,13 @@ pub mod source;
 pub mod trace;
 pub mod wire;
 
-pub use control::{Control, ControlRequest};
+pub use control::{forward_control_lines, Control, ControlRequest, MAX_CONTROL_BYTES};
 pub use event::Event;
 #[cfg(unix)]
 pub use frames::SocketFrames;
 pub use frames::{FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
-pub use panel::Panel;
+pub use panel::{Access, Panel};
 pub use service::{
     run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Stages, Summary, TorqueLive,
 };

@@ -13,16 +13,19 @@
 //!
 //! **Security.** The panel binds to 127.0.0.1 unless told otherwise. Binding any other address
 //! needs a token; with a token, every `/api/` request must carry it (`Authorization: Bearer T`
-//! or `?token=T`). Controls must be posted as JSON, and a request whose `Origin` is not the
-//! panel's own is refused: another web site open in the operator's browser cannot drive the
-//! cell.
+//! or `?token=T`). Every request must name the panel in its `Host` ([`Access::host_allowed`]):
+//! a web page whose domain an attacker points at 127.0.0.1 (DNS rebinding) names its own domain
+//! and is refused on every route. Controls must be posted as JSON (at most
+//! [`MAX_CONTROL_BYTES`]), and a request whose `Origin` is not the panel's own is refused:
+//! another web site open in the operator's browser cannot drive the cell.
 
-use crate::control::ControlRequest;
+use crate::control::{ControlRequest, MAX_CONTROL_BYTES};
+use crate::event::quote;
 use crate::fleet::view::FleetView;
 use crate::fleet::NatsTarget;
 use crate::hub::Hub;
 use crate::service::LiveError;
-use axum::extract::{Query, Request, State};
+use axum::extract::{DefaultBodyLimit, Query, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
@@ -33,7 +36,7 @@ use futures_util::stream::{self, Stream, StreamExt};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::convert::Infallible;
-use std::net::SocketAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::mpsc::{SyncSender, TrySendError};
 use std::sync::Arc;
 use std::time::Duration;
@@ -105,7 +108,9 @@ const CONTROL_TIMEOUT: Duration = Duration::from_secs(5);
 struct App {
     hub: Arc<Hub>,
     controls: SyncSender<ControlRequest>,
-    token: Option<Arc<str>>,
+    access: Arc<Access>,
+    /// The address the panel listens on.
+    bound: SocketAddr,
     /// A fleet panel's cells.
     fleet: Option<Arc<FleetView>>,
 }
@@ -126,6 +131,62 @@ impl App {
     }
 }
 
+/// Who may reach the panel: its token, and the host names (beyond IP addresses and
+/// `localhost`) a request may name in its `Host` header.
+#[derive(Debug, Clone, Default)]
+pub struct Access {
+    /// The secret every `/api/` request must carry (at least 8 characters).
+    pub token: Option<String>,
+    /// Names a request's `Host` may carry besides the panel's address: the name given to
+    /// `--bind`, those of `--allow-host` (a reverse proxy's, the machine's DNS name).
+    pub hosts: Vec<String>,
+}
+
+impl Access {
+    /// Whether a request whose `Host` header is `host` is for a panel bound to `bind`. A DNS
+    /// rebinding attack serves its page from a domain that resolves to the panel's address,
+    /// so the browser sends that domain as `Host`; only the names the panel answers to pass:
+    /// - an IP address: the one bound, any loopback one when bound to loopback, any when
+    ///   bound to every address (an address literal cannot be rebound);
+    /// - `localhost` when bound to loopback or every address;
+    /// - a name in [`hosts`](Self::hosts).
+    ///
+    /// The port is not compared (a reverse proxy may carry its own); names are compared
+    /// without case and a trailing dot.
+    pub fn host_allowed(&self, host: &str, bind: IpAddr) -> bool {
+        let name = host_name(host);
+        if name.is_empty() {
+            return false;
+        }
+        let loopback = bind.is_loopback();
+        let every = bind.is_unspecified();
+        if let Ok(ip) = name
+            .trim_start_matches('[')
+            .trim_end_matches(']')
+            .parse::<IpAddr>()
+        {
+            return every || ip == bind || (loopback && ip.is_loopback());
+        }
+        (name == "localhost" && (loopback || every))
+            || self.hosts.iter().any(|h| host_name(h) == name)
+    }
+}
+
+/// The name part of a `Host` value (`[::1]:8750` → `[::1]`, `Example.COM.:80` →
+/// `example.com`), lower-case without a trailing dot.
+fn host_name(host: &str) -> String {
+    let host = host.trim();
+    let name = if host.starts_with('[') {
+        host.split_inclusive(']').next().unwrap_or(host)
+    } else {
+        match host.rsplit_once(':') {
+            Some((n, port)) if port.bytes().all(|b| b.is_ascii_digit()) => n,
+            _ => host,
+        }
+    };
+    name.trim_end_matches('.').to_ascii_lowercase()
+}
+
 /// A running panel server (on its own runtime threads).
 pub struct Panel {
     /// Where it listens.
@@ -135,35 +196,36 @@ pub struct Panel {
 
 impl Panel {
     /// Serve the panel on `bind` for `hub`'s events, posting controls to `controls`. Binding
-    /// an address other than a loopback one needs a `token`.
+    /// an address other than a loopback one needs a token.
     pub fn start(
         bind: SocketAddr,
-        token: Option<String>,
+        access: Access,
         hub: Arc<Hub>,
         controls: SyncSender<ControlRequest>,
     ) -> Result<Self, LiveError> {
-        Self::launch(bind, token, hub, controls, None)
+        Self::launch(bind, access, hub, controls, None)
     }
 
     /// Serve the fleet view of the fleet at `target` on `bind` (the same rules).
     pub fn start_fleet(
         bind: SocketAddr,
-        token: Option<String>,
+        access: Access,
         target: &NatsTarget,
     ) -> Result<Self, LiveError> {
         let hub = Hub::new(json!({"type": "hello", "source": "the fleet view: open a cell"}));
         // The fleet view's own controls go to the cells, never here.
         let (controls, _) = std::sync::mpsc::sync_channel(1);
-        Self::launch(bind, token, hub, controls, Some(target))
+        Self::launch(bind, access, hub, controls, Some(target))
     }
 
     fn launch(
         bind: SocketAddr,
-        token: Option<String>,
+        access: Access,
         hub: Arc<Hub>,
         controls: SyncSender<ControlRequest>,
         fleet: Option<&NatsTarget>,
     ) -> Result<Self, LiveError> {
+        let token = &access.token;
         if !bind.ip().is_loopback() && token.is_none() {
             return Err(LiveError::Invalid(format!(
                 "--bind {}: the panel can inject faults into the test cell; to serve it beyond \
@@ -198,7 +260,8 @@ impl Panel {
         let app = App {
             hub: hub.clone(),
             controls,
-            token: token.map(Into::into),
+            access: Arc::new(access),
+            bound: addr,
             fleet,
         };
         let api = Router::new()
@@ -207,11 +270,14 @@ impl Panel {
             .route("/ack", post(ack))
             .route("/status", get(status))
             .route("/fleet", get(fleet_summary))
-            .route_layer(middleware::from_fn_with_state(app.clone(), guard));
+            .route_layer(middleware::from_fn_with_state(app.clone(), guard))
+            .layer(DefaultBodyLimit::max(MAX_CONTROL_BYTES));
+        // The Host rule holds on every route, the page's included.
         let router = Router::new()
             .route("/", get(index))
             .route("/assets/{name}", get(asset))
             .nest("/api", api)
+            .layer(middleware::from_fn_with_state(app.clone(), host_guard))
             .with_state(app);
         rt.spawn(async move {
             // Serving ends with the runtime.
@@ -266,6 +332,29 @@ fn refuse(code: StatusCode, error: impl Into<String>) -> Response {
     (code, Json(json!({"ok": false, "error": error.into()}))).into_response()
 }
 
+/// The Host rule ([`Access::host_allowed`]) on every route: 421 Misdirected Request.
+async fn host_guard(State(app): State<App>, req: Request, next: Next) -> Response {
+    let host = req
+        .headers()
+        .get(header::HOST)
+        .and_then(|v| v.to_str().ok())
+        .or_else(|| req.uri().authority().map(|a| a.as_str()))
+        .unwrap_or("");
+    if !app.access.host_allowed(host, app.bound.ip()) {
+        return refuse(
+            StatusCode::MISDIRECTED_REQUEST,
+            format!(
+                "a request for host '{}' reached the panel at {}: refused (a page of another site \
+                 may be reaching it through DNS rebinding); to serve the panel under a name, \
+                 start it with --allow-host NAME",
+                quote(host, 100),
+                app.bound
+            ),
+        );
+    }
+    next.run(req).await
+}
+
 /// The token rule and the same-origin rule for `/api/`.
 async fn guard(
     State(app): State<App>,
@@ -274,7 +363,7 @@ async fn guard(
     req: Request,
     next: Next,
 ) -> Response {
-    if let Some(want) = &app.token {
+    if let Some(want) = &app.access.token {
         let bearer = headers
             .get(header::AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
@@ -297,7 +386,11 @@ async fn guard(
         if origin_host != host {
             return refuse(
                 StatusCode::FORBIDDEN,
-                format!("a request from {origin} to the panel at {host}: only the panel's own page may send it"),
+                format!(
+                    "a request from {} to the panel at {}: only the panel's own page may send it",
+                    quote(origin, 100),
+                    quote(host, 100)
+                ),
             );
         }
     }
@@ -340,7 +433,10 @@ fn json_body(headers: &HeaderMap, body: &str) -> Result<Value, (StatusCode, Stri
     if !ty.starts_with("application/json") {
         return Err((
             StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            format!("Content-Type '{ty}': expected application/json"),
+            format!(
+                "Content-Type '{}': expected application/json",
+                quote(ty, 100)
+            ),
         ));
     }
     serde_json::from_str(body)
@@ -365,7 +461,7 @@ async fn control(
     }
     let (tx, rx) = tokio::sync::oneshot::channel();
     let req = ControlRequest {
-        text: body,
+        text: Ok(body),
         reply: Some(tx),
     };
     match app.controls.try_send(req) {

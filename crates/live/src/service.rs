@@ -3,7 +3,7 @@
 //! panel shows.
 
 use crate::control::{Control, ControlRequest};
-use crate::event::{Event, LatencyMs};
+use crate::event::{quote, Event, LatencyMs};
 use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
 use crate::trace::TraceStage;
@@ -21,7 +21,9 @@ use physid_signal::integrity::{Finding as IntegrityFinding, IntegrityStream};
 use physid_sim::run::SimError;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 use thiserror::Error;
 /// Errors of the live service.
@@ -80,6 +82,9 @@ pub struct LiveConfig {
     pub friction: Option<FrictionLive>,
     /// The cyclic-torque estimation on the stream, when asked for.
     pub torque: Option<TorqueLive>,
+    /// Set (by a SIGINT or SIGTERM handler) to end the run after the current chunk, as a
+    /// `stop` control does: the stages finish and a log being written is closed.
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 /// The cyclic-torque estimation's settings live.
@@ -137,6 +142,7 @@ impl Default for LiveConfig {
             log_dir: PathBuf::from("physid-logs"),
             friction: None,
             torque: None,
+            stop: None,
         }
     }
 }
@@ -149,6 +155,9 @@ pub const CYCLE_CHANNELS: [&str; 5] = [
     "p_cyl",
     "p_int",
 ];
+
+/// The most bytes of a client's message an `error` event quotes.
+pub const MAX_QUOTED: usize = 300;
 
 /// What a run did.
 #[derive(Debug, Clone, PartialEq)]
@@ -183,6 +192,9 @@ pub fn run_live(
 ) -> Result<Summary, LiveError> {
     let mut live = Stages::new(cfg.clone(), source.rate_hz(), emit)?;
     loop {
+        if live.stopping() {
+            break;
+        }
         let chunk = match source.next_chunk() {
             Ok(Some(c)) => c,
             Ok(None) => break,
@@ -372,8 +384,16 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             t_s,
             input,
             line,
-            message,
+            message: quote(&message, MAX_QUOTED).into_owned(),
         })
+    }
+
+    /// Whether the run is to end now (the stop flag of [`LiveConfig::stop`] is set).
+    fn stopping(&self) -> bool {
+        self.cfg
+            .stop
+            .as_ref()
+            .is_some_and(|s| s.load(Ordering::Relaxed))
     }
 
     /// Hand one event to `emit`.
@@ -391,6 +411,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         let mut paused_at: Option<Instant> = None;
         loop {
             let req = if self.paused {
+                // A signal ends a pause too.
+                if self.stopping() {
+                    self.paused = false;
+                    break;
+                }
                 paused_at.get_or_insert_with(Instant::now);
                 match rx.recv_timeout(Duration::from_millis(50)) {
                     Ok(r) => r,
@@ -409,31 +434,38 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             };
             self.st.control_line += 1;
             let mut log_event = None;
-            let result = Control::parse(&req.text).and_then(|c| {
-                match &c {
-                    Control::Pause => self.paused = true,
-                    Control::Resume => self.paused = false,
-                    // A stop ends a pause too.
-                    Control::Stop => {
-                        self.paused = false;
-                        source.control(&c)?;
-                    }
-                    Control::Record(Some(name)) => {
-                        self.recorder.start(name)?;
-                    }
-                    Control::Record(None) => {
-                        log_event = self
-                            .recorder
-                            .stop(self.st.last_t)
-                            .map_err(|e| e.to_string())?;
-                        if log_event.is_none() {
-                            return Err("field 'stop': no log is being written".into());
+            let result = req
+                .text
+                .clone()
+                .and_then(|t| Control::parse(&t))
+                .and_then(|c| {
+                    match &c {
+                        Control::Pause => self.paused = true,
+                        Control::Resume => self.paused = false,
+                        // A stop ends a pause too.
+                        Control::Stop => {
+                            self.paused = false;
+                            source.control(&c)?;
                         }
+                        Control::Record(Some(name)) => {
+                            self.recorder.start(name)?;
+                        }
+                        Control::Record(None) => {
+                            log_event = self
+                                .recorder
+                                .stop(self.st.last_t)
+                                .map_err(|e| e.to_string())?;
+                            if log_event.is_none() {
+                                return Err("field 'stop': no log is being written".into());
+                            }
+                        }
+                        _ => source.control(&c)?,
                     }
-                    _ => source.control(&c)?,
-                }
-                Ok(c.name())
-            });
+                    Ok(c.name())
+                })
+                // What an error quotes of the message is capped: a huge message is refused, not
+                // echoed to every panel and kept in the backlog.
+                .map_err(|e| quote(&e, MAX_QUOTED).into_owned());
             let t_s = self.st.last_t;
             let line = self.st.control_line;
             let event = match &result {

@@ -137,11 +137,15 @@ pub fn run(args: &Args) -> Result<()> {
 /// Where the converted recording goes: a chunk at a time, memory flat however long the file
 /// (an MDF4 file written compressed too: block by block); `--channels` picked from each chunk.
 struct Sink {
-    writer: physid_io::ChunkWriter,
+    /// The file being written (`None` once an interruption has closed it).
+    writer: Option<physid_io::ChunkWriter>,
     names: Vec<String>,
     path: PathBuf,
     header: physid_core::Recording,
     samples: usize,
+    /// Set by SIGINT or SIGTERM: the file is closed (readable) and kept, and the conversion
+    /// ends with an error saying how much it holds.
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl Sink {
@@ -154,23 +158,46 @@ impl Sink {
         let names = selection(header, channels)
             .unwrap_or_else(|| header.names().iter().map(|n| n.to_string()).collect());
         let header = pick(header, &names)?;
+        let stop = super::stop_on_signal().map_err(|e| AppError::Invalid(e.to_string()))?;
         Ok(Sink {
-            writer: physid_io::ChunkWriter::create(path, &header, opts)?,
+            writer: Some(physid_io::ChunkWriter::create(path, &header, opts)?),
             names,
             path: path.to_path_buf(),
             header,
             samples: 0,
+            stop,
         })
     }
 
     fn append(&mut self, chunk: &physid_core::Recording) -> Result<(), AppError> {
-        self.writer.append(&pick(chunk, &self.names)?)?;
+        let Some(w) = self.writer.as_mut() else {
+            return Err(self.interrupted());
+        };
+        w.append(&pick(chunk, &self.names)?)?;
         self.samples += chunk.len();
+        if self.stop.load(std::sync::atomic::Ordering::Relaxed) {
+            if let Some(w) = self.writer.take() {
+                w.close()?;
+            }
+            return Err(self.interrupted());
+        }
         Ok(())
     }
 
-    fn close(self) -> Result<(), AppError> {
-        self.writer.close()?;
+    /// What an interruption left.
+    fn interrupted(&self) -> AppError {
+        AppError::Invalid(format!(
+            "interrupted by a signal: {} holds the first {} samples, closed and readable",
+            self.path.display(),
+            self.samples
+        ))
+    }
+
+    fn close(mut self) -> Result<(), AppError> {
+        match self.writer.take() {
+            Some(w) => w.close()?,
+            None => return Err(self.interrupted()),
+        }
         wrote(&self.path, &self.header, self.samples);
         Ok(())
     }

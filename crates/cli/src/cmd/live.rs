@@ -11,8 +11,8 @@ use physid_apps::friction_fit::{
 use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
 use physid_live::fleet::{publish::PublishConfig, NatsTarget};
 use physid_live::{
-    run_live, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, LiveError, Pace,
-    Panel, PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
+    run_live, Access, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, LiveError,
+    Pace, Panel, PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
 };
 use physid_sim::params::CellParams;
 use physid_sim::run::{OutputBasis, RunOptions};
@@ -21,9 +21,12 @@ use serde_json::json;
 use std::fs::File;
 use std::io::Write;
 use std::io::{BufRead, BufReader};
-use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::net::{IpAddr, SocketAddr, ToSocketAddrs};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender};
+use std::sync::Arc;
+use std::time::Duration;
 
 /// Arguments of `physid live`.
 #[derive(clap::Args)]
@@ -31,16 +34,36 @@ pub struct Args {
     /// Run without the panel, printing the events (needs --json).
     #[arg(long)]
     headless: bool,
-    /// The panel's address: 127.0.0.1 unless told otherwise; any other needs --token.
-    #[arg(long, default_value_t = IpAddr::V4(Ipv4Addr::LOCALHOST), conflicts_with = "headless")]
-    bind: IpAddr,
+    /// The panel's address or host name: 127.0.0.1 unless told otherwise; any address but a
+    /// loopback one needs a token. A name (`localhost`, the machine's DNS name) is resolved,
+    /// and requests may name it in their `Host`.
+    #[arg(
+        long,
+        value_name = "ADDR|NAME",
+        default_value = "127.0.0.1",
+        conflicts_with = "headless"
+    )]
+    bind: String,
     /// The panel's port (0: any free one; the address is printed).
     #[arg(long, default_value_t = 8750, conflicts_with = "headless")]
     port: u16,
+    /// Another host name requests may name in their `Host` header (repeatable): a reverse
+    /// proxy's, or the machine's DNS name. Every other name is refused (DNS rebinding).
+    #[arg(long = "allow-host", value_name = "NAME", conflicts_with = "headless")]
+    allow_hosts: Vec<String>,
     /// A secret every panel request must carry (`?token=…` or `Authorization: Bearer …`); at
-    /// least 8 characters. Required with a --bind other than loopback.
-    #[arg(long, conflicts_with = "headless")]
+    /// least 8 characters. Required with a --bind other than loopback. Shown in the process
+    /// list: prefer PHYSID_TOKEN or --token-file.
+    #[arg(
+        long,
+        env = "PHYSID_TOKEN",
+        hide_env_values = true,
+        conflicts_with = "headless"
+    )]
     token: Option<String>,
+    /// Read the token from this file's first line (kept out of the process list).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["headless", "token"])]
+    token_file: Option<PathBuf>,
     /// Where `record` controls (the panel's logging) write their Parquet or MDF4 files.
     #[arg(long, value_name = "DIR", default_value = "physid-logs")]
     log_dir: PathBuf,
@@ -215,6 +238,11 @@ pub fn run(a: &Args) -> Result<()> {
     if let (Some(url), Some(cell)) = (&a.nats, &a.cell) {
         return publish(a, url, cell, source.as_mut(), what, theta_tdc);
     }
+    // SIGINT and SIGTERM end the run as a stop control does: the stages finish, a log being
+    // written is closed.
+    let stop = super::stop_on_signal()?;
+    give_up_after_signal(stop.clone());
+    cfg.stop = Some(stop.clone());
     if a.headless {
         let controls = match &a.controls {
             None => None,
@@ -247,14 +275,10 @@ pub fn run(a: &Args) -> Result<()> {
     if let Some(path) = &a.controls {
         forward_lines(lines(path, "--controls")?, tx.clone());
     }
-    let panel = Panel::start(
-        SocketAddr::new(a.bind, a.port),
-        a.token.clone(),
-        hub.clone(),
-        tx,
-    )
-    .map_err(|e| miette!("{e}"))?;
-    let url = announce(a, &panel, "panel")?;
+    let (bind, access) = panel_access(a)?;
+    let token = access.token.clone();
+    let panel = Panel::start(bind, access, hub.clone(), tx).map_err(|e| miette!("{e}"))?;
+    let url = announce(a, &panel, token.as_deref(), "panel")?;
     let result = run_live(source.as_mut(), &cfg, Some(&rx), |e| hub.publish(e));
     // Controls sent from now on are answered "the run has ended".
     drop(rx);
@@ -262,17 +286,25 @@ pub fn run(a: &Args) -> Result<()> {
         let _ = hub.publish(&Event::finding(f64::NAN, format!("the run stopped: {e}")));
         eprintln!("physid live: the run stopped: {e}");
     }
-    eprintln!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
-    panel.wait_for_shutdown();
+    if !stop.load(Ordering::Relaxed) {
+        eprintln!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
+        panel.wait_for_shutdown();
+    }
     result.map(|_| ()).map_err(|e| miette!("{e}"))
 }
 
 /// `physid live --fleet URL`: the fleet view until SIGINT/SIGTERM.
 fn fleet_view(a: &Args, url: &str) -> Result<()> {
     let target = NatsTarget::new(url, a.nats_credentials.as_deref()).map_err(|e| miette!("{e}"))?;
-    let panel = Panel::start_fleet(SocketAddr::new(a.bind, a.port), a.token.clone(), &target)
-        .map_err(|e| miette!("{e}"))?;
-    announce(a, &panel, &format!("fleet view of {}", target.address))?;
+    let (bind, access) = panel_access(a)?;
+    let token = access.token.clone();
+    let panel = Panel::start_fleet(bind, access, &target).map_err(|e| miette!("{e}"))?;
+    announce(
+        a,
+        &panel,
+        token.as_deref(),
+        &format!("fleet view of {}", target.address),
+    )?;
     panel.wait_for_shutdown();
     Ok(())
 }
@@ -382,28 +414,127 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
     })
 }
 
-/// Send each non-empty line of `reader` as a control message, on a thread of its own (the run
-/// never waits for it).
-fn forward_lines(reader: Box<dyn BufRead + Send>, tx: SyncSender<ControlRequest>) {
+/// How long a run may take to end after SIGINT or SIGTERM before the process exits anyway (a
+/// source waiting for input that does not come).
+const SIGNAL_GRACE: Duration = Duration::from_secs(5);
+
+/// Exit with status 130 when the run has not ended [`SIGNAL_GRACE`] after `stop` was set.
+fn give_up_after_signal(stop: Arc<AtomicBool>) {
     std::thread::spawn(move || {
-        for line in reader.lines().map_while(|l| l.ok()) {
-            if !line.trim().is_empty() && tx.send(ControlRequest::fire(line)).is_err() {
-                break;
-            }
+        while !stop.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(50));
         }
+        std::thread::sleep(SIGNAL_GRACE);
+        eprintln!(
+            "physid live: the run did not end within {} s of the signal (its source waits for \
+             input): exiting; a log being written holds every sample committed up to a second \
+             before (docs/live.md, No data lost)",
+            SIGNAL_GRACE.as_secs()
+        );
+        std::process::exit(130);
     });
 }
 
+/// Send each line of `reader` as a control message, on a thread of its own (the run never
+/// waits for it).
+fn forward_lines(reader: Box<dyn BufRead + Send>, tx: SyncSender<ControlRequest>) {
+    std::thread::spawn(move || physid_live::forward_control_lines(reader, tx));
+}
+
+/// Where the panel listens and who may reach it: `--bind` resolved (a name is allowed in
+/// `Host` too), `--allow-host`, and the token from `--token`, `PHYSID_TOKEN` or
+/// `--token-file`.
+fn panel_access(a: &Args) -> Result<(SocketAddr, Access)> {
+    let mut hosts = a.allow_hosts.clone();
+    let ip = match a.bind.parse::<IpAddr>() {
+        Ok(ip) => ip,
+        Err(_) => {
+            let name = a.bind.trim();
+            let found: Vec<SocketAddr> = (name, a.port)
+                .to_socket_addrs()
+                .map_err(|e| {
+                    miette!("--bind {name}: not an address, and resolving it failed: {e}")
+                })?
+                .collect();
+            // IPv4 first: what `localhost` means to most clients.
+            let ip = found
+                .iter()
+                .find(|s| s.is_ipv4())
+                .or(found.first())
+                .map(SocketAddr::ip)
+                .ok_or_else(|| miette!("--bind {name}: the name resolves to no address"))?;
+            hosts.push(name.to_string());
+            ip
+        }
+    };
+    if ip.is_unspecified() {
+        // Every address: the machine's own name is one a browser on the network may use.
+        hosts.extend(machine_name());
+    }
+    let token = match &a.token_file {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| miette!("--token-file {}: {e}", path.display()))?;
+            let t = text.lines().next().unwrap_or("").trim().to_string();
+            if t.is_empty() {
+                return Err(miette!(
+                    "--token-file {}: the first line is empty: expected the token",
+                    path.display()
+                ));
+            }
+            Some(t)
+        }
+        None => a.token.clone(),
+    };
+    Ok((SocketAddr::new(ip, a.port), Access { token, hosts }))
+}
+
+/// This machine's host name (Linux: /proc/sys/kernel/hostname), if it has one.
+fn machine_name() -> Option<String> {
+    let name = std::fs::read_to_string("/proc/sys/kernel/hostname").ok()?;
+    let name = name.trim();
+    (!name.is_empty() && name != "localhost").then(|| name.to_string())
+}
+
+/// The first address of this machine's network interfaces that is not a loopback one
+/// (IPv4 first).
+fn network_address() -> Option<IpAddr> {
+    let ips: Vec<IpAddr> = if_addrs::get_if_addrs()
+        .ok()?
+        .into_iter()
+        .map(|i| i.ip())
+        .filter(|ip| !ip.is_loopback())
+        .collect();
+    ips.iter().find(|ip| ip.is_ipv4()).or(ips.first()).copied()
+}
+
 /// The panel's address (with its token), printed as the first line on stdout (`physid live:
-/// WHAT at URL`, which scripts and the tests read) and opened with `--open`.
-fn announce(a: &Args, panel: &Panel, what: &str) -> Result<String> {
-    let url = format!(
-        "http://{}/{}",
-        panel.addr,
-        a.token
-            .as_ref()
-            .map_or(String::new(), |t| format!("?token={t}"))
-    );
+/// WHAT at URL`, which scripts and the tests read) and opened with `--open`. Bound to every
+/// address, the URL names one a browser can reach: the first network interface's (else
+/// 127.0.0.1).
+fn announce(a: &Args, panel: &Panel, token: Option<&str>, what: &str) -> Result<String> {
+    let query = token.map_or(String::new(), |t| format!("?token={t}"));
+    let url = if panel.addr.ip().is_unspecified() {
+        let host = network_address()
+            .map(|ip| SocketAddr::new(ip, 0).to_string())
+            .and_then(|s| s.rsplit_once(':').map(|(h, _)| h.to_string()))
+            .unwrap_or_else(|| "127.0.0.1".into());
+        eprintln!(
+            "physid live: listening on every address of this machine (port {}); on this machine \
+             also http://127.0.0.1:{}/",
+            panel.addr.port(),
+            panel.addr.port()
+        );
+        format!("http://{host}:{}/{query}", panel.addr.port())
+    } else {
+        format!("http://{}/{query}", panel.addr)
+    };
+    if token.is_some() {
+        eprintln!(
+            "physid live: the token travels in clear over HTTP: beyond this machine put TLS in \
+             front of the panel (docs/live.md, Security)"
+        );
+    }
     outln!("physid live: {what} at {url}");
     let _ = std::io::stdout().flush();
     if a.open {

@@ -14,6 +14,7 @@ pub mod identify;
 pub mod inspect;
 pub mod live;
 pub mod monitor;
+pub mod recover;
 pub mod run;
 pub mod simulate;
 pub mod torque;

@@ -277,6 +277,9 @@ fn write_as_it_goes(
 ) -> Result<Option<(usize, usize)>> {
     let mut writer: Option<ChunkWriter> = None;
     let (mut rows, mut channels) = (0, 0);
+    // SIGINT or SIGTERM: the file written so far is closed (readable) and kept.
+    let stop = super::stop_on_signal()?;
+    let mut interrupted = false;
     let result = (|| -> Result<()> {
         let mut run = Run::new(scenario, opts).map_err(|e| miette!("{e}"))?;
         // Refused when even its uncompressed float64 size cannot fit on the disk.
@@ -289,6 +292,10 @@ fn write_as_it_goes(
         let duration = run.duration();
         let mut t = 0.0;
         while !run.is_done() {
+            if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                interrupted = true;
+                break;
+            }
             t += 1.0;
             run.step_until(t).map_err(|e| miette!("{e}"))?;
             let mut chunk = run.drain().map_err(|e| miette!("{e}"))?;
@@ -311,6 +318,14 @@ fn write_as_it_goes(
         Ok(())
     })();
     match (result, writer) {
+        (Ok(()), Some(w)) if interrupted => {
+            w.close().map_err(|e| miette!("{e}"))?;
+            Err(miette!(
+                "interrupted by a signal: {} holds the first {rows} samples of {channels} \
+                 channels, closed and readable",
+                out.display()
+            ))
+        }
         (Ok(()), Some(w)) if rows >= 2 => {
             w.close().map_err(|e| miette!("{e}"))?;
             Ok(Some((channels, rows)))

@@ -1,0 +1,298 @@
+//! No data lost (docs/live.md): a live log being written survives SIGTERM and SIGINT (closed,
+//! readable as it is) and `kill -9` (readable as it is for MDF4, after `physid recover` for
+//! Parquet), at seeded random moments; what it holds is a stretch of `physid simulate`'s
+//! samples for the same scenario, bit for bit, missing at most the last second of wall-clock
+//! time before the kill. `simulate` and `convert` stopped by SIGTERM leave their output
+//! closed and readable too.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use common::physid;
+use physid_core::Recording;
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Write};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// A seeded xorshift: the kill moments, the same on every run.
+struct Seeded(u64);
+
+impl Seeded {
+    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        lo + (hi - lo) * (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `sig` to process `pid` (`kill -s SIG PID`).
+fn signal(pid: u32, sig: &str) {
+    let ok = Command::new("kill")
+        .args(["-s", sig, &pid.to_string()])
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "kill -s {sig} {pid}");
+}
+
+/// The first logged time's place in `sim`, and every channel of `logged` equal to `sim`'s
+/// from there, bit for bit, with its unit.
+fn a_stretch_of(logged: &Recording, sim: &Recording, what: &str) {
+    assert!(!logged.is_empty(), "{what}: no sample");
+    let t0 = logged.values("t").unwrap()[0];
+    let k0 = sim
+        .values("t")
+        .unwrap()
+        .iter()
+        .position(|&t| t == t0)
+        .unwrap_or_else(|| panic!("{what}: the first logged time {t0} is not simulated"));
+    assert_eq!(logged.channels().len(), sim.channels().len(), "{what}");
+    for c in logged.channels() {
+        let want = &sim.values(&c.name).unwrap()[k0..k0 + logged.len()];
+        assert!(c.values == want, "{what}: channel {} differs", c.name);
+        assert_eq!(
+            c.unit,
+            sim.channel(&c.name).unwrap().unit,
+            "{what}: {}",
+            c.name
+        );
+    }
+}
+
+#[test]
+fn a_live_log_survives_every_stop() {
+    let s = physid_testkit::Scratch::new("physid-no-data-lost");
+    let sim_path = s.file("sim.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "14",
+        "--recording",
+        sim_path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let sim = physid_io::read_parquet(&sim_path, None).unwrap();
+    let mut rng = Seeded(0x5eed_1234_abcd_0042);
+    let cases = [
+        ("TERM", "parquet"),
+        ("INT", "mf4"),
+        ("KILL", "parquet"),
+        ("KILL", "mf4"),
+        ("TERM", "mf4"),
+        ("INT", "parquet"),
+        ("KILL", "parquet"),
+    ];
+    for (i, (sig, ext)) in cases.into_iter().enumerate() {
+        let dir = s.file(&format!("logs-{i}"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+            .args([
+                "live",
+                "--headless",
+                "--json",
+                "--scenario",
+                "shaft-steady",
+                "--duration",
+                "14",
+                "--pace",
+                "4",
+                "--controls",
+                "-",
+                "--log-dir",
+                dir.to_str().unwrap(),
+            ])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let name = format!("run.{ext}");
+        let mut stdin = child.stdin.take().unwrap();
+        writeln!(stdin, r#"{{"cmd":"record","file":"{name}"}}"#).unwrap();
+        // The events as they come, each with the wall-clock moment it was read.
+        let (tx, rx) = mpsc::channel::<(Instant, Value)>();
+        let out = BufReader::new(child.stdout.take().unwrap());
+        let reader = std::thread::spawn(move || {
+            for line in out.lines().map_while(Result::ok) {
+                if let Ok(v) = serde_json::from_str(&line) {
+                    let _ = tx.send((Instant::now(), v));
+                }
+            }
+        });
+        let mut seen: Vec<(Instant, Value)> = Vec::new();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        // The log has started: its first `log` event.
+        while !seen.iter().any(|(_, e)| e["type"] == "log") {
+            let e = rx
+                .recv_timeout(deadline - Instant::now())
+                .expect("a log event");
+            seen.push(e);
+        }
+        let wait = Duration::from_secs_f64(rng.uniform(0.3, 2.0));
+        let kill_at = Instant::now() + wait;
+        while let Ok(e) = rx.recv_timeout(kill_at.saturating_duration_since(Instant::now())) {
+            seen.push(e);
+        }
+        let killed = Instant::now();
+        if sig == "KILL" {
+            child.kill().unwrap();
+        } else {
+            signal(child.id(), sig);
+        }
+        let status = child.wait().unwrap();
+        drop(stdin);
+        reader.join().unwrap();
+        seen.extend(rx.try_iter());
+        let what = format!(
+            "case {i}: SIG{sig} after {:.2} s, {name}",
+            wait.as_secs_f64()
+        );
+        let file = dir.join(&name);
+        if sig != "KILL" {
+            assert!(status.success(), "{what}: {status}");
+            // Closed by the run: readable as it is, its last `log` event says what it holds.
+            let closed = seen
+                .iter()
+                .rev()
+                .find(|(_, e)| e["type"] == "log" && e["state"] == "closed")
+                .unwrap_or_else(|| panic!("{what}: no closing log event"));
+            let logged = physid_io::read(&file, &Default::default()).unwrap();
+            assert_eq!(
+                closed.1["samples"].as_u64().unwrap() as usize,
+                logged.len(),
+                "{what}"
+            );
+            assert!(logged.len() > 1000, "{what}: {} samples", logged.len());
+            a_stretch_of(&logged, &sim, &what);
+            continue;
+        }
+        if ext == "parquet" {
+            let o = physid(&["recover", file.to_str().unwrap()]);
+            assert!(
+                o.status.success(),
+                "{what}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        let logged =
+            physid_io::read(&file, &Default::default()).unwrap_or_else(|e| panic!("{what}: {e}"));
+        a_stretch_of(&logged, &sim, &what);
+        // Every sample the run had processed a second and a half before the kill is there
+        // (commits each second; the estimate events follow their chunk).
+        let t_last = *logged.values("t").unwrap().last().unwrap();
+        let processed = seen
+            .iter()
+            .filter(|(at, e)| {
+                e["type"] == "estimate" && *at + Duration::from_millis(1500) <= killed
+            })
+            .filter_map(|(_, e)| e["t_s"].as_f64())
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(
+            t_last >= processed,
+            "{what}: the log ends at {t_last} s; {processed} s had been processed 1.5 s before"
+        );
+    }
+}
+
+/// `simulate` stopped by SIGTERM keeps its output closed and readable: the first samples of
+/// the whole run, bit for bit.
+#[test]
+fn simulate_stopped_by_a_signal_keeps_what_it_wrote() {
+    let s = physid_testkit::Scratch::new("physid-sim-signal");
+    let whole = s.file("whole.parquet");
+    let part = s.file("part.mf4");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "6",
+        "--recording",
+        whole.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let whole = physid_io::read_parquet(&whole, None).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args([
+            "simulate",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "600",
+            "--recording",
+            part.to_str().unwrap(),
+        ])
+        .stderr(Stdio::piped())
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Until it has written a few seconds.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while std::fs::metadata(&part).map_or(0, |m| m.len()) < 4_000_000 {
+        assert!(Instant::now() < deadline, "simulate wrote nothing in 60 s");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    signal(child.id(), "TERM");
+    let o = child.wait_with_output().unwrap();
+    assert!(!o.status.success(), "an interrupted simulate says so");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("interrupted by a signal"), "{err}");
+    let got = physid_io::read(&part, &Default::default()).unwrap();
+    assert!(
+        err.contains(&format!("the first {} samples", got.len())),
+        "{err}"
+    );
+    let n = got.len().min(whole.len());
+    assert!(n > 10_000, "{} samples", got.len());
+    for c in got.channels() {
+        assert!(
+            c.values[..n] == whole.values(&c.name).unwrap()[..n],
+            "channel {}",
+            c.name
+        );
+    }
+}
+
+/// `physid recover` on files it has nothing to do for, and on one that is not a log.
+#[test]
+fn recover_says_what_it_did() {
+    let s = physid_testkit::Scratch::new("physid-recover");
+    let f = s.file("ok.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "20",
+        "--recording",
+        f.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    let o = physid(&["recover", f.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("nothing to recover"));
+    // Cut mid-file: the row groups committed before the cut come back.
+    let bytes = std::fs::read(&f).unwrap();
+    let whole = physid_io::read_parquet(&f, None).unwrap();
+    let torn = s.file("torn.parquet");
+    std::fs::write(&torn, &bytes[..bytes.len() / 2]).unwrap();
+    let o = physid(&["recover", torn.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let got = physid_io::read_parquet(&torn, None).unwrap();
+    assert!(!got.is_empty() && got.len() < whole.len(), "{}", got.len());
+    assert!(got.values("t").unwrap()[..] == whole.values("t").unwrap()[..got.len()]);
+    // A torn CSV line.
+    let csv = s.file("torn.csv");
+    std::fs::write(&csv, "t,x\n0,1\n1,2\n2,").unwrap();
+    let o = physid(&["recover", csv.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("2 bytes cut off"));
+    assert_eq!(std::fs::read_to_string(&csv).unwrap(), "t,x\n0,1\n1,2\n");
+    let junk = s.file("junk.parquet");
+    std::fs::write(&junk, b"hello").unwrap();
+    let o = physid(&["recover", junk.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a Parquet file"));
+}
