@@ -318,6 +318,12 @@ impl Estimator {
     }
 }
 
+/// Below this engine speed [rad/s] (300 rpm, well under any test's operating point) the
+/// engine is taken as stopping or standing still: the
+/// estimator and the alarm detector are held (every parameter reported frozen) until it turns
+/// again — a stopped cell raises no alarm and does not wind the estimator's covariance up.
+pub const STANDSTILL_RAD_S: f64 = 300.0 * std::f64::consts::PI / 30.0;
+
 /// The shaft monitor as a stage: chunks of samples in, estimator samples and alarms out, the
 /// zero-phase low-pass done on the stream ([`ZeroPhaseStream`]). The file verb
 /// ([`monitor_shaft`]) and the live service run this same code; its output does not depend on
@@ -330,6 +336,9 @@ pub struct ShaftStage {
     filters: Option<Box<[ZeroPhaseStream; 3]>>,
     /// Times of the inputs not yet out of the filters.
     times: VecDeque<f64>,
+    /// The engine's speed [rad/s] at those times (the standstill hold).
+    #[serde(default)]
+    speeds: VecDeque<f64>,
     t0: Option<f64>,
     /// Index of the next filtered sample.
     next: usize,
@@ -411,6 +420,7 @@ impl ShaftStage {
             cfg: cfg.clone(),
             filters,
             times: VecDeque::with_capacity(latency + FILE_CHUNK),
+            speeds: VecDeque::with_capacity(latency + FILE_CHUNK),
             t0: None,
             next: 0,
             est,
@@ -517,6 +527,7 @@ impl ShaftStage {
             )));
         }
         self.times.extend(x.t);
+        self.speeds.extend(x.omega_en);
         for f in &mut self.filtered {
             f.clear();
         }
@@ -565,20 +576,26 @@ impl ShaftStage {
             let i = self.next;
             self.next += 1;
             let t = self.times.pop_front().unwrap_or(f64::NAN);
+            let speed = self.speeds.pop_front().unwrap_or(f64::NAN);
             if !i.is_multiple_of(self.every) {
                 continue;
             }
-            self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
-            self.est.update(&phi, tq[k], i)?;
+            // A shaft that does not turn resolves no damping and drifts the estimator's
+            // memory: the estimates and the alarm detector are held until it turns again.
+            let standstill = speed.abs() < STANDSTILL_RAD_S;
+            if !standstill {
+                self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
+                self.est.update(&phi, tq[k], i)?;
+            }
             let (estimate, se) = (self.estimate(), self.std_err());
             samples.push(ShaftSample {
                 index: i,
                 t_s: t,
                 estimate,
                 std_err: PerParam { k: se.k, b: se.b },
-                frozen: self.held(t),
+                frozen: if standstill { [true; 3] } else { self.held(t) },
             });
-            if t - t0 >= self.cfg.settle_s {
+            if !standstill && t - t0 >= self.cfg.settle_s {
                 if self.det_times.len() > self.cfg.dwell.max(1) as usize {
                     self.det_times.pop_front();
                 }

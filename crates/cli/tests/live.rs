@@ -1081,3 +1081,131 @@ fn an_unreadable_control_line_is_refused_and_the_next_ones_act() {
     let end = of_type(&ev, "end");
     assert!(end[0]["t_s"].as_f64().unwrap() < 10.0, "{}", end[0]);
 }
+
+/// A cell that stops turning (the dynamometer switched to a zero torque demand: the engine
+/// coasts down to a standstill) raises no alarm and leaves the shaft monitor running, its
+/// estimates held near the healthy K and B; a speed demand below the operating envelope is
+/// refused naming it, and the run goes on.
+#[test]
+fn a_cell_that_stops_turning_raises_no_alarm() {
+    let ev = events_from_stdin(
+        &[
+            "live", "--headless", "--json", "--scenario", "shaft-steady", "--duration", "14",
+            "--pace", "max", "--controls", "-",
+        ],
+        "{\"cmd\":\"speed\",\"rpm\":0}\n{\"cmd\":\"mode\",\"demand\":\"torque\"}\n{\"cmd\":\"speed\",\"rpm\":0}\n",
+    );
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        says(
+            errors[0],
+            "outside the cell's operating envelope, 500–6000 rpm"
+        ),
+        "{}",
+        errors[0]
+    );
+    assert!(
+        of_type(&ev, "alarm").is_empty(),
+        "{:?}",
+        of_type(&ev, "alarm")
+    );
+    assert!(
+        !of_type(&ev, "finding").iter().any(|f| says(f, "stopped")),
+        "a stage stopped"
+    );
+    // The engine did stop: its last cycles' mean speed falls below 300 rpm.
+    let cycles = of_type(&ev, "cycle");
+    let slowest = cycles
+        .iter()
+        .map(|c| c["mean"]["omega_en"].as_f64().unwrap())
+        .fold(f64::INFINITY, f64::min);
+    assert!(slowest < 31.4, "{slowest} rad/s");
+    let last = of_type(&ev, "estimate").last().copied().unwrap();
+    let (k, b) = (
+        last["params"]["K"].as_f64().unwrap(),
+        last["params"]["B"].as_f64().unwrap(),
+    );
+    // The virtual cell's shaft: K = 1250 N·m/rad, B = 0.95 N·m·s/rad.
+    assert!((k / 1250.0 - 1.0).abs() < 0.05, "K = {k}");
+    assert!((b / 0.95 - 1.0).abs() < 0.2, "B = {b}");
+}
+
+/// `{"cmd":"restart","stage":"shaft"}` starts the shaft monitor afresh mid-run (what brings
+/// back one stopped by an error): its standard errors start again from the prior's and the
+/// estimates converge again on the shaft's K; a stage the run does not have is refused by
+/// field.
+#[test]
+fn a_stage_restarts_on_the_control() {
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args([
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "8",
+            "--pace",
+            "4",
+            "--controls",
+            "-",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    // Well into the run (≈ 3 s of recording at pace 4).
+    std::thread::sleep(std::time::Duration::from_millis(750));
+    writeln!(stdin, r#"{{"cmd":"restart","stage":"torque"}}"#).unwrap();
+    writeln!(stdin, r#"{{"cmd":"restart","stage":"shaft"}}"#).unwrap();
+    drop(stdin);
+    let o = child.wait_with_output().unwrap();
+    let ev: Vec<Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        says(
+            errors[0],
+            "field 'stage' is 'torque': this run has none (--torque)"
+        ),
+        "{}",
+        errors[0]
+    );
+    let restarted = of_type(&ev, "control");
+    assert_eq!(restarted.len(), 1);
+    let t_restart = restarted[0]["t_s"].as_f64().unwrap();
+    assert!(t_restart > 1.0, "{t_restart}");
+    let se_k = |e: &Value| e["std_err"]["K"].as_f64().unwrap_or(f64::INFINITY);
+    let before = of_type(&ev, "estimate")
+        .into_iter()
+        .filter(|e| e["t_s"].as_f64().unwrap() <= t_restart)
+        .next_back()
+        .unwrap();
+    let after: Vec<&Value> = of_type(&ev, "estimate")
+        .into_iter()
+        .filter(|e| e["t_s"].as_f64().unwrap() > t_restart)
+        .collect();
+    assert!(
+        after.len() > 10,
+        "{} estimates after the restart",
+        after.len()
+    );
+    assert!(
+        se_k(after[0]) > 10.0 * se_k(before),
+        "{} then {}",
+        before,
+        after[0]
+    );
+    let last = after.last().unwrap();
+    let k = last["params"]["K"].as_f64().unwrap();
+    assert!((k / 1250.0 - 1.0).abs() < 0.02, "K = {k}");
+}

@@ -11,6 +11,7 @@
 //! | `{"cmd": "mode", "demand": "torque"}` (or `"speed"`) | the dynamometer follows a torque (or speed) demand, held at its mean torque over the last whole engine cycle (or its present speed) |
 //! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
 //! | `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`), `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory (Parquet or MDF4), and finish it |
+//! | `{"cmd": "restart", "stage": "shaft"}` (or `friction`, `torque`) | start an application's stage afresh (one that stopped on an error comes back) |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
 //!
 //! A malformed message is refused with an error naming the field; the run goes on.
@@ -39,9 +40,19 @@ pub enum Control {
     Scenario(Box<Scenario>),
     /// The dynamometer's demand: torque (`true`) or speed, continuing from where it is.
     TorqueMode(bool),
+    /// Start an application's stage afresh: `shaft`, `friction` or `torque`.
+    Restart(&'static str),
     /// End the run.
     Stop,
 }
+
+/// The virtual cell's operating envelope for a speed demand [rpm]: below the minimum the
+/// dynamometer would stall the engine (a stopped engine teaches the shaft monitor nothing and
+/// its stages lose their excitation), above the maximum it overspeeds.
+pub const SPEED_ENVELOPE_RPM: (f64, f64) = (500.0, 6000.0);
+
+/// The stages a `restart` control can start afresh.
+pub const STAGES: [&str; 3] = ["shaft", "friction", "torque"];
 
 /// A control message on its way to the running loop, with where to send the answer (the
 /// command's name, or what was wrong) when someone waits for it.
@@ -195,16 +206,41 @@ impl Control {
                 Some("speed") => Ok(Control::TorqueMode(false)),
                 _ => Err("field 'demand': expected \"speed\" or \"torque\"".into()),
             },
+            Some("restart") => {
+                let stage = obj.get("stage").and_then(Value::as_str).unwrap_or("");
+                STAGES
+                    .iter()
+                    .find(|s| **s == stage)
+                    .map(|s| Control::Restart(s))
+                    .ok_or_else(|| {
+                        format!(
+                            "field 'stage' is '{}': expected {}",
+                            crate::event::quote(stage, 40),
+                            STAGES.join(", ")
+                        )
+                    })
+            }
             Some("stop") => Ok(Control::Stop),
             other => Err(format!(
-                "field 'cmd' is {}: expected speed, throttle, fault, scenario, mode, pause, resume, record or stop",
+                "field 'cmd' is {}: expected speed, throttle, fault, scenario, mode, pause, resume, record, restart or stop",
                 other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'"))
             )),
         }
     }
 
-    /// Apply it to a running cell (stop, pause, resume and record are the caller's to act on).
-    pub fn apply(&self, run: &mut Run) {
+    /// Apply it to a running cell (stop, pause, resume, record and restart are the caller's
+    /// to act on); a speed demand outside [`SPEED_ENVELOPE_RPM`] is refused, naming the
+    /// envelope (in torque mode the number is a torque, taken as it is).
+    pub fn apply(&self, run: &mut Run) -> Result<(), String> {
+        if let Control::Speed(rpm) = self {
+            let (lo, hi) = SPEED_ENVELOPE_RPM;
+            if !run.torque_mode() && !(lo..=hi).contains(rpm) {
+                return Err(format!(
+                    "field 'rpm' is {rpm}: outside the cell's operating envelope, {lo}–{hi} rpm \
+                     (below it the dynamometer stalls the engine)"
+                ));
+            }
+        }
         // A constant from now on: the run only evaluates its inputs ahead.
         let forever = |v: f64| Profile::constant(v, f64::MAX);
         match self {
@@ -213,8 +249,13 @@ impl Control {
             Control::Fault(f) => run.add_fault(f.clone()),
             Control::Scenario(s) => run.set_scenario(s),
             Control::TorqueMode(on) => run.set_torque_mode(*on),
-            Control::Stop | Control::Pause | Control::Resume | Control::Record(_) => {}
+            Control::Stop
+            | Control::Pause
+            | Control::Resume
+            | Control::Record(_)
+            | Control::Restart(_) => {}
         }
+        Ok(())
     }
 
     /// Its name (`speed`, `throttle`, `fault`, `stop`).
@@ -228,6 +269,7 @@ impl Control {
             Control::Pause => "pause",
             Control::Resume => "resume",
             Control::Record(_) => "record",
+            Control::Restart(_) => "restart",
             Control::Stop => "stop",
         }
     }

@@ -299,23 +299,8 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     }
 
     fn with_state(cfg: LiveConfig, st: State, emit: E) -> Result<Self, LiveError> {
-        let friction = match &cfg.friction {
-            Some(f) => {
-                let mut stage = FrictionStage::new(f.fit.clone(), Some(f.select_after))?;
-                stage.set_theta_tdc(cfg.theta_tdc)?;
-                Some(stage)
-            }
-            None => None,
-        };
-        let torque = match &cfg.torque {
-            Some(t) => {
-                let mut stage =
-                    TorqueStage::new(t.fit.clone(), t.select_after_cycles.max(1) * 720)?;
-                stage.set_theta_tdc(cfg.theta_tdc)?;
-                Some(stage)
-            }
-            None => None,
-        };
+        let friction = Self::friction_stage(&cfg)?;
+        let torque = Self::torque_stage(&cfg)?;
         Ok(Self {
             rate_hz: st.rate_hz,
             st,
@@ -335,6 +320,55 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             alarms: Vec::new(),
             done_cycles: Vec::new(),
         })
+    }
+
+    /// The friction characterisation `cfg` asks for, new.
+    fn friction_stage(cfg: &LiveConfig) -> Result<Option<FrictionStage>, LiveError> {
+        let Some(f) = &cfg.friction else {
+            return Ok(None);
+        };
+        let mut stage = FrictionStage::new(f.fit.clone(), Some(f.select_after))?;
+        stage.set_theta_tdc(cfg.theta_tdc)?;
+        Ok(Some(stage))
+    }
+
+    /// The cyclic-torque estimation `cfg` asks for, new.
+    fn torque_stage(cfg: &LiveConfig) -> Result<Option<TorqueStage>, LiveError> {
+        let Some(t) = &cfg.torque else {
+            return Ok(None);
+        };
+        let mut stage = TorqueStage::new(t.fit.clone(), t.select_after_cycles.max(1) * 720)?;
+        stage.set_theta_tdc(cfg.theta_tdc)?;
+        Ok(Some(stage))
+    }
+
+    /// Start the stage `name` afresh (`restart` control): one stopped by an error comes back,
+    /// from its configured start, on the samples from now on.
+    fn restart(&mut self, name: &str) -> Result<(), String> {
+        let none = |flag: &str| format!("field 'stage' is '{name}': this run has none ({flag})");
+        match name {
+            "shaft" => {
+                self.st.shaft = Some(
+                    ShaftStage::new(&self.cfg.monitor, self.rate_hz).map_err(|e| e.to_string())?,
+                );
+                self.st.shaft_frozen = None;
+            }
+            "friction" => {
+                self.friction = Some(
+                    Self::friction_stage(&self.cfg)
+                        .map_err(|e| e.to_string())?
+                        .ok_or_else(|| none("--friction"))?,
+                );
+            }
+            _ => {
+                self.torque = Some(
+                    Self::torque_stage(&self.cfg)
+                        .map_err(|e| e.to_string())?
+                        .ok_or_else(|| none("--torque"))?,
+                );
+            }
+        }
+        Ok(())
     }
 
     /// The state of the checkpointed stages as bytes (MessagePack, led by
@@ -450,6 +484,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                         Control::Record(Some(name)) => {
                             self.recorder.start(name)?;
                         }
+                        Control::Restart(stage) => self.restart(stage)?,
                         Control::Record(None) => {
                             log_event = self
                                 .recorder

@@ -80,7 +80,7 @@ impl Source for ScenarioSource {
     fn control(&mut self, c: &Control) -> Result<(), String> {
         match (c, self.run.as_mut()) {
             (Control::Stop, _) => self.stop = true,
-            (_, Some(run)) => c.apply(run),
+            (_, Some(run)) => c.apply(run)?,
             (_, None) => return Err("the run has ended".into()),
         }
         Ok(())

@@ -85,10 +85,11 @@ pub struct Args {
     /// client that sends any, until it closes its connection.
     #[arg(long, value_name = "PATH", conflicts_with_all = ["scenario", "faults", "duration", "replay", "frames"])]
     frames_socket: Option<PathBuf>,
-    /// Control messages for the virtual cell, one JSON object per line, from a file or `-` for
-    /// stdin: {"cmd": "speed", "rpm": 1200}, {"cmd": "throttle", "deg": 30},
-    /// {"cmd": "fault", "spec": "shaft.k=1000@12"}, {"cmd": "stop"} (docs/live.md).
-    #[arg(long, value_name = "FILE|-", conflicts_with_all = ["replay", "frames"])]
+    /// Control messages, one JSON object per line, from a file or `-` for stdin: for the
+    /// virtual cell {"cmd": "speed", "rpm": 1200}, {"cmd": "throttle", "deg": 30},
+    /// {"cmd": "fault", "spec": "shaft.k=1000@12"}, {"cmd": "stop"}; for any source
+    /// {"cmd": "restart", "stage": "shaft"}, {"cmd": "record", …} (docs/live.md).
+    #[arg(long, value_name = "FILE|-", conflicts_with = "frames")]
     controls: Option<PathBuf>,
     #[command(flatten)]
     input: super::InputArgs,
