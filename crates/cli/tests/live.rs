@@ -1187,8 +1187,7 @@ fn a_stage_restarts_on_the_control() {
     let se_k = |e: &Value| e["std_err"]["K"].as_f64().unwrap_or(f64::INFINITY);
     let before = of_type(&ev, "estimate")
         .into_iter()
-        .filter(|e| e["t_s"].as_f64().unwrap() <= t_restart)
-        .next_back()
+        .rfind(|e| e["t_s"].as_f64().unwrap() <= t_restart)
         .unwrap();
     let after: Vec<&Value> = of_type(&ev, "estimate")
         .into_iter()

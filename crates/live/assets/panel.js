@@ -329,8 +329,26 @@
   }
   window.physidControl = post;
   const submit = (id, f) => $(id).addEventListener("submit", (ev) => { ev.preventDefault(); f(); });
-  submit("f-speed", () => post("control", { cmd: "speed", rpm: Number($("speed").value) }));
-  submit("f-throttle", () => post("control", { cmd: "throttle", deg: Number($("throttle").value) }));
+  // A number field's value, or nothing sent and the reason shown: an empty field is not 0.
+  function number(id, what) {
+    const text = $(id).value.trim();
+    const v = Number(text);
+    if (text === "" || !isFinite(v)) {
+      const reply = $("reply");
+      reply.className = "reply err";
+      reply.textContent = text === "" ? `${what}: enter a number (nothing was sent)` : `${what}: '${text}' is not a number (nothing was sent)`;
+      return null;
+    }
+    return v;
+  }
+  submit("f-speed", () => {
+    const rpm = number("speed", "speed demand");
+    if (rpm !== null) post("control", { cmd: "speed", rpm });
+  });
+  submit("f-throttle", () => {
+    const deg = number("throttle", "throttle");
+    if (deg !== null) post("control", { cmd: "throttle", deg });
+  });
   submit("f-fault", () => {
     let spec = $("fault-spec").value.trim();
     if (!spec) return;
