@@ -230,13 +230,13 @@ impl CsvChunks {
             path: p.clone(),
             source,
         };
-        let mut file = std::io::BufReader::new(std::fs::File::open(path).map_err(os)?);
+        let mut file = std::io::BufReader::new(std::fs::File::open(path).map_err(&os)?);
         // The header line decides the separator; it is read again by the CSV parser.
         let mut first = Vec::new();
         (&mut file)
             .take(1 << 20)
             .read_until(b'\n', &mut first)
-            .map_err(os)?;
+            .map_err(&os)?;
         let sep = Sep::of(&String::from_utf8_lossy(&first));
         let text = std::io::Cursor::new(first).chain(file);
         let source: CsvSource = match sep {
@@ -493,29 +493,20 @@ pub fn write_csv(path: impl AsRef<Path>, rec: &Recording) -> Result<(), IoError>
 pub fn recover_csv(path: impl AsRef<Path>) -> Result<u64, IoError> {
     use std::io::{Read, Seek, SeekFrom};
     let p = path.as_ref().display().to_string();
-    let os = |source| IoError::Os {
-        path: p.clone(),
-        source,
-    };
-    let mut f = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(path.as_ref())
-        .map_err(os)?;
-    let size = f.metadata().map_err(os)?.len();
+    let (mut f, size, os) = crate::open_torn(path.as_ref())?;
     // Back from the end a block at a time to the last line end.
     let mut end = size;
     let mut buf = vec![0u8; 64 * 1024];
     while end > 0 {
         let lo = end.saturating_sub(buf.len() as u64);
         let part = &mut buf[..(end - lo) as usize];
-        f.seek(SeekFrom::Start(lo)).map_err(os)?;
-        f.read_exact(part).map_err(os)?;
+        f.seek(SeekFrom::Start(lo)).map_err(&os)?;
+        f.read_exact(part).map_err(&os)?;
         if let Some(k) = part.iter().rposition(|&b| b == b'\n') {
             let keep = lo + k as u64 + 1;
             if keep < size {
-                f.set_len(keep).map_err(os)?;
-                f.sync_all().map_err(os)?;
+                f.set_len(keep).map_err(&os)?;
+                f.sync_all().map_err(&os)?;
             }
             return Ok(size - keep);
         }

@@ -165,6 +165,25 @@ pub(crate) fn drain(
     Ok(rec)
 }
 
+/// A file a writer was killed while writing, opened to be mended in place: the file, its size,
+/// and the error for an operating-system failure on it.
+pub(crate) fn open_torn(
+    path: &std::path::Path,
+) -> Result<(std::fs::File, u64, impl Fn(std::io::Error) -> IoError), IoError> {
+    let p = path.display().to_string();
+    let os = move |source| IoError::Os {
+        path: p.clone(),
+        source,
+    };
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .map_err(&os)?;
+    let size = f.metadata().map_err(&os)?.len();
+    Ok((f, size, os))
+}
+
 /// A chunk appended to a file written as it comes must have the file's channels, in its order.
 pub(crate) fn check_appended(
     path: &str,

@@ -532,16 +532,7 @@ fn group_span(g: &RowGroupMetaData) -> Option<(u64, u64)> {
 /// refused, naming what is missing.
 pub fn recover_parquet(path: impl AsRef<Path>) -> Result<Recovered, IoError> {
     let p = path.as_ref().display().to_string();
-    let os = |source| IoError::Os {
-        path: p.clone(),
-        source,
-    };
-    let mut f = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(path.as_ref())
-        .map_err(os)?;
-    let size = f.metadata().map_err(os)?.len();
+    let (mut f, size, os) = crate::open_torn(path.as_ref())?;
     if bytes_at(&f, 0, 4).as_deref() != Some(b"PAR1") {
         return Err(pq_err(
             &p,
@@ -602,10 +593,10 @@ pub fn recover_parquet(path: impl AsRef<Path>) -> Result<Recovered, IoError> {
     let n = groups.len();
     let foot = footer(&template, groups, b"PAR1").map_err(|e| pq_err(&p, e))?;
     use std::io::{Seek, Write};
-    f.set_len(keep).map_err(os)?;
-    f.seek(std::io::SeekFrom::Start(keep)).map_err(os)?;
-    f.write_all(&foot).map_err(os)?;
-    f.sync_all().map_err(os)?;
+    f.set_len(keep).map_err(&os)?;
+    f.seek(std::io::SeekFrom::Start(keep)).map_err(&os)?;
+    f.write_all(&foot).map_err(&os)?;
+    f.sync_all().map_err(&os)?;
     Ok(Recovered::Restored {
         rows,
         groups: n,
