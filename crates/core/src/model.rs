@@ -104,10 +104,24 @@ pub const GRADIENT_CHUNK: usize = 8;
 pub type Grad = DualSVec64<GRADIENT_CHUNK>;
 
 /// Exact gradients of a model with respect to a subset of its parameters, allocation-free
-/// after construction (the dual-number parameter vector is preallocated).
-#[derive(Debug, Clone)]
+/// after construction (the dual-number parameter vector is preallocated). Serialised as its
+/// size: it holds no state between evaluations.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(from = "usize", into = "usize")]
 pub struct GradientEngine {
     duals: Vec<Grad>,
+}
+
+impl From<usize> for GradientEngine {
+    fn from(n_params: usize) -> Self {
+        Self::new(n_params)
+    }
+}
+
+impl From<GradientEngine> for usize {
+    fn from(engine: GradientEngine) -> usize {
+        engine.n_params()
+    }
 }
 
 impl GradientEngine {

@@ -65,7 +65,7 @@ impl Default for SigmaPoints {
 
 /// The unscented transform's weights for `l` free parameters (Alg. 5.7, SPEC fix):
 /// `ζ = α²(l + κ) − l`, `W0m = ζ/(l+ζ)`, `W0c = W0m + 1 − α² + β`, `Wi = 1/(2(l+ζ))`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SigmaWeights {
     /// Mean weight of the centre point, `W0m`.
     pub wm0: f64,
@@ -186,7 +186,7 @@ impl NlConfig {
 }
 
 /// The UKF's state and preallocated work space.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 struct Ukf {
     x: DVector<f64>,
     /// The prior covariance: P (UKF), or its factor S (SR-UKF).
@@ -257,14 +257,15 @@ impl Coords<'_> {
     }
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 enum Engine {
     Ekf(Box<LinearEstimator>),
     Ukf(Box<Ukf>),
 }
 
-/// EKF or UKF over the free parameters of a [`ParamModel`].
-#[derive(Debug, Clone)]
+/// EKF or UKF over the free parameters of a [`ParamModel`]. Serialised whole (its model
+/// too, when the model serialises): a copy restored from it continues bit for bit.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct NonlinearEstimator<M: ParamModel> {
     model: M,
     method: NlMethod,

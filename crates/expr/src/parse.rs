@@ -192,8 +192,9 @@ impl Node {
 }
 
 /// A model parsed from an expression: parameters named by the caller, every other name an
-/// input (data column).
-#[derive(Debug, Clone)]
+/// input (data column). Serialised as its text and parameter names, parsed again when read.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "ExprSource", into = "ExprSource")]
 pub struct ExprModel {
     text: String,
     pub(crate) nodes: Vec<Node>,
@@ -205,6 +206,29 @@ pub struct ExprModel {
     input_columns: Vec<usize>,
     /// The formula compiled for `f64` and the gradient dual.
     pub(crate) compiled: crate::compiled::CompiledSet,
+}
+
+/// What an [`ExprModel`] is made from: its serialised form.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct ExprSource {
+    text: String,
+    params: Vec<String>,
+}
+
+impl From<ExprModel> for ExprSource {
+    fn from(m: ExprModel) -> Self {
+        Self {
+            text: m.text,
+            params: m.params,
+        }
+    }
+}
+
+impl TryFrom<ExprSource> for ExprModel {
+    type Error = ExprError;
+    fn try_from(s: ExprSource) -> Result<Self, ExprError> {
+        Self::parse(&s.text, &s.params)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
