@@ -127,6 +127,7 @@ fn main() -> miette::Result<()> {
     miette::set_hook(Box::new(|_| {
         Box::new(miette::MietteHandlerOpts::new().wrap_lines(false).build())
     }))?;
+    physid_io::quiet_contained_panics();
     let cli = Cli::parse();
     progress::set_quiet(cli.quiet);
     match cli.command {

@@ -205,15 +205,12 @@ pub(crate) fn check_appended(
     })
 }
 
-/// Run a third-party decoder (the parquet and MDF crates) so that a panic on a corrupt file
-/// becomes `FILE: corrupt FORMAT (…)` instead of ending the program: the boundary the readers
-/// keep, since those crates assert on some malformed inputs (see `tests/fuzz.rs`). Allocation
-/// failure aborts and cannot be contained: the readers check claimed sizes before allocating.
-pub(crate) fn contained<T>(
-    path: &str,
-    format: &str,
-    f: impl FnOnce() -> Result<T, IoError>,
-) -> Result<T, IoError> {
+/// Keep the panic hook quiet for the decoder panics [`contained`] turns into errors (a corrupt
+/// file is reported once, as an error, not also as a panic message): for a program, called
+/// once at its start. A library host (the Python package) does not call it, so its process's
+/// panic hook stays its own; there a contained panic prints the hook's message and is still
+/// an error.
+pub fn quiet_contained_panics() {
     static HOOK: std::sync::Once = std::sync::Once::new();
     HOOK.call_once(|| {
         let previous = std::panic::take_hook();
@@ -223,6 +220,18 @@ pub(crate) fn contained<T>(
             }
         }));
     });
+}
+
+/// Run a third-party decoder (the parquet and MDF crates) so that a panic on a corrupt file
+/// becomes `FILE: corrupt FORMAT (…)` instead of ending the program: the boundary the readers
+/// keep, since those crates assert on some malformed inputs (see `tests/fuzz.rs`). Allocation
+/// failure aborts and cannot be contained: the readers check claimed sizes before allocating.
+/// No process-wide state is changed here ([`quiet_contained_panics`] is the program's choice).
+pub(crate) fn contained<T>(
+    path: &str,
+    format: &str,
+    f: impl FnOnce() -> Result<T, IoError>,
+) -> Result<T, IoError> {
     let was = CONTAINED.with(|c| c.replace(true));
     let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
     CONTAINED.with(|c| c.set(was));
@@ -237,4 +246,36 @@ pub(crate) fn contained<T>(
             detail: format!("corrupt {format} (the decoder failed: {why})"),
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+
+    /// A host's panic hook (Python's, an application's) still sees a decoder's panic that
+    /// [`super::contained`] turns into an error: the library installs no hook of its own.
+    #[test]
+    fn a_contained_panic_is_an_error_and_leaves_the_hosts_panic_hook_alone() {
+        let seen = Arc::new(AtomicUsize::new(0));
+        let s = seen.clone();
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if info.to_string().contains("physid-test-decoder-panic") {
+                s.fetch_add(1, Ordering::SeqCst);
+            }
+        }));
+        let r: Result<(), _> = super::contained("x.parquet", "Parquet", || {
+            panic!("physid-test-decoder-panic")
+        });
+        let _ = std::panic::take_hook();
+        std::panic::set_hook(previous);
+        let e = r.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(e.contains("x.parquet: corrupt Parquet"), "{e}");
+        assert_eq!(
+            seen.load(Ordering::SeqCst),
+            1,
+            "the host's hook was bypassed"
+        );
+    }
 }
