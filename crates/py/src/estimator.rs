@@ -5,7 +5,9 @@
 
 use crate::err;
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use physid_core::{FreeSet, ParamModel, ParamSet};
 use physid_estim::tracks::{track, Track};
 use physid_estim::{
@@ -16,6 +18,7 @@ use physid_expr::ExprModel;
 use pyo3::prelude::*;
 
 /// What an estimator is over.
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
 enum Kind {
     /// A model linear in its parameters: `update(phi, y)` with the regressor φ (Eq. 5.14).
     Linear(Box<LinearEstimator>),
@@ -25,13 +28,34 @@ enum Kind {
 
 /// A recursive estimator (thesis §5.3).
 #[pyclass(module = "physid._physid")]
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
 pub struct Estimator {
     kind: Kind,
+    /// The estimator as built, before its first sample: what [`Estimator::reset`] returns to.
+    initial: Kind,
     /// Inputs per sample: the parameters (linear) or the model's inputs.
     width: usize,
 }
 
+/// An estimator from the bytes its `__reduce__` gave (`pickle`): the whole state, MessagePack.
+#[pyfunction]
+pub(crate) fn _estimator(bytes: &[u8]) -> PyResult<Estimator> {
+    rmp_serde::from_slice(bytes).map_err(|e| {
+        err(format!(
+            "not a pickled physid estimator of this version: {e}"
+        ))
+    })
+}
+
 impl Estimator {
+    fn built(kind: Kind, width: usize) -> Self {
+        Self {
+            initial: kind.clone(),
+            kind,
+            width,
+        }
+    }
+
     fn rec(&self) -> &dyn Recursive {
         match &self.kind {
             Kind::Linear(e) => e.as_ref(),
@@ -112,10 +136,7 @@ impl Estimator {
         config.p0 = cov(p0, n, "p0")?;
         let (params, free) = param_set(names, theta0)?;
         let e = LinearEstimator::new(&config, &params, &free).map_err(err)?;
-        Ok(Self {
-            kind: Kind::Linear(Box::new(e)),
-            width: n,
-        })
+        Ok(Self::built(Kind::Linear(Box::new(e)), n))
     }
 
     /// A filter (`method`: ekf, ukf, srukf) over the formula `expr` whose parameters are
@@ -160,10 +181,7 @@ impl Estimator {
         config.scaled = scaled;
         let width = model.input_names().len();
         let e = NonlinearEstimator::new(model, &params, &free, &config).map_err(err)?;
-        Ok(Self {
-            kind: Kind::Model(Box::new(e)),
-            width,
-        })
+        Ok(Self::built(Kind::Model(Box::new(e)), width))
     }
 
     /// The model's input names (a filter over a formula), in the order `update` takes them.
@@ -219,18 +237,47 @@ impl Estimator {
     }
 
     /// One sample: the regressor φ (linear) or the model's inputs, and the output `y`;
-    /// returns the prediction error. A refused sample (NaN, a bad number) raises and leaves
-    /// the estimator as it was.
-    fn update(&mut self, x: PyReadonlyArray1<'_, f64>, y: f64) -> PyResult<f64> {
+    /// returns the prediction error `e` and the innovation variance `Var(e)` (the RLS family
+    /// and DSFC: in units of the noise variance σ²; the filters: absolute). A refused sample
+    /// (NaN, a bad number) raises and leaves the estimator as it was.
+    fn update(&mut self, x: PyReadonlyArray1<'_, f64>, y: f64) -> PyResult<(f64, f64)> {
         let x = x.as_slice().map_err(err)?;
         if x.len() != self.width {
             return Err(err(format!("{} values for {} inputs", x.len(), self.width)));
         }
-        match &mut self.kind {
-            Kind::Linear(e) => e.step(x, y),
-            Kind::Model(e) => e.step(x, y),
+        let step = match &mut self.kind {
+            Kind::Linear(e) => e.update(x, y),
+            Kind::Model(e) => e.update(x, y),
         }
-        .map_err(err)
+        .map_err(err)?;
+        Ok((step.prediction_error, step.innovation_variance))
+    }
+
+    /// Back to the estimator as it was built: its starting estimate and covariance, no sample.
+    fn reset(&mut self) {
+        self.kind = self.initial.clone();
+    }
+
+    /// An independent copy (`copy.copy`): it continues bit for bit as this one would.
+    fn __copy__(&self) -> Self {
+        self.clone()
+    }
+
+    /// As `__copy__` (the estimator holds no Python objects).
+    fn __deepcopy__(&self, _memo: &Bound<'_, PyAny>) -> Self {
+        self.clone()
+    }
+
+    /// `pickle`: the whole state as bytes ([`_estimator`] rebuilds it).
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, pyo3::types::PyBytes>,))> {
+        let bytes = rmp_serde::to_vec_named(self).map_err(err)?;
+        Ok((
+            py.import("physid._physid")?.getattr("_estimator")?,
+            (pyo3::types::PyBytes::new(py, &bytes),),
+        ))
     }
 
     /// The whole arrays, without the GIL: `x` (n × inputs, C order), `y` (n). Returns the

@@ -47,7 +47,6 @@ fn err(e: impl std::fmt::Display) -> PyErr {
     Error::new_err(e.to_string())
 }
 
-
 /// The identifiability of the parameters of the formula `expr` (names `names`, nominal values
 /// `nominal`, analysed: `free`, all if empty) over `inputs` (`{name: array}`) with the
 /// measured output `y` if given: ranking (Alg. 5.1), the estimable set (`cutoff`), Fisher
@@ -363,6 +362,15 @@ fn torque_fit<'py>(
     Ok((summary, arrays(py, cols)?))
 }
 
+/// The inputs of the formula `expr` whose parameters are `names`: every other name in it, in
+/// order of first appearance.
+#[pyfunction]
+fn formula_inputs(expr: &str, names: Vec<String>) -> PyResult<Vec<String>> {
+    Ok(ExprModel::parse(expr, &names)
+        .map_err(err)?
+        .inputs()
+        .to_vec())
+}
 
 /// The module.
 #[pymodule]
@@ -370,6 +378,8 @@ fn _physid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("Error", m.py().get_type::<Error>())?;
     m.add_class::<Recording>()?;
     m.add_class::<Estimator>()?;
+    m.add_function(wrap_pyfunction!(estimator::_estimator, m)?)?;
+    m.add_function(wrap_pyfunction!(formula_inputs, m)?)?;
     m.add_function(wrap_pyfunction!(recording::read, m)?)?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;

@@ -16,6 +16,42 @@ pub struct Recording {
     pub(crate) inner: physid_core::Recording,
 }
 
+/// A channel's values as float64: a numpy array of any number type and any strides, a pandas
+/// column (the nullable `Float64`/`Int64` too, a missing value read as NaN) or a sequence of
+/// numbers; anything else is an error naming the channel.
+fn values_of(name: &str, values: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    let py = values.py();
+    let bad = |why: String| {
+        err(format!(
+            "channel '{name}': expected a 1-D array or sequence of numbers ({why})"
+        ))
+    };
+    let values = if values.hasattr("to_numpy")? {
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("dtype", "float64")?;
+        kwargs.set_item("na_value", f64::NAN)?;
+        values
+            .call_method("to_numpy", (), Some(&kwargs))
+            .or_else(|_| values.call_method0("to_numpy"))
+            .map_err(|e| bad(e.to_string()))?
+    } else {
+        values.clone()
+    };
+    let a = py
+        .import("numpy")?
+        .call_method1("asarray", (values, "float64"))
+        .map_err(|e| bad(e.to_string()))?;
+    let a: PyReadonlyArray1<'_, f64> = a.extract().map_err(|_| {
+        bad(format!(
+            "an array of shape {}",
+            a.getattr("shape")
+                .map(|s| s.to_string())
+                .unwrap_or_default()
+        ))
+    })?;
+    Ok(a.as_array().to_vec())
+}
+
 fn basis_name(b: Basis) -> &'static str {
     match b {
         Basis::Time => "time",
@@ -42,25 +78,52 @@ impl Recording {
             b => return Err(err(format!("basis '{b}': expected time or crank_angle"))),
         };
         let pairs: Vec<(String, Bound<'_, PyAny>)> = match channels.cast::<PyDict>() {
-            Ok(d) => d.extract()?,
-            Err(_) => channels.extract()?,
+            Ok(d) => d
+                .items()
+                .iter()
+                .map(|kv| kv.extract())
+                .collect::<PyResult<_>>()?,
+            Err(_) => channels
+                .extract()
+                .map_err(|_| err("channels: expected {name: values} or [(name, values), …]"))?,
         };
         let units = units.unwrap_or_default();
         let mut inner = physid_core::Recording::new(basis);
         for (name, values) in pairs {
-            let values = match values.extract::<PyReadonlyArray1<'_, f64>>() {
-                Ok(a) => a.as_slice().map_err(err)?.to_vec(),
-                Err(_) => values.extract::<Vec<f64>>().map_err(|_| {
-                    err(format!(
-                        "channel '{name}': expected a 1-D array or sequence of numbers"
-                    ))
-                })?,
-            };
+            let values = values_of(&name, &values)?;
             let unit = units.get(&name).cloned().unwrap_or_default();
             inner.push(Channel { values, name, unit }).map_err(err)?;
         }
         inner.meta.extend(meta.unwrap_or_default());
         Ok(Self { inner })
+    }
+
+    /// `copy`, `deepcopy` and `pickle`: the recording rebuilt from its channels, units, basis
+    /// and metadata.
+    #[allow(clippy::type_complexity)]
+    fn __reduce__<'py>(
+        slf: &Bound<'py, Self>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        (
+            Vec<(String, Bound<'py, PyArray1<f64>>)>,
+            BTreeMap<String, String>,
+            &'static str,
+            BTreeMap<String, String>,
+        ),
+    )> {
+        let py = slf.py();
+        let me = slf.borrow();
+        let channels = me
+            .inner
+            .channels()
+            .iter()
+            .map(|c| (c.name.clone(), PyArray1::from_slice(py, &c.values)))
+            .collect();
+        Ok((
+            slf.get_type().into_any(),
+            (channels, me.units(), me.basis(), me.meta()),
+        ))
     }
 
     /// The channel names, in order.

@@ -55,8 +55,10 @@ def test_written_by_physid_read_by_pandas_pyarrow_and_asammdf(golden, tmp_path):
 def test_to_pandas_and_from_pandas(golden):
     rec = physid.read(golden(MOTORED))
     df = rec.to_pandas()
-    assert list(df.columns) == rec.channels and df.attrs["units"]["p_cyl"] == "Pa"
+    assert df.index.name == "t" and list(df.columns) == rec.channels[1:]
+    assert df.attrs["units"]["p_cyl"] == "Pa"
     back = physid.Recording.from_pandas(df)
+    assert back.channels == rec.channels
     assert back.basis == "crank_angle"
     np.testing.assert_array_equal(back["p_cyl"], rec["p_cyl"])
 

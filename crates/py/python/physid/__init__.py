@@ -16,11 +16,16 @@ arrays in and out:
 
 Errors are :class:`Error` (a ``ValueError``) carrying physid's message: the file, the
 channel, the sample or row.
+
+Recordings and estimators copy (``copy.copy``, ``copy.deepcopy``: independent copies) and
+pickle (``pickle``, ``joblib``, ``multiprocessing``). An estimator is for one thread at a
+time: a second thread calling it while ``run`` works raises :class:`Error` (give each thread
+its own copy).
 """
 from __future__ import annotations
 
-import json
-import re
+import json as _json
+import re as _re
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -33,6 +38,7 @@ __version__ = _physid.__version__
 
 __all__ = [
     "Error",
+    "Innovation",
     "Recording",
     "read",
     "RLS",
@@ -51,8 +57,19 @@ __all__ = [
 
 def _array(name: str, x: Any, ndim: int) -> np.ndarray:
     """``x`` as a C-contiguous float64 array of ``ndim`` dimensions, or :class:`Error` saying
-    what was wrong (numbers are converted, non-contiguous arrays copied)."""
+    what was wrong (numbers are converted, non-contiguous arrays copied, pandas' nullable
+    columns taken with a missing value as NaN)."""
+    if hasattr(x, "to_numpy"):
+        try:
+            x = x.to_numpy(dtype="float64", na_value=np.nan)
+        except (TypeError, ValueError):
+            x = x.to_numpy()
     a = np.asarray(x)
+    if a.dtype.kind == "O":
+        try:
+            a = a.astype(np.float64)
+        except (TypeError, ValueError):
+            pass
     if a.dtype.kind not in "biuf":
         raise Error(f"{name}: expected numbers, got an array of dtype {a.dtype}")
     if a.ndim != ndim:
@@ -87,11 +104,14 @@ def read(
 
 
 def _recording_to_pandas(self: Recording):
-    """The recording as a ``pandas.DataFrame`` (a column per channel; units in
-    ``df.attrs["units"]``, the basis in ``df.attrs["basis"]``). Needs pandas."""
+    """The recording as a ``pandas.DataFrame``: indexed by the time ``t`` [s] (when the
+    recording has it), a column per other channel; units in ``df.attrs["units"]``, the basis
+    in ``df.attrs["basis"]``. Needs pandas."""
     import pandas as pd
 
-    df = pd.DataFrame({name: self[name] for name in self.channels})
+    index = pd.Index(self["t"], name="t") if "t" in self else None
+    df = pd.DataFrame({name: self[name] for name in self.channels if index is None or name != "t"},
+                      index=index)
     df.attrs["units"] = self.units
     df.attrs["basis"] = self.basis
     df.attrs["meta"] = self.meta
@@ -104,11 +124,14 @@ def _recording_t(self: Recording) -> np.ndarray:
 
 
 def _recording_from_pandas(df, units: Mapping[str, str] | None = None, basis: str = "time") -> Recording:
-    """A recording from a ``pandas.DataFrame`` (numeric columns), units from ``units`` or
+    """A recording from a ``pandas.DataFrame`` (numeric columns; a named index, such as the
+    ``t`` of :meth:`Recording.to_pandas`, first), units from ``units`` or
     ``df.attrs["units"]``."""
     units = dict(units if units is not None else df.attrs.get("units", {}))
+    named = df.index.name is not None and df.index.name not in df.columns
+    index = [(str(df.index.name), _array(str(df.index.name), df.index, 1))] if named else []
     return Recording(
-        [(str(c), _array(str(c), df[c].to_numpy(), 1)) for c in df.columns],
+        index + [(str(c), _array(str(c), df[c], 1)) for c in df.columns],
         units=units,
         basis=df.attrs.get("basis", basis),
     )
@@ -139,6 +162,23 @@ class Run:
         """The final estimate (the last row of ``theta``)."""
         return self.theta[-1].copy()
 
+    def to_pandas(self, t: Any = None):
+        """The tracks as a ``pandas.DataFrame``: a column per parameter, ``NAME_std_err`` per
+        parameter and ``error``; indexed by ``t`` (the rows' times, e.g. ``rec.t``) when given,
+        else by row. Needs pandas."""
+        import pandas as pd
+
+        cols = {n: self.theta[:, k] for k, n in enumerate(self.names)}
+        cols.update({f"{n}_std_err": self.std_err[:, k] for k, n in enumerate(self.names)})
+        cols["error"] = self.errors
+        index = None
+        if t is not None:
+            t = _array("t", t, 1)
+            if t.shape[0] != self.theta.shape[0]:
+                raise Error(f"t has {t.shape[0]} values for {self.theta.shape[0]} rows")
+            index = pd.Index(t, name="t")
+        return pd.DataFrame(cols, index=index)
+
     def to_dict(self) -> dict:
         return {
             "names": self.names,
@@ -149,48 +189,112 @@ class Run:
         }
 
 
+class Innovation(float):
+    """What :meth:`update` returns: the a-priori prediction error ``e = y − ŷ`` (this number
+    itself, so it is used as one), with ``variance``, the innovation variance ``Var(e)``
+    (the RLS family and DSFC: in units of the noise variance σ²; the filters: absolute), and
+    ``standardized``, the standardised recursive residual ``e/√Var(e)`` (Brown, Durbin & Evans
+    1975; the CUSUM's input)."""
+
+    variance: float
+
+    def __new__(cls, error: float, variance: float):
+        self = super().__new__(cls, error)
+        self.variance = variance
+        return self
+
+    @property
+    def error(self) -> float:
+        """The prediction error ``e``."""
+        return float(self)
+
+    @property
+    def standardized(self) -> float:
+        """``e/√Var(e)``."""
+        return float(self) / np.sqrt(self.variance)
+
+    def __repr__(self) -> str:
+        return f"Innovation(error={float(self)!r}, variance={self.variance!r})"
+
+
+def _one_thread(e: RuntimeError) -> Error:
+    """pyo3's "Already borrowed" as physid's error: an estimator used by two threads at once."""
+    return Error("this estimator is in use by another thread (an estimator is for one thread "
+                 "at a time: give each thread its own copy.copy(est))")
+
+
 class _Estimator:
     """The methods every recursive estimator has."""
 
     _e: Any
     _width: int
 
+    def _call(self, f, *args):
+        try:
+            return f(*args)
+        except RuntimeError as e:
+            if "borrow" in str(e).lower():
+                raise _one_thread(e) from None
+            raise
+
     @property
     def names(self) -> list[str]:
         """The estimated parameters' names."""
         names = self.__dict__.get("_names")
         if names is None:
-            names = self.__dict__["_names"] = self._e.names
+            names = self.__dict__["_names"] = self._call(lambda: self._e.names)
         return list(names)
+
+    @property
+    def method(self) -> str:
+        """The method's name (``rls``, ``rlsf``, ``dsfc``, ``kalman``, ``ekf``, ``ukf``,
+        ``srukf``)."""
+        return self._call(lambda: self._e.method)
 
     @property
     def estimate(self) -> np.ndarray:
         """The current estimate ϑ."""
-        return self._e.estimate
+        return self._call(lambda: self._e.estimate)
 
     @property
     def std_err(self) -> np.ndarray:
         """The current standard errors (NaN while not estimable yet)."""
-        return self._e.std_err
+        return self._call(lambda: self._e.std_err)
 
     @property
     def covariance(self) -> np.ndarray:
         """The covariance P over the estimated parameters (the RLS family: in units of the
         noise variance σ²; the filters: absolute, in their coordinates)."""
-        return self._e.covariance
+        return self._call(lambda: self._e.covariance)
 
     @property
     def samples(self) -> int:
         """Samples taken."""
-        return self._e.samples
+        return self._call(lambda: self._e.samples)
 
-    def update(self, x: Any, y: float) -> float:
+    def update(self, x: Any, y: float) -> Innovation:
         """One sample: the regressor φ (linear estimators) or the model's inputs (filters),
-        and the measured output ``y``. Returns the a-priori prediction error. A sample the
-        estimator refuses (NaN, infinite) raises :class:`Error` and leaves it as it was."""
+        and the measured output ``y``. Returns the :class:`Innovation`: the a-priori prediction
+        error, with its variance and the standardised residual. A sample the estimator refuses
+        (NaN, infinite) raises :class:`Error` and leaves it as it was."""
         x = _array("x", x, 1)
         y = float(y)
-        return self._e.update(x, y)
+        e, var = self._call(self._e.update, x, y)
+        return Innovation(e, var)
+
+    def reset(self) -> None:
+        """Back to the estimator as it was built: its starting estimate and covariance, no
+        sample taken."""
+        self._call(self._e.reset)
+
+    def __copy__(self):
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new._e = self._call(self._e.__copy__)
+        return new
+
+    def __deepcopy__(self, memo):
+        return self.__copy__()
 
     def run(self, X: Any, y: Any, skip_bad: bool = False, std_err: bool = True) -> Run:
         """All rows of ``X`` (n × inputs) and ``y`` (n), in Rust without the GIL. Returns a
@@ -202,7 +306,7 @@ class _Estimator:
         y = _array("y", y, 1)
         if X.shape[0] != y.shape[0]:
             raise Error(f"X has {X.shape[0]} rows, y {y.shape[0]}")
-        theta, se, errors, skipped = self._e.run(X, y, skip_bad, std_err)
+        theta, se, errors, skipped = self._call(self._e.run, X, y, skip_bad, std_err)
         return Run(theta, se, errors, list(skipped), self.names)
 
     def __repr__(self) -> str:
@@ -210,13 +314,22 @@ class _Estimator:
 
 
 def _names(p: int | Sequence[str], names: Sequence[str] | None) -> list[str]:
+    """The parameters' names from ``p`` (their number, or their names) or ``names``."""
     if names is not None:
-        return list(names)
-    if isinstance(p, int):
+        if isinstance(names, str):
+            raise Error(f"names={names!r}: expected a list of names, e.g. ['K', 'B']")
+        return [str(n) for n in names]
+    if isinstance(p, (int, np.integer)) and not isinstance(p, bool):
         if p < 1:
             raise Error(f"p = {p}: expected at least one parameter")
-        return [f"theta{i}" for i in range(p)]
-    return list(p)
+        return [f"theta{i}" for i in range(int(p))]
+    if isinstance(p, str):
+        raise Error(f"p={p!r}: expected the number of parameters or a list of their names, "
+                    f"e.g. ['K', 'B'] (a text is not split into names)")
+    if isinstance(p, Sequence) and p and all(isinstance(n, str) for n in p):
+        return list(p)
+    raise Error(f"p={p!r}: expected the number of parameters (an integer) or a list of their "
+                f"names")
 
 
 def _theta0(names: list[str], theta0: Any) -> list[float]:
@@ -395,25 +508,27 @@ def identify(
     names = list(params.keys())
     nominal = [float(v) for v in params.values()]
 
-    def column(name: str) -> np.ndarray:
-        try:
-            return _array(name, data[name], 1)
-        except KeyError as e:
-            raise Error(str(e.args[0]) if e.args else f"no channel '{name}'") from None
+    keys = list(data.channels if isinstance(data, Recording) else data.keys())
+    have = ", ".join(map(str, keys)) or "no channels"
+    y_name = y if isinstance(y, str) else None
 
-    keys = data.channels if isinstance(data, Recording) else list(data.keys())
+    def column(name: str, what: str) -> np.ndarray:
+        if name not in keys:
+            raise Error(f"{what} '{name}' is not in the data; the data have: {have}")
+        return _array(name, data[name], 1)
+
     # Only the columns the formula names (a recording's other channels are not copied).
-    named = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", expr))
-    inputs = {k: column(k) for k in keys if k in named and k != y}
-    if isinstance(y, str):
-        yv = column(y)
+    inputs = {k: column(k, "the formula's input")
+              for k in _physid.formula_inputs(expr, names) if k != y_name}
+    if y_name is not None:
+        yv = column(y_name, "y: the channel")
     elif y is None:
         yv = None
     else:
         yv = _array("y", y, 1)
     text = _physid.identify(expr, names, nominal, inputs, yv, list(free or []), scaling, cutoff,
                             float(sigma) if sigma is not None else None)
-    r = json.loads(text)
+    r = _json.loads(text)
     steps = list(r.get("ranking", [])) + list(r.get("remainder", []))
     estimable = [s["param"] for s in r.get("ranking", [])]
     values = {k: _num(v) for k, v in (r.get("params") or {}).items()}
@@ -472,7 +587,7 @@ class Result:
         return sorted(set(super().__dir__()) | set(self._summary))
 
     def to_dict(self) -> dict:
-        return json.loads(json.dumps(self._summary))
+        return _json.loads(_json.dumps(self._summary))
 
     def __repr__(self) -> str:
         return f"<physid.{type(self).__name__}: {', '.join(self._summary)}; tracks {', '.join(self.tracks)}>"
@@ -537,7 +652,7 @@ def monitor_shaft(
                                       _pair(healthy, 2, "healthy"), _pair(theta0, 3, "theta0"),
                                       float(bound), int(dwell), float(cutoff_hz), float(rate_hz),
                                       float(settle_s), bool(supervise))
-    return ShaftMonitorResult(json.loads(s), dict(tracks))
+    return ShaftMonitorResult(_json.loads(s), dict(tracks))
 
 
 def friction_fit(
@@ -560,7 +675,7 @@ def friction_fit(
     s, tracks = _physid.friction_fit(rec, preset, {k: str(v) for k, v in (set or {}).items()},
                                      source, cutoff, float(s0), float(lam), float(transient_s),
                                      p_atm_kpa)
-    return FrictionFitResult(json.loads(s), dict(tracks))
+    return FrictionFitResult(_json.loads(s), dict(tracks))
 
 
 def torque_fit(
@@ -582,7 +697,7 @@ def torque_fit(
     (``{name: variance per sample}``) for parameters that change."""
     s, tracks = _physid.torque_fit(rec, method, dict(nominal or {}), list(fixed), cutoff,
                                    float(p0), r2, dict(track or {}))
-    return TorqueFitResult(json.loads(s), dict(tracks))
+    return TorqueFitResult(_json.loads(s), dict(tracks))
 
 
 __all__ += ["Result", "ShaftMonitorResult", "FrictionFitResult", "TorqueFitResult",
@@ -605,10 +720,10 @@ class LiveStream:
 
     def __next__(self) -> dict:
         line = next(self._s)
-        return json.loads(line)
+        return _json.loads(line)
 
     def control(self, message: Mapping[str, Any] | str) -> None:
-        self._s.control(message if isinstance(message, str) else json.dumps(dict(message)))
+        self._s.control(message if isinstance(message, str) else _json.dumps(dict(message)))
 
     def close(self) -> None:
         self._s.close()
@@ -646,3 +761,8 @@ def live(
 
 
 __all__ += ["LiveStream", "live"]
+
+
+def __dir__() -> list[str]:
+    """The package's own names (not the modules it uses)."""
+    return sorted(set(__all__) | {"__version__"})
