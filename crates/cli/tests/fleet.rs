@@ -713,3 +713,41 @@ fn the_fleet_view_in_a_real_browser() {
     let end = e.iter().find(|e| e["type"] == "end").expect("end");
     assert!(end["samples"].as_u64().unwrap_or(0) > 0);
 }
+
+/// `physid bench fleet`'s table gives the sample accounting on every run (not only in
+/// `--json`), and its latencies rounded alike; its JSON's latencies are to 0.1 ms.
+#[test]
+fn bench_fleet_prints_the_sample_accounting() {
+    if nats_server_bin().is_none() {
+        let _ = nats_server(&[]); // skips (or fails on CI)
+        return;
+    }
+    let out = common::physid(&["bench", "fleet", "--cells", "2", "--seconds", "2"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("samples published"))
+        .unwrap_or_else(|| panic!("no accounting line in\n{text}"));
+    let n: Vec<u64> = line
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    // published, processed, refused, resent, cells ended, cells.
+    assert_eq!(n.len(), 6, "{line}");
+    assert!(
+        n[0] > 0 && n[0] == n[1] && n[2] == 0 && n[4] == 2 && n[5] == 2,
+        "{line}"
+    );
+    let json = common::physid(&["bench", "fleet", "--cells", "1", "--seconds", "2", "--json"]);
+    let v: Value = serde_json::from_slice(&json.stdout).unwrap();
+    for q in v["latency_ms"].as_array().unwrap() {
+        let ms = q.as_f64().unwrap();
+        assert_eq!((ms * 10.0).round() / 10.0, ms, "{v}");
+    }
+}

@@ -156,6 +156,8 @@ pub enum Event {
         t: Vec<f64>,
         /// Each channel's bin means, SI units.
         channels: BTreeMap<&'static str, Vec<f64>>,
+        /// Samples taken from the stream's start, up to this event (the panel's header).
+        samples: u64,
     },
     /// The live data being logged: `{"type": "log", "t_s": …, "file": …, "samples": n,
     /// "bytes": n, "state": "recording" | "closed"}`.
@@ -189,8 +191,10 @@ pub enum Event {
         samples: usize,
         /// Frames refused (bad frames from outside).
         dropped: usize,
-        /// From a sample's time being due on the wall clock to its estimate being sent, when
-        /// paced (absent at `--pace max`) [ms].
+        /// From a sample's time being due on the wall clock to its estimate event handed to
+        /// every output (stdout, the log, the panels' and the fleet's queues), when paced
+        /// (absent at `--pace max`) [ms]: median, 99th percentile, largest, to 0.1 ms. A
+        /// browser adds its network and rendering delay.
         #[serde(skip_serializing_if = "Option::is_none")]
         latency_ms: Option<LatencyMs>,
     },

@@ -240,6 +240,9 @@ pub struct Stages<E> {
     pacer: Pacer,
     emit: E,
     paused: bool,
+    /// A `stop` control for a source that cannot end itself (a replay, frames): the loop ends
+    /// before the next chunk.
+    stop_requested: bool,
     latency: LatencyHistogram,
     samples: Vec<physid_apps::shaft_monitor::ShaftSample>,
     alarms: Vec<physid_apps::shaft_monitor::ShaftAlarm>,
@@ -315,6 +318,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             cfg,
             emit,
             paused: false,
+            stop_requested: false,
             latency: LatencyHistogram::default(),
             samples: Vec::new(),
             alarms: Vec::new(),
@@ -422,12 +426,15 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         })
     }
 
-    /// Whether the run is to end now (the stop flag of [`LiveConfig::stop`] is set).
+    /// Whether the run is to end now: the stop flag of [`LiveConfig::stop`] is set, or a `stop`
+    /// control came for a source that does not end itself.
     fn stopping(&self) -> bool {
-        self.cfg
-            .stop
-            .as_ref()
-            .is_some_and(|s| s.load(Ordering::Relaxed))
+        self.stop_requested
+            || self
+                .cfg
+                .stop
+                .as_ref()
+                .is_some_and(|s| s.load(Ordering::Relaxed))
     }
 
     /// Hand one event to `emit`.
@@ -476,10 +483,13 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                     match &c {
                         Control::Pause => self.paused = true,
                         Control::Resume => self.paused = false,
-                        // A stop ends a pause too.
+                        // A stop ends a pause too. The virtual cell ends itself (its last partial
+                        // chunk comes); any other source is ended here.
                         Control::Stop => {
                             self.paused = false;
-                            source.control(&c)?;
+                            if source.control(&c).is_err() {
+                                self.stop_requested = true;
+                            }
                         }
                         Control::Record(Some(name)) => {
                             self.recorder.start(name)?;
@@ -568,16 +578,17 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                     frozen: pick(true),
                 })?;
             }
-            // Every estimate is ready now, whether it is sent or thinned out.
-            if let Some(l) = self.pacer.since_due(s.t_s) {
-                self.latency.add(l);
-            }
             if self
                 .st
                 .last_sent
                 .is_none_or(|l| s.t_s - l >= self.cfg.estimate_every_s)
             {
                 self.send(&Event::shaft_estimate(&s))?;
+                // The latency as delivered: the estimate event handed to every output (stdout,
+                // the log, the panels' and the fleet's queues).
+                if let Some(l) = self.pacer.since_due(s.t_s) {
+                    self.latency.add(l);
+                }
                 self.st.last_sent = Some(s.t_s);
                 self.st.pending = None;
             } else {
@@ -856,11 +867,10 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         if let Some(e) = self.recorder.stop(self.st.last_t)? {
             self.send(&e)?;
         }
-        let latency_ms = self.latency.quantile(0.5).map(|p50| LatencyMs {
-            p50: 1e3 * p50,
-            p99: 1e3 * self.latency.quantile(0.99).unwrap_or(f64::NAN),
-            max: 1e3 * self.latency.max(),
-        });
+        let latency_ms =
+            self.latency
+                .summary_ms()
+                .map(|[p50, p99, max]| LatencyMs { p50, p99, max });
         let (t_s, samples, dropped) = (self.st.last_t, self.st.taken, self.st.dropped);
         self.send(&Event::End {
             t_s,
@@ -878,7 +888,9 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     }
 }
 
-/// A latency histogram: 0.1 ms bins up to 2 s (no allocation after construction).
+/// A latency histogram: 0.1 ms bins up to 2 s, then 10 ms bins up to 2 min (no allocation
+/// after construction). A quantile is its bin's upper edge, so within 0.1 ms below 2 s and
+/// within 10 ms above; a quantile among latencies beyond 2 min is the largest seen.
 #[derive(Debug, Clone)]
 pub struct LatencyHistogram {
     bins: Vec<u64>,
@@ -886,13 +898,19 @@ pub struct LatencyHistogram {
     max_s: f64,
 }
 
-/// Width of a bin [s].
+/// Width of a fine bin [s] and where the fine bins end.
 const BIN_S: f64 = 1e-4;
+const FINE_S: f64 = 2.0;
+/// Width of a coarse bin [s] and where they end.
+const COARSE_BIN_S: f64 = 1e-2;
+const COARSE_S: f64 = 120.0;
+const FINE_BINS: usize = 20_000;
+const BINS: usize = FINE_BINS + 11_800;
 
 impl Default for LatencyHistogram {
     fn default() -> Self {
         Self {
-            bins: vec![0; 20_000],
+            bins: vec![0; BINS + 1],
             count: 0,
             max_s: 0.0,
         }
@@ -900,15 +918,23 @@ impl Default for LatencyHistogram {
 }
 
 impl LatencyHistogram {
-    /// Count one latency [s] (beyond 2 s in the last bin; negative as 0).
+    /// Count one latency [s] (negative as 0; beyond 2 min in an overflow bin).
     pub fn add(&mut self, s: f64) {
-        let k = ((s.max(0.0) / BIN_S) as usize).min(self.bins.len() - 1);
+        let s = s.max(0.0);
+        let k = if s < FINE_S {
+            ((s / BIN_S) as usize).min(FINE_BINS - 1)
+        } else if s < COARSE_S {
+            (FINE_BINS + ((s - FINE_S) / COARSE_BIN_S) as usize).min(BINS - 1)
+        } else {
+            BINS
+        };
         self.bins[k] += 1;
         self.count += 1;
         self.max_s = self.max_s.max(s);
     }
 
-    /// The `q`-quantile [s] (upper edge of its bin); `None` when empty.
+    /// The `q`-quantile [s] (the upper edge of its bin, never above the largest seen); `None`
+    /// when empty.
     pub fn quantile(&self, q: f64) -> Option<f64> {
         if self.count == 0 {
             return None;
@@ -918,7 +944,14 @@ impl LatencyHistogram {
         for (k, &n) in self.bins.iter().enumerate() {
             seen += n;
             if seen >= want {
-                return Some((k + 1) as f64 * BIN_S);
+                let edge = if k < FINE_BINS {
+                    (k + 1) as f64 * BIN_S
+                } else if k < BINS {
+                    FINE_S + (k - FINE_BINS + 1) as f64 * COARSE_BIN_S
+                } else {
+                    self.max_s
+                };
+                return Some(edge.min(self.max_s));
             }
         }
         Some(self.max_s)
@@ -927,6 +960,16 @@ impl LatencyHistogram {
     /// The largest [s].
     pub fn max(&self) -> f64 {
         self.max_s
+    }
+
+    /// Median, 99th percentile and largest [ms], each to 0.1 ms; `None` when empty.
+    pub fn summary_ms(&self) -> Option<[f64; 3]> {
+        let ms = |s: f64| (s * 1e4).round() / 10.0;
+        Some([
+            ms(self.quantile(0.5)?),
+            ms(self.quantile(0.99)?),
+            ms(self.max_s),
+        ])
     }
 }
 
@@ -1012,11 +1055,13 @@ mod tests {
     }
 
     /// Quantiles of 1 … 1000 ms: the median's bin ends at 500 ms, the 99th percentile's at
-    /// 990 ms (0.1 ms bins); beyond 2 s lands in the last bin.
+    /// 990 ms (0.1 ms bins); beyond 2 s within 10 ms (the `bench fleet` run whose p99 stuck at
+    /// 2000 ms while its max was 2729 ms); beyond 2 min the largest seen.
     #[test]
     fn histogram_quantiles() {
         let mut h = LatencyHistogram::default();
         assert_eq!(h.quantile(0.5), None);
+        assert_eq!(h.summary_ms(), None);
         for k in 1..=1000 {
             h.add(k as f64 * 1e-3 - 5e-5);
         }
@@ -1024,6 +1069,19 @@ mod tests {
         assert!((h.quantile(0.99).unwrap() - 0.99).abs() < 1e-9);
         h.add(5.0);
         assert_eq!(h.max(), 5.0);
-        assert!((h.quantile(1.0).unwrap() - 2.0).abs() < 1e-9);
+        assert!((h.quantile(1.0).unwrap() - 5.0).abs() < 1e-9);
+        // Latencies 1.5 … 3.0 s: the 99th percentile is 2.985 s, within one 10 ms bin.
+        let mut slow = LatencyHistogram::default();
+        for k in 0..=300 {
+            slow.add(1.5 + k as f64 * 0.005 + 1e-6);
+        }
+        let p99 = slow.quantile(0.99).unwrap();
+        assert!((2.985..=2.995 + 1e-9).contains(&p99), "{p99}");
+        let [p50, p99_ms, max] = slow.summary_ms().unwrap();
+        // The median 2.250001 s is in the 10 ms bin [2.25, 2.26): its upper edge.
+        assert_eq!((p50, max), (2260.0, 3000.0));
+        assert!((p99_ms * 10.0).fract() == 0.0 && p99_ms <= max);
+        slow.add(500.0);
+        assert_eq!(slow.quantile(1.0), Some(500.0));
     }
 }

@@ -132,14 +132,18 @@ fn fleet(a: &FleetArgs) -> Result<()> {
                 r.cpu_physid.unwrap_or(f64::NAN),
                 r.cpu_server.unwrap_or(f64::NAN)
             );
-            if r.samples_processed != r.samples_published || r.frames_refused > 0 {
-                outln!(
-                    "      samples published {}, processed {}; frames refused {}",
-                    r.samples_published,
-                    r.samples_processed,
-                    r.frames_refused
-                );
-            }
+            // The accounting, every run: published = processed and nothing refused is what
+            // "real time" also requires.
+            outln!(
+                "      samples published {}, processed {}{}; frames refused {}, resent {}; cells ended {} of {}",
+                r.samples_published,
+                r.samples_processed,
+                if r.samples_processed == r.samples_published { "" } else { " (NOT ALL)" },
+                r.frames_refused,
+                r.frames_resent,
+                r.cells_ended,
+                r.cells
+            );
             for n in &r.notes {
                 outln!("      {n}");
             }

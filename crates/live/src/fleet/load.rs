@@ -336,8 +336,7 @@ pub fn run_load(
         .map_err(|_| FleetError::Invalid("the event counter failed".into()))?
         .clone();
     let processed: u64 = ends.values().sum();
-    let q = |p: f64| 1e3 * hist.quantile(p).unwrap_or(f64::NAN);
-    let latency_ms = [q(0.5), q(0.99), 1e3 * hist.max()];
+    let latency_ms = hist.summary_ms().unwrap_or([f64::NAN; 3]);
     let refused = stats.refused.load(Ordering::Relaxed);
     let rate_of = |key: &str| match (&varz0, &varz1) {
         (Some(a), Some(b)) => {
