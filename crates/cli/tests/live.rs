@@ -1208,3 +1208,45 @@ fn a_stage_restarts_on_the_control() {
     let k = last["params"]["K"].as_f64().unwrap();
     assert!((k / 1250.0 - 1.0).abs() < 0.02, "K = {k}");
 }
+
+/// A `stop` control ends a replay (the source cannot end itself: the service does) — it was
+/// refused as "only the virtual test cell takes controls" and the replay ran to its end.
+#[test]
+fn a_stop_control_ends_a_replay() {
+    let s = Scratch::new("physid-live-stop");
+    let file = s.file("run.parquet");
+    let f = file.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "20",
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let ev = events_from_stdin(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            f,
+            "--pace",
+            "1",
+            "--controls",
+            "-",
+        ],
+        "{\"cmd\":\"stop\"}\n",
+    );
+    assert!(
+        of_type(&ev, "error").is_empty(),
+        "{:?}",
+        of_type(&ev, "error")
+    );
+    assert_eq!(of_type(&ev, "control")[0]["cmd"], "stop");
+    let end = of_type(&ev, "end")[0];
+    // Ended within the first seconds of a 20 s replay at real-time pace.
+    assert!(end["t_s"].as_f64().unwrap() < 5.0, "{end}");
+}

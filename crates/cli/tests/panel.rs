@@ -523,11 +523,13 @@ fn the_host_rule_refuses_dns_rebinding() {
 /// photographed (`docs/live-panel.png` when `PHYSID_UPDATE_DOCS=1`).
 #[test]
 fn the_panel_in_a_real_browser() {
+    // Long enough that the fault is clicked before the end while the other browser test
+    // loads the machine too.
     let live = Live::start(&[
         "--scenario",
         "shaft-steady",
         "--duration",
-        "14",
+        "40",
         "--pace",
         "2",
     ]);
@@ -571,7 +573,7 @@ fn the_panel_in_a_real_browser() {
         eprintln!("K alarm {dt:.3} s of simulated time after the fault (injected at {t_fault:.3} s, clicked at {t_click:.3} s)");
         assert!(dt > 0.0 && dt <= 2.0, "K alarm {dt} s after the fault");
         // To the end of the run: no B alarm.
-        wait("window.physid.state === 'ended'", 40).await;
+        wait("window.physid.state === 'ended'", 60).await;
         assert_eq!(
             js("document.querySelectorAll('#alarms tr[data-param=\"B\"]').length").await,
             json!(0)
@@ -631,6 +633,200 @@ fn the_panel_in_a_real_browser() {
             js("document.querySelectorAll('#torque-table tr').length").await,
             json!(1 + chosen["estimable"].as_array().unwrap().len())
         );
+        c.close().await.unwrap();
+    });
+}
+
+/// The operator's view in a real Chromium (issue 40, items 1, 3 and 4): a page of a rebound
+/// name cannot reach the panel; an empty speed field sends nothing; a fault shows when it was
+/// stamped and when it arrived; an alarm raises the banner and a mark on the K plot, and the
+/// banner acknowledges it; the traces are envelopes, p_int and throttle have their own axes, the
+/// cyclic view is centred on firing TDC; a card whose data stop says "stale since"; a stage
+/// restarts from its button; the layout comes from `--layout FILE`, changes on the page and
+/// survives a reload; the help opens with `?`; the events export; Stop asks first.
+#[test]
+fn the_operators_view_in_a_real_browser() {
+    let s = physid_testkit::Scratch::new("physid-operator");
+    let layout_file = s.file("layout.json");
+    // Everything but the engine-torque cycle view; a 5 s window.
+    std::fs::write(
+        &layout_file,
+        r#"{"plots": {"k": ["K"], "b": ["B"], "speed": ["omega_en", "omega_dy"],
+            "torque": ["torque_shaft", "torque_engine"], "pint": ["p_int", "throttle"],
+            "cycles": ["torque_engine", "torque_shaft"], "pcyl": ["p_cyl"],
+            "friction": ["measured", "predicted", "nominal", "truth"]}, "window_s": 5}"#,
+    )
+    .unwrap();
+    let live = Live::start(&[
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "300",
+        "--pace",
+        "2",
+        "--layout",
+        layout_file.to_str().unwrap(),
+    ]);
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let Some(browser) = common::Browser::start("1500,1400").await else {
+            return;
+        };
+        let c = browser.client.clone();
+        let js = |expr: &'static str| browser.js(expr);
+        let wait = |expr: &'static str, secs: u64| browser.wait(expr, secs);
+        let click = |id: &'static str| {
+            let c = c.clone();
+            async move { c.find(Locator::Id(id)).await.unwrap().click().await.unwrap() }
+        };
+
+        // 1. A page whose name was rebound to this machine gets nothing from the panel, and
+        // its script cannot post a control.
+        let port = live.addr.port();
+        c.goto(&format!("http://{}:{port}/", common::REBIND_HOST)).await.unwrap();
+        let body = js("document.body.innerText").await;
+        assert!(body.as_str().unwrap().contains("refused"), "{body}");
+        let status = c
+            .execute_async(
+                "const done = arguments[0]; fetch('/api/control', {method: 'POST', headers: \
+                 {'Content-Type': 'application/json'}, body: JSON.stringify({cmd: 'fault', \
+                 spec: 'shaft.b=5@0'})}).then(r => done(r.status), e => done(String(e)));",
+                vec![],
+            )
+            .await
+            .unwrap();
+        assert_eq!(status, json!(421));
+
+        // The panel itself, with the layout file's plots and window.
+        c.goto(&live.url).await.unwrap();
+        wait("window.physid.tracePoints > 200 && window.physid.cycles > 5 && window.physid.t > 3", 40).await;
+        assert_eq!(
+            js("document.getElementById('log').textContent.includes('fault')").await,
+            json!(false),
+            "the rebound page's fault reached the cell"
+        );
+        // The page's plots are the server's (a --layout file is checked against these).
+        let page_plots = js("window.physid.plots").await;
+        let server: serde_json::Map<String, Value> = physid_live::layout::PLOTS
+            .iter()
+            .map(|(id, ch)| (id.to_string(), json!(ch)))
+            .collect();
+        assert_eq!(page_plots, Value::Object(server));
+        assert_eq!(js("window.physid.layout.window_s").await, json!(5));
+        assert_eq!(js("document.querySelector('.card[data-plot=tcyc]').hidden").await, json!(true));
+        assert_eq!(js("document.querySelector('.card[data-plot=pcyl]').hidden").await, json!(false));
+        // The header counts samples while the run goes.
+        wait("Number(document.getElementById('samples').textContent) > 10000", 20).await;
+
+        // 4. Envelopes (mean inside min–max), one axis per unit, the cyclic view centred on TDC.
+        assert_eq!(
+            js("(() => { const d = window.physid.uplot('plot-speed').data; if (d.length !== 7 || d[0].length < 50) return false; \
+                return d[1].every((m, i) => m === null || (d[3][i] <= m + 1e-9 && m <= d[2][i] + 1e-9)); })()")
+                .await,
+            json!(true)
+        );
+        assert_eq!(
+            js("[1, 4].map(i => window.physid.uplot('plot-pint').series[i].scale).join()").await,
+            json!("kPa,deg")
+        );
+        let centred = js("(() => { const d = window.physid.uplot('plot-pcyl').data, x = d[0], p = d[d.length - 1]; \
+            let k = 0; for (let i = 1; i < p.length; i++) if (p[i] > p[k]) k = i; return [x[0], x[x.length - 1], x[k]]; })()")
+            .await;
+        let (x0, x1, peak) = (
+            centred[0].as_f64().unwrap(),
+            centred[1].as_f64().unwrap(),
+            centred[2].as_f64().unwrap(),
+        );
+        assert!(x0 == -360.0 && x1 < 360.0 && peak.abs() < 40.0, "{centred}");
+
+        // 3. An empty speed field sends nothing and says why.
+        click("speed").await;
+        c.find(Locator::Css("#f-speed button")).await.unwrap().click().await.unwrap();
+        wait("document.getElementById('reply').textContent.includes('nothing was sent')", 5).await;
+        assert_eq!(js("window.physid.last.control === undefined").await, json!(true));
+
+        // 4. A fault from the page: stamped with the page's time, and when it arrived.
+        c.find(Locator::Id("fault-spec")).await.unwrap().send_keys("shaft.k=1000").await.unwrap();
+        click("fault-btn").await;
+        wait("document.getElementById('reply').textContent.includes('fault: done — acts at t =')", 10).await;
+        wait("document.getElementById('log').textContent.includes('the cell was at t =')", 10).await;
+        // The alarm: a banner, and a mark on the K plot at its time.
+        wait("!document.getElementById('alarm-banner').hidden", 40).await;
+        let banner = js("document.getElementById('alarm-text').textContent").await;
+        assert!(banner.as_str().unwrap().starts_with("ALARM K: fell"), "{banner}");
+        assert_eq!(js("window.physid.marks().some(m => m.param === 'K')").await, json!(true));
+        // Acknowledged from the banner (every K alarm raised so far, bounded).
+        for _ in 0..20 {
+            if js("document.getElementById('alarm-banner').hidden").await == json!(true) {
+                break;
+            }
+            click("alarm-ack").await;
+            tokio::time::sleep(Duration::from_millis(300)).await;
+        }
+        assert_eq!(js("document.getElementById('alarm-banner').hidden").await, json!(true));
+
+        // A stage restarts from its button.
+        c.find(Locator::Css("button.restart[data-stage=shaft]")).await.unwrap().click().await.unwrap();
+        wait("document.getElementById('reply').textContent === 'restart: done'", 10).await;
+
+        // Help: the ? key opens it, Esc closes it.
+        c.find(Locator::Css("body")).await.unwrap().send_keys("?").await.unwrap();
+        wait("!document.getElementById('help').hidden", 5).await;
+        c.find(Locator::Css("body")).await.unwrap().send_keys("\u{e00c}").await.unwrap();
+        wait("document.getElementById('help').hidden", 5).await;
+
+        // The layout: hide the cylinder-pressure view on the page; a reload keeps it hidden.
+        c.find(Locator::Css("#layout-picker input[data-plot=pcyl]")).await.unwrap().click().await.unwrap();
+        wait("document.querySelector('.card[data-plot=pcyl]').hidden", 5).await;
+        c.refresh().await.unwrap();
+        wait("window.physid.layout !== null && window.physid.tracePoints > 0", 20).await;
+        assert_eq!(js("document.querySelector('.card[data-plot=pcyl]').hidden").await, json!(true));
+        click("layout-reset").await;
+        wait("!document.querySelector('.card[data-plot=pcyl]').hidden", 5).await;
+
+        // 3. The engine stops (torque demand, no speed): the cycles stop, their cards say so.
+        click("mode-torque").await;
+        c.find(Locator::Id("speed")).await.unwrap().send_keys("0").await.unwrap();
+        c.find(Locator::Css("#f-speed button")).await.unwrap().click().await.unwrap();
+        wait("document.querySelector('.card[data-feed=cycle]').classList.contains('stale')", 60).await;
+        let tag = js("document.querySelector('.card[data-feed=cycle] .stale-tag').textContent").await;
+        assert!(tag.as_str().unwrap().starts_with("stale since t = "), "{tag}");
+        // The estimates go on (held at a standstill): not stale.
+        assert_eq!(
+            js("document.querySelector('.card[data-feed=estimate]').classList.contains('stale')").await,
+            json!(false)
+        );
+
+        // The session's events export (what the page's buttons download).
+        // Both at once: the run goes on between two calls.
+        let both = js("[window.physidExport.ndjson(), window.physidExport.csv()]").await;
+        let lines: Vec<Value> = both[0]
+            .as_str()
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert!(lines.iter().any(|e| e["type"] == "alarm" && e["param"] == "K"));
+        assert!(lines.iter().any(|e| e["type"] == "control" && e["cmd"] == "restart"));
+        assert!(lines.iter().all(|e| e["seq"].is_u64() && e["type"] != "trace"));
+        let csv = both[1].as_str().unwrap();
+        assert!(csv.starts_with("seq,type,t_s,summary,event\n"));
+        assert_eq!(csv.lines().count(), lines.len() + 1);
+
+        // Stop asks first: Cancel keeps the run, then Stop the run ends it.
+        click("stop").await;
+        assert_eq!(js("document.getElementById('stop-confirm').hidden").await, json!(false));
+        click("stop-no").await;
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        assert_eq!(js("window.physid.state").await, json!("running"));
+        click("stop").await;
+        click("stop-yes").await;
+        wait("window.physid.state === 'ended'", 20).await;
+        let png = c.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-operator.png"), &png).unwrap();
         c.close().await.unwrap();
     });
 }
@@ -755,4 +951,36 @@ fn the_logging_control_writes_the_live_data() {
     same_as_simulated(&logged);
     assert_eq!(logged2.channels().len(), sim.channels().len());
     same_as_simulated(&logged2);
+}
+
+/// A layout file naming a plot the panel does not have is refused before anything listens,
+/// naming the file and the plots there are.
+#[test]
+fn a_layout_file_that_does_not_fit_is_refused() {
+    let s = physid_testkit::Scratch::new("physid-layout");
+    let file = s.file("layout.json");
+    std::fs::write(&file, r#"{"plots": {"speeds": ["omega_en"]}}"#).unwrap();
+    let o = physid(&[
+        "live",
+        "--scenario",
+        "shaft-steady",
+        "--port",
+        "0",
+        "--layout",
+        file.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("layout.json: no plot 'speeds'; the panel's plots: k, b, speed"),
+        "{err}"
+    );
+    let missing = physid(&[
+        "live",
+        "--port",
+        "0",
+        "--layout",
+        "/nonexistent/layout.json",
+    ]);
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("--layout /nonexistent/layout.json"));
 }

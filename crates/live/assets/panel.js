@@ -8,8 +8,14 @@
   const pass = new URLSearchParams();
   for (const k of ["token", "cell"]) if (query.get(k)) pass.set(k, query.get(k));
   const api = (p) => "api/" + p + (pass.toString() ? "?" + pass.toString() : "");
-  const WINDOW_S = 10;       // the time traces' rolling window [s of recording]
+  let windowS = 10;          // the time traces' window [s of recording] (the layout's)
+  const KEEP_S = 120;        // trace data kept, so the window can grow to this [s]
   const EST_WINDOW_S = 120;  // the estimates' window [s]
+  // A feed whose data are this much older than the run's is stale [s of recording]: the
+  // friction characterisation waits out each speed step's transient, so it is given longer.
+  const STALE_S = { estimate: 2, cycle: 2, trace: 2, friction: 30 };
+  const ENVELOPE_BINS = 300; // display bins of a time trace (mean line, min–max band)
+  const MAX_KEPT_EVENTS = 200000; // events kept for the export
   const CYCLES_SHOWN = 10;   // cycles overlaid in the cyclic view
   const RPM = 60 / (2 * Math.PI);
   const $ = (id) => document.getElementById(id);
@@ -19,8 +25,25 @@
     state: "connecting", t: NaN, samples: 0, estimates: 0, traces: 0, tracePoints: 0,
     cycles: 0, alarms: 0, lost: 0, hellos: 0, hello: null, last: {}, first: {},
     frictionCycles: 0, torqueCycles: 0, identifiability: {},
+    feeds: {}, stale: {}, layout: null, exported: 0,
   };
   window.physid = st;
+  // Every event of the session as it came (the export), bounded.
+  let kept = [];
+  // The alarms raised, for the plots' markers: {param, t}.
+  let alarmMarks = [];
+
+  // The plots and the channels (series) each draws: the server's table too (crates/live/src/
+  // layout.rs, PLOTS: a --layout file is checked against it; the browser test compares them).
+  const PLOTS = {
+    k: ["K"], b: ["B"], speed: ["omega_en", "omega_dy"], torque: ["torque_shaft", "torque_engine"],
+    pint: ["p_int", "throttle"], cycles: ["torque_engine", "torque_shaft"], pcyl: ["p_cyl"],
+    tcyc: ["torque_engine"], friction: ["measured", "predicted", "nominal", "truth"],
+  };
+  st.plots = PLOTS;
+  // For the browser test: the alarms marked on the plots, and a plot's uPlot.
+  st.marks = () => alarmMarks;
+  st.uplot = (id) => plots[id];
 
   let est, tr, cyc, means, fric;
   function reset() {
@@ -31,6 +54,8 @@
     $("friction-table").tBodies[0].replaceChildren();
     est = { t: [], K: [], Khi: [], Klo: [], B: [], Bhi: [], Blo: [] };
     tr = { t: [], omega_en: [], omega_dy: [], torque_shaft: [], torque_engine: [], p_int: [], throttle: [] };
+    alarmMarks = []; st.feeds = {}; st.stale = {};
+    updateBanner();
     cyc = [];
     means = { cycle: [], torque_engine: [], torque_shaft: [] };
     $("alarms").tBodies[0].replaceChildren();
@@ -58,32 +83,89 @@
     const data = [[]].concat(series.map(() => []));
     plots[id] = new uPlot(o, data, el);
   }
-  function band(i, j) { return { series: [i, j], fill: "rgba(31,111,235,0.12)" }; }
-  function estPlot(id) {
+  function band(i, j, color) { return { series: [i, j], fill: color || "rgba(31,111,235,0.12)" }; }
+  // Red marks at the alarms of `param`, drawn over the plot.
+  function alarmMarker(param) {
+    return {
+      hooks: {
+        draw: [(u) => {
+          const ctx = u.ctx;
+          ctx.save();
+          ctx.strokeStyle = "#c62828"; ctx.fillStyle = "#c62828"; ctx.lineWidth = 2;
+          ctx.setLineDash([5, 3]);
+          ctx.font = "bold 12px system-ui";
+          for (const m of alarmMarks) {
+            if (m.param !== param) continue;
+            const x = u.valToPos(m.t, "x", true);
+            if (!(x >= u.bbox.left && x <= u.bbox.left + u.bbox.width)) continue;
+            ctx.beginPath(); ctx.moveTo(x, u.bbox.top); ctx.lineTo(x, u.bbox.top + u.bbox.height); ctx.stroke();
+            ctx.fillText("alarm", x + 3, u.bbox.top + 12);
+          }
+          ctx.restore();
+        }],
+      },
+    };
+  }
+  function estPlot(id, param) {
     makePlot(id, [
-      line("estimate", colors[0]),
+      line(param, colors[0]),
       line("+3σ", "rgba(31,111,235,0.35)", { width: 1 }),
       line("−3σ", "rgba(31,111,235,0.35)", { width: 1 }),
       line("healthy high", "#2e7d32", { dash: [6, 4], width: 1 }),
       line("healthy low", "#2e7d32", { dash: [6, 4], width: 1 }),
-    ], { uplot: { bands: [band(2, 3)] } });
+    ], { uplot: { bands: [band(2, 3)], plugins: [alarmMarker(param)] } });
   }
-  estPlot("plot-k");
-  estPlot("plot-b");
-  makePlot("plot-speed", [line("engine ω_en", colors[0]), line("dynamometer ω_dy", colors[1])]);
-  makePlot("plot-torque", [line("shaft τ_shaft", colors[0]), line("engine τ_engine", colors[2])]);
-  makePlot("plot-pint", [line("p_int [kPa]", colors[3]), line("throttle [deg]", colors[4])]);
+  estPlot("plot-k", "K");
+  estPlot("plot-b", "B");
+  // A time trace per channel: the display bin's mean, and its min–max band (so a signal that
+  // oscillates within a bin shows its envelope, not a comb).
+  const TRACES = {
+    speed: [["omega_en", "engine ω_en", colors[0]], ["omega_dy", "dynamometer ω_dy", colors[1]]],
+    torque: [["torque_shaft", "shaft τ_shaft", colors[0]], ["torque_engine", "engine τ_engine", colors[2]]],
+    pint: [["p_int", "p_int [kPa]", colors[3], "kPa"], ["throttle", "throttle [deg]", colors[4], "deg"]],
+  };
+  const tint = (c) => c + "26";
+  function tracePlot(plot) {
+    const series = [], bands = [];
+    TRACES[plot].forEach(([, label, color, scale], k) => {
+      const sc = scale ? { scale } : {};
+      series.push(line(label, color, sc), line(label + " max", tint(color), Object.assign({ width: 0.5 }, sc)),
+        line(label + " min", tint(color), Object.assign({ width: 0.5 }, sc)));
+      bands.push(band(3 * k + 2, 3 * k + 3, tint(color)));
+    });
+    const uplot = { bands };
+    if (plot === "pint") {
+      // Each unit its own axis: kPa on the left, degrees on the right.
+      uplot.scales = { x: { time: false }, kPa: {}, deg: {} };
+      uplot.axes = [{ label: "t [s]" }, { scale: "kPa", label: "kPa", size: 60 },
+        { scale: "deg", label: "deg", side: 1, size: 50, grid: { show: false } }];
+    }
+    makePlot("plot-" + plot, series, { uplot });
+    // The legend names each channel once (its band's edges are not listed).
+    const rows = plots["plot-" + plot].root.querySelectorAll(".u-legend .u-series");
+    rows.forEach((row, i) => { if (i > 0 && (i - 1) % 3 !== 0) row.style.display = "none"; });
+  }
+  for (const plot in TRACES) tracePlot(plot);
   makePlot("plot-cycles", [line("engine torque, cycle mean", colors[2]), line("shaft torque, cycle mean", colors[0])],
     { xLabel: "cycle" });
   const fade = (k) => `rgba(31,111,235,${(0.15 + 0.85 * (k + 1) / CYCLES_SHOWN).toFixed(2)})`;
   const cycSeries = () => Array.from({ length: CYCLES_SHOWN }, (_, k) =>
     line(k === CYCLES_SHOWN - 1 ? "latest" : `−${CYCLES_SHOWN - 1 - k}`, fade(k), { width: k === CYCLES_SHOWN - 1 ? 2 : 1 }));
-  makePlot("plot-pcyl", cycSeries(), { xLabel: "crank angle [deg]" });
-  makePlot("plot-tcyc", cycSeries(), { xLabel: "crank angle [deg]" });
+  const crankX = { xLabel: "crank angle from firing TDC [deg]", uplot: { scales: { x: { time: false, range: [-360, 360] } } } };
+  makePlot("plot-pcyl", cycSeries(), crankX);
+  makePlot("plot-tcyc", cycSeries(), crankX);
   makePlot("plot-friction", [line("measured", colors[0]), line("predicted (before the cycle)", colors[1]),
     line("nominal model", colors[4], { dash: [6, 4] }), line("simulated truth", colors[2], { width: 1 })], { xLabel: "cycle" });
+  // Which uPlot series draw each layout channel.
+  function seriesOf(plot, channel) {
+    const k = PLOTS[plot].indexOf(channel);
+    if (TRACES[plot]) return [3 * k + 1, 3 * k + 2, 3 * k + 3];
+    if (plot === "k" || plot === "b") return [1, 2, 3];
+    if (plot === "pcyl" || plot === "tcyc") return Array.from({ length: CYCLES_SHOWN }, (_, i) => i + 1);
+    return [k + 1];
+  }
   const resize = () => {
-    for (const id in plots) plots[id].setSize({ width: Math.max(200, $(id).clientWidth), height: 210 });
+    for (const id in plots) if ($(id).clientWidth > 0) plots[id].setSize({ width: Math.max(200, $(id).clientWidth), height: 210 });
   };
   window.addEventListener("resize", resize);
   // Cards that only some runs fill (the friction characterisation) appear with their data.
@@ -99,22 +181,56 @@
     const [khi, klo] = hl("K"), [bhi, blo] = hl("B");
     plots["plot-k"].setData([est.t, est.K, est.Khi, est.Klo, khi, klo]);
     plots["plot-b"].setData([est.t, est.B, est.Bhi, est.Blo, bhi, blo]);
-    plots["plot-speed"].setData([tr.t, tr.omega_en, tr.omega_dy]);
-    plots["plot-torque"].setData([tr.t, tr.torque_shaft, tr.torque_engine]);
-    plots["plot-pint"].setData([tr.t, tr.p_int, tr.throttle]);
+    for (const plot in TRACES) plots["plot-" + plot].setData(envelopes(TRACES[plot].map(([ch]) => ch)));
     plots["plot-cycles"].setData([means.cycle, means.torque_engine, means.torque_shaft]);
     plots["plot-friction"].setData([fric.cycle, fric.measured, fric.predicted, fric.nominal, fric.truth]);
     for (const [id, ch, scale] of [["plot-pcyl", "p_cyl", 1e-5], ["plot-tcyc", "torque_engine", 1]]) {
       const last = cyc.slice(-CYCLES_SHOWN);
-      const n = last.length ? last[last.length - 1][ch] ? last[last.length - 1][ch].length : 0 : 0;
-      const step = last.length ? last[last.length - 1].step_deg : 1;
-      const x = Array.from({ length: n }, (_, k) => k * step);
+      const newest = last.length ? last[last.length - 1] : null;
+      const n = newest && newest[ch] ? newest[ch].length : 0;
+      const step = newest ? newest.step_deg : 1;
+      // The grid runs 0…720° from firing TDC; shown −360…360° so the TDC peak is whole.
+      const half = Math.ceil(360 / step);
+      const order = Array.from({ length: n }, (_, k) => (k + half) % n);
+      const x = order.map((k) => (k * step >= 360 ? k * step - 720 : k * step));
       const ys = Array.from({ length: CYCLES_SHOWN }, (_, k) => {
         const c = last[k - (CYCLES_SHOWN - last.length)];
-        return c && c[ch] ? c[ch].map((v) => v * scale) : x.map(() => null);
+        return c && c[ch] ? order.map((i) => c[ch][i] * scale) : x.map(() => null);
       });
       plots[id].setData([x].concat(ys));
     }
+  }
+  // The traces within the window in ENVELOPE_BINS display bins: [t, then per channel mean,
+  // max, min].
+  function envelopes(channels) {
+    const t1 = tr.t.length ? tr.t[tr.t.length - 1] : 0, t0 = t1 - windowS;
+    let i0 = 0;
+    while (i0 < tr.t.length && tr.t[i0] < t0) i0++;
+    const width = windowS / ENVELOPE_BINS;
+    const out = [[]].concat(channels.flatMap(() => [[], [], []]));
+    let i = i0;
+    while (i < tr.t.length) {
+      const b = Math.floor((tr.t[i] - t0) / width);
+      const end = t0 + (b + 1) * width;
+      const acc = channels.map(() => [0, 0, -Infinity, Infinity]);
+      let tsum = 0, n = 0;
+      for (; i < tr.t.length && tr.t[i] < end; i++, n++) {
+        tsum += tr.t[i];
+        channels.forEach((ch, k) => {
+          const v = tr[ch][i];
+          if (v === null || !isFinite(v)) return;
+          const a = acc[k]; a[0] += v; a[1]++; a[2] = Math.max(a[2], v); a[3] = Math.min(a[3], v);
+        });
+      }
+      if (n === 0) { i++; continue; }
+      out[0].push(tsum / n);
+      acc.forEach((a, k) => {
+        out[1 + 3 * k].push(a[1] ? a[0] / a[1] : null);
+        out[2 + 3 * k].push(a[1] ? a[2] : null);
+        out[3 + 3 * k].push(a[1] ? a[3] : null);
+      });
+    }
+    return out;
   }
   function touch() {
     if (!dirty) { dirty = true; requestAnimationFrame(redraw); }
@@ -145,10 +261,48 @@
     if (isFinite(t)) { st.t = t; $("t").textContent = fmt(t, 2); }
     if (st.state === "connecting" || st.state === "reconnecting") setState("running");
   }
+  // A feed (estimate, cycle, trace, friction) delivered data of time t.
+  function fed(feed, t) {
+    if (!isFinite(t)) return;
+    st.feeds[feed] = t;
+    if (st.stale[feed] !== undefined) { delete st.stale[feed]; markStale(); }
+  }
+  // Cards whose data stopped while the run goes on say since when.
+  function markStale() {
+    document.querySelectorAll(".card[data-feed]").forEach((card) => {
+      const since = st.stale[card.dataset.feed];
+      card.classList.toggle("stale", since !== undefined);
+      const tag = card.querySelector(".stale-tag");
+      if (tag) tag.textContent = since !== undefined ? `stale since t = ${fmt(since, 2)} s` : "";
+    });
+  }
+  function checkStale() {
+    if (st.state !== "running") return;
+    let changed = false;
+    for (const feed in st.feeds) {
+      const stale = st.t - st.feeds[feed] > (STALE_S[feed] || 2);
+      if (stale && st.stale[feed] === undefined) { st.stale[feed] = st.feeds[feed]; changed = true; }
+    }
+    if (changed) markStale();
+  }
+  setInterval(checkStale, 500);
+  // The banner: the oldest alarm not acknowledged, and how many.
+  function updateBanner() {
+    const open = Array.from($("alarms").querySelectorAll("tbody tr:not(.acked)"));
+    $("alarm-count").textContent = String(open.length);
+    const banner = $("alarm-banner");
+    if (!open.length) { banner.hidden = true; return; }
+    const oldest = open[open.length - 1];
+    banner.hidden = false;
+    banner.dataset.seq = oldest.dataset.seq;
+    $("alarm-text").textContent = `ALARM ${oldest.dataset.param}: ${oldest.dataset.text}` +
+      (open.length > 1 ? ` (+${open.length - 1} more not acknowledged)` : "");
+  }
 
   const on = {
     hello(e) {
       reset();
+      kept = kept.filter((k) => k.e.type === "hello").slice(-1);
       st.first = {};
       st.hello = e; st.hellos++;
       $("source").textContent = e.source || "";
@@ -167,6 +321,7 @@
         est[name + "lo"].push(sd === null || sd === undefined ? null : v - 3 * sd);
       }
       trimBefore(est, e.t_s - EST_WINDOW_S);
+      fed("estimate", e.t_s);
       $("k-now").textContent = `${fmt(p.K, 1)} ± ${fmt(3 * s.K, 1)}`;
       $("b-now").textContent = `${fmt(p.B, 4)} ± ${fmt(3 * s.B, 4)}`;
       touch();
@@ -175,6 +330,8 @@
       st.alarms++; st.last.alarm = e; st.first.alarm = st.first.alarm || e; seen(e.t_s);
       const row = $("alarms").tBodies[0].insertRow(0);
       row.dataset.seq = seq; row.dataset.param = e.param;
+      row.dataset.text = `${e.change < 0 ? "fell" : "rose"} ${fmt(100 * Math.abs(e.change), 1)} % from healthy at t = ${fmt(e.t_s, 2)} s`;
+      alarmMarks.push({ param: e.param, t: e.t_s });
       row.insertCell().textContent = fmt(e.t_s, 3);
       row.insertCell().textContent = e.param;
       row.insertCell().textContent = `${100 * e.change >= 0 ? "+" : ""}${fmt(100 * e.change, 1)} %`;
@@ -182,16 +339,16 @@
       b.textContent = "Ack"; b.className = "ack";
       b.onclick = () => post("ack", { seq: Number(seq) });
       row.insertCell().appendChild(b);
-      $("alarm-count").textContent = String($("alarms").querySelectorAll("tbody tr:not(.acked)").length);
+      updateBanner(); touch();
       log(`${fmt(e.t_s, 3)} s: alarm ${e.param}, ${e.change < 0 ? "fell" : "rose"} ${fmt(100 * Math.abs(e.change), 1)} % from healthy (left its bound at ${fmt(e.t_start_s, 3)} s)`, "error");
     },
     ack(e) {
       const row = $("alarms").querySelector(`tr[data-seq="${e.seq}"]`);
       if (row) { row.classList.add("acked"); const b = row.querySelector("button"); if (b) b.remove(); }
-      $("alarm-count").textContent = String($("alarms").querySelectorAll("tbody tr:not(.acked)").length);
+      updateBanner();
     },
     cycle(e) {
-      st.cycles++; st.last.cycle = e; seen(e.t_s);
+      st.cycles++; st.last.cycle = e; seen(e.t_s); fed("cycle", e.t_s);
       if (e.curve) { cyc.push(e.curve); if (cyc.length > CYCLES_SHOWN) cyc.shift(); }
       means.cycle.push(e.cycle);
       means.torque_engine.push(e.mean.torque_engine ?? null);
@@ -232,8 +389,9 @@
       log(`${fmt(e.t_s, 3)} s: ${e.app} estimates ${e.estimable.join(", ")}; frozen ${e.frozen.length ? e.frozen.join(", ") : "none"}`);
     },
     friction(e) {
-      st.frictionCycles++; st.last.friction = e;
-      show("friction-card"); show("ident-card");
+      st.frictionCycles++; st.last.friction = e; fed("friction", e.t_s);
+      if (!st.layout || (st.layout.plots.friction || []).length) show("friction-card");
+      show("ident-card");
       fric.cycle.push(e.cycle); fric.measured.push(e.measured); fric.predicted.push(e.predicted);
       fric.nominal.push(e.nominal); fric.truth.push(e.truth ?? null);
       if (fric.cycle.length > 1000) for (const k in fric) fric[k].shift();
@@ -271,10 +429,23 @@
         tr.p_int.push(c.p_int ? c.p_int[k] * 1e-3 : null);
         tr.throttle.push(c.throttle ? c.throttle[k] : null);
       }
-      trimBefore(tr, e.t_s - WINDOW_S);
+      trimBefore(tr, e.t_s - KEEP_S);
+      fed("trace", e.t_s);
+      if (e.samples !== undefined) { st.samples = e.samples; $("samples").textContent = String(e.samples); }
       touch();
     },
-    control(e) { st.last.control = e; log(`${fmt(e.t_s, 3)} s: ${e.cmd}`); if (e.cmd === "pause") setState("paused"); if (e.cmd === "resume") setState("running"); },
+    control(e) {
+      st.last.control = e;
+      let text = `${fmt(e.t_s, 3)} s: ${e.cmd}`;
+      // A fault sent from this page: when it was stamped, and where the cell was when it came.
+      if (e.cmd === "fault" && pendingFault) {
+        text += ` ${pendingFault.spec} — acts at t = ${fmt(pendingFault.at, 3)} s (the page's time when sent); the cell was at t = ${fmt(e.t_s, 3)} s when it arrived`;
+        pendingFault = null;
+      }
+      log(text);
+      if (e.cmd === "pause") setState("paused");
+      if (e.cmd === "resume") setState("running");
+    },
     error(e) { log(`${fmt(e.t_s, 3)} s: ${e.input} line ${e.line}: ${e.message}`, "error"); },
     finding(e) {
       // Integrity findings (kind, sample) stand out: the data may be wrong.
@@ -282,6 +453,7 @@
     },
     end(e) {
       st.last.end = e; st.samples = e.samples; seen(e.t_s); setState("ended");
+      st.stale = {}; markStale();
       $("samples").textContent = String(e.samples);
       log(`${fmt(e.t_s, 3)} s: end — ${e.samples} samples, ${e.dropped} frames dropped`);
     },
@@ -299,6 +471,10 @@
     es.onmessage = (m) => {
       let e;
       try { e = JSON.parse(m.data); } catch (err) { log(`unreadable event: ${err}`, "error"); return; }
+      if (e.type !== "status") {
+        kept.push({ seq: m.lastEventId, e });
+        if (kept.length > MAX_KEPT_EVENTS) kept.splice(0, kept.length - MAX_KEPT_EVENTS);
+      }
       const f = on[e.type];
       if (f) f(e, m.lastEventId);
     };
@@ -349,11 +525,17 @@
     const deg = number("throttle", "throttle");
     if (deg !== null) post("control", { cmd: "throttle", deg });
   });
-  submit("f-fault", () => {
+  // The fault sent last, until its control event comes back: its text and the time stamped.
+  let pendingFault = null;
+  submit("f-fault", async () => {
     let spec = $("fault-spec").value.trim();
     if (!spec) return;
-    if (!spec.includes("@")) spec += "@" + (isFinite(st.t) ? st.t : 0);
-    post("control", { cmd: "fault", spec });
+    const at = isFinite(st.t) ? st.t : 0;
+    if (!spec.includes("@")) spec += "@" + at;
+    pendingFault = { spec, at: Number(spec.split("@")[1].split("+")[0]) };
+    const j = await post("control", { cmd: "fault", spec });
+    if (j.ok) $("reply").textContent = `fault: done — acts at t = ${fmt(pendingFault ? pendingFault.at : at, 2)} s (stamped by this page; the events say when it arrived)`;
+    else pendingFault = null;
   });
   submit("f-scenario", () => post("control", { cmd: "scenario", name: $("scenario").value.trim() }));
   $("mode-speed").onclick = () => post("control", { cmd: "mode", demand: "speed" });
@@ -362,8 +544,129 @@
   $("log-stop").onclick = () => post("control", { cmd: "record", stop: true });
   $("pause").onclick = () => post("control", { cmd: "pause" });
   $("resume").onclick = () => post("control", { cmd: "resume" });
-  $("stop").onclick = () => post("control", { cmd: "stop" });
+  // Stop ends the run for every panel: it asks first.
+  $("stop").onclick = () => { $("stop-confirm").hidden = false; };
+  $("stop-no").onclick = () => { $("stop-confirm").hidden = true; };
+  $("stop-yes").onclick = () => { $("stop-confirm").hidden = true; post("control", { cmd: "stop" }); };
+  for (const b of document.querySelectorAll("button.restart")) {
+    b.onclick = () => post("control", { cmd: "restart", stage: b.dataset.stage });
+  }
+  $("alarm-ack").onclick = () => {
+    const banner = $("alarm-banner");
+    if (!banner.hidden && banner.dataset.seq !== undefined) post("ack", { seq: Number(banner.dataset.seq) });
+  };
+
+  // ---- help and keys ----
+  const help = (show) => { $("help").hidden = !show; };
+  $("help-btn").onclick = () => help($("help").hidden);
+  $("help-close").onclick = () => help(false);
+  document.addEventListener("keydown", (ev) => {
+    const tag = ev.target && ev.target.tagName;
+    if (tag === "INPUT" || tag === "SELECT" || tag === "TEXTAREA" || ev.ctrlKey || ev.metaKey || ev.altKey) return;
+    if (ev.key === "?") help($("help").hidden);
+    else if (ev.key === "Escape") { help(false); $("stop-confirm").hidden = true; }
+    else if (ev.key === "a") $("alarm-ack").click();
+    else if (ev.key === "p") post("control", { cmd: st.state === "paused" ? "resume" : "pause" });
+  });
+
+  // ---- the session's events, exported ----
+  function download(name, type, text) {
+    const a = document.createElement("a");
+    a.href = URL.createObjectURL(new Blob([text], { type }));
+    a.download = name;
+    document.body.appendChild(a); a.click(); a.remove();
+    setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+  }
+  const stamp = () => new Date().toISOString().replace(/[:.]/g, "-");
+  // Traces are the plots' data: left out of the export (they are the recording's, decimated).
+  const exported = () => kept.filter((k) => k.e.type !== "trace");
+  function ndjson() { return exported().map((k) => JSON.stringify(Object.assign({ seq: Number(k.seq) }, k.e))).join("\n") + "\n"; }
+  function csv() {
+    const q = (v) => `"${String(v).replace(/"/g, '""')}"`;
+    const rows = ["seq,type,t_s,summary,event"];
+    for (const k of exported()) {
+      const e = k.e;
+      const summary = e.type === "alarm" ? `${e.param} ${fmt(100 * e.change, 1)} %`
+        : e.type === "control" ? e.cmd : e.type === "error" || e.type === "finding" ? e.message
+        : e.type === "estimate" ? `K ${fmt(e.params.K, 2)} B ${fmt(e.params.B, 4)}` : "";
+      rows.push([k.seq, e.type, e.t_s ?? "", q(summary), q(JSON.stringify(e))].join(","));
+    }
+    return rows.join("\n") + "\n";
+  }
+  window.physidExport = { ndjson, csv };
+  $("export-ndjson").onclick = () => { st.exported++; download(`physid-events-${stamp()}.ndjson`, "application/x-ndjson", ndjson()); };
+  $("export-csv").onclick = () => { st.exported++; download(`physid-events-${stamp()}.csv`, "text/csv", csv()); };
+
+  // ---- the layout: plots shown, channels drawn, the window ----
+  const LAYOUT_KEY = "physid.layout";
+  let fileLayout = null;
+  function defaultLayout() {
+    return { plots: JSON.parse(JSON.stringify(PLOTS)), window_s: 10 };
+  }
+  function applyLayout(layout) {
+    const l = layout || defaultLayout();
+    const shown = l.plots || PLOTS;
+    st.layout = { plots: shown, window_s: l.window_s || 10 };
+    windowS = st.layout.window_s;
+    const sel = $("window");
+    if (![...sel.options].some((o) => Number(o.value) === windowS)) sel.add(new Option(String(windowS)));
+    sel.value = String(windowS);
+    for (const plot in PLOTS) {
+      const card = document.querySelector(`.card[data-plot="${plot}"]`);
+      const on = shown[plot] || [];
+      // The friction card appears with its data; the layout can only hide it.
+      card.hidden = on.length === 0 || (plot === "friction" && !st.frictionCycles);
+      const u = plots["plot-" + plot];
+      for (const ch of PLOTS[plot]) for (const i of seriesOf(plot, ch)) u.setSeries(i, { show: on.includes(ch) });
+    }
+    for (const box of document.querySelectorAll("#layout-picker input")) {
+      box.checked = (shown[box.dataset.plot] || []).includes(box.dataset.channel);
+    }
+    resize(); touch();
+  }
+  function saveLayout() {
+    localStorage.setItem(LAYOUT_KEY, JSON.stringify(st.layout));
+  }
+  function picker() {
+    const box = $("layout-picker");
+    for (const plot in PLOTS) {
+      const fs = document.createElement("fieldset");
+      const lg = document.createElement("legend");
+      lg.textContent = plot;
+      fs.appendChild(lg);
+      for (const ch of PLOTS[plot]) {
+        const label = document.createElement("label");
+        const input = document.createElement("input");
+        input.type = "checkbox"; input.dataset.plot = plot; input.dataset.channel = ch;
+        input.onchange = () => {
+          const plotsNow = JSON.parse(JSON.stringify(st.layout.plots));
+          const on = new Set(plotsNow[plot] || []);
+          if (input.checked) on.add(ch); else on.delete(ch);
+          if (on.size) plotsNow[plot] = PLOTS[plot].filter((c) => on.has(c)); else delete plotsNow[plot];
+          applyLayout({ plots: plotsNow, window_s: windowS });
+          saveLayout();
+        };
+        label.append(input, " " + ch);
+        fs.appendChild(label);
+      }
+      box.appendChild(fs);
+    }
+  }
+  $("window").onchange = () => { applyLayout({ plots: st.layout.plots, window_s: Number($("window").value) }); saveLayout(); };
+  $("layout-reset").onclick = () => { localStorage.removeItem(LAYOUT_KEY); applyLayout(fileLayout); };
+  $("layout-save").onclick = () => download("physid-layout.json", "application/json", JSON.stringify(st.layout, null, 2) + "\n");
+  async function loadLayout() {
+    try {
+      const r = await fetch(api("layout"));
+      if (r.ok) fileLayout = await r.json();
+    } catch (err) { /* the page's own layout */ }
+    let mine = null;
+    try { mine = JSON.parse(localStorage.getItem(LAYOUT_KEY) || "null"); } catch (err) { mine = null; }
+    applyLayout(mine || fileLayout);
+  }
 
   reset();
+  picker();
+  loadLayout();
   connect();
 })();

@@ -17,12 +17,14 @@
 //! * [`hub`] — between the loop and the panel's clients: numbered, kept for late clients,
 //!   broadcast without ever making the loop wait.
 //! * [`panel`] — the web panel's server: embedded page, event stream, controls, the token rule.
+//! * [`layout`] — the panel's layout (plots, channels, window), from the page or a file.
 
 pub mod control;
 pub mod event;
 pub mod fleet;
 pub mod frames;
 pub mod hub;
+pub mod layout;
 pub mod panel;
 pub mod record;
 pub mod service;
@@ -36,6 +38,7 @@ pub use event::Event;
 pub use frames::SocketFrames;
 pub use frames::{FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
+pub use layout::Layout;
 pub use panel::{Access, Panel};
 pub use service::{
     run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Stages, Summary, TorqueLive,

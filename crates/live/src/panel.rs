@@ -24,6 +24,7 @@ use crate::event::quote;
 use crate::fleet::view::FleetView;
 use crate::fleet::NatsTarget;
 use crate::hub::Hub;
+use crate::layout::Layout;
 use crate::service::LiveError;
 use axum::extract::{DefaultBodyLimit, Query, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -89,6 +90,11 @@ async fn index(State(app): State<App>, Query(q): Query<HashMap<String, String>>)
     ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page).into_response()
 }
 
+/// `GET /api/layout`: the layout of `--layout FILE`, or `null` (the page's own).
+async fn layout_file(State(app): State<App>) -> Response {
+    Json(app.layout.as_ref().clone()).into_response()
+}
+
 /// `GET /api/fleet`: the fleet's cells (404 on a single-run panel).
 async fn fleet_summary(State(app): State<App>) -> Response {
     match &app.fleet {
@@ -113,6 +119,8 @@ struct App {
     bound: SocketAddr,
     /// A fleet panel's cells.
     fleet: Option<Arc<FleetView>>,
+    /// The page's starting layout (`--layout FILE`).
+    layout: Arc<Option<Layout>>,
 }
 
 impl App {
@@ -197,13 +205,15 @@ pub struct Panel {
 impl Panel {
     /// Serve the panel on `bind` for `hub`'s events, posting controls to `controls`. Binding
     /// an address other than a loopback one needs a token.
+    /// `layout`: the page's starting layout (`--layout FILE`), served at `/api/layout`.
     pub fn start(
         bind: SocketAddr,
         access: Access,
         hub: Arc<Hub>,
         controls: SyncSender<ControlRequest>,
+        layout: Option<Layout>,
     ) -> Result<Self, LiveError> {
-        Self::launch(bind, access, hub, controls, None)
+        Self::launch(bind, access, hub, controls, None, layout)
     }
 
     /// Serve the fleet view of the fleet at `target` on `bind` (the same rules).
@@ -215,7 +225,7 @@ impl Panel {
         let hub = Hub::new(json!({"type": "hello", "source": "the fleet view: open a cell"}));
         // The fleet view's own controls go to the cells, never here.
         let (controls, _) = std::sync::mpsc::sync_channel(1);
-        Self::launch(bind, access, hub, controls, Some(target))
+        Self::launch(bind, access, hub, controls, Some(target), None)
     }
 
     fn launch(
@@ -224,6 +234,7 @@ impl Panel {
         hub: Arc<Hub>,
         controls: SyncSender<ControlRequest>,
         fleet: Option<&NatsTarget>,
+        layout: Option<Layout>,
     ) -> Result<Self, LiveError> {
         let token = &access.token;
         if !bind.ip().is_loopback() && token.is_none() {
@@ -263,6 +274,7 @@ impl Panel {
             access: Arc::new(access),
             bound: addr,
             fleet,
+            layout: Arc::new(layout),
         };
         let api = Router::new()
             .route("/events", get(events))
@@ -270,6 +282,7 @@ impl Panel {
             .route("/ack", post(ack))
             .route("/status", get(status))
             .route("/fleet", get(fleet_summary))
+            .route("/layout", get(layout_file))
             .route_layer(middleware::from_fn_with_state(app.clone(), guard))
             .layer(DefaultBodyLimit::max(MAX_CONTROL_BYTES));
         // The Host rule holds on every route, the page's included.

@@ -33,6 +33,8 @@ pub struct TraceStage {
     /// Finished bins not sent yet.
     t: Vec<f64>,
     values: Vec<Vec<f64>>,
+    /// Samples taken from the stream's start.
+    taken: u64,
 }
 
 impl TraceStage {
@@ -60,6 +62,7 @@ impl TraceStage {
             t: Vec::with_capacity(per_event),
             values: vec![Vec::with_capacity(per_event); names.len()],
             names,
+            taken: 0,
         })
     }
 
@@ -71,6 +74,7 @@ impl TraceStage {
             .iter()
             .map(|n| chunk.values(n))
             .collect::<Result<Vec<_>, _>>()?;
+        self.taken += t.len() as u64;
         for i in 0..t.len() {
             self.sum_t += t[i];
             for (s, c) in self.sums.iter_mut().zip(&cols) {
@@ -115,6 +119,7 @@ impl TraceStage {
             t_s: t.last().copied().unwrap_or(f64::NAN),
             t,
             channels,
+            samples: self.taken,
         }
     }
 }

@@ -64,6 +64,11 @@ pub struct Args {
     /// Read the token from this file's first line (kept out of the process list).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["headless", "token"])]
     token_file: Option<PathBuf>,
+    /// The panel's starting layout: a JSON file naming the plots shown and the channels each
+    /// draws, and the traces' window (`{"plots": {"speed": ["omega_en"]}, "window_s": 30}`;
+    /// docs/live.md). What the operator then chooses on the page is kept by the browser.
+    #[arg(long, value_name = "FILE", conflicts_with = "headless")]
+    layout: Option<PathBuf>,
     /// Where `record` controls (the panel's logging) write their Parquet or MDF4 files.
     #[arg(long, value_name = "DIR", default_value = "physid-logs")]
     log_dir: PathBuf,
@@ -278,7 +283,11 @@ pub fn run(a: &Args) -> Result<()> {
     }
     let (bind, access) = panel_access(a)?;
     let token = access.token.clone();
-    let panel = Panel::start(bind, access, hub.clone(), tx).map_err(|e| miette!("{e}"))?;
+    let layout = match &a.layout {
+        Some(p) => Some(physid_live::Layout::read(p).map_err(|e| miette!("{e}"))?),
+        None => None,
+    };
+    let panel = Panel::start(bind, access, hub.clone(), tx, layout).map_err(|e| miette!("{e}"))?;
     let url = announce(a, &panel, token.as_deref(), "panel")?;
     let result = run_live(source.as_mut(), &cfg, Some(&rx), |e| hub.publish(e));
     // Controls sent from now on are answered "the run has ended".

@@ -47,6 +47,9 @@ pub fn which(names: &[&str]) -> Option<std::path::PathBuf> {
     })
 }
 
+/// A host name the test browser resolves to 127.0.0.1, as a DNS rebinding attack's would.
+pub const REBIND_HOST: &str = "rebind.example";
+
 /// Headless Chromium driven over WebDriver (chromedriver on a free loopback port, killed when
 /// dropped).
 pub struct Browser {
@@ -93,7 +96,10 @@ impl Browser {
             "goog:chromeOptions".into(),
             serde_json::json!({
                 "binary": browser,
-                "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", format!("--window-size={size}")],
+                "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", format!("--window-size={size}"),
+                    // A DNS rebinding attacker's name that resolves to this machine (the panel's
+                    // Host rule is tested from a page of that name).
+                    format!("--host-resolver-rules=MAP {REBIND_HOST} 127.0.0.1")],
             }),
         );
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
@@ -128,10 +134,13 @@ impl Browser {
             if self.js(expr).await == serde_json::json!(true) {
                 return;
             }
-            assert!(
-                std::time::Instant::now() < deadline,
-                "the page never had {expr}"
-            );
+            if std::time::Instant::now() >= deadline {
+                // What the page said last (a panel's reply line), to tell why.
+                let said = self
+                    .js("document.getElementById('reply') ? document.getElementById('reply').textContent : null")
+                    .await;
+                panic!("the page never had {expr} (its reply line: {said})");
+            }
             tokio::time::sleep(std::time::Duration::from_millis(100)).await;
         }
     }
