@@ -1250,3 +1250,60 @@ fn a_stop_control_ends_a_replay() {
     // Ended within the first seconds of a 20 s replay at real-time pace.
     assert!(end["t_s"].as_f64().unwrap() < 5.0, "{end}");
 }
+
+/// A NaN in a replayed file (a sensor's dropout) stops the stages that read the channel, each
+/// with a finding naming the sample; the run goes on to the file's end — it used to end the
+/// whole run ("channel 0 is NaN at sample 5000").
+#[test]
+fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
+    let s = Scratch::new("physid-live-nan");
+    let file = s.file("run.csv");
+    let f = file.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "3",
+        "--out",
+        f,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // omega_en of sample 5000 (line 5003: the header, the units row, then the samples).
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let col = lines[0].split(',').position(|c| c == "omega_en").unwrap();
+    let mut cells: Vec<String> = lines[5002].split(',').map(String::from).collect();
+    cells[col] = "nan".into();
+    lines[5002] = cells.join(",");
+    std::fs::write(&file, lines.join("\n") + "\n").unwrap();
+    let ev = events_from_stdin(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            f,
+            "--pace",
+            "max",
+        ],
+        "",
+    );
+    let findings = of_type(&ev, "finding");
+    assert!(
+        findings
+            .iter()
+            .any(|e| says(e, "shaft: sample 5000: a shaft signal is not finite")),
+        "{findings:?}"
+    );
+    assert!(
+        findings
+            .iter()
+            .any(|e| says(e, "cycles: channel 0 is NaN at sample 5000") && says(e, "omega_en")),
+        "{findings:?}"
+    );
+    let end = of_type(&ev, "end")[0];
+    assert_eq!(end["samples"], 30001, "{end}");
+    // 0.5 s at 1000 rpm: the cycles completed before the NaN (≈ 4).
+    assert!(of_type(&ev, "cycle").len() >= 2, "cycles before the NaN");
+}

@@ -11,7 +11,7 @@
 //! | `{"cmd": "mode", "demand": "torque"}` (or `"speed"`) | the dynamometer follows a torque (or speed) demand, held at its mean torque over the last whole engine cycle (or its present speed) |
 //! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
 //! | `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`), `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory (Parquet or MDF4), and finish it |
-//! | `{"cmd": "restart", "stage": "shaft"}` (or `friction`, `torque`) | start an application's stage afresh (one that stopped on an error comes back) |
+//! | `{"cmd": "restart", "stage": "shaft"}` (or `cycles`, `friction`, `torque`) | start a stage afresh (one that stopped on an error comes back) |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
 //!
 //! A malformed message is refused with an error naming the field; the run goes on.
@@ -52,7 +52,7 @@ pub enum Control {
 pub const SPEED_ENVELOPE_RPM: (f64, f64) = (500.0, 6000.0);
 
 /// The stages a `restart` control can start afresh.
-pub const STAGES: [&str; 3] = ["shaft", "friction", "torque"];
+pub const STAGES: [&str; 4] = ["shaft", "cycles", "friction", "torque"];
 
 /// A control message on its way to the running loop, with where to send the answer (the
 /// command's name, or what was wrong) when someone waits for it.

@@ -259,6 +259,10 @@ struct State {
     /// The cycle statistics and the channels they cover, as indices into [`CYCLE_CHANNELS`]
     /// (set up on the first chunk).
     cycles: Option<(CycleStream, Vec<usize>)>,
+    /// The cycle statistics stopped at a sample they cannot take (a value not finite): with a
+    /// finding; the run and the other stages go on, a `restart` brings them back.
+    #[serde(default)]
+    cycles_stopped: bool,
     /// K, B, τ0 frozen by the shaft's excitation supervisor, as last told.
     shaft_frozen: Option<[bool; 3]>,
     /// The integrity checks on the stream (set up on the first chunk).
@@ -286,6 +290,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             rate_hz,
             shaft: Some(ShaftStage::new(&cfg.monitor, rate_hz)?),
             cycles: None,
+            cycles_stopped: false,
             shaft_frozen: None,
             integrity: None,
             t_first: f64::NAN,
@@ -356,6 +361,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                     ShaftStage::new(&self.cfg.monitor, self.rate_hz).map_err(|e| e.to_string())?,
                 );
                 self.st.shaft_frozen = None;
+            }
+            "cycles" => {
+                // Set up again on the next chunk, counting cycles from there.
+                self.st.cycles = None;
+                self.st.cycles_stopped = false;
             }
             "friction" => {
                 self.friction = Some(
@@ -674,6 +684,9 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
 
     /// The cycle statistics of a chunk.
     fn cycles(&mut self, chunk: &Recording) -> Result<(), LiveError> {
+        if self.st.cycles_stopped {
+            return Ok(());
+        }
         if self.st.cycles.is_none() {
             let which: Vec<usize> = (0..CYCLE_CHANNELS.len())
                 .filter(|&k| chunk.channel(CYCLE_CHANNELS[k]).is_ok())
@@ -696,12 +709,25 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             .map(|n| chunk.values(n))
             .collect::<Result<Vec<_>, _>>()?;
         self.done_cycles.clear();
-        stream.push(
+        let pushed = stream.push(
             chunk.values("t")?,
             chunk.values("theta_en")?,
             &cols,
             &mut self.done_cycles,
-        )?;
+        );
+        if let Err(e) = pushed {
+            // A value not finite (a sensor's dropout in a replayed file): the statistics stop
+            // with a finding naming the channel and sample; the run goes on.
+            // The stream numbers its channels: name them.
+            let e = format!("{e} (channels 0, 1, …: {})", names.join(", "));
+            self.st.cycles = None;
+            self.st.cycles_stopped = true;
+            let t_s = self.st.last_t;
+            return self.send(&Event::finding(
+                t_s,
+                format!("cycles: {e} — the cycle statistics stopped (restart: {{\"cmd\":\"restart\",\"stage\":\"cycles\"}})"),
+            ));
+        }
         let step = self.cfg.panel.map_or(0.0, |p| p.curve_step_deg);
         let events: Vec<Event> = self
             .done_cycles
