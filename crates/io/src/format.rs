@@ -344,6 +344,17 @@ impl ChunkReader {
                 (h, Source::Mdf(c), Some(claimed))
             }
         };
+        if header.channels().len() > crate::MAX_CHANNELS {
+            return Err(IoError::Malformed {
+                path: p,
+                detail: format!(
+                    "{} channels: physid reads at most {} at once; name the ones wanted \
+                     (--channels, or a map)",
+                    header.channels().len(),
+                    crate::MAX_CHANNELS
+                ),
+            });
+        }
         // With a selection, only the map items of the channels asked for apply (a map made
         // for a whole log serves a verb that reads part of it).
         let map: Vec<MapItem> = opts

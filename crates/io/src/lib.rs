@@ -87,6 +87,11 @@ pub enum IoError {
     },
 }
 
+/// The most channels a file may give at once (all its columns, or those selected): a reader
+/// and every verb work in time linear in the channels up to it (100 000 columns of a CSV
+/// header are read in ≈ 1.5 s by a debug build). docs/data.md.
+pub const MAX_CHANNELS: usize = 100_000;
+
 /// Metadata keys that describe the file a recording was read from (its path, the CSV line of
 /// sample 0, its separator, a warning about it, the units converted, the MDF master): they
 /// belong to that file, so they are neither written into another one nor taken from one.
