@@ -496,6 +496,15 @@ impl ChunkReader {
             Source::Mdf(c) => c.next_columns().map_err(|e| with_file_size(e, size))?,
         };
         let Some(mut cols) = next else {
+            // A count the file claimed that its data do not bear out is said (MDF4's cycle
+            // count, Parquet's footer): the rows read are what there is.
+            if let Some(claimed) = self.claimed.filter(|&c| c != self.rows as i64) {
+                self.header.meta.entry("warning".into()).or_insert(format!(
+                    "the file claims {claimed} rows but holds {}: its count is wrong (a writer \
+                     stopped before it finished, or a corrupt file); the {} rows there are were read",
+                    self.rows, self.rows
+                ));
+            }
             return Ok(None);
         };
         if cols.len() != self.convert.len() {

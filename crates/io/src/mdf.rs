@@ -305,6 +305,36 @@ impl MdfChunks {
     }
 }
 
+/// The cycle count channel group `cg` of data group `dg` declares, as written in the file
+/// (the MDF crate takes the data's record count instead, so a count the data do not bear out
+/// would pass unseen): HD → its first DG (link 0 at 64 + 24) → the next DGs (link 0) → the
+/// DG's first CG (link 1) → the next CGs (link 0); the count follows the CG's links and its
+/// record id. `None` where the chain cannot be followed.
+fn declared_cycles(path: &Path, dg: usize, cg: usize) -> Option<u64> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(path).ok()?;
+    let mut at = |off: u64| -> Option<u64> {
+        let mut b = [0u8; 8];
+        f.seek(SeekFrom::Start(off)).ok()?;
+        f.read_exact(&mut b).ok()?;
+        Some(u64::from_le_bytes(b)).filter(|&v| v != 0)
+    };
+    let mut d = at(64 + 24)?;
+    for _ in 0..dg {
+        d = at(d + 24)?;
+    }
+    let mut c = at(d + 32)?;
+    for _ in 0..cg {
+        c = at(c + 24)?;
+    }
+    let links = at(c + 16).filter(|&n| n < 64)?;
+    let count_at = c + 24 + 8 * links + 8;
+    let mut b = [0u8; 8];
+    f.seek(SeekFrom::Start(count_at)).ok()?;
+    f.read_exact(&mut b).ok()?;
+    Some(u64::from_le_bytes(b))
+}
+
 /// The reading thread: the header, then the windows, each sent when the reader has taken the
 /// one before. A reader gone away (dropped) ends it.
 fn produce(
@@ -346,7 +376,10 @@ fn produce(
         return Ok(());
     };
     let (dg, cg) = plan.group;
-    let claimed = file.data_groups()[dg].channel_groups[cg].sample_count;
+    // The records there are; a cycle count the group declares otherwise is the claim (the
+    // reader then says the two differ, and a whole read checks the claim against memory).
+    let records = file.data_groups()[dg].channel_groups[cg].sample_count;
+    let claimed = declared_cycles(path, dg, cg).unwrap_or(records);
     let mut header = plan.rec.clone();
     if !layout.skipped.is_empty() {
         header

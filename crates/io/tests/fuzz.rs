@@ -343,3 +343,46 @@ fn a_footer_claiming_a_trillion_rows_is_refused_before_allocating() {
     let e = read(&f, &ReadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("the file claims 1000000000000 rows"), "{e}");
 }
+
+/// An MDF4 channel group claiming 10¹² cycles over 3 001 records (issue 41, item 3): read as it
+/// comes, the 3 001 records are read and the mismatch is said, not passed over in silence.
+#[test]
+fn an_mdf4_cycle_count_the_records_do_not_bear_out_is_said() {
+    let s = Scratch::new("physid-fuzz");
+    let mut r = physid_core::Recording::new(physid_core::Basis::Time);
+    for (name, unit) in [("t", "s"), ("x", "")] {
+        r.push(physid_core::Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: (0..3001).map(|k| f64::from(k) * 1e-3).collect(),
+        })
+        .unwrap();
+    }
+    let f = s.file("cycles.mf4");
+    physid_io::write_mdf(&f, &r, physid_io::MdfCompression::None, None).unwrap();
+    let mut b = std::fs::read(&f).unwrap();
+    // The channel group block: "##CG", its link count at +16, then the links, the record id
+    // (8 bytes) and the cycle count (u64).
+    let cg = b.windows(4).position(|w| w == b"##CG").expect("a CG block");
+    let links = u64::from_le_bytes(b[cg + 16..cg + 24].try_into().unwrap()) as usize;
+    let at = cg + 24 + 8 * links + 8;
+    assert_eq!(u64::from_le_bytes(b[at..at + 8].try_into().unwrap()), 3001);
+    b[at..at + 8].copy_from_slice(&1_000_000_000_000u64.to_le_bytes());
+    std::fs::write(&f, &b).unwrap();
+    let mut reader = physid_io::ChunkReader::open(&f, &ReadOptions::default()).unwrap();
+    let mut rows = 0;
+    while let Some(c) = reader.next_chunk().unwrap() {
+        rows += c.len();
+    }
+    assert_eq!(rows, 3001);
+    let warning = reader
+        .header()
+        .meta
+        .get("warning")
+        .cloned()
+        .unwrap_or_default();
+    assert!(
+        warning.contains("the file claims 1000000000000 rows but holds 3001"),
+        "{warning}"
+    );
+}
