@@ -47,6 +47,11 @@ enum Command {
     /// Which parameters of a model a recording can resolve: the orthogonal ranking (Alg. 5.1),
     /// cut-offs, Fisher information, confidence intervals; several --data compare experiments.
     ///
+    /// Memory: after its first pass over the file, identify holds the model's columns up to
+    /// PHYSID_HOLD_MB (default 256 MiB), so its memory grows with the recording to that bound
+    /// (≈ 45 MB for 75 s, 250 MB for 600 s of a 10 kHz run); PHYSID_HOLD_MB=0 reads the file
+    /// again on every pass instead, in memory independent of its length.
+    ///
     /// Example: physid identify --data ex51.csv --expr 'sin(A)*x + B^2*y*cos(x) + sqrt(C)*x^2 +
     /// D*y^2 + E*x/y + F*2*x/y' --params A=1,B=2,C=3,D=4,E=5,F=6
     Identify(cmd::identify::Args),
