@@ -29,4 +29,4 @@ mod compiled;
 mod eval;
 mod parse;
 
-pub use parse::{ExprError, ExprModel};
+pub use parse::{ExprError, ExprModel, MAX_PARAMS};

@@ -84,6 +84,12 @@ pub enum ExprError {
         /// Where.
         column: usize,
     },
+    /// More parameters than an analysis of them can take in bounded time.
+    #[error("{count} parameters: a formula may have at most {MAX_PARAMS} (the ranking's work grows with the cube of their number; 300 took 28 s on 3 000 rows)")]
+    TooManyParams {
+        /// How many were given.
+        count: usize,
+    },
     /// A chain of operations longer than the evaluator supports (a sum of thousands of terms).
     #[error("the expression is a chain of more than {MAX_TREE_DEPTH} operations at column {column} (the evaluator recurses through it): write it with fewer terms")]
     TooLong {
@@ -98,6 +104,12 @@ pub const MAX_TREE_DEPTH: usize = 1000;
 
 /// Deepest nesting accepted (bounds the evaluator's recursion).
 pub const MAX_DEPTH: usize = 200;
+
+/// Most parameters a formula may have: identifiability's ranking (Alg. 5.1) and the filters
+/// work in time growing with the cube of their number (300 parameters on 3 001 rows: 28 s;
+/// 10 000: past 2 minutes), so a formula beyond this is refused before any work. The thesis's
+/// largest model has 20 (the friction coefficients).
+pub const MAX_PARAMS: usize = 200;
 
 const FUNCTIONS: &str =
     "sqrt, exp, ln (also log), log10, sin, cos, tan, asin, acos, atan, abs, pow, min, max";
@@ -497,6 +509,11 @@ impl ExprModel {
     /// Parse `text` with parameters `params` (in the order [`eval`](physid_core::ParamModel::eval)
     /// takes them); every other name in the text becomes an input, in order of first appearance.
     pub fn parse<S: AsRef<str>>(text: &str, params: &[S]) -> Result<Self, ExprError> {
+        if params.len() > MAX_PARAMS {
+            return Err(ExprError::TooManyParams {
+                count: params.len(),
+            });
+        }
         let params: Vec<String> = params.iter().map(|s| s.as_ref().to_string()).collect();
         for (i, p) in params.iter().enumerate() {
             if params[..i].contains(p) {

@@ -303,3 +303,28 @@ fn a_chain_of_terms_is_bounded_and_the_longest_allowed_works_on_a_small_stack() 
         .join()
         .unwrap();
 }
+
+/// A formula of more parameters than an analysis can take in bounded time is refused before
+/// any work (issue 41, item 8: 10 000 parameters ran past 2 minutes in identify); the most
+/// allowed parse.
+#[test]
+fn a_formula_of_too_many_parameters_is_refused() {
+    let formula = |n: usize| {
+        let names: Vec<String> = (0..n).map(|k| format!("p{k}")).collect();
+        let text = names
+            .iter()
+            .map(|p| format!("{p}*x"))
+            .collect::<Vec<_>>()
+            .join(" + ");
+        (text, names)
+    };
+    let (text, names) = formula(physid_expr::MAX_PARAMS + 1);
+    match ExprModel::parse(&text, &names) {
+        Err(e @ ExprError::TooManyParams { count: 201 }) => {
+            assert!(e.to_string().starts_with("201 parameters: a formula may have at most 200"))
+        }
+        other => panic!("{other:?}"),
+    }
+    let (text, names) = formula(physid_expr::MAX_PARAMS);
+    assert_eq!(ExprModel::parse(&text, &names).unwrap().params().len(), 200);
+}
