@@ -1286,18 +1286,38 @@ impl CrankAngleStream {
 }
 
 /// The sample period [s] of a time channel that must be uniform: the mean step, or an error at
-/// the first step more than 0.1 % away from it (what to do about it included).
+/// the first step that goes back or repeats a time, else at the first step more than 0.1 % away
+/// from the median step (what to do about it included). The median, not the mean, is the
+/// reference: one jump back or forward moves the mean, and every step would then look wrong
+/// from the first.
 pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
     if t.len() < 2 {
         return Err(AcquisitionError::Invalid("fewer than 2 samples".into()));
     }
+    let fix = "check with physid inspect, resample with physid convert --time-basis HZ";
+    if let Some(i) = t.windows(2).position(|w| !(w[1] > w[0])) {
+        let how = if t[i + 1] == t[i] {
+            "repeats"
+        } else {
+            "goes back"
+        };
+        return Err(AcquisitionError::Invalid(format!(
+            "the time {how} at sample {} ({} s after {} s): {fix}",
+            i + 1,
+            t[i + 1],
+            t[i]
+        )));
+    }
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let mid = steps.len() / 2;
+    let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
     let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
     match t
         .windows(2)
-        .position(|w| ((w[1] - w[0]) - dt).abs() > 1e-3 * dt)
+        .position(|w| ((w[1] - w[0]) - median).abs() > 1e-3 * median)
     {
         Some(i) => Err(AcquisitionError::Invalid(format!(
-            "the time step is not uniform at sample {} ({} s, mean {dt} s): check with physid inspect, resample with physid convert --time-basis HZ",
+            "the time step is not uniform at sample {} ({} s, {median} s elsewhere): {fix}",
             i + 1,
             t[i + 1] - t[i]
         ))),

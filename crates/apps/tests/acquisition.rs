@@ -598,3 +598,34 @@ fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
         );
     }
 }
+
+/// A time channel that goes back, repeats, or jumps is named at the sample where it does — not
+/// at sample 1 because one jump moved the mean step (issue 41, item 7).
+#[test]
+fn a_time_that_goes_back_or_jumps_is_named_where_it_does() {
+    let grid: Vec<f64> = (0..20_000).map(|k| k as f64 * 1e-4).collect();
+    let with = |f: &dyn Fn(&mut Vec<f64>)| {
+        let mut t = grid.clone();
+        f(&mut t);
+        physid_apps::acquisition::uniform_step(&t)
+            .unwrap_err()
+            .to_string()
+    };
+    let back = with(&|t| t[15_000..].iter_mut().for_each(|v| *v -= 1.0));
+    assert!(
+        back.starts_with("the time goes back at sample 15000 ("),
+        "{back}"
+    );
+    let repeat = with(&|t| t[15_000] = t[14_999]);
+    assert!(
+        repeat.starts_with("the time repeats at sample 15000"),
+        "{repeat}"
+    );
+    let jump = with(&|t| t[15_000..].iter_mut().for_each(|v| *v += 1.0));
+    assert!(
+        jump.starts_with("the time step is not uniform at sample 15000"),
+        "{jump}"
+    );
+    let dt = physid_apps::acquisition::uniform_step(&grid).unwrap();
+    assert!((dt - 1e-4).abs() < 1e-16, "{dt}");
+}
