@@ -1295,7 +1295,13 @@ pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
         return Err(AcquisitionError::Invalid("fewer than 2 samples".into()));
     }
     let fix = "check with physid inspect, resample with physid convert --time-basis HZ";
-    if let Some(i) = t.windows(2).position(|w| !(w[1] > w[0])) {
+    if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+        return Err(AcquisitionError::Invalid(format!(
+            "the time is {} at sample {i}: {fix}",
+            t[i]
+        )));
+    }
+    if let Some(i) = t.windows(2).position(|w| w[1] <= w[0]) {
         let how = if t[i + 1] == t[i] {
             "repeats"
         } else {
