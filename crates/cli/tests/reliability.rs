@@ -174,6 +174,37 @@ fn an_overflowing_output_is_named_as_such() {
     );
 }
 
+/// Twenty parameters entering the model the same way (`p0*x + … + p19*x`) are named as
+/// collinear, not as an overflow (issue 41, item 7: "use --scaling" when scaling was already
+/// `thesis` and the sums were ≈ 4e8).
+#[test]
+fn identical_sensitivities_are_named_collinear_not_an_overflow() {
+    let s = Scratch::new("physid-rel");
+    let f = s.file("same.csv");
+    let mut text = String::from("x,y\n");
+    for i in 0..3001 {
+        let x = (0.37 * i as f64).sin() + 0.1;
+        text += &format!("{x},{}\n", 3.0 * x + 0.01 * (1.7 * i as f64).cos());
+    }
+    std::fs::write(&f, text).unwrap();
+    let expr: Vec<String> = (0..20).map(|k| format!("p{k}*x")).collect();
+    let params: Vec<String> = (0..20).map(|k| format!("p{k}=1")).collect();
+    fails_with(
+        &[
+            "identify",
+            "--expr",
+            &expr.join(" + "),
+            "--params",
+            &params.join(","),
+            "--data",
+            f.to_str().unwrap(),
+            "--y",
+            "y",
+        ],
+        "the parameters' sensitivities are exactly collinear",
+    );
+}
+
 /// Two regressors and `y = 2·x1 − 3·x2` (+ a small known disturbance when `noise`), written
 /// with `scale` on every column.
 fn regression(path: &std::path::Path, scale: f64, collinear: bool, noise: bool) {

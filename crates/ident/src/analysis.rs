@@ -123,6 +123,8 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
     let mut jr = vec![0.0; p + usize::from(has_y)];
     let mut mean = vec![0.0; p];
     let mut guarded = 0;
+    // The largest scaled sensitivity: whether a factor that is not finite overflowed.
+    let mut z_max = 0.0f64;
     let n = for_each_row(model, data, |i, u, y| {
         let h = engine.value_and_gradient(model, u, theta0, &free, &mut g);
         if let Some(k) = g.iter().position(|v| !v.is_finite()) {
@@ -133,6 +135,7 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
             });
         }
         guarded += usize::from(scaler.scale(&g, y.unwrap_or(h), &mut z));
+        z_max = z.iter().fold(z_max, |m, v| m.max(v.abs()));
         if config.centre {
             // Centred scatter without cancellation (Welford's update as a rank-one row):
             // S_k = S_{k−1} + (k−1)/k·(z − m_{k−1})(z − m_{k−1})ᵀ.
@@ -159,9 +162,20 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
         )));
     }
     if !(fz.is_finite() && fj.is_finite()) {
-        return Err(IdentError::Invalid(
-            "the sensitivities overflow (sums of squares beyond 1e308): rescale the parameters or use --scaling thesis/sigma".into(),
-        ));
+        // Sums of squares beyond 1e308 need a sensitivity beyond √(1e308/n); below that, the
+        // factor lost finiteness on sensitivities that are exactly collinear.
+        let overflow = z_max * z_max * (n.max(1) as f64) > 1e300;
+        return Err(IdentError::Invalid(if overflow {
+            format!(
+                "the sensitivities overflow (a scaled sensitivity of {z_max:.3e}: sums of squares beyond 1e308): rescale the parameters or use --scaling thesis/sigma"
+            )
+        } else {
+            format!(
+                "the parameters' sensitivities are exactly collinear (the largest is {z_max:.3e}, \
+                 no overflow): parameters that enter the model the same way cannot be told apart \
+                 — keep one of each such group (--free) or write the model with one"
+            )
+        }));
     }
     let ranking = rank(&fz.r());
     Ok(Analysis {
