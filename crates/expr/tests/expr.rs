@@ -321,7 +321,9 @@ fn a_formula_of_too_many_parameters_is_refused() {
     let (text, names) = formula(physid_expr::MAX_PARAMS + 1);
     match ExprModel::parse(&text, &names) {
         Err(e @ ExprError::TooManyParams { count: 201 }) => {
-            assert!(e.to_string().starts_with("201 parameters: a formula may have at most 200"))
+            assert!(e
+                .to_string()
+                .starts_with("201 parameters: a formula may have at most 200"))
         }
         other => panic!("{other:?}"),
     }
