@@ -1216,16 +1216,7 @@ fn a_stop_control_ends_a_replay() {
     let s = Scratch::new("physid-live-stop");
     let file = s.file("run.parquet");
     let f = file.to_str().unwrap();
-    let o = physid(&[
-        "simulate",
-        "--scenario",
-        "shaft-steady",
-        "--duration",
-        "20",
-        "--out",
-        f,
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::simulated(&file, "shaft-steady", "20");
     let ev = events_from_stdin(
         &[
             "live",
@@ -1259,16 +1250,7 @@ fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
     let s = Scratch::new("physid-live-nan");
     let file = s.file("run.csv");
     let f = file.to_str().unwrap();
-    let o = physid(&[
-        "simulate",
-        "--scenario",
-        "shaft-steady",
-        "--duration",
-        "3",
-        "--out",
-        f,
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    common::simulated(&file, "shaft-steady", "3");
     // omega_en of sample 5000 (line 5003: the header, the units row, then the samples).
     let text = std::fs::read_to_string(&file).unwrap();
     let mut lines: Vec<String> = text.lines().map(String::from).collect();

@@ -262,16 +262,7 @@ fn simulate_stopped_by_a_signal_keeps_what_it_wrote() {
 fn recover_says_what_it_did() {
     let s = physid_testkit::Scratch::new("physid-recover");
     let f = s.file("ok.parquet");
-    let o = physid(&[
-        "simulate",
-        "--scenario",
-        "shaft-steady",
-        "--duration",
-        "20",
-        "--recording",
-        f.to_str().unwrap(),
-    ]);
-    assert!(o.status.success());
+    common::simulated(&f, "shaft-steady", "20");
     let o = physid(&["recover", f.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("nothing to recover"));
     // Cut mid-file: the row groups committed before the cut come back.

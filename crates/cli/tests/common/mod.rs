@@ -3,6 +3,21 @@
 
 use std::process::{Command, Output};
 
+/// `physid simulate --scenario SCENARIO --duration SECONDS --recording PATH`, which must
+/// succeed: a recording for a test to read.
+pub fn simulated(path: &std::path::Path, scenario: &str, seconds: &str) {
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        scenario,
+        "--duration",
+        seconds,
+        "--recording",
+        path.to_str().unwrap_or_default(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// Run the `physid` binary built for these tests with `args`.
 pub fn physid(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_physid"))
