@@ -24,6 +24,7 @@
 //! * [`pressure`] — cylinder-pressure analysis per cycle: peak, IMEP, polytropic exponents,
 //!   pegging, CoV of IMEP (`physid cycles`).
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
+//! * [`time_order`] — whether a recording's time only goes forward, as its chunks come.
 //! * [`torque_fit`] — Application 3: identifiability and EKF/UKF estimation of the cyclic
 //!   engine torque model (ch. 8).
 
@@ -42,6 +43,7 @@ pub mod pressure;
 pub mod recording_rows;
 pub mod sensor_angle;
 pub mod shaft_monitor;
+pub mod time_order;
 pub mod torque_fit;
 
 /// Drop every other element of a track (the first kept): what a track bounded in length does

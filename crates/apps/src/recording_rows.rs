@@ -242,7 +242,13 @@ impl<'a> RecordingRows<'a> {
             whole.reserve_exact(claimed.unwrap_or(0));
             whole
         });
+        let mut order = crate::time_order::TimeOrder::default();
         while let Some(chunk) = reader.next_chunk().map_err(read)? {
+            if first {
+                if let Ok(t) = chunk.values("t") {
+                    order.push(t);
+                }
+            }
             visit(&chunk)?;
             if let Some(whole) = &mut keep {
                 if (whole.len() + chunk.len()).saturating_mul(width * 8) > hold_bytes {
@@ -255,7 +261,15 @@ impl<'a> RecordingRows<'a> {
             }
         }
         if first {
-            *warning.borrow_mut() = reader.header().meta.get("warning").cloned();
+            let notes: Vec<String> = reader
+                .header()
+                .meta
+                .get("warning")
+                .cloned()
+                .into_iter()
+                .chain(order.note())
+                .collect();
+            *warning.borrow_mut() = (!notes.is_empty()).then(|| notes.join("; "));
             *held.borrow_mut() = keep.map_or(Held::TooLarge, Held::Whole);
         }
         Ok(())

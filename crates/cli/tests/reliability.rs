@@ -1425,3 +1425,35 @@ fn sensor_file_answers_as_the_whole(
         }
     }
 }
+
+/// `identify` and `estimate` take rows in the file's order; a time that goes back or repeats
+/// is said, with where it first does (issue 41, item 7: it was accepted without a word).
+#[test]
+fn a_time_that_goes_back_is_said_by_identify_and_estimate() {
+    let s = Scratch::new("physid-rel");
+    let f = s.file("back.csv");
+    let mut text = String::from("t,x,y\n");
+    for i in 0..1000 {
+        let t = match i {
+            100 => 0.5,
+            200 => 1.99,
+            _ => i as f64 * 0.01,
+        };
+        let x = (0.37 * i as f64).sin() + 0.1;
+        text += &format!("{t},{x},{}\n", 3.0 * x + 0.01 * (1.7 * i as f64).cos());
+    }
+    std::fs::write(&f, text).unwrap();
+    let path = f.to_str().unwrap();
+    let said = "the time goes back at 1 sample(s) and repeats at 1 (the first at sample 100)";
+    for args in [
+        vec![
+            "identify", "--data", path, "--expr", "K*x", "--params", "K=1", "--y", "y",
+        ],
+        vec!["estimate", "--data", path, "--y", "y", "--phi", "x"],
+    ] {
+        let o = physid(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{args:?}: {err}");
+        assert!(err.contains(said), "{args:?}: {err}");
+    }
+}

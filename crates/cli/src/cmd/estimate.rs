@@ -287,7 +287,8 @@ pub fn run(args: &Args) -> Result<()> {
             wanted.push(c);
         }
     }
-    let optional: &[&str] = if tracks_wanted(args) { &["t"] } else { &[] };
+    // The time when the file has it: for the tracks, and whether it only goes forward.
+    let optional: &[&str] = &["t"];
     let mut reader = args.input.open(&args.data, &wanted, optional)?;
 
     let method_name = est.method_name();
@@ -336,11 +337,15 @@ pub fn run(args: &Args) -> Result<()> {
     let mut offset = 0;
     // Sample i of the file is on this line (CSV), for the messages.
     let at_line = reader.header().clone();
+    let mut order = physid_apps::time_order::TimeOrder::default();
     for chunk in crate::progress::Reading::new(&mut reader, &args.data) {
         let chunk = chunk.into_diagnostic()?;
         let y = chunk.values(&args.y).into_diagnostic()?;
         // The sample index stands for the time in a file without `t`.
         let t = chunk.values("t").ok();
+        if let Some(t) = t {
+            order.push(t);
+        }
         let derived: Vec<Option<Vec<f64>>> = regressors
             .iter()
             .map(|r| r.derive(&chunk).map_err(|e| miette!("{file}: {e}")))
@@ -385,6 +390,9 @@ pub fn run(args: &Args) -> Result<()> {
         offset += y.len();
     }
     super::warn_read(&reader, &args.data);
+    if let Some(n) = order.note() {
+        eprintln!("warning: {file}: {n}");
+    }
     if let Some(tf) = tracks {
         tf.close()?;
     }
@@ -520,9 +528,4 @@ impl Regressor {
                 .collect(),
         ))
     }
-}
-
-/// Whether the run writes tracks (`--tracks`, or the old `--out`).
-fn tracks_wanted(args: &Args) -> bool {
-    args.tracks.is_some() || args.out.is_some()
 }

@@ -164,7 +164,8 @@ pub fn analyse_files(args: &Args) -> Result<Vec<Value>> {
                 .map(|c| Column::named(c))
                 .collect(),
             args.y.as_deref().map(Column::named),
-            &[],
+            // The time, when the file has it: whether it only goes forward is said.
+            &["t"],
             super::hold_bytes()?,
         )
         .map_err(super::app_error(path))?;
