@@ -12,7 +12,9 @@
 pub mod csv_file;
 pub mod format;
 pub mod mdf;
+mod parquet_check;
 pub mod parquet_file;
+mod thrift_walk;
 
 pub use csv_file::{read_csv, recover_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
 pub use format::{

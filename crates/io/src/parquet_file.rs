@@ -128,14 +128,35 @@ impl ParquetChunks {
 
     fn open_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Self, IoError> {
         let p = p.to_string();
-        let file = std::fs::File::open(path).map_err(|source| IoError::Os {
+        let mut file = std::fs::File::open(path).map_err(|source| IoError::Os {
             path: p.clone(),
             source,
         })?;
-        let builder = ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| pq_err(&p, e))?;
+        // The footer's and the pages' claims checked against their bytes first: a corrupt
+        // header must not cost more than its length in the crate's decoding.
+        crate::parquet_check::footer(&mut file, &p)?;
+        let builder =
+            ParquetRecordBatchReaderBuilder::try_new(file.try_clone().map_err(|source| {
+                IoError::Os {
+                    path: p.clone(),
+                    source,
+                }
+            })?)
+            .map_err(|e| pq_err(&p, e))?;
         let schema = builder.schema().clone();
         let names: Vec<String> = schema.fields().iter().map(|f| f.name().clone()).collect();
         let wanted = crate::positions(&names, channels, &p)?;
+        let mut read = vec![false; names.len()];
+        for &j in &wanted {
+            read[j] = true;
+        }
+        let leaves: Vec<usize> = (0..builder.parquet_schema().num_columns())
+            .filter(|&leaf| {
+                read.get(builder.parquet_schema().get_column_root_idx(leaf))
+                    .is_some_and(|r| *r)
+            })
+            .collect();
+        crate::parquet_check::pages(&mut file, &p, builder.metadata(), &leaves)?;
         let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
         let claimed = builder.metadata().file_metadata().num_rows();
         let reader = builder

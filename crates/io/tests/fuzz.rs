@@ -386,3 +386,77 @@ fn an_mdf4_cycle_count_the_records_do_not_bear_out_is_said() {
         "{warning}"
     );
 }
+
+/// An unknown Thrift field (id 100) holding a list that claims 2³¹ − 1 booleans, in 9 bytes:
+/// the `parquet` crate skips such elements as taking no bytes, ≈ 8 s of decoding each.
+const BOOL_LIST: [u8; 9] = [0x09, 0xC8, 0x01, 0xF1, 0xFF, 0xFF, 0xFF, 0xFF, 0x07];
+
+fn small_parquet(s: &Scratch, name: &str) -> PathBuf {
+    let mut r = physid_core::Recording::new(physid_core::Basis::Time);
+    for name in ["t", "x", "y"] {
+        r.push(physid_core::Channel {
+            name: name.into(),
+            unit: String::new(),
+            values: (0..3001).map(|k| f64::from(k) * 1e-3).collect(),
+        })
+        .unwrap();
+    }
+    let f = s.file(name);
+    physid_io::write_parquet(&f, &r).unwrap();
+    f
+}
+
+/// Issue 41, item 1: page headers holding such lists (the fuzzed file that made `inspect` run
+/// past a minute at 10 MB) are refused from their bytes, before the crate decodes them.
+#[test]
+fn a_page_header_claiming_more_than_its_bytes_is_refused_at_once() {
+    let s = Scratch::new("physid-fuzz");
+    let f = small_parquet(&s, "pages.parquet");
+    let meta = parquet::file::serialized_reader::SerializedFileReader::new(
+        std::fs::File::open(&f).unwrap(),
+    )
+    .unwrap();
+    let at = parquet::file::reader::FileReader::metadata(&meta)
+        .row_group(0)
+        .column(1)
+        .data_page_offset() as usize;
+    let mut b = std::fs::read(&f).unwrap();
+    for k in 0..4 {
+        b[at + 9 * k..at + 9 * (k + 1)].copy_from_slice(&BOOL_LIST);
+    }
+    std::fs::write(&f, &b).unwrap();
+    let e = read(&f, &ReadOptions::default()).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("the page header at byte {at} of column 'x'"))
+            && e.contains("claims 2147483647 elements"),
+        "{e}"
+    );
+    // The column not read is not looked at.
+    let only_t = ReadOptions {
+        channels: Some(vec!["t".into()]),
+        ..ReadOptions::default()
+    };
+    assert_eq!(read(&f, &only_t).unwrap().len(), 3001);
+}
+
+/// The same claim in the footer (an unknown field of `FileMetaData`): refused, where the
+/// crate would decode it for ≈ 8 s and accept it.
+#[test]
+fn a_footer_claiming_more_than_its_bytes_is_refused_at_once() {
+    let s = Scratch::new("physid-fuzz");
+    let f = small_parquet(&s, "footer.parquet");
+    let mut b = std::fs::read(&f).unwrap();
+    let n = b.len();
+    // The footer's struct ends in its stop byte, just before the length and "PAR1".
+    assert_eq!(b[n - 9], 0);
+    b.splice(n - 9..n - 9, BOOL_LIST);
+    let n = b.len();
+    let len = u32::from_le_bytes(b[n - 8..n - 4].try_into().unwrap()) + BOOL_LIST.len() as u32;
+    b[n - 8..n - 4].copy_from_slice(&len.to_le_bytes());
+    std::fs::write(&f, &b).unwrap();
+    let e = read(&f, &ReadOptions::default()).unwrap_err().to_string();
+    assert!(
+        e.contains("the footer") && e.contains("claims 2147483647 elements"),
+        "{e}"
+    );
+}
