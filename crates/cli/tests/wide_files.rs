@@ -5,63 +5,38 @@
 //! a debug build), not a measure of speed.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::io::{Read, Write};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use physid_testkit::fuzz::{run_within, wide_csv as wide, Outcome, Ran};
+use std::path::Path;
+use std::time::Duration;
 
-/// A CSV file of `n` columns `c0 … c{n-1}` and one row.
-fn wide(path: &std::path::Path, n: usize) {
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
-    let names: Vec<String> = (0..n).map(|k| format!("c{k}")).collect();
-    writeln!(f, "{}", names.join(",")).unwrap();
-    writeln!(f, "{}", vec!["1.5"; n].join(",")).unwrap();
-}
-
-/// `physid ARGS`, killed at `deadline` (then the test fails naming the command); its output
-/// read as it comes (a pipe left full would stall it).
-fn physid_within(args: &[&str], deadline: Duration) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let drain = |mut r: Box<dyn Read + Send>| {
-        std::thread::spawn(move || {
-            let mut buf = Vec::new();
-            let _ = r.read_to_end(&mut buf);
-            buf
-        })
-    };
-    let out = drain(Box::new(child.stdout.take().unwrap()));
-    let err = drain(Box::new(child.stderr.take().unwrap()));
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if start.elapsed() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("physid {args:?} did not finish within {deadline:?}: work that is not linear in the columns?");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    Output {
-        status,
-        stdout: out.join().unwrap(),
-        stderr: err.join().unwrap(),
-    }
+/// `physid ARGS`, killed at `deadline` (then the test fails naming the command).
+fn physid_within(args: &[&str], deadline: Duration) -> Ran {
+    let r = run_within(
+        Path::new(env!("CARGO_BIN_EXE_physid")),
+        args,
+        deadline,
+        None,
+    );
+    assert!(
+        r.outcome != Outcome::Hang,
+        "physid {args:?} did not finish within {deadline:?}: work that is not linear in the columns?"
+    );
+    r
 }
 
 #[test]
 fn a_header_of_100_000_columns_is_read_in_linear_time() {
     let s = physid_testkit::Scratch::new("physid-wide");
     let file = s.file("wide.csv");
-    wide(&file, physid_io::MAX_CHANNELS);
+    wide(&file, physid_io::MAX_CHANNELS).unwrap();
     let f = file.to_str().unwrap();
     let o = physid_within(&["inspect", f, "--json"], Duration::from_secs(60));
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        o.outcome,
+        Outcome::Done,
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let channels = v["channels"].as_array().unwrap();
     assert_eq!(channels.len(), physid_io::MAX_CHANNELS);
@@ -69,7 +44,7 @@ fn a_header_of_100_000_columns_is_read_in_linear_time() {
     // A verb that needs channels the file lacks refuses it at once, naming what is missing and
     // a few of the channels there are (not 100 000 names).
     let o = physid_within(&["monitor", "shaft", "--data", f], Duration::from_secs(60));
-    assert!(!o.status.success());
+    assert_eq!(o.outcome, Outcome::Refused);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("no channel 't'") && err.contains("c39 … (100000 in all)"),
@@ -82,12 +57,12 @@ fn a_header_of_100_000_columns_is_read_in_linear_time() {
 fn a_file_wider_than_the_limit_is_refused_by_its_count() {
     let s = physid_testkit::Scratch::new("physid-wider");
     let file = s.file("wider.csv");
-    wide(&file, physid_io::MAX_CHANNELS + 1);
+    wide(&file, physid_io::MAX_CHANNELS + 1).unwrap();
     let o = physid_within(
         &["inspect", file.to_str().unwrap()],
         Duration::from_secs(60),
     );
-    assert!(!o.status.success());
+    assert_eq!(o.outcome, Outcome::Refused);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("100001 channels: physid reads at most 100000 at once"),

@@ -14,6 +14,8 @@
 // A global allocator can only be written with `unsafe impl GlobalAlloc`; it forwards to `System`.
 #![allow(unsafe_code)]
 
+pub mod fuzz;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
