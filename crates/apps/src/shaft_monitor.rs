@@ -191,8 +191,12 @@ pub struct ShaftMonitor {
     pub std_err: Vec<[f64; 2]>,
     /// Final K, B, τ0.
     pub final_estimate: ShaftParams,
-    /// Final standard errors of K, B, τ0 (NaN before they can be estimated).
+    /// Final standard errors of K, B, τ0 (NaN before they can be estimated, and for those
+    /// the data did not resolve).
     pub final_std_err: ShaftParams,
+    /// The parameters the data did not resolve (their variance did not halve from P0): their
+    /// final values are the estimator's start, not the shaft's.
+    pub unresolved: Vec<&'static str>,
     /// Alarms.
     pub alarms: Vec<ShaftAlarm>,
     /// True K and B over time, when the recording carries them (simulated data).
@@ -467,6 +471,19 @@ impl ShaftStage {
         }
     }
 
+    /// Whether the data have resolved K, B and τ0 so far: the variance of each free one has
+    /// at least halved from P0 ([`physid_estim::resolution`]); a frozen one keeps its value.
+    /// Data of no information (every shaft channel scaled by 1e-300: φφᵀ underflows) leave
+    /// the estimates at their start, which is no finding about the shaft. Allocation-free.
+    pub fn resolved(&self) -> [bool; 3] {
+        let e = self.est.get();
+        let mut r = [true; 3];
+        for (k, &i) in e.free_set().free().iter().enumerate() {
+            r[i] = e.variance_ratio(k) < physid_estim::resolution::MAX_VARIANCE_RATIO;
+        }
+        r
+    }
+
     /// Their standard errors (NaN before they can be estimated, and while frozen).
     pub fn std_err(&self) -> ShaftParams {
         let e = self.est.get();
@@ -595,7 +612,10 @@ impl ShaftStage {
                 std_err: PerParam { k: se.k, b: se.b },
                 frozen: if standstill { [true; 3] } else { self.held(t) },
             });
-            if !standstill && t - t0 >= self.cfg.settle_s {
+            // The detector waits for data that resolve K and B (an unresolved estimate is its
+            // starting value, not the shaft's).
+            let [rk, rb, _] = self.resolved();
+            if !standstill && t - t0 >= self.cfg.settle_s && rk && rb {
                 if self.det_times.len() > self.cfg.dwell.max(1) as usize {
                     self.det_times.pop_front();
                 }
@@ -632,8 +652,11 @@ pub struct ShaftSummary<'a> {
     /// Final K, B, τ0.
     #[serde(rename = "final")]
     pub final_estimate: ShaftParams,
-    /// Their standard errors (null before they can be estimated).
+    /// Their standard errors (null before they can be estimated, and for those unresolved).
     pub std_err: ShaftParams,
+    /// The parameters the data did not resolve (absent when all were).
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub unresolved: &'a [&'static str],
     /// The alarms.
     pub alarms: &'a [ShaftAlarm],
     /// NMSE (Eq. 6.4) of the tracks against the truth (simulated data).
@@ -650,6 +673,7 @@ impl ShaftMonitor {
             method: self.method,
             final_estimate: self.final_estimate,
             std_err: self.final_std_err,
+            unresolved: &self.unresolved,
             alarms: &self.alarms,
             nmse: self.nmse,
             frozen_s: self.frozen_s,
@@ -884,6 +908,7 @@ impl Accumulated {
                 std_err: Vec::new(),
                 final_estimate: cfg.theta0,
                 final_std_err: cfg.theta0,
+                unresolved: Vec::new(),
                 alarms: Vec::new(),
                 truth: None,
                 nmse: None,
@@ -1011,6 +1036,17 @@ impl Accumulated {
         let mut out = self.out;
         out.final_estimate = self.stage.estimate();
         out.final_std_err = self.stage.std_err();
+        let resolved = self.stage.resolved();
+        for ((name, r), se) in ["K", "B", "tau0"].into_iter().zip(resolved).zip([
+            &mut out.final_std_err.k,
+            &mut out.final_std_err.b,
+            &mut out.final_std_err.tau0,
+        ]) {
+            if !r {
+                out.unresolved.push(name);
+                *se = f64::NAN;
+            }
+        }
         out.alarms = self.alarms;
         if self.cfg.supervise {
             let step = 1.0 / self.cfg.rate_hz;

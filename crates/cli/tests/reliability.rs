@@ -1457,3 +1457,202 @@ fn a_time_that_goes_back_is_said_by_identify_and_estimate() {
         assert!(err.contains(said), "{args:?}: {err}");
     }
 }
+
+/// Issue 41, item 5: the output alone scaled by 1e-300, 1e-150 or 1e150 — the estimates and
+/// their standard errors scale with it (y is linear in them), never a standard error of
+/// exactly 0 (the squared residuals underflowed) or ∞.
+#[test]
+fn an_output_at_the_edge_of_double_precision_keeps_its_standard_errors() {
+    let s = Scratch::new("physid-rel");
+    let write = |name: &str, scale: f64| {
+        let f = s.file(name);
+        let mut text = String::from("t,x1,x2,y\n");
+        for i in 0..500 {
+            let t = i as f64 * 0.01;
+            let (a, b) = ((3.0 * t).sin() + 0.5, (5.0 * t).cos());
+            let y = 2.0 * a - 3.0 * b + 0.01 * (91.0 * t).sin();
+            text.push_str(&format!("{t},{a},{b},{}\n", y * scale));
+        }
+        std::fs::write(&f, text).unwrap();
+        f
+    };
+    let run = |f: &std::path::Path, method: &str| {
+        let j = ok_json(&[
+            "estimate",
+            "--data",
+            f.to_str().unwrap(),
+            "--y",
+            "y",
+            "--phi",
+            "x1,x2",
+            "--method",
+            method,
+            "--p0",
+            "1e6",
+            "--json",
+        ]);
+        let get = |k: &str, p: &str| j[k][p].as_f64().unwrap_or(f64::NAN);
+        (
+            [get("params", "x1"), get("params", "x2")],
+            [get("std_err", "x1"), get("std_err", "x2")],
+        )
+    };
+    let one = write("one.csv", 1.0);
+    for method in ["rls", "rlsf", "dsfc"] {
+        let (theta, se) = run(&one, method);
+        for scale in [1e-300, 1e-150, 1e150] {
+            let (theta_s, se_s) = run(&write(&format!("{scale:e}.csv"), scale), method);
+            for j in 0..2 {
+                let rel = |a: f64, b: f64| ((a / scale - b) / b).abs();
+                assert!(
+                    rel(theta_s[j], theta[j]) < 1e-9,
+                    "{method} × {scale:e}: {theta_s:?} against {theta:?}"
+                );
+                assert!(
+                    se_s[j] > 0.0 && rel(se_s[j], se[j]) < 1e-9,
+                    "{method} × {scale:e}: standard errors {se_s:?} against {se:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Issue 41, item 5, on the shaft monitor: torque scaled by 1e-300 scales K, B and their
+/// standard errors with it (never a standard error of 0); every shaft channel scaled by
+/// 1e-300 (K and B unchanged, but φφᵀ underflows: the data carry no information) leaves K and
+/// B unresolved, said so, with no standard error and no alarm.
+#[test]
+fn the_shaft_monitor_at_the_edge_of_double_precision() {
+    let s = Scratch::new("physid-rel");
+    let run = s.file("run.parquet");
+    common::simulated(&run, "shaft-steady", "3");
+    let monitor = |f: &std::path::Path| {
+        ok_json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"])
+    };
+    let scaled = |name: &str, channels: &[&str]| {
+        let f = s.file(name);
+        let mut args = vec![
+            "convert".to_string(),
+            run.to_str().unwrap().into(),
+            f.to_str().unwrap().into(),
+        ];
+        for c in channels {
+            args.extend(["--scale".into(), format!("{c}=1e-300,0")]);
+        }
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = physid(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        f
+    };
+    let base = monitor(&run);
+    assert!(base.get("unresolved").is_none(), "{base}");
+    let torque = monitor(&scaled("torque.parquet", &["torque_shaft"]));
+    for p in ["K", "B"] {
+        let (v, v1) = (
+            torque["final"][p].as_f64().unwrap(),
+            base["final"][p].as_f64().unwrap(),
+        );
+        let (se, se1) = (
+            torque["std_err"][p].as_f64().unwrap(),
+            base["std_err"][p].as_f64().unwrap(),
+        );
+        assert!(
+            ((v / 1e-300 - v1) / v1).abs() < 1e-6,
+            "{p}: {v} against {v1}"
+        );
+        assert!(
+            se > 0.0 && ((se / 1e-300 - se1) / se1).abs() < 1e-6,
+            "{p}: standard error {se} against {se1}"
+        );
+    }
+    let all = monitor(&scaled(
+        "all.parquet",
+        &[
+            "theta_en",
+            "theta_dy",
+            "omega_en",
+            "omega_dy",
+            "torque_shaft",
+        ],
+    ));
+    let unresolved = all["unresolved"].as_array().unwrap();
+    assert!(
+        unresolved.contains(&"K".into()) && unresolved.contains(&"B".into()),
+        "{all}"
+    );
+    assert!(
+        all["std_err"]["K"].is_null() && all["std_err"]["B"].is_null(),
+        "{all}"
+    );
+    assert_eq!(all["alarms"], serde_json::json!([]), "{all}");
+}
+
+/// Issue 41, item 5, on `identify`: an output scaled by 1e-300 is not "identically zero" — the
+/// ranking is the unscaled one's; σ² (its squared residuals underflow) is null with the reason,
+/// never 0. At 1e-150 and 1e150 the standard errors scale with the output.
+#[test]
+fn identify_at_the_edge_of_double_precision() {
+    let s = Scratch::new("physid-rel");
+    let write = |scale: f64| {
+        let f = s.file(&format!("{scale:e}.csv"));
+        let mut text = String::from("t,a,b,y\n");
+        for i in 0..500 {
+            let t = i as f64 * 0.01;
+            let (a, b) = ((3.0 * t).sin() + 0.5, (5.0 * t).cos());
+            let y = 2.0 * a - 3.0 * b + 0.01 * (91.0 * t).sin();
+            text.push_str(&format!("{t},{a},{b},{}\n", y * scale));
+        }
+        std::fs::write(&f, text).unwrap();
+        f
+    };
+    let identify = |scale: f64| {
+        let params = format!("A={:e},B={:e}", 2.0 * scale, -3.0 * scale);
+        ok_json(&[
+            "identify",
+            "--expr",
+            "A*a+B*b",
+            "--params",
+            &params,
+            "--data",
+            write(scale).to_str().unwrap(),
+            "--y",
+            "y",
+            "--json",
+        ])
+    };
+    let one = identify(1.0);
+    let tiny = identify(1e-300);
+    for (a, b) in tiny["ranking"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(one["ranking"].as_array().unwrap())
+    {
+        let rel = |k: &str| (a[k].as_f64().unwrap() / b[k].as_f64().unwrap() - 1.0).abs();
+        assert!(
+            a["param"] == b["param"] && rel("relative") < 1e-9 && rel("residual_ss") < 1e-9,
+            "{tiny} against {one}"
+        );
+    }
+    assert!(tiny["sigma2"].is_null(), "{tiny}");
+    assert!(
+        tiny["sigma2_note"]
+            .as_str()
+            .unwrap()
+            .contains("outside double precision"),
+        "{tiny}"
+    );
+    for scale in [1e-150, 1e150] {
+        let j = identify(scale);
+        for p in ["A", "B"] {
+            let (se, se1) = (
+                j["std_err"][p].as_f64().unwrap(),
+                one["std_err"][p].as_f64().unwrap(),
+            );
+            assert!(
+                ((se / scale - se1) / se1).abs() < 1e-6,
+                "× {scale:e} {p}: {se} against {se1}"
+            );
+        }
+    }
+}

@@ -318,11 +318,26 @@ pub struct LinearEstimator {
     lambda_t: f64,
     noise_num: f64,
     noise_den: f64,
+    /// The power of two the residuals are divided by before they are squared into
+    /// `noise_num` (1 unless the first residual's size is outside [`NOISE_RANGE`]): σ̂ of data
+    /// scaled by 1e-300 or 1e150 neither underflows to 0 nor overflows.
+    #[serde(default = "one")]
+    noise_scale: f64,
     samples: u64,
     guard: Option<WindupGuard>,
     guard_activations: u64,
     last: Option<Step>,
 }
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Residuals whose size is within this range are squared as they are; outside it (data
+/// scaled by 1e-300, or 1e150, whose squares underflow to 0 or overflow), they are first
+/// divided by a power of two near the first one's size — exact, so the standard errors are
+/// right to the last digit at any scale a double holds (issue 41, item 5).
+pub const NOISE_RANGE: std::ops::RangeInclusive<f64> = 1e-100..=1e100;
 
 fn check_lambda(name: &str, l: f64) -> Result<f64, EstimError> {
     if l.is_finite() && l > 0.0 && l <= 1.0 {
@@ -446,6 +461,7 @@ impl LinearEstimator {
             lambda_t,
             noise_num: 0.0,
             noise_den: 0.0,
+            noise_scale: 1.0,
             samples: 0,
             guard: config.guard,
             guard_activations: 0,
@@ -712,6 +728,11 @@ impl LinearEstimator {
 
     /// Noise-scale statistics from `w² = e²/s`, and the step.
     fn record(&mut self, e: f64, s: f64, s_inv: f64, rho: f64) -> Step {
+        if self.noise_num == 0.0 && e != 0.0 && !NOISE_RANGE.contains(&e.abs()) {
+            // The first residual that is not 0 sets the scale: 2^⌊log2 |e|⌋.
+            self.noise_scale = 2f64.powi(e.abs().log2().floor() as i32);
+        }
+        let e = e / self.noise_scale;
         self.noise_num = rho * self.noise_num + e * e * s_inv;
         self.noise_den = rho * self.noise_den + 1.0;
         Step {
@@ -847,6 +868,7 @@ impl LinearEstimator {
         next.lambda_t = self.lambda_t;
         next.noise_num = self.noise_num;
         next.noise_den = self.noise_den;
+        next.noise_scale = self.noise_scale;
         next.samples = self.samples;
         next.guard_activations = self.guard_activations;
         next.last = self.last;
@@ -916,11 +938,19 @@ impl LinearEstimator {
     }
 
     /// Estimated measurement-noise variance σ̂² (see the module docs); the Kalman filter's is
-    /// its given R2.
+    /// its given R2. (Of data scaled by 1e-300 it underflows to 0: the standard errors are
+    /// computed without it, from [`noise_scale`](Self::noise_scale).)
     pub fn noise_variance(&self) -> Result<f64, EstimError> {
         if let Kind::Kalman { r2, .. } = self.kind {
             return Ok(r2);
         }
+        let scale = self.noise_scale;
+        Ok(self.scaled_noise_variance()? * scale * scale)
+    }
+
+    /// `σ̂²` divided by the square of [`noise_scale`](Self::noise_scale): it neither
+    /// underflows nor overflows when σ̂² would.
+    fn scaled_noise_variance(&self) -> Result<f64, EstimError> {
         let p = self.phi.len() as f64;
         if self.noise_den <= p {
             return Err(EstimError::NotEnoughData {
@@ -929,6 +959,18 @@ impl LinearEstimator {
             });
         }
         Ok(self.noise_num / (self.noise_den - p))
+    }
+
+    /// The power of two the residuals are divided by before they are squared (1 for data of
+    /// ordinary size): see [`NOISE_RANGE`].
+    pub fn noise_scale(&self) -> f64 {
+        self.noise_scale
+    }
+
+    /// `P_ii / P0_ii` of the `i`-th free parameter: how far the data have narrowed its
+    /// uncertainty (≥ ½: not resolved, [`crate::resolution`]). Allocation-free.
+    pub fn variance_ratio(&self, i: usize) -> f64 {
+        self.cov.variance(i) / self.cov0.variance(i)
     }
 
     /// Standard errors of the free estimates, written into `out` (allocation-free):
@@ -942,12 +984,12 @@ impl LinearEstimator {
                 got: out.len(),
             });
         }
-        let scale = match self.kind {
-            Kind::Kalman { .. } => 1.0,
-            _ => self.noise_variance()?,
+        let (scale, factor) = match self.kind {
+            Kind::Kalman { .. } => (1.0, 1.0),
+            _ => (self.scaled_noise_variance()?, self.noise_scale),
         };
         for (i, o) in out.iter_mut().enumerate() {
-            *o = (scale * self.cov.variance(i)).sqrt();
+            *o = factor * (scale * self.cov.variance(i)).sqrt();
         }
         Ok(())
     }
@@ -1029,6 +1071,7 @@ impl crate::recursive::Recursive for LinearEstimator {
                 lambda_t: self.lambda_t,
                 noise_num: self.noise_num,
                 noise_den: self.noise_den,
+                noise_scale: self.noise_scale,
                 guard_activations: self.guard_activations,
                 frozen_variance: self
                     .frozen_variance
@@ -1046,6 +1089,7 @@ impl crate::recursive::Recursive for LinearEstimator {
             lambda_t,
             noise_num,
             noise_den,
+            noise_scale,
             guard_activations,
             frozen_variance,
             last,
@@ -1093,6 +1137,7 @@ impl crate::recursive::Recursive for LinearEstimator {
         next.lambda_t = *lambda_t;
         next.noise_num = *noise_num;
         next.noise_den = *noise_den;
+        next.noise_scale = *noise_scale;
         next.guard_activations = *guard_activations;
         next.frozen_variance = frozen_variance
             .iter()

@@ -80,6 +80,14 @@ pub struct Snapshot {
     pub memory: Memory,
 }
 
+fn one() -> f64 {
+    1.0
+}
+
+fn is_one(v: &f64) -> bool {
+    *v == 1.0
+}
+
 /// Method-specific memory of a [`Snapshot`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -92,6 +100,10 @@ pub enum Memory {
         noise_num: f64,
         /// Its denominator (effective sample count).
         noise_den: f64,
+        /// The power of two the residuals are divided by (`noise_num` is in its units; 1,
+        /// and not written, for data of ordinary size).
+        #[serde(default = "one", skip_serializing_if = "is_one")]
+        noise_scale: f64,
         /// Times the wind-up guard acted.
         guard_activations: u64,
         /// Per parameter of the full set, its variance when last frozen (`None`: never).

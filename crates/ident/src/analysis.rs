@@ -165,17 +165,27 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
         // Sums of squares beyond 1e308 need a sensitivity beyond √(1e308/n); below that, the
         // factor lost finiteness on sensitivities that are exactly collinear.
         let overflow = z_max * z_max * (n.max(1) as f64) > 1e300;
-        return Err(IdentError::Invalid(if overflow {
-            format!(
+        return Err(IdentError::Invalid(
+            if overflow && config.scaling == Scaling::None {
+                format!(
                 "the sensitivities overflow (a scaled sensitivity of {z_max:.3e}: sums of squares beyond 1e308): rescale the parameters or use --scaling thesis/sigma"
             )
-        } else {
-            format!(
+            } else if overflow {
+                // Scaled by the output's level already: the output and the model at ϑ0 are far
+                // apart in size (y × 1e-300 against nominal values for y).
+                format!(
+                "the scaled sensitivities overflow (up to {z_max:.3e}: sums of squares beyond 1e308) with {} scaling: the output's level (rms {:.3e}) is out of all proportion to the model's sensitivities at the nominal values — check the output's units and the nominal values (--params)",
+                config.scaling.name(),
+                levels.rms
+            )
+            } else {
+                format!(
                 "the parameters' sensitivities are exactly collinear (the largest is {z_max:.3e}, \
                  no overflow): parameters that enter the model the same way cannot be told apart \
                  — keep one of each such group (--free) or write the model with one"
             )
-        }));
+            },
+        ));
     }
     let ranking = rank(&fz.r());
     Ok(Analysis {

@@ -29,6 +29,10 @@ pub enum SigmaSource {
     Unit,
 }
 
+/// Why an identification has no σ² and no precision: the fit's residuals square outside
+/// double precision.
+pub const SIGMA2_OUTSIDE: &str = "the fit's squared residuals are outside double precision (they underflow to 0 or overflow): the noise variance and the precision cannot be given; the ranking stands. Rescale the output (e.g. to SI units, or with --scale) for them";
+
 /// One recording's identification (see the module docs).
 #[derive(Debug, Clone)]
 pub struct Identification {
@@ -42,7 +46,8 @@ pub struct Identification {
     pub wu: Option<WuDecision>,
     /// Values of the selected parameters (fitted, or nominal).
     pub values: Vec<f64>,
-    /// Noise variance σ² and its source.
+    /// Noise variance σ² and its source (NaN when the fit's residuals square outside double
+    /// precision: [`SIGMA2_OUTSIDE`]).
     pub sigma2: f64,
     /// See `sigma2`.
     pub sigma_source: SigmaSource,
@@ -85,7 +90,12 @@ pub fn identify<M: ParamModel, R: Rows + ?Sized>(
         };
         (a.gram(&selected), s2, src)
     };
-    let quant = if k > 0 {
+    // The fit's residuals of data scaled by 1e-300 square to 0 (or of 1e200 to ∞): σ² is
+    // then unknown, not 0, and no precision is given from it (issue 41, item 5).
+    let sigma2_outside =
+        sigma_source == SigmaSource::Fit && !(sigma2.is_finite() && sigma2 >= f64::MIN_POSITIVE);
+    let sigma2 = if sigma2_outside { f64::NAN } else { sigma2 };
+    let quant = if k > 0 && !sigma2_outside {
         quantify(&gram, sigma2, &values, a.rows).ok()
     } else {
         None
@@ -95,7 +105,7 @@ pub fn identify<M: ParamModel, R: Rows + ?Sized>(
     } else {
         1.0
     };
-    let design = (k > 0).then(|| design_criteria(&(gram / sigma2)));
+    let design = (k > 0 && !sigma2_outside).then(|| design_criteria(&(gram / sigma2)));
     Ok(Identification {
         analysis: a,
         k,
@@ -170,8 +180,9 @@ impl Identification {
                     r_cc: None,
                 },
             },
-            sigma2: self.sigma2,
+            sigma2: Num(self.sigma2),
             sigma2_source: self.sigma_source,
+            sigma2_note: self.sigma2.is_nan().then_some(SIGMA2_OUTSIDE),
             collinearity: Num(self.collinearity),
             d_criterion: Num(self.design.map_or(f64::NAN, |c| c.d)),
             design: self.design.map(|c| DesignReport {
@@ -299,10 +310,13 @@ pub struct IdentReport<'a> {
     pub unit_scaled: Vec<&'a str>,
     /// The cut-off.
     pub cutoff: CutoffReport<'a>,
-    /// Noise variance σ².
-    pub sigma2: f64,
+    /// Noise variance σ² (null: see `sigma2_note`).
+    pub sigma2: Num,
     /// Its source.
     pub sigma2_source: SigmaSource,
+    /// Why σ² is null.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma2_note: Option<&'static str>,
     /// Collinearity index of the estimable subset.
     pub collinearity: Num,
     /// det of the Fisher information.

@@ -198,6 +198,10 @@ pub fn output_levels<M: ParamModel, R: Rows + ?Sized>(
     theta0: &[f64],
 ) -> Result<OutputLevels, IdentError> {
     let (mut mean, mut m2, mut sq) = (0.0, 0.0, 0.0);
+    // An output whose size is outside 1e±100 is summed divided by a power of two near its first
+    // value that is not 0 (exact), so its square neither underflows (data scaled by 1e-300 are
+    // not "identically zero") nor overflows (issue 41, item 5).
+    let mut scale = 1.0f64;
     let n = for_each_row(model, rows, |i, u, y| {
         let y = match y {
             Some(y) => y,
@@ -213,6 +217,10 @@ pub fn output_levels<M: ParamModel, R: Rows + ?Sized>(
                 h
             }
         };
+        if sq == 0.0 && y != 0.0 && !(1e-100..=1e100).contains(&y.abs()) {
+            scale = 2f64.powi(y.abs().log2().floor() as i32);
+        }
+        let y = y / scale;
         let k = (i + 1) as f64;
         let d = y - mean;
         mean += d / k;
@@ -221,8 +229,8 @@ pub fn output_levels<M: ParamModel, R: Rows + ?Sized>(
         Ok(())
     })?;
     Ok(OutputLevels {
-        rms: sq.sqrt(),
-        std: (m2 / n as f64).sqrt(),
+        rms: scale * sq.sqrt(),
+        std: scale * (m2 / n as f64).sqrt(),
         rows: n,
     })
 }

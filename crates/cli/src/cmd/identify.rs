@@ -281,6 +281,9 @@ fn print_report(id: &Identification, file: &str) {
             n.join(", ")
         );
     }
+    if id.sigma2.is_nan() {
+        outln!("note: {}", physid_ident::report::SIGMA2_OUTSIDE);
+    }
     if let Some(q) = &id.quant {
         let src = match id.sigma_source {
             SigmaSource::Fit => "from the fit's residuals",

@@ -432,6 +432,12 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
         r.final_std_err.b,
         r.final_estimate.tau0
     );
+    if !r.unresolved.is_empty() {
+        outln!(
+            "  not resolved by the data: {} (their variance did not halve from P0: the value is the estimator's start, not the shaft's; no alarm is raised on it)",
+            r.unresolved.join(", ")
+        );
+    }
     if let Some(n) = r.nmse {
         outln!(
             "  NMSE against the recording's truth: K {:.2e}, B {:.2e}",
