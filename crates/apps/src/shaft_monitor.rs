@@ -17,6 +17,7 @@ use physid_estim::{
 use physid_models::shaft::{Shaft, NOMINAL};
 use physid_signal::filter::{butter, Band};
 use physid_signal::integrity::NOMINAL_SAMPLES;
+use physid_signal::speed_angle::SpeedAngle;
 use physid_signal::stream::{settling_length, ZeroPhaseStream};
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -197,6 +198,9 @@ pub struct ShaftMonitor {
     /// The parameters the data did not resolve (their variance did not halve from P0): their
     /// final values are the estimator's start, not the shaft's.
     pub unresolved: Vec<&'static str>,
+    /// What in the recording makes the estimates suspect: a speed that is not its angle's
+    /// derivative ([`physid_signal::speed_angle`]: a units row that lies).
+    pub warnings: Vec<String>,
     /// Alarms.
     pub alarms: Vec<ShaftAlarm>,
     /// True K and B over time, when the recording carries them (simulated data).
@@ -657,6 +661,9 @@ pub struct ShaftSummary<'a> {
     /// The parameters the data did not resolve (absent when all were).
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     pub unresolved: &'a [&'static str],
+    /// What makes the estimates suspect (absent when nothing does).
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub warnings: &'a [String],
     /// The alarms.
     pub alarms: &'a [ShaftAlarm],
     /// NMSE (Eq. 6.4) of the tracks against the truth (simulated data).
@@ -674,6 +681,7 @@ impl ShaftMonitor {
             final_estimate: self.final_estimate,
             std_err: self.final_std_err,
             unresolved: &self.unresolved,
+            warnings: &self.warnings,
             alarms: &self.alarms,
             nmse: self.nmse,
             frozen_s: self.frozen_s,
@@ -883,6 +891,8 @@ struct Accumulated {
     within: [Within; 2],
     t_first: Option<f64>,
     frozen_count: [usize; 2],
+    /// Each angle and its speed, checked as they pass (from the first chunk).
+    speed_angle: Option<Vec<SpeedAngle>>,
 }
 
 impl Accumulated {
@@ -909,6 +919,7 @@ impl Accumulated {
                 final_estimate: cfg.theta0,
                 final_std_err: cfg.theta0,
                 unresolved: Vec::new(),
+                warnings: Vec::new(),
                 alarms: Vec::new(),
                 truth: None,
                 nmse: None,
@@ -924,11 +935,18 @@ impl Accumulated {
             within: [Within::Always; 2],
             t_first: None,
             frozen_count: [0; 2],
+            speed_angle: None,
         })
     }
 
     fn push(&mut self, chunk: &Recording, sink: &mut ShaftSink) -> Result<(), AppError> {
         let x = ShaftInputs::of(chunk)?;
+        for p in self
+            .speed_angle
+            .get_or_insert_with(|| SpeedAngle::pairs(chunk))
+        {
+            p.push(chunk);
+        }
         // The step held to the first chunks' rate, across chunk boundaries too.
         for (i, &now) in x.t.iter().enumerate() {
             if let Some(before) = self.t_prev {
@@ -1048,6 +1066,12 @@ impl Accumulated {
             }
         }
         out.alarms = self.alarms;
+        out.warnings = self
+            .speed_angle
+            .iter()
+            .flatten()
+            .filter_map(SpeedAngle::finding)
+            .collect();
         if self.cfg.supervise {
             let step = 1.0 / self.cfg.rate_hz;
             out.frozen_s = Some(PerParam {

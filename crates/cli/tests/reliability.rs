@@ -1656,3 +1656,57 @@ fn identify_at_the_edge_of_double_precision() {
         }
     }
 }
+
+/// Issue 41, item 6: units rows that lie. A speed in rpm read as rad/s (B = 0.0994 for a true
+/// 0.95) and one in rad/s read as deg/s are found by `inspect` — the angle travelled against
+/// the speed integrated — with the likely mislabel named; `monitor shaft` warns the same way.
+/// The recording as simulated passes.
+#[test]
+fn a_speed_whose_units_row_lies_is_found_against_its_angle() {
+    let s = Scratch::new("physid-rel");
+    let run = s.file("run.parquet");
+    common::simulated(&run, "shaft-steady", "2");
+    let r = run.to_str().unwrap();
+    let j = ok_json(&["inspect", r, "--json"]);
+    assert_eq!(j["integrity"]["ok"], true, "{j}");
+    for (gain, named) in [
+        // rpm numbers under a rad/s label; rad/s numbers under deg/s (read as × π/180).
+        (
+            60.0 / std::f64::consts::TAU,
+            "'omega_en' looks like rpm labelled rad/s",
+        ),
+        (
+            std::f64::consts::PI / 180.0,
+            "'omega_en' looks like rad/s labelled deg/s",
+        ),
+    ] {
+        let f = s.file(&format!("lie-{gain}.parquet"));
+        let o = physid(&[
+            "convert",
+            r,
+            f.to_str().unwrap(),
+            "--scale",
+            &format!("omega_en={gain},0"),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let j = ok_json(&["inspect", f.to_str().unwrap(), "--json"]);
+        let findings = j["integrity"]["findings"].as_array().unwrap();
+        assert!(
+            findings.iter().any(|x| x["kind"] == "speed_angle_mismatch"
+                && x["detail"].as_str().unwrap().contains(named)),
+            "{gain}: {j}"
+        );
+        fails_with(
+            &["inspect", f.to_str().unwrap(), "--strict"],
+            "the integrity check found",
+        );
+        let m = ok_json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"]);
+        assert!(
+            m["warnings"].as_array().unwrap()[0]
+                .as_str()
+                .unwrap()
+                .contains(named),
+            "{m}"
+        );
+    }
+}

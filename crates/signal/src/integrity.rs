@@ -13,6 +13,7 @@
 //! | `count_backwards` | an encoder count that decreases |
 //! | `uneven_pulses` | an encoder whose count steps are not equally spaced in angle — one step per revolution lasting 1.8× the others or more, as a trigger wheel's missing teeth make them ([`crate::encoder::uneven_spacing`], judged on the first 65 536 samples when the pulses are resolved in time) |
 //! | `unit_mismatch` | a channel of the table (DESIGN.md) with another unit than its SI one (`T_oil` in °C) |
+//! | `speed_angle_mismatch` | time basis: a speed that is not its angle's derivative — `Δθ` against `∫ω dt` off by more than 5 %, a factor of 2π/60, 180/π, 2π, 6 or 60 named as the mislabel it is ([`crate::speed_angle`]) |
 //! | `incomplete_cycle` | crank-angle basis: a cycle inside the recording with the wrong number of samples |
 //!
 //! A TDC marker belongs to one encoder (the engine's): only that encoder is checked pulse by
@@ -50,6 +51,8 @@ pub enum FindingKind {
     IncompleteCycle,
     /// A standard channel in a non-standard unit.
     UnitMismatch,
+    /// A speed that is not its angle's derivative (a units row that lies).
+    SpeedAngleMismatch,
     /// An encoder count going backwards.
     CountBackwards,
     /// An encoder's count steps not equally spaced in angle (a wheel with missing teeth).
@@ -196,6 +199,8 @@ pub struct IntegrityCheck {
     prev_marker: Option<f64>,
     has_marker: bool,
     seen: usize,
+    /// Each angle and its speed ([`crate::speed_angle`]).
+    speed_angle: Vec<crate::speed_angle::SpeedAngle>,
 }
 
 impl IntegrityCheck {
@@ -242,6 +247,7 @@ impl IntegrityCheck {
                 .as_ref()
                 .is_some_and(|m| header.channel(m).is_ok()),
             seen: 0,
+            speed_angle: crate::speed_angle::SpeedAngle::pairs(header),
         }
     }
 
@@ -302,6 +308,9 @@ impl IntegrityCheck {
     /// One chunk through every check.
     fn scan(&mut self, chunk: &Recording) {
         let n = chunk.len();
+        for p in &mut self.speed_angle {
+            p.push(chunk);
+        }
         if let Some(stream) = self.stream.as_mut() {
             stream.scan(chunk);
         }
@@ -373,6 +382,11 @@ impl IntegrityCheck {
             .unwrap_or_else(|| IntegrityStream::new(&self.opts, self.basis, None));
         stream.finish_checks();
         let mut c = std::mem::take(&mut stream.c);
+        for p in &self.speed_angle {
+            if let Some(detail) = p.finding() {
+                c.push(FindingKind::SpeedAngleMismatch, 0, detail);
+            }
+        }
         for nf in &self.non_finite {
             if let Some((i, v)) = nf.first {
                 c.push(

@@ -18,5 +18,6 @@ pub mod filter;
 pub mod integrity;
 pub mod quadrature;
 pub mod resample;
+pub mod speed_angle;
 pub mod stream;
 pub mod wheel;

@@ -407,6 +407,9 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
         tf.close()?;
     }
     super::warn_read(&reader, &a.data);
+    for w in &r.warnings {
+        eprintln!("warning: {}: {w}", a.data.display());
+    }
     let j = r.summary();
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
