@@ -943,7 +943,7 @@ impl Accumulated {
         let x = ShaftInputs::of(chunk)?;
         for p in self
             .speed_angle
-            .get_or_insert_with(|| SpeedAngle::pairs(chunk))
+            .get_or_insert_with(|| SpeedAngle::pairs(chunk, &[]))
         {
             p.push(chunk);
         }

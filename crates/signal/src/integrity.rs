@@ -247,7 +247,7 @@ impl IntegrityCheck {
                 .as_ref()
                 .is_some_and(|m| header.channel(m).is_ok()),
             seen: 0,
-            speed_angle: crate::speed_angle::SpeedAngle::pairs(header),
+            speed_angle: crate::speed_angle::SpeedAngle::pairs(header, &opts.encoders),
         }
     }
 

@@ -53,6 +53,11 @@ const FACTORS: [(f64, &str); 10] = [
 #[derive(Debug, Clone)]
 pub struct SpeedAngle {
     angle: String,
+    /// Radians per unit of the angle channel: 1, or 2π/N for an encoder's count of N pulses
+    /// per revolution.
+    gain: f64,
+    /// What the angle channel is, for a person ("" for an angle, " (N pulses per revolution)").
+    what: String,
     speed: String,
     /// The previous sample's (t, θ, ω).
     prev: Option<(f64, f64, f64)>,
@@ -63,23 +68,52 @@ pub struct SpeedAngle {
 }
 
 impl SpeedAngle {
-    /// The pairs of [`PAIRS`] a time-basis recording with `header`'s channels has.
-    pub fn pairs(header: &Recording) -> Vec<Self> {
+    fn new(angle: &str, gain: f64, what: String, speed: &str) -> Self {
+        Self {
+            angle: angle.into(),
+            gain,
+            what,
+            speed: speed.into(),
+            prev: None,
+            travelled: 0.0,
+            integrated: 0.0,
+            steps: 0,
+        }
+    }
+
+    /// The pairs of [`PAIRS`] a time-basis recording with `header`'s channels has, and each
+    /// encoder count of `encoders` (channel, pulses per revolution) with its shaft's speed: the
+    /// dynamometer's (`omega_dy`) for a count whose name ends in `_dy`, the engine's otherwise.
+    pub fn pairs(header: &Recording, encoders: &[(String, u32)]) -> Vec<Self> {
         if header.basis != Basis::Time || header.channel("t").is_err() {
             return Vec::new();
         }
-        PAIRS
+        let has = |n: &str| header.channel(n).is_ok();
+        let angles = PAIRS
             .iter()
-            .filter(|(a, s)| header.channel(a).is_ok() && header.channel(s).is_ok())
-            .map(|(a, s)| Self {
-                angle: (*a).into(),
-                speed: (*s).into(),
-                prev: None,
-                travelled: 0.0,
-                integrated: 0.0,
-                steps: 0,
+            .filter(|(a, s)| has(a) && has(s))
+            .map(|(a, s)| Self::new(a, 1.0, String::new(), s));
+        let counts = encoders
+            .iter()
+            .filter(|(c, ppr)| has(c) && *ppr > 0)
+            .map(|(c, ppr)| {
+                let speed = if c.ends_with("_dy") {
+                    "omega_dy"
+                } else {
+                    "omega_en"
+                };
+                (c, *ppr, speed)
             })
-            .collect()
+            .filter(|(_, _, s)| has(s))
+            .map(|(c, ppr, s)| {
+                Self::new(
+                    c,
+                    TAU / f64::from(ppr),
+                    format!(" ({ppr} pulses per revolution)"),
+                    s,
+                )
+            });
+        angles.chain(counts).collect()
     }
 
     /// Take a chunk of the recording (it must have `t` and the pair; otherwise it is passed).
@@ -92,6 +126,7 @@ impl SpeedAngle {
             return;
         };
         for ((&t, &th), &w) in t.iter().zip(th).zip(w) {
+            let th = th * self.gain;
             if !(t.is_finite() && th.is_finite() && w.is_finite()) {
                 self.prev = None;
                 continue;
@@ -125,8 +160,8 @@ impl SpeedAngle {
             return None;
         }
         let head = format!(
-            "'{}' and '{}' disagree: the angle travelled {:.6e} rad while the speed integrates to {:.6e} rad over the same {} steps (a factor {r:.4})",
-            self.angle, self.speed, self.travelled, self.integrated, self.steps
+            "'{}'{} and '{}' disagree: the angle travelled {:.6e} rad while the speed integrates to {:.6e} rad over the same {} steps (a factor {r:.4})",
+            self.angle, self.what, self.speed, self.travelled, self.integrated, self.steps
         );
         let named = FACTORS
             .iter()
@@ -135,6 +170,14 @@ impl SpeedAngle {
                 why.replace("{speed}", &self.speed)
                     .replace("{angle}", &self.angle)
             });
+        // An encoder's count: the pulses per revolution its travel implies.
+        let pulses = (TAU / self.gain * r).round();
+        if self.gain != 1.0 && named.is_none() && r > 0.0 {
+            return Some(format!(
+                "{head}: the count goes {pulses:.0} pulses per revolution of '{}' — check the encoder's pulses per revolution (--encoder NAME=N) or the speed's unit",
+                self.speed
+            ));
+        }
         Some(match named {
             Some(why) => format!(
                 "{head}: {why} — correct the unit (--map NAME=COLUMN:UNIT) and read the file again"
@@ -182,7 +225,7 @@ mod tests {
     }
 
     fn check(rec: &Recording) -> Option<String> {
-        let mut pairs = SpeedAngle::pairs(rec);
+        let mut pairs = SpeedAngle::pairs(rec, &[]);
         assert_eq!(pairs.len(), 1);
         // In chunks of 777 rows, as a file is read.
         let mut at = 0;
@@ -198,9 +241,42 @@ mod tests {
     fn a_speed_that_is_its_angles_derivative_passes() {
         let r = run(1.0);
         assert_eq!(check(&r), None);
-        let mut p = SpeedAngle::pairs(&r);
+        let mut p = SpeedAngle::pairs(&r, &[]);
         p[0].push(&r);
         assert!((p[0].ratio().unwrap_or(0.0) - 1.0).abs() < 1e-6);
+    }
+
+    /// An encoder's count (360 pulses per revolution, floor of the angle) against the speed:
+    /// right with its pulses per revolution, a factor 2 off when told 720.
+    #[test]
+    fn an_encoder_count_is_checked_at_its_pulses_per_revolution() {
+        let mut r = run(1.0);
+        let count: Vec<f64> = r
+            .values("t")
+            .unwrap_or_default()
+            .iter()
+            .map(|&t| (360.0 * (150.0 * t + 20.0 / 3.0 * (1.0 - (3.0 * t).cos())) / TAU).floor())
+            .collect();
+        r.push(Channel {
+            name: "count_en".into(),
+            unit: String::new(),
+            values: count,
+        })
+        .unwrap_or_else(|e| panic!("{e}"));
+        for (ppr, ok) in [(360, true), (720, false)] {
+            let mut p = SpeedAngle::pairs(&r, &[("count_en".into(), ppr)]);
+            assert_eq!(p.len(), 2);
+            p[1].push(&r);
+            let f = p[1].finding();
+            assert_eq!(f.is_none(), ok, "{ppr}: {f:?}");
+            if let Some(f) = f {
+                assert!(
+                    f.contains("'count_en' (720 pulses per revolution)")
+                        && f.contains("the count goes 360 pulses per revolution"),
+                    "{f}"
+                );
+            }
+        }
     }
 
     #[test]
