@@ -170,7 +170,7 @@ fn an_overflowing_output_is_named_as_such() {
             "--y",
             "y",
         ],
-        "the output's level overflowed",
+        "the data overflow 64-bit floating point in their squares",
     );
 }
 

@@ -125,6 +125,8 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
     let mut guarded = 0;
     // The largest scaled sensitivity: whether a factor that is not finite overflowed.
     let mut z_max = 0.0f64;
+    // The largest unscaled sensitivity and residual: whether their squares overflowed.
+    let (mut g_max, mut r_max) = (0.0f64, 0.0f64);
     let n = for_each_row(model, data, |i, u, y| {
         let h = engine.value_and_gradient(model, u, theta0, &free, &mut g);
         if let Some(k) = g.iter().position(|v| !v.is_finite()) {
@@ -149,8 +151,10 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
         }
         fz.add_row(&z);
         jr[..p].copy_from_slice(&g);
+        g_max = g.iter().fold(g_max, |m, v| m.max(v.abs()));
         if let Some(y) = y {
             jr[p] = y - h;
+            r_max = r_max.max(jr[p].abs());
         }
         fj.add_row(&jr);
         Ok(())
@@ -159,6 +163,11 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
         return Err(IdentError::Read(format!(
             "the data gave {n} rows on a second pass, {} on the first",
             levels.rows
+        )));
+    }
+    if fz.is_finite() && !fj.is_finite() && g_max.max(r_max).powi(2) * (n.max(1) as f64) > 1e300 {
+        return Err(IdentError::Invalid(format!(
+            "the data overflow 64-bit floating point in their squares (|∂h/∂θ| up to {g_max:.3e}, |y − h| up to {r_max:.3e}: sums of squares beyond 1.8e308): rescale the data (e.g. to SI units or by a power of ten)"
         )));
     }
     if !(fz.is_finite() && fj.is_finite()) {
