@@ -354,9 +354,24 @@ fn bench_json_has_the_documented_shape() {
         ("testcell_dynamics_rk4", 4.0),
     ] {
         let tc = r.iter().find(|e| e["name"] == name).unwrap();
-        assert!(tc["realtime_factor"].as_f64().unwrap() > 0.0, "{name}");
-        assert!(tc["steps_per_s"].as_f64().unwrap() > 0.0, "{name}");
+        let (realtime, steps) = (
+            tc["realtime_factor"].as_f64().unwrap(),
+            tc["steps_per_s"].as_f64().unwrap(),
+        );
+        assert!(realtime.is_finite() && realtime > 0.0, "{name}");
+        // One step per crank degree at 1000 rpm: 6000 steps per simulated second.
+        assert!(
+            (steps / (6000.0 * realtime) - 1.0).abs() < 1e-12,
+            "{name}: {steps} steps/s at {realtime}× real time"
+        );
         assert_eq!(tc["solver_order"].as_f64(), Some(order));
+        // The dynamics alone: Heun takes one sub-step per step, RK4 at least one.
+        if let Some(sub) = tc["substeps_per_step"].as_f64() {
+            assert!(
+                if order == 2.0 { sub == 1.0 } else { sub >= 1.0 },
+                "{name}: {sub} sub-steps per step"
+            );
+        }
     }
     for name in ["ident_batch", "ident_cyclic_torque", "ident_online"] {
         let e = r

@@ -233,8 +233,19 @@ fn a_crank_angle_recording_keeps_its_basis_in_every_format_and_every_verb_takes_
             f.to_str().unwrap(),
             "--json",
         ]));
+        // The shaft monitor on the crank-angle recording (taken back to time) finds the
+        // scenario's shaft (shaft.k = 1250 N·m/rad, shaft.b = 0.95 N·m·s/rad) within 3σ.
         let m = ok_json(&["monitor", "shaft", "--data", f.to_str().unwrap(), "--json"]);
-        assert!(m["final"]["K"].as_f64().unwrap() > 0.0, "{ext}");
+        for (p, truth) in [("K", 1250.0), ("B", 0.95)] {
+            let (v, se) = (
+                m["final"][p].as_f64().unwrap(),
+                m["std_err"][p].as_f64().unwrap(),
+            );
+            assert!(
+                (v - truth).abs() < 3.0 * se,
+                "{ext}: {p} = {v} ± {se} against {truth}"
+            );
+        }
     }
     // The same samples in each format: the same fit to the last digit.
     assert_eq!(fits[0]["params"], fits[1]["params"]);

@@ -605,7 +605,8 @@ fn the_fleet_view_in_a_real_browser() {
         "--pace",
         "2",
     ];
-    let mut a = vec!["live", "--nats", &url, "--cell", "cell-1"];
+    // `--json`: its summary at the end (what it published), to account for every sample.
+    let mut a = vec!["live", "--nats", &url, "--cell", "cell-1", "--json"];
     a.extend_from_slice(&common_args);
     let _c1 = Proc::start(&a);
     let mut b = vec![
@@ -711,7 +712,13 @@ fn the_fleet_view_in_a_real_browser() {
     assert!(exit.status.success(), "{}", exit.stderr);
     let e = wait_events(&url, "cell-1", 30, has_end);
     let end = e.iter().find(|e| e["type"] == "end").expect("end");
-    assert!(end["samples"].as_u64().unwrap_or(0) > 0);
+    // Every sample it published before the signal, once.
+    let published: Value = serde_json::from_str(exit.stdout.trim()).expect("summary");
+    assert!(
+        published["samples"].as_u64().unwrap_or(0) > 0,
+        "{published}"
+    );
+    assert_eq!(end["samples"], published["samples"], "{published}");
 }
 
 /// `physid bench fleet`'s table gives the sample accounting on every run (not only in

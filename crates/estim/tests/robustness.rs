@@ -184,6 +184,15 @@ fn ill_conditioned_textbook_update_breaks_and_dsfc_does_not() {
     assert!(min_dsfc_ratio > 1e-12 && min_dsfc_ratio.is_finite());
     let s: &DMatrix<f64> = dsfc.sqrt_covariance().unwrap();
     assert!(s.iter().all(|v| v.is_finite()));
+    // Against the truth (2, 3): on φ2 = φ1 + 1e-8·v only θ1 + θ2 is in the data (the
+    // difference's information is 1e-16 of it), and DSFC has it to the noise's level — its
+    // standard error over λ = 0.98's ≈ 50-sample memory, 0.01/√50 ≈ 0.0014.
+    let th = dsfc.estimate();
+    assert!(
+        (th[0] + th[1] - 5.0).abs() < 0.01,
+        "DSFC θ1 + θ2 = {} against 5",
+        th[0] + th[1]
+    );
 }
 
 /// Soak: 10⁷ updates at p = 10, λ = 0.999 (where DESIGN.md measured a textbook update going NaN
