@@ -42,14 +42,37 @@ fn speed_noise_matches_the_closed_forms() {
             (r / predicted - 1.0).abs() < 0.05,
             "ppr {ppr}: {r} vs {predicted}"
         );
-        // Local fit, h = 10: q/(dt·√(12·Σk²)), Σk² = 770 — measured 22 % (360) and 11 % (1024)
-        // above it: at a few pulses per sample neighbouring quantisation errors are not
-        // independent, which the difference estimator hardly feels but a long fit does.
+        // Local fit, h = 10. Its quantisation errors are not independent: over a few samples
+        // the angle advances δ = ω·dt/q pulses a sample, so the errors are e_k = {c + k·δ} − ½,
+        // whose correlation (c uniform) is R(x) = 1/12 − {x}(1 − {x})/2 at lag x = (j − k)·δ.
+        // The slope's variance is then (q/dt)²·Σ_j Σ_k j·k·R((j − k)·δ) / (Σk²)², averaged
+        // over the run's δ(t) — 22 % (360) and 11 % (1024) above the independent-errors form
+        // q/(dt·√(12·Σk²)), which the difference estimator (one lag) hardly feels.
         let h = 10;
         let wf = enc.speed_fit(&c, dt, h);
         let rf = rms(&wf[h..c.len() - h], &omega[h..c.len() - h]);
-        let pf = q / (dt * (12.0 * 770.0f64).sqrt());
-        assert!((rf / pf - 1.0).abs() < 0.3, "ppr {ppr}: fit {rf} vs {pf}");
+        let hi = h as i64;
+        let sum_k2: f64 = (-hi..=hi).map(|k| (k * k) as f64).sum();
+        let corr = |x: f64| {
+            let f = x - x.floor();
+            1.0 / 12.0 - f * (1.0 - f) / 2.0
+        };
+        let (mut var, mut n) = (0.0, 0);
+        for w in omega[h..c.len() - h].iter().step_by(7) {
+            let d = w * dt / q;
+            let mut v = 0.0;
+            for j in -hi..=hi {
+                for k in -hi..=hi {
+                    v += (j * k) as f64 * corr((j - k) as f64 * d);
+                }
+            }
+            var += v / (sum_k2 * sum_k2);
+            n += 1;
+        }
+        let pf = q / dt * (var / f64::from(n)).sqrt();
+        assert!((rf / pf - 1.0).abs() < 0.05, "ppr {ppr}: fit {rf} vs {pf}");
+        let independent = q / (dt * (12.0 * sum_k2).sqrt());
+        assert!(rf / independent > 1.05, "ppr {ppr}: {rf} vs {independent}");
         assert!(r / rf > 25.0, "ppr {ppr}: fit improves {}×", r / rf);
     }
 }
