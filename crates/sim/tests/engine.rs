@@ -419,6 +419,17 @@ fn plausible_against_the_thesis() {
     assert!(wot.pmep_pa > 0.0 && closed.pmep_pa > wot.pmep_pa);
     assert!((0.7..1.0).contains(&wot.vol_eff), "{}", wot.vol_eff);
     assert!(wot.torque_mean_nm.indicated < 0.0);
+    // Energy over a cycle: the mean indicated torque (from the crank's kinematics, sample by
+    // sample) times the cycle's 4π rad is the indicated work ∮p dV = IMEP·V_d.
+    let vd = Engine::new(&p.engine, &p.ambient).displacement();
+    for c in [&wot, &closed] {
+        let from_imep = c.imep_pa * vd / (4.0 * PI);
+        let t = c.torque_mean_nm.indicated;
+        assert!(
+            ((t - from_imep) / from_imep).abs() < 1e-3,
+            "mean indicated torque {t} N·m against IMEP·V_d/4π {from_imep} N·m"
+        );
+    }
     eprintln!(
         "closed throttle: p_int {:.1} kPa; WOT: p_max {:.2} bar at {:.1}°, IMEP {:.1} kPa, PMEP {:.1} kPa, vol. eff. {:.3}, trapped {:.4} g",
         closed.p_int_mean_pa / 1e3, wot.p_max_pa / 1e5, th, wot.imep_pa / 1e3, wot.pmep_pa / 1e3, wot.vol_eff, wot.trapped_mass_kg * 1e3
