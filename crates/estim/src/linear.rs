@@ -732,7 +732,16 @@ impl LinearEstimator {
             // The first residual that is not 0 sets the scale: 2^⌊log2 |e|⌋.
             self.noise_scale = 2f64.powi(e.abs().log2().floor() as i32);
         }
-        let e = e / self.noise_scale;
+        let mut e = e / self.noise_scale;
+        if !(e * e).is_finite() && e.is_finite() {
+            // A residual far beyond the scale chosen (the first one was far smaller): the sum
+            // so far moved to a scale near this one (what it loses is below its last digit).
+            let next = self.noise_scale * 2f64.powi(e.abs().log2().floor() as i32);
+            let f = self.noise_scale / next;
+            self.noise_num = self.noise_num * f * f;
+            e = e * self.noise_scale / next;
+            self.noise_scale = next;
+        }
         self.noise_num = rho * self.noise_num + e * e * s_inv;
         self.noise_den = rho * self.noise_den + 1.0;
         Step {

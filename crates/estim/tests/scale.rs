@@ -47,3 +47,27 @@ fn scaling_the_output_scales_the_estimates_and_their_standard_errors() {
         }
     }
 }
+
+/// A first residual far smaller than the rest (a start that happens to fit to 1e-120) sets a
+/// scale the later residuals' squares would overflow at: the sum moves to their scale, and the
+/// standard errors are those of the same run whose first residual is exactly 0 (no scale).
+#[test]
+fn a_tiny_first_residual_does_not_overflow_the_later_ones() {
+    let (rows, y, _) = regression(500, 3, 0.1, 7);
+    let run = |first: f64| {
+        let mut e = estimator(Method::Rls, 1e6, &[0.0; 3]);
+        // The first sample's output against the prediction at ϑ0 = 0.
+        e.update(&rows[0], first).unwrap();
+        for (r, &yi) in rows.iter().zip(&y).skip(1) {
+            e.update(r, yi).unwrap();
+        }
+        e.std_errors().unwrap()
+    };
+    let (tiny, zero) = (run(1e-120), run(0.0));
+    for (a, b) in tiny.iter().zip(&zero) {
+        assert!(
+            a.is_finite() && ((a - b) / b).abs() < 1e-12,
+            "{tiny:?} against {zero:?}"
+        );
+    }
+}
