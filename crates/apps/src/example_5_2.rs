@@ -22,7 +22,7 @@
 //! estimator.
 
 use physid_core::ParamSet;
-use physid_estim::{EstimError, EstimatorConfig, LinearEstimator, Method, VfVariant};
+use physid_estim::{build_linear, EstimError, EstimatorSpec, MethodName};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -125,22 +125,16 @@ pub fn example_5_2(cfg: &Example52Config) -> Result<Example52, EstimError> {
     }
     let params =
         ParamSet::zeros(["A", "B"]).map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
-    let methods = [
-        Method::Rls,
-        Method::Rlsf { lambda: cfg.lambda },
-        Method::Rlsvf {
-            lambdas: vec![cfg.lambda, 1.0],
-            variant: VfVariant::Published,
-        },
-    ];
-    for method in methods {
-        let mut est = LinearEstimator::new(
-            &EstimatorConfig::new(method.clone()),
-            &params,
-            &params.all_free(),
-        )?;
+    // RLSVF forgets A (λ), not B (1), in its published form.
+    for method in [MethodName::Rls, MethodName::Rlsf, MethodName::Rlsvf] {
+        let spec = EstimatorSpec {
+            lambda: cfg.lambda,
+            lambdas: Some(vec![cfg.lambda, 1.0]),
+            ..EstimatorSpec::new(method)
+        };
+        let mut est = build_linear(&spec, &params, &params.all_free())?;
         let mut track = Track {
-            method: method.name().to_string(),
+            method: method.to_string(),
             a: Vec::with_capacity(n),
             b: Vec::with_capacity(n),
         };

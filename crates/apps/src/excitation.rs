@@ -14,7 +14,7 @@
 //! with a period where `y = 0`, so nothing excites B.
 
 use physid_core::{FreeSet, ParamSet};
-use physid_estim::{EstimError, EstimatorConfig, LinearEstimator, Method};
+use physid_estim::{build_linear, EstimError, EstimatorSpec, LinearEstimator, MethodName};
 use physid_ident::{IdentError, Memory, OnlineIdent, RankWorkspace};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -248,10 +248,13 @@ pub struct LostExcitation {
 /// Example 5.2 except that `y = 0` during `quiet`.
 pub fn lost_excitation(cfg: &LostExcitationConfig) -> Result<LostExcitation, SupervisorError> {
     let params = ParamSet::zeros(["A", "B"]).map_err(|e| IdentError::Invalid(e.to_string()))?;
-    let config = EstimatorConfig::new(Method::Rlsf { lambda: cfg.lambda });
-    let mut plain = LinearEstimator::new(&config, &params, &params.all_free())?;
+    let spec = EstimatorSpec {
+        lambda: cfg.lambda,
+        ..EstimatorSpec::new(MethodName::Rlsf)
+    };
+    let mut plain = build_linear(&spec, &params, &params.all_free())?;
     let mut sup = ExcitationSupervisor::new(
-        LinearEstimator::new(&config, &params, &params.all_free())?,
+        build_linear(&spec, &params, &params.all_free())?,
         vec![1.0, 1.0],
         SupervisorConfig::for_lambda(cfg.lambda),
     )?;

@@ -26,7 +26,7 @@ use crate::acquisition::{from_first_marker, to_crank_angle, AcquisitionOptions, 
 use crate::error::AppError;
 use physid_core::{Basis, FreeSet, ParamSet, Recording};
 use physid_estim::metrics::nmse;
-use physid_estim::{CovSpec, EstimatorConfig, LinearEstimator, Method};
+use physid_estim::{build_linear, CovSpec, EstimatorSpec, LinearEstimator, MethodName};
 use physid_ident::{analyse, Cutoff, Data, IdentConfig, RankedParam, Selection};
 use physid_models::friction::{
     Design, FrictionRegression, OperatingPoint, Settings, REGRESSION_PARAMS,
@@ -1133,13 +1133,12 @@ impl FrictionStage {
         let free_set = rel
             .free(&estimable)
             .map_err(|e| AppError::Invalid(e.to_string()))?;
-        let config = EstimatorConfig {
+        let spec = EstimatorSpec {
+            lambda: self.cfg.lambda,
             p0: CovSpec::Scaled(self.cfg.s0 * self.cfg.s0),
-            ..EstimatorConfig::new(Method::Dsfc {
-                lambda: self.cfg.lambda,
-            })
+            ..EstimatorSpec::new(MethodName::Dsfc)
         };
-        let est = LinearEstimator::new(&config, &rel, &free_set)
+        let est = build_linear(&spec, &rel, &free_set)
             .map_err(AppError::estim("estimator configuration"))?;
         let n = data.len();
         out.push(FrictionOutput::Selected {

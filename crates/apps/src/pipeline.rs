@@ -42,10 +42,7 @@ use crate::error::AppError;
 use crate::model_choice::ModelChoice;
 use crate::recording_rows::{Column, RecordingRows};
 use physid_core::{ParamModel, ParamSet, Recording};
-use physid_estim::{
-    feed, metrics, CovSpec, EstimatorConfig, FeedError, LinearInParams, Method, MethodName,
-    NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive, SigmaPoints,
-};
+use physid_estim::{feed, metrics, CovSpec, EstimatorSpec, FeedError, MethodName, OnBad};
 use physid_ident::{
     analyse, fit_subset, Cutoff, IdentConfig, IdentError, RankedParam, Scaling, Selection,
 };
@@ -146,7 +143,7 @@ impl Default for IdentSpec {
 /// The estimator section.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct EstimatorSpec {
+pub struct EstimatorSection {
     /// `ekf`, `ukf`, `srukf` (any model) or `rls`, `rlsf`, `rlsvf`, `kf`, `dsfc` (linear in the
     /// parameters).
     #[serde(default = "default_method")]
@@ -164,7 +161,7 @@ fn default_method() -> MethodName {
     MethodName::Ukf
 }
 
-impl Default for EstimatorSpec {
+impl Default for EstimatorSection {
     fn default() -> Self {
         Self {
             method: default_method(),
@@ -258,7 +255,7 @@ pub struct Pipeline {
     pub identifiability: IdentSpec,
     /// Estimator settings.
     #[serde(default)]
-    pub estimator: EstimatorSpec,
+    pub estimator: EstimatorSection,
     /// The objective.
     #[serde(default)]
     pub objective: ObjectiveSpec,
@@ -727,48 +724,22 @@ fn run_with(
             }
         })
     };
-    let lambda = p.estimator.lambda.unwrap_or(1.0);
-    let linear = |method: Method| -> Result<Box<dyn Recursive>, AppError> {
-        let config = EstimatorConfig {
-            p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(1000.0)),
-            ..EstimatorConfig::new(method)
-        };
-        Ok(Box::new(
-            LinearInParams::new(model.clone(), &set, &free_set, &config)
-                .map_err(AppError::estim("estimator configuration"))?,
-        ))
-    };
-    let mut est: Box<dyn Recursive> = match p.estimator.method {
-        m @ (MethodName::Ekf | MethodName::Ukf | MethodName::Srukf) => {
-            let method = match m {
-                MethodName::Ekf => NlMethod::Ekf,
-                MethodName::Ukf => NlMethod::Ukf(SigmaPoints::default()),
-                _ => NlMethod::Srukf(SigmaPoints::default()),
-            };
-            let scaled = estimable.iter().all(|&j| nominal[j] != 0.0);
-            let nl = NlConfig {
-                p0: CovSpec::Scaled(p.estimator.p0.unwrap_or(if scaled { 0.01 } else { 100.0 })),
-                r2: r2()?,
-                scaled,
-                ..NlConfig::new(method)
-            };
-            Box::new(
-                NonlinearEstimator::new(model.clone(), &set, &free_set, &nl)
-                    .map_err(AppError::estim("estimator configuration"))?,
-            )
-        }
-        MethodName::Rls => linear(Method::Rls)?,
-        MethodName::Rlsf => linear(Method::Rlsf { lambda })?,
-        MethodName::Rlsvf => linear(Method::Rlsvf {
-            lambdas: vec![lambda; estimable.len()],
-            variant: Default::default(),
-        })?,
-        MethodName::Kf => linear(Method::Kalman {
-            r1: CovSpec::Scaled(0.0),
-            r2: r2()?,
-        })?,
-        MethodName::Dsfc => linear(Method::Dsfc { lambda })?,
-    };
+    // The pipeline's defaults: λ = 1; P(0) = 1000·I for a linear method, for a filter 0.01·I in
+    // scaled coordinates (all nominals non-zero) or 100·I; R2 given or the batch fit's.
+    let e = &p.estimator;
+    let mut spec = EstimatorSpec::new(e.method);
+    spec.lambda = e.lambda.unwrap_or(1.0);
+    if e.method.is_model_based() {
+        spec.scaled = estimable.iter().all(|&j| nominal[j] != 0.0);
+        spec.p0 = CovSpec::Scaled(e.p0.unwrap_or(if spec.scaled { 0.01 } else { 100.0 }));
+    } else if let Some(p0) = e.p0 {
+        spec.p0 = CovSpec::Scaled(p0);
+    }
+    if e.method.is_model_based() || e.method == MethodName::Kf {
+        spec.r2 = r2()?;
+    }
+    let mut est = physid_estim::build(&spec, model.clone(), &set, &free_set)
+        .map_err(AppError::estim("estimator configuration"))?;
     // 3. The run, a chunk at a time; the objective on the one-step-ahead predictions after
     // the transient, summed as they come.
     let mut objective = metrics::Prediction::default();

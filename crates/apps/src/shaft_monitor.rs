@@ -12,7 +12,8 @@ use crate::error::AppError;
 use crate::excitation::{ExcitationSupervisor, SupervisorConfig, SupervisorError};
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::{
-    CovSpec, EstimatorConfig, LinearEstimator, Method, RelativeErrorDetector, VfVariant,
+    build_linear, CovSpec, EstimatorSpec, LinearEstimator, MethodName, RelativeErrorDetector,
+    VfVariant,
 };
 use physid_models::shaft::{Shaft, NOMINAL};
 use physid_signal::filter::{butter, Band};
@@ -54,13 +55,18 @@ impl MonitorMethod {
         s == "rls"
     }
 
+    /// The method in the one vocabulary of the estimators.
+    pub fn method(self) -> MethodName {
+        match self {
+            Self::Rlsf => MethodName::Rlsf,
+            Self::Rlsvf => MethodName::Rlsvf,
+            Self::Dsfc => MethodName::Dsfc,
+        }
+    }
+
     /// The name (`rlsf`, `rlsvf`, `dsfc`).
     pub fn name(self) -> &'static str {
-        match self {
-            Self::Rlsf => "rlsf",
-            Self::Rlsvf => "rlsvf",
-            Self::Dsfc => "dsfc",
-        }
+        self.method().as_str()
     }
 }
 
@@ -385,19 +391,15 @@ impl ShaftStage {
         let t0 = cfg.theta0;
         let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
             .map_err(|e| AppError::Invalid(e.to_string()))?;
-        let method = match cfg.method {
-            MonitorMethod::Rlsf => Method::Rlsf { lambda: cfg.lambda },
-            MonitorMethod::Rlsvf => Method::Rlsvf {
-                lambdas: vec![cfg.lambda, cfg.lambda, 1.0],
-                variant: VfVariant::Symmetric,
-            },
-            MonitorMethod::Dsfc => Method::Dsfc { lambda: cfg.lambda },
-        };
-        let config = EstimatorConfig {
+        // Vector forgetting forgets K and B, not the offset, in its symmetric form.
+        let spec = EstimatorSpec {
+            lambda: cfg.lambda,
+            lambdas: Some(vec![cfg.lambda, cfg.lambda, 1.0]),
+            vf_variant: VfVariant::Symmetric,
             p0: CovSpec::Scaled(cfg.p0),
-            ..EstimatorConfig::new(method)
+            ..EstimatorSpec::new(cfg.method.method())
         };
-        let est = LinearEstimator::new(&config, &params, &params.all_free())
+        let est = build_linear(&spec, &params, &params.all_free())
             .map_err(AppError::estim("estimator configuration"))?;
         let est = if cfg.supervise {
             // The estimator's own memory (λ): what it forgets, the ranking forgets; rows scaled

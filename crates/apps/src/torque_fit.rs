@@ -24,7 +24,7 @@ use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
 use physid_estim::metrics::Prediction;
-use physid_estim::{CovSpec, NlConfig, NlMethod, NonlinearEstimator};
+use physid_estim::{CovSpec, EstimatorSpec, MethodName, NonlinearEstimator};
 use physid_ident::{
     analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, IdentError, RankedParam, Rows,
     Selection,
@@ -222,8 +222,8 @@ pub struct TorqueFitConfig {
     pub fixed: Vec<String>,
     /// How many ranked parameters to estimate.
     pub selection: Selection,
-    /// EKF, UKF or SR-UKF.
-    pub method: NlMethod,
+    /// EKF, UKF or SR-UKF (with the thesis's sigma points).
+    pub method: MethodName,
     /// `P0 = p0·I` over the scaled coordinates x (relative deviations).
     pub p0: f64,
     /// Measurement-noise variance R2 [N²·m²]; `None` = the batch fit's residual variance.
@@ -244,7 +244,7 @@ impl TorqueFitConfig {
             nominal,
             fixed: vec!["delta".into()],
             selection: Selection::Rule(Cutoff::Relative(TORQUE_CUTOFF)),
-            method: NlMethod::Ukf(Default::default()),
+            method: MethodName::Ukf,
             p0: 0.01,
             r2: None,
             track: Vec::new(),
@@ -982,15 +982,16 @@ impl TorqueFilter {
                 })?;
             r1[pos] = *v;
         }
-        let nl = NlConfig {
+        let spec = EstimatorSpec {
             p0: CovSpec::Scaled(cfg.p0),
             r1: CovSpec::Diagonal(r1),
             r2,
             scaled: true,
-            bounds: Vec::new(),
-            method: cfg.method,
+            ..EstimatorSpec::new(cfg.method)
         };
-        let est = NonlinearEstimator::new(model, &params, &free, &nl)
+        let est = spec
+            .nl_config()
+            .and_then(|nl| NonlinearEstimator::new(model, &params, &free, &nl))
             .map_err(AppError::estim("estimator configuration"))?;
         // The estimator's order is the parameters' (free set) order.
         let order: Vec<usize> = free.free().to_vec();
@@ -1119,7 +1120,7 @@ impl TorqueFilter {
             Ok(())
         })?;
         Ok(TorqueFit {
-            method: cfg.method.name(),
+            method: cfg.method.as_str(),
             ranking: self.analysis.ranked(self.estimable.len()),
             estimable: self.names().iter().map(|s| s.to_string()).collect(),
             nominal: cfg.nominal.to_vec(),

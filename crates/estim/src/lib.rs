@@ -16,6 +16,8 @@
 //! * [`recursive`] — the one interface all of them implement ([`Recursive`]: update,
 //!   estimate, covariance, standard errors, checkpoints), and [`LinearInParams`], a linear
 //!   estimator fed with a model's exact gradient.
+//! * [`spec`] — an estimator by name with its tuning ([`EstimatorSpec`]), and the one factory
+//!   ([`build`], [`build_linear`]) the command line, pipelines, applications and Python use.
 //! * [`cov`] — the covariance with its form (P or its Cholesky factor S) in the type, and the
 //!   factorisations and the jitter repair the estimators share.
 //! * [`tracks`] — an estimator over whole arrays, recording its estimate, standard errors and
@@ -35,6 +37,7 @@ pub mod metrics;
 pub mod nonlinear;
 pub mod recursive;
 pub mod resolution;
+pub mod spec;
 pub mod tracks;
 pub mod workload;
 
@@ -49,3 +52,4 @@ pub use recursive::{
     feed, FeedError, FeedSummary, LinearInParams, Memory, MethodName, OnBad, ParamResolution,
     Recursive, RunSummary, Snapshot, Timing,
 };
+pub use spec::{build, build_linear, EstimatorSpec};

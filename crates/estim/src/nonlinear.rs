@@ -125,19 +125,6 @@ impl NlMethod {
     }
 }
 
-/// `ekf`, `ukf` or `srukf`, the unscented ones with the thesis's sigma points.
-impl std::str::FromStr for NlMethod {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "ekf" => Ok(Self::Ekf),
-            "ukf" => Ok(Self::Ukf(SigmaPoints::default())),
-            "srukf" => Ok(Self::Srukf(SigmaPoints::default())),
-            _ => Err(format!("'{s}': expected ekf, ukf or srukf")),
-        }
-    }
-}
-
 fn default_p0() -> CovSpec {
     CovSpec::Scaled(100.0)
 }

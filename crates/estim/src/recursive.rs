@@ -405,6 +405,15 @@ impl MethodName {
     pub fn is_model_based(self) -> bool {
         matches!(self, Self::Ekf | Self::Ukf | Self::Srukf)
     }
+
+    /// `ekf`, `ukf` or `srukf`: the methods a non-linear model (the cyclic torque's Eq. 8.2)
+    /// takes, as a flag or an argument names them.
+    pub fn parse_model_based(s: &str) -> Result<Self, String> {
+        match s.parse::<Self>() {
+            Ok(m) if m.is_model_based() => Ok(m),
+            _ => Err(format!("'{s}': expected ekf, ukf or srukf")),
+        }
+    }
 }
 
 impl std::fmt::Display for MethodName {

@@ -11,7 +11,7 @@ use numpy::{
 use physid_core::{FreeSet, ParamModel, ParamSet};
 use physid_estim::tracks::{track, Track};
 use physid_estim::{
-    CovSpec, EstimatorConfig, LinearEstimator, Method, NlConfig, NlMethod, NonlinearEstimator,
+    build_linear, CovSpec, EstimatorSpec, LinearEstimator, MethodName, NonlinearEstimator,
     Recursive, SigmaPoints,
 };
 use physid_expr::ExprModel;
@@ -100,7 +100,7 @@ fn param_set(names: Vec<String>, theta0: Vec<f64>) -> PyResult<(ParamSet, FreeSe
 
 #[pymethods]
 impl Estimator {
-    /// A linear estimator (`method`: rls, rlsf, dsfc, kalman) of the parameters `names`
+    /// A linear estimator (`method`: rls, rlsf, dsfc, kf) of the parameters `names`
     /// starting at `theta0`, with forgetting `lam`, initial covariance `p0` (number, diagonal
     /// or matrix; DSFC: of its square root's square), and for the Kalman filter `r1`, `r2`.
     #[staticmethod]
@@ -115,27 +115,24 @@ impl Estimator {
         r2: Option<f64>,
     ) -> PyResult<Self> {
         let n = names.len();
-        let method = match method {
-            "rls" => Method::Rls,
-            "rlsf" => Method::Rlsf { lambda: lam },
-            "dsfc" => Method::Dsfc { lambda: lam },
-            "kalman" => Method::Kalman {
-                r1: match r1 {
-                    Some(r) => cov(r, n, "r1")?,
-                    None => CovSpec::Scaled(0.0),
-                },
-                r2: r2.unwrap_or(1.0),
-            },
-            m => {
+        let mut spec = match method.parse::<MethodName>() {
+            Ok(m @ (MethodName::Rls | MethodName::Rlsf | MethodName::Dsfc | MethodName::Kf)) => {
+                EstimatorSpec::new(m)
+            }
+            _ => {
                 return Err(err(format!(
-                    "method '{m}': expected rls, rlsf, dsfc or kalman"
+                    "method '{method}': expected rls, rlsf, dsfc or kf"
                 )))
             }
         };
-        let mut config = EstimatorConfig::new(method);
-        config.p0 = cov(p0, n, "p0")?;
+        spec.lambda = lam;
+        spec.p0 = cov(p0, n, "p0")?;
+        if let Some(r) = r1 {
+            spec.r1 = cov(r, n, "r1")?;
+        }
+        spec.r2 = r2.unwrap_or(1.0);
         let (params, free) = param_set(names, theta0)?;
-        let e = LinearEstimator::new(&config, &params, &free).map_err(err)?;
+        let e = build_linear(&spec, &params, &free).map_err(err)?;
         Ok(Self::built(Kind::Linear(Box::new(e)), n))
     }
 
@@ -166,21 +163,22 @@ impl Estimator {
             Some(f) => params.free(&f).map_err(err)?,
             None => params.all_free(),
         };
-        let points = SigmaPoints { alpha, beta, kappa };
-        let nl = match method {
-            "ekf" => NlMethod::Ekf,
-            "ukf" => NlMethod::Ukf(points),
-            "srukf" => NlMethod::Srukf(points),
-            m => return Err(err(format!("method '{m}': expected ekf, ukf or srukf"))),
-        };
+        let method =
+            MethodName::parse_model_based(method).map_err(|e| err(format!("method {e}")))?;
         let k = free.free().len();
-        let mut config = NlConfig::new(nl);
-        config.p0 = cov(p0, k, "p0")?;
-        config.r1 = cov(r1, k, "r1")?;
-        config.r2 = r2;
-        config.scaled = scaled;
+        let spec = EstimatorSpec {
+            p0: cov(p0, k, "p0")?,
+            r1: cov(r1, k, "r1")?,
+            r2,
+            scaled,
+            sigma_points: SigmaPoints { alpha, beta, kappa },
+            ..EstimatorSpec::new(method)
+        };
         let width = model.input_names().len();
-        let e = NonlinearEstimator::new(model, &params, &free, &config).map_err(err)?;
+        let e = spec
+            .nl_config()
+            .and_then(|nl| NonlinearEstimator::new(model, &params, &free, &nl))
+            .map_err(err)?;
         Ok(Self::built(Kind::Model(Box::new(e)), width))
     }
 

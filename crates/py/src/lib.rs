@@ -28,7 +28,7 @@ pub use recording::Recording;
 
 use numpy::{IntoPyArray, PyReadonlyArray1};
 use physid_core::ParamModel;
-use physid_estim::NlMethod;
+use physid_estim::MethodName;
 use physid_expr::ExprModel;
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
@@ -337,9 +337,7 @@ fn torque_fit<'py>(
         nom[j] = *v;
     }
     let mut cfg = TorqueFitConfig::new(nom);
-    cfg.method = method
-        .parse::<NlMethod>()
-        .map_err(|e| err(format!("method {e}")))?;
+    cfg.method = MethodName::parse_model_based(method).map_err(|e| err(format!("method {e}")))?;
     cfg.fixed = fixed;
     if let Some(c) = cutoff {
         cfg.selection = physid_ident::Selection::parse(c).map_err(err)?;

@@ -225,10 +225,10 @@ pub fn run(args: &Args) -> Result<()> {
         let (rows, y) = physid_estim::workload::data(2, 4096);
         let names = ["p1", "p2"];
         let params = physid_core::ParamSet::zeros(names).into_diagnostic()?;
-        let config = physid_estim::EstimatorConfig::new(physid_estim::Method::Rls);
+        let spec = physid_estim::EstimatorSpec::new(physid_estim::MethodName::Rls);
         for std_err in [false, true] {
-            let mut e = physid_estim::LinearEstimator::new(&config, &params, &params.all_free())
-                .into_diagnostic()?;
+            let mut e =
+                physid_estim::build_linear(&spec, &params, &params.all_free()).into_diagnostic()?;
             let r = rate(4096, budget, || {
                 let t = physid_estim::tracks::track(&mut e, &rows, &y, 2, 2, false, std_err)
                     .map_err(|m| miette::miette!("{m}"))?;

@@ -8,9 +8,8 @@ use miette::{miette, IntoDiagnostic, Result};
 use physid_core::{ParamSet, Recording};
 use physid_estim::metrics::Prediction;
 use physid_estim::{
-    feed, CovSpec, EstimError, EstimatorConfig, FeedError, FeedSummary, GuardAction,
-    LinearEstimator, Method, MethodName, NlConfig, NlMethod, NonlinearEstimator, OnBad, Recursive,
-    RunSummary, SigmaPoints, VfVariant, WindupGuard,
+    build_linear, feed, CovSpec, EstimError, EstimatorSpec, FeedError, FeedSummary, GuardAction,
+    MethodName, OnBad, Recursive, RunSummary, SigmaPoints, VfVariant, WindupGuard,
 };
 use physid_expr::ExprModel;
 use std::path::PathBuf;
@@ -117,33 +116,30 @@ pub struct Args {
     pub json: bool,
 }
 
-fn linear_method(args: &Args, p: usize) -> Method {
-    let lambda = args.lambda.unwrap_or(0.98);
-    match args.method {
-        MethodName::Rls => Method::Rls,
-        MethodName::Rlsf => match args.lambda0 {
-            Some(lambda0) => Method::RlsfTv {
-                lambda0,
-                lambda_init: lambda,
-            },
-            None => Method::Rlsf { lambda },
-        },
-        MethodName::Rlsvf => Method::Rlsvf {
-            lambdas: match &args.lambdas {
-                Some(l) => l.clone(),
-                None => vec![lambda; p],
-            },
-            variant: args.vf_variant,
-        },
-        MethodName::Kf => Method::Kalman {
-            r1: CovSpec::Scaled(args.r1),
-            r2: args.r2,
-        },
-        MethodName::Dsfc => Method::Dsfc { lambda },
-        MethodName::Ekf | MethodName::Ukf | MethodName::Srukf => {
-            unreachable!("model-based methods are built from --expr")
-        }
+/// The estimator `--method` names with its tuning from the flags (λ 0.98 unless given; P(0)
+/// 1000·I for a regression, 100·I for a filter over a model).
+fn spec(args: &Args) -> EstimatorSpec {
+    let mut spec = EstimatorSpec::new(args.method);
+    spec.lambda = args.lambda.unwrap_or(0.98);
+    spec.lambda0 = args.lambda0;
+    spec.lambdas.clone_from(&args.lambdas);
+    spec.vf_variant = args.vf_variant;
+    if let Some(p0) = args.p0 {
+        spec.p0 = CovSpec::Scaled(p0);
     }
+    spec.r1 = CovSpec::Scaled(args.r1);
+    spec.r2 = args.r2;
+    spec.sigma_points = SigmaPoints {
+        alpha: args.alpha,
+        beta: args.beta,
+        kappa: args.kappa,
+    };
+    spec.scaled = args.scaled;
+    spec.guard = args.max_trace.map(|max_trace| WindupGuard {
+        max_trace,
+        action: args.guard,
+    });
+    spec
 }
 
 /// The free/fixed view from --free.
@@ -182,11 +178,6 @@ pub fn run(args: &Args) -> Result<()> {
         let columns: Vec<String> = model.inputs().to_vec();
         let params = ParamSet::new(names, values).into_diagnostic()?;
         let free = free_set(args, &params)?;
-        let sp = SigmaPoints {
-            alpha: args.alpha,
-            beta: args.beta,
-            kappa: args.kappa,
-        };
         let mut bounds = Vec::new();
         let (flag, limits) = if args.bound_old.is_empty() {
             ("--limits", &args.limits)
@@ -204,20 +195,12 @@ pub fn run(args: &Args) -> Result<()> {
                 .ok_or_else(|| miette!("{flag} '{b}': expected NAME=LOW:HIGH with numbers"))?;
             bounds.push((n.trim().to_string(), lo, hi));
         }
-        let cfg = NlConfig {
-            method: match args.method {
-                MethodName::Ekf => NlMethod::Ekf,
-                MethodName::Ukf => NlMethod::Ukf(sp),
-                _ => NlMethod::Srukf(sp),
-            },
-            p0: CovSpec::Scaled(args.p0.unwrap_or(100.0)),
-            r1: CovSpec::Scaled(args.r1),
-            r2: args.r2,
-            scaled: args.scaled,
+        let spec = EstimatorSpec {
             bounds,
+            ..spec(args)
         };
-        let est = NonlinearEstimator::new(model, &params, &free, &cfg).into_diagnostic()?;
-        (Box::new(est), columns, params, free)
+        let est = physid_estim::build(&spec, model, &params, &free).into_diagnostic()?;
+        (est, columns, params, free)
     } else {
         if args.phi.is_empty() {
             return Err(miette!(
@@ -257,16 +240,7 @@ pub fn run(args: &Args) -> Result<()> {
         }
         let params = ParamSet::new(args.phi.clone(), theta0).into_diagnostic()?;
         let free = free_set(args, &params)?;
-        let guard = args.max_trace.map(|max_trace| WindupGuard {
-            max_trace,
-            action: args.guard,
-        });
-        let cfg = EstimatorConfig {
-            method: linear_method(args, free.free().len()),
-            p0: CovSpec::Scaled(args.p0.unwrap_or(1000.0)),
-            guard,
-        };
-        let est = LinearEstimator::new(&cfg, &params, &free).into_diagnostic()?;
+        let est = build_linear(&spec(args), &params, &free).into_diagnostic()?;
         (Box::new(est), args.phi.clone(), params, free)
     };
     let names: Vec<String> = params

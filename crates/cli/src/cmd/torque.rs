@@ -12,7 +12,7 @@ use physid_apps::torque_fit::{
     cyclic_torque_nominal, torque_fit_degrees, Degrees, TorqueFit, TorqueFitConfig,
 };
 use physid_core::Basis;
-use physid_estim::NlMethod;
+use physid_estim::MethodName;
 use physid_ident::Selection;
 use physid_models::cyclic_torque::PARAMS;
 use physid_sim::params::CellParams;
@@ -45,8 +45,8 @@ struct FitArgs {
     #[command(flatten)]
     input: super::InputArgs,
     /// Filter: ekf, ukf or srukf.
-    #[arg(long, default_value = "ukf")]
-    method: NlMethod,
+    #[arg(long, default_value = "ukf", value_parser = MethodName::parse_model_based)]
+    method: MethodName,
     /// Parameters known by design, held: NAME at its nominal value, NAME=VALUE at that value
     /// (δ's nominal value is 0 and cannot be scaled), e.g. --fix delta,r=0.0457.
     #[arg(

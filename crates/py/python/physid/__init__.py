@@ -247,7 +247,7 @@ class _Estimator:
 
     @property
     def method(self) -> str:
-        """The method's name (``rls``, ``rlsf``, ``dsfc``, ``kalman``, ``ekf``, ``ukf``,
+        """The method's name (``rls``, ``rlsf``, ``dsfc``, ``kf``, ``ekf``, ``ukf``,
         ``srukf``)."""
         return self._call(lambda: self._e.method)
 
@@ -398,7 +398,7 @@ class KalmanRW(_Estimator):
     def __init__(self, p: int | Sequence[str], r1: Any = 0.0, r2: float = 1.0, p0: Any = 1000.0,
                  theta0: Any = None, names: Sequence[str] | None = None):
         names = _names(p, names)
-        self._e = _physid.Estimator.linear("kalman", names, _theta0(names, theta0), 1.0, _p0(p0),
+        self._e = _physid.Estimator.linear("kf", names, _theta0(names, theta0), 1.0, _p0(p0),
                                            _p0(r1), float(r2))
         self._width = len(names)
 
