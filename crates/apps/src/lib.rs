@@ -41,7 +41,6 @@ pub mod model_choice;
 pub mod pipeline;
 pub mod pressure;
 pub mod recording_rows;
-pub mod sensor_angle;
 pub mod shaft_monitor;
 pub mod time_order;
 pub mod torque_fit;

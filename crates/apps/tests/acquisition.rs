@@ -383,10 +383,10 @@ fn wheel_recording() -> Recording {
 /// samples 0.14° apart) outside the standstill, and the firing revolution is the pressure's.
 #[test]
 fn a_wheel_resampled_as_it_comes_equals_the_whole() {
-    use physid_apps::acquisition::{to_crank_angle_decoded, AngleSensor, AngleSpec};
-    use physid_apps::sensor_angle::{
+    use physid_apps::acquisition::sensor::{
         sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
     };
+    use physid_apps::acquisition::{to_crank_angle_decoded, AngleSensor, AngleSpec};
     let rec = wheel_recording();
     let spec = AngleSpec {
         sensor: AngleSensor::Wheel {
@@ -510,10 +510,10 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
 /// channel and within 0.1° of the crank angle the resampling gives.
 #[test]
 fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
-    use physid_apps::acquisition::{to_crank_angle_decoded, AngleSensor, AngleSpec};
-    use physid_apps::sensor_angle::{
+    use physid_apps::acquisition::sensor::{
         sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
     };
+    use physid_apps::acquisition::{to_crank_angle_decoded, AngleSensor, AngleSpec};
     let golden = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../signal/tests/golden/quadrature_500.parquet");
     let rec = physid_io::read(&golden, &Default::default()).unwrap();

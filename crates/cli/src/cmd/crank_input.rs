@@ -13,7 +13,7 @@
 //!   over in passes, a chunk at a time — what must be known before any angle (a wheel's gap; an
 //!   encoder's index level, then its angle 0 and span); the sensor and the samples' times (what
 //!   the decoding found, where the firing TDC is); then the channels with the sensor read ahead
-//!   of them ([`physid_apps::sensor_angle`]) — memory flat in the recording's length; with
+//!   of them ([`physid_apps::acquisition::sensor`]) — memory flat in the recording's length; with
 //!   `--tdc-from`, the TDC placed from the pressure first by the same reads in passes.
 
 use super::{CrankArgs, InputArgs};
@@ -22,15 +22,15 @@ use crate::cmd::inspect::tell_tdc_from;
 use crate::cmd::inspect::AngleArgs;
 use crate::progress::Reading;
 use miette::Result;
+use physid_apps::acquisition::sensor::{
+    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
+};
 use physid_apps::acquisition::{
     counts_crank_angle_chunks, crank_angle_chunks, raw_sensor, AcquisitionOptions, AngleSensor,
     AngleSpec, CountsAngle, CountsScan, DecodedAngle,
 };
 use physid_apps::compression::{tdc_from_pressure_in, CompressionConfig, CrankPasses};
 use physid_apps::error::AppError;
-use physid_apps::sensor_angle::{
-    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound,
-};
 use physid_core::{Basis, Recording};
 use std::cell::{Cell, RefCell};
 use std::path::Path;

@@ -16,7 +16,7 @@
 //! 3. [`sensor_crank_angle_chunks`]: the channels resampled to the crank angle, the sensor read
 //!    ahead of them: a standstill holds nothing.
 
-use crate::acquisition::{
+use super::{
     resampled, AcquisitionError, AcquisitionOptions, AngleSensor, AngleSpec, CrankAngleStream,
     DecodedAngle, EncoderSummary,
 };
