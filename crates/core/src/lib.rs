@@ -14,6 +14,7 @@
 
 pub mod memory;
 pub mod model;
+pub mod nan_null;
 pub mod params;
 pub mod recording;
 pub mod units;

@@ -1,22 +1,67 @@
 //! The events of the live service, one JSON object each with `"type"` and `"t_s"` (the
-//! recording's time). The names are stable (docs/live.md).
+//! recording's time). The names are stable (docs/live.md). One typed protocol: the service
+//! writes these, and the fleet view, the tests and any Rust client read them back
+//! (`Serialize + Deserialize`, tagged by `"type"`); the panel's own messages are
+//! [`crate::wire::PanelMessage`].
 
 use physid_apps::shaft_monitor::{PerParam, ShaftAlarm, ShaftSample};
+use physid_core::nan_null;
 use physid_signal::cycles::CycleSummary;
 use physid_signal::integrity::FindingKind;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
+/// A name the service mostly knows at compile time (a channel, a command) and a reader owns.
+pub type Name = Cow<'static, str>;
+
+/// The application an event is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum App {
+    /// The coupling-shaft monitor (Application 1).
+    Shaft,
+    /// The friction characterisation (Application 2).
+    Friction,
+    /// The cyclic-torque estimation (Application 3).
+    Torque,
+}
+
+/// Where a refused input came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Input {
+    /// The frames from outside (`--frames`, NATS).
+    Frames,
+    /// The control messages.
+    Controls,
+    /// The live log.
+    Record,
+    /// The fleet's registry of cells.
+    Registry,
+}
+
+/// A live log's state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LogState {
+    /// Being written.
+    Recording,
+    /// Closed (readable in full).
+    Closed,
+}
+
 /// An event.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Event {
     /// An application's estimates now: `{"type": "estimate", "app": "shaft", "t_s": …,
     /// "params": {"K": …, "B": …}, "std_err": {"K": …, "B": …}}`.
     Estimate {
         /// The application (`shaft`).
-        app: &'static str,
+        app: App,
         /// Recording time [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// The estimates by name.
         params: PerParam,
@@ -28,16 +73,20 @@ pub enum Event {
     /// estimate left its bound; `change` = −`relative_error`, the estimate's change).
     Alarm {
         /// The application.
-        app: &'static str,
+        app: App,
         /// The parameter that moved.
         param: String,
         /// When the alarm was raised [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// When the estimate left its bound [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_start_s: f64,
         /// Its relative error (Eq. 6.3) then.
+        #[serde(deserialize_with = "nan_null::f64")]
         relative_error: f64,
         /// The estimate's change from healthy then (−relative error; K fell 12 % → −0.12).
+        #[serde(deserialize_with = "nan_null::f64")]
         change: f64,
     },
     /// Which of an application's parameters are estimated now and which are held (frozen):
@@ -48,8 +97,9 @@ pub enum Event {
     /// supervisor has held a change for 0.25 s.
     Identifiability {
         /// The application.
-        app: &'static str,
+        app: App,
         /// Recording time [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// The parameters estimated, in rank order.
         estimable: Vec<String>,
@@ -65,19 +115,25 @@ pub enum Event {
         /// Cycle index.
         cycle: i64,
         /// The cycle's start [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// Its mean motoring torque [N·m].
+        #[serde(deserialize_with = "nan_null::f64")]
         measured: f64,
         /// Predicted before the estimator saw it [N·m].
+        #[serde(deserialize_with = "nan_null::f64")]
         predicted: f64,
         /// The nominal model's prediction [N·m].
+        #[serde(deserialize_with = "nan_null::f64")]
         nominal: f64,
         /// The simulated truth, when the source carries it [N·m].
         #[serde(skip_serializing_if = "Option::is_none")]
         truth: Option<f64>,
         /// The estimated coefficients after the cycle.
+        #[serde(deserialize_with = "nan_null::map")]
         params: BTreeMap<String, f64>,
         /// Their standard errors (null before the estimator has them).
+        #[serde(deserialize_with = "nan_null::map")]
         std_err: BTreeMap<String, f64>,
     },
     /// The cyclic-torque parameters after another cycle's worth of samples (720, one per crank
@@ -87,14 +143,19 @@ pub enum Event {
     /// measured engine torque [N·m].
     Torque {
         /// Time of the cycle's last sample [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// The estimates.
+        #[serde(deserialize_with = "nan_null::map")]
         params: BTreeMap<String, f64>,
         /// Their standard errors.
+        #[serde(deserialize_with = "nan_null::map")]
         std_err: BTreeMap<String, f64>,
         /// RMS of the one-step prediction errors over the cycle [N·m].
+        #[serde(deserialize_with = "nan_null::f64")]
         rms_error: f64,
         /// RMS of the measured torque over the cycle [N·m].
+        #[serde(deserialize_with = "nan_null::f64")]
         rms_measured: f64,
     },
     /// A frame from outside or a control message was refused (the run goes on; a refused frame
@@ -102,9 +163,10 @@ pub enum Event {
     /// "message": …}` (`t_s` the last sample taken).
     Error {
         /// Recording time of the last sample taken [s] (null before any).
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
-        /// `frames` or `controls`.
-        input: &'static str,
+        /// `frames`, `controls`, `record` or `registry`.
+        input: Input,
         /// Its line in that input.
         line: usize,
         /// What was wrong.
@@ -116,6 +178,7 @@ pub enum Event {
     /// `sample` it is at (counted from the stream's first).
     Finding {
         /// Recording time [s]: of the sample it is at, or of the last sample before it.
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// What.
         message: String,
@@ -134,15 +197,20 @@ pub enum Event {
         /// Cycle index (0: the first cycle that starts in the stream).
         cycle: i64,
         /// When it ended [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// When it began [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_start_s: f64,
         /// Crank-angle mean of each channel.
-        mean: BTreeMap<&'static str, f64>,
+        #[serde(deserialize_with = "nan_null::map")]
+        mean: BTreeMap<Name, f64>,
         /// Largest sample of each channel.
-        max: BTreeMap<&'static str, f64>,
+        #[serde(deserialize_with = "nan_null::map")]
+        max: BTreeMap<Name, f64>,
         /// Crank angle of each channel's largest sample in the cycle [deg].
-        max_deg: BTreeMap<&'static str, f64>,
+        #[serde(deserialize_with = "nan_null::map")]
+        max_deg: BTreeMap<Name, f64>,
         /// The channels on a crank-angle grid (the panel's cyclic view).
         #[serde(skip_serializing_if = "Option::is_none")]
         curve: Option<Curve>,
@@ -151,11 +219,14 @@ pub enum Event {
     /// "channels": {"omega_en": […], …}}`; not printed headless.
     Trace {
         /// Time of the last point [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// The points' times [s] (each bin's middle).
+        #[serde(deserialize_with = "nan_null::vec")]
         t: Vec<f64>,
         /// Each channel's bin means, SI units.
-        channels: BTreeMap<&'static str, Vec<f64>>,
+        #[serde(deserialize_with = "nan_null::map_vec")]
+        channels: BTreeMap<Name, Vec<f64>>,
         /// Samples taken from the stream's start, up to this event (the panel's header).
         samples: u64,
     },
@@ -163,6 +234,7 @@ pub enum Event {
     /// "bytes": n, "state": "recording" | "closed"}`.
     Log {
         /// Recording time [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// The file.
         file: String,
@@ -171,14 +243,15 @@ pub enum Event {
         /// Its size [bytes] (while recording: written and buffered).
         bytes: usize,
         /// `recording` or `closed`.
-        state: &'static str,
+        state: LogState,
     },
     /// A control message applied: `{"type": "control", "t_s": …, "cmd": "fault", "line": n}`.
     Control {
         /// Recording time when it was applied [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// The command.
-        cmd: &'static str,
+        cmd: Name,
         /// Its line in the control input.
         line: usize,
     },
@@ -186,6 +259,7 @@ pub enum Event {
     /// "t_s": …, "samples": n, "dropped": n}`.
     End {
         /// Recording time of the last sample [s].
+        #[serde(deserialize_with = "nan_null::f64")]
         t_s: f64,
         /// Samples taken from the source.
         samples: usize,
@@ -201,17 +275,17 @@ pub enum Event {
 }
 
 /// A cycle's channels on a crank-angle grid: 0, `step_deg`, … < 720°.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Curve {
     /// Grid step [deg].
     pub step_deg: f64,
     /// Each channel's values on the grid.
     #[serde(flatten)]
-    pub channels: BTreeMap<&'static str, Vec<f64>>,
+    pub channels: BTreeMap<Name, Vec<f64>>,
 }
 
 /// Latency quantiles [ms].
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LatencyMs {
     /// Median.
     pub p50: f64,
@@ -235,7 +309,7 @@ impl Event {
     /// The shaft monitor's estimate event of an estimator sample.
     pub fn shaft_estimate(s: &ShaftSample) -> Self {
         Event::Estimate {
-            app: "shaft",
+            app: App::Shaft,
             t_s: s.t_s,
             params: PerParam {
                 k: s.estimate.k,
@@ -248,7 +322,13 @@ impl Event {
     /// The cycle event of a cycle summary over `channels` (the curve at `step_deg` when the
     /// summary has one).
     pub fn cycle(c: &CycleSummary, channels: &[&'static str], step_deg: f64) -> Self {
-        let by_name = |v: &[f64]| channels.iter().copied().zip(v.iter().copied()).collect();
+        let by_name = |v: &[f64]| {
+            channels
+                .iter()
+                .map(|&c| Name::Borrowed(c))
+                .zip(v.iter().copied())
+                .collect()
+        };
         Event::Cycle {
             cycle: c.cycle,
             t_s: c.t_end_s,
@@ -260,7 +340,7 @@ impl Event {
                 step_deg,
                 channels: channels
                     .iter()
-                    .copied()
+                    .map(|&c| Name::Borrowed(c))
                     .zip(curves.iter().cloned())
                     .collect(),
             }),
@@ -270,7 +350,7 @@ impl Event {
     /// The shaft monitor's alarm event.
     pub fn shaft_alarm(a: &ShaftAlarm) -> Self {
         Event::Alarm {
-            app: "shaft",
+            app: App::Shaft,
             param: a.param.clone(),
             t_s: a.t_raised_s,
             t_start_s: a.t_start_s,
@@ -291,4 +371,126 @@ pub fn quote(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
         end -= 1;
     }
     format!("{}… ({} bytes)", &text[..end], text.len()).into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map<K: Ord>(kv: impl IntoIterator<Item = (K, f64)>) -> BTreeMap<K, f64> {
+        kv.into_iter().collect()
+    }
+
+    /// Every kind of event, written and read back, writes the same text again — NaN (`null`,
+    /// "not known yet") included.
+    #[test]
+    fn every_event_reads_back_as_written() {
+        let nan = f64::NAN;
+        let events = [
+            Event::Estimate {
+                app: App::Shaft,
+                t_s: 0.1,
+                params: PerParam { k: 1250.0, b: 0.95 },
+                std_err: PerParam { k: nan, b: nan },
+            },
+            Event::Alarm {
+                app: App::Shaft,
+                param: "K".into(),
+                t_s: 12.5,
+                t_start_s: 12.25,
+                relative_error: 0.2,
+                change: -0.2,
+            },
+            Event::Identifiability {
+                app: App::Friction,
+                t_s: 3.0,
+                estimable: vec!["c1".into()],
+                frozen: vec!["c2".into(), "c3".into()],
+            },
+            Event::Friction {
+                cycle: 7,
+                t_s: 1.0,
+                measured: -3.5,
+                predicted: -3.4,
+                nominal: -3.0,
+                truth: None,
+                params: map([("c1".to_string(), 0.1)]),
+                std_err: map([("c1".to_string(), nan)]),
+            },
+            Event::Torque {
+                t_s: 2.0,
+                params: map([("r".to_string(), 0.0457)]),
+                std_err: map([("r".to_string(), 1e-4)]),
+                rms_error: 1.5,
+                rms_measured: 30.0,
+            },
+            Event::Error {
+                t_s: nan,
+                input: Input::Frames,
+                line: 3,
+                message: "column 't' is missing".into(),
+            },
+            Event::Finding {
+                t_s: 0.5,
+                message: "a pulse lost".into(),
+                kind: Some(FindingKind::PulseLoss),
+                sample: Some(42),
+            },
+            Event::finding(0.6, "the shaft monitor stopped".into()),
+            Event::Cycle {
+                cycle: 0,
+                t_s: 0.17,
+                t_start_s: 0.05,
+                mean: map([(Name::Borrowed("p_cyl"), 2.9e5)]),
+                max: map([(Name::Borrowed("p_cyl"), 2.1e6)]),
+                max_deg: map([(Name::Borrowed("p_cyl"), 359.0)]),
+                curve: Some(Curve {
+                    step_deg: 360.0,
+                    channels: [(Name::Borrowed("p_cyl"), vec![1e5, 2e6])]
+                        .into_iter()
+                        .collect(),
+                }),
+            },
+            Event::Trace {
+                t_s: 1.0,
+                t: vec![0.95, 1.0],
+                channels: [(Name::Borrowed("omega_en"), vec![104.7, nan])]
+                    .into_iter()
+                    .collect(),
+                samples: 10_000,
+            },
+            Event::Log {
+                t_s: 4.0,
+                file: "run.parquet".into(),
+                samples: 100,
+                bytes: 4096,
+                state: LogState::Closed,
+            },
+            Event::Control {
+                t_s: 4.5,
+                cmd: "fault".into(),
+                line: 2,
+            },
+            Event::End {
+                t_s: 30.0,
+                samples: 300_001,
+                dropped: 0,
+                latency_ms: Some(LatencyMs {
+                    p50: 0.4,
+                    p99: 1.2,
+                    max: 3.0,
+                }),
+            },
+        ];
+        for e in &events {
+            let text = serde_json::to_string(e).unwrap();
+            let back: Event = serde_json::from_str(&text).unwrap_or_else(|x| panic!("{text}: {x}"));
+            assert_eq!(serde_json::to_string(&back).unwrap(), text);
+        }
+        let text = serde_json::to_string(&events[0]).unwrap();
+        assert_eq!(
+            text,
+            r#"{"type":"estimate","app":"shaft","t_s":0.1,"params":{"K":1250.0,"B":0.95},"std_err":{"K":null,"B":null}}"#
+        );
+    }
 }

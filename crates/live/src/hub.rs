@@ -9,6 +9,7 @@
 //! the other events — in their original order, then the live stream without a gap or a repeat.
 
 use crate::event::Event;
+use crate::message::{Hello, PanelMessage};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -64,17 +65,6 @@ impl Kind {
             _ => Kind::Other,
         }
     }
-
-    /// The kind of an event by its `type` (one received as JSON from another process).
-    fn named(t: &str) -> Self {
-        match t {
-            "estimate" | "friction" | "torque" | "identifiability" => Kind::Estimate,
-            "alarm" => Kind::Alarm,
-            "cycle" => Kind::Cycle,
-            "trace" => Kind::Trace,
-            _ => Kind::Other,
-        }
-    }
 }
 
 #[derive(Debug, Default)]
@@ -115,12 +105,12 @@ impl Drop for ClientGuard {
 }
 
 impl Hub {
-    /// A hub whose clients are greeted with `hello` (a JSON object: what runs, the healthy
-    /// bounds, the units).
-    pub fn new(hello: serde_json::Value) -> Arc<Self> {
+    /// A hub whose clients are greeted with `hello` (what runs, the healthy bounds, the
+    /// units).
+    pub fn new(hello: Hello) -> Arc<Self> {
         let (tx, _) = broadcast::channel(BROADCAST_CAPACITY);
         Arc::new(Self {
-            hello: hello.to_string().into(),
+            hello: PanelMessage::Hello(Box::new(hello)).to_json().into(),
             kept: Mutex::new(Kept::default()),
             tx,
             clients: AtomicUsize::new(0),
@@ -140,26 +130,22 @@ impl Hub {
         Ok(())
     }
 
-    /// Number, keep and broadcast an event received as JSON (a fleet cell's, from NATS), kept
-    /// as its `type` says.
-    pub fn publish_value(&self, v: &serde_json::Value) {
-        let kind = Kind::named(v["type"].as_str().unwrap_or(""));
-        self.publish_text(kind, v.to_string());
+    /// Number, keep and broadcast an event received as JSON `text` (a fleet cell's, from
+    /// NATS; `e` is what it reads as), passed on as it came.
+    pub fn publish_received(&self, e: &Event, text: String) {
+        self.publish_text(Kind::of(e), text);
     }
 
     /// An alarm (by its number) acknowledged by an operator: `{"type": "ack", "seq": n}`,
     /// kept with the alarms.
     pub fn acknowledge(&self, seq: u64) {
-        self.publish_text(
-            Kind::Alarm,
-            serde_json::json!({"type": "ack", "seq": seq}).to_string(),
-        );
+        self.publish_text(Kind::Alarm, PanelMessage::Ack { seq }.to_json());
     }
 
     /// A passing message of the hub's own (`status`): broadcast, not kept (a client that
     /// connects changes the count and so gets a fresh one).
-    pub fn publish_json(&self, v: &serde_json::Value) {
-        self.publish_text(None, v.to_string());
+    pub fn publish_message(&self, m: &PanelMessage) {
+        self.publish_text(None, m.to_json());
     }
 
     fn publish_text(&self, kind: impl Into<Option<Kind>>, text: String) {
@@ -235,7 +221,7 @@ mod tests {
     /// each kind keeps its last `keep()`.
     #[test]
     fn backlog_then_live_without_gap_or_repeat() {
-        let hub = Hub::new(serde_json::json!({"type": "hello"}));
+        let hub = Hub::new(Hello::only(String::new()));
         for k in 0..600 {
             hub.publish(&finding(k)).unwrap();
         }
@@ -256,7 +242,7 @@ mod tests {
     /// A client that does not read loses the oldest beyond the capacity, and is told so.
     #[test]
     fn a_slow_client_lags_and_the_publisher_never_waits() {
-        let hub = Hub::new(serde_json::json!({"type": "hello"}));
+        let hub = Hub::new(Hello::only(String::new()));
         let mut sub = hub.subscribe();
         for k in 0..BROADCAST_CAPACITY + 10 {
             hub.publish(&finding(k)).unwrap();

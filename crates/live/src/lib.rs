@@ -25,6 +25,7 @@ pub mod fleet;
 pub mod frames;
 pub mod hub;
 pub mod layout;
+pub mod message;
 pub mod panel;
 pub mod record;
 pub mod service;
@@ -33,12 +34,13 @@ pub mod trace;
 pub mod wire;
 
 pub use control::{forward_control_lines, Control, ControlRequest, MAX_CONTROL_BYTES};
-pub use event::Event;
+pub use event::{App, Event, Input, LogState};
 #[cfg(unix)]
 pub use frames::SocketFrames;
 pub use frames::{FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
 pub use layout::Layout;
+pub use message::{Hello, PanelMessage, Reply};
 pub use panel::{Access, Panel};
 pub use service::{
     run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Stages, Summary, TorqueLive,

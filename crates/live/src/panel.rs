@@ -25,6 +25,7 @@ use crate::fleet::view::FleetView;
 use crate::fleet::NatsTarget;
 use crate::hub::Hub;
 use crate::layout::Layout;
+use crate::message::{Hello, PanelMessage, Reply};
 use crate::service::LiveError;
 use axum::extract::{DefaultBodyLimit, Query, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -34,7 +35,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use futures_util::stream::{self, Stream, StreamExt};
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::collections::HashMap;
 use std::convert::Infallible;
 use std::net::{IpAddr, SocketAddr};
@@ -222,7 +223,7 @@ impl Panel {
         access: Access,
         target: &NatsTarget,
     ) -> Result<Self, LiveError> {
-        let hub = Hub::new(json!({"type": "hello", "source": "the fleet view: open a cell"}));
+        let hub = Hub::new(Hello::only("the fleet view: open a cell".into()));
         // The fleet view's own controls go to the cells, never here.
         let (controls, _) = std::sync::mpsc::sync_channel(1);
         Self::launch(bind, access, hub, controls, Some(target), None)
@@ -334,7 +335,10 @@ async fn status_ticker(hub: Arc<Hub>) {
         tick.tick().await;
         let now = (hub.clients(), hub.lagged());
         if now != last {
-            hub.publish_json(&json!({"type": "status", "clients": now.0, "lagged": now.1}));
+            hub.publish_message(&PanelMessage::Status {
+                clients: now.0,
+                lagged: now.1,
+            });
             last = now;
         }
     }
@@ -342,7 +346,7 @@ async fn status_ticker(hub: Arc<Hub>) {
 
 /// An error reply: `{"ok": false, "error": …}`.
 fn refuse(code: StatusCode, error: impl Into<String>) -> Response {
-    (code, Json(json!({"ok": false, "error": error.into()}))).into_response()
+    (code, Json(Reply::refused(error))).into_response()
 }
 
 /// The Host rule ([`Access::host_allowed`]) on every route: 421 Misdirected Request.
@@ -431,7 +435,11 @@ async fn asset(axum::extract::Path(name): axum::extract::Path<String>) -> Respon
 
 async fn status(State(app): State<App>, Query(q): Query<HashMap<String, String>>) -> Response {
     match app.hub(&q) {
-        Ok(hub) => Json(json!({"clients": hub.clients(), "lagged": hub.lagged()})).into_response(),
+        Ok(hub) => Json(PanelMessage::Status {
+            clients: hub.clients(),
+            lagged: hub.lagged(),
+        })
+        .into_response(),
         Err(r) => *r,
     }
 }
@@ -467,7 +475,7 @@ async fn control(
     }
     if let (Some(f), Some(cell)) = (&app.fleet, q.get("cell")) {
         return match f.control(cell, body).await {
-            Ok(v) if v["ok"] == true => Json(v).into_response(),
+            Ok(v) if v.ok => Json(v).into_response(),
             Ok(v) => (StatusCode::BAD_REQUEST, Json(v)).into_response(),
             Err(e) => refuse(StatusCode::BAD_GATEWAY, e),
         };
@@ -490,7 +498,7 @@ async fn control(
         }
     }
     match tokio::time::timeout(CONTROL_TIMEOUT, rx).await {
-        Ok(Ok(Ok(cmd))) => Json(json!({"ok": true, "cmd": cmd})).into_response(),
+        Ok(Ok(Ok(cmd))) => Json(Reply::applied(cmd)).into_response(),
         Ok(Ok(Err(e))) => refuse(StatusCode::BAD_REQUEST, e),
         Ok(Err(_)) => refuse(StatusCode::CONFLICT, "the run has ended"),
         Err(_) => refuse(
@@ -517,7 +525,7 @@ async fn ack(
     match v.get("seq").and_then(Value::as_u64) {
         Some(seq) if hub.is_alarm(seq) => {
             hub.acknowledge(seq);
-            Json(json!({"ok": true, "seq": seq})).into_response()
+            Json(Reply::acknowledged(seq)).into_response()
         }
         Some(seq) => refuse(
             StatusCode::BAD_REQUEST,
@@ -552,8 +560,8 @@ fn event_stream(hub: Arc<Hub>) -> Sse<impl Stream<Item = Result<SseEvent, Infall
                     Ok(m) => return Some((sse(&m), (rx, after, guard, hub))),
                     Err(RecvError::Lagged(n)) => {
                         hub.count_lagged(n);
-                        let e = SseEvent::default()
-                            .data(json!({"type": "lagged", "dropped": n}).to_string());
+                        let e =
+                            SseEvent::default().data(PanelMessage::Lagged { dropped: n }.to_json());
                         return Some((Ok(e), (rx, after, guard, hub)));
                     }
                     Err(RecvError::Closed) => return None,

@@ -15,7 +15,7 @@
 //! Only a plain file name is taken (no directory part, no overwriting): a panel that may be
 //! reached by others must not write where it likes.
 
-use crate::event::Event;
+use crate::event::{Event, LogState};
 use crate::service::LiveError;
 use physid_core::Recording;
 use physid_io::{ChunkWriter, WriteOptions};
@@ -111,7 +111,7 @@ impl Recorder {
             file: path.display().to_string(),
             samples: w.rows(),
             bytes: w.bytes(),
-            state: "recording",
+            state: LogState::Recording,
         }))
     }
 
@@ -130,7 +130,7 @@ impl Recorder {
             file: path.display().to_string(),
             samples,
             bytes,
-            state: "closed",
+            state: LogState::Closed,
         }))
     }
 }

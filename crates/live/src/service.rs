@@ -3,7 +3,7 @@
 //! panel shows.
 
 use crate::control::{Control, ControlRequest};
-use crate::event::{quote, Event, LatencyMs};
+use crate::event::{quote, App, Event, Input, LatencyMs};
 use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
 use crate::trace::TraceStage;
@@ -199,7 +199,7 @@ pub fn run_live(
             Ok(Some(c)) => c,
             Ok(None) => break,
             Err(LiveError::BadFrame { line, what }) => {
-                live.refuse("frames", line, what)?;
+                live.refuse(Input::Frames, line, what)?;
                 continue;
             }
             Err(e) => return Err(e),
@@ -420,12 +420,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
 
     /// A frame from outside refused (`input`: where from; `line`: its number there): counted and
     /// reported as an `error` event, never absorbed.
-    pub fn refuse(
-        &mut self,
-        input: &'static str,
-        line: usize,
-        message: String,
-    ) -> Result<(), LiveError> {
+    pub fn refuse(&mut self, input: Input, line: usize, message: String) -> Result<(), LiveError> {
         self.st.dropped += 1;
         let t_s = self.st.last_t;
         self.send(&Event::Error {
@@ -524,10 +519,14 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             let t_s = self.st.last_t;
             let line = self.st.control_line;
             let event = match &result {
-                Ok(cmd) => Event::Control { t_s, cmd, line },
+                Ok(cmd) => Event::Control {
+                    t_s,
+                    cmd: (*cmd).into(),
+                    line,
+                },
                 Err(message) => Event::Error {
                     t_s,
-                    input: "controls",
+                    input: Input::Controls,
                     line,
                     message: message.clone(),
                 },
@@ -582,7 +581,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                         .collect()
                 };
                 self.send(&Event::Identifiability {
-                    app: "shaft",
+                    app: App::Shaft,
                     t_s: s.t_s,
                     estimable: pick(false),
                     frozen: pick(true),
@@ -629,7 +628,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                 let _ = self.recorder.stop(t_s);
                 self.send(&Event::Error {
                     t_s,
-                    input: "record",
+                    input: Input::Record,
                     line: self.st.control_line,
                     message: format!("the log stopped: {e}"),
                 })?;
@@ -762,7 +761,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         for o in &out {
             let e = match o {
                 FrictionOutput::Selected { t_s, estimable, .. } => Event::Identifiability {
-                    app: "friction",
+                    app: App::Friction,
                     t_s: *t_s,
                     frozen: REGRESSION_PARAMS
                         .iter()
@@ -820,7 +819,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         for o in &out {
             let e = match o {
                 TorqueOutput::Selected { t_s, estimable, .. } => Event::Identifiability {
-                    app: "torque",
+                    app: App::Torque,
                     t_s: *t_s,
                     frozen: physid_models::cyclic_torque::PARAMS
                         .iter()

@@ -3,7 +3,7 @@
 //! bins are counted in samples from the stream's start, so the traces do not depend on how
 //! the stream was chunked.
 
-use crate::event::Event;
+use crate::event::{Event, Name};
 use crate::service::{LiveError, PanelFeed};
 use physid_core::Recording;
 use std::collections::BTreeMap;
@@ -108,11 +108,14 @@ impl TraceStage {
     }
 
     fn take(&mut self) -> Event {
-        let channels: BTreeMap<&'static str, Vec<f64>> = self
+        let channels: BTreeMap<Name, Vec<f64>> = self
             .names
             .iter()
             .zip(&mut self.values)
-            .map(|(n, v)| (*n, std::mem::replace(v, Vec::with_capacity(self.per_event))))
+            .map(|(&n, v)| {
+                let v = std::mem::replace(v, Vec::with_capacity(self.per_event));
+                (Name::Borrowed(n), v)
+            })
             .collect();
         let t = std::mem::replace(&mut self.t, Vec::with_capacity(self.per_event));
         Event::Trace {

@@ -267,15 +267,11 @@ pub fn run(a: &Args) -> Result<()> {
         return Ok(());
     }
     cfg.panel = Some(PanelFeed::default());
-    let hub = Hub::new(json!({
-        "type": "hello",
-        "version": env!("CARGO_PKG_VERSION"),
-        "source": what,
-        "pace": a.pace.to_string(),
-        "healthy": cfg.monitor.healthy,
-        "bound": cfg.monitor.bound,
-        "units": {"K": "N·m/rad", "B": "N·m·s/rad", "t_s": "s", "omega": "rad/s", "torque": "N·m", "p": "Pa", "throttle": "deg"},
-    }));
+    let hub = Hub::new(physid_live::Hello::run(
+        what.to_string(),
+        a.pace.to_string(),
+        &cfg.monitor,
+    ));
     let (tx, rx): (SyncSender<ControlRequest>, Receiver<ControlRequest>) =
         std::sync::mpsc::sync_channel(64);
     if let Some(path) = &a.controls {

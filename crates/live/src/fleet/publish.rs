@@ -9,7 +9,8 @@
 
 use super::{nats, send_until_acked, subject, CellInfo, Fleet, FleetError, NatsTarget};
 use crate::control::Control;
-use crate::event::Event;
+use crate::event::{Event, Input};
+use crate::message::Reply;
 use crate::source::{Pace, Pacer, Source};
 use crate::wire::{self, Frame};
 use futures_util::StreamExt;
@@ -152,7 +153,7 @@ pub fn publish(
             Err(crate::LiveError::BadFrame { line, what }) => {
                 p.event(&Event::Error {
                     t_s: p.last_t,
-                    input: "frames",
+                    input: Input::Frames,
                     line,
                     message: what,
                 })?;
@@ -300,20 +301,26 @@ impl Publisher<'_> {
             let (t_s, line) = (self.last_t, self.control_line);
             let (event, answer) = match result {
                 Ok(cmd) => (
-                    Event::Control { t_s, cmd, line },
-                    serde_json::json!({ "ok": true, "cmd": cmd }),
+                    Event::Control {
+                        t_s,
+                        cmd: cmd.into(),
+                        line,
+                    },
+                    Reply::applied(cmd),
                 ),
                 Err(message) => (
                     Event::Error {
                         t_s,
-                        input: "controls",
+                        input: Input::Controls,
                         line,
                         message: message.clone(),
                     },
-                    serde_json::json!({ "ok": false, "error": message }),
+                    Reply::refused(message),
                 ),
             };
-            let _ = req.reply.send(answer.to_string());
+            let _ = req
+                .reply
+                .send(serde_json::to_string(&answer).unwrap_or_default());
             self.event(&event)?;
         }
         if let Some(at) = paused_at {

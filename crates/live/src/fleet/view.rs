@@ -7,10 +7,11 @@
 //! own, which keeps what a late page needs (as the single-cell panel does).
 
 use super::{nats, subject, CellInfo, Fleet, FleetError, NatsTarget, EVENTS_STREAM};
+use crate::event::Event;
 use crate::hub::Hub;
+use crate::message::{CellRow, CellState, Hello, PanelMessage, Reply};
 use async_nats::jetstream::consumer::{pull::OrderedConfig, DeliverPolicy};
 use futures_util::StreamExt;
-use serde_json::{json, Value};
 use std::collections::BTreeMap;
 use std::sync::atomic::AtomicU64;
 use std::sync::{Arc, Mutex};
@@ -25,9 +26,9 @@ struct CellView {
     info: Option<CellInfo>,
     last_event: Option<Instant>,
     /// The latest estimate event.
-    estimate: Option<Value>,
+    estimate: Option<Event>,
     alarms: u64,
-    last_alarm: Option<Value>,
+    last_alarm: Option<Event>,
     errors: u64,
     ended: bool,
 }
@@ -38,17 +39,12 @@ pub struct FleetView {
     client: async_nats::Client,
 }
 
-fn hello(cell: &str, source: &str) -> Value {
-    let m = physid_apps::shaft_monitor::MonitorConfig::default();
-    json!({
-        "type": "hello",
-        "version": env!("CARGO_PKG_VERSION"),
-        "source": format!("fleet cell {cell}: {source}"),
-        "pace": "the cell's",
-        "healthy": m.healthy,
-        "bound": m.bound,
-        "units": {"K": "N·m/rad", "B": "N·m·s/rad", "t_s": "s", "omega": "rad/s", "torque": "N·m", "p": "Pa", "throttle": "deg"},
-    })
+fn hello(cell: &str, source: &str) -> Hello {
+    Hello::run(
+        format!("fleet cell {cell}: {source}"),
+        "the cell's".into(),
+        &physid_apps::shaft_monitor::MonitorConfig::default(),
+    )
 }
 
 impl CellView {
@@ -112,8 +108,13 @@ impl FleetView {
                 else {
                     continue;
                 };
-                if let Ok(e) = serde_json::from_slice::<Value>(&m.payload) {
-                    v.event(cell, e);
+                // Passed on as it came; what does not read as an event (another version's) is
+                // left out.
+                let Ok(text) = std::str::from_utf8(&m.payload) else {
+                    continue;
+                };
+                if let Ok(e) = serde_json::from_str::<Event>(text) {
+                    v.event(cell, e, text.to_string());
                 }
             }
         });
@@ -155,23 +156,23 @@ impl FleetView {
         }
     }
 
-    fn event(&self, cell: &str, e: Value) {
+    fn event(&self, cell: &str, e: Event, text: String) {
         let mut cells = self.cells();
         let view = cells
             .entry(cell.to_string())
             .or_insert_with(|| CellView::new(cell, None));
         view.last_event = Some(Instant::now());
-        match e["type"].as_str() {
-            Some("estimate") => view.estimate = Some(e.clone()),
-            Some("alarm") => {
+        view.hub.publish_received(&e, text);
+        match e {
+            Event::Estimate { .. } => view.estimate = Some(e),
+            Event::Alarm { .. } => {
                 view.alarms += 1;
-                view.last_alarm = Some(e.clone());
+                view.last_alarm = Some(e);
             }
-            Some("error") => view.errors += 1,
-            Some("end") => view.ended = true,
+            Event::Error { .. } => view.errors += 1,
+            Event::End { .. } => view.ended = true,
             _ => {}
         }
-        view.hub.publish_value(&e);
     }
 
     /// The hub of `cell`'s events, if the fleet has the cell.
@@ -181,35 +182,32 @@ impl FleetView {
 
     /// Every cell: its id, source, rate, state (`running`, `quiet`, `ended`), latest K, B and
     /// their standard errors, alarms and errors so far, the latest alarm.
-    pub fn summary(&self) -> Value {
+    pub fn summary(&self) -> PanelMessage {
         let cells = self.cells();
-        let rows: Vec<Value> = cells
+        let cells = cells
             .iter()
-            .map(|(id, c)| {
-                let state = if c.ended {
-                    "ended"
+            .map(|(id, c)| CellRow {
+                cell: id.clone(),
+                source: c.info.as_ref().map(|i| i.source.clone()),
+                rate_hz: c.info.as_ref().map(|i| i.rate_hz),
+                state: if c.ended {
+                    CellState::Ended
                 } else if c.last_event.is_some_and(|t| t.elapsed() < QUIET) {
-                    "running"
+                    CellState::Running
                 } else {
-                    "quiet"
-                };
-                json!({
-                    "cell": id,
-                    "source": c.info.as_ref().map(|i| i.source.clone()),
-                    "rate_hz": c.info.as_ref().map(|i| i.rate_hz),
-                    "state": state,
-                    "estimate": c.estimate,
-                    "alarms": c.alarms,
-                    "last_alarm": c.last_alarm,
-                    "errors": c.errors,
-                })
+                    CellState::Quiet
+                },
+                estimate: c.estimate.clone(),
+                alarms: c.alarms,
+                last_alarm: c.last_alarm.clone(),
+                errors: c.errors,
             })
             .collect();
-        json!({"type": "fleet", "cells": rows})
+        PanelMessage::Fleet { cells }
     }
 
     /// Send a control message to `cell` and wait for its answer (`{"ok": …}`).
-    pub async fn control(&self, cell: &str, body: String) -> Result<Value, String> {
+    pub async fn control(&self, cell: &str, body: String) -> Result<Reply, String> {
         if !crate::wire::valid_cell(cell) {
             return Err(format!("cell '{cell}': not a cell id"));
         }

@@ -24,7 +24,7 @@ use super::{
     nats, send_until_acked, subject, CellInfo, Fleet, FleetError, NatsTarget, CELLS_BUCKET,
     LEASE_TTL,
 };
-use crate::event::Event;
+use crate::event::{Event, Input};
 use crate::service::{LiveConfig, Stages};
 use crate::wire;
 use async_nats::jetstream::consumer::{pull::OrderedConfig, DeliverPolicy};
@@ -197,7 +197,7 @@ async fn supervise(
                     if bad_told.insert(format!("{cell}: {why}")) && wire::valid_cell(cell) {
                         let e = Event::Error {
                             t_s: f64::NAN,
-                            input: "registry",
+                            input: Input::Registry,
                             line: 0,
                             message: format!(
                                 "the {CELLS_BUCKET} entry of '{cell}': {why}; the cell is not processed"
@@ -259,7 +259,7 @@ async fn supervise(
             stats.refused.fetch_add(count as u64, Ordering::Relaxed);
             let e = Event::Error {
                 t_s: f64::NAN,
-                input: "frames",
+                input: Input::Frames,
                 line: 0,
                 message: format!(
                     "unknown cell '{cell}': {count} frame(s) on {subj} but no entry in the \
@@ -537,7 +537,7 @@ fn take_frame(
 ) -> Result<Outcome, FleetError> {
     let refuse = |stages: &mut Stages<Emit>, why: String| -> Result<Outcome, FleetError> {
         stages.refuse(
-            "frames",
+            Input::Frames,
             stream_seq as usize,
             format!("frame at stream sequence {stream_seq}: {why}"),
         )?;

@@ -1,0 +1,422 @@
+//! The shaft monitor as a stream stage ([`ShaftStage`]): chunks of samples in, the estimator's
+//! samples and the alarms out — what the file verb and the live service both run.
+
+use super::*;
+
+/// A chunk of the monitor's input channels, all the same length.
+#[derive(Debug, Clone, Copy)]
+pub struct ShaftInputs<'a> {
+    /// Time [s], uniformly spaced at the stage's rate.
+    pub t: &'a [f64],
+    /// Dynamometer angle [rad].
+    pub theta_dy: &'a [f64],
+    /// Engine angle [rad].
+    pub theta_en: &'a [f64],
+    /// Dynamometer speed [rad/s].
+    pub omega_dy: &'a [f64],
+    /// Engine speed [rad/s].
+    pub omega_en: &'a [f64],
+    /// Shaft torque [N·m].
+    pub torque_shaft: &'a [f64],
+}
+
+impl<'a> ShaftInputs<'a> {
+    /// The monitor's channels of a recording (on a uniform time basis).
+    pub fn of(rec: &'a Recording) -> Result<Self, AppError> {
+        Ok(Self {
+            t: rec.values("t")?,
+            theta_dy: rec.values("theta_dy")?,
+            theta_en: rec.values("theta_en")?,
+            omega_dy: rec.values("omega_dy")?,
+            omega_en: rec.values("omega_en")?,
+            torque_shaft: rec.values("torque_shaft")?,
+        })
+    }
+
+    /// Samples `r` of every channel.
+    pub fn slice(&self, r: std::ops::Range<usize>) -> Self {
+        Self {
+            t: &self.t[r.clone()],
+            theta_dy: &self.theta_dy[r.clone()],
+            theta_en: &self.theta_en[r.clone()],
+            omega_dy: &self.omega_dy[r.clone()],
+            omega_en: &self.omega_en[r.clone()],
+            torque_shaft: &self.torque_shaft[r],
+        }
+    }
+}
+
+/// One estimator sample of the monitor.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct ShaftSample {
+    /// The input sample it was taken at (0 = the stream's first).
+    pub index: usize,
+    /// Its time [s].
+    pub t_s: f64,
+    /// K, B, τ0 after it.
+    pub estimate: ShaftParams,
+    /// Standard errors of K and B (NaN before they can be estimated).
+    pub std_err: PerParam,
+    /// Whether K, B and τ0 are frozen by the excitation supervisor: reported once the estimator
+    /// has held one frozen (or free) for [`FREEZE_HOLD_S`] without a break.
+    pub frozen: [bool; 3],
+}
+
+/// The monitor's estimator, supervised or not.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+enum Estimator {
+    Plain(Box<LinearEstimator>),
+    Supervised(Box<ExcitationSupervisor>),
+}
+
+impl Estimator {
+    fn get(&self) -> &LinearEstimator {
+        match self {
+            Self::Plain(e) => e,
+            Self::Supervised(s) => s.estimator(),
+        }
+    }
+
+    fn update(&mut self, phi: &[f64], y: f64, at: usize) -> Result<(), AppError> {
+        let estim = |source| AppError::Estim {
+            at: format!("sample {at}"),
+            source,
+        };
+        match self {
+            Self::Plain(e) => e.update(phi, y).map(|_| ()).map_err(estim),
+            Self::Supervised(s) => s.update(phi, y).map_err(|e| match e {
+                SupervisorError::Estim(source) => estim(source),
+                SupervisorError::Ident(e) => AppError::Invalid(format!("sample {at}: {e}")),
+            }),
+        }
+    }
+
+    /// Whether K, B and τ0 are frozen now.
+    fn frozen(&self) -> [bool; 3] {
+        match self {
+            Self::Plain(_) => [false; 3],
+            Self::Supervised(s) => {
+                let a = s.active();
+                [!a[0], !a[1], !a[2]]
+            }
+        }
+    }
+}
+
+/// Below this engine speed [rad/s] (300 rpm, well under any test's operating point) the
+/// engine is taken as stopping or standing still: the
+/// estimator and the alarm detector are held (every parameter reported frozen) until it turns
+/// again — a stopped cell raises no alarm and does not wind the estimator's covariance up.
+pub const STANDSTILL_RAD_S: f64 = 300.0 * std::f64::consts::PI / 30.0;
+
+/// The shaft monitor as a stage: chunks of samples in, estimator samples and alarms out, the
+/// zero-phase low-pass done on the stream ([`ZeroPhaseStream`]). The file verb
+/// ([`monitor_shaft`]) and the live service run this same code; its output does not depend on
+/// how the input is chunked, and a sample's estimate leaves [`latency`](Self::latency) samples
+/// after it arrived at the most. Allocation-free per sample once the output vectors have room.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct ShaftStage {
+    cfg: MonitorConfig,
+    pub(super) every: usize,
+    pub(super) filters: Option<Box<[ZeroPhaseStream; 3]>>,
+    /// Times of the inputs not yet out of the filters.
+    times: VecDeque<f64>,
+    /// The engine's speed [rad/s] at those times (the standstill hold).
+    #[serde(default)]
+    speeds: VecDeque<f64>,
+    t0: Option<f64>,
+    /// Index of the next filtered sample.
+    next: usize,
+    est: Estimator,
+    det: RelativeErrorDetector,
+    /// Times of the detector's last samples (an alarm's onset is at most a dwell back).
+    det_times: VecDeque<f64>,
+    /// The reported frozen state, and since when the estimator's has differed from it.
+    held: [bool; 3],
+    differs_since: [Option<f64>; 3],
+    model: Shaft,
+    raw: [Vec<f64>; 3],
+    filtered: [Vec<f64>; 3],
+}
+
+impl ShaftStage {
+    /// A stage for inputs at `rate_hz` [Hz].
+    pub fn new(cfg: &MonitorConfig, rate_hz: f64) -> Result<Self, AppError> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(AppError::Invalid(format!(
+                "sample rate {rate_hz} Hz: expected > 0"
+            )));
+        }
+        let filters = if cfg.cutoff_hz < rate_hz / 2.0 {
+            let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, rate_hz)
+                .map_err(|e| AppError::Invalid(e.to_string()))?
+                .to_sos();
+            // Blocks of a quarter of the lookahead: the latency is 1.25 lookaheads (34 ms for
+            // the default 500 Hz at 10 kHz) for 5 backward passes per sample instead of 2.
+            let lookahead = settling_length(&sos);
+            let f = ZeroPhaseStream::new(&sos, Some(lookahead), Some((lookahead / 4).max(1)));
+            Some(Box::new([f.clone(), f.clone(), f]))
+        } else {
+            None
+        };
+        let t0 = cfg.theta0;
+        let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
+            .map_err(|e| AppError::Invalid(e.to_string()))?;
+        // Vector forgetting forgets K and B, not the offset, in its symmetric form.
+        let spec = EstimatorSpec {
+            lambda: cfg.lambda,
+            lambdas: Some(vec![cfg.lambda, cfg.lambda, 1.0]),
+            vf_variant: VfVariant::Symmetric,
+            p0: CovSpec::Scaled(cfg.p0),
+            ..EstimatorSpec::new(cfg.method.method())
+        };
+        let est = build_linear(&spec, &params, &params.all_free())
+            .map_err(AppError::estim("estimator configuration"))?;
+        let est = if cfg.supervise {
+            // The estimator's own memory (λ): what it forgets, the ranking forgets; rows scaled
+            // by the healthy values.
+            let sup = SupervisorConfig::for_lambda(cfg.lambda);
+            let scale = vec![
+                cfg.healthy.k.abs().max(1e-12),
+                cfg.healthy.b.abs().max(1e-12),
+                1.0,
+            ];
+            let s = ExcitationSupervisor::new(est, scale, sup)
+                .map_err(|e| AppError::Invalid(format!("excitation supervisor: {e}")))?;
+            Estimator::Supervised(Box::new(s))
+        } else {
+            Estimator::Plain(Box::new(est))
+        };
+        let dwell = cfg.dwell.max(1);
+        let det = RelativeErrorDetector::new(
+            vec!["K".into(), "B".into()],
+            vec![cfg.healthy.k, cfg.healthy.b],
+            vec![cfg.bound, cfg.bound],
+            dwell,
+        )
+        .map_err(AppError::estim("detector configuration"))?;
+        let latency = filters.as_ref().map_or(0, |f| f[0].latency());
+        Ok(Self {
+            every: ((rate_hz / cfg.rate_hz).round() as usize).max(1),
+            cfg: cfg.clone(),
+            filters,
+            times: VecDeque::with_capacity(latency + FILE_CHUNK),
+            speeds: VecDeque::with_capacity(latency + FILE_CHUNK),
+            t0: None,
+            next: 0,
+            est,
+            det,
+            det_times: VecDeque::with_capacity(dwell as usize + 1),
+            held: [false; 3],
+            differs_since: [None; 3],
+            model: Shaft::new(true),
+            raw: Default::default(),
+            filtered: Default::default(),
+        })
+    }
+
+    /// The reported frozen state at time `t` (see [`ShaftSample::frozen`]).
+    fn held(&mut self, t: f64) -> [bool; 3] {
+        let now = self.est.frozen();
+        for ((held, since), now) in self.held.iter_mut().zip(&mut self.differs_since).zip(now) {
+            if now == *held {
+                *since = None;
+            } else if t - *since.get_or_insert(t) >= FREEZE_HOLD_S {
+                *held = now;
+                *since = None;
+            }
+        }
+        self.held
+    }
+
+    /// The most input samples between a sample's arrival and its estimate: the low-pass's
+    /// block and lookahead ([`ZeroPhaseStream::latency`]), 0 without a low-pass.
+    pub fn latency(&self) -> usize {
+        self.filters.as_ref().map_or(0, |f| f[0].latency())
+    }
+
+    /// The current K, B, τ0 (a frozen one at its value when it was frozen).
+    pub fn estimate(&self) -> ShaftParams {
+        let e = self.est.get();
+        let mut th = [0.0; 3];
+        th.copy_from_slice(e.params().nominal());
+        e.free_set().scatter(e.estimate(), &mut th);
+        ShaftParams {
+            k: th[0],
+            b: th[1],
+            tau0: th[2],
+        }
+    }
+
+    /// Whether the data have resolved K, B and τ0 so far: the variance of each free one has
+    /// at least halved from P0 ([`physid_estim::resolution`]); a frozen one keeps its value.
+    /// Data of no information (every shaft channel scaled by 1e-300: φφᵀ underflows) leave
+    /// the estimates at their start, which is no finding about the shaft. Allocation-free.
+    pub fn resolved(&self) -> [bool; 3] {
+        let e = self.est.get();
+        let mut r = [true; 3];
+        for (k, &i) in e.free_set().free().iter().enumerate() {
+            r[i] = e.variance_ratio(k) < physid_estim::resolution::MAX_VARIANCE_RATIO;
+        }
+        r
+    }
+
+    /// Their standard errors (NaN before they can be estimated, and while frozen).
+    pub fn std_err(&self) -> ShaftParams {
+        let e = self.est.get();
+        let n = e.free_set().free().len();
+        let mut free = [0.0; 3];
+        let mut se = [f64::NAN; 3];
+        if e.std_errors_into(&mut free[..n]).is_ok() {
+            e.free_set().scatter(&free[..n], &mut se);
+        }
+        ShaftParams {
+            k: se[0],
+            b: se[1],
+            tau0: se[2],
+        }
+    }
+
+    /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
+    /// columns of different lengths or a non-finite sample is refused, naming the sample.
+    pub fn push(
+        &mut self,
+        x: &ShaftInputs,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        let n = x.t.len();
+        let cols = [
+            x.theta_dy,
+            x.theta_en,
+            x.omega_dy,
+            x.omega_en,
+            x.torque_shaft,
+        ];
+        if cols.iter().any(|c| c.len() != n) {
+            return Err(AppError::Invalid(
+                "a chunk's channels have different lengths".into(),
+            ));
+        }
+        if self.t0.is_none() {
+            self.t0 = x.t.first().copied();
+        }
+        for r in &mut self.raw {
+            r.clear();
+        }
+        self.raw[0].extend(x.theta_dy.iter().zip(x.theta_en).map(|(a, b)| a - b));
+        self.raw[1].extend(x.omega_dy.iter().zip(x.omega_en).map(|(a, b)| a - b));
+        self.raw[2].extend_from_slice(x.torque_shaft);
+        let first = self.next + self.times.len();
+        if let Some(i) = self
+            .raw
+            .iter()
+            .flat_map(|r| r.iter().enumerate())
+            .find(|(_, v)| !v.is_finite())
+            .map(|(i, _)| i)
+        {
+            return Err(AppError::Invalid(format!(
+                "sample {}: a shaft signal is not finite",
+                first + i
+            )));
+        }
+        self.times.extend(x.t);
+        self.speeds.extend(x.omega_en);
+        for f in &mut self.filtered {
+            f.clear();
+        }
+        match &mut self.filters {
+            Some(filters) => {
+                for ((f, r), o) in filters.iter_mut().zip(&self.raw).zip(&mut self.filtered) {
+                    f.push(r, o).map_err(|e| AppError::Invalid(e.to_string()))?;
+                }
+            }
+            None => {
+                for (r, o) in self.raw.iter().zip(&mut self.filtered) {
+                    o.extend_from_slice(r);
+                }
+            }
+        }
+        self.consume(samples, alarms)
+    }
+
+    /// The end of the stream: the last samples out of the filters.
+    pub fn finish(
+        &mut self,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        for f in &mut self.filtered {
+            f.clear();
+        }
+        if let Some(filters) = &mut self.filters {
+            for (f, o) in filters.iter_mut().zip(&mut self.filtered) {
+                f.finish(o).map_err(|e| AppError::Invalid(e.to_string()))?;
+            }
+        }
+        self.consume(samples, alarms)
+    }
+
+    /// Estimator updates at the filtered samples on the estimator's grid.
+    fn consume(
+        &mut self,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        let mut phi = [0.0; 3];
+        let t0 = self.t0.unwrap_or(0.0);
+        for k in 0..self.filtered[0].len() {
+            let [dth, dw, tq] = &self.filtered;
+            let i = self.next;
+            self.next += 1;
+            let t = self.times.pop_front().unwrap_or(f64::NAN);
+            let speed = self.speeds.pop_front().unwrap_or(f64::NAN);
+            if !i.is_multiple_of(self.every) {
+                continue;
+            }
+            // A shaft that does not turn resolves no damping and drifts the estimator's
+            // memory: the estimates and the alarm detector are held until it turns again.
+            let standstill = speed.abs() < STANDSTILL_RAD_S;
+            if !standstill {
+                self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
+                self.est.update(&phi, tq[k], i)?;
+            }
+            let (estimate, se) = (self.estimate(), self.std_err());
+            samples.push(ShaftSample {
+                index: i,
+                t_s: t,
+                estimate,
+                std_err: PerParam { k: se.k, b: se.b },
+                frozen: if standstill { [true; 3] } else { self.held(t) },
+            });
+            // The detector waits for data that resolve K and B (an unresolved estimate is its
+            // starting value, not the shaft's).
+            let [rk, rb, _] = self.resolved();
+            if !standstill && t - t0 >= self.cfg.settle_s && rk && rb {
+                if self.det_times.len() > self.cfg.dwell.max(1) as usize {
+                    self.det_times.pop_front();
+                }
+                self.det_times.push_back(t);
+                let before = self.det.alarms().len();
+                self.det
+                    .update(&[estimate.k, estimate.b])
+                    .map_err(|e| AppError::Estim {
+                        at: format!("sample {i}"),
+                        source: e,
+                    })?;
+                for a in &self.det.alarms()[before..] {
+                    let back = (a.raised_sample - a.onset_sample) as usize;
+                    let at = self.det_times.len() - 1;
+                    alarms.push(ShaftAlarm {
+                        param: a.name.clone(),
+                        t_start_s: self.det_times[at.saturating_sub(back)],
+                        t_raised_s: t,
+                        relative_error: a.relative_error,
+                        change: -a.relative_error,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+}
