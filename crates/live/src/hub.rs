@@ -227,7 +227,7 @@ mod tests {
         }
         let mut sub = hub.subscribe();
         assert_eq!(hub.clients(), 1);
-        assert_eq!(&*sub.backlog[0].1, r#"{"type":"hello"}"#);
+        assert_eq!(&*sub.backlog[0].1, r#"{"type":"hello","source":""}"#);
         assert_eq!(sub.backlog.len(), 1 + 500);
         assert_eq!(sub.backlog[1].0, 101);
         assert_eq!(sub.after, 600);
