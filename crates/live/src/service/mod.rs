@@ -1,0 +1,309 @@
+//! The live loop: chunks from a [`Source`] through the applications' stages (the same stages
+//! the file verbs run), events out — what `physid live --headless --json` prints and what the
+//! panel shows.
+//!
+//! Here: the errors, the summary, [`run_live`] and the state of [`Stages`]. `config.rs`: what
+//! the service is told; `stages.rs`: the stages' loop (a chunk, controls, checkpoints);
+//! `latency.rs`: the delivery latency's histogram.
+
+use crate::control::{Control, ControlRequest};
+use crate::event::{quote, App, Event, Input, LatencyMs};
+use crate::record::Recorder;
+use crate::source::{Pace, Pacer, Source};
+use crate::trace::TraceStage;
+use physid_apps::acquisition::AcquisitionOptions;
+use physid_apps::error::AppError;
+use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
+use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
+use physid_apps::torque_fit::{TorqueFitConfig, TorqueOutput, TorqueStage};
+use physid_core::{Basis, Recording, RecordingError};
+use physid_io::IoError;
+use physid_models::friction::REGRESSION_PARAMS;
+use physid_signal::crank::CrankError;
+use physid_signal::cycles::{CycleStream, CycleSummary};
+use physid_signal::integrity::{Finding as IntegrityFinding, IntegrityStream};
+use physid_sim::run::SimError;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+mod config;
+mod latency;
+mod stages;
+
+pub use config::*;
+pub use latency::*;
+/// Errors of the live service.
+#[derive(Debug, Error)]
+pub enum LiveError {
+    /// An application's stage.
+    #[error(transparent)]
+    App(#[from] AppError),
+    /// The virtual test cell.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Reading a recording.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// A chunk without a channel a stage needs.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// The cycle statistics.
+    #[error(transparent)]
+    Cycles(#[from] CrankError),
+    /// Writing the events.
+    #[error("writing the events: {0}")]
+    Output(String),
+    /// One frame from outside that is not valid: refused, the stream goes on.
+    #[error("frame on line {line}: {what}")]
+    BadFrame {
+        /// Its line in the input.
+        line: usize,
+        /// What was wrong.
+        what: String,
+    },
+    /// Anything else, explained.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// What a run did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// Samples taken from the source.
+    pub samples: usize,
+    /// Frames refused.
+    pub dropped: usize,
+    /// The shaft's final K, B, τ0 and their standard errors (`None` when the shaft monitor
+    /// stopped: a source without its channels, or an estimator error).
+    pub shaft: Option<(ShaftParams, ShaftParams)>,
+    /// Complete cycles reported.
+    pub cycles: usize,
+    /// Events sent.
+    pub events: usize,
+}
+
+/// Run `source` to its end through the stages — the shaft monitor, the cycle statistics (when
+/// the source has `theta_en` and a channel of [`CYCLE_CHANNELS`]) and, for the panel, the
+/// time traces — applying the control messages that arrive on `controls` between chunks (each
+/// answered on its reply channel and by an event), handing each event to `emit` (whose error,
+/// e.g. a closed output, stops the run). An application stage that fails — a source without
+/// the channels it needs, an estimator that loses positive definiteness — stops with a `finding`
+/// saying why, and the run and the other stages go on; the source's own error (a file that
+/// cannot be read, a cell that diverges) stops the run with the error (the events so far have
+/// been sent).
+pub fn run_live(
+    source: &mut dyn Source,
+    cfg: &LiveConfig,
+    controls: Option<&Receiver<ControlRequest>>,
+    emit: impl FnMut(&Event) -> Result<(), String>,
+) -> Result<Summary, LiveError> {
+    let mut live = Stages::new(cfg.clone(), source.rate_hz(), emit)?;
+    loop {
+        if live.stopping() {
+            break;
+        }
+        let chunk = match source.next_chunk() {
+            Ok(Some(c)) => c,
+            Ok(None) => break,
+            Err(LiveError::BadFrame { line, what }) => {
+                live.refuse(Input::Frames, line, what)?;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        // Control messages that have arrived, applied between chunks; while paused, wait for
+        // them (the pacer does not count the pause).
+        if let Some(rx) = controls {
+            live.controls(rx, source)?;
+        }
+        if let Some(message) = source.notice() {
+            let t_s = live.st.last_t;
+            live.send(&Event::finding(t_s, message))?;
+        }
+        live.chunk(&chunk)?;
+    }
+    live.finish()
+}
+
+/// The applications' stages on one cell's stream, chunk by chunk, each event handed to `emit`:
+/// what [`run_live`] runs over a source and a fleet worker over a cell's NATS stream. The
+/// state of the shaft monitor, the cycle statistics and the integrity checks is plain data:
+/// [`checkpoint`](Self::checkpoint) writes it, [`restore`](Self::restore) takes the run up
+/// where it was (the friction and torque stages, the panel's traces and a log being written are
+/// not checkpointed: a checkpoint refuses while they run).
+pub struct Stages<E> {
+    cfg: LiveConfig,
+    rate_hz: f64,
+    st: State,
+    traces: Option<TraceStage>,
+    /// The friction characterisation (stopped, with a finding, at its first error).
+    friction: Option<FrictionStage>,
+    friction_out: Vec<FrictionOutput>,
+    /// The cyclic-torque estimation (stopped, with a finding, at its first error).
+    torque: Option<TorqueStage>,
+    torque_out: Vec<TorqueOutput>,
+    findings: Vec<IntegrityFinding>,
+    recorder: Recorder,
+    pacer: Pacer,
+    emit: E,
+    paused: bool,
+    /// A `stop` control for a source that cannot end itself (a replay, frames): the loop ends
+    /// before the next chunk.
+    stop_requested: bool,
+    latency: LatencyHistogram,
+    samples: Vec<physid_apps::shaft_monitor::ShaftSample>,
+    alarms: Vec<physid_apps::shaft_monitor::ShaftAlarm>,
+    done_cycles: Vec<CycleSummary>,
+}
+
+/// The checkpointed part of [`Stages`].
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct State {
+    /// The rate the stages were built for [Hz] (a restore at another is refused).
+    rate_hz: f64,
+    /// The shaft monitor (stopped, with a finding, at its first error).
+    shaft: Option<ShaftStage>,
+    /// The cycle statistics and the channels they cover, as indices into [`CYCLE_CHANNELS`]
+    /// (set up on the first chunk).
+    cycles: Option<(CycleStream, Vec<usize>)>,
+    /// The cycle statistics stopped at a sample they cannot take (a value not finite): with a
+    /// finding; the run and the other stages go on, a `restart` brings them back.
+    #[serde(default)]
+    cycles_stopped: bool,
+    /// K, B, τ0 frozen by the shaft's excitation supervisor, as last told.
+    shaft_frozen: Option<[bool; 3]>,
+    /// The integrity checks on the stream (set up on the first chunk).
+    integrity: Option<IntegrityStream>,
+    /// The time of the stream's first sample [s].
+    t_first: f64,
+    events: usize,
+    taken: usize,
+    dropped: usize,
+    cycles_sent: usize,
+    control_line: usize,
+    last_t: f64,
+    last_sent: Option<f64>,
+    /// The latest estimate not sent (thinned out): sent at the end.
+    pending: Option<physid_apps::shaft_monitor::ShaftSample>,
+}
+
+/// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
+pub const CHECKPOINT_VERSION: u32 = 1;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::source::{ScenarioSource, Source};
+    use physid_sim::run::{OutputBasis, RunOptions};
+    use physid_sim::scenario::{Fault, Scenario};
+
+    fn chunks() -> (Vec<Recording>, f64) {
+        let opts = RunOptions {
+            duration: Some(4.0),
+            faults: vec![Fault::parse("shaft.k=1000@2").unwrap()],
+            basis: OutputBasis::Time(5000.0),
+            ..Default::default()
+        };
+        let mut src =
+            ScenarioSource::new(&Scenario::load("shaft-steady").unwrap(), &opts, 0.013).unwrap();
+        let mut out = Vec::new();
+        while let Some(c) = src.next_chunk().unwrap() {
+            out.push(c);
+        }
+        (out, src.rate_hz())
+    }
+
+    fn json(events: &[Event]) -> Vec<String> {
+        events
+            .iter()
+            .map(|e| serde_json::to_string(e).unwrap())
+            .collect()
+    }
+
+    /// The stages checkpointed at any chunk and restored (through bytes) give the events an
+    /// uninterrupted run gives, bit for bit — the alarm of a stiffness fault, the estimates,
+    /// the cycles, the end.
+    #[test]
+    fn a_restored_checkpoint_goes_on_exactly() {
+        let (chunks, rate) = chunks();
+        let cfg = LiveConfig::default();
+        let mut whole = Vec::new();
+        let mut s = Stages::new(cfg.clone(), rate, |e: &Event| {
+            whole.push(e.clone());
+            Ok(())
+        })
+        .unwrap();
+        for c in &chunks {
+            s.chunk(c).unwrap();
+        }
+        s.finish().unwrap();
+        assert!(whole.iter().any(|e| matches!(e, Event::Alarm { .. })));
+        for cut in [1, chunks.len() / 3, chunks.len() - 1] {
+            let mut first = Vec::new();
+            let mut s = Stages::new(cfg.clone(), rate, |e: &Event| {
+                first.push(e.clone());
+                Ok(())
+            })
+            .unwrap();
+            for c in &chunks[..cut] {
+                s.chunk(c).unwrap();
+            }
+            let bytes = s.checkpoint().unwrap();
+            drop(s);
+            let mut second = Vec::new();
+            let mut s = Stages::restore(cfg.clone(), &bytes, |e: &Event| {
+                second.push(e.clone());
+                Ok(())
+            })
+            .unwrap();
+            for c in &chunks[cut..] {
+                s.chunk(c).unwrap();
+            }
+            s.finish().unwrap();
+            first.extend(second);
+            assert_eq!(json(&first), json(&whole), "cut at chunk {cut}");
+        }
+        // Another layout is refused with a reason, not misread.
+        let bad = rmp_serde::to_vec(&(CHECKPOINT_VERSION + 1, 0u8)).unwrap();
+        let e = Stages::restore(cfg, &bad, |_: &Event| Ok(()))
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("checkpoint"), "{e}");
+    }
+
+    /// Quantiles of 1 … 1000 ms: the median's bin ends at 500 ms, the 99th percentile's at
+    /// 990 ms (0.1 ms bins); beyond 2 s within 10 ms (the `bench fleet` run whose p99 stuck at
+    /// 2000 ms while its max was 2729 ms); beyond 2 min the largest seen.
+    #[test]
+    fn histogram_quantiles() {
+        let mut h = LatencyHistogram::default();
+        assert_eq!(h.quantile(0.5), None);
+        assert_eq!(h.summary_ms(), None);
+        for k in 1..=1000 {
+            h.add(k as f64 * 1e-3 - 5e-5);
+        }
+        assert!((h.quantile(0.5).unwrap() - 0.5).abs() < 1e-9);
+        assert!((h.quantile(0.99).unwrap() - 0.99).abs() < 1e-9);
+        h.add(5.0);
+        assert_eq!(h.max(), 5.0);
+        assert!((h.quantile(1.0).unwrap() - 5.0).abs() < 1e-9);
+        // Latencies 1.5 … 3.0 s: the 99th percentile is 2.985 s, within one 10 ms bin.
+        let mut slow = LatencyHistogram::default();
+        for k in 0..=300 {
+            slow.add(1.5 + k as f64 * 0.005 + 1e-6);
+        }
+        let p99 = slow.quantile(0.99).unwrap();
+        assert!((2.985..=2.995 + 1e-9).contains(&p99), "{p99}");
+        let [p50, p99_ms, max] = slow.summary_ms().unwrap();
+        // The median 2.250001 s is in the 10 ms bin [2.25, 2.26): its upper edge.
+        assert_eq!((p50, max), (2260.0, 3000.0));
+        assert!((p99_ms * 10.0).fract() == 0.0 && p99_ms <= max);
+        slow.add(500.0);
+        assert_eq!(slow.quantile(1.0), Some(500.0));
+    }
+}
