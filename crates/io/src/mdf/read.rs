@@ -1,48 +1,7 @@
-//! ASAM MDF4 recordings through `falcon_mdf` (DESIGN.md: the crate that reads asammdf's
-//! compressed files and angle masters).
-//!
-//! Reading: one channel group's time base makes one [`Recording`]. With a channel list, the
-//! channels asked for (they must share a master); without, every channel of every group on the
-//! same master as the first group with data (the others are named in `meta["skipped"]`). A time
-//! master (sync type 1) becomes channel `t` [s] on a time basis; an angle master (sync type 2)
-//! becomes `theta` [rad] on a crank-angle basis — MDF4 angle masters are in radians whatever
-//! their unit label says (asammdf labels them "deg"; the label is kept in
-//! `meta["master_unit_label"]`). Values are physical: the channel conversions are applied.
-//! Uncompressed, deflate (DZ) and transposed-deflate data blocks are read.
-//!
-//! Writing: one group, every channel as float64, the time master from the recording's `t`
-//! channel (MDF4 files carry a time master; a crank-angle recording keeps its angle in
-//! `theta`, its `cycle` and `crank_deg` as ordinary channels). Optional deflate or
-//! transposed-deflate compression: [`write_mdf`] (`falcon_mdf`) deflates a whole recording into
-//! one `##DZ` block; [`MdfWriter`] writes as the samples come, in blocks of at most
-//! [`MDF_BLOCK_BYTES`] of records each deflated into a `##DZ`, listed at the end by a
-//! `##HL`/`##DL` pair.
+//! Reading an MDF4 file: whole ([`read_mdf`]) or a chunk at a time ([`MdfChunks`]), the
+//! groups' masters, record counts and time bases checked.
 
-use crate::IoError;
-use falcon_mdf::blocks::channel::SyncType;
-use falcon_mdf::write::WriteCodec;
-use falcon_mdf::{Mf4File, Mf4Writer};
-use physid_core::{Basis, Channel, Recording};
-use std::path::Path;
-
-/// Data-block compression when writing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum MdfCompression {
-    /// Plain data blocks.
-    #[default]
-    None,
-    /// Deflate (`##DZ`, zip type 0).
-    Deflate,
-    /// Transposed deflate (zip type 1; asammdf's `compression=2`).
-    TransposedDeflate,
-}
-
-fn mdf_err(path: &str, e: impl std::fmt::Display) -> IoError {
-    IoError::Malformed {
-        path: path.into(),
-        detail: format!("MDF4: {e}"),
-    }
-}
+use super::*;
 
 /// Read an MDF4 file (module docs); `channels` selects channels by name (the master comes
 /// with them).
@@ -53,7 +12,7 @@ pub fn read_mdf(path: impl AsRef<Path>, channels: Option<&[String]>) -> Result<R
 
 /// What a read takes from an MDF4 file: the channels chosen, their group and its master, and
 /// the recording's basis and metadata (no channels yet).
-struct Plan<'f> {
+pub(super) struct Plan<'f> {
     chosen: Vec<&'f falcon_mdf::model::Channel>,
     group: (usize, usize),
     master: Option<&'f falcon_mdf::model::Channel>,
@@ -63,7 +22,11 @@ struct Plan<'f> {
 }
 
 impl<'f> Plan<'f> {
-    fn of(file: &'f Mf4File, p: &str, channels: Option<&[String]>) -> Result<Self, IoError> {
+    pub(super) fn of(
+        file: &'f Mf4File,
+        p: &str,
+        channels: Option<&[String]>,
+    ) -> Result<Self, IoError> {
         let data: Vec<&falcon_mdf::model::Channel> = file
             .channels()
             .filter(|c| !c.is_master() && c.is_numeric())
@@ -144,7 +107,11 @@ impl<'f> Plan<'f> {
     }
 }
 
-fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<Recording, IoError> {
+pub(super) fn read_mdf_inner(
+    path: &Path,
+    p: &str,
+    channels: Option<&[String]>,
+) -> Result<Recording, IoError> {
     let file = Mf4File::open_buffered(path).map_err(|e| mdf_err(p, e))?;
     let plan = Plan::of(&file, p, channels)?;
     read_planned(&file, p, plan, channels.is_some())
@@ -153,7 +120,12 @@ fn read_mdf_inner(path: &Path, p: &str, channels: Option<&[String]>) -> Result<R
 /// The whole of a plan's channels; a channel of another group is taken when its time base is
 /// the master's (else refused when asked for by name, skipped and named in `meta["skipped"]`
 /// when reading everything).
-fn read_planned(file: &Mf4File, p: &str, plan: Plan, asked: bool) -> Result<Recording, IoError> {
+pub(super) fn read_planned(
+    file: &Mf4File,
+    p: &str,
+    plan: Plan,
+    asked: bool,
+) -> Result<Recording, IoError> {
     let p = p.to_string();
     let Plan {
         chosen,
@@ -214,7 +186,7 @@ fn read_planned(file: &Mf4File, p: &str, plan: Plan, asked: bool) -> Result<Reco
 }
 
 /// What the reading thread of [`MdfChunks`] sends.
-enum MdfMsg {
+pub(super) enum MdfMsg {
     /// The recording's channels (no samples), basis and metadata; the records claimed.
     Header(Recording, u64),
     Columns(Vec<Vec<f64>>),
@@ -310,7 +282,7 @@ impl MdfChunks {
 /// would pass unseen): HD → its first DG (link 0 at 64 + 24) → the next DGs (link 0) → the
 /// DG's first CG (link 1) → the next CGs (link 0); the count follows the CG's links and its
 /// record id. `None` where the chain cannot be followed.
-fn declared_cycles(path: &Path, dg: usize, cg: usize) -> Option<u64> {
+pub(super) fn declared_cycles(path: &Path, dg: usize, cg: usize) -> Option<u64> {
     use std::io::{Read, Seek, SeekFrom};
     let mut f = std::fs::File::open(path).ok()?;
     let mut at = |off: u64| -> Option<u64> {
@@ -337,7 +309,7 @@ fn declared_cycles(path: &Path, dg: usize, cg: usize) -> Option<u64> {
 
 /// The reading thread: the header, then the windows, each sent when the reader has taken the
 /// one before. A reader gone away (dropped) ends it.
-fn produce(
+pub(super) fn produce(
     path: &Path,
     p: &str,
     channels: Option<&[String]>,
@@ -475,7 +447,7 @@ fn produce(
 /// group is taken when that group's time base is the master's (as many records, the same
 /// times: compared window by window before reading), as [`read_planned`] takes it; a name seen
 /// already is skipped.
-struct Layout {
+pub(super) struct Layout {
     /// Per group, the channels read from it.
     lists: Vec<Vec<falcon_mdf::model::Channel>>,
     /// The recording's channels after the master: (group, place in its list).
@@ -487,7 +459,12 @@ struct Layout {
 impl Layout {
     /// The layout of `plan`, or `None` when it takes channels of another group and the first
     /// has no master to compare times by.
-    fn of(file: &Mf4File, p: &str, plan: &Plan, asked: bool) -> Result<Option<Self>, IoError> {
+    pub(super) fn of(
+        file: &Mf4File,
+        p: &str,
+        plan: &Plan,
+        asked: bool,
+    ) -> Result<Option<Self>, IoError> {
         let count =
             |(dg, cg): (usize, usize)| file.data_groups()[dg].channel_groups[cg].sample_count;
         let first = plan.chosen[0];
@@ -552,7 +529,7 @@ impl Layout {
 }
 
 /// Channels `a` and `b` asked for together, on time bases of `na` and `nb` samples that differ.
-fn different_bases(a: &str, b: &str, na: usize, nb: usize) -> String {
+pub(super) fn different_bases(a: &str, b: &str, na: usize, nb: usize) -> String {
     let how = if na == nb {
         format!("{na} samples each, at different times")
     } else {
@@ -563,7 +540,7 @@ fn different_bases(a: &str, b: &str, na: usize, nb: usize) -> String {
 
 /// Whether two masters hold the same times, compared a window at a time (the other validated
 /// as [`Mf4File::channel_timestamps`] validates it).
-fn same_times(
+pub(super) fn same_times(
     file: &Mf4File,
     p: &str,
     master: &falcon_mdf::model::Channel,
@@ -602,7 +579,11 @@ fn same_times(
 
 /// A sorted data group's record count against its data blocks' length: a count corrupted
 /// smaller would otherwise read as a shorter recording, silently.
-fn check_record_count(file: &Mf4File, (dg, cg): (usize, usize), p: &str) -> Result<(), IoError> {
+pub(super) fn check_record_count(
+    file: &Mf4File,
+    (dg, cg): (usize, usize),
+    p: &str,
+) -> Result<(), IoError> {
     let Some(d) = file.data_groups().get(dg) else {
         return Ok(());
     };
@@ -625,463 +606,4 @@ fn check_record_count(file: &Mf4File, (dg, cg): (usize, usize), p: &str) -> Resu
         });
     }
     Ok(())
-}
-
-/// Write a recording as MDF4 (module docs). `start_time_ns`: the file's start time in
-/// nanoseconds since the Unix epoch (fixed for reproducible files; `None`: now).
-pub fn write_mdf(
-    path: impl AsRef<Path>,
-    rec: &Recording,
-    compression: MdfCompression,
-    start_time_ns: Option<i64>,
-) -> Result<(), IoError> {
-    let p = path.as_ref().display().to_string();
-    let t = rec.values("t").map_err(|_| IoError::Malformed {
-        path: p.clone(),
-        detail: "MDF4 files carry a time master: the recording needs a 't' channel [s]".into(),
-    })?;
-    // MDF4 orders a group's records by its time master (and the writer sorts them): a time
-    // that goes back or is not a number would reorder or lose samples, so it is refused.
-    if let Some(i) = t.iter().position(|v| !v.is_finite()) {
-        return Err(IoError::Malformed {
-            path: p,
-            detail: format!("MDF4 needs a finite time master: 't' is {} at sample {i}; write CSV or Parquet to keep the samples as they are", t[i]),
-        });
-    }
-    if let Some(i) = t.windows(2).position(|w| w[1] < w[0]) {
-        return Err(IoError::Malformed {
-            path: p,
-            detail: format!("MDF4 orders records by their time master, and 't' goes back at sample {}: write CSV or Parquet to keep the samples in their order", i + 1),
-        });
-    }
-    let mut w = match start_time_ns {
-        Some(ns) => Mf4Writer::with_start_time_ns(ns),
-        None => Mf4Writer::new(),
-    };
-    match compression {
-        MdfCompression::None => {}
-        MdfCompression::Deflate => {
-            w.set_compression(true);
-            w.set_codec(WriteCodec::Deflate);
-        }
-        MdfCompression::TransposedDeflate => {
-            w.set_compression(true);
-            w.set_codec(WriteCodec::TransposedDeflate);
-        }
-    }
-    let g = w.add_group(t).map_err(|e| mdf_err(&p, e))?;
-    for ch in rec.channels().iter().filter(|c| c.name != "t") {
-        g.add_channel(&ch.name, &ch.unit, &ch.values)
-            .map_err(|e| mdf_err(&p, format!("channel '{}': {e}", ch.name)))?;
-    }
-    w.write_to_file(path.as_ref()).map_err(|e| mdf_err(&p, e))
-}
-
-/// The most record bytes [`MdfWriter`] deflates into one `##DZ` block: 4 MiB, the size the
-/// MDF 4.1 standard recommends a compressed block's original data not exceed.
-pub const MDF_BLOCK_BYTES: usize = 4 << 20;
-
-/// An MDF4 file written as the samples arrive (the live service's log, `convert`'s output):
-/// one group, every channel as float64 after the time master. The blocks before the data are
-/// `falcon_mdf`'s own for a group with no samples yet; [`close`](Self::close) writes the
-/// group's record count into them.
-///
-/// - Uncompressed ([`create`](Self::create)): one data block that grows at the end of the
-///   file, its length written at the close. Memory stays one record, however long it records,
-///   and the file is byte for byte what [`write_mdf`] writes for the same recording.
-/// - Compressed ([`create_compressed`](Self::create_compressed)): the records gathered into
-///   blocks of at most `block_bytes`, each deflated (transposed first for
-///   [`MdfCompression::TransposedDeflate`], MDF4 zip type 1) into a `##DZ` as it fills; the
-///   close lists them in a `##DL` (equal length: every block but the last holds as many
-///   records) behind a `##HL` that names the zip type, and links the group to it. Memory stays
-///   about three blocks.
-pub struct MdfWriter {
-    path: String,
-    names: Vec<String>,
-    out: std::io::BufWriter<std::fs::File>,
-    header_len: u64,
-    /// Where the data block starts, where the group links to it, and where the group's record
-    /// count is.
-    dt_off: u64,
-    dg_data_link_off: u64,
-    cycle_count_off: u64,
-    record: Vec<u8>,
-    rows: usize,
-    last_t: f64,
-    zip: Option<Zip>,
-}
-
-/// The compressed blocks of an [`MdfWriter`].
-struct Zip {
-    transposed: bool,
-    /// Records gathered for the next block, at most `block_bytes`.
-    block: Vec<u8>,
-    block_bytes: usize,
-    /// The deflated stream of the last block written (its buffer kept).
-    packed: Vec<u8>,
-    /// Where the next block starts in the file.
-    at: u64,
-    /// Where each block starts, and the last one's original length.
-    blocks: Vec<u64>,
-    last_len: u64,
-}
-
-/// A little-endian u64 at `at` of `b`.
-fn u64_at(b: &[u8], at: u64) -> Option<u64> {
-    let at = usize::try_from(at).ok()?;
-    Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
-}
-
-impl MdfWriter {
-    /// Create `path` for recordings with `like`'s channels (which must include the time `t`
-    /// [s]) and units; `start_time_ns` as [`write_mdf`]'s.
-    pub fn create(
-        path: impl AsRef<Path>,
-        like: &Recording,
-        start_time_ns: Option<i64>,
-    ) -> Result<Self, IoError> {
-        Self::create_compressed(path, like, start_time_ns, MdfCompression::None, 0)
-    }
-
-    /// Create `path` as [`create`](Self::create) does, its records compressed by `compression`
-    /// in blocks of at most `block_bytes` ([`MDF_BLOCK_BYTES`]; at least one record).
-    pub fn create_compressed(
-        path: impl AsRef<Path>,
-        like: &Recording,
-        start_time_ns: Option<i64>,
-        compression: MdfCompression,
-        block_bytes: usize,
-    ) -> Result<Self, IoError> {
-        let p = path.as_ref().display().to_string();
-        if like.channel("t").is_err() {
-            return Err(IoError::Malformed {
-                path: p,
-                detail: "MDF4 files carry a time master: the recording needs a 't' channel [s]"
-                    .into(),
-            });
-        }
-        let mut w = match start_time_ns {
-            Some(ns) => Mf4Writer::with_start_time_ns(ns),
-            None => Mf4Writer::new(),
-        };
-        let g = w.add_group(&[]).map_err(|e| mdf_err(&p, e))?;
-        let names: Vec<String> = like
-            .channels()
-            .iter()
-            .filter(|c| c.name != "t")
-            .map(|c| c.name.clone())
-            .collect();
-        for ch in like.channels().iter().filter(|c| c.name != "t") {
-            g.add_channel(&ch.name, &ch.unit, &[])
-                .map_err(|e| mdf_err(&p, format!("channel '{}': {e}", ch.name)))?;
-        }
-        let mut header = Vec::new();
-        w.write(&mut header).map_err(|e| mdf_err(&p, e))?;
-        // Find the data block and the record count: HD (at 64) → its first DG → the DG's first
-        // CG and its data block, which must be the file's last block, still empty.
-        let bad = |what: &str| {
-            mdf_err(
-                &p,
-                format!("unexpected block layout from falcon_mdf: {what}"),
-            )
-        };
-        let id = |at: u64| {
-            usize::try_from(at)
-                .ok()
-                .and_then(|a| header.get(a..a + 4))
-                .map(|s| s.to_vec())
-        };
-        let dg = u64_at(&header, 64 + 24).ok_or_else(|| bad("no HD"))?;
-        let cg = u64_at(&header, dg + 32).ok_or_else(|| bad("no DG"))?;
-        let dt_off = u64_at(&header, dg + 40).ok_or_else(|| bad("no DG data link"))?;
-        let links = u64_at(&header, cg + 16).ok_or_else(|| bad("no CG"))?;
-        let cycle_count_off = cg + 24 + 8 * links + 8;
-        let data_bytes_off = usize::try_from(cycle_count_off + 16).map_err(|_| bad("CG"))?;
-        let data_bytes = header
-            .get(data_bytes_off..data_bytes_off + 4)
-            .and_then(|b| b.try_into().ok())
-            .map(u32::from_le_bytes)
-            .ok_or_else(|| bad("CG record size"))?;
-        let record_len = 8 * (names.len() + 1);
-        if id(dg).as_deref() != Some(b"##DG")
-            || id(cg).as_deref() != Some(b"##CG")
-            || id(dt_off).as_deref() != Some(b"##DT")
-            || dt_off + 24 != header.len() as u64
-            || data_bytes as usize != record_len
-        {
-            return Err(bad("not one empty DT block of float64 records at the end"));
-        }
-        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
-            path: p.clone(),
-            source,
-        })?;
-        let mut out = std::io::BufWriter::new(file);
-        // Compressed, the empty data block is left out: the blocks go in its place.
-        let zip = (compression != MdfCompression::None).then(|| Zip {
-            transposed: compression == MdfCompression::TransposedDeflate,
-            block: Vec::new(),
-            block_bytes: block_bytes.max(record_len) / record_len * record_len,
-            packed: Vec::new(),
-            at: dt_off,
-            blocks: Vec::new(),
-            last_len: 0,
-        });
-        let kept = if zip.is_some() {
-            &header[..dt_off as usize]
-        } else {
-            &header[..]
-        };
-        std::io::Write::write_all(&mut out, kept).map_err(|source| IoError::Os {
-            path: p.clone(),
-            source,
-        })?;
-        Ok(Self {
-            path: p,
-            names,
-            out,
-            header_len: header.len() as u64,
-            dt_off,
-            dg_data_link_off: dg + 40,
-            cycle_count_off,
-            record: Vec::with_capacity(record_len),
-            rows: 0,
-            last_t: f64::NEG_INFINITY,
-            zip,
-        })
-    }
-
-    /// Append `rec`'s samples (the file's channels; its time must go on forward and be finite).
-    pub fn append(&mut self, rec: &Recording) -> Result<(), IoError> {
-        let bad = |detail: String| IoError::Malformed {
-            path: self.path.clone(),
-            detail,
-        };
-        let t = rec
-            .values("t")
-            .map_err(|_| bad("appending samples without 't'".into()))?;
-        let cols = self
-            .names
-            .iter()
-            .map(|n| rec.values(n))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| bad(format!("appending to an MDF4 log: {e}")))?;
-        if rec.channels().len() != self.names.len() + 1 {
-            return Err(bad(format!(
-                "appending {} channels to a file of {}",
-                rec.channels().len(),
-                self.names.len() + 1
-            )));
-        }
-        let mut last = self.last_t;
-        for (i, &ti) in t.iter().enumerate() {
-            if !(ti.is_finite() && ti >= last) {
-                return Err(bad(format!(
-                    "MDF4 orders records by their time master: 't' is {ti} after {last} (sample {i} of the chunk)"
-                )));
-            }
-            last = ti;
-        }
-        for i in 0..t.len() {
-            self.record.clear();
-            self.record.extend_from_slice(&t[i].to_le_bytes());
-            for c in &cols {
-                self.record.extend_from_slice(&c[i].to_le_bytes());
-            }
-            match &mut self.zip {
-                None => {
-                    std::io::Write::write_all(&mut self.out, &self.record).map_err(|source| {
-                        IoError::Os {
-                            path: self.path.clone(),
-                            source,
-                        }
-                    })?
-                }
-                Some(z) => {
-                    z.block.extend_from_slice(&self.record);
-                    if z.block.len() >= z.block_bytes {
-                        z.flush(&mut self.out, self.record.len())
-                            .map_err(|e| mdf_err(&self.path, e))?;
-                    }
-                }
-            }
-        }
-        self.last_t = last;
-        self.rows += t.len();
-        Ok(())
-    }
-
-    /// Make every sample appended so far survive a crash (uncompressed files): the records
-    /// are written and on the disk, then the data block's length and the record count say so
-    /// — in that order, so the file never claims a record it does not hold, and a reader
-    /// (asammdf, physid) of a file whose writer was killed reads every sample committed. A
-    /// compressed file lists its blocks only when closed: it is flushed, not made readable.
-    pub fn commit(&mut self) -> Result<(), IoError> {
-        use std::io::{Seek, SeekFrom, Write};
-        let os = |source| IoError::Os {
-            path: self.path.clone(),
-            source,
-        };
-        self.out.flush().map_err(os)?;
-        if self.zip.is_some() {
-            return Ok(());
-        }
-        let mut f = self.out.get_ref();
-        f.sync_data().map_err(os)?;
-        let dt_len = 24 + (self.rows * 8 * (self.names.len() + 1)) as u64;
-        f.seek(SeekFrom::Start(self.dt_off + 8)).map_err(os)?;
-        f.write_all(&dt_len.to_le_bytes()).map_err(os)?;
-        f.seek(SeekFrom::Start(self.cycle_count_off)).map_err(os)?;
-        f.write_all(&(self.rows as u64).to_le_bytes()).map_err(os)?;
-        f.seek(SeekFrom::End(0)).map_err(os)?;
-        Ok(())
-    }
-
-    /// Samples written so far.
-    pub fn rows(&self) -> usize {
-        self.rows
-    }
-
-    /// Bytes in the file so far (written and buffered; compressed: the records not yet
-    /// deflated as they are).
-    pub fn bytes(&self) -> usize {
-        match &self.zip {
-            None => (self.header_len + (self.rows * 8 * (self.names.len() + 1)) as u64) as usize,
-            Some(z) => z.at as usize + z.block.len(),
-        }
-    }
-
-    /// Finish the file: the data block's length and the record count.
-    pub fn close(self) -> Result<(), IoError> {
-        use std::io::{Seek, SeekFrom, Write};
-        let Self {
-            path,
-            names,
-            mut out,
-            dt_off,
-            dg_data_link_off,
-            cycle_count_off,
-            rows,
-            zip,
-            ..
-        } = self;
-        let os = |source| IoError::Os {
-            path: path.clone(),
-            source,
-        };
-        // Compressed: the last block, then the list of them; the group links to the list.
-        let data_link = match zip {
-            Some(mut z) => {
-                let record_len = 8 * (names.len() + 1);
-                z.flush(&mut out, record_len)
-                    .map_err(|e| mdf_err(&path, e))?;
-                z.list(&mut out).map_err(os)?
-            }
-            None => None,
-        };
-        let mut file = out.into_inner().map_err(|e| os(e.into_error()))?;
-        match data_link {
-            Some(hl) => {
-                file.seek(SeekFrom::Start(dg_data_link_off)).map_err(os)?;
-                file.write_all(&hl.to_le_bytes()).map_err(os)?;
-            }
-            None => {
-                let dt_len = 24 + (rows * 8 * (names.len() + 1)) as u64;
-                file.seek(SeekFrom::Start(dt_off + 8)).map_err(os)?;
-                file.write_all(&dt_len.to_le_bytes()).map_err(os)?;
-            }
-        }
-        file.seek(SeekFrom::Start(cycle_count_off)).map_err(os)?;
-        file.write_all(&(rows as u64).to_le_bytes()).map_err(os)?;
-        file.sync_all().map_err(os)
-    }
-}
-
-/// An MDF4 block's header: its id, reserved bytes, length and link count.
-fn block_header(buf: &mut Vec<u8>, id: &[u8; 4], length: u64, links: u64) {
-    buf.extend_from_slice(id);
-    buf.extend_from_slice(&[0u8; 4]);
-    buf.extend_from_slice(&length.to_le_bytes());
-    buf.extend_from_slice(&links.to_le_bytes());
-}
-
-impl Zip {
-    /// Deflate the records gathered (if any) into a `##DZ` at the end of the file.
-    fn flush(
-        &mut self,
-        out: &mut impl std::io::Write,
-        record_len: usize,
-    ) -> Result<(), std::io::Error> {
-        if self.block.is_empty() {
-            return Ok(());
-        }
-        let transposed;
-        let data = if self.transposed {
-            transposed = falcon_mdf::write::transpose(&self.block, record_len);
-            &transposed[..]
-        } else {
-            &self.block[..]
-        };
-        let mut packed = std::mem::take(&mut self.packed);
-        packed.clear();
-        let mut z = flate2::write::ZlibEncoder::new(packed, flate2::Compression::default());
-        std::io::Write::write_all(&mut z, data)?;
-        self.packed = z.finish()?;
-        let mut head = Vec::with_capacity(48);
-        block_header(&mut head, b"##DZ", 48 + self.packed.len() as u64, 0);
-        head.extend_from_slice(b"DT");
-        head.push(u8::from(self.transposed)); // dz_zip_type: 0 deflate, 1 transposed
-        head.push(0);
-        let parameter = if self.transposed {
-            record_len as u32
-        } else {
-            0
-        };
-        head.extend_from_slice(&parameter.to_le_bytes());
-        head.extend_from_slice(&(self.block.len() as u64).to_le_bytes());
-        head.extend_from_slice(&(self.packed.len() as u64).to_le_bytes());
-        out.write_all(&head)?;
-        out.write_all(&self.packed)?;
-        self.blocks.push(self.at);
-        self.last_len = self.block.len() as u64;
-        self.at += head.len() as u64 + self.packed.len() as u64;
-        self.block.clear();
-        Ok(())
-    }
-
-    /// The `##DL` listing the blocks and the `##HL` in front of it, at the end of the file:
-    /// where the `##HL` is, or `None` when no record was written (then an empty `##DT`
-    /// stands where the blocks would).
-    fn list(&self, out: &mut impl std::io::Write) -> Result<Option<u64>, std::io::Error> {
-        let mut buf = Vec::new();
-        if self.blocks.is_empty() {
-            block_header(&mut buf, b"##DT", 24, 0);
-            out.write_all(&buf)?;
-            return Ok(None);
-        }
-        let n = self.blocks.len() as u64;
-        let dl_len = 24 + 8 * (n + 1) + 16;
-        block_header(&mut buf, b"##DL", dl_len, n + 1);
-        buf.extend_from_slice(&0u64.to_le_bytes()); // dl_dl_next
-        for b in &self.blocks {
-            buf.extend_from_slice(&b.to_le_bytes());
-        }
-        buf.push(0x01); // dl_flags: equal length
-        buf.extend_from_slice(&[0u8; 3]);
-        buf.extend_from_slice(&(n as u32).to_le_bytes());
-        // Every block but the last holds a full block; one block: its own length.
-        let equal = if n == 1 {
-            self.last_len
-        } else {
-            self.block_bytes as u64
-        };
-        buf.extend_from_slice(&equal.to_le_bytes());
-        let hl = self.at + dl_len;
-        block_header(&mut buf, b"##HL", 40, 1);
-        buf.extend_from_slice(&self.at.to_le_bytes()); // hl_dl_first
-        buf.extend_from_slice(&0u16.to_le_bytes()); // hl_flags
-        buf.push(u8::from(self.transposed)); // hl_zip_type
-        buf.extend_from_slice(&[0u8; 5]);
-        out.write_all(&buf)?;
-        Ok(Some(hl))
-    }
 }
