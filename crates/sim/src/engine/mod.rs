@@ -16,6 +16,10 @@
 //!
 //! No combustion (every thesis experiment is motored); [`Combustion`] is the seam where a heat
 //! release model would plug in.
+//!
+//! Here: the engine and its outputs. `orifice.rs`: the compressible flow between the volumes;
+//! `geometry.rs`: the valve, throttle and cam areas and lifts; `stability.rs`: the network's
+//! largest eigenvalue.
 
 use crate::numeric::{expm1_small, powi, wrap720};
 use crate::params::{AmbientParams, EngineParams};
@@ -23,6 +27,14 @@ use physid_models::air;
 use physid_models::friction::{self, Design, Settings, SpeedForm};
 use physid_models::kinematics::Crank;
 use std::f64::consts::PI;
+
+mod geometry;
+mod orifice;
+mod stability;
+
+pub use geometry::*;
+pub use orifice::*;
+pub use stability::*;
 
 /// Index of the volumes in the state.
 pub const INT: usize = 0;
@@ -49,280 +61,6 @@ pub struct Motored;
 impl Combustion for Motored {
     fn heat_release(&self, _: f64, _: f64, _: f64) -> f64 {
         0.0
-    }
-}
-
-/// Below this pressure ratio deficit (1 − p_dn/p_up) the orifice flow is linearised in the
-/// pressure difference: the isentropic form has an infinite slope at equal pressures, which
-/// makes the equations stiff for no physical reason.
-const LINEAR_BAND: f64 = 0.02;
-/// `ln(1 − LINEAR_BAND)` (a constant: the band's edge; tested against the library `ln`).
-const LN_BAND_EDGE: f64 = -0.020202707317519466;
-
-/// Isentropic flow function Ψ(pr) (Eq. 3.16) for a gas of ratio of specific heats γ: choked
-/// below the critical ratio `pr* = (2/(γ+1))^(γ/(γ−1))`, subsonic above, linear in `1 − pr` in
-/// the last [`LINEAR_BAND`]. [`OrificeGas::psi`] with γ's two constants.
-pub fn psi(pr: f64, gamma: f64) -> f64 {
-    OrificeGas::from_gamma(0.0, 1.0, gamma).psi(pr)
-}
-
-/// A volume's gas as the orifice equation (Eq. 3.16) needs it when the flow leaves that volume,
-/// computed once per volume per evaluation: the pressure, `1/√(R·T)`, `1/γ` and `2γ/(γ−1)`.
-/// With `c_v = c_p − R`, `1/γ = c_v/c_p` and `2γ/(γ−1) = 2·c_p/R`: the flow function itself
-/// divides nothing.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OrificeGas {
-    /// Pressure [Pa].
-    pub p: f64,
-    inv_sqrt_rt: f64,
-    inv_gamma: f64,
-    /// `2γ/(γ−1)`.
-    k: f64,
-    /// Ψ's constants, where the gas's γ stays (the ambient's).
-    fixed: Option<PsiConstants>,
-}
-
-/// The constants of Ψ for one γ: the critical ratio, the choked Ψ, Ψ at the linear band's edge.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct PsiConstants {
-    crit: f64,
-    choked: f64,
-    band_edge: f64,
-}
-
-impl OrificeGas {
-    /// Gas at pressure `p` [Pa] with `√(R·T)` [m/s] and `c_p` [J/(kg·K)] at its temperature
-    /// (`1/γ = c_v/c_p`).
-    pub fn new(p: f64, sqrt_rt: f64, cp: f64) -> Self {
-        let r = air::gas_constant();
-        Self {
-            p,
-            inv_sqrt_rt: 1.0 / sqrt_rt,
-            inv_gamma: (cp - r) / cp,
-            k: cp * (2.0 / r),
-            fixed: None,
-        }
-    }
-
-    /// Gas at pressure `p` [Pa], temperature `t` [K] with ratio of specific heats γ, which
-    /// stays (a reservoir such as the ambient): the critical ratio, the choked Ψ and Ψ at the
-    /// band's edge are computed here, once.
-    pub fn from_gamma(p: f64, t: f64, gamma: f64) -> Self {
-        let mut g = Self {
-            p,
-            inv_sqrt_rt: 1.0 / (air::gas_constant() * t).sqrt(),
-            inv_gamma: 1.0 / gamma,
-            k: 2.0 * gamma / (gamma - 1.0),
-            fixed: None,
-        };
-        let ln_c = g.ln_two_over_gamma_plus_one();
-        g.fixed = Some(PsiConstants {
-            crit: (0.5 * g.k * ln_c).exp(),
-            choked: g.psi_choked(ln_c),
-            band_edge: g.band_edge(),
-        });
-        g
-    }
-
-    /// Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
-    /// 1 − pe^((γ−1)/γ) = −expm1(y·(1 − 1/γ)), both of small arguments (no cancellation).
-    fn band_edge(&self) -> f64 {
-        let a = 1.0 + expm1_small(LN_BAND_EDGE * self.inv_gamma);
-        a * (-self.k * expm1_small(LN_BAND_EDGE * (1.0 - self.inv_gamma))).sqrt()
-    }
-
-    /// `ln(2/(γ+1)) = ln(2·(1/γ)/(1 + 1/γ))`.
-    fn ln_two_over_gamma_plus_one(&self) -> f64 {
-        (2.0 * self.inv_gamma / (1.0 + self.inv_gamma)).ln()
-    }
-
-    /// The choked Ψ from `ln(2/(γ+1))`: with `(γ+1)/(2(γ−1)) = (k/2)·(γ+1)/(2γ) = k·(1 + 1/γ)/4`.
-    fn psi_choked(&self, ln_c: f64) -> f64 {
-        (0.25 * self.k * (1.0 + self.inv_gamma) * ln_c).exp() / self.inv_gamma.sqrt()
-    }
-
-    /// Ψ(pr) for this gas upstream (Eq. 3.16). Subsonic, with `a = pr^(1/γ) = e^(ln(pr)/γ)`,
-    /// `Ψ² = 2γ/(γ−1)·(pr^(2/γ) − pr^((γ+1)/γ)) = 2γ/(γ−1)·a·(a − pr)`: one `ln`, one `exp`, one
-    /// square root. Choked (`pr < pr*`), `Ψ = √γ·(2/(γ+1))^((γ+1)/(2(γ−1)))`. In the linear
-    /// band, the band edge's value (by short series) times `(1 − pr)/band`.
-    pub fn psi(&self, pr: f64) -> f64 {
-        self.psi_and_slope(pr).0
-    }
-
-    /// `(Ψ(pr), dΨ/dpr)`: [`psi`](Self::psi) and its slope — subsonic, from `Ψ² = k·a·(a − pr)`
-    /// and `da/dpr = a/(γ·pr)`, `dΨ/dpr = k·a·((2a − pr)/γ − pr)/(2·pr·Ψ)`; choked, 0; in the
-    /// band, `−Ψ(1 − band)/band`.
-    pub fn psi_and_slope(&self, pr: f64) -> (f64, f64) {
-        let (inv_g, k) = (self.inv_gamma, self.k);
-        // Choked below pr* = (2/(γ+1))^(γ/(γ−1)), i.e. ln pr ≤ (k/2)·ln(2/(γ+1)). The critical
-        // ratio is below e^(−1/2) = 0.6065 for every γ > 1: above 0.61 the flow is subsonic
-        // without computing it.
-        let choked = match self.fixed {
-            Some(c) => pr < c.crit,
-            None => {
-                pr <= 0.0 || (pr < 0.61 && pr.ln() <= 0.5 * k * self.ln_two_over_gamma_plus_one())
-            }
-        };
-        if choked {
-            let psi = match self.fixed {
-                Some(c) => c.choked,
-                None => self.psi_choked(self.ln_two_over_gamma_plus_one()),
-            };
-            (psi, 0.0)
-        } else if pr < 1.0 - LINEAR_BAND {
-            let a = (pr.ln() * inv_g).exp();
-            let psi = (k * a * (a - pr)).max(0.0).sqrt();
-            let slope = k * a * ((2.0 * a - pr) * inv_g - pr) / (2.0 * pr * psi);
-            (psi, slope)
-        } else {
-            let edge = match self.fixed {
-                Some(c) => c.band_edge,
-                None => self.band_edge(),
-            };
-            let slope = edge * (1.0 / LINEAR_BAND);
-            (slope * (1.0 - pr).max(0.0), -slope)
-        }
-    }
-}
-
-/// `tanh(x)`, with `±1` (its correctly rounded value) for `|x| ≥ 22` without the library call:
-/// the friction's sign, smoothed through zero speed.
-fn smooth_sign(x: f64) -> f64 {
-    if x.abs() >= 22.0 {
-        x.signum()
-    } else {
-        x.tanh()
-    }
-}
-
-/// `[f(INT), f(CYL), f(EXH)]`, inline (an array's `map` through a closure is not always).
-#[inline(always)]
-fn per_volume<T>(f: impl Fn(usize) -> T) -> [T; 3] {
-    [f(INT), f(CYL), f(EXH)]
-}
-
-/// Mass flow from side 0 to side 1 [kg/s] (negative: 1 → 0) through an effective area
-/// `cd_a` [m²] (Eq. 3.16), `ṁ = C_d·A·p_up/√(R·T_up)·Ψ(p_dn/p_up)` — the upstream side's gas
-/// sets the flow — and its slopes `[∂ṁ/∂p_0, ∂ṁ/∂p_1]` [kg/(s·Pa)] (the upstream gas's
-/// temperature held): with `c = C_d·A/√(R·T_up)`, `∂ṁ/∂p_dn = c·Ψ'` and
-/// `∂ṁ/∂p_up = c·(Ψ − pr·Ψ')`.
-pub fn flow_and_slopes(cd_a: f64, side: [&OrificeGas; 2]) -> (f64, [f64; 2]) {
-    if cd_a <= 0.0 {
-        return (0.0, [0.0; 2]);
-    }
-    let [g0, g1] = side;
-    if g0.p >= g1.p {
-        let (c, pr) = (cd_a * g0.inv_sqrt_rt, g1.p / g0.p);
-        let (psi, dpsi) = g0.psi_and_slope(pr);
-        (c * g0.p * psi, [c * (psi - pr * dpsi), c * dpsi])
-    } else {
-        let (c, pr) = (cd_a * g1.inv_sqrt_rt, g0.p / g1.p);
-        let (psi, dpsi) = g1.psi_and_slope(pr);
-        (-c * g1.p * psi, [-c * dpsi, -c * (psi - pr * dpsi)])
-    }
-}
-
-/// Valve flow area (Eq. 3.33–3.35): curtain area up to the lift where it equals the port area,
-/// the port area beyond.
-pub fn valve_area(lift: f64, d: f64, di: f64, seat_deg: f64) -> f64 {
-    ValveGeometry::new(d, di, seat_deg).area(lift)
-}
-
-/// A valve's flow-area constants, computed once (the seat angle's cosine, the lift where the
-/// curtain area reaches the port area): [`valve_area`] without its trigonometry per call.
-#[derive(Debug, Clone, Copy)]
-pub struct ValveGeometry {
-    /// `π·(d + di)/2` [m].
-    half_perimeter: f64,
-    /// cos(seat angle).
-    cos_seat: f64,
-    /// Lift where curtain = port area [m].
-    lv: f64,
-    /// Port area `π·di²/4` [m²].
-    port: f64,
-}
-
-impl ValveGeometry {
-    /// Head diameter `d`, inner seat diameter `di` [m], seat angle [deg].
-    pub fn new(d: f64, di: f64, seat_deg: f64) -> Self {
-        let c = seat_deg.to_radians().cos();
-        Self {
-            half_perimeter: PI * (d + di) / 2.0,
-            cos_seat: c,
-            lv: di * di / (2.0 * c * (d + di)),
-            port: PI * di * di / 4.0,
-        }
-    }
-
-    /// Flow area at `lift` [m].
-    pub fn area(&self, lift: f64) -> f64 {
-        if lift <= 0.0 {
-            0.0
-        } else if lift <= self.lv {
-            self.half_perimeter * lift * self.cos_seat
-        } else {
-            self.port
-        }
-    }
-}
-
-/// Throttle flow area (Eq. 3.36, Moskwa/Heywood) at opening `thr` [deg] above the closed angle
-/// `psi0`, plus the leakage area.
-pub fn throttle_area(thr_deg: f64, d: f64, shaft: f64, psi0_deg: f64, leak: f64) -> f64 {
-    let a = shaft / d;
-    let psi0 = psi0_deg.to_radians();
-    let psi = (psi0_deg + thr_deg.max(0.0)).to_radians();
-    let full = PI * d * d / 4.0;
-    let max = full - d * shaft;
-    let (c, c0) = (psi.cos(), psi0.cos());
-    let area = if c >= a * c0 && psi < PI / 2.0 {
-        full * (1.0 - c / c0
-            + 2.0 / PI
-                * ((a / c) * (c * c - a * a * c0 * c0).max(0.0).sqrt()
-                    + (c / c0) * (a * c0 / c).clamp(-1.0, 1.0).asin()
-                    - a * (1.0 - a * a).sqrt()
-                    - a.asin()))
-    } else {
-        max
-    };
-    area.clamp(0.0, max) + leak
-}
-
-/// A valve's lift profile: `l_max·sinⁿ(π·x)`, x the fraction of the open duration (SPEC §2.3
-/// suggests n = 2; the cell's default is 5, see [`EngineParams::lift_exponent`]), with the
-/// open duration computed once.
-#[derive(Debug, Clone, Copy)]
-pub struct Cam {
-    open: f64,
-    dur: f64,
-    inv_dur: f64,
-    l_max: f64,
-    n: u32,
-}
-
-impl Cam {
-    /// Open from `open` to `close` [deg], peak lift `l_max` [m], exponent `n`.
-    pub fn new(open: f64, close: f64, l_max: f64, n: u32) -> Self {
-        let dur = wrap720(close - open);
-        Self {
-            open,
-            dur,
-            inv_dur: 1.0 / dur,
-            l_max,
-            n,
-        }
-    }
-
-    /// Lift [m] at `deg` within the cycle.
-    pub fn lift(&self, deg: f64) -> f64 {
-        // Shut (the common case) decided before dividing.
-        let r = wrap720(deg - self.open);
-        if self.dur <= 0.0 || r >= self.dur {
-            0.0
-        } else {
-            let s = (PI * (r * self.inv_dur)).sin();
-            self.l_max * powi(s, self.n)
-        }
     }
 }
 
@@ -847,45 +585,6 @@ impl Engine {
     pub fn ambient_enthalpy(&self) -> f64 {
         self.h_amb
     }
-}
-
-/// The gas equations' Jacobian in factored form, `J = U·Vᵀ` ([`Engine::network_jacobian`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NetworkJacobian {
-    /// `U`: each gas state's derivative per unit pressure of each volume [per Pa].
-    pub u: [[f64; 3]; 8],
-    /// `Vᵀ`: each volume's pressure per unit of its mass and its temperature, `[p/m, p/T]`.
-    pub v: [[f64; 2]; 3],
-}
-
-/// The largest eigenvalue of the symmetric tridiagonal 3×3 matrix with diagonal `a` and
-/// off-diagonal `b` (`b[0]` couples 0–1, `b[1]` couples 1–2), approached from above: Newton's
-/// method on the characteristic cubic, started at the Gershgorin bound. Right of its largest
-/// root the cubic is increasing and convex, so the iterates decrease monotonically onto that
-/// root and each is an upper bound; iteration stops when a step is below 1e-3 relative, or at
-/// the first bound at or below `enough` (a caller that needs the eigenvalue only above that
-/// level; 0 for the eigenvalue itself).
-pub fn largest_eigenvalue_tridiag3(a: [f64; 3], b: [f64; 2], enough: f64) -> f64 {
-    let (b0, b1) = (b[0] * b[0], b[1] * b[1]);
-    let (c0, c1) = (b[0].abs(), b[1].abs());
-    let mut l = (a[0] + c0).max(a[1] + c0 + c1).max(a[2] + c1);
-    for _ in 0..64 {
-        if l <= enough {
-            break;
-        }
-        let (x0, x1, x2) = (l - a[0], l - a[1], l - a[2]);
-        let p = x0 * x1 * x2 - b1 * x0 - b0 * x2;
-        let dp = x1 * x2 + x0 * x2 + x0 * x1 - b0 - b1;
-        if p <= 0.0 || dp <= 0.0 {
-            break;
-        }
-        let step = p / dp;
-        l -= step;
-        if step <= 1e-3 * l.abs() {
-            break;
-        }
-    }
-    l
 }
 
 #[cfg(test)]
