@@ -23,6 +23,7 @@
 //! * [`pipeline`] — the qualitative adaptive identification loop (Fig. 5.7) from a TOML file.
 //! * [`pressure`] — cylinder-pressure analysis per cycle: peak, IMEP, polytropic exponents,
 //!   pegging, CoV of IMEP (`physid cycles`).
+//! * [`stage`] — the one shape of the data path's stages ([`stage::Stage`], [`stage::Sink`]).
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
 //! * [`time_order`] — whether a recording's time only goes forward, as its chunks come.
 //! * [`torque_fit`] — Application 3: identifiability and EKF/UKF estimation of the cyclic
@@ -42,6 +43,7 @@ pub mod pipeline;
 pub mod pressure;
 pub mod recording_rows;
 pub mod shaft_monitor;
+pub mod stage;
 pub mod time_order;
 pub mod torque_fit;
 

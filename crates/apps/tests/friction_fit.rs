@@ -187,6 +187,7 @@ fn bad_recordings_are_explained() {
 fn the_stage_on_a_stream_is_the_file_verb() {
     use physid_apps::acquisition::{marker_tdc_angle, AcquisitionOptions};
     use physid_apps::friction_fit::{FrictionOutput, FrictionStage};
+    use physid_apps::stage::Stage;
     let rec = sweep(Some(8.0), OutputBasis::Time(10_000.0));
     let cfg = config();
     let file = friction_fit(&rec, &cfg).unwrap();
@@ -203,7 +204,7 @@ fn the_stage_on_a_stream_is_the_file_verb() {
                 .push(&rec.slice(start..(start + chunk).min(n)), &mut out)
                 .unwrap();
         }
-        let fit = stage.finish(&mut out).unwrap();
+        let fit = stage.fit(&mut out).unwrap();
         (fit, out)
     };
     for chunk in [1, 17, 4096, rec.len()] {

@@ -59,7 +59,7 @@ fn steady_state_allocations(cfg: MonitorConfig) {
             omega_en: &cols[4],
             torque_shaft: &cols[5],
         };
-        stage.push(&x, &mut samples, &mut alarms).unwrap();
+        stage.push_inputs(&x, &mut samples, &mut alarms).unwrap();
         samples.len()
     };
     // Warm up: the filters' buffers and the time queue reach their steady size.

@@ -206,7 +206,7 @@ fn the_supervisor_freezes_what_the_data_stop_resolving() {
         };
         for start in (0..n).step_by(4096) {
             stage
-                .push(
+                .push_inputs(
                     &x.slice(start..(start + 4096).min(n)),
                     &mut samples,
                     &mut alarms,
@@ -214,7 +214,7 @@ fn the_supervisor_freezes_what_the_data_stop_resolving() {
                 .map_err(|e| e.to_string())?;
         }
         stage
-            .finish(&mut samples, &mut alarms)
+            .finish_into(&mut samples, &mut alarms)
             .map_err(|e| e.to_string())?;
         Ok(samples)
     };

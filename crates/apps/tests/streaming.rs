@@ -28,12 +28,12 @@ fn stream(
     let (mut s, mut a) = (Vec::new(), Vec::new());
     for start in (0..t.len()).step_by(chunk) {
         let x = all.slice(start..r_end(start, chunk, t.len()));
-        stage.push(&x, &mut s, &mut a).unwrap();
+        stage.push_inputs(&x, &mut s, &mut a).unwrap();
         // Nothing waits longer than the stated latency.
         let waiting = r_end(start, chunk, t.len()) - s.last().map_or(0, |x| x.index + 1);
         assert!(waiting <= stage.latency() + cfg_every(cfg, t), "{waiting}");
     }
-    stage.finish(&mut s, &mut a).unwrap();
+    stage.finish_into(&mut s, &mut a).unwrap();
     (s, a)
 }
 

@@ -176,6 +176,7 @@ fn bad_recordings_are_explained() {
 #[test]
 fn the_stage_on_a_stream_is_the_file_verb() {
     use physid_apps::acquisition::{marker_tdc_angle, to_crank_angle, AcquisitionOptions};
+    use physid_apps::stage::Stage;
     use physid_apps::torque_fit::{TorqueOutput, TorqueStage, TRACK_POINTS};
     let rec = run_basis(OutputBasis::Time(10_000.0));
     let cfg = TorqueFitConfig::new(nominal());

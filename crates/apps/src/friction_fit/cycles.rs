@@ -94,7 +94,7 @@ pub fn streams(rec: &Recording) -> bool {
 pub(super) fn feed_stream<I, E>(
     stage: &mut FrictionStage,
     chunks: I,
-    out: &mut Vec<FrictionOutput>,
+    out: &mut dyn Sink<FrictionOutput>,
 ) -> Result<(), AppError>
 where
     I: IntoIterator<Item = Result<Recording, E>>,
@@ -117,7 +117,7 @@ pub(super) fn feed(
     stage: &mut FrictionStage,
     rec: &Recording,
     cfg: &FrictionFitConfig,
-    out: &mut Vec<FrictionOutput>,
+    out: &mut dyn Sink<FrictionOutput>,
 ) -> Result<(), AppError> {
     if streams(rec) {
         let n = rec.len();

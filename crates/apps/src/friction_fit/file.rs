@@ -107,7 +107,7 @@ pub fn cycle_channels(cfg: &FrictionFitConfig) -> (Vec<&'static str>, Vec<&'stat
 
 /// The file verb's end: the result, with every cycle the stage put out.
 fn finish(mut stage: FrictionStage, mut out: Vec<FrictionOutput>) -> Result<FrictionFit, AppError> {
-    let mut fit = stage.finish(&mut out)?;
+    let mut fit = stage.fit(&mut out)?;
     fit.cycles = out
         .into_iter()
         .filter_map(|o| match o {

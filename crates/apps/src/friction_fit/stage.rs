@@ -169,10 +169,10 @@ impl FrictionStage {
 
     /// A chunk of time-basis samples with `t`, `theta_en` [rad], `omega_en`, `p_int`, `T_oil`,
     /// the motoring torque, `p_atm` (or the configured constant) and, optionally, the truth.
-    pub fn push(
+    fn push_chunk(
         &mut self,
         chunk: &Recording,
-        out: &mut Vec<FrictionOutput>,
+        out: &mut dyn Sink<FrictionOutput>,
     ) -> Result<(), AppError> {
         if chunk.is_empty() {
             return Ok(());
@@ -281,7 +281,7 @@ impl FrictionStage {
     pub fn push_cycle(
         &mut self,
         c: FrictionCycle,
-        out: &mut Vec<FrictionOutput>,
+        out: &mut dyn Sink<FrictionOutput>,
     ) -> Result<(), AppError> {
         if let Some(p) = self.pending.take() {
             self.judge(p, Some(c.p_int_kpa), out)?;
@@ -291,7 +291,7 @@ impl FrictionStage {
     }
 
     /// An incomplete cycle: the last one is judged without a successor.
-    pub fn push_gap(&mut self, out: &mut Vec<FrictionOutput>) -> Result<(), AppError> {
+    pub fn push_gap(&mut self, out: &mut dyn Sink<FrictionOutput>) -> Result<(), AppError> {
         if let Some(p) = self.pending.take() {
             self.judge(p, None, out)?;
         }
@@ -304,7 +304,7 @@ impl FrictionStage {
         &mut self,
         c: FrictionCycle,
         after: Option<f64>,
-        out: &mut Vec<FrictionOutput>,
+        out: &mut dyn Sink<FrictionOutput>,
     ) -> Result<(), AppError> {
         let moved = |q: Option<f64>| {
             q.is_some_and(|q| (c.p_int_kpa - q).abs() / q > self.cfg.max_pressure_change)
@@ -367,7 +367,7 @@ impl FrictionStage {
 
     /// Choose the estimable coefficients on the cycles so far (steps 2–3), then run the
     /// estimator through them.
-    fn select(&mut self, out: &mut Vec<FrictionOutput>) -> Result<(), AppError> {
+    fn select(&mut self, out: &mut dyn Sink<FrictionOutput>) -> Result<(), AppError> {
         let data = &self.data;
         if data.len() < MIN_CYCLES {
             return Err(AppError::Invalid(format!(
@@ -421,7 +421,7 @@ impl FrictionStage {
         let est = build_linear(&spec, &rel, &free_set)
             .map_err(AppError::estim("estimator configuration"))?;
         let n = data.len();
-        out.push(FrictionOutput::Selected {
+        out.put(FrictionOutput::Selected {
             t_s: data.t_s[n - 1],
             cycles: n,
             estimable: estimable.clone(),
@@ -439,7 +439,7 @@ impl FrictionStage {
     }
 
     /// Kept cycle `k` through the estimator (step 4: predicted before the update).
-    fn step(&mut self, k: usize, out: &mut Vec<FrictionOutput>) -> Result<(), AppError> {
+    fn step(&mut self, k: usize, out: &mut dyn Sink<FrictionOutput>) -> Result<(), AppError> {
         let psi = self.psi(k);
         let c0 = &self.c0;
         let nominal: f64 = psi.iter().zip(c0).map(|(p, c)| p * c).sum();
@@ -463,7 +463,7 @@ impl FrictionStage {
         let d = &self.data;
         self.predicted_nominal.push(nominal);
         self.predicted.push(predicted);
-        out.push(FrictionOutput::Cycle(FrictionSample {
+        out.put(FrictionOutput::Cycle(FrictionSample {
             params,
             std_err,
             cycle: d.cycle[k],
@@ -478,7 +478,7 @@ impl FrictionStage {
 
     /// The end of the stream: the last cycle judged, the coefficients chosen if they were not,
     /// and the result (once: the stage has given its predictions up to it).
-    pub fn finish(&mut self, out: &mut Vec<FrictionOutput>) -> Result<FrictionFit, AppError> {
+    pub fn fit(&mut self, out: &mut dyn Sink<FrictionOutput>) -> Result<FrictionFit, AppError> {
         self.push_gap(out)?;
         if self.running.is_none() {
             self.select(out)?;
@@ -536,5 +536,25 @@ impl FrictionStage {
             data: data.clone(),
             cycles: Vec::new(),
         })
+    }
+}
+
+impl Stage for FrictionStage {
+    type Out = FrictionOutput;
+
+    /// A chunk of time-basis samples with `t`, `theta_en` [rad], `omega_en`, `p_int`, `T_oil`,
+    /// the motoring torque, `p_atm` (or the configured constant) and, optionally, the truth.
+    fn push(
+        &mut self,
+        chunk: &Recording,
+        out: &mut dyn Sink<FrictionOutput>,
+    ) -> Result<(), AppError> {
+        self.push_chunk(chunk, out)
+    }
+
+    /// The last cycle judged and the coefficients chosen if they were not ([`Self::fit`] also
+    /// gives the result).
+    fn finish(&mut self, out: &mut dyn Sink<FrictionOutput>) -> Result<(), AppError> {
+        self.fit(out).map(|_| ())
     }
 }

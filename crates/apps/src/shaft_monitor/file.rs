@@ -283,7 +283,8 @@ impl Accumulated {
             q.extend(tk.iter().copied().zip(tb.iter().copied()));
         }
         self.seen += x.t.len();
-        self.stage.push(&x, &mut self.samples, &mut self.alarms)?;
+        self.stage
+            .push_inputs(&x, &mut self.samples, &mut self.alarms)?;
         sink(&self.samples, &self.alarms).map_err(AppError::Invalid)?;
         self.take();
         Ok(())
@@ -363,7 +364,8 @@ impl Accumulated {
     }
 
     fn finish(mut self, sink: &mut ShaftSink) -> Result<ShaftMonitor, AppError> {
-        self.stage.finish(&mut self.samples, &mut self.alarms)?;
+        self.stage
+            .finish_into(&mut self.samples, &mut self.alarms)?;
         sink(&self.samples, &self.alarms).map_err(AppError::Invalid)?;
         self.take();
         let mut out = self.out;

@@ -14,6 +14,7 @@
 use crate::acquisition::{to_time_basis, uniform_step};
 use crate::error::AppError;
 use crate::excitation::{ExcitationSupervisor, SupervisorConfig, SupervisorError};
+use crate::stage::{Sink, Stage};
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::{
     build_linear, CovSpec, EstimatorSpec, LinearEstimator, MethodName, RelativeErrorDetector,

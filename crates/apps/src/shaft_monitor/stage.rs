@@ -137,6 +137,9 @@ pub struct ShaftStage {
     model: Shaft,
     raw: [Vec<f64>; 3],
     filtered: [Vec<f64>; 3],
+    /// What a chunk completes, before it goes to a [`Sink`] ([`Stage::push`]).
+    #[serde(skip)]
+    made: (Vec<ShaftSample>, Vec<ShaftAlarm>),
 }
 
 impl ShaftStage {
@@ -212,6 +215,7 @@ impl ShaftStage {
             model: Shaft::new(true),
             raw: Default::default(),
             filtered: Default::default(),
+            made: Default::default(),
         })
     }
 
@@ -279,7 +283,7 @@ impl ShaftStage {
 
     /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
     /// columns of different lengths or a non-finite sample is refused, naming the sample.
-    pub fn push(
+    pub fn push_inputs(
         &mut self,
         x: &ShaftInputs,
         samples: &mut Vec<ShaftSample>,
@@ -341,7 +345,7 @@ impl ShaftStage {
     }
 
     /// The end of the stream: the last samples out of the filters.
-    pub fn finish(
+    pub fn finish_into(
         &mut self,
         samples: &mut Vec<ShaftSample>,
         alarms: &mut Vec<ShaftAlarm>,
@@ -418,5 +422,50 @@ impl ShaftStage {
             }
         }
         Ok(())
+    }
+}
+
+/// What the shaft monitor makes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShaftOutput {
+    /// An estimator sample.
+    Sample(ShaftSample),
+    /// An alarm raised.
+    Alarm(ShaftAlarm),
+}
+
+impl ShaftStage {
+    /// The samples, then the alarms, made since the last call, to `out`.
+    fn hand_on(&mut self, out: &mut dyn Sink<ShaftOutput>) {
+        for s in self.made.0.drain(..) {
+            out.put(ShaftOutput::Sample(s));
+        }
+        for a in self.made.1.drain(..) {
+            out.put(ShaftOutput::Alarm(a));
+        }
+    }
+}
+
+impl Stage for ShaftStage {
+    type Out = ShaftOutput;
+
+    /// A chunk with `t`, `theta_dy`, `theta_en`, `omega_dy`, `omega_en`, `torque_shaft`: the
+    /// estimator samples it completes, then the alarms.
+    fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<ShaftOutput>) -> Result<(), AppError> {
+        let mut made = std::mem::take(&mut self.made);
+        let pushed =
+            ShaftInputs::of(chunk).and_then(|x| self.push_inputs(&x, &mut made.0, &mut made.1));
+        self.made = made;
+        self.hand_on(out);
+        pushed
+    }
+
+    /// The last samples out of the filters, then the alarms.
+    fn finish(&mut self, out: &mut dyn Sink<ShaftOutput>) -> Result<(), AppError> {
+        let mut made = std::mem::take(&mut self.made);
+        let finished = self.finish_into(&mut made.0, &mut made.1);
+        self.made = made;
+        self.hand_on(out);
+        finished
     }
 }

@@ -26,6 +26,7 @@ use crate::acquisition::{to_crank_angle, AcquisitionOptions, FirstMarker, TDC_MA
 use crate::compression::CrankPasses;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
+use crate::stage::{Sink, Stage};
 use physid_core::{Basis, ParamModel, ParamSet, Recording};
 use physid_estim::metrics::Prediction;
 use physid_estim::{CovSpec, EstimatorSpec, MethodName, NonlinearEstimator};

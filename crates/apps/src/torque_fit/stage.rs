@@ -197,7 +197,7 @@ impl TorqueFilter {
         u: &[f64; 6],
         y: f64,
         t: f64,
-        out: &mut Vec<TorqueOutput>,
+        out: &mut dyn Sink<TorqueOutput>,
     ) -> Result<(), AppError> {
         let i = self.filtered;
         let step = self
@@ -219,7 +219,7 @@ impl TorqueFilter {
             // In rank order, as chosen.
             let (v, se) = (self.est.estimate(), self.est.std_errors());
             let at = |j: usize| self.order.iter().position(|&i| i == j).unwrap_or(0);
-            out.push(TorqueOutput::Cycle(TorqueCycle {
+            out.put(TorqueOutput::Cycle(TorqueCycle {
                 t_s: t,
                 params: self.estimable.iter().map(|&j| v[at(j)]).collect(),
                 std_err: self.estimable.iter().map(|&j| se[at(j)]).collect(),
@@ -320,7 +320,7 @@ impl Choosing {
         u: &[f64; 6],
         y: f64,
         t: f64,
-        out: &mut Vec<TorqueOutput>,
+        out: &mut dyn Sink<TorqueOutput>,
     ) -> Result<(), AppError> {
         if let Some(f) = self.filter.as_mut() {
             return f.step(u, y, t, out);
@@ -333,11 +333,11 @@ impl Choosing {
     }
 
     /// Choose the parameters on the samples kept, filter them, and drop them.
-    pub(super) fn select(&mut self, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+    pub(super) fn select(&mut self, out: &mut dyn Sink<TorqueOutput>) -> Result<(), AppError> {
         let n = self.data.y.len();
         at_least_a_cycle(n)?;
         let mut f = TorqueFilter::choose(&self.cfg, &self.data, false)?;
-        out.push(TorqueOutput::Selected {
+        out.put(TorqueOutput::Selected {
             t_s: self.data.t[n - 1],
             samples: n,
             estimable: f.names().iter().map(|s| s.to_string()).collect(),
@@ -403,18 +403,26 @@ impl TorqueStage {
     pub fn estimable(&self) -> Option<Vec<&'static str>> {
         self.choosing.filter.as_ref().map(TorqueFilter::names)
     }
+}
+
+impl Stage for TorqueStage {
+    type Out = TorqueOutput;
 
     /// A chunk of time-basis samples with `t`, `theta_en`, `omega_en`, `alpha_en`, `p_cyl`,
     /// `p_crank`, `T_oil` and `torque_engine`: each complete cycle resampled to one sample per
     /// crank degree and taken.
-    pub fn push(&mut self, chunk: &Recording, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+    fn push(
+        &mut self,
+        chunk: &Recording,
+        out: &mut dyn Sink<TorqueOutput>,
+    ) -> Result<(), AppError> {
         let choosing = &mut self.choosing;
         self.curves
             .push::<AppError>(chunk, &mut |u, y, t| choosing.take(u, y, t, out))
     }
 
     /// The end of the stream: the parameters chosen on all of it if they were not yet.
-    pub fn finish(&mut self, out: &mut Vec<TorqueOutput>) -> Result<(), AppError> {
+    fn finish(&mut self, out: &mut dyn Sink<TorqueOutput>) -> Result<(), AppError> {
         if self.choosing.filter.is_none() {
             self.choosing.select(out)?;
         }

@@ -14,7 +14,8 @@ use crate::trace::TraceStage;
 use physid_apps::acquisition::AcquisitionOptions;
 use physid_apps::error::AppError;
 use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
-use physid_apps::shaft_monitor::{MonitorConfig, ShaftInputs, ShaftParams, ShaftStage};
+use physid_apps::shaft_monitor::{MonitorConfig, ShaftOutput, ShaftParams, ShaftStage};
+use physid_apps::stage::Stage;
 use physid_apps::torque_fit::{TorqueFitConfig, TorqueOutput, TorqueStage};
 use physid_core::{Basis, Recording, RecordingError};
 use physid_io::IoError;
@@ -156,8 +157,7 @@ pub struct Stages<E> {
     /// before the next chunk.
     stop_requested: bool,
     latency: LatencyHistogram,
-    samples: Vec<physid_apps::shaft_monitor::ShaftSample>,
-    alarms: Vec<physid_apps::shaft_monitor::ShaftAlarm>,
+    shaft_out: Vec<ShaftOutput>,
     done_cycles: Vec<CycleSummary>,
 }
 

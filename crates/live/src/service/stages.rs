@@ -45,8 +45,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             paused: false,
             stop_requested: false,
             latency: LatencyHistogram::default(),
-            samples: Vec::new(),
-            alarms: Vec::new(),
+            shaft_out: Vec::new(),
             done_cycles: Vec::new(),
         })
     }
@@ -279,15 +278,21 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         self.integrity(chunk)?;
         self.st.taken += t.len();
         self.st.last_t = t[t.len() - 1];
-        self.samples.clear();
-        self.alarms.clear();
+        self.shaft_out.clear();
         if let Some(stage) = self.st.shaft.as_mut() {
-            let result = ShaftInputs::of(chunk)
-                .and_then(|x| stage.push(&x, &mut self.samples, &mut self.alarms));
+            let result = stage.push(chunk, &mut self.shaft_out);
             self.shaft_error(result)?;
         }
-        for k in 0..self.samples.len() {
-            let s = self.samples[k];
+        // The stage hands on a chunk's samples, then its alarms.
+        for k in 0..self.shaft_out.len() {
+            let s = match &self.shaft_out[k] {
+                ShaftOutput::Sample(s) => *s,
+                ShaftOutput::Alarm(a) => {
+                    let e = Event::shaft_alarm(a);
+                    self.send(&e)?;
+                    continue;
+                }
+            };
             // The excitation supervisor's changes (and, supervised, the start), as they happen.
             if self.cfg.monitor.supervise && self.st.shaft_frozen != Some(s.frozen) {
                 self.st.shaft_frozen = Some(s.frozen);
@@ -323,10 +328,6 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             } else {
                 self.st.pending = Some(s);
             }
-        }
-        for k in 0..self.alarms.len() {
-            let e = Event::shaft_alarm(&self.alarms[k]);
-            self.send(&e)?;
         }
         self.cycles(chunk)?;
         if let Some(stage) = self.friction.as_mut() {
@@ -590,20 +591,25 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         if let Some(stage) = self.friction.as_mut() {
             self.friction_out.clear();
             // The last cycle judged; a replay shorter than the choice chooses on all its cycles.
-            let result = stage.finish(&mut self.friction_out).map(|_| ());
+            let result = stage.finish(&mut self.friction_out);
             self.friction_events(result)?;
         }
-        self.samples.clear();
-        self.alarms.clear();
+        self.shaft_out.clear();
         if let Some(stage) = self.st.shaft.as_mut() {
-            let result = stage.finish(&mut self.samples, &mut self.alarms);
+            let result = stage.finish(&mut self.shaft_out);
             self.shaft_error(result)?;
         }
-        for k in 0..self.alarms.len() {
-            let e = Event::shaft_alarm(&self.alarms[k]);
-            self.send(&e)?;
+        let mut last = None;
+        for k in 0..self.shaft_out.len() {
+            match &self.shaft_out[k] {
+                ShaftOutput::Sample(s) => last = Some(*s),
+                ShaftOutput::Alarm(a) => {
+                    let e = Event::shaft_alarm(a);
+                    self.send(&e)?;
+                }
+            }
         }
-        if let Some(s) = self.samples.last().copied().or(self.st.pending) {
+        if let Some(s) = last.or(self.st.pending) {
             self.send(&Event::shaft_estimate(&s))?;
         }
         if let Some(e) = self.traces.as_mut().and_then(TraceStage::flush) {

@@ -1,0 +1,42 @@
+//! One shape for the stages of the data path: a [`Stage`] takes a recording's chunks as they
+//! come and hands what it makes to a [`Sink`]; [`Stage::finish`] gives what it still holds at
+//! the end of the stream.
+//!
+//! Not yet: the trait does not ask for `serde` state. The shaft monitor's is (a fleet worker's
+//! checkpoint holds it, and a restored stage continues bit for bit); the friction and torque
+//! stages' are not, which is why a fleet worker does not run them yet (docs/fleet.md).
+//!
+//! The file verbs and the live service drive the same stages — the shaft monitor
+//! ([`ShaftStage`](crate::shaft_monitor::ShaftStage)), the friction characterisation
+//! ([`FrictionStage`](crate::friction_fit::FrictionStage)), the cyclic-torque estimation
+//! ([`TorqueStage`](crate::torque_fit::TorqueStage)) — so a recording read from a file, a
+//! replay and frames from NATS give the same outputs for the same samples.
+
+use crate::error::AppError;
+use physid_core::Recording;
+
+/// Where a stage's outputs go (a `Vec`, or anything that takes them one by one).
+pub trait Sink<T> {
+    /// Take one output.
+    fn put(&mut self, item: T);
+}
+
+impl<T> Sink<T> for Vec<T> {
+    fn put(&mut self, item: T) {
+        self.push(item);
+    }
+}
+
+/// A stage of the data path (see the module docs).
+pub trait Stage {
+    /// What the stage makes.
+    type Out;
+
+    /// The next chunk of the stream (samples in time order, the stream's channels); what it
+    /// completes goes to `out`. An error stops the stage; the caller decides whether the run
+    /// goes on without it.
+    fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<Self::Out>) -> Result<(), AppError>;
+
+    /// The end of the stream: what the stage still holds goes to `out`.
+    fn finish(&mut self, out: &mut dyn Sink<Self::Out>) -> Result<(), AppError>;
+}
