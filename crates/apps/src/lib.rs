@@ -5,6 +5,8 @@
 //!
 //! * [`acquisition`] — the acquisition chain on a recording: inspection and integrity,
 //!   crank-angle conversion, zero-phase filtering (thesis ch. 4).
+//! * [`cell`] — the built-in virtual test cell's values the applications start from, and the
+//!   truth of a simulated recording.
 //! * [`compression`] — the chain on a motored pressure trace: the motored model's
 //!   identifiability, its estimable parameters per TDC and recursively, the TDC and loss angle.
 //! * [`error`] — the applications' error type.
@@ -30,6 +32,7 @@
 //!   engine torque model (ch. 8).
 
 pub mod acquisition;
+pub mod cell;
 pub mod compression;
 pub mod demo;
 pub mod error;

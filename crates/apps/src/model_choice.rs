@@ -6,6 +6,7 @@
 //! enum that is itself a [`ParamModel`], delegating to the model inside (one `match` per
 //! evaluation — nothing beside the model's own arithmetic).
 
+use crate::cell::CellParams;
 use crate::error::AppError;
 use crate::example_5_1::{Model51, NOMINAL as NOMINAL_51};
 use crate::torque_fit::cyclic_torque_nominal;
@@ -14,7 +15,6 @@ use physid_expr::ExprModel;
 use physid_models::cyclic_torque::CyclicTorque;
 use physid_models::friction::FrictionRegression;
 use physid_models::shaft::{Shaft, NOMINAL as NOMINAL_SHAFT};
-use physid_sim::params::CellParams;
 
 /// The parameters of the built-in model `name`: their names, units and one-line meanings
 /// (`None` for a name that is not built in, or whose parameters have no units: Example 5.1).
@@ -160,7 +160,7 @@ impl ModelChoice {
                 cyclic_torque_nominal(&cell)?.to_vec(),
             ),
             "friction-regression" => {
-                let (d, st) = crate::friction_fit::cell_friction_model();
+                let (d, st) = crate::cell::cell_friction_model();
                 let m = FrictionRegression::new(d, st);
                 let c0 = m.nominal().to_vec();
                 (Self::Friction(m), c0)

@@ -52,15 +52,9 @@ pub const FRICTION_PRESETS: [&str; 3] = ["thesis", "sandoval2002", "cell"];
 /// A friction model preset by name ([`FRICTION_PRESETS`]); `None` for an unknown name.
 pub fn friction_preset(name: &str) -> Option<(Design<f64>, Settings)> {
     match name {
-        "cell" => Some(cell_friction_model()),
+        "cell" => Some(crate::cell::cell_friction_model()),
         other => physid_models::friction::preset(other),
     }
-}
-
-/// The `cell` preset: the friction model of the built-in virtual test cell's engine.
-pub fn cell_friction_model() -> (Design<f64>, Settings) {
-    let p = physid_sim::params::CellParams::default();
-    physid_sim::engine::Engine::new(&p.engine, &p.ambient).friction_model()
 }
 
 /// The characterisation's objective (thesis §7.3): the prediction within ±5 % after the

@@ -23,6 +23,7 @@
 //! live stage; `file.rs`: the file verb; `result.rs`: the result and its JSON.
 
 use crate::acquisition::{to_crank_angle, AcquisitionOptions, FirstMarker, TDC_MARKER};
+pub use crate::cell::cyclic_torque_nominal;
 use crate::compression::CrankPasses;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
@@ -36,11 +37,7 @@ use physid_ident::{
 };
 use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
-use physid_models::friction::thesis_preset;
-use physid_models::friction_fit::fit_friction_cubic;
 use physid_signal::cycles::{CycleStream, CycleSummary};
-use physid_sim::params::CellParams;
-use physid_sim::run::parameter_truth;
 use serde::Serialize;
 use std::cell::Cell;
 use std::collections::BTreeMap;
@@ -63,21 +60,6 @@ pub use stage::*;
 /// at the level of the measured oil temperature's noise (0.1 K on 363 K, squared), which is all
 /// that separates the temperature terms of the friction cubic at a constant oil temperature.
 pub const TORQUE_CUTOFF: f64 = 1e-6;
-
-/// The cyclic-torque model's nominal parameters for the virtual test cell's engine: its
-/// geometry and reciprocating mass, the friction cubic fitted to the mean-value model (thesis
-/// preset) over 500–1500 rpm and 20–100 °C (Fig. 8.1).
-pub fn cyclic_torque_nominal(p: &CellParams) -> Result<[f64; 15], AppError> {
-    let (d, st) = thesis_preset();
-    let n: Vec<f64> = (0..11).map(|k| 500.0 + 100.0 * k as f64).collect();
-    let t: Vec<f64> = (0..9).map(|k| 20.0 + 10.0 * k as f64).collect();
-    let fit = fit_friction_cubic(&d, &st, 101.0, 101.0, &n, &t).map_err(|e| e.to_string())?;
-    let e = &p.engine;
-    let mut v = [0.0; 15];
-    v[..5].copy_from_slice(&[e.m_rec, e.bore, e.rod, e.crank_radius, e.pin_offset]);
-    v[5..].copy_from_slice(&fit.coefficients);
-    Ok(v)
-}
 
 /// How to fit.
 #[derive(Debug, Clone)]

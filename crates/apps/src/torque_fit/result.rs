@@ -131,7 +131,7 @@ impl TorqueFit {
             .iter()
             .map(|tr| {
                 let path = TRUTH_PATHS.iter().find(|p| p.0 == tr.param)?.1;
-                parameter_truth(rec, path, &self.t)
+                crate::cell::truth(rec, path, &self.t)
             })
             .collect()
     }
