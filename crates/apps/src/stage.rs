@@ -9,23 +9,15 @@
 //! The file verbs and the live service drive the same stages — the shaft monitor
 //! ([`ShaftStage`](crate::shaft_monitor::ShaftStage)), the friction characterisation
 //! ([`FrictionStage`](crate::friction_fit::FrictionStage)), the cyclic-torque estimation
-//! ([`TorqueStage`](crate::torque_fit::TorqueStage)) — so a recording read from a file, a
-//! replay and frames from NATS give the same outputs for the same samples.
+//! ([`TorqueStage`](crate::torque_fit::TorqueStage)), the integrity check
+//! ([`IntegrityStream`]) — so a recording read from a file, a replay and frames from NATS give
+//! the same outputs for the same samples.
 
 use crate::error::AppError;
 use physid_core::Recording;
+use physid_signal::integrity::{Finding, IntegrityStream};
 
-/// Where a stage's outputs go (a `Vec`, or anything that takes them one by one).
-pub trait Sink<T> {
-    /// Take one output.
-    fn put(&mut self, item: T);
-}
-
-impl<T> Sink<T> for Vec<T> {
-    fn put(&mut self, item: T) {
-        self.push(item);
-    }
-}
+pub use physid_core::Sink;
 
 /// A stage of the data path (see the module docs).
 pub trait Stage {
@@ -39,4 +31,21 @@ pub trait Stage {
 
     /// The end of the stream: what the stage still holds goes to `out`.
     fn finish(&mut self, out: &mut dyn Sink<Self::Out>) -> Result<(), AppError>;
+}
+
+/// The post-run integrity check on the stream (`physid inspect`'s, as the chunks come): the
+/// findings each chunk makes certain, and at the end those still waiting and the per-kind
+/// summaries. It never fails.
+impl Stage for IntegrityStream {
+    type Out = Finding;
+
+    fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<Finding>) -> Result<(), AppError> {
+        IntegrityStream::push(self, chunk, out);
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut dyn Sink<Finding>) -> Result<(), AppError> {
+        IntegrityStream::finish(self, out);
+        Ok(())
+    }
 }

@@ -583,7 +583,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             let result = stage.finish(&mut self.torque_out);
             self.torque_events(result)?;
         }
-        if let Some(stream) = self.st.integrity.take() {
+        if let Some(mut stream) = self.st.integrity.take() {
             self.findings.clear();
             stream.finish(&mut self.findings);
             self.send_findings()?;

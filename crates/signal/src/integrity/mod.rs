@@ -28,7 +28,7 @@
 //! Here: the findings, the options and their collector. `check.rs`: the check of a whole
 //! recording; `stream.rs`: the same checks on the stream.
 
-use physid_core::{Basis, Recording};
+use physid_core::{Basis, Recording, Sink};
 use serde::Serialize;
 use std::collections::VecDeque;
 

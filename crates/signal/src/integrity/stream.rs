@@ -156,20 +156,24 @@ impl IntegrityStream {
 
     /// Take a chunk (its `t`, encoder and marker channels; the ones it lacks are not checked);
     /// the findings it makes certain are appended to `out`.
-    pub fn push(&mut self, chunk: &Recording, out: &mut Vec<Finding>) {
+    pub fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<Finding>) {
         self.scan(chunk);
-        out.append(&mut self.c.findings);
+        for f in self.c.findings.drain(..) {
+            out.put(f);
+        }
     }
 
     /// The end of the stream: an interval still waiting is judged, and kinds with more than
     /// [`MAX_PER_KIND`] findings are summed up.
-    pub fn finish(mut self, out: &mut Vec<Finding>) {
+    pub fn finish(&mut self, out: &mut dyn Sink<Finding>) {
         self.finish_checks();
         let counts = std::mem::take(&mut self.c.counts);
-        out.append(&mut self.c.findings);
+        for f in self.c.findings.drain(..) {
+            out.put(f);
+        }
         for (kind, total, first) in counts {
             if total > MAX_PER_KIND {
-                out.push(summary(kind, total, first));
+                out.put(summary(kind, total, first));
             }
         }
     }
