@@ -629,3 +629,32 @@ fn a_time_that_goes_back_or_jumps_is_named_where_it_does() {
     let dt = physid_apps::acquisition::uniform_step(&grid).unwrap();
     assert!((dt - 1e-4).abs() < 1e-16, "{dt}");
 }
+
+/// The stream's step check names the sample from the stream's start, whichever chunk it falls
+/// in, and takes steps across chunk boundaries: a 0.2 % longer step at sample 7 (the second
+/// chunk's second) is found, one 0.05 % longer is not.
+#[test]
+fn the_stream_step_check_counts_samples_across_chunks() {
+    use physid_apps::acquisition::StepCheck;
+    let t = |k: usize| k as f64 * 1e-3;
+    let mut ok = StepCheck::new(1e-3);
+    let mut times: Vec<f64> = (0..12).map(t).collect();
+    times[7..].iter_mut().for_each(|v| *v += 0.5e-6);
+    for chunk in times.chunks(6) {
+        ok.check(chunk).unwrap();
+    }
+    let mut bad = StepCheck::new(1e-3);
+    let mut times: Vec<f64> = (0..12).map(t).collect();
+    times[7..].iter_mut().for_each(|v| *v += 2e-6);
+    bad.check(&times[..6]).unwrap();
+    let e = bad.check(&times[6..]).unwrap_err().to_string();
+    assert!(
+        e.starts_with("the time step is not uniform at sample 7 (0.001002"),
+        "{e}"
+    );
+    // The boundary step itself: sample 6 against sample 5.
+    let mut edge = StepCheck::new(1e-3);
+    edge.check(&[0.0, 1e-3]).unwrap();
+    let e = edge.check(&[2.01e-3]).unwrap_err().to_string();
+    assert!(e.contains("at sample 2 "), "{e}");
+}

@@ -3,10 +3,10 @@
 use crate::control::Control;
 use crate::service::LiveError;
 use physid_apps::acquisition::{
-    from_first_marker, time_basis_chunks, uniform_step, AcquisitionOptions,
+    file_time_basis_chunks, from_first_marker, on_time_basis, uniform_step, AcquisitionOptions,
+    StepCheck,
 };
 use physid_apps::error::AppError;
-use physid_apps::shaft_monitor::{file_mean_rate, on_time_basis};
 use physid_core::{Basis, Channel, Recording};
 use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_sim::run::{OutputBasis, Run, RunOptions};
@@ -119,9 +119,8 @@ pub struct ReplaySource {
     rate_hz: f64,
     chunk: usize,
     theta_tdc: f64,
-    /// Samples handed out, and the last one's time.
-    seen: usize,
-    t_prev: Option<f64>,
+    /// The step of the samples handed out, held to the first chunk's.
+    steps: StepCheck,
 }
 
 impl ReplaySource {
@@ -142,18 +141,10 @@ impl ReplaySource {
     pub fn open(path: &Path, opts: &ReadOptions, chunk_s: f64) -> Result<Self, LiveError> {
         let reader = ChunkReader::open(path, opts)?;
         if reader.header().basis == Basis::CrankAngle {
-            // At the mean rate of the whole recording (a first pass over `t` alone), resampled
-            // as it is read, in the chunks the recording put on a time basis whole would give.
-            let anchor = reader
-                .header()
-                .names()
-                .into_iter()
-                .find(|n| *n != "t")
-                .unwrap_or("t")
-                .to_string();
-            let rate = file_mean_rate(path, opts, &anchor)?;
+            // At the mean rate of the whole recording, resampled as it is read, in the chunks
+            // the recording put on a time basis whole would give.
             let header = reader.header().clone();
-            let chunks = time_basis_chunks(&header, reader, rate, CHUNK_ROWS)?;
+            let chunks = file_time_basis_chunks(path, opts, &header, reader)?;
             return Self::from_chunks(Box::new(chunks), chunk_s);
         }
         Self::from_chunks(Box::new(reader.map(|c| c.map_err(AppError::from))), chunk_s)
@@ -180,8 +171,7 @@ impl ReplaySource {
             chunk: ((chunk_s * rate_hz).round() as usize).max(1),
             rate_hz,
             theta_tdc,
-            seen: 0,
-            t_prev: None,
+            steps: StepCheck::new(1.0 / rate_hz),
         })
     }
 
@@ -189,23 +179,6 @@ impl ReplaySource {
     /// marker (`0` without one), where the stages start their cycles.
     pub fn theta_tdc(&self) -> f64 {
         self.theta_tdc
-    }
-
-    /// Every step of `t` within 0.1 % of the rate's (across chunks too).
-    fn check_steps(&mut self, t: &[f64]) -> Result<(), LiveError> {
-        let dt = 1.0 / self.rate_hz;
-        for (i, &now) in t.iter().enumerate() {
-            if let Some(before) = self.t_prev.replace(now) {
-                if ((now - before) - dt).abs() > 1e-3 * dt {
-                    return Err(LiveError::Invalid(format!(
-                        "the time step is not uniform at sample {} ({} s, mean {dt} s): check with physid inspect, resample with physid convert --time-basis HZ",
-                        self.seen + i,
-                        now - before
-                    )));
-                }
-            }
-        }
-        Ok(())
     }
 }
 
@@ -240,8 +213,7 @@ impl Source for ReplaySource {
         let end = (self.at + self.chunk).min(n);
         let c = self.held.slice(self.at..end);
         self.at = end;
-        self.check_steps(c.values("t")?)?;
-        self.seen += c.len();
+        self.steps.check(c.values("t")?).map_err(AppError::from)?;
         Ok(Some(c))
     }
 }

@@ -38,9 +38,7 @@ struct Started {
     names: Vec<(String, String)>,
     filters: Vec<Option<physid_signal::stream::ZeroPhaseStream>>,
     pending: Vec<std::collections::VecDeque<f64>>,
-    dt: f64,
-    t_last: f64,
-    taken: usize,
+    steps: StepCheck,
     out: Vec<f64>,
 }
 
@@ -98,9 +96,7 @@ impl FilterStream {
             pending: vec![Default::default(); names.len()],
             names,
             filters,
-            dt,
-            t_last: f64::NAN,
-            taken: 0,
+            steps: StepCheck::new(dt),
             out: Vec::new(),
         });
         Ok(())
@@ -115,20 +111,7 @@ impl FilterStream {
             unreachable!("started above");
         };
         // The time step, checked across chunk boundaries too.
-        let t = chunk.values("t")?;
-        let mut prev = s.t_last;
-        for (i, &v) in t.iter().enumerate() {
-            if prev.is_finite() && ((v - prev) - s.dt).abs() > 1e-3 * s.dt {
-                return Err(AcquisitionError::Invalid(format!(
-                    "the time step is not uniform at sample {} ({} s, {} s before): check with physid inspect, resample with physid convert --time-basis HZ",
-                    s.taken + i,
-                    v - prev,
-                    s.dt
-                )));
-            }
-            prev = v;
-        }
-        s.t_last = prev;
+        s.steps.check(chunk.values("t")?)?;
         for (j, (name, _)) in s.names.iter().enumerate() {
             let x = chunk.values(name)?;
             match s.filters[j].as_mut() {
@@ -144,7 +127,6 @@ impl FilterStream {
                 None => s.pending[j].extend(x.iter().copied()),
             }
         }
-        s.taken += t.len();
         Self::ready(s)
     }
 

@@ -48,6 +48,50 @@ pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
     }
 }
 
+/// The uniform-step check of a stream ([`uniform_step`]'s, a chunk at a time): every step of
+/// `t`, across chunk boundaries too, within 0.1 % of the period `dt` taken from the first
+/// samples — an error at the first that is not, with its sample index from the stream's start.
+#[derive(Debug, Clone)]
+pub struct StepCheck {
+    dt: f64,
+    t_prev: Option<f64>,
+    seen: usize,
+}
+
+impl StepCheck {
+    /// Steps of `dt` [s].
+    pub fn new(dt: f64) -> Self {
+        Self {
+            dt,
+            t_prev: None,
+            seen: 0,
+        }
+    }
+
+    /// The sample period [s] the steps are held to.
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// The next chunk's times.
+    pub fn check(&mut self, t: &[f64]) -> Result<(), AcquisitionError> {
+        for (i, &now) in t.iter().enumerate() {
+            if let Some(before) = self.t_prev.replace(now) {
+                if ((now - before) - self.dt).abs() > 1e-3 * self.dt {
+                    return Err(AcquisitionError::Invalid(format!(
+                        "the time step is not uniform at sample {} ({} s, mean {} s): check with physid inspect, resample with physid convert --time-basis HZ",
+                        self.seen + i,
+                        now - before,
+                        self.dt
+                    )));
+                }
+            }
+        }
+        self.seen += t.len();
+        Ok(())
+    }
+}
+
 /// Resample a crank-angle recording (with its `t` channel) to a uniform time basis at
 /// `rate_hz`: [`TimeBasisStream`] on the whole recording as one chunk.
 pub fn to_time_basis(rec: &Recording, rate_hz: f64) -> Result<Recording, AcquisitionError> {
@@ -55,6 +99,88 @@ pub fn to_time_basis(rec: &Recording, rate_hz: f64) -> Result<Recording, Acquisi
     let mut out = stream.push(rec)?;
     out.append(&stream.finish()?)?;
     Ok(out)
+}
+
+/// A crank-angle recording (one sample per crank step, so its time step follows the speed) on
+/// a uniform time basis at its mean sample rate ([`mean_rate`]), as the monitor takes it;
+/// `None` for a recording already on a time basis.
+pub fn on_time_basis(rec: &Recording) -> Result<Option<Recording>, AppError> {
+    if rec.basis != Basis::CrankAngle {
+        return Ok(None);
+    }
+    let t = rec.values("t")?;
+    let rate = mean_rate(
+        t.len(),
+        t.first().copied().unwrap_or(f64::NAN),
+        t.last().copied().unwrap_or(f64::NAN),
+    )?;
+    Ok(Some(to_time_basis(rec, rate)?))
+}
+
+/// The mean sample rate [Hz] of a crank-angle recording's `n` samples of `t`, from `first` to
+/// `last`: `(n − 1)/(last − first)` — what [`on_time_basis`] puts it on, and what a stream
+/// takes from a first pass over `t` alone.
+pub fn mean_rate(n: usize, first: f64, last: f64) -> Result<f64, AppError> {
+    let span = last - first;
+    if n < 2 || span.is_nan() || span <= 0.0 {
+        return Err(AppError::Invalid(
+            "a crank-angle recording whose time 't' does not advance cannot be put on a time basis"
+                .into(),
+        ));
+    }
+    Ok((n - 1) as f64 / span)
+}
+
+/// The mean sample rate ([`mean_rate`]) of the crank-angle file `path`, read with `opts`: a
+/// pass over its `t` alone (and `anchor`, another of its channels — an MDF4 file finds `t`'s
+/// channel group by it).
+pub fn file_mean_rate(
+    path: &std::path::Path,
+    opts: &physid_io::ReadOptions,
+    anchor: &str,
+) -> Result<f64, AppError> {
+    let opts = physid_io::ReadOptions {
+        channels: Some(vec!["t".into(), anchor.into()]),
+        ..opts.clone()
+    };
+    let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
+    for chunk in physid_io::ChunkReader::open(path, &opts)? {
+        let chunk = chunk?;
+        let t = chunk.values("t")?;
+        if n == 0 {
+            first = t.first().copied().unwrap_or(f64::NAN);
+        }
+        last = t.last().copied().unwrap_or(last);
+        n += t.len();
+    }
+    mean_rate(n, first, last)
+}
+
+/// A crank-angle file `path` (read with `opts`; `header` its reader's channels, `chunks` its
+/// chunks as they are read) on a uniform time basis at its mean sample rate, in chunks of
+/// [`physid_io::CHUNK_ROWS`]: the rate from a first pass over `t` alone ([`file_mean_rate`],
+/// anchored on the header's first other channel), then [`time_basis_chunks`] as it is read —
+/// the chunks [`on_time_basis`] on the whole recording would give.
+pub fn file_time_basis_chunks<'a, I, E>(
+    path: &std::path::Path,
+    opts: &physid_io::ReadOptions,
+    header: &Recording,
+    chunks: I,
+) -> Result<impl Iterator<Item = Result<Recording, AppError>> + 'a, AppError>
+where
+    I: IntoIterator<Item = Result<Recording, E>> + 'a,
+    I::IntoIter: 'a,
+    E: 'a,
+    AppError: From<E>,
+{
+    let anchor = header
+        .names()
+        .into_iter()
+        .find(|n| *n != "t")
+        .unwrap_or("t")
+        .to_string();
+    let rate = file_mean_rate(path, opts, &anchor)?;
+    time_basis_chunks(header, chunks, rate, physid_io::CHUNK_ROWS)
 }
 
 /// A stream of crank-angle chunks (`header` their channels) on a uniform time basis at

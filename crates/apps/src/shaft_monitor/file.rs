@@ -4,61 +4,6 @@
 
 use super::*;
 
-/// A crank-angle recording (one sample per crank step, so its time step follows the speed) on
-/// a uniform time basis at its mean sample rate ([`mean_rate`]), as the monitor takes it;
-/// `None` for a recording already on a time basis.
-pub fn on_time_basis(rec: &Recording) -> Result<Option<Recording>, AppError> {
-    if rec.basis != Basis::CrankAngle {
-        return Ok(None);
-    }
-    let t = rec.values("t")?;
-    let rate = mean_rate(
-        t.len(),
-        t.first().copied().unwrap_or(f64::NAN),
-        t.last().copied().unwrap_or(f64::NAN),
-    )?;
-    Ok(Some(to_time_basis(rec, rate)?))
-}
-
-/// The mean sample rate [Hz] of a crank-angle recording's `n` samples of `t`, from `first` to
-/// `last`: `(n − 1)/(last − first)` — what [`on_time_basis`] puts it on, and what a stream
-/// takes from a first pass over `t` alone.
-pub fn mean_rate(n: usize, first: f64, last: f64) -> Result<f64, AppError> {
-    let span = last - first;
-    if n < 2 || span.is_nan() || span <= 0.0 {
-        return Err(AppError::Invalid(
-            "a crank-angle recording whose time 't' does not advance cannot be put on a time basis"
-                .into(),
-        ));
-    }
-    Ok((n - 1) as f64 / span)
-}
-
-/// The mean sample rate ([`mean_rate`]) of the crank-angle file `path`, read with `opts`: a
-/// pass over its `t` alone (and `anchor`, another of its channels — an MDF4 file finds `t`'s
-/// channel group by it).
-pub fn file_mean_rate(
-    path: &std::path::Path,
-    opts: &physid_io::ReadOptions,
-    anchor: &str,
-) -> Result<f64, AppError> {
-    let opts = physid_io::ReadOptions {
-        channels: Some(vec!["t".into(), anchor.into()]),
-        ..opts.clone()
-    };
-    let (mut n, mut first, mut last) = (0, f64::NAN, f64::NAN);
-    for chunk in physid_io::ChunkReader::open(path, &opts)? {
-        let chunk = chunk?;
-        let t = chunk.values("t")?;
-        if n == 0 {
-            first = t.first().copied().unwrap_or(f64::NAN);
-        }
-        last = t.last().copied().unwrap_or(last);
-        n += t.len();
-    }
-    mean_rate(n, first, last)
-}
-
 /// The channels the monitor reads: its inputs, then the simulated truth when the recording
 /// carries it.
 pub const SHAFT_CHANNELS: [&str; 6] = [
@@ -189,10 +134,10 @@ struct Accumulated {
     cfg: MonitorConfig,
     stage: ShaftStage,
     t0: f64,
-    dt: f64,
-    /// Input samples seen; the previous input time.
+    /// The step held to the first chunks' rate.
+    steps: StepCheck,
+    /// Input samples seen.
     seen: usize,
-    t_prev: Option<f64>,
     samples: Vec<ShaftSample>,
     alarms: Vec<ShaftAlarm>,
     out: ShaftMonitor,
@@ -216,9 +161,8 @@ impl Accumulated {
         Ok(Self {
             cfg: cfg.clone(),
             t0,
-            dt,
+            steps: StepCheck::new(dt),
             seen: 0,
-            t_prev: None,
             samples: Vec::with_capacity(FILE_CHUNK),
             alarms: Vec::new(),
             out: ShaftMonitor {
@@ -263,19 +207,7 @@ impl Accumulated {
             p.push(chunk);
         }
         // The step held to the first chunks' rate, across chunk boundaries too.
-        for (i, &now) in x.t.iter().enumerate() {
-            if let Some(before) = self.t_prev {
-                if ((now - before) - self.dt).abs() > 1e-3 * self.dt {
-                    return Err(AppError::Invalid(format!(
-                        "the time step is not uniform at sample {} ({} s, mean {} s): check with physid inspect, resample with physid convert --time-basis HZ",
-                        self.seen + i,
-                        now - before,
-                        self.dt
-                    )));
-                }
-            }
-            self.t_prev = Some(now);
-        }
+        self.steps.check(x.t)?;
         if let (Ok(tk), Ok(tb)) = (chunk.values(SHAFT_TRUTH[0]), chunk.values(SHAFT_TRUTH[1])) {
             let (_, q) = self
                 .truth

@@ -11,7 +11,7 @@
 //! (the stream stage), `file.rs` (the file verb over it), `summary.rs` (the JSON); every public
 //! item is re-exported here.
 
-use crate::acquisition::{to_time_basis, uniform_step};
+use crate::acquisition::{on_time_basis, uniform_step, StepCheck};
 use crate::error::AppError;
 use crate::excitation::{ExcitationSupervisor, SupervisorConfig, SupervisorError};
 use crate::stage::{Sink, Stage};

@@ -7,10 +7,10 @@ use crate::progress::Reading;
 use crate::report::{self, Report};
 use crate::tracks::TrackFile;
 use miette::{miette, Result};
-use physid_apps::acquisition::time_basis_chunks;
+use physid_apps::acquisition::file_time_basis_chunks;
 use physid_apps::shaft_monitor::{
-    file_mean_rate, monitor_shaft_tracked, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor,
-    ShaftParams, ShaftSample, SHAFT_CHANNELS, SHAFT_TRUTH,
+    monitor_shaft_tracked, MonitorConfig, MonitorMethod, ShaftAlarm, ShaftMonitor, ShaftParams,
+    ShaftSample, SHAFT_CHANNELS, SHAFT_TRUTH,
 };
 use physid_core::Basis;
 use std::path::{Path, PathBuf};
@@ -386,16 +386,13 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
         Ok(())
     };
     let r = if reader.header().basis == Basis::CrankAngle {
-        // At the mean rate of the whole recording (a first pass over `t` alone), resampled as
-        // it is read.
-        let rate = file_mean_rate(&a.data, &a.input.options(None)?, SHAFT_CHANNELS[1])
-            .map_err(super::app_error(&a.data))?;
+        // At the mean rate of the whole recording, resampled as it is read.
         let header = reader.header().clone();
-        let timed = time_basis_chunks(
+        let timed = file_time_basis_chunks(
+            &a.data,
+            &a.input.options(None)?,
             &header,
             Reading::new(&mut reader, &a.data),
-            rate,
-            physid_io::CHUNK_ROWS,
         )
         .map_err(super::app_error(&a.data))?;
         monitor_shaft_tracked(timed, &cfg, &mut sink)
