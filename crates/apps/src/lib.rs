@@ -5,6 +5,9 @@
 //!
 //! * [`acquisition`] — the acquisition chain on a recording: inspection and integrity,
 //!   crank-angle conversion, zero-phase filtering (thesis ch. 4).
+//! * [`angle_input`] — the input plan of a file read on a crank-angle basis: where its
+//!   engine angle comes from (`theta_en`, encoder counts, a raw wheel or quadrature encoder)
+//!   and the passes it is read in.
 //! * [`cell`] — the built-in virtual test cell's values the applications start from, and the
 //!   truth of a simulated recording.
 //! * [`compression`] — the chain on a motored pressure trace: the motored model's
@@ -32,6 +35,7 @@
 //!   engine torque model (ch. 8).
 
 pub mod acquisition;
+pub mod angle_input;
 pub mod cell;
 pub mod compression;
 pub mod demo;

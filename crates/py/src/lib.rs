@@ -18,6 +18,7 @@
 //! Errors are `physid.Error` (a `ValueError`) with physid's message: the file, the channel,
 //! the sample.
 
+mod angle;
 mod estimator;
 mod live;
 mod recording;

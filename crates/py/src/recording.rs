@@ -193,8 +193,19 @@ impl Recording {
 /// `map`; all if `None`), `map` (`{name: "COLUMN[:UNIT]"}`), `columns` (a header-less text
 /// file's column names), `scale` (`{name: (gain, offset)}`). Standard channels are converted
 /// to SI on reading, as in every verb.
+///
+/// With `crank_angle` (implied by `wheel`, `quadrature`, `encoders` or `tdc_from`): on a
+/// crank-angle basis, one sample every `step_deg` degrees, the engine angle from `theta_en`, an
+/// encoder's counts (`encoders`: `["CHANNEL=PPR", …]`, `marker`), a trigger wheel's raw signal
+/// (`wheel`: `"CHANNEL=N-M"`, `edge`, `threshold`: `"LEVEL,HYSTERESIS"`) or a quadrature
+/// encoder's (`quadrature`: `"A,B,Z=LINES"`), the TDC `tdc_offset` degrees after the sensor's
+/// reference or placed from the motored pressure `tdc_from` (with `stroke`, `rod` [m]), the
+/// firing revolution from `phase_from` — as `physid convert --crank-angle`.
 #[pyfunction]
-#[pyo3(signature = (path, channels=None, map=None, columns=None, scale=None))]
+#[pyo3(signature = (path, channels=None, map=None, columns=None, scale=None, crank_angle=false,
+    step_deg=1.0, wheel=None, quadrature=None, encoders=None, marker=None, tdc_offset=0.0,
+    phase_from=None, tdc_from=None, stroke=None, rod=None, edge="rising", threshold=None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn read(
     py: Python<'_>,
     path: std::path::PathBuf,
@@ -202,6 +213,19 @@ pub(crate) fn read(
     map: Option<BTreeMap<String, String>>,
     columns: Option<Vec<String>>,
     scale: Option<BTreeMap<String, (f64, f64)>>,
+    crank_angle: bool,
+    step_deg: f64,
+    wheel: Option<String>,
+    quadrature: Option<String>,
+    encoders: Option<Vec<String>>,
+    marker: Option<String>,
+    tdc_offset: f64,
+    phase_from: Option<String>,
+    tdc_from: Option<String>,
+    stroke: Option<f64>,
+    rod: Option<f64>,
+    edge: &str,
+    threshold: Option<String>,
 ) -> PyResult<Recording> {
     let map_items: Vec<String> = map
         .unwrap_or_default()
@@ -220,6 +244,24 @@ pub(crate) fn read(
         scale: physid_io::ReadOptions::parse_scale(&scale_items).map_err(err)?,
         ..Default::default()
     };
-    let inner = py.detach(|| physid_io::read(&path, &opts)).map_err(err)?;
+    let angle = crate::angle::AngleArgs {
+        wheel,
+        quadrature,
+        encoders,
+        marker,
+        tdc_offset,
+        phase_from,
+        tdc_from,
+        stroke,
+        rod,
+        edge: edge.to_string(),
+        threshold,
+        step_deg,
+    };
+    let inner = if crank_angle || angle.any() {
+        py.detach(|| crate::angle::read_crank_angle(&path, opts, &angle))?
+    } else {
+        py.detach(|| physid_io::read(&path, &opts)).map_err(err)?
+    };
     Ok(Recording { inner })
 }

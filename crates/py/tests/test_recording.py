@@ -83,3 +83,59 @@ def test_bad_input_names_what_is_wrong(tmp_path):
     with pytest.raises(KeyError, match="the channels are: t"):
         rec["x"]
     assert isinstance(physid.Error("x"), ValueError)
+
+
+WHEEL = "crates/signal/tests/golden/wheel_vr_60m3.parquet"
+QUADRATURE = "crates/signal/tests/golden/quadrature_500.parquet"
+
+
+def _cycle_starts(rec, period_deg):
+    """The true angle [deg, modulo `period_deg`] of every sample at crank_deg 0 — the golden
+    files' `theta_true` [µrad], made by numpy (crates/signal/tests/golden/gen_wheels.py), not
+    by physid."""
+    at = rec["crank_deg"] == 0.0
+    return np.mod(np.degrees(rec["theta_true"][at] * 1e-6), period_deg)
+
+
+def test_a_raw_trigger_wheel_is_read_on_a_crank_angle_basis(golden):
+    """A 60−3 inductive pickup's raw signal decoded in Python as `convert --crank-angle
+    --wheel` decodes it: every cycle starts at the same true angle (within 0.05°), 117–120°
+    after the reference tooth's centre, in the revolution of the compression (from p_cyl)."""
+    rec = physid.read(golden(WHEEL), wheel="enc=60-3", tdc_offset=117, phase_from="p_cyl")
+    assert rec.basis == "crank_angle"
+    assert {"cycle", "crank_deg", "t", "p_cyl"} <= set(rec.channels)
+    assert "wheel 60-3 decoded" in rec.meta["angle"], rec.meta
+    starts = _cycle_starts(rec, 720.0)
+    assert len(starts) >= 12
+    assert starts.max() - starts.min() < 0.05, starts
+    assert 117.0 < starts.min() and starts.max() <= 120.0, starts
+    # A finer step: the same cycles, ten samples per degree.
+    fine = physid.read(golden(WHEEL), wheel="enc=60-3", tdc_offset=117, phase_from="p_cyl",
+                       step_deg=0.1, channels=["p_cyl", "theta_true"])
+    assert np.allclose(np.diff(fine["crank_deg"][:50]), 0.1)
+    assert len(_cycle_starts(fine, 720.0)) == len(starts)
+
+
+def test_a_raw_quadrature_encoder_is_read_on_a_crank_angle_basis(golden):
+    """A 500-line quadrature encoder's A/B/Z: every cycle starts 90° after the index (the true
+    angle within 0.1°), as `convert --crank-angle --quadrature` gives."""
+    rec = physid.read(golden(QUADRATURE), quadrature="enc_a,enc_b,enc_z=500", tdc_offset=90)
+    assert "quadrature encoder of 500 lines decoded" in rec.meta["angle"], rec.meta
+    starts = _cycle_starts(rec, 360.0)
+    assert len(starts) > 0
+    assert np.all(np.abs(starts - 90.0) < 0.1), starts
+
+
+def test_a_bad_angle_sensor_is_named(golden):
+    for kwargs, says in [
+        ({"wheel": "enc=60"}, "wheel '60': expected N-M"),
+        ({"wheel": "enc"}, "wheel 'enc': expected CHANNEL=N-M"),
+        ({"quadrature": "enc_a=500"}, "quadrature 'enc_a=500': expected A,B,Z=LINES"),
+        ({"wheel": "enc=60-3", "tdc_offset": 400}, r"tdc_offset 400: expected an angle in \[0, 360\)"),
+        ({"wheel": "enc=60-3", "edge": "up"}, "edge 'up': expected rising or falling"),
+        ({"wheel": "enc=60-3", "tdc_from": "p_cyl"}, "tdc_from 'p_cyl' needs the crank's lengths"),
+        ({"wheel": "enc=60-3", "step_deg": 0}, "step_deg 0"),
+        ({"encoders": ["count_en"]}, "encoder 'count_en': expected CHANNEL=PPR"),
+    ]:
+        with pytest.raises(physid.Error, match=says):
+            physid.read(golden(WHEEL), **kwargs)

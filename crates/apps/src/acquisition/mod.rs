@@ -100,6 +100,46 @@ pub enum AngleSensor {
 }
 
 impl AngleSensor {
+    /// A trigger wheel's sensor from `CHANNEL=N-M` (e.g. `enc=60-2`: N tooth pitches, M
+    /// missing), its edges found as `edges` says. The error names the option (`wheel '…': …`;
+    /// the command line puts `--` before it).
+    pub fn parse_wheel(spec: &str, edges: EdgeOptions) -> Result<Self, String> {
+        let (channel, wheel) = spec
+            .split_once('=')
+            .ok_or_else(|| format!("wheel '{spec}': expected CHANNEL=N-M, e.g. enc=60-2"))?;
+        let wheel: Wheel = wheel.trim().parse()?;
+        Ok(Self::Wheel {
+            channel: channel.trim().to_string(),
+            wheel,
+            edges,
+        })
+    }
+
+    /// A quadrature encoder from `A,B[,Z]=LINES` (e.g. `enc_a,enc_b,enc_z=500`); the error
+    /// names the option (`quadrature '…': …`).
+    pub fn parse_quadrature(spec: &str) -> Result<Self, String> {
+        let bad = || {
+            format!("quadrature '{spec}': expected A,B,Z=LINES (the channels, the lines per revolution > 0), e.g. enc_a,enc_b,enc_z=500")
+        };
+        let (names, lines) = spec.split_once('=').ok_or_else(bad)?;
+        let lines: u32 = lines
+            .trim()
+            .parse()
+            .ok()
+            .filter(|l| *l > 0)
+            .ok_or_else(bad)?;
+        let names: Vec<String> = names.split(',').map(|n| n.trim().to_string()).collect();
+        if !(2..=3).contains(&names.len()) || names.iter().any(String::is_empty) {
+            return Err(bad());
+        }
+        Ok(Self::Quadrature {
+            a: names[0].clone(),
+            b: names[1].clone(),
+            z: names.get(2).cloned(),
+            lines,
+        })
+    }
+
     /// The raw channels it reads.
     pub fn channels(&self) -> Vec<&str> {
         match self {
@@ -129,6 +169,27 @@ pub struct AngleSpec {
     pub phase_from: Option<String>,
 }
 
+impl AngleSpec {
+    /// `sensor` with the firing TDC `tdc_offset_deg` after its reference, checked to lie in
+    /// [0, 360): the error is `"{value}: expected …"`, for the caller to name the option.
+    pub fn new(
+        sensor: AngleSensor,
+        tdc_offset_deg: f64,
+        phase_from: Option<String>,
+    ) -> Result<Self, String> {
+        if !(tdc_offset_deg.is_finite() && (0.0..360.0).contains(&tdc_offset_deg)) {
+            return Err(format!(
+                "{tdc_offset_deg}: expected an angle in [0, 360) degrees"
+            ));
+        }
+        Ok(Self {
+            sensor,
+            tdc_offset_deg,
+            phase_from,
+        })
+    }
+}
+
 /// The TDC marker channel of the thesis's test cell (and physid's simulator).
 pub const TDC_MARKER: &str = "tdc";
 
@@ -143,7 +204,36 @@ impl Default for AcquisitionOptions {
     }
 }
 
+/// A wheel sensor's fixed level and hysteresis (half-band) from `LEVEL,HYSTERESIS` in the
+/// channel's unit (e.g. `1.5,0.3`); the error names the option (`threshold '…': …`).
+pub fn parse_threshold(s: &str) -> Result<(f64, f64), String> {
+    s.split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<Vec<f64>, _>>()
+        .ok()
+        .filter(|v| v.len() == 2 && v.iter().all(|x| x.is_finite()) && v[1] > 0.0)
+        .map(|v| (v[0], v[1]))
+        .ok_or_else(|| {
+            format!("threshold '{s}': expected LEVEL,HYSTERESIS (numbers, the hysteresis > 0), e.g. 1.5,0.3")
+        })
+}
+
 impl AcquisitionOptions {
+    /// An encoder's counter channel and pulses per revolution from `CHANNEL=PPR` (e.g.
+    /// `count_en=360`); the error names the option (`encoder '…': …`).
+    pub fn parse_encoder(e: &str) -> Result<(String, u32), String> {
+        let (c, p) = e
+            .split_once('=')
+            .ok_or_else(|| format!("encoder '{e}': expected CHANNEL=PPR, e.g. count_en=360"))?;
+        let ppr: u32 = p
+            .trim()
+            .parse()
+            .ok()
+            .filter(|v| *v > 0)
+            .ok_or_else(|| format!("encoder '{e}': '{p}' is not a pulse count > 0"))?;
+        Ok((c.trim().to_string(), ppr))
+    }
+
     /// The integrity checks of these encoders and marker on a recording with `header`'s
     /// channels (those it lacks are not checked); the marker is the first encoder's (the
     /// engine's, by default).

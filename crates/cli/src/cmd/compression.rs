@@ -4,12 +4,13 @@
 //! those fitted to all the TDCs with 95 % intervals, per TDC and recursively, the loss angle.
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::crank_input::{CrankFile, CrankInput};
+use crate::cmd::crank_input::{crank_input, Told};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, Result};
+use physid_apps::angle_input::{AngleInput, CrankFile};
 use physid_apps::compression::{
     compression_fit_events, CompressionConfig, CompressionFit, TdcEvents,
 };
@@ -138,17 +139,10 @@ fn fit(a: &FitArgs) -> Result<()> {
         }
     }
     cfg.selection = a.cutoff;
-    let input = CrankInput {
-        input: &a.input,
-        angle: &a.angle,
-        crank: &a.geometry.crank,
-        path: &a.data,
-        step_deg: 1.0,
-        quiet: a.json,
-        again: false,
-        scanned: None,
-    };
-    let file = CrankFile::new(input, vec![a.channel.as_str()]);
+    let told = Told::new(&a.input);
+    let mut input = crank_input(&a.input, &a.data, &a.angle, &a.geometry.crank, &told)?;
+    input.quiet = a.json;
+    let file = CrankFile::new(input.clone(), vec![a.channel.as_str()]);
     let events = TdcEvents::new(&file, &a.channel, cfg.window_deg, super::hold_bytes()?);
     let r = compression_fit_events(&events, &cfg).map_err(super::app_error(&a.data))?;
     let imep = motored_imep(&input, &r, &a.geometry)?;
@@ -255,7 +249,7 @@ struct FitOutput<'a> {
 /// The mean net IMEP of the motored cycles [Pa] (`physid_apps::pressure`, the volume with the
 /// fitted compression ratio): the work the motored loop loses, heat and gas exchange — with
 /// --bore and the pressure in Pa. A constant sensor offset does not change a closed loop's work.
-fn motored_imep(input: &CrankInput, r: &CompressionFit, g: &GeometryArgs) -> Result<Option<f64>> {
+fn motored_imep(input: &AngleInput, r: &CompressionFit, g: &GeometryArgs) -> Result<Option<f64>> {
     let (Some(bore), Some(stroke), Some(rod)) = (g.bore, g.crank.stroke, g.crank.rod) else {
         return Ok(None);
     };
@@ -270,17 +264,13 @@ fn motored_imep(input: &CrankInput, r: &CompressionFit, g: &GeometryArgs) -> Res
         compression_ratio: eps,
     };
     // A second pass over the recording, the cycles with the fitted compression ratio.
-    let quiet = CrankInput {
-        quiet: true,
-        again: true,
-        scanned: None,
-        ..*input
-    };
-    let (cycles, _) = quiet.read(
-        Some(&[r.channel.as_str()]),
-        |h| CycleAnalyser::new(h, &r.channel, Some(&geometry), Pegging::None),
-        |c, chunk| c.push(chunk),
-    )?;
+    let (cycles, _) = input
+        .read_again(
+            Some(&[r.channel.as_str()]),
+            |h| CycleAnalyser::new(h, &r.channel, Some(&geometry), Pegging::None),
+            |c, chunk| c.push(chunk),
+        )
+        .map_err(super::app_error(&input.path))?;
     let a = cycles.finish().map_err(|e| miette!("{e}"))?;
     let v: Vec<f64> = a.cycles.iter().filter_map(|c| c.imep_pa).collect();
     Ok((!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64))

@@ -2,7 +2,7 @@
 //! degree).
 
 use super::{CrankArgs, InputArgs};
-use crate::cmd::crank_input::CrankInput;
+use crate::cmd::crank_input::{crank_input, Told};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
@@ -75,22 +75,16 @@ pub fn run(args: &Args) -> Result<()> {
                 args.input.display()
             ));
         }
-        let input = CrankInput {
-            input: &args.read,
-            angle: &args.angle,
-            crank: &args.crank,
-            path: &args.input,
-            step_deg: args.step_deg,
-            quiet: false,
-            again: false,
-            scanned: None,
-        };
+        let told = Told::new(&args.read);
+        let mut input = crank_input(&args.read, &args.input, &args.angle, &args.crank, &told)?;
+        input.step_deg = args.step_deg;
         input
             .read(
                 chosen,
                 |h| Sink::create(&args.output, h, &args.channels, &write),
                 |s, chunk| s.append(chunk),
-            )?
+            )
+            .map_err(&at)?
             .0
     } else if let Some(rate) = args.time_basis {
         let mut reader = match chosen {

@@ -4,7 +4,7 @@
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::crank_input::CrankInput;
+use crate::cmd::crank_input::{crank_input, Told};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
@@ -107,21 +107,22 @@ fn pegging(s: &Option<String>) -> Result<Pegging> {
 pub fn run(args: &Args) -> Result<()> {
     let peg = pegging(&args.peg)?;
     let geometry = args.geometry.full()?;
-    let input = CrankInput {
-        input: &args.input,
-        angle: &args.angle,
-        crank: &args.geometry.crank,
-        path: &args.file,
-        step_deg: 1.0,
-        quiet: args.json,
-        again: false,
-        scanned: None,
-    };
-    let (analyser, wheel) = input.read(
-        Some(&[args.channel.as_str()]),
-        |h| CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg),
-        |a, chunk| a.push(chunk),
+    let told = Told::new(&args.input);
+    let mut input = crank_input(
+        &args.input,
+        &args.file,
+        &args.angle,
+        &args.geometry.crank,
+        &told,
     )?;
+    input.quiet = args.json;
+    let (analyser, wheel) = input
+        .read(
+            Some(&[args.channel.as_str()]),
+            |h| CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg),
+            |a, chunk| a.push(chunk),
+        )
+        .map_err(super::app_error(&args.file))?;
     let a = analyser.finish().map_err(super::app_error(&args.file))?;
     if let Some(path) = &args.tracks {
         write_tracks(path, &a)?;

@@ -2,7 +2,7 @@
 //! `rank` of its design parameters over an operating grid (thesis §7.2, Table 7.1, Fig. 7.1),
 //! `fit` of its regression coefficients to a motored recording (thesis §7.3, Application 2).
 
-use super::crank_input::CrankInput;
+use super::crank_input::{crank_input, Told};
 use super::inspect::AngleArgs;
 use super::CrankArgs;
 use crate::out::outln;
@@ -219,22 +219,27 @@ fn fit(a: &FitArgs) -> Result<()> {
     } else if header.basis == physid_core::Basis::Time {
         // The engine angle from an encoder's counts: the crank-angle samples as they are made.
         let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
-        let input = CrankInput::degrees(&a.input, &a.data, &angle, &crank);
+        let told = Told::new(&a.input);
+        let input = crank_input(&a.input, &a.data, &angle, &crank, &told)?;
         let (needed, optional) = friction_fit::cycle_channels(&cfg);
         let made = ["cycle"];
-        input.require(
-            &needed
-                .iter()
-                .filter(|n| !made.contains(n))
-                .copied()
-                .collect::<Vec<_>>(),
-        )?;
+        input
+            .require(
+                &needed
+                    .iter()
+                    .filter(|n| !made.contains(n))
+                    .copied()
+                    .collect::<Vec<_>>(),
+            )
+            .map_err(super::app_error(&a.data))?;
         let channels: Vec<&str> = needed.into_iter().chain(optional).collect();
-        let (cycles, _) = input.read(
-            Some(&channels),
-            |_| Ok(FrictionCycles::new(&cfg)),
-            |s, chunk| s.push(chunk),
-        )?;
+        let (cycles, _) = input
+            .read(
+                Some(&channels),
+                |_| Ok(FrictionCycles::new(&cfg)),
+                |s, chunk| s.push(chunk),
+            )
+            .map_err(super::app_error(&a.data))?;
         cycles.fit()
     } else {
         friction_fit(&a.input.read(&a.data, None)?, &cfg)

@@ -1,19 +1,18 @@
 //! `physid inspect`: what is in a recording, and the post-run integrity check (thesis ch. 4).
 
-use super::{CrankArgs, InputArgs};
+use super::InputArgs;
 use crate::out::outln;
 use crate::plot;
 use crate::progress::Reading;
 use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{
-    inspect_wheel, to_crank_angle_decoded, AcquisitionOptions, AngleSensor, AngleSpec,
-    DecodedAngle, Inspector,
+    inspect_wheel, parse_threshold, AcquisitionOptions, AngleSensor, AngleSpec, Inspector,
 };
-use physid_apps::compression::{tdc_from_pressure, CompressionConfig, TdcFromPressure};
+use physid_apps::compression::TdcFromPressure;
 use physid_apps::error::AppError;
 use physid_core::Recording;
-use physid_signal::wheel::{Edge, EdgeOptions, Wheel};
+use physid_signal::wheel::{Edge, EdgeOptions};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `physid inspect`.
@@ -72,34 +71,6 @@ impl AngleArgs {
         let mut o = acquisition_options(&self.encoders, &self.marker)?;
         o.sensor = self.wheel.spec()?;
         Ok(o)
-    }
-
-    /// A time-basis recording of `input` taken to one sample every `step_deg` crank degrees,
-    /// with what decoding a raw angle sensor found; with `--tdc-from`, the TDC placed from the
-    /// motored pressure first (on stderr, with its interval, unless `quiet`).
-    pub fn to_crank_angle(
-        &self,
-        rec: &Recording,
-        crank: &CrankArgs,
-        step_deg: f64,
-        input: &Path,
-        quiet: bool,
-    ) -> Result<(Recording, Option<DecodedAngle>)> {
-        let mut opts = self.options()?;
-        let at = |e: &dyn std::fmt::Display| miette!("{}: {e}", input.display());
-        if let Some(channel) = &self.wheel.tdc_from {
-            let (stroke, rod) = crank.lengths(&format!("--tdc-from {channel}"))?;
-            let cfg = CompressionConfig::new(channel, stroke, rod);
-            let found = tdc_from_pressure(rec, &opts, &cfg, step_deg).map_err(|e| at(&e))?;
-            if !quiet {
-                tell_tdc_from(input, channel, &found);
-            }
-            if let Some(spec) = opts.sensor.as_mut() {
-                spec.tdc_offset_deg = found.tdc_offset_deg;
-                spec.phase_from.get_or_insert_with(|| channel.clone());
-            }
-        }
-        to_crank_angle_decoded(rec, &opts, step_deg).map_err(|e| at(&e))
     }
 }
 
@@ -174,73 +145,22 @@ impl WheelArgs {
     pub fn spec(&self) -> Result<Option<AngleSpec>> {
         let sensor = match (&self.wheel, &self.quadrature) {
             (Some(w), _) => self.wheel_sensor(w)?,
-            (None, Some(q)) => quadrature_sensor(q)?,
+            (None, Some(q)) => AngleSensor::parse_quadrature(q).map_err(|e| miette!("--{e}"))?,
             (None, None) => return Ok(None),
         };
-        if !(self.tdc_offset.is_finite() && (0.0..360.0).contains(&self.tdc_offset)) {
-            return Err(miette!(
-                "--tdc-offset {}: expected an angle in [0, 360) degrees",
-                self.tdc_offset
-            ));
-        }
-        Ok(Some(AngleSpec {
-            sensor,
-            tdc_offset_deg: self.tdc_offset,
-            phase_from: self.phase_from.clone(),
-        }))
+        AngleSpec::new(sensor, self.tdc_offset, self.phase_from.clone())
+            .map(Some)
+            .map_err(|e| miette!("--tdc-offset {e}"))
     }
 
     fn wheel_sensor(&self, w: &str) -> Result<AngleSensor> {
-        let (channel, wheel) = w
-            .split_once('=')
-            .ok_or_else(|| miette!("--wheel '{w}': expected CHANNEL=N-M, e.g. enc=60-2"))?;
-        let wheel: Wheel = wheel.trim().parse().map_err(|e| miette!("--wheel: {e}"))?;
         let edge: Edge = self.edge.parse().map_err(|e| miette!("--edge: {e}"))?;
         let threshold = match &self.threshold {
             None => None,
-            Some(s) => {
-                let v: Vec<f64> = s
-                    .split(',')
-                    .map(|x| x.trim().parse::<f64>())
-                    .collect::<Result<_, _>>()
-                    .ok()
-                    .filter(|v: &Vec<f64>| v.len() == 2 && v.iter().all(|x| x.is_finite()) && v[1] > 0.0)
-                    .ok_or_else(|| {
-                        miette!("--threshold '{s}': expected LEVEL,HYSTERESIS (numbers, the hysteresis > 0), e.g. 1.5,0.3")
-                    })?;
-                Some((v[0], v[1]))
-            }
+            Some(s) => Some(parse_threshold(s).map_err(|e| miette!("--{e}"))?),
         };
-        Ok(AngleSensor::Wheel {
-            channel: channel.trim().to_string(),
-            wheel,
-            edges: EdgeOptions { edge, threshold },
-        })
+        AngleSensor::parse_wheel(w, EdgeOptions { edge, threshold }).map_err(|e| miette!("--{e}"))
     }
-}
-
-/// `A,B[,Z]=LINES`.
-fn quadrature_sensor(q: &str) -> Result<AngleSensor> {
-    let bad = || {
-        miette!("--quadrature '{q}': expected A,B,Z=LINES (the channels, the lines per revolution > 0), e.g. enc_a,enc_b,enc_z=500")
-    };
-    let (names, lines) = q.split_once('=').ok_or_else(bad)?;
-    let lines: u32 = lines
-        .trim()
-        .parse()
-        .ok()
-        .filter(|l| *l > 0)
-        .ok_or_else(bad)?;
-    let names: Vec<String> = names.split(',').map(|n| n.trim().to_string()).collect();
-    if !(2..=3).contains(&names.len()) || names.iter().any(String::is_empty) {
-        return Err(bad());
-    }
-    Ok(AngleSensor::Quadrature {
-        a: names[0].clone(),
-        b: names[1].clone(),
-        z: names.get(2).cloned(),
-        lines,
-    })
 }
 
 /// Encoder options from `CHANNEL=PPR` items (defaults when none).
@@ -252,16 +172,7 @@ pub fn acquisition_options(encoders: &[String], marker: &str) -> Result<Acquisit
     if !encoders.is_empty() {
         o.encoders = encoders
             .iter()
-            .map(|e| {
-                let (c, p) = e.split_once('=').ok_or_else(|| {
-                    miette!("--encoder '{e}': expected CHANNEL=PPR, e.g. count_en=360")
-                })?;
-                let ppr: u32 =
-                    p.trim().parse().ok().filter(|v| *v > 0).ok_or_else(|| {
-                        miette!("--encoder '{e}': '{p}' is not a pulse count > 0")
-                    })?;
-                Ok((c.trim().to_string(), ppr))
-            })
+            .map(|e| AcquisitionOptions::parse_encoder(e).map_err(|e| miette!("--{e}")))
             .collect::<Result<_>>()?;
     }
     Ok(o)

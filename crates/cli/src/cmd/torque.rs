@@ -1,13 +1,14 @@
 //! `physid torque fit`: Application 3 — identifiability and EKF/UKF estimation of the cyclic
 //! engine torque model (thesis ch. 8).
 
-use super::crank_input::{CrankFile, CrankInput};
+use super::crank_input::{crank_input, Told};
 use super::inspect::AngleArgs;
 use super::{named_values, CrankArgs};
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
 use crate::report::{self, Report};
 use miette::{miette, Result};
+use physid_apps::angle_input::CrankFile;
 use physid_apps::torque_fit::{
     cyclic_torque_nominal, torque_fit_degrees, Degrees, TorqueFit, TorqueFitConfig,
 };
@@ -351,10 +352,13 @@ fn fit(a: &FitArgs) -> Result<()> {
         // The engine angle from an encoder's counts: the 1° samples made as the file is read,
         // again on every pass.
         let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
-        let input = CrankInput::degrees(&a.input, &a.data, &angle, &crank);
+        let told = Told::new(&a.input);
+        let input = crank_input(&a.input, &a.data, &angle, &crank, &told)?;
         let mut channels = physid_apps::torque_fit::crank_channels(&header);
         channels.retain(|n| *n != "theta_en");
-        input.require(&channels)?;
+        input
+            .require(&channels)
+            .map_err(super::app_error(&a.data))?;
         let file = CrankFile::new(input, channels);
         let working =
             crate::progress::Working::new("choosing the parameters and filtering every degree");

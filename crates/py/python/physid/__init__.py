@@ -83,6 +83,20 @@ def read(
     map: Mapping[str, str] | None = None,
     columns: Sequence[str] | None = None,
     scale: Mapping[str, tuple[float, float]] | None = None,
+    *,
+    crank_angle: bool = False,
+    step_deg: float = 1.0,
+    wheel: str | None = None,
+    quadrature: str | None = None,
+    encoders: Sequence[str] | None = None,
+    marker: str | None = None,
+    tdc_offset: float = 0.0,
+    phase_from: str | None = None,
+    tdc_from: str | None = None,
+    stroke: float | None = None,
+    rod: float | None = None,
+    edge: str = "rising",
+    threshold: tuple[float, float] | None = None,
 ) -> Recording:
     """Read a recording: CSV (also ``;`` with decimal commas, header-less text with
     ``columns``), Parquet or MDF4, by extension.
@@ -91,6 +105,20 @@ def read(
     ``{name: "COLUMN[:UNIT]"}`` — read the file's column as the channel, stating its unit.
     ``scale``: ``{name: (gain, offset)}`` — a sensor's calibration. Standard channels
     (``omega_en``, ``p_cyl`` …) are converted to SI on reading, as every physid verb does.
+
+    On a crank-angle basis (``crank_angle=True``, implied by ``wheel``, ``quadrature``,
+    ``encoders`` and ``tdc_from``), as ``physid convert --crank-angle`` reads it: one sample
+    every ``step_deg`` degrees with ``cycle`` and ``crank_deg``, the engine angle from the
+    file's ``theta_en``, from an encoder's counts and TDC marker (``encoders``:
+    ``["count_en=360", …]``, ``marker``), or decoded from a raw sensor's signal — a trigger
+    wheel (``wheel="enc=60-2"``: channel, tooth pitches, missing teeth; ``edge`` ``"rising"`` or
+    ``"falling"``; ``threshold=(level, hysteresis)`` instead of the automatic level) or a
+    quadrature encoder (``quadrature="enc_a,enc_b,enc_z=500"``). The firing TDC lies
+    ``tdc_offset`` degrees after the sensor's reference, or is placed from the motored
+    cylinder pressure ``tdc_from`` (with ``stroke`` and ``rod`` [m]); ``phase_from`` (a
+    pressure or cam channel, ``":low"`` for a cam marking the other revolution) says which
+    revolution fires. What the decoding found is in ``meta["angle"]`` (and
+    ``meta["tdc_from"]``).
     """
     import os
 
@@ -100,6 +128,19 @@ def read(
         dict(map) if map is not None else None,
         list(columns) if columns is not None else None,
         {k: (float(g), float(o)) for k, (g, o) in scale.items()} if scale else None,
+        crank_angle=bool(crank_angle),
+        step_deg=float(step_deg),
+        wheel=wheel,
+        quadrature=quadrature,
+        encoders=list(encoders) if encoders is not None else None,
+        marker=marker,
+        tdc_offset=float(tdc_offset),
+        phase_from=phase_from,
+        tdc_from=tdc_from,
+        stroke=float(stroke) if stroke is not None else None,
+        rod=float(rod) if rod is not None else None,
+        edge=edge,
+        threshold=f"{float(threshold[0])},{float(threshold[1])}" if threshold is not None else None,
     )
 
 

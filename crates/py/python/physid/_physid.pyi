@@ -68,7 +68,12 @@ class Estimator:
             ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64], list[int]]: ...
 
 def read(path: str, channels: list[str] | None = ..., map: dict[str, str] | None = ...,
-         columns: list[str] | None = ..., scale: dict[str, tuple[float, float]] | None = ...) -> Recording: ...
+         columns: list[str] | None = ..., scale: dict[str, tuple[float, float]] | None = ...,
+         crank_angle: bool = ..., step_deg: float = ..., wheel: str | None = ...,
+         quadrature: str | None = ..., encoders: list[str] | None = ..., marker: str | None = ...,
+         tdc_offset: float = ..., phase_from: str | None = ..., tdc_from: str | None = ...,
+         stroke: float | None = ..., rod: float | None = ..., edge: str = ...,
+         threshold: str | None = ...) -> Recording: ...
 def identify(expr: str, names: list[str], nominal: list[float],
              inputs: dict[str, npt.NDArray[np.float64]], y: npt.NDArray[np.float64] | None,
              free: list[str], scaling: str, cutoff: str, sigma: float | None) -> str: ...

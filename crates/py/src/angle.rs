@@ -1,0 +1,157 @@
+//! A file read on a crank-angle basis from Python: the engine angle from `theta_en`, an
+//! encoder's counts and marker, or a raw trigger wheel or quadrature encoder — the library's
+//! input plan ([`physid_apps::angle_input`]), the same as `physid convert --crank-angle`.
+
+use crate::err;
+use physid_apps::acquisition::{
+    parse_threshold, AcquisitionOptions, AngleSensor, AngleSpec, DecodedAngle,
+};
+use physid_apps::angle_input::{AngleInput, InputObserver};
+use physid_apps::compression::TdcFromPressure;
+use physid_core::Recording;
+use physid_io::ReadOptions;
+use physid_signal::wheel::{Edge, EdgeOptions};
+use pyo3::PyResult;
+use std::cell::RefCell;
+use std::path::Path;
+
+/// How the engine angle is found, as `physid.read` takes it.
+pub(crate) struct AngleArgs {
+    pub wheel: Option<String>,
+    pub quadrature: Option<String>,
+    pub encoders: Option<Vec<String>>,
+    pub marker: Option<String>,
+    pub tdc_offset: f64,
+    pub phase_from: Option<String>,
+    pub tdc_from: Option<String>,
+    pub stroke: Option<f64>,
+    pub rod: Option<f64>,
+    pub edge: String,
+    pub threshold: Option<String>,
+    pub step_deg: f64,
+}
+
+impl AngleArgs {
+    /// Whether any of them asks for a crank-angle basis.
+    pub fn any(&self) -> bool {
+        self.wheel.is_some()
+            || self.quadrature.is_some()
+            || self.encoders.is_some()
+            || self.tdc_from.is_some()
+    }
+
+    /// The acquisition options they give (errors name the argument).
+    fn options(&self) -> PyResult<AcquisitionOptions> {
+        let mut o = AcquisitionOptions::default();
+        if let Some(m) = &self.marker {
+            o.marker.clone_from(m);
+        }
+        if let Some(e) = &self.encoders {
+            o.encoders = e
+                .iter()
+                .map(|e| AcquisitionOptions::parse_encoder(e).map_err(err))
+                .collect::<PyResult<_>>()?;
+        }
+        let sensor = match (&self.wheel, &self.quadrature) {
+            (Some(_), Some(_)) => return Err(err("give wheel or quadrature, not both")),
+            (Some(w), None) => {
+                let edge: Edge = self.edge.parse().map_err(err)?;
+                let threshold = self
+                    .threshold
+                    .as_deref()
+                    .map(parse_threshold)
+                    .transpose()
+                    .map_err(err)?;
+                Some(AngleSensor::parse_wheel(w, EdgeOptions { edge, threshold }).map_err(err)?)
+            }
+            (None, Some(q)) => Some(AngleSensor::parse_quadrature(q).map_err(err)?),
+            (None, None) => None,
+        };
+        o.sensor = match sensor {
+            Some(s) => Some(
+                AngleSpec::new(s, self.tdc_offset, self.phase_from.clone())
+                    .map_err(|e| err(format!("tdc_offset {e}")))?,
+            ),
+            None if self.tdc_from.is_some() || self.phase_from.is_some() => {
+                return Err(err(
+                    "tdc_from and phase_from place the TDC on a raw angle sensor: give wheel or quadrature",
+                ))
+            }
+            None => None,
+        };
+        Ok(o)
+    }
+}
+
+/// What the plan tells, kept for the recording's `meta`.
+#[derive(Default)]
+struct Kept {
+    notes: RefCell<Vec<(String, String)>>,
+}
+
+impl InputObserver for Kept {
+    fn read_warning(&self, _path: &Path, warning: &str) {
+        self.notes
+            .borrow_mut()
+            .push(("warning".into(), warning.to_string()));
+    }
+
+    fn decoded(&self, _path: &Path, d: &DecodedAngle) {
+        let mut text = format!("{}; {}", d.summary, d.phase);
+        for f in &d.findings {
+            text.push_str(&format!("; sample {}: {}", f.index, f.detail));
+        }
+        self.notes.borrow_mut().push(("angle".into(), text));
+    }
+
+    fn tdc_placed(&self, _path: &Path, channel: &str, found: &TdcFromPressure) {
+        self.notes.borrow_mut().push((
+            "tdc_from".into(),
+            format!(
+                "TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°)",
+                found.fit.events.len(),
+                found.tdc_offset_deg,
+                found.ci95.0,
+                found.ci95.1
+            ),
+        ));
+    }
+}
+
+/// `path` read with `read` on a crank-angle basis as `args` say; what decoding found is in the
+/// recording's `meta` (`angle`, `tdc_from`, `warning`).
+pub(crate) fn read_crank_angle(
+    path: &Path,
+    read: ReadOptions,
+    args: &AngleArgs,
+) -> PyResult<Recording> {
+    if !(args.step_deg.is_finite() && args.step_deg > 0.0) {
+        return Err(err(format!(
+            "step_deg {}: expected a crank-angle step > 0 degrees",
+            args.step_deg
+        )));
+    }
+    let channels = read.channels.clone();
+    let kept = Kept::default();
+    let mut plan = AngleInput::new(path, read, args.options()?, &kept);
+    plan.step_deg = args.step_deg;
+    if let Some(c) = &args.tdc_from {
+        let (Some(stroke), Some(rod)) = (args.stroke, args.rod) else {
+            return Err(err(format!(
+                "tdc_from '{c}' needs the crank's lengths: stroke and rod [m]"
+            )));
+        };
+        plan.tdc_from = Some(c.clone());
+        plan.crank = Some((stroke, rod));
+    }
+    let names: Option<Vec<&str>> = channels
+        .as_ref()
+        .map(|c| c.iter().map(String::as_str).collect());
+    let (mut rec, _) = plan
+        .read_all(names.as_deref())
+        .map_err(|e| err(format!("{}: {e}", path.display())))?;
+    for (k, v) in kept.notes.into_inner() {
+        rec.meta.insert(k, v);
+    }
+    Ok(rec)
+}
