@@ -658,3 +658,69 @@ fn the_stream_step_check_counts_samples_across_chunks() {
     let e = edge.check(&[2.01e-3]).unwrap_err().to_string();
     assert!(e.contains("at sample 2 "), "{e}");
 }
+
+/// The crank→time stage (`TimeBasisStream`, what `monitor`, `live --replay` and `convert
+/// --time-basis` run on a crank-angle file) against closed forms: an engine accelerating from
+/// 1200 rpm at 300 rad/s², sampled every 1° of crank (so its time step shrinks), with
+/// x = 3 + 2·t (linear in time: linear interpolation is exact) and the crank angle itself. On
+/// the 5 kHz grid from the first time, in chunks of 1, 50 and 4096: the times are t₀ + i/5000,
+/// x is 3 + 2·t within 1e-12, and the angle within the interpolation's bound
+/// α·h²/8 (h the longest 1° step) of θ(t) = ω₀·t + α·t²/2.
+#[test]
+fn the_time_basis_stream_against_closed_forms() {
+    use physid_apps::acquisition::TimeBasisStream;
+    let (w0, alpha) = (1200.0 * std::f64::consts::PI / 30.0, 300.0);
+    // t at θ = k·1° (θ(t) = ω₀t + αt²/2), for 4 s of running.
+    let t_at = |th: f64| (-w0 + (w0 * w0 + 2.0 * alpha * th).sqrt()) / alpha;
+    let n = ((w0 * 4.0 + alpha * 8.0).to_degrees()) as usize;
+    let th: Vec<f64> = (0..n).map(|k| (k as f64).to_radians()).collect();
+    let t: Vec<f64> = th.iter().map(|&a| t_at(a)).collect();
+    let x: Vec<f64> = t.iter().map(|&t| 3.0 + 2.0 * t).collect();
+    let mut rec = Recording::new(Basis::CrankAngle);
+    for (name, unit, v) in [("t", "s", &t), ("x", "", &x), ("theta_en", "rad", &th)] {
+        rec.push(Channel {
+            name: name.into(),
+            unit: unit.into(),
+            values: v.clone(),
+        })
+        .unwrap();
+    }
+    let h = t[1] - t[0];
+    let bound = alpha * h * h / 8.0 + 1e-12;
+    for chunk in [1, 50, 4096] {
+        let mut s = TimeBasisStream::new(&rec, 5000.0).unwrap();
+        let mut out = s.header().unwrap();
+        for c in cut(&rec, chunk) {
+            out.append(&s.push(&c.unwrap()).unwrap()).unwrap();
+        }
+        out.append(&s.finish().unwrap()).unwrap();
+        let (ot, ox, oth) = (
+            out.values("t").unwrap(),
+            out.values("x").unwrap(),
+            out.values("theta_en").unwrap(),
+        );
+        assert_eq!(
+            ot.len(),
+            (t[n - 1] * 5000.0).floor() as usize + 1,
+            "chunks of {chunk}"
+        );
+        for i in 0..ot.len() {
+            assert!(
+                (ot[i] - i as f64 / 5000.0).abs() < 1e-12,
+                "t[{i}] = {}",
+                ot[i]
+            );
+            assert!(
+                (ox[i] - (3.0 + 2.0 * ot[i])).abs() < 1e-12,
+                "x[{i}] = {}",
+                ox[i]
+            );
+            let truth = w0 * ot[i] + alpha * ot[i] * ot[i] / 2.0;
+            assert!(
+                (oth[i] - truth).abs() <= bound,
+                "θ[{i}] = {} against {truth} (bound {bound:e})",
+                oth[i]
+            );
+        }
+    }
+}
