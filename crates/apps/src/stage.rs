@@ -2,9 +2,8 @@
 //! come and hands what it makes to a [`Sink`]; [`Stage::finish`] gives what it still holds at
 //! the end of the stream.
 //!
-//! Not yet: the trait does not ask for `serde` state. The shaft monitor's is (a fleet worker's
-//! checkpoint holds it, and a restored stage continues bit for bit); the friction and torque
-//! stages' are not, which is why a fleet worker does not run them yet (docs/fleet.md).
+//! A stage's whole state is `serde` data (the trait asks for it): the live service's checkpoint
+//! holds every stage it runs, and a restored stage continues bit for bit.
 //!
 //! The file verbs and the live service drive the same stages — the shaft monitor
 //! ([`ShaftStage`](crate::shaft_monitor::ShaftStage)), the friction characterisation
@@ -19,8 +18,9 @@ use physid_signal::integrity::{Finding, IntegrityStream};
 
 pub use physid_core::Sink;
 
-/// A stage of the data path (see the module docs).
-pub trait Stage {
+/// A stage of the data path (see the module docs): its state serializable, so that it
+/// checkpoints.
+pub trait Stage: serde::Serialize + serde::de::DeserializeOwned {
     /// What the stage makes.
     type Out;
 

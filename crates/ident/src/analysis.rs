@@ -39,7 +39,7 @@ impl Default for IdentConfig {
 }
 
 /// The batch analysis: the ranking, and what the quantitative results are computed from.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Analysis {
     /// Names of the analysed parameters (the free subset), in their order.
     pub names: Vec<String>,
@@ -451,7 +451,7 @@ pub fn wu_along_ranking<M: ParamModel, R: Rows + ?Sized>(
 }
 
 /// One row of a ranking table (thesis Tables 7.3 and 8.1).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct RankedParam {
     /// Parameter name.
     pub param: String,
@@ -510,6 +510,21 @@ impl<'de> Deserialize<'de> for Selection {
         let text = String::deserialize(d)?;
         Self::parse(&text).map_err(serde::de::Error::custom)
     }
+}
+
+/// [`Selection`] as data both ways, lossless (its own `Deserialize` reads the text form a
+/// pipeline file gives): for a stage's checkpointed configuration,
+/// `#[serde(with = "physid_ident::SelectionData")]`.
+#[derive(Serialize, Deserialize)]
+#[serde(remote = "Selection", rename_all = "snake_case")]
+pub enum SelectionData {
+    /// A residual cut-off.
+    Rule(Cutoff),
+    /// Wu et al., with the noise variance if known.
+    Wu {
+        /// Noise variance σ².
+        sigma2: Option<f64>,
+    },
 }
 
 impl Selection {

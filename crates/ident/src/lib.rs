@@ -28,7 +28,7 @@ pub mod wu;
 
 pub use analysis::{
     analyse, fit_subset, wu_along_ranking, Analysis, Fit, IdentConfig, RankedParam, Selection,
-    WuDecision,
+    SelectionData, WuDecision,
 };
 pub use fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, Quantitative};
 pub use online::{Memory, OnlineIdent};

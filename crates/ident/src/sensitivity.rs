@@ -169,7 +169,7 @@ pub fn sensitivity_matrix<M: ParamModel>(
 
 /// Output statistics for the scalings: rms and standard deviation of `y` (measured, or the
 /// model at `ϑ0`), over how many rows.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct OutputLevels {
     /// √mean(y²).
     pub rms: f64,

@@ -67,7 +67,7 @@ pub const ILLUSTRATIVE: [f64; 15] = [
 ];
 
 /// The cyclic-torque model.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CyclicTorque {
     params: Vec<String>,
     inputs: Vec<String>,

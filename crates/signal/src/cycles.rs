@@ -17,7 +17,7 @@ use crate::crank::CrankError;
 use std::f64::consts::PI;
 
 /// One complete cycle.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CycleSummary {
     /// Cycle index: 0 for the first cycle that starts in the stream (as the recordings'
     /// `cycle` channel counts from the first TDC marker).

@@ -4,7 +4,7 @@
 use super::*;
 
 /// Cycle means of a motored recording: the data of the characterisation.
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, Serialize, serde::Deserialize)]
 pub struct CycleMeans {
     /// Cycle index in the recording.
     pub cycle: Vec<i64>,
@@ -50,7 +50,7 @@ impl CycleMeans {
 }
 
 /// One complete cycle's means: the characterisation's data point.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct FrictionCycle {
     /// Cycle index.
     pub cycle: i64,

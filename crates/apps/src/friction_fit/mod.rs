@@ -50,7 +50,7 @@ pub use result::*;
 pub use stage::*;
 
 /// Where the motoring torque comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum TorqueSource {
     /// `−torque_engine`: the engine torque load cell (negative when motored).
@@ -78,7 +78,7 @@ impl TorqueSource {
 }
 
 /// How to fit.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct FrictionFitConfig {
     /// The engine's design (mm) for the regressors.
     pub design: Design<f64>,
@@ -87,6 +87,7 @@ pub struct FrictionFitConfig {
     /// Motoring-torque channel.
     pub source: TorqueSource,
     /// How many of the ranked coefficients to estimate.
+    #[serde(with = "physid_ident::SelectionData")]
     pub selection: Selection,
     /// `S0 = s0·I` in relative coordinates (thesis: √100 = 10).
     pub s0: f64,

@@ -44,15 +44,17 @@ pub struct FrictionSample {
 
 /// The channels a stage sums over each cycle from samples: speed, manifold pressure, oil
 /// temperature, the motoring torque, then (when present) ambient pressure and the truth.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct SampleMeans {
     cycles: CycleStream,
     /// Channel names and the units they are summed in.
-    channels: Vec<(&'static str, &'static str)>,
+    channels: Vec<(String, String)>,
     has_p_atm: bool,
     has_truth: bool,
     /// Samples taken so far.
     seen: usize,
+    /// The cycles a chunk completed (scratch, empty between chunks).
+    #[serde(skip)]
     done: Vec<CycleSummary>,
 }
 
@@ -64,7 +66,7 @@ pub(super) const TRUTH_CHANNELS: [&str; 3] = [
 ];
 
 /// The estimator once the coefficients are chosen.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Running {
     ranking: Vec<RankedParam>,
     estimable: Vec<String>,
@@ -79,7 +81,7 @@ struct Running {
 /// them at [`finish`](Self::finish) — the file verb; the estimator then runs through the
 /// cycles so far and every later one as it comes. The result does not depend on how the
 /// samples were chunked.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct FrictionStage {
     cfg: FrictionFitConfig,
     select_after: Option<usize>,
@@ -269,7 +271,10 @@ impl FrictionStage {
         Ok(SampleMeans {
             cycles: CycleStream::new(channels.len(), self.theta_tdc, None)
                 .map_err(|e| AppError::Invalid(e.to_string()))?,
-            channels,
+            channels: channels
+                .into_iter()
+                .map(|(n, u)| (n.to_string(), u.to_string()))
+                .collect(),
             has_p_atm,
             has_truth,
             seen: 0,

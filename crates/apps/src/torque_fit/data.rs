@@ -5,7 +5,7 @@ use super::*;
 
 /// The model's data from a crank-angle recording: input columns θ (`theta_en`, rad from TDC),
 /// ω, α, p_cyl, p_crank [Pa], T_oil [°C], the measured engine torque, and time.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TorqueData {
     /// Input columns in [`CyclicTorque`]'s order.
     pub inputs: Vec<Vec<f64>>,

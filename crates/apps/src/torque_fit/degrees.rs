@@ -6,6 +6,7 @@ use super::*;
 /// A time-basis stream resampled to one sample per crank degree, cycles from a TDC angle on
 /// `theta_en` (linear between samples, [`CycleStream`]'s crank-angle curves): what the live
 /// stage and every pass of the file verb over a time-basis recording run.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) struct DegreeCurves {
     pub(super) theta_tdc: f64,
     pub(super) curves: Option<CycleStream>,

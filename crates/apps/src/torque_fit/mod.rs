@@ -62,13 +62,14 @@ pub use stage::*;
 pub const TORQUE_CUTOFF: f64 = 1e-6;
 
 /// How to fit.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TorqueFitConfig {
     /// Initial (nominal) values ϑ0 of the 15 parameters.
     pub nominal: [f64; 15],
     /// Parameters known by design, held out of the analysis and the filter.
     pub fixed: Vec<String>,
     /// How many ranked parameters to estimate.
+    #[serde(with = "physid_ident::SelectionData")]
     pub selection: Selection,
     /// EKF, UKF or SR-UKF (with the thesis's sigma points).
     pub method: MethodName,

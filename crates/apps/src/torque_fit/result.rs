@@ -3,7 +3,7 @@
 use super::*;
 
 /// One estimated parameter's track.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Track {
     /// Parameter name.
     pub param: String,

@@ -36,6 +36,7 @@ pub struct TorqueCycle {
 }
 
 /// The file verb's tracks: a point every `every` samples, thinned as they grow.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) struct Tracks {
     every: usize,
     t: Vec<f64>,
@@ -75,6 +76,7 @@ impl Tracks {
 
 /// Step 2, once the parameters are chosen: the filter over the estimable ones, a sample at a
 /// time, a [`TorqueOutput::Cycle`] every 720 samples, and — for the file verb — bounded tracks.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) struct TorqueFilter {
     est: NonlinearEstimator<CyclicTorque>,
     analysis: Analysis,
@@ -306,6 +308,7 @@ impl TorqueFilter {
 }
 
 /// The samples a live stage keeps until it chooses, and the filter after.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(super) struct Choosing {
     cfg: TorqueFitConfig,
     select_after: usize,
@@ -358,6 +361,7 @@ impl Choosing {
 /// on the first `select_after` samples ([`TorqueFilter::choose`], as the file verb chooses on
 /// all), then a cycle's estimates at a time out. The samples are kept until the choice and
 /// dropped after it: memory stays bounded.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TorqueStage {
     curves: DegreeCurves,
     choosing: Choosing,

@@ -142,11 +142,7 @@ pub struct Stages<E> {
     rate_hz: f64,
     st: State,
     traces: Option<TraceStage>,
-    /// The friction characterisation (stopped, with a finding, at its first error).
-    friction: Option<FrictionStage>,
     friction_out: Vec<FrictionOutput>,
-    /// The cyclic-torque estimation (stopped, with a finding, at its first error).
-    torque: Option<TorqueStage>,
     torque_out: Vec<TorqueOutput>,
     findings: Vec<IntegrityFinding>,
     recorder: Recorder,
@@ -179,6 +175,10 @@ struct State {
     shaft_frozen: Option<[bool; 3]>,
     /// The integrity checks on the stream (set up on the first chunk).
     integrity: Option<IntegrityStream>,
+    /// The friction characterisation (stopped, with a finding, at its first error).
+    friction: Option<FrictionStage>,
+    /// The cyclic-torque estimation (stopped, with a finding, at its first error).
+    torque: Option<TorqueStage>,
     /// The time of the stream's first sample [s].
     t_first: f64,
     events: usize,
@@ -193,7 +193,7 @@ struct State {
 }
 
 /// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
-pub const CHECKPOINT_VERSION: u32 = 1;
+pub const CHECKPOINT_VERSION: u32 = 2;
 
 #[cfg(test)]
 mod tests {
@@ -202,15 +202,16 @@ mod tests {
     use physid_sim::run::{OutputBasis, RunOptions};
     use physid_sim::scenario::{Fault, Scenario};
 
-    fn chunks() -> (Vec<Recording>, f64) {
+    /// `scenario` run for `duration` s at 5 kHz (with `faults`), in chunks of 13 ms.
+    fn run_chunks(scenario: &str, duration: f64, faults: &[&str]) -> (Vec<Recording>, f64) {
         let opts = RunOptions {
-            duration: Some(4.0),
-            faults: vec![Fault::parse("shaft.k=1000@2").unwrap()],
+            duration: Some(duration),
+            faults: faults.iter().map(|f| Fault::parse(f).unwrap()).collect(),
             basis: OutputBasis::Time(5000.0),
             ..Default::default()
         };
         let mut src =
-            ScenarioSource::new(&Scenario::load("shaft-steady").unwrap(), &opts, 0.013).unwrap();
+            ScenarioSource::new(&Scenario::load(scenario).unwrap(), &opts, 0.013).unwrap();
         let mut out = Vec::new();
         while let Some(c) = src.next_chunk().unwrap() {
             out.push(c);
@@ -225,24 +226,24 @@ mod tests {
             .collect()
     }
 
-    /// The stages checkpointed at any chunk and restored (through bytes) give the events an
-    /// uninterrupted run gives, bit for bit — the alarm of a stiffness fault, the estimates,
-    /// the cycles, the end.
-    #[test]
-    fn a_restored_checkpoint_goes_on_exactly() {
-        let (chunks, rate) = chunks();
-        let cfg = LiveConfig::default();
+    /// `cfg`'s stages over `chunks`, checkpointed after chunk 1, a third of them and all but
+    /// the last, and restored (through bytes): the events an uninterrupted run gives, bit for
+    /// bit. Returns the uninterrupted run's events.
+    fn restored_runs_equal_the_whole(
+        cfg: &LiveConfig,
+        chunks: &[Recording],
+        rate: f64,
+    ) -> Vec<Event> {
         let mut whole = Vec::new();
         let mut s = Stages::new(cfg.clone(), rate, |e: &Event| {
             whole.push(e.clone());
             Ok(())
         })
         .unwrap();
-        for c in &chunks {
+        for c in chunks {
             s.chunk(c).unwrap();
         }
         s.finish().unwrap();
-        assert!(whole.iter().any(|e| matches!(e, Event::Alarm { .. })));
         for cut in [1, chunks.len() / 3, chunks.len() - 1] {
             let mut first = Vec::new();
             let mut s = Stages::new(cfg.clone(), rate, |e: &Event| {
@@ -268,12 +269,64 @@ mod tests {
             first.extend(second);
             assert_eq!(json(&first), json(&whole), "cut at chunk {cut}");
         }
+        whole
+    }
+
+    /// The stages checkpointed at any chunk and restored (through bytes) give the events an
+    /// uninterrupted run gives, bit for bit — the alarm of a stiffness fault, the estimates,
+    /// the cycles, the end.
+    #[test]
+    fn a_restored_checkpoint_goes_on_exactly() {
+        let (chunks, rate) = run_chunks("shaft-steady", 4.0, &["shaft.k=1000@2"]);
+        let cfg = LiveConfig::default();
+        let whole = restored_runs_equal_the_whole(&cfg, &chunks, rate);
+        assert!(whole.iter().any(|e| matches!(e, Event::Alarm { .. })));
         // Another layout is refused with a reason, not misread.
         let bad = rmp_serde::to_vec(&(CHECKPOINT_VERSION + 1, 0u8)).unwrap();
         let e = Stages::restore(cfg, &bad, |_: &Event| Ok(()))
             .err()
             .unwrap();
         assert!(e.to_string().contains("checkpoint"), "{e}");
+    }
+
+    /// The friction characterisation and the cyclic-torque estimation checkpoint too: cut before
+    /// their choice, after it and near the end, a restored run's events (the choice, every
+    /// cycle's estimates) equal an uninterrupted one's, bit for bit.
+    #[test]
+    fn the_friction_and_torque_stages_checkpoint_too() {
+        use physid_apps::friction_fit::friction_preset;
+        let (d, st) = friction_preset("cell").unwrap();
+        let friction = LiveConfig {
+            friction: Some(config::FrictionLive {
+                fit: FrictionFitConfig::new(d, st),
+                select_after: 20,
+            }),
+            ..LiveConfig::default()
+        };
+        let (chunks, rate) = run_chunks("friction-sweep", 8.0, &[]);
+        let whole = restored_runs_equal_the_whole(&friction, &chunks, rate);
+        let n = whole
+            .iter()
+            .filter(|e| matches!(e, Event::Friction { .. }))
+            .count();
+        assert!(n > 20, "{n} friction cycles");
+        let nominal =
+            physid_apps::cell::cyclic_torque_nominal(&physid_sim::params::CellParams::default())
+                .unwrap();
+        let torque = LiveConfig {
+            torque: Some(config::TorqueLive {
+                fit: TorqueFitConfig::new(nominal),
+                select_after_cycles: 2,
+            }),
+            ..LiveConfig::default()
+        };
+        let (chunks, rate) = run_chunks("torque-ramp", 2.0, &[]);
+        let whole = restored_runs_equal_the_whole(&torque, &chunks, rate);
+        let n = whole
+            .iter()
+            .filter(|e| matches!(e, Event::Torque { .. }))
+            .count();
+        assert!(n > 5, "{n} torque cycles");
     }
 
     /// Quantiles of 1 … 1000 ms: the median's bin ends at 500 ms, the 99th percentile's at

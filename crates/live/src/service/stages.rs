@@ -13,6 +13,8 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             cycles_stopped: false,
             shaft_frozen: None,
             integrity: None,
+            friction: Self::friction_stage(&cfg)?,
+            torque: Self::torque_stage(&cfg)?,
             t_first: f64::NAN,
             events: 0,
             taken: 0,
@@ -27,15 +29,11 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     }
 
     fn with_state(cfg: LiveConfig, st: State, emit: E) -> Result<Self, LiveError> {
-        let friction = Self::friction_stage(&cfg)?;
-        let torque = Self::torque_stage(&cfg)?;
         Ok(Self {
             rate_hz: st.rate_hz,
             st,
             traces: None,
-            friction,
             friction_out: Vec::new(),
-            torque,
             torque_out: Vec::new(),
             findings: Vec::new(),
             recorder: Recorder::new(&cfg.log_dir),
@@ -87,14 +85,14 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                 self.st.cycles_stopped = false;
             }
             "friction" => {
-                self.friction = Some(
+                self.st.friction = Some(
                     Self::friction_stage(&self.cfg)
                         .map_err(|e| e.to_string())?
                         .ok_or_else(|| none("--friction"))?,
                 );
             }
             _ => {
-                self.torque = Some(
+                self.st.torque = Some(
                     Self::torque_stage(&self.cfg)
                         .map_err(|e| e.to_string())?
                         .ok_or_else(|| none("--torque"))?,
@@ -107,15 +105,14 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     /// The state of the checkpointed stages as bytes (MessagePack, led by
     /// [`CHECKPOINT_VERSION`]); refused while a stage that is not checkpointed runs.
     pub fn checkpoint(&self) -> Result<Vec<u8>, LiveError> {
-        if self.friction.is_some() || self.torque.is_some() || self.recorder.is_recording() {
+        if self.recorder.is_recording() {
             return Err(LiveError::Invalid(
-                "a checkpoint covers the shaft monitor, the cycle statistics and the integrity \
-                 checks; the friction and torque stages and a log being written are not \
-                 checkpointed"
+                "a checkpoint covers the stages (shaft, cycles, integrity, friction, torque); \
+                 a log being written is not checkpointed"
                     .into(),
             ));
         }
-        rmp_serde::to_vec(&(CHECKPOINT_VERSION, &self.st))
+        rmp_serde::to_vec_named(&(CHECKPOINT_VERSION, &self.st))
             .map_err(|e| LiveError::Invalid(format!("writing the checkpoint: {e}")))
     }
 
@@ -330,12 +327,12 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             }
         }
         self.cycles(chunk)?;
-        if let Some(stage) = self.friction.as_mut() {
+        if let Some(stage) = self.st.friction.as_mut() {
             self.friction_out.clear();
             let result = stage.push(chunk, &mut self.friction_out);
             self.friction_events(result)?;
         }
-        if let Some(stage) = self.torque.as_mut() {
+        if let Some(stage) = self.st.torque.as_mut() {
             self.torque_out.clear();
             let result = stage.push(chunk, &mut self.torque_out);
             self.torque_events(result)?;
@@ -493,6 +490,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                 },
                 FrictionOutput::Cycle(s) => {
                     let names = self
+                        .st
                         .friction
                         .as_ref()
                         .and_then(FrictionStage::estimable)
@@ -515,7 +513,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         }
         self.friction_out = out;
         if let Err(e) = result {
-            self.friction = None;
+            self.st.friction = None;
             let t_s = self.st.last_t;
             self.send(&Event::finding(
                 t_s,
@@ -530,6 +528,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     fn torque_events(&mut self, result: Result<(), AppError>) -> Result<(), LiveError> {
         let out = std::mem::take(&mut self.torque_out);
         let names: Vec<String> = self
+            .st
             .torque
             .as_ref()
             .and_then(TorqueStage::estimable)
@@ -565,7 +564,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         }
         self.torque_out = out;
         if let Err(e) = result {
-            self.torque = None;
+            self.st.torque = None;
             let t_s = self.st.last_t;
             self.send(&Event::finding(
                 t_s,
@@ -577,7 +576,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
 
     /// The end of the stream: the stages' last output, the final estimate, `end`.
     pub fn finish(mut self) -> Result<Summary, LiveError> {
-        if let Some(stage) = self.torque.as_mut() {
+        if let Some(stage) = self.st.torque.as_mut() {
             self.torque_out.clear();
             // A replay shorter than the choice chooses on all of it.
             let result = stage.finish(&mut self.torque_out);
@@ -588,7 +587,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             stream.finish(&mut self.findings);
             self.send_findings()?;
         }
-        if let Some(stage) = self.friction.as_mut() {
+        if let Some(stage) = self.st.friction.as_mut() {
             self.friction_out.clear();
             // The last cycle judged; a replay shorter than the choice chooses on all its cycles.
             let result = stage.finish(&mut self.friction_out);

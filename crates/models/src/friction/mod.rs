@@ -24,7 +24,7 @@ pub use presets::*;
 
 /// An oil grade: Vogel constants of `μ = k·exp(θ1/(θ2 + T))` [cP, T in °C] and the high-shear
 /// factor `u_uo` (SPEC §2.5 table).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Oil {
     /// k [cP].
     pub k: f64,
@@ -37,7 +37,7 @@ pub struct Oil {
 }
 
 /// A valvetrain's friction constants (SPEC §2.5 table).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Valvetrain {
     /// Cff, flat-follower.
     pub cff: f64,
@@ -143,7 +143,7 @@ impl OperatingPoint {
 }
 
 /// Design parameters (mm; κ dimensionless), generic so that each can be differentiated.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct Design<T> {
     /// Bore B [mm].
     pub b: T,
@@ -166,7 +166,7 @@ pub struct Design<T> {
 }
 
 /// Which statement of the model (SPEC §2.5 note).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Variant {
     /// The thesis's code (app. B.2): `s_μ = √(u_uo·μ(T)/μ(T_ref))`, the grade factor `u_uo`
     /// alone in three hydrodynamic terms, constant 4.12 kPa in rfmep, auxiliaries
@@ -206,7 +206,7 @@ impl<T: Scalar> Design<T> {
 }
 
 /// The discrete choices: oil, valvetrain, counts and ring factors.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct Settings {
     /// Which statement of the model.
     pub variant: Variant,

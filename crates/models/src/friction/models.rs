@@ -130,7 +130,7 @@ pub const REGRESSION_PARAMS: [&str; 20] = [
 /// design and the discrete settings are fixed; pumping (c17 … c20) is included, as the thesis's
 /// characterisation has it. Inputs as [`FrictionTorque`]: `n_rpm`, `p_int_kpa`, `p_atm_kpa`,
 /// `t_oil_c`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct FrictionRegression {
     design: Design<f64>,
     settings: Settings,
