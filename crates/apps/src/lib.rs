@@ -12,6 +12,7 @@
 //!   truth of a simulated recording.
 //! * [`compression`] — the chain on a motored pressure trace: the motored model's
 //!   identifiability, its estimable parameters per TDC and recursively, the TDC and loss angle.
+//! * [`cycle_stage`] — per-cycle statistics of chosen channels on the stream (a stage).
 //! * [`error`] — the applications' error type.
 //! * [`demo`] — the chain on the built-in virtual test cell (`physid demo`).
 //! * [`example_5_1`] — thesis Example 5.1's model in Rust (the reference for the expression
@@ -38,6 +39,7 @@ pub mod acquisition;
 pub mod angle_input;
 pub mod cell;
 pub mod compression;
+pub mod cycle_stage;
 pub mod demo;
 pub mod error;
 pub mod example_5_1;

@@ -321,11 +321,11 @@ impl Event {
 
     /// The cycle event of a cycle summary over `channels` (the curve at `step_deg` when the
     /// summary has one).
-    pub fn cycle(c: &CycleSummary, channels: &[&'static str], step_deg: f64) -> Self {
+    pub fn cycle(c: &CycleSummary, channels: &[String], step_deg: f64) -> Self {
         let by_name = |v: &[f64]| {
             channels
                 .iter()
-                .map(|&c| Name::Borrowed(c))
+                .map(|c| Name::Owned(c.clone()))
                 .zip(v.iter().copied())
                 .collect()
         };
@@ -340,7 +340,7 @@ impl Event {
                 step_deg,
                 channels: channels
                     .iter()
-                    .map(|&c| Name::Borrowed(c))
+                    .map(|c| Name::Owned(c.clone()))
                     .zip(curves.iter().cloned())
                     .collect(),
             }),

@@ -5,6 +5,8 @@
 
 use crate::event::{Event, Name};
 use crate::service::{LiveError, PanelFeed};
+use physid_apps::error::AppError;
+use physid_apps::stage::{Sink, Stage};
 use physid_core::Recording;
 use std::collections::BTreeMap;
 
@@ -19,10 +21,10 @@ pub const TRACE_CHANNELS: [&str; 6] = [
     "throttle",
 ];
 
-/// Bin means of the traced channels.
-#[derive(Debug, Clone)]
+/// Bin means of the traced channels, a [`Stage`] whose output is the `trace` events.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TraceStage {
-    names: Vec<&'static str>,
+    names: Vec<String>,
     /// Samples per bin, bins per event.
     bin: usize,
     per_event: usize,
@@ -47,9 +49,10 @@ impl TraceStage {
                 feed.trace_hz, feed.trace_every_s
             )));
         }
-        let names: Vec<&'static str> = TRACE_CHANNELS
+        let names: Vec<String> = TRACE_CHANNELS
             .into_iter()
             .filter(|c| first.channel(c).is_ok())
+            .map(String::from)
             .collect();
         let bin = ((rate_hz / feed.trace_hz).round() as usize).max(1);
         let per_event = ((feed.trace_every_s * rate_hz / bin as f64).round() as usize).max(1);
@@ -64,36 +67,6 @@ impl TraceStage {
             names,
             taken: 0,
         })
-    }
-
-    /// Take a chunk; a trace event when enough bins are finished.
-    pub fn push(&mut self, chunk: &Recording) -> Result<Option<Event>, LiveError> {
-        let t = chunk.values("t")?;
-        let cols = self
-            .names
-            .iter()
-            .map(|n| chunk.values(n))
-            .collect::<Result<Vec<_>, _>>()?;
-        self.taken += t.len() as u64;
-        for i in 0..t.len() {
-            self.sum_t += t[i];
-            for (s, c) in self.sums.iter_mut().zip(&cols) {
-                *s += c[i];
-            }
-            self.count += 1;
-            if self.count == self.bin {
-                self.close_bin();
-            }
-        }
-        Ok((self.t.len() >= self.per_event).then(|| self.take()))
-    }
-
-    /// The bins not sent yet (the last one partial), at the end of the stream.
-    pub fn flush(&mut self) -> Option<Event> {
-        if self.count > 0 {
-            self.close_bin();
-        }
-        (!self.t.is_empty()).then(|| self.take())
     }
 
     fn close_bin(&mut self) {
@@ -112,9 +85,9 @@ impl TraceStage {
             .names
             .iter()
             .zip(&mut self.values)
-            .map(|(&n, v)| {
+            .map(|(n, v)| {
                 let v = std::mem::replace(v, Vec::with_capacity(self.per_event));
-                (Name::Borrowed(n), v)
+                (Name::Owned(n.clone()), v)
             })
             .collect();
         let t = std::mem::replace(&mut self.t, Vec::with_capacity(self.per_event));
@@ -124,6 +97,48 @@ impl TraceStage {
             channels,
             samples: self.taken,
         }
+    }
+}
+
+impl Stage for TraceStage {
+    type Out = Event;
+
+    /// Take a chunk; a trace event when enough bins are finished.
+    fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<Event>) -> Result<(), AppError> {
+        let t = chunk.values("t")?;
+        let cols = self
+            .names
+            .iter()
+            .map(|n| chunk.values(n))
+            .collect::<Result<Vec<_>, _>>()?;
+        self.taken += t.len() as u64;
+        for i in 0..t.len() {
+            self.sum_t += t[i];
+            for (s, c) in self.sums.iter_mut().zip(&cols) {
+                *s += c[i];
+            }
+            self.count += 1;
+            if self.count == self.bin {
+                self.close_bin();
+            }
+        }
+        if self.t.len() >= self.per_event {
+            let e = self.take();
+            out.put(e);
+        }
+        Ok(())
+    }
+
+    /// The bins not sent yet (the last one partial), at the end of the stream.
+    fn finish(&mut self, out: &mut dyn Sink<Event>) -> Result<(), AppError> {
+        if self.count > 0 {
+            self.close_bin();
+        }
+        if !self.t.is_empty() {
+            let e = self.take();
+            out.put(e);
+        }
+        Ok(())
     }
 }
 
@@ -165,13 +180,13 @@ mod tests {
                     xx.extend(&channels["throttle"]);
                 }
             };
+            let mut events = Vec::new();
             for k in (0..t.len()).step_by(size) {
                 let e = (k + size).min(t.len());
-                if let Some(ev) = st.push(&chunk(&t[k..e], &x[k..e])).unwrap() {
-                    take(ev);
-                }
+                st.push(&chunk(&t[k..e], &x[k..e]), &mut events).unwrap();
             }
-            if let Some(ev) = st.flush() {
+            st.finish(&mut events).unwrap();
+            for ev in events {
                 take(ev);
             }
             (tt, xx)

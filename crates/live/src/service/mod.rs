@@ -12,6 +12,7 @@ use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
 use crate::trace::TraceStage;
 use physid_apps::acquisition::AcquisitionOptions;
+use physid_apps::cycle_stage::CycleStage;
 use physid_apps::error::AppError;
 use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftOutput, ShaftParams, ShaftStage};
@@ -21,7 +22,7 @@ use physid_core::{Basis, Recording, RecordingError};
 use physid_io::IoError;
 use physid_models::friction::REGRESSION_PARAMS;
 use physid_signal::crank::CrankError;
-use physid_signal::cycles::{CycleStream, CycleSummary};
+use physid_signal::cycles::CycleSummary;
 use physid_signal::integrity::{Finding as IntegrityFinding, IntegrityStream};
 use physid_sim::run::SimError;
 use serde::{Deserialize, Serialize};
@@ -133,15 +134,16 @@ pub fn run_live(
 
 /// The applications' stages on one cell's stream, chunk by chunk, each event handed to `emit`:
 /// what [`run_live`] runs over a source and a fleet worker over a cell's NATS stream. The
-/// state of the shaft monitor, the cycle statistics and the integrity checks is plain data:
-/// [`checkpoint`](Self::checkpoint) writes it, [`restore`](Self::restore) takes the run up
-/// where it was (the friction and torque stages, the panel's traces and a log being written are
-/// not checkpointed: a checkpoint refuses while they run).
+/// state of the stages — the shaft monitor, the cycle statistics, the integrity checks, the
+/// friction and torque stages — is plain data: [`checkpoint`](Self::checkpoint) writes it,
+/// [`restore`](Self::restore) takes the run up where it was (a log being written is not
+/// checkpointed: a checkpoint refuses while one is; the panel's traces start again).
 pub struct Stages<E> {
     cfg: LiveConfig,
     rate_hz: f64,
     st: State,
     traces: Option<TraceStage>,
+    trace_out: Vec<Event>,
     friction_out: Vec<FrictionOutput>,
     torque_out: Vec<TorqueOutput>,
     findings: Vec<IntegrityFinding>,
@@ -164,13 +166,10 @@ struct State {
     rate_hz: f64,
     /// The shaft monitor (stopped, with a finding, at its first error).
     shaft: Option<ShaftStage>,
-    /// The cycle statistics and the channels they cover, as indices into [`CYCLE_CHANNELS`]
-    /// (set up on the first chunk).
-    cycles: Option<(CycleStream, Vec<usize>)>,
-    /// The cycle statistics stopped at a sample they cannot take (a value not finite): with a
-    /// finding; the run and the other stages go on, a `restart` brings them back.
-    #[serde(default)]
-    cycles_stopped: bool,
+    /// The cycle statistics of the channels of [`CYCLE_CHANNELS`] the source has (`None`:
+    /// stopped at a sample they cannot take, a value not finite, with a finding; the run and
+    /// the other stages go on, a `restart` brings them back).
+    cycles: Option<CycleStage>,
     /// K, B, τ0 frozen by the shaft's excitation supervisor, as last told.
     shaft_frozen: Option<[bool; 3]>,
     /// The integrity checks on the stream (set up on the first chunk).

@@ -9,8 +9,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         let st = State {
             rate_hz,
             shaft: Some(ShaftStage::new(&cfg.monitor, rate_hz)?),
-            cycles: None,
-            cycles_stopped: false,
+            cycles: Some(Self::cycle_stage(&cfg)),
             shaft_frozen: None,
             integrity: None,
             friction: Self::friction_stage(&cfg)?,
@@ -33,6 +32,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             rate_hz: st.rate_hz,
             st,
             traces: None,
+            trace_out: Vec::new(),
             friction_out: Vec::new(),
             torque_out: Vec::new(),
             findings: Vec::new(),
@@ -46,6 +46,12 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             shaft_out: Vec::new(),
             done_cycles: Vec::new(),
         })
+    }
+
+    /// The cycle statistics of a run of `cfg`, new.
+    fn cycle_stage(cfg: &LiveConfig) -> CycleStage {
+        let step = cfg.panel.map(|p| p.curve_step_deg);
+        CycleStage::new(&CYCLE_CHANNELS, cfg.theta_tdc, step)
     }
 
     /// The friction characterisation `cfg` asks for, new.
@@ -81,8 +87,7 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             }
             "cycles" => {
                 // Set up again on the next chunk, counting cycles from there.
-                self.st.cycles = None;
-                self.st.cycles_stopped = false;
+                self.st.cycles = Some(Self::cycle_stage(&self.cfg));
             }
             "friction" => {
                 self.st.friction = Some(
@@ -358,9 +363,13 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
             }
         }
         if let Some(tr) = self.traces.as_mut() {
-            if let Some(e) = tr.push(chunk)? {
-                self.send(&e)?;
+            let mut out = std::mem::take(&mut self.trace_out);
+            out.clear();
+            tr.push(chunk, &mut out)?;
+            for e in &out {
+                self.send(e)?;
             }
+            self.trace_out = out;
         }
         Ok(())
     }
@@ -399,57 +408,28 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         Ok(())
     }
 
-    /// The cycle statistics of a chunk.
+    /// The cycle statistics of a chunk, as events; at their error, a finding, and they stop
+    /// (the run goes on).
     fn cycles(&mut self, chunk: &Recording) -> Result<(), LiveError> {
-        if self.st.cycles_stopped {
-            return Ok(());
-        }
-        if self.st.cycles.is_none() {
-            let which: Vec<usize> = (0..CYCLE_CHANNELS.len())
-                .filter(|&k| chunk.channel(CYCLE_CHANNELS[k]).is_ok())
-                .collect();
-            if which.is_empty() || chunk.channel("theta_en").is_err() {
-                return Ok(());
-            }
-            let step = self.cfg.panel.map(|p| p.curve_step_deg);
-            self.st.cycles = Some((
-                CycleStream::new(which.len(), self.cfg.theta_tdc, step)?,
-                which,
-            ));
-        }
-        let Some((stream, which)) = self.st.cycles.as_mut() else {
+        let Some(stage) = self.st.cycles.as_mut() else {
             return Ok(());
         };
-        let names: Vec<&'static str> = which.iter().map(|&k| CYCLE_CHANNELS[k]).collect();
-        let cols = names
-            .iter()
-            .map(|n| chunk.values(n))
-            .collect::<Result<Vec<_>, _>>()?;
         self.done_cycles.clear();
-        let pushed = stream.push(
-            chunk.values("t")?,
-            chunk.values("theta_en")?,
-            &cols,
-            &mut self.done_cycles,
-        );
-        if let Err(e) = pushed {
+        if let Err(e) = stage.push(chunk, &mut self.done_cycles) {
             // A value not finite (a sensor's dropout in a replayed file): the statistics stop
             // with a finding naming the channel and sample; the run goes on.
-            // The stream numbers its channels: name them.
-            let e = format!("{e} (channels 0, 1, …: {})", names.join(", "));
             self.st.cycles = None;
-            self.st.cycles_stopped = true;
             let t_s = self.st.last_t;
             return self.send(&Event::finding(
                 t_s,
                 format!("cycles: {e} — the cycle statistics stopped (restart: {{\"cmd\":\"restart\",\"stage\":\"cycles\"}})"),
             ));
         }
-        let step = self.cfg.panel.map_or(0.0, |p| p.curve_step_deg);
+        let step = stage.curve_step_deg().unwrap_or(0.0);
         let events: Vec<Event> = self
             .done_cycles
             .iter()
-            .map(|c| Event::cycle(c, &names, step))
+            .map(|c| Event::cycle(c, stage.channels(), step))
             .collect();
         for e in &events {
             self.st.cycles_sent += 1;
@@ -611,8 +591,13 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         if let Some(s) = last.or(self.st.pending) {
             self.send(&Event::shaft_estimate(&s))?;
         }
-        if let Some(e) = self.traces.as_mut().and_then(TraceStage::flush) {
-            self.send(&e)?;
+        if let Some(tr) = self.traces.as_mut() {
+            let mut out = std::mem::take(&mut self.trace_out);
+            out.clear();
+            tr.finish(&mut out)?;
+            for e in &out {
+                self.send(e)?;
+            }
         }
         if let Some(e) = self.recorder.stop(self.st.last_t)? {
             self.send(&e)?;
