@@ -103,6 +103,19 @@ struct Pass<'s> {
     scanned: Option<&'s RefCell<Option<Scanned>>>,
 }
 
+impl Pass<'_> {
+    /// A first read.
+    const FIRST: Pass<'static> = Pass {
+        again: false,
+        scanned: None,
+    };
+    /// A read after one made elsewhere, nothing kept from it.
+    const AGAIN: Pass<'static> = Pass {
+        again: true,
+        scanned: None,
+    };
+}
+
 impl<'o> AngleInput<'o> {
     /// The file `path` read with `read`, its angle found as `angle` says, one sample per crank
     /// degree; `observer` is told what is found.
@@ -190,11 +203,7 @@ impl<'o> AngleInput<'o> {
         start: impl FnOnce(&Recording) -> Result<S, AppError>,
         push: impl FnMut(&mut S, &Recording) -> Result<(), AppError>,
     ) -> Result<(S, Option<DecodedAngle>), AppError> {
-        let first = Pass {
-            again: false,
-            scanned: None,
-        };
-        self.read_pass(first, channels, start, push)
+        self.read_pass(Pass::FIRST, channels, start, push)
     }
 
     /// [`Self::read`] once more after a first read: nothing said about the reading or the
@@ -205,15 +214,11 @@ impl<'o> AngleInput<'o> {
         start: impl FnOnce(&Recording) -> Result<S, AppError>,
         push: impl FnMut(&mut S, &Recording) -> Result<(), AppError>,
     ) -> Result<(S, Option<DecodedAngle>), AppError> {
-        let again = Pass {
-            again: true,
-            scanned: None,
-        };
         let quiet = AngleInput {
             quiet: true,
             ..self.clone()
         };
-        quiet.read_pass(again, channels, start, push)
+        quiet.read_pass(Pass::AGAIN, channels, start, push)
     }
 
     fn read_pass<S>(

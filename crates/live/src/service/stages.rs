@@ -107,8 +107,8 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         Ok(())
     }
 
-    /// The state of the checkpointed stages as bytes (MessagePack, led by
-    /// [`CHECKPOINT_VERSION`]); refused while a stage that is not checkpointed runs.
+    /// The state of the stages as bytes (MessagePack with field names, led by
+    /// [`CHECKPOINT_VERSION`]); refused while a log is being written.
     pub fn checkpoint(&self) -> Result<Vec<u8>, LiveError> {
         if self.recorder.is_recording() {
             return Err(LiveError::Invalid(
