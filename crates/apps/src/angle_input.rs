@@ -36,6 +36,7 @@ use physid_core::{Basis, Recording};
 use physid_io::{ChunkReader, IoError, ReadOptions};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A reader's chunks as a front end watches them go by.
 pub type Watched<'a> = Box<dyn Iterator<Item = Result<Recording, IoError>> + 'a>;
@@ -65,7 +66,7 @@ impl InputObserver for Unobserved {}
 /// A file read on a crank-angle basis: where its engine angle comes from and how finely it is
 /// sampled.
 #[derive(Clone)]
-pub struct AngleInput<'o> {
+pub struct AngleInput {
     /// The file.
     pub path: PathBuf,
     /// How to read it (map, scale, columns; its `channels` are chosen here).
@@ -83,7 +84,7 @@ pub struct AngleInput<'o> {
     pub hold_bytes: usize,
     /// Nothing said about the decoded angle or the TDC placed.
     pub quiet: bool,
-    observer: &'o dyn InputObserver,
+    observer: Arc<dyn InputObserver + Send + Sync>,
 }
 
 /// What the first passes over a file found about its engine angle, before any resampling.
@@ -116,14 +117,14 @@ impl Pass<'_> {
     };
 }
 
-impl<'o> AngleInput<'o> {
+impl AngleInput {
     /// The file `path` read with `read`, its angle found as `angle` says, one sample per crank
     /// degree; `observer` is told what is found.
     pub fn new(
         path: &Path,
         read: ReadOptions,
         angle: AcquisitionOptions,
-        observer: &'o dyn InputObserver,
+        observer: Arc<dyn InputObserver + Send + Sync>,
     ) -> Self {
         Self {
             path: path.to_path_buf(),
@@ -510,7 +511,7 @@ fn sensor_present(opts: &AcquisitionOptions, header: &Recording) -> bool {
 /// what the first pass said is not said again, and what its first passes over an encoder's
 /// counts or a wheel found is kept for the next.
 pub struct CrankFile<'a> {
-    input: AngleInput<'a>,
+    input: AngleInput,
     channels: Vec<&'a str>,
     passes: Cell<usize>,
     scanned: RefCell<Option<Scanned>>,
@@ -518,7 +519,7 @@ pub struct CrankFile<'a> {
 
 impl<'a> CrankFile<'a> {
     /// `input`'s channels `channels`, gone over in passes.
-    pub fn new(input: AngleInput<'a>, channels: Vec<&'a str>) -> Self {
+    pub fn new(input: AngleInput, channels: Vec<&'a str>) -> Self {
         Self {
             input,
             channels,

@@ -731,6 +731,79 @@ fn cycles_of_a_raw_recording() {
     }
 }
 
+/// The same lab recording replayed live (`live --replay --wheel`): the angle decoded as
+/// `convert --crank-angle` decodes it, then on a time basis at its mean rate, so the live cycle
+/// statistics run on it — as many cycles as `convert` gives (every complete one, less the
+/// last, which the time basis ends within), each starting at the same true angle as there, so
+/// the cylinder pressure peaks within 3.5° of the firing TDC in every cycle. Without --replay
+/// the flags are refused.
+#[test]
+fn a_trigger_wheel_s_raw_signal_replays_live() {
+    let s = Scratch::new("physid-raw-wheel-live");
+    let dat = raw_wheel_dat(&s);
+    let flags = [
+        "--columns",
+        "t,enc,p_cyl,theta_true",
+        "--scale",
+        "p_cyl=1e6,0",
+        "--wheel",
+        "enc=60-3",
+        "--tdc-offset",
+        "117",
+        "--phase-from",
+        "p_cyl",
+    ];
+    let deg = s.file("deg.parquet");
+    let mut args = vec![
+        "convert",
+        dat.to_str().unwrap(),
+        deg.to_str().unwrap(),
+        "--crank-angle",
+    ];
+    args.extend(flags);
+    let o = physid(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = read(&deg, &ReadOptions::default()).unwrap();
+    let complete = r.values("cycle").unwrap().last().copied().unwrap() as usize;
+    let mut args = vec![
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        dat.to_str().unwrap(),
+        "--pace",
+        "max",
+    ];
+    args.extend(flags);
+    let o = physid(&args);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert!(e.contains("wheel 60-3 decoded"), "{e}");
+    let cycles: Vec<Value> = String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str::<Value>(l).unwrap())
+        .filter(|v| v["type"] == "cycle")
+        .collect();
+    assert!(
+        cycles.len() + 1 >= complete && cycles.len() <= complete,
+        "{} live cycles, {complete} complete in convert's",
+        cycles.len()
+    );
+    assert!(cycles.len() >= 11, "{} cycles", cycles.len());
+    for c in &cycles {
+        let at = c["max_deg"]["p_cyl"].as_f64().unwrap();
+        assert!(
+            at <= 3.5 || at >= 716.5,
+            "cycle {}: peak at {at}°",
+            c["cycle"]
+        );
+    }
+    let o = physid(&["live", "--headless", "--json", "--wheel", "enc=60-3"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("of a --replay file"), "{e}");
+}
+
 /// A quadrature encoder's raw A/B/Z signals (`physid-signal`'s golden file: 500 lines,
 /// digital, 200 kHz, turning back 40° before running up to 1200 rpm) converted to one sample
 /// per degree with `--quadrature`: the angle is taken from after the shaft last turned back,

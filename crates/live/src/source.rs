@@ -3,9 +3,10 @@
 use crate::control::Control;
 use crate::service::LiveError;
 use physid_apps::acquisition::{
-    file_time_basis_chunks, from_first_marker, on_time_basis, uniform_step, AcquisitionOptions,
-    StepCheck,
+    file_time_basis_chunks, from_first_marker, mean_rate, on_time_basis, time_basis_chunks,
+    uniform_step, AcquisitionOptions, StepCheck,
 };
+use physid_apps::angle_input::AngleInput;
 use physid_apps::error::AppError;
 use physid_core::{Basis, Channel, Recording};
 use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
@@ -150,6 +151,54 @@ impl ReplaySource {
         Self::from_chunks(Box::new(reader.map(|c| c.map_err(AppError::from))), chunk_s)
     }
 
+    /// A time-basis file whose engine angle `plan` decodes (an encoder's counts and marker, a
+    /// raw trigger wheel or quadrature encoder), in chunks of `chunk_s` seconds: on a
+    /// crank-angle basis as it is read (its `theta`, from the firing TDC, taken as `theta_en`;
+    /// `cycle` and `crank_deg` left out), then back on a uniform time basis at its mean rate —
+    /// a first decoding pass gives the rate ([`mean_rate`]), a second, in a thread a few chunks
+    /// ahead, the samples. Memory does not grow with the file's length.
+    pub fn open_angle(plan: AngleInput, chunk_s: f64) -> Result<Self, LiveError> {
+        // The first pass: the crank-angle samples' count and time span (no other channel).
+        let ((n, first, last), _) = plan.read(
+            Some(&[]),
+            |_| Ok((0usize, f64::NAN, f64::NAN)),
+            |(n, first, last), c| {
+                let t = c.values("t")?;
+                if *n == 0 {
+                    *first = t.first().copied().unwrap_or(f64::NAN);
+                }
+                *last = t.last().copied().unwrap_or(*last);
+                *n += t.len();
+                Ok(())
+            },
+        )?;
+        let rate = mean_rate(n, first, last)?;
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Recording, AppError>>(4);
+        std::thread::Builder::new()
+            .name("physid-angle".into())
+            .spawn(move || {
+                let send = |r: Result<Recording, AppError>| {
+                    tx.send(r)
+                        .map_err(|_| AppError::Invalid("the replay stopped reading".into()))
+                };
+                let read = plan.read_again(
+                    None,
+                    |h| send(on_engine_angle(h)),
+                    |_, c| send(on_engine_angle(c)),
+                );
+                if let Err(e) = read {
+                    // Nobody to tell if the replay has gone.
+                    let _ = tx.send(Err(e));
+                }
+            })
+            .map_err(|e| LiveError::Invalid(format!("starting the angle's decoding: {e}")))?;
+        let header = rx
+            .recv()
+            .map_err(|_| LiveError::Invalid("the angle's decoding stopped".into()))??;
+        let chunks = time_basis_chunks(&header, rx, rate, CHUNK_ROWS)?;
+        Self::from_chunks(Box::new(chunks), chunk_s)
+    }
+
     fn from_chunks(chunks: Chunks, chunk_s: f64) -> Result<Self, LiveError> {
         if !(chunk_s.is_finite() && chunk_s > 0.0) {
             return Err(LiveError::Invalid(format!(
@@ -216,6 +265,26 @@ impl Source for ReplaySource {
         self.steps.check(c.values("t")?).map_err(AppError::from)?;
         Ok(Some(c))
     }
+}
+
+/// A crank-angle chunk's channels as the live stages take them: `theta` (the crank angle from
+/// the firing TDC) as `theta_en` (unless the chunk has one), without `cycle` and `crank_deg`
+/// (which do not interpolate on a time basis: they jump at every cycle).
+fn on_engine_angle(c: &Recording) -> Result<Recording, AppError> {
+    let has_theta_en = c.channel("theta_en").is_ok();
+    let mut out = Recording::new(c.basis);
+    out.meta = c.meta.clone();
+    for ch in c.channels() {
+        if ch.name == "cycle" || ch.name == "crank_deg" {
+            continue;
+        }
+        let mut ch = ch.clone();
+        if ch.name == "theta" && !has_theta_en {
+            ch.name = "theta_en".into();
+        }
+        out.push(ch)?;
+    }
+    Ok(out)
 }
 
 /// How fast a source runs against the wall clock.

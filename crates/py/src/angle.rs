@@ -12,8 +12,8 @@ use physid_core::Recording;
 use physid_io::ReadOptions;
 use physid_signal::wheel::{Edge, EdgeOptions};
 use pyo3::PyResult;
-use std::cell::RefCell;
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 
 /// How the engine angle is found, as `physid.read` takes it.
 pub(crate) struct AngleArgs {
@@ -86,14 +86,21 @@ impl AngleArgs {
 /// What the plan tells, kept for the recording's `meta`.
 #[derive(Default)]
 struct Kept {
-    notes: RefCell<Vec<(String, String)>>,
+    notes: Mutex<Vec<(String, String)>>,
+}
+
+impl Kept {
+    fn keep(&self, key: &str, text: String) {
+        // A poisoned lock only loses a note.
+        if let Ok(mut n) = self.notes.lock() {
+            n.push((key.to_string(), text));
+        }
+    }
 }
 
 impl InputObserver for Kept {
     fn read_warning(&self, _path: &Path, warning: &str) {
-        self.notes
-            .borrow_mut()
-            .push(("warning".into(), warning.to_string()));
+        self.keep("warning", warning.to_string());
     }
 
     fn decoded(&self, _path: &Path, d: &DecodedAngle) {
@@ -101,12 +108,12 @@ impl InputObserver for Kept {
         for f in &d.findings {
             text.push_str(&format!("; sample {}: {}", f.index, f.detail));
         }
-        self.notes.borrow_mut().push(("angle".into(), text));
+        self.keep("angle", text);
     }
 
     fn tdc_placed(&self, _path: &Path, channel: &str, found: &TdcFromPressure) {
-        self.notes.borrow_mut().push((
-            "tdc_from".into(),
+        self.keep(
+            "tdc_from",
             format!(
                 "TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°)",
                 found.fit.events.len(),
@@ -114,7 +121,7 @@ impl InputObserver for Kept {
                 found.ci95.0,
                 found.ci95.1
             ),
-        ));
+        );
     }
 }
 
@@ -132,8 +139,8 @@ pub(crate) fn read_crank_angle(
         )));
     }
     let channels = read.channels.clone();
-    let kept = Kept::default();
-    let mut plan = AngleInput::new(path, read, args.options()?, &kept);
+    let kept = Arc::new(Kept::default());
+    let mut plan = AngleInput::new(path, read, args.options()?, kept.clone());
     plan.step_deg = args.step_deg;
     if let Some(c) = &args.tdc_from {
         let (Some(stroke), Some(rod)) = (args.stroke, args.rod) else {
@@ -150,7 +157,8 @@ pub(crate) fn read_crank_angle(
     let (mut rec, _) = plan
         .read_all(names.as_deref())
         .map_err(|e| err(format!("{}: {e}", path.display())))?;
-    for (k, v) in kept.notes.into_inner() {
+    let notes = kept.notes.lock().map(|n| n.clone()).unwrap_or_default();
+    for (k, v) in notes {
         rec.meta.insert(k, v);
     }
     Ok(rec)

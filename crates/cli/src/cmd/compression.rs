@@ -4,7 +4,7 @@
 //! those fitted to all the TDCs with 95 % intervals, per TDC and recursively, the loss angle.
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::crank_input::{crank_input, Told};
+use crate::cmd::crank_input::crank_input;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use crate::plot::{self, Panel, Series, PALETTE};
@@ -139,8 +139,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         }
     }
     cfg.selection = a.cutoff;
-    let told = Told::new(&a.input);
-    let mut input = crank_input(&a.input, &a.data, &a.angle, &a.geometry.crank, &told)?;
+    let mut input = crank_input(&a.input, &a.data, &a.angle, &a.geometry.crank)?;
     input.quiet = a.json;
     let file = CrankFile::new(input.clone(), vec![a.channel.as_str()]);
     let events = TdcEvents::new(&file, &a.channel, cfg.window_deg, super::hold_bytes()?);

@@ -2,7 +2,7 @@
 //! degree).
 
 use super::{CrankArgs, InputArgs};
-use crate::cmd::crank_input::{crank_input, Told};
+use crate::cmd::crank_input::crank_input;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
@@ -75,8 +75,7 @@ pub fn run(args: &Args) -> Result<()> {
                 args.input.display()
             ));
         }
-        let told = Told::new(&args.read);
-        let mut input = crank_input(&args.read, &args.input, &args.angle, &args.crank, &told)?;
+        let mut input = crank_input(&args.read, &args.input, &args.angle, &args.crank)?;
         input.step_deg = args.step_deg;
         input
             .read(

@@ -13,6 +13,7 @@ use physid_apps::angle_input::{AngleInput, InputObserver, Watched};
 use physid_apps::compression::TdcFromPressure;
 use physid_io::ChunkReader;
 use std::path::Path;
+use std::sync::Arc;
 
 /// What the command line tells while a file is read.
 pub struct Told {
@@ -22,7 +23,7 @@ pub struct Told {
 
 impl Told {
     /// For a file read with `input`'s flags.
-    pub fn new(input: &InputArgs) -> Self {
+    fn new(input: &InputArgs) -> Self {
         Self {
             map: input.map.clone(),
         }
@@ -53,14 +54,14 @@ impl InputObserver for Told {
 
 /// The file `path` read with `input`'s flags at one sample per crank degree, its angle found
 /// as `angle` says (the defaults: the thesis's encoders and marker; `--tdc-from` with `crank`'s
-/// lengths), what it finds told by `told`.
-pub fn crank_input<'o>(
+/// lengths), what it finds told on stderr ([`Told`]).
+pub fn crank_input(
     input: &InputArgs,
     path: &Path,
     angle: &AngleArgs,
     crank: &CrankArgs,
-    told: &'o Told,
-) -> Result<AngleInput<'o>> {
+) -> Result<AngleInput> {
+    let told = Arc::new(Told::new(input));
     let mut plan = AngleInput::new(path, input.options(None)?, angle.options()?, told);
     if let Some(channel) = &angle.wheel.tdc_from {
         plan.crank = Some(crank.lengths(&format!("--tdc-from {channel}"))?);

@@ -4,7 +4,7 @@
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::crank_input::{crank_input, Told};
+use crate::cmd::crank_input::crank_input;
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
@@ -107,14 +107,7 @@ fn pegging(s: &Option<String>) -> Result<Pegging> {
 pub fn run(args: &Args) -> Result<()> {
     let peg = pegging(&args.peg)?;
     let geometry = args.geometry.full()?;
-    let told = Told::new(&args.input);
-    let mut input = crank_input(
-        &args.input,
-        &args.file,
-        &args.angle,
-        &args.geometry.crank,
-        &told,
-    )?;
+    let mut input = crank_input(&args.input, &args.file, &args.angle, &args.geometry.crank)?;
     input.quiet = args.json;
     let (analyser, wheel) = input
         .read(

@@ -2,7 +2,7 @@
 //! `rank` of its design parameters over an operating grid (thesis §7.2, Table 7.1, Fig. 7.1),
 //! `fit` of its regression coefficients to a motored recording (thesis §7.3, Application 2).
 
-use super::crank_input::{crank_input, Told};
+use super::crank_input::crank_input;
 use super::inspect::AngleArgs;
 use super::CrankArgs;
 use crate::out::outln;
@@ -219,8 +219,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     } else if header.basis == physid_core::Basis::Time {
         // The engine angle from an encoder's counts: the crank-angle samples as they are made.
         let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
-        let told = Told::new(&a.input);
-        let input = crank_input(&a.input, &a.data, &angle, &crank, &told)?;
+        let input = crank_input(&a.input, &a.data, &angle, &crank)?;
         let (needed, optional) = friction_fit::cycle_channels(&cfg);
         let made = ["cycle"];
         input

@@ -98,6 +98,13 @@ pub struct Args {
     controls: Option<PathBuf>,
     #[command(flatten)]
     input: super::InputArgs,
+    // With --replay: the engine angle of a time-basis file decoded from an encoder's counts
+    // or a raw trigger wheel or quadrature encoder (as `convert --crank-angle` decodes it),
+    // then replayed on a time basis at its mean rate.
+    #[command(flatten)]
+    angle: super::inspect::AngleArgs,
+    #[command(flatten)]
+    crank: super::CrankArgs,
     /// The virtual cell's scenario: a built-in name or a TOML file [default: shaft-steady].
     #[arg(long)]
     scenario: Option<String>,
@@ -355,6 +362,14 @@ fn publish(
 /// The source `a` asks for, a line saying what it is, and the angle of a firing TDC on its
 /// `theta_en` (a replay's first TDC marker, as the file verbs take it; else 0).
 fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
+    let decode = a.angle.wheel.wheel.is_some()
+        || a.angle.wheel.quadrature.is_some()
+        || !a.angle.encoders.is_empty();
+    if decode && a.replay.is_none() {
+        return Err(miette!(
+            "--wheel, --quadrature and --encoder decode the engine angle of a --replay file"
+        ));
+    }
     #[cfg(unix)]
     if let Some(path) = &a.frames_socket {
         let socket =
@@ -382,12 +397,16 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
             0.0,
         ),
         (Some(path), None) => {
-            let replay = ReplaySource::open(path, &a.input.options(None)?, a.chunk).map_err(
-                |e| match e {
-                    LiveError::Io(e) => miette!("{e}"),
-                    e => miette!("{}: {e}", path.display()),
-                },
-            )?;
+            let replay = if decode {
+                let plan = super::crank_input::crank_input(&a.input, path, &a.angle, &a.crank)?;
+                ReplaySource::open_angle(plan, a.chunk)
+            } else {
+                ReplaySource::open(path, &a.input.options(None)?, a.chunk)
+            }
+            .map_err(|e| match e {
+                LiveError::Io(e) => miette!("{e}"),
+                e => miette!("{}: {e}", path.display()),
+            })?;
             let tdc = replay.theta_tdc();
             (
                 Box::new(replay),

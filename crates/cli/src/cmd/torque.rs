@@ -1,7 +1,7 @@
 //! `physid torque fit`: Application 3 — identifiability and EKF/UKF estimation of the cyclic
 //! engine torque model (thesis ch. 8).
 
-use super::crank_input::{crank_input, Told};
+use super::crank_input::crank_input;
 use super::inspect::AngleArgs;
 use super::{named_values, CrankArgs};
 use crate::out::outln;
@@ -352,8 +352,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         // The engine angle from an encoder's counts: the 1° samples made as the file is read,
         // again on every pass.
         let (angle, crank) = (AngleArgs::default(), CrankArgs::default());
-        let told = Told::new(&a.input);
-        let input = crank_input(&a.input, &a.data, &angle, &crank, &told)?;
+        let input = crank_input(&a.input, &a.data, &angle, &crank)?;
         let mut channels = physid_apps::torque_fit::crank_channels(&header);
         channels.retain(|n| *n != "theta_en");
         input
