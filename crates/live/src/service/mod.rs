@@ -33,9 +33,14 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use thiserror::Error;
 
+use slot::{At, Emit, Run, Slot};
+use tell::Integrity;
+
 mod config;
 mod latency;
+mod slot;
 mod stages;
+mod tell;
 
 pub use config::*;
 pub use latency::*;
@@ -143,10 +148,6 @@ pub struct Stages<E> {
     rate_hz: f64,
     st: State,
     traces: Option<TraceStage>,
-    trace_out: Vec<Event>,
-    friction_out: Vec<FrictionOutput>,
-    torque_out: Vec<TorqueOutput>,
-    findings: Vec<IntegrityFinding>,
     recorder: Recorder,
     pacer: Pacer,
     emit: E,
@@ -155,44 +156,79 @@ pub struct Stages<E> {
     /// before the next chunk.
     stop_requested: bool,
     latency: LatencyHistogram,
-    shaft_out: Vec<ShaftOutput>,
-    done_cycles: Vec<CycleSummary>,
 }
 
 /// The checkpointed part of [`Stages`].
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Serialize, Deserialize)]
 struct State {
     /// The rate the stages were built for [Hz] (a restore at another is refused).
     rate_hz: f64,
-    /// The shaft monitor (stopped, with a finding, at its first error).
-    shaft: Option<ShaftStage>,
-    /// The cycle statistics of the channels of [`CYCLE_CHANNELS`] the source has (`None`:
-    /// stopped at a sample they cannot take, a value not finite, with a finding; the run and
-    /// the other stages go on, a `restart` brings them back).
-    cycles: Option<CycleStage>,
-    /// K, B, τ0 frozen by the shaft's excitation supervisor, as last told.
-    shaft_frozen: Option<[bool; 3]>,
-    /// The integrity checks on the stream (set up on the first chunk).
-    integrity: Option<IntegrityStream>,
-    /// The friction characterisation (stopped, with a finding, at its first error).
-    friction: Option<FrictionStage>,
-    /// The cyclic-torque estimation (stopped, with a finding, at its first error).
-    torque: Option<TorqueStage>,
+    /// The stages and what telling their outputs remembers.
+    stages: StageSlots,
     /// The time of the stream's first sample [s].
     t_first: f64,
     events: usize,
     taken: usize,
     dropped: usize,
-    cycles_sent: usize,
     control_line: usize,
     last_t: f64,
-    last_sent: Option<f64>,
-    /// The latest estimate not sent (thinned out): sent at the end.
-    pending: Option<physid_apps::shaft_monitor::ShaftSample>,
+}
+
+/// The applications' stages of a run. Each stops, with a finding, at its first error (a source
+/// without the channels it needs, a value not finite, an estimator that fails); the run and the
+/// other stages go on, and a `restart` brings it back.
+#[derive(Serialize, Deserialize)]
+struct StageSlots {
+    /// The integrity checks on the stream (set up on the first chunk).
+    integrity: Slot<Integrity>,
+    /// The shaft monitor.
+    shaft: Slot<ShaftStage>,
+    /// The cycle statistics of the channels of [`CYCLE_CHANNELS`] the source has.
+    cycles: Slot<CycleStage>,
+    /// The friction characterisation (`--friction`).
+    friction: Slot<FrictionStage>,
+    /// The cyclic-torque estimation (`--torque`).
+    torque: Slot<TorqueStage>,
+}
+
+impl StageSlots {
+    /// The stages `cfg` asks for, for a stream at `rate_hz` [Hz].
+    fn start(cfg: &LiveConfig, rate_hz: f64) -> Result<Self, LiveError> {
+        Ok(Self {
+            integrity: Slot::start(cfg, rate_hz)?,
+            shaft: Slot::start(cfg, rate_hz)?,
+            cycles: Slot::start(cfg, rate_hz)?,
+            friction: Slot::start(cfg, rate_hz)?,
+            torque: Slot::start(cfg, rate_hz)?,
+        })
+    }
+
+    /// The stages in the order a chunk goes through them.
+    fn in_chunk_order(&mut self) -> [&mut dyn Run; 5] {
+        [
+            &mut self.integrity,
+            &mut self.shaft,
+            &mut self.cycles,
+            &mut self.friction,
+            &mut self.torque,
+        ]
+    }
+
+    /// The stages in the order their last outputs are told at the end of the stream (the
+    /// order the events have always come in: the event stream is part of the output).
+    fn in_finish_order(&mut self) -> [&mut dyn Run; 5] {
+        [
+            &mut self.torque,
+            &mut self.integrity,
+            &mut self.friction,
+            &mut self.shaft,
+            &mut self.cycles,
+        ]
+    }
 }
 
 /// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
-pub const CHECKPOINT_VERSION: u32 = 2;
+pub const CHECKPOINT_VERSION: u32 = 3;
 
 #[cfg(test)]
 mod tests {
