@@ -239,7 +239,7 @@ const LONG: [&str; 4] = ["--scenario", "shaft-steady", "--duration", "12"];
 /// let the stream keep one of each); the end event counts every sample published.
 #[test]
 fn a_killed_worker_is_replaced_without_loss() {
-    failover(false);
+    failover("c1", false, &LONG, &[]);
 }
 
 /// A worker stopped with SIGTERM mid-stream checkpoints its cell and frees it as it exits (its
@@ -247,32 +247,60 @@ fn a_killed_worker_is_replaced_without_loss() {
 /// exactly those of an uninterrupted run.
 #[test]
 fn a_stopped_worker_hands_its_cell_over_at_once() {
-    failover(true);
+    failover("c3", true, &LONG, &[]);
 }
 
-/// Worker a processes cell c1 until it is killed (`term`: SIGTERM, else SIGKILL); worker b
-/// takes over.
-fn failover(term: bool) {
-    let cell = if term { "c3" } else { "c1" };
+/// Workers running the friction characterisation too (`physid worker --friction`): the one
+/// killed mid-run (about 5 s into the 10 s sweep; its last checkpoint a second of wall time,
+/// 3 s of recording, before — around the choice of coefficients at cycle 20, 3.0 s in) is
+/// replaced from its checkpoint, the friction stage's cycles and regression with it, and the
+/// fleet's events, every cycle's friction estimates among them, equal a one-process run's.
+#[test]
+fn a_killed_worker_hands_on_its_friction_characterisation() {
+    let source = ["--scenario", "friction-sweep", "--duration", "10"];
+    let got = failover(
+        "c5",
+        false,
+        &source,
+        &["--friction", "cell", "--friction-after", "20"],
+    );
+    let friction = got.iter().filter(|e| e["type"] == "friction").count();
+    assert!(friction > 40, "{friction} cycles' friction estimates");
+    let chosen = got
+        .iter()
+        .find(|e| e["type"] == "identifiability" && e["app"] == "friction")
+        .expect("the choice of coefficients");
+    assert!(!chosen["estimable"].as_array().expect("names").is_empty());
+}
+
+/// Worker a processes `cell`, a run of `source` (with the `stages` flags), until it is killed
+/// (`term`: SIGTERM, else SIGKILL); worker b takes over. Returns the fleet's events, asserted
+/// equal to a one-process run's.
+fn failover(cell: &str, term: bool, source: &[&str], stages: &[&str]) -> Vec<Value> {
     let Some(server) = nats_server(&["--user", "physid", "--pass", "s3cret-pw"]) else {
-        return;
+        return Vec::new();
     };
     let url = server.url("physid:s3cret-pw@");
     let creds = credentials(server.dir());
-    let expected = reference(&LONG);
-    let a = Proc::start(&["worker", "--nats", &url, "--name", "a"]);
+    let expected = reference(&[stages, source].concat());
+    let worker = |name: &str| {
+        let mut args = vec!["worker", "--nats", &url, "--name", name];
+        args.extend_from_slice(stages);
+        Proc::start(&args)
+    };
+    let a = worker("a");
     let bare = server.url("");
     let mut args = vec!["live", "--nats", &bare];
     args.extend_from_slice(&["--nats-credentials", creds.to_str().expect("utf-8")]);
     args.extend_from_slice(&["--cell", cell, "--pace", "3", "--json"]);
-    args.extend_from_slice(&LONG);
+    args.extend_from_slice(source);
     let publisher = Proc::start(&args);
     // A's first checkpoint is written after a second; kill it after its second.
     wait_events(&url, cell, 30, |e| {
         e.iter().filter(|e| e["type"] == "estimate").count() >= 15
     });
     std::thread::sleep(Duration::from_millis(1200));
-    let b = Proc::start(&["worker", "--nats", &url, "--name", "b"]);
+    let b = worker("b");
     assert!(
         !has_end(&events(&url, cell)),
         "the run ended before the stop"
@@ -309,10 +337,17 @@ fn failover(term: bool) {
     let end = got.iter().find(|e| e["type"] == "end").expect("end");
     assert_eq!(end["samples"], published["samples"], "every sample once");
     assert_eq!(end["dropped"], 0);
+    let kinds = |e: &[Value]| {
+        let mut n = std::collections::BTreeMap::<String, usize>::new();
+        for e in e {
+            *n.entry(e["type"].to_string()).or_default() += 1;
+        }
+        n
+    };
     assert_eq!(
-        got.len(),
-        expected.len(),
-        "as many events as the uninterrupted run"
+        kinds(&got),
+        kinds(&expected),
+        "as many events of each type as the uninterrupted run"
     );
     for (k, (g, x)) in got.iter().zip(&expected).enumerate() {
         assert_eq!(g, x, "event {k}");
@@ -322,6 +357,7 @@ fn failover(term: bool) {
         b.wait(20).status.success(),
         "the worker ends cleanly at SIGTERM"
     );
+    got
 }
 
 /// nats-server killed and restarted (same store) mid-run: the publisher and the worker

@@ -2,19 +2,15 @@
 //! from outside through the applications' stages; the operator's web panel on 127.0.0.1, or
 //! headless with the events printed as NDJSON.
 
+use super::live_stages::StageFlags;
 use super::monitor::{config, MonitorFlags};
 use crate::out::outln;
 use miette::{miette, Result};
-use physid_apps::friction_fit::{
-    friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
-};
-use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
 use physid_live::fleet::{publish::PublishConfig, NatsTarget};
 use physid_live::{
-    run_live, Access, ControlRequest, Event, FrameSource, FrictionLive, Hub, LiveConfig, LiveError,
-    Pace, Panel, PanelFeed, ReplaySource, ScenarioSource, Source, TorqueLive,
+    run_live, Access, ControlRequest, Event, FrameSource, Hub, LiveConfig, LiveError, Pace, Panel,
+    PanelFeed, ReplaySource, ScenarioSource, Source,
 };
-use physid_sim::params::CellParams;
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
 use serde_json::json;
@@ -128,43 +124,8 @@ pub struct Args {
     estimate_every: f64,
     #[command(flatten)]
     monitor: MonitorFlags,
-    /// Characterise the engine's friction on the stream (a motored engine, e.g. the
-    /// friction-sweep scenario) with this friction model preset: thesis, sandoval2002 or cell
-    /// (the virtual cell's engine).
-    #[arg(long, value_name = "PRESET")]
-    friction: Option<String>,
-    /// Choose the estimable friction coefficients after this many steady cycles.
-    #[arg(long, value_name = "N", default_value_t = 100, requires = "friction")]
-    friction_after: usize,
-    /// The motoring torque for the friction characterisation: engine (−torque_engine) or
-    /// shaft (+torque_shaft).
-    #[arg(
-        long,
-        value_name = "engine|shaft",
-        default_value = "engine",
-        requires = "friction"
-    )]
-    friction_source: String,
-    /// Estimate the cyclic engine torque model's parameters on the stream (thesis ch. 8: a
-    /// motored engine, e.g. the torque-ramp scenario), UKF from the virtual cell's nominal
-    /// values, as `physid torque fit`.
-    #[arg(long)]
-    torque: bool,
-    /// Choose the estimable cyclic-torque parameters after this many cycles.
-    #[arg(long, value_name = "N", default_value_t = 10, requires = "torque")]
-    torque_after: usize,
-    /// Parameters held at their nominal values, as `torque fit --fix`.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "delta",
-        requires = "torque"
-    )]
-    torque_fix: Vec<String>,
-    /// Let a parameter drift, as `torque fit --track`: NAME=VARIANCE per sample in scaled
-    /// coordinates, e.g. M_rec=1e-6 to follow a reciprocating-mass change.
-    #[arg(long, value_delimiter = ',', requires = "torque")]
-    torque_track: Vec<String>,
+    #[command(flatten)]
+    stages: StageFlags,
     /// Publish this cell's samples to a NATS JetStream fleet instead of running the stages
     /// here (docs/fleet.md): nats://HOST:PORT, credentials as nats://USER:PASSWORD@HOST:PORT
     /// or nats://TOKEN@HOST:PORT or --nats-credentials.
@@ -205,47 +166,7 @@ pub fn run(a: &Args) -> Result<()> {
         log_dir: a.log_dir.clone(),
         ..LiveConfig::default()
     };
-    if let Some(preset) = &a.friction {
-        let (d, st) = friction_preset(preset).ok_or_else(|| {
-            miette!(
-                "--friction '{preset}': the presets are {}",
-                FRICTION_PRESETS.join(", ")
-            )
-        })?;
-        let mut fit = FrictionFitConfig::new(d, st);
-        fit.source = TorqueSource::parse(&a.friction_source).ok_or_else(|| {
-            miette!(
-                "--friction-source '{}': expected engine or shaft",
-                a.friction_source
-            )
-        })?;
-        if a.friction_after < MIN_CYCLES {
-            return Err(miette!(
-                "--friction-after {}: the choice needs at least {MIN_CYCLES} cycles",
-                a.friction_after
-            ));
-        }
-        cfg.friction = Some(FrictionLive {
-            fit,
-            select_after: a.friction_after,
-        });
-    }
-    if a.torque {
-        let nominal = cyclic_torque_nominal(&CellParams::default()).map_err(|e| miette!("{e}"))?;
-        let mut fit = TorqueFitConfig::new(nominal);
-        fit.fixed = a.torque_fix.iter().map(|s| s.trim().to_string()).collect();
-        let (names, values) = super::named_values(&a.torque_track, "--torque-track")?;
-        fit.track = names.into_iter().zip(values).collect();
-        if a.torque_after == 0 {
-            return Err(miette!(
-                "--torque-after 0: the choice needs at least one cycle"
-            ));
-        }
-        cfg.torque = Some(TorqueLive {
-            fit,
-            select_after_cycles: a.torque_after,
-        });
-    }
+    a.stages.apply(&mut cfg)?;
     let (mut source, what, theta_tdc) = source(a)?;
     cfg.theta_tdc = theta_tdc;
     if let (Some(url), Some(cell)) = (&a.nats, &a.cell) {

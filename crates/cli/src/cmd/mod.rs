@@ -13,6 +13,7 @@ pub mod friction;
 pub mod identify;
 pub mod inspect;
 pub mod live;
+pub mod live_stages;
 pub mod monitor;
 pub mod recover;
 pub mod run;

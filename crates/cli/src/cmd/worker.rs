@@ -1,8 +1,10 @@
 //! `physid worker --nats URL`: a fleet worker (docs/fleet.md) — the shaft monitor, the cycle
-//! statistics and the integrity checks for the cells publishing to the fleet, one worker per
-//! cell at a time, checkpointed; ends cleanly at SIGTERM or Ctrl-C (every cell checkpointed
+//! statistics and the integrity checks (with `--friction`/`--torque` the friction
+//! characterisation and the cyclic-torque estimation too) for the cells publishing to the
+//! fleet, one worker per cell at a time, checkpointed; ends cleanly at SIGTERM or Ctrl-C (every cell checkpointed
 //! and freed for another worker at once).
 
+use super::live_stages::StageFlags;
 use super::monitor::{config, MonitorFlags};
 use miette::{miette, Result};
 use physid_live::fleet::worker::{run_worker, WorkerConfig, WorkerStats};
@@ -31,22 +33,28 @@ pub struct Args {
     estimate_every: f64,
     #[command(flatten)]
     monitor: MonitorFlags,
+    // The workers of a fleet share these: a cell taken over runs on from its checkpoint, with
+    // the stages it was checkpointed with.
+    #[command(flatten)]
+    stages: StageFlags,
 }
 
 /// Run `physid worker`.
 pub fn run(a: &Args) -> Result<()> {
     let target =
         NatsTarget::new(&a.nats, a.nats_credentials.as_deref()).map_err(|e| miette!("{e}"))?;
+    let mut live = LiveConfig {
+        monitor: config(&a.monitor)?,
+        estimate_every_s: a.estimate_every,
+        ..LiveConfig::default()
+    };
+    a.stages.apply(&mut live)?;
     let cfg = WorkerConfig {
         name: a
             .name
             .clone()
             .unwrap_or_else(|| format!("worker-{}", std::process::id())),
-        live: LiveConfig {
-            monitor: config(&a.monitor)?,
-            estimate_every_s: a.estimate_every,
-            ..LiveConfig::default()
-        },
+        live,
         give_up: Duration::from_secs(60),
     };
     if !physid_live::wire::valid_cell(&cfg.name) {

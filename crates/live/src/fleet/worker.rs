@@ -348,8 +348,6 @@ async fn process_cell(
     let mut live = cfg.live.clone();
     live.theta_tdc = info.theta_tdc;
     live.panel = None;
-    live.friction = None;
-    live.torque = None;
     live.pace = crate::source::Pace::Max;
     let entry = fleet
         .checkpoints

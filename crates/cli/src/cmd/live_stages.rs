@@ -1,0 +1,107 @@
+//! The application stages a live run adds to the shaft monitor, the cycle statistics and the
+//! integrity checks — the friction characterisation and the cyclic-torque estimation — as flags
+//! shared by `physid live` and `physid worker` (a fleet's workers run them on every cell).
+
+use miette::{miette, Result};
+use physid_apps::friction_fit::{
+    friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
+};
+use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
+use physid_live::{FrictionLive, LiveConfig, TorqueLive};
+use physid_sim::params::CellParams;
+
+/// The friction and cyclic-torque stages' flags.
+#[derive(clap::Args)]
+pub struct StageFlags {
+    /// Characterise the engine's friction on the stream (a motored engine, e.g. the
+    /// friction-sweep scenario) with this friction model preset: thesis, sandoval2002 or cell
+    /// (the virtual cell's engine).
+    #[arg(long, value_name = "PRESET")]
+    friction: Option<String>,
+    /// Choose the estimable friction coefficients after this many steady cycles.
+    #[arg(long, value_name = "N", default_value_t = 100, requires = "friction")]
+    friction_after: usize,
+    /// The motoring torque for the friction characterisation: engine (−torque_engine) or
+    /// shaft (+torque_shaft).
+    #[arg(
+        long,
+        value_name = "engine|shaft",
+        default_value = "engine",
+        requires = "friction"
+    )]
+    friction_source: String,
+    /// Estimate the cyclic engine torque model's parameters on the stream (thesis ch. 8: a
+    /// motored engine, e.g. the torque-ramp scenario), UKF from the virtual cell's nominal
+    /// values, as `physid torque fit`.
+    #[arg(long)]
+    torque: bool,
+    /// Choose the estimable cyclic-torque parameters after this many cycles.
+    #[arg(long, value_name = "N", default_value_t = 10, requires = "torque")]
+    torque_after: usize,
+    /// Parameters held at their nominal values, as `torque fit --fix`.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "delta",
+        requires = "torque"
+    )]
+    torque_fix: Vec<String>,
+    /// Let a parameter drift, as `torque fit --track`: NAME=VARIANCE per sample in scaled
+    /// coordinates, e.g. M_rec=1e-6 to follow a reciprocating-mass change.
+    #[arg(long, value_delimiter = ',', requires = "torque")]
+    torque_track: Vec<String>,
+}
+
+impl StageFlags {
+    /// The stages asked for, added to `cfg`; a preset, a source or a count out of range is
+    /// refused with what is expected.
+    pub fn apply(&self, cfg: &mut LiveConfig) -> Result<()> {
+        if let Some(preset) = &self.friction {
+            let (d, st) = friction_preset(preset).ok_or_else(|| {
+                miette!(
+                    "--friction '{preset}': the presets are {}",
+                    FRICTION_PRESETS.join(", ")
+                )
+            })?;
+            let mut fit = FrictionFitConfig::new(d, st);
+            fit.source = TorqueSource::parse(&self.friction_source).ok_or_else(|| {
+                miette!(
+                    "--friction-source '{}': expected engine or shaft",
+                    self.friction_source
+                )
+            })?;
+            if self.friction_after < MIN_CYCLES {
+                return Err(miette!(
+                    "--friction-after {}: the choice needs at least {MIN_CYCLES} cycles",
+                    self.friction_after
+                ));
+            }
+            cfg.friction = Some(FrictionLive {
+                fit,
+                select_after: self.friction_after,
+            });
+        }
+        if self.torque {
+            let nominal =
+                cyclic_torque_nominal(&CellParams::default()).map_err(|e| miette!("{e}"))?;
+            let mut fit = TorqueFitConfig::new(nominal);
+            fit.fixed = self
+                .torque_fix
+                .iter()
+                .map(|s| s.trim().to_string())
+                .collect();
+            let (names, values) = super::named_values(&self.torque_track, "--torque-track")?;
+            fit.track = names.into_iter().zip(values).collect();
+            if self.torque_after == 0 {
+                return Err(miette!(
+                    "--torque-after 0: the choice needs at least one cycle"
+                ));
+            }
+            cfg.torque = Some(TorqueLive {
+                fit,
+                select_after_cycles: self.torque_after,
+            });
+        }
+        Ok(())
+    }
+}
