@@ -180,11 +180,6 @@ impl<'a, E: FnMut(&Event) -> Result<(), String>> Emit<'a, E> {
         }
     }
 
-    /// Whether `emit` has failed.
-    pub fn failed(&self) -> bool {
-        self.error.is_some()
-    }
-
     /// `emit`'s first error, if it failed.
     pub fn result(self) -> Result<(), LiveError> {
         self.error.map_or(Ok(()), Err)

@@ -2,6 +2,7 @@
 //! through the integrity check and the stages, their outputs as events; controls; checkpoints.
 
 use super::*;
+use physid_core::Sink;
 
 impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     /// The stages of `cfg` for a stream at `rate_hz` [Hz].
@@ -222,27 +223,12 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         }
         self.st.taken += t.len();
         self.st.last_t = t[t.len() - 1];
-        let at = At {
-            cfg: &self.cfg,
-            rate_hz: self.rate_hz,
-            t_first: self.st.t_first,
-            last_t: self.st.last_t,
-            end: false,
-        };
-        let mut events = Emit::new(
-            &mut self.emit,
-            &mut self.st.events,
-            &mut self.latency,
-            &self.pacer,
-            false,
-        );
-        for stage in self.st.stages.in_chunk_order() {
-            stage.push(chunk, at, &mut events);
-            if events.failed() {
-                break;
+        self.tell(false, |stages, _, at, events| {
+            for stage in stages.in_chunk_order() {
+                stage.push(chunk, at, events);
             }
-        }
-        events.result()?;
+            Ok(())
+        })?;
         match self.recorder.push(chunk, self.st.last_t) {
             Ok(Some(e)) => self.send(&e)?,
             Ok(None) => {}
@@ -263,43 +249,55 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                 self.traces = Some(TraceStage::new(chunk, p, self.rate_hz)?);
             }
         }
-        if let Some(tr) = self.traces.as_mut() {
-            let mut events = Emit::new(
-                &mut self.emit,
-                &mut self.st.events,
-                &mut self.latency,
-                &self.pacer,
-                false,
-            );
-            tr.push(chunk, &mut events)?;
-            events.result()?;
-        }
-        Ok(())
+        self.tell(false, |_, traces, _, events| match traces {
+            Some(tr) => tr.push(chunk, events),
+            None => Ok(()),
+        })
     }
 
-    /// The end of the stream: the stages' last output, the final estimate, `end`.
-    pub fn finish(mut self) -> Result<Summary, LiveError> {
+    /// `run` on the stages and the panel's traces, what telling their outputs needs to know of
+    /// the run (during the stream, or at its `end`) and the sink their events go to; `emit`'s
+    /// first error, or `run`'s, is the result.
+    fn tell(
+        &mut self,
+        end: bool,
+        run: impl FnOnce(
+            &mut StageSlots,
+            Option<&mut TraceStage>,
+            At,
+            &mut dyn Sink<Event>,
+        ) -> Result<(), AppError>,
+    ) -> Result<(), LiveError> {
         let at = At {
             cfg: &self.cfg,
             rate_hz: self.rate_hz,
             t_first: self.st.t_first,
             last_t: self.st.last_t,
-            end: true,
+            end,
         };
         let mut events = Emit::new(
             &mut self.emit,
             &mut self.st.events,
             &mut self.latency,
             &self.pacer,
-            true,
+            end,
         );
-        for stage in self.st.stages.in_finish_order() {
-            stage.finish(at, &mut events);
-        }
-        if let Some(tr) = self.traces.as_mut() {
-            tr.finish(&mut events)?;
-        }
+        let result = run(&mut self.st.stages, self.traces.as_mut(), at, &mut events);
         events.result()?;
+        Ok(result?)
+    }
+
+    /// The end of the stream: the stages' last output, the final estimate, `end`.
+    pub fn finish(mut self) -> Result<Summary, LiveError> {
+        self.tell(true, |stages, traces, at, events| {
+            for stage in stages.in_finish_order() {
+                stage.finish(at, events);
+            }
+            match traces {
+                Some(tr) => tr.finish(events),
+                None => Ok(()),
+            }
+        })?;
         if let Some(e) = self.recorder.stop(self.st.last_t)? {
             self.send(&e)?;
         }
