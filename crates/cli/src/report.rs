@@ -208,6 +208,23 @@ pub fn create_dir(dir: &Path) -> Result<()> {
         .wrap_err_with(|| format!("creating {}", dir.display()))
 }
 
+/// A verb's report on the file `data` in `dir` (`--out DIR`): the directory created, the report
+/// titled `title`, its body written by `body` (given the report and the directory for its
+/// figures), finished with the JSON as `DIR/json_name` ([`finish`]).
+pub fn write(
+    dir: &Path,
+    title: &str,
+    data: &Path,
+    json_name: &str,
+    json: &impl serde::Serialize,
+    body: impl FnOnce(&mut Report, &Path) -> Result<()>,
+) -> Result<()> {
+    create_dir(dir)?;
+    let mut rep = Report::new(title, &format!("{}", data.display()));
+    body(&mut rep, dir)?;
+    finish(dir, rep, json_name, json)
+}
+
 /// Finish an output directory: `DIR/report.html` and the JSON as `DIR/json_name`.
 pub fn finish(
     dir: &Path,

@@ -151,13 +151,21 @@ fn fit(a: &FitArgs) -> Result<()> {
         motored_imep_pa: imep,
     };
     if let Some(dir) = &a.out {
-        report::create_dir(dir)?;
-        let mut rep = Report::new("physid — compression fit", &format!("{}", a.data.display()));
-        report_section(&mut rep, &r, &cfg, dir)?;
-        if let Some(v) = imep {
-            rep.para(&imep_text(v), None);
-        }
-        report::finish(dir, rep, "compression_fit.json", &json)?;
+        let title = "physid — compression fit";
+        report::write(
+            dir,
+            title,
+            &a.data,
+            "compression_fit.json",
+            &json,
+            |rep, dir| {
+                report_section(rep, &r, &cfg, dir)?;
+                if let Some(v) = imep {
+                    rep.para(&imep_text(v), None);
+                }
+                Ok(())
+            },
+        )?;
         write_tracks(&dir.join("tracks.csv"), &r)?;
     }
     if let Some(path) = &a.tracks {

@@ -249,10 +249,10 @@ fn fit(a: &FitArgs) -> Result<()> {
     }
     let j = r.summary();
     if let Some(dir) = &a.out {
-        report::create_dir(dir)?;
-        let mut rep = Report::new("physid — friction fit", &format!("{}", a.data.display()));
-        fit_report_section(&mut rep, &r, &cfg, dir)?;
-        report::finish(dir, rep, "friction_fit.json", &j)?;
+        let title = "physid — friction fit";
+        report::write(dir, title, &a.data, "friction_fit.json", &j, |rep, dir| {
+            fit_report_section(rep, &r, &cfg, dir)
+        })?;
     }
     if a.json {
         crate::provenance::print_json(&j)?;

@@ -409,10 +409,14 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
     }
     let j = r.summary();
     if let Some(dir) = &a.out {
-        report::create_dir(dir)?;
-        let mut rep = Report::new("physid — shaft monitor", &format!("{}", a.data.display()));
-        report_section(&mut rep, &r, &cfg, dir)?;
-        report::finish(dir, rep, "shaft.json", &j)?;
+        report::write(
+            dir,
+            "physid — shaft monitor",
+            &a.data,
+            "shaft.json",
+            &j,
+            |rep, dir| report_section(rep, &r, &cfg, dir),
+        )?;
     }
     if a.json {
         crate::provenance::print_json(&j)?;

@@ -391,13 +391,10 @@ fn fit(a: &FitArgs) -> Result<()> {
     }
     let j = r.summary();
     if let Some(dir) = &a.out {
-        report::create_dir(dir)?;
-        let mut rep = Report::new(
-            "physid — cyclic torque fit",
-            &format!("{}", a.data.display()),
-        );
-        report_section(&mut rep, &r, &cfg, &r.truths(&header), dir)?;
-        report::finish(dir, rep, "torque_fit.json", &j)?;
+        let title = "physid — cyclic torque fit";
+        report::write(dir, title, &a.data, "torque_fit.json", &j, |rep, dir| {
+            report_section(rep, &r, &cfg, &r.truths(&header), dir)
+        })?;
     }
     if a.json {
         crate::provenance::print_json(&j)?;
