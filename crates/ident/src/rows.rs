@@ -95,8 +95,10 @@ impl<'a> Data<'a> {
 
 /// Rows that can be gone over more than once, in the same order each time, a chunk at a time.
 pub trait Rows {
-    /// Whether the rows carry the measured output.
-    fn has_y(&self) -> bool;
+    /// Whether the rows carry the measured output (they do unless they say otherwise).
+    fn has_y(&self) -> bool {
+        true
+    }
 
     /// Go over every row once: `visit` each chunk in order (chunks may be empty). An error of
     /// `visit` ends the pass and is returned.

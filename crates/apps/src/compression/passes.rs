@@ -243,10 +243,6 @@ impl<'a> TdcEvents<'a> {
 }
 
 impl Rows for TdcEvents<'_> {
-    fn has_y(&self) -> bool {
-        true
-    }
-
     fn pass(
         &self,
         visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,

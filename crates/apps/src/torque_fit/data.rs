@@ -110,10 +110,6 @@ impl TorqueData {
 }
 
 impl Rows for TorqueData {
-    fn has_y(&self) -> bool {
-        true
-    }
-
     fn pass(
         &self,
         visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,

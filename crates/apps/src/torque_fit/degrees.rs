@@ -339,10 +339,6 @@ pub(super) fn in_pieces<E>(
 }
 
 impl Rows for Degrees<'_> {
-    fn has_y(&self) -> bool {
-        true
-    }
-
     fn pass(
         &self,
         visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
