@@ -2,7 +2,7 @@
 //! has 0.45 of the nominal model's mechanical friction, characterised from cycle means —
 //! identifiability of c1 … c20 (thesis Table 7.3), DSFC on the estimable subset from the
 //! nominal values, prediction within ±5 % of the simulated friction after the start-up
-//! transient.
+//! transient. The stage's friction model on a stream against sympy's (no simulator).
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -345,4 +345,100 @@ fn a_crank_angle_recording_in_chunks_is_the_whole_one() {
             whole.data.tau_nm[k]
         );
     }
+}
+
+/// The stage's friction model against sympy's, on a stream (independent of physid: SPEC §2.5
+/// written out and evaluated to 30 digits by `golden/gen_friction_rank.py`, the thesis preset):
+/// 12 motored cycles at each of the golden file's 27 operating points (1000–5000 rpm, manifold
+/// 10–100 kPa, oil 20–90 °C), the motoring torque −τ_sympy, in chunks of one operating point.
+/// Every steady cycle's nominal prediction is sympy's τ to 1e-12 (measured: 1.2e-14); the data
+/// are the nominal model, so the estimates stay at the nominal values and the one-step
+/// prediction is sympy's τ to 1e-10 (measured: 4e-14). Of each point's 12 cycles, the one next
+/// to a change of manifold pressure is not steady: 10 or 11 are judged.
+#[test]
+fn the_stage_s_friction_model_is_sympy_s() {
+    use physid_apps::friction_fit::{FrictionOutput, FrictionStage};
+    use physid_apps::stage::Stage;
+    use physid_core::{Basis, Channel};
+    use physid_models::friction::thesis_preset;
+    use std::f64::consts::PI;
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/friction_rank.json"
+    ))
+    .unwrap();
+    let golden: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let p_atm_kpa = golden["p_atm_kpa"].as_f64().unwrap();
+    let (d, st) = thesis_preset();
+    let mut stage = FrictionStage::new(FrictionFitConfig::new(d, st), Some(20)).unwrap();
+    let mut out = Vec::new();
+    // Each operating point: its start time [s] and sympy's torque [N·m].
+    let mut spans: Vec<(f64, f64)> = Vec::new();
+    let (cycles, per_cycle) = (12, 180);
+    let step = 4.0 * PI / per_cycle as f64;
+    let (mut t0, mut theta0) = (0.0, 0.0);
+    for point in golden["tests"].as_array().unwrap() {
+        let at = |k: &str| point[k].as_f64().unwrap();
+        let (n_rpm, tau) = (at("n_rpm"), at("tau_nm"));
+        let w = n_rpm * PI / 30.0;
+        let n = cycles * per_cycle;
+        let t: Vec<f64> = (0..n).map(|k| t0 + k as f64 * step / w).collect();
+        let theta: Vec<f64> = (0..n).map(|k| theta0 + k as f64 * step).collect();
+        let mut r = Recording::new(Basis::Time);
+        for (name, unit, values) in [
+            ("t", "s", t),
+            ("theta_en", "rad", theta),
+            ("omega_en", "rad/s", vec![w; n]),
+            ("p_int", "Pa", vec![at("p_int_kpa") * 1e3; n]),
+            ("p_atm", "Pa", vec![p_atm_kpa * 1e3; n]),
+            ("T_oil", "K", vec![at("t_oil_c") + 273.15; n]),
+            ("torque_engine", "N*m", vec![-tau; n]),
+        ] {
+            r.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values,
+            })
+            .unwrap();
+        }
+        stage.push(&r, &mut out).unwrap();
+        spans.push((t0, tau));
+        t0 += n as f64 * step / w;
+        theta0 += n as f64 * step;
+    }
+    stage.finish(&mut out).unwrap();
+    let mut seen = vec![0; spans.len()];
+    for o in &out {
+        let FrictionOutput::Cycle(s) = o else {
+            continue;
+        };
+        let j = spans
+            .iter()
+            .rposition(|(start, _)| *start <= s.t_s + 1e-9)
+            .unwrap();
+        let tau = spans[j].1;
+        seen[j] += 1;
+        assert!(
+            (s.nominal_nm / tau - 1.0).abs() < 1e-12,
+            "cycle {} (point {j}): nominal {} N·m, sympy's {tau}",
+            s.cycle,
+            s.nominal_nm
+        );
+        assert!(
+            (s.measured_nm / tau - 1.0).abs() < 1e-12,
+            "cycle {}: measured {}",
+            s.cycle,
+            s.measured_nm
+        );
+        assert!(
+            (s.predicted_nm / tau - 1.0).abs() < 1e-10,
+            "cycle {} (point {j}): predicted {} N·m, sympy's {tau}",
+            s.cycle,
+            s.predicted_nm
+        );
+    }
+    assert!(
+        seen.iter().all(|&k| k >= 10),
+        "steady cycles per operating point: {seen:?}"
+    );
 }
