@@ -61,6 +61,12 @@ pub use stage::*;
 /// that separates the temperature terms of the friction cubic at a constant oil temperature.
 pub const TORQUE_CUTOFF: f64 = 1e-6;
 
+/// The finest resolution of a torque measurement, relative to its RMS: the batch fit's
+/// residual variance, R2's default, is at least `(R2_FLOOR·RMS)²` (a 24-bit converter's step is
+/// 6e-8 of its range). On data the model fits exactly the residual is 0, and a filter told the
+/// torque is exact loses its covariance's positive definiteness within samples.
+pub const R2_FLOOR: f64 = 1e-7;
+
 /// How to fit.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TorqueFitConfig {
@@ -75,7 +81,8 @@ pub struct TorqueFitConfig {
     pub method: MethodName,
     /// `P0 = p0·I` over the scaled coordinates x (relative deviations).
     pub p0: f64,
-    /// Measurement-noise variance R2 [N²·m²]; `None` = the batch fit's residual variance.
+    /// Measurement-noise variance R2 [N²·m²]; `None` = the batch fit's residual variance (at
+    /// least `(R2_FLOOR·RMS of the measured torque)²`).
     pub r2: Option<f64>,
     /// Random-walk variance per sample (scaled coordinates) of chosen parameters, to track a
     /// change; the others are constant.

@@ -122,8 +122,20 @@ impl TorqueFilter {
             Some(v) => v,
             None => {
                 let fit = fit_subset(&model, rows, &cfg.nominal, &estimable, 20)?;
-                // An exact fit (noise-free data) leaves no residual: keep R2 positive.
-                (fit.rss / (n - estimable.len()).max(1) as f64).max(f64::MIN_POSITIVE)
+                // An exact fit (noise-free data) leaves no residual; a filter told the torque
+                // is measured exactly collapses its covariance within samples. No torque is
+                // measured finer than R2_FLOOR of its RMS.
+                let (mut ssy, mut count) = (0.0, 0usize);
+                rows.pass(&mut |d| {
+                    let y = d.y.unwrap_or_default();
+                    ssy += y.iter().map(|v| v * v).sum::<f64>();
+                    count += y.len();
+                    Ok(())
+                })?;
+                let floor = R2_FLOOR * R2_FLOOR * ssy / count.max(1) as f64;
+                (fit.rss / (n - estimable.len()).max(1) as f64)
+                    .max(floor)
+                    .max(f64::MIN_POSITIVE)
             }
         };
         let params = ParamSet::new(PARAMS, cfg.nominal.to_vec())
