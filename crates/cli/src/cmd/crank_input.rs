@@ -52,6 +52,16 @@ impl InputObserver for Told {
     }
 }
 
+/// An error of reading `path` on a crank-angle basis: the file's own I/O error with its cause,
+/// as opening a file says it in every verb ([`super::InputArgs::open_all`]);
+/// anything else as [`super::app_error`] says it.
+pub fn read_error(path: &Path) -> impl Fn(physid_apps::error::AppError) -> miette::Report + '_ {
+    move |e| match e {
+        physid_apps::error::AppError::Io(e) => miette::Report::from_err(e),
+        e => super::app_error(path)(e),
+    }
+}
+
 /// The file `path` read with `input`'s flags at one sample per crank degree, its angle found
 /// as `angle` says (the defaults: the thesis's encoders and marker; `--tdc-from` with `crank`'s
 /// lengths), what it finds told on stderr ([`Told`]).
@@ -64,6 +74,8 @@ pub fn crank_input(
     let told = Arc::new(Told::new(input));
     let mut plan = AngleInput::new(path, input.options(None)?, angle.options()?, told);
     if let Some(channel) = &angle.wheel.tdc_from {
+        // A file that cannot be opened is named before the lengths it would need.
+        plan.header().map_err(read_error(path))?;
         plan.crank = Some(crank.lengths(&format!("--tdc-from {channel}"))?);
         plan.tdc_from = Some(channel.clone());
         plan.hold_bytes = super::hold_bytes()?;

@@ -4,7 +4,7 @@
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
 use super::{GeometryArgs, InputArgs};
-use crate::cmd::crank_input::crank_input;
+use crate::cmd::crank_input::{crank_input, read_error};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
@@ -115,7 +115,7 @@ pub fn run(args: &Args) -> Result<()> {
             |h| CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg),
             |a, chunk| a.push(chunk),
         )
-        .map_err(super::app_error(&args.file))?;
+        .map_err(read_error(&args.file))?;
     let a = analyser.finish().map_err(super::app_error(&args.file))?;
     if let Some(path) = &args.tracks {
         write_tracks(path, &a)?;
