@@ -176,10 +176,25 @@ for p in pathlib.Path(sys.argv[1]).rglob("*"):
 EOF
 }
 
+# The raw-sensor files are written by python3 with numpy and pyarrow: without them every
+# command on those files fails alike at both revisions and would compare as "same".
+if ! python3 -c "import numpy, pyarrow" 2>/dev/null; then
+    echo "same-output: needs python3 with numpy and pyarrow (pip install numpy pyarrow)" >&2
+    exit 2
+fi
 build "$base" base
 build "$head" head
 run "$dir/base/physid" "$dir/out-base"
 run "$dir/head/physid" "$dir/out-head"
+# A command that makes files for the others (python3) must have worked.
+for out in "$dir/out-base" "$dir/out-head"; do
+    for cmd in "$out"/*.cmd; do
+        if [[ $(cat "$cmd") == python3* && $(cat "${cmd%.cmd}.rc") != 0 ]]; then
+            echo "same-output: $(cat "$cmd") failed: $(cat "${cmd%.cmd}.stderr")" >&2
+            exit 2
+        fi
+    done
+done
 normalise "$dir/out-base"
 normalise "$dir/out-head"
 if diff -rq "$dir/out-base" "$dir/out-head"; then
