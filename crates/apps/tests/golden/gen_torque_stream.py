@@ -1,10 +1,10 @@
 """Golden stream for the cyclic-torque stage (thesis Eq. 8.2, app. B.4; SPEC §9).
 
-Independent of physid: the torque is written out symbolically as the thesis's closed forms (as
-in crates/models/tests/golden/gen_cyclic_torque_gradient.py: TDC angle phi = asin(delta/(r+L)),
-a = theta - phi, the root of (1-psi)/psi with the sign of q) and evaluated with 30 significant
-digits (mpmath) at every crank degree of a motored stream: 4 cycles of 720 samples, one per
-degree from a firing TDC (theta_k = k*pi/180), at 1500, 2500, 3500 and 2000 rpm (alpha = 0),
+Independent of physid: the torque written out symbolically as the thesis's closed forms by
+crates/models/tests/golden/gen_cyclic_torque_gradient.py (imported from there: TDC angle
+phi = asin(delta/(r+L)), a = theta - phi, the root of (1-psi)/psi with the sign of q) and
+evaluated with 30 significant digits (mpmath) at every crank degree of a motored stream: 4
+cycles of 720 samples, one per degree from a firing TDC (theta_k = k*pi/180), at 1500, 2500, 3500 and 2000 rpm (alpha = 0),
 a compression peak of 20 bar at each firing TDC, p_crank 1 bar, oil at 80 degC, the parameters
 of the gradient golden file (delta = 2.1 mm).
 
@@ -12,32 +12,16 @@ Run: python3 gen_torque_stream.py  (sympy 1.14, mpmath 1.3) -> torque_stream.jso
 """
 import json
 import math
+import pathlib
+import sys
 
 import mpmath
-import sympy as sp
 
-mpmath.mp.dps = 30
+# The model as the gradient golden file writes it out: Eq. 8.2's closed forms, f_tau over
+# (M_rec, b, L, r, delta, c1 ... c10, theta, omega, alpha, p_cyl, p_crank, T_oil), and its p0.
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "models/tests/golden"))
+from gen_cyclic_torque_gradient import f_tau, p0  # noqa: E402
 
-M, b, L, r, d = sp.symbols("M_rec b L r delta", real=True)
-c = sp.symbols("c1:11", real=True)
-th, w, al, pc, pk, T = sp.symbols("theta omega alpha p_cyl p_crank T_oil", real=True)
-phi = sp.asin(d / (r + L))
-a = th - phi
-q = d + r * sp.sin(a)
-psi = 1 - (q / L) ** 2
-root = q / (L * sp.sqrt(psi))
-G = sp.sin(th) + root * sp.cos(th)
-G1 = r * (sp.cos(a) * (r * sp.cos(a) / (L * psi ** sp.Rational(3, 2)) + 1) - root * sp.sin(a))
-G2 = r * (root * sp.cos(a) + sp.sin(a))
-N = w * 30 / sp.pi
-fmep = (c[0] + c[1] * N - c[2] * T + c[3] * N**2 - c[4] * N * T + c[5] * T**2
-        - c[6] * N**3 + c[7] * N**2 * T + c[8] * N * T**2 - c[9] * T**3)
-Ap = sp.pi * b**2 / 4
-tau = (pc - pk) * Ap * r * G - M * r * G * (G1 * w**2 + G2 * al) - fmep * 1000 * Ap * r / (2 * sp.pi)
-f_tau = sp.lambdify([M, b, L, r, d, *c, th, w, al, pc, pk, T], tau, "mpmath")
-
-p0 = [0.80, 0.054, 0.088, 0.0257, 0.0021,
-      60.0, 0.02, 0.4, 1e-6, 1e-4, 2e-3, 1e-10, 1e-8, 1e-6, 1e-5]
 rpm = [1500.0, 2500.0, 3500.0, 2000.0]
 t_oil_c, p_crank = 80.0, 1.0e5
 

@@ -7,6 +7,7 @@ parameters, and evaluated with 30 significant digits (mpmath) at points spread o
 with a pin offset delta != 0.
 
 Run: python3 gen_cyclic_torque_gradient.py  (sympy 1.14, mpmath 1.3) -> cyclic_torque_gradient.json
+(crates/apps/tests/golden/gen_torque_stream.py imports the model, tau and p0, from here.)
 """
 import json
 import random
@@ -38,24 +39,29 @@ tau = (pc - pk) * Ap * r * G - M * r * G * (G1 * w**2 + G2 * al) - fmep * 1000 *
 params = [M, b, L, r, d, *c]
 p0 = [0.80, 0.054, 0.088, 0.0257, 0.0021,
       60.0, 0.02, 0.4, 1e-6, 1e-4, 2e-3, 1e-10, 1e-8, 1e-6, 1e-5]
-grads = [sp.diff(tau, s) for s in params]
 args = [*params, th, w, al, pc, pk, T]
 f_tau = sp.lambdify(args, tau, "mpmath")
-f_grads = [sp.lambdify(args, g, "mpmath") for g in grads]
 
-random.seed(5)
-points = []
-for k in range(12):
-    u = [random.uniform(0.0, 4 * 3.141592653589793), random.uniform(50.0, 600.0),
-         random.uniform(-500.0, 500.0), random.uniform(2e4, 3e6), 1.0e5,
-         random.uniform(20.0, 90.0)]
-    x = [mpmath.mpf(v) for v in p0 + u]
-    points.append({
-        "inputs": u,
-        "value": float(f_tau(*x)),
-        "gradient": [float(g(*x)) for g in f_grads],
-    })
 
-with open("cyclic_torque_gradient.json", "w") as f:
-    json.dump({"params": names, "theta": p0, "points": points}, f, indent=1)
-    f.write("\n")
+def main():
+    grads = [sp.diff(tau, s) for s in params]
+    f_grads = [sp.lambdify(args, g, "mpmath") for g in grads]
+    random.seed(5)
+    points = []
+    for k in range(12):
+        u = [random.uniform(0.0, 4 * 3.141592653589793), random.uniform(50.0, 600.0),
+             random.uniform(-500.0, 500.0), random.uniform(2e4, 3e6), 1.0e5,
+             random.uniform(20.0, 90.0)]
+        x = [mpmath.mpf(v) for v in p0 + u]
+        points.append({
+            "inputs": u,
+            "value": float(f_tau(*x)),
+            "gradient": [float(g(*x)) for g in f_grads],
+        })
+    with open("cyclic_torque_gradient.json", "w") as f:
+        json.dump({"params": names, "theta": p0, "points": points}, f, indent=1)
+        f.write("\n")
+
+
+if __name__ == "__main__":
+    main()
