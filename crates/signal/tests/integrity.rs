@@ -333,9 +333,13 @@ fn units_off_the_table_are_found() {
 /// at the same samples with the same words — for chunks of 1, 17, 4096 samples and whole:
 /// time defects, lost pulses, a displaced marker, a second encoder losing pulses over spans,
 /// and the cap with its summary.
+/// The stream, in chunks of 1, 17, 4096 or whole, finds each defect [`defective`] placed where
+/// it placed it (by construction, not by another check: samples lost at 5001, a repeated stamp
+/// at 7000, time going back at 9000, the marker 40 samples late) — and so what the whole-record
+/// check finds, finding for finding.
 #[test]
 fn the_stream_finds_what_the_whole_record_check_finds() {
-    let (t, c, m, _) = defective();
+    let (t, c, m, e) = defective();
     let theta_dy: Vec<f64> = (0..t.len()).map(|i| i as f64 * 1e-2 - 0.05).collect();
     let mut dy = counts_from_angle(&theta_dy, 1024);
     let mut lost = 0.0;
@@ -361,6 +365,17 @@ fn the_stream_finds_what_the_whole_record_check_finds() {
     let kinds = |k| whole.iter().filter(|f| f.kind == k).count();
     assert!(kinds(FindingKind::OutOfSync) == 1 && kinds(FindingKind::LostSamples) == 1);
     assert!(kinds(FindingKind::PulseLoss) >= 2, "{whole:?}");
+    let at = |k| -> Vec<usize> {
+        whole
+            .iter()
+            .filter(|f| f.kind == k)
+            .map(|f| f.index)
+            .collect()
+    };
+    assert_eq!(at(FindingKind::LostSamples), [5001]);
+    assert_eq!(at(FindingKind::DuplicatedSamples), [7000]);
+    assert_eq!(at(FindingKind::NonMonotonicTime), [9000]);
+    assert_eq!(at(FindingKind::OutOfSync), [e + 40]);
     for chunk in [1, 17, 4096, r.len()] {
         let mut s = IntegrityStream::new(&o, Basis::Time, Some(1e-4));
         let mut out = Vec::new();
