@@ -47,7 +47,10 @@ pub use error::EstimError;
 pub use linear::{
     CovSpec, EstimatorConfig, GuardAction, LinearEstimator, Method, Step, VfVariant, WindupGuard,
 };
-pub use nonlinear::{NlConfig, NlMethod, NonlinearEstimator, SigmaPoints, SigmaWeights};
+pub use nonlinear::{
+    CovFactor, Ekf, Frame, FullCov, ModelFilter, NlConfig, NlMethod, NonlinearEstimator,
+    SigmaPoints, SigmaWeights, SqrtCov, Ukf,
+};
 pub use recursive::{
     feed, FeedError, FeedSummary, LinearInParams, Memory, MethodName, OnBad, ParamResolution,
     Recursive, RunSummary, Snapshot, Timing,

@@ -3,8 +3,8 @@
 //! `run` (`crates/py`) and `physid bench`'s measure of it. The loop is compiled for each
 //! estimator type (no dispatch per row) and allocates nothing per row.
 
-use crate::{EstimError, LinearEstimator, NonlinearEstimator};
-use physid_core::ParamModel;
+use crate::nonlinear::ModelFilter;
+use crate::{EstimError, LinearEstimator};
 
 /// What [`track`] needs of an estimator, allocation-free.
 pub trait Track {
@@ -30,15 +30,15 @@ impl Track for LinearEstimator {
     }
 }
 
-impl<M: ParamModel> Track for NonlinearEstimator<M> {
+impl<T: ModelFilter> Track for T {
     fn step(&mut self, x: &[f64], y: f64) -> Result<f64, EstimError> {
-        Ok(self.update(x, y)?.prediction_error)
+        Ok(ModelFilter::step(self, x, y)?.prediction_error)
     }
     fn estimate_into(&self, out: &mut [f64]) {
-        NonlinearEstimator::estimate_into(self, out);
+        ModelFilter::estimate_into(self, out);
     }
     fn std_err_into(&self, out: &mut [f64]) {
-        self.std_errors_into(out);
+        ModelFilter::std_errors_into(self, out);
     }
 }
 

@@ -22,14 +22,14 @@ impl LinearEstimator {
         let mut pre = vec![1.0; p];
         let mut lambda_t = 1.0;
         let kind = match &config.method {
-            Method::Rls => Kind::Rls,
+            Method::Rls => Kind::Cov(CovKind::Rls),
             Method::Rlsf { lambda } => {
                 let l = check_lambda("λ", *lambda)?;
                 post.fill(l.sqrt().recip());
-                Kind::Rlsf {
+                Kind::Cov(CovKind::Rlsf {
                     lambda: l,
                     inv_lambda: l.recip(),
-                }
+                })
             }
             Method::RlsfTv {
                 lambda0,
@@ -37,7 +37,7 @@ impl LinearEstimator {
             } => {
                 let l0 = check_lambda("λ0", *lambda0)?;
                 lambda_t = check_lambda("λ(0)", *lambda_init)?;
-                Kind::RlsfTv { lambda0: l0 }
+                Kind::Cov(CovKind::RlsfTv { lambda0: l0 })
             }
             Method::Rlsvf { lambdas, variant } => {
                 if lambdas.len() != p {
@@ -59,14 +59,14 @@ impl LinearEstimator {
                         }
                     }
                 }
-                Kind::Vf {
+                Kind::Cov(CovKind::Vf {
                     symmetric: *variant == VfVariant::Symmetric,
                     min_lambda,
-                }
+                })
             }
             Method::Kalman { r1, r2 } => {
                 let (r1, r2) = kalman_noise(r1, *r2, p)?;
-                Kind::Kalman { r1, r2 }
+                Kind::Cov(CovKind::Kalman { r1, r2 })
             }
             Method::Dsfc { lambda } => Kind::Dsfc {
                 lambda: check_lambda("λ", *lambda)?,
@@ -74,7 +74,7 @@ impl LinearEstimator {
         };
         let cov0 = match kind {
             Kind::Dsfc { .. } => Cov::sqrt(chol.l()),
-            _ => Cov::full(p0),
+            Kind::Cov(_) => Cov::full(p0),
         };
         if let Some(g) = &config.guard {
             if !(g.max_trace.is_finite() && g.max_trace > 0.0) {
@@ -96,7 +96,6 @@ impl LinearEstimator {
             *t = params.nominal()[i];
         }
         Ok(Self {
-            method: config.method.clone(),
             config: config.clone(),
             universe: free.clone(),
             frozen_variance: vec![f64::NAN; params.len()],
@@ -117,7 +116,6 @@ impl LinearEstimator {
             noise_den: 0.0,
             noise_scale: 1.0,
             samples: 0,
-            guard: config.guard,
             guard_activations: 0,
             last: None,
         })
@@ -201,35 +199,33 @@ impl LinearEstimator {
     fn step_dim<D: Dim>(&mut self, dim: D, phi: &[f64], e: f64) -> Result<Step, Breakdown> {
         match self.kind {
             Kind::Dsfc { lambda } => self.step_sqrt(dim, phi, e, lambda),
-            _ => self.step_cov(dim, phi, e),
+            Kind::Cov(ref c) => {
+                let step = c.step(self.lambda_t);
+                self.step_cov(dim, phi, e, step)
+            }
         }
     }
 
     /// Covariance-form step (see the module table). Writes the new P into `work`, checks it and
-    /// only then commits.
-    fn step_cov<D: Dim>(&mut self, dim: D, phi: &[f64], e: f64) -> Result<Step, Breakdown> {
+    /// only then commits (λ(t) of the time-varying method too).
+    fn step_cov<D: Dim>(
+        &mut self,
+        dim: D,
+        phi: &[f64],
+        e: f64,
+        step: CovStep,
+    ) -> Result<Step, Breakdown> {
         let p = dim.value();
         let phi = &phi[..p];
-        // (r, 1/r for the innovation variance in σ² units, λ(t), noise-scale decay ρ);
-        // λ(t) of the time-varying method is committed only on success.
-        let (r, r_inv, lambda_now, rho) = match &self.kind {
-            Kind::Rls => (1.0, 1.0, 1.0, 1.0),
-            Kind::Rlsf { lambda, inv_lambda } => (*lambda, *inv_lambda, *lambda, *lambda),
-            Kind::RlsfTv { lambda0 } => {
-                let l = lambda0 * self.lambda_t + (1.0 - lambda0);
-                (l, l.recip(), l, l)
-            }
-            Kind::Vf { min_lambda, .. } => (1.0, 1.0, 1.0, *min_lambda),
-            Kind::Kalman { r2, .. } => (*r2, 1.0, 1.0, 1.0),
-            Kind::Dsfc { .. } => unreachable!("DSFC uses step_sqrt"),
-        };
-        let symmetric_vf = matches!(
-            self.kind,
-            Kind::Vf {
-                symmetric: true,
-                ..
-            }
-        );
+        let CovStep {
+            r,
+            r_inv,
+            lambda_now,
+            rho,
+            symmetric_vf,
+            time_varying,
+            kalman,
+        } = step;
         let pre = &self.pre[..p];
         let post = &self.post[..p];
         // φ̃ = D_pre φ (kept in k as scratch), u = P φ̃.
@@ -251,7 +247,7 @@ impl LinearEstimator {
         // New P = s_i s_j (P_ij − u_i u_j / d) + Q_ij, column by column. Every product is formed
         // as (a_i·a_j), which IEEE arithmetic makes bit-identical for (i, j) and (j, i): a
         // symmetric P stays exactly symmetric without mirroring.
-        let scale = if let Kind::RlsfTv { .. } = self.kind {
+        let scale = if time_varying {
             r_inv // 1/λ(t)
         } else {
             1.0
@@ -270,7 +266,7 @@ impl LinearEstimator {
                 acc += v;
             }
         }
-        if let Kind::Kalman { r1, .. } = &self.kind {
+        if let Kind::Cov(CovKind::Kalman { r1, .. }) = &self.kind {
             for (w, q) in wm.iter_mut().zip(r1.as_slice()) {
                 *w += q; // R1 symmetric: P stays symmetric
             }
@@ -305,11 +301,11 @@ impl LinearEstimator {
         {
             *t += ki * e;
         }
-        if let Kind::RlsfTv { .. } = self.kind {
+        if time_varying {
             self.lambda_t = lambda_now;
         }
         // Innovation variance: d (Kalman, absolute), d/r in σ² units otherwise; 1/s = r/d.
-        let (s, s_inv) = if let Kind::Kalman { .. } = self.kind {
+        let (s, s_inv) = if kalman {
             (d, dinv)
         } else {
             (d * r_inv, r * dinv)
@@ -407,7 +403,7 @@ impl LinearEstimator {
     /// Wind-up guard on the candidate P in `work`.
     #[inline(always)]
     fn apply_guard_cov(&mut self) {
-        let Some(g) = self.guard else { return };
+        let Some(g) = self.config.guard else { return };
         let tr = self.work.trace();
         if tr > g.max_trace {
             self.guard_activations += 1;
@@ -421,7 +417,7 @@ impl LinearEstimator {
     /// Wind-up guard on the candidate S in `work` (trace P = ‖S‖²_F).
     #[inline(always)]
     fn apply_guard_sqrt(&mut self) {
-        let Some(g) = self.guard else { return };
+        let Some(g) = self.config.guard else { return };
         let tr = self.work.norm_squared();
         if tr > g.max_trace {
             self.guard_activations += 1;
@@ -541,7 +537,7 @@ impl LinearEstimator {
 
     /// The method and its tuning.
     pub fn method(&self) -> &Method {
-        &self.method
+        &self.config.method
     }
 
     /// The parameter set (all parameters, free and fixed).
@@ -604,7 +600,7 @@ impl LinearEstimator {
     /// its given R2. (Of data scaled by 1e-300 it underflows to 0: the standard errors are
     /// computed without it, from [`noise_scale`](Self::noise_scale).)
     pub fn noise_variance(&self) -> Result<f64, EstimError> {
-        if let Kind::Kalman { r2, .. } = self.kind {
+        if let Kind::Cov(CovKind::Kalman { r2, .. }) = self.kind {
             return Ok(r2);
         }
         let scale = self.noise_scale;
@@ -648,7 +644,7 @@ impl LinearEstimator {
             });
         }
         let (scale, factor) = match self.kind {
-            Kind::Kalman { .. } => (1.0, 1.0),
+            Kind::Cov(CovKind::Kalman { .. }) => (1.0, 1.0),
             _ => (self.scaled_noise_variance()?, self.noise_scale),
         };
         for (i, o) in out.iter_mut().enumerate() {
@@ -668,10 +664,10 @@ impl LinearEstimator {
     /// DSFC, 1 for RLS and Kalman, the smallest λ_i for vector forgetting.
     pub fn lambda(&self) -> f64 {
         match &self.kind {
-            Kind::Rlsf { lambda, .. } | Kind::Dsfc { lambda } => *lambda,
-            Kind::RlsfTv { .. } => self.lambda_t,
-            Kind::Vf { min_lambda, .. } => *min_lambda,
-            Kind::Rls | Kind::Kalman { .. } => 1.0,
+            Kind::Cov(CovKind::Rlsf { lambda, .. }) | Kind::Dsfc { lambda } => *lambda,
+            Kind::Cov(CovKind::RlsfTv { .. }) => self.lambda_t,
+            Kind::Cov(CovKind::Vf { min_lambda, .. }) => *min_lambda,
+            Kind::Cov(CovKind::Rls | CovKind::Kalman { .. }) => 1.0,
         }
     }
 

@@ -58,22 +58,76 @@ mod recursive;
 
 pub use config::*;
 
-/// The method with its per-step constants resolved.
+/// The method with its per-step constants resolved: a covariance-form method (the table
+/// above) or DSFC's square-root form — two steps, chosen once by the type.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 enum Kind {
+    Cov(CovKind),
+    Dsfc { lambda: f64 },
+}
+
+/// A covariance-form method (the rows of the module table).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+enum CovKind {
     Rls,
     Rlsf { lambda: f64, inv_lambda: f64 },
     RlsfTv { lambda0: f64 },
     Vf { symmetric: bool, min_lambda: f64 },
     Kalman { r1: DMatrix<f64>, r2: f64 },
-    Dsfc { lambda: f64 },
+}
+
+/// What one covariance-form step needs of its method, resolved before the step borrows the
+/// estimator's state: `r`, `1/r` (the innovation variance in σ² units), λ(t) to commit on
+/// success, the noise-scale decay ρ, and the table's switches.
+#[derive(Debug, Clone, Copy)]
+struct CovStep {
+    r: f64,
+    r_inv: f64,
+    lambda_now: f64,
+    rho: f64,
+    /// `D_pre ≠ I` (vector forgetting, symmetric variant).
+    symmetric_vf: bool,
+    /// P is divided by λ(t) (time-varying forgetting).
+    time_varying: bool,
+    /// P is absolute and R1 is added (Kalman).
+    kalman: bool,
+}
+
+impl CovKind {
+    /// The step's constants, λ(t−1) = `lambda_t`.
+    fn step(&self, lambda_t: f64) -> CovStep {
+        let (r, r_inv, lambda_now, rho) = match self {
+            CovKind::Rls => (1.0, 1.0, 1.0, 1.0),
+            CovKind::Rlsf { lambda, inv_lambda } => (*lambda, *inv_lambda, *lambda, *lambda),
+            CovKind::RlsfTv { lambda0 } => {
+                let l = lambda0 * lambda_t + (1.0 - lambda0);
+                (l, l.recip(), l, l)
+            }
+            CovKind::Vf { min_lambda, .. } => (1.0, 1.0, 1.0, *min_lambda),
+            CovKind::Kalman { r2, .. } => (*r2, 1.0, 1.0, 1.0),
+        };
+        CovStep {
+            r,
+            r_inv,
+            lambda_now,
+            rho,
+            symmetric_vf: matches!(
+                self,
+                CovKind::Vf {
+                    symmetric: true,
+                    ..
+                }
+            ),
+            time_varying: matches!(self, CovKind::RlsfTv { .. }),
+            kalman: matches!(self, CovKind::Kalman { .. }),
+        }
+    }
 }
 
 /// A recursive estimator for a model linear in the parameters: RLS, RLSF (constant or
 /// time-varying λ), vector forgetting, Kalman or DSFC, over a free subset of a parameter set.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct LinearEstimator {
-    method: Method,
     /// The configuration as built, over `universe` (for [`set_free`](Self::set_free)).
     config: EstimatorConfig,
     /// The free set the estimator was built with: what `set_free` may choose from.
@@ -111,7 +165,6 @@ pub struct LinearEstimator {
     #[serde(default = "one")]
     noise_scale: f64,
     samples: u64,
-    guard: Option<WindupGuard>,
     guard_activations: u64,
     last: Option<Step>,
 }

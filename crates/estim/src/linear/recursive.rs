@@ -5,7 +5,7 @@ use super::*;
 
 impl crate::recursive::Recursive for LinearEstimator {
     fn method_name(&self) -> &'static str {
-        self.method.name()
+        self.config.method.name()
     }
     fn param_names(&self) -> &[String] {
         self.params.names()
@@ -36,7 +36,7 @@ impl crate::recursive::Recursive for LinearEstimator {
     }
     fn snapshot(&self) -> crate::recursive::Snapshot {
         crate::recursive::Snapshot {
-            method: self.method.name().into(),
+            method: self.config.method.name().into(),
             free: self.free.free().to_vec(),
             params: LinearEstimator::estimate_full(self),
             state: self.theta.as_slice().to_vec(),
@@ -99,7 +99,7 @@ impl crate::recursive::Recursive for LinearEstimator {
             next.set_free(&free)?;
         }
         s.check(
-            self.method.name(),
+            self.config.method.name(),
             next.free.free(),
             next.params.len(),
             &next.cov,

@@ -33,8 +33,10 @@
 //! physical units. **Bounds** (e.g. a mass stays positive) are enforced by projection after each
 //! update and counted.
 //!
-//! Here: the estimator's state ([`NonlinearEstimator`]). `config.rs`: the configuration;
-//! `estimator.rs`: construction and the step; `recursive.rs`: the `Recursive` face.
+//! Files: `frame.rs`, what every filter shares ([`Frame`]) and its one face ([`ModelFilter`],
+//! which makes it a [`Recursive`] estimator); `ekf.rs`, [`Ekf`]; `ukf.rs`, [`Ukf`] over a
+//! [`CovFactor`] (`factor.rs`: [`FullCov`], [`SqrtCov`]); `config.rs`, the configuration; here,
+//! [`NonlinearEstimator`], the filter chosen at run time.
 
 use crate::cov::{chol_rank_one, factor_with_jitter, Cov, CovForm};
 use crate::error::check_view;
@@ -46,112 +48,154 @@ use physid_core::{FreeSet, GradientEngine, ParamModel, ParamSet};
 use serde::{Deserialize, Serialize};
 
 mod config;
-mod estimator;
-mod recursive;
+mod ekf;
+mod factor;
+mod frame;
+mod ukf;
 
 pub use config::*;
+pub use ekf::Ekf;
+pub use factor::{CovFactor, FullCov, SqrtCov};
+pub use frame::{Frame, ModelFilter};
+pub use ukf::Ukf;
 
-/// The UKF's state and preallocated work space.
+/// The EKF, the UKF or the SR-UKF over the free parameters of a [`ParamModel`], as
+/// [`NlConfig::method`] chooses at run time. Serialised whole (its model too, when the model
+/// serialises): a copy restored from it continues bit for bit.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-struct Ukf {
-    x: DVector<f64>,
-    /// The prior covariance: P (UKF), or its factor S (SR-UKF).
-    p: Cov,
-    r1: DMatrix<f64>,
-    r2: f64,
-    /// (l+ζ)·P (P the prior), then its Cholesky factor in place.
-    chol: DMatrix<f64>,
-    w: SigmaWeights,
-    /// Outputs of the 2l+1 sigma points.
-    ys: Vec<f64>,
-    /// Cross-covariance / gain.
-    pxy: DVector<f64>,
-    /// Candidate state.
-    x_new: DVector<f64>,
-    /// Square-root columns of R1 (SR-UKF): R1 = Σ c cᵀ.
-    r1_cols: Vec<DVector<f64>>,
-    /// Work matrix and vector of the rank-one updates.
-    work: DMatrix<f64>,
-    v: DVector<f64>,
-    /// Deviations of the 2l outer sigma points from the mean, after projection onto bounds.
-    dev: DMatrix<f64>,
+#[serde(tag = "filter", rename_all = "snake_case")]
+pub enum NonlinearEstimator<M: ParamModel> {
+    /// Alg. 5.6.
+    Ekf(Box<Ekf<M>>),
+    /// Alg. 5.7.
+    Ukf(Box<Ukf<M, FullCov>>),
+    /// The square-root form of Alg. 5.7.
+    Srukf(Box<Ukf<M, SqrtCov>>),
 }
 
-/// How state coordinates map to physical parameter values, and the bounds on them.
-struct Coords<'a> {
-    free: &'a [usize],
-    scale: &'a [f64],
-    scaled: bool,
-    bounds: &'a [Option<(f64, f64)>],
+/// `body` with `f` bound to the filter inside `est`, whichever it is.
+macro_rules! each {
+    ($est:expr, $f:ident => $body:expr) => {
+        match $est {
+            NonlinearEstimator::Ekf($f) => $body,
+            NonlinearEstimator::Ukf($f) => $body,
+            NonlinearEstimator::Srukf($f) => $body,
+        }
+    };
 }
 
-impl Coords<'_> {
-    /// Physical value of free parameter `k` at state coordinate `x`.
-    #[inline]
-    fn physical(&self, k: usize, x: f64) -> f64 {
-        if self.scaled {
-            self.scale[k] * (1.0 + x)
-        } else {
-            x
-        }
-    }
-
-    /// Write the physical values of state `x` into their places of the full vector `theta`.
-    fn load(&self, theta: &mut [f64], x: &[f64]) {
-        for (k, (&i, &xk)) in self.free.iter().zip(x).enumerate() {
-            theta[i] = self.physical(k, xk);
-        }
-    }
-
-    /// State coordinate `x` of parameter `k` projected onto its bounds (unchanged without one).
-    #[inline]
-    fn project(&self, k: usize, x: f64) -> f64 {
-        match self.bounds[k] {
-            Some((lo, hi)) => {
-                let phys = self.physical(k, x);
-                let clamped = phys.clamp(lo, hi);
-                if clamped == phys {
-                    x
-                } else if self.scaled {
-                    clamped / self.scale[k] - 1.0
-                } else {
-                    clamped
-                }
+impl<M: ParamModel> NonlinearEstimator<M> {
+    /// Build the filter `config.method` names, of the `free` parameters of `model`, starting
+    /// from `params`' nominal values (which hold the fixed ones).
+    pub fn new(
+        model: M,
+        params: &ParamSet,
+        free: &FreeSet,
+        config: &NlConfig,
+    ) -> Result<Self, EstimError> {
+        Ok(match config.method {
+            NlMethod::Ekf => Self::Ekf(Box::new(Ekf::new(model, params, free, config)?)),
+            NlMethod::Ukf(sp) => Self::Ukf(Box::new(Ukf::new(model, params, free, config, sp)?)),
+            NlMethod::Srukf(sp) => {
+                Self::Srukf(Box::new(Ukf::new(model, params, free, config, sp)?))
             }
-            None => x,
-        }
+        })
+    }
+
+    /// Process one sample ([`ModelFilter::step`]).
+    pub fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
+        self.step(inputs, y)
+    }
+
+    /// Names of the free parameters.
+    pub fn free_names(&self) -> Vec<&str> {
+        Recursive::free_names(self)
+    }
+
+    /// The free parameters' estimates, physical units.
+    pub fn estimate(&self) -> Vec<f64> {
+        Recursive::estimate(self)
+    }
+
+    /// The full parameter vector (fixed ones at nominal), physical units.
+    pub fn estimate_full(&self) -> Vec<f64> {
+        Recursive::estimate_full(self)
+    }
+
+    /// Covariance of the state (scaled coordinates when `scaled`).
+    pub fn covariance(&self) -> DMatrix<f64> {
+        self.held().covariance()
+    }
+
+    /// Standard errors of the free parameters in physical units: `√P_ii` (times `|ϑ0_i|` in
+    /// scaled coordinates). R1 and R2 are taken as given (absolute).
+    pub fn std_errors(&self) -> Vec<f64> {
+        let mut out = vec![0.0; self.state().len()];
+        self.std_errors_into(&mut out);
+        out
+    }
+
+    /// [`estimate`](Self::estimate) into `out` (one value per free parameter), without
+    /// allocating — for a caller that records it after every update.
+    pub fn estimate_into(&self, out: &mut [f64]) {
+        ModelFilter::estimate_into(self, out)
+    }
+
+    /// [`std_errors`](Self::std_errors) into `out` (one value per free parameter), without
+    /// allocating.
+    pub fn std_errors_into(&self, out: &mut [f64]) {
+        ModelFilter::std_errors_into(self, out)
+    }
+
+    /// Samples accepted.
+    pub fn samples(&self) -> u64 {
+        Recursive::samples(self)
+    }
+
+    /// The method.
+    pub fn method(&self) -> NlMethod {
+        ModelFilter::method(self)
+    }
+
+    /// The model.
+    pub fn model(&self) -> &M {
+        ModelFilter::model(self)
+    }
+
+    /// How many covariance repairs the filter needed (see the module docs).
+    pub fn repairs(&self) -> u64 {
+        ModelFilter::repairs(self)
+    }
+
+    /// How many times a bound was enforced.
+    pub fn projections(&self) -> u64 {
+        ModelFilter::projections(self)
     }
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-enum Engine {
-    Ekf(Box<LinearEstimator>),
-    Ukf(Box<Ukf>),
-}
-
-/// EKF or UKF over the free parameters of a [`ParamModel`]. Serialised whole (its model
-/// too, when the model serialises): a copy restored from it continues bit for bit.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct NonlinearEstimator<M: ParamModel> {
-    model: M,
-    method: NlMethod,
-    params: ParamSet,
-    free: FreeSet,
-    engine: Engine,
-    gradient: GradientEngine,
-    /// Full physical parameter vector at the current estimate.
-    theta: Vec<f64>,
-    /// Jacobian over the free parameters (state coordinates).
-    jac: Vec<f64>,
-    /// ϑ0 of the free parameters (the scale of scaled coordinates).
-    scale: Vec<f64>,
-    scaled: bool,
-    bounds: Vec<Option<(f64, f64)>>,
-    repairs: u64,
-    projections: u64,
-    samples: u64,
-    /// P0 in state coordinates (for [`Recursive::initial_covariance`]).
-    p0: DMatrix<f64>,
+impl<M: ParamModel> ModelFilter for NonlinearEstimator<M> {
+    type Model = M;
+    fn method(&self) -> NlMethod {
+        each!(self, f => f.method())
+    }
+    fn frame(&self) -> &Frame<M> {
+        each!(self, f => f.frame())
+    }
+    fn frame_mut(&mut self) -> &mut Frame<M> {
+        each!(self, f => f.frame_mut())
+    }
+    fn state(&self) -> &[f64] {
+        each!(self, f => f.state())
+    }
+    fn held(&self) -> &Cov {
+        each!(self, f => f.held())
+    }
+    fn step(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
+        each!(self, f => f.step(inputs, y))
+    }
+    fn restore_state(&mut self, s: &Snapshot) -> Result<(), EstimError> {
+        each!(self, f => f.restore_state(s))
+    }
 }
 
 #[cfg(test)]
@@ -191,9 +235,10 @@ mod tests {
     #[test]
     fn singular_prior_is_repaired_and_counted() {
         let mut est = ukf(NlMethod::Ukf(SigmaPoints::default()));
-        if let Engine::Ukf(u) = &mut est.engine {
-            u.p = Cov::full(DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]));
-        }
+        let NonlinearEstimator::Ukf(u) = &mut est else {
+            panic!("UKF")
+        };
+        *u.p.held_mut() = Cov::full(DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]));
         est.update(&[1.0, 0.5], 2.0).unwrap();
         assert_eq!(est.repairs(), 1);
         assert!(est.estimate().iter().all(|v| v.is_finite()));
@@ -203,16 +248,13 @@ mod tests {
     /// downdate and is repaired by re-factoring with jitter.
     #[test]
     fn failed_square_root_downdate_is_repaired() {
-        let mut est = ukf(NlMethod::Srukf(SigmaPoints::default()));
-        let Engine::Ukf(u) = &mut est.engine else {
-            panic!("SR-UKF engine")
-        };
-        u.p = Cov::sqrt(DMatrix::identity(2, 2));
-        u.pxy = DVector::from_vec(vec![1.0, 0.0]);
+        let mut p = SqrtCov::new(DMatrix::identity(2, 2), DMatrix::zeros(2, 2)).unwrap();
+        let pxy = DVector::from_vec(vec![1.0, 0.0]);
+        let (mut work, mut v) = (DMatrix::zeros(2, 2), DVector::zeros(2));
         // S Sᵀ − U Uᵀ with U = Pxy·√(1/S_y²), S_y² = 1: I − e1 e1ᵀ, singular.
-        let repairs = NonlinearEstimator::<Lin2>::sqrt_update(u, 1.0, 0).unwrap();
+        let repairs = p.update(&pxy, 1.0, &mut work, &mut v, 0).unwrap();
         assert_eq!(repairs, 1);
-        let p = u.p.covariance();
+        let p = p.held().covariance();
         assert!(p[(0, 0)] > 0.0 && p[(0, 0)] < 1e-9 && (p[(1, 1)] - 1.0).abs() < 1e-9);
     }
 }
