@@ -1,5 +1,5 @@
-//! On-line identifiability steering an estimator (thesis §9.2): an [`ExcitationSupervisor`]
-//! runs the recursive orthogonal ranking beside a [`LinearEstimator`] and freezes the
+//! On-line identifiability steering an estimator (thesis §9.2): a [`Steering`] runs the
+//! recursive orthogonal ranking beside a [`LinearEstimator`] and freezes the
 //! parameters the recent data no longer supports — under forgetting their covariance would
 //! otherwise grow by 1/λ per sample (wind-up) — and releases them when excitation returns.
 //!
@@ -10,11 +10,16 @@
 //! parameters (the ranking's relative cut-off) would not do: parameters of different units and
 //! excitation levels would freeze each other.
 //!
+//! [`ExcitationSupervisor`] is the estimator with its steering, one [`Recursive`] estimator.
+//!
 //! [`lost_excitation`] is the demonstration on Example 5.2-style data (`z = A·sin(x) + B·y²`)
 //! with a period where `y = 0`, so nothing excites B.
 
+use nalgebra::DMatrix;
 use physid_core::{FreeSet, ParamSet};
-use physid_estim::{build_linear, EstimError, EstimatorSpec, LinearEstimator, MethodName};
+use physid_estim::{
+    build_linear, EstimError, EstimatorSpec, LinearEstimator, MethodName, Recursive, Snapshot, Step,
+};
 use physid_ident::{IdentError, Memory, OnlineIdent, RankWorkspace};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -58,10 +63,12 @@ impl SupervisorConfig {
     }
 }
 
-/// A linear estimator whose free set follows the on-line identifiability of its parameters.
+/// The supervisor's judgement of one estimator, apart from the estimator it steers: the
+/// on-line ranking of its parameters and which of them are estimated now. The shaft monitor
+/// steers its estimator with it directly; [`ExcitationSupervisor`] is the two together as one
+/// [`Recursive`] estimator.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct ExcitationSupervisor {
-    estimator: LinearEstimator,
+pub struct Steering {
     ident: OnlineIdent,
     config: SupervisorConfig,
     /// Universe: the parameters the estimator was built with (indices into the full set).
@@ -72,6 +79,7 @@ pub struct ExcitationSupervisor {
     reference: Vec<f64>,
     /// Per universe parameter: currently estimated.
     active: Vec<bool>,
+    /// The ranking's row of the sample being taken.
     row: Vec<f64>,
     /// The ranking's working memory (re-ranking allocates nothing).
     ws: RankWorkspace,
@@ -80,11 +88,11 @@ pub struct ExcitationSupervisor {
     releases: u64,
 }
 
-impl ExcitationSupervisor {
-    /// Supervise `estimator`: the ranking runs on the rows `φ_j·scale_j` of the estimator's free
-    /// parameters (`scale`: one per free parameter, e.g. nominal magnitudes).
+impl Steering {
+    /// Steering for `estimator`: the ranking runs on the rows `φ_j·scale_j` of the estimator's
+    /// free parameters (`scale`: one per free parameter, e.g. nominal magnitudes).
     pub fn new(
-        estimator: LinearEstimator,
+        estimator: &LinearEstimator,
         scale: Vec<f64>,
         config: SupervisorConfig,
     ) -> Result<Self, SupervisorError> {
@@ -106,7 +114,6 @@ impl ExcitationSupervisor {
         }
         let p = universe.len();
         Ok(Self {
-            estimator,
             ident: OnlineIdent::new(p, config.memory)?,
             config,
             universe,
@@ -121,21 +128,47 @@ impl ExcitationSupervisor {
         })
     }
 
-    /// One sample (`phi` over the full parameter set, as [`LinearEstimator::update`]).
-    pub fn update(&mut self, phi: &[f64], y: f64) -> Result<(), SupervisorError> {
-        self.estimator.update(phi, y)?;
-        for ((r, &j), s) in self.row.iter_mut().zip(&self.universe).zip(&self.scale) {
-            *r = phi[j] * s;
+    /// One sample (`phi` over the full parameter set, as [`LinearEstimator::update`]) into
+    /// `estimator` and the ranking, then — every `check_every` samples — the estimator's free
+    /// set steered. A sample the estimator refuses, or whose scaled row is not finite, changes
+    /// nothing.
+    pub fn update(
+        &mut self,
+        estimator: &mut LinearEstimator,
+        phi: &[f64],
+        y: f64,
+    ) -> Result<Step, SupervisorError> {
+        // A row that overflows where φ is finite is refused before the estimator takes the
+        // sample; a φ the estimator refuses is its to name.
+        let well_formed = phi.len() == estimator.params().len();
+        for (k, ((r, &j), s)) in self
+            .row
+            .iter_mut()
+            .zip(&self.universe)
+            .zip(&self.scale)
+            .enumerate()
+        {
+            let v = if well_formed { phi[j] } else { 0.0 };
+            *r = v * s;
+            if v.is_finite() && !r.is_finite() {
+                return Err(EstimError::NonFinite {
+                    sample: estimator.samples(),
+                    what: format!("the supervisor's ranking row φ_{k}·scale_{k}"),
+                    value: *r,
+                }
+                .into());
+            }
         }
+        let step = estimator.update(phi, y)?;
         self.ident.update(&self.row)?;
         self.samples += 1;
         if self.samples.is_multiple_of(self.config.check_every.max(1)) {
-            self.steer()?;
+            self.steer(estimator)?;
         }
-        Ok(())
+        Ok(step)
     }
 
-    fn steer(&mut self) -> Result<(), SupervisorError> {
+    fn steer(&mut self, estimator: &mut LinearEstimator) -> Result<(), SupervisorError> {
         let ranking = self.ident.ranking_into(&mut self.ws);
         let mut changed = false;
         for step in &ranking.steps {
@@ -154,12 +187,12 @@ impl ExcitationSupervisor {
             }
         }
         if changed {
-            let mut mask = vec![false; self.estimator.params().len()];
+            let mut mask = vec![false; estimator.params().len()];
             for (&j, &a) in self.universe.iter().zip(&self.active) {
                 mask[j] = a;
             }
             let free = FreeSet::from_mask(&mask).map_err(|e| IdentError::Invalid(e.to_string()))?;
-            self.estimator.set_free(&free)?;
+            estimator.set_free(&free)?;
         }
         Ok(())
     }
@@ -170,11 +203,6 @@ impl ExcitationSupervisor {
         &self.active
     }
 
-    /// The supervised estimator.
-    pub fn estimator(&self) -> &LinearEstimator {
-        &self.estimator
-    }
-
     /// Parameters frozen so far (events).
     pub fn freezes(&self) -> u64 {
         self.freezes
@@ -183,6 +211,135 @@ impl ExcitationSupervisor {
     /// Parameters released so far (events).
     pub fn releases(&self) -> u64 {
         self.releases
+    }
+}
+
+/// A linear estimator whose free set follows the on-line identifiability of its parameters:
+/// the estimator and its [`Steering`], one [`Recursive`] estimator (its checkpoint holds both).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct ExcitationSupervisor {
+    estimator: LinearEstimator,
+    steering: Steering,
+}
+
+impl ExcitationSupervisor {
+    /// Supervise `estimator` ([`Steering::new`]).
+    pub fn new(
+        estimator: LinearEstimator,
+        scale: Vec<f64>,
+        config: SupervisorConfig,
+    ) -> Result<Self, SupervisorError> {
+        let steering = Steering::new(&estimator, scale, config)?;
+        Ok(Self {
+            estimator,
+            steering,
+        })
+    }
+
+    /// One sample ([`Steering::update`]).
+    pub fn update(&mut self, phi: &[f64], y: f64) -> Result<Step, SupervisorError> {
+        self.steering.update(&mut self.estimator, phi, y)
+    }
+
+    /// Per parameter the estimator was built with (in its order): whether it is estimated now
+    /// (`false`: frozen).
+    pub fn active(&self) -> &[bool] {
+        self.steering.active()
+    }
+
+    /// The supervised estimator.
+    pub fn estimator(&self) -> &LinearEstimator {
+        &self.estimator
+    }
+
+    /// Parameters frozen so far (events).
+    pub fn freezes(&self) -> u64 {
+        self.steering.freezes()
+    }
+
+    /// Parameters released so far (events).
+    pub fn releases(&self) -> u64 {
+        self.steering.releases()
+    }
+}
+
+/// The supervised estimator as any other: a ranking error (which a finite sample the estimator
+/// took cannot cause) is reported as an invalid configuration.
+impl Recursive for ExcitationSupervisor {
+    fn method_name(&self) -> &'static str {
+        self.estimator.method_name()
+    }
+    fn update(&mut self, inputs: &[f64], y: f64) -> Result<Step, EstimError> {
+        ExcitationSupervisor::update(self, inputs, y).map_err(|e| match e {
+            SupervisorError::Estim(e) => e,
+            SupervisorError::Ident(e) => {
+                EstimError::InvalidConfig(format!("excitation supervisor: {e}"))
+            }
+        })
+    }
+    fn param_names(&self) -> &[String] {
+        self.estimator.param_names()
+    }
+    fn free_names(&self) -> Vec<&str> {
+        self.estimator.free_names()
+    }
+    fn estimate(&self) -> Vec<f64> {
+        Recursive::estimate(&self.estimator)
+    }
+    fn estimate_full(&self) -> Vec<f64> {
+        self.estimator.estimate_full()
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        self.estimator.covariance()
+    }
+    fn initial_covariance(&self) -> DMatrix<f64> {
+        Recursive::initial_covariance(&self.estimator)
+    }
+    fn std_errors(&self) -> Option<Vec<f64>> {
+        Recursive::std_errors(&self.estimator)
+    }
+    fn samples(&self) -> u64 {
+        self.estimator.samples()
+    }
+    /// The estimator's snapshot, its memory wrapped with the steering's state
+    /// ([`physid_estim::Memory::Steered`]).
+    fn snapshot(&self) -> Snapshot {
+        let mut s = self.estimator.snapshot();
+        s.memory = physid_estim::Memory::Steered {
+            estimator: Box::new(s.memory),
+            // Plain numbers into a Vec: MessagePack cannot fail on them; if it ever did, the
+            // empty state is refused on restore, naming it.
+            steering: rmp_serde::to_vec_named(&self.steering).unwrap_or_default(),
+        };
+        s
+    }
+    fn restore(&mut self, s: &Snapshot) -> Result<(), EstimError> {
+        let physid_estim::Memory::Steered {
+            estimator,
+            steering,
+        } = &s.memory
+        else {
+            return Err(EstimError::InvalidConfig(format!(
+                "checkpoint: taken of {}, restored into a supervised estimator",
+                s.memory.of()
+            )));
+        };
+        let steering: Steering = rmp_serde::from_slice(steering).map_err(|e| {
+            EstimError::InvalidConfig(format!("checkpoint: the supervisor's state: {e}"))
+        })?;
+        if steering.universe != self.steering.universe {
+            return Err(EstimError::InvalidConfig(format!(
+                "checkpoint: a supervisor of parameters {:?}, this one's are {:?}",
+                steering.universe, self.steering.universe
+            )));
+        }
+        let inner = Snapshot {
+            memory: (**estimator).clone(),
+            ..s.clone()
+        };
+        self.estimator.restore(&inner)?;
+        self.steering = steering;
+        Ok(())
     }
 }
 

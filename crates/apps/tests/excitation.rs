@@ -73,3 +73,68 @@ fn supervisor_checks_its_configuration() {
     };
     assert!(ExcitationSupervisor::new(est(), vec![1.0, 1.0], bad).is_err());
 }
+
+/// The supervisor is a `Recursive` estimator like any other: driven through `dyn Recursive`,
+/// checkpointed mid-run — while B is frozen — and restored (through MessagePack, as the live
+/// service stores it) into a supervisor built afresh, it continues bit for bit: the same
+/// estimates, the same freezes and releases.
+#[test]
+fn a_supervisor_checkpointed_while_b_is_frozen_continues_exactly() {
+    use physid_estim::{Recursive, Snapshot};
+    let params = ParamSet::zeros(["A", "B"]).unwrap();
+    let build = || {
+        let est = LinearEstimator::new(
+            &EstimatorConfig::new(Method::Rlsf { lambda: 0.98 }),
+            &params,
+            &params.all_free(),
+        )
+        .unwrap();
+        ExcitationSupervisor::new(est, vec![1.0, 1.0], SupervisorConfig::for_lambda(0.98)).unwrap()
+    };
+    // z = 10·sin(x) + 0.5·y², y = 0 (B unexcited) between samples 2000 and 3000.
+    let sample = |i: usize| {
+        let t = i as f64 * 1e-3;
+        let x = std::f64::consts::TAU * 47.0 * t;
+        let y = if (2000..3000).contains(&i) {
+            0.0
+        } else {
+            2.0 + (1.3 * t).sin()
+        };
+        let phi = [x.sin(), y * y];
+        (phi, 10.0 * phi[0] + 0.5 * phi[1] + 1e-3 * (7.0 * t).cos())
+    };
+    let mut a = build();
+    let run: &mut dyn Recursive = &mut a;
+    for i in 0..2500 {
+        let (phi, z) = sample(i);
+        run.update(&phi, z).unwrap();
+    }
+    assert_eq!(run.free_names(), ["A"], "B frozen at the checkpoint");
+    let bytes = rmp_serde::to_vec_named(&run.snapshot()).unwrap();
+    let mut b = build();
+    b.restore(&rmp_serde::from_slice::<Snapshot>(&bytes).unwrap())
+        .unwrap();
+    assert_eq!(b.free_names(), ["A"]);
+    for i in 2500..6000 {
+        let (phi, z) = sample(i);
+        let sa = a.update(&phi, z).unwrap();
+        let sb = b.update(&phi, z).unwrap();
+        assert_eq!(sa.prediction_error.to_bits(), sb.prediction_error.to_bits());
+        let (ea, eb) = (Recursive::estimate_full(&a), Recursive::estimate_full(&b));
+        assert_eq!(ea, eb, "sample {i}");
+    }
+    assert_eq!((a.freezes(), a.releases()), (1, 1));
+    assert_eq!((b.freezes(), b.releases()), (1, 1));
+    assert_eq!(Recursive::free_names(&b), ["A", "B"], "B released again");
+    // A checkpoint of a plain estimator is refused, and changes nothing.
+    let plain = LinearEstimator::new(
+        &EstimatorConfig::new(Method::Rlsf { lambda: 0.98 }),
+        &params,
+        &params.all_free(),
+    )
+    .unwrap();
+    let before = Recursive::estimate_full(&b);
+    let err = b.restore(&plain.snapshot()).unwrap_err().to_string();
+    assert!(err.contains("taken of a linear estimator"), "{err}");
+    assert_eq!(Recursive::estimate_full(&b), before);
+}

@@ -118,6 +118,26 @@ pub enum Memory {
         /// Bound projections.
         projections: u64,
     },
+    /// An estimator steered from outside this crate (the excitation supervisor of
+    /// `physid-apps`): the estimator's own memory, and the steering's state as its owner
+    /// serialises it (MessagePack).
+    Steered {
+        /// The steered estimator's memory.
+        estimator: Box<Memory>,
+        /// The steering's state.
+        steering: Vec<u8>,
+    },
+}
+
+impl Memory {
+    /// What kind of estimator it is the memory of, for an error.
+    pub fn of(&self) -> &'static str {
+        match self {
+            Memory::Linear { .. } => "a linear estimator",
+            Memory::Model { .. } => "a model-based filter",
+            Memory::Steered { .. } => "a supervised estimator",
+        }
+    }
 }
 
 impl Snapshot {

@@ -13,7 +13,7 @@
 
 use crate::acquisition::{on_time_basis, uniform_step, StepCheck};
 use crate::error::AppError;
-use crate::excitation::{ExcitationSupervisor, SupervisorConfig, SupervisorError};
+use crate::excitation::{Steering, SupervisorConfig, SupervisorError};
 use crate::stage::{Sink, Stage};
 use physid_core::{Basis, ParamSet, Recording};
 use physid_estim::{

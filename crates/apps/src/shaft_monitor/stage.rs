@@ -62,47 +62,6 @@ pub struct ShaftSample {
     pub frozen: [bool; 3],
 }
 
-/// The monitor's estimator, supervised or not.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-enum Estimator {
-    Plain(Box<LinearEstimator>),
-    Supervised(Box<ExcitationSupervisor>),
-}
-
-impl Estimator {
-    fn get(&self) -> &LinearEstimator {
-        match self {
-            Self::Plain(e) => e,
-            Self::Supervised(s) => s.estimator(),
-        }
-    }
-
-    fn update(&mut self, phi: &[f64], y: f64, at: usize) -> Result<(), AppError> {
-        let estim = |source| AppError::Estim {
-            at: format!("sample {at}"),
-            source,
-        };
-        match self {
-            Self::Plain(e) => e.update(phi, y).map(|_| ()).map_err(estim),
-            Self::Supervised(s) => s.update(phi, y).map_err(|e| match e {
-                SupervisorError::Estim(source) => estim(source),
-                SupervisorError::Ident(e) => AppError::Invalid(format!("sample {at}: {e}")),
-            }),
-        }
-    }
-
-    /// Whether K, B and τ0 are frozen now.
-    fn frozen(&self) -> [bool; 3] {
-        match self {
-            Self::Plain(_) => [false; 3],
-            Self::Supervised(s) => {
-                let a = s.active();
-                [!a[0], !a[1], !a[2]]
-            }
-        }
-    }
-}
-
 /// Below this engine speed [rad/s] (300 rpm, well under any test's operating point) the
 /// engine is taken as stopping or standing still: the
 /// estimator and the alarm detector are held (every parameter reported frozen) until it turns
@@ -127,7 +86,9 @@ pub struct ShaftStage {
     t0: Option<f64>,
     /// Index of the next filtered sample.
     next: usize,
-    est: Estimator,
+    est: LinearEstimator,
+    /// The excitation supervisor's steering of `est` (`--supervise`).
+    steering: Option<Steering>,
     det: RelativeErrorDetector,
     /// Times of the detector's last samples (an alarm's onset is at most a dwell back).
     det_times: VecDeque<f64>,
@@ -175,7 +136,7 @@ impl ShaftStage {
         };
         let est = build_linear(&spec, &params, &params.all_free())
             .map_err(AppError::estim("estimator configuration"))?;
-        let est = if cfg.supervise {
+        let steering = if cfg.supervise {
             // The estimator's own memory (λ): what it forgets, the ranking forgets; rows scaled
             // by the healthy values.
             let sup = SupervisorConfig::for_lambda(cfg.lambda);
@@ -184,11 +145,11 @@ impl ShaftStage {
                 cfg.healthy.b.abs().max(1e-12),
                 1.0,
             ];
-            let s = ExcitationSupervisor::new(est, scale, sup)
+            let s = Steering::new(&est, scale, sup)
                 .map_err(|e| AppError::Invalid(format!("excitation supervisor: {e}")))?;
-            Estimator::Supervised(Box::new(s))
+            Some(s)
         } else {
-            Estimator::Plain(Box::new(est))
+            None
         };
         let dwell = cfg.dwell.max(1);
         let det = RelativeErrorDetector::new(
@@ -208,6 +169,7 @@ impl ShaftStage {
             t0: None,
             next: 0,
             est,
+            steering,
             det,
             det_times: VecDeque::with_capacity(dwell as usize + 1),
             held: [false; 3],
@@ -221,7 +183,13 @@ impl ShaftStage {
 
     /// The reported frozen state at time `t` (see [`ShaftSample::frozen`]).
     fn held(&mut self, t: f64) -> [bool; 3] {
-        let now = self.est.frozen();
+        // Whether K, B and τ0 are frozen now.
+        let mut now = [false; 3];
+        if let Some(s) = &self.steering {
+            for (f, a) in now.iter_mut().zip(s.active()) {
+                *f = !a;
+            }
+        }
         for ((held, since), now) in self.held.iter_mut().zip(&mut self.differs_since).zip(now) {
             if now == *held {
                 *since = None;
@@ -233,6 +201,24 @@ impl ShaftStage {
         self.held
     }
 
+    /// One estimator sample, `at` the input sample it was taken at; steered when supervised.
+    fn update(&mut self, phi: &[f64], y: f64, at: usize) -> Result<(), AppError> {
+        let estim = |source| AppError::Estim {
+            at: format!("sample {at}"),
+            source,
+        };
+        match &mut self.steering {
+            None => self.est.update(phi, y).map(|_| ()).map_err(estim),
+            Some(s) => s
+                .update(&mut self.est, phi, y)
+                .map(|_| ())
+                .map_err(|e| match e {
+                    SupervisorError::Estim(source) => estim(source),
+                    SupervisorError::Ident(e) => AppError::Invalid(format!("sample {at}: {e}")),
+                }),
+        }
+    }
+
     /// The most input samples between a sample's arrival and its estimate: the low-pass's
     /// block and lookahead ([`ZeroPhaseStream::latency`]), 0 without a low-pass.
     pub fn latency(&self) -> usize {
@@ -241,7 +227,7 @@ impl ShaftStage {
 
     /// The current K, B, τ0 (a frozen one at its value when it was frozen).
     pub fn estimate(&self) -> ShaftParams {
-        let e = self.est.get();
+        let e = &self.est;
         let mut th = [0.0; 3];
         th.copy_from_slice(e.params().nominal());
         e.free_set().scatter(e.estimate(), &mut th);
@@ -257,7 +243,7 @@ impl ShaftStage {
     /// Data of no information (every shaft channel scaled by 1e-300: φφᵀ underflows) leave
     /// the estimates at their start, which is no finding about the shaft. Allocation-free.
     pub fn resolved(&self) -> [bool; 3] {
-        let e = self.est.get();
+        let e = &self.est;
         let mut r = [true; 3];
         for (k, &i) in e.free_set().free().iter().enumerate() {
             r[i] = e.variance_ratio(k) < physid_estim::resolution::MAX_VARIANCE_RATIO;
@@ -267,7 +253,7 @@ impl ShaftStage {
 
     /// Their standard errors (NaN before they can be estimated, and while frozen).
     pub fn std_err(&self) -> ShaftParams {
-        let e = self.est.get();
+        let e = &self.est;
         let n = e.free_set().free().len();
         let mut free = [0.0; 3];
         let mut se = [f64::NAN; 3];
@@ -383,7 +369,7 @@ impl ShaftStage {
             let standstill = speed.abs() < STANDSTILL_RAD_S;
             if !standstill {
                 self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
-                self.est.update(&phi, tq[k], i)?;
+                self.update(&phi, tq[k], i)?;
             }
             let (estimate, se) = (self.estimate(), self.std_err());
             samples.push(ShaftSample {

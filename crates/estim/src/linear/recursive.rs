@@ -70,10 +70,10 @@ impl crate::recursive::Recursive for LinearEstimator {
             last,
         } = &s.memory
         else {
-            return Err(EstimError::InvalidConfig(
-                "checkpoint: taken of a model-based filter, restored into a linear estimator"
-                    .into(),
-            ));
+            return Err(EstimError::InvalidConfig(format!(
+                "checkpoint: taken of {}, restored into a linear estimator",
+                s.memory.of()
+            )));
         };
         if frozen_variance.len() != self.params.len() || s.params.len() != self.params.len() {
             return Err(EstimError::DimensionMismatch {

@@ -324,10 +324,10 @@ impl<T: ModelFilter> Recursive for T {
             projections,
         } = s.memory
         else {
-            return Err(EstimError::InvalidConfig(
-                "checkpoint: taken of a linear estimator, restored into a model-based filter"
-                    .into(),
-            ));
+            return Err(EstimError::InvalidConfig(format!(
+                "checkpoint: taken of {}, restored into a model-based filter",
+                s.memory.of()
+            )));
         };
         let f = self.frame();
         s.check(
