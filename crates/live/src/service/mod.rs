@@ -228,7 +228,7 @@ impl StageSlots {
 }
 
 /// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
-pub const CHECKPOINT_VERSION: u32 = 4;
+pub const CHECKPOINT_VERSION: u32 = 5;
 
 #[cfg(test)]
 mod tests {
