@@ -26,13 +26,13 @@ use crate::acquisition::sensor::{
 };
 use crate::acquisition::{
     counts_crank_angle_chunks, crank_angle_chunks, raw_sensor, to_crank_angle_decoded,
-    AcquisitionOptions, AngleSensor, AngleSpec, CountsAngle, CountsScan, DecodedAngle,
+    AcquisitionOptions, AngleSpec, CountsAngle, CountsScan, DecodedAngle,
 };
 use crate::compression::{
-    tdc_from_pressure, tdc_from_pressure_in, CompressionConfig, CrankPasses, TdcFromPressure,
+    tdc_from_pressure, tdc_from_pressure_in, CompressionConfig, CrankBuilder, TdcFromPressure,
 };
 use crate::error::AppError;
-use physid_core::{Basis, Recording};
+use physid_core::{Basis, Recording, Recordings, Reopen};
 use physid_io::{ChunkReader, IoError, ReadOptions};
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
@@ -419,22 +419,17 @@ impl AngleInput {
         Ok(CompressionConfig::new(channel, stroke, rod))
     }
 
-    /// A raw sensor `spec`'s calibration (a reader for each of its passes: an encoder's two)
+    /// A raw sensor `spec`'s calibration (the file read for each of its passes: an encoder's
+    /// two)
     /// and what decoding its channels `sensor` with the samples' times finds.
     fn sensor_found(&self, spec: &AngleSpec, sensor: &[&str]) -> Result<SensorFound, AppError> {
-        let passes = match spec.sensor {
-            AngleSensor::Wheel { .. } => 1,
-            AngleSensor::Quadrature { .. } => 2,
-        };
-        let mut readers = (0..passes)
-            .map(|_| self.open_names(sensor))
-            .collect::<Result<Vec<_>, _>>()?;
-        readers.reverse();
-        let cal = sensor_calibration(spec, || {
-            readers
-                .pop()
-                .ok_or_else(|| AppError::Invalid("a pass too many".into()))
-        })?;
+        let cal = sensor_calibration(
+            spec,
+            &Channels {
+                input: self,
+                names: sensor,
+            },
+        )?;
         let mut angle = self.open_names(sensor)?;
         let mut names = vec!["t"];
         if let Some(p) = &spec.phase_from {
@@ -455,16 +450,9 @@ impl AngleInput {
     /// pressure's peak, then the fit's passes — each a [`CrankFile`] pass with the TDC given).
     fn tdc_from_sensor(&self, channel: &str) -> Result<AngleSpec, AppError> {
         let cfg = self.config(channel)?;
-        let read = |o: &AcquisitionOptions,
-                    visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>|
-         -> Result<(), AppError> {
-            let input = AngleInput {
-                angle: o.clone(),
-                tdc_from: None,
-                quiet: true,
-                ..self.clone()
-            };
-            CrankFile::new(input, vec![channel]).pass(true, visit)
+        let read = Reread {
+            input: self,
+            channel,
         };
         let found = tdc_from_pressure_in(&read, &self.angle, &cfg, self.step_deg, self.hold_bytes)?;
         if !self.quiet {
@@ -478,6 +466,44 @@ impl AngleInput {
         spec.tdc_offset_deg = found.tdc_offset_deg;
         spec.phase_from.get_or_insert_with(|| channel.to_string());
         Ok(spec)
+    }
+}
+
+/// An [`AngleInput`]'s file's channels `names` (as stored: mapped, in SI), read again on
+/// every pass.
+struct Channels<'a> {
+    input: &'a AngleInput,
+    names: &'a [&'a str],
+}
+
+impl Reopen<Recordings, AppError> for Channels<'_> {
+    fn pass(
+        &self,
+        visit: &mut dyn for<'c> FnMut(&'c Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError> {
+        for chunk in self.input.open_names(self.names)? {
+            visit(&chunk?)?;
+        }
+        Ok(())
+    }
+}
+
+/// An [`AngleInput`]'s file read with other acquisition options: [`CrankFile`]s of `channel`,
+/// each pass after one made elsewhere (nothing said about the reading again).
+struct Reread<'a> {
+    input: &'a AngleInput,
+    channel: &'a str,
+}
+
+impl CrankBuilder for Reread<'_> {
+    fn with<'s>(&'s self, opts: &AcquisitionOptions) -> Box<dyn Reopen<Recordings, AppError> + 's> {
+        let input = AngleInput {
+            angle: opts.clone(),
+            tdc_from: None,
+            quiet: true,
+            ..self.input.clone()
+        };
+        Box::new(CrankFile::new(input, vec![self.channel]).again())
     }
 }
 
@@ -528,13 +554,21 @@ impl<'a> CrankFile<'a> {
         }
     }
 
-    /// One pass; `again`: a pass after one made elsewhere (nothing said about the reading).
+    /// A pass after this one made elsewhere: nothing is said about the reading, the first
+    /// pass's included (what [`Reread`] makes).
+    fn again(self) -> Self {
+        self.passes.set(1);
+        self
+    }
+}
+
+impl Reopen<Recordings, AppError> for CrankFile<'_> {
+    /// One pass: after the first, nothing is said about the reading again.
     fn pass(
         &self,
-        again: bool,
-        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+        visit: &mut dyn for<'c> FnMut(&'c Recording) -> Result<(), AppError>,
     ) -> Result<(), AppError> {
-        let again = again || self.passes.get() > 0;
+        let again = self.passes.get() > 0;
         self.passes.set(self.passes.get() + 1);
         let input = AngleInput {
             quiet: self.input.quiet || again,
@@ -552,14 +586,5 @@ impl<'a> CrankFile<'a> {
             |_, chunk| (visit.borrow_mut())(chunk),
         )?;
         Ok(())
-    }
-}
-
-impl CrankPasses for CrankFile<'_> {
-    fn chunks(
-        &self,
-        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
-    ) -> Result<(), AppError> {
-        self.pass(false, visit)
     }
 }

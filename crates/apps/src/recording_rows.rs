@@ -5,8 +5,8 @@
 //! limit, or one reader chunk. A recording already in memory (simulated) is one chunk.
 
 use crate::error::AppError;
-use physid_core::Recording;
-use physid_ident::{Data, IdentError, Rows};
+use physid_core::{Recording, Reopen};
+use physid_ident::{Data, DataRows, IdentError, Rows};
 use physid_io::{ChunkReader, ReadOptions};
 use std::borrow::Cow;
 use std::cell::RefCell;
@@ -280,10 +280,12 @@ impl Rows for RecordingRows<'_> {
     fn has_y(&self) -> bool {
         self.y.is_some()
     }
+}
 
+impl Reopen<DataRows, IdentError> for RecordingRows<'_> {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         self.chunks(&mut |chunk| {
             let (inputs, y) = self.columns(chunk)?;

@@ -9,7 +9,8 @@ use physid_apps::acquisition::{
     filter_channels, inspect, to_crank_angle, to_time_basis, AcquisitionOptions, FilterSpec,
     FilterStream,
 };
-use physid_core::{Basis, Channel, Recording};
+use physid_apps::error::AppError;
+use physid_core::{Basis, Channel, Recording, Recordings, Reopen};
 use physid_signal::encoder::counts_from_angle;
 use physid_signal::filter::{butter, Band};
 use physid_signal::integrity::FindingKind;
@@ -243,6 +244,35 @@ fn same_bits(got: &Recording, whole: &Recording, what: &str) {
 }
 
 /// Cut `rec` into chunks of `n` samples (0: whole).
+/// `rec` gone over in passes, cut into chunks of `first` samples on the first pass, twice as
+/// many on the second, and so on (0: whole).
+struct Cut<'a> {
+    rec: &'a Recording,
+    first: usize,
+    passes: std::cell::Cell<usize>,
+}
+
+fn cut_passes(rec: &Recording, first: usize) -> Cut<'_> {
+    Cut {
+        rec,
+        first,
+        passes: std::cell::Cell::new(0),
+    }
+}
+
+impl Reopen<Recordings, AppError> for Cut<'_> {
+    fn pass(
+        &self,
+        visit: &mut dyn for<'c> FnMut(&'c Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError> {
+        self.passes.set(self.passes.get() + 1);
+        for chunk in cut(self.rec, self.first * self.passes.get()) {
+            visit(&chunk?)?;
+        }
+        Ok(())
+    }
+}
+
 fn cut(rec: &Recording, n: usize) -> Vec<Result<Recording, physid_apps::error::AppError>> {
     if n == 0 {
         return vec![Ok(rec.clone())];
@@ -439,7 +469,7 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
     assert!(worst < 0.1, "{worst}° off the true angle");
     let stream = |cuts: [usize; 5]| {
         let wheel = pick(&rec, &["t", "enc"]);
-        let cal = sensor_calibration(&spec, || Ok(cut(&wheel, cuts[0])))?;
+        let cal = sensor_calibration(&spec, &cut_passes(&wheel, cuts[0]))?;
         let decoded = sensor_decoded(
             &spec,
             &cal,
@@ -498,7 +528,7 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
         },
         ..spec.clone()
     };
-    let e = sensor_calibration(&wrong, || Ok(cut(&pick(&rec, &["t", "enc"]), 997))).unwrap_err();
+    let e = sensor_calibration(&wrong, &cut_passes(&pick(&rec, &["t", "enc"]), 997)).unwrap_err();
     assert!(e.to_string().contains("'enc'"), "{e}");
 }
 
@@ -555,11 +585,7 @@ fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
     let mut channels = pick(&rec, &["t", "theta_true"]);
     channels.meta.clone_from(&rec.meta);
     let stream = |cuts: [usize; 5]| {
-        let mut pass = 0;
-        let cal = sensor_calibration(&spec, || {
-            pass += 1;
-            Ok(cut(&sensor, cuts[0] * pass))
-        })?;
+        let cal = sensor_calibration(&spec, &cut_passes(&sensor, cuts[0]))?;
         let decoded = sensor_decoded(
             &spec,
             &cal,

@@ -8,7 +8,7 @@ use physid_apps::acquisition::{to_crank_angle, AcquisitionOptions, AngleSensor, 
 use physid_apps::compression::{
     compression_fit, tdc_from_pressure, CompressionConfig, CompressionFit,
 };
-use physid_core::Recording;
+use physid_core::{Recording, Recordings, Reopen};
 use physid_signal::wheel::EdgeOptions;
 use std::path::PathBuf;
 
@@ -424,9 +424,7 @@ fn fit_name(k: usize) -> &'static str {
 /// goes over them in passes). A recording that changes between passes is an error.
 #[test]
 fn the_events_and_the_fit_are_the_same_however_the_recording_is_chunked() {
-    use physid_apps::compression::{
-        compression_fit_events, events, CrankPasses, EventCollector, TdcEvents,
-    };
+    use physid_apps::compression::{compression_fit_events, events, EventCollector, TdcEvents};
     use physid_apps::error::AppError;
     use std::cell::Cell;
     /// The recording in chunks of `size`, counting the passes; from pass `change_at` on, the
@@ -437,10 +435,10 @@ fn the_events_and_the_fit_are_the_same_however_the_recording_is_chunked() {
         passes: Cell<usize>,
         change_at: usize,
     }
-    impl CrankPasses for Chunked<'_> {
-        fn chunks(
+    impl Reopen<Recordings, AppError> for Chunked<'_> {
+        fn pass(
             &self,
-            visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
+            visit: &mut dyn for<'c> FnMut(&'c Recording) -> Result<(), AppError>,
         ) -> Result<(), AppError> {
             self.passes.set(self.passes.get() + 1);
             let end = if self.passes.get() >= self.change_at {

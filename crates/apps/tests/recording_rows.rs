@@ -4,8 +4,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use physid_apps::recording_rows::{Column, RecordingRows};
+use physid_core::Reopen;
 use physid_core::{Basis, Channel, Recording};
-use physid_ident::{for_each_row, IdentError, Rows};
+use physid_ident::{for_each_row, Data, DataRows, IdentError, Rows};
 use physid_testkit::Scratch;
 
 fn recording(n: usize) -> Recording {
@@ -109,10 +110,12 @@ impl Rows for Shortened<'_> {
     fn has_y(&self) -> bool {
         self.rows.has_y()
     }
+}
 
+impl Reopen<DataRows, IdentError> for Shortened<'_> {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&physid_ident::Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         let r = self.rows.pass(visit);
         if self.passes.replace(self.passes.get() + 1) == 0 {

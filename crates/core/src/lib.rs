@@ -16,11 +16,13 @@ pub mod memory;
 pub mod model;
 pub mod nan_null;
 pub mod params;
+pub mod passes;
 pub mod recording;
 pub mod sink;
 pub mod units;
 
 pub use model::{DynModel, Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
 pub use params::{FreeSet, ParamError, ParamSet};
+pub use passes::{ChunkKind, Recordings, Reopen};
 pub use recording::{standard_unit, Basis, Channel, Recording, RecordingError, CHANNEL_TABLE};
 pub use sink::Sink;

@@ -34,7 +34,7 @@ pub use fisher::{collinearity_index, design_criteria, quantify, DesignCriteria, 
 pub use online::{Memory, OnlineIdent};
 pub use ranking::{rank, Cutoff, RankStep, RankWorkspace, Ranking};
 pub use report::{identify, IdentReport, Identification, Num, SigmaSource};
-pub use rows::{for_each_row, Data, Rows};
+pub use rows::{for_each_row, Data, DataRows, Rows};
 pub use sensitivity::{sensitivity_matrix, RowScaler, Scaling};
 pub use triangular::TriangularFactor;
 pub use wu::{wu_criterion, WuCriterion};

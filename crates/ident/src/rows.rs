@@ -1,11 +1,12 @@
 //! The rows an analysis goes over: [`Data`], columns held in memory, or any [`Rows`] — rows
-//! that can be gone over again, in order, a chunk at a time (a file read once per pass). The
+//! that can be gone over again, in order, a chunk at a time (a file read once per pass: a
+//! [`Reopen`] of [`DataRows`]). The
 //! batch analyses ([`analyse`](crate::analyse), [`fit_subset`](crate::fit_subset), the Wu
 //! criterion) fold each row into O(p²) state, so over a source that reads its file again on
 //! every pass they run in memory independent of the recording's length.
 
 use crate::IdentError;
-use physid_core::ParamModel;
+use physid_core::{ChunkKind, ParamModel, Reopen};
 
 /// Columns of data: one slice per model input (in the model's input order), all the same
 /// length, and optionally the measured output.
@@ -93,29 +94,33 @@ impl<'a> Data<'a> {
     }
 }
 
-/// Rows that can be gone over more than once, in the same order each time, a chunk at a time.
-pub trait Rows {
+/// The chunks of [`Rows`]: a [`Data`] borrowing the pass's buffers.
+#[derive(Debug, Clone, Copy)]
+pub struct DataRows;
+
+impl ChunkKind for DataRows {
+    type Chunk<'c> = &'c Data<'c>;
+}
+
+/// Rows that can be gone over more than once, in the same order each time, a chunk at a time
+/// ([`Reopen`] of [`Data`] chunks; chunks may be empty).
+pub trait Rows: Reopen<DataRows, IdentError> {
     /// Whether the rows carry the measured output (they do unless they say otherwise).
     fn has_y(&self) -> bool {
         true
     }
-
-    /// Go over every row once: `visit` each chunk in order (chunks may be empty). An error of
-    /// `visit` ends the pass and is returned.
-    fn pass(
-        &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
-    ) -> Result<(), IdentError>;
 }
 
 impl Rows for Data<'_> {
     fn has_y(&self) -> bool {
         self.y.is_some()
     }
+}
 
+impl Reopen<DataRows, IdentError> for Data<'_> {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         visit(self)
     }

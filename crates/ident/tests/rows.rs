@@ -5,6 +5,7 @@
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use physid_core::Reopen;
 use physid_expr::ExprModel;
 use physid_ident::*;
 use std::cell::Cell;
@@ -21,10 +22,12 @@ impl Rows for Chunked<'_> {
     fn has_y(&self) -> bool {
         self.y.is_some()
     }
+}
 
+impl Reopen<DataRows, IdentError> for Chunked<'_> {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         self.passes.set(self.passes.get() + 1);
         let mut at = 0;

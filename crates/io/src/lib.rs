@@ -14,6 +14,7 @@ pub mod format;
 pub mod mdf;
 mod parquet_check;
 pub mod parquet_file;
+mod reopen;
 mod thrift_walk;
 
 pub use csv_file::{read_csv, recover_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
@@ -25,6 +26,7 @@ pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLO
 pub use parquet_file::{
     read_parquet, recover_parquet, write_parquet, ParquetChunks, ParquetWriter, Recovered,
 };
+pub use reopen::FileChunks;
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]

@@ -29,7 +29,7 @@ pub fn to_crank_angle_decoded(
         // The sensor's passes, over the recording as one chunk.
         let one = || std::iter::once(Ok::<&Recording, AppError>(rec));
         let run = || -> Result<_, AppError> {
-            let cal = sensor_calibration(spec, || Ok(one()))?;
+            let cal = sensor_calibration(spec, rec)?;
             let decoded = sensor_decoded(spec, &cal, one(), one())?;
             let found = SensorFound { cal, decoded };
             let (mut out, chunks) =

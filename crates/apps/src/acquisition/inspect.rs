@@ -85,9 +85,7 @@ pub fn inspect(rec: &Recording, opts: &AcquisitionOptions) -> Inspection {
     let mut i = Inspector::new(rec, opts);
     i.push(rec);
     let mut i = i.finish();
-    inspect_wheel(&mut i, rec, opts, || {
-        Ok(std::iter::once(Ok::<&Recording, AppError>(rec)))
-    });
+    inspect_wheel(&mut i, rec, opts, rec);
     i
 }
 
@@ -322,22 +320,17 @@ impl Inspector {
     }
 }
 
-/// The trigger wheel `opts` names (`--wheel`), decoded as the file is read — `chunks` makes a
-/// reader of `t` and its channel each time it is called (twice: where the gap is, then each
-/// edge's angle, [`sensor`]) — into the inspection `i`: its summary, and what the
-/// decoding found among the integrity findings (why it could not be decoded, when not). Nothing
-/// without a wheel in `opts` or on a time basis without its channel.
-pub fn inspect_wheel<F, I, R, E>(
+/// The trigger wheel `opts` names (`--wheel`), decoded as the recording is gone over — two
+/// passes of `source` over `t` and its channel: where the gap is, then each edge's angle
+/// ([`sensor`]) — into the inspection `i`: its summary, and what the decoding found among the
+/// integrity findings (why it could not be decoded, when not). Nothing without a wheel in
+/// `opts` or on a time basis without its channel.
+pub fn inspect_wheel(
     i: &mut Inspection,
     header: &Recording,
     opts: &AcquisitionOptions,
-    mut chunks: F,
-) where
-    F: FnMut() -> Result<I, AppError>,
-    I: IntoIterator<Item = Result<R, E>>,
-    R: std::borrow::Borrow<Recording>,
-    AppError: From<E>,
-{
+    source: &dyn Reopen<Recordings, AppError>,
+) {
     let Some(spec) = opts.sensor.as_ref() else {
         return;
     };
@@ -360,8 +353,8 @@ pub fn inspect_wheel<F, I, R, E>(
         error: None,
     };
     let integrity = &mut i.integrity;
-    let decoded = sensor_calibration(spec, &mut chunks)
-        .and_then(|cal| SensorAhead::new(spec, &cal, chunks()?.into_iter())?.finish());
+    let decoded =
+        sensor_calibration(spec, source).and_then(|cal| sensor::sensor_pass(spec, &cal, source));
     match decoded {
         Ok(Some(a)) => {
             summary.edges = a.edges;

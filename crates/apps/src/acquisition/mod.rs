@@ -14,16 +14,14 @@
 //! Every public item of the private modules is re-exported here.
 
 use crate::error::AppError;
-use physid_core::{Basis, Channel, Recording, RecordingError};
+use physid_core::{Basis, Channel, Recording, RecordingError, Recordings, Reopen};
 use physid_signal::encoder::{first_marker, CountSteps, Encoder, SpacingCheck};
 use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
     median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
 };
 use physid_signal::wheel::{recognise, EdgeDetector, EdgeOptions, ToothReport, Wheel};
-use sensor::{
-    sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorAhead, SensorFound,
-};
+use sensor::{sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound};
 use serde::Serialize;
 use std::f64::consts::PI;
 use thiserror::Error;

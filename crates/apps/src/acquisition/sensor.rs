@@ -21,7 +21,7 @@ use super::{
     DecodedAngle, EncoderSummary,
 };
 use crate::error::AppError;
-use physid_core::Recording;
+use physid_core::{Recording, Recordings, Reopen};
 use physid_signal::integrity::Finding;
 use physid_signal::quadrature::{IndexRange, IndexZero, QuadratureDecoder};
 use physid_signal::wheel::{EdgeDetector, Gap, GapSurvey, Pchip, ToothIndex, ToothReport};
@@ -77,20 +77,14 @@ fn encoder_of(spec: &AngleSpec) -> Result<([&str; 3], u32), AppError> {
     }
 }
 
-/// Pass 1: what must be known of the sensor `spec` names before any angle is given — `chunks`
-/// makes a reader of `t` and the sensor's channels each time it is called (once for a wheel,
-/// twice for an encoder: the index's level, then the decoding). The decoders' errors — a
-/// sample not finite, time not increasing, the wrong wheel — name the channel and the sample.
-pub fn sensor_calibration<F, I, R, E>(
+/// Pass 1: what must be known of the sensor `spec` names before any angle is given — passes
+/// over `source`, `t` and the sensor's channels (one for a wheel, two for an encoder: the
+/// index's level, then the decoding). The decoders' errors — a sample not finite, time not
+/// increasing, the wrong wheel — name the channel and the sample.
+pub fn sensor_calibration(
     spec: &AngleSpec,
-    mut chunks: F,
-) -> Result<Calibration, AppError>
-where
-    F: FnMut() -> Result<I, AppError>,
-    I: IntoIterator<Item = Result<R, E>>,
-    R: Borrow<Recording>,
-    AppError: From<E>,
-{
+    source: &dyn Reopen<Recordings, AppError>,
+) -> Result<Calibration, AppError> {
     match &spec.sensor {
         AngleSensor::Wheel {
             channel,
@@ -99,12 +93,11 @@ where
         } => {
             let mut detector = EdgeDetector::new(edges);
             let mut survey = GapSurvey::new(*wheel, channel);
-            for chunk in chunks()? {
-                let chunk = chunk?;
-                let c = chunk.borrow();
+            source.pass(&mut |c| {
                 detector.push(c.values("t")?, c.values(channel)?);
                 detector.drain(|t, i| survey.push(t, i));
-            }
+                Ok(())
+            })?;
             let rest = detector
                 .finish()
                 .map_err(|e| invalid(format!("'{channel}': {e}")))?;
@@ -121,9 +114,10 @@ where
                 return Err(invalid("an encoder needs 1 line or more".into()));
             }
             let mut range = IndexRange::default();
-            for chunk in chunks()? {
-                range.push(chunk?.borrow().values(names[2])?);
-            }
+            source.pass(&mut |c| {
+                range.push(c.values(names[2])?);
+                Ok(())
+            })?;
             let mut decoder = QuadratureDecoder::new(names, Some(range.range));
             let mut zero = IndexZero::new(lines, names[2]);
             let (mut transitions, mut last, mut from) = (0usize, None, (0usize, f64::NAN));
@@ -143,14 +137,12 @@ where
                     zero.pulse(p);
                 }
             };
-            for chunk in chunks()? {
-                let chunk = chunk?;
-                let c = chunk.borrow();
-                let cols = names.map(|n| c.values(n));
-                let [a, b, z] = cols;
+            source.pass(&mut |c| {
+                let [a, b, z] = names.map(|n| c.values(n));
                 decoder.push(c.values("t")?, a?, b?, z?);
                 take(&mut decoder, &mut zero);
-            }
+                Ok(())
+            })?;
             decoder.finish().map_err(|e| invalid(e.to_string()))?;
             take(&mut decoder, &mut zero);
             let (zero, pulses, mut out_of_place) = zero.finish();
@@ -210,34 +202,9 @@ where
 {
     /// The sensor `spec` names, calibrated by `cal`, read from `chunks`.
     pub fn new(spec: &AngleSpec, cal: &Calibration, chunks: A) -> Result<Self, AppError> {
-        let decoder = match (&spec.sensor, cal) {
-            (AngleSensor::Wheel { channel, edges, .. }, Calibration::Wheel(gap)) => {
-                PointDecoder::Wheel {
-                    channel: channel.clone(),
-                    detector: Some(EdgeDetector::new(edges)),
-                    index: Box::new(ToothIndex::new(gap, channel)),
-                    report: None,
-                }
-            }
-            (AngleSensor::Quadrature { .. }, Calibration::Quadrature(c)) => {
-                let (names, lines) = encoder_of(spec)?;
-                PointDecoder::Quadrature {
-                    names: names.map(str::to_string),
-                    decoder: QuadratureDecoder::new(names, Some(c.z_range)),
-                    q: TAU / (4.0 * lines as f64),
-                    zero: c.zero,
-                    ended: false,
-                }
-            }
-            _ => {
-                return Err(AppError::Invalid(
-                    "the calibration is of another sensor".into(),
-                ))
-            }
-        };
         Ok(Self {
             chunks,
-            decoder,
+            decoder: PointDecoder::new(spec, cal)?,
             pchip: Pchip::default(),
         })
     }
@@ -284,8 +251,52 @@ where
             Some(c) => Some(c?),
             None => None,
         };
-        let c = chunk.as_ref().map(Borrow::borrow);
-        match &mut self.decoder {
+        self.decoder.take(chunk.as_ref().map(Borrow::borrow))
+    }
+
+    /// Read the signal to its end (its points no longer needed): what a wheel's decoding
+    /// found.
+    pub fn finish(mut self) -> Result<Option<ToothReport>, AppError> {
+        while !self.decoder.drain() {
+            self.read()?;
+        }
+        Ok(self.decoder.report())
+    }
+}
+
+impl PointDecoder {
+    /// The decoder of the sensor `spec` names, calibrated by `cal`.
+    fn new(spec: &AngleSpec, cal: &Calibration) -> Result<Self, AppError> {
+        Ok(match (&spec.sensor, cal) {
+            (AngleSensor::Wheel { channel, edges, .. }, Calibration::Wheel(gap)) => {
+                PointDecoder::Wheel {
+                    channel: channel.clone(),
+                    detector: Some(EdgeDetector::new(edges)),
+                    index: Box::new(ToothIndex::new(gap, channel)),
+                    report: None,
+                }
+            }
+            (AngleSensor::Quadrature { .. }, Calibration::Quadrature(c)) => {
+                let (names, lines) = encoder_of(spec)?;
+                PointDecoder::Quadrature {
+                    names: names.map(str::to_string),
+                    decoder: QuadratureDecoder::new(names, Some(c.z_range)),
+                    q: TAU / (4.0 * lines as f64),
+                    zero: c.zero,
+                    ended: false,
+                }
+            }
+            _ => {
+                return Err(AppError::Invalid(
+                    "the calibration is of another sensor".into(),
+                ))
+            }
+        })
+    }
+
+    /// Take the signal's next chunk `c`, or its end (`None`).
+    fn take(&mut self, c: Option<&Recording>) -> Result<(), AppError> {
+        match self {
             PointDecoder::Wheel {
                 channel,
                 detector,
@@ -337,31 +348,46 @@ where
         Ok(())
     }
 
-    /// Read the signal to its end (its points no longer needed): what a wheel's decoding
-    /// found.
-    pub fn finish(mut self) -> Result<Option<ToothReport>, AppError> {
-        loop {
-            match &mut self.decoder {
-                PointDecoder::Wheel { index, report, .. } => {
-                    while index.pop().is_some() {}
-                    if report.is_some() {
-                        break;
-                    }
-                }
-                PointDecoder::Quadrature { decoder, ended, .. } => {
-                    while decoder.pop().is_some() {}
-                    if *ended {
-                        break;
-                    }
-                }
-            }
-            self.read()?;
-        }
-        Ok(match self.decoder {
+    /// What a wheel's decoding found, once the signal has ended.
+    fn report(self) -> Option<ToothReport> {
+        match self {
             PointDecoder::Wheel { report, .. } => report,
             PointDecoder::Quadrature { .. } => None,
-        })
+        }
     }
+
+    /// Drop the points decoded so far (not needed); whether the points have ended.
+    fn drain(&mut self) -> bool {
+        match self {
+            PointDecoder::Wheel { index, report, .. } => {
+                while index.pop().is_some() {}
+                report.is_some()
+            }
+            PointDecoder::Quadrature { decoder, ended, .. } => {
+                while decoder.pop().is_some() {}
+                *ended
+            }
+        }
+    }
+}
+
+/// The sensor `spec` names, calibrated by `cal`, decoded over one whole pass of `source` (its
+/// points not needed): what a wheel's decoding found ([`ToothReport`]), what an encoder's
+/// decoding refused.
+pub fn sensor_pass(
+    spec: &AngleSpec,
+    cal: &Calibration,
+    source: &dyn Reopen<Recordings, AppError>,
+) -> Result<Option<ToothReport>, AppError> {
+    let mut d = PointDecoder::new(spec, cal)?;
+    source.pass(&mut |c| {
+        d.drain();
+        d.take(Some(c))
+    })?;
+    while !d.drain() {
+        d.take(None)?;
+    }
+    Ok(d.report())
 }
 
 /// Which of two revolutions fires, a sample at a time: the mean of a channel over the

@@ -33,9 +33,10 @@
 
 use crate::error::AppError;
 use nalgebra::{DMatrix, DVector};
-use physid_core::{Basis, GradientEngine, ParamModel, Recording};
+use physid_core::{Basis, GradientEngine, ParamModel, Recording, Recordings, Reopen};
 use physid_ident::{
-    analyse, fit_subset, quantify, Data, IdentConfig, IdentError, RankedParam, Rows, Selection,
+    analyse, fit_subset, quantify, Data, DataRows, IdentConfig, IdentError, RankedParam, Rows,
+    Selection,
 };
 use physid_models::motored::{Motored, DESCRIPTIONS, PARAMS, UNITS};
 use serde::Serialize;

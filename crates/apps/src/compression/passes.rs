@@ -1,27 +1,8 @@
 //! The windows gone over in passes ([`TdcEvents`]): held within a limit, or gathered again from
-//! a source read again ([`CrankPasses`]).
+//! a source read again (a [`Reopen`] of [`Recordings`]: a file read again, a recording in
+//! memory).
 
 use super::*;
-
-/// A crank-angle recording that can be gone over again and again: a file read again, a
-/// recording in memory.
-pub trait CrankPasses {
-    /// Go over the recording once: `visit` every chunk in order (the first may be the header
-    /// alone, without samples). An error of `visit` ends the pass and is returned.
-    fn chunks(
-        &self,
-        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
-    ) -> Result<(), AppError>;
-}
-
-impl CrankPasses for Recording {
-    fn chunks(
-        &self,
-        visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
-    ) -> Result<(), AppError> {
-        visit(self)
-    }
-}
 
 /// One TDC's window as a pass over [`TdcEvents`] shows it.
 #[derive(Debug, Clone, Copy)]
@@ -74,7 +55,7 @@ pub(super) enum Held {
 /// chunk, whatever the recording's length. Each window is one chunk of its [`Rows`] (the
 /// motored model's input `atdc`, the pressure as the output).
 pub struct TdcEvents<'a> {
-    source: &'a dyn CrankPasses,
+    source: &'a dyn Reopen<Recordings, AppError>,
     channel: String,
     window: (f64, f64),
     hold_bytes: usize,
@@ -127,7 +108,7 @@ impl<'a> TdcEvents<'a> {
     /// The windows `window` [deg ATDC] of `channel` around the firing TDCs of `source`, held
     /// after the first pass if they take at most `hold_bytes`.
     pub fn new(
-        source: &'a dyn CrankPasses,
+        source: &'a dyn Reopen<Recordings, AppError>,
         channel: &str,
         window: (f64, f64),
         hold_bytes: usize,
@@ -186,7 +167,7 @@ impl<'a> TdcEvents<'a> {
         let mut collector: Option<EventCollector> = None;
         let mut unit: Option<(String, crate::pressure::UnitCheck)> = None;
         let mut gather = || -> Result<Vec<String>, AppError> {
-            self.source.chunks(&mut |chunk| {
+            self.source.pass(&mut |chunk| {
                 let c = match &mut collector {
                     Some(c) => c,
                     None => {
@@ -242,10 +223,12 @@ impl<'a> TdcEvents<'a> {
     }
 }
 
-impl Rows for TdcEvents<'_> {
+impl Rows for TdcEvents<'_> {}
+
+impl Reopen<DataRows, IdentError> for TdcEvents<'_> {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         self.each(&mut |w| {
             visit(&Data {

@@ -29,28 +29,64 @@ pub fn tdc_from_pressure(
     cfg: &CompressionConfig,
     step_deg: f64,
 ) -> Result<TdcFromPressure, AppError> {
-    use crate::acquisition::to_crank_angle_decoded;
-    let read = |o: &crate::acquisition::AcquisitionOptions,
-                visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>| {
-        visit(&to_crank_angle_decoded(rec, o, step_deg)?.0)
-    };
-    tdc_from_pressure_in(&read, opts, cfg, step_deg, usize::MAX)
+    tdc_from_pressure_in(&InMemory { rec, step_deg }, opts, cfg, step_deg, usize::MAX)
 }
 
-/// One pass over a time-basis recording put on a crank-angle basis with the options given:
-/// every chunk to `visit`.
-pub type CrankRead<'r> = dyn Fn(
-        &crate::acquisition::AcquisitionOptions,
-        &mut dyn FnMut(&Recording) -> Result<(), AppError>,
-    ) -> Result<(), AppError>
-    + 'r;
+/// A raw angle sensor's recording put on a crank-angle basis with the options given, gone over
+/// in passes — the builder of the passes [`tdc_from_pressure_in`] makes (as arrow-rs's reader
+/// builders): a recording in memory, or a file read again
+/// ([`CrankFile`](crate::angle_input::CrankFile)).
+pub trait CrankBuilder {
+    /// The recording on a crank-angle basis with `opts`, gone over in passes.
+    fn with<'s>(
+        &'s self,
+        opts: &crate::acquisition::AcquisitionOptions,
+    ) -> Box<dyn Reopen<Recordings, AppError> + 's>;
+}
 
-/// [`tdc_from_pressure`] on a recording read in passes — `read` puts it on a crank-angle basis
-/// (every `step_deg`) with the options given, a chunk at a time: a pass for the pressure's peak
-/// in every cycle ([`PeakAngles`]), then the motored fit's passes over the TDCs' windows, held
-/// when they take at most `hold_bytes` ([`TdcEvents`]).
+/// A time-basis recording in memory put on a crank-angle basis every `step_deg`.
+struct InMemory<'r> {
+    rec: &'r Recording,
+    step_deg: f64,
+}
+
+impl CrankBuilder for InMemory<'_> {
+    fn with<'s>(
+        &'s self,
+        opts: &crate::acquisition::AcquisitionOptions,
+    ) -> Box<dyn Reopen<Recordings, AppError> + 's> {
+        Box::new(Decoded {
+            rec: self.rec,
+            opts: opts.clone(),
+            step_deg: self.step_deg,
+        })
+    }
+}
+
+/// One [`InMemory`] recording with its options: each pass decodes it whole.
+struct Decoded<'r> {
+    rec: &'r Recording,
+    opts: crate::acquisition::AcquisitionOptions,
+    step_deg: f64,
+}
+
+impl Reopen<Recordings, AppError> for Decoded<'_> {
+    fn pass(
+        &self,
+        visit: &mut dyn for<'c> FnMut(&'c Recording) -> Result<(), AppError>,
+    ) -> Result<(), AppError> {
+        let decoded =
+            crate::acquisition::to_crank_angle_decoded(self.rec, &self.opts, self.step_deg)?;
+        visit(&decoded.0)
+    }
+}
+
+/// [`tdc_from_pressure`] on a recording read in passes — `source` puts it on a crank-angle
+/// basis (every `step_deg`) with the options given, a chunk at a time: a pass for the
+/// pressure's peak in every cycle ([`PeakAngles`]), then the motored fit's passes over the
+/// TDCs' windows, held when they take at most `hold_bytes` ([`TdcEvents`]).
 pub fn tdc_from_pressure_in(
-    read: &CrankRead,
+    source: &dyn CrankBuilder,
     opts: &crate::acquisition::AcquisitionOptions,
     cfg: &CompressionConfig,
     step_deg: f64,
@@ -70,25 +106,13 @@ pub fn tdc_from_pressure_in(
     opts.sensor = Some(spec.clone());
     // 1. The peak's angle after the reference, the median over the complete cycles.
     let mut peaks = PeakAngles::new(&cfg.channel, step_deg);
-    read(&opts, &mut |chunk| peaks.push(chunk))?;
+    source.with(&opts).pass(&mut |chunk| peaks.push(chunk))?;
     let peak = peaks.finish()?;
     // 2. The model fitted with the TDC at the peak.
     spec.tdc_offset_deg = peak;
     opts.sensor = Some(spec);
-    struct Passes<'r> {
-        read: &'r CrankRead<'r>,
-        opts: crate::acquisition::AcquisitionOptions,
-    }
-    impl CrankPasses for Passes<'_> {
-        fn chunks(
-            &self,
-            visit: &mut dyn FnMut(&Recording) -> Result<(), AppError>,
-        ) -> Result<(), AppError> {
-            (self.read)(&self.opts, visit)
-        }
-    }
-    let passes = Passes { read, opts };
-    let events = TdcEvents::new(&passes, &cfg.channel, cfg.window_deg, hold_bytes);
+    let passes = source.with(&opts);
+    let events = TdcEvents::new(passes.as_ref(), &cfg.channel, cfg.window_deg, hold_bytes);
     let fit = compression_fit_events(&events, cfg)?;
     let tdc = fit
         .get("tdc_shift")

@@ -109,10 +109,12 @@ impl TorqueData {
     }
 }
 
-impl Rows for TorqueData {
+impl Rows for TorqueData {}
+
+impl Reopen<DataRows, IdentError> for TorqueData {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         visit(&self.view())
     }

@@ -144,7 +144,7 @@ impl<'a> Degrees<'a> {
 
     /// The 1° samples of a crank-angle recording made again on every pass (a time-basis file
     /// whose angle is an encoder's counts, resampled as it is read: the CLI's `CrankFile`).
-    pub fn crank(source: &'a dyn CrankPasses) -> Self {
+    pub fn crank(source: &'a dyn Reopen<Recordings, AppError>) -> Self {
         Self {
             rows: DegreeSource::Passes(source),
             angle: Angle::Crank,
@@ -279,7 +279,7 @@ pub(super) enum DegreeSource<'a> {
     /// The channels of a file or a recording in memory ([`RecordingRows`]).
     Rows(RecordingRows<'a>),
     /// A crank-angle recording made again on every pass.
-    Passes(&'a dyn CrankPasses),
+    Passes(&'a dyn Reopen<Recordings, AppError>),
 }
 
 impl DegreeSource<'_> {
@@ -293,7 +293,7 @@ impl DegreeSource<'_> {
             Self::Passes(source) => {
                 // `visit`'s error comes back as it is; the source's as an application error.
                 let mut failed = None;
-                let read = source.chunks(&mut |chunk| {
+                let read = source.pass(&mut |chunk| {
                     visit(chunk).map_err(|e| {
                         failed = Some(e);
                         AppError::Invalid(String::new())
@@ -338,10 +338,12 @@ pub(super) fn in_pieces<E>(
     Ok(())
 }
 
-impl Rows for Degrees<'_> {
+impl Rows for Degrees<'_> {}
+
+impl Reopen<DataRows, IdentError> for Degrees<'_> {
     fn pass(
         &self,
-        visit: &mut dyn FnMut(&Data) -> Result<(), IdentError>,
+        visit: &mut dyn for<'c> FnMut(&'c Data<'c>) -> Result<(), IdentError>,
     ) -> Result<(), IdentError> {
         self.samples::<IdentError>(&mut |d| visit(&d.view()))
     }

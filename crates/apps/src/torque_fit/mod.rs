@@ -24,16 +24,15 @@
 
 use crate::acquisition::{to_crank_angle, AcquisitionOptions, FirstMarker, TDC_MARKER};
 pub use crate::cell::cyclic_torque_nominal;
-use crate::compression::CrankPasses;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
 use crate::stage::{Sink, Stage};
-use physid_core::{Basis, ParamModel, ParamSet, Recording};
+use physid_core::{Basis, ParamModel, ParamSet, Recording, Recordings, Reopen};
 use physid_estim::metrics::Prediction;
 use physid_estim::{CovSpec, EstimatorSpec, MethodName, NonlinearEstimator};
 use physid_ident::{
-    analyse, fit_subset, Analysis, Cutoff, Data, IdentConfig, IdentError, RankedParam, Rows,
-    Selection,
+    analyse, fit_subset, Analysis, Cutoff, Data, DataRows, IdentConfig, IdentError, RankedParam,
+    Rows, Selection,
 };
 use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};

@@ -10,7 +10,6 @@ use physid_apps::acquisition::{
     inspect_wheel, parse_threshold, AcquisitionOptions, AngleSensor, AngleSpec, Inspector,
 };
 use physid_apps::compression::TdcFromPressure;
-use physid_apps::error::AppError;
 use physid_core::Recording;
 use physid_signal::wheel::{Edge, EdgeOptions};
 use std::path::{Path, PathBuf};
@@ -213,17 +212,15 @@ pub fn run(args: &Args) -> Result<()> {
     let header = reader.header();
     // A wheel named: decoded as it is read again (where the gap is, then every edge's angle).
     if let Some(AngleSensor::Wheel { channel, .. }) = opts.sensor.as_ref().map(|s| &s.sensor) {
-        let mut readers = Vec::new();
-        if header.channel(channel).is_ok() {
-            for _ in 0..2 {
-                readers.push(args.input.open(&args.file, &["t", channel], &[])?);
-            }
-        }
-        inspect_wheel(&mut i, header, &opts, || {
-            readers
-                .pop()
-                .ok_or_else(|| AppError::Invalid("a pass too many".into()))
-        });
+        let read = args
+            .input
+            .options(Some(vec!["t".into(), channel.clone()]))?;
+        inspect_wheel(
+            &mut i,
+            header,
+            &opts,
+            &physid_io::FileChunks::new(&args.file, read),
+        );
     }
     let samples = reader.rows_read();
     let mut written = Vec::new();
