@@ -14,19 +14,22 @@ pub mod format;
 pub mod mdf;
 mod parquet_check;
 pub mod parquet_file;
+mod reader;
 mod reopen;
+mod source;
 mod thrift_walk;
+mod writer;
 
 pub use csv_file::{read_csv, recover_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
-pub use format::{
-    basis_by_channels, detect, read, write, ChunkReader, ChunkWriter, Format, MapItem, ReadOptions,
-    WriteOptions, CHUNK_ROWS, STREAM_ROWS_PER_GROUP,
-};
+pub use format::{basis_by_channels, detect, Format, MapItem, ReadOptions, CHUNK_ROWS};
 pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLOCK_BYTES};
 pub use parquet_file::{
     read_parquet, recover_parquet, write_parquet, ParquetChunks, ParquetWriter, Recovered,
 };
+pub use reader::{read, ChunkReader};
 pub use reopen::FileChunks;
+pub use source::ChunkSource;
+pub use writer::{write, ChunkWriter, WriteOptions, STREAM_ROWS_PER_GROUP};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]
