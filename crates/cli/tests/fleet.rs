@@ -273,6 +273,22 @@ fn a_killed_worker_hands_on_its_friction_characterisation() {
     assert!(!chosen["estimable"].as_array().expect("names").is_empty());
 }
 
+/// The cyclic-torque estimation hands on too: worker a is killed (SIGKILL) mid-ramp; b restores
+/// its checkpoint — the torque stage's degree resampling, its choice and its filter — and the
+/// fleet's events are one process's, JSON for JSON.
+#[test]
+fn a_killed_worker_hands_on_its_torque_estimation() {
+    let source = ["--scenario", "torque-ramp", "--duration", "10"];
+    let got = failover("c6", false, &source, &["--torque"]);
+    let cycles = got.iter().filter(|e| e["type"] == "torque").count();
+    assert!(cycles > 40, "{cycles} cycles' torque estimates");
+    let chosen = got
+        .iter()
+        .find(|e| e["type"] == "identifiability" && e["app"] == "torque")
+        .expect("the choice of parameters");
+    assert!(!chosen["estimable"].as_array().expect("names").is_empty());
+}
+
 /// Worker a processes `cell`, a run of `source` (with the `stages` flags), until it is killed
 /// (`term`: SIGTERM, else SIGKILL); worker b takes over. Returns the fleet's events, asserted
 /// equal to a one-process run's.
