@@ -12,6 +12,7 @@ use physid_core::{Basis, Channel, Recording};
 use physid_live::fleet::local::{nats_server_bin, LocalServer};
 use physid_live::fleet::{CellInfo, CELLS_BUCKET};
 use physid_live::wire::{self, Frame};
+use physid_testkit::Scratch;
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -239,7 +240,7 @@ const LONG: [&str; 4] = ["--scenario", "shaft-steady", "--duration", "12"];
 /// let the stream keep one of each); the end event counts every sample published.
 #[test]
 fn a_killed_worker_is_replaced_without_loss() {
-    failover("c1", false, &LONG, &[]);
+    failover("c1", false, &LONG, &[], &[]);
 }
 
 /// A worker stopped with SIGTERM mid-stream checkpoints its cell and frees it as it exits (its
@@ -247,7 +248,7 @@ fn a_killed_worker_is_replaced_without_loss() {
 /// exactly those of an uninterrupted run.
 #[test]
 fn a_stopped_worker_hands_its_cell_over_at_once() {
-    failover("c3", true, &LONG, &[]);
+    failover("c3", true, &LONG, &[], &[]);
 }
 
 /// Workers running the friction characterisation too (`physid worker --friction`): the one
@@ -263,6 +264,7 @@ fn a_killed_worker_hands_on_its_friction_characterisation() {
         false,
         &source,
         &["--friction", "cell", "--friction-after", "20"],
+        &[],
     );
     let friction = got.iter().filter(|e| e["type"] == "friction").count();
     assert!(friction > 40, "{friction} cycles' friction estimates");
@@ -279,7 +281,7 @@ fn a_killed_worker_hands_on_its_friction_characterisation() {
 #[test]
 fn a_killed_worker_hands_on_its_torque_estimation() {
     let source = ["--scenario", "torque-ramp", "--duration", "10"];
-    let got = failover("c6", false, &source, &["--torque"]);
+    let got = failover("c6", false, &source, &["--torque"], &[]);
     let cycles = got.iter().filter(|e| e["type"] == "torque").count();
     assert!(cycles > 40, "{cycles} cycles' torque estimates");
     let chosen = got
@@ -289,11 +291,33 @@ fn a_killed_worker_hands_on_its_torque_estimation() {
     assert!(!chosen["estimable"].as_array().expect("names").is_empty());
 }
 
+/// A checkpoint larger than the server's message limit — here 64 KiB, against the ≈ 280 kB of a
+/// torque stage holding its first ten cycles for the choice — is stored in parts: the worker
+/// goes on (it used to fail at every checkpoint and take its cell again from the start, for
+/// ever), and a worker killed mid-run hands on from it.
+#[test]
+fn a_checkpoint_over_the_message_limit_is_stored_in_parts() {
+    let s = Scratch::new("physid-fleet-payload");
+    let conf = s.file("small-payload.conf");
+    std::fs::write(&conf, "max_payload: 65536\n").expect("write the configuration");
+    let source = ["--scenario", "torque-ramp", "--duration", "10"];
+    let conf = conf.to_str().expect("utf-8");
+    let got = failover("c7", false, &source, &["--torque"], &["-c", conf]);
+    assert!(got.iter().filter(|e| e["type"] == "torque").count() > 40);
+}
+
 /// Worker a processes `cell`, a run of `source` (with the `stages` flags), until it is killed
-/// (`term`: SIGTERM, else SIGKILL); worker b takes over. Returns the fleet's events, asserted
-/// equal to a one-process run's.
-fn failover(cell: &str, term: bool, source: &[&str], stages: &[&str]) -> Vec<Value> {
-    let Some(server) = nats_server(&["--user", "physid", "--pass", "s3cret-pw"]) else {
+/// (`term`: SIGTERM, else SIGKILL); worker b takes over. `server`: nats-server's further
+/// arguments. Returns the fleet's events, asserted equal to a one-process run's.
+fn failover(
+    cell: &str,
+    term: bool,
+    source: &[&str],
+    stages: &[&str],
+    server: &[&str],
+) -> Vec<Value> {
+    let auth = ["--user", "physid", "--pass", "s3cret-pw"];
+    let Some(server) = nats_server(&[&auth[..], server].concat()) else {
         return Vec::new();
     };
     let url = server.url("physid:s3cret-pw@");

@@ -18,8 +18,9 @@
 //! | a cell's controls (request)  | subject `physid.cell.<ID>.control`                          |
 //! | the cells (registry)         | key-value bucket `physid_cells`, key `<ID>`                 |
 //! | which worker has a cell      | key-value bucket `physid_leases`, key `<ID>` (expires)      |
-//! | a cell's checkpoint          | key-value bucket `physid_checkpoints`, key `<ID>`           |
+//! | a cell's checkpoint          | key-value bucket `physid_checkpoints`, key `<ID>` (a state over the message limit: in parts, keys `<ID>.<slot>.<k>`) |
 
+mod checkpoint;
 pub mod load;
 pub mod local;
 pub mod publish;
@@ -347,6 +348,8 @@ pub(crate) async fn send_until_acked(
 
 /// The streams and buckets of the fleet, created when missing (file storage).
 pub struct Fleet {
+    /// The connection (its server's `max_payload` bounds a checkpoint's part).
+    pub client: async_nats::Client,
     /// The JetStream context.
     pub js: jetstream::Context,
     /// [`SAMPLES_STREAM`].
@@ -384,7 +387,7 @@ impl Fleet {
     }
 
     async fn open_once(client: async_nats::Client) -> Result<Self, FleetError> {
-        let js = jetstream::new(client);
+        let js = jetstream::new(client.clone());
         let stream_of = |name: &str, kind: &str, max_age: Duration| stream::Config {
             name: name.to_string(),
             subjects: vec![format!("physid.cell.*.{kind}")],
@@ -442,6 +445,7 @@ impl Fleet {
             .pop()
             .ok_or_else(|| FleetError::Invalid("bucket".into()))?;
         Ok(Self {
+            client,
             js,
             samples,
             cells,

@@ -15,11 +15,13 @@
 //!   the same state, so they give the same events, and the events' message ids
 //!   (`<cell>/<run>/<stream sequence>/<k>`) make the stream store each once. The checkpoint is
 //!   written only over the revision this worker wrote (compare and set): a worker that lost its
-//!   cell cannot overwrite its successor's.
+//!   cell cannot overwrite its successor's. A state larger than the server's message limit is
+//!   stored in parts ([`checkpoint`](super::checkpoint)).
 //! * **Bad input** — a frame that is not a frame, another cell's frame, a wrong schema, frames on
 //!   the subject of a cell nobody registered — is counted and reported as an `error` event with
 //!   the reason, never absorbed into an estimate, and the worker goes on.
 
+use super::checkpoint::{self, Checkpoint};
 use super::{
     nats, send_until_acked, subject, CellInfo, Fleet, FleetError, NatsTarget, CELLS_BUCKET,
     LEASE_TTL,
@@ -29,7 +31,6 @@ use crate::service::{LiveConfig, Stages};
 use crate::wire;
 use async_nats::jetstream::consumer::{pull::OrderedConfig, DeliverPolicy};
 use futures_util::StreamExt;
-use serde::{Deserialize, Serialize};
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -66,21 +67,6 @@ pub struct WorkerStats {
     pub refused: AtomicU64,
     /// Events published.
     pub events: AtomicU64,
-}
-
-/// A cell's checkpoint (MessagePack in [`super::CHECKPOINTS_BUCKET`]).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-struct Checkpoint {
-    /// The run it belongs to.
-    run: u64,
-    /// The last frame processed.
-    seq: u64,
-    /// Its stream sequence: the next worker reads on from the one after.
-    stream_seq: u64,
-    /// The run's end frame has been processed.
-    done: bool,
-    /// [`Stages::checkpoint`] (empty when done).
-    state: Vec<u8>,
 }
 
 /// Run a worker until `stop` (SIGTERM): take the cells that need one, process their frames,
@@ -219,7 +205,7 @@ async fn supervise(
             if owned.contains_key(cell) || done_runs.get(cell) == Some(&info.run) {
                 continue;
             }
-            if finished(&fleet, info).await {
+            if checkpoint::finished(&fleet, &info.cell, info.run).await {
                 done_runs.insert(cell.clone(), info.run);
                 continue;
             }
@@ -321,16 +307,6 @@ async fn registered(
     Ok(out)
 }
 
-/// Whether the cell's current run has been processed to its end.
-async fn finished(fleet: &Fleet, info: &CellInfo) -> bool {
-    match fleet.checkpoints.get(&info.cell).await {
-        Ok(Some(v)) => {
-            rmp_serde::from_slice::<Checkpoint>(&v).is_ok_and(|c| c.run == info.run && c.done)
-        }
-        _ => false,
-    }
-}
-
 type Emit = Box<dyn FnMut(&Event) -> Result<(), String> + Send>;
 
 /// One cell's frames through the stages, from its checkpoint on, until its end frame or `stop`.
@@ -349,15 +325,8 @@ async fn process_cell(
     live.theta_tdc = info.theta_tdc;
     live.panel = None;
     live.pace = crate::source::Pace::Max;
-    let entry = fleet
-        .checkpoints
-        .entry(&cell)
-        .await
-        .map_err(|e| nats(format!("reading the checkpoint of {cell}"))(e.into()))?;
-    let mut revision = entry.as_ref().map(|e| e.revision);
-    let previous = entry
-        .and_then(|e| rmp_serde::from_slice::<Checkpoint>(&e.value).ok())
-        .filter(|c| c.run == info.run);
+    let (previous, mut writer) = checkpoint::read(&fleet, &cell).await?;
+    let previous = previous.filter(|c| c.run == info.run);
     let (stages, mut seq, start) = match &previous {
         Some(c) if c.done => return Ok(()),
         Some(c) => (
@@ -450,8 +419,9 @@ async fn process_cell(
                 stream_seq: last_stream_seq,
                 done: false,
                 state: st.checkpoint()?,
+                parts: None,
             };
-            revision = Some(put_checkpoint(&fleet, &cell, &c, revision).await?);
+            writer.put(&fleet, &cell, c).await?;
         }
     }
     let state = match (&stages, done) {
@@ -464,8 +434,9 @@ async fn process_cell(
         stream_seq: last_stream_seq,
         done,
         state,
+        parts: None,
     };
-    put_checkpoint(&fleet, &cell, &c, revision).await?;
+    writer.put(&fleet, &cell, c).await?;
     Ok(())
 }
 
@@ -490,30 +461,6 @@ async fn open_frames(
         .messages()
         .await
         .map_err(|e| nats(what())(e.into()))
-}
-
-/// Write a checkpoint over `revision` (the one this worker wrote or read; `None`: none yet).
-async fn put_checkpoint(
-    fleet: &Fleet,
-    cell: &str,
-    c: &Checkpoint,
-    revision: Option<u64>,
-) -> Result<u64, FleetError> {
-    let bytes = rmp_serde::to_vec(c)
-        .map_err(|e| FleetError::Invalid(format!("writing the checkpoint of {cell}: {e}")))?;
-    let what = format!("writing the checkpoint of {cell} (another worker may have the cell now)");
-    match revision {
-        Some(r) => fleet
-            .checkpoints
-            .update(cell, bytes.into(), r)
-            .await
-            .map_err(|e| nats(what)(e.into())),
-        None => fleet
-            .checkpoints
-            .create(cell, bytes.into())
-            .await
-            .map_err(|e| nats(what)(e.into())),
-    }
 }
 
 /// What became of a frame.
