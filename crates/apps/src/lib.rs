@@ -38,6 +38,7 @@
 pub mod acquisition;
 pub mod angle_input;
 pub mod cell;
+pub mod combustion;
 pub mod compression;
 pub mod cycle_stage;
 pub mod demo;

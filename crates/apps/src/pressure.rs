@@ -23,6 +23,7 @@ use physid_core::{Basis, Recording};
 use physid_models::kinematics::Crank;
 use serde::Serialize;
 
+use crate::combustion::{burn, peak_angle, Burn, HeatRelease};
 use crate::error::AppError;
 
 /// The cylinder's geometry (SI).
@@ -116,6 +117,13 @@ pub struct CycleFigures {
     /// Polytropic exponent of expansion.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub n_expansion: Option<f64>,
+    /// Heat release, burn angles and pressure rise (with the geometry and the pressure in Pa;
+    /// [`crate::combustion`]).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub burn: Option<Burn>,
+    /// What was left out of this cycle's figures, and why.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// The cycles' figures and their spread.
@@ -269,6 +277,7 @@ pub struct CycleAnalyser {
     unit: String,
     crank: Option<Crank<f64>>,
     peg: Pegging,
+    heat: HeatRelease,
     need_pa: bool,
     unit_check: UnitCheck,
     step: FirstAdvance,
@@ -326,6 +335,7 @@ impl CycleAnalyser {
             unit,
             crank: geometry.map(Geometry::crank),
             peg,
+            heat: HeatRelease::default(),
             need_pa: geometry.is_some(),
             unit_check,
             step: FirstAdvance::default(),
@@ -342,6 +352,13 @@ impl CycleAnalyser {
             vol: Vec::new(),
             atdc: Vec::new(),
         })
+    }
+
+    /// The heat release's γ and window ([`HeatRelease::default`] unless given; checked).
+    pub fn with_heat_release(mut self, heat: HeatRelease) -> Result<Self, AppError> {
+        heat.validate()?;
+        self.heat = heat;
+        Ok(self)
     }
 
     /// The next chunk of the recording.
@@ -401,6 +418,17 @@ impl CycleAnalyser {
             ));
         }
         let cycles = self.cycles;
+        // What cycles left out, said once with how many.
+        let mut left_out: Vec<(&str, usize)> = Vec::new();
+        for n in cycles.iter().flat_map(|c| &c.notes) {
+            match left_out.iter_mut().find(|(m, _)| *m == n.as_str()) {
+                Some((_, k)) => *k += 1,
+                None => left_out.push((n, 1)),
+            }
+        }
+        for (n, k) in left_out {
+            notes.push(format!("{k} cycle(s): {n}"));
+        }
         let imeps: Vec<f64> = cycles.iter().filter_map(|c| c.imep_pa).collect();
         let cov_imep = (imeps.len() >= 2).then(|| {
             let n = imeps.len() as f64;
@@ -459,22 +487,22 @@ impl CycleAnalyser {
         for x in pc.iter_mut() {
             *x += offset;
         }
-        let (k_max, &p_max) = pc
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.total_cmp(b.1))
-            .unwrap_or((0, &f64::NAN));
+        let p_max = pc.iter().copied().fold(f64::NAN, f64::max);
+        // The cycle in crank-angle order, from −360° ATDC (crank_deg 360) round to 360°.
+        let order: Vec<usize> = (0..atdc.len())
+            .filter(|&i| atdc[i] < 0.0)
+            .chain((0..atdc.len()).filter(|&i| atdc[i] >= 0.0))
+            .collect();
+        let sorted = |y: &[f64]| order.iter().map(|&i| y[i]).collect::<Vec<f64>>();
+        let (sa, sp) = (sorted(atdc), sorted(pc));
+        let p_max_deg = peak_angle(&sa, &sp).unwrap_or(f64::NAN);
         let span = t[per_cycle - 1] - t[0];
         let rpm = 2.0 * 60.0 / (span * per_cycle as f64 / (per_cycle - 1) as f64);
         let in_pa = self.unit == "Pa";
         let vd = self.crank.map(|c| c.piston_area() * c.stroke());
-        let (imep, gross, nc, ne) = match vd {
+        let mut notes = Vec::new();
+        let (imep, gross, nc, ne, b) = match vd {
             Some(vd) => {
-                // In crank-angle order from −360° ATDC (crank_deg 360) round to 360°.
-                let order: Vec<usize> = (0..atdc.len())
-                    .filter(|&i| atdc[i] < 0.0)
-                    .chain((0..atdc.len()).filter(|&i| atdc[i] >= 0.0))
-                    .collect();
                 let work = |from: f64, to: f64, closed: bool| {
                     let idx: Vec<usize> = order
                         .iter()
@@ -492,26 +520,44 @@ impl CycleAnalyser {
                     }
                     w / vd
                 };
+                let mut exponent = |window: (f64, f64), name: &str| {
+                    polytropic(atdc, pc, vol, window)
+                        .map_err(|why| {
+                            notes.push(format!(
+                                "{name} left out: {why} between {}° and {}° ATDC",
+                                window.0, window.1
+                            ))
+                        })
+                        .ok()
+                };
+                let nc = exponent(COMPRESSION_WINDOW, "n_compression");
+                let ne = exponent(EXPANSION_WINDOW, "n_expansion");
+                let b = in_pa
+                    .then(|| burn(&self.heat, &sa, &sp, &sorted(vol), vd, p_max))
+                    .flatten();
                 (
                     in_pa.then(|| work(-360.0, 360.0, true)),
                     in_pa.then(|| work(-180.0, 180.0, false)),
-                    polytropic(atdc, pc, vol, COMPRESSION_WINDOW),
-                    polytropic(atdc, pc, vol, EXPANSION_WINDOW),
+                    nc,
+                    ne,
+                    b,
                 )
             }
-            None => (None, None, None, None),
+            None => (None, None, None, None, None),
         };
         CycleFigures {
             cycle: c as i64,
             t_start_s: t[0],
             rpm,
             p_max,
-            p_max_deg: atdc[k_max],
+            p_max_deg,
             peg_offset: offset,
             imep_pa: imep,
             imep_gross_pa: gross,
             n_compression: nc,
             n_expansion: ne,
+            burn: b,
+            notes,
         }
     }
 }
@@ -537,12 +583,17 @@ fn at(x: &[f64], y: &[f64], a: f64) -> f64 {
 }
 
 /// The polytropic exponent over a window [deg ATDC]: `−slope` of `ln p` on `ln V` by least
-/// squares; `None` when a pressure there is not positive or fewer than 3 samples.
-fn polytropic(atdc: &[f64], p: &[f64], v: &[f64], (from, to): (f64, f64)) -> Option<f64> {
+/// squares; refused (why) when a pressure there is not positive or with fewer than 3 samples.
+fn polytropic(
+    atdc: &[f64],
+    p: &[f64],
+    v: &[f64],
+    (from, to): (f64, f64),
+) -> Result<f64, &'static str> {
     let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for i in (0..atdc.len()).filter(|&i| atdc[i] >= from && atdc[i] <= to) {
         if p[i] <= 0.0 {
-            return None;
+            return Err("the pressure is not positive (an unpegged sensor's? --peg bdc=P or --peg polytropic=N references it)");
         }
         let (x, y) = (v[i].ln(), p[i].ln());
         n += 1.0;
@@ -552,5 +603,9 @@ fn polytropic(atdc: &[f64], p: &[f64], v: &[f64], (from, to): (f64, f64)) -> Opt
         sxy += x * y;
     }
     let den = n * sxx - sx * sx;
-    (n >= 3.0 && den > 0.0).then(|| -(n * sxy - sx * sy) / den)
+    if n >= 3.0 && den > 0.0 {
+        Ok(-(n * sxy - sx * sy) / den)
+    } else {
+        Err("fewer than 3 samples")
+    }
 }

@@ -1,6 +1,7 @@
-//! `physid cycles`: cylinder-pressure figures per cycle — peak pressure and its angle, IMEP
-//! (net and gross), polytropic exponents, speed, CoV of IMEP — with pegging
-//! (`physid_apps::pressure`). A time-basis recording is taken to one sample per crank degree
+//! `physid cycles`: cylinder-pressure figures per cycle — peak pressure and its angle (between
+//! the samples), IMEP (net and gross), polytropic exponents, speed, CoV of IMEP; with the
+//! geometry the apparent heat release, MFB10/50/90 and the steepest pressure rise — with
+//! pegging (`physid_apps::pressure`, `physid_apps::combustion`). A time-basis recording is taken to one sample per crank degree
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
 use super::{GeometryArgs, InputArgs};
@@ -8,6 +9,7 @@ use crate::cmd::crank_input::{crank_input, read_error};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
 use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::combustion::HeatRelease;
 use physid_apps::pressure::{CycleAnalyser, Pegging};
 use std::path::PathBuf;
 
@@ -30,14 +32,19 @@ pub struct Args {
     /// stroke) or `polytropic=N` (the offset that makes p·V^N constant on compression).
     #[arg(long, value_name = "bdc=P|polytropic=N")]
     pub peg: Option<String>,
+    /// The ratio of specific heats of the single-zone heat release (constant; with the
+    /// geometry and the pressure in Pa).
+    #[arg(long, default_value_t = physid_apps::combustion::DEFAULT_GAMMA)]
+    pub gamma: f64,
     #[command(flatten)]
     pub angle: AngleArgs,
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
     /// Write a row per cycle — t, cycle, rpm, the peak pressure and its angle, the pegging
-    /// offset, net and gross IMEP, the polytropic exponents (NaN where not computed) — to this
-    /// file (.csv, .parquet or .mf4), with units.
+    /// offset, net and gross IMEP, the polytropic exponents, the heat released, fired (1/0),
+    /// MFB10/50/90 and the steepest pressure rise and its angle (NaN where not computed) — to
+    /// this file (.csv, .parquet or .mf4), with units.
     #[arg(long, value_name = "FILE")]
     pub tracks: Option<PathBuf>,
 }
@@ -56,6 +63,13 @@ fn write_tracks(path: &std::path::Path, a: &physid_apps::pressure::CycleAnalysis
         ("imep_gross", "Pa"),
         ("n_compression", "-"),
         ("n_expansion", "-"),
+        ("heat_release", "J"),
+        ("fired", "-"),
+        ("mfb10_deg", "deg"),
+        ("mfb50_deg", "deg"),
+        ("mfb90_deg", "deg"),
+        ("dp_max", "Pa/deg"),
+        ("dp_max_deg", "deg"),
     ]
     .iter()
     .map(|(n, u)| (n.to_string(), u.to_string()))
@@ -63,6 +77,8 @@ fn write_tracks(path: &std::path::Path, a: &physid_apps::pressure::CycleAnalysis
     let mut f = crate::tracks::TrackFile::create(path, columns)?;
     let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
     for c in &a.cycles {
+        let b = c.burn.as_ref();
+        let burn = |f: fn(&physid_apps::combustion::Burn) -> Option<f64>| nan(b.and_then(f));
         f.row([
             c.t_start_s,
             c.cycle as f64,
@@ -74,6 +90,13 @@ fn write_tracks(path: &std::path::Path, a: &physid_apps::pressure::CycleAnalysis
             nan(c.imep_gross_pa),
             nan(c.n_compression),
             nan(c.n_expansion),
+            burn(|b| Some(b.heat_release_j)),
+            burn(|b| Some(f64::from(u8::from(b.fired)))),
+            burn(|b| b.mfb10_deg),
+            burn(|b| b.mfb50_deg),
+            burn(|b| b.mfb90_deg),
+            burn(|b| Some(b.dp_max_pa_per_deg)),
+            burn(|b| Some(b.dp_max_deg)),
         ])?;
     }
     f.close()
@@ -112,7 +135,14 @@ pub fn run(args: &Args) -> Result<()> {
     let (analyser, wheel) = input
         .read(
             Some(&[args.channel.as_str()]),
-            |h| CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg),
+            |h| {
+                CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg)?.with_heat_release(
+                    HeatRelease {
+                        gamma: args.gamma,
+                        ..HeatRelease::default()
+                    },
+                )
+            },
             |a, chunk| a.push(chunk),
         )
         .map_err(read_error(&args.file))?;
@@ -156,7 +186,7 @@ pub fn run(args: &Args) -> Result<()> {
         a.channel
     );
     outln!(
-        "{:>6} {:>10} {:>8} {:>12} {:>9} {:>12} {:>12} {:>7} {:>7}",
+        "{:>6} {:>10} {:>8} {:>12} {:>9} {:>12} {:>12} {:>7} {:>7} {:>8} {:>7}",
         "cycle",
         "t [s]",
         "rpm",
@@ -165,14 +195,16 @@ pub fn run(args: &Args) -> Result<()> {
         "IMEP [kPa]",
         "gross [kPa]",
         "n_comp",
-        "n_exp"
+        "n_exp",
+        "Q_n [J]",
+        "MFB50"
     );
     let opt = |v: Option<f64>, scale: f64, prec: usize| {
         v.map_or("-".to_string(), |v| format!("{:.*}", prec, v * scale))
     };
     for c in &a.cycles {
         outln!(
-            "{:>6} {:>10.4} {:>8.1} {:>12.5e} {:>9.1} {:>12} {:>12} {:>7} {:>7}",
+            "{:>6} {:>10.4} {:>8.1} {:>12.5e} {:>9.2} {:>12} {:>12} {:>7} {:>7} {:>8} {:>7}",
             c.cycle,
             c.t_start_s,
             c.rpm,
@@ -181,7 +213,9 @@ pub fn run(args: &Args) -> Result<()> {
             opt(c.imep_pa, 1e-3, 2),
             opt(c.imep_gross_pa, 1e-3, 2),
             opt(c.n_compression, 1.0, 3),
-            opt(c.n_expansion, 1.0, 3)
+            opt(c.n_expansion, 1.0, 3),
+            opt(c.burn.map(|b| b.heat_release_j), 1.0, 1),
+            opt(c.burn.and_then(|b| b.mfb50_deg), 1.0, 2)
         );
     }
     if let Some(cov) = a.cov_imep {

@@ -1,0 +1,193 @@
+//! One cycle's combustion from its cylinder pressure (Heywood 1988, *Internal Combustion Engine
+//! Fundamentals*, §9.2): the apparent (net) heat release, the burn angles, the pressure's peak
+//! and steepest rise between the samples — what `physid cycles` adds to each cycle's figures.
+//!
+//! * **Apparent net heat release**, single zone, constant γ (Heywood Eq. 9.25):
+//!   `dQ_n = γ/(γ−1)·p·dV + 1/(γ−1)·V·dp`, summed over each step with the step's mean `p̄`, `V̄`
+//!   (second order) from the window's first angle ([`HEAT_WINDOW`], −90° … 120° ATDC by
+//!   default). No wall heat, crevices or blow-by: what they take is in `Q_n` (it is net).
+//! * **Burn angles** (mass fraction burned, the heat-release method): `x_b = (Q − Q_min)/(Q_max
+//!   − Q_min)`, `Q_max` the largest `Q` in the window and `Q_min` the smallest before it; MFBk is
+//!   where `x_b` first reaches k % after `Q_min`, linearly between the samples. The heat
+//!   released is `Q_max − Q_min`.
+//! * **Fired or motored**: fired when the heat released is at least [`FIRED_FRACTION`] of
+//!   `p_max·V_d` (a motored cycle's apparent heat release is its wall heat, negative, and noise);
+//!   the burn angles are given for fired cycles only.
+//! * **Peak and steepest rise between samples**: the parabola through the largest sample and its
+//!   two neighbours puts `p_max`'s angle within a small fraction of the step; the largest central
+//!   difference `(p_{k+1} − p_{k−1})/(θ_{k+1} − θ_{k−1})` in the window is `dp/dθ_max`, at `θ_k`.
+//!   A peak that is a jump (an ideal cycle's heat added at once) is placed within half a step.
+
+use crate::error::AppError;
+use serde::Serialize;
+
+/// γ of the heat release when none is given: Heywood's 1.35 for the burned-gas side of a
+/// single-zone analysis (§9.2.2 suggests 1.3–1.35).
+pub const DEFAULT_GAMMA: f64 = 1.35;
+
+/// The heat release's window [deg ATDC] when none is given: after IVC, before EVO on most
+/// engines.
+pub const HEAT_WINDOW: (f64, f64) = (-90.0, 120.0);
+
+/// A cycle releasing less heat than this fraction of `p_max·V_d` is motored (see the module
+/// docs).
+pub const FIRED_FRACTION: f64 = 0.05;
+
+/// The burn fractions whose angles are given [%].
+pub const MFB: [f64; 3] = [10.0, 50.0, 90.0];
+
+/// How the heat release is computed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeatRelease {
+    /// The ratio of specific heats γ (constant).
+    pub gamma: f64,
+    /// The window [deg ATDC].
+    pub window: (f64, f64),
+}
+
+impl Default for HeatRelease {
+    fn default() -> Self {
+        Self {
+            gamma: DEFAULT_GAMMA,
+            window: HEAT_WINDOW,
+        }
+    }
+}
+
+impl HeatRelease {
+    /// Refused unless 1 < γ < 2 and the window lies within −360° … 360° ATDC, its start first.
+    pub fn validate(&self) -> Result<(), AppError> {
+        let (lo, hi) = self.window;
+        if !(self.gamma > 1.0 && self.gamma < 2.0) {
+            return Err(AppError::Invalid(format!(
+                "heat release: γ = {}: expected a ratio of specific heats between 1 and 2 (1.35 for a single-zone analysis)",
+                self.gamma
+            )));
+        }
+        if !(lo < hi && lo >= -360.0 && hi <= 360.0) {
+            return Err(AppError::Invalid(format!(
+                "heat release: window {lo}° … {hi}° ATDC: expected a start before the end, within −360° … 360°"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// One cycle's combustion figures (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Burn {
+    /// Net heat released in the window, `Q_max − Q_min` [J].
+    pub heat_release_j: f64,
+    /// Whether the cycle fired (see [`FIRED_FRACTION`]).
+    pub fired: bool,
+    /// MFB10 [deg ATDC] (fired cycles) …
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mfb10_deg: Option<f64>,
+    /// … MFB50 …
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mfb50_deg: Option<f64>,
+    /// … and MFB90.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mfb90_deg: Option<f64>,
+    /// The largest pressure rise in the window [Pa/deg] …
+    pub dp_max_pa_per_deg: f64,
+    /// … and its angle [deg ATDC].
+    pub dp_max_deg: f64,
+}
+
+/// The combustion figures of one cycle: `atdc` its angles [deg ATDC] in increasing order, `p`
+/// the pressure there [Pa] and `v` the volume [m³]; `vd` the displacement [m³], `p_max` the
+/// cycle's peak pressure [Pa]. `None` with fewer than three samples in the window.
+pub fn burn(
+    hr: &HeatRelease,
+    atdc: &[f64],
+    p: &[f64],
+    v: &[f64],
+    vd: f64,
+    p_max: f64,
+) -> Option<Burn> {
+    let (lo, hi) = hr.window;
+    let from = atdc.partition_point(|&a| a < lo);
+    let to = atdc.partition_point(|&a| a <= hi);
+    if to < from + 3 {
+        return None;
+    }
+    let (a, p, v) = (&atdc[from..to], &p[from..to], &v[from..to]);
+    let g = hr.gamma;
+    // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means).
+    let mut q = Vec::with_capacity(a.len());
+    q.push(0.0);
+    for k in 1..a.len() {
+        let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
+        let dq = g / (g - 1.0) * pm * (v[k] - v[k - 1]) + vm * (p[k] - p[k - 1]) / (g - 1.0);
+        q.push(q[k - 1] + dq);
+    }
+    let k_max = argmax(&q);
+    let k_min = argmin(&q[..=k_max]);
+    let heat = q[k_max] - q[k_min];
+    let fired = heat >= FIRED_FRACTION * p_max * vd;
+    let mut mfb_deg = [None; 3];
+    if fired {
+        for (m, pct) in mfb_deg.iter_mut().zip(MFB) {
+            let target = q[k_min] + pct / 100.0 * heat;
+            *m = (k_min + 1..=k_max)
+                .find(|&k| q[k] >= target)
+                .map(|k| a[k - 1] + (target - q[k - 1]) / (q[k] - q[k - 1]) * (a[k] - a[k - 1]));
+        }
+    }
+    let (mut dp_max, mut dp_deg) = (f64::NEG_INFINITY, f64::NAN);
+    for k in 1..a.len() - 1 {
+        let d = (p[k + 1] - p[k - 1]) / (a[k + 1] - a[k - 1]);
+        if d > dp_max {
+            (dp_max, dp_deg) = (d, a[k]);
+        }
+    }
+    let [mfb10_deg, mfb50_deg, mfb90_deg] = mfb_deg;
+    Some(Burn {
+        heat_release_j: heat,
+        fired,
+        mfb10_deg,
+        mfb50_deg,
+        mfb90_deg,
+        dp_max_pa_per_deg: dp_max,
+        dp_max_deg: dp_deg,
+    })
+}
+
+/// The angle of the peak of `p` over the increasing angles `atdc`: the vertex of the parabola
+/// through the largest sample and its neighbours (the sample's own angle at either end, or
+/// when the three do not bend down).
+pub fn peak_angle(atdc: &[f64], p: &[f64]) -> Option<f64> {
+    if p.is_empty() {
+        return None;
+    }
+    let k = argmax(p);
+    if k == 0 || k + 1 == p.len() {
+        return Some(atdc[k]);
+    }
+    let (x0, x1, x2) = (atdc[k - 1], atdc[k], atdc[k + 1]);
+    let (y0, y1, y2) = (p[k - 1], p[k], p[k + 1]);
+    // The vertex of the parabola through three points (any spacing).
+    let d0 = (y1 - y0) / (x1 - x0);
+    let d1 = (y2 - y1) / (x2 - x1);
+    let curv = (d1 - d0) / (x2 - x0);
+    if curv.is_nan() || curv >= 0.0 {
+        return Some(x1);
+    }
+    let vertex = 0.5 * (x0 + x1) - d0 / (2.0 * curv);
+    Some(vertex.clamp(x0, x2))
+}
+
+fn argmax(v: &[f64]) -> usize {
+    v.iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(k, _)| k)
+}
+
+fn argmin(v: &[f64]) -> usize {
+    v.iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(k, _)| k)
+}

@@ -1,0 +1,110 @@
+//! Heat release and burn angles against a single-zone trace made with numpy and scipy from a
+//! known Wiebe burn (`golden/gen_wiebe.py`: constant γ, no wall heat, solved by scipy's
+//! `solve_ivp`), read through the crank-angle CSV path as a user's file would be.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::combustion::HeatRelease;
+use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
+use physid_io::ReadOptions;
+use serde_json::Value;
+use std::path::PathBuf;
+
+fn golden(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden")
+        .join(name)
+}
+
+#[test]
+fn a_wiebe_burn_gives_its_burn_angles_heat_and_work() {
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap();
+    let f = |k: &str| truth[k].as_f64().unwrap();
+    let units_row = ReadOptions {
+        units_row: true,
+        ..ReadOptions::default()
+    };
+    let rec = physid_io::read(golden("wiebe_cycles.csv"), &units_row).unwrap();
+    let geometry = Geometry {
+        bore: f("bore"),
+        stroke: f("stroke"),
+        rod: f("rod"),
+        compression_ratio: f("compression_ratio"),
+    };
+    let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None)
+        .unwrap()
+        .with_heat_release(HeatRelease {
+            gamma: f("gamma"),
+            window: (
+                truth["window_deg"][0].as_f64().unwrap(),
+                truth["window_deg"][1].as_f64().unwrap(),
+            ),
+        })
+        .unwrap();
+    a.push(&rec).unwrap();
+    let a = a.finish().unwrap();
+    assert_eq!(a.cycles.len(), 2);
+    for c in &a.cycles {
+        let b = c.burn.expect("heat release");
+        assert!(b.fired, "cycle {}", c.cycle);
+        for (got, k) in [
+            (b.mfb10_deg, "10"),
+            (b.mfb50_deg, "50"),
+            (b.mfb90_deg, "90"),
+        ] {
+            let want = truth["mfb_deg"][k].as_f64().unwrap();
+            let got = got.expect("MFB");
+            // Measured 0.001°; the issue asks 0.2°.
+            assert!((got - want).abs() < 0.01, "MFB{k}: {got}° against {want}°");
+        }
+        let heat = f("heat_j");
+        // Measured 3e-7; the issue asks 1 %.
+        assert!(
+            (b.heat_release_j / heat - 1.0).abs() < 1e-4,
+            "heat released {} J against {heat} J",
+            b.heat_release_j
+        );
+        // The work by numpy's trapezoid over the same samples.
+        let imep = c.imep_pa.unwrap();
+        assert!(
+            (imep / f("imep_pa") - 1.0).abs() < 1e-9,
+            "IMEP {imep} against {}",
+            f("imep_pa")
+        );
+        // Between the 0.25° samples: the peak within 0.02° (measured 0.0002°), the steepest
+        // rise within a step (0.035°) and 1 % (0.02 %).
+        assert!(
+            (c.p_max_deg - f("p_max_deg")).abs() < 0.02,
+            "p_max at {}° against {}°",
+            c.p_max_deg,
+            f("p_max_deg")
+        );
+        assert!((b.dp_max_deg - f("dp_max_deg")).abs() <= f("step_deg"));
+        assert!((b.dp_max_pa_per_deg / f("dp_max_pa_per_deg") - 1.0).abs() < 0.01);
+    }
+}
+
+/// A motored recording (`golden/gen_motored.py`: polytropic compression and expansion with a
+/// heat loss, no burn) releases no heat: every cycle motored, no burn angles.
+#[test]
+fn a_motored_cycle_is_told_from_a_fired_one() {
+    let rec = physid_io::read(golden("motored_deg.parquet"), &ReadOptions::default()).unwrap();
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(golden("motored.json")).unwrap()).unwrap();
+    let g = |k: &str| truth["geometry"][k].as_f64().unwrap();
+    let geometry = Geometry {
+        bore: 0.084,
+        stroke: g("stroke"),
+        rod: g("rod"),
+        compression_ratio: truth["deg"]["eps"].as_f64().unwrap(),
+    };
+    let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None).unwrap();
+    a.push(&rec).unwrap();
+    let a = a.finish().unwrap();
+    assert_eq!(a.cycles.len(), 12);
+    for c in &a.cycles {
+        let b = c.burn.expect("heat release");
+        assert!(!b.fired, "cycle {}: {} J", c.cycle, b.heat_release_j);
+        assert_eq!((b.mfb10_deg, b.mfb50_deg, b.mfb90_deg), (None, None, None));
+    }
+}

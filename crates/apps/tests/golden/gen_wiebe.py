@@ -1,0 +1,116 @@
+"""Golden fired cylinder-pressure trace from a known Wiebe burn, for `physid cycles`' heat
+release and burn angles — numpy and scipy only, no physid code.
+
+Run: python3 gen_wiebe.py  (numpy, scipy) -> wiebe_cycles.csv, wiebe.json
+
+Single zone, constant gamma, no wall heat, no crevices, valves closed from IVC = -150 deg ATDC to
+EVO = +130 deg ATDC (Heywood 1988, Eq. 9.25 solved for the pressure):
+    dp/da = (gamma - 1)/V * dQ/da - gamma * p/V * dV/da
+    Q(a)  = Q_fuel * x(a),  x(a) = 1 - exp(-A ((a - a0)/D)^(M+1))  for a >= a0   (Wiebe)
+    V(a)  = V_c + Ap*(r(1 - cos a) + L - sqrt(L^2 - r^2 sin^2 a)),  V_c = Ap*S/(eps - 1)
+integrated by scipy's solve_ivp (DOP853, rtol 1e-12) from p(IVC) = p_ivc, evaluated every STEP
+degrees. Outside the closed part the pressure is p_ivc (exhaust and intake at one pressure, so
+the gas exchange does no work). Two identical cycles at 1500 rpm, as a crank-angle CSV with a
+units row (t [s], cycle [-], crank_deg [deg from the firing TDC, 0..720), p_cyl [Pa]).
+
+wiebe.json: the geometry, gamma, the burn, and what an analysis must find:
+* mfb_deg: the angles where the burn reaches 10, 50, 90 % of what it has released by the
+  window's end WINDOW[1] (closed form: x(a) = k*x(WINDOW[1]));
+* heat_j: the heat released in the window, Q_fuel*x(WINDOW[1]) (x is 0 before a0 > WINDOW[0]);
+* imep_pa: the net work over the cycle by numpy (trapezoid over the samples) / V_d;
+* p_max_deg: the pressure's peak on a 0.001 deg evaluation of the solution;
+* dp_max_pa_per_deg, dp_max_deg: the largest dp/da (the right-hand side on the solution) in the
+  window, on the same evaluation.
+"""
+import json
+import math
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+BORE, STROKE, ROD, EPS = 0.086, 0.086, 0.145, 10.5
+GAMMA = 1.35
+P_IVC = 1.0e5
+IVC, EVO = -150.0, 130.0
+A0, D, A, M = -12.0, 45.0, 6.9, 2.0
+Q_FUEL = 600.0
+RPM = 1500.0
+STEP = 0.25
+WINDOW = (-90.0, 120.0)
+AREA = math.pi * BORE**2 / 4
+R = STROKE / 2
+VC = AREA * STROKE / (EPS - 1)
+
+
+def volume(a_deg):
+    a = np.radians(a_deg)
+    return VC + AREA * (R * (1 - np.cos(a)) + ROD - np.sqrt(ROD**2 - (R * np.sin(a)) ** 2))
+
+
+def dvolume(a_deg):
+    """dV/da per degree."""
+    a = np.radians(a_deg)
+    s = np.sin(a)
+    ds = R * s + R**2 * s * np.cos(a) / np.sqrt(ROD**2 - (R * s) ** 2)
+    return AREA * ds * math.pi / 180
+
+
+def burned(a_deg):
+    z = np.clip((np.asarray(a_deg) - A0) / D, 0.0, None)
+    return 1 - np.exp(-A * z ** (M + 1))
+
+
+def dburned(a_deg):
+    z = max((a_deg - A0) / D, 0.0)
+    return A * (M + 1) / D * z**M * math.exp(-A * z ** (M + 1))
+
+
+def rhs(a, y):
+    p = y[0]
+    v = volume(a)
+    return [(GAMMA - 1) / v * Q_FUEL * dburned(a) - GAMMA * p / v * dvolume(a)]
+
+
+def main():
+    sol = solve_ivp(rhs, (IVC, EVO), [P_IVC], method="DOP853", rtol=1e-12, atol=1e-6,
+                    dense_output=True, max_step=0.5)
+    per = int(round(720 / STEP))
+    deg = np.arange(per) * STEP
+    atdc = np.where(deg >= 360, deg - 720, deg)
+    closed = (atdc >= IVC) & (atdc <= EVO)
+    p = np.full(per, P_IVC)
+    p[closed] = sol.sol(atdc[closed])[0]
+    # The cycle's net work, in crank-angle order from -360 deg round to +360 deg (closed loop).
+    order = np.argsort(atdc)
+    vv, pp = volume(atdc[order]), p[order]
+    vv, pp = np.append(vv, vv[0]), np.append(pp, pp[0])
+    work = float(np.sum(0.5 * (pp[1:] + pp[:-1]) * np.diff(vv)))
+    fine = np.arange(-10.0, 40.0, 0.001)
+    p_fine = sol.sol(fine)[0]
+    dp_fine = np.array([rhs(a, [pf])[0] for a, pf in zip(fine, p_fine)])
+    x_end = float(burned(WINDOW[1]))
+    mfb = {}
+    for k in (10, 50, 90):
+        x = k / 100 * x_end
+        mfb[str(k)] = A0 + D * (-math.log(1 - x) / A) ** (1 / (M + 1))
+    truth = dict(
+        bore=BORE, stroke=STROKE, rod=ROD, compression_ratio=EPS, gamma=GAMMA, p_ivc=P_IVC,
+        ivc_deg=IVC, evo_deg=EVO, wiebe=dict(start_deg=A0, duration_deg=D, a=A, m=M),
+        q_fuel_j=Q_FUEL, rpm=RPM, step_deg=STEP, window_deg=list(WINDOW), cycles=2,
+        mfb_deg=mfb, heat_j=Q_FUEL * x_end, imep_pa=work / (AREA * STROKE),
+        p_max_deg=float(fine[np.argmax(p_fine)]), p_max_pa=float(p_fine.max()),
+        dp_max_deg=float(fine[np.argmax(dp_fine)]), dp_max_pa_per_deg=float(dp_fine.max()),
+    )
+    w = RPM * 6.0  # deg/s
+    with open("wiebe_cycles.csv", "w") as f:
+        f.write("t,cycle,crank_deg,p_cyl\ns,-,deg,Pa\n")
+        for c in range(2):
+            for k in range(per):
+                f.write(f"{(c * per + k) * STEP / w:.9e},{c},{deg[k]:.2f},{p[k]:.6f}\n")
+    with open("wiebe.json", "w") as f:
+        json.dump(truth, f, indent=1, sort_keys=True)
+        f.write("\n")
+
+
+if __name__ == "__main__":
+    main()
