@@ -78,6 +78,8 @@ pub struct AngleInput {
     pub tdc_from: Option<String>,
     /// The slider crank's stroke and rod [m], which [`Self::tdc_from`] needs.
     pub crank: Option<(f64, f64)>,
+    /// The compression ratio, when known: held (not fitted) by [`Self::tdc_from`]'s model.
+    pub compression_ratio: Option<f64>,
     /// One sample every this many crank degrees (a time-basis file).
     pub step_deg: f64,
     /// How much of the windows `tdc_from` holds between its passes [bytes].
@@ -132,6 +134,7 @@ impl AngleInput {
             angle,
             tdc_from: None,
             crank: None,
+            compression_ratio: None,
             step_deg: 1.0,
             hold_bytes: crate::recording_rows::DEFAULT_HOLD_BYTES,
             quiet: false,
@@ -409,14 +412,19 @@ impl AngleInput {
         Ok(to_crank_angle_decoded(rec, &opts, self.step_deg)?)
     }
 
-    /// The motored model's configuration for `tdc_from`'s `channel`.
+    /// The motored model's configuration for `tdc_from`'s `channel` (the compression ratio
+    /// held when known).
     fn config(&self, channel: &str) -> Result<CompressionConfig, AppError> {
         let (stroke, rod) = self.crank.ok_or_else(|| {
             AppError::Invalid(format!(
                 "placing the TDC from '{channel}' needs the crank's lengths: the stroke and the connecting rod [m]"
             ))
         })?;
-        Ok(CompressionConfig::new(channel, stroke, rod))
+        let mut cfg = CompressionConfig::new(channel, stroke, rod);
+        if let Some(r) = self.compression_ratio {
+            cfg.held.push(("eps".into(), r));
+        }
+        Ok(cfg)
     }
 
     /// A raw sensor `spec`'s calibration (the file read for each of its passes: an encoder's

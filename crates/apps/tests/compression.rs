@@ -373,6 +373,39 @@ fn the_tdc_found_on_a_motored_trace_is_within_a_tenth_of_a_degree() {
     assert!(e.contains("--wheel"), "{e}");
 }
 
+/// A fit outside where the engine can be — ε 4 … 25, n 1.0 … 1.45 unless widened — is flagged
+/// with the reason, and `--tdc-from` refuses to place the TDC by it. Here the range of n is
+/// narrowed below the trace's true 1.31 (a fit the real data gave was ε = 51.9, n = 0.11).
+#[test]
+fn a_fit_that_is_not_physical_is_flagged_and_places_no_tdc() {
+    assert!(fit().implausible.is_empty(), "the truth is physical");
+    let mut narrow = config();
+    narrow.plausible = vec![("n".into(), 1.0, 1.2)];
+    let f = compression_fit(&recording(), &narrow).unwrap();
+    assert_eq!(f.implausible.len(), 1, "{:?}", f.implausible);
+    let w = &f.implausible[0];
+    assert!(
+        w.starts_with("n = 1.3")
+            && w.contains("outside 1 … 1.2")
+            && w.contains("--plausible n=LO,HI"),
+        "{w}"
+    );
+    assert!(f.notes.iter().any(|n| n == &format!("not physical: {w}")));
+    let e = tdc_from_pressure(&raw(), &wheel_options(0.0, Some("cam")), &narrow, 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("--tdc-from p_cyl: the motored fit that places the TDC is not physical"),
+        "{e}"
+    );
+    // A range that is no range is refused.
+    narrow.plausible = vec![("n".into(), 1.4, 1.2)];
+    let e = compression_fit(&recording(), &narrow)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--plausible n=1.4,1.2"), "{e}");
+}
+
 /// The intervals are calibrated: over 40 noise realisations (3 kPa more noise, a seeded
 /// generator) of the eleven TDCs, each parameter's error over its standard error has an RMS
 /// near 1 and its 95 % interval holds the truth about 95 % of the time.

@@ -953,6 +953,42 @@ fn convert_places_the_tdc_from_a_motored_pressure_trace() {
         let d = (th[i] * 1e-6 - tdc).rem_euclid(four_pi);
         assert!(d.min(four_pi - d).to_degrees() < 0.1, "sample {i}: {d}");
     }
+    // A known compression ratio is held by the motored model (it used to be refused here while
+    // `compression fit` took it): the TDC the same within 0.1°.
+    let held = physid(&[
+        "convert",
+        raw.to_str().unwrap(),
+        s.file("held.parquet").to_str().unwrap(),
+        "--crank-angle",
+        "--wheel",
+        "enc=60-2",
+        "--phase-from",
+        "cam",
+        "--tdc-from",
+        "p_cyl",
+        "--stroke",
+        "0.09",
+        "--rod",
+        "0.15",
+        "--compression-ratio",
+        &t["wheel"]["eps"].to_string(),
+        "--scale",
+        "p_cyl=1e6,0",
+    ]);
+    let err = String::from_utf8_lossy(&held.stderr);
+    assert!(held.status.success(), "{err}");
+    let line = err
+        .lines()
+        .find(|l| l.contains("TDC from 'p_cyl'"))
+        .unwrap();
+    let with_ratio: f64 = line
+        .split("): ")
+        .nth(1)
+        .and_then(|r| r.split('°').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((with_ratio - truth).abs() < 0.1, "{line}");
     // The flags that go with it.
     for (flags, says) in [
         (vec!["--tdc-from", "p_cyl"], "--stroke and --rod"),

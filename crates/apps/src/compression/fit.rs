@@ -237,6 +237,22 @@ pub fn compression_fit_events(
         measured,
     };
     let wu_j = wu.map(|(_, j)| j);
+    let implausible: Vec<String> = cfg
+        .plausible
+        .iter()
+        .filter_map(|(name, lo, hi)| {
+            let e = estimates.iter().find(|e| &e.name == name)?;
+            (e.status == "fitted" && !(*lo..=*hi).contains(&e.value)).then(|| {
+                format!(
+                    "{name} = {} is outside {lo} … {hi} ({}): not the engine's — the trace does not resolve it, or the cycles are not motored (hold it: --fix {name}=VALUE{}; or widen: --plausible {name}=LO,HI)",
+                    e.value,
+                    e.description,
+                    if name == "eps" { ", or --compression-ratio" } else { "" }
+                )
+            })
+        })
+        .collect();
+    notes.extend(implausible.iter().map(|w| format!("not physical: {w}")));
     Ok(CompressionFit {
         channel: cfg.channel.clone(),
         unit,
@@ -252,6 +268,7 @@ pub fn compression_fit_events(
         events: fits,
         rms_residual: (rss_total / rows as f64).sqrt(),
         trace,
+        implausible,
         notes,
     })
 }

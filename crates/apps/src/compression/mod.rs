@@ -68,7 +68,15 @@ pub struct CompressionConfig {
     pub held: Vec<(String, f64)>,
     /// How many of the ranked parameters to fit.
     pub selection: Selection,
+    /// Where a fitted parameter is physical, `(name, low, high)` ([`PLAUSIBLE`] unless
+    /// widened): a fit outside is flagged with the reason ([`CompressionFit::implausible`]).
+    pub plausible: Vec<(String, f64, f64)>,
 }
+
+/// Where the fit's parameters are physical: ε a piston engine's compression ratio, n the
+/// polytropic exponent of compressing air with some heat loss (below its γ of 1.4 … 1.45 at
+/// the gas temperatures of compression).
+pub const PLAUSIBLE: [(&str, f64, f64); 2] = [("eps", 4.0, 25.0), ("n", 1.0, 1.45)];
 
 impl CompressionConfig {
     /// The defaults for a channel and a geometry: window −120° … 120°, nothing held, the Wu
@@ -81,6 +89,10 @@ impl CompressionConfig {
             window_deg: DEFAULT_WINDOW,
             held: Vec::new(),
             selection: Selection::Wu { sigma2: None },
+            plausible: PLAUSIBLE
+                .iter()
+                .map(|&(n, lo, hi)| (n.to_string(), lo, hi))
+                .collect(),
         }
     }
 
@@ -100,6 +112,14 @@ impl CompressionConfig {
             return Err(AppError::Invalid(format!(
                 "window {a}° … {b}° ATDC: expected from −180° … −10° to 10° … 180° (the valves closed, TDC inside)"
             )));
+        }
+        for (name, lo, hi) in &self.plausible {
+            if !PARAMS.contains(&name.as_str()) || lo.is_nan() || hi.is_nan() || lo >= hi {
+                return Err(AppError::Invalid(format!(
+                    "--plausible {name}={lo},{hi}: expected one of {} and a low below a high",
+                    PARAMS.join(", ")
+                )));
+            }
         }
         for (name, v) in &self.held {
             if !PARAMS.contains(&name.as_str()) {

@@ -107,6 +107,11 @@ pub struct CompressionFit {
     pub rms_residual: f64,
     /// The last TDC fitted: measured and fitted pressure (the estimate).
     pub trace: Trace,
+    /// Fitted parameters outside where they are physical ([`CompressionConfig::plausible`]),
+    /// each with the reason: a fit that is not the engine's (the trace does not resolve them,
+    /// or the cycles are not motored).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub implausible: Vec<String>,
     /// What was left out and why.
     pub notes: Vec<String>,
 }

@@ -114,6 +114,12 @@ pub fn tdc_from_pressure_in(
     let passes = source.with(&opts);
     let events = TdcEvents::new(passes.as_ref(), &cfg.channel, cfg.window_deg, hold_bytes);
     let fit = compression_fit_events(&events, cfg)?;
+    if let Some(why) = fit.implausible.first() {
+        return Err(AppError::Invalid(format!(
+            "--tdc-from {}: the motored fit that places the TDC is not physical — {why}",
+            cfg.channel
+        )));
+    }
     let tdc = fit
         .get("tdc_shift")
         .filter(|e| e.status == "fitted")

@@ -69,6 +69,11 @@ struct FitArgs {
         allow_hyphen_values = true
     )]
     fix: Vec<String>,
+    /// Widen (or narrow) where a fitted parameter is physical — by default eps 4 … 25 and n 1.0 …
+    /// 1.45; a fit outside is flagged with the reason (and --tdc-from refuses it); e.g.
+    /// --plausible eps=4,30.
+    #[arg(long, value_name = "NAME=LO,HI")]
+    plausible: Vec<String>,
     /// Deprecated: --fix (--set configures a model or the virtual cell in the other verbs).
     #[arg(long = "set", hide = true, allow_hyphen_values = true)]
     set_old: Vec<String>,
@@ -133,12 +138,25 @@ fn fit(a: &FitArgs) -> Result<()> {
     }
     cfg.held = held(&[a.fix.as_slice(), a.set_old.as_slice()].concat())?;
     // A known compression ratio is held, as `--fix eps=R` would.
-    if let Some(r) = a.geometry.compression_ratio {
+    if let Some(r) = a.geometry.crank.compression_ratio {
         if !cfg.held.iter().any(|(n, _)| n == "eps") {
             cfg.held.push(("eps".into(), r));
         }
     }
     cfg.selection = a.cutoff;
+    for item in &a.plausible {
+        let bad =
+            || miette!("--plausible '{item}': expected NAME=LO,HI with numbers, e.g. eps=4,30");
+        let (name, range) = item.split_once('=').ok_or_else(bad)?;
+        let (lo, hi) = range.split_once(',').ok_or_else(bad)?;
+        let (lo, hi): (f64, f64) = (
+            lo.trim().parse().map_err(|_| bad())?,
+            hi.trim().parse().map_err(|_| bad())?,
+        );
+        let name = name.trim();
+        cfg.plausible.retain(|(n, ..)| n != name);
+        cfg.plausible.push((name.to_string(), lo, hi));
+    }
     let mut input = crank_input(&a.input, &a.data, &a.angle, &a.geometry.crank)?;
     input.quiet = a.json;
     let file = CrankFile::new(input.clone(), vec![a.channel.as_str()]);

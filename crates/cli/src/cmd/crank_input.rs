@@ -77,6 +77,7 @@ pub fn crank_input(
         // A file that cannot be opened is named before the lengths it would need.
         plan.header().map_err(read_error(path))?;
         plan.crank = Some(crank.lengths(&format!("--tdc-from {channel}"))?);
+        plan.compression_ratio = crank.compression_ratio;
         plan.tdc_from = Some(channel.clone());
         plan.hold_bytes = super::hold_bytes()?;
     }

@@ -47,8 +47,8 @@ pub struct InputArgs {
     pub scale: Vec<String>,
 }
 
-/// The slider crank's lengths (`physid_models::kinematics`): what the motored-pressure model
-/// needs (`--tdc-from`, `physid compression fit`).
+/// The slider crank's lengths (`physid_models::kinematics`) and the compression ratio: what
+/// the motored-pressure model needs (`--tdc-from`, `physid compression fit`).
 #[derive(clap::Args, Clone, Debug, Default)]
 pub struct CrankArgs {
     /// Stroke [m].
@@ -57,6 +57,10 @@ pub struct CrankArgs {
     /// Connecting-rod length [m].
     #[arg(long, value_name = "M")]
     pub rod: Option<f64>,
+    /// Compression ratio [-] (held, not fitted, by the motored model of --tdc-from and
+    /// `compression fit`).
+    #[arg(long, value_name = "RATIO")]
+    pub compression_ratio: Option<f64>,
 }
 
 impl CrankArgs {
@@ -79,23 +83,23 @@ pub struct GeometryArgs {
     pub bore: Option<f64>,
     #[command(flatten)]
     pub crank: CrankArgs,
-    /// Compression ratio [-].
-    #[arg(long, value_name = "RATIO")]
-    pub compression_ratio: Option<f64>,
 }
 
 impl GeometryArgs {
     /// The whole geometry when any of --bore and --compression-ratio is given (then all four
     /// are needed); `None` without them.
     pub fn full(&self) -> Result<Option<physid_apps::pressure::Geometry>> {
-        if self.bore.is_none() && self.compression_ratio.is_none() {
+        if self.bore.is_none() && self.crank.compression_ratio.is_none() {
             return Ok(None);
         }
         let missing: Vec<&str> = [
             ("--bore", self.bore.is_none()),
             ("--stroke", self.crank.stroke.is_none()),
             ("--rod", self.crank.rod.is_none()),
-            ("--compression-ratio", self.compression_ratio.is_none()),
+            (
+                "--compression-ratio",
+                self.crank.compression_ratio.is_none(),
+            ),
         ]
         .iter()
         .filter(|(_, m)| *m)
@@ -111,7 +115,7 @@ impl GeometryArgs {
             bore: self.bore.unwrap_or(f64::NAN),
             stroke: self.crank.stroke.unwrap_or(f64::NAN),
             rod: self.crank.rod.unwrap_or(f64::NAN),
-            compression_ratio: self.compression_ratio.unwrap_or(f64::NAN),
+            compression_ratio: self.crank.compression_ratio.unwrap_or(f64::NAN),
         };
         g.validate().map_err(|e| miette!("{e}"))?;
         Ok(Some(g))
