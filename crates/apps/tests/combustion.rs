@@ -108,3 +108,56 @@ fn a_motored_cycle_is_told_from_a_fired_one() {
         assert_eq!((b.mfb10_deg, b.mfb50_deg, b.mfb90_deg), (None, None, None));
     }
 }
+
+/// Fired and motored cycles in one recording (`golden/gen_wiebe.py`'s `wiebe_mixed.csv`: five
+/// fired, then three motored — p·V^γ constant, peaking at TDC): the TDC is placed on the motored
+/// ones only. The peaks' median, which five fired cycles at +14.7° would take, is the motored
+/// cycles' TDC; the motored fit leaves the fired windows out (four: the first TDC has no
+/// compression before it), says so, and finds the engine (ε, and n = γ).
+#[test]
+fn the_tdc_is_placed_on_the_motored_cycles_only() {
+    use physid_apps::compression::{compression_fit, CompressionConfig, PeakAngles};
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap();
+    let f = |k: &str| truth[k].as_f64().unwrap();
+    let units_row = ReadOptions {
+        units_row: true,
+        ..ReadOptions::default()
+    };
+    let rec = physid_io::read(golden("wiebe_mixed.csv"), &units_row).unwrap();
+    let mut peaks = PeakAngles::new("p_cyl", 1.0);
+    peaks.push(&rec).unwrap();
+    assert_eq!(peaks.fired(), 5);
+    let peak = peaks.finish().unwrap();
+    let from_tdc = (peak + 180.0).rem_euclid(360.0) - 180.0;
+    assert!(
+        from_tdc.abs() < 0.5,
+        "the motored cycles peak at TDC: {peak}°"
+    );
+    let fit = compression_fit(
+        &rec,
+        &CompressionConfig::new("p_cyl", f("stroke"), f("rod")),
+    )
+    .unwrap();
+    assert!(
+        fit.notes
+            .iter()
+            .any(|n| n.starts_with("4 fired TDC window(s) left out")),
+        "{:?}",
+        fit.notes
+    );
+    assert!(fit.implausible.is_empty(), "{:?}", fit.implausible);
+    let eps = fit.get("eps").unwrap().value;
+    assert!(
+        (eps / f("compression_ratio") - 1.0).abs() < 0.01,
+        "eps {eps}"
+    );
+    let n = fit.get("n").unwrap().value;
+    assert!((n - f("gamma")).abs() < 0.01, "n {n}");
+    // Every cycle fired: refused, saying why.
+    let fired_only = rec.slice(0..5 * 720);
+    let mut peaks = PeakAngles::new("p_cyl", 1.0);
+    peaks.push(&fired_only).unwrap();
+    let e = peaks.finish().unwrap_err().to_string();
+    assert!(e.contains("all 5 complete cycles fired"), "{e}");
+}

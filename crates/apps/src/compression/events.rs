@@ -18,6 +18,35 @@ pub struct TdcEvent {
     pub p: Vec<f64>,
 }
 
+/// A cycle is fired, not motored, when its mean pressure 60° … 100° after `about` (its TDC, or
+/// its peak) exceeds the mean 100° … 60° before by more than this factor: a motored trace is
+/// nearly symmetric about TDC — a little lower after it, by its heat and blow-by loss — while
+/// combustion leaves the late expansion's pressure well above the early compression's (×1.47
+/// on `golden/gen_wiebe.py`'s burn about its peak; nearer the peak a fired trace is symmetric
+/// too, so the windows are away from it).
+pub const FIRED_RATIO: f64 = 1.2;
+
+/// Whether the pressure `p` at the angles `deg` [deg] is a fired cycle's around `about` [deg]
+/// (angles a cycle apart are taken as the same, [`FIRED_RATIO`]); `None` when the samples do
+/// not cover both sides, or the pressure before is not positive.
+pub fn fired(deg: &[f64], p: &[f64], about: f64) -> Option<bool> {
+    let (mut before, mut nb, mut after, mut na) = (0.0, 0usize, 0.0, 0usize);
+    for (&d, &v) in deg.iter().zip(p) {
+        let rel = (d - about + 360.0).rem_euclid(720.0) - 360.0;
+        if (-100.0..=-60.0).contains(&rel) {
+            before += v;
+            nb += 1;
+        } else if (60.0..=100.0).contains(&rel) {
+            after += v;
+            na += 1;
+        }
+    }
+    if nb == 0 || na == 0 || before <= 0.0 {
+        return None;
+    }
+    Some(after / na as f64 > FIRED_RATIO * before / nb as f64)
+}
+
 /// The events of a crank-angle recording: every firing TDC (`crank_deg` 0) with the whole
 /// window on consecutive samples; what was left out is said in `notes` ([`EventCollector`] on
 /// the whole recording as one chunk).

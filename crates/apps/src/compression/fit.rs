@@ -25,8 +25,15 @@ pub fn compression_fit_events(
     } = events.first_pass()?;
     if p_a.is_empty() {
         return Err(AppError::Invalid(format!(
-            "no firing TDC with the whole window {}° … {}° ATDC of '{}' in the recording",
-            cfg.window_deg.0, cfg.window_deg.1, cfg.channel
+            "no motored firing TDC with the whole window {}° … {}° ATDC of '{}' in the recording{}",
+            cfg.window_deg.0,
+            cfg.window_deg.1,
+            cfg.channel,
+            if notes.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", notes.join("; "))
+            }
         )));
     }
     let model = Motored::new(cfg.stroke, cfg.rod);

@@ -70,11 +70,18 @@ pub(super) struct Gathering<'v, E> {
     hold_bytes: usize,
     events: usize,
     rows: usize,
+    /// Windows left out as fired ([`fired`]).
+    fired: usize,
     failed: Option<E>,
 }
 
 impl<E> Gathering<'_, E> {
     pub(super) fn take(&mut self, e: TdcEvent) -> Result<(), AppError> {
+        // The motored model fits motored cycles: a fired one is left out (and counted).
+        if fired(&e.atdc, &e.p, 0.0) == Some(true) {
+            self.fired += 1;
+            return Ok(());
+        }
         self.events += 1;
         self.rows += e.p.len();
         let w = Window {
@@ -162,6 +169,7 @@ impl<'a> TdcEvents<'a> {
             hold_bytes: self.hold_bytes,
             events: 0,
             rows: 0,
+            fired: 0,
             failed: None,
         };
         let mut collector: Option<EventCollector> = None;
@@ -202,6 +210,15 @@ impl<'a> TdcEvents<'a> {
             Ok(notes) => notes,
             Err(e) => return Err(g.failed.take().unwrap_or_else(|| e.into())),
         };
+        let mut notes = notes;
+        if g.fired > 0 {
+            notes.push(format!(
+                "{} fired TDC window(s) left out (the pressure 60° … 100° after TDC above that as far before by more than {:.0} %): the motored model fits the {} motored one(s)",
+                g.fired,
+                (FIRED_RATIO - 1.0) * 100.0,
+                g.events
+            ));
+        }
         if first {
             *self.first.borrow_mut() = Some(FirstPass {
                 unit: unit.map(|(u, _)| u).unwrap_or_default(),

@@ -14,6 +14,8 @@ pub struct TdcFromPressure {
     pub peak_deg: Option<f64>,
     /// The fit it came from (on the recording with the TDC where the pressure peaks).
     pub fit: CompressionFit,
+    /// Complete cycles left out as fired ([`fired`]): the TDC is placed on the motored ones.
+    pub fired_left_out: usize,
 }
 
 /// Place the firing TDC from a motored cylinder-pressure trace: decode the raw angle sensor
@@ -107,6 +109,7 @@ pub fn tdc_from_pressure_in(
     // 1. The peak's angle after the reference, the median over the complete cycles.
     let mut peaks = PeakAngles::new(&cfg.channel, step_deg);
     source.with(&opts).pass(&mut |chunk| peaks.push(chunk))?;
+    let fired_left_out = peaks.fired();
     let peak = peaks.finish()?;
     // 2. The model fitted with the TDC at the peak.
     spec.tdc_offset_deg = peak;
@@ -143,6 +146,7 @@ pub fn tdc_from_pressure_in(
         ci95: (peak + lo + wrap, peak + hi + wrap),
         peak_deg: fit.peak_deg,
         fit,
+        fired_left_out,
     })
 }
 
@@ -154,9 +158,13 @@ pub fn tdc_from_pressure_in(
 pub struct PeakAngles {
     channel: String,
     per: usize,
-    /// The cycle being gone over.
+    /// The cycle being gone over, and its samples (angle, pressure).
     run: Option<CycleRun>,
+    run_deg: Vec<f64>,
+    run_p: Vec<f64>,
     peaks: Vec<f64>,
+    /// Complete cycles left out as fired ([`fired`]).
+    fired: usize,
 }
 
 /// A cycle as [`PeakAngles`] goes over it: its number, samples, and its highest finite sample's
@@ -175,7 +183,10 @@ impl PeakAngles {
             channel: channel.to_string(),
             per: (720.0 / step_deg).round() as usize,
             run: None,
+            run_deg: Vec::new(),
+            run_p: Vec::new(),
             peaks: Vec::new(),
+            fired: 0,
         }
     }
 
@@ -184,6 +195,13 @@ impl PeakAngles {
         let (cycle, deg) = (chunk.values("cycle")?, chunk.values("crank_deg")?);
         let p = chunk.values(&self.channel)?;
         for i in 0..cycle.len() {
+            if self.run.is_some_and(|r| r.cycle != cycle[i]) {
+                self.close();
+            }
+            if self.run_deg.len() < self.per {
+                self.run_deg.push(deg[i]);
+                self.run_p.push(p[i]);
+            }
             match &mut self.run {
                 Some(r) if r.cycle == cycle[i] => {
                     r.samples += 1;
@@ -192,7 +210,6 @@ impl PeakAngles {
                     }
                 }
                 _ => {
-                    self.close();
                     self.run = Some(CycleRun {
                         cycle: cycle[i],
                         samples: 1,
@@ -204,7 +221,7 @@ impl PeakAngles {
         Ok(())
     }
 
-    /// The cycle gone over: its peak, when it is complete.
+    /// The cycle gone over: its peak, when it is complete and motored.
     pub(super) fn close(&mut self) {
         if let Some(CycleRun {
             cycle,
@@ -213,15 +230,34 @@ impl PeakAngles {
         }) = self.run.take()
         {
             if cycle >= 0.0 && samples == self.per {
-                self.peaks.push(at);
+                if fired(&self.run_deg, &self.run_p, at) == Some(true) {
+                    self.fired += 1;
+                } else {
+                    self.peaks.push(at);
+                }
             }
         }
+        self.run_deg.clear();
+        self.run_p.clear();
+    }
+
+    /// Complete cycles left out as fired.
+    pub fn fired(&self) -> usize {
+        self.fired
     }
 
     /// The median peak angle [deg], in [0, 360).
     pub fn finish(mut self) -> Result<f64, AppError> {
         self.close();
         let peaks = &mut self.peaks;
+        if peaks.is_empty() && self.fired > 0 {
+            return Err(AppError::Invalid(format!(
+                "--tdc-from {}: all {} complete cycles fired (the pressure 60° … 100° after the peak above that as far before by more than {:.0} %): the TDC is placed on motored cycles — record some (the engine motored, or coasting down)",
+                self.channel,
+                self.fired,
+                (FIRED_RATIO - 1.0) * 100.0
+            )));
+        }
         if peaks.is_empty() {
             return Err(AppError::Invalid(format!(
                 "--tdc-from {}: no complete cycle to find the pressure's peak in",

@@ -1,7 +1,7 @@
 """Golden fired cylinder-pressure trace from a known Wiebe burn, for `physid cycles`' heat
 release and burn angles — numpy and scipy only, no physid code.
 
-Run: python3 gen_wiebe.py  (numpy, scipy) -> wiebe_cycles.csv, wiebe.json
+Run: python3 gen_wiebe.py  (numpy, scipy) -> wiebe_cycles.csv, wiebe_mixed.csv, wiebe.json
 
 Single zone, constant gamma, no wall heat, no crevices, valves closed from IVC = -150 deg ATDC to
 EVO = +130 deg ATDC (Heywood 1988, Eq. 9.25 solved for the pressure):
@@ -12,6 +12,11 @@ integrated by scipy's solve_ivp (DOP853, rtol 1e-12) from p(IVC) = p_ivc, evalua
 degrees. Outside the closed part the pressure is p_ivc (exhaust and intake at one pressure, so
 the gas exchange does no work). Two identical cycles at 1500 rpm, as a crank-angle CSV with a
 units row (t [s], cycle [-], crank_deg [deg from the firing TDC, 0..720), p_cyl [Pa]).
+
+wiebe_mixed.csv: the same engine at 1 deg steps, 5 fired cycles then 3 motored (each cycle
+from its firing TDC to the next: the compression at its end belongs to the next TDC's burn) (the same equation with no
+burn: p*V^gamma constant while the valves are closed, so the motored trace peaks at TDC) — what
+a placement of the TDC from the pressure must tell apart.
 
 wiebe.json: the geometry, gamma, the burn, and what an analysis must find:
 * mfb_deg: the angles where the burn reaches 10, 50, 90 % of what it has released by the
@@ -65,10 +70,21 @@ def dburned(a_deg):
     return A * (M + 1) / D * z**M * math.exp(-A * z ** (M + 1))
 
 
-def rhs(a, y):
+def rhs(a, y, q_fuel=Q_FUEL):
     p = y[0]
     v = volume(a)
-    return [(GAMMA - 1) / v * Q_FUEL * dburned(a) - GAMMA * p / v * dvolume(a)]
+    return [(GAMMA - 1) / v * q_fuel * dburned(a) - GAMMA * p / v * dvolume(a)]
+
+
+def cycle_pressure(deg, q_fuel):
+    """The pressure at the crank angles deg [0, 720) of one cycle, burning q_fuel."""
+    sol = solve_ivp(lambda a, y: rhs(a, y, q_fuel), (IVC, EVO), [P_IVC], method="DOP853",
+                    rtol=1e-12, atol=1e-6, dense_output=True, max_step=0.5)
+    atdc = np.where(deg >= 360, deg - 720, deg)
+    closed = (atdc >= IVC) & (atdc <= EVO)
+    p = np.full(len(deg), P_IVC)
+    p[closed] = sol.sol(atdc[closed])[0]
+    return p
 
 
 def main():
@@ -107,6 +123,18 @@ def main():
         for c in range(2):
             for k in range(per):
                 f.write(f"{(c * per + k) * STEP / w:.9e},{c},{deg[k]:.2f},{p[k]:.6f}\n")
+    deg1 = np.arange(720) * 1.0
+    fired, motored = cycle_pressure(deg1, Q_FUEL), cycle_pressure(deg1, 0.0)
+    with open("wiebe_mixed.csv", "w") as f:
+        f.write("t,cycle,crank_deg,p_cyl\ns,-,deg,Pa\n")
+        # Cycle c runs from its firing TDC to the next: its first half is the expansion after
+        # its own TDC, its second half the compression before the next cycle's.
+        for c in range(8):
+            now = fired if c < 5 else motored
+            after = fired if c + 1 < 5 else motored
+            for k in range(720):
+                p_k = now[k] if deg1[k] < 360 else after[k]
+                f.write(f"{(c * 720 + k) / w:.9e},{c},{deg1[k]:.0f},{p_k:.6f}\n")
     with open("wiebe.json", "w") as f:
         json.dump(truth, f, indent=1, sort_keys=True)
         f.write("\n")

@@ -73,16 +73,26 @@ impl AngleArgs {
     }
 }
 
-/// Where `--tdc-from CHANNEL` placed the TDC, on stderr: with its interval and the loss angle.
+/// Where `--tdc-from CHANNEL` placed the TDC, on stderr: with its interval, the loss angle (or
+/// why there is none) and the fired cycles left out.
 pub fn tell_tdc_from(input: &Path, channel: &str, found: &TdcFromPressure) {
+    let loss = match found.peak_deg {
+        Some(p) => format!("the pressure peaks {:.3}° before it (the loss angle)", -p),
+        None => {
+            "the fitted trace has no peak before it (no loss angle: k_loss not positive)".into()
+        }
+    };
+    let fired = match found.fired_left_out {
+        0 => String::new(),
+        n => format!("; {n} fired cycle(s) left out"),
+    };
     eprintln!(
-        "{}: TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°); the pressure peaks {:.3}° before it (the loss angle)",
+        "{}: TDC from '{channel}' (the motored model over {} TDCs): {:.3}° after the sensor's reference (95 %: {:.3} … {:.3}°); {loss}{fired}",
         input.display(),
         found.fit.events.len(),
         found.tdc_offset_deg,
         found.ci95.0,
         found.ci95.1,
-        -found.peak_deg.unwrap_or(f64::NAN)
     );
 }
 
