@@ -4,8 +4,12 @@
 //! cycle's speed, and the coefficient of variation of IMEP over the cycles — with the pressure
 //! referenced (pegged) first when asked.
 //!
-//! Crank angles here are degrees after the firing TDC (ATDC), −360 … 360; the recording's
-//! `crank_deg` (0 … 720 from the firing TDC) maps to them by subtracting 720 above 360.
+//! Crank angles here are degrees after the firing TDC (ATDC), −360 … 360. A cycle is the
+//! compression before its firing TDC and the expansion after it: on the recording — whose
+//! `cycle` counts blocks from one firing TDC to the next, `crank_deg` 0 … 720 — the second half
+//! of the block before (`crank_deg` − 720) and the first half of its own. So each cycle's heat
+//! release, burn angles and IMEP are one combustion's, and the first block's TDC, with no
+//! compression recorded before it, gives no cycle (said in the notes).
 //!
 //! * IMEP: `∮ p dV / V_d` (trapezoidal rule; net: the whole cycle, the loop closed; gross: from
 //!   −180° to 180° ATDC, compression and expansion only).
@@ -95,7 +99,7 @@ pub const PEG_ANGLES: (f64, f64) = (-100.0, -60.0);
 pub struct CycleFigures {
     /// Cycle index (the recording's `cycle`).
     pub cycle: i64,
-    /// Time at its first sample [s].
+    /// Time at its firing TDC [s].
     pub t_start_s: f64,
     /// Mean speed over the cycle [rpm].
     pub rpm: f64,
@@ -135,10 +139,14 @@ pub struct CycleAnalysis {
     pub unit: String,
     /// Complete cycles, in order.
     pub cycles: Vec<CycleFigures>,
-    /// Coefficient of variation of the net IMEP over the cycles (sample standard deviation
-    /// over the mean) [-], with two cycles or more.
+    /// Coefficient of variation of the net IMEP (sample standard deviation over the mean) [-],
+    /// with two cycles or more: over the fired cycles when some fired, else over all.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cov_imep: Option<f64>,
+    /// Lowest normalised value of the net IMEP over the fired cycles (the smallest over the
+    /// mean) [-], with two fired cycles or more.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lnv_imep: Option<f64>,
     /// What was left out and why (partial cycles, IMEP without Pa …), for a person.
     pub notes: Vec<String>,
 }
@@ -268,9 +276,19 @@ impl FirstAdvance {
 /// whose angle never advances): beyond it the run is partial whatever its length.
 const MAX_RUN: usize = 1 << 20;
 
-/// The cycles' figures on a stream of crank-angle chunks: each cycle's samples are gathered
-/// until the next cycle starts, its figures computed, the samples dropped — it holds one
-/// cycle's samples and a few numbers per cycle, whatever the recording's length.
+/// A block's second half (180° … 360° before the next firing TDC): the next cycle's compression.
+#[derive(Debug, Clone)]
+struct Tail {
+    cycle: f64,
+    t: Vec<f64>,
+    deg: Vec<f64>,
+    p: Vec<f64>,
+}
+
+/// The cycles' figures on a stream of crank-angle chunks: each block's samples are gathered
+/// until the next block starts, the cycle its first half completes computed, its second half
+/// kept for the next — it holds a block and a half and a few numbers per cycle, whatever the
+/// recording's length.
 #[derive(Debug, Clone)]
 pub struct CycleAnalyser {
     channel: String,
@@ -290,6 +308,10 @@ pub struct CycleAnalyser {
     seen: usize,
     cycles: Vec<CycleFigures>,
     partial: usize,
+    /// Complete blocks whose TDC had no complete compression before it (the first).
+    no_compression: usize,
+    /// The last complete block's second half: the next cycle's compression.
+    tail: Option<Tail>,
     notes: Vec<String>,
     /// Scratch for a cycle: pegged pressure, volume, angle ATDC.
     pc: Vec<f64>,
@@ -347,6 +369,8 @@ impl CycleAnalyser {
             seen: 0,
             cycles: Vec::new(),
             partial: 0,
+            no_compression: 0,
+            tail: None,
             notes,
             pc: Vec::new(),
             vol: Vec::new(),
@@ -410,6 +434,12 @@ impl CycleAnalyser {
         let mut notes = Vec::new();
         notes.extend(self.unit_check.finish(self.need_pa)?);
         notes.append(&mut self.notes);
+        if self.no_compression > 0 {
+            notes.push(format!(
+                "{} cycle(s) left out without the compression before their TDC (a cycle is −360° … 360° ATDC: the first TDC has none)",
+                self.no_compression
+            ));
+        }
         if self.partial > 0 {
             notes.push(format!(
                 "{} partial cycle(s) left out (fewer than {} samples)",
@@ -429,42 +459,93 @@ impl CycleAnalyser {
         for (n, k) in left_out {
             notes.push(format!("{k} cycle(s): {n}"));
         }
-        let imeps: Vec<f64> = cycles.iter().filter_map(|c| c.imep_pa).collect();
+        // The spread over the fired cycles when some fired (a motored cycle's IMEP is its
+        // loss, not a combustion's); over them all otherwise.
+        let fired = |c: &CycleFigures| c.burn.is_some_and(|b| b.fired);
+        let any_fired = cycles.iter().any(fired);
+        let imeps: Vec<f64> = cycles
+            .iter()
+            .filter(|c| !any_fired || fired(c))
+            .filter_map(|c| c.imep_pa)
+            .collect();
+        let motored = cycles
+            .iter()
+            .filter(|c| c.burn.is_some_and(|b| !b.fired))
+            .count();
+        if any_fired && motored > 0 {
+            notes.push(format!(
+                "CoV and LNV of IMEP over the {} fired cycle(s); {motored} motored left out",
+                imeps.len()
+            ));
+        }
+        let mean = imeps.iter().sum::<f64>() / imeps.len() as f64;
         let cov_imep = (imeps.len() >= 2).then(|| {
             let n = imeps.len() as f64;
-            let mean = imeps.iter().sum::<f64>() / n;
             let var = imeps.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
             var.sqrt() / mean.abs()
         });
+        // Lowest normalised value: the smallest IMEP over the mean (Heywood §9.4).
+        let lnv_imep = (any_fired && imeps.len() >= 2)
+            .then(|| imeps.iter().copied().fold(f64::INFINITY, f64::min) / mean);
         Ok(CycleAnalysis {
             channel: self.channel,
             unit: self.unit,
             cycles,
             cov_imep,
+            lnv_imep,
             notes,
         })
     }
 
-    /// The current cycle is over: its figures when complete, else one partial more.
+    /// The current block — from a firing TDC to the next — is over. A cycle is the compression
+    /// before its firing TDC and the expansion after (−360° … 360° ATDC): the second half of the
+    /// block before and the first half of this one. Its figures when both are complete and
+    /// consecutive, else one partial more; this block's second half waits for the next.
     fn close_run(&mut self) {
         let (Some(c), len) = (self.run.take(), std::mem::take(&mut self.run_len)) else {
             return;
         };
-        match self.per_cycle() {
-            Some(per_cycle) if c >= 0.0 && len == per_cycle => {
-                let f = self.figures(c, per_cycle);
+        let complete = self.per_cycle().filter(|&n| c >= 0.0 && len == n);
+        let prev = self.tail.take();
+        match (complete, prev) {
+            (Some(_), Some(tail))
+                if tail.cycle + 1.0 == c
+                    && !tail.t.is_empty()
+                    && self.run_deg.first().is_some_and(|&d| d < 360.0) =>
+            {
+                // The cycle's samples: the compression (the block before's second half) …
+                let head = self.run_deg.partition_point(|&d| d < 360.0);
+                let mut t = tail.t.clone();
+                let mut deg = tail.deg.clone();
+                let mut p = tail.p.clone();
+                // … and the expansion (this block's first half).
+                t.extend_from_slice(&self.run_t[..head]);
+                deg.extend_from_slice(&self.run_deg[..head]);
+                p.extend_from_slice(&self.run_p[..head]);
+                let f = self.figures(c, &t, &deg, &p);
                 self.cycles.push(f);
             }
-            _ => self.partial += 1,
+            (Some(_), _) => self.no_compression += 1,
+            (None, _) => self.partial += 1,
+        }
+        if complete.is_some() {
+            let head = self.run_deg.partition_point(|&d| d < 360.0);
+            self.tail = Some(Tail {
+                cycle: c,
+                t: self.run_t[head..].to_vec(),
+                deg: self.run_deg[head..].to_vec(),
+                p: self.run_p[head..].to_vec(),
+            });
         }
         self.run_t.clear();
         self.run_deg.clear();
         self.run_p.clear();
     }
 
-    /// The figures of the cycle `c` in the run's samples (`per_cycle` of them).
-    fn figures(&mut self, c: f64, per_cycle: usize) -> CycleFigures {
-        let (t, deg) = (&self.run_t, &self.run_deg);
+    /// The figures of the cycle `c` — its TDC's compression and expansion: samples at the
+    /// times `t`, angles `deg` (the compression's ≥ 360°) and pressures `p`, two blocks' halves
+    /// (a sample more or less than a block, as the 360° falls between them).
+    fn figures(&mut self, c: f64, t: &[f64], deg: &[f64], p: &[f64]) -> CycleFigures {
         let (pc, vol, atdc) = (&mut self.pc, &mut self.vol, &mut self.atdc);
         atdc.clear();
         atdc.extend(deg.iter().map(|&d| if d >= 360.0 { d - 720.0 } else { d }));
@@ -473,7 +554,7 @@ impl CycleAnalyser {
             vol.extend(atdc.iter().map(|a| k.volume(a.to_radians())));
         }
         pc.clear();
-        pc.extend_from_slice(&self.run_p);
+        pc.extend_from_slice(p);
         let offset = match self.peg {
             Pegging::None => 0.0,
             Pegging::Bdc(p_ref) => p_ref - at(atdc, pc, -180.0),
@@ -496,8 +577,9 @@ impl CycleAnalyser {
         let sorted = |y: &[f64]| order.iter().map(|&i| y[i]).collect::<Vec<f64>>();
         let (sa, sp) = (sorted(atdc), sorted(pc));
         let p_max_deg = peak_angle(&sa, &sp).unwrap_or(f64::NAN);
-        let span = t[per_cycle - 1] - t[0];
-        let rpm = 2.0 * 60.0 / (span * per_cycle as f64 / (per_cycle - 1) as f64);
+        let n = t.len();
+        let span = t[n - 1] - t[0];
+        let rpm = 2.0 * 60.0 / (span * n as f64 / (n - 1) as f64);
         let in_pa = self.unit == "Pa";
         let vd = self.crank.map(|c| c.piston_area() * c.stroke());
         let mut notes = Vec::new();
@@ -547,7 +629,8 @@ impl CycleAnalyser {
         };
         CycleFigures {
             cycle: c as i64,
-            t_start_s: t[0],
+            // The firing TDC's: the first sample of the expansion.
+            t_start_s: t[deg.partition_point(|&d| d >= 360.0)],
             rpm,
             p_max,
             p_max_deg,

@@ -43,7 +43,8 @@ fn a_wiebe_burn_gives_its_burn_angles_heat_and_work() {
         .unwrap();
     a.push(&rec).unwrap();
     let a = a.finish().unwrap();
-    assert_eq!(a.cycles.len(), 2);
+    // Two blocks from firing TDC to firing TDC: one cycle (the first TDC has no compression).
+    assert_eq!(a.cycles.len(), 1);
     for c in &a.cycles {
         let b = c.burn.expect("heat release");
         assert!(b.fired, "cycle {}", c.cycle);
@@ -101,7 +102,7 @@ fn a_motored_cycle_is_told_from_a_fired_one() {
     let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None).unwrap();
     a.push(&rec).unwrap();
     let a = a.finish().unwrap();
-    assert_eq!(a.cycles.len(), 12);
+    assert_eq!(a.cycles.len(), 11);
     for c in &a.cycles {
         let b = c.burn.expect("heat release");
         assert!(!b.fired, "cycle {}: {} J", c.cycle, b.heat_release_j);
@@ -160,4 +161,54 @@ fn the_tdc_is_placed_on_the_motored_cycles_only() {
     peaks.push(&fired_only).unwrap();
     let e = peaks.finish().unwrap_err().to_string();
     assert!(e.contains("all 5 complete cycles fired"), "{e}");
+}
+
+/// Cycle by cycle on the same fired-then-motored recording: a cycle is its TDC's compression
+/// and expansion (−360° … 360° ATDC), so the fired cycles are 1 … 4 (cycle 0 has no compression
+/// before its TDC) and 5 … 7 are motored; the burn angles of the fired ones are the Wiebe's at
+/// 1° steps too, and the CoV and LNV of IMEP are over the fired cycles only, saying so.
+#[test]
+fn cycle_by_cycle_the_fired_are_told_from_the_motored() {
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap();
+    let f = |k: &str| truth[k].as_f64().unwrap();
+    let units_row = ReadOptions {
+        units_row: true,
+        ..ReadOptions::default()
+    };
+    let rec = physid_io::read(golden("wiebe_mixed.csv"), &units_row).unwrap();
+    let geometry = Geometry {
+        bore: f("bore"),
+        stroke: f("stroke"),
+        rod: f("rod"),
+        compression_ratio: f("compression_ratio"),
+    };
+    let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None).unwrap();
+    a.push(&rec).unwrap();
+    let a = a.finish().unwrap();
+    let fired: Vec<(i64, bool)> = a
+        .cycles
+        .iter()
+        .map(|c| (c.cycle, c.burn.unwrap().fired))
+        .collect();
+    assert_eq!(
+        fired,
+        (1..8).map(|c| (c, c < 5)).collect::<Vec<_>>(),
+        "{fired:?}"
+    );
+    for c in a.cycles.iter().filter(|c| c.cycle < 5) {
+        let b = c.burn.unwrap();
+        let want = truth["mfb_deg"]["50"].as_f64().unwrap();
+        let got = b.mfb50_deg.unwrap();
+        assert!((got - want).abs() < 0.05, "cycle {}: MFB50 {got}°", c.cycle);
+    }
+    // Four identical fired cycles: no spread, the lowest at the mean.
+    assert!(a.cov_imep.unwrap() < 1e-12 && (a.lnv_imep.unwrap() - 1.0).abs() < 1e-12);
+    assert!(
+        a.notes
+            .iter()
+            .any(|n| n == "CoV and LNV of IMEP over the 4 fired cycle(s); 3 motored left out"),
+        "{:?}",
+        a.notes
+    );
 }

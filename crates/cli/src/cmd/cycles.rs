@@ -221,6 +221,9 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(cov) = a.cov_imep {
         outln!("CoV of IMEP: {:.2} %", cov * 100.0);
     }
+    if let Some(lnv) = a.lnv_imep {
+        outln!("LNV of IMEP: {:.2} %", lnv * 100.0);
+    }
     for n in &a.notes {
         outln!("note: {n}");
     }
