@@ -750,3 +750,57 @@ fn the_time_basis_stream_against_closed_forms() {
         }
     }
 }
+
+/// Time stamps rounded to 1 µs at 72 046 Hz (steps alternating 13 and 14 µs, as a real lab
+/// logger's): the sample rate is the mean step's — within 1e-5 of 72 046 Hz, where the median
+/// step gave 71 428.571 Hz — the jitter is noted, and the integrity stays ok; stamps that are
+/// not rounded are said nothing about.
+#[test]
+fn jittered_time_stamps_give_the_mean_rate_and_say_so() {
+    let rate = 72_046.0;
+    let n = 20_000;
+    let make = |round: bool| {
+        let t: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64 / rate;
+                if round {
+                    (t * 1e6).round() * 1e-6
+                } else {
+                    t
+                }
+            })
+            .collect();
+        let mut rec = Recording::new(Basis::Time);
+        for (name, unit, values) in [("t", "s", t), ("x", "V", vec![1.0; n])] {
+            rec.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values,
+            })
+            .unwrap();
+        }
+        inspect(&rec, &AcquisitionOptions::default())
+    };
+    let i = make(true);
+    let hz = i.sample_rate_hz.unwrap();
+    assert!((hz / rate - 1.0).abs() < 1e-5, "{hz} Hz");
+    assert!(i.integrity.ok, "{:?}", i.integrity.findings);
+    let note = i
+        .integrity
+        .notes
+        .iter()
+        .find(|f| f.detail.starts_with("the time stamps are jittered"))
+        .expect("the jitter noted");
+    assert!(
+        note.detail.contains("0.013000 … 0.014000 ms") && note.detail.contains("71428.571 Hz"),
+        "{}",
+        note.detail
+    );
+    let clean = make(false);
+    assert!((clean.sample_rate_hz.unwrap() / rate - 1.0).abs() < 1e-9);
+    assert!(!clean
+        .integrity
+        .notes
+        .iter()
+        .any(|f| f.detail.contains("jittered")));
+}

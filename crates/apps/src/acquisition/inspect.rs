@@ -276,7 +276,7 @@ impl Inspector {
             }),
             Basis::Time => has(&self.opts.marker).then(|| self.edges.saturating_sub(1) / 2),
         };
-        let integrity = self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
+        let mut integrity = self.check.map(IntegrityCheck::finish).unwrap_or_else(|| {
             IntegrityCheck::new(&IntegrityOptions::default(), &self.header).finish()
         });
         let recognised = self
@@ -293,6 +293,36 @@ impl Inspector {
                 })
             })
             .collect();
+        // The sampling's step: the median's, unless the stamps are jittered (rounded), then the
+        // mean's — and said.
+        let median = median_step(&self.t_head);
+        let mut step = median;
+        if let (Some(m), Some(mean)) = (median, mean_step(&self.t_head)) {
+            if (mean / m - 1.0).abs() > JITTER {
+                step = Some(mean);
+                let (lo, hi) = self
+                    .t_head
+                    .windows(2)
+                    .map(|w| w[1] - w[0])
+                    .filter(|&d| d > 0.5 * m && d < 1.5 * m)
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), d| {
+                        (a.min(d), b.max(d))
+                    });
+                integrity.notes.push(Finding {
+                    kind: FindingKind::Note,
+                    index: 0,
+                    detail: format!(
+                        "the time stamps are jittered: steps {:.6} … {:.6} ms, median {:.6} ms, mean {:.6} ms (stamps rounded?): the sample rate is the mean step's, {:.3} Hz, not the median's {:.3} Hz",
+                        lo * 1e3,
+                        hi * 1e3,
+                        m * 1e3,
+                        mean * 1e3,
+                        1.0 / mean,
+                        1.0 / m
+                    ),
+                });
+            }
+        }
         Inspection {
             basis: match rec.basis {
                 Basis::Time => "time",
@@ -309,7 +339,7 @@ impl Inspector {
                 .collect(),
             duration_s: self.t_span.map(|(a, b)| b - a),
             sample_rate_hz: match rec.basis {
-                Basis::Time => median_step(&self.t_head).map(|d| 1.0 / d),
+                Basis::Time => step.map(|d| 1.0 / d),
                 Basis::CrankAngle => None,
             },
             cycles,

@@ -18,7 +18,8 @@ use physid_core::{Basis, Channel, Recording, RecordingError, Recordings, Reopen}
 use physid_signal::encoder::{first_marker, CountSteps, Encoder, SpacingCheck};
 use physid_signal::filter::{butter, Band, FilterError};
 use physid_signal::integrity::{
-    median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions, NOMINAL_SAMPLES,
+    mean_step, median_step, Finding, FindingKind, Integrity, IntegrityCheck, IntegrityOptions,
+    JITTER, NOMINAL_SAMPLES,
 };
 use physid_signal::wheel::{recognise, EdgeDetector, EdgeOptions, ToothReport, Wheel};
 use sensor::{sensor_calibration, sensor_crank_angle_chunks, sensor_decoded, SensorFound};

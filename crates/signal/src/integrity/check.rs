@@ -310,3 +310,24 @@ pub fn median_step(t: &[f64]) -> Option<f64> {
     d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
     Some(d[mid])
 }
+
+/// The mean of the positive steps of `t` within half a median step of the median (gaps and
+/// repeated stamps left out): the sampling's step where its time stamps are rounded — at
+/// 72 046 Hz stamped to 1 µs the steps alternate 13 and 14 µs, whose median is one of them
+/// (71 428.571 Hz) and whose mean is the rate's.
+pub fn mean_step(t: &[f64]) -> Option<f64> {
+    let median = median_step(t)?;
+    let (mut sum, mut n) = (0.0, 0usize);
+    for w in t.windows(2) {
+        let d = w[1] - w[0];
+        if d > 0.5 * median && d < 1.5 * median {
+            sum += d;
+            n += 1;
+        }
+    }
+    (n > 0).then(|| sum / n as f64)
+}
+
+/// Time stamps whose steps differ from their median by more than this fraction on average
+/// are jittered (rounded): the sample rate is the mean step's ([`mean_step`]), and said.
+pub const JITTER: f64 = 1e-3;
