@@ -293,11 +293,11 @@ impl Inspector {
                 })
             })
             .collect();
-        // The sampling's step: the median's, unless the stamps are jittered (rounded), then the
-        // mean's — and said.
+        // The sampling's step (a time basis): the median's, unless the stamps are jittered
+        // (rounded), then the mean's — and said.
         let median = median_step(&self.t_head);
         let mut step = median;
-        if let (Some(m), Some(mean)) = (median, mean_step(&self.t_head)) {
+        if let (Basis::Time, Some(m), Some(mean)) = (rec.basis, median, mean_step(&self.t_head)) {
             if (mean / m - 1.0).abs() > JITTER {
                 step = Some(mean);
                 let (lo, hi) = self
