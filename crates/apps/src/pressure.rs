@@ -528,8 +528,14 @@ impl CycleAnalyser {
             (Some(_), _) => self.no_compression += 1,
             (None, _) => self.partial += 1,
         }
-        if complete.is_some() {
-            let head = self.run_deg.partition_point(|&d| d < 360.0);
+        // The second half is the next cycle's compression when it is whole: the block is, or it
+        // is the recording's first, begun before 360° (a file that starts mid-cycle).
+        let head = self.run_deg.partition_point(|&d| d < 360.0);
+        let half = self.run_deg.len() - head;
+        let whole_half = self.per_cycle().is_some_and(|n| {
+            head > 0 && half + 1 >= n / 2 && half <= n / 2 + 1 && self.cycles.is_empty()
+        });
+        if complete.is_some() || whole_half {
             self.tail = Some(Tail {
                 cycle: c,
                 t: self.run_t[head..].to_vec(),
