@@ -296,3 +296,43 @@ fn the_analysis_is_the_same_however_the_recording_is_chunked() {
         }
     }
 }
+
+/// A recording that starts mid-cycle (here 20° after a firing TDC) keeps the cycle after it:
+/// the first block is partial, but its second half — the next cycle's compression — is whole.
+/// Starting after 360° it would not be, and that cycle is left out, said so.
+#[test]
+fn a_recording_starting_mid_cycle_keeps_its_first_whole_cycle() {
+    let full = recording(&[3e5, 3.2e5, 2.9e5], 0.0);
+    let g = geometry();
+    let early = analyse(
+        &full.slice(200..full.len()),
+        "p_cyl",
+        Some(&g),
+        Pegging::None,
+    )
+    .unwrap();
+    assert_eq!(early.cycles.len(), 2, "{:?}", early.notes);
+    let whole = analyse(&full, "p_cyl", Some(&g), Pegging::None).unwrap();
+    assert_eq!(early.cycles, whole.cycles);
+    assert!(early.notes.iter().any(|n| n.contains("1 partial")));
+    assert!(!early
+        .notes
+        .iter()
+        .any(|n| n.contains("without the compression")));
+    // From 380° on the first block's compression is cut: that cycle is left out.
+    let late = analyse(
+        &full.slice(3800..full.len()),
+        "p_cyl",
+        Some(&g),
+        Pegging::None,
+    )
+    .unwrap();
+    assert_eq!(late.cycles.len(), 1);
+    assert!(
+        late.notes
+            .iter()
+            .any(|n| n.starts_with("1 cycle(s) left out without the compression")),
+        "{:?}",
+        late.notes
+    );
+}
