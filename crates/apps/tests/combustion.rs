@@ -15,22 +15,37 @@ fn golden(name: &str) -> PathBuf {
         .join(name)
 }
 
-#[test]
-fn a_wiebe_burn_gives_its_burn_angles_heat_and_work() {
-    let truth: Value =
-        serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap();
-    let f = |k: &str| truth[k].as_f64().unwrap();
+/// `gen_wiebe.py`'s truth.
+fn wiebe() -> Value {
+    serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap()
+}
+
+/// One of `gen_wiebe.py`'s crank-angle CSV files (a units row under the names).
+fn wiebe_csv(name: &str) -> physid_core::Recording {
     let units_row = ReadOptions {
         units_row: true,
         ..ReadOptions::default()
     };
-    let rec = physid_io::read(golden("wiebe_cycles.csv"), &units_row).unwrap();
-    let geometry = Geometry {
+    physid_io::read(golden(name), &units_row).unwrap()
+}
+
+/// The engine of `gen_wiebe.py`.
+fn wiebe_geometry(truth: &Value) -> Geometry {
+    let f = |k: &str| truth[k].as_f64().unwrap();
+    Geometry {
         bore: f("bore"),
         stroke: f("stroke"),
         rod: f("rod"),
         compression_ratio: f("compression_ratio"),
-    };
+    }
+}
+
+#[test]
+fn a_wiebe_burn_gives_its_burn_angles_heat_and_work() {
+    let truth = wiebe();
+    let f = |k: &str| truth[k].as_f64().unwrap();
+    let rec = wiebe_csv("wiebe_cycles.csv");
+    let geometry = wiebe_geometry(&truth);
     let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None)
         .unwrap()
         .with_heat_release(HeatRelease {
@@ -118,14 +133,9 @@ fn a_motored_cycle_is_told_from_a_fired_one() {
 #[test]
 fn the_tdc_is_placed_on_the_motored_cycles_only() {
     use physid_apps::compression::{compression_fit, CompressionConfig, PeakAngles};
-    let truth: Value =
-        serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap();
+    let truth = wiebe();
     let f = |k: &str| truth[k].as_f64().unwrap();
-    let units_row = ReadOptions {
-        units_row: true,
-        ..ReadOptions::default()
-    };
-    let rec = physid_io::read(golden("wiebe_mixed.csv"), &units_row).unwrap();
+    let rec = wiebe_csv("wiebe_mixed.csv");
     let mut peaks = PeakAngles::new("p_cyl", 1.0);
     peaks.push(&rec).unwrap();
     assert_eq!(peaks.fired(), 5);
@@ -169,20 +179,9 @@ fn the_tdc_is_placed_on_the_motored_cycles_only() {
 /// 1° steps too, and the CoV and LNV of IMEP are over the fired cycles only, saying so.
 #[test]
 fn cycle_by_cycle_the_fired_are_told_from_the_motored() {
-    let truth: Value =
-        serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap();
-    let f = |k: &str| truth[k].as_f64().unwrap();
-    let units_row = ReadOptions {
-        units_row: true,
-        ..ReadOptions::default()
-    };
-    let rec = physid_io::read(golden("wiebe_mixed.csv"), &units_row).unwrap();
-    let geometry = Geometry {
-        bore: f("bore"),
-        stroke: f("stroke"),
-        rod: f("rod"),
-        compression_ratio: f("compression_ratio"),
-    };
+    let truth = wiebe();
+    let rec = wiebe_csv("wiebe_mixed.csv");
+    let geometry = wiebe_geometry(&truth);
     let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None).unwrap();
     a.push(&rec).unwrap();
     let a = a.finish().unwrap();

@@ -895,12 +895,11 @@ fn motored_truth() -> Value {
 /// A raw motored recording (60−2 wheel, cam, pressure volts) taken to crank angle with the
 /// TDC placed from the pressure: the offset within 0.1° of the truth, with its interval on
 /// stderr, and every cycle of the output starting at the true firing TDC.
-#[test]
-fn convert_places_the_tdc_from_a_motored_pressure_trace() {
-    let s = Scratch::new("physid-data");
-    let out = s.file("deg.parquet");
+/// `convert --crank-angle --wheel … --tdc-from p_cyl` of the golden raw motored file into
+/// `out`, with `extra` flags: the offset it found and the line that says it.
+fn convert_tdc_from(out: &Path, extra: &[&str]) -> (f64, String) {
     let raw = apps_golden("motored_wheel.parquet");
-    let o = physid(&[
+    let mut args = vec![
         "convert",
         raw.to_str().unwrap(),
         out.to_str().unwrap(),
@@ -917,16 +916,17 @@ fn convert_places_the_tdc_from_a_motored_pressure_trace() {
         "0.15",
         "--scale",
         "p_cyl=1e6,0",
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let o = physid(&args);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    let t = motored_truth();
-    let truth = t["wheel"]["tdc_offset_deg"].as_f64().unwrap();
     // "TDC from 'p_cyl' (…): 73.509° after the sensor's reference (95 %: a … b°)"
     let line = err
         .lines()
         .find(|l| l.contains("TDC from 'p_cyl'"))
-        .unwrap();
+        .unwrap()
+        .to_string();
     let found: f64 = line
         .split("): ")
         .nth(1)
@@ -934,6 +934,17 @@ fn convert_places_the_tdc_from_a_motored_pressure_trace() {
         .unwrap()
         .parse()
         .unwrap();
+    (found, line)
+}
+
+#[test]
+fn convert_places_the_tdc_from_a_motored_pressure_trace() {
+    let s = Scratch::new("physid-data");
+    let out = s.file("deg.parquet");
+    let raw = apps_golden("motored_wheel.parquet");
+    let (found, line) = convert_tdc_from(&out, &[]);
+    let t = motored_truth();
+    let truth = t["wheel"]["tdc_offset_deg"].as_f64().unwrap();
     assert!((found - truth).abs() < 0.1, "{line}");
     assert!(
         line.contains("95 %") && line.contains("loss angle"),
@@ -955,39 +966,11 @@ fn convert_places_the_tdc_from_a_motored_pressure_trace() {
     }
     // A known compression ratio is held by the motored model (it used to be refused here while
     // `compression fit` took it): the TDC the same within 0.1°.
-    let held = physid(&[
-        "convert",
-        raw.to_str().unwrap(),
-        s.file("held.parquet").to_str().unwrap(),
-        "--crank-angle",
-        "--wheel",
-        "enc=60-2",
-        "--phase-from",
-        "cam",
-        "--tdc-from",
-        "p_cyl",
-        "--stroke",
-        "0.09",
-        "--rod",
-        "0.15",
-        "--compression-ratio",
-        &t["wheel"]["eps"].to_string(),
-        "--scale",
-        "p_cyl=1e6,0",
-    ]);
-    let err = String::from_utf8_lossy(&held.stderr);
-    assert!(held.status.success(), "{err}");
-    let line = err
-        .lines()
-        .find(|l| l.contains("TDC from 'p_cyl'"))
-        .unwrap();
-    let with_ratio: f64 = line
-        .split("): ")
-        .nth(1)
-        .and_then(|r| r.split('°').next())
-        .unwrap()
-        .parse()
-        .unwrap();
+    let eps = t["wheel"]["eps"].to_string();
+    let (with_ratio, line) = convert_tdc_from(
+        &s.file("held.parquet"),
+        &["--compression-ratio", eps.as_str()],
+    );
     assert!((with_ratio - truth).abs() < 0.1, "{line}");
     // The flags that go with it.
     for (flags, says) in [
