@@ -87,6 +87,36 @@ pub enum Pegging {
     Polytropic(f64),
 }
 
+impl Pegging {
+    /// `bdc=P` (P in the channel's unit) or `polytropic=N` (1 < N < 2), as `--peg` and
+    /// Python's `peg` take it; `None` as measured.
+    pub fn parse(s: Option<&str>) -> Result<Self, AppError> {
+        let Some(s) = s else {
+            return Ok(Pegging::None);
+        };
+        let bad = || {
+            AppError::Invalid(format!(
+                "--peg '{s}': expected bdc=PRESSURE or polytropic=EXPONENT, e.g. bdc=1e5, polytropic=1.32"
+            ))
+        };
+        let (kind, value) = s.split_once('=').ok_or_else(bad)?;
+        let v: f64 = value
+            .trim()
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(bad)?;
+        match kind.trim() {
+            "bdc" => Ok(Pegging::Bdc(v)),
+            "polytropic" if v > 1.0 && v < 2.0 => Ok(Pegging::Polytropic(v)),
+            "polytropic" => Err(AppError::Invalid(format!(
+                "--peg polytropic={v}: expected an exponent between 1 and 2"
+            ))),
+            _ => Err(bad()),
+        }
+    }
+}
+
 /// The windows of the polytropic exponents [deg ATDC].
 pub const COMPRESSION_WINDOW: (f64, f64) = (-100.0, -40.0);
 /// See [`COMPRESSION_WINDOW`].
@@ -149,6 +179,54 @@ pub struct CycleAnalysis {
     pub lnv_imep: Option<f64>,
     /// What was left out and why (partial cycles, IMEP without Pa …), for a person.
     pub notes: Vec<String>,
+}
+
+/// A column of [`CycleAnalysis::columns`]: name, unit and the figure of a cycle.
+type Column<'a> = (&'a str, &'a str, &'a dyn Fn(&CycleFigures) -> f64);
+
+impl CycleAnalysis {
+    /// A row per cycle as columns — name, unit, values (NaN where not computed): what
+    /// `cycles --tracks` writes and Python's `physid.cycles` returns.
+    pub fn columns(&self) -> Vec<(String, String, Vec<f64>)> {
+        let u = self.unit.as_str();
+        let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        let burn = |c: &CycleFigures, f: fn(&Burn) -> Option<f64>| nan(c.burn.as_ref().and_then(f));
+        let columns: [Column; 17] = [
+            ("t", "s", &|c| c.t_start_s),
+            ("cycle", "-", &|c| c.cycle as f64),
+            ("rpm", "rpm", &|c| c.rpm),
+            ("p_max", u, &|c| c.p_max),
+            ("p_max_deg", "deg", &|c| c.p_max_deg),
+            ("peg_offset", u, &|c| c.peg_offset),
+            ("imep", "Pa", &|c| nan(c.imep_pa)),
+            ("imep_gross", "Pa", &|c| nan(c.imep_gross_pa)),
+            ("n_compression", "-", &|c| nan(c.n_compression)),
+            ("n_expansion", "-", &|c| nan(c.n_expansion)),
+            ("heat_release", "J", &|c| {
+                burn(c, |b| Some(b.heat_release_j))
+            }),
+            ("fired", "-", &|c| {
+                burn(c, |b| Some(f64::from(u8::from(b.fired))))
+            }),
+            ("mfb10_deg", "deg", &|c| burn(c, |b| b.mfb10_deg)),
+            ("mfb50_deg", "deg", &|c| burn(c, |b| b.mfb50_deg)),
+            ("mfb90_deg", "deg", &|c| burn(c, |b| b.mfb90_deg)),
+            ("dp_max", "Pa/deg", &|c| {
+                burn(c, |b| Some(b.dp_max_pa_per_deg))
+            }),
+            ("dp_max_deg", "deg", &|c| burn(c, |b| Some(b.dp_max_deg))),
+        ];
+        columns
+            .iter()
+            .map(|(name, unit, f)| {
+                (
+                    name.to_string(),
+                    unit.to_string(),
+                    self.cycles.iter().map(f).collect(),
+                )
+            })
+            .collect()
+    }
 }
 
 /// A cylinder pressure in Pa peaks above this (a motored engine's compression lifts it well

@@ -306,6 +306,53 @@ fn friction_fit<'py>(
     Ok((summary, arrays(py, cols)?))
 }
 
+/// Cylinder-pressure analysis per cycle (`physid cycles`) of `channel` in a crank-angle
+/// recording: with `geometry` (bore, stroke, rod, compression ratio) IMEP, the polytropic
+/// exponents and the combustion (heat release with `gamma`, MFB10/50/90, fired or motored);
+/// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
+/// notes) and the per-cycle columns.
+#[pyfunction]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma))]
+fn cycles<'py>(
+    py: Python<'py>,
+    rec: &Recording,
+    channel: &str,
+    geometry: Option<(f64, f64, f64, f64)>,
+    peg: Option<&str>,
+    gamma: f64,
+) -> PyResult<(String, Bound<'py, PyDict>)> {
+    use physid_apps::combustion::HeatRelease;
+    use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
+    let peg = Pegging::parse(peg).map_err(err)?;
+    let geometry = geometry.map(|(bore, stroke, rod, compression_ratio)| Geometry {
+        bore,
+        stroke,
+        rod,
+        compression_ratio,
+    });
+    let inner = &rec.inner;
+    let a = py
+        .detach(|| {
+            let mut a = CycleAnalyser::new(inner, channel, geometry.as_ref(), peg)?
+                .with_heat_release(HeatRelease {
+                    gamma,
+                    ..HeatRelease::default()
+                })?;
+            a.push(inner)?;
+            a.finish()
+        })
+        .map_err(err)?;
+    let summary = serde_json::json!({
+        "channel": a.channel,
+        "unit": a.unit,
+        "cov_imep": a.cov_imep,
+        "lnv_imep": a.lnv_imep,
+        "notes": a.notes,
+    });
+    let columns = a.columns().into_iter().map(|(n, _, v)| (n, v)).collect();
+    Ok((summary.to_string(), arrays(py, columns)?))
+}
+
 /// Application 3, the cyclic engine torque (thesis ch. 8, Eq. 8.2): the ranking of its 15
 /// parameters (nominal: the test cell's engine, overridden by `nominal`), the estimable ones
 /// (`cutoff`, the application's default if `None`; `fixed` held) estimated by `method` (ekf, ukf, srukf) with `p0`, `r2` (the batch
@@ -385,6 +432,7 @@ fn _physid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(monitor_shaft, m)?)?;
     m.add_function(wrap_pyfunction!(friction_fit, m)?)?;
     m.add_function(wrap_pyfunction!(torque_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(cycles, m)?)?;
     m.add_function(wrap_pyfunction!(live::live, m)?)?;
     m.add_class::<LiveStream>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

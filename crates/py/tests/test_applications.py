@@ -75,3 +75,50 @@ def test_the_cyclic_torque_fit_estimates_the_supported_parameters():
         assert len(r.tracks[p]) == len(r.tracks["t"]) == len(r.tracks[f"{p}_std_err"])
     with pytest.raises(physid.Error, match="nominal 'bogus'"):
         physid.torque_fit(rec, nominal={"bogus": 1.0})
+
+
+def _wiebe(golden, name):
+    """One of gen_wiebe.py's crank-angle CSV files (a units row under the names), by pandas."""
+    import pandas as pd
+    df = pd.read_csv(golden(f"crates/apps/tests/golden/{name}"), skiprows=[1])
+    units = {"t": "s", "cycle": "-", "crank_deg": "deg", "p_cyl": "Pa"}
+    return physid.Recording.from_pandas(df, units=units, basis="crank_angle")
+
+
+def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
+    truth = json.loads(golden("crates/apps/tests/golden/wiebe.json").read_text())
+    r = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), bore=truth["bore"],
+                      stroke=truth["stroke"], rod=truth["rod"],
+                      compression_ratio=truth["compression_ratio"], gamma=truth["gamma"])
+    df = r.to_pandas()
+    assert list(df["cycle"]) == [1.0]
+    for k in ("10", "50", "90"):
+        assert df[f"mfb{k}_deg"][0] == pytest.approx(truth["mfb_deg"][k], abs=0.01)
+    assert df["heat_release"][0] == pytest.approx(truth["heat_j"], rel=1e-4)
+    assert df["fired"][0] == 1.0
+    # Without the geometry: no IMEP or heat release, and the geometry is all or nothing.
+    bare = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"))
+    assert np.isnan(bare.tracks["imep"]).all() and np.isnan(bare.tracks["heat_release"]).all()
+    with pytest.raises(physid.Error, match="bore, stroke, rod and compression_ratio"):
+        physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), bore=0.086)
+    with pytest.raises(physid.Error, match="polytropic"):
+        physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), peg="polytropic=3")
+
+
+@pytest.mark.skipif(not os.environ.get("PHYSID_BIN"), reason="PHYSID_BIN (physid's binary) not given")
+def test_cycles_gives_what_the_command_line_gives(golden):
+    truth = json.loads(golden("crates/apps/tests/golden/wiebe.json").read_text())
+    geometry = dict(bore=truth["bore"], stroke=truth["stroke"], rod=truth["rod"],
+                    compression_ratio=truth["compression_ratio"])
+    f = golden("crates/apps/tests/golden/wiebe_mixed.csv")
+    flags = [a for k, v in geometry.items() for a in (f"--{k.replace('_', '-')}", str(v))]
+    j = json.loads(subprocess.run([os.environ["PHYSID_BIN"], "cycles", str(f), "--units-row",
+                                   "--json", *flags], check=True, capture_output=True,
+                                  text=True).stdout)
+    r = physid.cycles(_wiebe(golden, "wiebe_mixed.csv"), **geometry)
+    assert [c["cycle"] for c in j["cycles"]] == list(r.tracks["cycle"])
+    assert [c["fired"] for c in j["cycles"]] == [bool(v) for v in r.tracks["fired"]]
+    assert [c["imep_pa"] for c in j["cycles"]] == list(r.tracks["imep"])
+    assert [c.get("mfb50_deg", float("nan")) for c in j["cycles"]] == pytest.approx(
+        list(r.tracks["mfb50_deg"]), nan_ok=True, rel=0, abs=0)
+    assert j["cov_imep"] == r.cov_imep and j["notes"] == r.notes

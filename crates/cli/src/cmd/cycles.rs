@@ -51,84 +51,23 @@ pub struct Args {
 
 /// The per-cycle table as a tracks file (crate::tracks).
 fn write_tracks(path: &std::path::Path, a: &physid_apps::pressure::CycleAnalysis) -> Result<()> {
-    let u = a.unit.as_str();
-    let columns = [
-        ("t", "s"),
-        ("cycle", "-"),
-        ("rpm", "rpm"),
-        ("p_max", u),
-        ("p_max_deg", "deg"),
-        ("peg_offset", u),
-        ("imep", "Pa"),
-        ("imep_gross", "Pa"),
-        ("n_compression", "-"),
-        ("n_expansion", "-"),
-        ("heat_release", "J"),
-        ("fired", "-"),
-        ("mfb10_deg", "deg"),
-        ("mfb50_deg", "deg"),
-        ("mfb90_deg", "deg"),
-        ("dp_max", "Pa/deg"),
-        ("dp_max_deg", "deg"),
-    ]
-    .iter()
-    .map(|(n, u)| (n.to_string(), u.to_string()))
-    .collect();
-    let mut f = crate::tracks::TrackFile::create(path, columns)?;
-    let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
-    for c in &a.cycles {
-        let b = c.burn.as_ref();
-        let burn = |f: fn(&physid_apps::combustion::Burn) -> Option<f64>| nan(b.and_then(f));
-        f.row([
-            c.t_start_s,
-            c.cycle as f64,
-            c.rpm,
-            c.p_max,
-            c.p_max_deg,
-            c.peg_offset,
-            nan(c.imep_pa),
-            nan(c.imep_gross_pa),
-            nan(c.n_compression),
-            nan(c.n_expansion),
-            burn(|b| Some(b.heat_release_j)),
-            burn(|b| Some(f64::from(u8::from(b.fired)))),
-            burn(|b| b.mfb10_deg),
-            burn(|b| b.mfb50_deg),
-            burn(|b| b.mfb90_deg),
-            burn(|b| Some(b.dp_max_pa_per_deg)),
-            burn(|b| Some(b.dp_max_deg)),
-        ])?;
+    let columns = a.columns();
+    let mut f = crate::tracks::TrackFile::create(
+        path,
+        columns
+            .iter()
+            .map(|(n, u, _)| (n.clone(), u.clone()))
+            .collect(),
+    )?;
+    for k in 0..a.cycles.len() {
+        f.row(columns.iter().map(|(.., v)| v[k]))?;
     }
     f.close()
 }
 
-fn pegging(s: &Option<String>) -> Result<Pegging> {
-    let Some(s) = s else {
-        return Ok(Pegging::None);
-    };
-    let bad = || {
-        miette!("--peg '{s}': expected bdc=PRESSURE or polytropic=EXPONENT, e.g. bdc=1e5, polytropic=1.32")
-    };
-    let (kind, value) = s.split_once('=').ok_or_else(bad)?;
-    let v: f64 = value
-        .trim()
-        .parse()
-        .ok()
-        .filter(|v: &f64| v.is_finite())
-        .ok_or_else(bad)?;
-    match kind.trim() {
-        "bdc" => Ok(Pegging::Bdc(v)),
-        "polytropic" if v > 1.0 && v < 2.0 => Ok(Pegging::Polytropic(v)),
-        "polytropic" => Err(miette!(
-            "--peg polytropic={v}: expected an exponent between 1 and 2"
-        )),
-        _ => Err(bad()),
-    }
-}
-
 /// Run `physid cycles`.
 pub fn run(args: &Args) -> Result<()> {
-    let peg = pegging(&args.peg)?;
+    let peg = Pegging::parse(args.peg.as_deref()).map_err(|e| miette!("{e}"))?;
     let geometry = args.geometry.full()?;
     let mut input = crank_input(&args.input, &args.file, &args.angle, &args.geometry.crank)?;
     input.quiet = args.json;

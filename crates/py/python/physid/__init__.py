@@ -741,8 +741,46 @@ def torque_fit(
     return TorqueFitResult(_json.loads(s), dict(tracks))
 
 
+class CyclesResult(Result):
+    """:func:`cycles`' result: ``channel``, ``unit``, ``cov_imep``, ``lnv_imep`` (over the fired
+    cycles when some fired), ``notes``; ``tracks`` per cycle: ``t`` (its firing TDC), ``cycle``,
+    ``rpm``, ``p_max``, ``p_max_deg``, ``peg_offset``, ``imep``, ``imep_gross``,
+    ``n_compression``, ``n_expansion``, ``heat_release`` [J], ``fired`` (1/0), ``mfb10_deg``,
+    ``mfb50_deg``, ``mfb90_deg``, ``dp_max`` [Pa/deg], ``dp_max_deg`` (NaN where not computed);
+    ``to_pandas()`` gives them as a DataFrame."""
+
+    def to_pandas(self):
+        import pandas as pd
+        return pd.DataFrame(self.tracks)
+
+
+def cycles(
+    rec: Recording,
+    channel: str = "p_cyl",
+    bore: float | None = None,
+    stroke: float | None = None,
+    rod: float | None = None,
+    compression_ratio: float | None = None,
+    peg: str | None = None,
+    gamma: float = 1.35,
+) -> CyclesResult:
+    """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
+    recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
+    its angle, speed; with the geometry (all four, SI: ``bore``, ``stroke``, ``rod``,
+    ``compression_ratio``) net and gross IMEP, the polytropic exponents and the combustion —
+    apparent net heat release (single zone, constant ``gamma``), MFB10/50/90, fired or motored,
+    the steepest pressure rise. ``peg``: ``"bdc=P"`` or ``"polytropic=N"``. A cycle is the
+    compression before its firing TDC and the expansion after."""
+    given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
+    if any(given) and not all(given):
+        raise Error("the cylinder's geometry needs bore, stroke, rod and compression_ratio")
+    geometry = (float(bore), float(stroke), float(rod), float(compression_ratio)) if all(given) else None
+    s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma))
+    return CyclesResult(_json.loads(s), dict(tracks))
+
+
 __all__ += ["Result", "ShaftMonitorResult", "FrictionFitResult", "TorqueFitResult",
-            "monitor_shaft", "friction_fit", "torque_fit"]
+            "CyclesResult", "monitor_shaft", "friction_fit", "torque_fit", "cycles"]
 
 
 class LiveStream:
