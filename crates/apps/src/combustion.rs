@@ -33,16 +33,18 @@ pub const HEAT_WINDOW: (f64, f64) = (-90.0, 120.0);
 /// docs).
 pub const FIRED_FRACTION: f64 = 0.05;
 
-/// The burn fractions whose angles are given [%].
+/// The burn fractions whose angles are given unless others are asked for [%].
 pub const MFB: [f64; 3] = [10.0, 50.0, 90.0];
 
 /// How the heat release is computed.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct HeatRelease {
     /// The ratio of specific heats γ (constant).
     pub gamma: f64,
     /// The window [deg ATDC].
     pub window: (f64, f64),
+    /// The burn fractions whose angles are given [%], each in (0, 100).
+    pub mfb: Vec<f64>,
 }
 
 impl Default for HeatRelease {
@@ -50,6 +52,7 @@ impl Default for HeatRelease {
         Self {
             gamma: DEFAULT_GAMMA,
             window: HEAT_WINDOW,
+            mfb: MFB.to_vec(),
         }
     }
 }
@@ -73,26 +76,115 @@ impl HeatRelease {
     }
 }
 
-/// One cycle's combustion figures (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+/// One cycle's combustion figures (see the module docs). Serialized flat: `heat_release_j`,
+/// `fired`, `mfbK_deg` for each burn fraction K with an angle, `dp_max_pa_per_deg`,
+/// `dp_max_deg`, and `misfire` / `partial_burn` when true.
+#[derive(Debug, Clone, PartialEq)]
 pub struct Burn {
     /// Net heat released in the window, `Q_max − Q_min` [J].
     pub heat_release_j: f64,
     /// Whether the cycle fired (see [`FIRED_FRACTION`]).
     pub fired: bool,
-    /// MFB10 [deg ATDC] (fired cycles) …
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub mfb10_deg: Option<f64>,
-    /// … MFB50 …
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub mfb50_deg: Option<f64>,
-    /// … and MFB90.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub mfb90_deg: Option<f64>,
+    /// Each burn fraction asked for [%] and its angle [deg ATDC] (fired cycles).
+    pub mfb_deg: Vec<(f64, Option<f64>)>,
     /// The largest pressure rise in the window [Pa/deg] …
     pub dp_max_pa_per_deg: f64,
     /// … and its angle [deg ATDC].
     pub dp_max_deg: f64,
+    /// Not fired while the engine is firing ([`BurnHistory`]).
+    pub misfire: bool,
+    /// Fired, releasing less than [`PARTIAL_FRACTION`] of the recent fired cycles' heat.
+    pub partial_burn: bool,
+}
+
+impl Burn {
+    /// The angle where the burn reaches `pct` % [deg ATDC], when asked for and reached.
+    pub fn mfb(&self, pct: f64) -> Option<f64> {
+        self.mfb_deg
+            .iter()
+            .find(|(k, _)| *k == pct)
+            .and_then(|(_, a)| *a)
+    }
+}
+
+/// The name of burn fraction `pct`'s angle: `mfb50_deg`, `mfb5_deg`, `mfb2.5_deg`.
+pub fn mfb_name(pct: f64) -> String {
+    format!("mfb{pct}_deg")
+}
+
+impl Serialize for Burn {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("heat_release_j", &self.heat_release_j)?;
+        m.serialize_entry("fired", &self.fired)?;
+        for (pct, deg) in &self.mfb_deg {
+            if let Some(deg) = deg {
+                m.serialize_entry(&mfb_name(*pct), deg)?;
+            }
+        }
+        m.serialize_entry("dp_max_pa_per_deg", &self.dp_max_pa_per_deg)?;
+        m.serialize_entry("dp_max_deg", &self.dp_max_deg)?;
+        if self.misfire {
+            m.serialize_entry("misfire", &true)?;
+        }
+        if self.partial_burn {
+            m.serialize_entry("partial_burn", &true)?;
+        }
+        m.end()
+    }
+}
+
+/// A fired cycle releasing less than this fraction of the recent fired cycles' median heat is a
+/// partial burn.
+pub const PARTIAL_FRACTION: f64 = 0.6;
+
+/// The fired cycles the reference heat is the median of, and the cycles after the last fired
+/// one during which the engine still counts as firing (a cycle that does not fire then is a
+/// misfire; after them, motored).
+pub const REFERENCE_CYCLES: usize = 20;
+
+/// What misfire and partial-burn flags compare a cycle with: the heat of the last
+/// [`REFERENCE_CYCLES`] fully fired cycles, and how many cycles ago one fired. Sequential, so a
+/// file and a stream flag the same cycles.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BurnHistory {
+    heat: std::collections::VecDeque<f64>,
+    since_fired: Option<usize>,
+    scratch: Vec<f64>,
+}
+
+impl BurnHistory {
+    /// Flag `b` against the history (a misfire: not fired within [`REFERENCE_CYCLES`] cycles of
+    /// a fired one; a partial burn: fired below [`PARTIAL_FRACTION`] of the median heat), then
+    /// count it in.
+    pub fn flag(&mut self, b: &mut Burn) {
+        let firing = self.since_fired.is_some_and(|n| n < REFERENCE_CYCLES);
+        b.misfire = !b.fired && firing;
+        b.partial_burn = false;
+        if b.fired && !self.heat.is_empty() {
+            self.scratch.clear();
+            self.scratch.extend(self.heat.iter().copied());
+            self.scratch.sort_by(f64::total_cmp);
+            let n = self.scratch.len();
+            let median = 0.5 * (self.scratch[(n - 1) / 2] + self.scratch[n / 2]);
+            b.partial_burn = b.heat_release_j < PARTIAL_FRACTION * median;
+        }
+        if b.fired {
+            self.since_fired = Some(0);
+            if !b.partial_burn {
+                if self.heat.len() == REFERENCE_CYCLES {
+                    self.heat.pop_front();
+                }
+                self.heat.push_back(b.heat_release_j);
+            }
+        } else {
+            self.since_fired = self.since_fired.map(|n| n + 1);
+            if !firing {
+                self.heat.clear();
+            }
+        }
+    }
 }
 
 /// The combustion figures of one cycle: `atdc` its angles [deg ATDC] in increasing order, `p`
@@ -126,15 +218,17 @@ pub fn burn(
     let k_min = argmin(&q[..=k_max]);
     let heat = q[k_max] - q[k_min];
     let fired = heat >= FIRED_FRACTION * p_max * vd;
-    let mut mfb_deg = [None; 3];
-    if fired {
-        for (m, pct) in mfb_deg.iter_mut().zip(MFB) {
+    let mfb_deg = hr
+        .mfb
+        .iter()
+        .map(|&pct| {
             let target = q[k_min] + pct / 100.0 * heat;
-            *m = (k_min + 1..=k_max)
+            let deg = (k_min + 1..=k_max)
                 .find(|&k| q[k] >= target)
                 .map(|k| a[k - 1] + (target - q[k - 1]) / (q[k] - q[k - 1]) * (a[k] - a[k - 1]));
-        }
-    }
+            (pct, deg.filter(|_| fired))
+        })
+        .collect();
     let (mut dp_max, mut dp_deg) = (f64::NEG_INFINITY, f64::NAN);
     for k in 1..a.len() - 1 {
         let d = (p[k + 1] - p[k - 1]) / (a[k + 1] - a[k - 1]);
@@ -142,15 +236,14 @@ pub fn burn(
             (dp_max, dp_deg) = (d, a[k]);
         }
     }
-    let [mfb10_deg, mfb50_deg, mfb90_deg] = mfb_deg;
     Some(Burn {
         heat_release_j: heat,
         fired,
-        mfb10_deg,
-        mfb50_deg,
-        mfb90_deg,
+        mfb_deg,
         dp_max_pa_per_deg: dp_max,
         dp_max_deg: dp_deg,
+        misfire: false,
+        partial_burn: false,
     })
 }
 

@@ -10,6 +10,8 @@
 //!   and the passes it is read in.
 //! * [`cell`] — the built-in virtual test cell's values the applications start from, and the
 //!   truth of a simulated recording.
+//! * [`combustion_stage`] — combustion analysis per cycle on the stream (a stage: the live
+//!   service's `combustion` events).
 //! * [`compression`] — the chain on a motored pressure trace: the motored model's
 //!   identifiability, its estimable parameters per TDC and recursively, the TDC and loss angle.
 //! * [`cycle_stage`] — per-cycle statistics of chosen channels on the stream (a stage).
@@ -25,8 +27,11 @@
 //!   motored cycles (thesis §7.3, Tables 7.3–7.4).
 //! * [`friction_rank`] — ranking of the friction model's design parameters over an operating
 //!   grid (thesis §7.2, Table 7.1).
+//! * [`knock`] — knock from a cycle's pressure: band-pass, MAPO, IMPO, a flag.
 //! * [`model_choice`] — a model by built-in name or formula, with its nominal values.
 //! * [`pipeline`] — the qualitative adaptive identification loop (Fig. 5.7) from a TOML file.
+//! * [`per_cycle`] — one cycle's figures from its pressure: pegging, IMEP, PMEP, exponents,
+//!   heat release, burn angles, knock (the file's and the live stage's one analysis).
 //! * [`pressure`] — cylinder-pressure analysis per cycle: peak, IMEP, polytropic exponents,
 //!   pegging, CoV of IMEP (`physid cycles`).
 //! * [`stage`] — the one shape of the data path's stages ([`stage::Stage`], [`stage::Sink`]).
@@ -39,6 +44,7 @@ pub mod acquisition;
 pub mod angle_input;
 pub mod cell;
 pub mod combustion;
+pub mod combustion_stage;
 pub mod compression;
 pub mod cycle_stage;
 pub mod demo;
@@ -48,7 +54,9 @@ pub mod example_5_2;
 pub mod excitation;
 pub mod friction_fit;
 pub mod friction_rank;
+pub mod knock;
 pub mod model_choice;
+pub mod per_cycle;
 pub mod pipeline;
 pub mod pressure;
 pub mod recording_rows;

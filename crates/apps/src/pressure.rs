@@ -11,27 +11,24 @@
 //! release, burn angles and IMEP are one combustion's, and the first block's TDC, with no
 //! compression recorded before it, gives no cycle (said in the notes).
 //!
-//! * IMEP: `∮ p dV / V_d` (trapezoidal rule; net: the whole cycle, the loop closed; gross: from
-//!   −180° to 180° ATDC, compression and expansion only).
-//! * Polytropic exponent: the slope of `ln p` against `ln V` by least squares over a window
-//!   (−100° … −40° ATDC for compression, 40° … 100° for expansion): `p·V^n = const` ⇒
-//!   `ln p = c − n·ln V`.
-//! * Pegging (the sensor measures pressure changes, not absolute pressure), per cycle:
-//!   - to a pressure at BDC of the intake stroke (−180° ATDC): `p ← p − p(−180°) + p_ref`;
-//!   - by a polytropic exponent `n` on compression: the offset `Δ` that makes
-//!     `(p + Δ)·V^n` equal at −100° and −60° ATDC, `Δ = (p₂V₂ⁿ − p₁V₁ⁿ)/(V₁ⁿ − V₂ⁿ)`.
+//! Each cycle's figures — pegging, IMEP, exponents, heat release, burn angles, knock — are
+//! [`crate::per_cycle`]'s, the same as the live stage's; here the recording's blocks become
+//! cycles and the cycles' spread is taken.
 //!
 //! The volume is the slider-crank's (SPEC §2.3, [`physid_models::kinematics::Crank`]).
 
 use physid_core::{Basis, Recording};
 use physid_models::kinematics::Crank;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use crate::combustion::{burn, peak_angle, Burn, HeatRelease};
+use crate::combustion::HeatRelease;
 use crate::error::AppError;
+use crate::knock::Knock;
+pub use crate::per_cycle::CycleFigures;
+use crate::per_cycle::{figure_columns, PerCycle, PerCycleSettings};
 
 /// The cylinder's geometry (SI).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Geometry {
     /// Bore [m].
     pub bore: f64,
@@ -75,7 +72,7 @@ impl Geometry {
 }
 
 /// How the pressure is referenced.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub enum Pegging {
     /// As measured.
     #[default]
@@ -124,42 +121,6 @@ pub const EXPANSION_WINDOW: (f64, f64) = (40.0, 100.0);
 /// The two angles of polytropic pegging [deg ATDC].
 pub const PEG_ANGLES: (f64, f64) = (-100.0, -60.0);
 
-/// One cycle's figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CycleFigures {
-    /// Cycle index (the recording's `cycle`).
-    pub cycle: i64,
-    /// Time at its firing TDC [s].
-    pub t_start_s: f64,
-    /// Mean speed over the cycle [rpm].
-    pub rpm: f64,
-    /// The largest pressure [the channel's unit, pegged].
-    pub p_max: f64,
-    /// Its angle [deg ATDC].
-    pub p_max_deg: f64,
-    /// The offset added by pegging [the channel's unit].
-    pub peg_offset: f64,
-    /// Net IMEP over 720° [Pa] (with the geometry and the pressure in Pa).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub imep_pa: Option<f64>,
-    /// Gross IMEP, compression and expansion (−180° … 180° ATDC) [Pa].
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub imep_gross_pa: Option<f64>,
-    /// Polytropic exponent of compression (with the geometry).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub n_compression: Option<f64>,
-    /// Polytropic exponent of expansion.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub n_expansion: Option<f64>,
-    /// Heat release, burn angles and pressure rise (with the geometry and the pressure in Pa;
-    /// [`crate::combustion`]).
-    #[serde(flatten, skip_serializing_if = "Option::is_none")]
-    pub burn: Option<Burn>,
-    /// What was left out of this cycle's figures, and why.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub notes: Vec<String>,
-}
-
 /// The cycles' figures and their spread.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CycleAnalysis {
@@ -179,51 +140,23 @@ pub struct CycleAnalysis {
     pub lnv_imep: Option<f64>,
     /// What was left out and why (partial cycles, IMEP without Pa …), for a person.
     pub notes: Vec<String>,
+    /// The burn fractions whose angles were asked for [%].
+    #[serde(skip)]
+    pub mfb: Vec<f64>,
+    /// Whether knock was asked for.
+    #[serde(skip)]
+    pub knock: bool,
 }
-
-/// A column of [`CycleAnalysis::columns`]: name, unit and the figure of a cycle.
-type Column<'a> = (&'a str, &'a str, &'a dyn Fn(&CycleFigures) -> f64);
 
 impl CycleAnalysis {
     /// A row per cycle as columns — name, unit, values (NaN where not computed): what
     /// `cycles --tracks` writes and Python's `physid.cycles` returns.
     pub fn columns(&self) -> Vec<(String, String, Vec<f64>)> {
-        let u = self.unit.as_str();
-        let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
-        let burn = |c: &CycleFigures, f: fn(&Burn) -> Option<f64>| nan(c.burn.as_ref().and_then(f));
-        let columns: [Column; 17] = [
-            ("t", "s", &|c| c.t_start_s),
-            ("cycle", "-", &|c| c.cycle as f64),
-            ("rpm", "rpm", &|c| c.rpm),
-            ("p_max", u, &|c| c.p_max),
-            ("p_max_deg", "deg", &|c| c.p_max_deg),
-            ("peg_offset", u, &|c| c.peg_offset),
-            ("imep", "Pa", &|c| nan(c.imep_pa)),
-            ("imep_gross", "Pa", &|c| nan(c.imep_gross_pa)),
-            ("n_compression", "-", &|c| nan(c.n_compression)),
-            ("n_expansion", "-", &|c| nan(c.n_expansion)),
-            ("heat_release", "J", &|c| {
-                burn(c, |b| Some(b.heat_release_j))
-            }),
-            ("fired", "-", &|c| {
-                burn(c, |b| Some(f64::from(u8::from(b.fired))))
-            }),
-            ("mfb10_deg", "deg", &|c| burn(c, |b| b.mfb10_deg)),
-            ("mfb50_deg", "deg", &|c| burn(c, |b| b.mfb50_deg)),
-            ("mfb90_deg", "deg", &|c| burn(c, |b| b.mfb90_deg)),
-            ("dp_max", "Pa/deg", &|c| {
-                burn(c, |b| Some(b.dp_max_pa_per_deg))
-            }),
-            ("dp_max_deg", "deg", &|c| burn(c, |b| Some(b.dp_max_deg))),
-        ];
-        columns
-            .iter()
-            .map(|(name, unit, f)| {
-                (
-                    name.to_string(),
-                    unit.to_string(),
-                    self.cycles.iter().map(f).collect(),
-                )
+        figure_columns(&self.unit, &self.mfb, self.knock)
+            .into_iter()
+            .map(|c| {
+                let values = self.cycles.iter().map(&c.value).collect();
+                (c.name, c.unit, values)
             })
             .collect()
     }
@@ -371,9 +304,8 @@ struct Tail {
 pub struct CycleAnalyser {
     channel: String,
     unit: String,
-    crank: Option<Crank<f64>>,
-    peg: Pegging,
-    heat: HeatRelease,
+    /// Each cycle's figures.
+    per_cycle: PerCycle,
     need_pa: bool,
     unit_check: UnitCheck,
     step: FirstAdvance,
@@ -391,9 +323,7 @@ pub struct CycleAnalyser {
     /// The last complete block's second half: the next cycle's compression.
     tail: Option<Tail>,
     notes: Vec<String>,
-    /// Scratch for a cycle: pegged pressure, volume, angle ATDC.
-    pc: Vec<f64>,
-    vol: Vec<f64>,
+    /// Scratch for a cycle: angle ATDC.
     atdc: Vec<f64>,
 }
 
@@ -432,10 +362,14 @@ impl CycleAnalyser {
         }
         Ok(Self {
             channel: p_channel.to_string(),
+            per_cycle: PerCycle::new(PerCycleSettings {
+                geometry: geometry.copied(),
+                peg,
+                heat: HeatRelease::default(),
+                knock: None,
+                in_pa: unit == "Pa",
+            }),
             unit,
-            crank: geometry.map(Geometry::crank),
-            peg,
-            heat: HeatRelease::default(),
             need_pa: geometry.is_some(),
             unit_check,
             step: FirstAdvance::default(),
@@ -450,16 +384,34 @@ impl CycleAnalyser {
             no_compression: 0,
             tail: None,
             notes,
-            pc: Vec::new(),
-            vol: Vec::new(),
             atdc: Vec::new(),
         })
     }
 
-    /// The heat release's γ and window ([`HeatRelease::default`] unless given; checked).
+    /// The heat release's γ, window and burn fractions ([`HeatRelease::default`] unless
+    /// given; checked).
     pub fn with_heat_release(mut self, heat: HeatRelease) -> Result<Self, AppError> {
         heat.validate()?;
-        self.heat = heat;
+        self.per_cycle = PerCycle::new(PerCycleSettings {
+            heat,
+            ..self.per_cycle.settings().clone()
+        });
+        Ok(self)
+    }
+
+    /// Knock figures too ([`crate::knock`]; checked; with the pressure in Pa).
+    pub fn with_knock(mut self, knock: Knock) -> Result<Self, AppError> {
+        knock.validate().map_err(AppError::Invalid)?;
+        if self.unit != "Pa" {
+            self.notes.push(format!(
+                "'{}' is in '{}', not Pa: no knock figures",
+                self.channel, self.unit
+            ));
+        }
+        self.per_cycle = PerCycle::new(PerCycleSettings {
+            knock: Some(knock),
+            ..self.per_cycle.settings().clone()
+        });
         Ok(self)
     }
 
@@ -539,7 +491,7 @@ impl CycleAnalyser {
         }
         // The spread over the fired cycles when some fired (a motored cycle's IMEP is its
         // loss, not a combustion's); over them all otherwise.
-        let fired = |c: &CycleFigures| c.burn.is_some_and(|b| b.fired);
+        let fired = |c: &CycleFigures| c.burn.as_ref().is_some_and(|b| b.fired);
         let any_fired = cycles.iter().any(fired);
         let imeps: Vec<f64> = cycles
             .iter()
@@ -548,7 +500,7 @@ impl CycleAnalyser {
             .collect();
         let motored = cycles
             .iter()
-            .filter(|c| c.burn.is_some_and(|b| !b.fired))
+            .filter(|c| c.burn.as_ref().is_some_and(|b| !b.fired))
             .count();
         if any_fired && motored > 0 {
             notes.push(format!(
@@ -565,7 +517,10 @@ impl CycleAnalyser {
         // Lowest normalised value: the smallest IMEP over the mean (Heywood §9.4).
         let lnv_imep = (any_fired && imeps.len() >= 2)
             .then(|| imeps.iter().copied().fold(f64::INFINITY, f64::min) / mean);
+        let settings = self.per_cycle.settings();
         Ok(CycleAnalysis {
+            mfb: settings.heat.mfb.clone(),
+            knock: settings.knock.is_some(),
             channel: self.channel,
             unit: self.unit,
             cycles,
@@ -591,16 +546,18 @@ impl CycleAnalyser {
                     && !tail.t.is_empty()
                     && self.run_deg.first().is_some_and(|&d| d < 360.0) =>
             {
-                // The cycle's samples: the compression (the block before's second half) …
+                // The cycle's samples: the compression (the block before's second half,
+                // −360° … 0 ATDC) …
                 let head = self.run_deg.partition_point(|&d| d < 360.0);
-                let mut t = tail.t.clone();
-                let mut deg = tail.deg.clone();
-                let mut p = tail.p.clone();
-                // … and the expansion (this block's first half).
+                let mut t = tail.t;
+                let mut p = tail.p;
+                self.atdc.clear();
+                self.atdc.extend(tail.deg.iter().map(|d| d - 720.0));
+                // … and the expansion (this block's first half, 0 … 360°).
                 t.extend_from_slice(&self.run_t[..head]);
-                deg.extend_from_slice(&self.run_deg[..head]);
+                self.atdc.extend_from_slice(&self.run_deg[..head]);
                 p.extend_from_slice(&self.run_p[..head]);
-                let f = self.figures(c, &t, &deg, &p);
+                let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p);
                 self.cycles.push(f);
             }
             (Some(_), _) => self.no_compression += 1,
@@ -624,155 +581,5 @@ impl CycleAnalyser {
         self.run_t.clear();
         self.run_deg.clear();
         self.run_p.clear();
-    }
-
-    /// The figures of the cycle `c` — its TDC's compression and expansion: samples at the
-    /// times `t`, angles `deg` (the compression's ≥ 360°) and pressures `p`, two blocks' halves
-    /// (a sample more or less than a block, as the 360° falls between them).
-    fn figures(&mut self, c: f64, t: &[f64], deg: &[f64], p: &[f64]) -> CycleFigures {
-        let (pc, vol, atdc) = (&mut self.pc, &mut self.vol, &mut self.atdc);
-        atdc.clear();
-        atdc.extend(deg.iter().map(|&d| if d >= 360.0 { d - 720.0 } else { d }));
-        vol.clear();
-        if let Some(k) = &self.crank {
-            vol.extend(atdc.iter().map(|a| k.volume(a.to_radians())));
-        }
-        pc.clear();
-        pc.extend_from_slice(p);
-        let offset = match self.peg {
-            Pegging::None => 0.0,
-            Pegging::Bdc(p_ref) => p_ref - at(atdc, pc, -180.0),
-            Pegging::Polytropic(n) => {
-                let (a1, a2) = PEG_ANGLES;
-                let (p1, p2) = (at(atdc, pc, a1), at(atdc, pc, a2));
-                let (v1, v2) = (at(atdc, vol, a1).powf(n), at(atdc, vol, a2).powf(n));
-                (p2 * v2 - p1 * v1) / (v1 - v2)
-            }
-        };
-        for x in pc.iter_mut() {
-            *x += offset;
-        }
-        let p_max = pc.iter().copied().fold(f64::NAN, f64::max);
-        // The cycle in crank-angle order, from −360° ATDC (crank_deg 360) round to 360°.
-        let order: Vec<usize> = (0..atdc.len())
-            .filter(|&i| atdc[i] < 0.0)
-            .chain((0..atdc.len()).filter(|&i| atdc[i] >= 0.0))
-            .collect();
-        let sorted = |y: &[f64]| order.iter().map(|&i| y[i]).collect::<Vec<f64>>();
-        let (sa, sp) = (sorted(atdc), sorted(pc));
-        let p_max_deg = peak_angle(&sa, &sp).unwrap_or(f64::NAN);
-        let n = t.len();
-        let span = t[n - 1] - t[0];
-        let rpm = 2.0 * 60.0 / (span * n as f64 / (n - 1) as f64);
-        let in_pa = self.unit == "Pa";
-        let vd = self.crank.map(|c| c.piston_area() * c.stroke());
-        let mut notes = Vec::new();
-        let (imep, gross, nc, ne, b) = match vd {
-            Some(vd) => {
-                let work = |from: f64, to: f64, closed: bool| {
-                    let idx: Vec<usize> = order
-                        .iter()
-                        .copied()
-                        .filter(|&i| atdc[i] >= from && atdc[i] <= to)
-                        .collect();
-                    let mut w = 0.0;
-                    for k in 0..idx.len() {
-                        let (i, j) = match (k + 1 < idx.len(), closed) {
-                            (true, _) => (idx[k], idx[k + 1]),
-                            (false, true) => (idx[k], idx[0]),
-                            (false, false) => break,
-                        };
-                        w += 0.5 * (pc[i] + pc[j]) * (vol[j] - vol[i]);
-                    }
-                    w / vd
-                };
-                let mut exponent = |window: (f64, f64), name: &str| {
-                    polytropic(atdc, pc, vol, window)
-                        .map_err(|why| {
-                            notes.push(format!(
-                                "{name} left out: {why} between {}° and {}° ATDC",
-                                window.0, window.1
-                            ))
-                        })
-                        .ok()
-                };
-                let nc = exponent(COMPRESSION_WINDOW, "n_compression");
-                let ne = exponent(EXPANSION_WINDOW, "n_expansion");
-                let b = in_pa
-                    .then(|| burn(&self.heat, &sa, &sp, &sorted(vol), vd, p_max))
-                    .flatten();
-                (
-                    in_pa.then(|| work(-360.0, 360.0, true)),
-                    in_pa.then(|| work(-180.0, 180.0, false)),
-                    nc,
-                    ne,
-                    b,
-                )
-            }
-            None => (None, None, None, None, None),
-        };
-        CycleFigures {
-            cycle: c as i64,
-            // The firing TDC's: the first sample of the expansion.
-            t_start_s: t[deg.partition_point(|&d| d >= 360.0)],
-            rpm,
-            p_max,
-            p_max_deg,
-            peg_offset: offset,
-            imep_pa: imep,
-            imep_gross_pa: gross,
-            n_compression: nc,
-            n_expansion: ne,
-            burn: b,
-            notes,
-        }
-    }
-}
-
-/// `y` at the angle `a` [deg ATDC], linearly between the samples around it (the cycle's
-/// angles `x` are not in order across ±360°: the two nearest on either side are used).
-fn at(x: &[f64], y: &[f64], a: f64) -> f64 {
-    let (mut lo, mut hi) = (None::<usize>, None::<usize>);
-    for (i, &xi) in x.iter().enumerate() {
-        if xi <= a && lo.is_none_or(|l| xi > x[l]) {
-            lo = Some(i);
-        }
-        if xi >= a && hi.is_none_or(|h| xi < x[h]) {
-            hi = Some(i);
-        }
-    }
-    match (lo, hi) {
-        (Some(l), Some(h)) if x[h] > x[l] => y[l] + (a - x[l]) / (x[h] - x[l]) * (y[h] - y[l]),
-        (Some(l), _) => y[l],
-        (_, Some(h)) => y[h],
-        _ => f64::NAN,
-    }
-}
-
-/// The polytropic exponent over a window [deg ATDC]: `−slope` of `ln p` on `ln V` by least
-/// squares; refused (why) when a pressure there is not positive or with fewer than 3 samples.
-fn polytropic(
-    atdc: &[f64],
-    p: &[f64],
-    v: &[f64],
-    (from, to): (f64, f64),
-) -> Result<f64, &'static str> {
-    let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for i in (0..atdc.len()).filter(|&i| atdc[i] >= from && atdc[i] <= to) {
-        if p[i] <= 0.0 {
-            return Err("the pressure is not positive (an unpegged sensor's? --peg bdc=P or --peg polytropic=N references it)");
-        }
-        let (x, y) = (v[i].ln(), p[i].ln());
-        n += 1.0;
-        sx += x;
-        sy += y;
-        sxx += x * x;
-        sxy += x * y;
-    }
-    let den = n * sxx - sx * sx;
-    if n >= 3.0 && den > 0.0 {
-        Ok(-(n * sxy - sx * sy) / den)
-    } else {
-        Err("fewer than 3 samples")
     }
 }

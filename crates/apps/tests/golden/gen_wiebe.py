@@ -1,7 +1,7 @@
 """Golden fired cylinder-pressure trace from a known Wiebe burn, for `physid cycles`' heat
 release and burn angles — numpy and scipy only, no physid code.
 
-Run: python3 gen_wiebe.py  (numpy, scipy) -> wiebe_cycles.csv, wiebe_mixed.csv, wiebe.json
+Run: python3 gen_wiebe.py  (numpy, scipy) -> wiebe_cycles.csv, wiebe_mixed.csv, wiebe_flags.csv, wiebe.json
 
 Single zone, constant gamma, no wall heat, no crevices, valves closed from IVC = -150 deg ATDC to
 EVO = +130 deg ATDC (Heywood 1988, Eq. 9.25 solved for the pressure):
@@ -17,6 +17,9 @@ wiebe_mixed.csv: the same engine at 1 deg steps, 5 fired cycles then 3 motored (
 from its firing TDC to the next: the compression at its end belongs to the next TDC's burn) (the same equation with no
 burn: p*V^gamma constant while the valves are closed, so the motored trace peaks at TDC) — what
 a placement of the TDC from the pressure must tell apart.
+
+wiebe_flags.csv: the same engine at 1 deg steps, the heat FLAGS_HEAT[c] burned at firing TDC c:
+full burns with a partial burn (250 J) and a misfire (0 J) among them.
 
 wiebe.json: the geometry, gamma, the burn, and what an analysis must find:
 * mfb_deg: the angles where the burn reaches 10, 50, 90 % of what it has released by the
@@ -42,6 +45,8 @@ Q_FUEL = 600.0
 RPM = 1500.0
 STEP = 0.25
 WINDOW = (-90.0, 120.0)
+# The fuel energy [J] burned at each firing TDC of wiebe_flags.csv (cycle c: TDC c).
+FLAGS_HEAT = [600.0] * 6 + [250.0, 0.0] + [600.0] * 4
 AREA = math.pi * BORE**2 / 4
 R = STROKE / 2
 VC = AREA * STROKE / (EPS - 1)
@@ -135,6 +140,17 @@ def main():
             for k in range(720):
                 p_k = now[k] if deg1[k] < 360 else after[k]
                 f.write(f"{(c * 720 + k) / w:.9e},{c},{deg1[k]:.0f},{p_k:.6f}\n")
+    # wiebe_flags.csv: the heat each firing TDC burns — a partial burn and a misfire among
+    # full burns, at 1 deg.
+    traces = {q: cycle_pressure(deg1, q) for q in set(FLAGS_HEAT)}
+    with open("wiebe_flags.csv", "w") as f:
+        f.write("t,cycle,crank_deg,p_cyl\ns,-,deg,Pa\n")
+        for c in range(len(FLAGS_HEAT) - 1):
+            now, after = traces[FLAGS_HEAT[c]], traces[FLAGS_HEAT[c + 1]]
+            for k in range(720):
+                p_k = now[k] if deg1[k] < 360 else after[k]
+                f.write(f"{(c * 720 + k) / w:.9e},{c},{deg1[k]:.0f},{p_k:.6f}\n")
+    truth["flags_heat_j"] = FLAGS_HEAT[: len(FLAGS_HEAT) - 1]
     with open("wiebe.json", "w") as f:
         json.dump(truth, f, indent=1, sort_keys=True)
         f.write("\n")

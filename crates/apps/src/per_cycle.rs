@@ -1,0 +1,343 @@
+//! One cycle's figures from its cylinder pressure on a crank-angle grid — the one analysis
+//! behind `physid cycles` (a file, [`crate::pressure::CycleAnalyser`]) and the live combustion
+//! stage ([`crate::combustion_stage`]): a cycle is the compression before its firing TDC and
+//! the expansion after it, its samples at increasing angles from −360° ATDC.
+//!
+//! * Pegging (the sensor measures pressure changes, not absolute pressure):
+//!   - to a pressure at BDC of the intake stroke (−180° ATDC): `p ← p − p(−180°) + p_ref`;
+//!   - by a polytropic exponent `n` on compression: the offset `Δ` that makes
+//!     `(p + Δ)·V^n` equal at −100° and −60° ATDC, `Δ = (p₂V₂ⁿ − p₁V₁ⁿ)/(V₁ⁿ − V₂ⁿ)`.
+//! * IMEP: `∮ p dV / V_d` (trapezoidal rule; net: the whole cycle, the loop closed; gross: from
+//!   −180° to 180° ATDC, compression and expansion only); PMEP, the pumping loop's, is
+//!   `IMEP_gross − IMEP_net` (Heywood 1988, §2.4: positive when the gas exchange takes work).
+//! * Polytropic exponent: the slope of `ln p` against `ln V` by least squares over a window
+//!   (−100° … −40° ATDC for compression, 40° … 100° for expansion): `p·V^n = const` ⇒
+//!   `ln p = c − n·ln V`.
+//! * Heat release, burn angles, misfire and partial burn: [`crate::combustion`]; knock:
+//!   [`crate::knock`]; the peak's angle between the samples: [`crate::combustion::peak_angle`].
+//!
+//! The volume is the slider-crank's (SPEC §2.3, [`physid_models::kinematics::Crank`]).
+
+use serde::{Deserialize, Serialize};
+
+use crate::combustion::{burn, mfb_name, peak_angle, Burn, BurnHistory, HeatRelease};
+use crate::knock::{Knock, KnockFigures};
+use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
+
+/// One cycle's figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CycleFigures {
+    /// Cycle index (the recording's `cycle`).
+    pub cycle: i64,
+    /// Time at its firing TDC [s].
+    pub t_start_s: f64,
+    /// Mean speed over the cycle [rpm].
+    pub rpm: f64,
+    /// The largest pressure [the channel's unit, pegged].
+    pub p_max: f64,
+    /// Its angle [deg ATDC].
+    pub p_max_deg: f64,
+    /// The offset added by pegging [the channel's unit].
+    pub peg_offset: f64,
+    /// Net IMEP over 720° [Pa] (with the geometry and the pressure in Pa).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imep_pa: Option<f64>,
+    /// Gross IMEP, compression and expansion (−180° … 180° ATDC) [Pa].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imep_gross_pa: Option<f64>,
+    /// Pumping mean effective pressure, gross less net IMEP [Pa].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pmep_pa: Option<f64>,
+    /// Polytropic exponent of compression (with the geometry).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub n_compression: Option<f64>,
+    /// Polytropic exponent of expansion.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub n_expansion: Option<f64>,
+    /// Heat release, burn angles and pressure rise (with the geometry and the pressure in Pa;
+    /// [`crate::combustion`]).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub burn: Option<Burn>,
+    /// Knock (when asked for, with the pressure in Pa and a fine enough step; [`crate::knock`]).
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub knock: Option<KnockFigures>,
+    /// What was left out of this cycle's figures, and why.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
+}
+
+/// A figure of a cycle as a column: its name, unit, and how it is read from the figures (NaN
+/// where not computed; flags 1/0).
+pub struct FigureColumn {
+    /// The name (`imep`, `mfb50_deg`, …).
+    pub name: String,
+    /// Its unit.
+    pub unit: String,
+    /// The value of a cycle.
+    pub value: Box<dyn Fn(&CycleFigures) -> f64 + Send + Sync>,
+}
+
+/// The columns of a cycle's figures — what `cycles --tracks` writes, Python's `physid.cycles`
+/// returns and the live `combustion` event carries: `unit` the pressure's, `mfb` the burn
+/// fractions asked for [%], `knock` whether knock was.
+pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool) -> Vec<FigureColumn> {
+    fn col(
+        name: &str,
+        unit: &str,
+        value: impl Fn(&CycleFigures) -> f64 + Send + Sync + 'static,
+    ) -> FigureColumn {
+        FigureColumn {
+            name: name.to_string(),
+            unit: unit.to_string(),
+            value: Box::new(value),
+        }
+    }
+    fn nan(v: Option<f64>) -> f64 {
+        v.unwrap_or(f64::NAN)
+    }
+    fn flag(v: Option<bool>) -> f64 {
+        v.map_or(f64::NAN, |b| f64::from(u8::from(b)))
+    }
+    fn burn(c: &CycleFigures, f: impl Fn(&Burn) -> f64) -> f64 {
+        c.burn.as_ref().map_or(f64::NAN, f)
+    }
+    fn knocked(c: &CycleFigures, f: impl Fn(&KnockFigures) -> f64) -> f64 {
+        c.knock.as_ref().map_or(f64::NAN, f)
+    }
+    let mut columns = vec![
+        col("t", "s", |c| c.t_start_s),
+        col("cycle", "-", |c| c.cycle as f64),
+        col("rpm", "rpm", |c| c.rpm),
+        col("p_max", unit, |c| c.p_max),
+        col("p_max_deg", "deg", |c| c.p_max_deg),
+        col("peg_offset", unit, |c| c.peg_offset),
+        col("imep", "Pa", |c| nan(c.imep_pa)),
+        col("imep_gross", "Pa", |c| nan(c.imep_gross_pa)),
+        col("pmep", "Pa", |c| nan(c.pmep_pa)),
+        col("n_compression", "-", |c| nan(c.n_compression)),
+        col("n_expansion", "-", |c| nan(c.n_expansion)),
+        col("heat_release", "J", |c| burn(c, |b| b.heat_release_j)),
+        col("fired", "-", |c| flag(c.burn.as_ref().map(|b| b.fired))),
+        col("misfire", "-", |c| flag(c.burn.as_ref().map(|b| b.misfire))),
+        col("partial_burn", "-", |c| {
+            flag(c.burn.as_ref().map(|b| b.partial_burn))
+        }),
+    ];
+    for &pct in mfb {
+        columns.push(col(&mfb_name(pct), "deg", move |c| {
+            nan(c.burn.as_ref().and_then(|b| b.mfb(pct)))
+        }));
+    }
+    columns.extend([
+        col("dp_max", "Pa/deg", |c| burn(c, |b| b.dp_max_pa_per_deg)),
+        col("dp_max_deg", "deg", |c| burn(c, |b| b.dp_max_deg)),
+    ]);
+    if knock {
+        columns.extend([
+            col("mapo", "Pa", |c| knocked(c, |k| k.mapo_pa)),
+            col("mapo_deg", "deg", |c| knocked(c, |k| k.mapo_deg)),
+            col("impo", "Pa*deg", |c| knocked(c, |k| k.impo_pa_deg)),
+            col("knock", "-", |c| flag(c.knock.map(|k| k.knock))),
+        ]);
+    }
+    columns
+}
+
+/// What a cycle's figures are computed with: the geometry (for anything with a volume), the
+/// pegging, the heat release and knock settings, and whether the pressure is in Pa.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PerCycleSettings {
+    /// The cylinder's geometry.
+    pub geometry: Option<Geometry>,
+    /// How the pressure is referenced.
+    pub peg: Pegging,
+    /// The heat release's γ, window and burn fractions.
+    pub heat: HeatRelease,
+    /// Knock, when asked for.
+    pub knock: Option<Knock>,
+    /// The pressure is in Pa (IMEP, heat release and knock need it).
+    pub in_pa: bool,
+}
+
+/// The analysis of one cycle after another: the settings, the misfire history, and scratch
+/// reused from cycle to cycle.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PerCycle {
+    settings: PerCycleSettings,
+    history: BurnHistory,
+    /// Scratch: the pegged pressure and the volume.
+    #[serde(skip)]
+    pc: Vec<f64>,
+    #[serde(skip)]
+    vol: Vec<f64>,
+}
+
+impl PerCycle {
+    /// The analysis with these settings.
+    pub fn new(settings: PerCycleSettings) -> Self {
+        Self {
+            settings,
+            history: BurnHistory::default(),
+            pc: Vec::new(),
+            vol: Vec::new(),
+        }
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &PerCycleSettings {
+        &self.settings
+    }
+
+    /// The figures of cycle `cycle`: its samples at the times `t` [s], the angles `atdc` [deg
+    /// ATDC, increasing, from −360°] and the pressures `p` (at least two samples, and one at or
+    /// after TDC). Cycles are given in order: misfires are told from the ones before.
+    pub fn figures(&mut self, cycle: i64, t: &[f64], atdc: &[f64], p: &[f64]) -> CycleFigures {
+        let s = &self.settings;
+        let crank = s.geometry.as_ref().map(Geometry::crank);
+        let (pc, vol) = (&mut self.pc, &mut self.vol);
+        vol.clear();
+        if let Some(k) = &crank {
+            vol.extend(atdc.iter().map(|a| k.volume(a.to_radians())));
+        }
+        pc.clear();
+        pc.extend_from_slice(p);
+        let offset = match s.peg {
+            Pegging::None => 0.0,
+            Pegging::Bdc(p_ref) => p_ref - at(atdc, pc, -180.0),
+            Pegging::Polytropic(n) => {
+                let (a1, a2) = PEG_ANGLES;
+                let (p1, p2) = (at(atdc, pc, a1), at(atdc, pc, a2));
+                let (v1, v2) = (at(atdc, vol, a1).powf(n), at(atdc, vol, a2).powf(n));
+                (p2 * v2 - p1 * v1) / (v1 - v2)
+            }
+        };
+        for x in pc.iter_mut() {
+            *x += offset;
+        }
+        let p_max = pc.iter().copied().fold(f64::NAN, f64::max);
+        let p_max_deg = peak_angle(atdc, pc).unwrap_or(f64::NAN);
+        let n = t.len();
+        let span = t[n - 1] - t[0];
+        let rpm = 2.0 * 60.0 / (span * n as f64 / (n - 1) as f64);
+        let mut notes = Vec::new();
+        let mut figures = CycleFigures {
+            cycle,
+            // The firing TDC's: the first sample of the expansion.
+            t_start_s: t[atdc.partition_point(|&a| a < 0.0).min(n - 1)],
+            rpm,
+            p_max,
+            p_max_deg,
+            peg_offset: offset,
+            imep_pa: None,
+            imep_gross_pa: None,
+            pmep_pa: None,
+            n_compression: None,
+            n_expansion: None,
+            burn: None,
+            knock: None,
+            notes: Vec::new(),
+        };
+        if let Some(k) = &crank {
+            let vd = k.piston_area() * k.stroke();
+            let mut exponent = |window: (f64, f64), name: &str| {
+                polytropic(atdc, pc, vol, window)
+                    .map_err(|why| {
+                        notes.push(format!(
+                            "{name} left out: {why} between {}° and {}° ATDC",
+                            window.0, window.1
+                        ))
+                    })
+                    .ok()
+            };
+            figures.n_compression = exponent(COMPRESSION_WINDOW, "n_compression");
+            figures.n_expansion = exponent(EXPANSION_WINDOW, "n_expansion");
+            if s.in_pa {
+                let net = work(atdc, pc, vol, (-360.0, 360.0), true) / vd;
+                let gross = work(atdc, pc, vol, (-180.0, 180.0), false) / vd;
+                figures.imep_pa = Some(net);
+                figures.imep_gross_pa = Some(gross);
+                figures.pmep_pa = Some(gross - net);
+                figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max).map(|mut b| {
+                    self.history.flag(&mut b);
+                    b
+                });
+            }
+        }
+        if let (Some(k), true) = (&s.knock, s.in_pa) {
+            match k.figures(atdc, pc, rpm) {
+                Ok(f) => figures.knock = Some(f),
+                Err(why) => notes.push(why),
+            }
+        }
+        figures.notes = notes;
+        figures
+    }
+}
+
+/// `∫ p dV` over the samples within `from … to` [deg ATDC] (trapezoidal); `closed`: back to the
+/// first sample too (a loop).
+fn work(atdc: &[f64], p: &[f64], v: &[f64], (from, to): (f64, f64), closed: bool) -> f64 {
+    let (i0, i1) = (
+        atdc.partition_point(|&a| a < from),
+        atdc.partition_point(|&a| a <= to),
+    );
+    if i1 <= i0 {
+        return 0.0;
+    }
+    let mut w = 0.0;
+    for i in i0..i1 - 1 {
+        w += 0.5 * (p[i] + p[i + 1]) * (v[i + 1] - v[i]);
+    }
+    if closed {
+        w += 0.5 * (p[i1 - 1] + p[i0]) * (v[i0] - v[i1 - 1]);
+    }
+    w
+}
+
+/// `y` at the angle `a` [deg ATDC], linearly between the samples around it (the two nearest
+/// on either side, whatever their order).
+fn at(x: &[f64], y: &[f64], a: f64) -> f64 {
+    let (mut lo, mut hi) = (None::<usize>, None::<usize>);
+    for (i, &xi) in x.iter().enumerate() {
+        if xi <= a && lo.is_none_or(|l| xi > x[l]) {
+            lo = Some(i);
+        }
+        if xi >= a && hi.is_none_or(|h| xi < x[h]) {
+            hi = Some(i);
+        }
+    }
+    match (lo, hi) {
+        (Some(l), Some(h)) if x[h] > x[l] => y[l] + (a - x[l]) / (x[h] - x[l]) * (y[h] - y[l]),
+        (Some(l), _) => y[l],
+        (_, Some(h)) => y[h],
+        _ => f64::NAN,
+    }
+}
+
+/// The polytropic exponent over a window [deg ATDC]: `−slope` of `ln p` on `ln V` by least
+/// squares; refused (why) when a pressure there is not positive or with fewer than 3 samples.
+fn polytropic(
+    atdc: &[f64],
+    p: &[f64],
+    v: &[f64],
+    (from, to): (f64, f64),
+) -> Result<f64, &'static str> {
+    let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for i in (0..atdc.len()).filter(|&i| atdc[i] >= from && atdc[i] <= to) {
+        if p[i] <= 0.0 {
+            return Err("the pressure is not positive (an unpegged sensor's? --peg bdc=P or --peg polytropic=N references it)");
+        }
+        let (x, y) = (v[i].ln(), p[i].ln());
+        n += 1.0;
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        sxy += x * y;
+    }
+    let den = n * sxx - sx * sx;
+    if n >= 3.0 && den > 0.0 {
+        Ok(-(n * sxy - sx * sy) / den)
+    } else {
+        Err("fewer than 3 samples")
+    }
+}
