@@ -1,0 +1,148 @@
+//! Combustion analysis on the stream, as a [`Stage`]: the cylinder pressure of a time-basis
+//! stream taken onto a crank-angle grid from `theta_en` ([`CycleStream`]: each cycle from 360°
+//! before its firing TDC to 360° after, linear between the samples — as `physid cycles`
+//! resamples a file), and each complete cycle's figures by [`PerCycle`] — the one analysis the
+//! file verb runs too: pegging, IMEP, PMEP, exponents, heat release, burn angles, misfire and
+//! partial burn, knock.
+//!
+//! Cycles are numbered as the cycle statistics number theirs ([`crate::cycle_stage`]): the
+//! block of 720° that starts at the cycle's firing TDC, 0 for the first block that starts in
+//! the stream — so a file converted from the same stream (`convert --crank-angle`) and
+//! `physid cycles` on it give the same cycle the same number.
+
+use crate::error::AppError;
+use crate::per_cycle::{CycleFigures, PerCycle, PerCycleSettings};
+use crate::pressure::UnitCheck;
+use crate::stage::{Sink, Stage};
+use physid_core::Recording;
+use physid_signal::cycles::{CycleStream, CycleSummary};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// The combustion figures of each complete cycle of a stream's cylinder pressure (set up on
+/// the first chunk that has `theta_en` and the channel; until then a chunk passes untouched).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CombustionStage {
+    channel: String,
+    theta_tdc: f64,
+    step_deg: f64,
+    per_cycle: PerCycle,
+    /// The stream over `t`, `theta_en` and the pressure, once set up, and the index (on
+    /// `theta_en`, counted in 720° from `theta_tdc`) of the first block that starts in it.
+    stream: Option<(CycleStream, i64)>,
+    /// Scratch: the cycles a chunk completed, a cycle's angles [deg ATDC].
+    #[serde(skip)]
+    done: Vec<CycleSummary>,
+    #[serde(skip)]
+    atdc: Vec<f64>,
+}
+
+impl CombustionStage {
+    /// The figures of `channel` by `settings` (their `in_pa` is set from the stream's unit),
+    /// firing TDCs at `theta_tdc` + k·4π on `theta_en` [rad], the pressure on a grid of
+    /// `step_deg` [deg, a divisor of 720] — checked here.
+    pub fn new(
+        channel: &str,
+        settings: PerCycleSettings,
+        theta_tdc: f64,
+        step_deg: f64,
+    ) -> Result<Self, AppError> {
+        if let Some(g) = &settings.geometry {
+            g.validate()?;
+        }
+        settings.heat.validate()?;
+        if let Some(k) = &settings.knock {
+            k.validate().map_err(AppError::Invalid)?;
+        }
+        // The grid and the angle, checked once.
+        CycleStream::new(3, theta_tdc - 2.0 * PI, Some(step_deg))
+            .map_err(|e| AppError::Invalid(e.to_string()))?;
+        Ok(Self {
+            channel: channel.to_string(),
+            theta_tdc,
+            step_deg,
+            per_cycle: PerCycle::new(settings),
+            stream: None,
+            done: Vec::new(),
+            atdc: Vec::new(),
+        })
+    }
+
+    /// The settings (`in_pa` as found once the stream is set up).
+    pub fn settings(&self) -> &PerCycleSettings {
+        self.per_cycle.settings()
+    }
+
+    /// The pressure channel.
+    pub fn channel(&self) -> &str {
+        &self.channel
+    }
+}
+
+impl Stage for CombustionStage {
+    type Out = CycleFigures;
+
+    /// A value that is not finite is an error naming its sample; a pressure channel in a unit
+    /// of another quantity is refused.
+    fn push(
+        &mut self,
+        chunk: &Recording,
+        out: &mut dyn Sink<CycleFigures>,
+    ) -> Result<(), AppError> {
+        if self.stream.is_none() {
+            if chunk.channel(&self.channel).is_err() || chunk.channel("theta_en").is_err() {
+                return Ok(());
+            }
+            UnitCheck::new(chunk, &self.channel)?;
+            let in_pa = chunk.channel(&self.channel)?.unit == "Pa";
+            self.per_cycle = PerCycle::new(PerCycleSettings {
+                in_pa,
+                ..self.per_cycle.settings().clone()
+            });
+            // Cycles start 360° before their firing TDC.
+            let stream = CycleStream::new(3, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
+                .map_err(|e| AppError::Invalid(e.to_string()))?;
+            // The first block that starts in the stream: the one its first sample begins, when
+            // it sits on a firing TDC, else the next.
+            let theta0 = chunk.values("theta_en")?.first().copied().unwrap_or(0.0);
+            let first = ((theta0 - self.theta_tdc) / (4.0 * PI)).ceil() as i64;
+            self.stream = Some((stream, first));
+        }
+        let Some((stream, first)) = self.stream.as_mut() else {
+            return Ok(());
+        };
+        let (t, theta) = (chunk.values("t")?, chunk.values("theta_en")?);
+        self.done.clear();
+        stream
+            .push(
+                t,
+                theta,
+                &[t, theta, chunk.values(&self.channel)?],
+                &mut self.done,
+            )
+            .map_err(|e| {
+                AppError::Invalid(format!(
+                    "{} (channels 0, 1, 2: t, theta_en, {})",
+                    e, self.channel
+                ))
+            })?;
+        for c in self.done.drain(..) {
+            let Some(curve) = &c.curve else { continue };
+            let (t, theta, p) = (&curve[0], &curve[1], &curve[2]);
+            let n = p.len();
+            self.atdc.clear();
+            self.atdc
+                .extend((0..n).map(|k| -360.0 + k as f64 * self.step_deg));
+            // The block its firing TDC (the grid's middle) starts.
+            let tdc = theta[n / 2];
+            let cycle = ((tdc - self.theta_tdc) / (4.0 * PI)).round() as i64 - *first;
+            out.put(self.per_cycle.figures(cycle, t, &self.atdc, p));
+        }
+        Ok(())
+    }
+
+    /// The cycle in progress at the end is not complete: nothing.
+    fn finish(&mut self, _out: &mut dyn Sink<CycleFigures>) -> Result<(), AppError> {
+        Ok(())
+    }
+}

@@ -1,0 +1,176 @@
+//! The live combustion stage is the file verb: `golden/gen_wiebe.py`'s recordings (a known
+//! Wiebe burn, solved by scipy) turned into a time-basis stream — `t`, `theta_en` (the
+//! continuous crank angle), `p_cyl` — and fed in chunks of every size: each cycle's figures
+//! equal `physid cycles`' on the crank-angle file (same number, same values), the burn angles
+//! the Wiebe's, misfire and partial burn flagged alike, and a checkpoint mid-stream resumes
+//! to the same figures.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::combustion::HeatRelease;
+use physid_apps::combustion_stage::CombustionStage;
+use physid_apps::per_cycle::{figure_columns, CycleFigures, PerCycleSettings};
+use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
+use physid_apps::stage::Stage;
+use physid_core::{Basis, Channel, Recording};
+use physid_io::ReadOptions;
+use serde_json::Value;
+use std::path::PathBuf;
+
+fn golden(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden")
+        .join(name)
+}
+
+fn truth() -> Value {
+    serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap()
+}
+
+fn geometry(truth: &Value) -> Geometry {
+    let f = |k: &str| truth[k].as_f64().unwrap();
+    Geometry {
+        bore: f("bore"),
+        stroke: f("stroke"),
+        rod: f("rod"),
+        compression_ratio: f("compression_ratio"),
+    }
+}
+
+/// The crank-angle file and the same samples as a time-basis stream.
+fn file_and_stream(name: &str) -> (Recording, Recording) {
+    let units_row = ReadOptions {
+        units_row: true,
+        ..ReadOptions::default()
+    };
+    let file = physid_io::read(golden(name), &units_row).unwrap();
+    let (cycle, deg) = (
+        file.values("cycle").unwrap(),
+        file.values("crank_deg").unwrap(),
+    );
+    // The firing TDC of block 0 at θ = 0.
+    let theta: Vec<f64> = cycle
+        .iter()
+        .zip(deg)
+        .map(|(c, d)| (c * 720.0 + d).to_radians())
+        .collect();
+    let mut stream = Recording::new(Basis::Time);
+    for (name, unit, values) in [
+        ("t", "s", file.values("t").unwrap().to_vec()),
+        ("theta_en", "rad", theta),
+        ("p_cyl", "Pa", file.values("p_cyl").unwrap().to_vec()),
+    ] {
+        stream
+            .push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values,
+            })
+            .unwrap();
+    }
+    (file, stream)
+}
+
+fn settings(truth: &Value) -> PerCycleSettings {
+    PerCycleSettings {
+        geometry: Some(geometry(truth)),
+        peg: Pegging::None,
+        heat: HeatRelease::default(),
+        knock: None,
+        in_pa: true,
+    }
+}
+
+/// The stream in chunks of 1, 2, … 997 samples (cycling), a checkpoint through MessagePack
+/// after chunk `checkpoint_at`.
+fn streamed(stage: CombustionStage, stream: &Recording, checkpoint_at: usize) -> Vec<CycleFigures> {
+    let mut stage = stage;
+    let mut out = Vec::new();
+    let (mut from, mut k) = (0, 0);
+    while from < stream.len() {
+        let n = (k % 997 + 1).min(stream.len() - from);
+        stage.push(&stream.slice(from..from + n), &mut out).unwrap();
+        if k == checkpoint_at {
+            let bytes = rmp_serde::to_vec_named(&stage).unwrap();
+            stage = rmp_serde::from_slice(&bytes).unwrap();
+        }
+        from += n;
+        k += 1;
+    }
+    stage.finish(&mut out).unwrap();
+    out
+}
+
+fn same(file: &[CycleFigures], live: &[CycleFigures]) {
+    assert_eq!(
+        file.iter().map(|c| c.cycle).collect::<Vec<_>>(),
+        live.iter().map(|c| c.cycle).collect::<Vec<_>>()
+    );
+    for col in figure_columns("Pa", &[10.0, 50.0, 90.0], false) {
+        for (f, l) in file.iter().zip(live) {
+            let (a, b) = ((col.value)(f), (col.value)(l));
+            let close = (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-6 * (1.0 + a.abs());
+            assert!(
+                close,
+                "cycle {}: {} {a} (file) against {b} (live)",
+                f.cycle, col.name
+            );
+        }
+    }
+}
+
+#[test]
+fn the_stream_s_figures_are_the_file_s_cycle_by_cycle() {
+    let truth = truth();
+    let (file, stream) = file_and_stream("wiebe_flags.csv");
+    let mut a = CycleAnalyser::new(&file, "p_cyl", Some(&geometry(&truth)), Pegging::None).unwrap();
+    a.push(&file).unwrap();
+    let by_file = a.finish().unwrap().cycles;
+    let stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0).unwrap();
+    let live = streamed(stage, &stream, 7);
+    assert_eq!(live.len(), 10);
+    same(&by_file, &live);
+    let misfires: Vec<i64> = live
+        .iter()
+        .filter(|c| c.burn.as_ref().unwrap().misfire)
+        .map(|c| c.cycle)
+        .collect();
+    assert_eq!(misfires, [7]);
+}
+
+#[test]
+fn the_stream_s_burn_angles_are_the_wiebe_s() {
+    let truth = truth();
+    let (_, stream) = file_and_stream("wiebe_cycles.csv");
+    let step = truth["step_deg"].as_f64().unwrap();
+    let stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, step).unwrap();
+    let live = streamed(stage, &stream, usize::MAX);
+    assert_eq!(live.len(), 1);
+    let b = live[0].burn.as_ref().unwrap();
+    for k in ["10", "50", "90"] {
+        let want = truth["mfb_deg"][k].as_f64().unwrap();
+        let got = b.mfb(k.parse().unwrap()).unwrap();
+        assert!((got - want).abs() < 0.01, "MFB{k}: {got}° against {want}°");
+    }
+    assert!((b.heat_release_j / truth["heat_j"].as_f64().unwrap() - 1.0).abs() < 1e-4);
+}
+
+#[test]
+fn a_stream_without_the_pressure_passes_and_a_bad_one_is_named() {
+    let truth = truth();
+    let (_, stream) = file_and_stream("wiebe_cycles.csv");
+    let mut stage = CombustionStage::new("p_other", settings(&truth), 0.0, 1.0).unwrap();
+    let mut out = Vec::new();
+    stage.push(&stream, &mut out).unwrap();
+    assert!(out.is_empty());
+    // A step that does not divide 720°.
+    let e = CombustionStage::new("p_cyl", settings(&truth), 0.0, 0.7).unwrap_err();
+    assert!(e.to_string().contains("divisor of 720"), "{e}");
+    // A value not finite: named with its sample and the channel.
+    let mut bad = stream.slice(0..2000);
+    let mut p = bad.values("p_cyl").unwrap().to_vec();
+    p[1500] = f64::NAN;
+    bad.replace_values("p_cyl", p).unwrap();
+    let mut stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0).unwrap();
+    let e = stage.push(&bad, &mut out).unwrap_err().to_string();
+    assert!(e.contains("sample 1500") && e.contains("p_cyl"), "{e}");
+}
