@@ -695,9 +695,10 @@ fn cycles_of_a_raw_recording() {
         let rpm = c["rpm"].as_f64().unwrap();
         assert!(rpm > last_rpm && rpm < 2600.0, "{c}");
         last_rpm = rpm;
-        // At TDC, ±2° of noise on the pulse's flat top.
+        // At TDC, give or take the noise on the pulse's top: 3 noise σ (6 mV) against a 2 V
+        // Gaussian of σ 35° is ±2.7°, where every source sample (0.1° steps) is a candidate.
         let at = c["p_max_deg"].as_f64().unwrap();
-        assert!((-2.0..=2.0).contains(&at), "{c}");
+        assert!((-2.7..=2.7).contains(&at), "{c}");
         assert!(
             (c["p_max"].as_f64().unwrap() / 2.5e6 - 1.0).abs() < 0.01,
             "{c}"

@@ -935,8 +935,10 @@ fn the_crank_angle_verbs_read_as_they_go_and_answer_as_on_the_whole() {
     let mut deg = Recording::new(motored.basis);
     for (angle, motored) in [("theta_en", &motored), ("counts", &counts_only)] {
         deg = to_crank_angle(motored, &opts, 1.0).unwrap();
+        // `cycles` resamples at 0.1° unless told otherwise; `compression fit` at 1°.
+        let fine = to_crank_angle(motored, &opts, 0.1).unwrap();
         let want_cycles = serde_json::to_value(
-            analyse(&deg, "p_cyl", Some(&geometry), Pegging::Bdc(1e5)).unwrap(),
+            analyse(&fine, "p_cyl", Some(&geometry), Pegging::Bdc(1e5)).unwrap(),
         )
         .unwrap();
         assert!(want_cycles["cycles"].as_array().unwrap().len() > 40);
@@ -1310,8 +1312,10 @@ fn sensor_file_answers_as_the_whole(
         rod: 0.088,
         compression_ratio: 9.5,
     };
+    // `cycles` resamples at 0.1° unless told otherwise; `compression fit` at 1°.
+    let (fine, _) = to_crank_angle_decoded(&rec, &aopts, 0.1).unwrap();
     let want_cycles =
-        serde_json::to_value(analyse(&deg, "p_cyl", Some(&geometry), Pegging::Bdc(1e5)).unwrap())
+        serde_json::to_value(analyse(&fine, "p_cyl", Some(&geometry), Pegging::Bdc(1e5)).unwrap())
             .unwrap();
     assert!(want_cycles["cycles"].as_array().unwrap().len() > 30);
     let want_fit = serde_json::to_value(

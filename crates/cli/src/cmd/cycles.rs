@@ -36,6 +36,16 @@ pub struct Args {
     /// geometry and the pressure in Pa).
     #[arg(long, default_value_t = physid_apps::combustion::DEFAULT_GAMMA)]
     pub gamma: f64,
+    /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
+    #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
+    pub mfb: Vec<f64>,
+    #[command(flatten)]
+    pub knock: KnockArgs,
+    /// Crank-angle step of a time-basis recording's resampling [deg] (a divisor of 720; finer
+    /// than the source's own samples is interpolation between them). Knock needs a step the
+    /// band fits in: at most 6·rpm / (2.5·f_high).
+    #[arg(long, default_value_t = 0.1)]
+    pub step_deg: f64,
     #[command(flatten)]
     pub angle: AngleArgs,
     /// Print JSON.
@@ -47,6 +57,52 @@ pub struct Args {
     /// this file (.csv, .parquet or .mf4), with units.
     #[arg(long, value_name = "FILE")]
     pub tracks: Option<PathBuf>,
+}
+
+/// Knock's flags.
+#[derive(clap::Args)]
+pub struct KnockArgs {
+    /// Knock per cycle: the pressure band-passed (zero phase), its maximum amplitude (MAPO) and
+    /// integral of modulus (IMPO) in a window after TDC, a flag above a threshold (with the
+    /// geometry not needed, the pressure in Pa, a step fine enough for the band).
+    #[arg(long)]
+    pub knock: bool,
+    /// The knock band [Hz].
+    #[arg(
+        long,
+        value_name = "LOW,HIGH",
+        value_delimiter = ',',
+        num_args = 2,
+        requires = "knock"
+    )]
+    pub knock_band: Option<Vec<f64>>,
+    /// The knock window [deg ATDC].
+    #[arg(
+        long,
+        value_name = "FROM,TO",
+        value_delimiter = ',',
+        num_args = 2,
+        requires = "knock",
+        allow_hyphen_values = true
+    )]
+    pub knock_window: Option<Vec<f64>>,
+    /// A cycle knocks when its MAPO exceeds this [Pa] (set it for the engine).
+    #[arg(long, value_name = "PA", default_value_t = physid_apps::knock::DEFAULT_THRESHOLD_PA)]
+    pub knock_threshold: f64,
+}
+
+impl KnockArgs {
+    /// The knock settings asked for.
+    pub fn knock(&self) -> Option<physid_apps::knock::Knock> {
+        use physid_apps::knock::Knock;
+        let d = Knock::default();
+        let pair = |v: &Option<Vec<f64>>, d: (f64, f64)| v.as_ref().map_or(d, |v| (v[0], v[1]));
+        self.knock.then(|| Knock {
+            band_hz: pair(&self.knock_band, d.band_hz),
+            window: pair(&self.knock_window, d.window),
+            threshold_pa: self.knock_threshold,
+        })
+    }
 }
 
 /// The per-cycle table as a tracks file (crate::tracks).
@@ -71,16 +127,22 @@ pub fn run(args: &Args) -> Result<()> {
     let geometry = args.geometry.full()?;
     let mut input = crank_input(&args.input, &args.file, &args.angle, &args.geometry.crank)?;
     input.quiet = args.json;
+    input.step_deg = args.step_deg;
+    let knock = args.knock.knock();
     let (analyser, wheel) = input
         .read(
             Some(&[args.channel.as_str()]),
             |h| {
-                CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg)?.with_heat_release(
-                    HeatRelease {
+                let a = CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg)?
+                    .with_heat_release(HeatRelease {
                         gamma: args.gamma,
+                        mfb: args.mfb.clone(),
                         ..HeatRelease::default()
-                    },
-                )
+                    })?;
+                match knock {
+                    Some(k) => a.with_knock(k),
+                    None => Ok(a),
+                }
             },
             |a, chunk| a.push(chunk),
         )
@@ -153,8 +215,8 @@ pub fn run(args: &Args) -> Result<()> {
             opt(c.imep_gross_pa, 1e-3, 2),
             opt(c.n_compression, 1.0, 3),
             opt(c.n_expansion, 1.0, 3),
-            opt(c.burn.map(|b| b.heat_release_j), 1.0, 1),
-            opt(c.burn.and_then(|b| b.mfb50_deg), 1.0, 2)
+            opt(c.burn.as_ref().map(|b| b.heat_release_j), 1.0, 1),
+            opt(c.burn.as_ref().and_then(|b| b.mfb(50.0)), 1.0, 2)
         );
     }
     if let Some(cov) = a.cov_imep {
