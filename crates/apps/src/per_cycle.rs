@@ -24,6 +24,11 @@ use crate::combustion::{burn, mfb_name, peak_angle, Burn, BurnHistory, HeatRelea
 use crate::knock::{Knock, KnockFigures};
 use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
 
+/// A cycle whose pressure peaks further than this from its TDC [deg] is taken to be a
+/// revolution out of phase (a fired or motored cylinder peaks within a few tens of degrees of
+/// its firing TDC): no heat release, a note.
+pub const PHASE_SUSPECT_DEG: f64 = 90.0;
+
 /// One cycle's figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CycleFigures {
@@ -170,6 +175,9 @@ pub struct PerCycle {
     pc: Vec<f64>,
     #[serde(skip)]
     vol: Vec<f64>,
+    /// The angles `vol` is at.
+    #[serde(skip)]
+    vol_atdc: Vec<f64>,
 }
 
 impl PerCycle {
@@ -180,6 +188,7 @@ impl PerCycle {
             history: BurnHistory::default(),
             pc: Vec::new(),
             vol: Vec::new(),
+            vol_atdc: Vec::new(),
         }
     }
 
@@ -194,11 +203,17 @@ impl PerCycle {
     pub fn figures(&mut self, cycle: i64, t: &[f64], atdc: &[f64], p: &[f64]) -> CycleFigures {
         let s = &self.settings;
         let crank = s.geometry.as_ref().map(Geometry::crank);
-        let (pc, vol) = (&mut self.pc, &mut self.vol);
-        vol.clear();
-        if let Some(k) = &crank {
-            vol.extend(atdc.iter().map(|a| k.volume(a.to_radians())));
+        // The volume at the cycle's angles: kept while the angles are the same (a grid).
+        if self.vol_atdc.as_slice() != atdc || self.vol.len() != atdc.len() {
+            self.vol.clear();
+            if let Some(k) = &crank {
+                self.vol
+                    .extend(atdc.iter().map(|a| k.volume(a.to_radians())));
+                self.vol_atdc.clear();
+                self.vol_atdc.extend_from_slice(atdc);
+            }
         }
+        let (pc, vol) = (&mut self.pc, &self.vol);
         pc.clear();
         pc.extend_from_slice(p);
         let offset = match s.peg {
@@ -257,10 +272,16 @@ impl PerCycle {
                 figures.imep_pa = Some(net);
                 figures.imep_gross_pa = Some(gross);
                 figures.pmep_pa = Some(gross - net);
-                figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max).map(|mut b| {
-                    self.history.flag(&mut b);
-                    b
-                });
+                if p_max_deg.abs() > PHASE_SUSPECT_DEG {
+                    notes.push(format!(
+                        "no heat release: the pressure peaks more than {PHASE_SUSPECT_DEG}° from TDC — the firing TDC is likely a revolution off (--phase-from p_cyl tells which revolution fires)"
+                    ));
+                } else {
+                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max).map(|mut b| {
+                        self.history.flag(&mut b);
+                        b
+                    });
+                }
             }
         }
         if let (Some(k), true) = (&s.knock, s.in_pa) {

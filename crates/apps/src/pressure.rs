@@ -349,6 +349,9 @@ impl CycleAnalyser {
         }
         let unit = header.channel(p_channel)?.unit.clone();
         let mut notes = Vec::new();
+        if let Some(phase) = header.meta.get("phase") {
+            notes.push(format!("phase: {phase}"));
+        }
         if geometry.is_some() && unit != "Pa" {
             notes.push(format!(
                 "'{p_channel}' is in '{unit}', not Pa: no IMEP (calibrate it with --scale {p_channel}=GAIN,OFFSET into Pa)"
@@ -539,8 +542,17 @@ impl CycleAnalyser {
             return;
         };
         let complete = self.per_cycle().filter(|&n| c >= 0.0 && len == n);
+        // The block's halves, split half a step before 360° (angles carry rounding).
+        let half_step = 0.5 * self.step.step().unwrap_or(0.0);
+        let head = self.run_deg.partition_point(|&d| d < 360.0 - half_step);
+        // The recording's last block, cut short after its first half: the expansion is whole.
+        let expansion = complete.or_else(|| {
+            self.per_cycle().filter(|&n| {
+                c >= 0.0 && head == n / 2 && self.run_deg.first().is_some_and(|&d| d < half_step)
+            })
+        });
         let prev = self.tail.take();
-        match (complete, prev) {
+        match (expansion, prev) {
             (Some(_), Some(tail))
                 if tail.cycle + 1.0 == c
                     && !tail.t.is_empty()
@@ -548,14 +560,29 @@ impl CycleAnalyser {
             {
                 // The cycle's samples: the compression (the block before's second half,
                 // −360° … 0 ATDC) …
-                let head = self.run_deg.partition_point(|&d| d < 360.0);
                 let mut t = tail.t;
                 let mut p = tail.p;
+                // Angles on the grid where they are off it by rounding only (a resampled file's
+                // 536.9999999999982°), so that a window's ends take the same samples as the
+                // stream's exact grid.
+                // The step a cycle of n samples has (the first advance carries rounding too).
+                let step = self
+                    .per_cycle()
+                    .map_or(2.0 * half_step, |n| 720.0 / n as f64);
+                let snap = |d: f64| {
+                    let g = (d / step).round() * step;
+                    if (d - g).abs() < 1e-9 * step {
+                        g
+                    } else {
+                        d
+                    }
+                };
                 self.atdc.clear();
-                self.atdc.extend(tail.deg.iter().map(|d| d - 720.0));
+                self.atdc.extend(tail.deg.iter().map(|&d| snap(d) - 720.0));
                 // … and the expansion (this block's first half, 0 … 360°).
                 t.extend_from_slice(&self.run_t[..head]);
-                self.atdc.extend_from_slice(&self.run_deg[..head]);
+                self.atdc
+                    .extend(self.run_deg[..head].iter().map(|&d| snap(d)));
                 p.extend_from_slice(&self.run_p[..head]);
                 let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p);
                 self.cycles.push(f);
@@ -563,9 +590,12 @@ impl CycleAnalyser {
             (Some(_), _) => self.no_compression += 1,
             (None, _) => self.partial += 1,
         }
+        if complete.is_none() && expansion.is_some() {
+            // Its second half, cut short, is the next cycle's compression: that cycle is partial.
+            self.partial += 1;
+        }
         // The second half is the next cycle's compression when it is whole: the block is, or it
         // is the recording's first, begun before 360° (a file that starts mid-cycle).
-        let head = self.run_deg.partition_point(|&d| d < 360.0);
         let half = self.run_deg.len() - head;
         let whole_half = self.per_cycle().is_some_and(|n| {
             head > 0 && half + 1 >= n / 2 && half <= n / 2 + 1 && self.cycles.is_empty()

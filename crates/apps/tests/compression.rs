@@ -288,6 +288,7 @@ fn wheel_options(offset: f64, phase_from: Option<&str>) -> AcquisitionOptions {
             tdc_offset_deg: offset,
             phase_from: phase_from.map(String::from),
         }),
+        phase_from: None,
     }
 }
 

@@ -215,6 +215,24 @@ pub enum Event {
         #[serde(skip_serializing_if = "Option::is_none")]
         curve: Option<Curve>,
     },
+    /// A cycle's combustion figures (`physid cycles`' per cycle, on the stream; the cycle from
+    /// 360° before its firing TDC to 360° after): `{"type": "combustion", "cycle": n, "t_s": …,
+    /// "figures": {"imep": …, "mfb50_deg": …, "mapo": …, …}, "notes": […]}` — `figures` named
+    /// and in the units of `physid cycles --tracks`' columns (null where not computed; flags
+    /// 1/0), `t_s` the time of its firing TDC.
+    Combustion {
+        /// Cycle index (the block of 720° its firing TDC starts, as `cycle` events count).
+        cycle: i64,
+        /// The time of its firing TDC [s].
+        #[serde(deserialize_with = "nan_null::f64")]
+        t_s: f64,
+        /// The figures by their column names.
+        #[serde(deserialize_with = "nan_null::map")]
+        figures: BTreeMap<Name, f64>,
+        /// What was left out of this cycle's figures, and why.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        notes: Vec<String>,
+    },
     /// The panel's time traces, decimated (bin means): `{"type": "trace", "t_s": …, "t": […],
     /// "channels": {"omega_en": […], …}}`; not printed headless.
     Trace {

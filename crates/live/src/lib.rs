@@ -43,6 +43,7 @@ pub use layout::Layout;
 pub use message::{Hello, PanelMessage, Reply};
 pub use panel::{Access, Panel};
 pub use service::{
-    run_live, FrictionLive, LiveConfig, LiveError, PanelFeed, Stages, Summary, TorqueLive,
+    run_live, CombustionLive, FrictionLive, LiveConfig, LiveError, PanelFeed, Stages, Summary,
+    TorqueLive,
 };
 pub use source::{Pace, ReplaySource, ScenarioSource, Source};

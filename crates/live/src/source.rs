@@ -3,7 +3,7 @@
 use crate::control::Control;
 use crate::service::LiveError;
 use physid_apps::acquisition::{
-    file_time_basis_chunks, from_first_marker, mean_rate, on_time_basis, time_basis_chunks,
+    file_time_basis_chunks, from_first_marker_phased, mean_rate, on_time_basis, time_basis_chunks,
     uniform_step, AcquisitionOptions, StepCheck,
 };
 use physid_apps::angle_input::AngleInput;
@@ -135,20 +135,40 @@ impl ReplaySource {
         let chunks = (0..n.max(1))
             .step_by(CHUNK_ROWS)
             .map(move |start| Ok(rec.slice(start..start + CHUNK_ROWS)));
-        Self::from_chunks(Box::new(chunks), chunk_s)
+        Self::from_chunks(Box::new(chunks), chunk_s, &AcquisitionOptions::default())
     }
 
     /// The file `path`, read as it comes with `opts`, in chunks of `chunk_s` seconds.
     pub fn open(path: &Path, opts: &ReadOptions, chunk_s: f64) -> Result<Self, LiveError> {
+        Self::open_phased(path, opts, chunk_s, None)
+    }
+
+    /// [`open`](Self::open), the firing revolution told from `phase_from` (`NAME` or
+    /// `NAME:low`, [`MarkerPhase`](physid_apps::acquisition::MarkerPhase)) when the TDC comes
+    /// from a marker once per revolution.
+    pub fn open_phased(
+        path: &Path,
+        opts: &ReadOptions,
+        chunk_s: f64,
+        phase_from: Option<&str>,
+    ) -> Result<Self, LiveError> {
+        let acq = AcquisitionOptions {
+            phase_from: phase_from.map(str::to_string),
+            ..AcquisitionOptions::default()
+        };
         let reader = ChunkReader::open(path, opts)?;
         if reader.header().basis == Basis::CrankAngle {
             // At the mean rate of the whole recording, resampled as it is read, in the chunks
             // the recording put on a time basis whole would give.
             let header = reader.header().clone();
             let chunks = file_time_basis_chunks(path, opts, &header, reader)?;
-            return Self::from_chunks(Box::new(chunks), chunk_s);
+            return Self::from_chunks(Box::new(chunks), chunk_s, &acq);
         }
-        Self::from_chunks(Box::new(reader.map(|c| c.map_err(AppError::from))), chunk_s)
+        Self::from_chunks(
+            Box::new(reader.map(|c| c.map_err(AppError::from))),
+            chunk_s,
+            &acq,
+        )
     }
 
     /// A time-basis file whose engine angle `plan` decodes (an encoder's counts and marker, a
@@ -196,16 +216,20 @@ impl ReplaySource {
             .recv()
             .map_err(|_| LiveError::Invalid("the angle's decoding stopped".into()))??;
         let chunks = time_basis_chunks(&header, rx, rate, CHUNK_ROWS)?;
-        Self::from_chunks(Box::new(chunks), chunk_s)
+        Self::from_chunks(Box::new(chunks), chunk_s, &AcquisitionOptions::default())
     }
 
-    fn from_chunks(chunks: Chunks, chunk_s: f64) -> Result<Self, LiveError> {
+    fn from_chunks(
+        chunks: Chunks,
+        chunk_s: f64,
+        acq: &AcquisitionOptions,
+    ) -> Result<Self, LiveError> {
         if !(chunk_s.is_finite() && chunk_s > 0.0) {
             return Err(LiveError::Invalid(format!(
                 "chunk of {chunk_s} s: expected > 0"
             )));
         }
-        let (theta_tdc, chunks) = from_first_marker(chunks, &AcquisitionOptions::default())?;
+        let (theta_tdc, _, chunks) = from_first_marker_phased(chunks, acq)?;
         let theta_tdc = theta_tdc.unwrap_or(0.0);
         let mut chunks: Chunks = Box::new(chunks);
         let first = chunks

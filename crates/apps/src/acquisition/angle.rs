@@ -14,14 +14,31 @@ pub(super) fn engine_angle(
     let t = rec.values("t")?;
     if let Ok(theta) = rec.values("theta_en") {
         // Its value at the marker (as `from_first_marker` takes it on a stream).
-        let tdc = match rec.values(&opts.marker).ok().and_then(first_marker) {
+        let marker = rec.values(&opts.marker).ok().and_then(first_marker);
+        let mut tdc = match marker {
             Some(i) => theta[i],
             None => first_tdc(theta.first().copied().unwrap_or(0.0)),
         };
+        let mut told = None;
+        if let Some(from) = &opts.phase_from {
+            // Which revolution fires (as `from_first_marker_phased` tells it on a stream).
+            let mut phase = MarkerPhase::new(from);
+            let p = rec.values(phase.channel())?;
+            phase.marker_at(tdc);
+            for (&th, &p) in theta.iter().zip(p) {
+                phase.push(th, p);
+                if phase.done() {
+                    break;
+                }
+            }
+            let (at, how) = phase.finish()?;
+            (tdc, told) = (at, Some(how));
+        }
         return Ok(EngineAngle {
             t: t.to_vec(),
             theta: theta.to_vec(),
             tdc,
+            phase: phase_note(marker.is_some(), told),
         });
     }
     // An encoder's counts: the same scan as on a stream, in one chunk.
@@ -32,6 +49,7 @@ pub(super) fn engine_angle(
         tdc: scan.finish()?,
         t,
         theta,
+        phase: None,
     })
 }
 
@@ -67,6 +85,11 @@ impl CountsScan {
     /// The scan of the first of `opts.encoders` that `header` has — or the error that the
     /// recording has no engine angle at all.
     pub fn new(header: &Recording, opts: &AcquisitionOptions) -> Result<Self, AcquisitionError> {
+        if let Some(from) = &opts.phase_from {
+            return Err(AcquisitionError::Invalid(format!(
+                "--phase-from {from} with an encoder's counts (no theta_en) is not supported yet: the firing TDC would be the first marker's — give the angle as theta_en, or the raw sensor with --wheel or --quadrature, with --phase-from"
+            )));
+        }
         let (name, ppr) = opts
             .encoders
             .iter()
@@ -247,6 +270,8 @@ pub(super) struct EngineAngle {
     pub(super) theta: Vec<f64>,
     /// The first firing TDC's angle [rad].
     pub(super) tdc: f64,
+    /// How the firing revolution was told ([`phase_note`]).
+    pub(super) phase: Option<String>,
 }
 
 /// What decoding a raw angle sensor found, and where the firing TDC lies on its angle.
@@ -335,6 +360,51 @@ where
         }
     }
     Ok((tdc, held.into_iter().map(Ok).chain(chunks)))
+}
+
+/// [`from_first_marker`], with the phase told from `opts.phase_from` when given
+/// ([`MarkerPhase`]: the chunks of its first revolutions after the marker held too; without a
+/// marker, from the first multiple of 4π on `theta_en`): the firing TDC's angle, how the phase
+/// was told ([`phase_note`]), the chunks.
+#[allow(clippy::type_complexity)]
+pub fn from_first_marker_phased<I, E>(
+    chunks: I,
+    opts: &AcquisitionOptions,
+) -> Result<
+    (
+        Option<f64>,
+        Option<String>,
+        impl Iterator<Item = Result<Recording, E>>,
+    ),
+    AppError,
+>
+where
+    I: IntoIterator<Item = Result<Recording, E>>,
+    AppError: From<E>,
+{
+    let (tdc, chunks) = from_first_marker(chunks, opts)?;
+    let mut chunks = chunks.peekable();
+    let Some(from) = &opts.phase_from else {
+        let note = phase_note(tdc.is_some(), None);
+        return Ok((tdc, note, Vec::new().into_iter().chain(chunks)));
+    };
+    let mut phase = MarkerPhase::new(from);
+    let mut held = Vec::new();
+    while !phase.done() {
+        let Some(chunk) = chunks.next() else { break };
+        let chunk = chunk?;
+        let theta = chunk.values("theta_en")?;
+        if !phase.has_marker() {
+            phase
+                .marker_at(tdc.unwrap_or_else(|| first_tdc(theta.first().copied().unwrap_or(0.0))));
+        }
+        for (&th, &p) in theta.iter().zip(chunk.values(phase.channel())?) {
+            phase.push(th, p);
+        }
+        held.push(Ok(chunk));
+    }
+    let (at, told) = phase.finish()?;
+    Ok((Some(at), Some(told), held.into_iter().chain(chunks)))
 }
 
 /// The firing TDC's angle on `theta_en` at a stream's first TDC marker, a chunk at a time: the

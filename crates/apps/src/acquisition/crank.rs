@@ -50,6 +50,7 @@ pub fn to_crank_angle_decoded(
         )));
     }
     let mut stream = CrankAngleStream::new(rec, opts, angle.tdc, step_deg)?;
+    stream.note_phase(angle.phase);
     stream.push_angle(&angle.t, &angle.theta)?;
     stream.resampler.finish_angle();
     let mut out = stream.push_channels(rec)?;
@@ -81,7 +82,7 @@ where
     AppError: From<E>,
 {
     header.channel("theta_en")?;
-    let (tdc, chunks) = from_first_marker(chunks, opts)?;
+    let (tdc, phase, chunks) = from_first_marker_phased(chunks, opts)?;
     let mut chunks = chunks.peekable();
     let tdc = match (tdc, chunks.peek()) {
         (Some(tdc), _) => tdc,
@@ -91,6 +92,7 @@ where
         (None, _) => 0.0,
     };
     let mut stream = CrankAngleStream::new(header, opts, tdc, step_deg)?;
+    stream.note_phase(phase);
     let out_header = stream.header()?;
     let (mut done, mut samples) = (false, 0);
     let iter = std::iter::from_fn(move || {
@@ -356,6 +358,13 @@ impl CrankAngleStream {
     pub fn finish(&mut self) -> Result<Recording, AcquisitionError> {
         self.resampler.finish(&mut self.out);
         self.emit()
+    }
+
+    /// How the firing revolution was told, in the output's `phase` metadata.
+    pub fn note_phase(&mut self, phase: Option<String>) {
+        if let Some(p) = phase {
+            self.meta.insert("phase".into(), p);
+        }
     }
 
     /// The crank-angle recording's channels, without samples.

@@ -31,6 +31,7 @@ mod angle;
 mod crank;
 mod filter;
 mod inspect;
+mod marker_phase;
 pub mod sensor;
 mod time;
 
@@ -38,6 +39,7 @@ pub use angle::*;
 pub use crank::*;
 pub use filter::*;
 pub use inspect::*;
+pub use marker_phase::*;
 pub use time::*;
 
 /// Errors of the acquisition functions.
@@ -71,6 +73,10 @@ pub struct AcquisitionOptions {
     /// angle when the recording has no `theta_en` (`--wheel CHANNEL=N-M`,
     /// `--quadrature A,B[,Z]=LINES`).
     pub sensor: Option<AngleSpec>,
+    /// Without a sensor: which revolution of two fires when the marker comes once per
+    /// revolution ([`MarkerPhase`]; `NAME` or `NAME:low`); `None`: the first marker's TDC is
+    /// taken as firing (without a marker, the first multiple of 4π on `theta_en`).
+    pub phase_from: Option<String>,
 }
 
 /// A raw angle sensor on the crankshaft.
@@ -199,6 +205,7 @@ impl Default for AcquisitionOptions {
             encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
             marker: TDC_MARKER.into(),
             sensor: None,
+            phase_from: None,
         }
     }
 }

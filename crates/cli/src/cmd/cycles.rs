@@ -4,13 +4,13 @@
 //! pegging (`physid_apps::pressure`, `physid_apps::combustion`). A time-basis recording is taken to one sample per crank degree
 //! first (its engine angle from `theta_en`, an encoder, or a trigger wheel with `--wheel`).
 
+use super::combustion_args::CombustionArgs;
 use super::{GeometryArgs, InputArgs};
 use crate::cmd::crank_input::{crank_input, read_error};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
-use miette::{miette, IntoDiagnostic, Result};
-use physid_apps::combustion::HeatRelease;
-use physid_apps::pressure::{CycleAnalyser, Pegging};
+use miette::{IntoDiagnostic, Result};
+use physid_apps::pressure::CycleAnalyser;
 use std::path::PathBuf;
 
 /// Arguments of `physid cycles`.
@@ -28,19 +28,9 @@ pub struct Args {
     /// alone serve --tdc-from).
     #[command(flatten)]
     pub geometry: GeometryArgs,
-    /// Pressure referencing per cycle: `bdc=P` (P, in the channel's unit, at BDC of the intake
-    /// stroke) or `polytropic=N` (the offset that makes p·V^N constant on compression).
-    #[arg(long, value_name = "bdc=P|polytropic=N")]
-    pub peg: Option<String>,
-    /// The ratio of specific heats of the single-zone heat release (constant; with the
-    /// geometry and the pressure in Pa).
-    #[arg(long, default_value_t = physid_apps::combustion::DEFAULT_GAMMA)]
-    pub gamma: f64,
-    /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
-    #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
-    pub mfb: Vec<f64>,
+    /// Pegging, heat release, burn fractions, knock.
     #[command(flatten)]
-    pub knock: KnockArgs,
+    pub combustion: CombustionArgs,
     /// Crank-angle step of a time-basis recording's resampling [deg] (a divisor of 720; finer
     /// than the source's own samples is interpolation between them). Knock needs a step the
     /// band fits in: at most 6·rpm / (2.5·f_high).
@@ -57,52 +47,6 @@ pub struct Args {
     /// this file (.csv, .parquet or .mf4), with units.
     #[arg(long, value_name = "FILE")]
     pub tracks: Option<PathBuf>,
-}
-
-/// Knock's flags.
-#[derive(clap::Args)]
-pub struct KnockArgs {
-    /// Knock per cycle: the pressure band-passed (zero phase), its maximum amplitude (MAPO) and
-    /// integral of modulus (IMPO) in a window after TDC, a flag above a threshold (with the
-    /// geometry not needed, the pressure in Pa, a step fine enough for the band).
-    #[arg(long)]
-    pub knock: bool,
-    /// The knock band [Hz].
-    #[arg(
-        long,
-        value_name = "LOW,HIGH",
-        value_delimiter = ',',
-        num_args = 2,
-        requires = "knock"
-    )]
-    pub knock_band: Option<Vec<f64>>,
-    /// The knock window [deg ATDC].
-    #[arg(
-        long,
-        value_name = "FROM,TO",
-        value_delimiter = ',',
-        num_args = 2,
-        requires = "knock",
-        allow_hyphen_values = true
-    )]
-    pub knock_window: Option<Vec<f64>>,
-    /// A cycle knocks when its MAPO exceeds this [Pa] (set it for the engine).
-    #[arg(long, value_name = "PA", default_value_t = physid_apps::knock::DEFAULT_THRESHOLD_PA)]
-    pub knock_threshold: f64,
-}
-
-impl KnockArgs {
-    /// The knock settings asked for.
-    pub fn knock(&self) -> Option<physid_apps::knock::Knock> {
-        use physid_apps::knock::Knock;
-        let d = Knock::default();
-        let pair = |v: &Option<Vec<f64>>, d: (f64, f64)| v.as_ref().map_or(d, |v| (v[0], v[1]));
-        self.knock.then(|| Knock {
-            band_hz: pair(&self.knock_band, d.band_hz),
-            window: pair(&self.knock_window, d.window),
-            threshold_pa: self.knock_threshold,
-        })
-    }
 }
 
 /// The per-cycle table as a tracks file (crate::tracks).
@@ -123,23 +67,18 @@ fn write_tracks(path: &std::path::Path, a: &physid_apps::pressure::CycleAnalysis
 
 /// Run `physid cycles`.
 pub fn run(args: &Args) -> Result<()> {
-    let peg = Pegging::parse(args.peg.as_deref()).map_err(|e| miette!("{e}"))?;
     let geometry = args.geometry.full()?;
+    let settings = args.combustion.settings(geometry)?;
     let mut input = crank_input(&args.input, &args.file, &args.angle, &args.geometry.crank)?;
     input.quiet = args.json;
     input.step_deg = args.step_deg;
-    let knock = args.knock.knock();
     let (analyser, wheel) = input
         .read(
             Some(&[args.channel.as_str()]),
             |h| {
-                let a = CycleAnalyser::new(h, &args.channel, geometry.as_ref(), peg)?
-                    .with_heat_release(HeatRelease {
-                        gamma: args.gamma,
-                        mfb: args.mfb.clone(),
-                        ..HeatRelease::default()
-                    })?;
-                match knock {
+                let a = CycleAnalyser::new(h, &args.channel, geometry.as_ref(), settings.peg)?
+                    .with_heat_release(settings.heat.clone())?;
+                match settings.knock {
                     Some(k) => a.with_knock(k),
                     None => Ok(a),
                 }

@@ -69,6 +69,9 @@ impl AngleArgs {
     pub fn options(&self) -> Result<AcquisitionOptions> {
         let mut o = acquisition_options(&self.encoders, &self.marker)?;
         o.sensor = self.wheel.spec()?;
+        if o.sensor.is_none() {
+            o.phase_from = self.wheel.phase_from.clone();
+        }
         Ok(o)
     }
 }
@@ -119,10 +122,12 @@ pub struct WheelArgs {
         allow_negative_numbers = true
     )]
     pub tdc_offset: f64,
-    /// With --wheel or --quadrature: which revolution of two fires — the one whose TDC has the
-    /// higher mean of CHANNEL over the revolution around it: the cylinder pressure, or a cam
-    /// sensor high (or pulsing) there; CHANNEL:low for a cam that marks the other revolution.
-    #[arg(long, value_name = "CHANNEL[:low]", requires = "sensor")]
+    /// Which revolution of two fires — the one whose TDC has the higher mean of CHANNEL over
+    /// the revolution around it: the cylinder pressure, or a cam sensor high (or pulsing)
+    /// there; CHANNEL:low for a cam that marks the other revolution. With --wheel or
+    /// --quadrature, over the whole recording; with a TDC marker once per revolution (an
+    /// encoder's index, `theta_en`), over the first 8 revolutions after it.
+    #[arg(long, value_name = "CHANNEL[:low]")]
     pub phase_from: Option<String>,
     /// With --wheel or --quadrature: place the TDC from this motored cylinder-pressure channel
     /// instead of --tdc-offset — the motored model's TDC (with the thermodynamic loss angle,

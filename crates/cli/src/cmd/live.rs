@@ -99,8 +99,6 @@ pub struct Args {
     // then replayed on a time basis at its mean rate.
     #[command(flatten)]
     angle: super::inspect::AngleArgs,
-    #[command(flatten)]
-    crank: super::CrankArgs,
     /// The virtual cell's scenario: a built-in name or a TOML file [default: shaft-steady].
     #[arg(long)]
     scenario: Option<String>,
@@ -319,10 +317,16 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
         ),
         (Some(path), None) => {
             let replay = if decode {
-                let plan = super::crank_input::crank_input(&a.input, path, &a.angle, &a.crank)?;
+                let plan =
+                    super::crank_input::crank_input(&a.input, path, &a.angle, a.stages.crank())?;
                 ReplaySource::open_angle(plan, a.chunk)
             } else {
-                ReplaySource::open(path, &a.input.options(None)?, a.chunk)
+                ReplaySource::open_phased(
+                    path,
+                    &a.input.options(None)?,
+                    a.chunk,
+                    a.angle.wheel.phase_from.as_deref(),
+                )
             }
             .map_err(|e| match e {
                 LiveError::Io(e) => miette!("{e}"),

@@ -1,13 +1,14 @@
 //! The application stages a live run adds to the shaft monitor, the cycle statistics and the
-//! integrity checks — the friction characterisation and the cyclic-torque estimation — as flags
-//! shared by `physid live` and `physid worker` (a fleet's workers run them on every cell).
+//! integrity checks — the friction characterisation, the cyclic-torque estimation and the
+//! combustion analysis — as flags shared by `physid live` and `physid worker` (a fleet's
+//! workers run them on every cell).
 
 use miette::{miette, Result};
 use physid_apps::friction_fit::{
     friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
 };
 use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
-use physid_live::{FrictionLive, LiveConfig, TorqueLive};
+use physid_live::{CombustionLive, FrictionLive, LiveConfig, TorqueLive};
 use physid_sim::params::CellParams;
 
 /// The friction and cyclic-torque stages' flags.
@@ -50,9 +51,30 @@ pub struct StageFlags {
     /// coordinates, e.g. M_rec=1e-6 to follow a reciprocating-mass change.
     #[arg(long, value_delimiter = ',', requires = "torque")]
     torque_track: Vec<String>,
+    /// Analyse each cycle's combustion on the stream, as `physid cycles` does a file, from
+    /// this cylinder-pressure channel (p_cyl when none is named): `combustion` events. The
+    /// geometry is the virtual cell's engine unless --bore, --stroke, --rod and
+    /// --compression-ratio give it.
+    #[arg(long, value_name = "CHANNEL", num_args = 0..=1, default_missing_value = "p_cyl")]
+    combustion: Option<String>,
+    /// The cylinder's geometry for --combustion (`live`: the crank's lengths for --tdc-from
+    /// too).
+    #[command(flatten)]
+    geometry: super::GeometryArgs,
+    /// Pegging, heat release, burn fractions, knock for --combustion.
+    #[command(flatten)]
+    combustion_args: super::combustion_args::CombustionArgs,
+    /// The crank-angle step [deg] the pressure is taken onto for --combustion.
+    #[arg(long, default_value_t = 0.1)]
+    step_deg: f64,
 }
 
 impl StageFlags {
+    /// The crank's lengths and compression ratio given.
+    pub fn crank(&self) -> &super::CrankArgs {
+        &self.geometry.crank
+    }
+
     /// The stages asked for, added to `cfg`; a preset, a source or a count out of range is
     /// refused with what is expected.
     pub fn apply(&self, cfg: &mut LiveConfig) -> Result<()> {
@@ -101,6 +123,34 @@ impl StageFlags {
                 fit,
                 select_after_cycles: self.torque_after,
             });
+        }
+        match &self.combustion {
+            Some(channel) => {
+                // The virtual cell's engine unless given.
+                let geometry = self.geometry.full()?.unwrap_or_else(|| {
+                    let e = CellParams::default().engine;
+                    physid_apps::pressure::Geometry {
+                        bore: e.bore,
+                        stroke: 2.0 * e.crank_radius,
+                        rod: e.rod,
+                        compression_ratio: e.kappa,
+                    }
+                });
+                cfg.combustion = Some(CombustionLive {
+                    channel: channel.clone(),
+                    settings: self.combustion_args.settings(Some(geometry))?,
+                    step_deg: self.step_deg,
+                });
+            }
+            None if self.geometry.bore.is_some()
+                || self.combustion_args.any_given()
+                || self.step_deg != 0.1 =>
+            {
+                return Err(miette!(
+                    "--bore, --peg, --gamma, --mfb, --knock and --step-deg set the combustion analysis: add --combustion"
+                ));
+            }
+            None => {}
         }
         Ok(())
     }

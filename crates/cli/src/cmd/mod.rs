@@ -1,6 +1,8 @@
 //! One module per verb.
 
 pub mod bench;
+pub mod bench_combustion;
+pub mod combustion_args;
 pub mod compression;
 pub mod convert;
 pub mod crank_input;

@@ -24,9 +24,22 @@ pub struct LiveConfig {
     pub friction: Option<FrictionLive>,
     /// The cyclic-torque estimation on the stream, when asked for.
     pub torque: Option<TorqueLive>,
+    /// The combustion analysis on the stream, when asked for.
+    pub combustion: Option<CombustionLive>,
     /// Set (by a SIGINT or SIGTERM handler) to end the run after the current chunk, as a
     /// `stop` control does: the stages finish and a log being written is closed.
     pub stop: Option<Arc<AtomicBool>>,
+}
+
+/// The combustion analysis's settings live (`physid cycles`' per cycle, on the stream).
+#[derive(Debug, Clone)]
+pub struct CombustionLive {
+    /// The cylinder-pressure channel.
+    pub channel: String,
+    /// The geometry, pegging, heat release and knock.
+    pub settings: PerCycleSettings,
+    /// The crank-angle grid the pressure is taken onto [deg].
+    pub step_deg: f64,
 }
 
 /// The cyclic-torque estimation's settings live.
@@ -84,6 +97,7 @@ impl Default for LiveConfig {
             log_dir: PathBuf::from("physid-logs"),
             friction: None,
             torque: None,
+            combustion: None,
             stop: None,
         }
     }

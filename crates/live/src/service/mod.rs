@@ -12,9 +12,11 @@ use crate::record::Recorder;
 use crate::source::{Pace, Pacer, Source};
 use crate::trace::TraceStage;
 use physid_apps::acquisition::AcquisitionOptions;
+use physid_apps::combustion_stage::CombustionStage;
 use physid_apps::cycle_stage::CycleStage;
 use physid_apps::error::AppError;
 use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
+use physid_apps::per_cycle::{CycleFigures, PerCycleSettings};
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftOutput, ShaftParams, ShaftStage};
 use physid_apps::stage::Stage;
 use physid_apps::torque_fit::{TorqueFitConfig, TorqueOutput, TorqueStage};
@@ -189,6 +191,8 @@ struct StageSlots {
     friction: Slot<FrictionStage>,
     /// The cyclic-torque estimation (`--torque`).
     torque: Slot<TorqueStage>,
+    /// The combustion analysis (`--combustion`).
+    combustion: Slot<CombustionStage>,
 }
 
 impl StageSlots {
@@ -200,35 +204,38 @@ impl StageSlots {
             cycles: Slot::start(cfg, rate_hz)?,
             friction: Slot::start(cfg, rate_hz)?,
             torque: Slot::start(cfg, rate_hz)?,
+            combustion: Slot::start(cfg, rate_hz)?,
         })
     }
 
     /// The stages in the order a chunk goes through them.
-    fn in_chunk_order(&mut self) -> [&mut dyn Run; 5] {
+    fn in_chunk_order(&mut self) -> [&mut dyn Run; 6] {
         [
             &mut self.integrity,
             &mut self.shaft,
             &mut self.cycles,
             &mut self.friction,
             &mut self.torque,
+            &mut self.combustion,
         ]
     }
 
     /// The stages in the order their last outputs are told at the end of the stream (the
     /// order the events have always come in: the event stream is part of the output).
-    fn in_finish_order(&mut self) -> [&mut dyn Run; 5] {
+    fn in_finish_order(&mut self) -> [&mut dyn Run; 6] {
         [
             &mut self.torque,
             &mut self.integrity,
             &mut self.friction,
             &mut self.shaft,
             &mut self.cycles,
+            &mut self.combustion,
         ]
     }
 }
 
 /// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
-pub const CHECKPOINT_VERSION: u32 = 5;
+pub const CHECKPOINT_VERSION: u32 = 6;
 
 #[cfg(test)]
 mod tests {

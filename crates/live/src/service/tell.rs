@@ -261,3 +261,39 @@ impl Tell for TorqueStage {
         });
     }
 }
+
+impl Tell for CombustionStage {
+    const NAME: &'static str = "combustion";
+    const STOPPED: &'static str =
+        r#"the combustion analysis stopped (restart: {"cmd":"restart","stage":"combustion"})"#;
+    const FLAG: &'static str = "--combustion";
+    type Told = ();
+
+    fn start(cfg: &LiveConfig, _rate_hz: f64) -> Result<Option<Self>, LiveError> {
+        let Some(c) = &cfg.combustion else {
+            return Ok(None);
+        };
+        Ok(Some(CombustionStage::new(
+            &c.channel,
+            c.settings.clone(),
+            cfg.theta_tdc,
+            c.step_deg,
+        )?))
+    }
+
+    /// Each cycle's figures by their `cycles --tracks` names.
+    fn tell(&self, _: &mut (), c: &CycleFigures, _at: At, events: &mut dyn Sink<Event>) {
+        let s = self.settings();
+        let figures = physid_apps::per_cycle::figure_columns("", &s.heat.mfb, s.knock.is_some())
+            .into_iter()
+            .filter(|col| col.name != "t" && col.name != "cycle")
+            .map(|col| (crate::event::Name::from(col.name), (col.value)(c)))
+            .collect();
+        events.put(Event::Combustion {
+            cycle: c.cycle,
+            t_s: c.t_start_s,
+            figures,
+            notes: c.notes.clone(),
+        });
+    }
+}

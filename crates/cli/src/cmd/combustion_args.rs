@@ -1,0 +1,96 @@
+//! The flags of the per-cycle combustion analysis — pegging, heat release, burn fractions,
+//! knock — shared by `physid cycles` (a file) and `physid live` / `worker` (`--combustion`, the
+//! stream): one meaning, one parser.
+
+use miette::{miette, Result};
+use physid_apps::combustion::HeatRelease;
+use physid_apps::knock::Knock;
+use physid_apps::per_cycle::PerCycleSettings;
+use physid_apps::pressure::{Geometry, Pegging};
+
+/// Pegging, heat release, burn fractions and knock.
+#[derive(clap::Args, Clone, Debug)]
+pub struct CombustionArgs {
+    /// Pressure referencing per cycle: `bdc=P` (P, in the channel's unit, at BDC of the intake
+    /// stroke) or `polytropic=N` (the offset that makes p·V^N constant on compression).
+    #[arg(long, value_name = "bdc=P|polytropic=N")]
+    pub peg: Option<String>,
+    /// The ratio of specific heats of the single-zone heat release (constant; with the
+    /// geometry and the pressure in Pa).
+    #[arg(long, default_value_t = physid_apps::combustion::DEFAULT_GAMMA)]
+    pub gamma: f64,
+    /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
+    #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
+    pub mfb: Vec<f64>,
+
+    /// Knock per cycle: the pressure band-passed (zero phase), its maximum amplitude (MAPO) and
+    /// integral of modulus (IMPO) in a window after TDC, a flag above a threshold (with the
+    /// geometry not needed, the pressure in Pa, a step fine enough for the band).
+    #[arg(long)]
+    pub knock: bool,
+    /// The knock band [Hz].
+    #[arg(
+        long,
+        value_name = "LOW,HIGH",
+        value_delimiter = ',',
+        num_args = 2,
+        requires = "knock"
+    )]
+    pub knock_band: Option<Vec<f64>>,
+    /// The knock window [deg ATDC].
+    #[arg(
+        long,
+        value_name = "FROM,TO",
+        value_delimiter = ',',
+        num_args = 2,
+        requires = "knock",
+        allow_hyphen_values = true
+    )]
+    pub knock_window: Option<Vec<f64>>,
+    /// A cycle knocks when its MAPO exceeds this [Pa] (set it for the engine).
+    #[arg(long, value_name = "PA", default_value_t = physid_apps::knock::DEFAULT_THRESHOLD_PA)]
+    pub knock_threshold: f64,
+}
+
+impl CombustionArgs {
+    /// The knock settings asked for.
+    pub fn knock(&self) -> Option<Knock> {
+        let d = Knock::default();
+        let pair = |v: &Option<Vec<f64>>, d: (f64, f64)| v.as_ref().map_or(d, |v| (v[0], v[1]));
+        self.knock.then(|| Knock {
+            band_hz: pair(&self.knock_band, d.band_hz),
+            window: pair(&self.knock_window, d.window),
+            threshold_pa: self.knock_threshold,
+        })
+    }
+
+    /// The settings with `geometry`, checked (the pressure taken to be in Pa; a stage or an
+    /// analyser sets that from the channel's unit).
+    pub fn settings(&self, geometry: Option<Geometry>) -> Result<PerCycleSettings> {
+        let heat = HeatRelease {
+            gamma: self.gamma,
+            mfb: self.mfb.clone(),
+            ..HeatRelease::default()
+        };
+        heat.validate().map_err(|e| miette!("{e}"))?;
+        let knock = self.knock();
+        if let Some(k) = &knock {
+            k.validate().map_err(|e| miette!("--knock: {e}"))?;
+        }
+        Ok(PerCycleSettings {
+            geometry,
+            peg: Pegging::parse(self.peg.as_deref()).map_err(|e| miette!("{e}"))?,
+            heat,
+            knock,
+            in_pa: true,
+        })
+    }
+
+    /// Whether any flag differs from its default (`live` refuses them without `--combustion`).
+    pub fn any_given(&self) -> bool {
+        self.peg.is_some()
+            || self.gamma != physid_apps::combustion::DEFAULT_GAMMA
+            || self.mfb != physid_apps::combustion::MFB
+            || self.knock
+    }
+}
