@@ -2,10 +2,15 @@
 //! Fundamentals*, §9.2): the apparent (net) heat release, the burn angles, the pressure's peak
 //! and steepest rise between the samples — what `physid cycles` adds to each cycle's figures.
 //!
-//! * **Apparent net heat release**, single zone, constant γ (Heywood Eq. 9.25):
+//! * **Apparent net heat release**, single zone (Heywood Eq. 9.25):
 //!   `dQ_n = γ/(γ−1)·p·dV + 1/(γ−1)·V·dp`, summed over each step with the step's mean `p̄`, `V̄`
 //!   (second order) from the window's first angle ([`HEAT_WINDOW`], −90° … 120° ATDC by
-//!   default). No wall heat, crevices or blow-by: what they take is in `Q_n` (it is net).
+//!   default). No wall heat, crevices or blow-by: what they take is in `Q_n` (it is net). γ is
+//!   constant, or γ(T) of air (NASA polynomials, [`physid_models::air`]) at the step's mean gas
+//!   temperature ([`GasTemperature`]) — for an ideal gas of constant `R` the formula with γ(T)
+//!   is the energy equation `dQ = m·c_v(T)·dT + p·dV` itself (`m·dT = (p·dV + V·dp)/R`).
+//! * **Mean gas temperature** ([`GasTemperature`]): the ideal gas with the mass trapped at IVC,
+//!   `T = T_IVC · p·V / (p_IVC·V_IVC)` (Heywood §9.2.1), its peak in the window `t_max_k`.
 //! * **Burn angles** (mass fraction burned, the heat-release method): `x_b = (Q − Q_min)/(Q_max
 //!   − Q_min)`, `Q_max` the largest `Q` in the window and `Q_min` the smallest before it; MFBk is
 //!   where `x_b` first reaches k % after `Q_min`, linearly between the samples. The heat
@@ -36,11 +41,22 @@ pub const FIRED_FRACTION: f64 = 0.05;
 /// The burn fractions whose angles are given unless others are asked for [%].
 pub const MFB: [f64; 3] = [10.0, 50.0, 90.0];
 
+/// The mean gas temperature's reference: the gas trapped at intake valve closing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct GasTemperature {
+    /// Intake valve closing [deg ATDC].
+    pub ivc_deg: f64,
+    /// The gas temperature then [K].
+    pub t_ivc_k: f64,
+}
+
 /// How the heat release is computed.
 #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct HeatRelease {
-    /// The ratio of specific heats γ (constant).
+    /// The ratio of specific heats γ (constant, unless `temperature` is given).
     pub gamma: f64,
+    /// The mean gas temperature's reference: then γ(T) at it, and its peak.
+    pub temperature: Option<GasTemperature>,
     /// The window [deg ATDC].
     pub window: (f64, f64),
     /// The burn fractions whose angles are given [%], each in (0, 100).
@@ -53,12 +69,14 @@ impl Default for HeatRelease {
             gamma: DEFAULT_GAMMA,
             window: HEAT_WINDOW,
             mfb: MFB.to_vec(),
+            temperature: None,
         }
     }
 }
 
 impl HeatRelease {
-    /// Refused unless 1 < γ < 2 and the window lies within −360° … 360° ATDC, its start first.
+    /// Refused unless 1 < γ < 2, the window lies within −360° … 360° ATDC, its start first,
+    /// the burn fractions are within (0, 100) % and the gas temperature's reference is one.
     pub fn validate(&self) -> Result<(), AppError> {
         let (lo, hi) = self.window;
         if !(self.gamma > 1.0 && self.gamma < 2.0) {
@@ -70,6 +88,19 @@ impl HeatRelease {
         if !(lo < hi && lo >= -360.0 && hi <= 360.0) {
             return Err(AppError::Invalid(format!(
                 "heat release: window {lo}° … {hi}° ATDC: expected a start before the end, within −360° … 360°"
+            )));
+        }
+        if let Some(g) = &self.temperature {
+            if !(g.t_ivc_k > 0.0 && g.t_ivc_k.is_finite() && (-360.0..=0.0).contains(&g.ivc_deg)) {
+                return Err(AppError::Invalid(format!(
+                    "--gas-temperature {},{}: expected the intake valve's closing in −360 … 0° ATDC and the gas temperature then in K (> 0), e.g. -140,320",
+                    g.ivc_deg, g.t_ivc_k
+                )));
+            }
+        }
+        if let Some(bad) = self.mfb.iter().find(|k| !(**k > 0.0 && **k < 100.0)) {
+            return Err(AppError::Invalid(format!(
+                "--mfb {bad}: expected burn fractions in per cent, between 0 and 100 (e.g. 5,10,50,90,95)"
             )));
         }
         Ok(())
@@ -95,6 +126,8 @@ pub struct Burn {
     pub misfire: bool,
     /// Fired, releasing less than [`PARTIAL_FRACTION`] of the recent fired cycles' heat.
     pub partial_burn: bool,
+    /// The peak mean gas temperature in the window [K] (with [`GasTemperature`]).
+    pub t_max_k: Option<f64>,
 }
 
 impl Burn {
@@ -130,6 +163,9 @@ impl Serialize for Burn {
         }
         if self.partial_burn {
             m.serialize_entry("partial_burn", &true)?;
+        }
+        if let Some(t) = self.t_max_k {
+            m.serialize_entry("t_max_k", &t)?;
         }
         m.end()
     }
@@ -204,13 +240,25 @@ pub fn burn(
     if to < from + 3 {
         return None;
     }
+    // The trapped gas's `m·R` from the state at IVC (`p·V = m·R·T`).
+    let m_r = hr.temperature.map(|g| {
+        let (p_ivc, v_ivc) = (linear(atdc, p, g.ivc_deg), linear(atdc, v, g.ivc_deg));
+        p_ivc * v_ivc / g.t_ivc_k
+    });
     let (a, p, v) = (&atdc[from..to], &p[from..to], &v[from..to]);
-    let g = hr.gamma;
     // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means).
     let mut q = Vec::with_capacity(a.len());
     q.push(0.0);
+    let mut t_max = f64::NEG_INFINITY;
     for k in 1..a.len() {
         let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
+        let g = match m_r {
+            Some(m_r) => {
+                t_max = t_max.max(p[k] * v[k] / m_r);
+                physid_models::air::gamma(pm * vm / m_r)
+            }
+            None => hr.gamma,
+        };
         let dq = g / (g - 1.0) * pm * (v[k] - v[k - 1]) + vm * (p[k] - p[k - 1]) / (g - 1.0);
         q.push(q[k - 1] + dq);
     }
@@ -244,7 +292,22 @@ pub fn burn(
         dp_max_deg: dp_deg,
         misfire: false,
         partial_burn: false,
+        t_max_k: m_r.map(|_| t_max),
     })
+}
+
+/// `y` at `x0` over the increasing `x`, linearly between the samples around it (the end
+/// sample's beyond the ends).
+fn linear(x: &[f64], y: &[f64], x0: f64) -> f64 {
+    let k = x.partition_point(|&a| a < x0);
+    if k == 0 {
+        return y[0];
+    }
+    if k == x.len() {
+        return y[k - 1];
+    }
+    let f = (x0 - x[k - 1]) / (x[k] - x[k - 1]);
+    y[k - 1] + f * (y[k] - y[k - 1])
 }
 
 /// The angle of the peak of `p` over the increasing angles `atdc`: the vertex of the parabola

@@ -136,6 +136,9 @@ pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool) -> Vec<FigureColumn>
     columns.extend([
         col("dp_max", "Pa/deg", |c| burn(c, |b| b.dp_max_pa_per_deg)),
         col("dp_max_deg", "deg", |c| burn(c, |b| b.dp_max_deg)),
+        col("t_max", "K", |c| {
+            nan(c.burn.as_ref().and_then(|b| b.t_max_k))
+        }),
     ]);
     if knock {
         columns.extend([

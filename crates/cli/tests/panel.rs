@@ -550,8 +550,10 @@ fn the_panel_in_a_real_browser() {
         assert_eq!(js("window.physid.alarms").await, json!(0), "no alarm while healthy");
         assert_eq!(js("document.querySelectorAll('#plot-pcyl canvas').length > 0").await, json!(true));
         assert_eq!(js("window.physid.last.cycle.curve.p_cyl.length").await, json!(360));
-        // No friction characterisation on this run: its cards stay hidden.
+        // No friction characterisation or combustion analysis on this run: their cards stay
+        // hidden.
         assert_eq!(js("document.getElementById('friction-card').hidden").await, json!(true));
+        assert_eq!(js("document.getElementById('combustion-card').hidden").await, json!(true));
         // Inject the stiffness fault through the page.
         let t_click = js("window.physid.t").await.as_f64().unwrap();
         c.find(Locator::Id("fault-spec"))
@@ -615,6 +617,35 @@ fn the_panel_in_a_real_browser() {
         assert_eq!(js("document.querySelectorAll('#plot-friction canvas').length > 0").await, json!(true));
         let png = c.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-friction.png"), &png).unwrap();
+        // The fired engine with the combustion analysis: the IMEP and MFB50 trend per cycle and
+        // the CoV of IMEP over the fired cycles, as the events say.
+        let fired = Live::start(&[
+            "--scenario",
+            "fired-steady",
+            "--duration",
+            "2",
+            "--pace",
+            "max",
+            "--combustion",
+            "--step-deg",
+            "0.5",
+        ]);
+        c.goto(&fired.url).await.unwrap();
+        wait("window.physid.state === 'ended' && window.physid.combustionCycles > 10", 40).await;
+        assert_eq!(js("document.getElementById('combustion-card').hidden").await, json!(false));
+        assert_eq!(js("document.querySelectorAll('#plot-combustion canvas').length > 0").await, json!(true));
+        let last = js("window.physid.last.combustion").await;
+        assert_eq!(last["figures"]["fired"].as_f64(), Some(1.0), "{last}");
+        let mfb50 = last["figures"]["mfb50_deg"].as_f64().unwrap();
+        assert!((0.0..20.0).contains(&mfb50), "{last}");
+        // A steady fired engine without cycle-to-cycle variation: a CoV of IMEP near zero.
+        let cov = js("window.physid.covImep").await.as_f64().unwrap();
+        assert!((0.0..0.01).contains(&cov), "CoV {cov}");
+        let shown = js("document.getElementById('cov-imep').textContent").await;
+        assert!(shown.as_str().unwrap().starts_with("CoV of IMEP "), "{shown}");
+        js("document.getElementById('combustion-card').scrollIntoView() || true").await;
+        let png = c.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-combustion.png"), &png).unwrap();
         // The cyclic-torque estimation: its chosen parameters and the estimates per cycle.
         let torque = Live::start(&[
             "--scenario",

@@ -13,7 +13,7 @@
   const EST_WINDOW_S = 120;  // the estimates' window [s]
   // A feed whose data are this much older than the run's is stale [s of recording]: the
   // friction characterisation waits out each speed step's transient, so it is given longer.
-  const STALE_S = { estimate: 2, cycle: 2, trace: 2, friction: 30 };
+  const STALE_S = { estimate: 2, cycle: 2, trace: 2, friction: 30, combustion: 2 };
   const ENVELOPE_BINS = 300; // display bins of a time trace (mean line, min–max band)
   const MAX_KEPT_EVENTS = 200000; // events kept for the export
   const CYCLES_SHOWN = 10;   // cycles overlaid in the cyclic view
@@ -24,7 +24,7 @@
   const st = {
     state: "connecting", t: NaN, samples: 0, estimates: 0, traces: 0, tracePoints: 0,
     cycles: 0, alarms: 0, lost: 0, hellos: 0, hello: null, last: {}, first: {},
-    frictionCycles: 0, torqueCycles: 0, identifiability: {},
+    frictionCycles: 0, torqueCycles: 0, combustionCycles: 0, covImep: null, identifiability: {},
     feeds: {}, stale: {}, layout: null, exported: 0,
   };
   window.physid = st;
@@ -39,16 +39,21 @@
     k: ["K"], b: ["B"], speed: ["omega_en", "omega_dy"], torque: ["torque_shaft", "torque_engine"],
     pint: ["p_int", "throttle"], cycles: ["torque_engine", "torque_shaft"], pcyl: ["p_cyl"],
     tcyc: ["torque_engine"], friction: ["measured", "predicted", "nominal", "truth"],
+    combustion: ["imep", "mfb50_deg"],
   };
   st.plots = PLOTS;
   // For the browser test: the alarms marked on the plots, and a plot's uPlot.
   st.marks = () => alarmMarks;
   st.uplot = (id) => plots[id];
 
-  let est, tr, cyc, means, fric;
+  let est, tr, cyc, means, fric, comb;
+  // The cycles the combustion trend and its CoV of IMEP cover.
+  const COMBUSTION_SHOWN = 200;
   function reset() {
     fric = { cycle: [], measured: [], predicted: [], nominal: [], truth: [] };
-    st.frictionCycles = 0; st.torqueCycles = 0; st.identifiability = {};
+    comb = { cycle: [], imep: [], mfb50: [] };
+    st.frictionCycles = 0; st.torqueCycles = 0; st.combustionCycles = 0; st.covImep = null;
+    st.identifiability = {};
     $("torque-table").tBodies[0].replaceChildren();
     $("ident").replaceChildren();
     $("friction-table").tBodies[0].replaceChildren();
@@ -156,6 +161,15 @@
   makePlot("plot-tcyc", cycSeries(), crankX);
   makePlot("plot-friction", [line("measured", colors[0]), line("predicted (before the cycle)", colors[1]),
     line("nominal model", colors[4], { dash: [6, 4] }), line("simulated truth", colors[2], { width: 1 })], { xLabel: "cycle" });
+  makePlot("plot-combustion", [line("IMEP [bar]", colors[0], { scale: "bar" }),
+    line("MFB50 [deg ATDC]", colors[1], { scale: "deg" })], {
+    xLabel: "cycle",
+    uplot: {
+      scales: { x: { time: false }, bar: {}, deg: {} },
+      axes: [{ label: "cycle" }, { scale: "bar", label: "bar", size: 60 },
+        { scale: "deg", label: "deg", side: 1, size: 50, grid: { show: false } }],
+    },
+  });
   // Which uPlot series draw each layout channel.
   function seriesOf(plot, channel) {
     const k = PLOTS[plot].indexOf(channel);
@@ -184,6 +198,7 @@
     for (const plot in TRACES) plots["plot-" + plot].setData(envelopes(TRACES[plot].map(([ch]) => ch)));
     plots["plot-cycles"].setData([means.cycle, means.torque_engine, means.torque_shaft]);
     plots["plot-friction"].setData([fric.cycle, fric.measured, fric.predicted, fric.nominal, fric.truth]);
+    plots["plot-combustion"].setData([comb.cycle, comb.imep, comb.mfb50]);
     for (const [id, ch, scale] of [["plot-pcyl", "p_cyl", 1e-5], ["plot-tcyc", "torque_engine", 1]]) {
       const last = cyc.slice(-CYCLES_SHOWN);
       const newest = last.length ? last[last.length - 1] : null;
@@ -405,6 +420,28 @@
       }
       touch();
     },
+    // A cycle's combustion figures: the IMEP and MFB50 trend, the CoV of IMEP over the fired
+    // cycles shown (sample standard deviation over the mean, as `physid cycles` gives it).
+    combustion(e) {
+      st.combustionCycles++; st.last.combustion = e; fed("combustion", e.t_s);
+      if (!st.layout || (st.layout.plots.combustion || []).length) show("combustion-card");
+      const f = e.figures || {};
+      comb.cycle.push(e.cycle);
+      comb.imep.push(f.imep == null ? null : f.imep * 1e-5);
+      comb.mfb50.push(f.mfb50_deg ?? null);
+      if (comb.cycle.length > COMBUSTION_SHOWN) for (const k in comb) comb[k].shift();
+      const fired = comb.imep.filter((v, i) => v !== null && comb.mfb50[i] !== null);
+      if (fired.length >= 2) {
+        const mean = fired.reduce((a, b) => a + b, 0) / fired.length;
+        const sd = Math.sqrt(fired.reduce((a, b) => a + (b - mean) ** 2, 0) / (fired.length - 1));
+        st.covImep = sd / Math.abs(mean);
+        $("cov-imep").textContent = `CoV of IMEP ${fmt(100 * st.covImep, 2)} % over ${fired.length} fired cycles`;
+      } else {
+        st.covImep = null;
+        $("cov-imep").textContent = fired.length ? "" : "no fired cycle";
+      }
+      touch();
+    },
     torque(e) {
       st.torqueCycles++; st.last.torque = e; seen(e.t_s);
       show("ident-card");
@@ -615,7 +652,8 @@
       const card = document.querySelector(`.card[data-plot="${plot}"]`);
       const on = shown[plot] || [];
       // The friction card appears with its data; the layout can only hide it.
-      card.hidden = on.length === 0 || (plot === "friction" && !st.frictionCycles);
+      card.hidden = on.length === 0 || (plot === "friction" && !st.frictionCycles)
+        || (plot === "combustion" && !st.combustionCycles);
       const u = plots["plot-" + plot];
       for (const ch of PLOTS[plot]) for (const i of seriesOf(plot, ch)) u.setSeries(i, { show: on.includes(ch) });
     }

@@ -11,7 +11,7 @@
 //! | `{"cmd": "mode", "demand": "torque"}` (or `"speed"`) | the dynamometer follows a torque (or speed) demand, held at its mean torque over the last whole engine cycle (or its present speed) |
 //! | `{"cmd": "pause"}`, `{"cmd": "resume"}` | hold the run (the source and every stage) and go on |
 //! | `{"cmd": "record", "file": "NAME.parquet"}` (or `NAME.mf4`), `{"cmd": "record", "stop": true}` | log every channel to a file in the log directory (Parquet or MDF4), and finish it |
-//! | `{"cmd": "restart", "stage": "shaft"}` (or `cycles`, `friction`, `torque`) | start a stage afresh (one that stopped on an error comes back) |
+//! | `{"cmd": "restart", "stage": "shaft"}` (or `cycles`, `friction`, `torque`, `combustion`) | start a stage afresh (one that stopped on an error comes back) |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
 //!
 //! A malformed message is refused with an error naming the field; the run goes on.

@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 /// The panel's plots and the channels (series) each can draw — the page's own table
 /// (`assets/panel.js`, `PLOTS`; the browser test checks they agree).
-pub const PLOTS: [(&str, &[&str]); 9] = [
+pub const PLOTS: [(&str, &[&str]); 10] = [
     ("k", &["K"]),
     ("b", &["B"]),
     ("speed", &["omega_en", "omega_dy"]),
@@ -19,6 +19,7 @@ pub const PLOTS: [(&str, &[&str]); 9] = [
     ("pcyl", &["p_cyl"]),
     ("tcyc", &["torque_engine"]),
     ("friction", &["measured", "predicted", "nominal", "truth"]),
+    ("combustion", &["imep", "mfb50_deg"]),
 ];
 
 /// The longest time-trace window [s] the page keeps.

@@ -312,7 +312,8 @@ fn friction_fit<'py>(
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
 /// notes) and the per-cycle columns.
 #[pyfunction]
-#[pyo3(signature = (rec, channel, geometry, peg, gamma))]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature))]
+#[allow(clippy::too_many_arguments)]
 fn cycles<'py>(
     py: Python<'py>,
     rec: &Recording,
@@ -320,6 +321,9 @@ fn cycles<'py>(
     geometry: Option<(f64, f64, f64, f64)>,
     peg: Option<&str>,
     gamma: f64,
+    mfb: Vec<f64>,
+    knock: Option<(f64, f64, f64, f64, f64)>,
+    gas_temperature: Option<(f64, f64)>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::combustion::HeatRelease;
     use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
@@ -333,11 +337,26 @@ fn cycles<'py>(
     let inner = &rec.inner;
     let a = py
         .detach(|| {
-            let mut a = CycleAnalyser::new(inner, channel, geometry.as_ref(), peg)?
-                .with_heat_release(HeatRelease {
+            let a = CycleAnalyser::new(inner, channel, geometry.as_ref(), peg)?.with_heat_release(
+                HeatRelease {
                     gamma,
+                    mfb,
+                    temperature: gas_temperature.map(|(ivc_deg, t_ivc_k)| {
+                        physid_apps::combustion::GasTemperature { ivc_deg, t_ivc_k }
+                    }),
                     ..HeatRelease::default()
-                })?;
+                },
+            )?;
+            let mut a = match knock {
+                Some((lo, hi, from, to, threshold_pa)) => {
+                    a.with_knock(physid_apps::knock::Knock {
+                        band_hz: (lo, hi),
+                        window: (from, to),
+                        threshold_pa,
+                    })?
+                }
+                None => a,
+            };
             a.push(inner)?;
             a.finish()
         })

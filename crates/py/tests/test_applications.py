@@ -85,6 +85,25 @@ def _wiebe(golden, name):
     return physid.Recording.from_pandas(df, units=units, basis="crank_angle")
 
 
+def test_cycles_flags_a_partial_burn_and_a_misfire_and_takes_any_burn_fractions(golden):
+    """gen_wiebe.py's wiebe_flags.csv: the 250 J cycle is a partial burn, the empty one a
+    misfire; --mfb's fractions as columns; knock asked for on 1° steps says what step it needs."""
+    truth = json.loads(golden("crates/apps/tests/golden/wiebe.json").read_text())
+    heat = truth["flags_heat_j"]
+    r = physid.cycles(_wiebe(golden, "wiebe_flags.csv"), bore=truth["bore"],
+                      stroke=truth["stroke"], rod=truth["rod"],
+                      compression_ratio=truth["compression_ratio"], mfb=(5, 50, 95),
+                      knock=True)
+    df = r.to_pandas()
+    for _, row in df.iterrows():
+        q = heat[int(row["cycle"])]
+        assert row["misfire"] == (1.0 if q == 0 else 0.0)
+        assert row["partial_burn"] == (1.0 if 0 < q < 0.5 * heat[1] else 0.0)
+    assert {"mfb5_deg", "mfb50_deg", "mfb95_deg", "pmep", "mapo", "knock"} <= set(df.columns)
+    assert "mfb10_deg" not in df.columns
+    assert any("knock left out" in n for n in r.notes), r.notes
+
+
 def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
     truth = json.loads(golden("crates/apps/tests/golden/wiebe.json").read_text())
     r = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), bore=truth["bore"],

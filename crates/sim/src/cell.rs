@@ -29,7 +29,7 @@
 
 use crate::control::{Demand, Drive};
 use crate::engine::{
-    Engine, EngineOutputs, GasLinearisation, GasState, Motored, NetworkJacobian, CYL, EXH, INT,
+    Engine, EngineOutputs, GasLinearisation, GasState, NetworkJacobian, Wiebe, CYL, EXH, INT,
 };
 use crate::error::SimError;
 use crate::machine::{Flux, Machine};
@@ -163,6 +163,8 @@ struct Held {
     /// within a step of it).
     theta0: f64,
     sc0: (f64, f64),
+    /// The burn in force (motored: no heat).
+    burn: Wiebe,
 }
 
 /// The virtual test cell.
@@ -293,7 +295,7 @@ impl TestCell {
                 .crank_point_sin_cos(th_en, sin_cos_near(th_en, h.theta0, h.sc0));
             let (dgas, out, lin) =
                 self.engine
-                    .gas_derivatives_at(&k, w_en, h.throttle_area, &gas, &Motored);
+                    .gas_derivatives_at(&k, w_en, h.throttle_area, &gas, &h.burn);
             let tq = self.engine.torque_at(&k, w_en, out.p[CYL], h.friction);
             (dgas, out, lin, tq)
         } else {
@@ -398,6 +400,7 @@ impl TestCell {
             friction: self.engine.friction_torque(x0[W_EN], p_int),
             theta0: x0[TH_EN],
             sc0: self.crank_sin_cos.at(x0[TH_EN]),
+            burn: Wiebe::of(&self.params.engine),
         };
         // The first stage's derivatives (and the sample) at the step's start.
         let (k1_start, mut sample, lin) = self.derivatives(&x0, &held);

@@ -121,6 +121,16 @@ pub struct EngineParams {
     /// 1: the engine model; 0: the engine is a pure inertia (no gas, reciprocating or
     /// friction torque, gas frozen) — for checks of the driveline and the drive.
     pub active: f64,
+    /// Fuel energy released per cycle by the Wiebe burn [J]; 0: motored (the thesis's engine).
+    pub burn_q: f64,
+    /// The burn's start [deg after firing TDC; before it negative].
+    pub burn_start: f64,
+    /// The burn's duration [deg].
+    pub burn_duration: f64,
+    /// The Wiebe efficiency parameter `a` (6.9: 99.9 % burned at the end of the duration).
+    pub burn_a: f64,
+    /// The Wiebe shape parameter `m`.
+    pub burn_m: f64,
 }
 
 /// Ambient conditions.
@@ -272,6 +282,11 @@ impl Default for CellParams {
                 friction_scale: 1.0,
                 t_oil: 363.15,
                 active: 1.0,
+                burn_q: 0.0,
+                burn_start: -15.0,
+                burn_duration: 50.0,
+                burn_a: 6.9,
+                burn_m: 2.0,
             },
             ambient: AmbientParams {
                 p: 101_325.0,
@@ -411,6 +426,11 @@ paths! {
     "engine.friction_scale" => engine.friction_scale, "-", "1 = the mean-value model (SPEC §2.5)";
     "engine.t_oil" => engine.t_oil, "K", "SPEC §2.4 (90 °C)";
     "engine.active" => engine.active, "-", "switch (0: the engine is a pure inertia, for checks)";
+    "engine.burn_q" => engine.burn_q, "J", "0: motored (the thesis's engine); a Wiebe burn per cycle otherwise (Heywood §9.2.4)";
+    "engine.burn_start" => engine.burn_start, "deg", "assumed (−15° ATDC)";
+    "engine.burn_duration" => engine.burn_duration, "deg", "assumed";
+    "engine.burn_a" => engine.burn_a, "-", "Heywood Eq. 9.32 (6.9)";
+    "engine.burn_m" => engine.burn_m, "-", "Heywood Eq. 9.32 (2)";
     "ambient.p" => ambient.p, "Pa", "standard atmosphere";
     "ambient.t" => ambient.t, "K", "assumed";
     "shaft.k" => shaft.k, "N*m/rad", "Table 6.1 (yellow spider, app. B.1)";
@@ -489,6 +509,8 @@ impl CellParams {
             "sensors.ppr_en",
             "sensors.ppr_dy",
             "solver.step_deg",
+            "engine.burn_duration",
+            "engine.burn_a",
         ];
         for p in positive {
             let v = self.get(p).unwrap_or(f64::NAN);
@@ -516,6 +538,8 @@ impl CellParams {
             "engine.woschni_c1_closed",
             "engine.friction_scale",
             "engine.t_oil",
+            "engine.burn_q",
+            "engine.burn_m",
             "shaft.b",
             "dyno.poles",
             "dyno.xls",

@@ -349,6 +349,7 @@ pub const NAMED: &[(&str, &str)] = &[
     ("torque-ramp", "T2 cyclic torque: 800 → 1400 rpm in 5 s, wide-open throttle"),
     ("torque-validation", "T3 cyclic torque: four ramps 800 ↔ 1400 rpm, 2 min"),
     ("transient-10min", "the 10-minute mixed test (Fig. 4.6): speed and throttle steps and ramps"),
+    ("fired-steady", "beyond the thesis: the engine fired (a Wiebe burn of 250 J per cycle from 15° before TDC over 50°), 1500 rpm, wide-open throttle; 10 s"),
 ];
 
 /// Throttle [deg] that gives ≈ 70 kPa in the manifold at each friction-sweep speed (found by
@@ -462,6 +463,16 @@ pub fn named(name: &str) -> Option<Scenario> {
                 prev = n;
             }
             base(name, 600.0, speed, thr)
+        }
+        "fired-steady" => {
+            let mut s = base(
+                name,
+                10.0,
+                Profile::constant(1500.0, 10.0),
+                Profile::constant(wot, 10.0),
+            );
+            s.set.insert("engine.burn_q".into(), 250.0);
+            s
         }
         _ => return None,
     })

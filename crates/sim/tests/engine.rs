@@ -392,6 +392,45 @@ fn closed_cylinder_energy_equation() {
     assert_eq!(d[CYL], 0.0);
 }
 
+/// The energy equation with a Wiebe burn: in a closed adiabatic cylinder
+/// `m·c_v·dT = Q̇ − p·dV`, `Q̇ = Q·ω·dx_b/dθ` of the closed form
+/// `x_b = 1 − exp(−a·((θ − θ₀)/Δθ)^(m+1))` (differentiated here numerically); nothing before
+/// the start.
+#[test]
+fn a_burn_heats_the_closed_cylinder_as_the_wiebe_says() {
+    use physid_sim::engine::Wiebe;
+    let mut p = CellParams::default();
+    p.engine.lift_max = 0.0;
+    p.engine.heat_transfer = 0.0;
+    let e = Engine::new(&p.engine, &p.ambient);
+    let burn = Wiebe {
+        q: 300.0,
+        start: -15.0,
+        duration: 50.0,
+        a: 6.9,
+        m: 2.0,
+    };
+    let x_b = |deg: f64| 1.0 - (-6.9 * ((deg + 15.0) / 50.0).max(0.0).powi(3)).exp();
+    let omega = 157.0;
+    for deg in [-20.0_f64, 0.0, 10.0, 30.0] {
+        let theta = 4.0 * std::f64::consts::PI + deg.to_radians();
+        let mut x = e.ambient_state(theta);
+        x[4] = 900.0;
+        let (d, out) = e.gas_derivatives(theta, omega, 0.0, &x, &burn);
+        let (d0, _) = e.gas_derivatives(theta, omega, 0.0, &x, &Motored);
+        let h = 1e-5;
+        let q_dot = 300.0 * (x_b(deg + h) - x_b(deg - h)) / (2.0 * h) * omega.to_degrees();
+        let expect = q_dot / (x[CYL] * air::cv(900.0));
+        assert!(
+            (d[4] - d0[4] - expect).abs() <= 1e-7 * expect.abs().max(1.0),
+            "{deg}°: {} against {expect}",
+            d[4] - d0[4]
+        );
+        assert!(out.p[CYL] > 0.0);
+        assert!((burn.burned(deg) - x_b(deg)).abs() < 1e-12);
+    }
+}
+
 /// Verification 6 (plausibility): at 1000 rpm with the throttle shut the manifold pressure
 /// settles at a closed-throttle level (20–40 kPa); at part throttle gas flows back from the
 /// cylinder into the intake early in the intake stroke (thesis Fig. 4.8c); the motored cycle

@@ -3,7 +3,7 @@
 //! stream): one meaning, one parser.
 
 use miette::{miette, Result};
-use physid_apps::combustion::HeatRelease;
+use physid_apps::combustion::{GasTemperature, HeatRelease};
 use physid_apps::knock::Knock;
 use physid_apps::per_cycle::PerCycleSettings;
 use physid_apps::pressure::{Geometry, Pegging};
@@ -19,6 +19,16 @@ pub struct CombustionArgs {
     /// geometry and the pressure in Pa).
     #[arg(long, default_value_t = physid_apps::combustion::DEFAULT_GAMMA)]
     pub gamma: f64,
+    /// γ(T) of air at the mean gas temperature instead of the constant --gamma, and the peak
+    /// mean gas temperature: the ideal gas trapped at intake valve closing, IVC_DEG [deg ATDC]
+    /// at T_IVC [K].
+    #[arg(
+        long,
+        value_name = "IVC_DEG,T_IVC",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub gas_temperature: Option<Vec<f64>>,
     /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
     #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
     pub mfb: Vec<f64>,
@@ -33,7 +43,6 @@ pub struct CombustionArgs {
         long,
         value_name = "LOW,HIGH",
         value_delimiter = ',',
-        num_args = 2,
         requires = "knock"
     )]
     pub knock_band: Option<Vec<f64>>,
@@ -42,7 +51,6 @@ pub struct CombustionArgs {
         long,
         value_name = "FROM,TO",
         value_delimiter = ',',
-        num_args = 2,
         requires = "knock",
         allow_hyphen_values = true
     )]
@@ -54,14 +62,16 @@ pub struct CombustionArgs {
 
 impl CombustionArgs {
     /// The knock settings asked for.
-    pub fn knock(&self) -> Option<Knock> {
+    pub fn knock(&self) -> Result<Option<Knock>> {
         let d = Knock::default();
-        let pair = |v: &Option<Vec<f64>>, d: (f64, f64)| v.as_ref().map_or(d, |v| (v[0], v[1]));
-        self.knock.then(|| Knock {
-            band_hz: pair(&self.knock_band, d.band_hz),
-            window: pair(&self.knock_window, d.window),
+        if !self.knock {
+            return Ok(None);
+        }
+        Ok(Some(Knock {
+            band_hz: pair("--knock-band", &self.knock_band)?.unwrap_or(d.band_hz),
+            window: pair("--knock-window", &self.knock_window)?.unwrap_or(d.window),
             threshold_pa: self.knock_threshold,
-        })
+        }))
     }
 
     /// The settings with `geometry`, checked (the pressure taken to be in Pa; a stage or an
@@ -70,10 +80,12 @@ impl CombustionArgs {
         let heat = HeatRelease {
             gamma: self.gamma,
             mfb: self.mfb.clone(),
+            temperature: pair("--gas-temperature", &self.gas_temperature)?
+                .map(|(ivc_deg, t_ivc_k)| GasTemperature { ivc_deg, t_ivc_k }),
             ..HeatRelease::default()
         };
         heat.validate().map_err(|e| miette!("{e}"))?;
-        let knock = self.knock();
+        let knock = self.knock()?;
         if let Some(k) = &knock {
             k.validate().map_err(|e| miette!("--knock: {e}"))?;
         }
@@ -91,6 +103,19 @@ impl CombustionArgs {
         self.peg.is_some()
             || self.gamma != physid_apps::combustion::DEFAULT_GAMMA
             || self.mfb != physid_apps::combustion::MFB
+            || self.gas_temperature.is_some()
             || self.knock
+    }
+}
+
+/// Two numbers given as `A,B` to `flag`, if given.
+fn pair(flag: &str, v: &Option<Vec<f64>>) -> Result<Option<(f64, f64)>> {
+    match v.as_deref() {
+        None => Ok(None),
+        Some([a, b]) => Ok(Some((*a, *b))),
+        Some(other) => Err(miette!(
+            "{flag}: {} number(s) given, expected two separated by a comma (A,B)",
+            other.len()
+        )),
     }
 }

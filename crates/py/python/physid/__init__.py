@@ -744,10 +744,11 @@ def torque_fit(
 class CyclesResult(Result):
     """:func:`cycles`' result: ``channel``, ``unit``, ``cov_imep``, ``lnv_imep`` (over the fired
     cycles when some fired), ``notes``; ``tracks`` per cycle: ``t`` (its firing TDC), ``cycle``,
-    ``rpm``, ``p_max``, ``p_max_deg``, ``peg_offset``, ``imep``, ``imep_gross``,
-    ``n_compression``, ``n_expansion``, ``heat_release`` [J], ``fired`` (1/0), ``mfb10_deg``,
-    ``mfb50_deg``, ``mfb90_deg``, ``dp_max`` [Pa/deg], ``dp_max_deg`` (NaN where not computed);
-    ``to_pandas()`` gives them as a DataFrame."""
+    ``rpm``, ``p_max``, ``p_max_deg``, ``peg_offset``, ``imep``, ``imep_gross``, ``pmep``,
+    ``n_compression``, ``n_expansion``, ``heat_release`` [J], ``fired``, ``misfire``,
+    ``partial_burn`` (1/0), ``mfbK_deg`` for each fraction K of ``mfb``, ``dp_max`` [Pa/deg],
+    ``dp_max_deg``, ``t_max`` [K] (with ``gas_temperature``), with knock ``mapo`` [Pa], ``mapo_deg``, ``impo`` [Pa·deg], ``knock`` (1/0)
+    (NaN where not computed); ``to_pandas()`` gives them as a DataFrame."""
 
     def to_pandas(self):
         import pandas as pd
@@ -763,19 +764,37 @@ def cycles(
     compression_ratio: float | None = None,
     peg: str | None = None,
     gamma: float = 1.35,
+    mfb=(10.0, 50.0, 90.0),
+    knock: bool = False,
+    knock_band=(5e3, 20e3),
+    knock_window=(0.0, 60.0),
+    knock_threshold: float = 1e5,
+    gas_temperature=None,
 ) -> CyclesResult:
     """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
     recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
     its angle, speed; with the geometry (all four, SI: ``bore``, ``stroke``, ``rod``,
     ``compression_ratio``) net and gross IMEP, the polytropic exponents and the combustion —
     apparent net heat release (single zone, constant ``gamma``), MFB10/50/90, fired or motored,
-    the steepest pressure rise. ``peg``: ``"bdc=P"`` or ``"polytropic=N"``. A cycle is the
-    compression before its firing TDC and the expansion after."""
+    the steepest pressure rise, PMEP, misfire and partial burn. ``peg``: ``"bdc=P"`` or
+    ``"polytropic=N"``; ``mfb``: the burn fractions [%] whose angles are given (``mfbK_deg``);
+    ``knock``: MAPO, IMPO and a flag above ``knock_threshold`` [Pa] from the pressure
+    band-passed in ``knock_band`` [Hz] within ``knock_window`` [deg ATDC] (a step fine enough
+    for the band: docs/data.md); ``gas_temperature=(ivc_deg, t_ivc_k)``: γ(T) at the mean gas
+    temperature of the gas trapped at IVC instead of the constant ``gamma``, and its peak
+    ``t_max`` [K]. A cycle is the compression before its firing TDC and the expansion after."""
     given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
     if any(given) and not all(given):
         raise Error("the cylinder's geometry needs bore, stroke, rod and compression_ratio")
     geometry = (float(bore), float(stroke), float(rod), float(compression_ratio)) if all(given) else None
-    s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma))
+    k = None
+    if knock:
+        k = (float(knock_band[0]), float(knock_band[1]), float(knock_window[0]),
+             float(knock_window[1]), float(knock_threshold))
+    g = None if gas_temperature is None else (float(gas_temperature[0]),
+                                              float(gas_temperature[1]))
+    s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma),
+                               [float(m) for m in mfb], k, g)
     return CyclesResult(_json.loads(s), dict(tracks))
 
 

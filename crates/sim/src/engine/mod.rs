@@ -14,8 +14,10 @@
 //! Two more states count the mass exchanged with the ambient (in through the throttle, out
 //! through the exhaust orifice) so that mass conservation is checkable to round-off.
 //!
-//! No combustion (every thesis experiment is motored); [`Combustion`] is the seam where a heat
-//! release model would plug in.
+//! Motored unless `engine.burn_q` is set (every thesis experiment is motored): then a Wiebe
+//! burn ([`Wiebe`]) releases that much heat per cycle into the cylinder's energy equation, the
+//! term `+Q̇_comb` of `m·c_v·dT/dt` — fired scenarios for combustion analysis. [`Combustion`] is
+//! the seam.
 //!
 //! Here: the engine and its outputs. `orifice.rs`: the compressible flow between the volumes;
 //! `geometry.rs`: the valve, throttle and cam areas and lifts; `stability.rs`: the network's
@@ -50,8 +52,65 @@ pub type GasState = [f64; 8];
 /// Heat released into the cylinder by combustion [W] at an angle and state — the seam for a
 /// fired engine. The motored engine has none.
 pub trait Combustion {
-    /// Heat release rate [W].
-    fn heat_release(&self, theta_cycle_deg: f64, p_cyl: f64, t_cyl: f64) -> f64;
+    /// Heat release rate [W] at the crank angle in the cycle [deg, 0 … 720 from firing TDC],
+    /// the speed ω [rad/s], the cylinder's pressure [Pa] and temperature [K].
+    fn heat_release(&self, theta_cycle_deg: f64, omega: f64, p_cyl: f64, t_cyl: f64) -> f64;
+}
+
+/// A Wiebe burn (Heywood 1988, Eq. 9.32): the fraction burned
+/// `x_b(θ) = 1 − exp(−a·((θ − θ₀)/Δθ)^(m+1))` from `θ₀` on, so the heat release rate is
+/// `Q̇ = Q·dx_b/dθ·ω` with `dx_b/dθ = a·(m+1)/Δθ·z^m·exp(−a·z^(m+1))`, `z = (θ − θ₀)/Δθ`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wiebe {
+    /// Heat released per cycle [J].
+    pub q: f64,
+    /// Start [deg after firing TDC].
+    pub start: f64,
+    /// Duration [deg].
+    pub duration: f64,
+    /// Efficiency parameter `a`.
+    pub a: f64,
+    /// Shape parameter `m`.
+    pub m: f64,
+}
+
+impl Wiebe {
+    /// The burn of `p`'s `engine.burn_*` parameters.
+    pub fn of(p: &EngineParams) -> Self {
+        Self {
+            q: p.burn_q,
+            start: p.burn_start,
+            duration: p.burn_duration,
+            a: p.burn_a,
+            m: p.burn_m,
+        }
+    }
+
+    /// The fraction burned at `atdc` [deg after firing TDC, −360 … 360].
+    pub fn burned(&self, atdc: f64) -> f64 {
+        let z = ((atdc - self.start) / self.duration).max(0.0);
+        -(-self.a * z.powf(self.m + 1.0)).exp_m1()
+    }
+}
+
+impl Combustion for Wiebe {
+    fn heat_release(&self, theta_cycle_deg: f64, omega: f64, _: f64, _: f64) -> f64 {
+        if self.q == 0.0 {
+            return 0.0;
+        }
+        let atdc = if theta_cycle_deg >= 360.0 {
+            theta_cycle_deg - 720.0
+        } else {
+            theta_cycle_deg
+        };
+        let z = (atdc - self.start) / self.duration;
+        if z <= 0.0 {
+            return 0.0;
+        }
+        let zm = z.powf(self.m);
+        let dx_deg = self.a * (self.m + 1.0) / self.duration * zm * (-self.a * zm * z).exp();
+        self.q * dx_deg * omega.to_degrees()
+    }
 }
 
 /// No combustion.
@@ -59,7 +118,7 @@ pub trait Combustion {
 pub struct Motored;
 
 impl Combustion for Motored {
-    fn heat_release(&self, _: f64, _: f64, _: f64) -> f64 {
+    fn heat_release(&self, _: f64, _: f64, _: f64, _: f64) -> f64 {
         0.0
     }
 }
@@ -405,7 +464,7 @@ impl Engine {
         } else {
             0.0
         };
-        let q_comb = comb.heat_release(deg, p[CYL], t[CYL]);
+        let q_comb = comb.heat_release(deg, omega, p[CYL], t[CYL]);
         // Contribution of a flow `f` (positive into volume `i`) whose upstream gas has enthalpy
         // `h_up`: in, `f·(h_up − u_i)`; out (f < 0), the volume's own gas, `f·R·T_i`.
         let term = |i: usize, f: f64, h_up: f64| -> f64 {
