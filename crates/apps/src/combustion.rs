@@ -223,17 +223,22 @@ impl BurnHistory {
     }
 }
 
-/// The combustion figures of one cycle: `atdc` its angles [deg ATDC] in increasing order, `p`
-/// the pressure there [Pa] and `v` the volume [m³]; `vd` the displacement [m³], `p_max` the
-/// cycle's peak pressure [Pa]. `None` with fewer than three samples in the window.
-pub fn burn(
-    hr: &HeatRelease,
-    atdc: &[f64],
-    p: &[f64],
-    v: &[f64],
-    vd: f64,
-    p_max: f64,
-) -> Option<Burn> {
+/// The apparent heat release over the window ([`HeatRelease`], Eq. 9.25): the window's first
+/// sample `from`, `Q` [J] at each of its samples (0 at the first), the peak mean gas
+/// temperature [K] when [`GasTemperature`] is given. `None` with fewer than three samples in
+/// the window.
+pub struct Apparent {
+    /// The window's first sample in the cycle.
+    pub from: usize,
+    /// Q at each sample of the window [J].
+    pub q: Vec<f64>,
+    /// The peak mean gas temperature in the window [K].
+    pub t_max_k: Option<f64>,
+}
+
+/// [`Apparent`] of a cycle: `atdc` its angles [deg ATDC] in increasing order, `p` the pressure
+/// there [Pa], `v` the volume [m³].
+pub fn apparent_heat(hr: &HeatRelease, atdc: &[f64], p: &[f64], v: &[f64]) -> Option<Apparent> {
     let (lo, hi) = hr.window;
     let from = atdc.partition_point(|&a| a < lo);
     let to = atdc.partition_point(|&a| a <= hi);
@@ -245,12 +250,12 @@ pub fn burn(
         let (p_ivc, v_ivc) = (linear(atdc, p, g.ivc_deg), linear(atdc, v, g.ivc_deg));
         p_ivc * v_ivc / g.t_ivc_k
     });
-    let (a, p, v) = (&atdc[from..to], &p[from..to], &v[from..to]);
+    let (p, v) = (&p[from..to], &v[from..to]);
     // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means).
-    let mut q = Vec::with_capacity(a.len());
+    let mut q = Vec::with_capacity(p.len());
     q.push(0.0);
     let mut t_max = f64::NEG_INFINITY;
-    for k in 1..a.len() {
+    for k in 1..p.len() {
         let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
         let g = match m_r {
             Some(m_r) => {
@@ -262,6 +267,26 @@ pub fn burn(
         let dq = g / (g - 1.0) * pm * (v[k] - v[k - 1]) + vm * (p[k] - p[k - 1]) / (g - 1.0);
         q.push(q[k - 1] + dq);
     }
+    Some(Apparent {
+        from,
+        q,
+        t_max_k: m_r.map(|_| t_max),
+    })
+}
+
+/// The combustion figures of one cycle: `atdc` its angles [deg ATDC] in increasing order, `p`
+/// the pressure there [Pa] and `v` the volume [m³]; `vd` the displacement [m³], `p_max` the
+/// cycle's peak pressure [Pa]. `None` with fewer than three samples in the window.
+pub fn burn(
+    hr: &HeatRelease,
+    atdc: &[f64],
+    p: &[f64],
+    v: &[f64],
+    vd: f64,
+    p_max: f64,
+) -> Option<Burn> {
+    let Apparent { from, q, t_max_k } = apparent_heat(hr, atdc, p, v)?;
+    let (a, p) = (&atdc[from..from + q.len()], &p[from..from + q.len()]);
     let k_max = argmax(&q);
     let k_min = argmin(&q[..=k_max]);
     let heat = q[k_max] - q[k_min];
@@ -292,7 +317,7 @@ pub fn burn(
         dp_max_deg: dp_deg,
         misfire: false,
         partial_burn: false,
-        t_max_k: m_r.map(|_| t_max),
+        t_max_k,
     })
 }
 

@@ -200,6 +200,11 @@ impl PerCycle {
         &self.settings
     }
 
+    /// The last cycle's pressure as pegged and its volume (empty without the geometry).
+    pub fn pegged(&self) -> (&[f64], &[f64]) {
+        (&self.pc, &self.vol)
+    }
+
     /// The figures of cycle `cycle`: its samples at the times `t` [s], the angles `atdc` [deg
     /// ATDC, increasing, from −360°] and the pressures `p` (at least two samples, and one at or
     /// after TDC). Cycles are given in order: misfires are told from the ones before.

@@ -146,6 +146,41 @@ pub struct CycleAnalysis {
     /// Whether knock was asked for.
     #[serde(skip)]
     pub knock: bool,
+    /// The ensemble mean of the complete cycles' pressure, crank angle by crank angle (cycle
+    /// averaging), analysed as one cycle (its `cycle` the number averaged), with two cycles or
+    /// more of one length.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mean_cycle: Option<CycleFigures>,
+    /// The mean cycle's and the chosen cycle's curves, for a report.
+    #[serde(skip)]
+    pub curves: Option<CycleCurves>,
+}
+
+/// A cycle's curves against crank angle: what a report draws.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CycleCurve {
+    /// The cycle (the mean's: the number averaged).
+    pub cycle: i64,
+    /// The pressure, pegged [the channel's unit].
+    pub p: Vec<f64>,
+    /// The apparent heat release from the window's start [J] on `heat_deg` (with the geometry
+    /// and the pressure in Pa).
+    pub heat: Vec<f64>,
+}
+
+/// The curves of the mean cycle and of one chosen cycle on the cycle's angles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CycleCurves {
+    /// The angles [deg ATDC].
+    pub atdc: Vec<f64>,
+    /// The volume there [m³] (empty without the geometry).
+    pub volume: Vec<f64>,
+    /// The heat release window's angles [deg ATDC].
+    pub heat_deg: Vec<f64>,
+    /// The ensemble mean.
+    pub mean: Option<CycleCurve>,
+    /// The chosen cycle.
+    pub chosen: Option<CycleCurve>,
 }
 
 impl CycleAnalysis {
@@ -325,6 +360,13 @@ pub struct CycleAnalyser {
     notes: Vec<String>,
     /// Scratch for a cycle: angle ATDC.
     atdc: Vec<f64>,
+    /// The sum of the complete cycles' pressures and times at each sample, their number (all
+    /// of one length, on the same angles) — the ensemble mean's.
+    ensemble: Option<(Vec<f64>, Vec<f64>, usize)>,
+    /// The cycle whose curves are kept ([`Self::with_chosen_cycle`]; `None`: the last), and the
+    /// kept curve.
+    chosen: Option<i64>,
+    kept: Option<CycleCurve>,
 }
 
 impl CycleAnalyser {
@@ -388,6 +430,9 @@ impl CycleAnalyser {
             tail: None,
             notes,
             atdc: Vec::new(),
+            ensemble: None,
+            chosen: None,
+            kept: None,
         })
     }
 
@@ -400,6 +445,12 @@ impl CycleAnalyser {
             ..self.per_cycle.settings().clone()
         });
         Ok(self)
+    }
+
+    /// Keep the curves of cycle `cycle` for a report (the last complete cycle's otherwise).
+    pub fn with_chosen_cycle(mut self, cycle: Option<i64>) -> Self {
+        self.chosen = cycle;
+        self
     }
 
     /// Knock figures too ([`crate::knock`]; checked; with the pressure in Pa).
@@ -453,6 +504,20 @@ impl CycleAnalyser {
         Ok(())
     }
 
+    /// The curve of a cycle just analysed (its pressure as pegged), with its heat release.
+    fn curve(&self, cycle: i64, p: Vec<f64>) -> CycleCurve {
+        let (_, vol) = self.per_cycle.pegged();
+        let s = self.per_cycle.settings();
+        let heat = if s.in_pa && vol.len() == p.len() {
+            crate::combustion::apparent_heat(&s.heat, &self.atdc, &p, vol)
+                .map(|a| a.q)
+                .unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        CycleCurve { cycle, p, heat }
+    }
+
     /// The samples per cycle, once `crank_deg` has advanced.
     fn per_cycle(&self) -> Option<usize> {
         self.step.step().map(|s| (720.0 / s).round() as usize)
@@ -480,6 +545,42 @@ impl CycleAnalyser {
                 self.per_cycle().unwrap_or(0)
             ));
         }
+        // The ensemble mean, analysed as one cycle (on the last cycle's angles: all alike).
+        let mut mean_curve = None;
+        let mean_cycle = match self.ensemble.take() {
+            Some((sum_p, sum_t, n)) if n >= 2 && sum_p.len() == self.atdc.len() => {
+                let p: Vec<f64> = sum_p.iter().map(|s| s / n as f64).collect();
+                let t: Vec<f64> = sum_t.iter().map(|s| s / n as f64).collect();
+                let atdc = std::mem::take(&mut self.atdc);
+                let mut f = self.per_cycle.figures(n as i64, &t, &atdc, &p);
+                // Not a cycle of the engine's: no misfire history, no time.
+                if let Some(b) = f.burn.as_mut() {
+                    (b.misfire, b.partial_burn) = (false, false);
+                }
+                f.t_start_s = f64::NAN;
+                self.atdc = atdc;
+                let pegged = self.per_cycle.pegged().0.to_vec();
+                mean_curve = Some(self.curve(n as i64, pegged));
+                Some(f)
+            }
+            _ => None,
+        };
+        let curves = (!self.atdc.is_empty()).then(|| {
+            let hr = &self.per_cycle.settings().heat;
+            let (lo, hi) = hr.window;
+            CycleCurves {
+                atdc: self.atdc.clone(),
+                volume: self.per_cycle.pegged().1.to_vec(),
+                heat_deg: self
+                    .atdc
+                    .iter()
+                    .copied()
+                    .filter(|a| *a >= lo && *a <= hi)
+                    .collect(),
+                mean: mean_curve,
+                chosen: self.kept.take(),
+            }
+        });
         let cycles = self.cycles;
         // What cycles left out, said once with how many.
         let mut left_out: Vec<(&str, usize)> = Vec::new();
@@ -522,6 +623,8 @@ impl CycleAnalyser {
             .then(|| imeps.iter().copied().fold(f64::INFINITY, f64::min) / mean);
         let settings = self.per_cycle.settings();
         Ok(CycleAnalysis {
+            mean_cycle,
+            curves,
             mfb: settings.heat.mfb.clone(),
             knock: settings.knock.is_some(),
             channel: self.channel,
@@ -586,6 +689,26 @@ impl CycleAnalyser {
                 p.extend_from_slice(&self.run_p[..head]);
                 let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p);
                 self.cycles.push(f);
+                if self.chosen.is_none_or(|k| k == c as i64) {
+                    let pegged = self.per_cycle.pegged().0.to_vec();
+                    self.kept = Some(self.curve(c as i64, pegged));
+                }
+                // The ensemble: cycles of the first one's length (the same angles).
+                match &mut self.ensemble {
+                    None => {
+                        self.ensemble = Some((p.clone(), t.iter().map(|x| x - t[0]).collect(), 1))
+                    }
+                    Some((sum_p, sum_t, n)) if sum_p.len() == p.len() => {
+                        for (s, x) in sum_p.iter_mut().zip(&p) {
+                            *s += x;
+                        }
+                        for (s, x) in sum_t.iter_mut().zip(&t) {
+                            *s += x - t[0];
+                        }
+                        *n += 1;
+                    }
+                    Some(_) => {}
+                }
             }
             (Some(_), _) => self.no_compression += 1,
             (None, _) => self.partial += 1,

@@ -275,6 +275,23 @@ fn misfires_and_partial_burns_are_flagged() {
     ] {
         assert!(names.iter().any(|m| m == n), "{n} in {names:?}");
     }
+    // The ensemble mean: IMEP is linear in the pressure, so the mean cycle's is the cycles'
+    // mean IMEP; its curves kept with the last cycle's.
+    let mean = a.mean_cycle.as_ref().unwrap();
+    assert_eq!(mean.cycle as usize, a.cycles.len());
+    let imeps: Vec<f64> = a.cycles.iter().map(|c| c.imep_pa.unwrap()).collect();
+    let mean_imep = imeps.iter().sum::<f64>() / imeps.len() as f64;
+    assert!((mean.imep_pa.unwrap() / mean_imep - 1.0).abs() < 1e-12);
+    let curves = a.curves.as_ref().unwrap();
+    assert_eq!(
+        curves.chosen.as_ref().unwrap().cycle,
+        a.cycles.last().unwrap().cycle
+    );
+    assert_eq!(curves.mean.as_ref().unwrap().p.len(), curves.atdc.len());
+    assert_eq!(
+        curves.mean.as_ref().unwrap().heat.len(),
+        curves.heat_deg.len()
+    );
     let partial = a.cycles.iter().find(|c| c.cycle == 6).unwrap();
     let json = serde_json::to_value(partial).unwrap();
     assert_eq!(json["partial_burn"], true, "{json}");

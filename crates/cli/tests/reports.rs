@@ -221,3 +221,81 @@ fn per_cycle_results_are_written_as_tracks() {
     let t = physid_io::read(&tracks, &Default::default()).unwrap();
     assert_eq!(t.len(), j["events"].as_array().unwrap().len());
 }
+
+/// `cycles --out DIR` on the fired virtual cell (`fired-steady`, a crank-angle recording): the
+/// report draws the mean cycle and the chosen one (pressure, heat release rate, mass fraction
+/// burned; p–V, log p–log V; the trends), `cycles.json` carries the mean cycle, whose IMEP —
+/// linear in the pressure — is the cycles' mean IMEP, and `tracks.csv` a row per cycle; a cycle
+/// that is not there is refused by name.
+#[test]
+fn the_combustion_report_draws_the_mean_and_a_chosen_cycle() {
+    let s = physid_testkit::Scratch::new("physid-cycles-report");
+    let rec = s.file("fired.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "fired-steady",
+        "--duration",
+        "1",
+        "--basis",
+        "crank",
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dir = s.file("report");
+    let args = |extra: &[&str]| {
+        let mut a = vec![
+            "cycles",
+            rec.to_str().unwrap(),
+            "--bore",
+            "0.054",
+            "--stroke",
+            "0.0514",
+            "--rod",
+            "0.088",
+            "--compression-ratio",
+            "9.5",
+            "--out",
+            dir.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        physid(&a)
+    };
+    let o = args(&["--report-cycle", "3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    for want in [
+        "mean of",
+        "cycle 3",
+        "mass fraction burned",
+        "p–V diagram",
+        "Per-cycle trends",
+    ] {
+        assert!(html.contains(want), "{want}");
+    }
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("cycles.json")).unwrap()).unwrap();
+    let cycles = j["cycles"].as_array().unwrap();
+    let mean = &j["mean_cycle"];
+    assert_eq!(mean["cycle"].as_u64().unwrap() as usize, cycles.len());
+    let imep: f64 = cycles
+        .iter()
+        .map(|c| c["imep_pa"].as_f64().unwrap())
+        .sum::<f64>()
+        / cycles.len() as f64;
+    assert!(
+        (mean["imep_pa"].as_f64().unwrap() / imep - 1.0).abs() < 1e-9,
+        "{mean}"
+    );
+    assert_eq!(mean["fired"], true);
+    let csv = std::fs::read_to_string(dir.join("tracks.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 2 + cycles.len());
+    let o = args(&["--report-cycle", "999"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("--report-cycle 999: no such complete cycle"),
+        "{e}"
+    );
+}

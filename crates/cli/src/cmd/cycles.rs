@@ -9,7 +9,7 @@ use super::{GeometryArgs, InputArgs};
 use crate::cmd::crank_input::{crank_input, read_error};
 use crate::cmd::inspect::AngleArgs;
 use crate::out::outln;
-use miette::{IntoDiagnostic, Result};
+use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::pressure::CycleAnalyser;
 use std::path::PathBuf;
 
@@ -47,6 +47,15 @@ pub struct Args {
     /// this file (.csv, .parquet or .mf4), with units.
     #[arg(long, value_name = "FILE")]
     pub tracks: Option<PathBuf>,
+    /// Write a report to this directory: report.html (the summary; pressure, heat release rate
+    /// and mass fraction burned of the ensemble mean cycle and of --report-cycle against crank
+    /// angle; their p–V and log p–log V; IMEP, MFB50, p_max and MAPO per cycle), cycles.json,
+    /// tracks.csv.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// The cycle the report draws beside the mean [default: the last].
+    #[arg(long, value_name = "N", requires = "out")]
+    pub report_cycle: Option<i64>,
 }
 
 /// The per-cycle table as a tracks file (crate::tracks).
@@ -77,7 +86,8 @@ pub fn run(args: &Args) -> Result<()> {
             Some(&[args.channel.as_str()]),
             |h| {
                 let a = CycleAnalyser::new(h, &args.channel, geometry.as_ref(), settings.peg)?
-                    .with_heat_release(settings.heat.clone())?;
+                    .with_heat_release(settings.heat.clone())?
+                    .with_chosen_cycle(args.report_cycle);
                 match settings.knock {
                     Some(k) => a.with_knock(k),
                     None => Ok(a),
@@ -89,6 +99,27 @@ pub fn run(args: &Args) -> Result<()> {
     let a = analyser.finish().map_err(super::app_error(&args.file))?;
     if let Some(path) = &args.tracks {
         write_tracks(path, &a)?;
+    }
+    if let Some(dir) = &args.out {
+        if let Some(n) = args.report_cycle {
+            if !a.cycles.iter().any(|c| c.cycle == n) {
+                return Err(miette!(
+                    "--report-cycle {n}: no such complete cycle (the cycles are {} … {})",
+                    a.cycles.first().map_or(0, |c| c.cycle),
+                    a.cycles.last().map_or(0, |c| c.cycle)
+                ));
+            }
+        }
+        let threshold = settings.knock.map(|k| k.threshold_pa);
+        crate::report::write(
+            dir,
+            "physid — combustion analysis",
+            &args.file,
+            "cycles.json",
+            &a,
+            |rep, dir| super::cycles_report::report(rep, &a, dir, threshold),
+        )?;
+        write_tracks(&dir.join("tracks.csv"), &a)?;
     }
     if args.json {
         let mut v = serde_json::to_value(&a).into_diagnostic()?;

@@ -7,6 +7,7 @@ pub mod compression;
 pub mod convert;
 pub mod crank_input;
 pub mod cycles;
+pub mod cycles_report;
 pub mod demo;
 pub mod estimate;
 pub mod example;
