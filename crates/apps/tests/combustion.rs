@@ -5,42 +5,11 @@
 
 mod common;
 
+use common::{golden, wiebe, wiebe_csv, wiebe_geometry};
 use physid_apps::combustion::{GasTemperature, HeatRelease};
 use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
 use physid_io::ReadOptions;
 use serde_json::Value;
-use std::path::PathBuf;
-
-fn golden(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
-        .join(name)
-}
-
-/// `gen_wiebe.py`'s truth.
-fn wiebe() -> Value {
-    serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap()
-}
-
-/// One of `gen_wiebe.py`'s crank-angle CSV files (a units row under the names).
-fn wiebe_csv(name: &str) -> physid_core::Recording {
-    let units_row = ReadOptions {
-        units_row: true,
-        ..ReadOptions::default()
-    };
-    physid_io::read(golden(name), &units_row).unwrap()
-}
-
-/// The engine of `gen_wiebe.py`.
-fn wiebe_geometry(truth: &Value) -> Geometry {
-    let f = |k: &str| truth[k].as_f64().unwrap();
-    Geometry {
-        bore: f("bore"),
-        stroke: f("stroke"),
-        rod: f("rod"),
-        compression_ratio: f("compression_ratio"),
-    }
-}
 
 #[test]
 fn a_wiebe_burn_gives_its_burn_angles_heat_and_work() {

@@ -6,43 +6,20 @@
 //! to the same figures.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
+use common::{wiebe, wiebe_csv, wiebe_geometry};
 use physid_apps::combustion::HeatRelease;
 use physid_apps::combustion_stage::CombustionStage;
 use physid_apps::per_cycle::{figure_columns, CycleFigures, PerCycleSettings};
-use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
+use physid_apps::pressure::{CycleAnalyser, Pegging};
 use physid_apps::stage::Stage;
 use physid_core::{Basis, Channel, Recording};
-use physid_io::ReadOptions;
 use serde_json::Value;
-use std::path::PathBuf;
-
-fn golden(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
-        .join(name)
-}
-
-fn truth() -> Value {
-    serde_json::from_str(&std::fs::read_to_string(golden("wiebe.json")).unwrap()).unwrap()
-}
-
-fn geometry(truth: &Value) -> Geometry {
-    let f = |k: &str| truth[k].as_f64().unwrap();
-    Geometry {
-        bore: f("bore"),
-        stroke: f("stroke"),
-        rod: f("rod"),
-        compression_ratio: f("compression_ratio"),
-    }
-}
 
 /// The crank-angle file and the same samples as a time-basis stream.
 fn file_and_stream(name: &str) -> (Recording, Recording) {
-    let units_row = ReadOptions {
-        units_row: true,
-        ..ReadOptions::default()
-    };
-    let file = physid_io::read(golden(name), &units_row).unwrap();
+    let file = wiebe_csv(name);
     let (cycle, deg) = (
         file.values("cycle").unwrap(),
         file.values("crank_deg").unwrap(),
@@ -72,7 +49,7 @@ fn file_and_stream(name: &str) -> (Recording, Recording) {
 
 fn settings(truth: &Value) -> PerCycleSettings {
     PerCycleSettings {
-        geometry: Some(geometry(truth)),
+        geometry: Some(wiebe_geometry(truth)),
         peg: Pegging::None,
         heat: HeatRelease::default(),
         knock: None,
@@ -120,9 +97,10 @@ fn same(file: &[CycleFigures], live: &[CycleFigures]) {
 
 #[test]
 fn the_stream_s_figures_are_the_file_s_cycle_by_cycle() {
-    let truth = truth();
+    let truth = wiebe();
     let (file, stream) = file_and_stream("wiebe_flags.csv");
-    let mut a = CycleAnalyser::new(&file, "p_cyl", Some(&geometry(&truth)), Pegging::None).unwrap();
+    let mut a =
+        CycleAnalyser::new(&file, "p_cyl", Some(&wiebe_geometry(&truth)), Pegging::None).unwrap();
     a.push(&file).unwrap();
     let by_file = a.finish().unwrap().cycles;
     let stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0).unwrap();
@@ -139,7 +117,7 @@ fn the_stream_s_figures_are_the_file_s_cycle_by_cycle() {
 
 #[test]
 fn the_stream_s_burn_angles_are_the_wiebe_s() {
-    let truth = truth();
+    let truth = wiebe();
     let (_, stream) = file_and_stream("wiebe_cycles.csv");
     let step = truth["step_deg"].as_f64().unwrap();
     let stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, step).unwrap();
@@ -156,7 +134,7 @@ fn the_stream_s_burn_angles_are_the_wiebe_s() {
 
 #[test]
 fn a_stream_without_the_pressure_passes_and_a_bad_one_is_named() {
-    let truth = truth();
+    let truth = wiebe();
     let (_, stream) = file_and_stream("wiebe_cycles.csv");
     let mut stage = CombustionStage::new("p_other", settings(&truth), 0.0, 1.0).unwrap();
     let mut out = Vec::new();
