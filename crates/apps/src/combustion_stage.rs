@@ -55,7 +55,7 @@ impl CombustionStage {
             k.validate().map_err(AppError::Invalid)?;
         }
         // The grid and the angle, checked once.
-        CycleStream::new(3, theta_tdc - 2.0 * PI, Some(step_deg))
+        CycleStream::new(2, theta_tdc - 2.0 * PI, Some(step_deg))
             .map_err(|e| AppError::Invalid(e.to_string()))?;
         Ok(Self {
             channel: channel.to_string(),
@@ -100,7 +100,7 @@ impl Stage for CombustionStage {
                 ..self.per_cycle.settings().clone()
             });
             // Cycles start 360° before their firing TDC.
-            let stream = CycleStream::new(3, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
+            let stream = CycleStream::new(2, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
                 .map_err(|e| AppError::Invalid(e.to_string()))?;
             // The first block that starts in the stream: the one its first sample begins, when
             // it sits on a firing TDC, else the next.
@@ -114,28 +114,20 @@ impl Stage for CombustionStage {
         let (t, theta) = (chunk.values("t")?, chunk.values("theta_en")?);
         self.done.clear();
         stream
-            .push(
-                t,
-                theta,
-                &[t, theta, chunk.values(&self.channel)?],
-                &mut self.done,
-            )
-            .map_err(|e| {
-                AppError::Invalid(format!(
-                    "{} (channels 0, 1, 2: t, theta_en, {})",
-                    e, self.channel
-                ))
-            })?;
+            .push(t, theta, &[t, chunk.values(&self.channel)?], &mut self.done)
+            .map_err(|e| AppError::Invalid(format!("{e} (channels 0, 1: t, {})", self.channel)))?;
         for c in self.done.drain(..) {
             let Some(curve) = &c.curve else { continue };
-            let (t, theta, p) = (&curve[0], &curve[1], &curve[2]);
+            let (t, p) = (&curve[0], &curve[1]);
             let n = p.len();
-            self.atdc.clear();
-            self.atdc
-                .extend((0..n).map(|k| -360.0 + k as f64 * self.step_deg));
-            // The block its firing TDC (the grid's middle) starts.
-            let tdc = theta[n / 2];
-            let cycle = ((tdc - self.theta_tdc) / (4.0 * PI)).round() as i64 - *first;
+            if self.atdc.len() != n {
+                self.atdc.clear();
+                self.atdc
+                    .extend((0..n).map(|k| -360.0 + k as f64 * self.step_deg));
+            }
+            // The block its firing TDC starts: the stream's cycle k (absolute) starts 2π before
+            // the TDC at θ_TDC + 4πk.
+            let cycle = c.cycle + stream.first_index() - *first;
             out.put(self.per_cycle.figures(cycle, t, &self.atdc, p));
         }
         Ok(())

@@ -117,6 +117,13 @@ impl CycleStream {
         })
     }
 
+    /// The index of the first cycle that starts in the stream, counted in 4π from the TDC angle
+    /// (`floor((θ − θ_TDC)/4π)` of its start; known after the first sample): a summary's
+    /// `cycle` plus this is the cycle's absolute index.
+    pub fn first_index(&self) -> i64 {
+        self.first
+    }
+
     /// The angle where cycle `c` starts [rad].
     fn start(&self, c: i64) -> f64 {
         self.theta_tdc + c as f64 * 4.0 * PI

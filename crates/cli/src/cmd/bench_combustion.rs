@@ -1,15 +1,17 @@
-//! `physid bench`'s combustion analysis: the live stage's whole per-cycle path
-//! ([`CombustionStage`]: the pressure taken onto a 0.1° grid from a time-basis stream, then
-//! pegging, IMEP, PMEP, exponents, heat release, burn angles, misfire flags and, with knock,
-//! the band-pass, MAPO and IMPO) against the real-time need of a four-cylinder engine at
-//! 6000 rpm: 4 × 50 = 200 cycles per second.
+//! `physid bench`'s combustion analysis against the real-time need of a four-cylinder engine at
+//! 6000 rpm (4 × 50 = 200 cycles per second) at 0.1°: `combustion_figures`, one cycle's
+//! figures from its pressure on the crank-angle grid ([`PerCycle`]: pegging, IMEP, PMEP,
+//! exponents, heat release, burn angles, misfire flags — what `cycles` does per cycle of a
+//! crank-angle file); `combustion` and `combustion_knock`, the live stage's whole path
+//! ([`CombustionStage`]: the pressure taken onto the grid from a time-basis stream sampled at
+//! 0.1° (360 kHz), then the figures; with knock the band-pass, MAPO and IMPO too).
 
 use crate::out::outln;
 use miette::Result;
 use physid_apps::combustion::HeatRelease;
 use physid_apps::combustion_stage::CombustionStage;
 use physid_apps::knock::Knock;
-use physid_apps::per_cycle::PerCycleSettings;
+use physid_apps::per_cycle::{PerCycle, PerCycleSettings};
 use physid_apps::pressure::{Geometry, Pegging};
 use physid_apps::stage::Stage;
 use physid_core::{Basis, Channel, Recording};
@@ -83,6 +85,50 @@ pub fn combustion(
     };
     let rec = stream(&g)?;
     let chunk = 3600; // 10 ms
+    let need = CYLINDERS * RPM / 120.0;
+    // The figures alone, on the stream's cycles cut at −360° … 360° ATDC (all alike).
+    {
+        let per = 7200usize;
+        let (t, p) = (
+            rec.values("t").map_err(|e| miette::miette!("{e}"))?,
+            rec.values("p_cyl").map_err(|e| miette::miette!("{e}"))?,
+        );
+        let atdc: Vec<f64> = (0..per).map(|k| -360.0 + k as f64 * 0.1).collect();
+        let mut pc = PerCycle::new(PerCycleSettings {
+            geometry: Some(g),
+            peg: Pegging::None,
+            heat: HeatRelease::default(),
+            knock: None,
+            in_pa: true,
+        });
+        let cycles = CYCLES - 1;
+        let cycles_per_s = rate(cycles, budget, &mut || {
+            for c in 0..cycles {
+                // From 360° (the first firing TDC's compression) on.
+                let from = per / 2 + c * per;
+                std::hint::black_box(pc.figures(
+                    c as i64,
+                    &t[from..from + per],
+                    &atdc,
+                    &p[from..from + per],
+                ));
+            }
+            Ok(())
+        })?;
+        let realtime = cycles_per_s / need;
+        if !json_out {
+            outln!(
+                "{:<21} {cycles_per_s:>10.0} cycles/s: {realtime:.0}× real time — one cycle's \
+                 figures from its pressure at 0.1° (7200 samples), as `cycles` on a crank-angle \
+                 file, against a four-cylinder engine at 6000 rpm ({need:.0} cycles/s)",
+                "combustion_figures"
+            );
+        }
+        results.push(
+            json!({"name": "combustion_figures", "cycles_per_s": cycles_per_s,
+            "realtime_factor": realtime, "step_deg": 0.1, "rpm": RPM, "cylinders": CYLINDERS}),
+        );
+    }
     for (name, knock) in [
         ("combustion", None),
         ("combustion_knock", Some(Knock::default())),
@@ -109,7 +155,6 @@ pub fn combustion(
         };
         let per_stream = one()?;
         let cycles_per_s = rate(per_stream, budget, &mut || one().map(|_| ()))?;
-        let need = CYLINDERS * RPM / 120.0;
         let realtime = cycles_per_s / need;
         if !json_out {
             outln!(
