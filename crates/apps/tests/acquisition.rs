@@ -685,6 +685,31 @@ fn the_stream_step_check_counts_samples_across_chunks() {
     assert!(e.contains("at sample 2 "), "{e}");
 }
 
+/// A DAQ's stamps rounded to the microsecond at 72 046 Hz (steps of 13 and 14 µs): a uniform
+/// clock, its period the mean step — by the whole-record check and the stream's alike; a sample
+/// dropped among them is still refused where it is.
+#[test]
+fn stamps_rounded_to_the_microsecond_are_a_uniform_clock() {
+    use physid_apps::acquisition::{uniform_step, StepCheck};
+    let fs = 72_046.0;
+    let t: Vec<f64> = (0..50_000)
+        .map(|k| (k as f64 / fs * 1e6).round() * 1e-6)
+        .collect();
+    let dt = uniform_step(&t).unwrap();
+    assert!((1.0 / dt / fs - 1.0).abs() < 1e-6, "{} Hz", 1.0 / dt);
+    let mut s = StepCheck::new(uniform_step(&t[..1000]).unwrap());
+    for chunk in t.chunks(777) {
+        s.check(chunk).unwrap();
+    }
+    let mut dropped = t.clone();
+    dropped.remove(30_000);
+    let e = uniform_step(&dropped).unwrap_err().to_string();
+    assert!(e.contains("not uniform at sample 30000"), "{e}");
+    let mut s = StepCheck::new(dt);
+    let e = s.check(&dropped).unwrap_err().to_string();
+    assert!(e.contains("at sample 30000"), "{e}");
+}
+
 /// The crank→time stage (`TimeBasisStream`, what `monitor`, `live --replay` and `convert
 /// --time-basis` run on a crank-angle file) against closed forms: an engine accelerating from
 /// 1200 rpm at 300 rad/s², sampled every 1° of crank (so its time step shrinks), with

@@ -3,8 +3,9 @@
 use super::*;
 
 /// The sample period [s] of a time channel that must be uniform: the mean step, or an error at
-/// the first step that goes back or repeats a time, else at the first step more than 0.1 % away
-/// from the median step (what to do about it included). The median, not the mean, is the
+/// the first step that goes back or repeats a time, else at the first step further than
+/// [`step_tolerance`] (0.1 %, or stamps rounded to the microsecond) from the median step (what
+/// to do about it included). The median, not the mean, is the
 /// reference: one jump back or forward moves the mean, and every step would then look wrong
 /// from the first.
 pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
@@ -37,7 +38,7 @@ pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
     let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
     match t
         .windows(2)
-        .position(|w| ((w[1] - w[0]) - median).abs() > 1e-3 * median)
+        .position(|w| ((w[1] - w[0]) - median).abs() > step_tolerance(median))
     {
         Some(i) => Err(AcquisitionError::Invalid(format!(
             "the time step is not uniform at sample {} ({} s, {median} s elsewhere): {fix}",
@@ -48,9 +49,21 @@ pub fn uniform_step(t: &[f64]) -> Result<f64, AcquisitionError> {
     }
 }
 
+/// Time stamps rounded to this [s] (a DAQ's export to the microsecond) are a uniform clock's.
+pub const STAMP_QUANTUM_S: f64 = 1e-6;
+
+/// How far a step may be from the period `dt` and the clock still count as uniform: 0.1 % of
+/// it, or — for stamps rounded to [`STAMP_QUANTUM_S`] (steps of 13 and 14 µs at 72 kHz) — the
+/// quantum, as long as that is under a quarter of the period (so a dropped sample, a whole
+/// period, is never taken for rounding).
+pub fn step_tolerance(dt: f64) -> f64 {
+    (1e-3 * dt).max((STAMP_QUANTUM_S * 1.001).min(0.25 * dt))
+}
+
 /// The uniform-step check of a stream ([`uniform_step`]'s, a chunk at a time): every step of
-/// `t`, across chunk boundaries too, within 0.1 % of the period `dt` taken from the first
-/// samples — an error at the first that is not, with its sample index from the stream's start.
+/// `t`, across chunk boundaries too, within [`step_tolerance`] of the period `dt` taken from
+/// the first samples (their mean step) — an error at the first that is not, with its sample
+/// index from the stream's start.
 #[derive(Debug, Clone)]
 pub struct StepCheck {
     dt: f64,
@@ -77,7 +90,7 @@ impl StepCheck {
     pub fn check(&mut self, t: &[f64]) -> Result<(), AcquisitionError> {
         for (i, &now) in t.iter().enumerate() {
             if let Some(before) = self.t_prev.replace(now) {
-                if ((now - before) - self.dt).abs() > 1e-3 * self.dt {
+                if ((now - before) - self.dt).abs() > step_tolerance(self.dt) {
                     return Err(AcquisitionError::Invalid(format!(
                         "the time step is not uniform at sample {} ({} s, mean {} s): check with physid inspect, resample with physid convert --time-basis HZ",
                         self.seen + i,
