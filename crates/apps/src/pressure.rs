@@ -147,8 +147,9 @@ pub struct CycleAnalysis {
     #[serde(skip)]
     pub knock: bool,
     /// The ensemble mean of the complete cycles' pressure, crank angle by crank angle (cycle
-    /// averaging), analysed as one cycle (its `cycle` the number averaged), with two cycles or
-    /// more of one length.
+    /// averaging), analysed as one cycle (its `cycle` the number averaged, its `t_start_s` the
+    /// mean time from a cycle's start at −360° to its TDC), with two cycles or more of one
+    /// length.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mean_cycle: Option<CycleFigures>,
     /// The mean cycle's and the chosen cycle's curves, for a report.
@@ -553,11 +554,11 @@ impl CycleAnalyser {
                 let t: Vec<f64> = sum_t.iter().map(|s| s / n as f64).collect();
                 let atdc = std::mem::take(&mut self.atdc);
                 let mut f = self.per_cycle.figures(n as i64, &t, &atdc, &p);
-                // Not a cycle of the engine's: no misfire history, no time.
+                // Not a cycle of the engine's: no misfire history; its time is the mean time
+                // from a cycle's start to its TDC.
                 if let Some(b) = f.burn.as_mut() {
                     (b.misfire, b.partial_burn) = (false, false);
                 }
-                f.t_start_s = f64::NAN;
                 self.atdc = atdc;
                 let pegged = self.per_cycle.pegged().0.to_vec();
                 mean_curve = Some(self.curve(n as i64, pegged));
