@@ -11,6 +11,12 @@
 //!   is the energy equation `dQ = m·c_v(T)·dT + p·dV` itself (`m·dT = (p·dV + V·dp)/R`).
 //! * **Mean gas temperature** ([`GasTemperature`]): the ideal gas with the mass trapped at IVC,
 //!   `T = T_IVC · p·V / (p_IVC·V_IVC)` (Heywood §9.2.1), its peak in the window `t_max_k`.
+//! * **Gross heat release** ([`WallHeat`], with the gas temperature): the net plus the heat lost
+//!   to the walls, `Q̇_w = h·A_w·(T − T_w)` with Woschni's coefficient without its combustion
+//!   term (Heywood Eq. 12.19; the thesis's Eq. 3.10–3.12, the virtual cell's):
+//!   `h = 3.26·B^−0.2·p^0.8·T^−0.55·w^0.8` [W/(m²K)], p in kPa, `w = C₁·S̄_p`, `C₁` = 2.28,
+//!   `S̄_p = 2·S·N`, `A_w = πB²/2 + 4V/B` (head, piston and the liner uncovered), over each step
+//!   of `Δθ/(6·N)` seconds.
 //! * **Burn angles** (mass fraction burned, the heat-release method): `x_b = (Q − Q_min)/(Q_max
 //!   − Q_min)`, `Q_max` the largest `Q` in the window and `Q_min` the smallest before it; MFBk is
 //!   where `x_b` first reaches k % after `Q_min`, linearly between the samples. The heat
@@ -50,6 +56,29 @@ pub struct GasTemperature {
     pub t_ivc_k: f64,
 }
 
+/// The wall heat that makes the heat release gross (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct WallHeat {
+    /// The wall temperature [K].
+    pub t_wall_k: f64,
+    /// Woschni's `C₁` for compression and expansion.
+    pub c1: f64,
+}
+
+/// Woschni's `C₁` for compression and expansion (Heywood §12.4.3; the thesis's Table 3.1).
+pub const WOSCHNI_C1: f64 = 2.28;
+
+/// What the wall heat needs of the engine: bore and stroke [m], the cycle's speed [rpm].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cylinder {
+    /// Bore [m].
+    pub bore: f64,
+    /// Stroke [m].
+    pub stroke: f64,
+    /// Mean speed [rpm].
+    pub rpm: f64,
+}
+
 /// How the heat release is computed.
 #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct HeatRelease {
@@ -57,6 +86,8 @@ pub struct HeatRelease {
     pub gamma: f64,
     /// The mean gas temperature's reference: then γ(T) at it, and its peak.
     pub temperature: Option<GasTemperature>,
+    /// The wall heat added (gross heat release; needs `temperature`).
+    pub wall: Option<WallHeat>,
     /// The window [deg ATDC].
     pub window: (f64, f64),
     /// The burn fractions whose angles are given [%], each in (0, 100).
@@ -70,6 +101,7 @@ impl Default for HeatRelease {
             window: HEAT_WINDOW,
             mfb: MFB.to_vec(),
             temperature: None,
+            wall: None,
         }
     }
 }
@@ -95,6 +127,19 @@ impl HeatRelease {
                 return Err(AppError::Invalid(format!(
                     "--gas-temperature {},{}: expected the intake valve's closing in −360 … 0° ATDC and the gas temperature then in K (> 0), e.g. -140,320",
                     g.ivc_deg, g.t_ivc_k
+                )));
+            }
+        }
+        if let Some(w) = &self.wall {
+            if self.temperature.is_none() {
+                return Err(AppError::Invalid(
+                    "--wall-heat needs the gas temperature (--gas-temperature IVC_DEG,T_IVC): the wall heat is Woschni's at the mean gas temperature".into(),
+                ));
+            }
+            if !(w.t_wall_k > 0.0 && w.t_wall_k.is_finite() && w.c1 >= 0.0) {
+                return Err(AppError::Invalid(format!(
+                    "--wall-heat {}: expected the wall temperature in K (> 0), e.g. 400",
+                    w.t_wall_k
                 )));
             }
         }
@@ -237,8 +282,14 @@ pub struct Apparent {
 }
 
 /// [`Apparent`] of a cycle: `atdc` its angles [deg ATDC] in increasing order, `p` the pressure
-/// there [Pa], `v` the volume [m³].
-pub fn apparent_heat(hr: &HeatRelease, atdc: &[f64], p: &[f64], v: &[f64]) -> Option<Apparent> {
+/// there [Pa], `v` the volume [m³]; `cyl` the engine, for the wall heat.
+pub fn apparent_heat(
+    hr: &HeatRelease,
+    atdc: &[f64],
+    p: &[f64],
+    v: &[f64],
+    cyl: &Cylinder,
+) -> Option<Apparent> {
     let (lo, hi) = hr.window;
     let from = atdc.partition_point(|&a| a < lo);
     let to = atdc.partition_point(|&a| a <= hi);
@@ -250,7 +301,16 @@ pub fn apparent_heat(hr: &HeatRelease, atdc: &[f64], p: &[f64], v: &[f64]) -> Op
         let (p_ivc, v_ivc) = (linear(atdc, p, g.ivc_deg), linear(atdc, v, g.ivc_deg));
         p_ivc * v_ivc / g.t_ivc_k
     });
-    let (p, v) = (&p[from..to], &v[from..to]);
+    let (a, p, v) = (&atdc[from..to], &p[from..to], &v[from..to]);
+    // Woschni's constant part, the gas speed and the seconds per degree (with the wall heat).
+    let wall = hr.wall.map(|w| {
+        let speed = w.c1 * 2.0 * cyl.stroke * cyl.rpm / 60.0;
+        (
+            w,
+            3.26 * cyl.bore.powf(-0.2) * speed.powf(0.8),
+            1.0 / (6.0 * cyl.rpm),
+        )
+    });
     // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means).
     let mut q = Vec::with_capacity(p.len());
     q.push(0.0);
@@ -264,7 +324,13 @@ pub fn apparent_heat(hr: &HeatRelease, atdc: &[f64], p: &[f64], v: &[f64]) -> Op
             }
             None => hr.gamma,
         };
-        let dq = g / (g - 1.0) * pm * (v[k] - v[k - 1]) + vm * (p[k] - p[k - 1]) / (g - 1.0);
+        let mut dq = g / (g - 1.0) * pm * (v[k] - v[k - 1]) + vm * (p[k] - p[k - 1]) / (g - 1.0);
+        if let (Some((w, k_w, s_per_deg)), Some(m_r)) = (wall, m_r) {
+            let t = pm * vm / m_r;
+            let h = k_w * (pm * 1e-3).powf(0.8) * t.powf(-0.55);
+            let area = std::f64::consts::PI * cyl.bore * cyl.bore / 2.0 + 4.0 * vm / cyl.bore;
+            dq += h * area * (t - w.t_wall_k) * (a[k] - a[k - 1]) * s_per_deg;
+        }
         q.push(q[k - 1] + dq);
     }
     Some(Apparent {
@@ -284,8 +350,9 @@ pub fn burn(
     v: &[f64],
     vd: f64,
     p_max: f64,
+    cyl: &Cylinder,
 ) -> Option<Burn> {
-    let Apparent { from, q, t_max_k } = apparent_heat(hr, atdc, p, v)?;
+    let Apparent { from, q, t_max_k } = apparent_heat(hr, atdc, p, v, cyl)?;
     let (a, p) = (&atdc[from..from + q.len()], &p[from..from + q.len()]);
     let k_max = argmax(&q);
     let k_min = argmin(&q[..=k_max]);

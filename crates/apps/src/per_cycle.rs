@@ -20,7 +20,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::combustion::{burn, mfb_name, peak_angle, Burn, BurnHistory, HeatRelease};
+use crate::combustion::{burn, mfb_name, peak_angle, Burn, BurnHistory, Cylinder, HeatRelease};
 use crate::knock::{Knock, KnockFigures};
 use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
 
@@ -285,7 +285,16 @@ impl PerCycle {
                         "no heat release: the pressure peaks more than {PHASE_SUSPECT_DEG}° from TDC — the firing TDC is likely a revolution off (--phase-from p_cyl tells which revolution fires)"
                     ));
                 } else {
-                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max).map(|mut b| {
+                    let g = s
+                        .geometry
+                        .as_ref()
+                        .map_or((0.0, 0.0), |g| (g.bore, g.stroke));
+                    let cyl = Cylinder {
+                        bore: g.0,
+                        stroke: g.1,
+                        rpm,
+                    };
+                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max, &cyl).map(|mut b| {
                         self.history.flag(&mut b);
                         b
                     });

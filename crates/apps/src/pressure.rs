@@ -506,11 +506,16 @@ impl CycleAnalyser {
     }
 
     /// The curve of a cycle just analysed (its pressure as pegged), with its heat release.
-    fn curve(&self, cycle: i64, p: Vec<f64>) -> CycleCurve {
+    fn curve(&self, cycle: i64, p: Vec<f64>, rpm: f64) -> CycleCurve {
         let (_, vol) = self.per_cycle.pegged();
         let s = self.per_cycle.settings();
-        let heat = if s.in_pa && vol.len() == p.len() {
-            crate::combustion::apparent_heat(&s.heat, &self.atdc, &p, vol)
+        let heat = if let (true, true, Some(g)) = (s.in_pa, vol.len() == p.len(), &s.geometry) {
+            let cyl = crate::combustion::Cylinder {
+                bore: g.bore,
+                stroke: g.stroke,
+                rpm,
+            };
+            crate::combustion::apparent_heat(&s.heat, &self.atdc, &p, vol, &cyl)
                 .map(|a| a.q)
                 .unwrap_or_default()
         } else {
@@ -561,7 +566,7 @@ impl CycleAnalyser {
                 }
                 self.atdc = atdc;
                 let pegged = self.per_cycle.pegged().0.to_vec();
-                mean_curve = Some(self.curve(n as i64, pegged));
+                mean_curve = Some(self.curve(n as i64, pegged, f.rpm));
                 Some(f)
             }
             _ => None,
@@ -689,10 +694,11 @@ impl CycleAnalyser {
                     .extend(self.run_deg[..head].iter().map(|&d| snap(d)));
                 p.extend_from_slice(&self.run_p[..head]);
                 let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p);
+                let rpm = f.rpm;
                 self.cycles.push(f);
                 if self.chosen.is_none_or(|k| k == c as i64) {
                     let pegged = self.per_cycle.pegged().0.to_vec();
-                    self.kept = Some(self.curve(c as i64, pegged));
+                    self.kept = Some(self.curve(c as i64, pegged, rpm));
                 }
                 // The ensemble: cycles of the first one's length (the same angles).
                 match &mut self.ensemble {

@@ -312,7 +312,7 @@ fn friction_fit<'py>(
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
 /// notes) and the per-cycle columns.
 #[pyfunction]
-#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature))]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat))]
 #[allow(clippy::too_many_arguments)]
 fn cycles<'py>(
     py: Python<'py>,
@@ -324,6 +324,7 @@ fn cycles<'py>(
     mfb: Vec<f64>,
     knock: Option<(f64, f64, f64, f64, f64)>,
     gas_temperature: Option<(f64, f64)>,
+    wall_heat: Option<f64>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::combustion::HeatRelease;
     use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
@@ -343,6 +344,10 @@ fn cycles<'py>(
                     mfb,
                     temperature: gas_temperature.map(|(ivc_deg, t_ivc_k)| {
                         physid_apps::combustion::GasTemperature { ivc_deg, t_ivc_k }
+                    }),
+                    wall: wall_heat.map(|t_wall_k| physid_apps::combustion::WallHeat {
+                        t_wall_k,
+                        c1: physid_apps::combustion::WOSCHNI_C1,
                     }),
                     ..HeatRelease::default()
                 },

@@ -3,7 +3,7 @@
 //! stream): one meaning, one parser.
 
 use miette::{miette, Result};
-use physid_apps::combustion::{GasTemperature, HeatRelease};
+use physid_apps::combustion::{GasTemperature, HeatRelease, WallHeat, WOSCHNI_C1};
 use physid_apps::knock::Knock;
 use physid_apps::per_cycle::PerCycleSettings;
 use physid_apps::pressure::{Geometry, Pegging};
@@ -29,6 +29,11 @@ pub struct CombustionArgs {
         allow_hyphen_values = true
     )]
     pub gas_temperature: Option<Vec<f64>>,
+    /// The gross heat release: the wall heat added, Woschni's at the mean gas temperature
+    /// (C1 = 2.28, no combustion term) to walls at this temperature [K]; needs
+    /// --gas-temperature.
+    #[arg(long, value_name = "T_WALL", requires = "gas_temperature")]
+    pub wall_heat: Option<f64>,
     /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
     #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
     pub mfb: Vec<f64>,
@@ -82,6 +87,10 @@ impl CombustionArgs {
             mfb: self.mfb.clone(),
             temperature: pair("--gas-temperature", &self.gas_temperature)?
                 .map(|(ivc_deg, t_ivc_k)| GasTemperature { ivc_deg, t_ivc_k }),
+            wall: self.wall_heat.map(|t_wall_k| WallHeat {
+                t_wall_k,
+                c1: WOSCHNI_C1,
+            }),
             ..HeatRelease::default()
         };
         heat.validate().map_err(|e| miette!("{e}"))?;

@@ -770,6 +770,7 @@ def cycles(
     knock_window=(0.0, 60.0),
     knock_threshold: float = 1e5,
     gas_temperature=None,
+    wall_heat: float | None = None,
 ) -> CyclesResult:
     """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
     recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
@@ -782,7 +783,9 @@ def cycles(
     band-passed in ``knock_band`` [Hz] within ``knock_window`` [deg ATDC] (a step fine enough
     for the band: docs/data.md); ``gas_temperature=(ivc_deg, t_ivc_k)``: γ(T) at the mean gas
     temperature of the gas trapped at IVC instead of the constant ``gamma``, and its peak
-    ``t_max`` [K]. A cycle is the compression before its firing TDC and the expansion after."""
+    ``t_max`` [K]; ``wall_heat=T_WALL`` [K] (with ``gas_temperature``): the gross heat release,
+    Woschni's wall heat added. A cycle is the compression before its firing TDC and the
+    expansion after."""
     given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
     if any(given) and not all(given):
         raise Error("the cylinder's geometry needs bore, stroke, rod and compression_ratio")
@@ -794,7 +797,8 @@ def cycles(
     g = None if gas_temperature is None else (float(gas_temperature[0]),
                                               float(gas_temperature[1]))
     s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma),
-                               [float(m) for m in mfb], k, g)
+                               [float(m) for m in mfb], k, g,
+                               None if wall_heat is None else float(wall_heat))
     return CyclesResult(_json.loads(s), dict(tracks))
 
 
