@@ -32,6 +32,7 @@
 //! * [`pipeline`] — the qualitative adaptive identification loop (Fig. 5.7) from a TOML file.
 //! * [`per_cycle`] — one cycle's figures from its pressure: pegging, IMEP, PMEP, exponents,
 //!   heat release, burn angles, knock (the file's and the live stage's one analysis).
+//! * [`pressure_unit`] — whether a channel can be a cylinder pressure (its unit, its values).
 //! * [`pressure`] — cylinder-pressure analysis per cycle: peak, IMEP, polytropic exponents,
 //!   pegging, CoV of IMEP (`physid cycles`).
 //! * [`stage`] — the one shape of the data path's stages ([`stage::Stage`], [`stage::Sink`]).
@@ -59,6 +60,7 @@ pub mod model_choice;
 pub mod per_cycle;
 pub mod pipeline;
 pub mod pressure;
+pub mod pressure_unit;
 pub mod recording_rows;
 pub mod shaft_monitor;
 pub mod stage;
