@@ -25,8 +25,8 @@ use crate::combustion::HeatRelease;
 use crate::error::AppError;
 use crate::knock::Knock;
 pub use crate::per_cycle::CycleFigures;
-pub use crate::pressure_unit::{check_unit, UnitCheck, PA_PLAUSIBLE};
 use crate::per_cycle::{figure_columns, PerCycle, PerCycleSettings};
+pub use crate::pressure_unit::{check_unit, UnitCheck, PA_PLAUSIBLE};
 
 /// The cylinder's geometry (SI).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
