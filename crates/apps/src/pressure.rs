@@ -314,7 +314,7 @@ impl CycleAnalyser {
         }
         if geometry.is_some() && unit != "Pa" {
             notes.push(format!(
-                "'{p_channel}' is in '{unit}', not Pa: no IMEP (calibrate it with --scale {p_channel}=GAIN,OFFSET into Pa)"
+                "'{p_channel}' is in '{unit}', not Pa: no IMEP, heat release or burn angles (calibrate it with --scale {p_channel}=GAIN,OFFSET into Pa: docs/data.md, \"A sensor of unknown gain\")"
             ));
         }
         if matches!(peg, Pegging::Polytropic(_)) && geometry.is_none() {
