@@ -101,7 +101,8 @@ impl Stage for CombustionStage {
             });
             // Cycles start 360° before their firing TDC.
             let stream = CycleStream::new(2, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
-                .map_err(|e| AppError::Invalid(e.to_string()))?;
+                .map_err(|e| AppError::Invalid(e.to_string()))?
+                .curves_only();
             // The first block that starts in the stream: the one its first sample begins, when
             // it sits on a firing TDC, else the next.
             let theta0 = chunk.values("theta_en")?.first().copied().unwrap_or(0.0);

@@ -50,6 +50,9 @@ pub struct CycleStream {
     step: f64,
     points: usize,
     curves: bool,
+    /// The statistics (means, extremes) kept too; `false`: the curves alone
+    /// ([`curves_only`](Self::curves_only)).
+    stats: bool,
     /// The previous sample's angle and time (its values are `prev_x`).
     prev: Option<(f64, f64)>,
     prev_x: Vec<f64>,
@@ -98,6 +101,7 @@ impl CycleStream {
             step: 4.0 * PI / points as f64,
             points,
             curves,
+            stats: true,
             prev: None,
             prev_x: vec![0.0; channels],
             cycle: 0,
@@ -115,6 +119,14 @@ impl CycleStream {
                 .collect(),
             seen: 0,
         })
+    }
+
+    /// The curves alone (a stream made with a curve step): a cycle's `mean`, `min`, `max` and
+    /// `max_deg` are left empty and not computed — what a caller that analyses the curves itself
+    /// needs, at less cost per sample.
+    pub fn curves_only(mut self) -> Self {
+        self.stats = !self.curves;
+        self
     }
 
     /// The index of the first cycle that starts in the stream, counted in 4π from the TDC angle
@@ -198,7 +210,9 @@ impl CycleStream {
                 // The boundary: close the cycle with the piece up to it …
                 for j in 0..self.prev_x.len() {
                     let at = self.prev_x[j] + f * (x(j) - self.prev_x[j]);
-                    self.integral[j] += 0.5 * (self.prev_x[j] + at) * (g - th0);
+                    if self.stats {
+                        self.integral[j] += 0.5 * (self.prev_x[j] + at) * (g - th0);
+                    }
                     self.prev_x[j] = at;
                 }
                 let t_end = t0 + f * (t - t0);
@@ -217,22 +231,30 @@ impl CycleStream {
             }
             self.next_grid += 1;
         }
-        for j in 0..self.integral.len() {
-            self.integral[j] += 0.5 * (self.prev_x[j] + x(j)) * (th - th0);
+        if self.stats {
+            for j in 0..self.integral.len() {
+                self.integral[j] += 0.5 * (self.prev_x[j] + x(j)) * (th - th0);
+            }
         }
         self.accept(t, th, &x, false);
     }
 
     /// Make `(t, th, x)` the previous sample and count it in the extremes.
     fn accept(&mut self, t: f64, th: f64, x: &impl Fn(usize) -> f64, first: bool) {
-        let deg = (th - self.start(self.cycle)).to_degrees();
-        for j in 0..self.prev_x.len() {
-            let v = x(j);
-            self.prev_x[j] = v;
-            self.min[j] = self.min[j].min(v);
-            if v > self.max[j] {
-                self.max[j] = v;
-                self.max_deg[j] = deg;
+        if self.stats {
+            let deg = (th - self.start(self.cycle)).to_degrees();
+            for j in 0..self.prev_x.len() {
+                let v = x(j);
+                self.prev_x[j] = v;
+                self.min[j] = self.min[j].min(v);
+                if v > self.max[j] {
+                    self.max[j] = v;
+                    self.max_deg[j] = deg;
+                }
+            }
+        } else {
+            for j in 0..self.prev_x.len() {
+                self.prev_x[j] = x(j);
             }
         }
         if first && self.complete {
@@ -254,12 +276,28 @@ impl CycleStream {
                 cycle: self.cycle - self.first,
                 t_start_s: self.t_start,
                 t_end_s: t_end,
-                mean: self.integral.iter().map(|s| s / (4.0 * PI)).collect(),
+                mean: if self.stats {
+                    self.integral.iter().map(|s| s / (4.0 * PI)).collect()
+                } else {
+                    Vec::new()
+                },
                 start: self.start_x.clone(),
                 end: self.prev_x.clone(),
-                min: self.min.clone(),
-                max: self.max.clone(),
-                max_deg: self.max_deg.clone(),
+                min: if self.stats {
+                    self.min.clone()
+                } else {
+                    Vec::new()
+                },
+                max: if self.stats {
+                    self.max.clone()
+                } else {
+                    Vec::new()
+                },
+                max_deg: if self.stats {
+                    self.max_deg.clone()
+                } else {
+                    Vec::new()
+                },
                 curve: self.curves.then(|| self.curve.clone()),
             });
         }
