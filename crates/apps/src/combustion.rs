@@ -311,27 +311,31 @@ pub fn apparent_heat(
             1.0 / (6.0 * cyl.rpm),
         )
     });
-    // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means).
+    // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means), with the
+    // coefficients γ/(γ−1) and 1/(γ−1).
+    let coefficients = |g: f64| (g / (g - 1.0), 1.0 / (g - 1.0));
+    let constant = coefficients(hr.gamma);
     let mut q = Vec::with_capacity(p.len());
     q.push(0.0);
-    let mut t_max = f64::NEG_INFINITY;
+    let (mut sum, mut t_max) = (0.0, f64::NEG_INFINITY);
     for k in 1..p.len() {
         let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
-        let g = match m_r {
+        let (c_pdv, c_vdp) = match m_r {
             Some(m_r) => {
                 t_max = t_max.max(p[k] * v[k] / m_r);
-                physid_models::air::gamma(pm * vm / m_r)
+                coefficients(physid_models::air::gamma(pm * vm / m_r))
             }
-            None => hr.gamma,
+            None => constant,
         };
-        let mut dq = g / (g - 1.0) * pm * (v[k] - v[k - 1]) + vm * (p[k] - p[k - 1]) / (g - 1.0);
+        let mut dq = c_pdv * pm * (v[k] - v[k - 1]) + c_vdp * vm * (p[k] - p[k - 1]);
         if let (Some((w, k_w, s_per_deg)), Some(m_r)) = (wall, m_r) {
             let t = pm * vm / m_r;
             let h = k_w * (pm * 1e-3).powf(0.8) * t.powf(-0.55);
             let area = std::f64::consts::PI * cyl.bore * cyl.bore / 2.0 + 4.0 * vm / cyl.bore;
             dq += h * area * (t - w.t_wall_k) * (a[k] - a[k - 1]) * s_per_deg;
         }
-        q.push(q[k - 1] + dq);
+        sum += dq;
+        q.push(sum);
     }
     Some(Apparent {
         from,
@@ -369,13 +373,15 @@ pub fn burn(
             (pct, deg.filter(|_| fired))
         })
         .collect();
-    let (mut dp_max, mut dp_deg) = (f64::NEG_INFINITY, f64::NAN);
-    for k in 1..a.len() - 1 {
-        let d = (p[k + 1] - p[k - 1]) / (a[k + 1] - a[k - 1]);
-        if d > dp_max {
-            (dp_max, dp_deg) = (d, a[k]);
-        }
-    }
+    // The steepest rise (the first of equals): its value, then where.
+    let rise = |k: usize| (p[k + 1] - p[k - 1]) / (a[k + 1] - a[k - 1]);
+    let rises = &mut Vec::with_capacity(a.len());
+    rises.extend((1..a.len() - 1).map(rise));
+    let dp_max = extreme(rises, |x, m| x > m);
+    let dp_deg = rises
+        .iter()
+        .position(|&d| d == dp_max)
+        .map_or(f64::NAN, |k| a[k + 1]);
     Some(Burn {
         heat_release_j: heat,
         fired,
@@ -402,16 +408,21 @@ fn linear(x: &[f64], y: &[f64], x0: f64) -> f64 {
     y[k - 1] + f * (y[k] - y[k - 1])
 }
 
-/// The angle of the peak of `p` over the increasing angles `atdc`: the vertex of the parabola
-/// through the largest sample and its neighbours (the sample's own angle at either end, or
-/// when the three do not bend down).
-pub fn peak_angle(atdc: &[f64], p: &[f64]) -> Option<f64> {
+/// The peak of `p` over the increasing angles `atdc`: the largest sample, and the angle of the
+/// vertex of the parabola through it and its neighbours (the sample's own angle at either end,
+/// or when the three do not bend down).
+pub fn peak(atdc: &[f64], p: &[f64]) -> Option<(f64, f64)> {
     if p.is_empty() {
         return None;
     }
     let k = argmax(p);
+    Some((p[k], peak_angle_at(atdc, p, k)))
+}
+
+/// The vertex's angle about sample `k` (see [`peak`]).
+fn peak_angle_at(atdc: &[f64], p: &[f64], k: usize) -> f64 {
     if k == 0 || k + 1 == p.len() {
-        return Some(atdc[k]);
+        return atdc[k];
     }
     let (x0, x1, x2) = (atdc[k - 1], atdc[k], atdc[k + 1]);
     let (y0, y1, y2) = (p[k - 1], p[k], p[k + 1]);
@@ -420,22 +431,47 @@ pub fn peak_angle(atdc: &[f64], p: &[f64]) -> Option<f64> {
     let d1 = (y2 - y1) / (x2 - x1);
     let curv = (d1 - d0) / (x2 - x0);
     if curv.is_nan() || curv >= 0.0 {
-        return Some(x1);
+        return x1;
     }
     let vertex = 0.5 * (x0 + x1) - d0 / (2.0 * curv);
-    Some(vertex.clamp(x0, x2))
+    vertex.clamp(x0, x2)
 }
 
+/// The index of the largest of finite `v` (the last of equals; 0 when empty).
 fn argmax(v: &[f64]) -> usize {
-    v.iter()
-        .enumerate()
-        .max_by(|a, b| a.1.total_cmp(b.1))
-        .map_or(0, |(k, _)| k)
+    let m = extreme(v, |a, b| a > b);
+    v.iter().rposition(|&x| x == m).unwrap_or(0)
 }
 
+/// The index of the smallest of finite `v` (the first of equals; 0 when empty).
 fn argmin(v: &[f64]) -> usize {
-    v.iter()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .map_or(0, |(k, _)| k)
+    let m = extreme(v, |a, b| a < b);
+    v.iter().position(|&x| x == m).unwrap_or(0)
+}
+
+/// The value of `v` that `beats` every other (`v[0]` of an empty or NaN-led `v`: never found),
+/// in four running extremes — no comparison waits for the one before, and the compiler
+/// vectorises them.
+fn extreme(v: &[f64], beats: impl Fn(f64, f64) -> bool) -> f64 {
+    let Some(&first) = v.first() else {
+        return f64::NAN;
+    };
+    let mut lanes = [first; 4];
+    let chunks = v.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for (m, &x) in lanes.iter_mut().zip(c) {
+            if beats(x, *m) {
+                *m = x;
+            }
+        }
+    }
+    for &x in rest {
+        if beats(x, lanes[0]) {
+            lanes[0] = x;
+        }
+    }
+    lanes
+        .into_iter()
+        .fold(first, |m, x| if beats(x, m) { x } else { m })
 }

@@ -118,7 +118,7 @@ impl Stage for CombustionStage {
             .push(t, theta, &[t, chunk.values(&self.channel)?], &mut self.done)
             .map_err(|e| AppError::Invalid(format!("{e} (channels 0, 1: t, {})", self.channel)))?;
         for c in self.done.drain(..) {
-            let Some(curve) = &c.curve else { continue };
+            let Some(curve) = c.curve else { continue };
             let (t, p) = (&curve[0], &curve[1]);
             let n = p.len();
             if self.atdc.len() != n {
@@ -129,7 +129,9 @@ impl Stage for CombustionStage {
             // The block its firing TDC starts: the stream's cycle k (absolute) starts 2π before
             // the TDC at θ_TDC + 4πk.
             let cycle = c.cycle + stream.first_index() - *first;
-            out.put(self.per_cycle.figures(cycle, t, &self.atdc, p));
+            let figures = self.per_cycle.figures(cycle, t, &self.atdc, p);
+            stream.recycle(curve);
+            out.put(figures);
         }
         Ok(())
     }

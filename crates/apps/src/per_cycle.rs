@@ -14,13 +14,13 @@
 //!   (−100° … −40° ATDC for compression, 40° … 100° for expansion): `p·V^n = const` ⇒
 //!   `ln p = c − n·ln V`.
 //! * Heat release, burn angles, misfire and partial burn: [`crate::combustion`]; knock:
-//!   [`crate::knock`]; the peak's angle between the samples: [`crate::combustion::peak_angle`].
+//!   [`crate::knock`]; the peak's angle between the samples: [`crate::combustion::peak`].
 //!
 //! The volume is the slider-crank's (SPEC §2.3, [`physid_models::kinematics::Crank`]).
 
 use serde::{Deserialize, Serialize};
 
-use crate::combustion::{burn, mfb_name, peak_angle, Burn, BurnHistory, Cylinder, HeatRelease};
+use crate::combustion::{burn, mfb_name, peak, Burn, BurnHistory, Cylinder, HeatRelease};
 use crate::knock::{Knock, KnockFigures};
 use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
 
@@ -173,11 +173,13 @@ pub struct PerCycleSettings {
 pub struct PerCycle {
     settings: PerCycleSettings,
     history: BurnHistory,
-    /// Scratch: the pegged pressure and the volume.
+    /// Scratch: the pegged pressure, the volume and its logarithm.
     #[serde(skip)]
     pc: Vec<f64>,
     #[serde(skip)]
     vol: Vec<f64>,
+    #[serde(skip)]
+    ln_vol: Vec<f64>,
     /// The angles `vol` is at.
     #[serde(skip)]
     vol_atdc: Vec<f64>,
@@ -191,6 +193,7 @@ impl PerCycle {
             history: BurnHistory::default(),
             pc: Vec::new(),
             vol: Vec::new(),
+            ln_vol: Vec::new(),
             vol_atdc: Vec::new(),
         }
     }
@@ -214,14 +217,16 @@ impl PerCycle {
         // The volume at the cycle's angles: kept while the angles are the same (a grid).
         if self.vol_atdc.as_slice() != atdc || self.vol.len() != atdc.len() {
             self.vol.clear();
+            self.ln_vol.clear();
             if let Some(k) = &crank {
                 self.vol
                     .extend(atdc.iter().map(|a| k.volume(a.to_radians())));
+                self.ln_vol.extend(self.vol.iter().map(|v| v.ln()));
                 self.vol_atdc.clear();
                 self.vol_atdc.extend_from_slice(atdc);
             }
         }
-        let (pc, vol) = (&mut self.pc, &self.vol);
+        let (pc, vol, ln_vol) = (&mut self.pc, &self.vol, &self.ln_vol);
         pc.clear();
         pc.extend_from_slice(p);
         let offset = match s.peg {
@@ -234,11 +239,12 @@ impl PerCycle {
                 (p2 * v2 - p1 * v1) / (v1 - v2)
             }
         };
-        for x in pc.iter_mut() {
-            *x += offset;
+        if offset != 0.0 {
+            for x in pc.iter_mut() {
+                *x += offset;
+            }
         }
-        let p_max = pc.iter().copied().fold(f64::NAN, f64::max);
-        let p_max_deg = peak_angle(atdc, pc).unwrap_or(f64::NAN);
+        let (p_max, p_max_deg) = peak(atdc, pc).unwrap_or((f64::NAN, f64::NAN));
         let n = t.len();
         let span = t[n - 1] - t[0];
         let rpm = 2.0 * 60.0 / (span * n as f64 / (n - 1) as f64);
@@ -263,7 +269,7 @@ impl PerCycle {
         if let Some(k) = &crank {
             let vd = k.piston_area() * k.stroke();
             let mut exponent = |window: (f64, f64), name: &str| {
-                polytropic(atdc, pc, vol, window)
+                polytropic(atdc, pc, ln_vol, window)
                     .map_err(|why| {
                         notes.push(format!(
                             "{name} left out: {why} between {}° and {}° ATDC",
@@ -322,10 +328,22 @@ fn work(atdc: &[f64], p: &[f64], v: &[f64], (from, to): (f64, f64), closed: bool
     if i1 <= i0 {
         return 0.0;
     }
-    let mut w = 0.0;
-    for i in i0..i1 - 1 {
-        w += 0.5 * (p[i] + p[i + 1]) * (v[i + 1] - v[i]);
+    // Four partial sums: the additions need not wait for one another.
+    let (ps, vs) = (&p[i0..i1], &v[i0..i1]);
+    let steps = ps.len() - 1;
+    let mut sum = [0.0; 4];
+    let mut i = 0;
+    while i + 4 <= steps {
+        for (l, s) in sum.iter_mut().enumerate() {
+            let k = i + l;
+            *s += 0.5 * (ps[k] + ps[k + 1]) * (vs[k + 1] - vs[k]);
+        }
+        i += 4;
     }
+    for k in i..steps {
+        sum[0] += 0.5 * (ps[k] + ps[k + 1]) * (vs[k + 1] - vs[k]);
+    }
+    let mut w = (sum[0] + sum[1]) + (sum[2] + sum[3]);
     if closed {
         w += 0.5 * (p[i1 - 1] + p[i0]) * (v[i0] - v[i1 - 1]);
     }
@@ -353,19 +371,24 @@ fn at(x: &[f64], y: &[f64], a: f64) -> f64 {
 }
 
 /// The polytropic exponent over a window [deg ATDC]: `−slope` of `ln p` on `ln V` by least
-/// squares; refused (why) when a pressure there is not positive or with fewer than 3 samples.
+/// squares (`ln_v` the volume's logarithm at the increasing angles `atdc`); refused (why) when
+/// a pressure there is not positive or with fewer than 3 samples.
 fn polytropic(
     atdc: &[f64],
     p: &[f64],
-    v: &[f64],
+    ln_v: &[f64],
     (from, to): (f64, f64),
 ) -> Result<f64, &'static str> {
+    let (i0, i1) = (
+        atdc.partition_point(|&a| a < from),
+        atdc.partition_point(|&a| a <= to),
+    );
     let (mut n, mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    for i in (0..atdc.len()).filter(|&i| atdc[i] >= from && atdc[i] <= to) {
+    for i in i0..i1.max(i0) {
         if p[i] <= 0.0 {
             return Err("the pressure is not positive (an unpegged sensor's? --peg bdc=P or --peg polytropic=N references it)");
         }
-        let (x, y) = (v[i].ln(), p[i].ln());
+        let (x, y) = (ln_v[i], p[i].ln());
         n += 1.0;
         sx += x;
         sy += y;

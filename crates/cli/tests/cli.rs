@@ -353,6 +353,20 @@ fn bench_json_has_the_documented_shape() {
         assert!(rate > 0.0 && (rate / (4.0 * 6000.0 / 120.0) / realtime - 1.0).abs() < 1e-12);
         assert_eq!(e["step_deg"], 0.1);
     }
+    // `bench combustion`: those three alone.
+    let o = physid(&["bench", "--json", "--seconds", "0.02", "combustion"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let names: Vec<&str> = v["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        ["combustion_figures", "combustion", "combustion_knock"]
+    );
     for name in ["rls_tracks", "rls_tracks_se"] {
         let e = r.iter().find(|e| e["name"] == name && e["p"] == 2).unwrap();
         assert!(e["updates_per_s"].as_f64().unwrap() > 0.0, "{name}");

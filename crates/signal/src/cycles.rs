@@ -72,6 +72,21 @@ pub struct CycleStream {
     max_deg: Vec<f64>,
     curve: Vec<Vec<f64>>,
     seen: usize,
+    /// Scratch of [`push_curves`](Self::push_curves).
+    #[serde(skip)]
+    points_scratch: Vec<GridPoint>,
+    /// Curves handed back ([`recycle`](Self::recycle)) for the next cycle to fill.
+    #[serde(skip)]
+    spare: Option<Vec<Vec<f64>>>,
+}
+
+/// A grid point between two samples of a chunk: the one before (`None`: the previous chunk's,
+/// or a cycle's start), the one after, and the fraction of the way.
+#[derive(Debug, Clone, Copy)]
+struct GridPoint {
+    from: Option<usize>,
+    to: usize,
+    f: f64,
 }
 
 impl CycleStream {
@@ -118,6 +133,8 @@ impl CycleStream {
                 .map(|_| Vec::with_capacity(points))
                 .collect(),
             seen: 0,
+            points_scratch: Vec::new(),
+            spare: None,
         })
     }
 
@@ -136,9 +153,30 @@ impl CycleStream {
         self.first
     }
 
+    /// Hand back a cycle's curves once read: the next cycle fills them instead of new ones
+    /// (no allocation per cycle). Curves of another channel count are dropped.
+    pub fn recycle(&mut self, mut curve: Vec<Vec<f64>>) {
+        if curve.len() == self.curve.len() {
+            curve.iter_mut().for_each(Vec::clear);
+            self.spare = Some(curve);
+        }
+    }
+
     /// The angle where cycle `c` starts [rad].
     fn start(&self, c: i64) -> f64 {
         self.theta_tdc + c as f64 * 4.0 * PI
+    }
+
+    /// The angle of the next grid point of the cycle in progress [rad] (its end when the grid
+    /// is done).
+    fn next_grid_angle(&self) -> f64 {
+        self.grid_angle(self.next_grid)
+    }
+
+    /// The angle of grid point `k` of the cycle in progress [rad]; `k` = `points` is its end,
+    /// where [`sample`](Self::sample) closes it.
+    fn grid_angle(&self, k: usize) -> f64 {
+        self.start(self.cycle) + k as f64 * self.step
     }
 
     /// Take a chunk: `t` [s], the continuous crank angle `theta` [rad], and the channels
@@ -160,6 +198,11 @@ impl CycleStream {
                 x.iter().map(|c| c.len()).collect::<Vec<_>>(),
                 self.prev_x.len()
             )));
+        }
+        if !self.stats && self.prev.is_some() && all_finite(t, theta, x) {
+            self.push_curves(t, theta, x, out);
+            self.seen += n;
+            return Ok(());
         }
         for i in 0..n {
             let index = self.seen + i;
@@ -183,6 +226,72 @@ impl CycleStream {
         Ok(())
     }
 
+    /// The samples of a chunk, all finite, with the curves alone (no statistics) after the
+    /// stream's first sample: what [`sample`](Self::sample) does, the same arithmetic, in two
+    /// passes — the grid points each sample passes (which samples, what fraction), then each
+    /// channel's values there — with a cycle's end left to `sample`.
+    fn push_curves(&mut self, t: &[f64], theta: &[f64], x: &[&[f64]], out: &mut Vec<CycleSummary>) {
+        let Some((mut th0, mut t0)) = self.prev else {
+            return;
+        };
+        let mut points = std::mem::take(&mut self.points_scratch);
+        points.clear();
+        // The last sample taken in this chunk (None: the previous one is `prev_x`).
+        let mut last: Option<usize> = None;
+        let mut next = self.next_grid;
+        let (mut c0, mut end) = (self.start(self.cycle), self.grid_angle(self.points));
+        for (i, (&ti, &th)) in t.iter().zip(theta).enumerate() {
+            if th <= th0 {
+                continue;
+            }
+            if th >= end {
+                self.next_grid = next;
+                self.prev = Some((th0, t0));
+                self.interpolate(x, &points, last);
+                points.clear();
+                self.sample(ti, th, |j| x[j][i], out);
+                (th0, t0) = self.prev.unwrap_or((th, ti));
+                (next, last) = (self.next_grid, None);
+                (c0, end) = (self.start(self.cycle), self.grid_angle(self.points));
+                continue;
+            }
+            // As grid_angle: the same arithmetic.
+            let mut g = c0 + next as f64 * self.step;
+            if g <= th {
+                let inv = 1.0 / (th - th0);
+                while g <= th {
+                    points.push(GridPoint {
+                        from: last,
+                        to: i,
+                        f: (g - th0) * inv,
+                    });
+                    next += 1;
+                    g = c0 + next as f64 * self.step;
+                }
+            }
+            (th0, t0, last) = (th, ti, Some(i));
+        }
+        self.next_grid = next;
+        self.interpolate(x, &points, last);
+        self.prev = Some((th0, t0));
+        self.points_scratch = points;
+    }
+
+    /// Each channel at `points` onto its curve; then the chunk's sample `last` (when one was
+    /// taken) becomes the previous sample's values.
+    fn interpolate(&mut self, x: &[&[f64]], points: &[GridPoint], last: Option<usize>) {
+        for (j, curve) in self.curve.iter_mut().enumerate() {
+            let (xj, before) = (x[j], self.prev_x[j]);
+            curve.extend(points.iter().map(|g| {
+                let a = g.from.map_or(before, |k| xj[k]);
+                a + g.f * (xj[g.to] - a)
+            }));
+            if let Some(k) = last {
+                self.prev_x[j] = xj[k];
+            }
+        }
+    }
+
     /// One sample.
     fn sample(&mut self, t: f64, th: f64, x: impl Fn(usize) -> f64, out: &mut Vec<CycleSummary>) {
         let Some((th0, t0)) = self.prev else {
@@ -200,12 +309,13 @@ impl CycleStream {
             return;
         }
         // Grid points and cycle boundaries between the previous sample and this one.
+        let inv = 1.0 / (th - th0);
         loop {
-            let g = self.start(self.cycle) + self.next_grid as f64 * self.step;
+            let g = self.next_grid_angle();
             if g > th {
                 break;
             }
-            let f = (g - th0) / (th - th0);
+            let f = (g - th0) * inv;
             if self.next_grid == self.points {
                 // The boundary: close the cycle with the piece up to it …
                 for j in 0..self.prev_x.len() {
@@ -298,7 +408,14 @@ impl CycleStream {
                 } else {
                     Vec::new()
                 },
-                curve: self.curves.then(|| self.curve.clone()),
+                curve: self.curves.then(|| {
+                    let fresh = self.spare.take().unwrap_or_else(|| {
+                        (0..self.curve.len())
+                            .map(|_| Vec::with_capacity(self.points))
+                            .collect()
+                    });
+                    std::mem::replace(&mut self.curve, fresh)
+                }),
             });
         }
         self.integral.fill(0.0);
@@ -309,4 +426,11 @@ impl CycleStream {
             c.clear();
         }
     }
+}
+
+/// Whether every time, angle and channel value of a chunk is finite (one pass each, which the
+/// compiler vectorises).
+fn all_finite(t: &[f64], theta: &[f64], x: &[&[f64]]) -> bool {
+    let finite = |v: &[f64]| v.iter().fold(true, |ok, v| ok & v.is_finite());
+    finite(t) && finite(theta) && x.iter().all(|c| finite(c))
 }

@@ -173,3 +173,56 @@ fn rest_partial_cycles_and_nan() {
     assert!(e.to_string().contains("sample 70"), "{e}");
     assert!(CycleStream::new(1, 0.0, Some(7.0)).is_err());
 }
+
+/// The curves alone (`curves_only`, its inline path for finite chunks) are the full stream's
+/// curves, bit for bit, for chunks of 1, 17, 4096 samples and whole — on an engine that stops
+/// for 100 samples and with a grid finer than the samples (several points between two
+/// samples) and coarser; a chunk with a NaN is refused naming its sample.
+#[test]
+fn curves_only_are_the_full_streams_curves() {
+    let (t, th0) = engine();
+    let th: Vec<f64> = (0..th0.len())
+        .map(|i| 0.7 + th0[if i < 3000 { i } else { (i - 100).max(3000) }])
+        .collect();
+    let x: Vec<f64> = th.iter().map(|&a| (3.0 * a).sin() * a.sqrt()).collect();
+    let y: Vec<f64> = t.iter().map(|&t| 1e5 * (1.0 + t)).collect();
+    let cols = [x.clone(), y.clone()];
+    for step in [0.25, 1.0, 6.0] {
+        let full = stream(&t, &th, &cols, t.len(), Some(step), 0.3);
+        assert!(full.len() > 60);
+        for chunk in [1, 17, 4096, t.len()] {
+            let mut s = CycleStream::new(2, 0.3, Some(step)).unwrap().curves_only();
+            let mut out = Vec::new();
+            let mut i = 0;
+            while i < t.len() {
+                let e = (i + chunk).min(t.len());
+                s.push(&t[i..e], &th[i..e], &[&x[i..e], &y[i..e]], &mut out)
+                    .unwrap();
+                i = e;
+            }
+            assert_eq!(out.len(), full.len());
+            for (a, b) in out.iter().zip(&full) {
+                assert_eq!(
+                    (a.cycle, a.t_start_s, a.t_end_s),
+                    (b.cycle, b.t_start_s, b.t_end_s)
+                );
+                assert_eq!(
+                    a.curve, b.curve,
+                    "step {step}, chunk {chunk}, cycle {}",
+                    a.cycle
+                );
+                assert_eq!(a.curve.as_ref().unwrap()[0].len(), (720.0 / step) as usize);
+                assert!(a.mean.is_empty());
+            }
+        }
+    }
+    let mut s = CycleStream::new(1, 0.0, Some(1.0)).unwrap().curves_only();
+    s.push(&t[..100], &th[..100], &[&x[..100]], &mut Vec::new())
+        .unwrap();
+    let mut bad = x[100..200].to_vec();
+    bad[30] = f64::NAN;
+    let e = s
+        .push(&t[100..200], &th[100..200], &[&bad], &mut Vec::new())
+        .unwrap_err();
+    assert!(e.to_string().contains("sample 130"), "{e}");
+}

@@ -38,6 +38,12 @@ enum What {
     ///
     /// Example: physid bench fleet --cells 10,25,50 --seconds 20 --json
     Fleet(FleetArgs),
+    /// The combustion analysis alone: a cycle's figures, and the live stage's whole path from a
+    /// time-basis stream, against a four-cylinder engine at 6000 rpm at 0.1° (the lines
+    /// combustion_* of the full run).
+    ///
+    /// Example: physid bench --seconds 2 combustion
+    Combustion,
 }
 
 /// Arguments of `physid bench fleet`.
@@ -192,6 +198,19 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let budget = Duration::from_secs_f64(args.seconds.clamp(0.01, 60.0));
     let mut results = Vec::new();
+    if let Some(What::Combustion) = &args.what {
+        if !args.json {
+            outln!("machine: {}", machine());
+        }
+        super::bench_combustion::combustion(budget, args.json, &mut results, |n, b, f| {
+            rate(n, b, f)
+        })?;
+        if args.json {
+            let out = json!({"machine": machine(), "results": results});
+            outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);
+        }
+        return Ok(());
+    }
     if !args.json {
         outln!("machine: {}", machine());
         outln!("real-time need: {REALTIME_SAMPLES_PER_S:.0} samples/s (thesis Eq. 4.1)\n");

