@@ -21,6 +21,15 @@
 //!   − Q_min)`, `Q_max` the largest `Q` in the window and `Q_min` the smallest before it; MFBk is
 //!   where `x_b` first reaches k % after `Q_min`, linearly between the samples. The heat
 //!   released is `Q_max − Q_min`.
+//! * **Burn angles by Rassweiler & Withrow** (1938; Heywood §9.2.1, Eq. 9.13–9.16), with
+//!   [`BurnMethod::RassweilerWithrow`]: over each step the pressure rise the volume change alone
+//!   would give, `p_i·((V_i/V_{i+1})ⁿ − 1)`, is set apart from the rest, `Δp_c = p_{i+1} −
+//!   p_i·(V_i/V_{i+1})ⁿ`, which is taken as proportional to the mass burned in the step once
+//!   referred to one volume: `Δm ∝ Δp_c·V_i`. The mass fraction burned is their sum, normalised
+//!   as the heat release's (smallest before largest); `n` the polytropic exponent given, else the
+//!   cycle's compression exponent, else γ. With `n = γ` the method is the constant-γ heat
+//!   release to first order in the step (`Δp_c·V ≈ (γ−1)·ΔQ`); the heat released stays the
+//!   heat-release method's.
 //! * **Fired or motored**: fired when the heat released is at least [`FIRED_FRACTION`] of
 //!   `p_max·V_d` (a motored cycle's apparent heat release is its wall heat, negative, and noise);
 //!   the burn angles are given for fired cycles only.
@@ -79,6 +88,37 @@ pub struct Cylinder {
     pub rpm: f64,
 }
 
+/// How the burn angles' mass fraction burned is found (see the module docs).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
+pub enum BurnMethod {
+    /// From the apparent heat release (the default).
+    #[default]
+    HeatRelease,
+    /// Rassweiler & Withrow's pressure-rise method, with a polytropic exponent (`None`: the
+    /// cycle's compression exponent, else γ).
+    RassweilerWithrow {
+        /// The polytropic exponent `n`.
+        exponent: Option<f64>,
+    },
+}
+
+impl BurnMethod {
+    /// The method by name — `heat` or `rw` (Rassweiler–Withrow, with `exponent` if given) —
+    /// what `--mfb-method` and `--rw-exponent` (and Python's `mfb_method`, `rw_exponent`) take.
+    pub fn parse(name: &str, exponent: Option<f64>) -> Result<Self, AppError> {
+        match (name, exponent) {
+            ("heat", None) => Ok(Self::HeatRelease),
+            ("heat", Some(n)) => Err(AppError::Invalid(format!(
+                "--rw-exponent {n} is Rassweiler–Withrow's: give it with --mfb-method rw"
+            ))),
+            ("rw", exponent) => Ok(Self::RassweilerWithrow { exponent }),
+            (other, _) => Err(AppError::Invalid(format!(
+                "--mfb-method {other}: expected heat (the apparent heat release) or rw (Rassweiler–Withrow's pressure rise)"
+            ))),
+        }
+    }
+}
+
 /// How the heat release is computed.
 #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct HeatRelease {
@@ -92,6 +132,9 @@ pub struct HeatRelease {
     pub window: (f64, f64),
     /// The burn fractions whose angles are given [%], each in (0, 100).
     pub mfb: Vec<f64>,
+    /// How the burn angles are found.
+    #[serde(default)]
+    pub method: BurnMethod,
 }
 
 impl Default for HeatRelease {
@@ -102,6 +145,7 @@ impl Default for HeatRelease {
             mfb: MFB.to_vec(),
             temperature: None,
             wall: None,
+            method: BurnMethod::HeatRelease,
         }
     }
 }
@@ -140,6 +184,13 @@ impl HeatRelease {
                 return Err(AppError::Invalid(format!(
                     "--wall-heat {}: expected the wall temperature in K (> 0), e.g. 400",
                     w.t_wall_k
+                )));
+            }
+        }
+        if let BurnMethod::RassweilerWithrow { exponent: Some(n) } = self.method {
+            if !(n > 1.0 && n < 2.0) {
+                return Err(AppError::Invalid(format!(
+                    "--rw-exponent {n}: expected a polytropic exponent between 1 and 2 (1.3 ± 0.05 is usual; without it the cycle's compression exponent)"
                 )));
             }
         }
@@ -344,9 +395,25 @@ pub fn apparent_heat(
     })
 }
 
+/// The mass burned by Rassweiler & Withrow over the samples of a window (see the module docs):
+/// 0 at the first, then the sum of `Δp_c·V_i` [Pa·m³] — proportional to the mass burned.
+pub fn rassweiler_withrow(p: &[f64], v: &[f64], n: f64) -> Vec<f64> {
+    let mut m = Vec::with_capacity(p.len());
+    m.push(0.0);
+    let mut sum = 0.0;
+    for k in 1..p.len() {
+        let dp_c = p[k] - p[k - 1] * (v[k - 1] / v[k]).powf(n);
+        sum += dp_c * v[k - 1];
+        m.push(sum);
+    }
+    m
+}
+
 /// The combustion figures of one cycle: `atdc` its angles [deg ATDC] in increasing order, `p`
 /// the pressure there [Pa] and `v` the volume [m³]; `vd` the displacement [m³], `p_max` the
-/// cycle's peak pressure [Pa]. `None` with fewer than three samples in the window.
+/// cycle's peak pressure [Pa], `n_compression` its compression exponent (Rassweiler–Withrow's
+/// when none is given). `None` with fewer than three samples in the window.
+#[allow(clippy::too_many_arguments)]
 pub fn burn(
     hr: &HeatRelease,
     atdc: &[f64],
@@ -355,21 +422,35 @@ pub fn burn(
     vd: f64,
     p_max: f64,
     cyl: &Cylinder,
+    n_compression: Option<f64>,
 ) -> Option<Burn> {
     let Apparent { from, q, t_max_k } = apparent_heat(hr, atdc, p, v, cyl)?;
-    let (a, p) = (&atdc[from..from + q.len()], &p[from..from + q.len()]);
-    let k_max = argmax(&q);
-    let k_min = argmin(&q[..=k_max]);
-    let heat = q[k_max] - q[k_min];
-    let fired = heat >= FIRED_FRACTION * p_max * vd;
+    let window = from..from + q.len();
+    let (a, p, v) = (&atdc[window.clone()], &p[window.clone()], &v[window]);
+    let (heat, fired) = {
+        let k_max = argmax(&q);
+        let heat = q[k_max] - q[argmin(&q[..=k_max])];
+        (heat, heat >= FIRED_FRACTION * p_max * vd)
+    };
+    // The curve the burn angles are read from: the heat released, or the mass burned.
+    let burned = match hr.method {
+        BurnMethod::HeatRelease => q,
+        BurnMethod::RassweilerWithrow { exponent } => {
+            rassweiler_withrow(p, v, exponent.or(n_compression).unwrap_or(hr.gamma))
+        }
+    };
+    let k_max = argmax(&burned);
+    let k_min = argmin(&burned[..=k_max]);
+    let total = burned[k_max] - burned[k_min];
     let mfb_deg = hr
         .mfb
         .iter()
         .map(|&pct| {
-            let target = q[k_min] + pct / 100.0 * heat;
-            let deg = (k_min + 1..=k_max)
-                .find(|&k| q[k] >= target)
-                .map(|k| a[k - 1] + (target - q[k - 1]) / (q[k] - q[k - 1]) * (a[k] - a[k - 1]));
+            let target = burned[k_min] + pct / 100.0 * total;
+            let deg = (k_min + 1..=k_max).find(|&k| burned[k] >= target).map(|k| {
+                a[k - 1]
+                    + (target - burned[k - 1]) / (burned[k] - burned[k - 1]) * (a[k] - a[k - 1])
+            });
             (pct, deg.filter(|_| fired))
         })
         .collect();

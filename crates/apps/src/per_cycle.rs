@@ -300,7 +300,8 @@ impl PerCycle {
                         stroke: g.1,
                         rpm,
                     };
-                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max, &cyl).map(|mut b| {
+                    let n = figures.n_compression;
+                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max, &cyl, n).map(|mut b| {
                         self.history.flag(&mut b);
                         b
                     });

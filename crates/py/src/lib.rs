@@ -312,7 +312,7 @@ fn friction_fit<'py>(
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
 /// notes) and the per-cycle columns.
 #[pyfunction]
-#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat))]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent))]
 #[allow(clippy::too_many_arguments)]
 fn cycles<'py>(
     py: Python<'py>,
@@ -325,10 +325,14 @@ fn cycles<'py>(
     knock: Option<(f64, f64, f64, f64, f64)>,
     gas_temperature: Option<(f64, f64)>,
     wall_heat: Option<f64>,
+    mfb_method: &str,
+    rw_exponent: Option<f64>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::combustion::HeatRelease;
     use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
     let peg = Pegging::parse(peg).map_err(err)?;
+    let method =
+        physid_apps::combustion::BurnMethod::parse(mfb_method, rw_exponent).map_err(err)?;
     let geometry = geometry.map(|(bore, stroke, rod, compression_ratio)| Geometry {
         bore,
         stroke,
@@ -349,6 +353,7 @@ fn cycles<'py>(
                         t_wall_k,
                         c1: physid_apps::combustion::WOSCHNI_C1,
                     }),
+                    method,
                     ..HeatRelease::default()
                 },
             )?;

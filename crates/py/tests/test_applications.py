@@ -115,6 +115,15 @@ def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
         assert df[f"mfb{k}_deg"][0] == pytest.approx(truth["mfb_deg"][k], abs=0.01)
     assert df["heat_release"][0] == pytest.approx(truth["heat_j"], rel=1e-4)
     assert df["fired"][0] == 1.0
+    # Rassweiler & Withrow's burn angles: numpy's computation of the method (gen_wiebe.py).
+    rw = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), bore=truth["bore"],
+                       stroke=truth["stroke"], rod=truth["rod"],
+                       compression_ratio=truth["compression_ratio"], gamma=truth["gamma"],
+                       mfb_method="rw", rw_exponent=truth["rw_exponent"]).to_pandas()
+    for k in ("10", "50", "90"):
+        assert rw[f"mfb{k}_deg"][0] == pytest.approx(truth["rw_mfb_deg"][k], abs=1e-9)
+    with pytest.raises(physid.Error, match="--mfb-method rw"):
+        physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), rw_exponent=1.3)
     # Without the geometry: no IMEP or heat release, and the geometry is all or nothing.
     bare = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"))
     assert np.isnan(bare.tracks["imep"]).all() and np.isnan(bare.tracks["heat_release"]).all()

@@ -28,7 +28,12 @@ wiebe.json: the geometry, gamma, the burn, and what an analysis must find:
 * imep_pa: the net work over the cycle by numpy (trapezoid over the samples) / V_d;
 * p_max_deg: the pressure's peak on a 0.001 deg evaluation of the solution;
 * dp_max_pa_per_deg, dp_max_deg: the largest dp/da (the right-hand side on the solution) in the
-  window, on the same evaluation.
+  window, on the same evaluation;
+* rw_mfb_deg: the 10, 50, 90 % burn angles by Rassweiler & Withrow (Heywood Eq. 9.13-9.16) with
+  n = rw_exponent (= gamma) over the window, from wiebe_cycles.csv's pressures as written: the
+  combustion pressure rise dp_c = p[k] - p[k-1]*(V[k-1]/V[k])**n, the mass burned the cumulative
+  sum of dp_c*V[k-1], normalised from its smallest before its largest to its largest, each angle
+  where it first reaches k %, linearly between the samples.
 """
 import json
 import math
@@ -92,6 +97,29 @@ def cycle_pressure(deg, q_fuel):
     return p
 
 
+def rassweiler_withrow(path, n):
+    """Burn angles by Rassweiler & Withrow from a crank-angle CSV's first cycle (see above)."""
+    rows = np.loadtxt(path, delimiter=",", skiprows=2)
+    first = rows[rows[:, 1] == 0]
+    deg, p = first[:, 2], first[:, 3]
+    atdc = np.where(deg >= 360, deg - 720, deg)
+    order = np.argsort(atdc)
+    atdc, p = atdc[order], p[order]
+    keep = (atdc >= WINDOW[0]) & (atdc <= WINDOW[1])
+    a, p = atdc[keep], p[keep]
+    v = volume(a)
+    dp_c = p[1:] - p[:-1] * (v[:-1] / v[1:]) ** n
+    m = np.concatenate([[0.0], np.cumsum(dp_c * v[:-1])])
+    k_max = int(np.argmax(m))
+    k_min = int(np.argmin(m[: k_max + 1]))
+    out = {}
+    for pct in (10, 50, 90):
+        target = m[k_min] + pct / 100 * (m[k_max] - m[k_min])
+        k = k_min + 1 + int(np.argmax(m[k_min + 1: k_max + 1] >= target))
+        out[str(pct)] = float(a[k - 1] + (target - m[k - 1]) / (m[k] - m[k - 1]) * (a[k] - a[k - 1]))
+    return out
+
+
 def main():
     sol = solve_ivp(rhs, (IVC, EVO), [P_IVC], method="DOP853", rtol=1e-12, atol=1e-6,
                     dense_output=True, max_step=0.5)
@@ -151,6 +179,8 @@ def main():
                 p_k = now[k] if deg1[k] < 360 else after[k]
                 f.write(f"{(c * 720 + k) / w:.9e},{c},{deg1[k]:.0f},{p_k:.6f}\n")
     truth["flags_heat_j"] = FLAGS_HEAT[: len(FLAGS_HEAT) - 1]
+    truth["rw_exponent"] = GAMMA
+    truth["rw_mfb_deg"] = rassweiler_withrow("wiebe_cycles.csv", GAMMA)
     with open("wiebe.json", "w") as f:
         json.dump(truth, f, indent=1, sort_keys=True)
         f.write("\n")

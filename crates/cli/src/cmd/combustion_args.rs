@@ -3,7 +3,7 @@
 //! stream): one meaning, one parser.
 
 use miette::{miette, Result};
-use physid_apps::combustion::{GasTemperature, HeatRelease, WallHeat, WOSCHNI_C1};
+use physid_apps::combustion::{BurnMethod, GasTemperature, HeatRelease, WallHeat, WOSCHNI_C1};
 use physid_apps::knock::Knock;
 use physid_apps::per_cycle::PerCycleSettings;
 use physid_apps::pressure::{Geometry, Pegging};
@@ -37,6 +37,14 @@ pub struct CombustionArgs {
     /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
     #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
     pub mfb: Vec<f64>,
+    /// How the burn angles are found: `heat`, from the apparent heat release, or `rw`,
+    /// Rassweiler & Withrow's pressure-rise method (docs/data.md).
+    #[arg(long, value_name = "heat|rw", default_value = "heat")]
+    pub mfb_method: String,
+    /// Rassweiler–Withrow's polytropic exponent (with --mfb-method rw; without it each cycle's
+    /// compression exponent, else --gamma).
+    #[arg(long, value_name = "N")]
+    pub rw_exponent: Option<f64>,
 
     /// Knock per cycle: the pressure band-passed (zero phase), its maximum amplitude (MAPO) and
     /// integral of modulus (IMPO) in a window after TDC, a flag above a threshold (with the
@@ -91,6 +99,8 @@ impl CombustionArgs {
                 t_wall_k,
                 c1: WOSCHNI_C1,
             }),
+            method: BurnMethod::parse(&self.mfb_method, self.rw_exponent)
+                .map_err(|e| miette!("{e}"))?,
             ..HeatRelease::default()
         };
         heat.validate().map_err(|e| miette!("{e}"))?;
@@ -113,6 +123,8 @@ impl CombustionArgs {
             || self.gamma != physid_apps::combustion::DEFAULT_GAMMA
             || self.mfb != physid_apps::combustion::MFB
             || self.gas_temperature.is_some()
+            || self.mfb_method != "heat"
+            || self.rw_exponent.is_some()
             || self.knock
     }
 }

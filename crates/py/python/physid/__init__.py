@@ -771,6 +771,8 @@ def cycles(
     knock_threshold: float = 1e5,
     gas_temperature=None,
     wall_heat: float | None = None,
+    mfb_method: str = "heat",
+    rw_exponent: float | None = None,
 ) -> CyclesResult:
     """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
     recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
@@ -784,7 +786,8 @@ def cycles(
     for the band: docs/data.md); ``gas_temperature=(ivc_deg, t_ivc_k)``: γ(T) at the mean gas
     temperature of the gas trapped at IVC instead of the constant ``gamma``, and its peak
     ``t_max`` [K]; ``wall_heat=T_WALL`` [K] (with ``gas_temperature``): the gross heat release,
-    Woschni's wall heat added. A cycle is the compression before its firing TDC and the
+    Woschni's wall heat added; ``mfb_method="rw"``: the burn angles by Rassweiler & Withrow's
+    pressure-rise method, with ``rw_exponent`` (else each cycle's compression exponent). A cycle is the compression before its firing TDC and the
     expansion after."""
     given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
     if any(given) and not all(given):
@@ -798,7 +801,9 @@ def cycles(
                                               float(gas_temperature[1]))
     s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma),
                                [float(m) for m in mfb], k, g,
-                               None if wall_heat is None else float(wall_heat))
+                               None if wall_heat is None else float(wall_heat),
+                               str(mfb_method),
+                               None if rw_exponent is None else float(rw_exponent))
     return CyclesResult(_json.loads(s), dict(tracks))
 
 
