@@ -3,7 +3,8 @@
 //! before its firing TDC to 360° after, linear between the samples — as `physid cycles`
 //! resamples a file), and each complete cycle's figures by [`PerCycle`] — the one analysis the
 //! file verb runs too: pegging, IMEP, PMEP, exponents, heat release, burn angles, misfire and
-//! partial burn, knock.
+//! partial burn, knock; with the brake torque ([`crate::per_cycle::Brake`]) taken onto the grid
+//! too, BMEP and FMEP.
 //!
 //! Cycles are numbered as the cycle statistics number theirs ([`crate::cycle_stage`]): the
 //! block of 720° that starts at the cycle's firing TDC, 0 for the first block that starts in
@@ -54,6 +55,9 @@ impl CombustionStage {
         if let Some(k) = &settings.knock {
             k.validate().map_err(AppError::Invalid)?;
         }
+        if let Some(b) = &settings.brake {
+            b.validate().map_err(AppError::Invalid)?;
+        }
         // The grid and the angle, checked once.
         CycleStream::new(2, theta_tdc - 2.0 * PI, Some(step_deg))
             .map_err(|e| AppError::Invalid(e.to_string()))?;
@@ -94,13 +98,17 @@ impl Stage for CombustionStage {
                 return Ok(());
             }
             UnitCheck::new(chunk, &self.channel)?;
+            if let Some(b) = &self.per_cycle.settings().brake {
+                crate::pressure::check_torque_unit(chunk, &b.channel)?;
+            }
             let in_pa = chunk.channel(&self.channel)?.unit == "Pa";
             self.per_cycle = PerCycle::new(PerCycleSettings {
                 in_pa,
                 ..self.per_cycle.settings().clone()
             });
             // Cycles start 360° before their firing TDC.
-            let stream = CycleStream::new(2, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
+            let channels = 2 + usize::from(self.per_cycle.settings().brake.is_some());
+            let stream = CycleStream::new(channels, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
                 .map_err(|e| AppError::Invalid(e.to_string()))?
                 .curves_only();
             // The first block that starts in the stream: the one its first sample begins, when
@@ -114,9 +122,16 @@ impl Stage for CombustionStage {
         };
         let (t, theta) = (chunk.values("t")?, chunk.values("theta_en")?);
         self.done.clear();
-        stream
-            .push(t, theta, &[t, chunk.values(&self.channel)?], &mut self.done)
-            .map_err(|e| AppError::Invalid(format!("{e} (channels 0, 1: t, {})", self.channel)))?;
+        let p = chunk.values(&self.channel)?;
+        let pushed = match &self.per_cycle.settings().brake {
+            Some(b) => stream
+                .push(t, theta, &[t, p, chunk.values(&b.channel)?], &mut self.done)
+                .map_err(|e| format!("{e} (channels 0, 1, 2: t, {}, {})", self.channel, b.channel)),
+            None => stream
+                .push(t, theta, &[t, p], &mut self.done)
+                .map_err(|e| format!("{e} (channels 0, 1: t, {})", self.channel)),
+        };
+        pushed.map_err(AppError::Invalid)?;
         for c in self.done.drain(..) {
             let Some(curve) = c.curve else { continue };
             let (t, p) = (&curve[0], &curve[1]);
@@ -129,7 +144,9 @@ impl Stage for CombustionStage {
             // The block its firing TDC starts: the stream's cycle k (absolute) starts 2π before
             // the TDC at θ_TDC + 4πk.
             let cycle = c.cycle + stream.first_index() - *first;
-            let figures = self.per_cycle.figures(cycle, t, &self.atdc, p);
+            let figures =
+                self.per_cycle
+                    .figures(cycle, t, &self.atdc, p, curve.get(2).map(Vec::as_slice));
             stream.recycle(curve);
             out.put(figures);
         }

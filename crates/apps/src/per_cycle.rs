@@ -13,6 +13,11 @@
 //! * Polytropic exponent: the slope of `ln p` against `ln V` by least squares over a window
 //!   (−100° … −40° ATDC for compression, 40° … 100° for expansion): `p·V^n = const` ⇒
 //!   `ln p = c − n·ln V`.
+//! * BMEP and FMEP, when the brake torque is recorded ([`Brake`]): `BMEP = 4π·T̄/(z·V_d)` — the
+//!   cycle's crank-angle mean torque `T̄` over 720° of a four-stroke engine of `z` cylinders
+//!   (Heywood Eq. 2.19) — and `FMEP = IMEP_net − BMEP`, the friction's (rubbing and
+//!   accessories; the pumping is in the net IMEP: total friction is PMEP + FMEP, Heywood §2.4),
+//!   the indicated cylinder taken for every cylinder's.
 //! * Heat release, burn angles, misfire and partial burn: [`crate::combustion`]; knock:
 //!   [`crate::knock`]; the peak's angle between the samples: [`crate::combustion::peak`].
 //!
@@ -53,6 +58,15 @@ pub struct CycleFigures {
     /// Pumping mean effective pressure, gross less net IMEP [Pa].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pmep_pa: Option<f64>,
+    /// The crank-angle mean brake torque over the cycle [N·m] (with [`Brake`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub torque_nm: Option<f64>,
+    /// Brake mean effective pressure [Pa] (with [`Brake`] and the geometry).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bmep_pa: Option<f64>,
+    /// Friction mean effective pressure, net IMEP less BMEP [Pa] (with the pressure in Pa too).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fmep_pa: Option<f64>,
     /// Polytropic exponent of compression (with the geometry).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub n_compression: Option<f64>,
@@ -84,8 +98,8 @@ pub struct FigureColumn {
 
 /// The columns of a cycle's figures — what `cycles --tracks` writes, Python's `physid.cycles`
 /// returns and the live `combustion` event carries: `unit` the pressure's, `mfb` the burn
-/// fractions asked for [%], `knock` whether knock was.
-pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool) -> Vec<FigureColumn> {
+/// fractions asked for [%], `knock` whether knock was, `brake` whether the brake torque was.
+pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool, brake: bool) -> Vec<FigureColumn> {
     fn col(
         name: &str,
         unit: &str,
@@ -140,6 +154,13 @@ pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool) -> Vec<FigureColumn>
             nan(c.burn.as_ref().and_then(|b| b.t_max_k))
         }),
     ]);
+    if brake {
+        columns.extend([
+            col("torque", "N*m", |c| nan(c.torque_nm)),
+            col("bmep", "Pa", |c| nan(c.bmep_pa)),
+            col("fmep", "Pa", |c| nan(c.fmep_pa)),
+        ]);
+    }
     if knock {
         columns.extend([
             col("mapo", "Pa", |c| knocked(c, |k| k.mapo_pa)),
@@ -165,6 +186,31 @@ pub struct PerCycleSettings {
     pub knock: Option<Knock>,
     /// The pressure is in Pa (IMEP, heat release and knock need it).
     pub in_pa: bool,
+    /// The brake torque, when recorded: BMEP and FMEP.
+    #[serde(default)]
+    pub brake: Option<Brake>,
+}
+
+/// The engine's brake torque channel and its cylinders (see the module docs).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Brake {
+    /// The torque channel [N·m].
+    pub channel: String,
+    /// The engine's cylinders, the indicated one's IMEP taken for each.
+    pub cylinders: u32,
+}
+
+impl Brake {
+    /// Refused without a channel or with no cylinder.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.channel.is_empty() || self.cylinders == 0 {
+            return Err(format!(
+                "--brake-torque '{}' with --cylinders {}: expected the brake torque's channel and at least one cylinder",
+                self.channel, self.cylinders
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The analysis of one cycle after another: the settings, the misfire history, and scratch
@@ -209,9 +255,18 @@ impl PerCycle {
     }
 
     /// The figures of cycle `cycle`: its samples at the times `t` [s], the angles `atdc` [deg
-    /// ATDC, increasing, from −360°] and the pressures `p` (at least two samples, and one at or
-    /// after TDC). Cycles are given in order: misfires are told from the ones before.
-    pub fn figures(&mut self, cycle: i64, t: &[f64], atdc: &[f64], p: &[f64]) -> CycleFigures {
+    /// ATDC, increasing, from −360°, evenly spaced where the torque is given] and the
+    /// pressures `p` (at least two samples, and one at or after TDC); the brake torque there
+    /// [N·m] when the settings have [`Brake`]. Cycles are given in order: misfires are told
+    /// from the ones before.
+    pub fn figures(
+        &mut self,
+        cycle: i64,
+        t: &[f64],
+        atdc: &[f64],
+        p: &[f64],
+        torque: Option<&[f64]>,
+    ) -> CycleFigures {
         let s = &self.settings;
         let crank = s.geometry.as_ref().map(Geometry::crank);
         // The volume at the cycle's angles: kept while the angles are the same (a grid).
@@ -260,6 +315,12 @@ impl PerCycle {
             imep_pa: None,
             imep_gross_pa: None,
             pmep_pa: None,
+            // The crank-angle mean on an even grid: the samples' mean.
+            torque_nm: torque
+                .filter(|_| s.brake.is_some())
+                .map(|q| q.iter().sum::<f64>() / q.len() as f64),
+            bmep_pa: None,
+            fmep_pa: None,
             n_compression: None,
             n_expansion: None,
             burn: None,
@@ -268,6 +329,9 @@ impl PerCycle {
         };
         if let Some(k) = &crank {
             let vd = k.piston_area() * k.stroke();
+            if let (Some(b), Some(t)) = (&s.brake, figures.torque_nm) {
+                figures.bmep_pa = Some(4.0 * std::f64::consts::PI * t / (b.cylinders as f64 * vd));
+            }
             let mut exponent = |window: (f64, f64), name: &str| {
                 polytropic(atdc, pc, ln_vol, window)
                     .map_err(|why| {
@@ -286,6 +350,7 @@ impl PerCycle {
                 figures.imep_pa = Some(net);
                 figures.imep_gross_pa = Some(gross);
                 figures.pmep_pa = Some(gross - net);
+                figures.fmep_pa = figures.bmep_pa.map(|b| net - b);
                 if p_max_deg.abs() > PHASE_SUSPECT_DEG {
                     notes.push(format!(
                         "no heat release: the pressure peaks more than {PHASE_SUSPECT_DEG}° from TDC — the firing TDC is likely a revolution off (--phase-from p_cyl tells which revolution fires)"

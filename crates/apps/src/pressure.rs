@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::combustion::HeatRelease;
 use crate::error::AppError;
 use crate::knock::Knock;
+pub use crate::per_cycle::Brake;
 pub use crate::per_cycle::CycleFigures;
 use crate::per_cycle::{figure_columns, PerCycle, PerCycleSettings};
 pub use crate::pressure_unit::{check_unit, UnitCheck, PA_PLAUSIBLE};
@@ -147,6 +148,9 @@ pub struct CycleAnalysis {
     /// Whether knock was asked for.
     #[serde(skip)]
     pub knock: bool,
+    /// Whether the brake torque was given (BMEP, FMEP).
+    #[serde(skip)]
+    pub brake: bool,
     /// The ensemble mean of the complete cycles' pressure, crank angle by crank angle (cycle
     /// averaging), analysed as one cycle (its `cycle` the number averaged, its `t_start_s` the
     /// mean time from a cycle's start at −360° to its TDC), with two cycles or more of one
@@ -189,7 +193,7 @@ impl CycleAnalysis {
     /// A row per cycle as columns — name, unit, values (NaN where not computed): what
     /// `cycles --tracks` writes and Python's `physid.cycles` returns.
     pub fn columns(&self) -> Vec<(String, String, Vec<f64>)> {
-        figure_columns(&self.unit, &self.mfb, self.knock)
+        figure_columns(&self.unit, &self.mfb, self.knock, self.brake)
             .into_iter()
             .map(|c| {
                 let values = self.cycles.iter().map(&c.value).collect();
@@ -247,6 +251,7 @@ struct Tail {
     t: Vec<f64>,
     deg: Vec<f64>,
     p: Vec<f64>,
+    torque: Vec<f64>,
 }
 
 /// The cycles' figures on a stream of crank-angle chunks: each block's samples are gathered
@@ -268,6 +273,8 @@ pub struct CycleAnalyser {
     run_t: Vec<f64>,
     run_deg: Vec<f64>,
     run_p: Vec<f64>,
+    /// The brake torque's samples (with [`Self::with_brake`]).
+    run_torque: Vec<f64>,
     seen: usize,
     cycles: Vec<CycleFigures>,
     partial: usize,
@@ -331,6 +338,7 @@ impl CycleAnalyser {
                 heat: HeatRelease::default(),
                 knock: None,
                 in_pa: unit == "Pa",
+                brake: None,
             }),
             unit,
             need_pa: geometry.is_some(),
@@ -341,6 +349,7 @@ impl CycleAnalyser {
             run_t: Vec::new(),
             run_deg: Vec::new(),
             run_p: Vec::new(),
+            run_torque: Vec::new(),
             seen: 0,
             cycles: Vec::new(),
             partial: 0,
@@ -360,6 +369,18 @@ impl CycleAnalyser {
         heat.validate()?;
         self.per_cycle = PerCycle::new(PerCycleSettings {
             heat,
+            ..self.per_cycle.settings().clone()
+        });
+        Ok(self)
+    }
+
+    /// BMEP and FMEP from the brake torque channel `brake.channel` of the recordings with
+    /// `header`'s channels (in N·m; checked).
+    pub fn with_brake(mut self, header: &Recording, brake: Brake) -> Result<Self, AppError> {
+        brake.validate().map_err(AppError::Invalid)?;
+        check_torque_unit(header, &brake.channel)?;
+        self.per_cycle = PerCycle::new(PerCycleSettings {
+            brake: Some(brake),
             ..self.per_cycle.settings().clone()
         });
         Ok(self)
@@ -404,6 +425,21 @@ impl CycleAnalyser {
             )));
         }
         self.unit_check.push(p);
+        let torque = match &self.per_cycle.settings().brake {
+            Some(b) => {
+                let q = chunk.values(&b.channel)?;
+                if let Some(i) = q.iter().position(|v| !v.is_finite()) {
+                    return Err(AppError::Invalid(format!(
+                        "'{}' is {} at sample {}: the brake torque must be finite",
+                        b.channel,
+                        q[i],
+                        self.seen + i
+                    )));
+                }
+                Some(q)
+            }
+            None => None,
+        };
         for i in 0..cycle.len() {
             self.step.see(deg[i]);
             if self.run.is_some_and(|c| c != cycle[i]) {
@@ -416,6 +452,9 @@ impl CycleAnalyser {
                 self.run_t.push(t[i]);
                 self.run_deg.push(deg[i]);
                 self.run_p.push(p[i]);
+                if let Some(q) = torque {
+                    self.run_torque.push(q[i]);
+                }
             }
         }
         self.seen += cycle.len();
@@ -475,7 +514,7 @@ impl CycleAnalyser {
                 let p: Vec<f64> = sum_p.iter().map(|s| s / n as f64).collect();
                 let t: Vec<f64> = sum_t.iter().map(|s| s / n as f64).collect();
                 let atdc = std::mem::take(&mut self.atdc);
-                let mut f = self.per_cycle.figures(n as i64, &t, &atdc, &p);
+                let mut f = self.per_cycle.figures(n as i64, &t, &atdc, &p, None);
                 // Not a cycle of the engine's: no misfire history; its time is the mean time
                 // from a cycle's start to its TDC.
                 if let Some(b) = f.burn.as_mut() {
@@ -550,6 +589,7 @@ impl CycleAnalyser {
             curves,
             mfb: settings.heat.mfb.clone(),
             knock: settings.knock.is_some(),
+            brake: settings.brake.is_some(),
             channel: self.channel,
             unit: self.unit,
             cycles,
@@ -610,7 +650,10 @@ impl CycleAnalyser {
                 self.atdc
                     .extend(self.run_deg[..head].iter().map(|&d| snap(d)));
                 p.extend_from_slice(&self.run_p[..head]);
-                let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p);
+                let mut torque = tail.torque;
+                torque.extend_from_slice(self.run_torque.get(..head).unwrap_or_default());
+                let torque = (torque.len() == p.len()).then_some(torque.as_slice());
+                let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p, torque);
                 let rpm = f.rpm;
                 self.cycles.push(f);
                 if self.chosen.is_none_or(|k| k == c as i64) {
@@ -653,10 +696,25 @@ impl CycleAnalyser {
                 t: self.run_t[head..].to_vec(),
                 deg: self.run_deg[head..].to_vec(),
                 p: self.run_p[head..].to_vec(),
+                torque: self.run_torque.get(head..).unwrap_or_default().to_vec(),
             });
         }
         self.run_t.clear();
         self.run_deg.clear();
         self.run_p.clear();
+        self.run_torque.clear();
+    }
+}
+
+/// The brake torque channel `name` of `header`: refused unless its unit is a torque's (N·m, as
+/// `N*m`, `N.m`, `Nm` or `N·m`).
+pub fn check_torque_unit(header: &Recording, name: &str) -> Result<(), AppError> {
+    let unit = &header.channel(name)?.unit;
+    if ["N*m", "N.m", "Nm", "N·m", "N m"].contains(&unit.as_str()) {
+        Ok(())
+    } else {
+        Err(AppError::Invalid(format!(
+            "--brake-torque {name}: its unit is '{unit}', expected a torque in N*m (give it with --map {name}={name}:N*m or convert with --scale)"
+        )))
     }
 }

@@ -1326,7 +1326,15 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let f = file.to_str().unwrap();
     // The virtual cell's engine (its Table 4.1 geometry), as --combustion takes it by default.
-    let mut args = vec!["cycles", f, "--json", "--mfb", "5,50"];
+    let mut args = vec![
+        "cycles",
+        f,
+        "--json",
+        "--mfb",
+        "5,50",
+        "--brake-torque",
+        "torque_engine",
+    ];
     args.extend([
         "--bore",
         "0.054",
@@ -1359,6 +1367,8 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
             "1",
             "--mfb",
             "5,50",
+            "--brake-torque",
+            "torque_engine",
         ]);
         let live = of_type(&ev, "combustion");
         assert_eq!(live.len(), by_file.len(), "chunks of {chunk} s");
@@ -1376,6 +1386,9 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
                 ("n_compression", "n_compression"),
                 ("heat_release", "heat_release_j"),
                 ("rpm", "rpm"),
+                ("torque", "torque_nm"),
+                ("bmep", "bmep_pa"),
+                ("fmep", "fmep_pa"),
             ] {
                 let (a, b) = (
                     l["figures"][event].as_f64().unwrap(),

@@ -312,7 +312,7 @@ fn friction_fit<'py>(
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
 /// notes) and the per-cycle columns.
 #[pyfunction]
-#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent))]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent, torque, cylinders))]
 #[allow(clippy::too_many_arguments)]
 fn cycles<'py>(
     py: Python<'py>,
@@ -327,6 +327,8 @@ fn cycles<'py>(
     wall_heat: Option<f64>,
     mfb_method: &str,
     rw_exponent: Option<f64>,
+    torque: Option<String>,
+    cylinders: u32,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::combustion::HeatRelease;
     use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
@@ -357,6 +359,12 @@ fn cycles<'py>(
                     ..HeatRelease::default()
                 },
             )?;
+            let a = match torque {
+                Some(channel) => {
+                    a.with_brake(inner, physid_apps::per_cycle::Brake { channel, cylinders })?
+                }
+                None => a,
+            };
             let mut a = match knock {
                 Some((lo, hi, from, to, threshold_pa)) => {
                     a.with_knock(physid_apps::knock::Knock {

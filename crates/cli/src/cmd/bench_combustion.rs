@@ -101,6 +101,7 @@ pub fn combustion(
             heat: HeatRelease::default(),
             knock: None,
             in_pa: true,
+            brake: None,
         });
         let cycles = CYCLES - 1;
         let cycles_per_s = rate(cycles, budget, &mut || {
@@ -112,6 +113,7 @@ pub fn combustion(
                     &t[from..from + per],
                     &atdc,
                     &p[from..from + per],
+                    None,
                 ));
             }
             Ok(())
@@ -140,6 +142,7 @@ pub fn combustion(
             heat: HeatRelease::default(),
             knock,
             in_pa: true,
+            brake: None,
         };
         // The chunks as a live source hands them over (decoding frames is the source's work,
         // not the stage's).

@@ -1,11 +1,11 @@
 //! The flags of the per-cycle combustion analysis — pegging, heat release, burn fractions,
-//! knock — shared by `physid cycles` (a file) and `physid live` / `worker` (`--combustion`, the
+//! knock, the brake torque — shared by `physid cycles` (a file) and `physid live` / `worker` (`--combustion`, the
 //! stream): one meaning, one parser.
 
 use miette::{miette, Result};
 use physid_apps::combustion::{BurnMethod, GasTemperature, HeatRelease, WallHeat, WOSCHNI_C1};
 use physid_apps::knock::Knock;
-use physid_apps::per_cycle::PerCycleSettings;
+use physid_apps::per_cycle::{Brake, PerCycleSettings};
 use physid_apps::pressure::{Geometry, Pegging};
 
 /// Pegging, heat release, burn fractions and knock.
@@ -45,6 +45,14 @@ pub struct CombustionArgs {
     /// compression exponent, else --gamma).
     #[arg(long, value_name = "N")]
     pub rw_exponent: Option<f64>,
+    /// The engine's brake torque channel [N·m]: each cycle's mean torque, BMEP and FMEP (net
+    /// IMEP less BMEP; with the geometry).
+    #[arg(long, value_name = "CHANNEL")]
+    pub brake_torque: Option<String>,
+    /// The engine's cylinders (BMEP over their displacement; the indicated cylinder's IMEP
+    /// taken for each).
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "brake_torque")]
+    pub cylinders: u32,
 
     /// Knock per cycle: the pressure band-passed (zero phase), its maximum amplitude (MAPO) and
     /// integral of modulus (IMPO) in a window after TDC, a flag above a threshold (with the
@@ -108,12 +116,20 @@ impl CombustionArgs {
         if let Some(k) = &knock {
             k.validate().map_err(|e| miette!("--knock: {e}"))?;
         }
+        let brake = self.brake_torque.as_ref().map(|channel| Brake {
+            channel: channel.clone(),
+            cylinders: self.cylinders,
+        });
+        if let Some(b) = &brake {
+            b.validate().map_err(|e| miette!("{e}"))?;
+        }
         Ok(PerCycleSettings {
             geometry,
             peg: Pegging::parse(self.peg.as_deref()).map_err(|e| miette!("{e}"))?,
             heat,
             knock,
             in_pa: true,
+            brake,
         })
     }
 
@@ -125,6 +141,7 @@ impl CombustionArgs {
             || self.gas_temperature.is_some()
             || self.mfb_method != "heat"
             || self.rw_exponent.is_some()
+            || self.brake_torque.is_some()
             || self.knock
     }
 }

@@ -81,13 +81,18 @@ pub fn run(args: &Args) -> Result<()> {
     let mut input = crank_input(&args.input, &args.file, &args.angle, &args.geometry.crank)?;
     input.quiet = args.json;
     input.step_deg = args.step_deg;
+    let mut channels = vec![args.channel.as_str()];
+    channels.extend(settings.brake.as_ref().map(|b| b.channel.as_str()));
     let (analyser, wheel) = input
         .read(
-            Some(&[args.channel.as_str()]),
+            Some(&channels),
             |h| {
-                let a = CycleAnalyser::new(h, &args.channel, geometry.as_ref(), settings.peg)?
+                let mut a = CycleAnalyser::new(h, &args.channel, geometry.as_ref(), settings.peg)?
                     .with_heat_release(settings.heat.clone())?
                     .with_chosen_cycle(args.report_cycle);
+                if let Some(b) = &settings.brake {
+                    a = a.with_brake(h, b.clone())?;
+                }
                 match settings.knock {
                     Some(k) => a.with_knock(k),
                     None => Ok(a),

@@ -284,11 +284,16 @@ impl Tell for CombustionStage {
     /// Each cycle's figures by their `cycles --tracks` names.
     fn tell(&self, _: &mut (), c: &CycleFigures, _at: At, events: &mut dyn Sink<Event>) {
         let s = self.settings();
-        let figures = physid_apps::per_cycle::figure_columns("", &s.heat.mfb, s.knock.is_some())
-            .into_iter()
-            .filter(|col| col.name != "t" && col.name != "cycle")
-            .map(|col| (crate::event::Name::from(col.name), (col.value)(c)))
-            .collect();
+        let figures = physid_apps::per_cycle::figure_columns(
+            "",
+            &s.heat.mfb,
+            s.knock.is_some(),
+            s.brake.is_some(),
+        )
+        .into_iter()
+        .filter(|col| col.name != "t" && col.name != "cycle")
+        .map(|col| (crate::event::Name::from(col.name), (col.value)(c)))
+        .collect();
         events.put(Event::Combustion {
             cycle: c.cycle,
             t_s: c.t_start_s,

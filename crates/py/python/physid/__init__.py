@@ -773,6 +773,8 @@ def cycles(
     wall_heat: float | None = None,
     mfb_method: str = "heat",
     rw_exponent: float | None = None,
+    brake_torque: str | None = None,
+    cylinders: int = 1,
 ) -> CyclesResult:
     """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
     recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
@@ -787,7 +789,10 @@ def cycles(
     temperature of the gas trapped at IVC instead of the constant ``gamma``, and its peak
     ``t_max`` [K]; ``wall_heat=T_WALL`` [K] (with ``gas_temperature``): the gross heat release,
     Woschni's wall heat added; ``mfb_method="rw"``: the burn angles by Rassweiler & Withrow's
-    pressure-rise method, with ``rw_exponent`` (else each cycle's compression exponent). A cycle is the compression before its firing TDC and the
+    pressure-rise method, with ``rw_exponent`` (else each cycle's compression exponent);
+    ``brake_torque``: the brake torque channel [N·m, positive when the engine delivers] — each
+    cycle's mean ``torque``, ``bmep`` and ``fmep`` (net IMEP less BMEP) for an engine of
+    ``cylinders``. A cycle is the compression before its firing TDC and the
     expansion after."""
     given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
     if any(given) and not all(given):
@@ -803,7 +808,8 @@ def cycles(
                                [float(m) for m in mfb], k, g,
                                None if wall_heat is None else float(wall_heat),
                                str(mfb_method),
-                               None if rw_exponent is None else float(rw_exponent))
+                               None if rw_exponent is None else float(rw_exponent),
+                               brake_torque, int(cylinders))
     return CyclesResult(_json.loads(s), dict(tracks))
 
 
