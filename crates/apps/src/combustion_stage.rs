@@ -58,6 +58,9 @@ impl CombustionStage {
         if let Some(b) = &settings.brake {
             b.validate().map_err(AppError::Invalid)?;
         }
+        if let Some(lp) = &settings.lowpass {
+            lp.validate().map_err(AppError::Invalid)?;
+        }
         // The grid and the angle, checked once.
         CycleStream::new(2, theta_tdc - 2.0 * PI, Some(step_deg))
             .map_err(|e| AppError::Invalid(e.to_string()))?;

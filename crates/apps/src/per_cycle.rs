@@ -18,6 +18,11 @@
 //!   (Heywood Eq. 2.19) — and `FMEP = IMEP_net − BMEP`, the friction's (rubbing and
 //!   accessories; the pumping is in the net IMEP: total friction is PMEP + FMEP, Heywood §2.4),
 //!   the indicated cylinder taken for every cylinder's.
+//! * A zero-phase low-pass on the pressure when asked ([`PressureLowpass`]): a Butterworth
+//!   low-pass through `sosfiltfilt` over the cycle's samples (scipy's, [`physid_signal::filter`]),
+//!   which on the uniform crank-angle grid at the cycle's mean speed are a time series at
+//!   `f_s = 6·rpm/step`; every figure but knock (which needs the band it would take away) is then
+//!   the filtered pressure's.
 //! * Heat release, burn angles, misfire and partial burn: [`crate::combustion`]; knock:
 //!   [`crate::knock`]; the peak's angle between the samples: [`crate::combustion::peak`].
 //!
@@ -28,6 +33,7 @@ use serde::{Deserialize, Serialize};
 use crate::combustion::{burn, mfb_name, peak, Burn, BurnHistory, Cylinder, HeatRelease};
 use crate::knock::{Knock, KnockFigures};
 use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
+use physid_signal::filter::{butter, Band};
 
 /// A cycle whose pressure peaks further than this from its TDC [deg] is taken to be a
 /// revolution out of phase (a fired or motored cylinder peaks within a few tens of degrees of
@@ -189,6 +195,56 @@ pub struct PerCycleSettings {
     /// The brake torque, when recorded: BMEP and FMEP.
     #[serde(default)]
     pub brake: Option<Brake>,
+    /// A zero-phase low-pass on the pressure before the figures (knock's excepted).
+    #[serde(default)]
+    pub lowpass: Option<PressureLowpass>,
+}
+
+/// The pressure's zero-phase low-pass (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PressureLowpass {
+    /// The cut-off [Hz].
+    pub cutoff_hz: f64,
+    /// The Butterworth order.
+    pub order: usize,
+}
+
+/// The low-pass's order when none is given.
+pub const LOWPASS_ORDER: usize = 4;
+
+impl PressureLowpass {
+    /// Refused unless the cut-off is a frequency and the order 1 … 10.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.cutoff_hz > 0.0 && self.cutoff_hz.is_finite() && (1..=10).contains(&self.order)) {
+            return Err(format!(
+                "--pressure-lowpass {} Hz, order {}: expected a cut-off > 0 Hz and an order of 1 to 10",
+                self.cutoff_hz, self.order
+            ));
+        }
+        Ok(())
+    }
+
+    /// `p` filtered in place (`atdc` its uniform grid, `rpm` the cycle's speed); why not when
+    /// the grid cannot carry the cut-off.
+    fn apply(&self, atdc: &[f64], p: &mut [f64], rpm: f64) -> Result<(), String> {
+        let n = atdc.len();
+        let step = (atdc[n - 1] - atdc[0]) / (n - 1) as f64;
+        let fs = 6.0 * rpm / step;
+        if !(fs.is_finite() && self.cutoff_hz < 0.5 * fs) {
+            return Err(format!(
+                "pressure low-pass left out: {step}° steps at {rpm:.0} rpm sample at {fs:.0} Hz, whose Nyquist frequency is below the {} Hz cut-off",
+                self.cutoff_hz
+            ));
+        }
+        let sos = butter(self.order, &[self.cutoff_hz], Band::Lowpass, fs)
+            .map_err(|e| format!("pressure low-pass left out: {e}"))?
+            .to_sos();
+        let y = sos
+            .sosfiltfilt(p)
+            .map_err(|e| format!("pressure low-pass left out: {e}"))?;
+        p.copy_from_slice(&y);
+        Ok(())
+    }
 }
 
 /// The engine's brake torque channel and its cylinders (see the module docs).
@@ -226,6 +282,9 @@ pub struct PerCycle {
     vol: Vec<f64>,
     #[serde(skip)]
     ln_vol: Vec<f64>,
+    /// The pegged pressure before the low-pass (for knock).
+    #[serde(skip)]
+    unfiltered: Vec<f64>,
     /// The angles `vol` is at.
     #[serde(skip)]
     vol_atdc: Vec<f64>,
@@ -240,6 +299,7 @@ impl PerCycle {
             pc: Vec::new(),
             vol: Vec::new(),
             ln_vol: Vec::new(),
+            unfiltered: Vec::new(),
             vol_atdc: Vec::new(),
         }
     }
@@ -299,11 +359,21 @@ impl PerCycle {
                 *x += offset;
             }
         }
-        let (p_max, p_max_deg) = peak(atdc, pc).unwrap_or((f64::NAN, f64::NAN));
         let n = t.len();
         let span = t[n - 1] - t[0];
         let rpm = 2.0 * 60.0 / (span * n as f64 / (n - 1) as f64);
         let mut notes = Vec::new();
+        let unfiltered = &mut self.unfiltered;
+        unfiltered.clear();
+        if let Some(lp) = &s.lowpass {
+            if s.knock.is_some() {
+                unfiltered.extend_from_slice(pc);
+            }
+            if let Err(why) = lp.apply(atdc, pc, rpm) {
+                notes.push(why);
+            }
+        }
+        let (p_max, p_max_deg) = peak(atdc, pc).unwrap_or((f64::NAN, f64::NAN));
         let mut figures = CycleFigures {
             cycle,
             // The firing TDC's: the first sample of the expansion.
@@ -374,7 +444,12 @@ impl PerCycle {
             }
         }
         if let (Some(k), true) = (&s.knock, s.in_pa) {
-            match k.figures(atdc, pc, rpm) {
+            let p_knock = if unfiltered.is_empty() {
+                &*pc
+            } else {
+                &*unfiltered
+            };
+            match k.figures(atdc, p_knock, rpm) {
                 Ok(f) => figures.knock = Some(f),
                 Err(why) => notes.push(why),
             }

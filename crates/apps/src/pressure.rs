@@ -24,9 +24,9 @@ use serde::{Deserialize, Serialize};
 use crate::combustion::HeatRelease;
 use crate::error::AppError;
 use crate::knock::Knock;
-pub use crate::per_cycle::Brake;
 pub use crate::per_cycle::CycleFigures;
 use crate::per_cycle::{figure_columns, PerCycle, PerCycleSettings};
+pub use crate::per_cycle::{Brake, PressureLowpass};
 pub use crate::pressure_unit::{check_unit, UnitCheck, PA_PLAUSIBLE};
 
 /// The cylinder's geometry (SI).
@@ -339,6 +339,7 @@ impl CycleAnalyser {
                 knock: None,
                 in_pa: unit == "Pa",
                 brake: None,
+                lowpass: None,
             }),
             unit,
             need_pa: geometry.is_some(),
@@ -381,6 +382,16 @@ impl CycleAnalyser {
         check_torque_unit(header, &brake.channel)?;
         self.per_cycle = PerCycle::new(PerCycleSettings {
             brake: Some(brake),
+            ..self.per_cycle.settings().clone()
+        });
+        Ok(self)
+    }
+
+    /// A zero-phase low-pass on each cycle's pressure before its figures (checked).
+    pub fn with_lowpass(mut self, lowpass: PressureLowpass) -> Result<Self, AppError> {
+        lowpass.validate().map_err(AppError::Invalid)?;
+        self.per_cycle = PerCycle::new(PerCycleSettings {
+            lowpass: Some(lowpass),
             ..self.per_cycle.settings().clone()
         });
         Ok(self)

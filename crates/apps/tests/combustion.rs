@@ -585,3 +585,77 @@ fn fmep_is_the_cells_friction() {
         .unwrap_err();
     assert!(e.to_string().contains("--brake-torque omega_en"), "{e}");
 }
+
+/// The pressure's zero-phase low-pass (`--pressure-lowpass`) against scipy's on the same noisy
+/// cycle (`golden/gen_wiebe_noisy.py`: the Wiebe trace with 0.3 bar of white noise, scipy's
+/// `butter` + `sosfiltfilt` at the cycle's own sample rate): the filtered cycle's IMEP and peak
+/// are scipy's to rounding; its burn angles are back near the Wiebe's while the raw noisy
+/// trace's are not (measured: MFB10/50/90 1.2/0.14/1.95° from the Wiebe's filtered, 85/0.5/12°
+/// raw; the steepest rise 16 % above the true one filtered, 170 % raw).
+#[test]
+fn the_pressure_lowpass_is_scipys() {
+    use physid_apps::pressure::PressureLowpass;
+    let truth = wiebe();
+    let noisy: Value =
+        serde_json::from_str(&std::fs::read_to_string(golden("wiebe_noisy.json")).unwrap())
+            .unwrap();
+    let rec = wiebe_csv("wiebe_noisy.csv");
+    let geometry = wiebe_geometry(&truth);
+    let analysed = |lowpass: Option<PressureLowpass>| {
+        let mut a = CycleAnalyser::new(&rec, "p_cyl", Some(&geometry), Pegging::None)
+            .unwrap()
+            .with_heat_release(HeatRelease {
+                gamma: truth["gamma"].as_f64().unwrap(),
+                ..HeatRelease::default()
+            })
+            .unwrap();
+        if let Some(lp) = lowpass {
+            a = a.with_lowpass(lp).unwrap();
+        }
+        a.push(&rec).unwrap();
+        a.finish().unwrap().cycles.remove(0)
+    };
+    let lp = PressureLowpass {
+        cutoff_hz: noisy["cutoff_hz"].as_f64().unwrap(),
+        order: noisy["order"].as_u64().unwrap() as usize,
+    };
+    let (raw, filtered) = (analysed(None), analysed(Some(lp)));
+    let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+    let (imep, p_max) = (
+        noisy["imep_pa"].as_f64().unwrap(),
+        noisy["p_max_pa"].as_f64().unwrap(),
+    );
+    assert!(rel(filtered.imep_pa.unwrap(), imep) < 1e-9, "{filtered:?}");
+    assert!(rel(filtered.p_max, p_max) < 1e-12, "{}", filtered.p_max);
+    let (fb, rb) = (filtered.burn.unwrap(), raw.burn.unwrap());
+    for k in ["10", "50", "90"] {
+        let want = truth["mfb_deg"][k].as_f64().unwrap();
+        let f = fb.mfb(k.parse().unwrap()).unwrap();
+        assert!(
+            (f - want).abs() < 2.5,
+            "MFB{k} filtered: {f}° against {want}°"
+        );
+    }
+    let raw10 = rb.mfb(10.0).unwrap();
+    assert!((raw10 - truth["mfb_deg"]["10"].as_f64().unwrap()).abs() > 20.0);
+    let dp = truth["dp_max_pa_per_deg"].as_f64().unwrap();
+    assert!(rel(fb.dp_max_pa_per_deg, dp) < 0.25 && rel(rb.dp_max_pa_per_deg, dp) > 1.0);
+    // A cut-off the grid cannot carry: left out, said, the figures the raw pressure's.
+    let too_high = PressureLowpass {
+        cutoff_hz: 30e3,
+        order: 4,
+    };
+    let c = analysed(Some(too_high));
+    assert!(
+        c.notes.iter().any(|n| n.contains("Nyquist")),
+        "{:?}",
+        c.notes
+    );
+    assert_eq!(c.imep_pa, raw.imep_pa);
+    assert!(PressureLowpass {
+        cutoff_hz: -1.0,
+        order: 4
+    }
+    .validate()
+    .is_err());
+}

@@ -55,6 +55,7 @@ fn settings(truth: &Value) -> PerCycleSettings {
         knock: None,
         in_pa: true,
         brake: None,
+        lowpass: None,
     }
 }
 

@@ -312,7 +312,7 @@ fn friction_fit<'py>(
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
 /// notes) and the per-cycle columns.
 #[pyfunction]
-#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent, torque, cylinders))]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent, torque, cylinders, pressure_lowpass))]
 #[allow(clippy::too_many_arguments)]
 fn cycles<'py>(
     py: Python<'py>,
@@ -329,6 +329,7 @@ fn cycles<'py>(
     rw_exponent: Option<f64>,
     torque: Option<String>,
     cylinders: u32,
+    pressure_lowpass: Option<f64>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::combustion::HeatRelease;
     use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
@@ -363,6 +364,13 @@ fn cycles<'py>(
                 Some(channel) => {
                     a.with_brake(inner, physid_apps::per_cycle::Brake { channel, cylinders })?
                 }
+                None => a,
+            };
+            let a = match pressure_lowpass {
+                Some(cutoff_hz) => a.with_lowpass(physid_apps::per_cycle::PressureLowpass {
+                    cutoff_hz,
+                    order: physid_apps::per_cycle::LOWPASS_ORDER,
+                })?,
                 None => a,
             };
             let mut a = match knock {

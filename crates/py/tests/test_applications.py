@@ -124,6 +124,19 @@ def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
         assert rw[f"mfb{k}_deg"][0] == pytest.approx(truth["rw_mfb_deg"][k], abs=1e-9)
     with pytest.raises(physid.Error, match="--mfb-method rw"):
         physid.cycles(_wiebe(golden, "wiebe_cycles.csv"), rw_exponent=1.3)
+    # A brake torque of 12.5 N*m on a four-cylinder engine: BMEP = 4*pi*T/(4*V_d), FMEP the rest.
+    import pandas as pd
+    df_t = pd.read_csv(golden("crates/apps/tests/golden/wiebe_cycles.csv"), skiprows=[1])
+    df_t["brake"] = 12.5
+    rec_t = physid.Recording.from_pandas(
+        df_t, units={"t": "s", "cycle": "-", "crank_deg": "deg", "p_cyl": "Pa", "brake": "N*m"},
+        basis="crank_angle")
+    b = physid.cycles(rec_t, bore=truth["bore"], stroke=truth["stroke"], rod=truth["rod"],
+                      compression_ratio=truth["compression_ratio"], brake_torque="brake",
+                      cylinders=4).to_pandas()
+    vd = np.pi / 4 * truth["bore"] ** 2 * truth["stroke"]
+    assert b["bmep"][0] == pytest.approx(4 * np.pi * 12.5 / (4 * vd), rel=1e-12)
+    assert b["fmep"][0] == pytest.approx(b["imep"][0] - b["bmep"][0], rel=1e-12)
     # Without the geometry: no IMEP or heat release, and the geometry is all or nothing.
     bare = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"))
     assert np.isnan(bare.tracks["imep"]).all() and np.isnan(bare.tracks["heat_release"]).all()

@@ -102,6 +102,7 @@ pub fn combustion(
             knock: None,
             in_pa: true,
             brake: None,
+            lowpass: None,
         });
         let cycles = CYCLES - 1;
         let cycles_per_s = rate(cycles, budget, &mut || {
@@ -143,6 +144,7 @@ pub fn combustion(
             knock,
             in_pa: true,
             brake: None,
+            lowpass: None,
         };
         // The chunks as a live source hands them over (decoding frames is the source's work,
         // not the stage's).

@@ -5,7 +5,7 @@
 use miette::{miette, Result};
 use physid_apps::combustion::{BurnMethod, GasTemperature, HeatRelease, WallHeat, WOSCHNI_C1};
 use physid_apps::knock::Knock;
-use physid_apps::per_cycle::{Brake, PerCycleSettings};
+use physid_apps::per_cycle::{Brake, PerCycleSettings, PressureLowpass, LOWPASS_ORDER};
 use physid_apps::pressure::{Geometry, Pegging};
 
 /// Pegging, heat release, burn fractions and knock.
@@ -45,6 +45,10 @@ pub struct CombustionArgs {
     /// compression exponent, else --gamma).
     #[arg(long, value_name = "N")]
     pub rw_exponent: Option<f64>,
+    /// A zero-phase Butterworth low-pass (order 4) on each cycle's pressure before its figures
+    /// — all but knock's — at this cut-off [Hz], at the cycle's mean speed.
+    #[arg(long, value_name = "HZ")]
+    pub pressure_lowpass: Option<f64>,
     /// The engine's brake torque channel [N·m]: each cycle's mean torque, BMEP and FMEP (net
     /// IMEP less BMEP; with the geometry).
     #[arg(long, value_name = "CHANNEL")]
@@ -123,6 +127,13 @@ impl CombustionArgs {
         if let Some(b) = &brake {
             b.validate().map_err(|e| miette!("{e}"))?;
         }
+        let lowpass = self.pressure_lowpass.map(|cutoff_hz| PressureLowpass {
+            cutoff_hz,
+            order: LOWPASS_ORDER,
+        });
+        if let Some(lp) = &lowpass {
+            lp.validate().map_err(|e| miette!("{e}"))?;
+        }
         Ok(PerCycleSettings {
             geometry,
             peg: Pegging::parse(self.peg.as_deref()).map_err(|e| miette!("{e}"))?,
@@ -130,6 +141,7 @@ impl CombustionArgs {
             knock,
             in_pa: true,
             brake,
+            lowpass,
         })
     }
 
@@ -142,6 +154,7 @@ impl CombustionArgs {
             || self.mfb_method != "heat"
             || self.rw_exponent.is_some()
             || self.brake_torque.is_some()
+            || self.pressure_lowpass.is_some()
             || self.knock
     }
 }

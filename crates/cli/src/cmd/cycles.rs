@@ -93,6 +93,9 @@ pub fn run(args: &Args) -> Result<()> {
                 if let Some(b) = &settings.brake {
                     a = a.with_brake(h, b.clone())?;
                 }
+                if let Some(lp) = settings.lowpass {
+                    a = a.with_lowpass(lp)?;
+                }
                 match settings.knock {
                     Some(k) => a.with_knock(k),
                     None => Ok(a),

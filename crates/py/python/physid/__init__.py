@@ -775,6 +775,7 @@ def cycles(
     rw_exponent: float | None = None,
     brake_torque: str | None = None,
     cylinders: int = 1,
+    pressure_lowpass: float | None = None,
 ) -> CyclesResult:
     """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
     recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
@@ -792,7 +793,8 @@ def cycles(
     pressure-rise method, with ``rw_exponent`` (else each cycle's compression exponent);
     ``brake_torque``: the brake torque channel [N·m, positive when the engine delivers] — each
     cycle's mean ``torque``, ``bmep`` and ``fmep`` (net IMEP less BMEP) for an engine of
-    ``cylinders``. A cycle is the compression before its firing TDC and the
+    ``cylinders``; ``pressure_lowpass=HZ``: a zero-phase Butterworth low-pass (order 4) on each
+    cycle's pressure before its figures, knock's excepted. A cycle is the compression before its firing TDC and the
     expansion after."""
     given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
     if any(given) and not all(given):
@@ -809,7 +811,8 @@ def cycles(
                                None if wall_heat is None else float(wall_heat),
                                str(mfb_method),
                                None if rw_exponent is None else float(rw_exponent),
-                               brake_torque, int(cylinders))
+                               brake_torque, int(cylinders),
+                               None if pressure_lowpass is None else float(pressure_lowpass))
     return CyclesResult(_json.loads(s), dict(tracks))
 
 
