@@ -137,6 +137,14 @@ def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
     vd = np.pi / 4 * truth["bore"] ** 2 * truth["stroke"]
     assert b["bmep"][0] == pytest.approx(4 * np.pi * 12.5 / (4 * vd), rel=1e-12)
     assert b["fmep"][0] == pytest.approx(b["imep"][0] - b["bmep"][0], rel=1e-12)
+    # The pressure's low-pass: scipy's filtering of the same noisy cycle (gen_wiebe_noisy.py).
+    noisy = json.loads(golden("crates/apps/tests/golden/wiebe_noisy.json").read_text())
+    f = physid.cycles(_wiebe(golden, "wiebe_noisy.csv"), bore=truth["bore"],
+                      stroke=truth["stroke"], rod=truth["rod"],
+                      compression_ratio=truth["compression_ratio"],
+                      pressure_lowpass=noisy["cutoff_hz"]).to_pandas()
+    assert f["imep"][0] == pytest.approx(noisy["imep_pa"], rel=1e-9)
+    assert f["p_max"][0] == pytest.approx(noisy["p_max_pa"], rel=1e-12)
     # Without the geometry: no IMEP or heat release, and the geometry is all or nothing.
     bare = physid.cycles(_wiebe(golden, "wiebe_cycles.csv"))
     assert np.isnan(bare.tracks["imep"]).all() and np.isnan(bare.tracks["heat_release"]).all()
