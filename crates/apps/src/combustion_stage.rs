@@ -6,6 +6,10 @@
 //! partial burn, knock; with the brake torque ([`crate::per_cycle::Brake`]) taken onto the grid
 //! too, BMEP and FMEP.
 //!
+//! With [`CombustionStage::with_curves`], a cycle's pressure and heat release rate on a coarser
+//! grid go with its figures (the live panel's view), at most one cycle's every
+//! [`CURVE_INTERVAL_S`] of the stream's time.
+//!
 //! Cycles are numbered as the cycle statistics number theirs ([`crate::cycle_stage`]): the
 //! block of 720° that starts at the cycle's firing TDC, 0 for the first block that starts in
 //! the stream — so a file converted from the same stream (`convert --crank-angle`) and
@@ -19,6 +23,32 @@ use physid_core::Recording;
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+
+/// The shortest time between two cycles whose curves are given [s] (five a second: what a
+/// person can follow, whatever the engine's speed).
+pub const CURVE_INTERVAL_S: f64 = 0.2;
+
+/// A cycle's figures, with its curves when they are due ([`CombustionStage::with_curves`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CombustionCycle {
+    /// The figures.
+    pub figures: CycleFigures,
+    /// The curves.
+    pub curve: Option<CombustionCurve>,
+}
+
+/// A cycle's pressure and heat release rate on a grid from −360° ATDC.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CombustionCurve {
+    /// The grid's step [deg].
+    pub step_deg: f64,
+    /// The pressure as the figures take it (pegged, filtered) [the channel's unit].
+    pub p: Vec<f64>,
+    /// The apparent heat release rate [J/deg]: at each grid point the heat released over the
+    /// step centred on it, `(Q(θ + Δ/2) − Q(θ − Δ/2))/Δ` — so the rates times the step add up
+    /// to the heat released over the window; NaN outside the heat release's window.
+    pub hrr: Vec<f64>,
+}
 
 /// The combustion figures of each complete cycle of a stream's cylinder pressure (set up on
 /// the first chunk that has `theta_en` and the channel; until then a chunk passes untouched).
@@ -36,6 +66,10 @@ pub struct CombustionStage {
     done: Vec<CycleSummary>,
     #[serde(skip)]
     atdc: Vec<f64>,
+    /// The curves' grid step [deg] (a multiple of `step_deg`), and the time of the last cycle
+    /// whose curves were given.
+    #[serde(default)]
+    curves: Option<(f64, f64)>,
 }
 
 impl CombustionStage {
@@ -72,7 +106,16 @@ impl CombustionStage {
             stream: None,
             done: Vec::new(),
             atdc: Vec::new(),
+            curves: None,
         })
+    }
+
+    /// A cycle's curves too, on a grid of `step_deg` [deg] (rounded to a whole multiple of the
+    /// stage's grid), one cycle's every [`CURVE_INTERVAL_S`] at most.
+    pub fn with_curves(mut self, step_deg: f64) -> Self {
+        let k = (step_deg / self.step_deg).round().max(1.0);
+        self.curves = Some((k * self.step_deg, f64::NEG_INFINITY));
+        self
     }
 
     /// The settings (`in_pa` as found once the stream is set up).
@@ -87,14 +130,14 @@ impl CombustionStage {
 }
 
 impl Stage for CombustionStage {
-    type Out = CycleFigures;
+    type Out = CombustionCycle;
 
     /// A value that is not finite is an error naming its sample; a pressure channel in a unit
     /// of another quantity is refused.
     fn push(
         &mut self,
         chunk: &Recording,
-        out: &mut dyn Sink<CycleFigures>,
+        out: &mut dyn Sink<CombustionCycle>,
     ) -> Result<(), AppError> {
         if self.stream.is_none() {
             if chunk.channel(&self.channel).is_err() || chunk.channel("theta_en").is_err() {
@@ -151,13 +194,64 @@ impl Stage for CombustionStage {
                 self.per_cycle
                     .figures(cycle, t, &self.atdc, p, curve.get(2).map(Vec::as_slice));
             stream.recycle(curve);
-            out.put(figures);
+            let due = match self.curves {
+                Some((step, last)) if figures.t_start_s - last >= CURVE_INTERVAL_S => {
+                    self.curves = Some((step, figures.t_start_s));
+                    Some(step)
+                }
+                _ => None,
+            };
+            let curve = due.map(|step| {
+                coarse_curve(
+                    &self.per_cycle,
+                    &self.atdc,
+                    self.step_deg,
+                    step,
+                    figures.rpm,
+                )
+            });
+            out.put(CombustionCycle { figures, curve });
         }
         Ok(())
     }
 
     /// The cycle in progress at the end is not complete: nothing.
-    fn finish(&mut self, _out: &mut dyn Sink<CycleFigures>) -> Result<(), AppError> {
+    fn finish(&mut self, _out: &mut dyn Sink<CombustionCycle>) -> Result<(), AppError> {
         Ok(())
+    }
+}
+
+/// The last cycle `per_cycle` analysed (on the grid `atdc` of `fine_deg` steps, at `rpm`), its
+/// curves on the coarse grid of `step_deg` (see [`CombustionCurve`]).
+fn coarse_curve(
+    per_cycle: &PerCycle,
+    atdc: &[f64],
+    fine_deg: f64,
+    step_deg: f64,
+    rpm: f64,
+) -> CombustionCurve {
+    let k = (step_deg / fine_deg).round() as usize;
+    let (p, _) = per_cycle.pegged();
+    let heat = per_cycle.last_heat(atdc, rpm);
+    let (half, points) = (k / 2, p.len().div_ceil(k));
+    let hrr = (0..points)
+        .map(|j| {
+            let Some(h) = &heat else { return f64::NAN };
+            let (i, last) = (j * k, h.from + h.q.len() - 1);
+            if i < h.from || i > last {
+                return f64::NAN;
+            }
+            // The step centred on the point, within the window.
+            let (lo, hi) = (i.saturating_sub(half).max(h.from), (i + k - half).min(last));
+            if hi <= lo {
+                return f64::NAN;
+            }
+            (h.q[hi - h.from] - h.q[lo - h.from]) / (atdc[hi] - atdc[lo])
+        })
+        .collect();
+    CombustionCurve {
+        step_deg,
+        p: p.iter().step_by(k).copied().collect(),
+        hrr,
     }
 }

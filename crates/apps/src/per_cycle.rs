@@ -309,9 +309,26 @@ impl PerCycle {
         &self.settings
     }
 
-    /// The last cycle's pressure as pegged and its volume (empty without the geometry).
+    /// The last cycle's pressure as pegged (and filtered) and its volume (empty without the
+    /// geometry).
     pub fn pegged(&self) -> (&[f64], &[f64]) {
         (&self.pc, &self.vol)
+    }
+
+    /// The last cycle's apparent heat release ([`crate::combustion::apparent_heat`]) at its
+    /// angles `atdc` and speed `rpm`: with the geometry and the pressure in Pa.
+    pub fn last_heat(&self, atdc: &[f64], rpm: f64) -> Option<crate::combustion::Apparent> {
+        let s = &self.settings;
+        let g = s.geometry.as_ref().filter(|_| s.in_pa)?;
+        if self.vol.len() != self.pc.len() || atdc.len() != self.pc.len() {
+            return None;
+        }
+        let cyl = Cylinder {
+            bore: g.bore,
+            stroke: g.stroke,
+            rpm,
+        };
+        crate::combustion::apparent_heat(&s.heat, atdc, &self.pc, &self.vol, &cyl)
     }
 
     /// The figures of cycle `cycle`: its samples at the times `t` [s], the angles `atdc` [deg

@@ -473,22 +473,16 @@ impl CycleAnalyser {
     }
 
     /// The curve of a cycle just analysed (its pressure as pegged), with its heat release.
-    fn curve(&self, cycle: i64, p: Vec<f64>, rpm: f64) -> CycleCurve {
-        let (_, vol) = self.per_cycle.pegged();
-        let s = self.per_cycle.settings();
-        let heat = if let (true, true, Some(g)) = (s.in_pa, vol.len() == p.len(), &s.geometry) {
-            let cyl = crate::combustion::Cylinder {
-                bore: g.bore,
-                stroke: g.stroke,
-                rpm,
-            };
-            crate::combustion::apparent_heat(&s.heat, &self.atdc, &p, vol, &cyl)
+    fn curve(&self, cycle: i64, rpm: f64) -> CycleCurve {
+        CycleCurve {
+            cycle,
+            p: self.per_cycle.pegged().0.to_vec(),
+            heat: self
+                .per_cycle
+                .last_heat(&self.atdc, rpm)
                 .map(|a| a.q)
-                .unwrap_or_default()
-        } else {
-            Vec::new()
-        };
-        CycleCurve { cycle, p, heat }
+                .unwrap_or_default(),
+        }
     }
 
     /// The samples per cycle, once `crank_deg` has advanced.
@@ -532,8 +526,7 @@ impl CycleAnalyser {
                     (b.misfire, b.partial_burn) = (false, false);
                 }
                 self.atdc = atdc;
-                let pegged = self.per_cycle.pegged().0.to_vec();
-                mean_curve = Some(self.curve(n as i64, pegged, f.rpm));
+                mean_curve = Some(self.curve(n as i64, f.rpm));
                 Some(f)
             }
             _ => None,
@@ -668,8 +661,7 @@ impl CycleAnalyser {
                 let rpm = f.rpm;
                 self.cycles.push(f);
                 if self.chosen.is_none_or(|k| k == c as i64) {
-                    let pegged = self.per_cycle.pegged().0.to_vec();
-                    self.kept = Some(self.curve(c as i64, pegged, rpm));
+                    self.kept = Some(self.curve(c as i64, rpm));
                 }
                 // The ensemble: cycles of the first one's length (the same angles).
                 match &mut self.ensemble {

@@ -76,7 +76,7 @@ fn streamed(stage: CombustionStage, stream: &Recording, checkpoint_at: usize) ->
         k += 1;
     }
     stage.finish(&mut out).unwrap();
-    out
+    out.into_iter().map(|c| c.figures).collect()
 }
 
 fn same(file: &[CycleFigures], live: &[CycleFigures]) {
@@ -153,4 +153,74 @@ fn a_stream_without_the_pressure_passes_and_a_bad_one_is_named() {
     let mut stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0).unwrap();
     let e = stage.push(&bad, &mut out).unwrap_err().to_string();
     assert!(e.contains("sample 1500") && e.contains("p_cyl"), "{e}");
+}
+
+/// With curves (the live panel's view): one cycle's every 0.2 s of stream time, its pressure on
+/// the coarse grid the stream's own samples (to rounding), its heat release rate over each coarse step
+/// adding up — a telescoping sum — to the heat released over the window, `Q(120°) − Q(−90°)`:
+/// for a Wiebe burn, whose apparent heat rises all but monotonically, the figures'
+/// `heat_release_j = Q_max − Q_min` to 4e-5 (the rounding of the file's pressures before the
+/// burn); none outside the window.
+#[test]
+fn the_curves_heat_release_rate_adds_up_to_the_heat_released() {
+    use physid_apps::combustion_stage::CURVE_INTERVAL_S;
+    let truth = wiebe();
+    let (file, stream) = file_and_stream("wiebe_flags.csv");
+    let mut stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0)
+        .unwrap()
+        .with_curves(2.0);
+    let mut out = Vec::new();
+    for from in (0..stream.len()).step_by(500) {
+        stage
+            .push(
+                &stream.slice(from..(from + 500).min(stream.len())),
+                &mut out,
+            )
+            .unwrap();
+    }
+    assert_eq!(out.len(), 10);
+    let with: Vec<_> = out.iter().filter(|c| c.curve.is_some()).collect();
+    let times: Vec<f64> = with.iter().map(|c| c.figures.t_start_s).collect();
+    assert!(times.len() >= 3 && times.windows(2).all(|w| w[1] - w[0] >= CURVE_INTERVAL_S));
+    let (deg, cyc, p) = (
+        file.values("crank_deg").unwrap(),
+        file.values("cycle").unwrap(),
+        file.values("p_cyl").unwrap(),
+    );
+    for c in with {
+        let k = c.curve.as_ref().unwrap();
+        assert_eq!((k.step_deg, k.p.len(), k.hrr.len()), (2.0, 360, 360));
+        // −360° ATDC + 2j: the block before's 360° + 2j, then this block's 2j − 360°.
+        for j in [0, 45, 179, 180, 250, 359] {
+            let (block, d) = if j < 180 {
+                (c.figures.cycle - 1, 360.0 + 2.0 * j as f64)
+            } else {
+                (c.figures.cycle, 2.0 * j as f64 - 360.0)
+            };
+            let i = (0..deg.len())
+                .find(|&i| cyc[i] == block as f64 && deg[i] == d)
+                .unwrap();
+            // The stream's grid meets the samples to rounding.
+            assert!(
+                (k.p[j] / p[i] - 1.0).abs() < 1e-12,
+                "cycle {}, point {j}: {} against {}",
+                c.figures.cycle,
+                k.p[j],
+                p[i]
+            );
+        }
+        // The window −90° … 120° ATDC: points 135 … 240.
+        assert!(k.hrr[..135].iter().chain(&k.hrr[241..]).all(|h| h.is_nan()));
+        let sum: f64 =
+            k.hrr[135..=240].iter().map(|h| h * 2.0).sum::<f64>() - (k.hrr[135] + k.hrr[240]) * 1.0;
+        let b = c.figures.burn.as_ref().unwrap();
+        if b.fired {
+            assert!(
+                (sum / b.heat_release_j - 1.0).abs() < 1e-4,
+                "cycle {}: {sum} J against {} J",
+                c.figures.cycle,
+                b.heat_release_j
+            );
+        }
+    }
 }

@@ -643,6 +643,16 @@ fn the_panel_in_a_real_browser() {
         assert!((0.0..0.01).contains(&cov), "CoV {cov}");
         let shown = js("document.getElementById('cov-imep').textContent").await;
         assert!(shown.as_str().unwrap().starts_with("CoV of IMEP "), "{shown}");
+        // The latest cycle's pressure and heat release rate: drawn from −360° ATDC, the rate's
+        // peak within the cell's burn (Wiebe from −15° over 50°), none outside the window.
+        let hrr = js("(() => { const d = window.physid.uplot('plot-hrr').data;              let k = 0; d[2].forEach((v, i) => { if (v !== null && v > d[2][k]) k = i; });              return { n: d[0].length, x0: d[0][0], peak: d[2][k], at: d[0][k],              outside: d[2].filter((v, i) => v !== null && (d[0][i] < -90 || d[0][i] > 120)).length,              pmax: Math.max(...d[1].filter((v) => v !== null)) }; })()")
+        .await;
+        assert_eq!(hrr["x0"].as_f64(), Some(-360.0), "{hrr}");
+        assert!(hrr["n"].as_u64().unwrap() >= 360, "{hrr}");
+        assert!(hrr["peak"].as_f64().unwrap() > 0.0, "{hrr}");
+        assert!((-15.0..35.0).contains(&hrr["at"].as_f64().unwrap()), "{hrr}");
+        assert_eq!(hrr["outside"].as_u64(), Some(0), "{hrr}");
+        assert!(hrr["pmax"].as_f64().unwrap() > 10.0, "{hrr} (bar)");
         js("document.getElementById('combustion-card').scrollIntoView() || true").await;
         let png = c.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-combustion.png"), &png).unwrap();

@@ -46,12 +46,13 @@
   st.marks = () => alarmMarks;
   st.uplot = (id) => plots[id];
 
-  let est, tr, cyc, means, fric, comb;
+  let est, tr, cyc, means, fric, comb, combCurve;
   // The cycles the combustion trend and its CoV of IMEP cover.
   const COMBUSTION_SHOWN = 200;
   function reset() {
     fric = { cycle: [], measured: [], predicted: [], nominal: [], truth: [] };
     comb = { cycle: [], imep: [], mfb50: [] };
+    combCurve = null;
     st.frictionCycles = 0; st.torqueCycles = 0; st.combustionCycles = 0; st.covImep = null;
     st.identifiability = {};
     $("torque-table").tBodies[0].replaceChildren();
@@ -170,6 +171,16 @@
         { scale: "deg", label: "deg", side: 1, size: 50, grid: { show: false } }],
     },
   });
+  // The latest cycle's pressure and heat release rate (a combustion event's curve).
+  makePlot("plot-hrr", [line("pressure [bar]", colors[0], { scale: "bar" }),
+    line("heat release rate [J/deg]", colors[3], { scale: "J" })], {
+    xLabel: "crank angle from firing TDC [deg]",
+    uplot: {
+      scales: { x: { time: false, range: [-180, 180] }, bar: {}, J: {} },
+      axes: [{ label: "crank angle from firing TDC [deg]" }, { scale: "bar", label: "bar", size: 60 },
+        { scale: "J", label: "J/deg", side: 1, size: 50, grid: { show: false } }],
+    },
+  });
   // Which uPlot series draw each layout channel.
   function seriesOf(plot, channel) {
     const k = PLOTS[plot].indexOf(channel);
@@ -199,6 +210,12 @@
     plots["plot-cycles"].setData([means.cycle, means.torque_engine, means.torque_shaft]);
     plots["plot-friction"].setData([fric.cycle, fric.measured, fric.predicted, fric.nominal, fric.truth]);
     plots["plot-combustion"].setData([comb.cycle, comb.imep, comb.mfb50]);
+    if (combCurve) {
+      // The grid runs from −360° ATDC; JSON's null (no heat release outside its window) stays a gap.
+      const x = combCurve.p.map((_, k) => -360 + k * combCurve.step_deg);
+      plots["plot-hrr"].setData([x, combCurve.p.map((v) => (v == null ? null : v * 1e-5)),
+        combCurve.hrr.map((v) => (v == null ? null : v))]);
+    }
     for (const [id, ch, scale] of [["plot-pcyl", "p_cyl", 1e-5], ["plot-tcyc", "torque_engine", 1]]) {
       const last = cyc.slice(-CYCLES_SHOWN);
       const newest = last.length ? last[last.length - 1] : null;
@@ -429,6 +446,7 @@
       comb.cycle.push(e.cycle);
       comb.imep.push(f.imep == null ? null : f.imep * 1e-5);
       comb.mfb50.push(f.mfb50_deg ?? null);
+      if (e.curve) { combCurve = e.curve; st.combustionCurveCycle = e.cycle; }
       if (comb.cycle.length > COMBUSTION_SHOWN) for (const k in comb) comb[k].shift();
       const fired = comb.imep.filter((v, i) => v !== null && comb.mfb50[i] !== null);
       if (fired.length >= 2) {

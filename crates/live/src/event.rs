@@ -219,7 +219,9 @@ pub enum Event {
     /// 360° before its firing TDC to 360° after): `{"type": "combustion", "cycle": n, "t_s": …,
     /// "figures": {"imep": …, "mfb50_deg": …, "mapo": …, …}, "notes": […]}` — `figures` named
     /// and in the units of `physid cycles --tracks`' columns (null where not computed; flags
-    /// 1/0), `t_s` the time of its firing TDC.
+    /// 1/0), `t_s` the time of its firing TDC; with the panel, five cycles a second also carry
+    /// `"curve": {"step_deg": …, "p": […], "hrr": […]}` — the pressure and the heat release rate
+    /// [J/deg] from −360° ATDC (null outside the heat release's window).
     Combustion {
         /// Cycle index (the block of 720° its firing TDC starts, as `cycle` events count).
         cycle: i64,
@@ -232,6 +234,9 @@ pub enum Event {
         /// What was left out of this cycle's figures, and why.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         notes: Vec<String>,
+        /// The pressure and heat release rate on a grid from −360° ATDC, when due.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        curve: Option<Curve>,
     },
     /// The panel's time traces, decimated (bin means): `{"type": "trace", "t_s": …, "t": […],
     /// "channels": {"omega_en": […], …}}`; not printed headless.
@@ -292,13 +297,14 @@ pub enum Event {
     },
 }
 
-/// A cycle's channels on a crank-angle grid: 0, `step_deg`, … < 720°.
+/// A cycle's channels on a crank-angle grid of `step_deg`: from its start, 0 … < 720° (a
+/// `cycle` event's, from a firing TDC), or −360° … < 360° ATDC (a `combustion` event's).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Curve {
     /// Grid step [deg].
     pub step_deg: f64,
-    /// Each channel's values on the grid.
-    #[serde(flatten)]
+    /// Each channel's values on the grid (NaN, `null` in JSON, where there is none).
+    #[serde(flatten, deserialize_with = "nan_null::map_vec")]
     pub channels: BTreeMap<Name, Vec<f64>>,
 }
 

@@ -16,7 +16,7 @@ use physid_apps::combustion_stage::CombustionStage;
 use physid_apps::cycle_stage::CycleStage;
 use physid_apps::error::AppError;
 use physid_apps::friction_fit::{FrictionFitConfig, FrictionOutput, FrictionStage};
-use physid_apps::per_cycle::{CycleFigures, PerCycleSettings};
+use physid_apps::per_cycle::PerCycleSettings;
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftOutput, ShaftParams, ShaftStage};
 use physid_apps::stage::Stage;
 use physid_apps::torque_fit::{TorqueFitConfig, TorqueOutput, TorqueStage};

@@ -4,6 +4,7 @@
 
 use super::slot::{At, Tell};
 use super::*;
+use physid_apps::combustion_stage::CombustionCycle;
 use physid_apps::shaft_monitor::ShaftSample;
 use physid_core::Sink;
 
@@ -273,16 +274,18 @@ impl Tell for CombustionStage {
         let Some(c) = &cfg.combustion else {
             return Ok(None);
         };
-        Ok(Some(CombustionStage::new(
-            &c.channel,
-            c.settings.clone(),
-            cfg.theta_tdc,
-            c.step_deg,
-        )?))
+        let stage =
+            CombustionStage::new(&c.channel, c.settings.clone(), cfg.theta_tdc, c.step_deg)?;
+        // The panel's view: a cycle's pressure and heat release rate, as its cyclic view's grid.
+        Ok(Some(match cfg.panel {
+            Some(p) => stage.with_curves(p.curve_step_deg),
+            None => stage,
+        }))
     }
 
-    /// Each cycle's figures by their `cycles --tracks` names.
-    fn tell(&self, _: &mut (), c: &CycleFigures, _at: At, events: &mut dyn Sink<Event>) {
+    /// Each cycle's figures by their `cycles --tracks` names, with its curves when due.
+    fn tell(&self, _: &mut (), cc: &CombustionCycle, _at: At, events: &mut dyn Sink<Event>) {
+        let c = &cc.figures;
         let s = self.settings();
         let figures = physid_apps::per_cycle::figure_columns(
             "",
@@ -299,6 +302,12 @@ impl Tell for CombustionStage {
             t_s: c.t_start_s,
             figures,
             notes: c.notes.clone(),
+            curve: cc.curve.as_ref().map(|k| crate::event::Curve {
+                step_deg: k.step_deg,
+                channels: [("p".into(), k.p.clone()), ("hrr".into(), k.hrr.clone())]
+                    .into_iter()
+                    .collect(),
+            }),
         });
     }
 }
