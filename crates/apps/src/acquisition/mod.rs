@@ -91,6 +91,18 @@ pub enum AngleSensor {
         /// Which edges, which level.
         edges: EdgeOptions,
     },
+    /// A single-channel pulse encoder (analog or digital, forward only) and its index, once per
+    /// revolution on a channel of its own (`physid_signal::wheel::IndexSurvey`).
+    Pulses {
+        /// The pulses' channel.
+        channel: String,
+        /// Pulses per revolution.
+        pulses: u32,
+        /// The index's channel.
+        index: String,
+        /// Which edges of the pulses, which level (the index's level is midway in its range).
+        edges: EdgeOptions,
+    },
     /// A quadrature encoder's channels A, B and optionally the index Z.
     Quadrature {
         /// Channel A.
@@ -116,6 +128,33 @@ impl AngleSensor {
         Ok(Self::Wheel {
             channel: channel.trim().to_string(),
             wheel,
+            edges,
+        })
+    }
+
+    /// A pulse encoder from `CHANNEL=PULSES` (e.g. `enc=360`) and its index channel, its edges
+    /// found as `edges` says. The error names the option (`encoder-raw '…': …`).
+    pub fn parse_pulses(spec: &str, index: &str, edges: EdgeOptions) -> Result<Self, String> {
+        let bad = || {
+            format!("encoder-raw '{spec}': expected CHANNEL=PULSES (pulses per revolution, 4 or more), e.g. enc=360")
+        };
+        let (channel, pulses) = spec.split_once('=').ok_or_else(bad)?;
+        let pulses: u32 = pulses
+            .trim()
+            .parse()
+            .ok()
+            .filter(|p| *p >= 4)
+            .ok_or_else(bad)?;
+        let (channel, index) = (channel.trim(), index.trim());
+        if channel.is_empty() || index.is_empty() || channel == index {
+            return Err(format!(
+                "encoder-raw '{spec}' with index-raw '{index}': expected two different channels"
+            ));
+        }
+        Ok(Self::Pulses {
+            channel: channel.to_string(),
+            pulses,
+            index: index.to_string(),
             edges,
         })
     }
@@ -149,6 +188,7 @@ impl AngleSensor {
     pub fn channels(&self) -> Vec<&str> {
         match self {
             Self::Wheel { channel, .. } => vec![channel.as_str()],
+            Self::Pulses { channel, index, .. } => vec![channel.as_str(), index.as_str()],
             Self::Quadrature { a, b, z, .. } => [Some(a), Some(b), z.as_ref()]
                 .into_iter()
                 .flatten()

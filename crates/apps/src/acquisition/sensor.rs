@@ -24,7 +24,10 @@ use crate::error::AppError;
 use physid_core::{Recording, Recordings, Reopen};
 use physid_signal::integrity::Finding;
 use physid_signal::quadrature::{IndexRange, IndexZero, QuadratureDecoder};
-use physid_signal::wheel::{EdgeDetector, Gap, GapSurvey, Pchip, ToothIndex, ToothReport};
+use physid_signal::wheel::{
+    in_time_order, EdgeDetector, EdgeOptions, Gap, GapSurvey, IndexSurvey, Pchip, ToothIndex,
+    ToothReport,
+};
 use std::borrow::Borrow;
 use std::f64::consts::{PI, TAU};
 
@@ -37,6 +40,9 @@ fn invalid(e: String) -> AppError {
 pub enum Calibration {
     /// A trigger wheel: where its gap is.
     Wheel(Gap),
+    /// A pulse encoder: where its index puts the reference, and the index channel's smallest
+    /// and largest sample (its level midway).
+    Pulses(Gap, (f64, f64)),
     /// A quadrature encoder.
     Quadrature(EncoderCalibration),
 }
@@ -62,6 +68,89 @@ pub struct EncoderCalibration {
     pub findings: Vec<Finding>,
 }
 
+/// An edge of a pulse encoder or its index, as [`PulseEdges`] hands them on.
+enum PulsePoint {
+    Edge(f64, usize),
+    Index(f64),
+}
+
+/// A pulse encoder's edges and its index's, found chunk by chunk — each channel through the
+/// wheel's edge detector (the same glitch rejection; the index at the level midway in its range,
+/// ±20 % hysteresis) — and handed on in time order.
+struct PulseEdges {
+    channel: String,
+    index: String,
+    edges: EdgeDetector,
+    pulses: EdgeDetector,
+}
+
+impl PulseEdges {
+    fn new(
+        channel: &str,
+        index: &str,
+        opts: &EdgeOptions,
+        range: (f64, f64),
+    ) -> Result<Self, AppError> {
+        let (lo, hi) = range;
+        if !(hi > lo) {
+            return Err(invalid(format!(
+                "'{index}': the index is flat ({lo} … {hi}): no index pulse to place the angle from"
+            )));
+        }
+        Ok(Self {
+            channel: channel.to_string(),
+            index: index.to_string(),
+            edges: EdgeDetector::new(opts),
+            pulses: EdgeDetector::new(&EdgeOptions {
+                threshold: Some((
+                    0.5 * (lo + hi),
+                    physid_signal::wheel::HYSTERESIS * (hi - lo),
+                )),
+                ..EdgeOptions::default()
+            }),
+        })
+    }
+
+    /// The next chunk: its edges and index pulses found so far, in time order.
+    fn push(&mut self, c: &Recording, out: &mut impl FnMut(PulsePoint)) -> Result<(), AppError> {
+        let t = c.values("t")?;
+        self.edges.push(t, c.values(&self.channel)?);
+        self.pulses.push(t, c.values(&self.index)?);
+        let (mut e, mut z) = (Vec::new(), Vec::new());
+        self.edges.drain(|t, i| e.push((t, i)));
+        self.pulses.drain(|t, _| z.push(t));
+        Self::hand_on(&e, &z, out);
+        Ok(())
+    }
+
+    fn hand_on(e: &[(f64, usize)], z: &[f64], out: &mut impl FnMut(PulsePoint)) {
+        let out = std::cell::RefCell::new(out);
+        in_time_order(
+            e,
+            z,
+            |t, i| (out.borrow_mut())(PulsePoint::Edge(t, i)),
+            |t| (out.borrow_mut())(PulsePoint::Index(t)),
+        );
+    }
+
+    /// The end: the last edges and pulses; the encoder's glitches (how many, the first's
+    /// sample).
+    fn finish(self, out: &mut impl FnMut(PulsePoint)) -> Result<(usize, usize), AppError> {
+        let (channel, index) = (self.channel, self.index);
+        let e = self
+            .edges
+            .finish()
+            .map_err(|e| invalid(format!("'{channel}': {e}")))?;
+        let z = self
+            .pulses
+            .finish()
+            .map_err(|e| invalid(format!("'{index}': {e}")))?;
+        let pairs: Vec<(f64, usize)> = e.t.iter().copied().zip(e.index.iter().copied()).collect();
+        Self::hand_on(&pairs, &z.t, out);
+        Ok((e.glitches.len(), e.glitches.first().copied().unwrap_or(0)))
+    }
+}
+
 /// The channels of a quadrature encoder spec — A, B, Z — and its lines; the error without Z.
 fn encoder_of(spec: &AngleSpec) -> Result<([&str; 3], u32), AppError> {
     match &spec.sensor {
@@ -71,8 +160,9 @@ fn encoder_of(spec: &AngleSpec) -> Result<([&str; 3], u32), AppError> {
                 "--quadrature {a},{b}: without an index channel (Z) the angle has no reference to place the TDC from; give --quadrature {a},{b},Z=LINES"
             ))),
         },
-        AngleSensor::Wheel { .. } => Err(AppError::Invalid(
-            "the angle sensor is a trigger wheel, not a quadrature encoder".into(),
+        AngleSensor::Wheel { .. } | AngleSensor::Pulses { .. } => Err(AppError::Invalid(
+            "the angle sensor is a trigger wheel or a pulse encoder, not a quadrature encoder"
+                .into(),
         )),
     }
 }
@@ -106,6 +196,30 @@ pub fn sensor_calibration(
             }
             Ok(Calibration::Wheel(
                 survey.finish().map_err(|e| invalid(e.to_string()))?,
+            ))
+        }
+        AngleSensor::Pulses {
+            channel,
+            pulses,
+            index,
+            edges,
+        } => {
+            let mut range = IndexRange::default();
+            source.pass(&mut |c| {
+                range.push(c.values(index)?);
+                Ok(())
+            })?;
+            let mut found = PulseEdges::new(channel, index, edges, range.range)?;
+            let mut survey = IndexSurvey::new(*pulses, channel, index);
+            let mut take = |p: PulsePoint| match p {
+                PulsePoint::Edge(t, i) => survey.push(t, i),
+                PulsePoint::Index(t) => survey.pulse(t),
+            };
+            source.pass(&mut |c| found.push(c, &mut take))?;
+            found.finish(&mut take)?;
+            Ok(Calibration::Pulses(
+                survey.finish().map_err(|e| invalid(e.to_string()))?,
+                range.range,
             ))
         }
         AngleSensor::Quadrature { .. } => {
@@ -183,6 +297,12 @@ enum PointDecoder {
         zero: f64,
         ended: bool,
     },
+    Pulses {
+        /// `None` once the signal has ended.
+        found: Option<PulseEdges>,
+        index: Box<ToothIndex>,
+        report: Option<ToothReport>,
+    },
 }
 
 /// A raw sensor's angle at any time, from a reader of `t` and its channels running ahead as far
@@ -225,7 +345,8 @@ where
     /// A point decoded into the cubic: whether there was one (or the points ended).
     fn next_point(&mut self) -> bool {
         match &mut self.decoder {
-            PointDecoder::Wheel { index, report, .. } => match index.pop() {
+            PointDecoder::Wheel { index, report, .. }
+            | PointDecoder::Pulses { index, report, .. } => match index.pop() {
                 Some((t, angle, _)) => self.pchip.push(t, angle),
                 None if report.is_some() => self.pchip.end(),
                 None => return false,
@@ -276,6 +397,19 @@ impl PointDecoder {
                     report: None,
                 }
             }
+            (
+                AngleSensor::Pulses {
+                    channel,
+                    index,
+                    edges,
+                    ..
+                },
+                Calibration::Pulses(gap, range),
+            ) => PointDecoder::Pulses {
+                found: Some(PulseEdges::new(channel, index, edges, *range)?),
+                index: Box::new(ToothIndex::new(gap, channel)),
+                report: None,
+            },
             (AngleSensor::Quadrature { .. }, Calibration::Quadrature(c)) => {
                 let (names, lines) = encoder_of(spec)?;
                 PointDecoder::Quadrature {
@@ -327,6 +461,28 @@ impl PointDecoder {
                 }
                 *report = Some(index.finish().map_err(|e| invalid(e.to_string()))?);
             }
+            PointDecoder::Pulses {
+                found,
+                index,
+                report,
+            } => {
+                let mut take = |p: PulsePoint| match p {
+                    PulsePoint::Edge(t, i) => index.push(t, i),
+                    PulsePoint::Index(t) => index.index_pulse(t),
+                };
+                match (c, found.take()) {
+                    (_, None) => {}
+                    (Some(c), Some(mut f)) => {
+                        f.push(c, &mut take)?;
+                        *found = Some(f);
+                    }
+                    (None, Some(f)) => {
+                        let (glitches, first) = f.finish(&mut take)?;
+                        index.glitches(glitches, first);
+                        *report = Some(index.finish().map_err(|e| invalid(e.to_string()))?);
+                    }
+                }
+            }
             PointDecoder::Quadrature {
                 names,
                 decoder,
@@ -351,7 +507,7 @@ impl PointDecoder {
     /// What a wheel's decoding found, once the signal has ended.
     fn report(self) -> Option<ToothReport> {
         match self {
-            PointDecoder::Wheel { report, .. } => report,
+            PointDecoder::Wheel { report, .. } | PointDecoder::Pulses { report, .. } => report,
             PointDecoder::Quadrature { .. } => None,
         }
     }
@@ -359,7 +515,8 @@ impl PointDecoder {
     /// Drop the points decoded so far (not needed); whether the points have ended.
     fn drain(&mut self) -> bool {
         match self {
-            PointDecoder::Wheel { index, report, .. } => {
+            PointDecoder::Wheel { index, report, .. }
+            | PointDecoder::Pulses { index, report, .. } => {
                 while index.pop().is_some() {}
                 report.is_some()
             }
@@ -497,7 +654,7 @@ impl Calibration {
     /// a number).
     fn span(&self) -> (f64, f64) {
         match self {
-            Self::Wheel(_) => (f64::NEG_INFINITY, f64::INFINITY),
+            Self::Wheel(_) | Self::Pulses(..) => (f64::NEG_INFINITY, f64::INFINITY),
             Self::Quadrature(c) => c.span,
         }
     }
@@ -569,10 +726,16 @@ where
     Ok(match (report, cal) {
         (Some(report), _) => DecodedAngle {
             tdc,
-            summary: format!(
-                "wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm",
-                report.wheel, report.edges, report.revolutions, report.rpm.0, report.rpm.1
-            ),
+            summary: match &spec.sensor {
+                AngleSensor::Pulses { pulses, index, .. } => format!(
+                    "encoder of {pulses} pulses with the index '{index}' decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm",
+                    report.edges, report.revolutions, report.rpm.0, report.rpm.1
+                ),
+                _ => format!(
+                    "wheel {} decoded: {} edges over {} revolutions, {:.0}–{:.0} rpm",
+                    report.wheel, report.edges, report.revolutions, report.rpm.0, report.rpm.1
+                ),
+            },
             findings: report.findings.clone(),
             wheel: Some(report),
             encoder: None,
@@ -597,7 +760,7 @@ where
             encoder: Some(c.encoder.clone()),
             phase,
         },
-        (None, Calibration::Wheel(_)) => {
+        (None, Calibration::Wheel(_) | Calibration::Pulses(..)) => {
             return Err(AppError::Invalid("the wheel's decoding has no report".into()))
         }
     })

@@ -105,15 +105,25 @@ pub fn tell_tdc_from(input: &Path, channel: &str, found: &TdcFromPressure) {
 pub struct WheelArgs {
     /// A trigger wheel's raw sensor channel (analog or digital) and the wheel: N tooth pitches,
     /// M missing, e.g. enc=60-2 — decoded into the crank angle.
-    #[arg(long, value_name = "CHANNEL=N-M", group = "sensor")]
+    #[arg(long, value_name = "CHANNEL=N-M", groups = ["sensor", "edged"])]
     pub wheel: Option<String>,
+    /// A single-channel pulse encoder's raw channel (analog or digital, turning forward) and its
+    /// pulses per revolution, e.g. enc=360, with its index on --index-raw — decoded into the
+    /// crank angle (the wheel's edge detection and glitch rejection; angle 0 the first edge
+    /// after the index pulse).
+    #[arg(long, value_name = "CHANNEL=PULSES", groups = ["sensor", "edged"], requires = "index_raw")]
+    pub encoder_raw: Option<String>,
+    /// The index of --encoder-raw: a raw once-per-revolution pulse channel (its level midway
+    /// between its smallest and largest sample).
+    #[arg(long, value_name = "CHANNEL", requires = "encoder_raw")]
+    pub index_raw: Option<String>,
     /// A quadrature encoder's channels A, B and index Z, and its lines per revolution, e.g.
     /// enc_a,enc_b,enc_z=500 — decoded into the crank angle (both ways).
     #[arg(long, value_name = "A,B,Z=LINES", group = "sensor")]
     pub quadrature: Option<String>,
-    /// With --wheel or --quadrature: the crank angle [deg] from the sensor's reference (the
-    /// first tooth edge after the gap; the index pulse) to the next TDC (read it off a plot of
-    /// the raw signal).
+    /// With --wheel, --quadrature or --encoder-raw: the crank angle [deg] from the sensor's
+    /// reference (the first tooth edge after the gap; the index pulse; the first pulse edge
+    /// after the index pulse) to the next TDC (read it off a plot of the raw signal).
     #[arg(
         long,
         value_name = "DEG",
@@ -139,28 +149,34 @@ pub struct WheelArgs {
         conflicts_with = "tdc_offset"
     )]
     pub tdc_from: Option<String>,
-    /// With --wheel: the tooth edge is the signal rising (a Hall sensor's tooth) or falling
-    /// through the level.
+    /// With --wheel or --encoder-raw: the tooth (pulse) edge is the signal rising (a Hall
+    /// sensor's tooth) or falling through the level.
     #[arg(
         long,
         value_name = "rising|falling",
-        requires = "wheel",
+        requires = "edged",
         default_value = "rising"
     )]
     pub edge: String,
-    /// With --wheel: a fixed level and hysteresis (half-band) in the channel's unit instead of
-    /// the automatic level that follows the teeth's swing.
-    #[arg(long, value_name = "LEVEL,HYSTERESIS", requires = "wheel")]
+    /// With --wheel or --encoder-raw: a fixed level and hysteresis (half-band) in the channel's
+    /// unit instead of the automatic level that follows the teeth's swing.
+    #[arg(long, value_name = "LEVEL,HYSTERESIS", requires = "edged")]
     pub threshold: Option<String>,
 }
 
 impl WheelArgs {
     /// The sensor to decode, if one is given.
     pub fn spec(&self) -> Result<Option<AngleSpec>> {
-        let sensor = match (&self.wheel, &self.quadrature) {
-            (Some(w), _) => self.wheel_sensor(w)?,
-            (None, Some(q)) => AngleSensor::parse_quadrature(q).map_err(|e| miette!("--{e}"))?,
-            (None, None) => return Ok(None),
+        let sensor = match (&self.wheel, &self.quadrature, &self.encoder_raw) {
+            (Some(w), ..) => self.wheel_sensor(w)?,
+            (None, Some(q), _) => AngleSensor::parse_quadrature(q).map_err(|e| miette!("--{e}"))?,
+            (None, None, Some(e)) => AngleSensor::parse_pulses(
+                e,
+                self.index_raw.as_deref().unwrap_or_default(),
+                self.edge_options()?,
+            )
+            .map_err(|e| miette!("--{e}"))?,
+            (None, None, None) => return Ok(None),
         };
         AngleSpec::new(sensor, self.tdc_offset, self.phase_from.clone())
             .map(Some)
@@ -168,12 +184,16 @@ impl WheelArgs {
     }
 
     fn wheel_sensor(&self, w: &str) -> Result<AngleSensor> {
+        AngleSensor::parse_wheel(w, self.edge_options()?).map_err(|e| miette!("--{e}"))
+    }
+
+    fn edge_options(&self) -> Result<EdgeOptions> {
         let edge: Edge = self.edge.parse().map_err(|e| miette!("--edge: {e}"))?;
         let threshold = match &self.threshold {
             None => None,
             Some(s) => Some(parse_threshold(s).map_err(|e| miette!("--{e}"))?),
         };
-        AngleSensor::parse_wheel(w, EdgeOptions { edge, threshold }).map_err(|e| miette!("--{e}"))
+        Ok(EdgeOptions { edge, threshold })
     }
 }
 
@@ -214,6 +234,11 @@ pub fn run(args: &Args) -> Result<()> {
         Some(AngleSensor::Quadrature { .. }) => {
             return Err(miette!(
                 "inspect --quadrature: not supported — `physid convert --crank-angle --quadrature …` reports what it finds"
+            ));
+        }
+        Some(AngleSensor::Pulses { .. }) => {
+            return Err(miette!(
+                "inspect --encoder-raw: not supported — `physid convert --crank-angle --encoder-raw … --index-raw …` reports what it finds"
             ));
         }
         _ => {}

@@ -114,22 +114,22 @@ fn off_whole(x: f64) -> f64 {
 
 /// A tooth period between two kept edges, as [`Teeth`] gives it.
 #[derive(Debug, Clone, Copy)]
-struct Period {
+pub(super) struct Period {
     /// Its number (from 0) and the edges at its ends: times [s], samples.
-    k: usize,
-    t: (f64, f64),
-    index: (usize, usize),
+    pub(super) k: usize,
+    pub(super) t: (f64, f64),
+    pub(super) index: (usize, usize),
     /// Its length against its neighbours', and the pitches counted across it.
     r: f64,
-    pitches: i64,
+    pub(super) pitches: i64,
     /// Its pitch count is unsure: not near a whole number, or longer than a revolution (a
     /// dropout). The count across it may slip; it is set again at the next gap.
-    unsure: bool,
+    pub(super) unsure: bool,
 }
 
 /// What [`Teeth`] gives as the edges come.
 #[derive(Debug, Clone, Copy)]
-enum Tooth {
+pub(super) enum Tooth {
     /// An extra edge dropped, at its sample.
     Extra(usize),
     /// A period between kept edges.
@@ -141,7 +141,7 @@ enum Tooth {
 /// nearer a whole number of pitches — then count the pitches across each period between the
 /// edges kept. Holds a few edges.
 #[derive(Debug, Clone)]
-struct Teeth {
+pub(super) struct Teeth {
     teeth: i64,
     /// The ratios of the edges' periods; the edges from `raw_from` on (times, samples).
     raw_rel: Relative,
@@ -155,12 +155,12 @@ struct Teeth {
     kept: VecDeque<(f64, usize)>,
     kept_from: usize,
     /// Edges seen, and kept.
-    edges: usize,
-    n_kept: usize,
+    pub(super) edges: usize,
+    pub(super) n_kept: usize,
 }
 
 impl Teeth {
-    fn new(wheel: Wheel) -> Self {
+    pub(super) fn new(wheel: Wheel) -> Self {
         Self {
             teeth: i64::from(wheel.teeth),
             raw_rel: Relative::default(),
@@ -177,7 +177,7 @@ impl Teeth {
     }
 
     /// The next edge: time [s] and sample.
-    fn push(&mut self, t: f64, index: usize, out: &mut impl FnMut(Tooth)) {
+    pub(super) fn push(&mut self, t: f64, index: usize, out: &mut impl FnMut(Tooth)) {
         self.edges += 1;
         self.raw.push_back((t, index));
         self.raw_rel.push(t);
@@ -190,7 +190,7 @@ impl Teeth {
     }
 
     /// No more edges.
-    fn finish(&mut self, out: &mut impl FnMut(Tooth)) {
+    pub(super) fn finish(&mut self, out: &mut impl FnMut(Tooth)) {
         while let Some((k, r)) = self.raw_rel.next(true) {
             self.extra(k + 1, r, out);
         }
@@ -268,7 +268,7 @@ impl Teeth {
 }
 
 /// Fewer edges than two revolutions: the error.
-fn too_few(edges: usize, wheel: Wheel, channel: &str) -> Result<(), WheelError> {
+pub(super) fn too_few(edges: usize, wheel: Wheel, channel: &str) -> Result<(), WheelError> {
     if edges < 2 * wheel.present() as usize + 2 {
         return Err(WheelError::Invalid(format!(
             "'{channel}': {edges} tooth edges, fewer than two revolutions of a {wheel} wheel ({} edges each)",
@@ -312,7 +312,7 @@ pub struct Gap {
     /// The pitch count, modulo N, where the gap ends.
     pub residue: i64,
     /// The error to give if no period turns out to be the gap (what the periods show).
-    mismatch: String,
+    pub(super) mismatch: String,
 }
 
 impl GapSurvey {
@@ -469,6 +469,12 @@ struct Counting {
     glitches: Option<(usize, usize)>,
     extras: Vec<Finding>,
     findings: Vec<Finding>,
+    /// An encoder with an index ([`crate::wheel::IndexSurvey`]): the index pulses not yet
+    /// placed [s], the last kept edges (time, count, sample) a late one is placed against, the
+    /// pulses placed.
+    pulses: VecDeque<f64>,
+    recent: VecDeque<(f64, i64, usize)>,
+    index_pulses: usize,
 }
 
 /// What the indexing found besides the angles ([`ToothIndex::finish`]).
@@ -508,8 +514,19 @@ impl ToothIndex {
                 glitches: None,
                 extras: Vec::new(),
                 findings: Vec::new(),
+                pulses: VecDeque::new(),
+                recent: VecDeque::new(),
+                index_pulses: 0,
             },
         }
+    }
+
+    /// An encoder's index pulse at `t` [s] (a wheel without a gap, [`crate::wheel::IndexSurvey`]):
+    /// the first edge after it must sit at the reference — else an integrity finding there,
+    /// and the count is set again from it. Edges and pulses in time order, as the survey's.
+    pub fn index_pulse(&mut self, t: f64) {
+        self.counting.pulses.push_back(t);
+        self.counting.place_pulses();
     }
 
     /// The next edge: time [s] and sample.
@@ -556,7 +573,10 @@ impl Counting {
             Tooth::Period(p) => p,
         };
         if p.k == 0 {
-            self.edge(p.t.0, 0, p.index.0, true, false);
+            self.recent.push_back((p.t.0, 0, p.index.0));
+            let reference = self.gap.wheel.missing == 0
+                && (-self.gap.residue).rem_euclid(i64::from(self.gap.wheel.teeth)) == 0;
+            self.edge(p.t.0, 0, p.index.0, true, reference);
         }
         let (n, m) = (
             i64::from(self.gap.wheel.teeth),
@@ -589,7 +609,7 @@ impl Counting {
                 detail,
             });
             self.resync = true;
-        } else if p.pitches == m + 1 && (m >= 2 || self.resync) && off != 0 {
+        } else if m > 0 && p.pitches == m + 1 && (m >= 2 || self.resync) && off != 0 {
             self.resync = false;
             let correction = if off > n / 2 { n - off } else { -off };
             self.findings.push(Finding {
@@ -623,6 +643,48 @@ impl Counting {
             }
         }
         self.edge(p.t.1, self.count, p.index.1, !p.unsure, gap);
+        if m == 0 {
+            self.recent.push_back((p.t.1, self.count, p.index.1));
+            while self.recent.len() > crate::wheel::index_pulse::RECENT_EDGES {
+                self.recent.pop_front();
+            }
+            self.place_pulses();
+        }
+    }
+
+    /// The index pulses an edge now follows: the first edge after each must be at the
+    /// reference; when it is not, a finding, and the edges after it counted from it (those
+    /// already given keep their angle).
+    fn place_pulses(&mut self) {
+        let n = i64::from(self.gap.wheel.teeth);
+        while let Some(&tp) = self.pulses.front() {
+            let Some(&(_, c, index)) = self.recent.iter().find(|(t, ..)| *t > tp) else {
+                return;
+            };
+            self.pulses.pop_front();
+            if self.recent.front().is_some_and(|(t, ..)| *t > tp) && c != 0 {
+                continue;
+            }
+            self.index_pulses += 1;
+            let off = (c - self.gap.residue).rem_euclid(n);
+            if off != 0 {
+                let correction = if off > n / 2 { n - off } else { -off };
+                self.findings.push(Finding {
+                    kind: FindingKind::OutOfSync,
+                    index,
+                    detail: format!(
+                        "'{}': the first edge after an index pulse is at sample {index} {} pulse(s) from where the edges before place it: the angle is counted again from it",
+                        self.channel, -correction
+                    ),
+                });
+                self.count += correction;
+                for e in &mut self.recent {
+                    if e.0 >= tp {
+                        e.1 += correction;
+                    }
+                }
+            }
+        }
     }
 
     /// A kept edge's count (`sure`: the period ending there; `gap`: it ends the gap).

@@ -20,9 +20,12 @@
 //!    monotone piecewise-cubic Hermite curve (Fritsch–Carlson, as scipy's `PchipInterpolator`),
 //!    so that a speed changing within a tooth (or across the gap) bends the curve.
 //!
+//! A pulse encoder with a separate index pulse is a wheel of N pitches and no gap whose
+//! reference the index gives (`index_pulse.rs`: [`IndexSurvey`] in place of [`GapSurvey`]).
+//!
 //! Here: the wheel ([`Wheel`]), the edge options and the errors. By concern: `edges.rs` (step
-//! 1), `recognise.rs` (which wheel, when not given), `index.rs` (step 2), `pchip.rs` (step 3);
-//! every public item is re-exported here.
+//! 1), `recognise.rs` (which wheel, when not given), `index.rs` (step 2), `index_pulse.rs`
+//! (step 2 from an index pulse), `pchip.rs` (step 3); every public item is re-exported here.
 
 use crate::integrity::{Finding, FindingKind};
 use std::collections::VecDeque;
@@ -32,11 +35,13 @@ use thiserror::Error;
 
 mod edges;
 mod index;
+mod index_pulse;
 mod pchip;
 mod recognise;
 
 pub use edges::*;
 pub use index::*;
+pub use index_pulse::*;
 pub use pchip::*;
 pub use recognise::*;
 
