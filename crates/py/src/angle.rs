@@ -19,6 +19,8 @@ use std::sync::{Arc, Mutex};
 pub(crate) struct AngleArgs {
     pub wheel: Option<String>,
     pub quadrature: Option<String>,
+    pub encoder_raw: Option<String>,
+    pub index_raw: Option<String>,
     pub encoders: Option<Vec<String>>,
     pub marker: Option<String>,
     pub tdc_offset: f64,
@@ -36,6 +38,7 @@ impl AngleArgs {
     pub fn any(&self) -> bool {
         self.wheel.is_some()
             || self.quadrature.is_some()
+            || self.encoder_raw.is_some()
             || self.encoders.is_some()
             || self.tdc_from.is_some()
     }
@@ -52,20 +55,37 @@ impl AngleArgs {
                 .map(|e| AcquisitionOptions::parse_encoder(e).map_err(err))
                 .collect::<PyResult<_>>()?;
         }
-        let sensor = match (&self.wheel, &self.quadrature) {
-            (Some(_), Some(_)) => return Err(err("give wheel or quadrature, not both")),
-            (Some(w), None) => {
-                let edge: Edge = self.edge.parse().map_err(err)?;
-                let threshold = self
-                    .threshold
-                    .as_deref()
-                    .map(parse_threshold)
-                    .transpose()
-                    .map_err(err)?;
-                Some(AngleSensor::parse_wheel(w, EdgeOptions { edge, threshold }).map_err(err)?)
-            }
-            (None, Some(q)) => Some(AngleSensor::parse_quadrature(q).map_err(err)?),
-            (None, None) => None,
+        let edges = || -> PyResult<EdgeOptions> {
+            let edge: Edge = self.edge.parse().map_err(err)?;
+            let threshold = self
+                .threshold
+                .as_deref()
+                .map(parse_threshold)
+                .transpose()
+                .map_err(err)?;
+            Ok(EdgeOptions { edge, threshold })
+        };
+        let given = [&self.wheel, &self.quadrature, &self.encoder_raw];
+        if given.iter().filter(|s| s.is_some()).count() > 1 {
+            return Err(err("give one of wheel, quadrature and encoder_raw"));
+        }
+        if self.index_raw.is_some() != self.encoder_raw.is_some() {
+            return Err(err(
+                "encoder_raw and index_raw go together: the pulses and their index",
+            ));
+        }
+        let sensor = match given {
+            [Some(w), ..] => Some(AngleSensor::parse_wheel(w, edges()?).map_err(err)?),
+            [_, Some(q), _] => Some(AngleSensor::parse_quadrature(q).map_err(err)?),
+            [.., Some(e)] => Some(
+                AngleSensor::parse_pulses(
+                    e,
+                    self.index_raw.as_deref().unwrap_or_default(),
+                    edges()?,
+                )
+                .map_err(err)?,
+            ),
+            _ => None,
         };
         o.sensor = match sensor {
             Some(s) => Some(
@@ -74,7 +94,7 @@ impl AngleArgs {
             ),
             None if self.tdc_from.is_some() || self.phase_from.is_some() => {
                 return Err(err(
-                    "tdc_from and phase_from place the TDC on a raw angle sensor: give wheel or quadrature",
+                    "tdc_from and phase_from place the TDC on a raw angle sensor: give wheel, quadrature or encoder_raw",
                 ))
             }
             None => None,

@@ -198,13 +198,15 @@ impl Recording {
 /// crank-angle basis, one sample every `step_deg` degrees, the engine angle from `theta_en`, an
 /// encoder's counts (`encoders`: `["CHANNEL=PPR", …]`, `marker`), a trigger wheel's raw signal
 /// (`wheel`: `"CHANNEL=N-M"`, `edge`, `threshold`: `"LEVEL,HYSTERESIS"`) or a quadrature
-/// encoder's (`quadrature`: `"A,B,Z=LINES"`), the TDC `tdc_offset` degrees after the sensor's
+/// encoder's (`quadrature`: `"A,B,Z=LINES"`) or a pulse encoder's with its index
+/// (`encoder_raw`: `"CHANNEL=PULSES"`, `index_raw`), the TDC `tdc_offset` degrees after the sensor's
 /// reference or placed from the motored pressure `tdc_from` (with `stroke`, `rod` [m]), the
 /// firing revolution from `phase_from` — as `physid convert --crank-angle`.
 #[pyfunction]
 #[pyo3(signature = (path, channels=None, map=None, columns=None, scale=None, crank_angle=false,
     step_deg=1.0, wheel=None, quadrature=None, encoders=None, marker=None, tdc_offset=0.0,
-    phase_from=None, tdc_from=None, stroke=None, rod=None, edge="rising", threshold=None))]
+    phase_from=None, tdc_from=None, stroke=None, rod=None, edge="rising", threshold=None,
+    encoder_raw=None, index_raw=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn read(
     py: Python<'_>,
@@ -226,6 +228,8 @@ pub(crate) fn read(
     rod: Option<f64>,
     edge: &str,
     threshold: Option<String>,
+    encoder_raw: Option<String>,
+    index_raw: Option<String>,
 ) -> PyResult<Recording> {
     let map_items: Vec<String> = map
         .unwrap_or_default()
@@ -247,6 +251,8 @@ pub(crate) fn read(
     let angle = crate::angle::AngleArgs {
         wheel,
         quadrature,
+        encoder_raw,
+        index_raw,
         encoders,
         marker,
         tdc_offset,

@@ -97,6 +97,8 @@ def read(
     rod: float | None = None,
     edge: str = "rising",
     threshold: tuple[float, float] | None = None,
+    encoder_raw: str | None = None,
+    index_raw: str | None = None,
 ) -> Recording:
     """Read a recording: CSV (also ``;`` with decimal commas, header-less text with
     ``columns``), Parquet or MDF4, by extension.
@@ -106,14 +108,15 @@ def read(
     ``scale``: ``{name: (gain, offset)}`` — a sensor's calibration. Standard channels
     (``omega_en``, ``p_cyl`` …) are converted to SI on reading, as every physid verb does.
 
-    On a crank-angle basis (``crank_angle=True``, implied by ``wheel``, ``quadrature``,
+    On a crank-angle basis (``crank_angle=True``, implied by ``wheel``, ``quadrature``, ``encoder_raw``,
     ``encoders`` and ``tdc_from``), as ``physid convert --crank-angle`` reads it: one sample
     every ``step_deg`` degrees with ``cycle`` and ``crank_deg``, the engine angle from the
     file's ``theta_en``, from an encoder's counts and TDC marker (``encoders``:
     ``["count_en=360", …]``, ``marker``), or decoded from a raw sensor's signal — a trigger
     wheel (``wheel="enc=60-2"``: channel, tooth pitches, missing teeth; ``edge`` ``"rising"`` or
     ``"falling"``; ``threshold=(level, hysteresis)`` instead of the automatic level) or a
-    quadrature encoder (``quadrature="enc_a,enc_b,enc_z=500"``). The firing TDC lies
+    quadrature encoder (``quadrature="enc_a,enc_b,enc_z=500"``) or a single-channel pulse
+    encoder with its index (``encoder_raw="enc=360", index_raw="tdc"``). The firing TDC lies
     ``tdc_offset`` degrees after the sensor's reference, or is placed from the motored
     cylinder pressure ``tdc_from`` (with ``stroke`` and ``rod`` [m]); ``phase_from`` (a
     pressure or cam channel, ``":low"`` for a cam marking the other revolution) says which
@@ -141,6 +144,8 @@ def read(
         rod=float(rod) if rod is not None else None,
         edge=edge,
         threshold=f"{float(threshold[0])},{float(threshold[1])}" if threshold is not None else None,
+        encoder_raw=encoder_raw,
+        index_raw=index_raw,
     )
 
 
