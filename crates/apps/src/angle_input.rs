@@ -293,6 +293,7 @@ impl AngleInput {
                     if header.channel(&opts.marker).is_ok() {
                         names.push(opts.marker.as_str());
                     }
+                    names.extend(scan.phase_channel());
                     let mut reader = self.open_names(&names)?;
                     let c = scan.scan(self.observer.watch(&mut reader, &self.path))?;
                     if let Some(s) = pass.scanned {

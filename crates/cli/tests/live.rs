@@ -1493,6 +1493,57 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         ))),
         "{notes:?}"
     );
+    // The same recording with the encoder's counts as its only engine angle (no theta_en):
+    // said to be a guess without --phase-from, the pressure's peak a revolution off; with it,
+    // the firing TDC told from the pressure at the count steps, the peak just before TDC.
+    let counts = s.file("counts.parquet");
+    let o = physid(&[
+        "convert",
+        f,
+        counts.to_str().unwrap(),
+        "--channels",
+        "t,count_en,tdc,p_cyl",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let by_counts = |extra: &[&str]| {
+        let mut args = vec![
+            "cycles",
+            counts.to_str().unwrap(),
+            "--json",
+            "--encoder",
+            "count_en=360",
+        ];
+        args.extend(extra);
+        let o = physid(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<Value>(&o.stdout).unwrap()
+    };
+    let guessed = by_counts(&[]);
+    assert!(
+        guessed["notes"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("phase: the first TDC marker taken as firing"),
+        "{}",
+        guessed["notes"]
+    );
+    let off = guessed["cycles"][1]["p_max_deg"].as_f64().unwrap();
+    assert!(off.abs() > 300.0, "{off}");
+    let told = by_counts(&["--phase-from", "p_cyl"]);
+    assert!(
+        told["notes"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("phase: the firing TDC at the second TDC marker ('p_cyl' higher"),
+        "{}",
+        told["notes"]
+    );
+    let told = told["cycles"].as_array().unwrap();
+    assert!(told.len() >= 10);
+    for c in told {
+        let at = c["p_max_deg"].as_f64().unwrap();
+        assert!((-3.0..1.0).contains(&at), "{c}");
+    }
     let phased = cycles(&["--phase-from", "p_cyl"]);
     let by_file = phased["cycles"].as_array().unwrap();
     assert!(by_file.len() >= 10);

@@ -45,11 +45,12 @@ pub(super) fn engine_angle(
     let mut scan = CountsScan::new(rec, opts)?;
     let (t, theta) = scan.push(rec)?;
     let (t, theta) = (t.to_vec(), theta.to_vec());
+    let (tdc, phase) = scan.finish_phased()?;
     Ok(EngineAngle {
-        tdc: scan.finish()?,
+        tdc,
         t,
         theta,
-        phase: None,
+        phase,
     })
 }
 
@@ -59,8 +60,10 @@ pub(super) fn engine_angle(
 /// between the count steps around it by the rule of
 /// [`interp`](physid_signal::crank::interp), without a marker the first multiple of 4π
 /// ([`first_tdc`]). The angle itself is the count steps ([`CountSteps`]), which
-/// [`push`](Self::push) gives too. What it holds: a few numbers, the spacing check's, and the
-/// steps of the last chunk.
+/// [`push`](Self::push) gives too. With `--phase-from`, which revolution of two fires
+/// ([`MarkerPhase`], over the first revolutions after the marker, the channel read at the
+/// count steps); without, a marker once per revolution is taken as firing and said to be a
+/// guess. What it holds: a few numbers, the spacing check's, and the steps of the last chunk.
 #[derive(Debug, Clone)]
 pub struct CountsScan {
     /// The encoder: its count channel and pulses per revolution.
@@ -79,16 +82,17 @@ pub struct CountsScan {
     /// The last chunk's count steps: times [s] and angles [rad].
     t: Vec<f64>,
     theta: Vec<f64>,
+    /// Which revolution fires, with `--phase-from`.
+    phase: Option<MarkerPhase>,
 }
 
 impl CountsScan {
     /// The scan of the first of `opts.encoders` that `header` has — or the error that the
     /// recording has no engine angle at all.
     pub fn new(header: &Recording, opts: &AcquisitionOptions) -> Result<Self, AcquisitionError> {
-        if let Some(from) = &opts.phase_from {
-            return Err(AcquisitionError::Invalid(format!(
-                "--phase-from {from} with an encoder's counts (no theta_en) is not supported yet: the firing TDC would be the first marker's — give the angle as theta_en, or the raw sensor with --wheel or --quadrature, with --phase-from"
-            )));
+        let phase = opts.phase_from.as_deref().map(MarkerPhase::new);
+        if let Some(p) = &phase {
+            header.channel(p.channel())?;
         }
         let (name, ppr) = opts
             .encoders
@@ -114,7 +118,13 @@ impl CountsScan {
             stepped: 0,
             t: Vec::new(),
             theta: Vec::new(),
+            phase,
         })
+    }
+
+    /// The channel `--phase-from` reads, when given (the first pass reads it too).
+    pub fn phase_channel(&self) -> Option<&str> {
+        self.phase.as_ref().map(MarkerPhase::channel)
     }
 
     /// The count channel and its pulses per revolution.
@@ -141,6 +151,22 @@ impl CountsScan {
         for (&x, &y) in self.t.iter().zip(&self.theta) {
             self.at.point(x, y);
         }
+        if let Some(phase) = self.phase.as_mut().filter(|p| !p.done()) {
+            // The channel at each count step (a step is at a sample's time).
+            let p = chunk.values(phase.channel())?;
+            let mut j = 0;
+            for (&x, &y) in self.t.iter().zip(&self.theta) {
+                while j < t.len() && t[j] < x {
+                    j += 1;
+                }
+                if j < t.len() && t[j] == x {
+                    phase.push(y, p[j]);
+                }
+            }
+            if let Some(a) = self.at.settled() {
+                phase.marker_at(a);
+            }
+        }
         self.samples += t.len();
         self.stepped += self.t.len();
         Ok((&self.t, &self.theta))
@@ -157,11 +183,29 @@ impl CountsScan {
             self.push(&chunk?)?;
         }
         let (encoder, ppr) = (self.name.clone(), self.ppr);
+        let (tdc, phase) = self.finish_phased()?;
         Ok(CountsAngle {
             encoder,
             ppr,
-            tdc: self.finish()?,
+            tdc,
+            phase,
         })
+    }
+
+    /// [`finish`](Self::finish), with the phase told (`--phase-from`) or — a marker once per
+    /// revolution taken as firing — said to be a guess.
+    pub fn finish_phased(mut self) -> Result<(f64, Option<String>), AcquisitionError> {
+        let marker = self.at.a.is_some();
+        let phase = self.phase.take();
+        let tdc = self.finish()?;
+        match phase {
+            Some(mut p) => {
+                p.marker_at(tdc);
+                let (at, told) = p.finish()?;
+                Ok((at, Some(told)))
+            }
+            None => Ok((tdc, phase_note(marker, None))),
+        }
     }
 
     /// The firing TDC's angle [rad] — or why no crank angle can be taken from the counts.
@@ -199,6 +243,8 @@ pub struct CountsAngle {
     pub ppr: u32,
     /// The firing TDC's angle on the counts' angle [rad].
     pub tdc: f64,
+    /// How the firing revolution was told, or that it is a guess.
+    pub phase: Option<String>,
 }
 
 /// `interp(x, y, &[a])` over points `(x, y)` that come one at a time, `a` told before the
@@ -228,6 +274,17 @@ impl MarkerAngle {
             }
         }
         self.last = Some((x, y));
+    }
+
+    /// `y` at `a` once no later point can change it (bracketed, or `a` at or before the first
+    /// point).
+    fn settled(&self) -> Option<f64> {
+        let (a, _) = self.a?;
+        let at_first = self.first.is_some_and(|(x0, _)| a <= x0);
+        if !(at_first || self.bracket.is_some()) {
+            return None;
+        }
+        self.value()?.ok().filter(|v| v.is_finite())
     }
 
     /// `y` at `a` (`None` when nothing was asked; `Err` with it and its sample when it is not

@@ -160,6 +160,7 @@ where
     AppError: From<E>,
 {
     let mut stream = CrankAngleStream::new(header, opts, counts.tdc, step_deg)?;
+    stream.note_phase(counts.phase.clone());
     let out_header = stream.header()?;
     let mut ahead = CountsAhead {
         angle: angle.into_iter(),

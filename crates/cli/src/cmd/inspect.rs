@@ -134,9 +134,10 @@ pub struct WheelArgs {
     pub tdc_offset: f64,
     /// Which revolution of two fires — the one whose TDC has the higher mean of CHANNEL over
     /// the revolution around it: the cylinder pressure, or a cam sensor high (or pulsing)
-    /// there; CHANNEL:low for a cam that marks the other revolution. With --wheel or
-    /// --quadrature, over the whole recording; with a TDC marker once per revolution (an
-    /// encoder's index, `theta_en`), over the first 8 revolutions after it.
+    /// there; CHANNEL:low for a cam that marks the other revolution. With --wheel,
+    /// --quadrature or --encoder-raw, over the whole recording; with a TDC marker once per
+    /// revolution (with `theta_en` or an encoder's counts), over the first 8 revolutions after
+    /// it.
     #[arg(long, value_name = "CHANNEL[:low]")]
     pub phase_from: Option<String>,
     /// With --wheel or --quadrature: place the TDC from this motored cylinder-pressure channel
