@@ -92,7 +92,7 @@ impl PulseEdges {
         range: (f64, f64),
     ) -> Result<Self, AppError> {
         let (lo, hi) = range;
-        if !(hi > lo) {
+        if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
             return Err(invalid(format!(
                 "'{index}': the index is flat ({lo} … {hi}): no index pulse to place the angle from"
             )));
@@ -299,7 +299,7 @@ enum PointDecoder {
     },
     Pulses {
         /// `None` once the signal has ended.
-        found: Option<PulseEdges>,
+        found: Option<Box<PulseEdges>>,
         index: Box<ToothIndex>,
         report: Option<ToothReport>,
     },
@@ -406,7 +406,7 @@ impl PointDecoder {
                 },
                 Calibration::Pulses(gap, range),
             ) => PointDecoder::Pulses {
-                found: Some(PulseEdges::new(channel, index, edges, *range)?),
+                found: Some(Box::new(PulseEdges::new(channel, index, edges, *range)?)),
                 index: Box::new(ToothIndex::new(gap, channel)),
                 report: None,
             },
