@@ -369,6 +369,20 @@ pub fn apparent_heat(
     let mut q = Vec::with_capacity(p.len());
     q.push(0.0);
     let (mut sum, mut t_max) = (0.0, f64::NEG_INFINITY);
+    if m_r.is_none() {
+        // Constant γ, no wall heat: the same sum, without the per-step choices.
+        let (c_pdv, c_vdp) = constant;
+        q.extend((1..p.len()).map(|k| {
+            let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
+            sum += c_pdv * pm * (v[k] - v[k - 1]) + c_vdp * vm * (p[k] - p[k - 1]);
+            sum
+        }));
+        return Some(Apparent {
+            from,
+            q,
+            t_max_k: None,
+        });
+    }
     for k in 1..p.len() {
         let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
         let (c_pdv, c_vdp) = match m_r {

@@ -432,8 +432,8 @@ impl PerCycle {
             figures.n_compression = exponent(COMPRESSION_WINDOW, "n_compression");
             figures.n_expansion = exponent(EXPANSION_WINDOW, "n_expansion");
             if s.in_pa {
-                let net = work(atdc, pc, vol, (-360.0, 360.0), true) / vd;
-                let gross = work(atdc, pc, vol, (-180.0, 180.0), false) / vd;
+                let (net, gross) = work(atdc, pc, vol);
+                let (net, gross) = (net / vd, gross / vd);
                 figures.imep_pa = Some(net);
                 figures.imep_gross_pa = Some(gross);
                 figures.pmep_pa = Some(gross - net);
@@ -476,14 +476,38 @@ impl PerCycle {
     }
 }
 
-/// `∫ p dV` over the samples within `from … to` [deg ATDC] (trapezoidal); `closed`: back to the
-/// first sample too (a loop).
-fn work(atdc: &[f64], p: &[f64], v: &[f64], (from, to): (f64, f64), closed: bool) -> f64 {
-    let (i0, i1) = (
-        atdc.partition_point(|&a| a < from),
-        atdc.partition_point(|&a| a <= to),
-    );
+/// The cycle's work `∮ p dV` over its samples within −360° … 360° ATDC, the loop closed back to
+/// the first sample (net), and `∫ p dV` over those within −180° … 180° (gross, compression and
+/// expansion) — trapezoidal, in one pass: the net is the sum of the gross's steps and those
+/// either side.
+fn work(atdc: &[f64], p: &[f64], v: &[f64]) -> (f64, f64) {
+    let index = |a: f64, inclusive: bool| {
+        if inclusive {
+            atdc.partition_point(|&x| x <= a)
+        } else {
+            atdc.partition_point(|&x| x < a)
+        }
+    };
+    let (i0, i1) = (index(-360.0, false), index(360.0, true));
     if i1 <= i0 {
+        return (0.0, 0.0);
+    }
+    let (g0, g1) = (index(-180.0, false), index(180.0, true));
+    let gross = if g1 > g0 { steps(p, v, g0, g1) } else { 0.0 };
+    let (g0, g1) = (g0.clamp(i0, i1), g1.clamp(i0, i1));
+    // The net: before the gross's first sample, the gross's steps, after its last — each step
+    // once (the steps across the joins are in the outer parts).
+    let net = if g1 > g0 {
+        steps(p, v, i0, g0 + 1) + gross + steps(p, v, g1 - 1, i1)
+    } else {
+        steps(p, v, i0, i1)
+    } + 0.5 * (p[i1 - 1] + p[i0]) * (v[i0] - v[i1 - 1]);
+    (net, gross)
+}
+
+/// `Σ ½(p_k + p_{k+1})(V_{k+1} − V_k)` over the samples `i0 … i1 − 1` (none with fewer than two).
+fn steps(p: &[f64], v: &[f64], i0: usize, i1: usize) -> f64 {
+    if i1 < i0 + 2 {
         return 0.0;
     }
     // Four partial sums: the additions need not wait for one another.
@@ -501,11 +525,7 @@ fn work(atdc: &[f64], p: &[f64], v: &[f64], (from, to): (f64, f64), closed: bool
     for k in i..steps {
         sum[0] += 0.5 * (ps[k] + ps[k + 1]) * (vs[k + 1] - vs[k]);
     }
-    let mut w = (sum[0] + sum[1]) + (sum[2] + sum[3]);
-    if closed {
-        w += 0.5 * (p[i1 - 1] + p[i0]) * (v[i0] - v[i1 - 1]);
-    }
-    w
+    (sum[0] + sum[1]) + (sum[2] + sum[3])
 }
 
 /// `y` at the angle `a` [deg ATDC], linearly between the samples around it (the two nearest
