@@ -1163,12 +1163,50 @@ fn compression_fit_recovers_the_motored_trace_s_parameters() {
 /// revolution starts at the same true angle (within 0.05°) — 1° after the wheel's 0, where the
 /// first rising edge after the index lies, plus the `--tdc-offset` given — the missing pulse an
 /// integrity finding; a wrong pulse count, or the index missing, said with what was found.
+/// `inspect --encoder-raw` reports the decoding: edges, revolutions, speeds, the glitches
+/// rejected, the missing pulse among the integrity findings.
 #[test]
 fn a_pulse_encoder_s_raw_channels_give_the_crank_angle() {
     let s = Scratch::new("physid-raw-pulses");
     let golden = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../signal/tests/golden/pulse_encoder_360.parquet");
     let g = golden.to_str().unwrap();
+    let j = ok_json(&[
+        "inspect",
+        g,
+        "--json",
+        "--encoder-raw",
+        "enc=360",
+        "--index-raw",
+        "idx",
+    ]);
+    let w = &j["wheel"];
+    assert_eq!(
+        (
+            w["teeth"].as_u64(),
+            w["missing"].as_u64(),
+            w["index"].as_str()
+        ),
+        (Some(360), Some(0), Some("idx")),
+        "{w}"
+    );
+    assert_eq!(w["glitches"], 4, "{w}");
+    let revs = w["revolutions"].as_u64().unwrap();
+    assert!((20..=23).contains(&revs), "{w}");
+    assert!(w["rpm_min"].as_f64().unwrap() > 540.0 && w["rpm_max"].as_f64().unwrap() < 3300.0);
+    assert_eq!(j["integrity"]["ok"], false, "{j}");
+    let o = physid(&[
+        "inspect",
+        g,
+        "--encoder-raw",
+        "enc=360",
+        "--index-raw",
+        "idx",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("encoder 'enc' (360 pulses, index 'idx')"));
+    let o = physid(&["inspect", g, "--encoder-raw", "enc=360", "--index-raw", "z"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("name 'enc' and 'z'"));
     let deg = s.file("deg.parquet");
     let d = deg.to_str().unwrap();
     let o = physid(&[

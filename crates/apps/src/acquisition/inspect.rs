@@ -58,15 +58,18 @@ pub struct RecognisedWheel {
 pub struct WheelSummary {
     /// The sensor's channel.
     pub channel: String,
-    /// The wheel given (`N-M`).
+    /// The wheel given (`N-M`; a pulse encoder's `N-0`).
     pub wheel: String,
+    /// A pulse encoder's index channel (`--index-raw`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub index: Option<String>,
     /// Teeth per revolution (N − M) and missing teeth (M).
     pub teeth: u32,
     /// Missing teeth in the gap.
     pub missing: u32,
     /// Tooth edges decoded (extra edges dropped).
     pub edges: usize,
-    /// Whole revolutions between the first and last gap.
+    /// Whole revolutions between the first and last gap (index pulse).
     pub revolutions: usize,
     /// The slowest and fastest speed over a tooth [rpm].
     pub rpm_min: f64,
@@ -364,15 +367,32 @@ pub fn inspect_wheel(
     let Some(spec) = opts.sensor.as_ref() else {
         return;
     };
-    let AngleSensor::Wheel { channel, wheel, .. } = &spec.sensor else {
-        return;
+    // A pulse encoder is a wheel of N pitches and no gap, its reference the index.
+    let (channel, wheel, index) = match &spec.sensor {
+        AngleSensor::Wheel { channel, wheel, .. } => (channel, *wheel, None),
+        AngleSensor::Pulses {
+            channel,
+            pulses,
+            index,
+            ..
+        } => (
+            channel,
+            Wheel {
+                teeth: *pulses,
+                missing: 0,
+            },
+            Some(index),
+        ),
+        AngleSensor::Quadrature { .. } => return,
     };
-    if header.channel(channel).is_err() || header.basis != Basis::Time {
+    let present = |c: &str| header.channel(c).is_ok();
+    if !present(channel) || !index.is_none_or(|z| present(z)) || header.basis != Basis::Time {
         return;
     }
     let mut summary = WheelSummary {
         channel: channel.to_string(),
         wheel: wheel.to_string(),
+        index: index.cloned(),
         teeth: wheel.present(),
         missing: wheel.missing,
         edges: 0,

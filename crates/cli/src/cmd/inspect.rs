@@ -237,9 +237,14 @@ pub fn run(args: &Args) -> Result<()> {
                 "inspect --quadrature: not supported — `physid convert --crank-angle --quadrature …` reports what it finds"
             ));
         }
-        Some(AngleSensor::Pulses { .. }) => {
+        Some(AngleSensor::Pulses { channel, index, .. })
+            if reader.header().channel(channel).is_err()
+                || reader.header().channel(index).is_err() =>
+        {
             return Err(miette!(
-                "inspect --encoder-raw: not supported — `physid convert --crank-angle --encoder-raw … --index-raw …` reports what it finds"
+                "{}: --encoder-raw and --index-raw name '{channel}' and '{index}'; the recording's channels are {}",
+                args.file.display(),
+                reader.header().names().join(", ")
             ));
         }
         _ => {}
@@ -252,10 +257,12 @@ pub fn run(args: &Args) -> Result<()> {
     let mut i = inspector.finish();
     let header = reader.header();
     // A wheel named: decoded as it is read again (where the gap is, then every edge's angle).
-    if let Some(AngleSensor::Wheel { channel, .. }) = opts.sensor.as_ref().map(|s| &s.sensor) {
-        let read = args
-            .input
-            .options(Some(vec!["t".into(), channel.clone()]))?;
+    if let Some(sensor @ (AngleSensor::Wheel { .. } | AngleSensor::Pulses { .. })) =
+        opts.sensor.as_ref().map(|s| &s.sensor)
+    {
+        let mut names = vec!["t".to_string()];
+        names.extend(sensor.channels().into_iter().map(str::to_string));
+        let read = args.input.options(Some(names))?;
         inspect_wheel(
             &mut i,
             header,
@@ -348,12 +355,24 @@ pub fn run(args: &Args) -> Result<()> {
             outln!("complete cycles (720°): {c}");
         }
         if let Some(w) = &i.wheel {
-            match &w.error {
-                None => outln!(
+            let what = match &w.index {
+                Some(z) => format!("encoder '{}' ({} pulses, index '{z}')", w.channel, w.teeth),
+                None => format!("wheel '{}' ({})", w.channel, w.wheel),
+            };
+            match (&w.error, &w.index) {
+                (None, Some(_)) => outln!(
+                    "{what}: {} edges, {} revolutions, {:.0}–{:.0} rpm, {} glitch(es) rejected",
+                    w.edges,
+                    w.revolutions,
+                    w.rpm_min,
+                    w.rpm_max,
+                    w.glitches
+                ),
+                (Some(e), _) => outln!("{what}: not decoded — {e}"),
+                (None, None) => outln!(
                     "wheel '{}' ({}): {} teeth and a gap of {} per revolution, {} edges, {} revolutions, {:.0}–{:.0} rpm, {} glitch(es) rejected",
                     w.channel, w.wheel, w.teeth, w.missing, w.edges, w.revolutions, w.rpm_min, w.rpm_max, w.glitches
                 ),
-                Some(e) => outln!("wheel '{}' ({}): not decoded — {e}", w.channel, w.wheel),
             }
         }
         for w in &i.recognised {
