@@ -162,11 +162,22 @@
   makePlot("plot-tcyc", cycSeries(), crankX);
   makePlot("plot-friction", [line("measured", colors[0]), line("predicted (before the cycle)", colors[1]),
     line("nominal model", colors[4], { dash: [6, 4] }), line("simulated truth", colors[2], { width: 1 })], { xLabel: "cycle" });
+  // A scale at least `floor` wide about its data (a steady engine's IMEP varies by less than the
+  // axis's labels can tell apart: shown flat, not magnified noise).
+  const atLeast = (floor) => (u, lo, hi) => {
+    if (lo == null || hi == null) return [lo, hi];
+    const mid = (lo + hi) / 2, half = Math.max((hi - lo) / 2, floor(mid) / 2);
+    return [mid - 1.1 * half, mid + 1.1 * half];
+  };
   makePlot("plot-combustion", [line("IMEP [bar]", colors[0], { scale: "bar" }),
     line("MFB50 [deg ATDC]", colors[1], { scale: "deg" })], {
     xLabel: "cycle",
     uplot: {
-      scales: { x: { time: false }, bar: {}, deg: {} },
+      scales: {
+        x: { time: false },
+        bar: { range: atLeast((m) => Math.max(0.02 * Math.abs(m), 0.1)) },
+        deg: { range: atLeast(() => 1) },
+      },
       axes: [{ label: "cycle" }, { scale: "bar", label: "bar", size: 60 },
         { scale: "deg", label: "deg", side: 1, size: 50, grid: { show: false } }],
     },
