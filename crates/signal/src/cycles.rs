@@ -72,21 +72,21 @@ pub struct CycleStream {
     max_deg: Vec<f64>,
     curve: Vec<Vec<f64>>,
     seen: usize,
-    /// Scratch of [`push_curves`](Self::push_curves).
+    /// Scratch of [`push_curves`](Self::push_curves): each grid point's sample and fraction.
     #[serde(skip)]
-    points_scratch: Vec<GridPoint>,
+    grid_scratch: GridScratch,
     /// Curves handed back ([`recycle`](Self::recycle)) for the next cycle to fill.
     #[serde(skip)]
     spare: Option<Vec<Vec<f64>>>,
 }
 
-/// A grid point between two samples of a chunk: the one before (`None`: the previous chunk's,
-/// or a cycle's start), the one after, and the fraction of the way.
-#[derive(Debug, Clone, Copy)]
-struct GridPoint {
-    from: Option<usize>,
-    to: usize,
-    f: f64,
+/// The grid points a run of samples passes: for each, the first sample at or past it (`to[q]`,
+/// counted in the run; the one before it is `to[q] − 1`, or the previous sample for 0) and the
+/// fraction of the way from the sample before (`f[q]`). Sized once to a cycle's points.
+#[derive(Debug, Clone, Default)]
+struct GridScratch {
+    to: Vec<usize>,
+    f: Vec<f64>,
 }
 
 impl CycleStream {
@@ -133,7 +133,7 @@ impl CycleStream {
                 .map(|_| Vec::with_capacity(points))
                 .collect(),
             seen: 0,
-            points_scratch: Vec::new(),
+            grid_scratch: GridScratch::default(),
             spare: None,
         })
     }
@@ -199,7 +199,10 @@ impl CycleStream {
                 self.prev_x.len()
             )));
         }
-        if !self.stats && self.prev.is_some() && all_finite(t, theta, x) {
+        if !self.stats
+            && self.prev.is_some_and(|(th0, _)| increasing(th0, theta))
+            && all_finite(t, theta, x)
+        {
             self.push_curves(t, theta, x, out);
             self.seen += n;
             return Ok(());
@@ -226,70 +229,73 @@ impl CycleStream {
         Ok(())
     }
 
-    /// The samples of a chunk, all finite, with the curves alone (no statistics) after the
-    /// stream's first sample: what [`sample`](Self::sample) does, the same arithmetic, in two
-    /// passes — the grid points each sample passes (which samples, what fraction), then each
-    /// channel's values there — with a cycle's end left to `sample`.
+    /// The samples of a chunk, all finite and their angles increasing from the previous
+    /// sample's, with the curves alone (no statistics): what [`sample`](Self::sample) does, the
+    /// same arithmetic, run by run — the samples before a cycle's end through
+    /// [`grid_run`](Self::grid_run), the one at or past it through `sample`, which closes the
+    /// cycle.
     fn push_curves(&mut self, t: &[f64], theta: &[f64], x: &[&[f64]], out: &mut Vec<CycleSummary>) {
-        let Some((mut th0, mut t0)) = self.prev else {
-            return;
-        };
-        let mut points = std::mem::take(&mut self.points_scratch);
-        points.clear();
-        // The last sample taken in this chunk (None: the previous one is `prev_x`).
-        let mut last: Option<usize> = None;
-        let mut next = self.next_grid;
-        let (mut c0, mut end) = (self.start(self.cycle), self.grid_angle(self.points));
-        for (i, (&ti, &th)) in t.iter().zip(theta).enumerate() {
-            if th <= th0 {
-                continue;
+        let mut from = 0;
+        while from < theta.len() {
+            let end = self.grid_angle(self.points);
+            // The angles increase: the run before the end found by bisection.
+            let stop = from + theta[from..].partition_point(|&th| th < end);
+            if stop > from {
+                self.grid_run(&t[from..stop], &theta[from..stop], x, from);
             }
-            if th >= end {
-                self.next_grid = next;
-                self.prev = Some((th0, t0));
-                self.interpolate(x, &points, last);
-                points.clear();
-                self.sample(ti, th, |j| x[j][i], out);
-                (th0, t0) = self.prev.unwrap_or((th, ti));
-                (next, last) = (self.next_grid, None);
-                (c0, end) = (self.start(self.cycle), self.grid_angle(self.points));
-                continue;
-            }
-            // As grid_angle: the same arithmetic.
-            let mut g = c0 + next as f64 * self.step;
-            if g <= th {
-                let inv = 1.0 / (th - th0);
-                while g <= th {
-                    points.push(GridPoint {
-                        from: last,
-                        to: i,
-                        f: (g - th0) * inv,
-                    });
-                    next += 1;
-                    g = c0 + next as f64 * self.step;
-                }
-            }
-            (th0, t0, last) = (th, ti, Some(i));
+            let Some(&th) = theta.get(stop) else {
+                break;
+            };
+            self.sample(t[stop], th, |j| x[j][stop], out);
+            from = stop + 1;
         }
-        self.next_grid = next;
-        self.interpolate(x, &points, last);
-        self.prev = Some((th0, t0));
-        self.points_scratch = points;
     }
 
-    /// Each channel at `points` onto its curve; then the chunk's sample `last` (when one was
-    /// taken) becomes the previous sample's values.
-    fn interpolate(&mut self, x: &[&[f64]], points: &[GridPoint], last: Option<usize>) {
-        for (j, curve) in self.curve.iter_mut().enumerate() {
-            let (xj, before) = (x[j], self.prev_x[j]);
-            curve.extend(points.iter().map(|g| {
-                let a = g.from.map_or(before, |k| xj[k]);
-                a + g.f * (xj[g.to] - a)
-            }));
-            if let Some(k) = last {
-                self.prev_x[j] = xj[k];
-            }
+    /// A run of samples (`x[j][offset..]` as long as `theta`) inside the cycle in progress,
+    /// their angles increasing from the previous sample's: the grid points they pass onto the
+    /// curves, in two passes — for each grid point the first sample at or past it and the
+    /// fraction of the way (the angles alone), then each channel there — and the run's last
+    /// sample made the previous one.
+    fn grid_run(&mut self, t: &[f64], theta: &[f64], x: &[&[f64]], offset: usize) {
+        let Some((th_prev, _)) = self.prev else {
+            return;
+        };
+        let (c0, step, n) = (self.start(self.cycle), self.step, theta.len());
+        let scratch = &mut self.grid_scratch;
+        if scratch.to.len() < self.points {
+            scratch.to.resize(self.points, 0);
+            scratch.f.resize(self.points, 0.0);
         }
+        let last = theta[n - 1];
+        let (mut q, mut i, mut k) = (0, 0, self.next_grid);
+        loop {
+            // As grid_angle: the same arithmetic. Every point before the cycle's end is in the
+            // scratch: the run lies before it.
+            let g = c0 + k as f64 * step;
+            if g > last {
+                break;
+            }
+            while theta[i] < g {
+                i += 1;
+            }
+            let th0 = if i == 0 { th_prev } else { theta[i - 1] };
+            scratch.to[q] = i;
+            scratch.f[q] = fraction(g, th0, theta[i]);
+            q += 1;
+            k += 1;
+        }
+        self.next_grid = k;
+        let (to, f) = (&scratch.to[..q], &scratch.f[..q]);
+        for (j, curve) in self.curve.iter_mut().enumerate() {
+            let xj = &x[j][offset..offset + n];
+            let before = self.prev_x[j];
+            curve.extend(to.iter().zip(f).map(|(&i, &f)| {
+                let a = if i == 0 { before } else { xj[i - 1] };
+                a + f * (xj[i] - a)
+            }));
+            self.prev_x[j] = xj[n - 1];
+        }
+        self.prev = Some((last, t[n - 1]));
     }
 
     /// One sample.
@@ -309,13 +315,12 @@ impl CycleStream {
             return;
         }
         // Grid points and cycle boundaries between the previous sample and this one.
-        let inv = 1.0 / (th - th0);
         loop {
             let g = self.next_grid_angle();
             if g > th {
                 break;
             }
-            let f = (g - th0) * inv;
+            let f = fraction(g, th0, th);
             if self.next_grid == self.points {
                 // The boundary: close the cycle with the piece up to it …
                 for j in 0..self.prev_x.len() {
@@ -426,6 +431,23 @@ impl CycleStream {
             c.clear();
         }
     }
+}
+
+/// The fraction of the way from angle `th0` to `th1` at which angle `g` lies (linear
+/// interpolation; the one formula of every path, so their curves agree bit for bit).
+#[inline]
+fn fraction(g: f64, th0: f64, th1: f64) -> f64 {
+    (g - th0) / (th1 - th0)
+}
+
+/// Whether the angles increase strictly from `th0` on (a NaN fails).
+fn increasing(th0: f64, theta: &[f64]) -> bool {
+    let mut prev = th0;
+    theta.iter().fold(true, |ok, &th| {
+        let up = th > prev;
+        prev = th;
+        ok & up
+    })
 }
 
 /// Whether every time, angle and channel value of a chunk is finite (one pass each, which the
