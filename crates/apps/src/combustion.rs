@@ -370,13 +370,17 @@ pub fn apparent_heat(
     q.push(0.0);
     let (mut sum, mut t_max) = (0.0, f64::NEG_INFINITY);
     if m_r.is_none() {
-        // Constant γ, no wall heat: the same sum, without the per-step choices.
+        // Constant γ, no wall heat: the same sum, without the per-step choices — the steps
+        // first (independent of one another, in vector registers), then their running sum.
         let (c_pdv, c_vdp) = constant;
         q.extend((1..p.len()).map(|k| {
             let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
-            sum += c_pdv * pm * (v[k] - v[k - 1]) + c_vdp * vm * (p[k] - p[k - 1]);
-            sum
+            c_pdv * pm * (v[k] - v[k - 1]) + c_vdp * vm * (p[k] - p[k - 1])
         }));
+        for dq in q.iter_mut() {
+            sum += *dq;
+            *dq = sum;
+        }
         return Some(Apparent {
             from,
             q,

@@ -347,7 +347,7 @@ impl PerCycle {
         let s = &self.settings;
         let crank = s.geometry.as_ref().map(Geometry::crank);
         // The volume at the cycle's angles: kept while the angles are the same (a grid).
-        if self.vol_atdc.as_slice() != atdc || self.vol.len() != atdc.len() {
+        if !same(&self.vol_atdc, atdc) || self.vol.len() != atdc.len() {
             self.vol.clear();
             self.ln_vol.clear();
             if let Some(k) = &crank {
@@ -505,27 +505,40 @@ fn work(atdc: &[f64], p: &[f64], v: &[f64]) -> (f64, f64) {
     (net, gross)
 }
 
+/// Whether two slices are equal, element by element (without stopping at the first
+/// difference: one pass the compiler vectorises — the grid is compared each cycle).
+fn same(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(true, |ok, (x, y)| ok & (x == y))
+}
+
 /// `Σ ½(p_k + p_{k+1})(V_{k+1} − V_k)` over the samples `i0 … i1 − 1` (none with fewer than two).
 fn steps(p: &[f64], v: &[f64], i0: usize, i1: usize) -> f64 {
     if i1 < i0 + 2 {
         return 0.0;
     }
-    // Four partial sums: the additions need not wait for one another.
+    // Eight partial sums, a step's at `k mod 8` (one vector register's lanes): the additions
+    // need not wait for one another.
+    const LANES: usize = 8;
     let (ps, vs) = (&p[i0..i1], &v[i0..i1]);
-    let steps = ps.len() - 1;
-    let mut sum = [0.0; 4];
-    let mut i = 0;
-    while i + 4 <= steps {
-        for (l, s) in sum.iter_mut().enumerate() {
-            let k = i + l;
-            *s += 0.5 * (ps[k] + ps[k + 1]) * (vs[k + 1] - vs[k]);
+    let step = |(p0, p1, v0, v1): (&f64, &f64, &f64, &f64)| 0.5 * (p0 + p1) * (v1 - v0);
+    let n = ps.len() - 1;
+    let whole = n - n % LANES;
+    let mut sum = [0.0; LANES];
+    for k in (0..whole).step_by(LANES) {
+        let (p0, p1, v0, v1) = (
+            &ps[k..k + LANES],
+            &ps[k + 1..k + 1 + LANES],
+            &vs[k..k + LANES],
+            &vs[k + 1..k + 1 + LANES],
+        );
+        for l in 0..LANES {
+            sum[l] += step((&p0[l], &p1[l], &v0[l], &v1[l]));
         }
-        i += 4;
     }
-    for k in i..steps {
-        sum[0] += 0.5 * (ps[k] + ps[k + 1]) * (vs[k + 1] - vs[k]);
+    for k in whole..n {
+        sum[0] += step((&ps[k], &ps[k + 1], &vs[k], &vs[k + 1]));
     }
-    (sum[0] + sum[1]) + (sum[2] + sum[3])
+    ((sum[0] + sum[1]) + (sum[2] + sum[3])) + ((sum[4] + sum[5]) + (sum[6] + sum[7]))
 }
 
 /// `y` at the angle `a` [deg ATDC], linearly between the samples around it (the two nearest

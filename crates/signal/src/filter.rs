@@ -433,6 +433,34 @@ fn df2t_inplace<'a, const M: usize>(
 }
 
 impl Sos {
+    /// How many samples the filter's free response takes to fall below `tol` of its start: the
+    /// slowest pole's `⌈ln tol / ln r⌉` (`r`, its radius, from each section's `z² + a₁z + a₂`);
+    /// `usize::MAX` for a filter that is not stable. What a stretch of a signal filtered alone
+    /// needs on each side to equal, within `tol`, the whole signal filtered there.
+    pub fn settle_samples(&self, tol: f64) -> usize {
+        let radius = self
+            .sections
+            .iter()
+            .map(|s| {
+                let (a1, a2) = (s[4] / s[3], s[5] / s[3]);
+                let disc = a1 * a1 - 4.0 * a2;
+                if disc < 0.0 {
+                    a2.sqrt()
+                } else {
+                    let r = disc.sqrt();
+                    ((-a1 + r) / 2.0).abs().max(((-a1 - r) / 2.0).abs())
+                }
+            })
+            .fold(0.0_f64, f64::max);
+        if !(radius < 1.0) {
+            return usize::MAX;
+        }
+        if radius == 0.0 {
+            return 2 * self.sections.len();
+        }
+        (tol.ln() / radius.ln()).ceil().max(0.0) as usize
+    }
+
     /// Padding of `sosfiltfilt`: `3·(2·sections + 1 − min(#b2 = 0, #a2 = 0))`.
     pub fn padlen(&self) -> usize {
         let nb = self.sections.iter().filter(|s| s[2] == 0.0).count();

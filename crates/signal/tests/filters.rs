@@ -90,3 +90,43 @@ fn design_and_input_errors() {
     let y = tf.filtfilt(&[3.5; 200]).unwrap();
     assert!(y.iter().all(|v| (v - 3.5).abs() < 1e-12));
 }
+
+/// The settling length: from the sections' poles, equal to the design's own poles' (the zpk's
+/// largest radius), and the impulse response after it below the tolerance (of its peak, within
+/// the few-fold a cascade of similar poles adds).
+#[test]
+fn a_filter_settles_in_the_samples_its_slowest_pole_says() {
+    for (order, wn, band, fs) in [
+        (4, vec![5e3, 20e3], Band::Bandpass, 360e3),
+        (4, vec![5e3, 20e3], Band::Bandpass, 60e3),
+        (2, vec![100.0], Band::Lowpass, 10e3),
+        (4, vec![500.0], Band::Highpass, 10e3),
+    ] {
+        let zpk = butter(order, &wn, band, fs).unwrap();
+        let sos = zpk.to_sos();
+        let radius = zpk.p.iter().fold(0.0f64, |m, p| m.max(p.norm()));
+        for tol in [1e-6, 1e-12] {
+            let n = sos.settle_samples(tol);
+            assert_eq!(
+                n,
+                (tol.ln() / radius.ln()).ceil() as usize,
+                "{band:?} {wn:?}"
+            );
+            let len = 4 * n + 10;
+            let mut x = vec![0.0; len];
+            x[0] = 1.0;
+            let mut y = vec![0.0; len];
+            sos.sosfilt_into(&x, &mut vec![[0.0; 2]; sos.sections.len()], &mut y);
+            let peak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let tail = y[n..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(
+                tail < 20.0 * tol * peak,
+                "{band:?} {wn:?} tol {tol}: {tail} of {peak} after {n}"
+            );
+        }
+    }
+    let unstable = physid_signal::filter::Sos {
+        sections: vec![[1.0, 0.0, 0.0, 1.0, -2.0, 1.1]],
+    };
+    assert_eq!(unstable.settle_samples(1e-9), usize::MAX);
+}
