@@ -452,7 +452,7 @@ impl Sos {
                 }
             })
             .fold(0.0_f64, f64::max);
-        if !(radius < 1.0) {
+        if radius.is_nan() || radius >= 1.0 {
             return usize::MAX;
         }
         if radius == 0.0 {
