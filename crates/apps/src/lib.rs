@@ -53,6 +53,7 @@ pub mod error;
 pub mod example_5_1;
 pub mod example_5_2;
 pub mod excitation;
+pub mod fmep_model;
 pub mod friction_fit;
 pub mod friction_rank;
 pub mod knock;

@@ -17,7 +17,8 @@
 //!   cycle's crank-angle mean torque `T̄` over 720° of a four-stroke engine of `z` cylinders
 //!   (Heywood Eq. 2.19) — and `FMEP = IMEP_net − BMEP`, the friction's (rubbing and
 //!   accessories; the pumping is in the net IMEP: total friction is PMEP + FMEP, Heywood §2.4),
-//!   the indicated cylinder taken for every cylinder's.
+//!   the indicated cylinder taken for every cylinder's. Beside it, with a friction model
+//!   ([`crate::fmep_model`]), the model's FMEP at the cycle's speed.
 //! * A zero-phase low-pass on the pressure when asked ([`PressureLowpass`]): a Butterworth
 //!   low-pass through `sosfiltfilt` over the cycle's samples (scipy's, [`physid_signal::filter`]),
 //!   which on the uniform crank-angle grid at the cycle's mean speed are a time series at
@@ -31,6 +32,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::combustion::{burn, mfb_name, peak, Burn, BurnHistory, Cylinder, HeatRelease};
+use crate::fmep_model::FrictionModel;
 use crate::knock::{Knock, KnockFigures};
 use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
 use physid_signal::filter::{butter, Band};
@@ -73,6 +75,10 @@ pub struct CycleFigures {
     /// Friction mean effective pressure, net IMEP less BMEP [Pa] (with the pressure in Pa too).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fmep_pa: Option<f64>,
+    /// The friction model's FMEP at the cycle's speed, without pumping [Pa] (with a
+    /// [`FrictionModel`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fmep_model_pa: Option<f64>,
     /// Polytropic exponent of compression (with the geometry).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub n_compression: Option<f64>,
@@ -104,8 +110,15 @@ pub struct FigureColumn {
 
 /// The columns of a cycle's figures — what `cycles --tracks` writes, Python's `physid.cycles`
 /// returns and the live `combustion` event carries: `unit` the pressure's, `mfb` the burn
-/// fractions asked for [%], `knock` whether knock was, `brake` whether the brake torque was.
-pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool, brake: bool) -> Vec<FigureColumn> {
+/// fractions asked for [%], `knock` whether knock was, `brake` whether the brake torque was,
+/// `friction` whether a friction model was.
+pub fn figure_columns(
+    unit: &str,
+    mfb: &[f64],
+    knock: bool,
+    brake: bool,
+    friction: bool,
+) -> Vec<FigureColumn> {
     fn col(
         name: &str,
         unit: &str,
@@ -167,6 +180,9 @@ pub fn figure_columns(unit: &str, mfb: &[f64], knock: bool, brake: bool) -> Vec<
             col("fmep", "Pa", |c| nan(c.fmep_pa)),
         ]);
     }
+    if friction {
+        columns.push(col("fmep_model", "Pa", |c| nan(c.fmep_model_pa)));
+    }
     if knock {
         columns.extend([
             col("mapo", "Pa", |c| knocked(c, |k| k.mapo_pa)),
@@ -198,6 +214,9 @@ pub struct PerCycleSettings {
     /// A zero-phase low-pass on the pressure before the figures (knock's excepted).
     #[serde(default)]
     pub lowpass: Option<PressureLowpass>,
+    /// The friction model whose FMEP is given beside the measured.
+    #[serde(default)]
+    pub friction: Option<FrictionModel>,
 }
 
 /// The pressure's zero-phase low-pass (see the module docs).
@@ -408,6 +427,10 @@ impl PerCycle {
                 .map(|q| q.iter().sum::<f64>() / q.len() as f64),
             bmep_pa: None,
             fmep_pa: None,
+            fmep_model_pa: s
+                .friction
+                .as_ref()
+                .and_then(|m| m.fmep_pa(rpm).map_err(|why| notes.push(why)).ok()),
             n_compression: None,
             n_expansion: None,
             burn: None,

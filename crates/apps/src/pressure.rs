@@ -23,6 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::combustion::HeatRelease;
 use crate::error::AppError;
+use crate::fmep_model::FrictionModel;
 use crate::knock::Knock;
 pub use crate::per_cycle::CycleFigures;
 use crate::per_cycle::{figure_columns, PerCycle, PerCycleSettings};
@@ -151,6 +152,9 @@ pub struct CycleAnalysis {
     /// Whether the brake torque was given (BMEP, FMEP).
     #[serde(skip)]
     pub brake: bool,
+    /// Whether a friction model was given (its FMEP beside the measured).
+    #[serde(skip)]
+    pub friction: bool,
     /// The ensemble mean of the complete cycles' pressure, crank angle by crank angle (cycle
     /// averaging), analysed as one cycle (its `cycle` the number averaged, its `t_start_s` the
     /// mean time from a cycle's start at −360° to its TDC), with two cycles or more of one
@@ -193,7 +197,7 @@ impl CycleAnalysis {
     /// A row per cycle as columns — name, unit, values (NaN where not computed): what
     /// `cycles --tracks` writes and Python's `physid.cycles` returns.
     pub fn columns(&self) -> Vec<(String, String, Vec<f64>)> {
-        figure_columns(&self.unit, &self.mfb, self.knock, self.brake)
+        figure_columns(&self.unit, &self.mfb, self.knock, self.brake, self.friction)
             .into_iter()
             .map(|c| {
                 let values = self.cycles.iter().map(&c.value).collect();
@@ -340,6 +344,7 @@ impl CycleAnalyser {
                 in_pa: unit == "Pa",
                 brake: None,
                 lowpass: None,
+                friction: None,
             }),
             unit,
             need_pa: geometry.is_some(),
@@ -382,6 +387,16 @@ impl CycleAnalyser {
         check_torque_unit(header, &brake.channel)?;
         self.per_cycle = PerCycle::new(PerCycleSettings {
             brake: Some(brake),
+            ..self.per_cycle.settings().clone()
+        });
+        Ok(self)
+    }
+
+    /// The friction model's FMEP beside the measured ([`crate::fmep_model`]; checked).
+    pub fn with_friction_model(mut self, model: FrictionModel) -> Result<Self, AppError> {
+        model.validate().map_err(AppError::Invalid)?;
+        self.per_cycle = PerCycle::new(PerCycleSettings {
+            friction: Some(model),
             ..self.per_cycle.settings().clone()
         });
         Ok(self)
@@ -594,6 +609,7 @@ impl CycleAnalyser {
             mfb: settings.heat.mfb.clone(),
             knock: settings.knock.is_some(),
             brake: settings.brake.is_some(),
+            friction: settings.friction.is_some(),
             channel: self.channel,
             unit: self.unit,
             cycles,

@@ -56,6 +56,7 @@ fn settings(truth: &Value) -> PerCycleSettings {
         in_pa: true,
         brake: None,
         lowpass: None,
+        friction: None,
     }
 }
 
@@ -84,7 +85,7 @@ fn same(file: &[CycleFigures], live: &[CycleFigures]) {
         file.iter().map(|c| c.cycle).collect::<Vec<_>>(),
         live.iter().map(|c| c.cycle).collect::<Vec<_>>()
     );
-    for col in figure_columns("Pa", &[10.0, 50.0, 90.0], false, false) {
+    for col in figure_columns("Pa", &[10.0, 50.0, 90.0], false, false, false) {
         for (f, l) in file.iter().zip(live) {
             let (a, b) = ((col.value)(f), (col.value)(l));
             let close = (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-6 * (1.0 + a.abs());

@@ -1307,7 +1307,8 @@ fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
 /// in chunks of two sizes; each cycle's figures in a `combustion` event are the file verb's
 /// (the same cycle numbers; the values as close as the replay's resampling — the file onto a
 /// uniform time basis, the stream back onto the crank-angle grid — leaves them); a combustion
-/// flag without `--combustion` is refused.
+/// flag without `--combustion` is refused. The friction model's FMEP (`--friction-model cell`)
+/// rides beside the measured one in both.
 #[test]
 fn combustion_on_the_stream_is_the_file_verbs_cycles() {
     let s = Scratch::new("physid-live-combustion");
@@ -1334,6 +1335,10 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
         "5,50",
         "--brake-torque",
         "torque_engine",
+        "--friction-model",
+        "cell",
+        "--friction-oil-temp",
+        "90",
     ];
     args.extend([
         "--bore",
@@ -1369,6 +1374,10 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
             "5,50",
             "--brake-torque",
             "torque_engine",
+            "--friction-model",
+            "cell",
+            "--friction-oil-temp",
+            "90",
         ]);
         let live = of_type(&ev, "combustion");
         assert_eq!(live.len(), by_file.len(), "chunks of {chunk} s");
@@ -1389,6 +1398,7 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
                 ("torque", "torque_nm"),
                 ("bmep", "bmep_pa"),
                 ("fmep", "fmep_pa"),
+                ("fmep_model", "fmep_model_pa"),
             ] {
                 let (a, b) = (
                     l["figures"][event].as_f64().unwrap(),
@@ -1428,6 +1438,13 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("add --combustion"), "{e}");
+    let o = physid(&["cycles", f, "--friction-model", "nope"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("no such preset; the presets are thesis, sandoval2002, cell"),
+        "{e}"
+    );
 }
 
 /// A time-basis recording of the virtual cell, whose TDC marker comes once per revolution: the

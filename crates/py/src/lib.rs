@@ -312,7 +312,7 @@ fn friction_fit<'py>(
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
 /// notes) and the per-cycle columns.
 #[pyfunction]
-#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent, torque, cylinders, pressure_lowpass))]
+#[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent, torque, cylinders, pressure_lowpass, friction))]
 #[allow(clippy::too_many_arguments)]
 fn cycles<'py>(
     py: Python<'py>,
@@ -330,6 +330,7 @@ fn cycles<'py>(
     torque: Option<String>,
     cylinders: u32,
     pressure_lowpass: Option<f64>,
+    friction: Option<(String, Vec<String>, f64, f64, f64)>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::combustion::HeatRelease;
     use physid_apps::pressure::{CycleAnalyser, Geometry, Pegging};
@@ -342,6 +343,14 @@ fn cycles<'py>(
         rod,
         compression_ratio,
     });
+    let friction = friction
+        .map(|(preset, set, p_int_kpa, p_atm_kpa, t_oil_c)| {
+            physid_apps::fmep_model::FrictionModel::new(
+                &preset, &set, p_int_kpa, p_atm_kpa, t_oil_c,
+            )
+        })
+        .transpose()
+        .map_err(err)?;
     let inner = &rec.inner;
     let a = py
         .detach(|| {
@@ -364,6 +373,10 @@ fn cycles<'py>(
                 Some(channel) => {
                     a.with_brake(inner, physid_apps::per_cycle::Brake { channel, cylinders })?
                 }
+                None => a,
+            };
+            let a = match friction {
+                Some(model) => a.with_friction_model(model)?,
                 None => a,
             };
             let a = match pressure_lowpass {

@@ -137,6 +137,25 @@ def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
     vd = np.pi / 4 * truth["bore"] ** 2 * truth["stroke"]
     assert b["bmep"][0] == pytest.approx(4 * np.pi * 12.5 / (4 * vd), rel=1e-12)
     assert b["fmep"][0] == pytest.approx(b["imep"][0] - b["bmep"][0], rel=1e-12)
+    # The friction model's FMEP beside it: the model at the cycle's speed, without pumping —
+    # physid friction eval's cfmep + rfmep + vfmep + afmep at that point, when the binary is here.
+    m = physid.cycles(rec_t, bore=truth["bore"], stroke=truth["stroke"], rod=truth["rod"],
+                      compression_ratio=truth["compression_ratio"], brake_torque="brake",
+                      friction_model="thesis", friction_set={"oil": "SAE30"},
+                      friction_p_int=60.0, friction_oil_temp=70.0).to_pandas()
+    assert np.isfinite(m["fmep_model"][0]) and m["fmep_model"][0] > 0
+    if os.environ.get("PHYSID_BIN"):
+        e = json.loads(subprocess.run(
+            [os.environ["PHYSID_BIN"], "friction", "eval", "--n", repr(float(m["rpm"][0])),
+             "--p-int", "60", "--t-oil", "70", "--set", "oil=SAE30", "--json"],
+            check=True, capture_output=True, text=True).stdout)
+        f = e["fmep_kpa"]
+        want = (f["cfmep"] + f["rfmep"] + f["vfmep"] + f["afmep"]) * 1e3
+        assert m["fmep_model"][0] == pytest.approx(want, rel=1e-9)
+    with pytest.raises(physid.Error, match="no such preset"):
+        physid.cycles(rec_t, friction_model="nope")
+    with pytest.raises(physid.Error, match="need friction_model"):
+        physid.cycles(rec_t, friction_p_int=50.0)
     # The pressure's low-pass: scipy's filtering of the same noisy cycle (gen_wiebe_noisy.py).
     noisy = json.loads(golden("crates/apps/tests/golden/wiebe_noisy.json").read_text())
     f = physid.cycles(_wiebe(golden, "wiebe_noisy.csv"), bore=truth["bore"],

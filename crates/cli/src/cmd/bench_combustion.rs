@@ -103,6 +103,7 @@ pub fn combustion(
             in_pa: true,
             brake: None,
             lowpass: None,
+            friction: None,
         });
         let cycles = CYCLES - 1;
         let cycles_per_s = rate(cycles, budget, &mut || {
@@ -145,6 +146,7 @@ pub fn combustion(
             in_pa: true,
             brake: None,
             lowpass: None,
+            friction: None,
         };
         // The chunks as a live source hands them over (decoding frames is the source's work,
         // not the stage's).

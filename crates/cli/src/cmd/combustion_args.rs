@@ -4,6 +4,7 @@
 
 use miette::{miette, Result};
 use physid_apps::combustion::{BurnMethod, GasTemperature, HeatRelease, WallHeat, WOSCHNI_C1};
+use physid_apps::fmep_model::FrictionModel;
 use physid_apps::knock::Knock;
 use physid_apps::per_cycle::{Brake, PerCycleSettings, PressureLowpass, LOWPASS_ORDER};
 use physid_apps::pressure::{Geometry, Pegging};
@@ -57,6 +58,25 @@ pub struct CombustionArgs {
     /// taken for each).
     #[arg(long, value_name = "N", default_value_t = 1, requires = "brake_torque")]
     pub cylinders: u32,
+    /// Each cycle's FMEP from the mean-value friction model (Patton / Sandoval–Heywood,
+    /// without its pumping term) at the cycle's speed, beside the measured (column
+    /// fmep_model): the preset thesis, sandoval2002 or cell, as `physid friction` takes it.
+    #[arg(long, value_name = "PRESET")]
+    pub friction_model: Option<String>,
+    /// Override a design parameter or setting of the friction model (as `physid friction
+    /// --set`: B, S, kappa, Di, De, Lv, Db, Lb, r in mm; oil, valvetrain, …); repeatable.
+    #[arg(long, value_name = "NAME=VALUE", requires = "friction_model")]
+    pub friction_set: Vec<String>,
+    /// The friction model's intake manifold pressure [kPa] (default: the ambient, an
+    /// unthrottled engine).
+    #[arg(long, value_name = "KPA", requires = "friction_model")]
+    pub friction_p_int: Option<f64>,
+    /// The friction model's ambient pressure [kPa].
+    #[arg(long, value_name = "KPA", default_value_t = physid_apps::fmep_model::DEFAULT_P_KPA, requires = "friction_model")]
+    pub friction_p_atm: f64,
+    /// The friction model's oil temperature [°C] (default: its reference, 90 °C).
+    #[arg(long, value_name = "DEG_C", default_value_t = physid_apps::fmep_model::DEFAULT_T_OIL_C, requires = "friction_model", allow_negative_numbers = true)]
+    pub friction_oil_temp: f64,
 
     /// Knock per cycle: the pressure band-passed (zero phase), its maximum amplitude (MAPO) and
     /// integral of modulus (IMPO) in a window after TDC, a flag above a threshold (with the
@@ -134,6 +154,19 @@ impl CombustionArgs {
         if let Some(lp) = &lowpass {
             lp.validate().map_err(|e| miette!("{e}"))?;
         }
+        let friction = match &self.friction_model {
+            Some(preset) => Some(
+                FrictionModel::new(
+                    preset,
+                    &self.friction_set,
+                    self.friction_p_int.unwrap_or(self.friction_p_atm),
+                    self.friction_p_atm,
+                    self.friction_oil_temp,
+                )
+                .map_err(|e| miette!("{e}"))?,
+            ),
+            None => None,
+        };
         Ok(PerCycleSettings {
             geometry,
             peg: Pegging::parse(self.peg.as_deref()).map_err(|e| miette!("{e}"))?,
@@ -142,6 +175,7 @@ impl CombustionArgs {
             in_pa: true,
             brake,
             lowpass,
+            friction,
         })
     }
 
@@ -155,6 +189,7 @@ impl CombustionArgs {
             || self.rw_exponent.is_some()
             || self.brake_torque.is_some()
             || self.pressure_lowpass.is_some()
+            || self.friction_model.is_some()
             || self.knock
     }
 }

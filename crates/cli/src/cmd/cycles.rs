@@ -96,6 +96,9 @@ pub fn run(args: &Args) -> Result<()> {
                 if let Some(lp) = settings.lowpass {
                     a = a.with_lowpass(lp)?;
                 }
+                if let Some(m) = &settings.friction {
+                    a = a.with_friction_model(m.clone())?;
+                }
                 match settings.knock {
                     Some(k) => a.with_knock(k),
                     None => Ok(a),
@@ -164,8 +167,17 @@ pub fn run(args: &Args) -> Result<()> {
         a.cycles.len(),
         a.channel
     );
+    // BMEP and FMEP with the brake torque, the friction model's FMEP with a model.
+    let mut extra: Vec<&str> = Vec::new();
+    if a.brake {
+        extra.extend(["BMEP [kPa]", "FMEP [kPa]"]);
+    }
+    if a.friction {
+        extra.push("model [kPa]");
+    }
+    let extra_head: String = extra.iter().map(|h| format!(" {h:>12}")).collect();
     outln!(
-        "{:>6} {:>10} {:>8} {:>12} {:>9} {:>12} {:>12} {:>7} {:>7} {:>8} {:>7}",
+        "{:>6} {:>10} {:>8} {:>12} {:>9} {:>12} {:>12} {:>7} {:>7} {:>8} {:>7}{extra_head}",
         "cycle",
         "t [s]",
         "rpm",
@@ -182,8 +194,19 @@ pub fn run(args: &Args) -> Result<()> {
         v.map_or("-".to_string(), |v| format!("{:.*}", prec, v * scale))
     };
     for c in &a.cycles {
+        let mut more = Vec::new();
+        if a.brake {
+            more.extend([c.bmep_pa, c.fmep_pa]);
+        }
+        if a.friction {
+            more.push(c.fmep_model_pa);
+        }
+        let more: String = more
+            .into_iter()
+            .map(|v| format!(" {:>12}", opt(v, 1e-3, 2)))
+            .collect();
         outln!(
-            "{:>6} {:>10.4} {:>8.1} {:>12.5e} {:>9.2} {:>12} {:>12} {:>7} {:>7} {:>8} {:>7}",
+            "{:>6} {:>10.4} {:>8.1} {:>12.5e} {:>9.2} {:>12} {:>12} {:>7} {:>7} {:>8} {:>7}{more}",
             c.cycle,
             c.t_start_s,
             c.rpm,

@@ -292,6 +292,7 @@ impl Tell for CombustionStage {
             &s.heat.mfb,
             s.knock.is_some(),
             s.brake.is_some(),
+            s.friction.is_some(),
         )
         .into_iter()
         .filter(|col| col.name != "t" && col.name != "cycle")

@@ -143,7 +143,7 @@ impl OperatingPoint {
 }
 
 /// Design parameters (mm; κ dimensionless), generic so that each can be differentiated.
-#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Design<T> {
     /// Bore B [mm].
     pub b: T,
@@ -206,7 +206,7 @@ impl<T: Scalar> Design<T> {
 }
 
 /// The discrete choices: oil, valvetrain, counts and ring factors.
-#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Settings {
     /// Which statement of the model.
     pub variant: Variant,

@@ -781,6 +781,11 @@ def cycles(
     brake_torque: str | None = None,
     cylinders: int = 1,
     pressure_lowpass: float | None = None,
+    friction_model: str | None = None,
+    friction_set: Mapping[str, Any] | None = None,
+    friction_p_int: float | None = None,
+    friction_p_atm: float = 101.0,
+    friction_oil_temp: float = 90.0,
 ) -> CyclesResult:
     """Cylinder pressure per cycle, as ``physid cycles``, of ``channel`` in a crank-angle
     recording (read a time-basis one with ``read(..., crank_angle=True, wheel=...)``): peak and
@@ -799,8 +804,13 @@ def cycles(
     ``brake_torque``: the brake torque channel [N·m, positive when the engine delivers] — each
     cycle's mean ``torque``, ``bmep`` and ``fmep`` (net IMEP less BMEP) for an engine of
     ``cylinders``; ``pressure_lowpass=HZ``: a zero-phase Butterworth low-pass (order 4) on each
-    cycle's pressure before its figures, knock's excepted. A cycle is the compression before its firing TDC and the
-    expansion after."""
+    cycle's pressure before its figures, knock's excepted; ``friction_model``: the preset
+    (``"thesis"``, ``"sandoval2002"``, ``"cell"``) of the mean-value friction model whose FMEP
+    without pumping, at each cycle's speed, is given beside the measured (``fmep_model`` [Pa]),
+    with ``friction_set`` overrides (``{"B": 56, "oil": "SAE30"}``, as ``physid friction --set``)
+    at the intake manifold pressure ``friction_p_int`` [kPa] (default the ambient
+    ``friction_p_atm``) and oil temperature ``friction_oil_temp`` [°C]. A cycle is the
+    compression before its firing TDC and the expansion after."""
     given = [v is not None for v in (bore, stroke, rod, compression_ratio)]
     if any(given) and not all(given):
         raise Error("the cylinder's geometry needs bore, stroke, rod and compression_ratio")
@@ -811,13 +821,22 @@ def cycles(
              float(knock_window[1]), float(knock_threshold))
     g = None if gas_temperature is None else (float(gas_temperature[0]),
                                               float(gas_temperature[1]))
+    friction = None
+    if friction_model is not None:
+        sets = [f"{name}={value}" for name, value in (friction_set or {}).items()]
+        p_int = friction_p_atm if friction_p_int is None else friction_p_int
+        friction = (str(friction_model), sets, float(p_int), float(friction_p_atm),
+                    float(friction_oil_temp))
+    elif friction_set is not None or friction_p_int is not None:
+        raise Error("friction_set and friction_p_int need friction_model")
     s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma),
                                [float(m) for m in mfb], k, g,
                                None if wall_heat is None else float(wall_heat),
                                str(mfb_method),
                                None if rw_exponent is None else float(rw_exponent),
                                brake_torque, int(cylinders),
-                               None if pressure_lowpass is None else float(pressure_lowpass))
+                               None if pressure_lowpass is None else float(pressure_lowpass),
+                               friction)
     return CyclesResult(_json.loads(s), dict(tracks))
 
 
