@@ -12,11 +12,9 @@
 //! * **Mean gas temperature** ([`GasTemperature`]): the ideal gas with the mass trapped at IVC,
 //!   `T = T_IVC · p·V / (p_IVC·V_IVC)` (Heywood §9.2.1), its peak in the window `t_max_k`.
 //! * **Gross heat release** ([`WallHeat`], with the gas temperature): the net plus the heat lost
-//!   to the walls, `Q̇_w = h·A_w·(T − T_w)` with Woschni's coefficient without its combustion
-//!   term (Heywood Eq. 12.19; the thesis's Eq. 3.10–3.12, the virtual cell's):
-//!   `h = 3.26·B^−0.2·p^0.8·T^−0.55·w^0.8` [W/(m²K)], p in kPa, `w = C₁·S̄_p`, `C₁` = 2.28,
-//!   `S̄_p = 2·S·N`, `A_w = πB²/2 + 4V/B` (head, piston and the liner uncovered), over each step
-//!   of `Δθ/(6·N)` seconds.
+//!   to the walls, Woschni's (Heywood Eq. 12.19) with its combustion term from the start of
+//!   combustion, or without it (`C₂` = 0: the thesis's Eq. 3.10–3.12, the virtual cell's) —
+//!   [`crate::wall_heat`].
 //! * **Burn angles** (mass fraction burned, the heat-release method): `x_b = (Q − Q_min)/(Q_max
 //!   − Q_min)`, `Q_max` the largest `Q` in the window and `Q_min` the smallest before it; MFBk is
 //!   where `x_b` first reaches k % after `Q_min`, linearly between the samples. The heat
@@ -65,28 +63,8 @@ pub struct GasTemperature {
     pub t_ivc_k: f64,
 }
 
-/// The wall heat that makes the heat release gross (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
-pub struct WallHeat {
-    /// The wall temperature [K].
-    pub t_wall_k: f64,
-    /// Woschni's `C₁` for compression and expansion.
-    pub c1: f64,
-}
-
-/// Woschni's `C₁` for compression and expansion (Heywood §12.4.3; the thesis's Table 3.1).
-pub const WOSCHNI_C1: f64 = 2.28;
-
-/// What the wall heat needs of the engine: bore and stroke [m], the cycle's speed [rpm].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Cylinder {
-    /// Bore [m].
-    pub bore: f64,
-    /// Stroke [m].
-    pub stroke: f64,
-    /// Mean speed [rpm].
-    pub rpm: f64,
-}
+use crate::wall_heat::Woschni;
+pub use crate::wall_heat::{Cylinder, WallHeat, WOSCHNI_C1, WOSCHNI_C2};
 
 /// How the burn angles' mass fraction burned is found (see the module docs).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
@@ -184,6 +162,12 @@ impl HeatRelease {
                 return Err(AppError::Invalid(format!(
                     "--wall-heat {}: expected the wall temperature in K (> 0), e.g. 400",
                     w.t_wall_k
+                )));
+            }
+            if !(w.c2 >= 0.0 && w.c2 < 0.1) {
+                return Err(AppError::Invalid(format!(
+                    "--woschni-c2 {}: expected Woschni's combustion term in m/(s·K), ≥ 0 and small (3.24e-3 is his; 0 the motored form)",
+                    w.c2
                 )));
             }
         }
@@ -347,21 +331,15 @@ pub fn apparent_heat(
     if to < from + 3 {
         return None;
     }
-    // The trapped gas's `m·R` from the state at IVC (`p·V = m·R·T`).
-    let m_r = hr.temperature.map(|g| {
-        let (p_ivc, v_ivc) = (linear(atdc, p, g.ivc_deg), linear(atdc, v, g.ivc_deg));
-        p_ivc * v_ivc / g.t_ivc_k
-    });
-    let (a, p, v) = (&atdc[from..to], &p[from..to], &v[from..to]);
-    // Woschni's constant part, the gas speed and the seconds per degree (with the wall heat).
-    let wall = hr.wall.map(|w| {
-        let speed = w.c1 * 2.0 * cyl.stroke * cyl.rpm / 60.0;
+    // The state at IVC, and the trapped gas's `m·R` from it (`p·V = m·R·T`).
+    let ivc = hr.temperature.map(|g| {
         (
-            w,
-            3.26 * cyl.bore.powf(-0.2) * speed.powf(0.8),
-            1.0 / (6.0 * cyl.rpm),
+            linear(atdc, p, g.ivc_deg),
+            linear(atdc, v, g.ivc_deg),
+            g.t_ivc_k,
         )
     });
+    let (a, p, v) = (&atdc[from..to], &p[from..to], &v[from..to]);
     // Q at each sample of the window, 0 at its first (Eq. 9.25, the step's means), with the
     // coefficients γ/(γ−1) and 1/(γ−1).
     let coefficients = |g: f64| (g / (g - 1.0), 1.0 / (g - 1.0));
@@ -369,7 +347,7 @@ pub fn apparent_heat(
     let mut q = Vec::with_capacity(p.len());
     q.push(0.0);
     let (mut sum, mut t_max) = (0.0, f64::NEG_INFINITY);
-    if m_r.is_none() {
+    let Some((p_r, v_r, t_r)) = ivc else {
         // Constant γ, no wall heat: the same sum, without the per-step choices — the steps
         // first (independent of one another, in vector registers), then their running sum.
         let (c_pdv, c_vdp) = constant;
@@ -386,30 +364,36 @@ pub fn apparent_heat(
             q,
             t_max_k: None,
         });
-    }
+    };
+    // γ(T) at the step's mean gas temperature: the net steps, then (with the wall heat) the
+    // wall's added — from the start of combustion with its combustion term, found from the net.
+    let m_r = p_r * v_r / t_r;
     for k in 1..p.len() {
         let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
-        let (c_pdv, c_vdp) = match m_r {
-            Some(m_r) => {
-                t_max = t_max.max(p[k] * v[k] / m_r);
-                coefficients(physid_models::air::gamma(pm * vm / m_r))
-            }
-            None => constant,
-        };
-        let mut dq = c_pdv * pm * (v[k] - v[k - 1]) + c_vdp * vm * (p[k] - p[k - 1]);
-        if let (Some((w, k_w, s_per_deg)), Some(m_r)) = (wall, m_r) {
-            let t = pm * vm / m_r;
-            let h = k_w * (pm * 1e-3).powf(0.8) * t.powf(-0.55);
-            let area = std::f64::consts::PI * cyl.bore * cyl.bore / 2.0 + 4.0 * vm / cyl.bore;
-            dq += h * area * (t - w.t_wall_k) * (a[k] - a[k - 1]) * s_per_deg;
-        }
-        sum += dq;
+        t_max = t_max.max(p[k] * v[k] / m_r);
+        let (c_pdv, c_vdp) = coefficients(physid_models::air::gamma(pm * vm / m_r));
+        sum += c_pdv * pm * (v[k] - v[k - 1]) + c_vdp * vm * (p[k] - p[k - 1]);
         q.push(sum);
+    }
+    if let Some(w) = hr.wall {
+        let woschni = Woschni::new(&w, cyl, (p_r, v_r, t_r), hr.gamma);
+        // The burn's start in the net heat release (its smallest before its largest).
+        let start = if woschni.has_combustion_term() {
+            argmin(&q[..=argmax(&q)])
+        } else {
+            usize::MAX
+        };
+        let mut lost = 0.0;
+        for k in 1..p.len() {
+            let (pm, vm) = (0.5 * (p[k] + p[k - 1]), 0.5 * (v[k] + v[k - 1]));
+            lost += woschni.step(pm, vm, pm * vm / m_r, a[k] - a[k - 1], k > start);
+            q[k] += lost;
+        }
     }
     Some(Apparent {
         from,
         q,
-        t_max_k: m_r.map(|_| t_max),
+        t_max_k: Some(t_max),
     })
 }
 

@@ -67,6 +67,7 @@ pub mod shaft_monitor;
 pub mod stage;
 pub mod time_order;
 pub mod torque_fit;
+pub mod wall_heat;
 
 /// Drop every other element of a track (the first kept): what a track bounded in length does
 /// when it is full, its step doubling.

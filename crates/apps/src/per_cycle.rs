@@ -307,6 +307,9 @@ pub struct PerCycle {
     /// The angles `vol` is at.
     #[serde(skip)]
     vol_atdc: Vec<f64>,
+    /// The last cycle's compression exponent (its wall heat's motored pressure).
+    #[serde(skip)]
+    last_n: Option<f64>,
 }
 
 impl PerCycle {
@@ -320,6 +323,7 @@ impl PerCycle {
             ln_vol: Vec::new(),
             unfiltered: Vec::new(),
             vol_atdc: Vec::new(),
+            last_n: None,
         }
     }
 
@@ -346,6 +350,7 @@ impl PerCycle {
             bore: g.bore,
             stroke: g.stroke,
             rpm,
+            n_compression: self.last_n,
         };
         crate::combustion::apparent_heat(&s.heat, atdc, &self.pc, &self.vol, &cyl)
     }
@@ -453,6 +458,7 @@ impl PerCycle {
                     .ok()
             };
             figures.n_compression = exponent(COMPRESSION_WINDOW, "n_compression");
+            self.last_n = figures.n_compression;
             figures.n_expansion = exponent(EXPANSION_WINDOW, "n_expansion");
             if s.in_pa {
                 let (net, gross) = work(atdc, pc, vol);
@@ -470,12 +476,13 @@ impl PerCycle {
                         .geometry
                         .as_ref()
                         .map_or((0.0, 0.0), |g| (g.bore, g.stroke));
+                    let n = figures.n_compression;
                     let cyl = Cylinder {
                         bore: g.0,
                         stroke: g.1,
                         rpm,
+                        n_compression: n,
                     };
-                    let n = figures.n_compression;
                     figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max, &cyl, n).map(|mut b| {
                         self.history.flag(&mut b);
                         b

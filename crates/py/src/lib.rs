@@ -324,7 +324,7 @@ fn cycles<'py>(
     mfb: Vec<f64>,
     knock: Option<(f64, f64, f64, f64, f64)>,
     gas_temperature: Option<(f64, f64)>,
-    wall_heat: Option<f64>,
+    wall_heat: Option<(f64, f64)>,
     mfb_method: &str,
     rw_exponent: Option<f64>,
     torque: Option<String>,
@@ -361,9 +361,10 @@ fn cycles<'py>(
                     temperature: gas_temperature.map(|(ivc_deg, t_ivc_k)| {
                         physid_apps::combustion::GasTemperature { ivc_deg, t_ivc_k }
                     }),
-                    wall: wall_heat.map(|t_wall_k| physid_apps::combustion::WallHeat {
+                    wall: wall_heat.map(|(t_wall_k, c2)| physid_apps::combustion::WallHeat {
                         t_wall_k,
                         c1: physid_apps::combustion::WOSCHNI_C1,
+                        c2,
                     }),
                     method,
                     ..HeatRelease::default()

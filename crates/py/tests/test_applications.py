@@ -152,6 +152,23 @@ def test_cycles_gives_the_burn_angles_of_a_wiebe_burn(golden):
         f = e["fmep_kpa"]
         want = (f["cfmep"] + f["rfmep"] + f["vfmep"] + f["afmep"]) * 1e3
         assert m["fmep_model"][0] == pytest.approx(want, rel=1e-9)
+    # The gross heat release: Woschni's wall heat, with its combustion term (default) and
+    # without (the motored form) — the values are checked against numpy's in Rust
+    # (woschni_s_combustion_term_is_numpy_s); here, that the binding passes them: the gross above
+    # the net, more with the combustion term, a negative C2 refused.
+    wos = json.loads(golden("crates/apps/tests/golden/woschni.json").read_text())
+    geo = dict(bore=truth["bore"], stroke=truth["stroke"], rod=truth["rod"],
+               compression_ratio=truth["compression_ratio"],
+               gas_temperature=(truth["ivc_deg"], wos["t_ivc_k"]))
+    wiebe_rec = _wiebe(golden, "wiebe_cycles.csv")
+    net = physid.cycles(wiebe_rec, **geo).to_pandas()["heat_release"][0]
+    gross = {c2: physid.cycles(wiebe_rec, wall_heat=wos["t_wall_k"], woschni_c2=c2,
+                               **geo).to_pandas()["heat_release"][0]
+             for c2 in (0.0, wos["c2"])}
+    assert net < gross[0.0] < gross[wos["c2"]]
+    assert gross[0.0] - net < sum(wos["wall_c1"]) < gross[wos["c2"]] - net
+    with pytest.raises(physid.Error, match="--woschni-c2"):
+        physid.cycles(wiebe_rec, wall_heat=420.0, woschni_c2=-1.0, **geo)
     with pytest.raises(physid.Error, match="no such preset"):
         physid.cycles(rec_t, friction_model="nope")
     with pytest.raises(physid.Error, match="need friction_model"):

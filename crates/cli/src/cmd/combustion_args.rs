@@ -31,10 +31,14 @@ pub struct CombustionArgs {
     )]
     pub gas_temperature: Option<Vec<f64>>,
     /// The gross heat release: the wall heat added, Woschni's at the mean gas temperature
-    /// (C1 = 2.28, no combustion term) to walls at this temperature [K]; needs
+    /// (C1 = 2.28, C2 from the start of combustion) to walls at this temperature [K]; needs
     /// --gas-temperature.
     #[arg(long, value_name = "T_WALL", requires = "gas_temperature")]
     pub wall_heat: Option<f64>,
+    /// Woschni's combustion term C2 [m/(s·K)] of the wall heat (0: the motored form, the
+    /// virtual cell's).
+    #[arg(long, value_name = "C2", default_value_t = physid_apps::combustion::WOSCHNI_C2, requires = "wall_heat")]
+    pub woschni_c2: f64,
     /// The burn fractions whose crank angles are given [%] (mfbK_deg for each K).
     #[arg(long, value_delimiter = ',', default_values_t = physid_apps::combustion::MFB)]
     pub mfb: Vec<f64>,
@@ -130,6 +134,7 @@ impl CombustionArgs {
             wall: self.wall_heat.map(|t_wall_k| WallHeat {
                 t_wall_k,
                 c1: WOSCHNI_C1,
+                c2: self.woschni_c2,
             }),
             method: BurnMethod::parse(&self.mfb_method, self.rw_exponent)
                 .map_err(|e| miette!("{e}"))?,

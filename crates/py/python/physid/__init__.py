@@ -776,6 +776,7 @@ def cycles(
     knock_threshold: float = 1e5,
     gas_temperature=None,
     wall_heat: float | None = None,
+    woschni_c2: float = 3.24e-3,
     mfb_method: str = "heat",
     rw_exponent: float | None = None,
     brake_torque: str | None = None,
@@ -799,7 +800,8 @@ def cycles(
     for the band: docs/data.md); ``gas_temperature=(ivc_deg, t_ivc_k)``: γ(T) at the mean gas
     temperature of the gas trapped at IVC instead of the constant ``gamma``, and its peak
     ``t_max`` [K]; ``wall_heat=T_WALL`` [K] (with ``gas_temperature``): the gross heat release,
-    Woschni's wall heat added; ``mfb_method="rw"``: the burn angles by Rassweiler & Withrow's
+    Woschni's wall heat added (its combustion term ``woschni_c2`` [m/(s·K)] from the start of
+    combustion; 0: the motored form); ``mfb_method="rw"``: the burn angles by Rassweiler & Withrow's
     pressure-rise method, with ``rw_exponent`` (else each cycle's compression exponent);
     ``brake_torque``: the brake torque channel [N·m, positive when the engine delivers] — each
     cycle's mean ``torque``, ``bmep`` and ``fmep`` (net IMEP less BMEP) for an engine of
@@ -831,7 +833,8 @@ def cycles(
         raise Error("friction_set and friction_p_int need friction_model")
     s, tracks = _physid.cycles(rec, channel, geometry, peg, float(gamma),
                                [float(m) for m in mfb], k, g,
-                               None if wall_heat is None else float(wall_heat),
+                               None if wall_heat is None else (float(wall_heat),
+                                                               float(woschni_c2)),
                                str(mfb_method),
                                None if rw_exponent is None else float(rw_exponent),
                                brake_torque, int(cylinders),
