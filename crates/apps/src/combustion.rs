@@ -413,9 +413,9 @@ pub fn rassweiler_withrow(p: &[f64], v: &[f64], n: f64) -> Vec<f64> {
 
 /// The combustion figures of one cycle: `atdc` its angles [deg ATDC] in increasing order, `p`
 /// the pressure there [Pa] and `v` the volume [m³]; `vd` the displacement [m³], `p_max` the
-/// cycle's peak pressure [Pa], `n_compression` its compression exponent (Rassweiler–Withrow's
-/// when none is given). `None` with fewer than three samples in the window.
-#[allow(clippy::too_many_arguments)]
+/// cycle's peak pressure [Pa], `cyl` the engine and the cycle's speed and compression exponent
+/// (the wall heat's; Rassweiler–Withrow's when none is given). `None` with fewer than three
+/// samples in the window.
 pub fn burn(
     hr: &HeatRelease,
     atdc: &[f64],
@@ -424,7 +424,6 @@ pub fn burn(
     vd: f64,
     p_max: f64,
     cyl: &Cylinder,
-    n_compression: Option<f64>,
 ) -> Option<Burn> {
     let Apparent { from, q, t_max_k } = apparent_heat(hr, atdc, p, v, cyl)?;
     let window = from..from + q.len();
@@ -438,7 +437,7 @@ pub fn burn(
     let burned = match hr.method {
         BurnMethod::HeatRelease => q,
         BurnMethod::RassweilerWithrow { exponent } => {
-            rassweiler_withrow(p, v, exponent.or(n_compression).unwrap_or(hr.gamma))
+            rassweiler_withrow(p, v, exponent.or(cyl.n_compression).unwrap_or(hr.gamma))
         }
     };
     let k_max = argmax(&burned);

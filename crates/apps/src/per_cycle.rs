@@ -476,14 +476,13 @@ impl PerCycle {
                         .geometry
                         .as_ref()
                         .map_or((0.0, 0.0), |g| (g.bore, g.stroke));
-                    let n = figures.n_compression;
                     let cyl = Cylinder {
                         bore: g.0,
                         stroke: g.1,
                         rpm,
-                        n_compression: n,
+                        n_compression: figures.n_compression,
                     };
-                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max, &cyl, n).map(|mut b| {
+                    figures.burn = burn(&s.heat, atdc, pc, vol, vd, p_max, &cyl).map(|mut b| {
                         self.history.flag(&mut b);
                         b
                     });
