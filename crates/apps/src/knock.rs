@@ -7,7 +7,8 @@
 //!   the oscillation is not shifted in angle) over the window and [`SETTLE_TOL`]'s margin on
 //!   each side — as many samples as the filter's slowest pole takes to fall to 10⁻¹², so the
 //!   window's values are those of the whole cycle filtered (131° each side at 6000 rpm and
-//!   0.1°, 19° at 1000 rpm, for the default band; the whole cycle when the margins reach its ends). The cycle's samples are on
+//!   0.1°, 19° at 1000 rpm, for the default band; the whole cycle when the margins reach its
+//!   ends). The cycle's samples are on
 //!   a uniform crank-angle grid, so at the cycle's mean speed they are a uniform time series at
 //!   `f_s = 6·rpm / step` [Hz]; the band needs `f_s ≥ 2.5·f_high` (a step of at most
 //!   `6·rpm / (2.5·f_high)` degrees: 0.12° at 2000 rpm for 20 kHz) — otherwise no knock figures,
