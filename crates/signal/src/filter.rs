@@ -494,6 +494,13 @@ impl Sos {
 
     /// Zero-phase filtering with sections (scipy's `sosfiltfilt`).
     pub fn sosfiltfilt(&self, x: &[f64]) -> Result<Vec<f64>, FilterError> {
+        self.sosfiltfilt_from(x, 0)
+    }
+
+    /// [`sosfiltfilt`](Self::sosfiltfilt)`(x)[from..]`, the same values, without the backward
+    /// pass's work before `from`: that pass runs from the end, so what it gives at and after
+    /// `from` does not depend on what lies before.
+    pub fn sosfiltfilt_from(&self, x: &[f64], from: usize) -> Result<Vec<f64>, FilterError> {
         check_finite(x)?;
         let padlen = self.padlen();
         if x.len() <= padlen {
@@ -508,9 +515,10 @@ impl Sos {
         self.sections_inplace(&mut buf, &mut z, false);
         let last = buf[buf.len() - 1];
         let mut z: Vec<[f64; 2]> = zi.iter().map(|s| [s[0] * last, s[1] * last]).collect();
-        self.sections_inplace(&mut buf, &mut z, true);
+        let keep = padlen + from.min(x.len());
+        self.sections_inplace(&mut buf[keep..], &mut z, true);
         buf.truncate(padlen + x.len());
-        buf.drain(..padlen);
+        buf.drain(..keep);
         Ok(buf)
     }
 
@@ -547,6 +555,12 @@ impl Sos {
 }
 
 /// `N` second-order sections (DF2T) in cascade over the samples in place, one pass.
+///
+/// Each section's state update `z₀' = b₁x − a₁y + z₁`, `z₁' = b₂x − a₂y` with `y = b₀x + z₀`
+/// is computed with `y` substituted, `z₀' = (c₁x + z₁) − a₁z₀`, `z₁' = c₂x − a₂z₀` (`c₁ = b₁ −
+/// a₁b₀`, `c₂ = b₂ − a₂b₀`): the same state (scipy's, which stream filters keep), but the
+/// recursion from one sample to the next is a multiply and a subtraction instead of four
+/// operations in a row — half the latency that bounds a pass.
 fn cascade<'a, const N: usize>(
     sections: &[[f64; 6]],
     samples: impl Iterator<Item = &'a mut f64>,
@@ -556,22 +570,23 @@ fn cascade<'a, const N: usize>(
     let mut z = [[0.0; 2]; N];
     for k in 0..N {
         let s = &sections[k];
-        c[k] = [
+        let [b0, b1, b2, a1, a2] = [
             s[0] / s[3],
             s[1] / s[3],
             s[2] / s[3],
             s[4] / s[3],
             s[5] / s[3],
         ];
+        c[k] = [b0, b1 - a1 * b0, b2 - a2 * b0, a1, a2];
         z[k] = zs[k];
     }
     for v in samples {
         let mut x = *v;
         for k in 0..N {
-            let [b0, b1, b2, a1, a2] = c[k];
-            let out = b0 * x + z[k][0];
-            z[k][0] = b1 * x - a1 * out + z[k][1];
-            z[k][1] = b2 * x - a2 * out;
+            let [b0, c1, c2, a1, a2] = c[k];
+            let [z0, z1] = z[k];
+            let out = b0 * x + z0;
+            z[k] = [(c1 * x + z1) - a1 * z0, c2 * x - a2 * z0];
             x = out;
         }
         *v = x;
