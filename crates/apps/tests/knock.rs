@@ -185,7 +185,7 @@ fn mapo_and_impo_are_scipy_s() {
         let want = |k: &str| golden[key][k].as_f64().unwrap();
         let a = analysed(&recording(2, 0.1, &[1], tau));
         let k = a.cycles[0].knock.unwrap();
-        // Measured 2e-14.
+        // Measured 7e-15.
         assert!(
             (k.mapo_pa / want("mapo_pa") - 1.0).abs() < 1e-9,
             "τ {tau}: {k:?}"

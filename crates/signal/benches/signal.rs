@@ -1,5 +1,5 @@
 //! criterion benchmarks of physid-signal: zero-phase Butterworth filtering (order 4 low-pass,
-//! ba and sos) of 10⁶ samples, encoder decoding (Eq. 4.3) of 10⁷ counts, and a trigger wheel's
+//! ba and sos; order 4 band-pass, sos) of 10⁶ samples, encoder decoding (Eq. 4.3) of 10⁷ counts, and a trigger wheel's
 //! raw signal decoded into the crank angle (1.2 s of an inductive pickup at 100 kHz: edges,
 //! teeth, the angle at every sample), and a time-basis stream taken onto a 0.1° crank-angle grid
 //! (`CycleStream`'s curves: 20 cycles at 6000 rpm, 360 kHz, the samples on the grid's angles or
@@ -27,6 +27,14 @@ fn filtfilt(c: &mut Criterion) {
     });
     g.bench_function("sos_order4_1e6", |b| {
         b.iter(|| black_box(sos.sosfiltfilt(black_box(&x))))
+    });
+    // Knock's band-pass: four sections.
+    let band = match butter(4, &[500.0, 2000.0], Band::Bandpass, 10_000.0) {
+        Ok(z) => z.to_sos(),
+        Err(e) => panic!("{e}"),
+    };
+    g.bench_function("sos_bandpass_order4_1e6", |b| {
+        b.iter(|| black_box(band.sosfiltfilt(black_box(&x))))
     });
     g.finish();
 }

@@ -554,18 +554,21 @@ impl Sos {
     }
 }
 
-/// `N` second-order sections (DF2T) in cascade over the samples in place, one pass.
+/// `N` second-order sections (DF2T) in cascade over the samples in place, one pass:
+/// `y = b₀x + z₀`, `z₀' = b₁x − a₁y + z₁`, `z₁' = b₂x − a₂y`, section after section.
 ///
-/// Each section's state update `z₀' = b₁x − a₁y + z₁`, `z₁' = b₂x − a₂y` with `y = b₀x + z₀`
-/// is computed with `y` substituted, `z₀' = (c₁x + z₁) − a₁z₀`, `z₁' = c₂x − a₂z₀` (`c₁ = b₁ −
-/// a₁b₀`, `c₂ = b₂ − a₂b₀`): the same state (scipy's, which stream filters keep), but the
-/// recursion from one sample to the next is a multiply and a subtraction instead of four
-/// operations in a row — half the latency that bounds a pass.
+/// Up to two sections the update is computed with `y` substituted, `z₀' = (c₁x + z₁) − a₁z₀`,
+/// `z₁' = c₂x − a₂z₀` (`c₁ = b₁ − a₁b₀`, `c₂ = b₂ − a₂b₀`): the same state, but the recursion
+/// from one sample to the next is a multiply and a subtraction instead of four operations in a
+/// row — a pass is bound by that latency there (29 % faster for two sections). From three
+/// sections on the pass is bound by the number of operations, and the direct form is the
+/// faster (the substituted one was 16 % slower for four: BENCHMARKS.md).
 fn cascade<'a, const N: usize>(
     sections: &[[f64; 6]],
     samples: impl Iterator<Item = &'a mut f64>,
     zs: &mut [[f64; 2]],
 ) {
+    let substituted = N <= 2;
     let mut c = [[0.0; 5]; N];
     let mut z = [[0.0; 2]; N];
     for k in 0..N {
@@ -577,7 +580,11 @@ fn cascade<'a, const N: usize>(
             s[4] / s[3],
             s[5] / s[3],
         ];
-        c[k] = [b0, b1 - a1 * b0, b2 - a2 * b0, a1, a2];
+        c[k] = if substituted {
+            [b0, b1 - a1 * b0, b2 - a2 * b0, a1, a2]
+        } else {
+            [b0, b1, b2, a1, a2]
+        };
         z[k] = zs[k];
     }
     for v in samples {
@@ -586,7 +593,11 @@ fn cascade<'a, const N: usize>(
             let [b0, c1, c2, a1, a2] = c[k];
             let [z0, z1] = z[k];
             let out = b0 * x + z0;
-            z[k] = [(c1 * x + z1) - a1 * z0, c2 * x - a2 * z0];
+            z[k] = if substituted {
+                [(c1 * x + z1) - a1 * z0, c2 * x - a2 * z0]
+            } else {
+                [c1 * x - a1 * out + z1, c2 * x - a2 * out]
+            };
             x = out;
         }
         *v = x;
