@@ -73,7 +73,18 @@ fn freezing_equals_a_fresh_estimator_on_the_rest() {
         // Release b: it resumes with the variance it had when frozen, uncorrelated.
         est.set_free(&params.all_free()).unwrap();
         let q = est.covariance();
-        assert_eq!(q[(1, 1)], p[(1, 1)], "{name}");
+        // Exactly for P; DSFC holds S, and (√v)² is v to within an ulp.
+        let ulps = if name == "dsfc" {
+            2.0 * f64::EPSILON
+        } else {
+            0.0
+        };
+        assert!(
+            (q[(1, 1)] - p[(1, 1)]).abs() <= ulps * p[(1, 1)],
+            "{name}: {} vs {}",
+            q[(1, 1)],
+            p[(1, 1)]
+        );
         for j in [0, 2, 3] {
             assert_eq!(q[(1, j)], 0.0);
         }

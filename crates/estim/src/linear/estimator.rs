@@ -146,7 +146,13 @@ impl LinearEstimator {
                 y - self.free.fixed_contribution(phi, self.params.nominal()),
             )
         };
-        let e = y - dot(phi_free, self.theta.as_slice());
+        // Summed in order, as a model's own `h(φ, ϑ) = Σ φ_i·ϑ_i` is: the EKF on a linear model
+        // is this filter bit for bit.
+        let e = y - phi_free
+            .iter()
+            .zip(self.theta.as_slice())
+            .map(|(f, t)| f * t)
+            .sum::<f64>();
         let result = self.step_sized(phi_free, e);
         self.phi = buf;
         self.commit(result)
@@ -235,54 +241,12 @@ impl LinearEstimator {
         }
         let pm = &self.cov.held().as_slice()[..p * p];
         let u = &mut self.u.as_mut_slice()[..p];
-        // P is symmetric: row i of P·φ̃ is column i · φ̃ (contiguous).
-        for (ui, col) in u.iter_mut().zip(pm.chunks_exact(p)) {
-            *ui = dot(col, phit);
-        }
+        columns_times(pm, phit, u);
         let d = r + dot(phit, u);
         if !(d.is_finite() && d > 0.0) {
-            return Err(breakdown("innovation denominator r + φᵀPφ", d));
+            return Err(breakdown("innovation denominator r + φ̃ᵀu", d));
         }
         let dinv = d.recip();
-        // New P = s_i s_j (P_ij − u_i u_j / d) + Q_ij, column by column. Every product is formed
-        // as (a_i·a_j), which IEEE arithmetic makes bit-identical for (i, j) and (j, i): a
-        // symmetric P stays exactly symmetric without mirroring.
-        let scale = if time_varying {
-            r_inv // 1/λ(t)
-        } else {
-            1.0
-        };
-        let wm = &mut self.work.as_mut_slice()[..p * p];
-        let mut acc = 0.0;
-        for (((wcol, pcol), &uj), &sj) in wm
-            .chunks_exact_mut(p)
-            .zip(pm.chunks_exact(p))
-            .zip(u.iter())
-            .zip(post)
-        {
-            for (((w, &pij), &ui), &si) in wcol.iter_mut().zip(pcol).zip(u.iter()).zip(post) {
-                let v = (si * sj) * scale * (pij - (ui * uj) * dinv);
-                *w = v;
-                acc += v;
-            }
-        }
-        if let Kind::Cov(CovKind::Kalman { r1, .. }) = &self.kind {
-            for (w, q) in wm.iter_mut().zip(r1.as_slice()) {
-                *w += q; // R1 symmetric: P stays symmetric
-            }
-        }
-        if !acc.is_finite() {
-            return Err(breakdown(
-                "sum of the updated covariance (overflow or NaN)",
-                acc,
-            ));
-        }
-        if let Some(i) = (0..p).find(|&i| wm[i * p + i] <= 0.0) {
-            return Err(breakdown(
-                "a diagonal entry of the updated P",
-                wm[i * p + i],
-            ));
-        }
         // Gain K = D_pre u / d.
         let k = &mut self.k.as_mut_slice()[..p];
         let mut ke = 0.0;
@@ -292,6 +256,61 @@ impl LinearEstimator {
         }
         if !ke.is_finite() {
             return Err(breakdown("gain times prediction error", ke));
+        }
+        // w = u/√d, so that u·uᵀ/d = w·wᵀ; u is not needed past here.
+        let sd = dinv.sqrt();
+        for ui in u.iter_mut() {
+            *ui *= sd;
+        }
+        let w = &*u;
+        // New P = D_post (P − w wᵀ) D_post · 1/λ(t) + Q. Every entry is a product of commutative
+        // products — (s_i·s_j)·(P_ij − w_i·w_j), or c·(P_ij − w_i·w_j) when D_post is a multiple
+        // of I — which IEEE arithmetic makes bit-identical for (i, j) and (j, i): a symmetric P
+        // stays exactly symmetric without mirroring.
+        let scale = if time_varying {
+            r_inv // 1/λ(t)
+        } else {
+            1.0
+        };
+        let q = match &self.kind {
+            Kind::Cov(CovKind::Kalman { r1, .. }) => Some(&r1.as_slice()[..p * p]),
+            _ => None,
+        };
+        let wm = &mut self.work.as_mut_slice()[..p * p];
+        let uniform = match self.kind {
+            Kind::Cov(CovKind::Vf { .. }) => None,
+            _ => Some(post.first().map_or(1.0, |s0| s0 * s0) * scale),
+        };
+        let finite = match (uniform, q) {
+            (Some(c), None) => {
+                downdate::<false, false>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, c, &[])
+            }
+            (Some(c), Some(q)) => {
+                downdate::<false, true>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, c, q)
+            }
+            (None, None) => {
+                downdate::<true, false>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, scale, &[])
+            }
+            (None, Some(q)) => {
+                downdate::<true, true>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, scale, q)
+            }
+        };
+        if !finite {
+            let bad = wm
+                .iter()
+                .copied()
+                .find(|v| !v.is_finite())
+                .unwrap_or(f64::NAN);
+            return Err(breakdown(
+                "an entry of the updated covariance (overflow or NaN)",
+                bad,
+            ));
+        }
+        if let Some(i) = (0..p).find(|&i| wm[i * p + i] <= 0.0) {
+            return Err(breakdown(
+                "a diagonal entry of the updated P",
+                wm[i * p + i],
+            ));
         }
         self.apply_guard_cov();
         std::mem::swap(self.cov.held_mut(), &mut self.work);
@@ -329,34 +348,31 @@ impl LinearEstimator {
         for (fj, col) in f.iter_mut().zip(sm.chunks_exact(p)) {
             *fj = dot(col, phi);
         }
+        let f = &*f;
         let a = (dot(f, f) + lambda).recip();
         if !(a.is_finite() && a > 0.0) {
             return Err(breakdown("a = 1/(fᵀf + λ)", a));
         }
         // γ = a S f.
         let gamma = &mut self.k.as_mut_slice()[..p];
-        gamma.fill(0.0);
-        for (&fj, col) in f.iter().zip(sm.chunks_exact(p)) {
-            let afj = a * fj;
-            for (gi, &s) in gamma.iter_mut().zip(col) {
-                *gi += s * afj;
-            }
+        columns_times(sm, f, gamma);
+        for gi in gamma.iter_mut() {
+            *gi *= a;
         }
+        let gamma = &*gamma;
         let g = (1.0 + (lambda * a).sqrt()).recip();
         let inv_sqrt_l = lambda.sqrt().recip();
+        // S = (S − γ·(g f)ᵀ)/√λ.
         let wm = &mut self.work.as_mut_slice()[..p * p];
-        let mut acc = 0.0;
-        for ((wcol, scol), &fj) in wm.chunks_exact_mut(p).zip(sm.chunks_exact(p)).zip(f.iter()) {
-            let gfj = g * fj;
-            for ((w, &s), &gi) in wcol.iter_mut().zip(scol).zip(gamma.iter()) {
-                *w = (s - gi * gfj) * inv_sqrt_l;
-                acc += *w;
-            }
-        }
-        if !acc.is_finite() {
+        if !downdate::<false, false>(wm, sm, RankOne { a: gamma, b: f, g }, &[], inv_sqrt_l, &[]) {
+            let bad = wm
+                .iter()
+                .copied()
+                .find(|v| !v.is_finite())
+                .unwrap_or(f64::NAN);
             return Err(breakdown(
-                "sum of the updated square root (overflow or NaN)",
-                acc,
+                "an entry of the updated square root (overflow or NaN)",
+                bad,
             ));
         }
         let ke: f64 = gamma.iter().map(|v| (v * e).abs()).sum();

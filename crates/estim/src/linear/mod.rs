@@ -19,8 +19,11 @@
 //! | vector forgetting, symmetric | 1 | Λ^(−1/2) | Λ^(−1/2) | 0 | SPEC §5.1 note |
 //! | Kalman, random-walk parameters | R2 | I | I | R1 | Eq. 5.19 |
 //!
-//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically, and every entry is formed from commutative
-//! products `(a_i·a_j)`, so P stays bit-for-bit symmetric. For p ≤ 8 the step is compiled for the
+//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically, as `w·wᵀ` with `w = u/√d`; every entry is formed
+//! from commutative products (`w_i·w_j`, `s_i·s_j`), so P stays bit-for-bit symmetric. The
+//! update's loop over P runs in four-lane vectors down each column (the `wide` crate: AVX, or
+//! two SSE2 halves), about 3p² operations for a p² of memory (BENCHMARKS.md has the
+//! roofline). For p ≤ 8 the step is compiled for the
 //! exact size (one source, generic over nalgebra's `Dim`), which unrolls its small loops. The symmetric vector-forgetting variant is Alg. 5.3 with the
 //! discount applied per parameter before the gain (`M = Λ^(−1/2)PΛ^(−1/2)`); with `Λ = λI` it is
 //! exactly RLSF(λ). The published variant discounts by `Λ⁻¹·…·Λ⁻¹`, i.e. by λ² per step when
@@ -51,6 +54,7 @@ use crate::EstimError;
 use nalgebra::{Const, DMatrix, DVector, Dim, Dyn};
 use physid_core::{FreeSet, ParamSet};
 use serde::{Deserialize, Serialize};
+use wide::f64x4;
 
 mod config;
 mod estimator;
@@ -201,7 +205,136 @@ fn breakdown(what: &'static str, value: f64) -> Breakdown {
     Breakdown { what, value }
 }
 
+/// `aᵀb` in four lanes (each a running sum of every fourth product, added at the end): four
+/// independent chains where one sum would be one chain of p additions.
 #[inline]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut lanes = [0.0; 4];
+    let (ac, bc) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ar, br) = (ac.remainder(), bc.remainder());
+    for (x, y) in ac.zip(bc) {
+        for l in 0..4 {
+            lanes[l] += x[l] * y[l];
+        }
+    }
+    for (l, (x, y)) in ar.iter().zip(br).enumerate() {
+        lanes[l] += x * y;
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
+}
+
+/// `u = M·x` for a column-major square `m`, as a sum of its columns four at a time: lanes run
+/// down the columns (no reduction across them), and `u` is read and written once per four
+/// columns. For a symmetric P this is `P·x` (RLS's `u = P·φ̃`).
+#[inline]
+fn columns_times(m: &[f64], x: &[f64], u: &mut [f64]) {
+    let p = u.len();
+    u.fill(0.0);
+    let mut blocks = m[..p * p].chunks_exact(4 * p);
+    let mut xs = x[..p].chunks_exact(4);
+    for (block, f) in (&mut blocks).zip(&mut xs) {
+        let (c0, rest) = block.split_at(p);
+        let (c1, rest) = rest.split_at(p);
+        let (c2, c3) = rest.split_at(p);
+        for ((((ui, &a), &b), &c), &d) in u.iter_mut().zip(c0).zip(c1).zip(c2).zip(c3) {
+            *ui += (a * f[0] + b * f[1]) + (c * f[2] + d * f[3]);
+        }
+    }
+    for (col, &f) in blocks.remainder().chunks_exact(p).zip(xs.remainder()) {
+        for (ui, &a) in u.iter_mut().zip(col) {
+            *ui += a * f;
+        }
+    }
+}
+
+/// 0 if `v` is finite (`v − v` is +0, all bits clear), not 0 if it is infinite or NaN (then
+/// `v − v` is NaN): or-ed over a matrix it is one subtraction and one `or` a lane, where a
+/// running sum — one chain of p² additions — would not vectorise.
+#[inline(always)]
+#[allow(clippy::eq_op)] // v − v is the point: 0 or NaN
+fn is_nonfinite(v: f64) -> u64 {
+    (v - v).to_bits()
+}
+
+/// The rank-one term `a·(g·b)ᵀ` a [`downdate`] takes off.
+struct RankOne<'a> {
+    a: &'a [f64],
+    b: &'a [f64],
+    g: f64,
+}
+
+/// The covariance update's loop over P (see the module table): column by column,
+/// `W_ij = f_ij·(P_ij − a_i·(g·b_j)) [+ Q_ij]` ([`RankOne`]) with `f_ij = s_i·s_j·c` when `PER_PARAM` (D_post
+/// per parameter, then `c` is 1/λ(t) or 1) or `c` alone. Returns whether every entry is finite
+/// ([`is_nonfinite`]). Written in blocks of four rows with four running flags, so that it
+/// compiles to whole-vector operations down each column at any p (left to itself, the
+/// compiler vectorised a small fixed p across the columns, with gathers).
+#[inline(always)]
+fn downdate<const PER_PARAM: bool, const WITH_Q: bool>(
+    wm: &mut [f64],
+    pm: &[f64],
+    RankOne { a: w, b, g }: RankOne,
+    s: &[f64],
+    c: f64,
+    q: &[f64],
+) -> bool {
+    let p = w.len();
+    // Without D_post per parameter (or Q) the slice is not read: any of length p stands in, so
+    // that one zip serves every case.
+    let s = if PER_PARAM { s } else { w };
+    let split = p - p % 4;
+    let (w4, wr) = w.split_at(split);
+    let (s4, sr) = s.split_at(split);
+    let cv = f64x4::splat(c);
+    let mut bad = f64x4::ZERO;
+    let mut bad_rest = 0u64;
+    for (j, (wcol, pcol)) in wm.chunks_exact_mut(p).zip(pm.chunks_exact(p)).enumerate() {
+        let wj = g * b[j];
+        let sj = s[j];
+        let (wjv, sjv) = (f64x4::splat(wj), f64x4::splat(sj));
+        let qcol = if WITH_Q { &q[j * p..(j + 1) * p] } else { pcol };
+        let (wo4, wor) = wcol.split_at_mut(split);
+        let (p4, pr) = pcol.split_at(split);
+        let (q4, qr) = qcol.split_at(split);
+        for ((((wo, pi), wi), si), qi) in wo4
+            .chunks_exact_mut(4)
+            .zip(p4.chunks_exact(4))
+            .zip(w4.chunks_exact(4))
+            .zip(s4.chunks_exact(4))
+            .zip(q4.chunks_exact(4))
+        {
+            let f = if PER_PARAM {
+                (lanes(si) * sjv) * cv
+            } else {
+                cv
+            };
+            let mut v = f * (lanes(pi) - lanes(wi) * wjv);
+            if WITH_Q {
+                v += lanes(qi);
+            }
+            wo.copy_from_slice(v.as_array());
+            #[allow(clippy::eq_op)] // as in is_nonfinite
+            {
+                bad |= v - v;
+            }
+        }
+        for ((((wo, &pij), &wi), &si), &qi) in wor.iter_mut().zip(pr).zip(wr).zip(sr).zip(qr) {
+            let f = if PER_PARAM { (si * sj) * c } else { c };
+            let mut v = f * (pij - wi * wj);
+            if WITH_Q {
+                v += qi;
+            }
+            *wo = v;
+            bad_rest |= is_nonfinite(v);
+        }
+    }
+    bad.as_array().iter().all(|b| b.to_bits() == 0) && bad_rest == 0
+}
+
+/// Four values of a slice as a vector.
+#[inline(always)]
+fn lanes(x: &[f64]) -> f64x4 {
+    f64x4::new([x[0], x[1], x[2], x[3]])
 }
