@@ -33,6 +33,19 @@ pub trait ParamModel {
     /// The output for inputs `inputs` and parameters `params` (same orders as the names).
     fn eval<T: Scalar>(&self, inputs: &[f64], params: &[T]) -> T;
 
+    /// `h(φ, ϑ_k)` of several parameter vectors at the same inputs — an unscented filter's
+    /// sigma points: `params` holds them one after another (`out.len()` vectors of equal
+    /// length), `out` receives their outputs in that order. The default evaluates each; a model
+    /// overrides it to compute what depends on the inputs alone once (a crank angle's sine and
+    /// cosine, a friction polynomial's regressors) — equal to [`eval`](Self::eval) of each,
+    /// bit for bit.
+    fn eval_many(&self, inputs: &[f64], params: &[f64], out: &mut [f64]) {
+        let len = params.len().checked_div(out.len()).unwrap_or(0);
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = self.eval::<f64>(inputs, &params[k * len..(k + 1) * len]);
+        }
+    }
+
     /// `h(φ, ϑ)` and `∂h/∂ϑ_j` for each `j` in `free`, written into `grad` — what
     /// [`GradientEngine::value_and_gradient`] returns. The default is forward mode through
     /// [`eval`](Self::eval) ([`GradientEngine::forward`]). A model may override it to use its

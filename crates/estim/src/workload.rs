@@ -230,15 +230,31 @@ impl physid_core::ParamModel for Bench10 {
         &self.inputs
     }
     fn eval<T: physid_core::Scalar>(&self, u: &[f64], k: &[T]) -> T {
-        let (q, w, a, f, s) = (u[0], u[1], u[2], u[3], u[4]);
+        self.eval_at(u, k, u[0].sin_cos())
+    }
+
+    /// The sigma points share the inputs: `sin q`, `cos q` once for all of them.
+    fn eval_many(&self, inputs: &[f64], params: &[f64], out: &mut [f64]) {
+        let trig = inputs[0].sin_cos();
+        let len = params.len().checked_div(out.len()).unwrap_or(0);
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = self.eval_at(inputs, &params[k * len..(k + 1) * len], trig);
+        }
+    }
+}
+
+impl Bench10 {
+    /// The model with `(sin q, cos q)` given.
+    fn eval_at<T: physid_core::Scalar>(&self, u: &[f64], k: &[T], (sin_q, cos_q): (f64, f64)) -> T {
+        let (w, a, f, s) = (u[1], u[2], u[3], u[4]);
         let (m, b, l, r) = (k[0], k[1], k[2], k[3]);
         // slider-crank: ψ = 1 − (r sin q / L)², G = sin q + √((1−ψ)/ψ)·cos q, written as
         // |r sin q / L|/√ψ: the same value, but √ of 0 at q = 0 has an infinite derivative
         // (∞·0 = NaN under automatic differentiation) while this form does not.
-        let rs = r * q.sin() / l;
+        let rs = r * sin_q / l;
         let psi = -(rs * rs) + 1.0;
-        let g = rs.abs() / psi.sqrt() * q.cos() + q.sin();
-        let g1 = r * ((r / l) * q.cos() / (psi * psi.sqrt()) + 1.0) * q.cos();
+        let g = rs.abs() / psi.sqrt() * cos_q + sin_q;
+        let g1 = r * ((r / l) * cos_q / (psi * psi.sqrt()) + 1.0) * cos_q;
         let area = b * b * (std::f64::consts::PI / 4.0);
         let ind = area * r * g * f;
         let rec = m * r * g * (g1 * (w * w) + r * g * a);

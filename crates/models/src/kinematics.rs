@@ -145,11 +145,16 @@ impl<T: Scalar> Crank<T> {
     /// thesis, with `a = θ − φ` and `q = δ + r·sin a`; they agree with the virtual-work forms at
     /// δ = 0 (tested), which is where the thesis used them.
     pub fn thesis_g(&self, theta: f64) -> (T, T, T) {
+        self.thesis_g_at(theta.sin_cos())
+    }
+
+    /// [`thesis_g`](Self::thesis_g) from θ's sine and cosine `(st, ct)` (computed once for
+    /// several crank trains at the same angle: an unscented filter's sigma points).
+    pub fn thesis_g_at(&self, (st, ct): (f64, f64)) -> (T, T, T) {
         // Each elementary function once (√ψ, 1/(l·√ψ)): the gradient engine's dual numbers pay
         // for every operation in every lane.
         // a = θ − φ with sin φ = δ/(r + l): sin a and cos a by the angle-difference identities
         // from θ's sine and cosine (no arcsine, no trigonometry of a dual number).
-        let (st, ct) = theta.sin_cos();
         let s_phi = self.delta / (self.r + self.l);
         let c_phi = (-(s_phi * s_phi) + 1.0).sqrt();
         let sa = c_phi * st - s_phi * ct;

@@ -198,3 +198,23 @@ fn friction_cubic_fit() {
     assert!(fit.max_relative < 0.02);
     assert!(fit_cubic(&ns[..3], &ts, |_, _| 0.0).is_err());
 }
+
+/// The sigma points' batch (`eval_many`: the angle's sine and cosine and the friction
+/// regressors once) equals `eval` of each parameter vector, bit for bit.
+#[test]
+fn eval_many_is_eval_of_each() {
+    let m = CyclicTorque::default();
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    for _ in 0..200 {
+        let u = random_inputs(&mut rng);
+        let points: Vec<[f64; 15]> = (0..21)
+            .map(|_| nominal().map(|v| v * (1.0 + 0.05 * rng.random_range(-1.0..1.0))))
+            .collect();
+        let flat: Vec<f64> = points.iter().flatten().copied().collect();
+        let mut out = [0.0; 21];
+        m.eval_many(&u, &flat, &mut out);
+        for (o, p) in out.iter().zip(&points) {
+            assert_eq!(o.to_bits(), m.eval::<f64>(&u, p).to_bits());
+        }
+    }
+}

@@ -19,6 +19,11 @@ pub struct Ukf<M: ParamModel, F: CovFactor> {
     w: SigmaWeights,
     /// Outputs of the 2l+1 sigma points.
     ys: Vec<f64>,
+    /// The 2l+1 sigma points' full parameter vectors, one after another, evaluated in one
+    /// [`ParamModel::eval_many`]. Scratch: not serialised (sized again on the first step after
+    /// a restore).
+    #[serde(skip, default)]
+    points_theta: Vec<f64>,
     /// Cross-covariance / gain.
     pxy: DVector<f64>,
     /// Candidate state.
@@ -55,6 +60,7 @@ impl<M: ParamModel, F: CovFactor> Ukf<M, F> {
             chol: DMatrix::zeros(l, l),
             w,
             ys: vec![0.0; 2 * l + 1],
+            points_theta: vec![0.0; (2 * l + 1) * params.len()],
             pxy: DVector::zeros(l),
             x_new: DVector::zeros(l),
             work: DMatrix::zeros(l, l),
@@ -93,8 +99,18 @@ impl<M: ParamModel, F: CovFactor> Ukf<M, F> {
         let bounded = coords.bounds.iter().any(Option::is_some);
         let (x, chol) = (self.x.as_slice(), self.chol.as_slice());
         let dev = self.dev.as_mut_slice();
-        // Sigma point x + sign·(column k of the factor), its deviation into column `col` of dev.
-        let mut point = |sign: f64, k: Option<usize>, col: usize| -> f64 {
+        let n = theta.len();
+        if self.points_theta.len() != (2 * l + 1) * n {
+            self.points_theta = vec![0.0; (2 * l + 1) * n];
+        }
+        for block in self.points_theta.chunks_exact_mut(n) {
+            block.copy_from_slice(theta); // the fixed parameters' values
+        }
+        let (centre, outer) = self.points_theta.split_at_mut(n);
+        let (plus, minus) = outer.split_at_mut(l * n);
+        // Sigma point x + sign·(column k of the factor) into `theta`, its deviation into column
+        // `col` of dev.
+        let mut point = |theta: &mut [f64], sign: f64, k: Option<usize>, col: usize| {
             for (idx, &i) in coords.free.iter().enumerate() {
                 let step = k.map_or(0.0, |c| sign * chol[c * l + idx]);
                 let raw = x[idx] + step;
@@ -114,13 +130,19 @@ impl<M: ParamModel, F: CovFactor> Ukf<M, F> {
                 }
                 theta[i] = coords.physical(idx, xk);
             }
-            model.eval::<f64>(inputs, theta)
         };
-        self.ys[0] = point(0.0, None, 0);
-        for k in 0..l {
-            self.ys[1 + k] = point(1.0, Some(k), k);
-            self.ys[1 + l + k] = point(-1.0, Some(k), l + k);
+        point(centre, 0.0, None, 0);
+        for (k, (p, m)) in plus
+            .chunks_exact_mut(n)
+            .zip(minus.chunks_exact_mut(n))
+            .enumerate()
+        {
+            point(p, 1.0, Some(k), k);
+            point(m, -1.0, Some(k), l + k);
         }
+        // Their outputs in one batch: y_0 the centre's, y_{1+k} x + column k's, y_{1+l+k} x −
+        // column k's.
+        model.eval_many(inputs, &self.points_theta, &mut self.ys);
         if let Some(i) = self.ys.iter().position(|v| !v.is_finite()) {
             return Err(EstimError::NonFinite {
                 sample,
