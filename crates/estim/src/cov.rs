@@ -106,29 +106,32 @@ impl Cov {
     }
 }
 
-/// Lower-triangular Cholesky factor written over `a` (upper part zeroed); false if `a` is not
-/// positive definite. Allocation-free.
+/// Lower-triangular Cholesky factor written over `a` (its lower triangle read, the upper part
+/// zeroed); false if `a` is not positive definite. Right-looking: each column, once final,
+/// is taken off the trailing columns below their diagonal — contiguous column operations that
+/// vectorise, where the dot-product form reads rows. Allocation-free.
 pub(crate) fn cholesky_in_place(a: &mut DMatrix<f64>) -> bool {
     let n = a.nrows();
+    let m = a.as_mut_slice();
     for j in 0..n {
-        let mut d = a[(j, j)];
-        for k in 0..j {
-            d -= a[(j, k)] * a[(j, k)];
-        }
+        let (done, trailing) = m.split_at_mut((j + 1) * n);
+        let col = &mut done[j * n..];
+        let d = col[j];
         if !(d > 0.0 && d.is_finite()) {
             return false;
         }
         let d = d.sqrt();
-        a[(j, j)] = d;
-        for i in j + 1..n {
-            let mut s = a[(i, j)];
-            for k in 0..j {
-                s -= a[(i, k)] * a[(j, k)];
-            }
-            a[(i, j)] = s / d;
+        col[..j].fill(0.0);
+        col[j] = d;
+        for v in &mut col[j + 1..] {
+            *v /= d;
         }
-        for i in 0..j {
-            a[(i, j)] = 0.0;
+        let col = &*col;
+        for (k, tcol) in (j + 1..n).zip(trailing.chunks_exact_mut(n)) {
+            let f = col[k];
+            for (t, &c) in tcol[k..].iter_mut().zip(&col[k..]) {
+                *t -= c * f;
+            }
         }
     }
     true

@@ -132,13 +132,34 @@ impl<M: ParamModel, F: CovFactor> Ukf<M, F> {
             }
         };
         point(centre, 0.0, None, 0);
-        for (k, (p, m)) in plus
-            .chunks_exact_mut(n)
-            .zip(minus.chunks_exact_mut(n))
-            .enumerate()
-        {
-            point(p, 1.0, Some(k), k);
-            point(m, -1.0, Some(k), l + k);
+        let outer = plus.chunks_exact_mut(n).zip(minus.chunks_exact_mut(n));
+        if bounded {
+            for (k, (p, m)) in outer.enumerate() {
+                point(p, 1.0, Some(k), k);
+                point(m, -1.0, Some(k), l + k);
+            }
+        } else {
+            // Nothing projected: the same points, x ± column k, both in one pass down the
+            // column; the deviations are the column itself.
+            let (dev_plus, dev_minus) = self.dev.as_mut_slice().split_at_mut(l * l);
+            for ((((p, m), ck), dp), dm) in outer
+                .zip(chol.chunks_exact(l))
+                .zip(dev_plus.chunks_exact_mut(l))
+                .zip(dev_minus.chunks_exact_mut(l))
+            {
+                for (idx, (((&i, &c), &xi), (dpi, dmi))) in coords
+                    .free
+                    .iter()
+                    .zip(ck)
+                    .zip(x)
+                    .zip(dp.iter_mut().zip(dm.iter_mut()))
+                    .enumerate()
+                {
+                    (*dpi, *dmi) = (c, -c);
+                    p[i] = coords.physical(idx, xi + c);
+                    m[i] = coords.physical(idx, xi + -c);
+                }
+            }
         }
         // Their outputs in one batch: y_0 the centre's, y_{1+k} x + column k's, y_{1+l+k} x −
         // column k's.
