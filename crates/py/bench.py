@@ -3,9 +3,9 @@
 Run: python bench.py PHYSID_BIN [--rls]   (numpy, physid; statsmodels and filterpy for the
 peers; --rls: the RLS part only)
 
-* RLS p = 2: `run(X, y)` from Python against `physid bench`'s native rate of the same loop
-  (`rls_tracks`, `rls_tracks_se`: physid_estim::tracks over 4096-row arrays) measured in the
-  same session; and the update-only rate for scale.
+* RLS p = 2 and 20: `run(X, y)` from Python against `physid bench`'s native rate of the same
+  loop (`rls_tracks`, `rls_tracks_se`: physid_estim::tracks over 4096-row arrays) measured in
+  the same session; and the update-only rate for scale.
 * UKF p = 10 over the benchmark model Bench10 (physid_estim::workload, written here as a
   formula): `run` from Python against the same formula model run natively by
   `physid estimate --expr` on the same data (and, for scale, `physid bench`'s UKF over the
@@ -53,40 +53,38 @@ def native(method, p, fresh=True):
 
 
 rng = np.random.default_rng(0)
-# RLS p = 2: arrays of 4096 rows (the native benchmark's workload size), run again and again;
-# then one array of 2 000 000 rows.
+# RLS at p = 2 and 20: arrays of 4096 rows (the native benchmark's workload size), run again and
+# again; then, at p = 2, one array of 2 000 000 rows.
 n = 4096
-X = rng.uniform(-1, 1, size=(n, 2))
-y = X @ [1.0, 2.0] + 0.01 * rng.uniform(-1, 1, n)
-reps = 500
-# One estimator run again and again over the array, each result dropped before the next, as
-# the native loop does (keeping 500 results alive would measure fresh memory instead).
-e_est, e_se = physid.RLS(2), physid.RLS(2)
+for p, reps in ((2, 500), (20, 50)):
+    X = rng.uniform(-1, 1, size=(n, p))
+    y = X @ np.arange(1.0, p + 1) + 0.01 * rng.uniform(-1, 1, n)
+    # One estimator run again and again over the array, each result dropped before the next,
+    # as the native loop does (keeping the results alive would measure fresh memory instead).
+    e_est, e_se = physid.RLS(p), physid.RLS(p)
 
+    def again(e, std_err):
+        for _ in range(reps):
+            e.run(X, y, std_err=std_err)
 
-def again(e, std_err):
-    for _ in range(reps):
-        e.run(X, y, std_err=std_err)
-
-
-# The VM's speed drifts by tens of per cent within a minute: native and Python are measured in
-# turns, five rounds, and the best of each kept.
-py_est = py_se = nat_upd = nat_est = nat_se = 0.0
-for _ in range(5):
-    nat_upd = max(nat_upd, native("rls", 2))
-    nat_est = max(nat_est, native("rls_tracks", 2, fresh=False))
-    nat_se = max(nat_se, native("rls_tracks_se", 2, fresh=False))
-    py_est = max(py_est, rate(lambda: again(e_est, False), n * reps, 2))
-    py_se = max(py_se, rate(lambda: again(e_se, True), n * reps, 2))
+    # The VM's speed drifts by tens of per cent within a minute: native and Python are
+    # measured in turns, five rounds, and the best of each kept.
+    py_est = py_se = nat_upd = nat_est = nat_se = 0.0
+    for _ in range(5):
+        nat_upd = max(nat_upd, native("rls", p))
+        nat_est = max(nat_est, native("rls_tracks", p, fresh=False))
+        nat_se = max(nat_se, native("rls_tracks_se", p, fresh=False))
+        py_est = max(py_est, rate(lambda: again(e_est, False), n * reps, 2))
+        py_se = max(py_se, rate(lambda: again(e_se, True), n * reps, 2))
+    print(f"RLS p={p:<2} native, updates only (physid bench rls)          {nat_upd:12.0f} updates/s")
+    print(f"         native run over arrays, estimates (rls_tracks)    {nat_est:12.0f}")
+    print(f"         from Python, run(X, y, std_err=False)             {py_est:12.0f}   ratio {py_est / nat_est:.2f}")
+    print(f"         native run over arrays, + std errors              {nat_se:12.0f}")
+    print(f"         from Python, run(X, y)                            {py_se:12.0f}   ratio {py_se / nat_se:.2f}")
 big = rng.uniform(-1, 1, size=(2_000_000, 2))
 ybig = big @ [1.0, 2.0]
 py_big = rate(lambda: physid.RLS(2).run(big, ybig), len(ybig))
-print(f"RLS p=2  native, updates only (physid bench rls)          {nat_upd:12.0f} updates/s")
-print(f"         native run over arrays, estimates (rls_tracks)    {nat_est:12.0f}")
-print(f"         from Python, run(X, y, std_err=False)             {py_est:12.0f}   ratio {py_est / nat_est:.2f}")
-print(f"         native run over arrays, + std errors              {nat_se:12.0f}")
-print(f"         from Python, run(X, y)                            {py_se:12.0f}   ratio {py_se / nat_se:.2f}")
-print(f"         from Python, run(X, y) on 2 000 000 rows          {py_big:12.0f}")
+print(f"RLS p=2  from Python, run(X, y) on 2 000 000 rows          {py_big:12.0f}")
 if "--rls" in sys.argv[2:]:
     sys.exit(0)  # the RLS part only (the wheel's build against the native rate)
 

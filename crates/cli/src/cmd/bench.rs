@@ -239,17 +239,18 @@ pub fn run(args: &Args) -> Result<()> {
         }
     }
     // RLS over whole arrays, its tracks recorded after every row (what `run` does from
-    // Python: crates/py, physid_estim::tracks) — the native reference of the Python package.
-    {
-        let (rows, y) = physid_estim::workload::data(2, 4096);
-        let names = ["p1", "p2"];
+    // Python: crates/py, physid_estim::tracks) — the native reference of the Python package,
+    // at p = 2 and 20.
+    for p in [2usize, 20] {
+        let (rows, y) = physid_estim::workload::data(p, 4096);
+        let names: Vec<String> = (1..=p).map(|i| format!("p{i}")).collect();
         let params = physid_core::ParamSet::zeros(names).into_diagnostic()?;
         let spec = physid_estim::EstimatorSpec::new(physid_estim::MethodName::Rls);
         for std_err in [false, true] {
             let mut e =
                 physid_estim::build_linear(&spec, &params, &params.all_free()).into_diagnostic()?;
             let r = rate(4096, budget, || {
-                let t = physid_estim::tracks::track(&mut e, &rows, &y, 2, 2, false, std_err)
+                let t = physid_estim::tracks::track(&mut e, &rows, &y, p, p, false, std_err)
                     .map_err(|m| miette::miette!("{m}"))?;
                 std::hint::black_box(t);
                 Ok(())
@@ -261,13 +262,12 @@ pub fn run(args: &Args) -> Result<()> {
             };
             if !args.json {
                 outln!(
-                    "{name:<8} {:>4} {r:>16.0} {:>14.0}   (run over arrays: estimate{} after every row)",
-                    2,
+                    "{name:<8} {p:>4} {r:>16.0} {:>14.0}   (run over arrays: estimate{} after every row)",
                     r / REALTIME_SAMPLES_PER_S,
                     if std_err { " and standard errors" } else { "" }
                 );
             }
-            results.push(json!({"name": name, "p": 2, "updates_per_s": r}));
+            results.push(json!({"name": name, "p": p, "updates_per_s": r}));
         }
     }
     // Non-linear estimators on the 10-parameter benchmark model (the cyclic-torque model's

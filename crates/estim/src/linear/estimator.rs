@@ -281,19 +281,14 @@ impl LinearEstimator {
             Kind::Cov(CovKind::Vf { .. }) => None,
             _ => Some(post.first().map_or(1.0, |s0| s0 * s0) * scale),
         };
+        let ww = RankOne { a: w, b: w, g: 1.0 };
         let finite = match (uniform, q) {
-            (Some(c), None) => {
-                downdate::<false, false>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, c, &[])
-            }
-            (Some(c), Some(q)) => {
-                downdate::<false, true>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, c, q)
-            }
-            (None, None) => {
-                downdate::<true, false>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, scale, &[])
-            }
-            (None, Some(q)) => {
-                downdate::<true, true>(wm, pm, RankOne { a: w, b: w, g: 1.0 }, post, scale, q)
-            }
+            (Some(c), None) if c == 1.0 => downdate::<UNIT, false>(wm, pm, ww, post, c, &[]),
+            (Some(c), Some(q)) if c == 1.0 => downdate::<UNIT, true>(wm, pm, ww, post, c, q),
+            (Some(c), None) => downdate::<UNIFORM, false>(wm, pm, ww, post, c, &[]),
+            (Some(c), Some(q)) => downdate::<UNIFORM, true>(wm, pm, ww, post, c, q),
+            (None, None) => downdate::<PER_PARAM, false>(wm, pm, ww, post, scale, &[]),
+            (None, Some(q)) => downdate::<PER_PARAM, true>(wm, pm, ww, post, scale, q),
         };
         if !finite {
             let bad = wm
@@ -364,7 +359,8 @@ impl LinearEstimator {
         let inv_sqrt_l = lambda.sqrt().recip();
         // S = (S − γ·(g f)ᵀ)/√λ.
         let wm = &mut self.work.as_mut_slice()[..p * p];
-        if !downdate::<false, false>(wm, sm, RankOne { a: gamma, b: f, g }, &[], inv_sqrt_l, &[]) {
+        if !downdate::<UNIFORM, false>(wm, sm, RankOne { a: gamma, b: f, g }, &[], inv_sqrt_l, &[])
+        {
             let bad = wm
                 .iter()
                 .copied()

@@ -265,14 +265,21 @@ struct RankOne<'a> {
     g: f64,
 }
 
+/// How a [`downdate`] scales its entries: not at all (`c` = 1: RLS, Kalman), by one factor `c`
+/// (D_post a multiple of I, or 1/λ(t): RLSF; DSFC's 1/√λ), or by `s_i·s_j·c` (D_post per
+/// parameter: vector forgetting).
+const UNIT: u8 = 0;
+const UNIFORM: u8 = 1;
+const PER_PARAM: u8 = 2;
+
 /// The covariance update's loop over P (see the module table): column by column,
-/// `W_ij = f_ij·(P_ij − a_i·(g·b_j)) [+ Q_ij]` ([`RankOne`]) with `f_ij = s_i·s_j·c` when `PER_PARAM` (D_post
-/// per parameter, then `c` is 1/λ(t) or 1) or `c` alone. Returns whether every entry is finite
-/// ([`is_nonfinite`]). Written in blocks of four rows with four running flags, so that it
-/// compiles to whole-vector operations down each column at any p (left to itself, the
-/// compiler vectorised a small fixed p across the columns, with gathers).
+/// `W_ij = f_ij·(P_ij − a_i·(g·b_j)) [+ Q_ij]` ([`RankOne`]) with `f_ij` as `SCALE` says
+/// ([`UNIT`], [`UNIFORM`], [`PER_PARAM`]). Returns whether every entry is finite
+/// ([`is_nonfinite`]). Written in four-lane vectors down each column, so that it compiles to
+/// whole-vector operations at any p (left to itself, the compiler vectorised a small fixed p
+/// across the columns, with gathers, and a larger one with a scalar tail of up to 31 rows).
 #[inline(always)]
-fn downdate<const PER_PARAM: bool, const WITH_Q: bool>(
+fn downdate<const SCALE: u8, const WITH_Q: bool>(
     wm: &mut [f64],
     pm: &[f64],
     RankOne { a: w, b, g }: RankOne,
@@ -283,7 +290,7 @@ fn downdate<const PER_PARAM: bool, const WITH_Q: bool>(
     let p = w.len();
     // Without D_post per parameter (or Q) the slice is not read: any of length p stands in, so
     // that one zip serves every case.
-    let s = if PER_PARAM { s } else { w };
+    let s = if SCALE == PER_PARAM { s } else { w };
     let split = p - p % 4;
     let (w4, wr) = w.split_at(split);
     let (s4, sr) = s.split_at(split);
@@ -305,12 +312,12 @@ fn downdate<const PER_PARAM: bool, const WITH_Q: bool>(
             .zip(s4.chunks_exact(4))
             .zip(q4.chunks_exact(4))
         {
-            let f = if PER_PARAM {
-                (lanes(si) * sjv) * cv
-            } else {
-                cv
+            let d = lanes(pi) - lanes(wi) * wjv;
+            let mut v = match SCALE {
+                UNIT => d,
+                UNIFORM => cv * d,
+                _ => ((lanes(si) * sjv) * cv) * d,
             };
-            let mut v = f * (lanes(pi) - lanes(wi) * wjv);
             if WITH_Q {
                 v += lanes(qi);
             }
@@ -321,8 +328,12 @@ fn downdate<const PER_PARAM: bool, const WITH_Q: bool>(
             }
         }
         for ((((wo, &pij), &wi), &si), &qi) in wor.iter_mut().zip(pr).zip(wr).zip(sr).zip(qr) {
-            let f = if PER_PARAM { (si * sj) * c } else { c };
-            let mut v = f * (pij - wi * wj);
+            let d = pij - wi * wj;
+            let mut v = match SCALE {
+                UNIT => d,
+                UNIFORM => c * d,
+                _ => ((si * sj) * c) * d,
+            };
             if WITH_Q {
                 v += qi;
             }
