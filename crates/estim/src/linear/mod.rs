@@ -23,9 +23,11 @@
 //! from commutative products (`w_i·w_j`, `s_i·s_j`), so P stays bit-for-bit symmetric. The
 //! update's loop over P runs in four-lane vectors down each column (the `wide` crate: AVX, or
 //! two SSE2 halves), about 3p² operations for a p² of memory (BENCHMARKS.md has the
-//! roofline). For p ≤ 8 the step is compiled for the
-//! exact size (one source, generic over nalgebra's `Dim`), which unrolls its small loops. The symmetric vector-forgetting variant is Alg. 5.3 with the
-//! discount applied per parameter before the gain (`M = Λ^(−1/2)PΛ^(−1/2)`); with `Λ = λI` it is
+//! roofline). For p ≤ 20 the step is compiled for the exact size (one source, generic over
+//! nalgebra's `Dim`), which unrolls its loops. DSFC forms `f = Sᵀφ` four columns at a time
+//! from p = 8 on.
+//!
+//! The symmetric vector-forgetting variant is Alg. 5.3 with the discount applied per parameter before the gain (`M = Λ^(−1/2)PΛ^(−1/2)`); with `Λ = λI` it is
 //! exactly RLSF(λ). The published variant discounts by `Λ⁻¹·…·Λ⁻¹`, i.e. by λ² per step when
 //! `Λ = λI`: it then equals RLSF(λ²) started from `P0·λ²`.
 //!
@@ -246,6 +248,39 @@ fn columns_times(m: &[f64], x: &[f64], u: &mut [f64]) {
         for (ui, &a) in u.iter_mut().zip(col) {
             *ui += a * f;
         }
+    }
+}
+
+/// `f = Mᵀ·x` for a column-major square `m` (`f_j` = column j · x), four columns at a time:
+/// each column's products in four lanes, summed `(l0 + l1) + (l2 + l3)` — the order written
+/// out, the same on every CPU — as [`dot`] does. DSFC's `f = Sᵀφ`.
+#[inline]
+fn columns_dot(m: &[f64], x: &[f64], f: &mut [f64]) {
+    let p = f.len();
+    let split = p - p % 4;
+    let (x4, xr) = x[..p].split_at(split);
+    let sum = |v: f64x4| {
+        let a = v.as_array();
+        (a[0] + a[1]) + (a[2] + a[3])
+    };
+    let mut cols = m[..p * p].chunks_exact(4 * p);
+    let mut out = f.chunks_exact_mut(4);
+    for (block, fo) in (&mut cols).zip(&mut out) {
+        let mut acc = [f64x4::ZERO; 4];
+        let mut tail = [0.0; 4];
+        for (k, col) in block.chunks_exact(p).enumerate() {
+            let (c4, cr) = col.split_at(split);
+            for (c, xc) in c4.chunks_exact(4).zip(x4.chunks_exact(4)) {
+                acc[k] += lanes(c) * lanes(xc);
+            }
+            tail[k] = cr.iter().zip(xr).map(|(a, b)| a * b).sum::<f64>();
+        }
+        for k in 0..4 {
+            fo[k] = sum(acc[k]) + tail[k];
+        }
+    }
+    for (col, fj) in cols.remainder().chunks_exact(p).zip(out.into_remainder()) {
+        *fj = dot(col, x);
     }
 }
 
