@@ -19,8 +19,8 @@
 //! | vector forgetting, symmetric | 1 | Λ^(−1/2) | Λ^(−1/2) | 0 | SPEC §5.1 note |
 //! | Kalman, random-walk parameters | R2 | I | I | R1 | Eq. 5.19 |
 //!
-//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically, as `w·wᵀ` with `w = u/√d`; every entry is formed
-//! from commutative products (`w_i·w_j`, `s_i·s_j`), so P stays bit-for-bit symmetric. The
+//! `u·uᵀ/d` is `K·φᵀ·P` written symmetrically; every entry is formed from commutative products
+//! (`(u_i·u_j)·(1/d)`, `s_i·s_j`), so P stays bit-for-bit symmetric. The
 //! update's loop over P runs in four-lane vectors down each column (the `wide` crate: AVX, or
 //! two SSE2 halves), about 3p² operations for a p² of memory (BENCHMARKS.md has the
 //! roofline). For p ≤ 20 the step is compiled for the exact size (one source, generic over
@@ -293,7 +293,8 @@ fn is_nonfinite(v: f64) -> u64 {
     (v - v).to_bits()
 }
 
-/// The rank-one term `a·(g·b)ᵀ` a [`downdate`] takes off.
+/// The rank-one term `(a·bᵀ)·g` a [`downdate`] takes off, each entry `(a_i·b_j)·g`: with
+/// `a = b` it is bit-for-bit symmetric.
 struct RankOne<'a> {
     a: &'a [f64],
     b: &'a [f64],
@@ -308,7 +309,7 @@ const UNIFORM: u8 = 1;
 const PER_PARAM: u8 = 2;
 
 /// The covariance update's loop over P (see the module table): column by column,
-/// `W_ij = f_ij·(P_ij − a_i·(g·b_j)) [+ Q_ij]` ([`RankOne`]) with `f_ij` as `SCALE` says
+/// `W_ij = f_ij·(P_ij − (a_i·b_j)·g) [+ Q_ij]` ([`RankOne`]) with `f_ij` as `SCALE` says
 /// ([`UNIT`], [`UNIFORM`], [`PER_PARAM`]). Returns whether every entry is finite
 /// ([`is_nonfinite`]). Written in four-lane vectors down each column, so that it compiles to
 /// whole-vector operations at any p (left to itself, the compiler vectorised a small fixed p
@@ -333,7 +334,7 @@ fn downdate<const SCALE: u8, const WITH_Q: bool>(
     let mut bad = f64x4::ZERO;
     let mut bad_rest = 0u64;
     for (j, (wcol, pcol)) in wm.chunks_exact_mut(p).zip(pm.chunks_exact(p)).enumerate() {
-        let wj = g * b[j];
+        let (wj, gv) = (b[j], f64x4::splat(g));
         let sj = s[j];
         let (wjv, sjv) = (f64x4::splat(wj), f64x4::splat(sj));
         let qcol = if WITH_Q { &q[j * p..(j + 1) * p] } else { pcol };
@@ -347,7 +348,7 @@ fn downdate<const SCALE: u8, const WITH_Q: bool>(
             .zip(s4.chunks_exact(4))
             .zip(q4.chunks_exact(4))
         {
-            let d = lanes(pi) - lanes(wi) * wjv;
+            let d = lanes(pi) - (lanes(wi) * wjv) * gv;
             let mut v = match SCALE {
                 UNIT => d,
                 UNIFORM => cv * d,
@@ -363,7 +364,7 @@ fn downdate<const SCALE: u8, const WITH_Q: bool>(
             }
         }
         for ((((wo, &pij), &wi), &si), &qi) in wor.iter_mut().zip(pr).zip(wr).zip(sr).zip(qr) {
-            let d = pij - wi * wj;
+            let d = pij - (wi * wj) * g;
             let mut v = match SCALE {
                 UNIT => d,
                 UNIFORM => c * d,
