@@ -109,6 +109,9 @@ impl ParamModel for ModelChoice {
     fn eval<T: Scalar>(&self, inputs: &[f64], params: &[T]) -> T {
         delegate!(self, m => m.eval(inputs, params))
     }
+    fn eval_many(&self, inputs: &[f64], params: &[f64], out: &mut [f64]) {
+        delegate!(self, m => m.eval_many(inputs, params, out))
+    }
     fn value_and_gradient_with(
         &self,
         engine: &mut GradientEngine,

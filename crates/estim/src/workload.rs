@@ -139,6 +139,16 @@ mod tests {
                 );
             }
         }
+        // The sigma points' batch equals eval of each, bit for bit.
+        let points: Vec<f64> = (0..21)
+            .flat_map(|k| Bench10::NOMINAL.map(|v| v * (1.0 + 0.001 * k as f64)))
+            .collect();
+        let mut out = [0.0; 21];
+        let u = Bench10::inputs_at(123);
+        m.eval_many(&u, &points, &mut out);
+        for (o, p) in out.iter().zip(points.chunks_exact(10)) {
+            assert_eq!(o.to_bits(), m.eval::<f64>(&u, p).to_bits());
+        }
         // The same model in bench/peers/peers.py (written independently in Python) gives:
         let py = [
             (37, 1.0, -170.84784064532332),
