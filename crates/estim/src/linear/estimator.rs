@@ -1,6 +1,7 @@
 //! The estimator's construction, its step (the engine of the module docs, and DSFC's
 //! square-root form) and its accessors.
 
+use super::kernels::*;
 use super::*;
 
 impl LinearEstimator {
