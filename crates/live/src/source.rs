@@ -360,12 +360,21 @@ impl Pacer {
 
     /// Sleep until recording time `t_s` is due (the first call sets the origin).
     pub fn wait_until(&mut self, t_s: f64) {
-        let Pace::Factor(f) = self.pace else { return };
-        let (wall0, t0) = *self.start.get_or_insert((Instant::now(), t_s));
-        let due = Duration::from_secs_f64(((t_s - t0) / f).max(0.0));
-        if let Some(left) = due.checked_sub(wall0.elapsed()) {
+        if let Some(left) = self.left_until(t_s) {
             std::thread::sleep(left);
         }
+    }
+
+    /// How long until recording time `t_s` is due (the first call sets the origin); `None`:
+    /// it is due now (or the pace is `max`). For a caller that waits in its own way (a NATS
+    /// publisher waits inside its client's event loop).
+    pub fn left_until(&mut self, t_s: f64) -> Option<Duration> {
+        let Pace::Factor(f) = self.pace else {
+            return None;
+        };
+        let (wall0, t0) = *self.start.get_or_insert((Instant::now(), t_s));
+        let due = Duration::from_secs_f64(((t_s - t0) / f).max(0.0));
+        due.checked_sub(wall0.elapsed())
     }
 
     /// Move the origin later by `d` (a pause): the run goes on from where it was, not racing to

@@ -64,9 +64,13 @@ struct FleetArgs {
     /// Workers (threads of this process).
     #[arg(long, default_value_t = 1)]
     workers: usize,
-    /// A publisher's chunk [s].
+    /// A publisher's chunk [s]: how much its data acquisition hands on at a time.
     #[arg(long, default_value_t = 0.02, value_parser = super::range::positive)]
     chunk: f64,
+    /// The least recording time a frame carries [s] (`physid live --nats --frame`): chunks are
+    /// gathered into frames of this much. 0: a frame per chunk.
+    #[arg(long, default_value_t = physid_live::fleet::publish::FRAME_S, value_parser = super::range::nonnegative)]
+    frame: f64,
     /// An existing server instead of a local one (its traffic is then not reported).
     #[arg(long, value_name = "URL")]
     nats: Option<String>,
@@ -114,6 +118,7 @@ fn fleet(a: &FleetArgs) -> Result<()> {
             rpm: (a.rpm_min, a.rpm_max),
             workers: a.workers,
             chunk_s: a.chunk,
+            frame_s: a.frame,
         };
         let r =
             load::run_load(&target, server.as_ref(), &cfg).map_err(|e| miette::miette!("{e}"))?;

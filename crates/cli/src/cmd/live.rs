@@ -132,6 +132,11 @@ pub struct Args {
     /// The cell id on the fleet (1–64 of A–Z a–z 0–9 - _).
     #[arg(long, value_name = "ID", requires = "nats")]
     cell: Option<String>,
+    /// With --nats: the least recording time one frame carries [s]; the chunks are gathered
+    /// until they hold this much (fewer, larger messages: the fleet's cost is mostly per
+    /// message). 0: a frame per chunk.
+    #[arg(long = "frame", value_name = "S", default_value_t = physid_live::fleet::publish::FRAME_S, requires = "nats", value_parser = super::range::nonnegative, allow_negative_numbers = true)]
+    frame: f64,
     /// A file with the NATS credentials: `user = …` and `password = …`, or `token = …`.
     #[arg(long, value_name = "FILE")]
     nats_credentials: Option<PathBuf>,
@@ -258,6 +263,7 @@ fn publish(
         source_name: what,
         theta_tdc,
         give_up: std::time::Duration::from_secs(60),
+        frame_s: a.frame,
     };
     let stop = super::stop_on_signal()?;
     eprintln!("physid live: cell {cell} publishing to {}", target.address);

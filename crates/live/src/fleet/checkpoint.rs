@@ -32,7 +32,9 @@ pub(super) struct Checkpoint {
     pub stream_seq: u64,
     /// The run's end frame has been processed.
     pub done: bool,
-    /// The stages' state (empty when done, or when it is in [`parts`](Self::parts)).
+    /// The stages' state (empty when done, or when it is in [`parts`](Self::parts)): a
+    /// MessagePack `bin` (an array of numbers, as written before, is read too).
+    #[serde(with = "serde_bytes")]
     pub state: Vec<u8>,
     /// Where the state is when it did not fit in the record.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -199,5 +201,61 @@ pub(super) async fn finished(fleet: &Fleet, cell: &str, run: u64) -> bool {
             rmp_serde::from_slice::<Checkpoint>(&v).is_ok_and(|c| c.run == run && c.done)
         }
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(state: Vec<u8>) -> Checkpoint {
+        Checkpoint {
+            run: 7,
+            seq: 3,
+            stream_seq: 4,
+            done: false,
+            state,
+            parts: None,
+        }
+    }
+
+    /// The state is a MessagePack `bin` (its length and the bytes: a byte per byte), and a
+    /// record written before, with the state as an array of numbers, still reads.
+    #[test]
+    fn the_state_is_bytes_and_the_old_layout_reads() {
+        let state: Vec<u8> = (0..=255).collect();
+        let bytes = rmp_serde::to_vec_named(&record(state.clone())).expect("encode");
+        // bin 16 marker (0xc5), the length 256, then the bytes as they are.
+        let at = bytes
+            .windows(3)
+            .position(|w| w == [0xc5, 0x01, 0x00])
+            .expect("a bin 16 of 256 bytes");
+        assert_eq!(&bytes[at + 3..at + 3 + 256], &state[..]);
+        assert_eq!(
+            rmp_serde::from_slice::<Checkpoint>(&bytes)
+                .expect("decode")
+                .state,
+            state
+        );
+        /// The layout before: `state` a sequence of integers.
+        #[derive(Serialize)]
+        struct Before {
+            run: u64,
+            seq: u64,
+            stream_seq: u64,
+            done: bool,
+            state: Vec<u8>,
+        }
+        let old = rmp_serde::to_vec_named(&Before {
+            run: 7,
+            seq: 3,
+            stream_seq: 4,
+            done: false,
+            state: state.clone(),
+        })
+        .expect("encode");
+        assert!(old.len() > bytes.len(), "the old layout is larger");
+        let c = rmp_serde::from_slice::<Checkpoint>(&old).expect("the old layout reads");
+        assert_eq!((c.run, c.seq, c.stream_seq, c.state), (7, 3, 4, state));
     }
 }

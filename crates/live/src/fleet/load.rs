@@ -59,6 +59,8 @@ pub struct LoadConfig {
     pub workers: usize,
     /// Chunk length of a publisher [s].
     pub chunk_s: f64,
+    /// The least recording time a frame carries [s] ([`PublishConfig::frame_s`]).
+    pub frame_s: f64,
 }
 
 /// What a load run measured.
@@ -277,6 +279,7 @@ pub fn run_load(
             source_name: format!("bench fleet, {:.0} rpm", rate / 6.0),
             theta_tdc: 0.0,
             give_up: Duration::from_secs(60),
+            frame_s: cfg.frame_s,
         };
         let mut source = ReplaySource::new(rec.clone(), cfg.chunk_s)?;
         let (target, stop, starts) = (

@@ -16,9 +16,9 @@ use crate::wire::{self, Frame};
 use futures_util::StreamExt;
 use physid_core::{Basis, Recording};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use tokio::sync::mpsc::UnboundedReceiver;
 
 /// How a cell publishes.
 #[derive(Debug, Clone)]
@@ -33,7 +33,16 @@ pub struct PublishConfig {
     pub theta_tdc: f64,
     /// Give up a frame the server has not acknowledged for this long (the server is gone).
     pub give_up: Duration,
+    /// The least recording time a frame carries [s]: the source's chunks are gathered until
+    /// they hold this much, then published as one frame (0: a frame per chunk). The server's
+    /// and the worker's cost is mostly per message, not per sample (BENCHMARKS.md, issue 47);
+    /// the price is up to this much more latency.
+    pub frame_s: f64,
 }
+
+/// The default of [`PublishConfig::frame_s`] [s]: 20 frames a second per cell, a latency the
+/// shaft monitor's 34 ms look-ahead and its alarms' dwell already exceed.
+pub const FRAME_S: f64 = 0.05;
 
 /// What a publisher did.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,8 +80,10 @@ pub fn publish(
             cfg.cell
         )));
     }
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
+    // The client runs on this thread: every wait (the pace, an acknowledgement, a control while
+    // paused) is inside `block_on`, which drives the connection and answers the controls; no
+    // second thread to wake per frame.
+    let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
         .map_err(|e| FleetError::Invalid(format!("starting the NATS client: {e}")))?;
@@ -96,7 +107,7 @@ pub fn publish(
     rt.block_on(fleet.cells.put(&cfg.cell, json.into()))
         .map_err(|e| nats(format!("registering cell {}", cfg.cell))(e.into()))?;
     // Controls: answered by the loop between chunks.
-    let (tx, rx) = std::sync::mpsc::channel::<Request>();
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Request>();
     let control_subject = subject(&cfg.cell, "control");
     let mut sub = rt
         .block_on(client.subscribe(control_subject.clone()))
@@ -132,6 +143,7 @@ pub fn publish(
         events: 0,
         last_t: f64::NAN,
         max_payload: client.server_info().max_payload,
+        pending: None,
         stop,
     };
     let mut pacer = Pacer::new(cfg.pace);
@@ -141,7 +153,7 @@ pub fn publish(
         if p.stop.load(Ordering::Relaxed) {
             break;
         }
-        if p.controls(&rx, source, &mut paused, &mut pacer)? {
+        if p.controls(&mut rx, source, &mut paused, &mut pacer)? {
             break;
         }
         if paused {
@@ -165,18 +177,17 @@ pub fn publish(
             continue;
         }
         let t = chunk.values("t").map_err(crate::LiveError::from)?;
-        pacer.wait_until(t[t.len() - 1]);
-        p.last_t = t[t.len() - 1];
-        let mut at = 0;
-        while at < chunk.len() {
-            let n = (chunk.len() - at).min(max_rows(p.max_payload, chunk.channels().len()));
-            p.frame(chunk.slice(at..at + n), false)?;
-            at += n;
+        if let Some(left) = pacer.left_until(t[t.len() - 1]) {
+            rt.block_on(async { tokio::time::sleep(left).await });
         }
-        if let Some(late) = pacer.since_due(p.last_t) {
-            behind = Some(behind.map_or(late, |b: f64| b.max(late)));
+        p.last_t = t[t.len() - 1];
+        if p.hold(chunk)? {
+            if let Some(late) = pacer.since_due(p.last_t) {
+                behind = Some(behind.map_or(late, |b: f64| b.max(late)));
+            }
         }
     }
+    p.flush()?;
     p.frame(Recording::new(Basis::Time), true)?;
     Ok(PublishSummary {
         frames: p.seq,
@@ -208,10 +219,51 @@ struct Publisher<'a> {
     events: u64,
     last_t: f64,
     max_payload: usize,
+    /// Chunks gathered for the next frame (see [`PublishConfig::frame_s`]).
+    pending: Option<Recording>,
     stop: Arc<AtomicBool>,
 }
 
 impl Publisher<'_> {
+    /// Gather `chunk` for the next frame; publish when the frame holds
+    /// [`PublishConfig::frame_s`] of recording. `true`: published.
+    fn hold(&mut self, chunk: Recording) -> Result<bool, FleetError> {
+        match self.pending.as_mut() {
+            // A chunk of other channels (frames from outside may change them) starts a frame.
+            Some(held) if held.names() == chunk.names() => {
+                held.append(&chunk).map_err(crate::LiveError::from)?
+            }
+            _ => {
+                self.flush()?;
+                self.pending = Some(chunk);
+            }
+        }
+        let rows = self.pending.as_ref().map_or(0, Recording::len);
+        if rows as f64 >= self.cfg.frame_s * self.rate_hz {
+            self.flush()?;
+            return Ok(true);
+        }
+        Ok(false)
+    }
+
+    /// Publish the chunks gathered, in frames no larger than the server takes.
+    fn flush(&mut self) -> Result<(), FleetError> {
+        let Some(chunk) = self.pending.take() else {
+            return Ok(());
+        };
+        let rows = max_rows(self.max_payload, chunk.channels().len());
+        if chunk.len() <= rows {
+            return self.frame(chunk, false);
+        }
+        let mut at = 0;
+        while at < chunk.len() {
+            let n = (chunk.len() - at).min(rows);
+            self.frame(chunk.slice(at..at + n), false)?;
+            at += n;
+        }
+        Ok(())
+    }
+
     /// Publish one frame, until the stream has it.
     fn frame(&mut self, chunk: Recording, end: bool) -> Result<(), FleetError> {
         self.seq += 1;
@@ -255,7 +307,7 @@ impl Publisher<'_> {
     /// Apply the control messages waiting; while paused, wait for them. `true`: stop.
     fn controls(
         &mut self,
-        rx: &Receiver<Request>,
+        rx: &mut UnboundedReceiver<Request>,
         source: &mut dyn Source,
         paused: &mut bool,
         pacer: &mut Pacer,
@@ -264,14 +316,19 @@ impl Publisher<'_> {
         let mut stop = false;
         loop {
             let req = if *paused && !stop {
+                if paused_at.is_none() {
+                    // Nothing held back while the cell is paused.
+                    self.flush()?;
+                }
                 paused_at.get_or_insert_with(Instant::now);
-                match rx.recv_timeout(Duration::from_millis(50)) {
-                    Ok(r) => r,
-                    Err(RecvTimeoutError::Timeout) if self.stop.load(Ordering::Relaxed) => {
-                        return Ok(true)
-                    }
-                    Err(RecvTimeoutError::Timeout) => continue,
-                    Err(RecvTimeoutError::Disconnected) => return Ok(true),
+                let next = self.rt.block_on(async {
+                    tokio::time::timeout(Duration::from_millis(50), rx.recv()).await
+                });
+                match next {
+                    Ok(Some(r)) => r,
+                    Err(_) if self.stop.load(Ordering::Relaxed) => return Ok(true),
+                    Err(_) => continue,
+                    Ok(None) => return Ok(true),
                 }
             } else {
                 match rx.try_recv() {
