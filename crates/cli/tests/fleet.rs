@@ -657,6 +657,110 @@ fn wait_for_bucket(url: &str) {
     }
 }
 
+/// The frames stored for `cell`, decoded, in order.
+fn frames(url: &str, cell: &str) -> Vec<Frame> {
+    rt().block_on(async {
+        let js = async_nats::jetstream::new(client(url).await);
+        let stream = js.get_stream("PHYSID_SAMPLES").await.expect("the stream");
+        let subject = format!("physid.cell.{cell}.samples");
+        let mut count = 0;
+        let mut s = stream.info_with_subjects(&subject).await.expect("info");
+        while let Some(Ok((_, n))) = s.next().await {
+            count += n;
+        }
+        let consumer = stream
+            .create_consumer(async_nats::jetstream::consumer::pull::OrderedConfig {
+                filter_subject: subject,
+                ..Default::default()
+            })
+            .await
+            .expect("consumer");
+        let mut messages = consumer.messages().await.expect("messages");
+        let mut out = Vec::new();
+        while out.len() < count {
+            let m = tokio::time::timeout(Duration::from_secs(5), messages.next())
+                .await
+                .expect("a frame within 5 s")
+                .expect("a frame")
+                .expect("a frame");
+            out.push(wire::decode(&m.payload).expect("a frame"));
+        }
+        out
+    })
+}
+
+/// A publisher gathers its source's 10 ms chunks into frames of `--frame` seconds (0.05 by
+/// default: fewer, larger messages), or sends a frame per chunk at `--frame 0`; either way
+/// every sample once, in order, the frames numbered 1, 2, 3, … and the last an empty end.
+#[test]
+fn a_publisher_gathers_its_chunks_into_frames() {
+    let Some(server) = nats_server(&[]) else {
+        return;
+    };
+    let url = server.url("");
+    for (cell, frame, rows) in [
+        ("g", None, 500),
+        ("g0", Some("0"), 100),
+        ("g2", Some("0.2"), 2000),
+    ] {
+        let mut args = vec![
+            "live",
+            "--nats",
+            &url,
+            "--cell",
+            cell,
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "1",
+            "--pace",
+            "max",
+            "--chunk",
+            "0.01",
+            "--json",
+        ];
+        if let Some(f) = frame {
+            args.extend_from_slice(&["--frame", f]);
+        }
+        let out = Proc::start(&args).wait(60);
+        assert!(out.status.success(), "{}", out.stderr);
+        let summary: Value = serde_json::from_str(out.stdout.trim()).expect("summary");
+        let got = frames(&url, cell);
+        assert_eq!(summary["frames"], got.len(), "{cell}");
+        let (last, data) = got.split_last().expect("frames");
+        assert!(
+            last.end && last.chunk.is_empty(),
+            "{cell}: the end frame last"
+        );
+        let mut first = 0;
+        for (k, f) in data.iter().enumerate() {
+            assert_eq!(f.seq, k as u64 + 1);
+            assert_eq!(f.first_sample, first);
+            assert!(!f.end);
+            // Every frame but the run's last holds the whole number of 10 ms chunks nearest
+            // to `--frame` (a chunk is 99–101 samples).
+            let n = f.chunk.len() as i64;
+            if k + 1 < data.len() {
+                let chunks = (rows / 100).max(1) as i64;
+                assert!(
+                    (n - rows as i64).abs() <= chunks,
+                    "{cell}: frame {} of {n} samples",
+                    f.seq
+                );
+            } else {
+                assert!((1..=rows as i64 + 5).contains(&n), "{cell}");
+            }
+            first += f.chunk.len() as u64;
+        }
+        assert_eq!(summary["samples"], first, "{cell}: every sample once");
+        let t: Vec<f64> = data
+            .iter()
+            .flat_map(|f| f.chunk.values("t").unwrap().to_vec())
+            .collect();
+        assert!(t.windows(2).all(|w| w[1] > w[0]), "{cell}: in order");
+    }
+}
+
 /// A server that requires credentials refuses a client without them or with wrong ones: the
 /// worker and the publisher exit at once with an authentication error that shows no secret.
 #[test]

@@ -67,9 +67,9 @@ struct FleetArgs {
     /// A publisher's chunk [s]: how much its data acquisition hands on at a time.
     #[arg(long, default_value_t = 0.02, value_parser = super::range::positive)]
     chunk: f64,
-    /// The least recording time a frame carries [s] (`physid live --nats --frame`): chunks are
-    /// gathered into frames of this much. 0: a frame per chunk.
-    #[arg(long, default_value_t = physid_live::fleet::publish::FRAME_S, value_parser = super::range::nonnegative)]
+    /// The recording time a frame carries [s] (`physid live --nats --frame`): the chunks are
+    /// gathered into frames of this much, to the nearest chunk. 0: a frame per chunk.
+    #[arg(long, value_name = "S", default_value_t = physid_live::fleet::publish::FRAME_S, value_parser = super::range::nonnegative)]
     frame: f64,
     /// An existing server instead of a local one (its traffic is then not reported).
     #[arg(long, value_name = "URL")]

@@ -132,9 +132,9 @@ pub struct Args {
     /// The cell id on the fleet (1–64 of A–Z a–z 0–9 - _).
     #[arg(long, value_name = "ID", requires = "nats")]
     cell: Option<String>,
-    /// With --nats: the least recording time one frame carries [s]; the chunks are gathered
-    /// until they hold this much (fewer, larger messages: the fleet's cost is mostly per
-    /// message). 0: a frame per chunk.
+    /// With --nats: the recording time one frame carries [s]; the chunks are gathered into
+    /// frames of this much, to the nearest chunk (fewer, larger messages: the fleet's cost is
+    /// mostly per message). 0: a frame per chunk.
     #[arg(long = "frame", value_name = "S", default_value_t = physid_live::fleet::publish::FRAME_S, requires = "nats", value_parser = super::range::nonnegative, allow_negative_numbers = true)]
     frame: f64,
     /// A file with the NATS credentials: `user = …` and `password = …`, or `token = …`.

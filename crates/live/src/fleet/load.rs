@@ -59,7 +59,7 @@ pub struct LoadConfig {
     pub workers: usize,
     /// Chunk length of a publisher [s].
     pub chunk_s: f64,
-    /// The least recording time a frame carries [s] ([`PublishConfig::frame_s`]).
+    /// The recording time a frame carries [s] ([`PublishConfig::frame_s`]).
     pub frame_s: f64,
 }
 

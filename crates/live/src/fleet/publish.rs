@@ -1,8 +1,8 @@
 //! `physid live --nats URL --cell ID`: a cell's samples on the fleet. The source's chunks (the
-//! virtual test cell, a replayed recording) are cut into frames small enough for the server's
-//! message size, numbered, and published to `physid.cell.<ID>.samples` with the message id
-//! `<ID>/<run>/<seq>` — a frame sent again after a lost acknowledgement (a server restart) is
-//! stored once. Each frame is sent until the stream acknowledges it: none is lost while the
+//! virtual test cell, a replayed recording) are gathered into frames of
+//! [`PublishConfig::frame_s`] (cut where the server's message size needs it), numbered, and
+//! published to `physid.cell.<ID>.samples` with the message id `<ID>/<run>/<seq>` — a frame
+//! sent again after a lost acknowledgement (a server restart) is stored once. Each frame is sent until the stream acknowledges it: none is lost while the
 //! server is away; the source waits. Control messages (`physid.cell.<ID>.control`, request and
 //! reply, the JSON of `physid live`'s controls) are applied between chunks; each is answered
 //! and reported on the events subject as the local live service reports it.
@@ -33,10 +33,10 @@ pub struct PublishConfig {
     pub theta_tdc: f64,
     /// Give up a frame the server has not acknowledged for this long (the server is gone).
     pub give_up: Duration,
-    /// The least recording time a frame carries [s]: the source's chunks are gathered until
-    /// they hold this much, then published as one frame (0: a frame per chunk). The server's
-    /// and the worker's cost is mostly per message, not per sample (BENCHMARKS.md, issue 47);
-    /// the price is up to this much more latency.
+    /// The recording time a frame carries [s]: the source's chunks are gathered into frames of
+    /// this much, to the nearest chunk (0: a frame per chunk). The server's and the worker's
+    /// cost is mostly per message, not per sample (BENCHMARKS.md, issue 47); the price is up
+    /// to this much more latency.
     pub frame_s: f64,
 }
 
@@ -226,8 +226,10 @@ struct Publisher<'a> {
 
 impl Publisher<'_> {
     /// Gather `chunk` for the next frame; publish when the frame holds
-    /// [`PublishConfig::frame_s`] of recording. `true`: published.
+    /// [`PublishConfig::frame_s`] of recording, to the nearest chunk (a source's chunks may
+    /// differ by a sample: 99 and 100 rows). `true`: published.
     fn hold(&mut self, chunk: Recording) -> Result<bool, FleetError> {
+        let last = chunk.len();
         match self.pending.as_mut() {
             // A chunk of other channels (frames from outside may change them) starts a frame.
             Some(held) if held.names() == chunk.names() => {
@@ -239,7 +241,10 @@ impl Publisher<'_> {
             }
         }
         let rows = self.pending.as_ref().map_or(0, Recording::len);
-        if rows as f64 >= self.cfg.frame_s * self.rate_hz {
+        // Another chunk like the last would overshoot at least as much as this falls short
+        // (the target in whole samples: a tie is a tie at any rate).
+        let target = (self.cfg.frame_s * self.rate_hz).round();
+        if rows as f64 + last as f64 / 2.0 >= target {
             self.flush()?;
             return Ok(true);
         }
