@@ -6,7 +6,7 @@
 //! peers are timed on identical data.
 
 use crate::{CovSpec, EstimError, EstimatorConfig, LinearEstimator, Method, VfVariant};
-use physid_core::ParamSet;
+use physid_core::{ParamModel, ParamSet};
 
 /// The five linear methods at the tuning used in the thesis's experiments (λ = 0.98, §6).
 pub fn standard_methods(p: usize) -> Vec<Method> {
@@ -273,24 +273,60 @@ impl Bench10 {
     }
 }
 
-/// An estimator of every parameter of [`Bench10`] and its input stream, ready to be timed.
+/// [`Bench10`] written as a formula (`physid estimate --expr`, `physid.UKF` from Python): the
+/// slider-crank term written out wherever it occurs, as a user would type it. Parameters
+/// [`BENCH10_FORMULA_PARAMS`] (Bench10's `k1 … k4` are `m b l r`).
+pub const BENCH10_FORMULA: &str =
+    "(b^2*0.7853981633974483)*r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))*f \
+     - m*r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))\
+     *(r*((r/l)*cos(q)/((1-(r*sin(q)/l)^2)*sqrt(1-(r*sin(q)/l)^2))+1)*cos(q)*w^2 \
+     + r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))*a) \
+     - (k5 + k6*w + k7*s + k8*w^2 + k9*w*s + k10*s^2)";
+
+/// The parameters of [`BENCH10_FORMULA`], in [`Bench10::NOMINAL`]'s order.
+pub const BENCH10_FORMULA_PARAMS: [&str; 10] =
+    ["m", "b", "l", "r", "k5", "k6", "k7", "k8", "k9", "k10"];
+
+/// An estimator of every parameter of [`Bench10`] (or of the same model as a formula) and its
+/// input stream, ready to be timed.
 #[derive(Debug, Clone)]
-pub struct NonlinearWorkload {
+pub struct NonlinearWorkload<M: ParamModel = Bench10> {
     /// The estimator.
-    pub estimator: crate::NonlinearEstimator<Bench10>,
-    inputs: Vec<[f64; 5]>,
+    pub estimator: crate::NonlinearEstimator<M>,
+    inputs: Vec<Vec<f64>>,
     y: Vec<f64>,
     next: usize,
 }
 
-impl NonlinearWorkload {
-    /// `method` at scaled coordinates (P0 = 1e-4·I, i.e. 1 % per parameter), R2 = 1, over `n`
-    /// cycled samples generated from the nominal parameters perturbed by 2 %.
+impl NonlinearWorkload<Bench10> {
+    /// `method` over [`Bench10`] written in Rust (see [`with_model`](Self::with_model)).
     pub fn new(method: crate::NlMethod, n: usize) -> Result<Self, EstimError> {
-        use physid_core::ParamModel;
-        let model = Bench10::default();
+        Self::with_model(Bench10::default(), method, n)
+    }
+}
+
+impl<M: ParamModel> NonlinearWorkload<M> {
+    /// `method` at scaled coordinates (P0 = 1e-4·I, i.e. 1 % per parameter), R2 = 1, over `n`
+    /// cycled samples of [`Bench10::inputs_at`] (taken by input name: `q w a f s`), the output
+    /// from the nominal parameters perturbed by 2 %.
+    pub fn with_model(model: M, method: crate::NlMethod, n: usize) -> Result<Self, EstimError> {
+        const NAMES: [&str; 5] = ["q", "w", "a", "f", "s"];
+        let order = model
+            .input_names()
+            .iter()
+            .map(|name| {
+                NAMES.iter().position(|n| n == name).ok_or_else(|| {
+                    EstimError::InvalidConfig(format!("input '{name}': not one of {NAMES:?}"))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         let truth: Vec<f64> = Bench10::NOMINAL.iter().map(|v| v * 1.02).collect();
-        let inputs: Vec<[f64; 5]> = (0..n.max(1)).map(Bench10::inputs_at).collect();
+        let inputs: Vec<Vec<f64>> = (0..n.max(1))
+            .map(|k| {
+                let u = Bench10::inputs_at(k);
+                order.iter().map(|&i| u[i]).collect()
+            })
+            .collect();
         let y = inputs
             .iter()
             .map(|u| model.eval::<f64>(u, &truth))

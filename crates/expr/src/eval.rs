@@ -102,4 +102,10 @@ impl ParamModel for ExprModel {
             None => self.ev::<T, true>(self.root, inputs, params),
         }
     }
+
+    /// The sigma points through the formula's tape (`tape.rs`): each distinct operation once
+    /// over all the points, the parameter-free ones once.
+    fn eval_many(&self, inputs: &[f64], params: &[f64], out: &mut [f64]) {
+        self.tape.eval_many(inputs, params, out);
+    }
 }

@@ -28,5 +28,6 @@
 mod compiled;
 mod eval;
 mod parse;
+mod tape;
 
 pub use parse::{ExprError, ExprModel, MAX_PARAMS};

@@ -115,7 +115,7 @@ const FUNCTIONS: &str =
     "sqrt, exp, ln (also log), log10, sin, cos, tan, asin, acos, atan, abs, pow, min, max";
 
 /// One-argument functions.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub(crate) enum Func {
     Sqrt,
     Exp,
@@ -218,6 +218,8 @@ pub struct ExprModel {
     input_columns: Vec<usize>,
     /// The formula compiled for `f64` and the gradient dual.
     pub(crate) compiled: crate::compiled::CompiledSet,
+    /// Its distinct operations, for many parameter vectors at once (shared between clones).
+    pub(crate) tape: std::sync::Arc<crate::tape::Tape>,
 }
 
 /// What an [`ExprModel`] is made from: its serialised form.
@@ -583,8 +585,10 @@ impl ExprModel {
             inputs,
             input_columns,
             compiled: Default::default(),
+            tape: Default::default(),
         };
         model.compiled = crate::compiled::CompiledSet::new(&model);
+        model.tape = std::sync::Arc::new(crate::tape::Tape::new(&model));
         Ok(model)
     }
 

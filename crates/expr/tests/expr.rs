@@ -330,3 +330,55 @@ fn a_formula_of_too_many_parameters_is_refused() {
     let (text, names) = formula(physid_expr::MAX_PARAMS);
     assert_eq!(ExprModel::parse(&text, &names).unwrap().params().len(), 200);
 }
+
+/// The Bench10 model of `physid_estim::workload` as a formula (what `crates/py/bench.py` runs):
+/// the slider-crank term written out each time it occurs.
+const BENCH10: &str =
+    "(b^2*0.7853981633974483)*r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))*f \
+     - m*r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))\
+     *(r*((r/l)*cos(q)/((1-(r*sin(q)/l)^2)*sqrt(1-(r*sin(q)/l)^2))+1)*cos(q)*w^2 \
+     + r*(abs(r*sin(q)/l)/sqrt(1-(r*sin(q)/l)^2)*cos(q)+sin(q))*a) \
+     - (k5 + k6*w + k7*s + k8*w^2 + k9*w*s + k10*s^2)";
+
+/// `eval_many` (the formula's tape: repeats merged, each operation over all the points) equals
+/// `eval` of each point bit for bit — on formulas of every operation, with parameters that make
+/// some points NaN (a square root or logarithm of a negative number, 0/0), at 1, 3 and 21
+/// points (an unscented filter's 2p + 1 at p = 10).
+#[test]
+fn many_points_at_once_equal_each_point_bit_for_bit() {
+    let cases: [(&str, &[&str]); 5] = [
+        (
+            BENCH10,
+            &["m", "b", "l", "r", "k5", "k6", "k7", "k8", "k9", "k10"],
+        ),
+        (EX51, &["A", "B", "C", "D", "E", "F"]),
+        (
+            "sqrt(A)*exp(-B*x) + ln(C)*log10(abs(y)+1) - tan(A*x)/(1+asin(D/3)^2) \
+             + acos(D/3)*atan(B) + pow(abs(x)+1, C) + A^-2 + (B*y)^5 + min(A*x, B) \
+             - max(C, D*y) + -(A) + x^y + sin(x)*cos(y)",
+            &["A", "B", "C", "D"],
+        ),
+        ("A*x + A*x + (A*x)^2 + x*2 + sin(x)", &["A"]),
+        ("(x*y + 3)^2 - A", &["A"]),
+    ];
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    for (text, names) in cases {
+        let m = ExprModel::parse(text, names).unwrap();
+        let (np, ni) = (m.param_names().len(), m.input_names().len());
+        for n in [1, 3, 21] {
+            for _ in 0..200 {
+                let u: Vec<f64> = (0..ni).map(|_| rng.random_range(-3.0..3.0)).collect();
+                let p: Vec<f64> = (0..n * np).map(|_| rng.random_range(-2.0..2.0)).collect();
+                let mut out = vec![0.0; n];
+                m.eval_many(&u, &p, &mut out);
+                for (k, o) in out.iter().enumerate() {
+                    let one = m.eval::<f64>(&u, &p[k * np..(k + 1) * np]);
+                    assert!(
+                        o.to_bits() == one.to_bits() || (o.is_nan() && one.is_nan()),
+                        "{text}: point {k} of {n}: {o} against {one}"
+                    );
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,295 @@
+//! The formula as a tape for many parameter vectors at once — an unscented filter's sigma
+//! points ([`ParamModel::eval_many`](physid_core::ParamModel::eval_many)).
+//!
+//! The tree is flattened into its distinct operations (a subexpression written several times —
+//! `r*sin(q)/l` in a slider-crank term — is one operation, as it would be one `let` in a model
+//! written in Rust), children before parents. Each operation has a register as wide as the
+//! number of points: a parameter-free one (`sin(q)`, `w^2`) is computed once per call and
+//! broadcast; the others run as one tight loop over the points, so the dispatch on the
+//! operation is paid once per operation, not once per operation and point.
+//!
+//! The same operations on the same operands as [`ExprModel::eval`](crate::ExprModel): the
+//! results equal its values bit for bit (tested).
+
+use crate::parse::{ExprModel, Func, Node};
+use physid_core::Scalar;
+use std::cell::RefCell;
+use std::collections::HashMap;
+
+/// One distinct operation; operands are earlier registers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Op {
+    Num(f64),
+    Param(usize),
+    Input(usize),
+    Neg(u32),
+    Add(u32, u32),
+    Sub(u32, u32),
+    Mul(u32, u32),
+    Div(u32, u32),
+    Pow(u32, u32),
+    PowI(u32, i32),
+    Call(Func, u32),
+    Min(u32, u32),
+    Max(u32, u32),
+}
+
+/// An operation's identity for merging repeats (a number by its bits).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Key {
+    Num(u64),
+    Param(usize),
+    Input(usize),
+    Unary(u8, u32, i32),
+    Call(Func, u32),
+    Binary(u8, u32, u32),
+}
+
+impl Op {
+    fn key(self) -> Key {
+        match self {
+            Op::Num(v) => Key::Num(v.to_bits()),
+            Op::Param(k) => Key::Param(k),
+            Op::Input(k) => Key::Input(k),
+            Op::Neg(a) => Key::Unary(0, a, 0),
+            Op::PowI(a, n) => Key::Unary(1, a, n),
+            Op::Call(f, a) => Key::Call(f, a),
+            Op::Add(a, b) => Key::Binary(0, a, b),
+            Op::Sub(a, b) => Key::Binary(1, a, b),
+            Op::Mul(a, b) => Key::Binary(2, a, b),
+            Op::Div(a, b) => Key::Binary(3, a, b),
+            Op::Pow(a, b) => Key::Binary(4, a, b),
+            Op::Min(a, b) => Key::Binary(5, a, b),
+            Op::Max(a, b) => Key::Binary(6, a, b),
+        }
+    }
+}
+
+/// A formula's distinct operations in evaluation order.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Tape {
+    ops: Vec<Op>,
+    /// Whether each operation depends on a parameter.
+    dep: Vec<bool>,
+    root: u32,
+}
+
+thread_local! {
+    /// The registers, grown to the largest tape × points seen on this thread (then reused:
+    /// no allocation per call).
+    static REGISTERS: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
+}
+
+/// The one-argument function `f` — the calls [`ExprModel::eval`](crate::ExprModel) makes.
+#[inline(always)]
+fn call<T: Scalar>(f: Func, x: T) -> T {
+    match f {
+        Func::Sqrt => x.sqrt(),
+        Func::Exp => x.exp(),
+        Func::Ln => x.ln(),
+        Func::Log10 => x.log10(),
+        Func::Sin => x.sin(),
+        Func::Cos => x.cos(),
+        Func::Tan => x.tan(),
+        Func::Asin => x.asin(),
+        Func::Acos => x.acos(),
+        Func::Atan => x.atan(),
+        Func::Abs => x.abs(),
+    }
+}
+
+/// `x^y`, `x^e`, `x^n` as the scalar type defines them (for `f64`, the calls the generic
+/// evaluation makes — not `f64`'s own methods of the same names).
+#[inline(always)]
+fn powd<T: Scalar>(x: T, y: T) -> T {
+    x.powd(y)
+}
+#[inline(always)]
+fn powf<T: Scalar>(x: T, e: f64) -> T {
+    x.powf(e)
+}
+#[inline(always)]
+fn powi<T: Scalar>(x: T, n: i32) -> T {
+    x.powi(n)
+}
+
+/// `dst[j] = f(x[j])` over the points.
+#[inline(always)]
+fn map1(dst: &mut [f64], x: &[f64], f: impl Fn(f64) -> f64) {
+    for (d, &x) in dst.iter_mut().zip(x) {
+        *d = f(x);
+    }
+}
+
+/// `dst[j] = f(x[j], y[j])` over the points.
+#[inline(always)]
+fn map2(dst: &mut [f64], x: &[f64], y: &[f64], f: impl Fn(f64, f64) -> f64) {
+    for ((d, &x), &y) in dst.iter_mut().zip(x).zip(y) {
+        *d = f(x, y);
+    }
+}
+
+impl Tape {
+    /// The tape of `m`'s tree: the nodes reachable from the root, repeats merged.
+    pub(crate) fn new(m: &ExprModel) -> Self {
+        // Children precede parents in `m.nodes`: mark what the root reaches, walking down.
+        let mut used = vec![false; m.nodes.len()];
+        used[m.root as usize] = true;
+        for i in (0..m.nodes.len()).rev() {
+            if used[i] {
+                for c in m.nodes[i].children().into_iter().flatten() {
+                    used[c as usize] = true;
+                }
+            }
+        }
+        let mut tape = Self::default();
+        let mut seen: HashMap<Key, u32> = HashMap::new();
+        let mut reg = vec![0u32; m.nodes.len()];
+        for (i, node) in m.nodes.iter().enumerate() {
+            if !used[i] {
+                continue;
+            }
+            let r = |c: u32| reg[c as usize];
+            let op = match *node {
+                Node::Num(v) => Op::Num(v),
+                Node::Param(k) => Op::Param(k),
+                Node::Input(k) => Op::Input(k),
+                Node::Neg(a) => Op::Neg(r(a)),
+                Node::Add(a, b) => Op::Add(r(a), r(b)),
+                Node::Sub(a, b) => Op::Sub(r(a), r(b)),
+                Node::Mul(a, b) => Op::Mul(r(a), r(b)),
+                Node::Div(a, b) => Op::Div(r(a), r(b)),
+                Node::Pow(a, b) => Op::Pow(r(a), r(b)),
+                Node::PowI(a, n) => Op::PowI(r(a), n),
+                Node::Call(f, a) => Op::Call(f, r(a)),
+                Node::Min(a, b) => Op::Min(r(a), r(b)),
+                Node::Max(a, b) => Op::Max(r(a), r(b)),
+            };
+            reg[i] = *seen.entry(op.key()).or_insert_with(|| {
+                tape.ops.push(op);
+                tape.dep.push(m.dep[i]);
+                (tape.ops.len() - 1) as u32
+            });
+        }
+        tape.root = reg[m.root as usize];
+        tape
+    }
+
+    /// Distinct operations.
+    #[cfg(test)]
+    pub(crate) fn len(&self) -> usize {
+        self.ops.len()
+    }
+
+    /// The formula at inputs `u` for `out.len()` parameter vectors stored one after another in
+    /// `params`, into `out`.
+    pub(crate) fn eval_many(&self, u: &[f64], params: &[f64], out: &mut [f64]) {
+        let n = out.len();
+        if n == 0 {
+            return;
+        }
+        let len = params.len() / n;
+        REGISTERS.with(|cell| {
+            let mut regs = cell.borrow_mut();
+            if regs.len() < self.ops.len() * n {
+                regs.resize(self.ops.len() * n, 0.0);
+            }
+            for (r, (&op, &dep)) in self.ops.iter().zip(&self.dep).enumerate() {
+                let (done, rest) = regs.split_at_mut(r * n);
+                let dst = &mut rest[..n];
+                let at = |a: u32| &done[a as usize * n..(a as usize + 1) * n];
+                if !dep {
+                    // Parameter-free: once, at the first point's operands, then broadcast.
+                    let v = self.scalar(op, u, |a| done[a as usize * n]);
+                    dst.fill(v);
+                    continue;
+                }
+                match op {
+                    Op::Param(k) => {
+                        for (j, d) in dst.iter_mut().enumerate() {
+                            *d = params[j * len + k];
+                        }
+                    }
+                    Op::Neg(a) => map1(dst, at(a), |x| -x),
+                    Op::Add(a, b) => map2(dst, at(a), at(b), |x, y| x + y),
+                    Op::Sub(a, b) => map2(dst, at(a), at(b), |x, y| x - y),
+                    Op::Mul(a, b) => map2(dst, at(a), at(b), |x, y| x * y),
+                    Op::Div(a, b) => map2(dst, at(a), at(b), |x, y| x / y),
+                    Op::Pow(a, b) if self.dep[b as usize] => map2(dst, at(a), at(b), powd),
+                    Op::Pow(a, b) => map2(dst, at(a), at(b), powf),
+                    Op::PowI(a, 2) => map1(dst, at(a), |x| x * x),
+                    Op::PowI(a, 3) => map1(dst, at(a), |x| x * x * x),
+                    Op::PowI(a, n) => map1(dst, at(a), |x| powi(x, n)),
+                    Op::Call(f, a) => match f {
+                        Func::Sqrt => map1(dst, at(a), |x| call(Func::Sqrt, x)),
+                        Func::Sin => map1(dst, at(a), |x| call(Func::Sin, x)),
+                        Func::Cos => map1(dst, at(a), |x| call(Func::Cos, x)),
+                        Func::Abs => map1(dst, at(a), |x| call(Func::Abs, x)),
+                        Func::Exp => map1(dst, at(a), |x| call(Func::Exp, x)),
+                        f => map1(dst, at(a), |x| call(f, x)),
+                    },
+                    Op::Min(a, b) => map2(dst, at(a), at(b), |x, y| if y < x { y } else { x }),
+                    Op::Max(a, b) => map2(dst, at(a), at(b), |x, y| if y > x { y } else { x }),
+                    // Leaves other than parameters depend on none.
+                    Op::Num(_) | Op::Input(_) => {}
+                }
+            }
+            let root = self.root as usize;
+            out.copy_from_slice(&regs[root * n..(root + 1) * n]);
+        });
+    }
+
+    /// A parameter-free operation's value, its operands read through `at`.
+    fn scalar(&self, op: Op, u: &[f64], at: impl Fn(u32) -> f64) -> f64 {
+        match op {
+            Op::Num(v) => v,
+            Op::Input(k) => u[k],
+            Op::Param(_) => f64::NAN, // a parameter is never parameter-free
+            Op::Neg(a) => -at(a),
+            Op::Add(a, b) => at(a) + at(b),
+            Op::Sub(a, b) => at(a) - at(b),
+            Op::Mul(a, b) => at(a) * at(b),
+            Op::Div(a, b) => at(a) / at(b),
+            Op::Pow(a, b) => powf(at(a), at(b)),
+            Op::PowI(a, 2) => at(a) * at(a),
+            Op::PowI(a, 3) => at(a) * at(a) * at(a),
+            Op::PowI(a, n) => powi(at(a), n),
+            Op::Call(f, a) => call(f, at(a)),
+            Op::Min(a, b) => {
+                let (x, y) = (at(a), at(b));
+                if y < x {
+                    y
+                } else {
+                    x
+                }
+            }
+            Op::Max(a, b) => {
+                let (x, y) = (at(a), at(b));
+                if y > x {
+                    y
+                } else {
+                    x
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A subexpression written twice is one operation; the root is the last.
+    #[test]
+    fn repeats_are_one_operation() {
+        let m = ExprModel::parse("A*x + A*x + sin(x)*sin(x)", &["A"]).unwrap();
+        // A, x, A*x, A*x + A*x, sin(x), sin(x)*sin(x), the sum: 7 of the tree's 13 nodes.
+        let t = Tape::new(&m);
+        assert_eq!((m.nodes.len(), t.len()), (13, 7));
+        assert_eq!(t.root as usize, t.len() - 1);
+        let mut out = [0.0; 2];
+        t.eval_many(&[0.5], &[2.0, 3.0], &mut out);
+        let s = 0.5f64.sin();
+        assert_eq!(out, [(1.0 + 1.0) + s * s, (1.5 + 1.5) + s * s]);
+    }
+}
