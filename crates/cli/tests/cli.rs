@@ -340,12 +340,17 @@ fn bench_json_has_the_documented_shape() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
-    // 15 linear, 2 × 2 RLS over arrays (tracks, p = 2 and 20), 3 filters and the UKF over a
-    // formula, 4 model evaluations, 1 gradient, 3 identifiability, 2 + 2 test cell, 3
+    // 15 linear, 2 × 2 RLS over arrays (tracks, p = 2 and 20), 3 filters and the EKF and UKF
+    // over a formula, 4 model evaluations, 1 gradient, 3 identifiability, 2 + 2 test cell, 3
     // combustion.
-    assert_eq!(r.len(), 15 + 4 + 3 + 1 + 4 + 1 + 3 + 2 + 2 + 3);
-    let ukf_expr = r.iter().find(|e| e["name"] == "ukf_expr").unwrap();
-    assert!(ukf_expr["updates_per_s"].as_f64().unwrap() > 0.0 && ukf_expr["p"] == 10);
+    assert_eq!(r.len(), 15 + 4 + 3 + 2 + 4 + 1 + 3 + 2 + 2 + 3);
+    for name in ["ekf_expr", "ukf_expr"] {
+        let e = r.iter().find(|e| e["name"] == name).unwrap();
+        assert!(
+            e["updates_per_s"].as_f64().unwrap() > 0.0 && e["p"] == 10,
+            "{name}"
+        );
+    }
     // The combustion stage: cycles per second, and that against 4 cylinders at 6000 rpm.
     for name in ["combustion_figures", "combustion", "combustion_knock"] {
         let e = r.iter().find(|e| e["name"] == name).unwrap();

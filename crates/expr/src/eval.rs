@@ -3,7 +3,7 @@
 //! say — walks the tree here, with the same results (tested).
 
 use crate::parse::{ExprModel, Func, Node};
-use physid_core::{ParamModel, Scalar};
+use physid_core::{GradientEngine, ParamModel, Scalar};
 
 impl ExprModel {
     /// Evaluate node `i`. With `LIFT`, a subtree that does not depend on any parameter is
@@ -107,5 +107,23 @@ impl ParamModel for ExprModel {
     /// over all the points, the parameter-free ones once.
     fn eval_many(&self, inputs: &[f64], params: &[f64], out: &mut [f64]) {
         self.tape.eval_many(inputs, params, out);
+    }
+
+    /// The exact gradient through the formula's tape: forward mode as for any model, each
+    /// distinct operation once (a repeated subexpression is not differentiated again).
+    fn value_and_gradient_with(
+        &self,
+        engine: &mut GradientEngine,
+        inputs: &[f64],
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
+        if free.is_empty() {
+            return self.eval::<f64>(inputs, params);
+        }
+        engine.forward(params, free, grad, |duals| {
+            self.tape.eval_grad(inputs, duals)
+        })
     }
 }

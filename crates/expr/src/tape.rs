@@ -12,7 +12,7 @@
 //! results equal its values bit for bit (tested).
 
 use crate::parse::{ExprModel, Func, Node};
-use physid_core::Scalar;
+use physid_core::{Grad, Scalar};
 use std::cell::RefCell;
 use std::collections::HashMap;
 
@@ -78,6 +78,8 @@ thread_local! {
     /// The registers, grown to the largest tape × points seen on this thread (then reused:
     /// no allocation per call).
     static REGISTERS: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
+    /// The dual-number registers of [`Tape::eval_grad`], grown likewise.
+    static DUALS: RefCell<Vec<Grad>> = const { RefCell::new(Vec::new()) };
 }
 
 /// The one-argument function `f` — the calls [`ExprModel::eval`](crate::ExprModel) makes.
@@ -237,6 +239,85 @@ impl Tape {
             let root = self.root as usize;
             out.copy_from_slice(&regs[root * n..(root + 1) * n]);
         });
+    }
+
+    /// The formula in the gradient's dual numbers at one parameter vector: each distinct
+    /// operation once, the parameter-free ones in `f64` and promoted where a dual operation
+    /// reads them — the dual operations [`ExprModel::eval`](crate::ExprModel) makes through its
+    /// compiled closures, so value and derivatives are theirs bit for bit (tested), without
+    /// the repeats.
+    pub(crate) fn eval_grad(&self, u: &[f64], p: &[Grad]) -> Grad {
+        let n = self.ops.len();
+        REGISTERS.with(|values| {
+            DUALS.with(|duals| {
+                let (mut v, mut d) = (values.borrow_mut(), duals.borrow_mut());
+                if v.len() < n {
+                    v.resize(n, 0.0);
+                }
+                if d.len() < n {
+                    d.resize(n, Grad::from(0.0));
+                }
+                for (r, (&op, &dep)) in self.ops.iter().zip(&self.dep).enumerate() {
+                    if !dep {
+                        let (done, rest) = v.split_at_mut(r);
+                        rest[0] = self.scalar(op, u, |a| done[a as usize]);
+                        continue;
+                    }
+                    let (done, rest) = d.split_at_mut(r);
+                    let x = |a: u32| {
+                        if self.dep[a as usize] {
+                            done[a as usize]
+                        } else {
+                            Grad::from(v[a as usize])
+                        }
+                    };
+                    rest[0] = match op {
+                        Op::Param(k) => p[k],
+                        Op::Neg(a) => -x(a),
+                        Op::Add(a, b) => x(a) + x(b),
+                        Op::Sub(a, b) => x(a) - x(b),
+                        Op::Mul(a, b) => x(a) * x(b),
+                        Op::Div(a, b) => x(a) / x(b),
+                        Op::Pow(a, b) if self.dep[b as usize] => powd(x(a), x(b)),
+                        Op::Pow(a, b) => powf(x(a), v[b as usize]),
+                        Op::PowI(a, 2) => {
+                            let t = x(a);
+                            t * t
+                        }
+                        Op::PowI(a, 3) => {
+                            let t = x(a);
+                            t * t * t
+                        }
+                        Op::PowI(a, k) => powi(x(a), k),
+                        Op::Call(f, a) => call(f, x(a)),
+                        Op::Min(a, b) => {
+                            let (x, y) = (x(a), x(b));
+                            if y.value() < x.value() {
+                                y
+                            } else {
+                                x
+                            }
+                        }
+                        Op::Max(a, b) => {
+                            let (x, y) = (x(a), x(b));
+                            if y.value() > x.value() {
+                                y
+                            } else {
+                                x
+                            }
+                        }
+                        // Leaves other than parameters depend on none.
+                        Op::Num(_) | Op::Input(_) => Grad::from(f64::NAN),
+                    };
+                }
+                let root = self.root as usize;
+                if self.dep[root] {
+                    d[root]
+                } else {
+                    Grad::from(v[root])
+                }
+            })
+        })
     }
 
     /// A parameter-free operation's value, its operands read through `at`.

@@ -294,26 +294,27 @@ pub fn run(args: &Args) -> Result<()> {
         }
         results.push(json!({"name": name, "p": 10, "updates_per_s": r}));
     }
-    // The UKF over the same model typed as a formula (`--expr`): its sigma points through the
-    // formula's tape.
-    {
+    // The EKF and the UKF over the same model typed as a formula (`--expr`): its gradient and
+    // its sigma points through the formula's tape.
+    for (name, method) in [
+        ("ekf_expr", NlMethod::Ekf),
+        ("ukf_expr", NlMethod::Ukf(SigmaPoints::default())),
+    ] {
         let model = ExprModel::parse(
             physid_estim::workload::BENCH10_FORMULA,
             &physid_estim::workload::BENCH10_FORMULA_PARAMS,
         )
         .map_err(|e| miette::miette!("{e}"))?;
-        let method = NlMethod::Ukf(SigmaPoints::default());
         let mut w = NonlinearWorkload::with_model(model, method, 720).into_diagnostic()?;
         let r = rate(720, budget, || w.run(720).into_diagnostic())?;
         if !args.json {
             outln!(
-                "{:<8} {:>4} {r:>16.0} {:>14.0}   (the same model as a formula, --expr)",
-                "ukf_expr",
+                "{name:<8} {:>4} {r:>16.0} {:>14.0}   (the same model as a formula, --expr)",
                 10,
                 r / REALTIME_SAMPLES_PER_S
             );
         }
-        results.push(json!({"name": "ukf_expr", "p": 10, "updates_per_s": r}));
+        results.push(json!({"name": name, "p": 10, "updates_per_s": r}));
     }
     // Model evaluation: Example 5.1's model as an expression and written in Rust, values and
     // exact gradients (6 parameters).
