@@ -140,14 +140,14 @@ async fn client(url: &str) -> async_nats::Client {
     opts.connect(rest).await.expect("connect to nats-server")
 }
 
-/// Every event stored for `cell` so far, in order.
-fn events(url: &str, cell: &str) -> Vec<Value> {
+/// Every message stored on `subject` in `stream` so far, in order (none while the stream is
+/// not there).
+fn stored(url: &str, stream: &str, subject: String) -> Vec<Vec<u8>> {
     rt().block_on(async {
         let js = async_nats::jetstream::new(client(url).await);
-        let Ok(stream) = js.get_stream("PHYSID_EVENTS").await else {
+        let Ok(stream) = js.get_stream(stream).await else {
             return Vec::new();
         };
-        let subject = format!("physid.cell.{cell}.events");
         let mut count = 0;
         if let Ok(mut s) = stream.info_with_subjects(&subject).await {
             while let Some(Ok((_, n))) = s.next().await {
@@ -168,14 +168,23 @@ fn events(url: &str, cell: &str) -> Vec<Value> {
         let mut messages = consumer.messages().await.expect("messages");
         while out.len() < count {
             match tokio::time::timeout(Duration::from_secs(5), messages.next()).await {
-                Ok(Some(Ok(m))) => {
-                    out.push(serde_json::from_slice(&m.payload).expect("an event is JSON"))
-                }
-                other => panic!("reading events: {:?}", other.map(|o| o.map(|r| r.is_ok()))),
+                Ok(Some(Ok(m))) => out.push(m.payload.to_vec()),
+                other => panic!(
+                    "reading messages: {:?}",
+                    other.map(|o| o.map(|r| r.is_ok()))
+                ),
             }
         }
         out
     })
+}
+
+/// Every event stored for `cell` so far, in order.
+fn events(url: &str, cell: &str) -> Vec<Value> {
+    stored(url, "PHYSID_EVENTS", format!("physid.cell.{cell}.events"))
+        .iter()
+        .map(|m| serde_json::from_slice(m).expect("an event is JSON"))
+        .collect()
 }
 
 /// Wait until `cell`'s events satisfy `done` (at most `secs`).
@@ -659,34 +668,10 @@ fn wait_for_bucket(url: &str) {
 
 /// The frames stored for `cell`, decoded, in order.
 fn frames(url: &str, cell: &str) -> Vec<Frame> {
-    rt().block_on(async {
-        let js = async_nats::jetstream::new(client(url).await);
-        let stream = js.get_stream("PHYSID_SAMPLES").await.expect("the stream");
-        let subject = format!("physid.cell.{cell}.samples");
-        let mut count = 0;
-        let mut s = stream.info_with_subjects(&subject).await.expect("info");
-        while let Some(Ok((_, n))) = s.next().await {
-            count += n;
-        }
-        let consumer = stream
-            .create_consumer(async_nats::jetstream::consumer::pull::OrderedConfig {
-                filter_subject: subject,
-                ..Default::default()
-            })
-            .await
-            .expect("consumer");
-        let mut messages = consumer.messages().await.expect("messages");
-        let mut out = Vec::new();
-        while out.len() < count {
-            let m = tokio::time::timeout(Duration::from_secs(5), messages.next())
-                .await
-                .expect("a frame within 5 s")
-                .expect("a frame")
-                .expect("a frame");
-            out.push(wire::decode(&m.payload).expect("a frame"));
-        }
-        out
-    })
+    stored(url, "PHYSID_SAMPLES", format!("physid.cell.{cell}.samples"))
+        .iter()
+        .map(|m| wire::decode(m).expect("a frame"))
+        .collect()
 }
 
 /// A publisher gathers its source's 10 ms chunks into frames of `--frame` seconds (0.05 by

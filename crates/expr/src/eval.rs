@@ -2,7 +2,7 @@
 //! compiled into closures (`compiled.rs`); any other scalar type — a caller's own dual number,
 //! say — walks the tree here, with the same results (tested).
 
-use crate::parse::{ExprModel, Func, Node};
+use crate::parse::{ExprModel, Node};
 use physid_core::{GradientEngine, ParamModel, Scalar};
 
 impl ExprModel {
@@ -50,22 +50,7 @@ impl ExprModel {
                     _ => base.powi(n),
                 }
             }
-            Node::Call(f, a) => {
-                let x = self.arg::<T, LIFT>(a, u, p);
-                match f {
-                    Func::Sqrt => x.sqrt(),
-                    Func::Exp => x.exp(),
-                    Func::Ln => x.ln(),
-                    Func::Log10 => x.log10(),
-                    Func::Sin => x.sin(),
-                    Func::Cos => x.cos(),
-                    Func::Tan => x.tan(),
-                    Func::Asin => x.asin(),
-                    Func::Acos => x.acos(),
-                    Func::Atan => x.atan(),
-                    Func::Abs => x.abs(),
-                }
-            }
+            Node::Call(f, a) => f.apply(self.arg::<T, LIFT>(a, u, p)),
             Node::Min(a, b) => {
                 let (x, y) = (self.arg::<T, LIFT>(a, u, p), self.arg::<T, LIFT>(b, u, p));
                 if y.value() < x.value() {

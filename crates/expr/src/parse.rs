@@ -131,6 +131,25 @@ pub(crate) enum Func {
 }
 
 impl Func {
+    /// The function at `x`, in the scalar type's own arithmetic (for `f64`, the calls every
+    /// evaluation of a formula makes: the tree walk, the closures, the tape).
+    #[inline(always)]
+    pub(crate) fn apply<T: physid_core::Scalar>(self, x: T) -> T {
+        match self {
+            Func::Sqrt => x.sqrt(),
+            Func::Exp => x.exp(),
+            Func::Ln => x.ln(),
+            Func::Log10 => x.log10(),
+            Func::Sin => x.sin(),
+            Func::Cos => x.cos(),
+            Func::Tan => x.tan(),
+            Func::Asin => x.asin(),
+            Func::Acos => x.acos(),
+            Func::Atan => x.atan(),
+            Func::Abs => x.abs(),
+        }
+    }
+
     fn from_name(name: &str) -> Option<Self> {
         Some(match name {
             "sqrt" => Func::Sqrt,
@@ -199,6 +218,23 @@ impl Node {
             | Node::Pow(a, b)
             | Node::Min(a, b)
             | Node::Max(a, b) => [Some(a), Some(b)],
+        }
+    }
+
+    /// The same operation with each child index `c` replaced by `f(c)`.
+    pub(crate) fn with_children(self, f: impl Fn(u32) -> u32) -> Self {
+        match self {
+            Node::Num(_) | Node::Param(_) | Node::Input(_) => self,
+            Node::Neg(a) => Node::Neg(f(a)),
+            Node::Call(g, a) => Node::Call(g, f(a)),
+            Node::PowI(a, n) => Node::PowI(f(a), n),
+            Node::Add(a, b) => Node::Add(f(a), f(b)),
+            Node::Sub(a, b) => Node::Sub(f(a), f(b)),
+            Node::Mul(a, b) => Node::Mul(f(a), f(b)),
+            Node::Div(a, b) => Node::Div(f(a), f(b)),
+            Node::Pow(a, b) => Node::Pow(f(a), f(b)),
+            Node::Min(a, b) => Node::Min(f(a), f(b)),
+            Node::Max(a, b) => Node::Max(f(a), f(b)),
         }
     }
 }

@@ -16,23 +16,8 @@ use physid_core::{Grad, Scalar};
 use std::cell::RefCell;
 use std::collections::HashMap;
 
-/// One distinct operation; operands are earlier registers.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Op {
-    Num(f64),
-    Param(usize),
-    Input(usize),
-    Neg(u32),
-    Add(u32, u32),
-    Sub(u32, u32),
-    Mul(u32, u32),
-    Div(u32, u32),
-    Pow(u32, u32),
-    PowI(u32, i32),
-    Call(Func, u32),
-    Min(u32, u32),
-    Max(u32, u32),
-}
+/// One distinct operation: a tree's node whose operands are earlier registers of the tape.
+type Op = Node;
 
 /// An operation's identity for merging repeats (a number by its bits).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -45,23 +30,22 @@ enum Key {
     Binary(u8, u32, u32),
 }
 
-impl Op {
-    fn key(self) -> Key {
-        match self {
-            Op::Num(v) => Key::Num(v.to_bits()),
-            Op::Param(k) => Key::Param(k),
-            Op::Input(k) => Key::Input(k),
-            Op::Neg(a) => Key::Unary(0, a, 0),
-            Op::PowI(a, n) => Key::Unary(1, a, n),
-            Op::Call(f, a) => Key::Call(f, a),
-            Op::Add(a, b) => Key::Binary(0, a, b),
-            Op::Sub(a, b) => Key::Binary(1, a, b),
-            Op::Mul(a, b) => Key::Binary(2, a, b),
-            Op::Div(a, b) => Key::Binary(3, a, b),
-            Op::Pow(a, b) => Key::Binary(4, a, b),
-            Op::Min(a, b) => Key::Binary(5, a, b),
-            Op::Max(a, b) => Key::Binary(6, a, b),
-        }
+/// An operation's identity.
+fn key(op: Op) -> Key {
+    match op {
+        Op::Num(v) => Key::Num(v.to_bits()),
+        Op::Param(k) => Key::Param(k),
+        Op::Input(k) => Key::Input(k),
+        Op::Neg(a) => Key::Unary(0, a, 0),
+        Op::PowI(a, n) => Key::Unary(1, a, n),
+        Op::Call(f, a) => Key::Call(f, a),
+        Op::Add(a, b) => Key::Binary(0, a, b),
+        Op::Sub(a, b) => Key::Binary(1, a, b),
+        Op::Mul(a, b) => Key::Binary(2, a, b),
+        Op::Div(a, b) => Key::Binary(3, a, b),
+        Op::Pow(a, b) => Key::Binary(4, a, b),
+        Op::Min(a, b) => Key::Binary(5, a, b),
+        Op::Max(a, b) => Key::Binary(6, a, b),
     }
 }
 
@@ -80,24 +64,6 @@ thread_local! {
     static REGISTERS: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
     /// The dual-number registers of [`Tape::eval_grad`], grown likewise.
     static DUALS: RefCell<Vec<Grad>> = const { RefCell::new(Vec::new()) };
-}
-
-/// The one-argument function `f` — the calls [`ExprModel::eval`](crate::ExprModel) makes.
-#[inline(always)]
-fn call<T: Scalar>(f: Func, x: T) -> T {
-    match f {
-        Func::Sqrt => x.sqrt(),
-        Func::Exp => x.exp(),
-        Func::Ln => x.ln(),
-        Func::Log10 => x.log10(),
-        Func::Sin => x.sin(),
-        Func::Cos => x.cos(),
-        Func::Tan => x.tan(),
-        Func::Asin => x.asin(),
-        Func::Acos => x.acos(),
-        Func::Atan => x.atan(),
-        Func::Abs => x.abs(),
-    }
 }
 
 /// `x^y`, `x^e`, `x^n` as the scalar type defines them (for `f64`, the calls the generic
@@ -151,23 +117,8 @@ impl Tape {
             if !used[i] {
                 continue;
             }
-            let r = |c: u32| reg[c as usize];
-            let op = match *node {
-                Node::Num(v) => Op::Num(v),
-                Node::Param(k) => Op::Param(k),
-                Node::Input(k) => Op::Input(k),
-                Node::Neg(a) => Op::Neg(r(a)),
-                Node::Add(a, b) => Op::Add(r(a), r(b)),
-                Node::Sub(a, b) => Op::Sub(r(a), r(b)),
-                Node::Mul(a, b) => Op::Mul(r(a), r(b)),
-                Node::Div(a, b) => Op::Div(r(a), r(b)),
-                Node::Pow(a, b) => Op::Pow(r(a), r(b)),
-                Node::PowI(a, n) => Op::PowI(r(a), n),
-                Node::Call(f, a) => Op::Call(f, r(a)),
-                Node::Min(a, b) => Op::Min(r(a), r(b)),
-                Node::Max(a, b) => Op::Max(r(a), r(b)),
-            };
-            reg[i] = *seen.entry(op.key()).or_insert_with(|| {
+            let op = node.with_children(|c| reg[c as usize]);
+            reg[i] = *seen.entry(key(op)).or_insert_with(|| {
                 tape.ops.push(op);
                 tape.dep.push(m.dep[i]);
                 (tape.ops.len() - 1) as u32
@@ -223,12 +174,12 @@ impl Tape {
                     Op::PowI(a, 3) => map1(dst, at(a), |x| x * x * x),
                     Op::PowI(a, n) => map1(dst, at(a), |x| powi(x, n)),
                     Op::Call(f, a) => match f {
-                        Func::Sqrt => map1(dst, at(a), |x| call(Func::Sqrt, x)),
-                        Func::Sin => map1(dst, at(a), |x| call(Func::Sin, x)),
-                        Func::Cos => map1(dst, at(a), |x| call(Func::Cos, x)),
-                        Func::Abs => map1(dst, at(a), |x| call(Func::Abs, x)),
-                        Func::Exp => map1(dst, at(a), |x| call(Func::Exp, x)),
-                        f => map1(dst, at(a), |x| call(f, x)),
+                        Func::Sqrt => map1(dst, at(a), |x| Func::Sqrt.apply(x)),
+                        Func::Sin => map1(dst, at(a), |x| Func::Sin.apply(x)),
+                        Func::Cos => map1(dst, at(a), |x| Func::Cos.apply(x)),
+                        Func::Abs => map1(dst, at(a), |x| Func::Abs.apply(x)),
+                        Func::Exp => map1(dst, at(a), |x| Func::Exp.apply(x)),
+                        f => map1(dst, at(a), |x| f.apply(x)),
                     },
                     Op::Min(a, b) => map2(dst, at(a), at(b), |x, y| if y < x { y } else { x }),
                     Op::Max(a, b) => map2(dst, at(a), at(b), |x, y| if y > x { y } else { x }),
@@ -289,7 +240,7 @@ impl Tape {
                             t * t * t
                         }
                         Op::PowI(a, k) => powi(x(a), k),
-                        Op::Call(f, a) => call(f, x(a)),
+                        Op::Call(f, a) => f.apply(x(a)),
                         Op::Min(a, b) => {
                             let (x, y) = (x(a), x(b));
                             if y.value() < x.value() {
@@ -335,7 +286,7 @@ impl Tape {
             Op::PowI(a, 2) => at(a) * at(a),
             Op::PowI(a, 3) => at(a) * at(a) * at(a),
             Op::PowI(a, n) => powi(at(a), n),
-            Op::Call(f, a) => call(f, at(a)),
+            Op::Call(f, a) => f.apply(at(a)),
             Op::Min(a, b) => {
                 let (x, y) = (at(a), at(b));
                 if y < x {
