@@ -89,6 +89,11 @@ enum Command {
     ///
     /// Example: physid simulate --scenario shaft-steady --fault shaft.k=1200@10 --recording t01.parquet
     Simulate(cmd::simulate::Args),
+    /// The virtual test cell as an FMU (FMI 2.0 or 3.0 co-simulation, linux x86-64) for
+    /// Simulink, Dymola, FMPy and the other importers (docs/fmu.md).
+    ///
+    /// Example: physid fmu export --scenario shaft-steady --out cell.fmu --fmi 3
+    Fmu(cmd::fmu::Args),
     /// The qualitative adaptive identification loop (thesis Fig. 5.7) from a pipeline file:
     /// identifiability, estimation of the estimable subset, the objective. Exits 1 when the
     /// objective is not met.
@@ -146,6 +151,7 @@ fn main() -> miette::Result<()> {
         Command::Identify(a) => cmd::identify::run(&a),
         Command::Inspect(a) => cmd::inspect::run(&a),
         Command::Simulate(a) => cmd::simulate::run(&a),
+        Command::Fmu(a) => cmd::fmu::run(&a),
         Command::Live(a) => cmd::live::run(&a),
         Command::Worker(a) => cmd::worker::run(&a),
         Command::Monitor(a) => cmd::monitor::run(&a),

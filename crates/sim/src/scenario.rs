@@ -31,12 +31,12 @@
 
 use crate::error::SimError;
 use crate::params::CellParams;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::path::Path;
 
 /// One piece of a profile.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Shape {
     /// A constant.
@@ -96,7 +96,7 @@ pub enum Shape {
 }
 
 /// A segment of a profile.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 pub struct Segment {
     /// Start [s].
     pub t0: f64,
@@ -153,7 +153,7 @@ impl Segment {
 }
 
 /// A piecewise profile.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
 #[serde(transparent)]
 pub struct Profile {
     /// Segments in time order.
@@ -307,7 +307,7 @@ impl Fault {
 }
 
 /// A scenario.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
     /// Name.
@@ -498,6 +498,9 @@ impl Scenario {
         for p in [&mut s.speed, &mut s.throttle] {
             for seg in &mut p.segments {
                 if let Shape::Recorded { file, t, v } = &mut seg.shape {
+                    if file.is_empty() {
+                        continue; // the points given in the file itself
+                    }
                     let (tt, vv) = load_profile(&dir.join(file.as_str()))
                         .map_err(|e| format!("{name_or_file}: recorded profile {file}: {e}"))?;
                     *t = tt;
@@ -530,6 +533,14 @@ impl Scenario {
                 )));
             }
             for s in &p.segments {
+                if let Shape::Recorded { t, v, .. } = &s.shape {
+                    if t.is_empty() || t.len() != v.len() {
+                        return Err(SimError::Invalid(format!(
+                            "{what} segment {}–{} s: a recorded profile needs its points (a `file`, or `t` and `v` of the same length)",
+                            s.t0, s.t1
+                        )));
+                    }
+                }
                 if s.t1 < s.t0 || s.t1.is_nan() || s.t0.is_nan() {
                     return Err(SimError::Invalid(format!(
                         "{what} segment {}–{} s ends before it starts",

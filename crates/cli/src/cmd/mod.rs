@@ -12,6 +12,7 @@ pub mod demo;
 pub mod estimate;
 pub mod example;
 pub mod filter;
+pub mod fmu;
 pub mod friction;
 pub mod identify;
 pub mod inspect;

@@ -60,7 +60,7 @@ pub struct Args {
 
 /// `--set PATH=VALUE`.
 #[derive(clap::Args, Clone, Default)]
-struct SetArgs {
+pub(crate) struct SetArgs {
     /// Set a parameter PATH=VALUE (repeatable), e.g. --set shaft.k=1340 (see --list-params).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     set: Vec<String>,
@@ -68,7 +68,7 @@ struct SetArgs {
 
 impl SetArgs {
     /// The `PATH=VALUE` pairs, parsed.
-    fn pairs(&self) -> Result<Vec<(String, f64)>> {
+    pub(crate) fn pairs(&self) -> Result<Vec<(String, f64)>> {
         self.set
             .iter()
             .map(|s| {

@@ -15,6 +15,7 @@ use std::f64::consts::{PI, TAU};
 use Between::{Hold, Linear};
 
 /// An output channel being filled.
+#[derive(Clone)]
 struct Output {
     name: &'static str,
     unit: &'static str,
@@ -37,7 +38,7 @@ const COLUMN: usize = CHUNK + 8;
 
 /// A chunk's output grid points: for each, the step `j` it follows, its fraction `f` of the
 /// way to step `j + 1`, its abscissa `g` (time or engine angle).
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Points {
     j: Vec<usize>,
     f: Vec<f64>,
@@ -75,6 +76,7 @@ impl Points {
 /// consecutive steps is carried from their truth ([`Between`]) and measured by its sensor. The
 /// steps are taken in chunks of [`CHUNK`], channel by channel; nothing of the truth is kept
 /// beyond the chunk.
+#[derive(Clone)]
 pub(super) struct Acquisition {
     base: CellParams,
     faults: Vec<Fault>,
@@ -139,7 +141,6 @@ impl Acquisition {
         };
         // A hint (the channels grow beyond it if the engine speeds up), capped at 2²² samples.
         let capacity = expected.min(f64::from(1u32 << 22)) as usize + 2;
-        let crank = matches!(basis, OutputBasis::Crank(_));
         // Each sensor its own random stream (one sensor's settings never change another's
         // noise); stream 0 is the encoder's.
         let seed = base.sensors.seed as u64 ^ 0x5e5e;
@@ -147,9 +148,7 @@ impl Acquisition {
         let outputs = OUTPUT
             .iter()
             .enumerate()
-            .filter(|(_, (_, _, src))| {
-                crank || !matches!(src, Source::Theta | Source::Cycle | Source::CrankDeg)
-            })
+            .filter(|(_, (_, _, src))| src.on(basis))
             .map(|(stream, &(name, unit, source))| {
                 let (col, sensor) = match source {
                     Source::Raw(_, sensor) => (raw_index(name), sensor),

@@ -143,6 +143,15 @@ pub(super) enum Source {
     Tdc,
 }
 
+impl Source {
+    /// Whether a channel from this source is recorded on `basis` (the angle from TDC, the
+    /// cycle and the crank angle only on a crank basis).
+    pub(super) fn on(self, basis: super::OutputBasis) -> bool {
+        matches!(basis, super::OutputBasis::Crank(_))
+            || !matches!(self, Source::Theta | Source::Cycle | Source::CrankDeg)
+    }
+}
+
 /// The recording's channels, in order, with their units (DESIGN.md); the crank-basis ones
 /// only there.
 pub(super) const OUTPUT: [(&str, &str, Source); 38] = [

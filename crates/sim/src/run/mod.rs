@@ -70,6 +70,14 @@ use acquisition::Acquisition;
 use channels::{raw_row, OUTPUT};
 use sensors::{Prepared, SensorState};
 
+/// The recording's channels on `basis`, in their order: `(name, unit)` (DESIGN.md's table).
+pub fn channels(basis: OutputBasis) -> impl Iterator<Item = (&'static str, &'static str)> {
+    OUTPUT
+        .iter()
+        .filter(move |c| c.2.on(basis))
+        .map(|c| (c.0, c.1))
+}
+
 /// Run a scenario to its end: a [`Run`] stepped through the whole duration.
 /// `progress` is told the fraction done, about every 1 %.
 pub fn simulate(
@@ -94,7 +102,9 @@ pub fn simulate(
 /// advances it to a recording time; between calls its inputs can change
 /// ([`set_speed`](Self::set_speed), [`set_throttle`](Self::set_throttle),
 /// [`add_fault`](Self::add_fault)) — what a paced live cell needs; [`finish`](Self::finish)
-/// gives the recording.
+/// gives the recording. A clone is the run as it is, to go on from later (an FMU's saved
+/// state).
+#[derive(Clone)]
 pub struct Run {
     scenario: Scenario,
     base: CellParams,

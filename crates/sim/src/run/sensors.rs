@@ -35,6 +35,7 @@ impl SensorKind {
 
 /// A first-order sensor's state over the output samples, with its own noise stream (so that
 /// one sensor's settings never change another's noise).
+#[derive(Clone)]
 pub(super) struct SensorState {
     lagged: Option<f64>,
     pub(super) rng: Xoshiro256PlusPlus,

@@ -1,0 +1,490 @@
+//! One co-simulation instance of the cell, whatever the FMI version: the variables' values,
+//! the FMI state machine (instantiated → initialisation → step → terminated), and the
+//! scenario's [`Run`] stepped to each communication point.
+//!
+//! **Outputs at a communication point** are the recording's sample at or just before it: the
+//! run samples its channels on its own grid (`sample_rate`, 10 kHz by default), exactly as
+//! `physid simulate --sample-rate` does, and a communication point `t` reads the sample
+//! `⌊t·rate⌋` (a point within 10⁻⁶ of a sample counts as on it, so that `n·h` with round-off
+//! meets sample `n`). With the communication step a multiple of the sample interval, the
+//! outputs are the recording's samples bit for bit.
+//!
+//! **Inputs** are held over a step (zero-order hold). While `demand.from_scenario` is true the
+//! scenario's profiles drive the cell; when false, `demand.speed` [rpm] or `demand.torque`
+//! [N·m] (by `demand.torque_mode`) and `demand.throttle` [deg].
+//!
+//! **A tunable parameter set during the run** (the fault paths:
+//! [`FAULT_PATHS`](physid_sim::scenario::FAULT_PATHS)) is a step fault at that time, as
+//! `physid simulate --fault PATH=VALUE@T` gives.
+
+use crate::log::{Logger, Status};
+use crate::variables::{basis, table, Causality, Role, Type, Variability, Variable};
+use crate::Cell;
+use physid_sim::params::CellParams;
+use physid_sim::run::{Run, RunOptions};
+use physid_sim::scenario::{Fault, Profile};
+use std::collections::VecDeque;
+
+/// The run's length when the importer gives no stop time [s]: a stream counts its samples
+/// exactly up to 2⁵³, 9·10¹¹ s at 10 kHz.
+const NO_STOP: f64 = 1e9;
+
+/// Where an instance is in FMI's state machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Instantiated: parameters and start values may be set.
+    Instantiated,
+    /// Initialisation mode: the same, and the outputs may be read.
+    Initialization,
+    /// Step mode: the cell runs.
+    Step,
+    /// Terminated.
+    Terminated,
+    /// A call failed in a way that leaves the cell unusable (it diverged): only reset and
+    /// free remain.
+    Failed,
+}
+
+/// The samples drained from the run: the next one's index, those past the last
+/// communication point, and where each output is among the drained channels.
+#[derive(Clone, Default)]
+struct Samples {
+    next: u64,
+    ahead: VecDeque<(u64, Vec<f64>)>,
+    columns: Vec<usize>,
+}
+
+/// One instance of the cell.
+#[derive(Clone)]
+pub struct Instance {
+    cell: Cell,
+    vars: Vec<Variable>,
+    /// Every variable's value by value reference (a Boolean as 0 or 1).
+    values: Vec<f64>,
+    mode: Mode,
+    start: f64,
+    stop: Option<f64>,
+    time: f64,
+    run: Option<Run>,
+    samples: Samples,
+    /// Whether the scenario's profiles are the run's now.
+    following: bool,
+    /// The first output's value reference.
+    first_output: usize,
+    pub(crate) logger: Logger,
+    /// Whether the importer wants the messages.
+    pub(crate) logging: bool,
+    /// Whether a step shorter than the sample interval has been warned of.
+    warned_short_step: bool,
+}
+
+/// A refused or failed call: its message for the logger.
+pub type Refusal = String;
+
+impl Instance {
+    /// A new instance of `cell`, its variables at their start values.
+    pub(crate) fn new(cell: Cell, logger: Logger, logging: bool) -> Self {
+        let vars = table(&cell);
+        let values = vars.iter().map(|v| v.start.unwrap_or(0.0)).collect();
+        let first_output = vars
+            .iter()
+            .position(|v| v.causality == Causality::Output)
+            .unwrap_or(vars.len());
+        Self {
+            cell,
+            vars,
+            values,
+            mode: Mode::Instantiated,
+            start: 0.0,
+            stop: None,
+            time: 0.0,
+            run: None,
+            samples: Samples::default(),
+            following: true,
+            first_output,
+            logger,
+            logging,
+            warned_short_step: false,
+        }
+    }
+
+    /// An instance of the cell an FMU carries in `resources`, checked against the token
+    /// (GUID) of its description.
+    pub(crate) fn from_resources(
+        resources: &std::path::Path,
+        token: Option<&str>,
+        logger: Logger,
+        logging: bool,
+    ) -> Result<Self, Refusal> {
+        let (cell, guid) = Cell::from_resources(resources)?;
+        match token {
+            Some(t) if t == guid => {}
+            Some(t) => {
+                return Err(format!(
+                    "the description's GUID {t} is not this FMU's {guid} (resources from another export?)"
+                ))
+            }
+            None => return Err("no GUID / instantiation token given".into()),
+        }
+        Ok(Self::new(cell, logger, logging))
+    }
+
+    /// The mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// The instance's time [s].
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Log `message` as an error (always: an importer that refused the messages still gets
+    /// the one that says why a call failed) and give it back.
+    pub(crate) fn refuse(&self, message: String) -> Refusal {
+        self.logger.log(Status::Error, &message);
+        message
+    }
+
+    /// Mark the instance unusable (a panic inside a call).
+    pub(crate) fn fail(&mut self) {
+        self.mode = Mode::Failed;
+    }
+
+    /// Restore a saved state, keeping this instance's logger.
+    pub(crate) fn restore(&mut self, saved: &Instance) {
+        let (logger, logging) = (self.logger.clone(), self.logging);
+        *self = saved.clone();
+        self.logger = logger;
+        self.logging = logging;
+    }
+
+    /// Refuse unless in one of `modes`.
+    fn expect(&self, what: &str, modes: &[Mode]) -> Result<(), Refusal> {
+        if modes.contains(&self.mode) {
+            return Ok(());
+        }
+        Err(match self.mode {
+            Mode::Failed => format!("{what}: the instance failed earlier; reset or free it"),
+            m => format!("{what}: not allowed in {m:?} mode (only in {modes:?})"),
+        })
+    }
+
+    /// The experiment: its start time [s] (the recording's time, from 0; the cell settles
+    /// before it) and its stop time, if known.
+    pub fn setup(&mut self, start: f64, stop: Option<f64>) -> Result<(), Refusal> {
+        self.expect("setting up the experiment", &[Mode::Instantiated])?;
+        if !(start.is_finite() && start >= 0.0) {
+            return Err(format!(
+                "start time {start} s: expected ≥ 0 (the recording's time; the cell settles for {} s before 0)",
+                self.cell.scenario.settle
+            ));
+        }
+        if let Some(stop) = stop {
+            if !(stop.is_finite() && stop > start) {
+                return Err(format!(
+                    "stop time {stop} s: expected after the start time {start} s"
+                ));
+            }
+        }
+        self.start = start;
+        self.stop = stop;
+        self.time = start;
+        Ok(())
+    }
+
+    /// Enter initialisation mode.
+    pub fn enter_initialization(&mut self) -> Result<(), Refusal> {
+        self.expect("entering initialisation", &[Mode::Instantiated])?;
+        self.mode = Mode::Initialization;
+        Ok(())
+    }
+
+    /// Leave initialisation: the cell built with the parameters as set, run to the start time.
+    pub fn exit_initialization(&mut self) -> Result<(), Refusal> {
+        self.expect("leaving initialisation", &[Mode::Initialization])?;
+        self.ensure_run()?;
+        self.mode = Mode::Step;
+        Ok(())
+    }
+
+    /// The cell's parameters from the variables.
+    fn params(&self) -> CellParams {
+        let mut p = CellParams::default();
+        for v in &self.vars {
+            if let Role::Cell(k) = v.role {
+                // Every value was checked when it was set.
+                let _ = p.set(CellParams::TABLE[k].0, self.values[v.vr as usize]);
+            }
+        }
+        p
+    }
+
+    fn value_of(&self, role: Role) -> f64 {
+        self.vars
+            .iter()
+            .find(|v| v.role == role)
+            .map_or(0.0, |v| self.values[v.vr as usize])
+    }
+
+    /// The run, built when first needed from the parameters as they are, at the start time.
+    fn ensure_run(&mut self) -> Result<(), Refusal> {
+        if self.run.is_some() {
+            return Ok(());
+        }
+        let mut scenario = self.cell.scenario.clone();
+        // The settings are the parameters' values now (their start values unless set).
+        scenario.set.clear();
+        let opts = RunOptions {
+            params: self.params(),
+            duration: Some(self.stop.unwrap_or(NO_STOP)),
+            faults: Vec::new(),
+            basis: basis(self.value_of(Role::SampleRate)),
+            stream: true,
+        };
+        let run = Run::new(&scenario, &opts).map_err(|e| format!("the cell: {e}"))?;
+        self.run = Some(run);
+        self.samples = Samples::default();
+        self.following = true;
+        self.apply_inputs();
+        let start = self.start;
+        if let Err(e) = self.advance(start) {
+            self.run = None;
+            return Err(e);
+        }
+        Ok(())
+    }
+
+    /// The inputs in force for the next step: the scenario's profiles, or the `demand.*`
+    /// values held.
+    fn apply_inputs(&mut self) {
+        let from_scenario = self.value_of(Role::FromScenario) != 0.0;
+        let torque = self.value_of(Role::TorqueMode) != 0.0;
+        let (speed, torque_demand, throttle) = (
+            self.value_of(Role::Speed),
+            self.value_of(Role::Torque),
+            self.value_of(Role::Throttle),
+        );
+        let Some(run) = self.run.as_mut() else {
+            return;
+        };
+        if from_scenario {
+            if !self.following {
+                let s = &self.cell.scenario;
+                run.set_torque_mode(s.torque_mode);
+                run.set_speed(s.speed.clone());
+                run.set_throttle(s.throttle.clone());
+                self.following = true;
+            }
+            return;
+        }
+        self.following = false;
+        run.set_torque_mode(torque);
+        let demand = if torque { torque_demand } else { speed };
+        run.set_speed(Profile::constant(demand, f64::MAX));
+        run.set_throttle(Profile::constant(throttle, f64::MAX));
+    }
+
+    /// Run to the sample at or just before `t` and put it in the outputs.
+    fn advance(&mut self, t: f64) -> Result<(), Refusal> {
+        let rate = self.value_of(Role::SampleRate);
+        let k = (t * rate + 1e-6).floor().max(0.0) as u64;
+        let first = self.first_output;
+        let Some(run) = self.run.as_mut() else {
+            return Err("the cell is not built yet".into());
+        };
+        let samples = &mut self.samples;
+        let values = &mut self.values;
+        let mut take = |row: &[f64]| values[first..first + row.len()].copy_from_slice(row);
+        while samples.ahead.front().is_some_and(|s| s.0 <= k) {
+            if let Some((_, row)) = samples.ahead.pop_front() {
+                take(&row);
+            }
+        }
+        let mut reached = samples.next > k;
+        let mut aim = t;
+        while !reached {
+            if run.is_done() {
+                return Err(format!(
+                    "time {t} s is past the run's end ({} s)",
+                    run.duration()
+                ));
+            }
+            run.step_until(aim).map_err(|e| format!("the cell: {e}"))?;
+            // One more solver step each round, until sample k is out.
+            aim = run.time();
+            let rec = run.drain().map_err(|e| format!("the cell: {e}"))?;
+            if samples.columns.is_empty() && !rec.is_empty() {
+                samples.columns = self.vars[first..]
+                    .iter()
+                    .map(|v| {
+                        rec.channels()
+                            .iter()
+                            .position(|c| c.name == v.name)
+                            .ok_or_else(|| format!("the run recorded no channel '{}'", v.name))
+                    })
+                    .collect::<Result<_, _>>()?;
+            }
+            let mut row = vec![0.0; samples.columns.len()];
+            for i in 0..rec.len() {
+                for (r, &c) in row.iter_mut().zip(&samples.columns) {
+                    *r = rec.channels()[c].values[i];
+                }
+                let index = samples.next + i as u64;
+                if index <= k {
+                    take(&row);
+                } else {
+                    samples.ahead.push_back((index, row.clone()));
+                }
+            }
+            samples.next += rec.len() as u64;
+            reached = samples.next > k;
+        }
+        Ok(())
+    }
+
+    /// One communication step from `t` over `h` [s].
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), Refusal> {
+        self.expect("a step", &[Mode::Step])?;
+        if !(h.is_finite() && h > 0.0) {
+            return Err(format!("step size {h} s: expected > 0"));
+        }
+        if !t.is_finite() || (t - self.time).abs() > 1e-9 * self.time.abs().max(1.0) {
+            return Err(format!(
+                "a step from {t} s, but the instance is at {} s (restore a saved state to go back)",
+                self.time
+            ));
+        }
+        let rate = self.value_of(Role::SampleRate);
+        if h * rate < 1.0 - 1e-6 && !self.warned_short_step {
+            self.warned_short_step = true;
+            if self.logging {
+                self.logger.log(
+                    Status::Warning,
+                    &format!(
+                        "a step of {h} s, shorter than the sample interval 1/{rate} s: the outputs hold the last sample (raise sample_rate for finer outputs)"
+                    ),
+                );
+            }
+        }
+        let target = t + h;
+        if let Some(stop) = self.stop {
+            if target > stop + 1e-9 * stop.abs().max(1.0) {
+                return Err(format!("a step to {target} s, past the stop time {stop} s"));
+            }
+        }
+        self.apply_inputs();
+        if let Err(e) = self.advance(target) {
+            self.mode = Mode::Failed;
+            return Err(e);
+        }
+        self.time = target;
+        Ok(())
+    }
+
+    /// Terminate.
+    pub fn terminate(&mut self) -> Result<(), Refusal> {
+        self.expect("terminating", &[Mode::Step, Mode::Initialization])?;
+        self.mode = Mode::Terminated;
+        Ok(())
+    }
+
+    /// Back to just instantiated, every variable at its start value.
+    pub fn reset(&mut self) {
+        let (logger, logging) = (self.logger.clone(), self.logging);
+        *self = Self::new(self.cell.clone(), logger, logging);
+    }
+
+    fn variable(&self, vr: u32, ty: Type) -> Result<&Variable, Refusal> {
+        let v = self
+            .vars
+            .get(vr as usize)
+            .ok_or_else(|| format!("no variable has value reference {vr}"))?;
+        if v.ty != ty {
+            return Err(format!(
+                "'{}' (value reference {vr}) is a {:?}, not a {ty:?}",
+                v.name, v.ty
+            ));
+        }
+        Ok(v)
+    }
+
+    /// Read a variable of type `ty`.
+    pub fn get(&mut self, vr: u32, ty: Type) -> Result<f64, Refusal> {
+        let v = self.variable(vr, ty)?;
+        match (v.role, v.causality) {
+            (Role::Time, _) => Ok(self.time),
+            (_, Causality::Output) => {
+                let name = v.name.clone();
+                if self.mode == Mode::Instantiated {
+                    return Err(format!(
+                        "'{name}': the outputs are there from initialisation mode on"
+                    ));
+                }
+                self.ensure_run()?;
+                Ok(self.values[vr as usize])
+            }
+            _ => Ok(self.values[vr as usize]),
+        }
+    }
+
+    /// Set a variable of type `ty`, checked: known, settable now, finite, and (a cell
+    /// parameter) within the cell's ranges.
+    pub fn set(&mut self, vr: u32, ty: Type, value: f64) -> Result<(), Refusal> {
+        self.expect(
+            "setting a variable",
+            &[Mode::Instantiated, Mode::Initialization, Mode::Step],
+        )?;
+        let v = self.variable(vr, ty)?.clone();
+        if !value.is_finite() {
+            return Err(format!("'{}' = {value}: expected a finite number", v.name));
+        }
+        match v.causality {
+            Causality::Output | Causality::Independent => {
+                return Err(format!(
+                    "'{}' is computed by the cell: it cannot be set",
+                    v.name
+                ))
+            }
+            Causality::Input => {}
+            Causality::Parameter => {
+                let running = self.mode == Mode::Step;
+                if running && v.variability == Variability::Fixed {
+                    return Err(format!(
+                        "'{}' is fixed once initialised (during the run only the tunable ones: {})",
+                        v.name,
+                        physid_sim::scenario::FAULT_PATHS.join(", ")
+                    ));
+                }
+                match v.role {
+                    Role::Cell(k) => {
+                        let path = CellParams::TABLE[k].0;
+                        let mut p = self.params();
+                        p.set(path, value).map_err(|e| e.to_string())?;
+                        p.validate().map_err(|e| e.to_string())?;
+                        if running {
+                            if let Some(run) = self.run.as_mut() {
+                                run.add_fault(Fault {
+                                    path: path.to_string(),
+                                    value,
+                                    at: run.time().max(0.0),
+                                    ramp: 0.0,
+                                });
+                            }
+                        } else {
+                            // Built again from the new values when next needed.
+                            self.run = None;
+                        }
+                    }
+                    Role::SampleRate if value <= 0.0 => {
+                        return Err(format!("sample_rate {value} Hz: expected > 0"))
+                    }
+                    Role::SampleRate => self.run = None,
+                    _ => {}
+                }
+            }
+        }
+        self.values[vr as usize] = value;
+        Ok(())
+    }
+}
