@@ -92,7 +92,7 @@ enum Command {
     /// The virtual test cell as an FMU (FMI 2.0 or 3.0 co-simulation, linux x86-64) for
     /// Simulink, Dymola, FMPy and the other importers (docs/fmu.md).
     ///
-    /// Example: physid fmu export --scenario shaft-steady --out cell.fmu --fmi 3
+    /// Example: physid fmu export --scenario shaft-steady --fmu cell.fmu --fmi 3
     Fmu(cmd::fmu::Args),
     /// The qualitative adaptive identification loop (thesis Fig. 5.7) from a pipeline file:
     /// identifiability, estimation of the estimable subset, the objective. Exits 1 when the

@@ -22,8 +22,24 @@ pub fn write(cell: &Cell, fmi: Fmi, library: &[u8], out: &Path) -> Result<(), St
         .map(|n| n.to_string_lossy().to_string())
         .ok_or_else(|| format!("{}: not a file name", out.display()))?;
     let part = dir.join(format!(".{name}.part"));
+    let written = write_zip(cell, fmi, library, &description, &part);
+    if written.is_err() {
+        let _ = std::fs::remove_file(&part);
+    }
+    written?;
+    std::fs::rename(&part, out).map_err(|e| format!("{}: {e}", out.display()))
+}
+
+/// The archive's entries into `part`, synced.
+fn write_zip(
+    cell: &Cell,
+    fmi: Fmi,
+    library: &[u8],
+    description: &str,
+    part: &Path,
+) -> Result<(), String> {
     let what = |e: &dyn std::fmt::Display| format!("{}: {e}", part.display());
-    let file = std::fs::File::create(&part).map_err(|e| what(&e))?;
+    let file = std::fs::File::create(part).map_err(|e| what(&e))?;
     let mut zip = zip::ZipWriter::new(file);
     let opts = SimpleFileOptions::default()
         .compression_method(zip::CompressionMethod::Deflated)
@@ -50,7 +66,5 @@ pub fn write(cell: &Cell, fmi: Fmi, library: &[u8], out: &Path) -> Result<(), St
         zip.write_all(bytes).map_err(|e| what(&e))?;
     }
     let file = zip.finish().map_err(|e| what(&e))?;
-    file.sync_all().map_err(|e| what(&e))?;
-    drop(file);
-    std::fs::rename(&part, out).map_err(|e| format!("{}: {e}", out.display()))
+    file.sync_all().map_err(|e| what(&e))
 }

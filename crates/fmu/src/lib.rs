@@ -146,11 +146,20 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 
-    /// A scenario written to the resources reads back equal (every float to the last bit),
-    /// with the same GUID.
+    /// A scenario written to the resources reads back equal (every float to the last bit, a
+    /// recorded profile with its points), with the same GUID.
     #[test]
     fn the_resources_read_back_equal() {
         let mut s = Scenario::load("fig314").unwrap();
+        s.speed.segments.push(physid_sim::scenario::Segment {
+            t0: 20.0,
+            t1: 21.0,
+            shape: physid_sim::scenario::Shape::Recorded {
+                file: String::new(),
+                t: vec![0.0, 0.1, 1.0],
+                v: vec![1000.0, 1000.1 / 3.0, 1100.0],
+            },
+        });
         s.set.insert("shaft.k".into(), 1234.5678901234567);
         s.faults.push("shaft.b=1.3@2+0.5".into());
         let cell = Cell::new(s, 12_345.6).unwrap();

@@ -49,7 +49,7 @@ def fmus(tmp_path_factory):
     for v in (2, 3):
         path = d / f"cell{v}.fmu"
         info = json.loads(
-            physid("fmu", "export", "--scenario", "shaft-steady", "--out", path, "--fmi", v, "--json")
+            physid("fmu", "export", "--scenario", "shaft-steady", "--fmu", path, "--fmi", v, "--json")
         )
         assert info["fmi"] == f"{v}.0"
         out[v] = path

@@ -26,7 +26,8 @@
 //! Segment fields: `constant` — `value`; `ramp` — `v0`, `v1`; `sine` — `mean`, `amplitude`,
 //! `frequency` [Hz], `phase` [deg]; `steps` — `values`, `every` [s]; `chirp` — `mean`,
 //! `amplitude`, `f0`, `f1` [Hz] (linear sweep); `recorded` — `file` (CSV with columns `t`
-//! and `value`, time from the segment's start). Outside every segment a profile holds the
+//! and `value`, time from the segment's start), or the points themselves as `t` and `v`
+//! (how an FMU's resources carry them). Outside every segment a profile holds the
 //! value at the nearest end.
 
 use crate::error::SimError;
@@ -81,7 +82,8 @@ pub enum Shape {
         /// End frequency [Hz].
         f1: f64,
     },
-    /// A recorded profile, linearly interpolated (loaded from `file` when the scenario is read).
+    /// A recorded profile, linearly interpolated (loaded from `file` when the scenario is read,
+    /// or given as `t` and `v` with no file).
     Recorded {
         /// CSV file with columns `t` and `value`.
         #[serde(default)]

@@ -22,7 +22,7 @@ pub struct Args {
 enum Action {
     /// Write the cell with a scenario as an FMU.
     ///
-    /// Example: physid fmu export --scenario shaft-steady --out cell.fmu --fmi 3 --set shaft.k=1100
+    /// Example: physid fmu export --scenario shaft-steady --fmu cell.fmu --fmi 3 --set shaft.k=1100
     Export(Export),
 }
 
@@ -33,9 +33,9 @@ struct Export {
     /// the cell unless the importer sets demand.from_scenario = false.
     #[arg(long)]
     scenario: String,
-    /// The FMU to write (.fmu).
+    /// The FMU to write (.fmu). (`--out` names a report directory in physid's vocabulary.)
     #[arg(long, value_name = "FILE")]
-    out: PathBuf,
+    fmu: PathBuf,
     /// FMI version: 2 (2.0, what most importers take) or 3 (3.0).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=3))]
     fmi: u8,
@@ -108,6 +108,23 @@ fn read_library(path: &Path) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// The instruction-set extensions beyond x86-64-v2 this build uses: the library, built in the
+/// same cargo run with the same flags (.cargo/config.toml builds for the building machine's
+/// CPU), needs them too, and an importer on an older CPU would stop on an illegal instruction.
+fn beyond_v2() -> Vec<&'static str> {
+    [
+        ("avx", cfg!(target_feature = "avx")),
+        ("avx2", cfg!(target_feature = "avx2")),
+        ("fma", cfg!(target_feature = "fma")),
+        ("bmi2", cfg!(target_feature = "bmi2")),
+        ("avx512f", cfg!(target_feature = "avx512f")),
+    ]
+    .into_iter()
+    .filter(|f| f.1)
+    .map(|f| f.0)
+    .collect()
+}
+
 /// Run `physid fmu`.
 pub fn run(args: &Args) -> Result<()> {
     match &args.action {
@@ -116,10 +133,10 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 fn export(args: &Export) -> Result<()> {
-    if args.out.extension().and_then(|e| e.to_str()) != Some("fmu") {
+    if args.fmu.extension().and_then(|e| e.to_str()) != Some("fmu") {
         return Err(miette!(
-            "--out {}: an FMU's file name ends in .fmu",
-            args.out.display()
+            "--fmu {}: an FMU's file name ends in .fmu",
+            args.fmu.display()
         ));
     }
     let mut scenario = Scenario::load(&args.scenario).map_err(|e| miette!("--scenario {e}"))?;
@@ -151,13 +168,21 @@ fn export(args: &Export) -> Result<()> {
     let library = find_library(args.library.as_deref())?;
     let bytes = read_library(&library)?;
     let fmi = if args.fmi == 3 { Fmi::V3 } else { Fmi::V2 };
-    physid_fmu::archive::write(&cell, fmi, &bytes, &args.out).map_err(|e| miette!("{e}"))?;
+    physid_fmu::archive::write(&cell, fmi, &bytes, &args.fmu).map_err(|e| miette!("{e}"))?;
+    let extensions = beyond_v2();
+    if !extensions.is_empty() {
+        eprintln!(
+            "warning: {}: built for this machine's CPU ({}): it runs here and on CPUs with the same extensions; for an FMU to give to others, build with RUSTFLAGS=\"-C target-cpu=x86-64-v2\" cargo build --release -p physid -p physid-fmu (docs/fmu.md)",
+            args.fmu.display(),
+            extensions.join(", ")
+        );
+    }
     let vars = table(&cell);
     let count = |c: Causality| vars.iter().filter(|v| v.causality == c).count();
     let version = if args.fmi == 3 { "3.0" } else { "2.0" };
     if args.json {
         crate::provenance::print_json_value(serde_json::json!({
-            "fmu": args.out,
+            "fmu": args.fmu,
             "fmi": version,
             "model_identifier": physid_fmu::MODEL_IDENTIFIER,
             "guid": cell.guid().map_err(|e| miette!("{e}"))?,
@@ -168,11 +193,12 @@ fn export(args: &Export) -> Result<()> {
             "inputs": count(Causality::Input),
             "outputs": count(Causality::Output),
             "library": library,
+            "cpu_extensions": extensions,
         }))?;
     } else {
         outln!(
             "wrote {} (FMI {version} co-simulation, linux x86-64; scenario {}, {} s, outputs at {} Hz; {} parameters, {} inputs, {} outputs)",
-            args.out.display(),
+            args.fmu.display(),
             cell.scenario.name,
             cell.scenario.duration,
             cell.sample_rate,
