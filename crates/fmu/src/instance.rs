@@ -21,9 +21,8 @@ use crate::log::{Logger, Status};
 use crate::variables::{basis, table, Causality, Role, Type, Variability, Variable};
 use crate::Cell;
 use physid_sim::params::CellParams;
-use physid_sim::run::{Run, RunOptions};
+use physid_sim::run::{channels, Run, RunOptions};
 use physid_sim::scenario::{Fault, Profile};
-use std::collections::VecDeque;
 
 /// The run's length when the importer gives no stop time [s]: a stream counts its samples
 /// exactly up to 2⁵³, 9·10¹¹ s at 10 kHz.
@@ -45,13 +44,39 @@ pub enum Mode {
     Failed,
 }
 
-/// The samples drained from the run: the next one's index, those past the last
-/// communication point, and where each output is among the drained channels.
+/// The samples drained from the run and not yet read: every channel's column (the
+/// recording's order), the first one's index, and where each output is among the channels.
 #[derive(Clone, Default)]
 struct Samples {
-    next: u64,
-    ahead: VecDeque<(u64, Vec<f64>)>,
-    columns: Vec<usize>,
+    columns: Vec<Vec<f64>>,
+    first: u64,
+    of_output: Vec<usize>,
+}
+
+impl Samples {
+    /// Empty columns for the channels on `basis`, and each output's among them.
+    fn new(basis: physid_sim::run::OutputBasis, outputs: &[Variable]) -> Result<Self, Refusal> {
+        let names: Vec<&str> = channels(basis).map(|c| c.0).collect();
+        let of_output = outputs
+            .iter()
+            .map(|v| {
+                names
+                    .iter()
+                    .position(|&n| n == v.name)
+                    .ok_or_else(|| format!("the run records no channel '{}'", v.name))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            columns: vec![Vec::new(); names.len()],
+            first: 0,
+            of_output,
+        })
+    }
+
+    /// The samples held.
+    fn len(&self) -> u64 {
+        self.columns.first().map_or(0, |c| c.len() as u64)
+    }
 }
 
 /// One instance of the cell.
@@ -243,8 +268,8 @@ impl Instance {
             stream: true,
         };
         let run = Run::new(&scenario, &opts).map_err(|e| format!("the cell: {e}"))?;
+        self.samples = Samples::new(opts.basis, &self.vars[self.first_output..])?;
         self.run = Some(run);
-        self.samples = Samples::default();
         self.following = true;
         self.apply_inputs();
         let start = self.start;
@@ -285,25 +310,20 @@ impl Instance {
         run.set_throttle(Profile::constant(throttle, f64::MAX));
     }
 
-    /// Run to the sample at or just before `t` and put it in the outputs.
+    /// Run to the sample at or just before `t` and put it in the outputs (a sample already
+    /// read holds: a step shorter than the sample interval).
     fn advance(&mut self, t: f64) -> Result<(), Refusal> {
         let rate = self.value_of(Role::SampleRate);
         let k = (t * rate + 1e-6).floor().max(0.0) as u64;
-        let first = self.first_output;
         let Some(run) = self.run.as_mut() else {
             return Err("the cell is not built yet".into());
         };
         let samples = &mut self.samples;
-        let values = &mut self.values;
-        let mut take = |row: &[f64]| values[first..first + row.len()].copy_from_slice(row);
-        while samples.ahead.front().is_some_and(|s| s.0 <= k) {
-            if let Some((_, row)) = samples.ahead.pop_front() {
-                take(&row);
-            }
+        if k < samples.first {
+            return Ok(());
         }
-        let mut reached = samples.next > k;
         let mut aim = t;
-        while !reached {
+        while samples.first + samples.len() <= k {
             if run.is_done() {
                 return Err(format!(
                     "time {t} s is past the run's end ({} s)",
@@ -311,35 +331,19 @@ impl Instance {
                 ));
             }
             run.step_until(aim).map_err(|e| format!("the cell: {e}"))?;
+            run.drain_into(&mut samples.columns);
             // One more solver step each round, until sample k is out.
             aim = run.time();
-            let rec = run.drain().map_err(|e| format!("the cell: {e}"))?;
-            if samples.columns.is_empty() && !rec.is_empty() {
-                samples.columns = self.vars[first..]
-                    .iter()
-                    .map(|v| {
-                        rec.channels()
-                            .iter()
-                            .position(|c| c.name == v.name)
-                            .ok_or_else(|| format!("the run recorded no channel '{}'", v.name))
-                    })
-                    .collect::<Result<_, _>>()?;
-            }
-            let mut row = vec![0.0; samples.columns.len()];
-            for i in 0..rec.len() {
-                for (r, &c) in row.iter_mut().zip(&samples.columns) {
-                    *r = rec.channels()[c].values[i];
-                }
-                let index = samples.next + i as u64;
-                if index <= k {
-                    take(&row);
-                } else {
-                    samples.ahead.push_back((index, row.clone()));
-                }
-            }
-            samples.next += rec.len() as u64;
-            reached = samples.next > k;
         }
+        let at = (k - samples.first) as usize;
+        let outputs = &mut self.values[self.first_output..];
+        for (value, &c) in outputs.iter_mut().zip(&samples.of_output) {
+            *value = samples.columns[c][at];
+        }
+        for column in &mut samples.columns {
+            column.drain(..=at);
+        }
+        samples.first = k + 1;
         Ok(())
     }
 

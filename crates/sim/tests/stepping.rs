@@ -86,8 +86,9 @@ fn inputs_changed_between_steps_act_as_if_scheduled() {
     assert_eq!((at(0.29), at(0.31)), (1250.0, 1000.0));
 }
 
-/// A streaming run drained as it goes: the chunks, put end to end, are the recording
-/// `simulate` gives — and a run far longer than memory would hold is accepted.
+/// A streaming run drained as it goes — as recordings (`drain`) and straight into columns
+/// (`drain_into`, in turn) —: the chunks, put end to end, are the recording `simulate` gives;
+/// and a run far longer than memory would hold is accepted.
 #[test]
 fn drained_chunks_put_end_to_end_are_the_recording() {
     let scenario = named("shaft-ramp").unwrap();
@@ -98,17 +99,23 @@ fn drained_chunks_put_end_to_end_are_the_recording() {
     };
     let mut run = Run::new(&scenario, &opts).unwrap();
     let mut columns: Vec<Vec<f64>> = vec![Vec::new(); whole.names().len()];
+    let names: Vec<&str> = physid_sim::run::channels(opts.basis).map(|c| c.0).collect();
+    assert_eq!(names, whole.names());
     let mut t = 0.0;
     let mut chunks = 0;
     while !run.is_done() {
         t += 0.013;
         run.step_until(t).unwrap();
+        chunks += 1;
+        if chunks % 2 == 0 {
+            run.drain_into(&mut columns);
+            continue;
+        }
         let c = run.drain().unwrap();
         assert_eq!(c.names(), whole.names());
         for (col, name) in columns.iter_mut().zip(whole.names()) {
             col.extend_from_slice(c.values(name).unwrap());
         }
-        chunks += 1;
     }
     let last = run.finish().unwrap(); // what was not drained yet
     for (col, name) in columns.iter_mut().zip(whole.names()) {

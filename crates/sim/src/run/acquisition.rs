@@ -257,11 +257,7 @@ impl Acquisition {
 
     /// The samples taken so far, moved out (the channels keep their room).
     pub(super) fn drain(&mut self) -> Result<Recording, SimError> {
-        // The grid points placed so far in the current chunk, taken now rather than when the
-        // chunk is full (taking the points in two goes is the same as in one).
-        if self.steps > 0 {
-            self.take();
-        }
+        self.take_placed();
         let mut rec = Recording::new(match self.basis {
             OutputBasis::Time(_) => Basis::Time,
             OutputBasis::Crank(_) => Basis::CrankAngle,
@@ -275,6 +271,24 @@ impl Acquisition {
             .map_err(|e| SimError::Invalid(e.to_string()))?;
         }
         Ok(rec)
+    }
+
+    /// The samples acquired since the last call appended to `columns`, one per channel in
+    /// the recording's order: [`drain`](Self::drain) without a recording around them (no
+    /// allocation once the columns have grown).
+    pub(super) fn drain_into(&mut self, columns: &mut [Vec<f64>]) {
+        self.take_placed();
+        for (out, col) in self.outputs.iter_mut().zip(columns) {
+            col.append(&mut out.values);
+        }
+    }
+
+    /// The grid points placed so far in the current chunk, taken now rather than when the
+    /// chunk is full (taking the points in two goes is the same as in one).
+    fn take_placed(&mut self) {
+        if self.steps > 0 {
+            self.take();
+        }
     }
 
     /// A fault added during the run (the live cell's controls): its sensor changes are

@@ -367,6 +367,13 @@ impl Run {
         self.acquisition.drain()
     }
 
+    /// The samples acquired since the last call appended to `columns`, one per channel in
+    /// [`channels`]' order: what [`drain`](Self::drain) gives, without the recording around
+    /// it (an FMU's steps take them so, allocating nothing once the columns have grown).
+    pub fn drain_into(&mut self, columns: &mut [Vec<f64>]) {
+        self.acquisition.drain_into(columns);
+    }
+
     /// The run in `rec`'s metadata, as [`finish`](Self::finish) puts it: the scenario, the
     /// faults so far and the parameters (for a streaming run's first chunk, before its file is
     /// written).
