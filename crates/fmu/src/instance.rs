@@ -22,7 +22,7 @@ use crate::variables::{basis, table, Causality, Role, Type, Variability, Variabl
 use crate::Cell;
 use physid_sim::params::CellParams;
 use physid_sim::run::{channels, Run, RunOptions};
-use physid_sim::scenario::{Fault, Profile};
+use physid_sim::scenario::Fault;
 
 /// The run's length when the importer gives no stop time [s]: a stream counts its samples
 /// exactly up to 2⁵³, 9·10¹¹ s at 10 kHz.
@@ -107,6 +107,12 @@ pub struct Instance {
 pub type Refusal = String;
 
 impl Instance {
+    /// An instance of `cell` driven from Rust (no importer, no logger): the same state machine
+    /// and values as through the C functions.
+    pub fn of(cell: Cell) -> Self {
+        Self::new(cell, Logger::None, false)
+    }
+
     /// A new instance of `cell`, its variables at their start values.
     pub(crate) fn new(cell: Cell, logger: Logger, logging: bool) -> Self {
         let vars = table(&cell);
@@ -305,9 +311,7 @@ impl Instance {
         }
         self.following = false;
         run.set_torque_mode(torque);
-        let demand = if torque { torque_demand } else { speed };
-        run.set_speed(Profile::constant(demand, f64::MAX));
-        run.set_throttle(Profile::constant(throttle, f64::MAX));
+        run.hold_inputs(if torque { torque_demand } else { speed }, throttle);
     }
 
     /// Run to the sample at or just before `t` and put it in the outputs (a sample already
@@ -419,10 +423,10 @@ impl Instance {
         match (v.role, v.causality) {
             (Role::Time, _) => Ok(self.time),
             (_, Causality::Output) => {
-                let name = v.name.clone();
                 if self.mode == Mode::Instantiated {
                     return Err(format!(
-                        "'{name}': the outputs are there from initialisation mode on"
+                        "'{}': the outputs are there from initialisation mode on",
+                        v.name
                     ));
                 }
                 self.ensure_run()?;
@@ -439,11 +443,12 @@ impl Instance {
             "setting a variable",
             &[Mode::Instantiated, Mode::Initialization, Mode::Step],
         )?;
-        let v = self.variable(vr, ty)?.clone();
+        let v = self.variable(vr, ty)?;
+        let (causality, variability, role) = (v.causality, v.variability, v.role);
         if !value.is_finite() {
             return Err(format!("'{}' = {value}: expected a finite number", v.name));
         }
-        match v.causality {
+        match causality {
             Causality::Output | Causality::Independent => {
                 return Err(format!(
                     "'{}' is computed by the cell: it cannot be set",
@@ -453,14 +458,14 @@ impl Instance {
             Causality::Input => {}
             Causality::Parameter => {
                 let running = self.mode == Mode::Step;
-                if running && v.variability == Variability::Fixed {
+                if running && variability == Variability::Fixed {
                     return Err(format!(
                         "'{}' is fixed once initialised (during the run only the tunable ones: {})",
                         v.name,
                         physid_sim::scenario::FAULT_PATHS.join(", ")
                     ));
                 }
-                match v.role {
+                match role {
                     Role::Cell(k) => {
                         let path = CellParams::TABLE[k].0;
                         let mut p = self.params();

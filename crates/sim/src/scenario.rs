@@ -174,6 +174,21 @@ impl Profile {
         }
     }
 
+    /// The profile made a constant `value` at all times, its storage kept (no allocation once
+    /// it has held a segment: a co-simulation's input set at every step).
+    pub fn hold(&mut self, value: f64) {
+        self.segments.truncate(1);
+        let constant = Segment {
+            t0: 0.0,
+            t1: f64::MAX,
+            shape: Shape::Constant { value },
+        };
+        match self.segments.first_mut() {
+            Some(s) => *s = constant,
+            None => self.segments.push(constant),
+        }
+    }
+
     /// Append a segment from the current end.
     pub fn then(mut self, len: f64, shape: Shape) -> Self {
         let t0 = self.segments.last().map_or(0.0, |s| s.t1);

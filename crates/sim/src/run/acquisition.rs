@@ -110,7 +110,45 @@ pub(super) struct Acquisition {
     t: Vec<f64>,
     theta_en: Vec<f64>,
     dt: Vec<f64>,
-    decays: Vec<(f64, Vec<f64>)>,
+    decays: Decays,
+}
+
+/// A chunk's lag decays for each time constant: `(1/τ, decays)`, the first `used` of them this
+/// chunk's — the others' storage kept for the next chunk (no allocation from chunk to chunk).
+#[derive(Clone, Default)]
+struct Decays {
+    entries: Vec<(f64, Vec<f64>)>,
+    used: usize,
+}
+
+impl Decays {
+    /// A new chunk: none computed yet.
+    fn clear(&mut self) {
+        self.used = 0;
+    }
+
+    /// The lag's decays over the chunk's samples, `dt` apart, for sensor `s`: computed once
+    /// per chunk for each time constant.
+    fn of(&mut self, s: &Prepared, dt: &[f64]) -> &[f64] {
+        let i = match self.entries[..self.used]
+            .iter()
+            .position(|d| d.0 == s.inv_lag)
+        {
+            Some(i) => i,
+            None => {
+                if self.used == self.entries.len() {
+                    self.entries.push((0.0, Vec::new()));
+                }
+                let (inv_lag, values) = &mut self.entries[self.used];
+                *inv_lag = s.inv_lag;
+                values.clear();
+                values.extend(dt.iter().map(|&d| s.decay(d)));
+                self.used += 1;
+                self.used - 1
+            }
+        };
+        &self.entries[i].1
+    }
 }
 
 impl Acquisition {
@@ -185,7 +223,7 @@ impl Acquisition {
             t: Vec::with_capacity(4 * CHUNK),
             theta_en: Vec::with_capacity(4 * CHUNK),
             dt: Vec::with_capacity(4 * CHUNK),
-            decays: Vec::new(),
+            decays: Decays::default(),
         })
     }
 
@@ -451,7 +489,7 @@ fn measure_in_runs(
     x: &mut [f64],
     sensor: impl Fn(usize) -> crate::params::SensorParams,
     faulted: bool,
-    decays: &mut Vec<(f64, Vec<f64>)>,
+    decays: &mut Decays,
     dt: &[f64],
 ) {
     let mut a = 0;
@@ -463,7 +501,7 @@ fn measure_in_runs(
                 .unwrap_or(x.len()),
             false => x.len(),
         };
-        let decay = lag_decays(decays, &s, dt);
+        let decay = decays.of(&s, dt);
         state.measure(&s, &mut x[a..b], &decay[a..b]);
         a = b;
     }
@@ -517,19 +555,6 @@ fn tdc_marker(theta_en: &[f64], before: Option<f64>, crank: bool, out: &mut Vec<
         });
         before = Some(revolutions);
     }
-}
-
-/// The lag's decays over a chunk's samples, `dt` apart, for sensor `s`: computed once per chunk
-/// for each time constant (the three temperature channels share theirs).
-fn lag_decays<'d>(decays: &'d mut Vec<(f64, Vec<f64>)>, s: &Prepared, dt: &[f64]) -> &'d [f64] {
-    let i = match decays.iter().position(|d| d.0 == s.inv_lag) {
-        Some(i) => i,
-        None => {
-            decays.push((s.inv_lag, dt.iter().map(|&d| s.decay(d)).collect()));
-            decays.len() - 1
-        }
-    };
-    &decays[i].1
 }
 
 #[cfg(test)]

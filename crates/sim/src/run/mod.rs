@@ -254,6 +254,14 @@ impl Run {
         self.scenario.throttle = profile;
     }
 
+    /// The speed demand [rpm] (torque demand [N·m] in torque mode) held at `value` from now on,
+    /// and the throttle at `throttle_deg`: what an importer's inputs set at every step, without
+    /// allocating.
+    pub fn hold_inputs(&mut self, value: f64, throttle_deg: f64) {
+        self.scenario.speed.hold(value);
+        self.scenario.throttle.hold(throttle_deg);
+    }
+
     /// Another scenario's inputs from now on: its demand and throttle profiles starting now,
     /// and its demand mode (speed or torque). The cell's parameters and the faults stay.
     pub fn set_scenario(&mut self, s: &Scenario) {
