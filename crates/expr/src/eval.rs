@@ -94,21 +94,16 @@ impl ParamModel for ExprModel {
         self.tape.eval_many(inputs, params, out);
     }
 
-    /// The exact gradient through the formula's tape: forward mode as for any model, each
-    /// distinct operation once (a repeated subexpression is not differentiated again).
+    /// The exact gradient through the formula's tape by reverse mode (`tape.rs`): each
+    /// distinct operation once forwards and once backwards, whatever the number of parameters.
     fn value_and_gradient_with(
         &self,
-        engine: &mut GradientEngine,
+        _engine: &mut GradientEngine,
         inputs: &[f64],
         params: &[f64],
         free: &[usize],
         grad: &mut [f64],
     ) -> f64 {
-        if free.is_empty() {
-            return self.eval::<f64>(inputs, params);
-        }
-        engine.forward(params, free, grad, |duals| {
-            self.tape.eval_grad(inputs, duals)
-        })
+        self.tape.value_and_gradient(inputs, params, free, grad)
     }
 }

@@ -150,6 +150,24 @@ impl Func {
         }
     }
 
+    /// The function's derivative at `x`, where its value is `fx` (reverse mode's local
+    /// partial: `d/dx sqrt = 1/(2·sqrt x)`, `d/dx tan = 1 + tan²x`, `d/dx |x| = sign x`, …).
+    pub(crate) fn derivative(self, x: f64, fx: f64) -> f64 {
+        match self {
+            Func::Sqrt => 0.5 / fx,
+            Func::Exp => fx,
+            Func::Ln => 1.0 / x,
+            Func::Log10 => 1.0 / (x * std::f64::consts::LN_10),
+            Func::Sin => x.cos(),
+            Func::Cos => -x.sin(),
+            Func::Tan => 1.0 + fx * fx,
+            Func::Asin => 1.0 / (1.0 - x * x).sqrt(),
+            Func::Acos => -1.0 / (1.0 - x * x).sqrt(),
+            Func::Atan => 1.0 / (1.0 + x * x),
+            Func::Abs => x.signum(),
+        }
+    }
+
     fn from_name(name: &str) -> Option<Self> {
         Some(match name {
             "sqrt" => Func::Sqrt,

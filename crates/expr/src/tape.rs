@@ -12,7 +12,7 @@
 //! results equal its values bit for bit (tested).
 
 use crate::parse::{ExprModel, Func, Node};
-use physid_core::{Grad, Scalar};
+use physid_core::Scalar;
 use std::cell::RefCell;
 use std::collections::HashMap;
 
@@ -55,6 +55,8 @@ pub(crate) struct Tape {
     ops: Vec<Op>,
     /// Whether each operation depends on a parameter.
     dep: Vec<bool>,
+    /// The operations that do, in order (the ones reverse mode walks back through).
+    dep_ops: Vec<u32>,
     root: u32,
 }
 
@@ -62,8 +64,9 @@ thread_local! {
     /// The registers, grown to the largest tape × points seen on this thread (then reused:
     /// no allocation per call).
     static REGISTERS: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
-    /// The dual-number registers of [`Tape::eval_grad`], grown likewise.
-    static DUALS: RefCell<Vec<Grad>> = const { RefCell::new(Vec::new()) };
+    /// The adjoints of [`Tape::value_and_gradient`] (each operation's, then each
+    /// parameter's), grown likewise.
+    static ADJOINTS: RefCell<Vec<f64>> = const { RefCell::new(Vec::new()) };
 }
 
 /// `x^y`, `x^e`, `x^n` as the scalar type defines them (for `f64`, the calls the generic
@@ -125,6 +128,9 @@ impl Tape {
             });
         }
         tape.root = reg[m.root as usize];
+        tape.dep_ops = (0..tape.ops.len() as u32)
+            .filter(|&r| tape.dep[r as usize])
+            .collect();
         tape
     }
 
@@ -192,81 +198,100 @@ impl Tape {
         });
     }
 
-    /// The formula in the gradient's dual numbers at one parameter vector: each distinct
-    /// operation once, the parameter-free ones in `f64` and promoted where a dual operation
-    /// reads them — the dual operations [`ExprModel::eval`](crate::ExprModel) makes through its
-    /// compiled closures, so value and derivatives are theirs bit for bit (tested), without
-    /// the repeats.
-    pub(crate) fn eval_grad(&self, u: &[f64], p: &[Grad]) -> Grad {
+    /// The value and the exact gradient with respect to the parameters `free` at one
+    /// parameter vector, by reverse mode: the operations forwards in `f64` (the value is
+    /// [`eval_many`](Self::eval_many)'s, so the formula's own, bit for bit), then each
+    /// operation's adjoint backwards through its local partials (`∂(a·b)/∂a = b`,
+    /// `∂(a/b)/∂b = −(a/b)/b`, `∂aᵇ/∂b = aᵇ·ln a`, a function's [`Func::derivative`]). The cost is
+    /// about two passes over the tape whatever the number of parameters — forward mode carries
+    /// every partial through every operation. The partials equal forward mode's to round-off
+    /// (sums in another order: a few units in the last place, tested).
+    pub(crate) fn value_and_gradient(
+        &self,
+        u: &[f64],
+        params: &[f64],
+        free: &[usize],
+        grad: &mut [f64],
+    ) -> f64 {
         let n = self.ops.len();
         REGISTERS.with(|values| {
-            DUALS.with(|duals| {
-                let (mut v, mut d) = (values.borrow_mut(), duals.borrow_mut());
+            ADJOINTS.with(|adjoints| {
+                let (mut v, mut adj) = (values.borrow_mut(), adjoints.borrow_mut());
                 if v.len() < n {
                     v.resize(n, 0.0);
                 }
-                if d.len() < n {
-                    d.resize(n, Grad::from(0.0));
+                if adj.len() < n + params.len() {
+                    adj.resize(n + params.len(), 0.0);
                 }
-                for (r, (&op, &dep)) in self.ops.iter().zip(&self.dep).enumerate() {
-                    if !dep {
-                        let (done, rest) = v.split_at_mut(r);
-                        rest[0] = self.scalar(op, u, |a| done[a as usize]);
-                        continue;
-                    }
-                    let (done, rest) = d.split_at_mut(r);
-                    let x = |a: u32| {
-                        if self.dep[a as usize] {
-                            done[a as usize]
-                        } else {
-                            Grad::from(v[a as usize])
-                        }
-                    };
+                for (r, &op) in self.ops.iter().enumerate() {
+                    let (done, rest) = v.split_at_mut(r);
+                    let at = |a: u32| done[a as usize];
                     rest[0] = match op {
-                        Op::Param(k) => p[k],
-                        Op::Neg(a) => -x(a),
-                        Op::Add(a, b) => x(a) + x(b),
-                        Op::Sub(a, b) => x(a) - x(b),
-                        Op::Mul(a, b) => x(a) * x(b),
-                        Op::Div(a, b) => x(a) / x(b),
-                        Op::Pow(a, b) if self.dep[b as usize] => powd(x(a), x(b)),
-                        Op::Pow(a, b) => powf(x(a), v[b as usize]),
-                        Op::PowI(a, 2) => {
-                            let t = x(a);
-                            t * t
-                        }
-                        Op::PowI(a, 3) => {
-                            let t = x(a);
-                            t * t * t
-                        }
-                        Op::PowI(a, k) => powi(x(a), k),
-                        Op::Call(f, a) => f.apply(x(a)),
-                        Op::Min(a, b) => {
-                            let (x, y) = (x(a), x(b));
-                            if y.value() < x.value() {
-                                y
-                            } else {
-                                x
-                            }
-                        }
-                        Op::Max(a, b) => {
-                            let (x, y) = (x(a), x(b));
-                            if y.value() > x.value() {
-                                y
-                            } else {
-                                x
-                            }
-                        }
-                        // Leaves other than parameters depend on none.
-                        Op::Num(_) | Op::Input(_) => Grad::from(f64::NAN),
+                        Op::Param(k) => params[k],
+                        Op::Pow(a, b) if self.dep[b as usize] => powd(at(a), at(b)),
+                        _ => self.scalar(op, u, at),
                     };
                 }
                 let root = self.root as usize;
-                if self.dep[root] {
-                    d[root]
-                } else {
-                    Grad::from(v[root])
+                if v[root].is_nan() {
+                    // No gradient of an undefined value (a root of a negative number, say):
+                    // every partial NaN, as forward mode gives it.
+                    grad.fill(f64::NAN);
+                    return v[root];
                 }
+                let (adj, adj_p) = adj.split_at_mut(n);
+                adj.fill(0.0);
+                adj_p.fill(0.0);
+                adj[root] = 1.0;
+                for &r in self.dep_ops.iter().rev() {
+                    let r = r as usize;
+                    let a = adj[r];
+                    if a == 0.0 {
+                        continue;
+                    }
+                    let dep = |i: u32| self.dep[i as usize];
+                    let val = |i: u32| v[i as usize];
+                    let mut add = |i: u32, d: f64| {
+                        if dep(i) {
+                            adj[i as usize] += d;
+                        }
+                    };
+                    match self.ops[r] {
+                        Op::Param(k) => adj_p[k] += a,
+                        Op::Neg(x) => add(x, -a),
+                        Op::Add(x, y) => {
+                            add(x, a);
+                            add(y, a);
+                        }
+                        Op::Sub(x, y) => {
+                            add(x, a);
+                            add(y, -a);
+                        }
+                        Op::Mul(x, y) => {
+                            add(x, a * val(y));
+                            add(y, a * val(x));
+                        }
+                        Op::Div(x, y) => {
+                            // ∂(x/y)/∂x = 1/y, ∂(x/y)/∂y = −(x/y)/y: one division.
+                            let q = a / val(y);
+                            add(x, q);
+                            add(y, -q * v[r]);
+                        }
+                        Op::Pow(x, y) => {
+                            add(x, a * val(y) * powf(val(x), val(y) - 1.0));
+                            add(y, a * v[r] * val(x).ln());
+                        }
+                        Op::PowI(x, k) => add(x, a * f64::from(k) * powi(val(x), k - 1)),
+                        Op::Call(f, x) => add(x, a * f.derivative(val(x), v[r])),
+                        Op::Min(x, y) => add(if val(y) < val(x) { y } else { x }, a),
+                        Op::Max(x, y) => add(if val(y) > val(x) { y } else { x }, a),
+                        Op::Num(_) | Op::Input(_) => {}
+                    }
+                }
+                for (g, &j) in grad.iter_mut().zip(free) {
+                    *g = adj_p[j];
+                }
+                v[root]
             })
         })
     }

@@ -383,11 +383,12 @@ fn many_points_at_once_equal_each_point_bit_for_bit() {
     }
 }
 
-/// The exact gradient through the formula's tape (each distinct operation once) equals the
-/// forward mode through the compiled closures (every node of the tree) bit for bit: value and
-/// every partial, for all parameters free and for a subset, on formulas of every operation.
+/// The exact gradient through the formula's tape (reverse mode, each distinct operation once)
+/// against forward mode through the compiled closures (every node of the tree): the value is
+/// the formula's `f64` value bit for bit, every partial equal to round-off (the adjoints sum the same terms in another order), for
+/// all parameters free and for a subset, on formulas of every operation.
 #[test]
-fn the_tapes_gradient_equals_the_closures_bit_for_bit() {
+fn the_tapes_gradient_equals_the_closures() {
     let cases: [(&str, &[&str]); 3] = [
         (
             BENCH10,
@@ -403,6 +404,7 @@ fn the_tapes_gradient_equals_the_closures_bit_for_bit() {
     ];
     let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
     let mut rng = ChaCha8Rng::seed_from_u64(471);
+    let (mut worst, mut nan) = (0.0_f64, 0);
     for (text, names) in cases {
         let m = ExprModel::parse(text, names).unwrap();
         let (np, ni) = (m.param_names().len(), m.input_names().len());
@@ -416,10 +418,27 @@ fn the_tapes_gradient_equals_the_closures_bit_for_bit() {
                 let (mut g_tape, mut g_tree) = (vec![0.0; free.len()], vec![0.0; free.len()]);
                 let v_tape = m.value_and_gradient_with(&mut engine, &u, &p, free, &mut g_tape);
                 let v_tree = engine.forward(&p, free, &mut g_tree, |d| m.eval(&u, d));
-                assert!(same(v_tape, v_tree), "{text}: {v_tape} against {v_tree}");
+                // The value is the formula's in f64 (dual numbers round a division or a root
+                // of their real part their own way).
+                let v = m.eval::<f64>(&u, &p);
+                assert!(same(v_tape, v), "{text}: {v_tape} against {v}");
+                let err = (v_tape - v_tree).abs() / v_tree.abs().max(1.0);
+                assert!(
+                    same(v_tape, v_tree) || err < 1e-12,
+                    "{text}: {v_tape} against {v_tree}"
+                );
+                if v.is_nan() {
+                    // An undefined value (outside a root's or a logarithm's domain) has no
+                    // gradient: every partial NaN (forward mode's are NaN or not by the path).
+                    assert!(g_tape.iter().all(|g| g.is_nan()), "{text}: {g_tape:?}");
+                    nan += 1;
+                    continue;
+                }
                 for (j, (a, b)) in g_tape.iter().zip(&g_tree).enumerate() {
+                    let err = (a - b).abs() / b.abs().max(1.0);
+                    worst = worst.max(err);
                     assert!(
-                        same(*a, *b),
+                        same(*a, *b) || err < 1e-12,
                         "{text}: ∂/∂{}: {a} against {b}",
                         names[free[j]]
                     );
@@ -427,4 +446,7 @@ fn the_tapes_gradient_equals_the_closures_bit_for_bit() {
             }
         }
     }
+    // Measured: the worst partial 6.6e-14 off (relative to max(1, |∂|)), 1004 of the 3600
+    // points outside the formulas' domains.
+    assert!(worst < 1e-12 && nan < 1800, "{worst:e}, {nan}");
 }
