@@ -4,6 +4,7 @@
 #![allow(unsafe_code)]
 
 use crate::instance::{Instance, Refusal};
+use crate::variables::Type;
 use std::ffi::{c_char, c_int, c_void, CStr};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
@@ -57,6 +58,92 @@ pub(crate) unsafe fn call(
         }
     }
 }
+
+/// Read `nvr` variables of type `ty` into the importer's `n` values through `put` (every
+/// variable here is a scalar: the counts must agree).
+///
+/// # Safety
+/// As for [`call`], and the arrays as the FMI getters define them.
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn get_values<T>(
+    c: *mut c_void,
+    what: &str,
+    ty: Type,
+    vr: *const u32,
+    nvr: usize,
+    out: *mut T,
+    n: usize,
+    put: impl Fn(f64) -> T,
+) -> c_int {
+    // SAFETY: the caller's promise.
+    unsafe {
+        call(c, what, |i| {
+            scalars(nvr, n)?;
+            let vr = slice(vr, nvr, "value references")?;
+            for (o, &r) in slice_mut(out, n, "values")?.iter_mut().zip(vr) {
+                *o = put(i.get(r, ty)?);
+            }
+            Ok(())
+        })
+    }
+}
+
+/// Write `nvr` variables of type `ty` from the importer's `n` values through `take`.
+///
+/// # Safety
+/// As for [`call`], and the arrays as the FMI setters define them.
+#[allow(clippy::too_many_arguments)]
+pub(crate) unsafe fn set_values<T: Copy>(
+    c: *mut c_void,
+    what: &str,
+    ty: Type,
+    vr: *const u32,
+    nvr: usize,
+    values: *const T,
+    n: usize,
+    take: impl Fn(T) -> f64,
+) -> c_int {
+    // SAFETY: the caller's promise.
+    unsafe {
+        call(c, what, |i| {
+            scalars(nvr, n)?;
+            let vr = slice(vr, nvr, "value references")?;
+            for (&v, &r) in slice(values, n, "values")?.iter().zip(vr) {
+                i.set(r, ty, take(v))?;
+            }
+            Ok(())
+        })
+    }
+}
+
+/// The importer's counts agree (every variable here is a scalar).
+fn scalars(nvr: usize, n: usize) -> Result<(), String> {
+    if nvr == n {
+        Ok(())
+    } else {
+        Err(format!(
+            "{nvr} value references but {n} values (every variable here is a scalar)"
+        ))
+    }
+}
+
+/// C functions refused with a reason, for what an FMU does not do: `name(arguments after
+/// the instance) => reason`, each returning the error status with the reason logged.
+macro_rules! refused {
+    ($( $name:ident ( $( $arg:ident : $ty:ty ),* ) => $why:expr ; )*) => { $(
+        /// Refused with the error status and the reason through the logger.
+        ///
+        /// # Safety
+        /// The FMI standard's contract for this function.
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(instance: *mut std::ffi::c_void $(, $arg: $ty )*) -> std::ffi::c_int {
+            $( let _ = $arg; )*
+            // SAFETY: the FMI standard's contract.
+            unsafe { $crate::ffi::call(instance, stringify!($name), |_| Err($why.to_string())) }
+        }
+    )* };
+}
+pub(crate) use refused;
 
 /// A panic-free call that makes something (an instance): `None` on a panic.
 pub(crate) fn guard<T>(f: impl FnOnce() -> Option<T>) -> Option<T> {

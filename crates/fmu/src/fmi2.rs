@@ -4,7 +4,7 @@
 //! `fmi2Error` and a message through the importer's logger.
 #![allow(unsafe_code, non_snake_case, missing_docs)]
 
-use crate::ffi::{call, guard, slice, slice_mut, text, uri_path};
+use crate::ffi::{call, get_values, guard, refused, set_values, slice_mut, text, uri_path};
 use crate::instance::Instance;
 use crate::log::{Fmi2Logger, Logger, Status};
 use crate::variables::Type;
@@ -179,58 +179,6 @@ pub unsafe extern "C" fn fmi2Reset(c: Component) -> Status2 {
     }
 }
 
-/// Read `n` variables of type `ty` into `out` through `put`.
-///
-/// # Safety
-/// FMI 2's contract for the getters.
-unsafe fn get<T>(
-    c: Component,
-    what: &str,
-    ty: Type,
-    vr: *const Vr,
-    n: usize,
-    out: *mut T,
-    put: impl Fn(f64) -> T,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe {
-        call(c, what, |i| {
-            let vr = slice(vr, n, "value references")?;
-            let out = slice_mut(out, n, "values")?;
-            for (o, &r) in out.iter_mut().zip(vr) {
-                *o = put(i.get(r, ty)?);
-            }
-            Ok(())
-        })
-    }
-}
-
-/// Write `n` variables of type `ty` from `values` through `take`.
-///
-/// # Safety
-/// FMI 2's contract for the setters.
-unsafe fn set<T: Copy>(
-    c: Component,
-    what: &str,
-    ty: Type,
-    vr: *const Vr,
-    n: usize,
-    values: *const T,
-    take: impl Fn(T) -> f64,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe {
-        call(c, what, |i| {
-            let vr = slice(vr, n, "value references")?;
-            let values = slice(values, n, "values")?;
-            for (&r, &v) in vr.iter().zip(values) {
-                i.set(r, ty, take(v))?;
-            }
-            Ok(())
-        })
-    }
-}
-
 /// # Safety
 /// FMI 2's contract.
 #[no_mangle]
@@ -241,7 +189,7 @@ pub unsafe extern "C" fn fmi2GetReal(
     v: *mut f64,
 ) -> Status2 {
     // SAFETY: FMI 2's contract.
-    unsafe { get(c, "fmi2GetReal", Type::Real, vr, n, v, |x| x) }
+    unsafe { get_values(c, "fmi2GetReal", Type::Real, vr, n, v, n, |x| x) }
 }
 
 /// # Safety
@@ -254,7 +202,7 @@ pub unsafe extern "C" fn fmi2SetReal(
     v: *const f64,
 ) -> Status2 {
     // SAFETY: FMI 2's contract.
-    unsafe { set(c, "fmi2SetReal", Type::Real, vr, n, v, |x| x) }
+    unsafe { set_values(c, "fmi2SetReal", Type::Real, vr, n, v, n, |x| x) }
 }
 
 /// # Safety
@@ -268,7 +216,7 @@ pub unsafe extern "C" fn fmi2GetBoolean(
 ) -> Status2 {
     // SAFETY: FMI 2's contract.
     unsafe {
-        get(c, "fmi2GetBoolean", Type::Boolean, vr, n, v, |x| {
+        get_values(c, "fmi2GetBoolean", Type::Boolean, vr, n, v, n, |x| {
             c_int::from(x != 0.0)
         })
     }
@@ -285,7 +233,7 @@ pub unsafe extern "C" fn fmi2SetBoolean(
 ) -> Status2 {
     // SAFETY: FMI 2's contract.
     unsafe {
-        set(c, "fmi2SetBoolean", Type::Boolean, vr, n, v, |x| {
+        set_values(c, "fmi2SetBoolean", Type::Boolean, vr, n, v, n, |x| {
             f64::from(u8::from(x != 0))
         })
     }
@@ -385,116 +333,7 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(c: Component, state: *mut *mut c_void)
     unsafe { crate::ffi::free_state(c, "fmi2FreeFMUstate", state) }
 }
 
-/// Refuse what this FMU does not do, saying why.
-///
-/// # Safety
-/// FMI 2's contract.
-unsafe fn unsupported(c: Component, what: &str, why: &str) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { call(c, what, |_| Err(why.to_string())) }
-}
-
 const NO_SERIALIZE: &str = "this FMU does not serialise its state (canSerializeFMUstate=\"false\"); fmi2GetFMUstate and fmi2SetFMUstate roll back within the process";
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
-    c: Component,
-    _s: *mut c_void,
-    _size: *mut usize,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2SerializedFMUstateSize", NO_SERIALIZE) }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SerializeFMUstate(
-    c: Component,
-    _s: *mut c_void,
-    _b: *mut u8,
-    _size: usize,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2SerializeFMUstate", NO_SERIALIZE) }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
-    c: Component,
-    _b: *const u8,
-    _size: usize,
-    _s: *mut *mut c_void,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2DeSerializeFMUstate", NO_SERIALIZE) }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
-    c: Component,
-    _unknown: *const Vr,
-    _n_unknown: usize,
-    _known: *const Vr,
-    _n_known: usize,
-    _dv_known: *const f64,
-    _dv_unknown: *mut f64,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe {
-        unsupported(
-            c,
-            "fmi2GetDirectionalDerivative",
-            "this FMU gives no directional derivatives (providesDirectionalDerivative=\"false\")",
-        )
-    }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
-    c: Component,
-    _vr: *const Vr,
-    _n: usize,
-    _order: *const c_int,
-    _v: *const f64,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe {
-        unsupported(
-            c,
-            "fmi2SetRealInputDerivatives",
-            "the inputs are held over a step (canInterpolateInputs=\"false\")",
-        )
-    }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
-    c: Component,
-    _vr: *const Vr,
-    _n: usize,
-    _order: *const c_int,
-    _v: *mut f64,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe {
-        unsupported(
-            c,
-            "fmi2GetRealOutputDerivatives",
-            "this FMU gives no output derivatives (maxOutputDerivativeOrder=\"0\")",
-        )
-    }
-}
 
 /// # Safety
 /// FMI 2's contract.
@@ -505,22 +344,6 @@ pub unsafe extern "C" fn fmi2DoStep(c: Component, t: f64, h: f64, _no_set_prior:
 }
 
 const SYNCHRONOUS: &str = "every step here finishes within fmi2DoStep (no asynchronous steps)";
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2CancelStep(c: Component) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2CancelStep", SYNCHRONOUS) }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetStatus(c: Component, _kind: c_int, _v: *mut c_int) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2GetStatus", SYNCHRONOUS) }
-}
 
 /// `fmi2LastSuccessfulTime`: the instance's time.
 ///
@@ -541,18 +364,6 @@ pub unsafe extern "C" fn fmi2GetRealStatus(c: Component, kind: c_int, v: *mut f6
             }
         })
     }
-}
-
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetIntegerStatus(
-    c: Component,
-    _kind: c_int,
-    _v: *mut c_int,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2GetIntegerStatus", SYNCHRONOUS) }
 }
 
 /// `fmi2Terminated`: false (the cell never asks to stop).
@@ -576,14 +387,15 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(c: Component, kind: c_int, v: *mut
     }
 }
 
-/// # Safety
-/// FMI 2's contract.
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetStringStatus(
-    c: Component,
-    _kind: c_int,
-    _v: *mut *const c_char,
-) -> Status2 {
-    // SAFETY: FMI 2's contract.
-    unsafe { unsupported(c, "fmi2GetStringStatus", SYNCHRONOUS) }
+refused! {
+    fmi2SerializedFMUstateSize(state: *mut c_void, size: *mut usize) => NO_SERIALIZE;
+    fmi2SerializeFMUstate(state: *mut c_void, bytes: *mut u8, size: usize) => NO_SERIALIZE;
+    fmi2DeSerializeFMUstate(bytes: *const u8, size: usize, state: *mut *mut c_void) => NO_SERIALIZE;
+    fmi2GetDirectionalDerivative(unknown: *const Vr, n_unknown: usize, known: *const Vr, n_known: usize, dv_known: *const f64, dv_unknown: *mut f64) => "this FMU gives no directional derivatives (providesDirectionalDerivative=\"false\")";
+    fmi2SetRealInputDerivatives(vr: *const Vr, n: usize, order: *const c_int, v: *const f64) => "the inputs are held over a step (canInterpolateInputs=\"false\")";
+    fmi2GetRealOutputDerivatives(vr: *const Vr, n: usize, order: *const c_int, v: *mut f64) => "this FMU gives no output derivatives (maxOutputDerivativeOrder=\"0\")";
+    fmi2CancelStep() => SYNCHRONOUS;
+    fmi2GetStatus(kind: c_int, v: *mut c_int) => SYNCHRONOUS;
+    fmi2GetIntegerStatus(kind: c_int, v: *mut c_int) => SYNCHRONOUS;
+    fmi2GetStringStatus(kind: c_int, v: *mut *const c_char) => SYNCHRONOUS;
 }

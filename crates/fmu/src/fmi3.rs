@@ -5,7 +5,7 @@
 //! declares none of them).
 #![allow(unsafe_code, non_snake_case, missing_docs)]
 
-use crate::ffi::{call, guard, slice, slice_mut, text};
+use crate::ffi::{call, get_values, guard, refused, set_values, text};
 use crate::instance::Instance;
 use crate::log::{Fmi3Logger, Logger, Status};
 use crate::variables::Type;
@@ -238,17 +238,6 @@ pub unsafe extern "C" fn fmi3DoStep(
     }
 }
 
-/// The importer's counts agree (every variable here is a scalar).
-fn scalars(nvr: usize, n: usize) -> Result<(), String> {
-    if nvr == n {
-        Ok(())
-    } else {
-        Err(format!(
-            "{nvr} value references but {n} values (every variable here is a scalar)"
-        ))
-    }
-}
-
 /// # Safety
 /// FMI 3's contract.
 #[no_mangle]
@@ -261,14 +250,16 @@ pub unsafe extern "C" fn fmi3GetFloat64(
 ) -> Status3 {
     // SAFETY: FMI 3's contract.
     unsafe {
-        call(instance, "fmi3GetFloat64", |i| {
-            scalars(nvr, n)?;
-            let vr = slice(vr, nvr, "value references")?;
-            for (o, &r) in slice_mut(values, n, "values")?.iter_mut().zip(vr) {
-                *o = i.get(r, Type::Real)?;
-            }
-            Ok(())
-        })
+        get_values(
+            instance,
+            "fmi3GetFloat64",
+            Type::Real,
+            vr,
+            nvr,
+            values,
+            n,
+            |x| x,
+        )
     }
 }
 
@@ -284,14 +275,16 @@ pub unsafe extern "C" fn fmi3SetFloat64(
 ) -> Status3 {
     // SAFETY: FMI 3's contract.
     unsafe {
-        call(instance, "fmi3SetFloat64", |i| {
-            scalars(nvr, n)?;
-            let vr = slice(vr, nvr, "value references")?;
-            for (&v, &r) in slice(values, n, "values")?.iter().zip(vr) {
-                i.set(r, Type::Real, v)?;
-            }
-            Ok(())
-        })
+        set_values(
+            instance,
+            "fmi3SetFloat64",
+            Type::Real,
+            vr,
+            nvr,
+            values,
+            n,
+            |x| x,
+        )
     }
 }
 
@@ -307,14 +300,16 @@ pub unsafe extern "C" fn fmi3GetBoolean(
 ) -> Status3 {
     // SAFETY: FMI 3's contract.
     unsafe {
-        call(instance, "fmi3GetBoolean", |i| {
-            scalars(nvr, n)?;
-            let vr = slice(vr, nvr, "value references")?;
-            for (o, &r) in slice_mut(values, n, "values")?.iter_mut().zip(vr) {
-                *o = i.get(r, Type::Boolean)? != 0.0;
-            }
-            Ok(())
-        })
+        get_values(
+            instance,
+            "fmi3GetBoolean",
+            Type::Boolean,
+            vr,
+            nvr,
+            values,
+            n,
+            |x| x != 0.0,
+        )
     }
 }
 
@@ -330,14 +325,16 @@ pub unsafe extern "C" fn fmi3SetBoolean(
 ) -> Status3 {
     // SAFETY: FMI 3's contract.
     unsafe {
-        call(instance, "fmi3SetBoolean", |i| {
-            scalars(nvr, n)?;
-            let vr = slice(vr, nvr, "value references")?;
-            for (&v, &r) in slice(values, n, "values")?.iter().zip(vr) {
-                i.set(r, Type::Boolean, f64::from(u8::from(v)))?;
-            }
-            Ok(())
-        })
+        set_values(
+            instance,
+            "fmi3SetBoolean",
+            Type::Boolean,
+            vr,
+            nvr,
+            values,
+            n,
+            |x| f64::from(u8::from(x)),
+        )
     }
 }
 
@@ -363,22 +360,6 @@ pub unsafe extern "C" fn fmi3SetFMUState(instance: Inst, state: *mut c_void) -> 
 pub unsafe extern "C" fn fmi3FreeFMUState(instance: Inst, state: *mut *mut c_void) -> Status3 {
     // SAFETY: FMI 3's contract.
     unsafe { crate::ffi::free_state(instance, "fmi3FreeFMUState", state) }
-}
-
-/// Functions refused with a reason: `name(arguments after the instance) => reason`.
-macro_rules! refused {
-    ($( $name:ident ( $( $arg:ident : $ty:ty ),* ) => $why:expr ; )*) => { $(
-        /// Refused with `fmi3Error` and the reason through the logger.
-        ///
-        /// # Safety
-        /// FMI 3's contract.
-        #[no_mangle]
-        pub unsafe extern "C" fn $name(instance: Inst $(, $arg: $ty )*) -> Status3 {
-            $( let _ = $arg; )*
-            // SAFETY: FMI 3's contract.
-            unsafe { call(instance, stringify!($name), |_| Err($why.to_string())) }
-        }
-    )* };
 }
 
 const NO_TYPE: &str =
