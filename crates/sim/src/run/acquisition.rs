@@ -160,6 +160,7 @@ impl Acquisition {
         basis: OutputBasis,
         duration: f64,
         w0: f64,
+        stream: bool,
     ) -> Result<Self, SimError> {
         let expected = match basis {
             OutputBasis::Time(rate) if rate.is_finite() && rate > 0.0 => duration * rate,
@@ -177,8 +178,13 @@ impl Acquisition {
                 )))
             }
         };
-        // A hint (the channels grow beyond it if the engine speeds up), capped at 2²² samples.
-        let capacity = expected.min(f64::from(1u32 << 22)) as usize + 2;
+        // A hint (the channels grow beyond it if the engine speeds up), capped at 2²² samples;
+        // a streaming run's samples are drained as it goes: little room.
+        let capacity = if stream {
+            4 * CHUNK
+        } else {
+            expected.min(f64::from(1u32 << 22)) as usize + 2
+        };
         // Each sensor its own random stream (one sensor's settings never change another's
         // noise); stream 0 is the encoder's.
         let seed = base.sensors.seed as u64 ^ 0x5e5e;
@@ -284,13 +290,6 @@ impl Acquisition {
             self.steps = 1;
         }
         Ok(())
-    }
-
-    /// Keep little room in the channels: a streaming run's samples are drained as it goes.
-    pub(super) fn shrink(&mut self) {
-        for out in &mut self.outputs {
-            out.values = Vec::with_capacity(4 * CHUNK);
-        }
     }
 
     /// The samples taken so far, moved out (the channels keep their room).
@@ -578,7 +577,7 @@ mod tests {
         let scenario = named("shaft-steady").unwrap();
         let (t_int, t_exh, p_int) = (raw_index("T_int"), raw_index("T_exh"), raw_index("p_int"));
         let mut acq =
-            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
+            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0, false).unwrap();
         for k in 0..1500 {
             let t = k as f64 * 50e-6;
             let mut r = [0.0; RAW.len()];
@@ -622,7 +621,7 @@ mod tests {
         let scenario = named("shaft-steady").unwrap();
         let p_int = raw_index("p_int");
         let mut acq =
-            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
+            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0, false).unwrap();
         for k in 0..1500 {
             let t = k as f64 * 50e-6;
             let mut r = [0.0; RAW.len()];
@@ -664,7 +663,7 @@ mod tests {
         };
         // Across several chunks of steps.
         let mut acq =
-            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0).unwrap();
+            Acquisition::new(&base, &[], OutputBasis::Time(10_000.0), 0.07, 100.0, false).unwrap();
         for k in 0..3 * CHUNK {
             acq.accept(&row(k)).unwrap();
         }
@@ -680,7 +679,8 @@ mod tests {
         }
         assert!(rec.values("theta").is_err());
 
-        let mut acq = Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0).unwrap();
+        let mut acq =
+            Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0, false).unwrap();
         for k in 0..8 {
             acq.accept(&row(k)).unwrap();
         }
@@ -691,15 +691,16 @@ mod tests {
         assert_eq!(rec.values("tdc").unwrap()[0], 1.0);
         let deg = rec.values("crank_deg").unwrap();
         assert!(deg[0] == 0.0 && (deg[1] - 1.0).abs() < 1e-12);
-        let mut acq = Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0).unwrap();
+        let mut acq =
+            Acquisition::new(&base, &[], OutputBasis::Crank(1.0), 1.0, 100.0, false).unwrap();
         acq.accept(&row(1)).unwrap();
         let e = acq.accept(&row(0)).unwrap_err().to_string();
         assert!(e.contains("turned back at t = -0.000050 s"), "{e}");
         // Too few steps, and a bad grid, are errors.
-        let acq = Acquisition::new(&base, &[], OutputBasis::Time(10.0), 1.0, 100.0).unwrap();
+        let acq = Acquisition::new(&base, &[], OutputBasis::Time(10.0), 1.0, 100.0, false).unwrap();
         assert!(acq.finish(&scenario).is_err());
         for basis in [OutputBasis::Time(0.0), OutputBasis::Crank(f64::NAN)] {
-            assert!(Acquisition::new(&base, &[], basis, 1.0, 100.0).is_err());
+            assert!(Acquisition::new(&base, &[], basis, 1.0, 100.0, false).is_err());
         }
     }
 }

@@ -197,10 +197,7 @@ impl Run {
             scenario.speed.value(0.0) * PI / 30.0
         };
         let cell = TestCell::new(base.clone(), w0.max(1.0), -PI)?;
-        let mut acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0)?;
-        if opts.stream {
-            acquisition.shrink();
-        }
+        let acquisition = Acquisition::new(&base, &faults, opts.basis, duration, w0, opts.stream)?;
         Ok(Self {
             speed_sensor: SensorState::new(base.sensors.seed as u64, 0),
             measured_at: cell.time(),
