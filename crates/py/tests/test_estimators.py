@@ -178,3 +178,57 @@ def test_the_same_estimates_as_physid_estimate(tmp_path):
     j = json.loads(out)
     r = physid.RLSF(["a", "b"], lam=0.98).run(X, y)
     np.testing.assert_allclose([j["params"]["a"], j["params"]["b"]], r.estimate, rtol=1e-12)
+
+
+def _step_paths_script(p):
+    """A script printing the estimates and standard errors of each linear method at `p` (hex of
+    their bytes): the same in this process and in one whose step is told to stay off AVX2."""
+    return f"""
+import numpy as np, physid
+rng = np.random.default_rng({p})
+X = rng.uniform(-1, 1, size=(300, {p}))
+y = X @ np.arange(1.0, {p} + 1) + 0.01 * rng.normal(size=300)
+for e in (physid.RLS({p}), physid.RLSF({p}, lam=0.97), physid.DSFC({p}, lam=0.97),
+          physid.KalmanRW({p}, r1=1e-6, r2=1e-4)):
+    r = e.run(X, y)
+    print(r.theta.tobytes().hex(), r.std_err.tobytes().hex())
+"""
+
+
+@pytest.mark.parametrize("p", [3, 5, 8, 20, 23])
+def test_the_avx2_step_and_the_portable_step_give_the_same_digits(p):
+    """The wheel is built for x86-64-v2 and carries a second copy of the linear step compiled
+    for AVX2, chosen at run time where the CPU has it (physid_estim's `linear/lanes.rs`):
+    every estimate and standard error of RLS, RLSF, DSFC and the Kalman filter, over 300 rows,
+    bit for bit the same as the SSE2 step's (`PHYSID_DISABLE_CPU_FEATURES=AVX2`): the copy
+    runs from p = 8 (whole and partial blocks of four lanes at 8, 20, 23; 23 beyond the sizes
+    compiled for their own p); at 3 and 5 both are the SSE2 step."""
+    import sys
+    run = lambda env: subprocess.run([sys.executable, "-c", _step_paths_script(p)], check=True,
+                                     capture_output=True, text=True, env=env).stdout
+    default = run(dict(os.environ))
+    portable = run({**os.environ, "PHYSID_DISABLE_CPU_FEATURES": "AVX2"})
+    assert default.count("\n") == 4 and default == portable
+
+
+@pytest.mark.skipif(not os.environ.get("PHYSID_BIN"), reason="PHYSID_BIN (physid's binary) not given")
+@pytest.mark.parametrize("method", ["rlsf", "dsfc"])
+def test_the_wheel_and_the_native_binary_give_the_same_digits_at_p_20(tmp_path, method):
+    """The wheel (x86-64-v2, its AVX2 step where the CPU has it) and physid's binary built for
+    the building machine (`target-cpu=native`): the same estimates at p = 20, bit for bit —
+    the kernels' lanes and sums are in an order written out, the same on every CPU."""
+    p, n = 20, 500
+    rng = np.random.default_rng(20)
+    X = rng.uniform(-1, 1, size=(n, p))
+    y = X @ np.arange(1.0, p + 1) + 0.01 * rng.normal(size=n)
+    names = [f"x{i}" for i in range(p)]
+    f = tmp_path / "d.csv"
+    np.savetxt(f, np.column_stack([np.arange(n) * 1e-3, X, y]), delimiter=",",
+               header=",".join(["t", *names, "y"]), comments="")
+    j = json.loads(subprocess.run(
+        [os.environ["PHYSID_BIN"], "estimate", "--data", str(f), "--y", "y", "--phi",
+         ",".join(names), "--method", method, "--lambda", "0.98", "--json"],
+        check=True, capture_output=True, text=True).stdout)
+    cls = physid.RLSF if method == "rlsf" else physid.DSFC
+    r = cls(names, lam=0.98).run(X, y)
+    assert [j["params"][k] for k in names] == r.estimate.tolist()

@@ -176,9 +176,10 @@ def test_the_package_shows_its_own_names():
 
 def test_the_wheel_runs_on_any_x86_64_v2_machine():
     """The wheel is built for x86-64-v2 (crates/py/.cargo/config.toml), not for the building
-    machine's CPU: an AVX instruction (a ymm register) appears only in the functions the
-    dependencies choose at run time after asking the CPU (memchr's `*_avx2`, matrixmultiply's
-    `kernel_target_avx`/`_fma`, zlib-rs's `avx2`), none in physid's own code."""
+    machine's CPU: an AVX instruction (a ymm register) appears only in the functions chosen at
+    run time after asking the CPU — the dependencies' (memchr's `*_avx2`, matrixmultiply's
+    `kernel_target_avx`/`_fma`, zlib-rs's `avx2`) and physid's linear step's AVX2 copy
+    (`step_dim_avx2`, physid_estim's `linear/lanes.rs`)."""
     import re
 
     objdump = shutil.which("objdump")

@@ -1,13 +1,18 @@
 //! The covariance-form and DSFC steps' loops over P (or S), written in four-lane vectors
-//! (`wide::f64x4`: AVX, or two SSE2 halves — the same results, lane for lane) with every
+//! ([`Lanes`]: one AVX register, or two SSE2 ones — the same results, lane for lane) with every
 //! reduction's order written out, so that the step gives the same digits on every CPU
 //! (BENCHMARKS.md, issue 47, has what each bought).
 
-use wide::f64x4;
+use super::lanes::Lanes;
+
+// Where the step has an AVX2 copy (`cfg(avx2_copy)`, build.rs) every kernel is inlined into
+// both copies, so that each is compiled for its own instruction set; elsewhere the compiler
+// chooses (forcing it costs the native build 15 % at p = 6).
 
 /// `aᵀb` in four lanes (each a running sum of every fourth product, added at the end): four
 /// independent chains where one sum would be one chain of p additions.
-#[inline]
+#[cfg_attr(avx2_copy, inline(always))]
+#[cfg_attr(not(avx2_copy), inline)]
 pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
@@ -28,22 +33,24 @@ pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// `u = M·x` for a column-major square `m`, as a sum of its columns four at a time: lanes run
 /// down the columns (no reduction across them), and `u` is read and written once per four
 /// columns. For a symmetric P this is `P·x` (RLS's `u = P·φ̃`).
-#[inline]
+#[cfg_attr(avx2_copy, inline(always))]
+#[cfg_attr(not(avx2_copy), inline)]
 pub(super) fn columns_times(m: &[f64], x: &[f64], u: &mut [f64]) {
     let p = u.len();
     u.fill(0.0);
-    let mut blocks = m[..p * p].chunks_exact(4 * p);
-    let mut xs = x[..p].chunks_exact(4);
-    for (block, f) in (&mut blocks).zip(&mut xs) {
-        let (c0, rest) = block.split_at(p);
+    let (xs, xr) = x[..p].as_chunks::<4>();
+    // Blocks and columns by index (as in `downdate`).
+    for (k, f) in xs.iter().enumerate() {
+        let (c0, rest) = m[4 * k * p..4 * (k + 1) * p].split_at(p);
         let (c1, rest) = rest.split_at(p);
         let (c2, c3) = rest.split_at(p);
         for ((((ui, &a), &b), &c), &d) in u.iter_mut().zip(c0).zip(c1).zip(c2).zip(c3) {
             *ui += (a * f[0] + b * f[1]) + (c * f[2] + d * f[3]);
         }
     }
-    for (col, &f) in blocks.remainder().chunks_exact(p).zip(xs.remainder()) {
-        for (ui, &a) in u.iter_mut().zip(col) {
+    for (i, &f) in xr.iter().enumerate() {
+        let j = 4 * xs.len() + i;
+        for (ui, &a) in u.iter_mut().zip(&m[j * p..(j + 1) * p]) {
             *ui += a * f;
         }
     }
@@ -52,33 +59,32 @@ pub(super) fn columns_times(m: &[f64], x: &[f64], u: &mut [f64]) {
 /// `f = Mᵀ·x` for a column-major square `m` (`f_j` = column j · x), four columns at a time:
 /// each column's products in four lanes, summed `(l0 + l1) + (l2 + l3)` — the order written
 /// out, the same on every CPU — as [`dot`] does. DSFC's `f = Sᵀφ`.
-#[inline]
-pub(super) fn columns_dot(m: &[f64], x: &[f64], f: &mut [f64]) {
+#[cfg_attr(avx2_copy, inline(always))]
+#[cfg_attr(not(avx2_copy), inline)]
+pub(super) fn columns_dot<L: Lanes>(m: &[f64], x: &[f64], f: &mut [f64]) {
     let p = f.len();
-    let split = p - p % 4;
-    let (x4, xr) = x[..p].split_at(split);
-    let sum = |v: f64x4| {
-        let a = v.as_array();
-        (a[0] + a[1]) + (a[2] + a[3])
-    };
-    let mut cols = m[..p * p].chunks_exact(4 * p);
-    let mut out = f.chunks_exact_mut(4);
-    for (block, fo) in (&mut cols).zip(&mut out) {
-        let mut acc = [f64x4::ZERO; 4];
+    let (x4, xr) = x[..p].as_chunks::<4>();
+    let (out, out_rest) = f.as_chunks_mut::<4>();
+    // Blocks and columns by index (as in `downdate`).
+    for (b, fo) in out.iter_mut().enumerate() {
+        let mut acc = [L::splat(0.0); 4];
         let mut tail = [0.0; 4];
-        for (k, col) in block.chunks_exact(p).enumerate() {
-            let (c4, cr) = col.split_at(split);
-            for (c, xc) in c4.chunks_exact(4).zip(x4.chunks_exact(4)) {
-                acc[k] += lanes(c) * lanes(xc);
+        for k in 0..4 {
+            let j = 4 * b + k;
+            let (c4, cr) = m[j * p..(j + 1) * p].as_chunks::<4>();
+            for i in 0..c4.len().min(x4.len()) {
+                acc[k] = acc[k] + L::load(&c4[i]) * L::load(&x4[i]);
             }
             tail[k] = cr.iter().zip(xr).map(|(a, b)| a * b).sum::<f64>();
         }
         for k in 0..4 {
-            fo[k] = sum(acc[k]) + tail[k];
+            fo[k] = acc[k].sum() + tail[k];
         }
     }
-    for (col, fj) in cols.remainder().chunks_exact(p).zip(out.into_remainder()) {
-        *fj = dot(col, x);
+    let done = 4 * out.len();
+    for (i, fj) in out_rest.iter_mut().enumerate() {
+        let j = done + i;
+        *fj = dot(&m[j * p..(j + 1) * p], x);
     }
 }
 
@@ -113,7 +119,7 @@ pub(super) const PER_PARAM: u8 = 2;
 /// whole-vector operations at any p (left to itself, the compiler vectorised a small fixed p
 /// across the columns, with gathers, and a larger one with a scalar tail of up to 31 rows).
 #[inline(always)]
-pub(super) fn downdate<const SCALE: u8, const WITH_Q: bool>(
+pub(super) fn downdate<L: Lanes, const SCALE: u8, const WITH_Q: bool>(
     wm: &mut [f64],
     pm: &[f64],
     RankOne { a, b, g }: RankOne,
@@ -125,39 +131,42 @@ pub(super) fn downdate<const SCALE: u8, const WITH_Q: bool>(
     // Without D_post per parameter (or Q) the slice is not read: any of length p stands in, so
     // that one zip serves every case.
     let s = if SCALE == PER_PARAM { s } else { a };
-    let split = p - p % 4;
-    let (a4, ar) = a.split_at(split);
-    let (s4, sr) = s.split_at(split);
-    let (cv, gv) = (f64x4::splat(c), f64x4::splat(g));
-    let mut bad = f64x4::ZERO;
+    let (a4, ar) = a.as_chunks::<4>();
+    let (s4, sr) = s[..p].as_chunks::<4>();
+    let (cv, gv) = (L::splat(c), L::splat(g));
+    let mut bad = L::splat(0.0);
     let mut bad_rest = 0u64;
-    for (j, (wcol, pcol)) in wm.chunks_exact_mut(p).zip(pm.chunks_exact(p)).enumerate() {
+    // Columns and blocks by index, not by zipped chunk iterators: in the step's inlined whole
+    // the compiler left their constructors as calls, dividing by the chunk length at each
+    // column (RLS p = 20 lost 15 %).
+    for j in 0..p {
+        let (wcol, pcol) = (&mut wm[j * p..(j + 1) * p], &pm[j * p..(j + 1) * p]);
         let (bj, sj) = (b[j], s[j]);
-        let (bjv, sjv) = (f64x4::splat(bj), f64x4::splat(sj));
+        let (bjv, sjv) = (L::splat(bj), L::splat(sj));
         let qcol = if WITH_Q { &q[j * p..(j + 1) * p] } else { pcol };
-        let (wo4, wor) = wcol.split_at_mut(split);
-        let (p4, pr) = pcol.split_at(split);
-        let (q4, qr) = qcol.split_at(split);
-        for ((((wo, pi), ai), si), qi) in wo4
-            .chunks_exact_mut(4)
-            .zip(p4.chunks_exact(4))
-            .zip(a4.chunks_exact(4))
-            .zip(s4.chunks_exact(4))
-            .zip(q4.chunks_exact(4))
-        {
-            let d = lanes(pi) - (lanes(ai) * bjv) * gv;
+        let (wo4, wor) = wcol.as_chunks_mut::<4>();
+        let (p4, pr) = pcol.as_chunks::<4>();
+        let (q4, qr) = qcol.as_chunks::<4>();
+        let blocks = wo4
+            .len()
+            .min(p4.len())
+            .min(a4.len())
+            .min(s4.len())
+            .min(q4.len());
+        for i in 0..blocks {
+            let d = L::load(&p4[i]) - (L::load(&a4[i]) * bjv) * gv;
             let mut v = match SCALE {
                 UNIT => d,
                 UNIFORM => cv * d,
-                _ => ((lanes(si) * sjv) * cv) * d,
+                _ => ((L::load(&s4[i]) * sjv) * cv) * d,
             };
             if WITH_Q {
-                v += lanes(qi);
+                v = v + L::load(&q4[i]);
             }
-            wo.copy_from_slice(v.as_array());
+            v.store(&mut wo4[i]);
             #[allow(clippy::eq_op)] // as in is_nonfinite
             {
-                bad |= v - v;
+                bad = bad.or(v - v);
             }
         }
         for ((((wo, &pij), &ai), &si), &qi) in wor.iter_mut().zip(pr).zip(ar).zip(sr).zip(qr) {
@@ -174,11 +183,5 @@ pub(super) fn downdate<const SCALE: u8, const WITH_Q: bool>(
             bad_rest |= is_nonfinite(v);
         }
     }
-    bad.as_array().iter().all(|b| b.to_bits() == 0) && bad_rest == 0
-}
-
-/// Four values of a slice as a vector.
-#[inline(always)]
-fn lanes(x: &[f64]) -> f64x4 {
-    f64x4::new([x[0], x[1], x[2], x[3]])
+    bad.is_zero() && bad_rest == 0
 }

@@ -47,7 +47,8 @@
 //! ## Files
 //! Here: the estimator's state ([`LinearEstimator`]). `config.rs`: the configuration as plain
 //! data; `estimator.rs`: construction, the step and accessors; `kernels.rs`: the step's loops
-//! over P (or S), in four-lane vectors; `recursive.rs`: the
+//! over P (or S), in four-lane vectors; `lanes.rs`: the lanes' two implementations and the
+//! run-time choice of the step's AVX2 copy (a build below AVX2 only); `recursive.rs`: the
 //! [`Recursive`](crate::recursive::Recursive) face.
 
 use crate::cov::{Cov, CovForm};
@@ -60,6 +61,7 @@ use serde::{Deserialize, Serialize};
 mod config;
 mod estimator;
 mod kernels;
+mod lanes;
 mod recursive;
 
 pub use config::*;
