@@ -8,7 +8,9 @@
 //!   each side — as many samples as the filter's slowest pole takes to fall to 10⁻¹², so the
 //!   window's values are those of the whole cycle filtered (131° each side at 6000 rpm and
 //!   0.1°, 19° at 1000 rpm, for the default band; the whole cycle when the margins reach its
-//!   ends). The cycle's samples are on
+//!   ends). The band-pass runs as parallel branches ([`physid_signal::filter::parallel`]: the
+//!   same filter as the sections to a few 10⁻¹⁴ of the pressure, 2.4× faster), as sections
+//!   where that form would not be accurate. The cycle's samples are on
 //!   a uniform crank-angle grid, so at the cycle's mean speed they are a uniform time series at
 //!   `f_s = 6·rpm / step` [Hz]; the band needs `f_s ≥ 2.5·f_high` (a step of at most
 //!   `6·rpm / (2.5·f_high)` degrees: 0.12° at 2000 rpm for 20 kHz) — otherwise no knock figures,
@@ -21,7 +23,7 @@
 //! * **Knock flag**: MAPO above a threshold ([`DEFAULT_THRESHOLD_PA`] unless given: the level
 //!   must be set for each engine, as every knock system asks).
 
-use physid_signal::filter::{butter, Band, Sos};
+use physid_signal::filter::{butter, Band, FilterError, Parallel, Sos};
 use serde::{Deserialize, Serialize};
 
 /// The band-pass's order (per edge).
@@ -128,9 +130,14 @@ impl Knock {
             ));
         }
         let fs = 6.0 * rpm / step;
-        let sos: Sos = butter(ORDER, &[self.band_hz.0, self.band_hz.1], Band::Bandpass, fs)
-            .map_err(|e| format!("knock left out: {e}"))?
-            .to_sos();
+        let zpk = butter(ORDER, &[self.band_hz.0, self.band_hz.1], Band::Bandpass, fs)
+            .map_err(|e| format!("knock left out: {e}"))?;
+        // The parallel form where it is accurate (the same filter to rounding, ≈ 2.5× faster),
+        // else the cascade.
+        let filter = match zpk.to_parallel() {
+            Some(parallel) => ZeroPhase::Parallel(parallel),
+            None => ZeroPhase::Cascade(zpk.to_sos()),
+        };
         let (from, to) = (
             atdc.partition_point(|&a| a < self.window.0),
             atdc.partition_point(|&a| a <= self.window.1),
@@ -139,17 +146,17 @@ impl Knock {
             return Err("knock left out: no sample in the knock window".into());
         }
         // The window and the filter's settling on each side (the whole cycle at most).
-        let margin = sos.settle_samples(SETTLE_TOL);
+        let margin = filter.settle_samples(SETTLE_TOL);
         let (mut lo, mut hi) = (
             from.saturating_sub(margin),
             to.saturating_add(margin).min(n),
         );
-        if hi - lo <= sos.padlen() {
+        if hi - lo <= filter.padlen() {
             (lo, hi) = (0, n);
         }
         // The window's values on (the backward pass need not go before it).
-        let stretch = sos
-            .sosfiltfilt_from(&p[lo..hi], from - lo)
+        let stretch = filter
+            .filtfilt_from(&p[lo..hi], from - lo)
             .map_err(|e| format!("knock left out: {e}"))?;
         let filtered = |k: usize| stretch[k - from];
         let (mut mapo, mut mapo_deg, mut impo) = (0.0_f64, atdc[from], 0.0);
@@ -168,5 +175,35 @@ impl Knock {
             impo_pa_deg: impo,
             knock: mapo > self.threshold_pa,
         })
+    }
+}
+
+/// The band-pass in the form it runs in.
+enum ZeroPhase {
+    Parallel(Parallel),
+    Cascade(Sos),
+}
+
+impl ZeroPhase {
+    fn settle_samples(&self, tol: f64) -> usize {
+        match self {
+            Self::Parallel(f) => f.settle_samples(tol),
+            Self::Cascade(f) => f.settle_samples(tol),
+        }
+    }
+
+    fn padlen(&self) -> usize {
+        match self {
+            Self::Parallel(f) => f.padlen(),
+            Self::Cascade(f) => f.padlen(),
+        }
+    }
+
+    /// `sosfiltfilt(x)[from..]`.
+    fn filtfilt_from(&self, x: &[f64], from: usize) -> Result<Vec<f64>, FilterError> {
+        match self {
+            Self::Parallel(f) => f.filtfilt_from(x, from),
+            Self::Cascade(f) => f.sosfiltfilt_from(x, from),
+        }
     }
 }

@@ -1,5 +1,5 @@
 //! criterion benchmarks of physid-signal: zero-phase Butterworth filtering (order 4 low-pass,
-//! ba and sos; order 4 band-pass, sos) of 10⁶ samples, encoder decoding (Eq. 4.3) of 10⁷ counts, and a trigger wheel's
+//! ba and sos; order 4 band-pass, sos and parallel) of 10⁶ samples, encoder decoding (Eq. 4.3) of 10⁷ counts, and a trigger wheel's
 //! raw signal decoded into the crank angle (1.2 s of an inductive pickup at 100 kHz: edges,
 //! teeth, the angle at every sample), and a time-basis stream taken onto a 0.1° crank-angle grid
 //! (`CycleStream`'s curves: 20 cycles at 6000 rpm, 360 kHz, the samples on the grid's angles or
@@ -30,11 +30,18 @@ fn filtfilt(c: &mut Criterion) {
     });
     // Knock's band-pass: four sections.
     let band = match butter(4, &[500.0, 2000.0], Band::Bandpass, 10_000.0) {
-        Ok(z) => z.to_sos(),
+        Ok(z) => z,
         Err(e) => panic!("{e}"),
     };
+    let (sections, Some(parallel)) = (band.to_sos(), band.to_parallel()) else {
+        panic!("the band-pass has no parallel form")
+    };
     g.bench_function("sos_bandpass_order4_1e6", |b| {
-        b.iter(|| black_box(band.sosfiltfilt(black_box(&x))))
+        b.iter(|| black_box(sections.sosfiltfilt(black_box(&x))))
+    });
+    // The same as parallel branches.
+    g.bench_function("parallel_bandpass_order4_1e6", |b| {
+        b.iter(|| black_box(parallel.filtfilt_from(black_box(&x), 0)))
     });
     g.finish();
 }

@@ -8,11 +8,17 @@
 //!
 //! * transfer function `(b, a)` — what `filtfilt` uses; fine for low orders, ill-conditioned
 //!   for high orders at low cut-offs (as in scipy);
-//! * second-order sections — the well-conditioned alternative (`sosfiltfilt`).
+//! * second-order sections — the well-conditioned alternative (`sosfiltfilt`);
+//! * parallel branches ([`parallel`]) — the same filter as the sections to rounding, faster
+//!   where it is accurate.
 //!
 //! Zero-phase filtering pads both ends by odd reflection (`2·x₀ − x`), starts each pass from
 //! the steady state of a step of the first value (`lfilter_zi`), filters forwards and
 //! backwards, and cuts the padding — scipy's default method, so outputs agree to rounding.
+
+pub mod parallel;
+
+pub use parallel::Parallel;
 
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::{Deserialize, Serialize};
