@@ -1,7 +1,8 @@
 //! Combustion analysis on the stream, as a [`Stage`]: the cylinder pressure of a time-basis
 //! stream taken onto a crank-angle grid from `theta_en` ([`CycleStream`]: each cycle from 360°
 //! before its firing TDC to 360° after, linear between the samples — as `physid cycles`
-//! resamples a file), and each complete cycle's figures by [`PerCycle`] — the one analysis the
+//! resamples a file; the time only at the three grid points the figures need), and each
+//! complete cycle's figures by [`PerCycle`] — the one analysis the
 //! file verb runs too: pegging, IMEP, PMEP, exponents, heat release, burn angles, misfire and
 //! partial burn, knock; with the brake torque ([`crate::per_cycle::Brake`]) taken onto the grid
 //! too, BMEP and FMEP.
@@ -16,7 +17,7 @@
 //! `physid cycles` on it give the same cycle the same number.
 
 use crate::error::AppError;
-use crate::per_cycle::{CycleFigures, PerCycle, PerCycleSettings};
+use crate::per_cycle::{CycleFigures, CycleTimes, PerCycle, PerCycleSettings};
 use crate::pressure::UnitCheck;
 use crate::stage::{Sink, Stage};
 use physid_core::Recording;
@@ -152,9 +153,14 @@ impl Stage for CombustionStage {
                 in_pa,
                 ..self.per_cycle.settings().clone()
             });
-            // Cycles start 360° before their firing TDC.
-            let channels = 2 + usize::from(self.per_cycle.settings().brake.is_some());
+            // Cycles start 360° before their firing TDC; the grid's angles [deg ATDC], and the
+            // times at its first and last points and its TDC's.
+            let points = (720.0 / self.step_deg).round() as usize;
+            grid(&mut self.atdc, points, self.step_deg);
+            let marks = [0, points - 1, CycleTimes::tdc_index(&self.atdc)];
+            let channels = 1 + usize::from(self.per_cycle.settings().brake.is_some());
             let stream = CycleStream::new(channels, self.theta_tdc - 2.0 * PI, Some(self.step_deg))
+                .and_then(|s| s.with_times_at(&marks))
                 .map_err(|e| AppError::Invalid(e.to_string()))?
                 .curves_only();
             // The first block that starts in the stream: the one its first sample begins, when
@@ -171,28 +177,38 @@ impl Stage for CombustionStage {
         let p = chunk.values(&self.channel)?;
         let pushed = match &self.per_cycle.settings().brake {
             Some(b) => stream
-                .push(t, theta, &[t, p, chunk.values(&b.channel)?], &mut self.done)
-                .map_err(|e| format!("{e} (channels 0, 1, 2: t, {}, {})", self.channel, b.channel)),
+                .push(t, theta, &[p, chunk.values(&b.channel)?], &mut self.done)
+                .map_err(|e| format!("{e} (channels 0, 1: {}, {})", self.channel, b.channel)),
             None => stream
-                .push(t, theta, &[t, p], &mut self.done)
-                .map_err(|e| format!("{e} (channels 0, 1: t, {})", self.channel)),
+                .push(t, theta, &[p], &mut self.done)
+                .map_err(|e| format!("{e} (channel 0: {})", self.channel)),
         };
         pushed.map_err(AppError::Invalid)?;
         for c in self.done.drain(..) {
             let Some(curve) = c.curve else { continue };
-            let (t, p) = (&curve[0], &curve[1]);
-            let n = p.len();
-            if self.atdc.len() != n {
-                self.atdc.clear();
-                self.atdc
-                    .extend((0..n).map(|k| -360.0 + k as f64 * self.step_deg));
-            }
+            let p = &curve[0];
+            // (The grid is not kept in a checkpoint.)
+            grid(&mut self.atdc, p.len(), self.step_deg);
+            let [t_first, t_last, t_tdc] = c.times[..] else {
+                return Err(AppError::Invalid(
+                    "the combustion stage's stream has no times at its grid points (a checkpoint of another layout?)".into(),
+                ));
+            };
+            let times = CycleTimes {
+                first: t_first,
+                last: t_last,
+                tdc: t_tdc,
+            };
             // The block its firing TDC starts: the stream's cycle k (absolute) starts 2π before
             // the TDC at θ_TDC + 4πk.
             let cycle = c.cycle + stream.first_index() - *first;
-            let figures =
-                self.per_cycle
-                    .figures(cycle, t, &self.atdc, p, curve.get(2).map(Vec::as_slice));
+            let figures = self.per_cycle.figures(
+                cycle,
+                times,
+                &self.atdc,
+                p,
+                curve.get(1).map(Vec::as_slice),
+            );
             stream.recycle(curve);
             let due = match self.curves {
                 Some((step, last)) if figures.t_start_s - last >= CURVE_INTERVAL_S => {
@@ -218,6 +234,14 @@ impl Stage for CombustionStage {
     /// The cycle in progress at the end is not complete: nothing.
     fn finish(&mut self, _out: &mut dyn Sink<CombustionCycle>) -> Result<(), AppError> {
         Ok(())
+    }
+}
+
+/// `atdc` made the grid of `points` angles `step_deg` apart from −360° ATDC, unless it is.
+fn grid(atdc: &mut Vec<f64>, points: usize, step_deg: f64) {
+    if atdc.len() != points {
+        atdc.clear();
+        atdc.extend((0..points).map(|k| -360.0 + k as f64 * step_deg));
     }
 }
 

@@ -42,6 +42,39 @@ use physid_signal::filter::{butter, Band};
 /// its firing TDC): no heat release, a note.
 pub const PHASE_SUSPECT_DEG: f64 = 90.0;
 
+/// The times of a cycle the figures need [s]: at its first and last samples (the cycle's mean
+/// speed: [`PerCycle::figures`]) and at its firing TDC (the first sample at or after 0° ATDC,
+/// the cycle's time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleTimes {
+    /// At the first sample.
+    pub first: f64,
+    /// At the last sample.
+    pub last: f64,
+    /// At the firing TDC.
+    pub tdc: f64,
+}
+
+impl CycleTimes {
+    /// From the time `t` of each sample at the angles `atdc` [deg ATDC, increasing] (as long,
+    /// at least one).
+    pub fn of(t: &[f64], atdc: &[f64]) -> Self {
+        let n = t.len();
+        Self {
+            first: t[0],
+            last: t[n - 1],
+            tdc: t[Self::tdc_index(atdc)],
+        }
+    }
+
+    /// The index of the firing TDC's sample: the first at or after 0° ATDC (the last when
+    /// none is).
+    pub fn tdc_index(atdc: &[f64]) -> usize {
+        atdc.partition_point(|&a| a < 0.0)
+            .min(atdc.len().saturating_sub(1))
+    }
+}
+
 /// One cycle's figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CycleFigures {
@@ -355,15 +388,18 @@ impl PerCycle {
         crate::combustion::apparent_heat(&s.heat, atdc, &self.pc, &self.vol, &cyl)
     }
 
-    /// The figures of cycle `cycle`: its samples at the times `t` [s], the angles `atdc` [deg
-    /// ATDC, increasing, from −360°, evenly spaced where the torque is given] and the
-    /// pressures `p` (at least two samples, and one at or after TDC); the brake torque there
-    /// [N·m] when the settings have [`Brake`]. Cycles are given in order: misfires are told
-    /// from the ones before.
+    /// The figures of cycle `cycle`: its samples at the angles `atdc` [deg ATDC, increasing,
+    /// from −360°, evenly spaced where the torque is given] and the pressures `p` (at least two
+    /// samples, and one at or after TDC), the times `t` of its first and last samples and its
+    /// TDC's; the brake torque there [N·m] when the settings have [`Brake`]. Cycles are given
+    /// in order: misfires are told from the ones before.
+    ///
+    /// The cycle's mean speed is `120 / (Δt·n/(n − 1))` [rpm], `Δt` from the first sample to
+    /// the last of the `n`: the time of `n` steps, 720° on an even grid.
     pub fn figures(
         &mut self,
         cycle: i64,
-        t: &[f64],
+        t: CycleTimes,
         atdc: &[f64],
         p: &[f64],
         torque: Option<&[f64]>,
@@ -400,8 +436,8 @@ impl PerCycle {
                 *x += offset;
             }
         }
-        let n = t.len();
-        let span = t[n - 1] - t[0];
+        let n = atdc.len();
+        let span = t.last - t.first;
         let rpm = 2.0 * 60.0 / (span * n as f64 / (n - 1) as f64);
         let mut notes = Vec::new();
         let unfiltered = &mut self.unfiltered;
@@ -418,7 +454,7 @@ impl PerCycle {
         let mut figures = CycleFigures {
             cycle,
             // The firing TDC's: the first sample of the expansion.
-            t_start_s: t[atdc.partition_point(|&a| a < 0.0).min(n - 1)],
+            t_start_s: t.tdc,
             rpm,
             p_max,
             p_max_deg,

@@ -26,7 +26,7 @@ use crate::error::AppError;
 use crate::fmep_model::FrictionModel;
 use crate::knock::Knock;
 pub use crate::per_cycle::CycleFigures;
-use crate::per_cycle::{figure_columns, PerCycle, PerCycleSettings};
+use crate::per_cycle::{figure_columns, CycleTimes, PerCycle, PerCycleSettings};
 pub use crate::per_cycle::{Brake, PressureLowpass};
 pub use crate::pressure_unit::{check_unit, UnitCheck, PA_PLAUSIBLE};
 
@@ -534,7 +534,9 @@ impl CycleAnalyser {
                 let p: Vec<f64> = sum_p.iter().map(|s| s / n as f64).collect();
                 let t: Vec<f64> = sum_t.iter().map(|s| s / n as f64).collect();
                 let atdc = std::mem::take(&mut self.atdc);
-                let mut f = self.per_cycle.figures(n as i64, &t, &atdc, &p, None);
+                let mut f =
+                    self.per_cycle
+                        .figures(n as i64, CycleTimes::of(&t, &atdc), &atdc, &p, None);
                 // Not a cycle of the engine's: no misfire history; its time is the mean time
                 // from a cycle's start to its TDC.
                 if let Some(b) = f.burn.as_mut() {
@@ -673,7 +675,10 @@ impl CycleAnalyser {
                 let mut torque = tail.torque;
                 torque.extend_from_slice(self.run_torque.get(..head).unwrap_or_default());
                 let torque = (torque.len() == p.len()).then_some(torque.as_slice());
-                let f = self.per_cycle.figures(c as i64, &t, &self.atdc, &p, torque);
+                let times = CycleTimes::of(&t, &self.atdc);
+                let f = self
+                    .per_cycle
+                    .figures(c as i64, times, &self.atdc, &p, torque);
                 let rpm = f.rpm;
                 self.cycles.push(f);
                 if self.chosen.is_none_or(|k| k == c as i64) {

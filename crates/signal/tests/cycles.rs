@@ -226,3 +226,48 @@ fn curves_only_are_the_full_streams_curves() {
         .unwrap_err();
     assert!(e.to_string().contains("sample 130"), "{e}");
 }
+
+/// The times asked for at grid points are the time's own curve there, bit for bit, by the
+/// per-sample path (statistics kept) and the curves-only path, in chunks of any size; a point
+/// past the grid is refused.
+#[test]
+fn times_at_grid_points_are_the_times_curve() {
+    let (t, th0) = engine();
+    let th: Vec<f64> = th0.iter().map(|a| a + 0.7).collect();
+    let x: Vec<f64> = th.iter().map(|&a| (3.0 * a).sin() * a.sqrt()).collect();
+    for step in [0.25, 1.0] {
+        let points = (720.0 / step) as usize;
+        let marks = [0, 5, points / 2, points - 1];
+        for curves_only in [false, true] {
+            for chunk in [1, 17, 4096, t.len()] {
+                let mut s = CycleStream::new(2, 0.3, Some(step))
+                    .unwrap()
+                    .with_times_at(&marks)
+                    .unwrap();
+                if curves_only {
+                    s = s.curves_only();
+                }
+                let mut out = Vec::new();
+                let mut i = 0;
+                while i < t.len() {
+                    let e = (i + chunk).min(t.len());
+                    s.push(&t[i..e], &th[i..e], &[&x[i..e], &t[i..e]], &mut out)
+                        .unwrap();
+                    i = e;
+                }
+                assert!(out.len() > 60);
+                for c in &out {
+                    let curve = &c.curve.as_ref().unwrap()[1];
+                    let want: Vec<f64> = marks.iter().map(|&k| curve[k]).collect();
+                    assert_eq!(
+                        c.times, want,
+                        "step {step}, chunk {chunk}, cycle {}",
+                        c.cycle
+                    );
+                }
+            }
+        }
+    }
+    let s = CycleStream::new(1, 0.0, Some(1.0)).unwrap();
+    assert!(s.with_times_at(&[720]).is_err());
+}

@@ -11,7 +11,7 @@ use miette::Result;
 use physid_apps::combustion::HeatRelease;
 use physid_apps::combustion_stage::CombustionStage;
 use physid_apps::knock::Knock;
-use physid_apps::per_cycle::{PerCycle, PerCycleSettings};
+use physid_apps::per_cycle::{CycleTimes, PerCycle, PerCycleSettings};
 use physid_apps::pressure::{Geometry, Pegging};
 use physid_apps::stage::Stage;
 use physid_core::{Basis, Channel, Recording};
@@ -112,7 +112,7 @@ pub fn combustion(
                 let from = per / 2 + c * per;
                 std::hint::black_box(pc.figures(
                     c as i64,
-                    &t[from..from + per],
+                    CycleTimes::of(&t[from..from + per], &atdc),
                     &atdc,
                     &p[from..from + per],
                     None,

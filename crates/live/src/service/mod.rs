@@ -235,7 +235,7 @@ impl StageSlots {
 }
 
 /// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
-pub const CHECKPOINT_VERSION: u32 = 6;
+pub const CHECKPOINT_VERSION: u32 = 7;
 
 #[cfg(test)]
 mod tests {
