@@ -2,8 +2,9 @@
 //! ba and sos; order 4 band-pass, sos and parallel) of 10⁶ samples, encoder decoding (Eq. 4.3) of 10⁷ counts, and a trigger wheel's
 //! raw signal decoded into the crank angle (1.2 s of an inductive pickup at 100 kHz: edges,
 //! teeth, the angle at every sample), and a time-basis stream taken onto a 0.1° crank-angle grid
-//! (`CycleStream`'s curves: 20 cycles at 6000 rpm, 360 kHz, the samples on the grid's angles or
-//! half a step off them).
+//! (`CycleStream`'s curves as the combustion stage takes them — the pressure, the time at three
+//! points: 20 cycles at 6000 rpm, 360 kHz, the samples on the grid's angles or half a step off
+//! them).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use physid_signal::encoder::Encoder;
@@ -103,19 +104,17 @@ fn grid(c: &mut Criterion) {
         let p: Vec<f64> = theta.iter().map(|a| 1e5 * (2.0 + a.cos())).collect();
         g.bench_function(format!("curves_0.1deg_{name}_20_cycles"), |b| {
             b.iter(|| {
-                let mut s = match CycleStream::new(2, 0.0, Some(0.1)) {
+                // As the combustion stage: the pressure, and the time at three points.
+                let mut s = match CycleStream::new(1, 0.0, Some(0.1))
+                    .and_then(|s| s.with_times_at(&[0, 3600, 7199]))
+                {
                     Ok(s) => s.curves_only(),
                     Err(e) => panic!("{e}"),
                 };
                 let mut out = Vec::with_capacity(cycles);
                 for from in (0..n).step_by(3600) {
                     let to = (from + 3600).min(n);
-                    let r = s.push(
-                        &t[from..to],
-                        &theta[from..to],
-                        &[&t[from..to], &p[from..to]],
-                        &mut out,
-                    );
+                    let r = s.push(&t[from..to], &theta[from..to], &[&p[from..to]], &mut out);
                     if let Err(e) = r {
                         panic!("{e}");
                     }
