@@ -9,7 +9,7 @@
 //!   window's values are those of the whole cycle filtered (131° each side at 6000 rpm and
 //!   0.1°, 19° at 1000 rpm, for the default band; the whole cycle when the margins reach its
 //!   ends). The band-pass runs as parallel branches ([`physid_signal::filter::parallel`]: the
-//!   same filter as the sections to a few 10⁻¹⁴ of the pressure, 2.4× faster), as sections
+//!   same filter as the sections to 10⁻¹³ of the pressure, 3× faster), as sections
 //!   where that form would not be accurate. The cycle's samples are on
 //!   a uniform crank-angle grid, so at the cycle's mean speed they are a uniform time series at
 //!   `f_s = 6·rpm / step` [Hz]; the band needs `f_s ≥ 2.5·f_high` (a step of at most
