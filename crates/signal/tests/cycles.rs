@@ -23,6 +23,17 @@ fn stream(
     tdc: f64,
 ) -> Vec<CycleSummary> {
     let mut s = CycleStream::new(x.len(), tdc, curve).unwrap();
+    push_all(&mut s, t, th, x, chunk)
+}
+
+/// `t`, `th` and the channels `x` pushed into `s` in chunks of `chunk` samples.
+fn push_all(
+    s: &mut CycleStream,
+    t: &[f64],
+    th: &[f64],
+    x: &[Vec<f64>],
+    chunk: usize,
+) -> Vec<CycleSummary> {
     let mut out = Vec::new();
     let mut i = 0;
     while i < t.len() {
@@ -192,14 +203,7 @@ fn curves_only_are_the_full_streams_curves() {
         assert!(full.len() > 60);
         for chunk in [1, 17, 4096, t.len()] {
             let mut s = CycleStream::new(2, 0.3, Some(step)).unwrap().curves_only();
-            let mut out = Vec::new();
-            let mut i = 0;
-            while i < t.len() {
-                let e = (i + chunk).min(t.len());
-                s.push(&t[i..e], &th[i..e], &[&x[i..e], &y[i..e]], &mut out)
-                    .unwrap();
-                i = e;
-            }
+            let out = push_all(&mut s, &t, &th, &cols, chunk);
             assert_eq!(out.len(), full.len());
             for (a, b) in out.iter().zip(&full) {
                 assert_eq!(
@@ -247,14 +251,7 @@ fn times_at_grid_points_are_the_times_curve() {
                 if curves_only {
                     s = s.curves_only();
                 }
-                let mut out = Vec::new();
-                let mut i = 0;
-                while i < t.len() {
-                    let e = (i + chunk).min(t.len());
-                    s.push(&t[i..e], &th[i..e], &[&x[i..e], &t[i..e]], &mut out)
-                        .unwrap();
-                    i = e;
-                }
+                let out = push_all(&mut s, &t, &th, &[x.clone(), t.clone()], chunk);
                 assert!(out.len() > 60);
                 for c in &out {
                     let curve = &c.curve.as_ref().unwrap()[1];

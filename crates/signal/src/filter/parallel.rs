@@ -227,27 +227,34 @@ impl Parallel {
             x_before = b;
             (*xa, *xb) = (direct * *xa + sum(out_a), direct * *xb + sum(out_b));
         };
+        // The samples in the pass's order, two at a time; an odd one last, alone (its partner
+        // a dummy).
         if backwards {
-            let mut pairs = buf.rchunks_exact_mut(2);
-            for pair in &mut pairs {
-                if let [b, a] = pair {
-                    two(a, b);
-                }
-            }
-            if let [x] = pairs.into_remainder() {
-                let mut unused = 0.0;
-                two(x, &mut unused);
-            }
+            each_pair(buf.rchunks_exact_mut(2), true, &mut two);
         } else {
-            let mut pairs = buf.chunks_exact_mut(2);
-            for pair in &mut pairs {
-                if let [a, b] = pair {
-                    two(a, b);
-                }
-            }
-            if let [x] = pairs.into_remainder() {
-                let mut unused = 0.0;
-                two(x, &mut unused);
+            each_pair(buf.chunks_exact_mut(2), false, &mut two);
+        }
+        let n = buf.len();
+        if n % 2 == 1 {
+            two(&mut buf[if backwards { 0 } else { n - 1 }], &mut 0.0);
+        }
+    }
+}
+
+/// `two` on each pair of samples, in the order they come (`reversed`: the later of a pair
+/// first).
+#[inline(always)]
+fn each_pair<'a>(
+    pairs: impl Iterator<Item = &'a mut [f64]>,
+    reversed: bool,
+    two: &mut impl FnMut(&mut f64, &mut f64),
+) {
+    for pair in pairs {
+        if let [x, y] = pair {
+            if reversed {
+                two(y, x);
+            } else {
+                two(x, y);
             }
         }
     }
