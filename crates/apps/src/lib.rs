@@ -49,6 +49,7 @@ pub mod combustion_stage;
 pub mod compression;
 pub mod cycle_stage;
 pub mod demo;
+pub mod design;
 pub mod error;
 pub mod example_5_1;
 pub mod example_5_2;

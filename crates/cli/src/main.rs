@@ -100,6 +100,13 @@ enum Command {
     ///
     /// Example: physid run pipelines/torque-ramp.toml --out run
     Run(cmd::run::Args),
+    /// Experiment design: which test of the cell's inputs, within its limits, makes an
+    /// application's parameters estimable by its recursive estimator, to what standard error,
+    /// in how long; the test as a scenario file (docs/design.md).
+    ///
+    /// Example: physid design --app shaft --params K,B --limits
+    /// speed=800:3000,throttle=0:60,dspeed=500 --duration 120 --out shaft-test.toml
+    Design(cmd::design::Args),
     /// Application 1: coupling-shaft health monitoring (thesis ch. 6).
     ///
     /// Example: physid monitor shaft --data t01.parquet --out shaft-report
@@ -154,6 +161,7 @@ fn main() -> miette::Result<()> {
         Command::Fmu(a) => cmd::fmu::run(&a),
         Command::Live(a) => cmd::live::run(&a),
         Command::Worker(a) => cmd::worker::run(&a),
+        Command::Design(a) => cmd::design::run(&a),
         Command::Monitor(a) => cmd::monitor::run(&a),
         Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),

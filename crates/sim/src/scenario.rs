@@ -529,6 +529,11 @@ impl Scenario {
         Ok(s)
     }
 
+    /// The scenario as a file [`load`](Self::load) reads back to the same scenario.
+    pub fn to_toml(&self) -> Result<String, SimError> {
+        toml::to_string(self).map_err(|e| SimError::Invalid(format!("scenario {}: {e}", self.name)))
+    }
+
     /// Check durations, segments and the settings' paths.
     pub fn validate(&self) -> Result<(), SimError> {
         if !(self.duration.is_finite() && self.duration > 0.0) {

@@ -140,6 +140,43 @@ fn drained_chunks_put_end_to_end_are_the_recording() {
     .is_err());
 }
 
+/// A run that keeps a few channels records them bit for bit as a full run does, noise and a
+/// sensor fault included; an unknown channel, or a choice after the start, is refused.
+#[test]
+fn kept_channels_are_the_full_runs() {
+    let mut scenario = named("shaft-ramp").unwrap();
+    scenario
+        .faults
+        .push("sensors.torque_shaft.offset=2@0.1".into());
+    let mut opts = options(0.3);
+    opts.params.set("sensors.speed.noise", 0.3).unwrap();
+    let whole = simulate(&scenario, &opts, |_| {}).unwrap();
+    let keep = ["omega_dy", "torque_shaft", "count_en", "tdc"];
+    let mut run = Run::new(&scenario, &opts).unwrap();
+    run.keep_channels(&keep).unwrap();
+    run.step_until(1.0).unwrap();
+    let got = run.finish().unwrap();
+    assert_eq!(
+        got.names(),
+        ["t", "omega_dy", "torque_shaft", "count_en", "tdc"]
+    );
+    for name in got.names() {
+        assert_eq!(
+            got.values(name).unwrap(),
+            whole.values(name).unwrap(),
+            "{name}"
+        );
+    }
+    let mut run = Run::new(&scenario, &opts).unwrap();
+    let e = run.keep_channels(&["omega_xx"]).unwrap_err().to_string();
+    assert!(
+        e.contains("no channel 'omega_xx'") && e.contains("omega_dy"),
+        "{e}"
+    );
+    run.step_until(0.01).unwrap();
+    assert!(run.keep_channels(&keep).is_err());
+}
+
 /// Switched to torque demand at any moment of an engine cycle, the dynamometer holds the
 /// torque it had on average over the last whole cycle, so the engine stays near the speed it
 /// had: the speed's cycle means over the following 2 s stay within 2 % of 1000 rpm whatever

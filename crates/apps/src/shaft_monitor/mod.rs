@@ -21,7 +21,7 @@ use physid_estim::{
     VfVariant,
 };
 use physid_models::shaft::{Shaft, NOMINAL};
-use physid_signal::filter::{butter, Band};
+use physid_signal::filter::{butter, Band, Sos};
 use physid_signal::integrity::NOMINAL_SAMPLES;
 use physid_signal::speed_angle::SpeedAngle;
 use physid_signal::stream::{settling_length, ZeroPhaseStream};

@@ -106,19 +106,34 @@ pub struct ShaftStage {
 impl ShaftStage {
     /// A stage for inputs at `rate_hz` [Hz].
     pub fn new(cfg: &MonitorConfig, rate_hz: f64) -> Result<Self, AppError> {
+        Self::with_blocks(cfg, rate_hz, 4)
+    }
+
+    /// A stage for [`push_regressors`](Self::push_regressors) alone, where latency does not
+    /// matter: the low-pass's backward pass in blocks of its whole lookahead (2 passes per
+    /// sample instead of 5). Its regressors equal [`new`](Self::new)'s to the stream filter's
+    /// truncation, ≈ 1e-13 of the signal ([`ZeroPhaseStream`]).
+    pub fn for_regressors(cfg: &MonitorConfig, rate_hz: f64) -> Result<Self, AppError> {
+        Self::with_blocks(cfg, rate_hz, 1)
+    }
+
+    /// The low-pass's backward blocks a `per_lookahead`-th of its lookahead.
+    fn with_blocks(
+        cfg: &MonitorConfig,
+        rate_hz: f64,
+        per_lookahead: usize,
+    ) -> Result<Self, AppError> {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(AppError::Invalid(format!(
                 "sample rate {rate_hz} Hz: expected > 0"
             )));
         }
-        let filters = if cfg.cutoff_hz < rate_hz / 2.0 {
-            let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, rate_hz)
-                .map_err(|e| AppError::Invalid(e.to_string()))?
-                .to_sos();
+        let filters = if let Some(sos) = lowpass(cfg, rate_hz)? {
             // Blocks of a quarter of the lookahead: the latency is 1.25 lookaheads (34 ms for
             // the default 500 Hz at 10 kHz) for 5 backward passes per sample instead of 2.
             let lookahead = settling_length(&sos);
-            let f = ZeroPhaseStream::new(&sos, Some(lookahead), Some((lookahead / 4).max(1)));
+            let block = (lookahead / per_lookahead).max(1);
+            let f = ZeroPhaseStream::new(&sos, Some(lookahead), Some(block));
             Some(Box::new([f.clone(), f.clone(), f]))
         } else {
             None
@@ -275,6 +290,65 @@ impl ShaftStage {
         samples: &mut Vec<ShaftSample>,
         alarms: &mut Vec<ShaftAlarm>,
     ) -> Result<(), AppError> {
+        self.filter_chunk(x)?;
+        self.consume(samples, alarms)
+    }
+
+    /// Take a chunk and append the estimator's regressors `φ = [Δθ, Δω, 1]` and outputs
+    /// `τ_sh` it completes, with their times — what [`push_inputs`](Self::push_inputs) would
+    /// update the estimator with, the samples at standstill left out; no estimator runs (an
+    /// experiment design's information, `crate::design`).
+    pub fn push_regressors(
+        &mut self,
+        x: &ShaftInputs,
+        rows: &mut Vec<RegressorRow>,
+    ) -> Result<(), AppError> {
+        self.filter_chunk(x)?;
+        self.regressors(rows);
+        Ok(())
+    }
+
+    /// The end of the stream for [`push_regressors`](Self::push_regressors).
+    pub fn finish_regressors(&mut self, rows: &mut Vec<RegressorRow>) -> Result<(), AppError> {
+        self.flush_filters()?;
+        self.regressors(rows);
+        Ok(())
+    }
+
+    /// The regressors of the filtered samples on the estimator's grid.
+    fn regressors(&mut self, rows: &mut Vec<RegressorRow>) {
+        let mut phi = [0.0; 3];
+        for k in 0..self.filtered[0].len() {
+            let Some((_, t, standstill)) = self.on_grid() else {
+                continue;
+            };
+            if !standstill {
+                let [dth, dw, tq] = &self.filtered;
+                self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
+                rows.push(RegressorRow {
+                    t_s: t,
+                    phi,
+                    y: tq[k],
+                });
+            }
+        }
+    }
+
+    /// The next filtered sample's index, time and standstill, when it is on the estimator's
+    /// grid (one input sample in `every`).
+    fn on_grid(&mut self) -> Option<(usize, f64, bool)> {
+        let i = self.next;
+        self.next += 1;
+        let t = self.times.pop_front().unwrap_or(f64::NAN);
+        let speed = self.speeds.pop_front().unwrap_or(f64::NAN);
+        // A shaft that does not turn resolves no damping and drifts the estimator's
+        // memory: the estimates and the alarm detector are held until it turns again.
+        i.is_multiple_of(self.every)
+            .then_some((i, t, speed.abs() < STANDSTILL_RAD_S))
+    }
+
+    /// A chunk's Δθ, Δω and τ_sh through the low-pass into `filtered`.
+    fn filter_chunk(&mut self, x: &ShaftInputs) -> Result<(), AppError> {
         let n = x.t.len();
         let cols = [
             x.theta_dy,
@@ -327,15 +401,11 @@ impl ShaftStage {
                 }
             }
         }
-        self.consume(samples, alarms)
+        Ok(())
     }
 
-    /// The end of the stream: the last samples out of the filters.
-    pub fn finish_into(
-        &mut self,
-        samples: &mut Vec<ShaftSample>,
-        alarms: &mut Vec<ShaftAlarm>,
-    ) -> Result<(), AppError> {
+    /// The last samples out of the filters into `filtered`.
+    fn flush_filters(&mut self) -> Result<(), AppError> {
         for f in &mut self.filtered {
             f.clear();
         }
@@ -344,6 +414,16 @@ impl ShaftStage {
                 f.finish(o).map_err(|e| AppError::Invalid(e.to_string()))?;
             }
         }
+        Ok(())
+    }
+
+    /// The end of the stream: the last samples out of the filters.
+    pub fn finish_into(
+        &mut self,
+        samples: &mut Vec<ShaftSample>,
+        alarms: &mut Vec<ShaftAlarm>,
+    ) -> Result<(), AppError> {
+        self.flush_filters()?;
         self.consume(samples, alarms)
     }
 
@@ -356,18 +436,11 @@ impl ShaftStage {
         let mut phi = [0.0; 3];
         let t0 = self.t0.unwrap_or(0.0);
         for k in 0..self.filtered[0].len() {
-            let [dth, dw, tq] = &self.filtered;
-            let i = self.next;
-            self.next += 1;
-            let t = self.times.pop_front().unwrap_or(f64::NAN);
-            let speed = self.speeds.pop_front().unwrap_or(f64::NAN);
-            if !i.is_multiple_of(self.every) {
+            let Some((i, t, standstill)) = self.on_grid() else {
                 continue;
-            }
-            // A shaft that does not turn resolves no damping and drifts the estimator's
-            // memory: the estimates and the alarm detector are held until it turns again.
-            let standstill = speed.abs() < STANDSTILL_RAD_S;
+            };
             if !standstill {
+                let [dth, dw, tq] = &self.filtered;
                 self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
                 self.update(&phi, tq[k], i)?;
             }
@@ -408,6 +481,31 @@ impl ShaftStage {
             }
         }
         Ok(())
+    }
+}
+
+/// One estimator update's data ([`ShaftStage::push_regressors`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegressorRow {
+    /// Time [s].
+    pub t_s: f64,
+    /// `[Δθ, Δω, 1]` filtered (Eq. 6.1's regressor).
+    pub phi: [f64; 3],
+    /// `τ_sh` filtered [N·m].
+    pub y: f64,
+}
+
+/// The zero-phase low-pass the monitor applies at `rate_hz`: Butterworth of order 4 at the
+/// cut-off, run forwards and backwards; `None` when the cut-off is at or above the Nyquist
+/// frequency (the signals go in unfiltered).
+pub fn lowpass(cfg: &MonitorConfig, rate_hz: f64) -> Result<Option<Sos>, AppError> {
+    if cfg.cutoff_hz < rate_hz / 2.0 {
+        let sos = butter(4, &[cfg.cutoff_hz], Band::Lowpass, rate_hz)
+            .map_err(|e| AppError::Invalid(e.to_string()))?
+            .to_sos();
+        Ok(Some(sos))
+    } else {
+        Ok(None)
     }
 }
 

@@ -9,6 +9,7 @@ pub mod crank_input;
 pub mod cycles;
 pub mod cycles_report;
 pub mod demo;
+pub mod design;
 pub mod estimate;
 pub mod example;
 pub mod filter;

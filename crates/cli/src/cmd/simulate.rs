@@ -85,7 +85,7 @@ impl SetArgs {
     }
 
     /// The default parameters with the `--set` values, checked.
-    fn params(&self) -> Result<CellParams> {
+    pub(crate) fn params(&self) -> Result<CellParams> {
         let mut p = CellParams::default();
         for (k, v) in self.pairs()? {
             p.set(&k, v).map_err(|e| miette!("--set: {e}"))?;

@@ -292,6 +292,30 @@ impl Acquisition {
         Ok(())
     }
 
+    /// Acquire only the channels `names` (and the time): the others are neither carried nor
+    /// measured. Each kept channel's values, noise included, are those of a run that acquires
+    /// every channel (each sensor has its own random stream). Before the first step only.
+    pub(super) fn keep(&mut self, names: &[&str]) -> Result<(), SimError> {
+        if self.seen > 0 {
+            return Err(SimError::Invalid(
+                "the channels to acquire are chosen before the run starts".into(),
+            ));
+        }
+        if let Some(bad) = names
+            .iter()
+            .find(|n| !self.outputs.iter().any(|o| o.name == **n))
+        {
+            let all: Vec<&str> = self.outputs.iter().map(|o| o.name).collect();
+            return Err(SimError::Invalid(format!(
+                "no channel '{bad}' on this basis: the channels are {}",
+                all.join(", ")
+            )));
+        }
+        self.outputs
+            .retain(|o| o.name == "t" || names.contains(&o.name));
+        Ok(())
+    }
+
     /// The samples taken so far, moved out (the channels keep their room).
     pub(super) fn drain(&mut self) -> Result<Recording, SimError> {
         self.take_placed();

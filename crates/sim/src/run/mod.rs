@@ -235,6 +235,14 @@ impl Run {
         self.bytes
     }
 
+    /// Record only the channels `names` (the time always): what a caller that reads a few
+    /// channels needs, without the cost of carrying and measuring the rest. The kept channels
+    /// are bit for bit those of a full run. Before the first step only; an unknown name is
+    /// refused with the channels there are.
+    pub fn keep_channels(&mut self, names: &[&str]) -> Result<(), SimError> {
+        self.acquisition.keep(names)
+    }
+
     /// Whether the run has reached its end (one step past the duration).
     pub fn is_done(&self) -> bool {
         self.done

@@ -1,0 +1,361 @@
+//! The information a recursive least-squares estimator with exponential forgetting gathers,
+//! and the covariance of its estimate when the output's noise is coloured — what a designed
+//! test is judged by (issue 45: "the information recursion, not only the batch FIM").
+//!
+//! RLS with forgetting λ (Alg. 5.2–5.3) keeps `P_k = A_k⁻¹` with
+//! `A_k = λ·A_{k−1} + φ_k·φ_kᵀ`, `A_0 = P_0⁻¹`, and its estimate is
+//! `ϑ̂_k = A_k⁻¹·(λᵏ·P_0⁻¹·ϑ_0 + Σ_i λ^{k−i}·φ_i·y_i)`. With `y_i = φ_iᵀϑ + e_i` the error is
+//! `A_k⁻¹·Σ_i λ^{k−i}·φ_i·e_i` (less the start's bias `λᵏ·A_k⁻¹·P_0⁻¹·(ϑ_0 − ϑ)`, gone after a
+//! few memories), so for a noise of autocovariance `r(m) = E[e_i·e_{i−m}]`
+//!
+//! ```text
+//! Cov(ϑ̂_k) = A_k⁻¹ · S_k · A_k⁻¹,   S_k = r(0)·C⁽⁰⁾_k + Σ_{m≥1} r(m)·λᵐ·(C⁽ᵐ⁾_k + C⁽ᵐ⁾_kᵀ),
+//! C⁽ᵐ⁾_k = λ²·C⁽ᵐ⁾_{k−1} + φ_k·φ_{k−m}ᵀ.
+//! ```
+//!
+//! For white noise (`r(m) = 0` for m ≥ 1) and λ = 1 this is the batch `σ²·(ΦᵀΦ)⁻¹`; with
+//! forgetting the sandwich is smaller than `σ²·P_k` (≈ `σ²·P_k/(1 + λ)` for stationary
+//! regressors). Allocation-free per sample.
+
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+
+/// The most lags of the noise's autocovariance carried ([`ForgettingInformation::new`]).
+pub const MAX_LAGS: usize = 64;
+
+/// Lags whose autocovariance is below this fraction of the variance are left out: each moves
+/// a standard error by less than that fraction.
+pub const LAG_CUT: f64 = 1e-6;
+
+/// The information recursion of RLS with forgetting and the sandwich covariance of its
+/// estimate under coloured noise (module docs).
+#[derive(Debug, Clone)]
+pub struct ForgettingInformation {
+    p: usize,
+    lambda: f64,
+    /// `A_k` (row-major p×p).
+    a: Vec<f64>,
+    /// `r(0..=L)`.
+    r: Vec<f64>,
+    /// `C⁽ᵐ⁾_k` for m = 0..=L, each row-major p×p.
+    c: Vec<f64>,
+    /// The last L regressors, a ring (`past[(head − m) mod L]` is `φ_{k−m}`).
+    past: Vec<f64>,
+    head: usize,
+    /// Regressors taken.
+    count: usize,
+}
+
+impl ForgettingInformation {
+    /// For `p` parameters, forgetting `lambda` ∈ (0, 1], the estimator's `P_0 = p0·I`, and the
+    /// noise's autocovariance `r[m]` at the estimator's rate (`r[0]` its variance), cut where
+    /// it falls below [`LAG_CUT`] of `r[0]` and at [`MAX_LAGS`].
+    pub fn new(p: usize, lambda: f64, p0: f64, r: &[f64]) -> Result<Self, String> {
+        if p == 0 {
+            return Err("no parameters".into());
+        }
+        if !(lambda > 0.0 && lambda <= 1.0) {
+            return Err(format!("forgetting factor {lambda}: expected in (0, 1]"));
+        }
+        if !(p0.is_finite() && p0 > 0.0) {
+            return Err(format!("P0 = {p0}·I: expected a positive scale"));
+        }
+        match r.first() {
+            Some(&r0) if r0.is_finite() && r0 > 0.0 => {}
+            _ => return Err("the noise's variance must be positive and finite".into()),
+        }
+        if r.iter().any(|v| !v.is_finite()) {
+            return Err("the noise's autocovariance has a non-finite value".into());
+        }
+        let lags = r
+            .iter()
+            .rposition(|v| v.abs() > LAG_CUT * r[0])
+            .unwrap_or(0)
+            .min(MAX_LAGS);
+        let mut a = vec![0.0; p * p];
+        for i in 0..p {
+            a[i * p + i] = 1.0 / p0;
+        }
+        Ok(Self {
+            p,
+            lambda,
+            a,
+            r: r[..=lags].to_vec(),
+            c: vec![0.0; (lags + 1) * p * p],
+            past: vec![0.0; lags.max(1) * p],
+            head: 0,
+            count: 0,
+        })
+    }
+
+    /// The lags carried (L).
+    pub fn lags(&self) -> usize {
+        self.r.len() - 1
+    }
+
+    /// Regressors taken.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Take the regressor `φ_k` of the estimator's next update.
+    pub fn push(&mut self, phi: &[f64]) {
+        let p = self.p;
+        debug_assert_eq!(phi.len(), p);
+        let (l, l2) = (self.lambda, self.lambda * self.lambda);
+        // `m ← f·m + φ·vᵀ`, row by row (no bounds checks: the rows are p long).
+        let update = |m: &mut [f64], f: f64, v: &[f64]| {
+            for (row, &pi) in m.chunks_exact_mut(p).zip(phi) {
+                for (c, &vj) in row.iter_mut().zip(v) {
+                    *c = f * *c + pi * vj;
+                }
+            }
+        };
+        update(&mut self.a, l, phi);
+        let lags = self.lags();
+        let (c0, rest) = self.c.split_at_mut(p * p);
+        update(c0, l2, phi);
+        for (m, cm) in (1..=lags).zip(rest.chunks_exact_mut(p * p)) {
+            if m > self.count {
+                cm.iter_mut().for_each(|v| *v *= l2);
+                continue;
+            }
+            // φ_{k−m}: pushed m calls ago.
+            let slot = (self.head + lags - m) % lags;
+            update(cm, l2, &self.past[slot * p..(slot + 1) * p]);
+        }
+        if lags > 0 {
+            self.past[self.head * p..(self.head + 1) * p].copy_from_slice(phi);
+            self.head = (self.head + 1) % lags;
+        }
+        self.count += 1;
+    }
+
+    /// `A_k` (the estimator's `P_k⁻¹`).
+    pub fn information(&self) -> DMatrix<f64> {
+        DMatrix::from_row_slice(self.p, self.p, &self.a)
+    }
+
+    /// `Cov(ϑ̂_k) = A⁻¹·S·A⁻¹` (module docs); `None` while `A` is singular to working precision.
+    pub fn covariance(&self) -> Option<DMatrix<f64>> {
+        let p = self.p;
+        let a = self.information();
+        let ainv = a.clone().cholesky()?.inverse();
+        let mut s = DMatrix::<f64>::zeros(p, p);
+        let mut lm = 1.0;
+        for (m, &rm) in self.r.iter().enumerate() {
+            let cm = DMatrix::from_row_slice(p, p, &self.c[m * p * p..(m + 1) * p * p]);
+            if m == 0 {
+                s += cm * rm;
+            } else {
+                s += (&cm + cm.transpose()) * (rm * lm);
+            }
+            lm *= self.lambda;
+        }
+        let cov = &ainv * s * &ainv;
+        Some((&cov + cov.transpose()) * 0.5)
+    }
+}
+
+/// How a design ranks the predicted covariance of the parameters it is asked for, in relative
+/// terms (each parameter divided by its nominal value, so that units do not weigh).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Criterion {
+    /// D-optimality: the smallest `log det` of the covariance (the confidence ellipsoid's
+    /// volume).
+    D,
+    /// A-optimality: the smallest mean variance.
+    A,
+    /// E-optimality: the smallest largest eigenvalue (the worst direction).
+    E,
+    /// The shortest time until every standard error stays below its target.
+    Time,
+}
+
+impl std::str::FromStr for Criterion {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "d" | "D" => Ok(Self::D),
+            "a" | "A" => Ok(Self::A),
+            "e" | "E" => Ok(Self::E),
+            "time" => Ok(Self::Time),
+            _ => Err(format!("'{s}': expected d, a, e or time")),
+        }
+    }
+}
+
+impl Criterion {
+    /// The criterion's value of a relative covariance (smaller is better); `+∞` when it is
+    /// not positive definite. [`Criterion::Time`] ranks by D here (its own figure is a time).
+    pub fn value(self, rel_cov: &DMatrix<f64>) -> f64 {
+        let eig = SymmetricEigen::new(rel_cov.clone()).eigenvalues;
+        if eig.iter().any(|&v| !(v.is_finite() && v > 0.0)) {
+            return f64::INFINITY;
+        }
+        match self {
+            Self::D | Self::Time => eig.iter().map(|v| v.ln()).sum(),
+            Self::A => eig.iter().sum::<f64>() / eig.len() as f64,
+            Self::E => eig.max(),
+        }
+    }
+}
+
+/// The parameters no profile can reveal, by the orthogonal method (Alg. 5.1) on the summed
+/// information of every candidate (`information` is `Σ φφᵀ` in relative coordinates): the
+/// pivoted Cholesky factorisation of the information is the Gram–Schmidt of its columns, so a
+/// parameter whose residual information, after the ones chosen before it, falls below `cut`
+/// of the first parameter's is structurally unidentifiable on the admissible inputs — reported
+/// as such, never given a huge σ. Returns the indices, in the order found.
+pub fn structural_zeros(information: &DMatrix<f64>, cut: f64) -> Vec<usize> {
+    let p = information.nrows();
+    let mut m = information.clone();
+    let mut left: Vec<usize> = (0..p).collect();
+    let mut first = None;
+    let mut zeros = Vec::new();
+    while !left.is_empty() {
+        // The parameter with the most residual information.
+        let (pos, &j) = match left
+            .iter()
+            .enumerate()
+            .max_by(|a, b| m[(*a.1, *a.1)].total_cmp(&m[(*b.1, *b.1)]))
+        {
+            Some(x) => x,
+            None => break,
+        };
+        let d = m[(j, j)];
+        let top = *first.get_or_insert(d);
+        if d.is_nan() || d <= cut * top || top <= 0.0 {
+            // Every one left is below the cut.
+            zeros.extend(left.iter().copied());
+            break;
+        }
+        left.remove(pos);
+        // Project j out of the rest (the Schur complement).
+        let col: DVector<f64> = m.column(j).into_owned();
+        for &a in &left {
+            for &b in &left {
+                m[(a, b)] -= col[a] * col[b] / d;
+            }
+        }
+    }
+    zeros
+}
+
+/// The most nearly collinear pairs of a covariance: `(i, j, ρ)` with `|ρ| ≥ threshold`, the
+/// correlation of the two estimates.
+pub fn collinear_pairs(cov: &DMatrix<f64>, threshold: f64) -> Vec<(usize, usize, f64)> {
+    let p = cov.nrows();
+    let mut out = Vec::new();
+    for i in 0..p {
+        for j in i + 1..p {
+            let rho = cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt();
+            if rho.abs() >= threshold {
+                out.push((i, j, rho));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// The recursion against its definition written out: `A = Σ λ^{k−i} φφᵀ + λᵏ/p0·I` and the
+    /// double sum `Σ_i Σ_j λ^{2k−i−j} φ_i φ_jᵀ r(i−j)`, over random regressors and an MA(2)
+    /// noise's autocovariance.
+    #[test]
+    fn recursion_is_the_double_sum() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let (p, n, lambda, p0) = (3, 40, 0.93, 50.0);
+        let r = [1.3, 0.6, -0.2];
+        let phis: Vec<Vec<f64>> = (0..n)
+            .map(|_| (0..p).map(|_| rng.random_range(-1.0..1.0)).collect())
+            .collect();
+        let mut info = ForgettingInformation::new(p, lambda, p0, &r).unwrap();
+        for ph in &phis {
+            info.push(ph);
+        }
+        let k = n - 1;
+        let mut a = DMatrix::<f64>::identity(p, p) * (lambda.powi(n as i32) / p0);
+        let mut s = DMatrix::<f64>::zeros(p, p);
+        for (i, pi) in phis.iter().enumerate() {
+            let fi = DVector::from_column_slice(pi);
+            a += &fi * fi.transpose() * lambda.powi((k - i) as i32);
+            for (j, pj) in phis.iter().enumerate() {
+                let m = i.abs_diff(j);
+                if m < r.len() {
+                    let fj = DVector::from_column_slice(pj);
+                    s += &fi * fj.transpose() * (r[m] * lambda.powi((2 * k - i - j) as i32));
+                }
+            }
+        }
+        // The recursion's A starts at P0⁻¹ and forgets it too.
+        let a_rec = info.information();
+        assert!((&a_rec - &a).abs().max() < 1e-12 * a.abs().max(), "A");
+        let ainv = a.clone().try_inverse().unwrap();
+        let want = &ainv * s * &ainv;
+        let got = info.covariance().unwrap();
+        assert!(
+            (&got - &want).abs().max() < 1e-10 * want.abs().max(),
+            "{got} {want}"
+        );
+    }
+
+    /// λ = 1, white noise: the batch least-squares covariance σ²·(ΦᵀΦ)⁻¹ (P0 huge).
+    #[test]
+    fn white_noise_without_forgetting_is_the_batch_covariance() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (p, n) = (2, 500);
+        let mut info = ForgettingInformation::new(p, 1.0, 1e12, &[0.25]).unwrap();
+        let mut ftf = DMatrix::<f64>::zeros(p, p);
+        for _ in 0..n {
+            let ph = [1.0, rng.random_range(-2.0..2.0)];
+            info.push(&ph);
+            let f = DVector::from_column_slice(&ph);
+            ftf += &f * f.transpose();
+        }
+        let want = ftf.try_inverse().unwrap() * 0.25;
+        let got = info.covariance().unwrap();
+        assert!((&got - &want).abs().max() < 1e-8 * want.abs().max());
+    }
+
+    /// A parameter with no information, or one whose column is another's multiple, is a
+    /// structural zero; independent columns are not.
+    #[test]
+    fn structural_zeros_are_found() {
+        // Columns: x, 2x (collinear), y, 0.
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut info = DMatrix::<f64>::zeros(4, 4);
+        for _ in 0..200 {
+            let (x, y): (f64, f64) = (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+            let f = DVector::from_column_slice(&[x, 2.0 * x, y, 0.0]);
+            info += &f * f.transpose();
+        }
+        let mut z = structural_zeros(&info, 1e-9);
+        z.sort_unstable();
+        assert_eq!(
+            z,
+            vec![0, 3],
+            "x or 2x goes first; the other and the zero column left"
+        );
+        let id = DMatrix::<f64>::identity(3, 3);
+        assert!(structural_zeros(&id, 1e-9).is_empty());
+        assert_eq!(structural_zeros(&DMatrix::zeros(2, 2), 1e-9), vec![0, 1]);
+    }
+
+    /// D, A and E on a diagonal covariance: Σ ln, the mean, the largest.
+    #[test]
+    fn criteria_of_a_diagonal() {
+        let c = DMatrix::from_diagonal(&DVector::from_column_slice(&[1e-4, 4e-4]));
+        assert!((Criterion::D.value(&c) - (1e-4f64.ln() + 4e-4f64.ln())).abs() < 1e-12);
+        assert!((Criterion::A.value(&c) - 2.5e-4).abs() < 1e-16);
+        assert!((Criterion::E.value(&c) - 4e-4).abs() < 1e-16);
+        let singular = DMatrix::from_diagonal(&DVector::from_column_slice(&[1e-4, 0.0]));
+        assert_eq!(Criterion::D.value(&singular), f64::INFINITY);
+    }
+}

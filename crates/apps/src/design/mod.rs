@@ -1,0 +1,490 @@
+//! Experiment design (issue 45; the thesis's procedure starts with the choice of tests whose
+//! data make the wanted parameters identifiable, ch. 5–8): which profile of the cell's inputs,
+//! within its limits, makes the wanted parameters estimable by the application's recursive
+//! estimator, to what standard error, in how long.
+//!
+//! The method: candidates are drawn from profile families ([`profile`]) and each is run on the
+//! virtual cell without noise; the application's own stage turns the run into its estimator's
+//! regressors; the information recursion *with the estimator's forgetting*
+//! ([`information::ForgettingInformation`]) and the noise's autocovariance after the stage's
+//! filtering give the predicted covariance of the estimates at every moment of the test. A
+//! criterion (D, A, E, or the time to a target standard error) ranks the candidates over the
+//! test after the estimator's start-up; the orthogonal method on the summed information of
+//! every candidate tells the parameters no admissible profile reveals. Candidates run on every
+//! core. By concern: `information.rs` (the recursion, criteria, structural zeros),
+//! `profile.rs` (limits and families), `shaft.rs` (Application 1).
+
+pub mod information;
+pub mod profile;
+pub mod shaft;
+
+use crate::error::AppError;
+use information::{collinear_pairs, structural_zeros, Criterion, ForgettingInformation};
+use nalgebra::DMatrix;
+use physid_sim::scenario::Scenario;
+use profile::{Family, Limits, FAMILIES};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// How the predicted standard errors are sampled along a test [s].
+pub const CURVE_STEP_S: f64 = 0.1;
+
+/// A correlation of two estimates this close to ±1 is reported as a collinear pair.
+pub const COLLINEAR: f64 = 0.95;
+
+/// A parameter whose information, after the others', is below this fraction of the most
+/// informative one's over every candidate is structurally unidentifiable (Alg. 5.1's cut-off).
+pub const STRUCTURAL_CUT: f64 = 1e-10;
+
+/// What to design for.
+#[derive(Debug, Clone)]
+pub struct Design {
+    /// The application's parameters, in its estimator's order.
+    pub names: Vec<String>,
+    /// The indices of the ones the design is for.
+    pub selected: Vec<usize>,
+    /// How candidates are ranked.
+    pub criterion: Criterion,
+    /// The relative standard error each selected parameter should reach (the time criterion's
+    /// target; reported for the others).
+    pub target_rel_se: Option<f64>,
+    /// The cell's limits.
+    pub limits: Limits,
+    /// Each candidate's duration [s].
+    pub duration: f64,
+    /// How many candidates.
+    pub candidates: usize,
+    /// Their random draws' seed.
+    pub seed: u64,
+    /// Worker threads (0: every core).
+    pub threads: usize,
+}
+
+/// The predicted standard errors along a test.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Curve {
+    /// Times [s] from the recording's start.
+    pub t: Vec<f64>,
+    /// Per selected parameter, its predicted standard error at those times (its unit).
+    pub std_err: Vec<Vec<f64>>,
+}
+
+/// A profile judged.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    /// The scenario's name.
+    pub name: String,
+    /// Its family (`None` for a thesis test).
+    pub family: Option<Family>,
+    /// Whether it keeps to the limits.
+    pub within_limits: bool,
+    /// The criterion's mean over the test after the estimator's start-up (smaller is better;
+    /// for the time criterion, the D value).
+    pub score: f64,
+    /// The predicted standard error of each selected parameter at the test's end (its unit).
+    pub std_err: Vec<f64>,
+    /// The same relative to the nominal values.
+    pub rel_std_err: Vec<f64>,
+    /// The median over the test after start-up of each relative standard error (what a
+    /// monitor with forgetting holds most of the time).
+    pub median_rel_std_err: Vec<f64>,
+    /// When every selected relative standard error falls below the target and stays there
+    /// to the end [s] (`None`: never, or no target).
+    pub time_to_target_s: Option<f64>,
+    /// The curve.
+    pub curve: Curve,
+    /// The summed information `Σ φφᵀ` in relative coordinates (every parameter).
+    #[serde(skip)]
+    pub information: DMatrix<f64>,
+    /// The predicted covariance at the end (every parameter, their units).
+    #[serde(skip)]
+    pub covariance: Option<DMatrix<f64>>,
+}
+
+/// A pair of nearly collinear estimates in the chosen test.
+#[derive(Debug, Clone, Serialize)]
+pub struct Collinear {
+    /// The two parameters.
+    pub params: [String; 2],
+    /// The correlation of their estimates at the test's end.
+    pub correlation: f64,
+}
+
+/// The result of a design.
+#[derive(Debug, Clone, Serialize)]
+pub struct Designed {
+    /// The parameters designed for.
+    pub params: Vec<String>,
+    /// The criterion.
+    pub criterion: Criterion,
+    /// The chosen profile.
+    pub scenario: Scenario,
+    /// Its evaluation.
+    pub chosen: Evaluation,
+    /// `{"K": σ, …}`: the predicted standard errors at the end of the chosen test.
+    pub predicted_std_err: std::collections::BTreeMap<String, f64>,
+    /// The thesis's own tests for this application, over the same duration, judged the same
+    /// way.
+    pub baselines: Vec<Evaluation>,
+    /// Every candidate's name, family and score, best first.
+    pub ranking: Vec<(String, Family, f64)>,
+    /// Candidates the cell could not run, with why.
+    pub failed: Vec<(String, String)>,
+    /// Parameters no candidate reveals (structurally unidentifiable on the admissible
+    /// inputs), and so left out of every figure above.
+    pub unidentifiable: Vec<String>,
+    /// Pairs whose estimates stay nearly collinear in the chosen test (|ρ| ≥ 0.95).
+    pub collinear: Vec<Collinear>,
+    /// Candidates evaluated and the wall time [s].
+    pub evaluated: usize,
+    /// Wall time [s].
+    pub elapsed_s: f64,
+}
+
+impl Design {
+    /// Check the request.
+    pub fn check(&self) -> Result<(), AppError> {
+        self.limits.check().map_err(AppError::Invalid)?;
+        if self.selected.is_empty() {
+            return Err(AppError::Invalid("design: no parameters chosen".into()));
+        }
+        if !(self.duration.is_finite() && self.duration >= 1.0) {
+            return Err(AppError::Invalid(format!(
+                "design: duration {} s: expected ≥ 1 s",
+                self.duration
+            )));
+        }
+        if self.candidates == 0 {
+            return Err(AppError::Invalid("design: --candidates 0".into()));
+        }
+        if self.criterion == Criterion::Time && self.target_rel_se.is_none() {
+            return Err(AppError::Invalid(
+                "design: the time criterion needs --target-rel-se".into(),
+            ));
+        }
+        if let Some(t) = self.target_rel_se {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(AppError::Invalid(format!(
+                    "design: target relative standard error {t}: expected > 0"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Judge the regressors `(t, φ)` of one test: the information recursion with forgetting
+    /// `lambda` from `P0 = p0·I`, the noise's autocovariance `noise` at the estimator's rate,
+    /// the standard errors relative to `scales`, the criterion's mean from `settle_s` on.
+    pub fn evaluate<'a>(
+        &self,
+        rows: impl Iterator<Item = (f64, &'a [f64])>,
+        scales: &[f64],
+        lambda: f64,
+        p0: f64,
+        noise: &[f64],
+        settle_s: f64,
+    ) -> Result<Evaluation, AppError> {
+        let p = self.names.len();
+        let mut info =
+            ForgettingInformation::new(p, lambda, p0, noise).map_err(AppError::Invalid)?;
+        let mut sum = vec![0.0; p * p];
+        let mut curve = Curve {
+            t: Vec::new(),
+            std_err: vec![Vec::new(); self.selected.len()],
+        };
+        let mut scores = Vec::new();
+        let (mut t0, mut next) = (None, f64::NEG_INFINITY);
+        let mut rel = vec![0.0; p];
+        for (t, phi) in rows {
+            info.push(phi);
+            for (r, (f, s)) in rel.iter_mut().zip(phi.iter().zip(scales)) {
+                *r = f * s;
+            }
+            for (row, &ri) in sum.chunks_exact_mut(p).zip(&rel) {
+                for (c, &rj) in row.iter_mut().zip(&rel) {
+                    *c += ri * rj;
+                }
+            }
+            let start = *t0.get_or_insert(t);
+            if t >= next {
+                next = t + CURVE_STEP_S;
+                let cov = info.covariance();
+                curve.t.push(t);
+                for (c, &i) in curve.std_err.iter_mut().zip(&self.selected) {
+                    c.push(
+                        cov.as_ref()
+                            .map_or(f64::INFINITY, |m| m[(i, i)].max(0.0).sqrt()),
+                    );
+                }
+                if t - start >= settle_s {
+                    scores.push(cov.as_ref().map_or(f64::INFINITY, |m| {
+                        self.criterion.value(&self.relative(m, scales))
+                    }));
+                }
+            }
+        }
+        let covariance = info.covariance();
+        let std_err: Vec<f64> = self
+            .selected
+            .iter()
+            .map(|&i| {
+                covariance
+                    .as_ref()
+                    .map_or(f64::INFINITY, |m| m[(i, i)].max(0.0).sqrt())
+            })
+            .collect();
+        let rel_std_err: Vec<f64> = std_err
+            .iter()
+            .zip(&self.selected)
+            .map(|(s, &i)| s / scales[i].abs())
+            .collect();
+        let first = curve.t.first().copied().unwrap_or(0.0);
+        let after: Vec<usize> = (0..curve.t.len())
+            .filter(|&k| curve.t[k] - first >= settle_s)
+            .collect();
+        let median_rel_std_err = self
+            .selected
+            .iter()
+            .enumerate()
+            .map(|(c, &i)| {
+                let mut v: Vec<f64> = after
+                    .iter()
+                    .map(|&k| curve.std_err[c][k] / scales[i].abs())
+                    .collect();
+                v.sort_by(f64::total_cmp);
+                v.get(v.len() / 2).copied().unwrap_or(f64::INFINITY)
+            })
+            .collect();
+        let time_to_target_s = self.target_rel_se.and_then(|target| {
+            // The last curve point where some selected one is above target; the next one on.
+            let above = |k: usize| {
+                self.selected.iter().enumerate().any(|(c, &i)| {
+                    let rel = curve.std_err[c][k] / scales[i].abs();
+                    rel.is_nan() || rel > target
+                })
+            };
+            match (0..curve.t.len()).rev().find(|&k| above(k)) {
+                None => curve.t.first().map(|t| t - first),
+                Some(k) if k + 1 < curve.t.len() => Some(curve.t[k + 1] - first),
+                Some(_) => None,
+            }
+        });
+        let score = if scores.is_empty() {
+            f64::INFINITY
+        } else {
+            scores.iter().sum::<f64>() / scores.len() as f64
+        };
+        Ok(Evaluation {
+            name: String::new(),
+            family: None,
+            within_limits: true,
+            score,
+            std_err,
+            rel_std_err,
+            median_rel_std_err,
+            time_to_target_s,
+            curve,
+            information: DMatrix::from_row_slice(p, p, &sum),
+            covariance,
+        })
+    }
+
+    /// The selected parameters' covariance relative to their scales.
+    fn relative(&self, cov: &DMatrix<f64>, scales: &[f64]) -> DMatrix<f64> {
+        let s = self.selected.len();
+        DMatrix::from_fn(s, s, |a, b| {
+            let (i, j) = (self.selected[a], self.selected[b]);
+            cov[(i, j)] / (scales[i] * scales[j]).abs()
+        })
+    }
+
+    /// Whether `a` is a better test than `b` by the criterion.
+    fn better(&self, a: &Evaluation, b: &Evaluation) -> bool {
+        if self.criterion == Criterion::Time {
+            let ta = a.time_to_target_s.unwrap_or(f64::INFINITY);
+            let tb = b.time_to_target_s.unwrap_or(f64::INFINITY);
+            if ta != tb {
+                return ta < tb;
+            }
+        }
+        a.score < b.score
+    }
+
+    /// The candidates' scenarios, drawn from the families in turn.
+    pub fn candidates(&self) -> Vec<Scenario> {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        (0..self.candidates)
+            .map(|k| {
+                let fam = FAMILIES[k % FAMILIES.len()];
+                profile::draw(
+                    &mut rng,
+                    fam,
+                    &self.limits,
+                    self.duration,
+                    &format!("design-{}-{k}", fam.name()),
+                )
+            })
+            .collect()
+    }
+
+    /// Run the design: every candidate judged by `judge` on the worker threads, the best
+    /// chosen, the `baselines` (the thesis's tests, cut to the design's duration) judged
+    /// alongside. `progress` is told how many candidates are done.
+    pub fn run(
+        &self,
+        judge: &(dyn Fn(&Scenario) -> Result<Evaluation, AppError> + Sync),
+        baselines: &[Scenario],
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<Designed, AppError> {
+        self.check()?;
+        let clock = std::time::Instant::now();
+        let cands = self.candidates();
+        let next = AtomicUsize::new(0);
+        let results: Mutex<Vec<(usize, Result<Evaluation, AppError>)>> = Mutex::new(Vec::new());
+        let threads = if self.threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            self.threads
+        }
+        .min(cands.len())
+        .max(1);
+        std::thread::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|| loop {
+                    let k = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(sc) = cands.get(k) else { break };
+                    let r = judge(sc).map(|mut e| {
+                        e.name = sc.name.clone();
+                        e.family = Some(FAMILIES[k % FAMILIES.len()]);
+                        e.within_limits = self.limits.admit(sc);
+                        e
+                    });
+                    let mut g = results.lock().unwrap_or_else(|e| e.into_inner());
+                    g.push((k, r));
+                    progress(g.len());
+                });
+            }
+        });
+        let mut results = results.into_inner().unwrap_or_else(|e| e.into_inner());
+        results.sort_by_key(|r| r.0);
+        let mut failed = Vec::new();
+        let mut evals: Vec<(usize, Evaluation)> = Vec::new();
+        for (k, r) in results {
+            match r {
+                Ok(e) if e.within_limits => evals.push((k, e)),
+                Ok(e) => failed.push((e.name, "outside the limits".into())),
+                Err(e) => failed.push((cands[k].name.clone(), e.to_string())),
+            }
+        }
+        // Structural zeros: from every candidate's information together.
+        let p = self.names.len();
+        let mut total = DMatrix::<f64>::zeros(p, p);
+        for (_, e) in &evals {
+            total += &e.information;
+        }
+        let zeros = if evals.is_empty() {
+            Vec::new()
+        } else {
+            structural_zeros(&total, STRUCTURAL_CUT)
+        };
+        if let Some(&z) = zeros.iter().find(|z| self.selected.contains(z)) {
+            return Err(AppError::Invalid(format!(
+                "design: {} is structurally unidentifiable: no admissible profile of the {} candidates gives it information independent of the others' ({}); fix it at its nominal value or widen the limits",
+                self.names[z],
+                evals.len(),
+                zeros.iter().map(|&i| self.names[i].as_str()).collect::<Vec<_>>().join(", ")
+            )));
+        }
+        let best = evals
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, e))| e.score.is_finite())
+            .fold(None::<usize>, |acc, (j, (_, e))| match acc {
+                Some(b) if !self.better(e, &evals[b].1) => Some(b),
+                _ => Some(j),
+            })
+            .ok_or_else(|| {
+                AppError::Invalid(format!(
+                    "design: none of the {} candidates resolves {} ({} failed: {})",
+                    self.candidates,
+                    self.selected
+                        .iter()
+                        .map(|&i| self.names[i].as_str())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    failed.len(),
+                    failed
+                        .first()
+                        .map_or(String::new(), |f| format!("{}: {}", f.0, f.1))
+                ))
+            })?;
+        let (k, chosen) = evals[best].clone();
+        let mut scenario = cands[k].clone();
+        if self.criterion == Criterion::Time {
+            if let Some(t) = chosen.time_to_target_s {
+                // The test ends once the target is reached and held: at the next half second.
+                scenario.duration = ((t * 2.0).ceil() / 2.0).clamp(0.5, self.duration);
+            }
+        }
+        let mut ranking: Vec<(String, Family, f64)> = evals
+            .iter()
+            .map(|(_, e)| {
+                (
+                    e.name.clone(),
+                    e.family.unwrap_or(Family::Constant),
+                    e.score,
+                )
+            })
+            .collect();
+        ranking.sort_by(|a, b| a.2.total_cmp(&b.2));
+        let mut base = Vec::new();
+        for b in baselines {
+            let mut b = b.clone();
+            b.duration = self.duration;
+            let mut e = judge(&b)?;
+            e.name = b.name.clone();
+            e.within_limits = self.limits.admit(&b);
+            base.push(e);
+        }
+        let collinear = chosen
+            .covariance
+            .as_ref()
+            .map(|c| {
+                collinear_pairs(c, COLLINEAR)
+                    .into_iter()
+                    .map(|(i, j, rho)| Collinear {
+                        params: [self.names[i].clone(), self.names[j].clone()],
+                        correlation: rho,
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let predicted_std_err = self
+            .selected
+            .iter()
+            .zip(&chosen.std_err)
+            .map(|(&i, &s)| (self.names[i].clone(), s))
+            .collect();
+        Ok(Designed {
+            params: self
+                .selected
+                .iter()
+                .map(|&i| self.names[i].clone())
+                .collect(),
+            criterion: self.criterion,
+            scenario,
+            predicted_std_err,
+            chosen,
+            baselines: base,
+            ranking,
+            failed,
+            unidentifiable: zeros.iter().map(|&i| self.names[i].clone()).collect(),
+            collinear,
+            evaluated: evals.len(),
+            elapsed_s: clock.elapsed().as_secs_f64(),
+        })
+    }
+}

@@ -1,0 +1,256 @@
+//! Experiment design (issue 45): the predicted standard errors of a designed shaft test hold
+//! when the test is simulated with sensor noise and the real monitor runs on it — the
+//! estimator and the noise are the witnesses, not the design's sums.
+
+#![allow(clippy::unwrap_used)]
+
+use physid_apps::design::information::Criterion;
+use physid_apps::design::profile::Limits;
+use physid_apps::design::shaft::{ShaftDesign, PARAMS};
+use physid_apps::design::{Design, Designed};
+use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig};
+use physid_sim::params::CellParams;
+use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::scenario::{named, Scenario};
+
+fn shaft() -> ShaftDesign {
+    ShaftDesign {
+        monitor: MonitorConfig::default(),
+        cell: CellParams::default(),
+        rate_hz: 10_000.0,
+    }
+}
+
+/// A design for K and B over 800–1600 rpm (the cell's envelope at full throttle: its drive
+/// holds ≈ 1650 rpm there), full throttle allowed.
+fn design(d: &ShaftDesign, duration: f64, candidates: usize, criterion: Criterion) -> Designed {
+    let design = Design {
+        names: PARAMS.iter().map(|s| s.to_string()).collect(),
+        selected: vec![0, 1],
+        criterion,
+        target_rel_se: Some(0.02),
+        limits: Limits::parse("speed=800:1600,throttle=0:90,dspeed=500").unwrap(),
+        duration,
+        candidates,
+        seed: 1,
+        threads: 0,
+    };
+    let noise = d.noise_autocovariance().unwrap();
+    let baselines = [named("shaft-steady").unwrap()];
+    design
+        .run(&|s| d.evaluate(&design, s, &noise), &baselines, &|_| {})
+        .unwrap()
+}
+
+/// The errors `ϑ̂ − ϑ` of K and B of the real monitor over `seeds` noisy runs of `scenario`, at
+/// the times `at` (estimator samples): `[seed][point][param]`.
+fn errors(d: &ShaftDesign, scenario: &Scenario, at: &[f64], seeds: u64) -> Vec<Vec<[f64; 2]>> {
+    let truth = [d.cell.shaft.k, d.cell.shaft.b];
+    (0..seeds)
+        .map(|seed| {
+            let mut params = d.cell.clone();
+            params.set("sensors.seed", seed as f64 + 1.0).unwrap();
+            let rec = simulate(
+                scenario,
+                &RunOptions {
+                    params,
+                    basis: OutputBasis::Time(d.rate_hz),
+                    ..RunOptions::default()
+                },
+                |_| {},
+            )
+            .unwrap();
+            let m = monitor_shaft(&rec, &d.monitor).unwrap();
+            at.iter()
+                .map(|&t| {
+                    let j = m.t.partition_point(|&x| x < t - 1e-9);
+                    assert!((m.t[j] - t).abs() < 1e-9, "{} {t}", m.t[j]);
+                    [m.k[j] - truth[0], m.b[j] - truth[1]]
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The curve's points from `from` s on: their times and indices.
+fn points(curve_t: &[f64], from: f64) -> (Vec<f64>, Vec<usize>) {
+    let k: Vec<usize> = (0..curve_t.len()).filter(|&k| curve_t[k] >= from).collect();
+    (k.iter().map(|&k| curve_t[k]).collect(), k)
+}
+
+/// Standardised errors `(ϑ̂ − ϑ)/σ_predicted` of K and B over `seeds` noisy runs of
+/// `scenario`, at the curve's points from `from` s on; and per point the spread over the
+/// seeds against the prediction.
+fn standardised(
+    d: &ShaftDesign,
+    scenario: &Scenario,
+    curve_t: &[f64],
+    curve_se: &[Vec<f64>],
+    seeds: u64,
+    from: f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let (at, idx) = points(curve_t, from);
+    let e = errors(d, scenario, &at, seeds);
+    let mut z = Vec::new();
+    let mut ratio = Vec::new();
+    for (c, &k) in idx.iter().enumerate() {
+        for p in 0..2 {
+            let se = curve_se[p][k];
+            let vals: Vec<f64> = e.iter().map(|r| r[c][p]).collect();
+            z.extend(vals.iter().map(|v| v / se));
+            let n = vals.len() as f64;
+            ratio.push((vals.iter().map(|v| v * v).sum::<f64>() / n).sqrt() / se);
+        }
+    }
+    (z, ratio)
+}
+
+/// The pooled check: the standardised errors' coverage of ±1.96 and their RMS, and the spread
+/// over the seeds at each point against the prediction.
+fn check(label: &str, z: &[f64], ratio: &mut [f64]) {
+    let n = z.len() as f64;
+    let cover = z.iter().filter(|v| v.abs() <= 1.959964).count() as f64 / n;
+    let rms = (z.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+    ratio.sort_by(f64::total_cmp);
+    let median = ratio[ratio.len() / 2];
+    eprintln!(
+        "{label}: {n} errors, coverage {cover:.3}, RMS of z {rms:.3} (achieved / predicted), per point median {median:.3}, range {:.3}–{:.3}",
+        ratio[0],
+        ratio[ratio.len() - 1]
+    );
+    assert!((0.90..=0.99).contains(&cover), "{label}: coverage {cover}");
+    assert!((1.0 / 1.5..=1.5).contains(&rms), "{label}: RMS {rms}");
+    assert!(
+        (1.0 / 1.5..=1.5).contains(&median),
+        "{label}: median {median}"
+    );
+}
+
+/// The design's prediction against the real monitor on the designed test simulated with
+/// noise over 20 seeds (issue 45, "Prediction holds"): the standard errors achieved — the
+/// spread of K̂ and B̂ about the cell's true values, at every 0.1 s after the start-up — within
+/// ×1.5 of the predicted, and the predicted ±1.96σ covering 90–99 % of the estimates.
+#[test]
+fn predicted_standard_errors_hold_over_noise_seeds() {
+    let d = shaft();
+    let r = design(&d, 6.0, 5, Criterion::D);
+    let (z, mut ratio) = standardised(
+        &d,
+        &r.scenario,
+        &r.chosen.curve.t,
+        &r.chosen.curve.std_err,
+        20,
+        1.5,
+    );
+    check("default monitor", &z, &mut ratio);
+}
+
+/// The same with another estimator, memory, low-pass and noise — DSFC, λ = 0.995, 200 Hz, a
+/// transducer ten times noisier and noisy speed channels (which enter as `B·Δω`'s noise).
+#[test]
+fn prediction_holds_for_another_monitor_and_noise() {
+    let mut d = shaft();
+    d.monitor.method = physid_apps::shaft_monitor::MonitorMethod::Dsfc;
+    d.monitor.lambda = 0.995;
+    d.monitor.cutoff_hz = 200.0;
+    d.monitor.rate_hz = 1000.0;
+    d.cell.set("sensors.torque_shaft.noise", 0.5).unwrap();
+    d.cell.set("sensors.speed.noise", 0.2).unwrap();
+    let r = design(&d, 6.0, 5, Criterion::A);
+    let (z, mut ratio) = standardised(
+        &d,
+        &r.scenario,
+        &r.chosen.curve.t,
+        &r.chosen.curve.std_err,
+        20,
+        2.0,
+    );
+    check("dsfc, λ 0.995, noisier", &z, &mut ratio);
+}
+
+/// The time criterion cuts the test where the target is reached and held; the scenario reads
+/// back as written.
+#[test]
+fn time_criterion_cuts_the_test_at_the_target() {
+    let d = shaft();
+    let r = design(&d, 4.0, 5, Criterion::Time);
+    let t = r.chosen.time_to_target_s.unwrap();
+    assert!(
+        r.scenario.duration >= t && r.scenario.duration <= t + 0.5 + 1e-9,
+        "{} {t}",
+        r.scenario.duration
+    );
+    let back: Scenario = toml::from_str(&r.scenario.to_toml().unwrap()).unwrap();
+    assert_eq!(back, r.scenario);
+    // The predicted errors are the curve's last.
+    for (k, se) in r.chosen.std_err.iter().enumerate() {
+        assert!(se.is_finite() && *se > 0.0);
+        assert!(r.chosen.rel_std_err[k] <= 0.02 || r.chosen.time_to_target_s.is_none());
+    }
+}
+
+/// Better errors than the thesis's own test in the same duration and limits (issue 45,
+/// "Beats the thesis's hand-made tests"; with the monitor's 25 ms memory both reach their
+/// level within 0.1 s, so the comparison is of the level held): the designed test's median
+/// predicted relative standard errors of K and B are below those of T01 (1000 rpm, throttle
+/// wide open), and so are the errors the real monitor achieves on both, 20 noise seeds each.
+#[test]
+fn designed_test_beats_the_thesis_test() {
+    let d = shaft();
+    let r = design(&d, 4.0, 40, Criterion::D);
+    let thesis = &r.baselines[0];
+    assert!(thesis.within_limits);
+    let mut steady = named("shaft-steady").unwrap();
+    steady.duration = 4.0;
+    let achieved = |s: &Scenario, curve_t: &[f64]| -> [f64; 2] {
+        let (at, _) = points(curve_t, 1.5);
+        let e = errors(&d, s, &at, 20);
+        let n = (e.len() * at.len()) as f64;
+        let rms = |p: usize| (e.iter().flatten().map(|v| v[p] * v[p]).sum::<f64>() / n).sqrt();
+        [rms(0), rms(1)]
+    };
+    let designed = achieved(&r.scenario, &r.chosen.curve.t);
+    let t01 = achieved(&steady, &thesis.curve.t);
+    for (k, p) in ["K", "B"].iter().enumerate() {
+        let (pd, pt) = (r.chosen.median_rel_std_err[k], thesis.median_rel_std_err[k]);
+        eprintln!(
+            "{p}: predicted median relative σ {pd:.3e} designed, {pt:.3e} T01; achieved RMS error {:.3e} designed, {:.3e} T01 (its unit)",
+            designed[k], t01[k]
+        );
+        assert!(pd < pt, "{p}: predicted {pd} against T01's {pt}");
+        assert!(
+            designed[k] < t01[k],
+            "{p}: achieved {} against T01's {}",
+            designed[k],
+            t01[k]
+        );
+    }
+}
+
+/// A test the cell cannot follow — 2500 rpm asked with the throttle wide open, where its drive
+/// holds ≈ 1650 — is left out of a design, and says why.
+#[test]
+fn a_test_outside_the_envelope_is_left_out() {
+    let d = shaft();
+    let design = Design {
+        names: PARAMS.iter().map(|s| s.to_string()).collect(),
+        selected: vec![0, 1],
+        criterion: Criterion::D,
+        target_rel_se: None,
+        limits: Limits::parse("speed=2500:2500,throttle=90:90").unwrap(),
+        duration: 3.0,
+        candidates: 1,
+        seed: 1,
+        threads: 1,
+    };
+    let noise = d.noise_autocovariance().unwrap();
+    let e = design
+        .run(&|s| d.evaluate(&design, s, &noise), &[], &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("none of the 1 candidates") && e.contains("outside the cell's envelope"),
+        "{e}"
+    );
+    assert!(e.contains("against a demand of 2500 rpm"), "{e}");
+}

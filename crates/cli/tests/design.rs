@@ -1,0 +1,99 @@
+//! `physid design`: the designed test as a scenario file the cell runs, its predicted errors
+//! in the JSON, and requests it cannot serve refused with what was expected.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use common::{ok_json, physid};
+
+/// Design, write the scenario, run it with `physid simulate` and monitor it: the file is a
+/// scenario the other verbs take, on the cell it was designed for (`--set` carried in it).
+#[test]
+fn designed_test_runs_on_the_cell() {
+    let d = physid_testkit::Scratch::new("design-cli");
+    let out = d.file("shaft-test");
+    let toml = out.join("scenario.toml");
+    let toml_s = toml.to_str().unwrap();
+    let j = ok_json(&[
+        "design",
+        "--app",
+        "shaft",
+        "--params",
+        "K,B",
+        "--target-rel-se",
+        "0.01",
+        "--limits",
+        "speed=800:2000,throttle=0:60,dspeed=400",
+        "--duration",
+        "4",
+        "--candidates",
+        "5",
+        "--set",
+        "sensors.torque_shaft.noise=0.2",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let se = &j["predicted_std_err"];
+    for p in ["K", "B"] {
+        let v = se[p].as_f64().unwrap();
+        assert!(v.is_finite() && v > 0.0, "{p}: {v}");
+    }
+    assert_eq!(j["chosen"]["curve"]["std_err"].as_array().unwrap().len(), 2);
+    assert!(j["chosen"]["within_limits"].as_bool().unwrap());
+    assert_eq!(j["baselines"][0]["name"], "shaft-steady");
+    assert_eq!(
+        j["baselines"][0]["within_limits"], false,
+        "90° throttle is outside 0–60°"
+    );
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("design.json")).unwrap()).unwrap();
+    assert_eq!(saved["predicted_std_err"], j["predicted_std_err"]);
+    let text = std::fs::read_to_string(&toml).unwrap();
+    assert!(text.contains("# predicted standard error of K"), "{text}");
+    assert!(
+        text.contains("\"sensors.torque_shaft.noise\" = 0.2"),
+        "{text}"
+    );
+    let rec = d.file("run.csv");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        toml_s,
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m = ok_json(&[
+        "monitor",
+        "shaft",
+        "--data",
+        rec.to_str().unwrap(),
+        "--json",
+    ]);
+    let k = m["final"]["K"].as_f64().unwrap();
+    assert!((k / 1250.0 - 1.0).abs() < 0.05, "K {k}");
+}
+
+/// What design refuses, and says why.
+#[test]
+fn design_errors_name_the_problem() {
+    for (args, want) in [
+        (
+            vec!["--params", "K,X"],
+            "the shaft monitor's parameters are K, B, tau0",
+        ),
+        (vec!["--limits", "speed=2000:800"], "2000 > 800"),
+        (vec!["--criterion", "time"], "needs --target-rel-se"),
+        (vec!["--method", "rlsvf"], "vector forgetting"),
+        (vec!["--set", "sensors.torque_shaft.noise=0"], "noise is 0"),
+        (vec!["--app", "friction"], "possible values: shaft"),
+    ] {
+        let mut a = vec!["design", "--duration", "2", "--candidates", "2"];
+        a.extend(args.iter().copied());
+        let o = physid(&a);
+        assert!(!o.status.success(), "{a:?}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(want), "{a:?}: {e}");
+    }
+}
