@@ -207,3 +207,30 @@ def test_cycles_gives_what_the_command_line_gives(golden):
     assert [c.get("mfb50_deg", float("nan")) for c in j["cycles"]] == pytest.approx(
         list(r.tracks["mfb50_deg"]), nan_ok=True, rel=0, abs=0)
     assert j["cov_imep"] == r.cov_imep and j["notes"] == r.notes
+
+
+def test_design_predicts_what_the_monitor_achieves_on_the_designed_test(tmp_path):
+    """physid.design: the designed profile and its predicted errors as arrays; the test, run on
+    the cell with noise (10 seeds) and monitored, has a spread of K and B about the truth
+    within ×1.5 of the predicted (pooled over every 0.1 s after the start-up)."""
+    r = physid.design(params=["K", "B"], limits={"speed": (800, 1600), "dspeed": 400},
+                      duration=3.0, candidates=5, seed=2)
+    assert isinstance(r, physid.DesignResult)
+    t = r.tracks
+    assert len(t["t"]) == len(t["speed_demand_rpm"]) == len(t["throttle_deg"])
+    assert 800 <= t["speed_demand_rpm"].min() and t["speed_demand_rpm"].max() <= 1600
+    assert len(t["curve_t"]) == len(t["K"]) == len(t["B"])
+    assert t["K"][-1] == pytest.approx(r.predicted_std_err["K"])
+    path = tmp_path / "designed.toml"
+    path.write_text(r.scenario_toml)
+    at = t["curve_t"] >= 1.5
+    z = {"K": [], "B": []}
+    for seed in range(1, 11):
+        m = physid.monitor_shaft(physid.simulate(str(path), set={"sensors.seed": seed}))
+        j = np.searchsorted(m.tracks["t"], t["curve_t"][at] - 1e-9)
+        assert np.allclose(m.tracks["t"][j], t["curve_t"][at])
+        for p, truth in (("K", 1250.0), ("B", 0.95)):
+            z[p].extend((m.tracks[p][j] - truth) / t[p][at])
+    for p in ("K", "B"):
+        rms = float(np.sqrt(np.mean(np.square(z[p]))))
+        assert 1 / 1.5 < rms < 1.5, (p, rms, len(z[p]))

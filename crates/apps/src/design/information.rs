@@ -9,9 +9,13 @@
 //! few memories), so for a noise of autocovariance `r(m) = E[e_i·e_{i−m}]`
 //!
 //! ```text
-//! Cov(ϑ̂_k) = A_k⁻¹ · S_k · A_k⁻¹,   S_k = r(0)·C⁽⁰⁾_k + Σ_{m≥1} r(m)·λᵐ·(C⁽ᵐ⁾_k + C⁽ᵐ⁾_kᵀ),
-//! C⁽ᵐ⁾_k = λ²·C⁽ᵐ⁾_{k−1} + φ_k·φ_{k−m}ᵀ.
+//! Cov(ϑ̂_k) = A_k⁻¹ · S_k · A_k⁻¹,   S_k = Σ_i Σ_j λ^{2k−i−j}·r(i−j)·φ_i·φ_jᵀ,
 //! ```
+//!
+//! and `S_k` follows its own recursion: with `u_k = Σ_{m≥1} r(m)·λᵐ·φ_{k−m}` (the past
+//! regressors weighted by the noise's correlation with the present),
+//! `S_k = λ²·S_{k−1} + r(0)·φ_k·φ_kᵀ + φ_k·u_kᵀ + u_k·φ_kᵀ` — `O(L·p + p²)` per sample for
+//! `L` lags.
 //!
 //! For white noise (`r(m) = 0` for m ≥ 1) and λ = 1 this is the batch `σ²·(ΦᵀΦ)⁻¹`; with
 //! forgetting the sandwich is smaller than `σ²·P_k` (≈ `σ²·P_k/(1 + λ)` for stationary
@@ -36,8 +40,12 @@ pub struct ForgettingInformation {
     a: Vec<f64>,
     /// `r(0..=L)`.
     r: Vec<f64>,
-    /// `C⁽ᵐ⁾_k` for m = 0..=L, each row-major p×p.
-    c: Vec<f64>,
+    /// `r(m)·λᵐ` for m = 0..=L.
+    w: Vec<f64>,
+    /// `S_k` (row-major p×p).
+    s: Vec<f64>,
+    /// `u_k`.
+    u: Vec<f64>,
     /// The last L regressors, a ring (`past[(head − m) mod L]` is `φ_{k−m}`).
     past: Vec<f64>,
     head: usize,
@@ -75,12 +83,23 @@ impl ForgettingInformation {
         for i in 0..p {
             a[i * p + i] = 1.0 / p0;
         }
+        let r = r[..=lags].to_vec();
+        let w = r
+            .iter()
+            .scan(1.0, |lm, &rm| {
+                let v = rm * *lm;
+                *lm *= lambda;
+                Some(v)
+            })
+            .collect();
         Ok(Self {
             p,
             lambda,
             a,
-            r: r[..=lags].to_vec(),
-            c: vec![0.0; (lags + 1) * p * p],
+            r,
+            w,
+            s: vec![0.0; p * p],
+            u: vec![0.0; p],
             past: vec![0.0; lags.max(1) * p],
             head: 0,
             count: 0,
@@ -102,26 +121,28 @@ impl ForgettingInformation {
         let p = self.p;
         debug_assert_eq!(phi.len(), p);
         let (l, l2) = (self.lambda, self.lambda * self.lambda);
-        // `m ← f·m + φ·vᵀ`, row by row (no bounds checks: the rows are p long).
-        let update = |m: &mut [f64], f: f64, v: &[f64]| {
-            for (row, &pi) in m.chunks_exact_mut(p).zip(phi) {
-                for (c, &vj) in row.iter_mut().zip(v) {
-                    *c = f * *c + pi * vj;
-                }
-            }
-        };
-        update(&mut self.a, l, phi);
         let lags = self.lags();
-        let (c0, rest) = self.c.split_at_mut(p * p);
-        update(c0, l2, phi);
-        for (m, cm) in (1..=lags).zip(rest.chunks_exact_mut(p * p)) {
-            if m > self.count {
-                cm.iter_mut().for_each(|v| *v *= l2);
-                continue;
-            }
-            // φ_{k−m}: pushed m calls ago.
+        // u_k = Σ_{m≥1} r(m)·λᵐ·φ_{k−m} (the ring holds zeros before the first regressors).
+        self.u.iter_mut().for_each(|v| *v = 0.0);
+        for m in 1..=lags {
             let slot = (self.head + lags - m) % lags;
-            update(cm, l2, &self.past[slot * p..(slot + 1) * p]);
+            let old = &self.past[slot * p..(slot + 1) * p];
+            let wm = self.w[m];
+            for (u, &o) in self.u.iter_mut().zip(old) {
+                *u += wm * o;
+            }
+        }
+        let r0 = self.r[0];
+        for ((arow, srow), (&pi, &ui)) in self
+            .a
+            .chunks_exact_mut(p)
+            .zip(self.s.chunks_exact_mut(p))
+            .zip(phi.iter().zip(&self.u))
+        {
+            for (((a, s), &pj), &uj) in arow.iter_mut().zip(srow).zip(phi).zip(&self.u) {
+                *a = l * *a + pi * pj;
+                *s = l2 * *s + r0 * pi * pj + pi * uj + ui * pj;
+            }
         }
         if lags > 0 {
             self.past[self.head * p..(self.head + 1) * p].copy_from_slice(phi);
@@ -140,17 +161,7 @@ impl ForgettingInformation {
         let p = self.p;
         let a = self.information();
         let ainv = a.clone().cholesky()?.inverse();
-        let mut s = DMatrix::<f64>::zeros(p, p);
-        let mut lm = 1.0;
-        for (m, &rm) in self.r.iter().enumerate() {
-            let cm = DMatrix::from_row_slice(p, p, &self.c[m * p * p..(m + 1) * p * p]);
-            if m == 0 {
-                s += cm * rm;
-            } else {
-                s += (&cm + cm.transpose()) * (rm * lm);
-            }
-            lm *= self.lambda;
-        }
+        let s = DMatrix::from_row_slice(p, p, &self.s);
         let cov = &ainv * s * &ainv;
         Some((&cov + cov.transpose()) * 0.5)
     }

@@ -2,7 +2,7 @@
 //! `[Δθ, Δω, 1]` after the monitor's own low-pass and decimation, from the virtual cell run
 //! without noise on the candidate, and the noise its output `τ_sh` carries after them.
 
-use super::{Design, Evaluation};
+use super::{Design, Designed, Evaluation};
 use crate::error::AppError;
 use crate::shaft_monitor::{
     lowpass, MonitorConfig, MonitorMethod, RegressorRow, ShaftInputs, ShaftStage, SHAFT_CHANNELS,
@@ -10,7 +10,7 @@ use crate::shaft_monitor::{
 use physid_signal::filter::Sos;
 use physid_sim::params::CellParams;
 use physid_sim::run::{OutputBasis, Run, RunOptions};
-use physid_sim::scenario::Scenario;
+use physid_sim::scenario::{named, Scenario};
 
 /// The shaft monitor's parameters, in its estimator's order.
 pub const PARAMS: [&str; 3] = ["K", "B", "tau0"];
@@ -170,6 +170,83 @@ impl ShaftDesign {
             self.monitor.settle_s,
         )
     }
+}
+
+/// The parameters a design is for ([`select`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// Their indices in [`PARAMS`].
+    pub selected: Vec<usize>,
+    /// The cell settings their values make (`shaft.k`, `shaft.b`), for the designed
+    /// scenario's `set`.
+    pub set: Vec<(String, f64)>,
+}
+
+/// The parameters `items` (`K`, `B`, `tau0`, each optionally `NAME=VALUE`: the nominal value
+/// to design at, set on the cell as `shaft.k`/`shaft.b`).
+pub fn select(items: &[String], cell: &mut CellParams) -> Result<Selection, AppError> {
+    let mut selected = Vec::new();
+    let mut set = Vec::new();
+    for item in items {
+        let (name, value) = match item.split_once('=') {
+            Some((n, v)) => {
+                let v = v
+                    .trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        AppError::Invalid(format!("--params {item}: '{v}' is not a number"))
+                    })?;
+                (n.trim(), Some(v))
+            }
+            None => (item.trim(), None),
+        };
+        let i = PARAMS.iter().position(|n| *n == name).ok_or_else(|| {
+            AppError::Invalid(format!(
+                "--params {name}: the shaft monitor's parameters are {}",
+                PARAMS.join(", ")
+            ))
+        })?;
+        if let Some(v) = value {
+            let path = match name {
+                "K" => "shaft.k",
+                "B" => "shaft.b",
+                _ => {
+                    return Err(AppError::Invalid(format!(
+                        "--params {item}: the offset τ0 has no nominal value to set (it is 0)"
+                    )))
+                }
+            };
+            cell.set(path, v)?;
+            set.push((path.to_string(), v));
+        }
+        if !selected.contains(&i) {
+            selected.push(i);
+        }
+    }
+    Ok(Selection { selected, set })
+}
+
+/// Design a test for the shaft monitor: `design`'s candidates judged for `shaft`, the thesis's
+/// T01 and T02 alongside, the cell's `set` settings carried into the designed scenario (it
+/// runs on the cell it was designed for). `progress` is told how many candidates are done.
+pub fn design_shaft(
+    shaft: &ShaftDesign,
+    design: &Design,
+    set: &[(String, f64)],
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Designed, AppError> {
+    shaft.check()?;
+    design.check()?;
+    let noise = shaft.noise_autocovariance()?;
+    let baselines: Vec<Scenario> = ["shaft-steady", "shaft-ramp"]
+        .iter()
+        .filter_map(|n| named(n))
+        .collect();
+    let mut r = design.run(&|s| shaft.evaluate(design, s, &noise), &baselines, progress)?;
+    r.scenario.set.extend(set.iter().cloned());
+    Ok(r)
 }
 
 /// How far the engine's speed may stay from the demand, and for how long [s], before a test

@@ -101,6 +101,9 @@ pub struct ShaftStage {
     /// What a chunk completes, before it goes to a [`Sink`] ([`Stage::push`]).
     #[serde(skip)]
     made: (Vec<ShaftSample>, Vec<ShaftAlarm>),
+    /// Built for [`push_regressors`](Self::push_regressors) alone: the torque is not filtered.
+    #[serde(skip)]
+    regressors_only: bool,
 }
 
 impl ShaftStage {
@@ -114,7 +117,9 @@ impl ShaftStage {
     /// sample instead of 5). Its regressors equal [`new`](Self::new)'s to the stream filter's
     /// truncation, ≈ 1e-13 of the signal ([`ZeroPhaseStream`]).
     pub fn for_regressors(cfg: &MonitorConfig, rate_hz: f64) -> Result<Self, AppError> {
-        Self::with_blocks(cfg, rate_hz, 1)
+        let mut s = Self::with_blocks(cfg, rate_hz, 1)?;
+        s.regressors_only = true;
+        Ok(s)
     }
 
     /// The low-pass's backward blocks a `per_lookahead`-th of its lookahead.
@@ -193,6 +198,7 @@ impl ShaftStage {
             raw: Default::default(),
             filtered: Default::default(),
             made: Default::default(),
+            regressors_only: false,
         })
     }
 
@@ -294,10 +300,11 @@ impl ShaftStage {
         self.consume(samples, alarms)
     }
 
-    /// Take a chunk and append the estimator's regressors `φ = [Δθ, Δω, 1]` and outputs
-    /// `τ_sh` it completes, with their times — what [`push_inputs`](Self::push_inputs) would
-    /// update the estimator with, the samples at standstill left out; no estimator runs (an
-    /// experiment design's information, `crate::design`).
+    /// Take a chunk and append the estimator's regressors `φ = [Δθ, Δω, 1]` it completes,
+    /// with their times — what [`push_inputs`](Self::push_inputs) would update the estimator
+    /// with, the samples at standstill left out; no estimator runs (an experiment design's
+    /// information, `crate::design`). On a stage built by [`for_regressors`](Self::for_regressors),
+    /// whose push_inputs would not have the torque.
     pub fn push_regressors(
         &mut self,
         x: &ShaftInputs,
@@ -323,13 +330,9 @@ impl ShaftStage {
                 continue;
             };
             if !standstill {
-                let [dth, dw, tq] = &self.filtered;
+                let [dth, dw, _] = &self.filtered;
                 self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
-                rows.push(RegressorRow {
-                    t_s: t,
-                    phi,
-                    y: tq[k],
-                });
+                rows.push(RegressorRow { t_s: t, phi });
             }
         }
     }
@@ -389,14 +392,21 @@ impl ShaftStage {
         for f in &mut self.filtered {
             f.clear();
         }
+        // A regressors-only stage leaves the torque out.
+        let channels = if self.regressors_only { 2 } else { 3 };
         match &mut self.filters {
             Some(filters) => {
-                for ((f, r), o) in filters.iter_mut().zip(&self.raw).zip(&mut self.filtered) {
+                for ((f, r), o) in filters
+                    .iter_mut()
+                    .zip(&self.raw)
+                    .zip(&mut self.filtered)
+                    .take(channels)
+                {
                     f.push(r, o).map_err(|e| AppError::Invalid(e.to_string()))?;
                 }
             }
             None => {
-                for (r, o) in self.raw.iter().zip(&mut self.filtered) {
+                for (r, o) in self.raw.iter().zip(&mut self.filtered).take(channels) {
                     o.extend_from_slice(r);
                 }
             }
@@ -409,8 +419,9 @@ impl ShaftStage {
         for f in &mut self.filtered {
             f.clear();
         }
+        let channels = if self.regressors_only { 2 } else { 3 };
         if let Some(filters) = &mut self.filters {
-            for (f, o) in filters.iter_mut().zip(&mut self.filtered) {
+            for (f, o) in filters.iter_mut().zip(&mut self.filtered).take(channels) {
                 f.finish(o).map_err(|e| AppError::Invalid(e.to_string()))?;
             }
         }
@@ -491,8 +502,6 @@ pub struct RegressorRow {
     pub t_s: f64,
     /// `[Δθ, Δω, 1]` filtered (Eq. 6.1's regressor).
     pub phi: [f64; 3],
-    /// `τ_sh` filtered [N·m].
-    pub y: f64,
 }
 
 /// The zero-phase low-pass the monitor applies at `rate_hz`: Butterworth of order 4 at the

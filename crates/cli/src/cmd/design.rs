@@ -10,10 +10,9 @@ use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::design::information::Criterion;
 use physid_apps::design::profile::Limits;
-use physid_apps::design::shaft::{ShaftDesign, PARAMS};
+use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
 use physid_apps::design::{Design, Designed};
 use physid_apps::shaft_monitor::{MonitorConfig, MonitorMethod};
-use physid_sim::scenario::named;
 use std::path::PathBuf;
 use std::sync::Mutex;
 
@@ -98,43 +97,10 @@ pub fn run(a: &Args) -> Result<()> {
         .parse::<MonitorMethod>()
         .map_err(|e| miette!("--method {e}"))?;
     let mut cell = a.set.params()?;
-    let mut selected = Vec::new();
     let mut set = a.set.pairs()?;
-    for item in &a.params {
-        let (name, value) = match item.split_once('=') {
-            Some((n, v)) => {
-                let v: f64 = v
-                    .trim()
-                    .parse()
-                    .ok()
-                    .filter(|v: &f64| v.is_finite())
-                    .ok_or_else(|| miette!("--params {item}: '{v}' is not a number"))?;
-                (n.trim(), Some(v))
-            }
-            None => (item.trim(), None),
-        };
-        let i = PARAMS.iter().position(|n| *n == name).ok_or_else(|| {
-            miette!(
-                "--params {name}: the shaft monitor's parameters are {}",
-                PARAMS.join(", ")
-            )
-        })?;
-        if let Some(v) = value {
-            let path = match name {
-                "K" => "shaft.k",
-                "B" => "shaft.b",
-                _ => {
-                    return Err(miette!(
-                        "--params {item}: the offset τ0 has no nominal value to set (it is 0)"
-                    ))
-                }
-            };
-            cell.set(path, v)
-                .map_err(|e| miette!("--params {item}: {e}"))?;
-            set.push((path.to_string(), v));
-        }
-        selected.push(i);
-    }
+    let chosen = select(&a.params, &mut cell).map_err(|e| miette!("{e}"))?;
+    set.extend(chosen.set);
+    let selected = chosen.selected;
     let shaft = ShaftDesign {
         monitor: MonitorConfig {
             method,
@@ -146,7 +112,6 @@ pub fn run(a: &Args) -> Result<()> {
         cell,
         rate_hz: a.sample_rate,
     };
-    shaft.check().map_err(|e| miette!("{e}"))?;
     let design = Design {
         names: PARAMS.iter().map(|s| s.to_string()).collect(),
         selected,
@@ -158,27 +123,14 @@ pub fn run(a: &Args) -> Result<()> {
         seed: a.seed,
         threads: a.threads,
     };
-    design.check().map_err(|e| miette!("{e}"))?;
-    let noise = shaft.noise_autocovariance().map_err(|e| miette!("{e}"))?;
-    let baselines: Vec<_> = ["shaft-steady", "shaft-ramp"]
-        .iter()
-        .filter_map(|n| named(n))
-        .collect();
     let bar = Mutex::new(Progress::new("designing", Some(a.candidates as u64)));
-    let mut r = design
-        .run(
-            &|s| shaft.evaluate(&design, s, &noise),
-            &baselines,
-            &|done| {
-                if let Ok(mut b) = bar.lock() {
-                    b.set(done as u64);
-                }
-            },
-        )
-        .map_err(|e| miette!("{e}"))?;
+    let r = design_shaft(&shaft, &design, &set, &|done| {
+        if let Ok(mut b) = bar.lock() {
+            b.set(done as u64);
+        }
+    })
+    .map_err(|e| miette!("{e}"))?;
     drop(bar);
-    // The designed test runs on the cell it was designed for.
-    r.scenario.set.extend(set);
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
         let text = r.scenario.to_toml().map_err(|e| miette!("{e}"))?;

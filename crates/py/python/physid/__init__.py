@@ -701,6 +701,61 @@ def monitor_shaft(
     return ShaftMonitorResult(_json.loads(s), dict(tracks))
 
 
+class DesignResult(Result):
+    """:func:`design`'s result: ``params``, ``criterion``, ``scenario`` (the designed test, as
+    a scenario file holds it; ``scenario_toml``, the file's text, which :func:`simulate`
+    and ``physid simulate --scenario`` run), ``predicted_std_err`` (``{"K": σ, …}`` at the test's end),
+    ``chosen`` (its evaluation: ``median_rel_std_err``, ``time_to_target_s``, …),
+    ``baselines`` (the thesis's T01 and T02 judged alike), ``ranking``, ``failed``,
+    ``unidentifiable``, ``collinear``; ``tracks``: the profile ``t``, ``speed_demand_rpm``,
+    ``throttle_deg`` and the predicted standard errors ``curve_t`` and one array per
+    parameter."""
+
+
+def design(
+    app: str = "shaft",
+    params: Iterable[str] = ("K", "B"),
+    criterion: str = "d",
+    target_rel_se: float | None = None,
+    limits: str | Mapping[str, Any] = "",
+    duration: float = 120.0,
+    candidates: int = 200,
+    seed: int = 1,
+    threads: int = 0,
+    method: str = "rlsf",
+    lam: float = 0.98,
+    cutoff_hz: float = 500.0,
+    rate_hz: float = 2000.0,
+    sample_rate: float = 10_000.0,
+    set: Mapping[str, float] | None = None,
+) -> DesignResult:
+    """Experiment design (``physid design``, docs/design.md): which profile of the cell's speed
+    demand and throttle, within ``limits`` (``"speed=800:3000,throttle=0:60,dspeed=500"`` or
+    ``{"speed": (800, 3000), "throttle": (0, 60), "dspeed": 500}``), makes ``params`` estimable
+    by the ``app``'s recursive estimator (the shaft monitor: ``method``, ``lam``, its low-pass
+    ``cutoff_hz`` and update rate ``rate_hz`` on a recording at ``sample_rate``), ranked by
+    ``criterion`` (``d``, ``a``, ``e`` or ``time`` with ``target_rel_se``) over ``candidates``
+    profiles of ``duration`` s drawn from ``seed``; the cell with ``set``."""
+    if app != "shaft":
+        raise Error(f"app '{app}': only the shaft monitor is designed for (shaft)")
+    if isinstance(limits, Mapping):
+        items = []
+        for k, v in limits.items():
+            if isinstance(v, (tuple, list)):
+                lo, hi = _pair(v, 2, f"limits[{k!r}]")
+                items.append(f"{k}={lo}:{hi}")
+            else:
+                items.append(f"{k}={float(v)}")
+        limits = ",".join(items)
+    s, tracks = _physid.design([str(p) for p in params], str(criterion),
+                               None if target_rel_se is None else float(target_rel_se),
+                               str(limits), float(duration), int(candidates), int(seed),
+                               int(threads), str(method), float(lam), float(cutoff_hz),
+                               float(rate_hz), float(sample_rate),
+                               {str(k): float(v) for k, v in (set or {}).items()})
+    return DesignResult(_json.loads(s), dict(tracks))
+
+
 def friction_fit(
     rec: Recording,
     preset: str = "thesis",
@@ -844,7 +899,8 @@ def cycles(
 
 
 __all__ += ["Result", "ShaftMonitorResult", "FrictionFitResult", "TorqueFitResult",
-            "CyclesResult", "monitor_shaft", "friction_fit", "torque_fit", "cycles"]
+            "CyclesResult", "monitor_shaft", "friction_fit", "torque_fit", "cycles",
+            "DesignResult", "design"]
 
 
 class LiveStream:

@@ -84,6 +84,10 @@ def monitor_shaft(rec: Recording, method: str, lam: float, p0: float, healthy: t
                   theta0: tuple[float, float, float], bound: float, dwell: int, cutoff_hz: float,
                   rate_hz: float, settle_s: float, supervise: bool
                   ) -> tuple[str, dict[str, npt.NDArray[np.float64]]]: ...
+def design(params: list[str], criterion: str, target_rel_se: float | None, limits: str,
+           duration: float, candidates: int, seed: int, threads: int, method: str, lam: float,
+           cutoff_hz: float, rate_hz: float, sample_rate: float, set: dict[str, float]
+           ) -> tuple[str, dict[str, npt.NDArray[np.float64]]]: ...
 def friction_fit(rec: Recording, preset: str, set: dict[str, str], source: str, cutoff: str,
                  s0: float, lam: float, transient_s: float, p_atm_kpa: float | None
                  ) -> tuple[str, dict[str, npt.NDArray[np.float64]]]: ...
