@@ -342,6 +342,16 @@ impl Design {
         self.check()?;
         let clock = std::time::Instant::now();
         let cands = self.candidates();
+        // The thesis's tests, cut to the design's duration, judged on the same workers after
+        // the candidates.
+        let jobs: Vec<Scenario> = cands
+            .iter()
+            .cloned()
+            .chain(baselines.iter().map(|b| Scenario {
+                duration: self.duration,
+                ..b.clone()
+            }))
+            .collect();
         let next = AtomicUsize::new(0);
         let results: Mutex<Vec<(usize, Result<Evaluation, AppError>)>> = Mutex::new(Vec::new());
         let threads = if self.threads == 0 {
@@ -349,22 +359,22 @@ impl Design {
         } else {
             self.threads
         }
-        .min(cands.len())
+        .min(jobs.len())
         .max(1);
         std::thread::scope(|s| {
             for _ in 0..threads {
                 s.spawn(|| loop {
                     let k = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(sc) = cands.get(k) else { break };
+                    let Some(sc) = jobs.get(k) else { break };
                     let r = judge(sc).map(|mut e| {
                         e.name = sc.name.clone();
-                        e.family = Some(FAMILIES[k % FAMILIES.len()]);
+                        e.family = (k < cands.len()).then(|| FAMILIES[k % FAMILIES.len()]);
                         e.within_limits = self.limits.admit(sc);
                         e
                     });
                     let mut g = results.lock().unwrap_or_else(|e| e.into_inner());
                     g.push((k, r));
-                    progress(g.len());
+                    progress(g.len().min(cands.len()));
                 });
             }
         });
@@ -372,7 +382,15 @@ impl Design {
         results.sort_by_key(|r| r.0);
         let mut failed = Vec::new();
         let mut evals: Vec<(usize, Evaluation)> = Vec::new();
+        let mut base = Vec::new();
         for (k, r) in results {
+            if k >= cands.len() {
+                match r {
+                    Ok(e) => base.push(e),
+                    Err(e) => failed.push((jobs[k].name.clone(), e.to_string())),
+                }
+                continue;
+            }
             match r {
                 Ok(e) if e.within_limits => evals.push((k, e)),
                 Ok(e) => failed.push((e.name, "outside the limits".into())),
@@ -440,15 +458,6 @@ impl Design {
             })
             .collect();
         ranking.sort_by(|a, b| a.2.total_cmp(&b.2));
-        let mut base = Vec::new();
-        for b in baselines {
-            let mut b = b.clone();
-            b.duration = self.duration;
-            let mut e = judge(&b)?;
-            e.name = b.name.clone();
-            e.within_limits = self.limits.admit(&b);
-            base.push(e);
-        }
         let collinear = chosen
             .covariance
             .as_ref()
