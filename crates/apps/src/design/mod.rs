@@ -66,7 +66,8 @@ pub struct Design {
 /// The predicted standard errors along a test.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct Curve {
-    /// Times [s] from the recording's start.
+    /// Times [s] from the recording's start: every [`CURVE_STEP_S`] and the test's last
+    /// estimator sample.
     pub t: Vec<f64>,
     /// Per selected parameter, its predicted standard error at those times (its unit).
     pub std_err: Vec<Vec<f64>>,
@@ -197,6 +198,7 @@ impl Design {
         };
         let mut scores = Vec::new();
         let (mut t0, mut next) = (None, f64::NEG_INFINITY);
+        let mut last_t = f64::NEG_INFINITY;
         let mut rel = vec![0.0; p];
         for (t, phi) in rows {
             info.push(phi);
@@ -209,6 +211,7 @@ impl Design {
                 }
             }
             let start = *t0.get_or_insert(t);
+            last_t = t;
             if t >= next {
                 next = t + CURVE_STEP_S;
                 let cov = info.covariance();
@@ -236,6 +239,13 @@ impl Design {
                     .map_or(f64::INFINITY, |m| m[(i, i)].max(0.0).sqrt())
             })
             .collect();
+        // The curve ends at the test's end: the standard errors above.
+        if curve.t.last().is_some_and(|&l| l < last_t) {
+            curve.t.push(last_t);
+            for (c, s) in curve.std_err.iter_mut().zip(&std_err) {
+                c.push(*s);
+            }
+        }
         let rel_std_err: Vec<f64> = std_err
             .iter()
             .zip(&self.selected)
