@@ -132,17 +132,15 @@ fn check(label: &str, z: &[f64], ratio: &mut [f64]) {
 /// ×1.5 of the predicted, and the predicted ±1.96σ covering 90–99 % of the estimates.
 #[test]
 fn predicted_standard_errors_hold_over_noise_seeds() {
-    let d = shaft();
-    let r = design(&d, 6.0, 5, Criterion::D);
-    let (z, mut ratio) = standardised(
-        &d,
-        &r.scenario,
-        &r.chosen.curve.t,
-        &r.chosen.curve.std_err,
-        20,
-        1.5,
-    );
-    check("default monitor", &z, &mut ratio);
+    prediction_holds(&shaft(), Criterion::D, 1.5, "default monitor");
+}
+
+/// A 6 s test designed by `criterion` for `d`, simulated over 20 seeds: [`check`] from `from` s.
+fn prediction_holds(d: &ShaftDesign, criterion: Criterion, from: f64, label: &str) {
+    let r = design(d, 6.0, 5, criterion);
+    let c = &r.chosen.curve;
+    let (z, mut ratio) = standardised(d, &r.scenario, &c.t, &c.std_err, 20, from);
+    check(label, &z, &mut ratio);
 }
 
 /// The same with another estimator, memory, low-pass and noise — DSFC, λ = 0.995, 200 Hz, a
@@ -156,16 +154,7 @@ fn prediction_holds_for_another_monitor_and_noise() {
     d.monitor.rate_hz = 1000.0;
     d.cell.set("sensors.torque_shaft.noise", 0.5).unwrap();
     d.cell.set("sensors.speed.noise", 0.2).unwrap();
-    let r = design(&d, 6.0, 5, Criterion::A);
-    let (z, mut ratio) = standardised(
-        &d,
-        &r.scenario,
-        &r.chosen.curve.t,
-        &r.chosen.curve.std_err,
-        20,
-        2.0,
-    );
-    check("dsfc, λ 0.995, noisier", &z, &mut ratio);
+    prediction_holds(&d, Criterion::A, 2.0, "dsfc, λ 0.995, noisier");
 }
 
 /// The time criterion cuts the test where the target is reached and held; the scenario reads
