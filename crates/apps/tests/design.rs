@@ -171,10 +171,13 @@ fn time_criterion_cuts_the_test_at_the_target() {
     );
     let back: Scenario = toml::from_str(&r.scenario.to_toml().unwrap()).unwrap();
     assert_eq!(back, r.scenario);
-    // The predicted errors are the curve's last.
-    for (k, se) in r.chosen.std_err.iter().enumerate() {
-        assert!(se.is_finite() && *se > 0.0);
-        assert!(r.chosen.rel_std_err[k] <= 0.02 || r.chosen.time_to_target_s.is_none());
+    // The predicted errors are where the test is cut: below the target.
+    for (p, scale) in [("K", d.cell.shaft.k), ("B", d.cell.shaft.b)] {
+        let se = r.predicted_std_err[p];
+        assert!(
+            se.is_finite() && se > 0.0 && se / scale <= 0.02,
+            "{p}: {se}"
+        );
     }
 }
 

@@ -125,7 +125,8 @@ pub struct Designed {
     pub scenario: Scenario,
     /// Its evaluation.
     pub chosen: Evaluation,
-    /// `{"K": σ, …}`: the predicted standard errors at the end of the chosen test.
+    /// `{"K": σ, …}`: the predicted standard errors at the end of the chosen test (where the
+    /// time criterion cuts it).
     pub predicted_std_err: std::collections::BTreeMap<String, f64>,
     /// The thesis's own tests for this application, over the same duration, judged the same
     /// way.
@@ -135,11 +136,11 @@ pub struct Designed {
     /// Candidates the cell could not run, with why.
     pub failed: Vec<(String, String)>,
     /// Parameters no candidate reveals (structurally unidentifiable on the admissible
-    /// inputs), and so left out of every figure above.
+    /// inputs): estimated alongside, not designed for (a design for one is refused).
     pub unidentifiable: Vec<String>,
     /// Pairs whose estimates stay nearly collinear in the chosen test (|ρ| ≥ 0.95).
     pub collinear: Vec<Collinear>,
-    /// Candidates evaluated and the wall time [s].
+    /// Candidates judged (run within the limits and the cell's envelope).
     pub evaluated: usize,
     /// Wall time [s].
     pub elapsed_s: f64,
@@ -451,10 +452,17 @@ impl Design {
             })?;
         let (k, chosen) = evals[best].clone();
         let mut scenario = cands[k].clone();
+        // The predicted standard errors where the test ends.
+        let mut at_end = chosen.std_err.clone();
         if self.criterion == Criterion::Time {
             if let Some(t) = chosen.time_to_target_s {
                 // The test ends once the target is reached and held: at the next half second.
                 scenario.duration = ((t * 2.0).ceil() / 2.0).clamp(0.5, self.duration);
+                let c = &chosen.curve;
+                let first = c.t.first().copied().unwrap_or(0.0);
+                if let Some(j) = c.t.iter().rposition(|&x| x - first <= scenario.duration) {
+                    at_end = c.std_err.iter().map(|s| s[j]).collect();
+                }
             }
         }
         let mut ranking: Vec<(String, Family, f64)> = evals
@@ -484,7 +492,7 @@ impl Design {
         let predicted_std_err = self
             .selected
             .iter()
-            .zip(&chosen.std_err)
+            .zip(&at_end)
             .map(|(&i, &s)| (self.names[i].clone(), s))
             .collect();
         Ok(Designed {

@@ -159,6 +159,14 @@ pub fn run(a: &Args) -> Result<()> {
     Ok(())
 }
 
+/// The predicted standard error of the `k`-th parameter where the designed test ends.
+fn end(r: &Designed, k: usize) -> f64 {
+    r.predicted_std_err
+        .get(&r.params[k])
+        .copied()
+        .unwrap_or(f64::NAN)
+}
+
 /// The scenario file's comment: what it was designed for and what it predicts.
 fn header(r: &Designed) -> String {
     let mut s = format!(
@@ -167,7 +175,7 @@ fn header(r: &Designed) -> String {
         r.criterion,
         r.evaluated
     );
-    for (p, se) in r.params.iter().zip(&r.chosen.std_err) {
+    for (p, se) in &r.predicted_std_err {
         s.push_str(&format!(
             "# predicted standard error of {p} at the end: {se:.4e}\n"
         ));
@@ -193,8 +201,11 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
     for (k, p) in r.params.iter().enumerate() {
         let mut row = vec![
             p.clone(),
-            format!("{:.4e}", r.chosen.std_err[k]),
-            format!("{:.3e}", r.chosen.rel_std_err[k]),
+            format!("{:.4e}", end(r, k)),
+            format!(
+                "{:.3e}",
+                end(r, k) * r.chosen.rel_std_err[k] / r.chosen.std_err[k]
+            ),
             format!("{:.3e}", r.chosen.median_rel_std_err[k]),
         ];
         for b in &r.baselines {
@@ -344,8 +355,8 @@ fn print(r: &Designed, a: &Args) {
     for (k, p) in r.params.iter().enumerate() {
         outln!(
             "{p:<8} {:>14.4e} {:>12.3e} {:>16.3e}",
-            r.chosen.std_err[k],
-            r.chosen.rel_std_err[k],
+            end(r, k),
+            end(r, k) * r.chosen.rel_std_err[k] / r.chosen.std_err[k],
             r.chosen.median_rel_std_err[k]
         );
     }
