@@ -241,6 +241,15 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
     let t: Vec<f64> = (0..=n).map(|k| k as f64 * dt).collect();
     let speed: Vec<f64> = t.iter().map(|&t| r.scenario.speed.value(t)).collect();
     let throttle: Vec<f64> = t.iter().map(|&t| r.scenario.throttle.value(t)).collect();
+    // A held level's axis around it, not down to its last digit.
+    let around = |v: &[f64], pad: f64| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        Some((lo - pad, hi + pad))
+    };
     let rel: Vec<Vec<(Vec<f64>, Vec<f64>)>> = std::iter::once(&r.chosen)
         .chain(&r.baselines)
         .map(|e| {
@@ -270,6 +279,7 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
                 color: PALETTE[0],
                 reference: false,
             }],
+            y_range: around(&speed, 50.0),
             ..Default::default()
         },
         Panel {
@@ -281,6 +291,7 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
                 color: PALETTE[0],
                 reference: false,
             }],
+            y_range: around(&throttle, 5.0),
             ..Default::default()
         },
     ];
