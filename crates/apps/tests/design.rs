@@ -4,10 +4,12 @@
 
 #![allow(clippy::unwrap_used)]
 
+use physid_apps::design::friction::{design_friction, FrictionDesign};
 use physid_apps::design::information::Criterion;
-use physid_apps::design::profile::Limits;
+use physid_apps::design::profile::{Limits, ThrottleDraw};
 use physid_apps::design::shaft::{ShaftDesign, PARAMS};
 use physid_apps::design::{Design, Designed};
+use physid_apps::friction_fit::friction_fit;
 use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig};
 use physid_sim::params::CellParams;
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
@@ -30,6 +32,7 @@ fn design(d: &ShaftDesign, duration: f64, candidates: usize, criterion: Criterio
         criterion,
         target_rel_se: Some(0.02),
         limits: Limits::parse("speed=800:1600,throttle=0:90,dspeed=500").unwrap(),
+        throttle: ThrottleDraw::Linear,
         duration,
         candidates,
         seed: 1,
@@ -230,6 +233,7 @@ fn a_test_outside_the_envelope_is_left_out() {
         criterion: Criterion::D,
         target_rel_se: None,
         limits: Limits::parse("speed=2500:2500,throttle=90:90").unwrap(),
+        throttle: ThrottleDraw::Linear,
         duration: 3.0,
         candidates: 1,
         seed: 1,
@@ -245,4 +249,165 @@ fn a_test_outside_the_envelope_is_left_out() {
         "{e}"
     );
     assert!(e.contains("against a demand of 2500 rpm"), "{e}");
+}
+
+/// A friction test (Application 2, §7.3) designed for c4 and c17 over 160 s — the thesis's four
+/// sweeps' duration — within their limits (750–1500 rpm, throttle 1–90°), from 20 candidates.
+fn friction_design() -> (FrictionDesign, Design, Designed) {
+    let fd = FrictionDesign::new(CellParams::default(), 10_000.0);
+    let design = Design {
+        names: vec!["c4".into(), "c17".into()],
+        selected: vec![0, 1],
+        criterion: Criterion::D,
+        target_rel_se: None,
+        limits: Limits::parse("speed=750:1500,throttle=1:90,dspeed=500").unwrap(),
+        throttle: ThrottleDraw::Pressure,
+        duration: 160.0,
+        candidates: 20,
+        seed: 1,
+        threads: 0,
+    };
+    let r = design_friction(&fd, &design, &|_| {}).unwrap();
+    (fd, design, r)
+}
+
+/// The real friction fit's estimates of `names` on `scenario` at the times `at` [s of the
+/// recording], for the noise
+/// seeds `seeds` (`None`: without noise, the estimates' centre): `[run][point][param]`.
+fn friction_estimates(
+    fd: &FrictionDesign,
+    scenario: &Scenario,
+    names: &[String],
+    at: &[f64],
+    seeds: &[Option<u64>],
+) -> Vec<Vec<Vec<f64>>> {
+    let mut cfg = fd.fit.clone();
+    cfg.estimate = Some(names.to_vec());
+    let one = |seed: Option<u64>| {
+        let mut params = fd.cell.clone();
+        match seed {
+            Some(s) => params.set("sensors.seed", s as f64 + 1.0).unwrap(),
+            None => {
+                for p in [
+                    "sensors.torque_engine.noise",
+                    "sensors.p_manifold.noise",
+                    "sensors.temperature.noise",
+                    "sensors.speed.noise",
+                ] {
+                    params.set(p, 0.0).unwrap();
+                }
+            }
+        }
+        let rec = simulate(
+            scenario,
+            &RunOptions {
+                params,
+                basis: OutputBasis::Time(fd.rate_hz),
+                ..RunOptions::default()
+            },
+            |_| {},
+        )
+        .unwrap();
+        let fit = friction_fit(&rec, &cfg).unwrap();
+        at.iter()
+            .map(|&t| {
+                let c = fit.cycles.iter().rev().find(|c| c.t_s <= t + 1e-9).unwrap();
+                c.params.clone()
+            })
+            .collect::<Vec<_>>()
+    };
+    let out = std::sync::Mutex::new(vec![Vec::new(); seeds.len()]);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&seed) = seeds.get(k) else { break };
+                let v = one(seed);
+                out.lock().unwrap()[k] = v;
+            });
+        }
+    });
+    out.into_inner().unwrap()
+}
+
+/// The achieved standard errors `[param]` at the points: the spread of the noisy estimates
+/// about the noiseless run's, and the standardised errors against `predicted[param][point]`.
+fn friction_spread(
+    fd: &FrictionDesign,
+    scenario: &Scenario,
+    names: &[String],
+    at: &[f64],
+    predicted: Option<&[Vec<f64>]>,
+    seeds: u64,
+) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let seeds: Vec<Option<u64>> = std::iter::once(None).chain((0..seeds).map(Some)).collect();
+    let runs = friction_estimates(fd, scenario, names, at, &seeds);
+    let centre = &runs[0];
+    let mut achieved = vec![vec![0.0; at.len()]; names.len()];
+    let mut z = Vec::new();
+    for (p, a) in achieved.iter_mut().enumerate() {
+        for (k, v) in a.iter_mut().enumerate() {
+            let e: Vec<f64> = runs[1..].iter().map(|r| r[k][p] - centre[k][p]).collect();
+            *v = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+            if let Some(pr) = predicted {
+                z.extend(e.iter().map(|x| x / pr[p][k]));
+            }
+        }
+    }
+    (achieved, z)
+}
+
+/// The friction design's prediction against the real fit (issue 45, "Prediction holds", for
+/// Application 2): the designed test simulated with noise over 20 seeds, the fit (DSFC, λ = 1,
+/// the coefficients chosen beforehand) run on each; the spread of ĉ4 and ĉ17 about the
+/// noiseless run's estimates — the design predicts the noise's part of the error, not the
+/// friction model's structural bias against the cell's gas-exchange torque, which every seed
+/// shares — within ×1.5 of the predicted standard errors every 10 s once the test resolves both, over 40
+/// seeds (20 seeds' spread is itself ±16 % uncertain), and the predicted ±1.96σ covering
+/// 90–99 % of them. And it beats the thesis's four sweeps (`friction-sweep`) in the same
+/// 160 s ("Beats the thesis's hand-made tests"): the standard errors achieved at its end, the
+/// sweeps' measured the same way over 20 seeds, are smaller for both.
+#[test]
+fn friction_design_prediction_holds_and_beats_the_sweeps() {
+    let (fd, design, r) = friction_design();
+    // Every 10 s where the design calls both resolved (a relative standard error below 1 %;
+    // before, the fit holds the unresolved direction at its start, and the design says so with
+    // an error as large as the data leave it).
+    let c = &r.chosen.curve;
+    let (mut at, mut idx) = (Vec::new(), Vec::new());
+    for t in (1..=16).map(|k| (k as f64 * 10.0).min(159.0)) {
+        let k = c.t.iter().rposition(|&x| x <= t + 1e-9).unwrap();
+        if (0..2).all(|p| c.std_err[p][k] / r.chosen.std_err[p] * r.chosen.rel_std_err[p] < 0.01) {
+            at.push(t);
+            idx.push(k);
+        }
+    }
+    assert!(at.len() >= 3, "resolved at {at:?} only");
+    let predicted: Vec<Vec<f64>> = (0..2)
+        .map(|p| idx.iter().map(|&k| c.std_err[p][k]).collect())
+        .collect();
+    let (achieved, z) = friction_spread(&fd, &r.scenario, &design.names, &at, Some(&predicted), 40);
+    let mut ratio: Vec<f64> = (0..2)
+        .flat_map(|p| (0..at.len()).map(move |k| (p, k)))
+        .map(|(p, k)| achieved[p][k] / predicted[p][k])
+        .collect();
+    eprintln!("friction: predicted {predicted:?}, achieved {achieved:?}");
+    check("friction c4, c17", &z, &mut ratio);
+    let sweep = named("friction-sweep").unwrap();
+    let (sw, _) = friction_spread(&fd, &sweep, &design.names, &[159.0], None, 20);
+    let end = at.len() - 1;
+    for p in 0..2 {
+        eprintln!(
+            "{}: the designed test achieves {:.3e} in 160 s, the sweeps {:.3e}",
+            design.names[p], achieved[p][end], sw[p][0]
+        );
+        assert!(
+            achieved[p][end] < sw[p][0],
+            "{}: {} against the sweeps' {}",
+            design.names[p],
+            achieved[p][end],
+            sw[p][0]
+        );
+    }
 }

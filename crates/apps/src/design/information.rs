@@ -5,17 +5,28 @@
 //! RLS with forgetting λ (Alg. 5.2–5.3) keeps `P_k = A_k⁻¹` with
 //! `A_k = λ·A_{k−1} + φ_k·φ_kᵀ`, `A_0 = P_0⁻¹`, and its estimate is
 //! `ϑ̂_k = A_k⁻¹·(λᵏ·P_0⁻¹·ϑ_0 + Σ_i λ^{k−i}·φ_i·y_i)`. With `y_i = φ_iᵀϑ + e_i` the error is
-//! `A_k⁻¹·Σ_i λ^{k−i}·φ_i·e_i` (less the start's bias `λᵏ·A_k⁻¹·P_0⁻¹·(ϑ_0 − ϑ)`, gone after a
-//! few memories), so for a noise of autocovariance `r(m) = E[e_i·e_{i−m}]`
+//! `A_k⁻¹·Σ_i λ^{k−i}·φ_i·e_i` plus the start's `λᵏ·A_k⁻¹·P_0⁻¹·(ϑ_0 − ϑ)`. A design judges
+//! what the *data* resolve, so the start is left out: with `D_k = A_k − λᵏ·P_0⁻¹` (the data's
+//! information) and a noise of autocovariance `r(m) = E[e_i·e_{i−m}]`,
 //!
 //! ```text
-//! Cov(ϑ̂_k) = A_k⁻¹ · S_k · A_k⁻¹,   S_k = Σ_i Σ_j λ^{2k−i−j}·r(i−j)·φ_i·φ_jᵀ,
+//! Cov(ϑ̂_k) = D_k⁻¹ · S_k · D_k⁻¹,   S_k = Σ_i Σ_j λ^{2k−i−j}·r(i−j)·φ_i·φ_jᵀ.
 //! ```
+//!
+//! With forgetting the start is gone after a few memories and this is the estimator's own
+//! spread. Without (λ = 1, a characterisation) the start stays: in a direction the test does
+//! not resolve, the estimator holds its start value — its noise spread is small there, its
+//! error whatever the start's was — and `D_k` is singular there, so the design calls the
+//! parameter unresolved rather than precise. Where the data resolve it, the two agree.
 //!
 //! and `S_k` follows its own recursion: with `u_k = Σ_{m≥1} r(m)·λᵐ·φ_{k−m}` (the past
 //! regressors weighted by the noise's correlation with the present),
 //! `S_k = λ²·S_{k−1} + r(0)·φ_k·φ_kᵀ + φ_k·u_kᵀ + u_k·φ_kᵀ` — `O(L·p + p²)` per sample for
 //! `L` lags.
+//!
+//! A noise whose level changes along the test (`e_i = σ_i·ε_i`, `ε` of autocovariance `r`:
+//! the cycle means of a sensor's noise over cycles of different lengths) enters `S_k` only:
+//! its recursion takes `ψ_i = σ_i·φ_i` in place of `φ_i` ([`ForgettingInformation::push_scaled`]).
 //!
 //! For white noise (`r(m) = 0` for m ≥ 1) and λ = 1 this is the batch `σ²·(ΦᵀΦ)⁻¹`; with
 //! forgetting the sandwich is smaller than `σ²·P_k` (≈ `σ²·P_k/(1 + λ)` for stationary
@@ -46,11 +57,15 @@ pub struct ForgettingInformation {
     s: Vec<f64>,
     /// `u_k`.
     u: Vec<f64>,
-    /// The last L regressors, a ring (`past[(head − m) mod L]` is `φ_{k−m}`).
+    /// `ψ_k = σ_k·φ_k` (scratch).
+    psi: Vec<f64>,
+    /// The last L of `ψ`, a ring (`past[(head − m) mod L]` is `φ_{k−m}`).
     past: Vec<f64>,
     head: usize,
     /// Regressors taken.
     count: usize,
+    /// `λᵏ/p0`: the start's part of `A_k`'s diagonal.
+    start: f64,
 }
 
 impl ForgettingInformation {
@@ -100,9 +115,11 @@ impl ForgettingInformation {
             w,
             s: vec![0.0; p * p],
             u: vec![0.0; p],
+            psi: vec![0.0; p],
             past: vec![0.0; lags.max(1) * p],
             head: 0,
             count: 0,
+            start: 1.0 / p0,
         })
     }
 
@@ -118,11 +135,20 @@ impl ForgettingInformation {
 
     /// Take the regressor `φ_k` of the estimator's next update.
     pub fn push(&mut self, phi: &[f64]) {
+        self.push_scaled(phi, 1.0);
+    }
+
+    /// Take `φ_k` whose output's noise is `sigma`·ε_k (module docs): `A` takes `φ_k`, `S` takes
+    /// `ψ_k = sigma·φ_k`.
+    pub fn push_scaled(&mut self, phi: &[f64], sigma: f64) {
         let p = self.p;
         debug_assert_eq!(phi.len(), p);
         let (l, l2) = (self.lambda, self.lambda * self.lambda);
         let lags = self.lags();
-        // u_k = Σ_{m≥1} r(m)·λᵐ·φ_{k−m} (the ring holds zeros before the first regressors).
+        for (q, &f) in self.psi.iter_mut().zip(phi) {
+            *q = sigma * f;
+        }
+        // u_k = Σ_{m≥1} r(m)·λᵐ·ψ_{k−m} (the ring holds zeros before the first regressors).
         self.u.iter_mut().for_each(|v| *v = 0.0);
         for m in 1..=lags {
             let slot = (self.head + lags - m) % lags;
@@ -133,22 +159,28 @@ impl ForgettingInformation {
             }
         }
         let r0 = self.r[0];
-        for ((arow, srow), (&pi, &ui)) in self
+        for ((arow, srow), (&pi, (&qi, &ui))) in self
             .a
             .chunks_exact_mut(p)
             .zip(self.s.chunks_exact_mut(p))
-            .zip(phi.iter().zip(&self.u))
+            .zip(phi.iter().zip(self.psi.iter().zip(&self.u)))
         {
-            for (((a, s), &pj), &uj) in arow.iter_mut().zip(srow).zip(phi).zip(&self.u) {
+            for (((a, s), &pj), (&qj, &uj)) in arow
+                .iter_mut()
+                .zip(srow)
+                .zip(phi)
+                .zip(self.psi.iter().zip(&self.u))
+            {
                 *a = l * *a + pi * pj;
-                *s = l2 * *s + r0 * pi * pj + pi * uj + ui * pj;
+                *s = l2 * *s + r0 * qi * qj + qi * uj + ui * qj;
             }
         }
         if lags > 0 {
-            self.past[self.head * p..(self.head + 1) * p].copy_from_slice(phi);
+            self.past[self.head * p..(self.head + 1) * p].copy_from_slice(&self.psi);
             self.head = (self.head + 1) % lags;
         }
         self.count += 1;
+        self.start *= l;
     }
 
     /// `A_k` (the estimator's `P_k⁻¹`).
@@ -156,10 +188,14 @@ impl ForgettingInformation {
         DMatrix::from_row_slice(self.p, self.p, &self.a)
     }
 
-    /// `Cov(ϑ̂_k) = A⁻¹·S·A⁻¹` (module docs); `None` while `A` is singular to working precision.
+    /// `Cov(ϑ̂_k) = D⁻¹·S·D⁻¹` (module docs); `None` while the data's information `D` is
+    /// singular to working precision (a direction not resolved).
     pub fn covariance(&self) -> Option<DMatrix<f64>> {
         let p = self.p;
-        let a = self.information();
+        let mut a = self.information();
+        for i in 0..p {
+            a[(i, i)] -= self.start;
+        }
         let ainv = a.clone().cholesky()?.inverse();
         let s = DMatrix::from_row_slice(p, p, &self.s);
         let cov = &ainv * s * &ainv;
@@ -308,7 +344,55 @@ mod tests {
         // The recursion's A starts at P0⁻¹ and forgets it too.
         let a_rec = info.information();
         assert!((&a_rec - &a).abs().max() < 1e-12 * a.abs().max(), "A");
-        let ainv = a.clone().try_inverse().unwrap();
+        // The data's information: A less the start's λⁿ·P0⁻¹.
+        let d = &a - DMatrix::<f64>::identity(p, p) * (lambda.powi(n as i32) / p0);
+        let ainv = d.try_inverse().unwrap();
+        let want = &ainv * s * &ainv;
+        let got = info.covariance().unwrap();
+        assert!(
+            (&got - &want).abs().max() < 1e-10 * want.abs().max(),
+            "{got} {want}"
+        );
+    }
+
+    /// A noise level per row: the double sum with `σ_i·σ_j·r(i−j)`, over random regressors,
+    /// levels and an MA(1) noise.
+    #[test]
+    fn scaled_noise_is_the_weighted_double_sum() {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let (p, n, lambda) = (2, 30, 0.97);
+        let r = [0.8, 0.3];
+        let rows: Vec<(Vec<f64>, f64)> = (0..n)
+            .map(|_| {
+                (
+                    (0..p).map(|_| rng.random_range(-1.0..1.0)).collect(),
+                    rng.random_range(0.1..3.0),
+                )
+            })
+            .collect();
+        let mut info = ForgettingInformation::new(p, lambda, 1e6, &r).unwrap();
+        for (ph, sg) in &rows {
+            info.push_scaled(ph, *sg);
+        }
+        let k = n - 1;
+        let mut s = DMatrix::<f64>::zeros(p, p);
+        for (i, (pi, si)) in rows.iter().enumerate() {
+            for (j, (pj, sj)) in rows.iter().enumerate() {
+                let m = i.abs_diff(j);
+                if m < r.len() {
+                    let (fi, fj) = (
+                        DVector::from_column_slice(pi),
+                        DVector::from_column_slice(pj),
+                    );
+                    s += &fi
+                        * fj.transpose()
+                        * (si * sj * r[m] * lambda.powi((2 * k - i - j) as i32));
+                }
+            }
+        }
+        let d =
+            info.information() - DMatrix::<f64>::identity(p, p) * (lambda.powi(n as i32) * 1e-6);
+        let ainv = d.try_inverse().unwrap();
         let want = &ainv * s * &ainv;
         let got = info.covariance().unwrap();
         assert!(

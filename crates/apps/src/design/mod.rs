@@ -12,17 +12,20 @@
 //! test after the estimator's start-up; the orthogonal method on the summed information of
 //! every candidate tells the parameters no admissible profile reveals. Candidates run on every
 //! core. By concern: `information.rs` (the recursion, criteria, structural zeros),
-//! `profile.rs` (limits and families), `shaft.rs` (Application 1).
+//! `profile.rs` (limits and families), `run.rs` (a candidate on the cell, within its envelope), `shaft.rs`
+//! (Application 1), `friction.rs` (Application 2).
 
+pub mod friction;
 pub mod information;
 pub mod profile;
+pub mod run;
 pub mod shaft;
 
 use crate::error::AppError;
 use information::{collinear_pairs, structural_zeros, Criterion, ForgettingInformation};
 use nalgebra::DMatrix;
 use physid_sim::scenario::Scenario;
-use profile::{Family, Limits, FAMILIES};
+use profile::{Family, Limits, ThrottleDraw, FAMILIES};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -53,6 +56,8 @@ pub struct Design {
     pub target_rel_se: Option<f64>,
     /// The cell's limits.
     pub limits: Limits,
+    /// How the candidates' throttle is drawn (the application's).
+    pub throttle: ThrottleDraw,
     /// Each candidate's duration [s].
     pub duration: f64,
     /// How many candidates.
@@ -82,8 +87,9 @@ pub struct Evaluation {
     pub family: Option<Family>,
     /// Whether it keeps to the limits.
     pub within_limits: bool,
-    /// The criterion's mean over the test after the estimator's start-up (smaller is better;
-    /// for the time criterion, the D value).
+    /// The criterion's mean over the test after the estimator's start-up — its value at the
+    /// test's end for an estimator without forgetting (λ = 1) — smaller is better; for the
+    /// time criterion, the D value.
     pub score: f64,
     /// The predicted standard error of each selected parameter at the test's end (its unit).
     pub std_err: Vec<f64>,
@@ -103,6 +109,34 @@ pub struct Evaluation {
     /// The predicted covariance at the end (every parameter, their units).
     #[serde(skip)]
     pub covariance: Option<DMatrix<f64>>,
+}
+
+/// How an application's estimator sees a test ([`Design::evaluate`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Estimator<'a> {
+    /// Each parameter's nominal value: the standard errors are judged relative to it.
+    pub scales: &'a [f64],
+    /// Each estimator coordinate's unit: the parameter is `units·x` (1 when the estimator
+    /// works in the parameters' own units, the nominal value when in relative deviations).
+    pub units: &'a [f64],
+    /// Its forgetting factor λ.
+    pub lambda: f64,
+    /// Its initial covariance `P0 = p0·I` (in its coordinates).
+    pub p0: f64,
+    /// The autocovariance of its output's noise at its rate, `r(0..)`.
+    pub noise: &'a [f64],
+    /// Its start-up, left out of the criterion [s].
+    pub settle_s: f64,
+}
+
+/// A covariance in the estimator's coordinates `x` made the parameters' `units·x`.
+fn in_units(mut c: DMatrix<f64>, units: &[f64]) -> DMatrix<f64> {
+    for i in 0..c.nrows() {
+        for j in 0..c.ncols() {
+            c[(i, j)] *= units[i] * units[j];
+        }
+    }
+    c
 }
 
 /// A pair of nearly collinear estimates in the chosen test.
@@ -177,19 +211,31 @@ impl Design {
         Ok(())
     }
 
-    /// Judge the regressors `(t, φ)` of one test: the information recursion with forgetting
-    /// `lambda` from `P0 = p0·I`, the noise's autocovariance `noise` at the estimator's rate,
-    /// the standard errors relative to `scales`, the criterion's mean from `settle_s` on.
+    /// Judge the regressors `(t, φ, σ)` of one test (`σ`: the noise's level on that output,
+    /// 1 for a stationary noise) as `est` sees them: the information recursion with its
+    /// forgetting, the standard errors relative to its nominal values, the criterion's mean
+    /// after its start-up.
     pub fn evaluate<'a>(
         &self,
-        rows: impl Iterator<Item = (f64, &'a [f64])>,
-        scales: &[f64],
-        lambda: f64,
-        p0: f64,
-        noise: &[f64],
-        settle_s: f64,
+        rows: impl Iterator<Item = (f64, &'a [f64], f64)>,
+        est: &Estimator<'_>,
     ) -> Result<Evaluation, AppError> {
         let p = self.names.len();
+        let Estimator {
+            scales,
+            units,
+            lambda,
+            p0,
+            noise,
+            settle_s,
+        } = *est;
+        if scales.len() != p || units.len() != p {
+            return Err(AppError::Invalid(format!(
+                "design: {p} parameters but {} nominal values and {} units",
+                scales.len(),
+                units.len()
+            )));
+        }
         let mut info =
             ForgettingInformation::new(p, lambda, p0, noise).map_err(AppError::Invalid)?;
         let mut sum = vec![0.0; p * p];
@@ -201,10 +247,10 @@ impl Design {
         let (mut t0, mut next) = (None, f64::NEG_INFINITY);
         let mut last_t = f64::NEG_INFINITY;
         let mut rel = vec![0.0; p];
-        for (t, phi) in rows {
-            info.push(phi);
-            for (r, (f, s)) in rel.iter_mut().zip(phi.iter().zip(scales)) {
-                *r = f * s;
+        for (t, phi, sigma) in rows {
+            info.push_scaled(phi, sigma);
+            for ((r, f), (s, u)) in rel.iter_mut().zip(phi).zip(scales.iter().zip(units)) {
+                *r = f * s / u;
             }
             for (row, &ri) in sum.chunks_exact_mut(p).zip(&rel) {
                 for (c, &rj) in row.iter_mut().zip(&rel) {
@@ -214,14 +260,19 @@ impl Design {
             let start = *t0.get_or_insert(t);
             last_t = t;
             if t >= next {
-                next = t + CURVE_STEP_S;
-                let cov = info.covariance();
-                curve.t.push(t);
-                for (c, &i) in curve.std_err.iter_mut().zip(&self.selected) {
-                    c.push(
-                        cov.as_ref()
-                            .map_or(f64::INFINITY, |m| m[(i, i)].max(0.0).sqrt()),
-                    );
+                let cov = info.covariance().map(|c| in_units(c, units));
+                // Before the data resolve every parameter the curve has no point: it starts
+                // at the first regressor that does; a later moment that does not resolve them
+                // all has an unbounded error.
+                if cov.is_some() || !curve.t.is_empty() {
+                    next = t + CURVE_STEP_S;
+                    curve.t.push(t);
+                    for (c, &i) in curve.std_err.iter_mut().zip(&self.selected) {
+                        c.push(
+                            cov.as_ref()
+                                .map_or(f64::INFINITY, |m| m[(i, i)].max(0.0).sqrt()),
+                        );
+                    }
                 }
                 if t - start >= settle_s {
                     scores.push(cov.as_ref().map_or(f64::INFINITY, |m| {
@@ -230,7 +281,7 @@ impl Design {
                 }
             }
         }
-        let covariance = info.covariance();
+        let covariance = info.covariance().map(|c| in_units(c, units));
         let std_err: Vec<f64> = self
             .selected
             .iter()
@@ -241,7 +292,7 @@ impl Design {
             })
             .collect();
         // The curve ends at the test's end: the standard errors above.
-        if curve.t.last().is_some_and(|&l| l < last_t) {
+        if covariance.is_some() && curve.t.last().is_some_and(|&l| l < last_t) {
             curve.t.push(last_t);
             for (c, s) in curve.std_err.iter_mut().zip(&std_err) {
                 c.push(*s);
@@ -252,7 +303,8 @@ impl Design {
             .zip(&self.selected)
             .map(|(s, &i)| s / scales[i].abs())
             .collect();
-        let first = curve.t.first().copied().unwrap_or(0.0);
+        // The test's start: its first regressor's time.
+        let first = t0.unwrap_or(0.0);
         let after: Vec<usize> = (0..curve.t.len())
             .filter(|&k| curve.t[k] - first >= settle_s)
             .collect();
@@ -283,7 +335,14 @@ impl Design {
                 Some(_) => None,
             }
         });
-        let score = if scores.is_empty() {
+        // Without forgetting the estimate at the end is the result (a characterisation): the
+        // criterion is its value there. With forgetting, what the estimator holds along the
+        // test (a monitor): the criterion's mean after its start-up.
+        let score = if lambda == 1.0 {
+            covariance.as_ref().map_or(f64::INFINITY, |m| {
+                self.criterion.value(&self.relative(m, scales))
+            })
+        } else if scores.is_empty() {
             f64::INFINITY
         } else {
             scores.iter().sum::<f64>() / scores.len() as f64
@@ -303,7 +362,7 @@ impl Design {
         })
     }
 
-    /// The selected parameters' covariance relative to their scales.
+    /// The selected parameters' covariance relative to their nominal values.
     fn relative(&self, cov: &DMatrix<f64>, scales: &[f64]) -> DMatrix<f64> {
         let s = self.selected.len();
         DMatrix::from_fn(s, s, |a, b| {
@@ -336,6 +395,7 @@ impl Design {
                     &self.limits,
                     self.duration,
                     &format!("design-{}-{k}", fam.name()),
+                    self.throttle,
                 )
             })
             .collect()

@@ -195,21 +195,61 @@ fn held_levels(levels: &[(f64, f64)], rate: f64, duration: f64) -> Profile {
     p
 }
 
+/// How a candidate's throttle is drawn: what the application's parameters respond to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ThrottleDraw {
+    /// Levels uniform over the range (the shaft: the gas torque's pulsation grows with the
+    /// opening over the whole range).
+    #[default]
+    Linear,
+    /// Levels uniform in the logarithm of the opening from [`PRESSURE_MIN_DEG`] (the manifold
+    /// pressure moves at small openings and hardly above 15°: the friction's pumping terms),
+    /// and slow ramps between two levels, as the thesis's friction sweeps.
+    Pressure,
+}
+
+/// The smallest opening a [`ThrottleDraw::Pressure`] draw takes [deg]: below it the motored
+/// engine's manifold empties towards a vacuum the friction tests do not run at.
+pub const PRESSURE_MIN_DEG: f64 = 1.0;
+
 /// A throttle held at its upper limit (a third of the draws: the largest pulsation, often the
 /// most informative), held at a level drawn in the range (a third), or a staircase of 2–4
-/// levels.
-fn throttle<R: Rng>(rng: &mut R, l: &Limits, duration: f64) -> Profile {
+/// levels; with [`ThrottleDraw::Pressure`], levels drawn in the logarithm and a quarter of the
+/// draws slow ramps between two levels.
+fn throttle<R: Rng>(rng: &mut R, l: &Limits, duration: f64, how: ThrottleDraw) -> Profile {
     let (lo, hi) = l.throttle;
-    let draw = |rng: &mut R| {
-        if hi > lo {
-            rng.random_range(lo..=hi)
-        } else {
-            lo
+    let draw = |rng: &mut R| match how {
+        ThrottleDraw::Linear if hi > lo => rng.random_range(lo..=hi),
+        ThrottleDraw::Pressure => {
+            let a = lo.max(PRESSURE_MIN_DEG).min(hi);
+            if hi > a {
+                (rng.random_range(a.ln()..=hi.ln())).exp().clamp(lo, hi)
+            } else {
+                hi
+            }
         }
+        _ => lo,
     };
-    match rng.random_range(0..3) {
+    let options = match how {
+        ThrottleDraw::Linear => 3,
+        ThrottleDraw::Pressure => 4,
+    };
+    match rng.random_range(0..options) {
         0 => return Profile::constant(hi, duration),
         1 => return Profile::constant(draw(rng), duration),
+        3 => {
+            // 1–4 legs between two levels, back and forth.
+            let (a, b) = (draw(rng), draw(rng));
+            let legs = rng.random_range(1..=4);
+            let leg = duration / legs as f64;
+            let mut p = Profile::default();
+            for k in 0..legs {
+                let (v0, v1) = if k % 2 == 0 { (a, b) } else { (b, a) };
+                p = p.then(leg, Shape::Ramp { v0, v1 });
+            }
+            return p;
+        }
         _ => {}
     }
     let n = rng.random_range(2..=4);
@@ -233,6 +273,7 @@ pub fn draw<R: Rng>(
     l: &Limits,
     duration: f64,
     name: &str,
+    how: ThrottleDraw,
 ) -> Scenario {
     let (lo, hi) = l.speed;
     let level = |rng: &mut R| {
@@ -298,7 +339,7 @@ pub fn draw<R: Rng>(
         duration,
         settle: 1.0,
         speed,
-        throttle: throttle(rng, l, duration),
+        throttle: throttle(rng, l, duration, how),
         torque_mode: false,
         set: Default::default(),
         faults: Vec::new(),
@@ -364,8 +405,9 @@ mod tests {
         let l = Limits::parse("speed=800:3000,throttle=0:60,dspeed=500").unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         for fam in FAMILIES {
-            for k in 0..20 {
-                let s = draw(&mut rng, fam, &l, 30.0, &format!("c{k}"));
+            for k in 0..40 {
+                let how = [ThrottleDraw::Linear, ThrottleDraw::Pressure][k % 2];
+                let s = draw(&mut rng, fam, &l, 30.0, &format!("c{k}"), how);
                 assert!(l.admit(&s), "{fam:?} {k}: {s:?}");
                 s.validate().unwrap();
                 let text = toml::to_string(&s).unwrap();

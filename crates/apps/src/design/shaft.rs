@@ -2,14 +2,14 @@
 //! `[Δθ, Δω, 1]` after the monitor's own low-pass and decimation, from the virtual cell run
 //! without noise on the candidate, and the noise its output `τ_sh` carries after them.
 
-use super::{Design, Designed, Evaluation};
+use super::run::run_noiseless;
+use super::{Design, Designed, Estimator, Evaluation};
 use crate::error::AppError;
 use crate::shaft_monitor::{
     lowpass, MonitorConfig, MonitorMethod, RegressorRow, ShaftInputs, ShaftStage, SHAFT_CHANNELS,
 };
 use physid_signal::filter::Sos;
 use physid_sim::params::CellParams;
-use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::{named, Scenario};
 
 /// The shaft monitor's parameters, in its estimator's order.
@@ -108,47 +108,21 @@ impl ShaftDesign {
     /// The regressors the monitor's estimator would take from `scenario` run on the cell
     /// without noise (the noise is the covariance's, [`noise_autocovariance`](Self::noise_autocovariance)).
     pub fn regressors(&self, scenario: &Scenario) -> Result<Vec<RegressorRow>, AppError> {
-        let mut params = self.cell.clone();
-        for path in [
-            "sensors.torque_shaft.noise",
-            "sensors.torque_shaft.quantum",
-            "sensors.speed.noise",
-        ] {
-            params.set(path, 0.0)?;
-        }
-        let mut scenario = scenario.clone();
-        // The scenario's own settings apply over the cell's; its noise too must go.
-        scenario
-            .set
-            .retain(|k, _| !k.ends_with(".noise") && !k.ends_with(".quantum"));
-        let opts = RunOptions {
-            params,
-            basis: OutputBasis::Time(self.rate_hz),
-            stream: true,
-            ..RunOptions::default()
-        };
-        let mut run = Run::new(&scenario, &opts)?;
-        let mut keep = SHAFT_CHANNELS[1..].to_vec();
-        keep.push("speed_demand");
-        run.keep_channels(&keep)?;
-        let mut envelope = Envelope::default();
         let mut stage = ShaftStage::for_regressors(&self.monitor, self.rate_hz)?;
-        let n = (run.duration() * self.rate_hz / self.every() as f64) as usize + 16;
+        let n = (scenario.duration * self.rate_hz / self.every() as f64) as usize + 16;
         let mut rows = Vec::with_capacity(n);
-        let mut t = 0.0;
-        while !run.is_done() {
-            t += 1.0;
-            run.step_until(t)?;
-            let chunk = run.drain()?;
-            if !chunk.is_empty() {
-                envelope.check(
-                    chunk.values("t")?,
-                    chunk.values("omega_en")?,
-                    chunk.values("speed_demand")?,
-                )?;
-                stage.push_regressors(&ShaftInputs::of(&chunk)?, &mut rows)?;
-            }
-        }
+        run_noiseless(
+            &self.cell,
+            &[
+                "sensors.torque_shaft.noise",
+                "sensors.torque_shaft.quantum",
+                "sensors.speed.noise",
+            ],
+            scenario,
+            self.rate_hz,
+            &SHAFT_CHANNELS[1..],
+            |chunk| stage.push_regressors(&ShaftInputs::of(chunk)?, &mut rows),
+        )?;
         stage.finish_regressors(&mut rows)?;
         Ok(rows)
     }
@@ -162,12 +136,15 @@ impl ShaftDesign {
     ) -> Result<Evaluation, AppError> {
         let rows = self.regressors(scenario)?;
         design.evaluate(
-            rows.iter().map(|r| (r.t_s, &r.phi[..])),
-            &self.scales(),
-            self.monitor.lambda,
-            self.monitor.p0,
-            noise,
-            self.monitor.settle_s,
+            rows.iter().map(|r| (r.t_s, &r.phi[..], 1.0)),
+            &Estimator {
+                scales: &self.scales(),
+                units: &[1.0; 3],
+                lambda: self.monitor.lambda,
+                p0: self.monitor.p0,
+                noise,
+                settle_s: self.monitor.settle_s,
+            },
         )
     }
 }
@@ -247,41 +224,6 @@ pub fn design_shaft(
     let mut r = design.run(&|s| shaft.evaluate(design, s, &noise), &baselines, progress)?;
     r.scenario.set.extend(set.iter().cloned());
     Ok(r)
-}
-
-/// How far the engine's speed may stay from the demand, and for how long [s], before a test
-/// is outside the cell's envelope: the drive cannot hold it (its current or voltage limit).
-const ENVELOPE_GAP: f64 = 0.1;
-const ENVELOPE_FOR_S: f64 = 1.0;
-
-/// Whether the cell follows the speed demand: a test whose engine speed stays more than
-/// [`ENVELOPE_GAP`] from the demand for [`ENVELOPE_FOR_S`] asks for what the cell cannot do
-/// (the speed the design would judge is not the one the test names).
-#[derive(Debug, Default)]
-struct Envelope {
-    /// Since when the speed has been off the demand.
-    off_since: Option<f64>,
-}
-
-impl Envelope {
-    fn check(&mut self, t: &[f64], omega: &[f64], demand: &[f64]) -> Result<(), AppError> {
-        let rpm = 30.0 / std::f64::consts::PI;
-        for ((&t, &w), &d) in t.iter().zip(omega).zip(demand) {
-            if (w - d).abs() <= ENVELOPE_GAP * d.abs().max(1.0) {
-                self.off_since = None;
-                continue;
-            }
-            let since = *self.off_since.get_or_insert(t);
-            if t - since >= ENVELOPE_FOR_S {
-                return Err(AppError::Invalid(format!(
-                    "outside the cell's envelope: from {since:.1} s the engine runs at {:.0} rpm against a demand of {:.0} rpm (the drive's limits)",
-                    w * rpm,
-                    d * rpm
-                )));
-            }
-        }
-        Ok(())
-    }
 }
 
 /// The impulse response of `sos` run forwards and backwards, `g(n) = Σ_j h(j)·h(j + |n|)`,

@@ -89,6 +89,11 @@ pub struct FrictionFitConfig {
     /// How many of the ranked coefficients to estimate.
     #[serde(with = "physid_ident::SelectionData")]
     pub selection: Selection,
+    /// The coefficients to estimate, when chosen beforehand (a designed test's, `physid
+    /// design --app friction`): these instead of the ranked estimable subset, which is still
+    /// reported.
+    #[serde(default)]
+    pub estimate: Option<Vec<String>>,
     /// `S0 = s0·I` in relative coordinates (thesis: √100 = 10).
     pub s0: f64,
     /// DSFC forgetting factor λ ∈ (0, 1].
@@ -116,6 +121,7 @@ impl FrictionFitConfig {
             settings,
             source: TorqueSource::Engine,
             selection: Selection::Rule(Cutoff::Repeat),
+            estimate: None,
             s0: 10.0,
             lambda: 1.0,
             max_speed_change: 0.01,

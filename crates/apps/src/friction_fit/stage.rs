@@ -118,6 +118,9 @@ impl FrictionStage {
             )));
         }
         let model = FrictionRegression::new(cfg.design, cfg.settings);
+        if let Some(names) = &cfg.estimate {
+            check_estimate(names, &model.nominal())?;
+        }
         Ok(Self {
             c0: model.nominal(),
             model,
@@ -143,6 +146,13 @@ impl FrictionStage {
         }
         self.theta_tdc = theta_tdc;
         Ok(())
+    }
+
+    /// The steady cycles kept so far, the last one judged (as at the end of the stream) — what
+    /// the estimator takes, without running it (the experiment design's regressors).
+    pub fn steady_cycles(&mut self) -> Result<&CycleMeans, AppError> {
+        self.push_gap(&mut Vec::new())?;
+        Ok(&self.data)
     }
 
     /// The estimable coefficients once chosen.
@@ -392,7 +402,10 @@ impl FrictionStage {
             y: Some(&data.tau_nm),
         };
         let analysis = analyse(model, &ident_data, &c0, &free, IdentConfig::default())?;
-        let (k, _) = self.cfg.selection.resolve(model, &ident_data, &analysis)?;
+        let (k, _) = match &self.cfg.estimate {
+            Some(names) => (names.len(), None),
+            None => self.cfg.selection.resolve(model, &ident_data, &analysis)?,
+        };
         let mut ranking = analysis.ranked(k);
         for j in (0..20).filter(|j| !free.contains(j)) {
             ranking.push(RankedParam {
@@ -407,11 +420,20 @@ impl FrictionStage {
                 "no coefficient is estimable on this data: another experiment is needed (speeds and manifold pressures varied)".into(),
             ));
         }
-        let estimable: Vec<String> = analysis
-            .top(k)
-            .iter()
-            .map(|&i| REGRESSION_PARAMS[free[i]].to_string())
-            .collect();
+        let estimable: Vec<String> = match &self.cfg.estimate {
+            Some(names) => {
+                // Chosen beforehand: the ranking still says where each one stands.
+                for r in &mut ranking {
+                    r.estimable = names.contains(&r.param);
+                }
+                names.clone()
+            }
+            None => analysis
+                .top(k)
+                .iter()
+                .map(|&i| REGRESSION_PARAMS[free[i]].to_string())
+                .collect(),
+        };
         // DSFC in relative coordinates: y − ψᵀc0 = Σ (c0_i ψ_i)·x_i.
         let rel = ParamSet::new(REGRESSION_PARAMS, vec![0.0; 20])
             .map_err(|e| AppError::Invalid(e.to_string()))?;
@@ -542,6 +564,38 @@ impl FrictionStage {
             cycles: Vec::new(),
         })
     }
+}
+
+/// Coefficients chosen beforehand ([`FrictionFitConfig::estimate`]): known names, each once,
+/// each with a non-zero nominal value (the estimator works in deviations relative to it).
+pub fn check_estimate(names: &[String], c0: &[f64; 20]) -> Result<(), AppError> {
+    if names.is_empty() {
+        return Err(AppError::Invalid(
+            "no coefficient chosen to estimate".into(),
+        ));
+    }
+    for (k, name) in names.iter().enumerate() {
+        let j = REGRESSION_PARAMS
+            .iter()
+            .position(|p| p == name)
+            .ok_or_else(|| {
+                AppError::Invalid(format!(
+                    "coefficient '{name}': expected one of {}",
+                    REGRESSION_PARAMS.join(", ")
+                ))
+            })?;
+        if names[..k].contains(name) {
+            return Err(AppError::Invalid(format!(
+                "coefficient '{name}' is chosen twice"
+            )));
+        }
+        if c0[j] == 0.0 {
+            return Err(AppError::Invalid(format!(
+                "coefficient '{name}' is 0 in this engine's model (its valvetrain has no such term): it has no relative deviation to estimate"
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl Stage for FrictionStage {
