@@ -303,6 +303,7 @@ fn design<'py>(
             .map_err(|e| err(format!("criterion {e}")))?,
         target_rel_se,
         limits: Limits::parse(limits).map_err(|e| err(format!("limits {e}")))?,
+        throttle: physid_apps::design::profile::ThrottleDraw::Linear,
         duration,
         candidates,
         seed,

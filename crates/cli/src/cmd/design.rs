@@ -9,7 +9,7 @@ use crate::progress::Progress;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::design::information::Criterion;
-use physid_apps::design::profile::Limits;
+use physid_apps::design::profile::{Limits, ThrottleDraw};
 use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
 use physid_apps::design::{Design, Designed};
 use physid_apps::shaft_monitor::{MonitorConfig, MonitorMethod};
@@ -118,6 +118,7 @@ pub fn run(a: &Args) -> Result<()> {
         criterion: a.criterion,
         target_rel_se: a.target_rel_se,
         limits,
+        throttle: ThrottleDraw::Linear,
         duration: a.duration,
         candidates: a.candidates,
         seed: a.seed,
