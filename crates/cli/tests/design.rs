@@ -87,7 +87,21 @@ fn design_errors_name_the_problem() {
         (vec!["--criterion", "time"], "needs --target-rel-se"),
         (vec!["--method", "rlsvf"], "vector forgetting"),
         (vec!["--set", "sensors.torque_shaft.noise=0"], "noise is 0"),
-        (vec!["--app", "friction"], "possible values: shaft"),
+        (vec!["--app", "torque"], "possible values: shaft, friction"),
+        (vec!["--app", "friction"], "needs --params"),
+        (
+            vec!["--app", "friction", "--params", "c4,c99"],
+            "coefficient 'c99': expected one of c1",
+        ),
+        (
+            vec!["--app", "friction", "--params", "c4=3"],
+            "the engine model's",
+        ),
+        (
+            vec!["--app", "friction", "--params", "c4", "--lowpass", "200"],
+            "--lowpass is the shaft monitor's setting",
+        ),
+        (vec!["--s0", "3"], "--s0 is the friction fit's setting"),
     ] {
         let mut a = vec!["design", "--duration", "2", "--candidates", "2"];
         a.extend(args.iter().copied());
@@ -96,4 +110,56 @@ fn design_errors_name_the_problem() {
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(e.contains(want), "{a:?}: {e}");
     }
+}
+
+/// A friction test designed, run on the cell and fitted with the coefficients it was designed
+/// for (`physid friction fit --estimate`): the fit estimates those, with the standard errors
+/// the design's JSON predicts the order of.
+#[test]
+fn designed_friction_test_runs_and_fits() {
+    let d = physid_testkit::Scratch::new("design-friction-cli");
+    let out = d.file("friction-test");
+    let j = ok_json(&[
+        "design",
+        "--app",
+        "friction",
+        "--params",
+        "c4,c17",
+        "--limits",
+        "speed=750:1500,throttle=1:90",
+        "--duration",
+        "40",
+        "--candidates",
+        "5",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(j["params"], serde_json::json!(["c4", "c17"]));
+    assert_eq!(j["baselines"][0]["name"], "friction-sweep");
+    let se: Vec<f64> = ["c4", "c17"]
+        .iter()
+        .map(|p| j["predicted_std_err"][p].as_f64().unwrap())
+        .collect();
+    assert!(se.iter().all(|v| v.is_finite() && *v > 0.0), "{se:?}");
+    assert!(out.join("report.html").exists());
+    let rec = d.file("run.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        out.join("scenario.toml").to_str().unwrap(),
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let f = ok_json(&[
+        "friction",
+        "fit",
+        "--data",
+        rec.to_str().unwrap(),
+        "--estimate",
+        "c4,c17",
+        "--json",
+    ]);
+    assert_eq!(f["estimable"], serde_json::json!(["c4", "c17"]), "{f}");
 }

@@ -8,10 +8,12 @@ use crate::plot::{self, Panel, Series, PALETTE};
 use crate::progress::Progress;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::design::friction::{design_friction, select as friction_select, FrictionDesign};
 use physid_apps::design::information::Criterion;
 use physid_apps::design::profile::{Limits, ThrottleDraw};
 use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
 use physid_apps::design::{Design, Designed};
+use physid_apps::friction_fit::TorqueSource;
 use physid_apps::shaft_monitor::{MonitorConfig, MonitorMethod};
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -19,19 +21,16 @@ use std::sync::Mutex;
 /// Arguments of `physid design`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The application: shaft (Application 1, K, B and the offset τ0 of Eq. 6.1). The friction
-    /// and cyclic-torque applications are not designed for yet.
-    #[arg(long, value_parser = ["shaft"], default_value = "shaft")]
+    /// The application: shaft (Application 1, K, B and the offset τ0 of Eq. 6.1) or friction
+    /// (Application 2, the friction model's coefficients c1 … c20 from motored cycles, §7.3).
+    /// The cyclic-torque application is not designed for yet.
+    #[arg(long, value_parser = ["shaft", "friction"], default_value = "shaft")]
     app: String,
-    /// The parameters to design for (the others are estimated alongside), e.g. K,B; with a
-    /// value, the nominal value the test is designed at (K=1340 sets the cell's shaft.k),
-    /// otherwise the cell's.
-    #[arg(
-        long,
-        value_name = "NAME=VALUE,…",
-        value_delimiter = ',',
-        default_value = "K,B"
-    )]
+    /// The parameters to design for. Shaft: K, B, tau0 (the others are estimated alongside;
+    /// default K,B), with a value the nominal value the test is designed at (K=1340 sets the
+    /// cell's shaft.k). Friction: the coefficients the fit will estimate, e.g. c4,c17 (the others
+    /// held at the engine model's values; `physid friction fit --estimate` the same).
+    #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
     params: Vec<String>,
     /// How candidates are ranked: d (the confidence ellipsoid's volume), a (the mean
     /// variance), e (the worst direction) — each the mean over the test after the estimator's
@@ -64,19 +63,28 @@ pub struct Args {
     /// The recording's sample rate the monitor will read [Hz].
     #[arg(long, value_name = "HZ", default_value_t = 10_000.0, value_parser = super::range::positive)]
     sample_rate: f64,
-    /// The shaft monitor's estimator: rlsf (RLS with forgetting λ) or dsfc (its square-root
-    /// form, the same estimates).
-    #[arg(long, default_value = "rlsf")]
-    method: String,
-    /// The estimator's forgetting factor, 0 < λ ≤ 1.
-    #[arg(long, value_name = "LAMBDA", default_value_t = 0.98, value_parser = super::range::forgetting, allow_negative_numbers = true)]
-    lambda: f64,
-    /// The monitor's zero-phase low-pass cut-off before estimation [Hz].
-    #[arg(long, value_name = "HZ", default_value_t = 500.0, value_parser = super::range::positive, allow_negative_numbers = true)]
-    lowpass: f64,
-    /// The monitor's estimator updates per second [Hz].
-    #[arg(long, value_name = "HZ", default_value_t = 2000.0, value_parser = super::range::positive, allow_negative_numbers = true)]
-    update_rate: f64,
+    /// Shaft: the monitor's estimator, rlsf (RLS with forgetting λ) or dsfc (its square-root
+    /// form, the same estimates) [default: rlsf]. (The friction fit's is DSFC.)
+    #[arg(long)]
+    method: Option<String>,
+    /// The estimator's forgetting factor, 0 < λ ≤ 1 [default: 0.98 for the shaft monitor, 1
+    /// for the friction fit].
+    #[arg(long, value_name = "LAMBDA", value_parser = super::range::forgetting, allow_negative_numbers = true)]
+    lambda: Option<f64>,
+    /// Shaft: the monitor's zero-phase low-pass cut-off before estimation [Hz] [default: 500].
+    #[arg(long, value_name = "HZ", value_parser = super::range::positive, allow_negative_numbers = true)]
+    lowpass: Option<f64>,
+    /// Shaft: the monitor's estimator updates per second [Hz] [default: 2000].
+    #[arg(long, value_name = "HZ", value_parser = super::range::positive, allow_negative_numbers = true)]
+    update_rate: Option<f64>,
+    /// Friction: DSFC's initial square-root covariance S0 = s0·I in relative coordinates
+    /// c = c0·(1 + x) [default: 10, the thesis's].
+    #[arg(long, value_parser = super::range::positive, allow_negative_numbers = true)]
+    s0: Option<f64>,
+    /// Friction: the motoring torque from the engine load cell (engine) or the shaft
+    /// transducer (shaft) [default: engine].
+    #[arg(long)]
+    source: Option<String>,
     #[command(flatten)]
     set: SetArgs,
     /// The design's directory: scenario.toml (the designed test, which `physid simulate
@@ -92,45 +100,16 @@ pub struct Args {
 /// Run `physid design`.
 pub fn run(a: &Args) -> Result<()> {
     let limits = Limits::parse(&a.limits.join(",")).map_err(|e| miette!("--limits {e}"))?;
-    let method = a
-        .method
-        .parse::<MonitorMethod>()
-        .map_err(|e| miette!("--method {e}"))?;
-    let mut cell = a.set.params()?;
-    let mut set = a.set.pairs()?;
-    let chosen = select(&a.params, &mut cell).map_err(|e| miette!("{e}"))?;
-    set.extend(chosen.set);
-    let selected = chosen.selected;
-    let shaft = ShaftDesign {
-        monitor: MonitorConfig {
-            method,
-            lambda: a.lambda,
-            cutoff_hz: a.lowpass,
-            rate_hz: a.update_rate,
-            ..MonitorConfig::default()
-        },
-        cell,
-        rate_hz: a.sample_rate,
-    };
-    let design = Design {
-        names: PARAMS.iter().map(|s| s.to_string()).collect(),
-        selected,
-        criterion: a.criterion,
-        target_rel_se: a.target_rel_se,
-        limits,
-        throttle: ThrottleDraw::Linear,
-        duration: a.duration,
-        candidates: a.candidates,
-        seed: a.seed,
-        threads: a.threads,
-    };
     let bar = Mutex::new(Progress::new("designing", Some(a.candidates as u64)));
-    let r = design_shaft(&shaft, &design, &set, &|done| {
+    let progress = |done: usize| {
         if let Ok(mut b) = bar.lock() {
             b.set(done as u64);
         }
-    })
-    .map_err(|e| miette!("{e}"))?;
+    };
+    let (r, title, subtitle, method) = match a.app.as_str() {
+        "friction" => friction(a, limits, &progress)?,
+        _ => shaft(a, limits, &progress)?,
+    };
     drop(bar);
     if let Some(dir) = &a.out {
         report::create_dir(dir)?;
@@ -138,18 +117,8 @@ pub fn run(a: &Args) -> Result<()> {
         let path = dir.join("scenario.toml");
         std::fs::write(&path, format!("{}{text}", header(&r)))
             .map_err(|e| miette!("--out {}: {e}", path.display()))?;
-        let mut rep = Report::new(
-            "Experiment design: the shaft monitor",
-            &format!(
-                "{} of K, B, τ0 (Eq. 6.1), λ = {}, {} Hz updates after a {} Hz low-pass, from a {} Hz recording",
-                shaft.monitor.method.name(),
-                shaft.monitor.lambda,
-                shaft.monitor.rate_hz,
-                shaft.monitor.cutoff_hz,
-                shaft.rate_hz
-            ),
-        );
-        report_body(&mut rep, &r, dir)?;
+        let mut rep = Report::new(&title, &subtitle);
+        report_body(&mut rep, &r, dir, method)?;
         report::finish(dir, rep, "design.json", &r)?;
     }
     if a.json {
@@ -158,6 +127,145 @@ pub fn run(a: &Args) -> Result<()> {
     }
     print(&r, a);
     Ok(())
+}
+
+/// A flag the other application takes, refused with which one it belongs to.
+fn refuse(app: &str, given: bool, flag: &str, of: &str) -> Result<()> {
+    if given {
+        return Err(miette!(
+            "{flag} is {of}'s setting; --app {app} does not take it"
+        ));
+    }
+    Ok(())
+}
+
+/// The design's common part: `names` (`selected` of them designed for), the limits, the
+/// throttle's draw.
+fn design(
+    a: &Args,
+    limits: Limits,
+    names: Vec<String>,
+    selected: Vec<usize>,
+    throttle: ThrottleDraw,
+) -> Design {
+    Design {
+        names,
+        selected,
+        criterion: a.criterion,
+        target_rel_se: a.target_rel_se,
+        limits,
+        throttle,
+        duration: a.duration,
+        candidates: a.candidates,
+        seed: a.seed,
+        threads: a.threads,
+    }
+}
+
+/// The shaft monitor's design: the result, the report's title and subtitle.
+fn shaft(
+    a: &Args,
+    limits: Limits,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<(Designed, String, String, &'static str)> {
+    refuse("shaft", a.s0.is_some(), "--s0", "the friction fit")?;
+    refuse("shaft", a.source.is_some(), "--source", "the friction fit")?;
+    let method = a
+        .method
+        .as_deref()
+        .unwrap_or("rlsf")
+        .parse::<MonitorMethod>()
+        .map_err(|e| miette!("--method {e}"))?;
+    let mut cell = a.set.params()?;
+    let mut set = a.set.pairs()?;
+    let params = if a.params.is_empty() {
+        vec!["K".to_string(), "B".to_string()]
+    } else {
+        a.params.clone()
+    };
+    let chosen = select(&params, &mut cell).map_err(|e| miette!("{e}"))?;
+    set.extend(chosen.set);
+    let shaft = ShaftDesign {
+        monitor: MonitorConfig {
+            method,
+            lambda: a.lambda.unwrap_or(0.98),
+            cutoff_hz: a.lowpass.unwrap_or(500.0),
+            rate_hz: a.update_rate.unwrap_or(2000.0),
+            ..MonitorConfig::default()
+        },
+        cell,
+        rate_hz: a.sample_rate,
+    };
+    let names = PARAMS.iter().map(|s| s.to_string()).collect();
+    let design = design(a, limits, names, chosen.selected, ThrottleDraw::Linear);
+    let r = design_shaft(&shaft, &design, &set, progress).map_err(|e| miette!("{e}"))?;
+    let subtitle = format!(
+        "{} of K, B, τ0 (Eq. 6.1), λ = {}, {} Hz updates after a {} Hz low-pass, from a {} Hz recording",
+        shaft.monitor.method.name(),
+        shaft.monitor.lambda,
+        shaft.monitor.rate_hz,
+        shaft.monitor.cutoff_hz,
+        shaft.rate_hz
+    );
+    Ok((
+        r,
+        "Experiment design: the shaft monitor".into(),
+        subtitle,
+        "each run was put through the monitor's own low-pass and decimation, and the information its estimator gathers with its forgetting, with the noise's autocovariance after the low-pass, gives the covariance of its estimates at every moment; candidates are ranked over the test after the estimator's start-up",
+    ))
+}
+
+/// The friction characterisation's design: the result, the report's title and subtitle.
+fn friction(
+    a: &Args,
+    limits: Limits,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<(Designed, String, String, &'static str)> {
+    for (given, flag) in [
+        (a.method.is_some(), "--method"),
+        (a.lowpass.is_some(), "--lowpass"),
+        (a.update_rate.is_some(), "--update-rate"),
+    ] {
+        refuse("friction", given, flag, "the shaft monitor")?;
+    }
+    if a.params.is_empty() {
+        return Err(miette!(
+            "--app friction needs --params: the coefficients the fit will estimate, e.g. c4,c17 (`physid friction rank` ranks them on a recording)"
+        ));
+    }
+    let names = friction_select(&a.params).map_err(|e| miette!("{e}"))?;
+    let mut fd = FrictionDesign::new(a.set.params()?, a.sample_rate);
+    if let Some(l) = a.lambda {
+        fd.fit.lambda = l;
+    }
+    if let Some(s0) = a.s0 {
+        fd.fit.s0 = s0;
+    }
+    if let Some(src) = &a.source {
+        fd.fit.source = TorqueSource::parse(src)
+            .ok_or_else(|| miette!("--source '{src}': expected engine or shaft"))?;
+    }
+    let selected = (0..names.len()).collect();
+    let design = design(a, limits, names, selected, ThrottleDraw::Pressure);
+    let mut r = design_friction(&fd, &design, progress).map_err(|e| miette!("{e}"))?;
+    r.scenario.set.extend(a.set.pairs()?);
+    let subtitle = format!(
+        "DSFC of {} from steady motored cycles (the others at the engine model's values), λ = {}, S0 = {}·I, the motoring torque from the {}, from a {} Hz recording",
+        design.names.join(", "),
+        fd.fit.lambda,
+        fd.fit.s0,
+        match fd.fit.source {
+            TorqueSource::Engine => "engine's load cell",
+            TorqueSource::Shaft => "shaft transducer",
+        },
+        fd.rate_hz
+    );
+    Ok((
+        r,
+        "Experiment design: the friction characterisation".into(),
+        subtitle,
+        "the fit's own stage kept each run's steady cycles, and the information its estimator gathers from them (without forgetting, λ = 1), with the load cell's noise averaged over each cycle, gives the covariance of its estimates after every cycle — where the data do not yet resolve a coefficient the curve does not start; candidates are ranked by their errors at the test's end",
+    ))
 }
 
 /// The predicted standard error of the `k`-th parameter where the designed test ends.
@@ -186,11 +294,11 @@ fn header(r: &Designed) -> String {
 
 /// The report: the chosen profile, its predicted standard errors along the test beside the
 /// thesis's tests', and the candidates' ranking.
-fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<()> {
+fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path, method: &str) -> Result<()> {
     rep.section("The designed test");
     rep.para(
         &format!(
-            "{} candidate profiles (steps, ramps, APRBS, multisines and held operating points within the limits) were each run on the virtual cell without noise and put through the monitor's own low-pass and decimation; the information its estimator gathers with its forgetting, and the noise's autocovariance after the low-pass, give the covariance of its estimates at every moment (docs/design.md). Chosen by the {:?} criterion over the test after the estimator's start-up: {} ({}).",
+            "{} candidate profiles (steps, ramps, APRBS, multisines and held operating points within the limits) were each run on the virtual cell without noise; {method} (docs/design.md). Chosen by the {:?} criterion: {} ({}).",
             r.evaluated,
             r.criterion,
             r.chosen.name,
@@ -210,6 +318,7 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
             format!("{:.3e}", r.chosen.median_rel_std_err[k]),
         ];
         for b in &r.baselines {
+            row.push(format!("{:.3e}", b.rel_std_err[k]));
             row.push(format!("{:.3e}", b.median_rel_std_err[k]));
         }
         rows.push(row);
@@ -217,16 +326,16 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
     let names: Vec<String> = r
         .baselines
         .iter()
-        .map(|b| {
-            format!(
-                "{}: median relative{}",
-                b.name,
-                if b.within_limits {
-                    ""
-                } else {
-                    " (outside the limits)"
-                }
-            )
+        .flat_map(|b| {
+            let outside = if b.within_limits {
+                ""
+            } else {
+                " (outside the limits)"
+            };
+            [
+                format!("{}{outside}: relative at the end", b.name),
+                format!("{}{outside}: median relative", b.name),
+            ]
         })
         .collect();
     let mut head = vec![
@@ -254,7 +363,8 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
     let rel: Vec<Vec<(Vec<f64>, Vec<f64>)>> = std::iter::once(&r.chosen)
         .chain(&r.baselines)
         .map(|e| {
-            let t0 = e.curve.t.first().copied().unwrap_or(0.0);
+            // log₁₀ of the relative error: the curves span decades (the start, a parameter the
+            // test resolves late); the recording's time, as the profile's.
             e.curve
                 .std_err
                 .iter()
@@ -262,10 +372,13 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
                 .zip(&e.std_err)
                 .map(|((c, rel), abs)| {
                     let scale = if *abs > 0.0 { rel / abs } else { 1.0 };
-                    (
-                        e.curve.t.iter().map(|x| x - t0).collect(),
-                        c.iter().map(|v| v * scale).collect(),
-                    )
+                    e.curve
+                        .t
+                        .iter()
+                        .zip(c)
+                        .map(|(&t, &v)| (t, (v * scale).log10()))
+                        .filter(|(_, v)| v.is_finite())
+                        .unzip()
                 })
                 .collect()
         })
@@ -313,7 +426,7 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
             });
         }
         panels.push(Panel {
-            ylabel: format!("σ({p}) / {p} (predicted)"),
+            ylabel: format!("log₁₀ σ({p})/{p} (predicted)"),
             series,
             ..Default::default()
         });
@@ -333,10 +446,7 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
         .take(20)
         .map(|(n, f, s)| vec![n.clone(), f.name().to_string(), format!("{s:.4}")])
         .collect();
-    rep.table(
-        &["candidate (best 20)", "family", "criterion (mean)"],
-        &rows,
-    );
+    rep.table(&["candidate (best 20)", "family", "criterion"], &rows);
     if !r.unidentifiable.is_empty() {
         rep.para(
             &format!(
@@ -347,6 +457,15 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path) -> Result<
         );
     }
     Ok(())
+}
+
+/// `NAME value, …`.
+fn listed(v: &[f64], names: &[String]) -> String {
+    v.iter()
+        .zip(names)
+        .map(|(v, p)| format!("{p} {v:.3e}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 fn print(r: &Designed, a: &Args) {
@@ -380,7 +499,7 @@ fn print(r: &Designed, a: &Args) {
     }
     for b in &r.baselines {
         outln!(
-            "thesis test {} ({} s{}): median relative std err {}",
+            "thesis test {} ({} s{}): relative std err at the end {}; median {}",
             b.name,
             a.duration,
             if b.within_limits {
@@ -388,12 +507,8 @@ fn print(r: &Designed, a: &Args) {
             } else {
                 ", outside the limits"
             },
-            b.median_rel_std_err
-                .iter()
-                .zip(&r.params)
-                .map(|(v, p)| format!("{p} {v:.3e}"))
-                .collect::<Vec<_>>()
-                .join(", ")
+            listed(&b.rel_std_err, &r.params),
+            listed(&b.median_rel_std_err, &r.params)
         );
     }
     if !r.unidentifiable.is_empty() {

@@ -155,6 +155,15 @@ struct FitArgs {
     /// absolute residual.
     #[arg(long, default_value = "repeat")]
     cutoff: Selection,
+    /// Estimate these coefficients (e.g. c4,c17, as a test from `physid design --app friction`
+    /// was designed for) instead of the ranked estimable subset; the ranking is still reported.
+    #[arg(
+        long,
+        value_name = "NAME,…",
+        value_delimiter = ',',
+        conflicts_with = "cutoff"
+    )]
+    estimate: Vec<String>,
     /// DSFC initial square-root covariance S0 = s0·I, in relative coordinates c = c0·(1 + x).
     #[arg(long, default_value_t = 10.0, value_parser = super::range::positive, allow_negative_numbers = true)]
     s0: f64,
@@ -196,6 +205,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     cfg.source = TorqueSource::parse(&a.source)
         .ok_or_else(|| miette!("--source '{}': expected engine or shaft", a.source))?;
     cfg.selection = a.cutoff;
+    cfg.estimate = (!a.estimate.is_empty()).then(|| a.estimate.clone());
     cfg.s0 = a.s0;
     cfg.lambda = a.lambda;
     cfg.transient_s = a.transient;
