@@ -19,6 +19,7 @@
 //! the sample.
 
 mod angle;
+mod design;
 mod estimator;
 mod live;
 mod recording;
@@ -243,107 +244,12 @@ fn monitor_shaft<'py>(
     Ok((summary, arrays(py, cols)?))
 }
 
-/// Experiment design for the shaft monitor (issue 45, docs/design.md): `candidates` profiles
-/// of `duration` s within `limits` (`speed=LOW:HIGH,throttle=LOW:HIGH,dspeed=RATE`), judged
-/// for `params` by `criterion` with the monitor's `method`, `lam`, `cutoff_hz`, `rate_hz` on a
-/// recording at `sample_rate`, the cell with `set`. Returns the result (JSON text) and arrays:
-/// the chosen profile (`t`, `speed_demand_rpm`, `throttle_deg`, every 50 ms) and its predicted
-/// standard errors (`curve_t` and one per parameter).
-#[pyfunction]
-#[pyo3(signature = (params, criterion, target_rel_se, limits, duration, candidates, seed, threads, method, lam, cutoff_hz, rate_hz, sample_rate, set))]
-#[allow(clippy::too_many_arguments)]
-fn design<'py>(
-    py: Python<'py>,
-    params: Vec<String>,
-    criterion: &str,
-    target_rel_se: Option<f64>,
-    limits: &str,
-    duration: f64,
-    candidates: usize,
-    seed: u64,
-    threads: usize,
-    method: &str,
-    lam: f64,
-    cutoff_hz: f64,
-    rate_hz: f64,
-    sample_rate: f64,
-    set: BTreeMap<String, f64>,
-) -> PyResult<(String, Bound<'py, PyDict>)> {
-    use physid_apps::design::information::Criterion;
-    use physid_apps::design::profile::Limits;
-    use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
-    use physid_apps::design::Design;
-    use physid_apps::shaft_monitor::{MonitorConfig, MonitorMethod};
-    let mut cell = physid_sim::params::CellParams::default();
-    for (k, v) in &set {
-        cell.set(k, *v).map_err(err)?;
-    }
-    let chosen = select(&params, &mut cell).map_err(err)?;
-    let mut settings: Vec<(String, f64)> = set.into_iter().collect();
-    settings.extend(chosen.set);
-    let selected = chosen.selected;
-    let shaft = ShaftDesign {
-        monitor: MonitorConfig {
-            method: method
-                .parse::<MonitorMethod>()
-                .map_err(|e| err(format!("method {e}")))?,
-            lambda: lam,
-            cutoff_hz,
-            rate_hz,
-            ..MonitorConfig::default()
-        },
-        cell,
-        rate_hz: sample_rate,
-    };
-    let design = Design {
-        names: PARAMS.iter().map(|s| s.to_string()).collect(),
-        selected,
-        criterion: criterion
-            .parse::<Criterion>()
-            .map_err(|e| err(format!("criterion {e}")))?,
-        target_rel_se,
-        limits: Limits::parse(limits).map_err(|e| err(format!("limits {e}")))?,
-        throttle: physid_apps::design::profile::ThrottleDraw::Linear,
-        duration,
-        candidates,
-        seed,
-        threads,
-    };
-    let r = py
-        .detach(|| design_shaft(&shaft, &design, &settings, &|_| {}))
-        .map_err(err)?;
-    let mut json = serde_json::to_value(&r).map_err(err)?;
-    if let Some(o) = json.as_object_mut() {
-        let text = r.scenario.to_toml().map_err(err)?;
-        o.insert("scenario_toml".into(), text.into());
-    }
-    let json = json.to_string();
-    let n = (r.scenario.duration / 0.05).ceil() as usize;
-    let t: Vec<f64> = (0..=n).map(|k| k as f64 * 0.05).collect();
-    let mut cols = vec![
-        (
-            "speed_demand_rpm".to_string(),
-            t.iter().map(|&x| r.scenario.speed.value(x)).collect(),
-        ),
-        (
-            "throttle_deg".to_string(),
-            t.iter().map(|&x| r.scenario.throttle.value(x)).collect(),
-        ),
-        ("t".to_string(), t),
-        ("curve_t".to_string(), r.chosen.curve.t.clone()),
-    ];
-    for (p, c) in r.params.iter().zip(&r.chosen.curve.std_err) {
-        cols.push((p.clone(), c.clone()));
-    }
-    Ok((json, arrays(py, cols)?))
-}
-
 /// Application 2, the engine's friction from motored cycles (thesis §7.3): the preset model
 /// (`thesis`, `sandoval2002`, `cell`) with `set` overrides, the motoring torque from `source`
-/// (engine, shaft), the coefficients' ranking with `cutoff`, DSFC (`lam`, `s0`). Returns the
-/// summary (JSON text) and the per-cycle tracks.
+/// (engine, shaft), the coefficients' ranking with `cutoff` (or those in `estimate`), DSFC
+/// (`lam`, `s0`). Returns the summary (JSON text) and the per-cycle tracks.
 #[pyfunction]
-#[pyo3(signature = (rec, preset, set, source, cutoff, s0, lam, transient_s, p_atm_kpa))]
+#[pyo3(signature = (rec, preset, set, source, cutoff, s0, lam, transient_s, p_atm_kpa, estimate))]
 #[allow(clippy::too_many_arguments)]
 fn friction_fit<'py>(
     py: Python<'py>,
@@ -356,6 +262,7 @@ fn friction_fit<'py>(
     lam: f64,
     transient_s: f64,
     p_atm_kpa: Option<f64>,
+    estimate: Option<Vec<String>>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     use physid_apps::friction_fit::{
         friction_fit, friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS,
@@ -377,6 +284,7 @@ fn friction_fit<'py>(
     cfg.lambda = lam;
     cfg.transient_s = transient_s;
     cfg.p_atm_kpa = p_atm_kpa;
+    cfg.estimate = estimate;
     let inner = &rec.inner;
     let r = py.detach(|| friction_fit(inner, &cfg)).map_err(err)?;
     let summary = serde_json::to_string(&r.summary()).map_err(err)?;
@@ -584,7 +492,7 @@ fn _physid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(monitor_shaft, m)?)?;
-    m.add_function(wrap_pyfunction!(design, m)?)?;
+    m.add_function(wrap_pyfunction!(design::design, m)?)?;
     m.add_function(wrap_pyfunction!(friction_fit, m)?)?;
     m.add_function(wrap_pyfunction!(torque_fit, m)?)?;
     m.add_function(wrap_pyfunction!(cycles, m)?)?;

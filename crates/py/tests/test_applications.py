@@ -234,3 +234,20 @@ def test_design_predicts_what_the_monitor_achieves_on_the_designed_test(tmp_path
     for p in ("K", "B"):
         rms = float(np.sqrt(np.mean(np.square(z[p]))))
         assert 1 / 1.5 < rms < 1.5, (p, rms, len(z[p]))
+
+
+def test_design_for_the_friction_fit_runs_and_is_fitted(tmp_path):
+    """physid.design(app="friction"): the coefficients' predicted errors as arrays; the
+    designed test simulated and fitted with those coefficients (friction_fit(estimate=…))."""
+    r = physid.design(app="friction", params=("c4", "c17"),
+                      limits={"speed": (750, 1500), "throttle": (1, 90)},
+                      duration=40.0, candidates=5)
+    t = r.tracks
+    assert len(t["curve_t"]) == len(t["c4"]) == len(t["c17"]) > 0
+    assert t["c17"][-1] == pytest.approx(r.predicted_std_err["c17"])
+    path = tmp_path / "friction.toml"
+    path.write_text(r.scenario_toml)
+    f = physid.friction_fit(physid.simulate(str(path)), preset="cell", estimate=["c4", "c17"])
+    assert f.estimable == ["c4", "c17"]
+    with pytest.raises(physid.Error, match="needs params"):
+        physid.design(app="friction")

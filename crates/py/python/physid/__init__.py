@@ -714,7 +714,7 @@ class DesignResult(Result):
 
 def design(
     app: str = "shaft",
-    params: Iterable[str] = ("K", "B"),
+    params: Iterable[str] | None = None,
     criterion: str = "d",
     target_rel_se: float | None = None,
     limits: str | Mapping[str, Any] = "",
@@ -723,21 +723,31 @@ def design(
     seed: int = 1,
     threads: int = 0,
     method: str = "rlsf",
-    lam: float = 0.98,
+    lam: float | None = None,
     cutoff_hz: float = 500.0,
     rate_hz: float = 2000.0,
+    s0: float = 10.0,
+    source: str = "engine",
     sample_rate: float = 10_000.0,
     set: Mapping[str, float] | None = None,
 ) -> DesignResult:
     """Experiment design (``physid design``, docs/design.md): which profile of the cell's speed
     demand and throttle, within ``limits`` (``"speed=800:3000,throttle=0:60,dspeed=500"`` or
     ``{"speed": (800, 3000), "throttle": (0, 60), "dspeed": 500}``), makes ``params`` estimable
-    by the ``app``'s recursive estimator (the shaft monitor: ``method``, ``lam``, its low-pass
-    ``cutoff_hz`` and update rate ``rate_hz`` on a recording at ``sample_rate``), ranked by
-    ``criterion`` (``d``, ``a``, ``e`` or ``time`` with ``target_rel_se``) over ``candidates``
-    profiles of ``duration`` s drawn from ``seed``; the cell with ``set``."""
-    if app != "shaft":
-        raise Error(f"app '{app}': only the shaft monitor is designed for (shaft)")
+    by the ``app``'s recursive estimator on a recording at ``sample_rate`` — ``shaft``: the
+    shaft monitor (``method``, ``lam`` 0.98, its low-pass ``cutoff_hz`` and update rate
+    ``rate_hz``; ``params`` K, B, tau0, default K, B); ``friction``: the friction fit's DSFC
+    (``lam`` 1, ``s0``, the motoring torque from ``source``; ``params`` the coefficients it will
+    estimate, e.g. ``("c4", "c17")``) — ranked by ``criterion`` (``d``, ``a``, ``e`` or ``time``
+    with ``target_rel_se``) over ``candidates`` profiles of ``duration`` s drawn from ``seed``;
+    the cell with ``set``."""
+    if app not in ("shaft", "friction"):
+        raise Error(f"app '{app}': expected shaft or friction")
+    if params is None:
+        if app == "friction":
+            raise Error("app 'friction' needs params: the coefficients the fit will estimate, "
+                        "e.g. ('c4', 'c17')")
+        params = ("K", "B")
     if isinstance(limits, Mapping):
         items = []
         for k, v in limits.items():
@@ -747,11 +757,12 @@ def design(
             else:
                 items.append(f"{k}={float(v)}")
         limits = ",".join(items)
-    s, tracks = _physid.design([str(p) for p in params], str(criterion),
+    s, tracks = _physid.design(str(app), [str(p) for p in params], str(criterion),
                                None if target_rel_se is None else float(target_rel_se),
                                str(limits), float(duration), int(candidates), int(seed),
-                               int(threads), str(method), float(lam), float(cutoff_hz),
-                               float(rate_hz), float(sample_rate),
+                               int(threads), str(method), None if lam is None else float(lam),
+                               float(cutoff_hz), float(rate_hz), float(s0), str(source),
+                               float(sample_rate),
                                {str(k): float(v) for k, v in (set or {}).items()})
     return DesignResult(_json.loads(s), dict(tracks))
 
@@ -766,16 +777,19 @@ def friction_fit(
     lam: float = 1.0,
     transient_s: float = 5.0,
     p_atm_kpa: float | None = None,
+    estimate: Iterable[str] | None = None,
 ) -> FrictionFitResult:
     """Application 2 (thesis §7.3): the engine's friction from a motored recording — the
     cycle-mean motoring torque (``source``: ``engine`` load cell or ``shaft``), the ranking of
     the regression coefficients c1 … c20 of the mean-value model (``preset``: thesis,
     sandoval2002, cell; ``set``: design overrides, e.g. ``{"B": 56, "oil": "SAE30"}``) with
-    ``cutoff``, DSFC (λ = ``lam``, S0 = ``s0``·I) on the estimable ones, the prediction error
+    ``cutoff`` (or the coefficients in ``estimate``, e.g. those a test was designed for with
+    ``design(app="friction")``), DSFC (λ = ``lam``, S0 = ``s0``·I) on the estimable ones, the prediction error
     after ``transient_s``."""
     s, tracks = _physid.friction_fit(rec, preset, {k: str(v) for k, v in (set or {}).items()},
                                      source, cutoff, float(s0), float(lam), float(transient_s),
-                                     p_atm_kpa)
+                                     p_atm_kpa,
+                                     None if estimate is None else [str(c) for c in estimate])
     return FrictionFitResult(_json.loads(s), dict(tracks))
 
 
