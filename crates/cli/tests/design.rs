@@ -40,6 +40,24 @@ fn designed_test_runs_on_the_cell() {
         assert!(v.is_finite() && v > 0.0, "{p}: {v}");
     }
     assert_eq!(j["chosen"]["curve"]["std_err"].as_array().unwrap().len(), 2);
+    // The ranking along the test: every tenth of it and its end, each parameter once, the
+    // first with all its information.
+    let id = j["chosen"]["identifiability"].as_array().unwrap();
+    assert!((10..=11).contains(&id.len()), "{}", id.len());
+    let last_t = j["chosen"]["curve"]["t"]
+        .as_array()
+        .unwrap()
+        .last()
+        .unwrap()
+        .clone();
+    assert_eq!(id.last().unwrap()["t_s"], last_t);
+    for x in id {
+        let ranked = x["ranked"].as_array().unwrap();
+        let mut names: Vec<&str> = ranked.iter().map(|e| e[0].as_str().unwrap()).collect();
+        names.sort_unstable();
+        assert_eq!(names, ["B", "K", "tau0"]);
+        assert_eq!(ranked[0][1].as_f64().unwrap(), 1.0);
+    }
     assert!(j["chosen"]["within_limits"].as_bool().unwrap());
     assert_eq!(j["baselines"][0]["name"], "shaft-steady");
     assert_eq!(

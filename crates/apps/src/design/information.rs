@@ -188,15 +188,21 @@ impl ForgettingInformation {
         DMatrix::from_row_slice(self.p, self.p, &self.a)
     }
 
+    /// `D_k = A_k − λᵏ·P0⁻¹`: the information the data gave, the start's left out.
+    pub fn data_information(&self) -> DMatrix<f64> {
+        let mut a = self.information();
+        for i in 0..self.p {
+            a[(i, i)] -= self.start;
+        }
+        a
+    }
+
     /// `Cov(ϑ̂_k) = D⁻¹·S·D⁻¹` (module docs); `None` while the data's information `D` is
     /// singular to working precision (a direction not resolved).
     pub fn covariance(&self) -> Option<DMatrix<f64>> {
         let p = self.p;
-        let mut a = self.information();
-        for i in 0..p {
-            a[(i, i)] -= self.start;
-        }
-        let ainv = a.clone().cholesky()?.inverse();
+        let a = self.data_information();
+        let ainv = a.cholesky()?.inverse();
         let s = DMatrix::from_row_slice(p, p, &self.s);
         let cov = &ainv * s * &ainv;
         Some((&cov + cov.transpose()) * 0.5)
@@ -255,11 +261,23 @@ impl Criterion {
 /// of the first parameter's is structurally unidentifiable on the admissible inputs — reported
 /// as such, never given a huge σ. Returns the indices, in the order found.
 pub fn structural_zeros(information: &DMatrix<f64>, cut: f64) -> Vec<usize> {
+    let ranked = ranking(information);
+    match ranked.iter().position(|&(_, r)| r.is_nan() || r <= cut) {
+        Some(k) => ranked[k..].iter().map(|&(j, _)| j).collect(),
+        None => Vec::new(),
+    }
+}
+
+/// The parameters in the orthogonal method's order (Alg. 5.1) on an information matrix in
+/// relative coordinates: each the one with the most information left after those before it
+/// (the pivoted Cholesky factorisation, the Gram–Schmidt of the regressors' columns), with
+/// that residual information relative to the first's (1 for the first; 0 once none is left).
+pub fn ranking(information: &DMatrix<f64>) -> Vec<(usize, f64)> {
     let p = information.nrows();
     let mut m = information.clone();
     let mut left: Vec<usize> = (0..p).collect();
     let mut first = None;
-    let mut zeros = Vec::new();
+    let mut out = Vec::with_capacity(p);
     while !left.is_empty() {
         // The parameter with the most residual information.
         let (pos, &j) = match left
@@ -272,11 +290,12 @@ pub fn structural_zeros(information: &DMatrix<f64>, cut: f64) -> Vec<usize> {
         };
         let d = m[(j, j)];
         let top = *first.get_or_insert(d);
-        if d.is_nan() || d <= cut * top || top <= 0.0 {
-            // Every one left is below the cut.
-            zeros.extend(left.iter().copied());
+        if !(d > 0.0 && top > 0.0) {
+            // None is left: the rest in their order, with nothing.
+            out.extend(left.iter().map(|&j| (j, 0.0)));
             break;
         }
+        out.push((j, d / top));
         left.remove(pos);
         // Project j out of the rest (the Schur complement).
         let col: DVector<f64> = m.column(j).into_owned();
@@ -286,7 +305,7 @@ pub fn structural_zeros(information: &DMatrix<f64>, cut: f64) -> Vec<usize> {
             }
         }
     }
-    zeros
+    out
 }
 
 /// The most nearly collinear pairs of a covariance: `(i, j, ρ)` with `|ρ| ≥ threshold`, the

@@ -103,6 +103,9 @@ pub struct Evaluation {
     pub time_to_target_s: Option<f64>,
     /// The curve.
     pub curve: Curve,
+    /// The identifiability ranking along the test (Alg. 5.1 on the information the estimator
+    /// holds then), at every tenth of the design's duration and at the test's end.
+    pub identifiability: Vec<RankingAt>,
     /// The summed information `Σ φφᵀ` in relative coordinates (every parameter).
     #[serde(skip)]
     pub information: DMatrix<f64>,
@@ -137,6 +140,16 @@ fn in_units(mut c: DMatrix<f64>, units: &[f64]) -> DMatrix<f64> {
         }
     }
     c
+}
+
+/// The identifiability ranking at one moment of a test.
+#[derive(Debug, Clone, Serialize)]
+pub struct RankingAt {
+    /// The moment [s of the recording].
+    pub t_s: f64,
+    /// Every parameter in the orthogonal method's order, with its information left after those
+    /// before it, relative to the first's (a relative residual, thesis Table 6.1's column).
+    pub ranked: Vec<(String, f64)>,
 }
 
 /// A pair of nearly collinear estimates in the chosen test.
@@ -244,6 +257,9 @@ impl Design {
             std_err: vec![Vec::new(); self.selected.len()],
         };
         let mut scores = Vec::new();
+        let mut ranking = Vec::new();
+        let rank_every = self.duration / 10.0;
+        let mut next_rank = f64::INFINITY;
         let (mut t0, mut next) = (None, f64::NEG_INFINITY);
         let mut last_t = f64::NEG_INFINITY;
         let mut rel = vec![0.0; p];
@@ -257,8 +273,15 @@ impl Design {
                     *c += ri * rj;
                 }
             }
-            let start = *t0.get_or_insert(t);
+            let start = *t0.get_or_insert_with(|| {
+                next_rank = t + rank_every;
+                t
+            });
             last_t = t;
+            if t >= next_rank {
+                next_rank += rank_every;
+                ranking.push(self.rank_at(t, &info, scales, units));
+            }
             if t >= next {
                 let cov = info.covariance().map(|c| in_units(c, units));
                 // Before the data resolve every parameter the curve has no point: it starts
@@ -280,6 +303,9 @@ impl Design {
                     }));
                 }
             }
+        }
+        if ranking.last().is_none_or(|r: &RankingAt| r.t_s < last_t) && t0.is_some() {
+            ranking.push(self.rank_at(last_t, &info, scales, units));
         }
         let covariance = info.covariance().map(|c| in_units(c, units));
         let std_err: Vec<f64> = self
@@ -357,9 +383,34 @@ impl Design {
             median_rel_std_err,
             time_to_target_s,
             curve,
+            identifiability: ranking,
             information: DMatrix::from_row_slice(p, p, &sum),
             covariance,
         })
+    }
+
+    /// The ranking at `t` of the information `info` holds, in relative coordinates.
+    fn rank_at(
+        &self,
+        t: f64,
+        info: &ForgettingInformation,
+        scales: &[f64],
+        units: &[f64],
+    ) -> RankingAt {
+        let mut d = info.data_information();
+        let f: Vec<f64> = scales.iter().zip(units).map(|(s, u)| s / u).collect();
+        for i in 0..d.nrows() {
+            for j in 0..d.ncols() {
+                d[(i, j)] *= f[i] * f[j];
+            }
+        }
+        RankingAt {
+            t_s: t,
+            ranked: information::ranking(&d)
+                .into_iter()
+                .map(|(j, r)| (self.names[j].clone(), r))
+                .collect(),
+        }
     }
 
     /// The selected parameters' covariance relative to their nominal values.

@@ -439,6 +439,30 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path, method: &s
         &panels,
     )?;
     rep.svg(&svg)?;
+    rep.section("Identifiability along the test");
+    rep.para(
+        "The orthogonal method (Alg. 5.1) on the information the estimator holds at each moment of the designed test: the parameters in the order they are resolved, each with the information left to it after those before, relative to the first's (thesis Table 6.1's relative residual). A parameter at 0 is not resolved yet.",
+        None,
+    );
+    let p = r
+        .chosen
+        .identifiability
+        .first()
+        .map_or(0, |x| x.ranked.len());
+    let rows: Vec<Vec<String>> = r
+        .chosen
+        .identifiability
+        .iter()
+        .map(|x| {
+            std::iter::once(format!("{:.1}", x.t_s))
+                .chain(x.ranked.iter().map(|(n, v)| format!("{n} ({v:.1e})")))
+                .collect()
+        })
+        .collect();
+    let ranks: Vec<String> = (1..=p).map(|k| format!("rank {k}")).collect();
+    let mut head = vec!["t [s]"];
+    head.extend(ranks.iter().map(String::as_str));
+    rep.table(&head, &rows);
     rep.section("Candidates");
     let rows: Vec<Vec<String>> = r
         .ranking
