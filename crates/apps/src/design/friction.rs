@@ -6,9 +6,9 @@
 //!
 //! The noise: the torque transducer's white noise `σ` (and its quantisation, `q²/12`) averaged
 //! over a cycle by its crank-angle mean — `σ²/n` for the `n = f_s·4π/ω` samples of a cycle at
-//! speed ω, so a slow cycle is a quieter one — independent from cycle to cycle. The other channels' noise
-//! (manifold pressure, oil temperature) averages out of the regressors to second order and is
-//! left out (the prediction check shows it: tests/design.rs).
+//! speed ω, so a slow cycle is a quieter one — independent from cycle to cycle. The other
+//! channels' noise (manifold pressure, oil temperature) averages out of the regressors to
+//! second order and is left out (the prediction check, tests/design.rs, holds without it).
 
 use super::run::run_noiseless;
 use super::{Design, Designed, Estimator, Evaluation};
@@ -106,9 +106,10 @@ impl FrictionDesign {
         coefficients: &[String],
     ) -> Result<Vec<CycleRow>, AppError> {
         let c0 = self.nominal();
+        check_estimate(coefficients, &c0)?;
         let idx: Vec<usize> = coefficients
             .iter()
-            .map(|c| REGRESSION_PARAMS.iter().position(|p| p == c).unwrap_or(0))
+            .filter_map(|c| REGRESSION_PARAMS.iter().position(|p| p == c))
             .collect();
         let mut fit = self.fit.clone();
         fit.estimate = Some(coefficients.to_vec());
@@ -158,7 +159,7 @@ impl FrictionDesign {
         let rows = self.regressors(scenario, &design.names)?;
         if rows.len() < design.names.len() {
             return Err(AppError::Invalid(format!(
-                "{} steady cycles for {} coefficients",
+                "{} steady cycles for {} coefficients: the test holds too few cycles steady (speed and manifold pressure within the fit's 1 % over a cycle)",
                 rows.len(),
                 design.names.len()
             )));

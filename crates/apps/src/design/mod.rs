@@ -11,9 +11,9 @@
 //! criterion (D, A, E, or the time to a target standard error) ranks the candidates over the
 //! test after the estimator's start-up; the orthogonal method on the summed information of
 //! every candidate tells the parameters no admissible profile reveals. Candidates run on every
-//! core. By concern: `information.rs` (the recursion, criteria, structural zeros),
-//! `profile.rs` (limits and families), `run.rs` (a candidate on the cell, within its envelope), `shaft.rs`
-//! (Application 1), `friction.rs` (Application 2).
+//! core. By concern: `information.rs` (the recursion, criteria, the ranking, structural
+//! zeros), `profile.rs` (limits and families), `run.rs` (a candidate on the cell, within its
+//! envelope), `shaft.rs` (Application 1), `friction.rs` (Application 2).
 
 pub mod friction;
 pub mod information;
@@ -283,12 +283,12 @@ impl Design {
                 ranking.push(self.rank_at(t, &info, scales, units));
             }
             if t >= next {
+                next = t + CURVE_STEP_S;
                 let cov = info.covariance().map(|c| in_units(c, units));
                 // Before the data resolve every parameter the curve has no point: it starts
-                // at the first regressor that does; a later moment that does not resolve them
-                // all has an unbounded error.
+                // at the first moment they do; a later moment that does not resolve them all
+                // has an unbounded error.
                 if cov.is_some() || !curve.t.is_empty() {
-                    next = t + CURVE_STEP_S;
                     curve.t.push(t);
                     for (c, &i) in curve.std_err.iter_mut().zip(&self.selected) {
                         c.push(
