@@ -8,9 +8,11 @@ use physid_apps::design::friction::{design_friction, FrictionDesign};
 use physid_apps::design::information::Criterion;
 use physid_apps::design::profile::{Limits, ThrottleDraw};
 use physid_apps::design::shaft::{ShaftDesign, PARAMS};
+use physid_apps::design::torque::{design_torque, TorqueDesign};
 use physid_apps::design::{Design, Designed};
 use physid_apps::friction_fit::friction_fit;
 use physid_apps::shaft_monitor::{monitor_shaft, MonitorConfig};
+use physid_apps::torque_fit::torque_fit;
 use physid_sim::params::CellParams;
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{named, Scenario};
@@ -316,7 +318,15 @@ fn friction_estimates(
             })
             .collect::<Vec<_>>()
     };
-    let out = std::sync::Mutex::new(vec![Vec::new(); seeds.len()]);
+    per_seed(seeds, one)
+}
+
+/// `one` for each of `seeds` on two threads, in order.
+fn per_seed<T: Clone + Send>(
+    seeds: &[Option<u64>],
+    one: impl Fn(Option<u64>) -> T + Sync,
+) -> Vec<T> {
+    let out = std::sync::Mutex::new(vec![None; seeds.len()]);
     let next = std::sync::atomic::AtomicUsize::new(0);
     std::thread::scope(|s| {
         for _ in 0..2 {
@@ -324,15 +334,43 @@ fn friction_estimates(
                 let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let Some(&seed) = seeds.get(k) else { break };
                 let v = one(seed);
-                out.lock().unwrap()[k] = v;
+                out.lock().unwrap()[k] = Some(v);
             });
         }
     });
-    out.into_inner().unwrap()
+    out.into_inner()
+        .unwrap()
+        .into_iter()
+        .map(Option::unwrap)
+        .collect()
 }
 
-/// The achieved standard errors `[param]` at the points: the spread of the noisy estimates
-/// about the noiseless run's, and the standardised errors against `predicted[param][point]`.
+/// The noiseless run first, then `n` noise seeds.
+fn centre_and_seeds(n: u64) -> Vec<Option<u64>> {
+    std::iter::once(None).chain((0..n).map(Some)).collect()
+}
+
+/// The achieved standard errors `[param][point]` of `runs` (`[run][point][param]`, the
+/// noiseless run first): the spread of the noisy estimates about the noiseless run's, and the
+/// standardised errors against `predicted[param][point]` (none for a parameter whose is empty).
+fn spread(runs: &[Vec<Vec<f64>>], predicted: Option<&[Vec<f64>]>) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let centre = &runs[0];
+    let (points, params) = (centre.len(), centre[0].len());
+    let mut achieved = vec![vec![0.0; points]; params];
+    let mut z = Vec::new();
+    for (p, a) in achieved.iter_mut().enumerate() {
+        for (k, v) in a.iter_mut().enumerate() {
+            let e: Vec<f64> = runs[1..].iter().map(|r| r[k][p] - centre[k][p]).collect();
+            *v = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
+            if let Some(se) = predicted.and_then(|pr| pr[p].get(k)) {
+                z.extend(e.iter().map(|x| x / se));
+            }
+        }
+    }
+    (achieved, z)
+}
+
+/// The friction fit's achieved standard errors on `scenario` ([`spread`]).
 fn friction_spread(
     fd: &FrictionDesign,
     scenario: &Scenario,
@@ -341,21 +379,8 @@ fn friction_spread(
     predicted: Option<&[Vec<f64>]>,
     seeds: u64,
 ) -> (Vec<Vec<f64>>, Vec<f64>) {
-    let seeds: Vec<Option<u64>> = std::iter::once(None).chain((0..seeds).map(Some)).collect();
-    let runs = friction_estimates(fd, scenario, names, at, &seeds);
-    let centre = &runs[0];
-    let mut achieved = vec![vec![0.0; at.len()]; names.len()];
-    let mut z = Vec::new();
-    for (p, a) in achieved.iter_mut().enumerate() {
-        for (k, v) in a.iter_mut().enumerate() {
-            let e: Vec<f64> = runs[1..].iter().map(|r| r[k][p] - centre[k][p]).collect();
-            *v = (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt();
-            if let Some(pr) = predicted {
-                z.extend(e.iter().map(|x| x / pr[p][k]));
-            }
-        }
-    }
-    (achieved, z)
+    let runs = friction_estimates(fd, scenario, names, at, &centre_and_seeds(seeds));
+    spread(&runs, predicted)
 }
 
 /// The friction design's prediction against the real fit (issue 45, "Prediction holds", for
@@ -440,4 +465,173 @@ fn friction_design_prediction_holds_and_beats_the_sweeps() {
         ha[1][0],
         sw[1][0]
     );
+}
+
+/// The cyclic-torque design of M_rec, b and L, the friction level c1 estimated alongside (r
+/// and δ held: Eq. 8.2's scaling symmetry leaves only three of M_rec, b, L, r estimable
+/// together), for a test of `duration` within the thesis's T2 limits (800–1400 rpm), and the
+/// design.
+fn torque_design(duration: f64, criterion: Criterion) -> (TorqueDesign, Design, Designed) {
+    let td = TorqueDesign::new(CellParams::default()).unwrap();
+    let design = Design {
+        names: ["M_rec", "b", "L", "c1"].map(String::from).to_vec(),
+        selected: vec![0, 1, 2],
+        criterion,
+        target_rel_se: None,
+        limits: Limits::parse("speed=800:1400,throttle=0:90,dspeed=500").unwrap(),
+        throttle: ThrottleDraw::Linear,
+        duration,
+        candidates: 20,
+        seed: 1,
+        threads: 0,
+    };
+    let r = design_torque(&td, &design, &|_| {}).unwrap();
+    (td, design, r)
+}
+
+/// The real cyclic-torque fit's (UKF) estimates of `names` on `scenario` at the times `at`
+/// [s of the recording], for the noise seeds `seeds` (`None`: without noise, the estimates'
+/// centre): `[run][point][param]`.
+fn torque_estimates(
+    td: &TorqueDesign,
+    scenario: &Scenario,
+    names: &[String],
+    at: &[f64],
+    seeds: &[Option<u64>],
+) -> Vec<Vec<Vec<f64>>> {
+    let mut cfg = td.fit.clone();
+    cfg.estimate = Some(names.to_vec());
+    let one = |seed: Option<u64>| {
+        let mut params = td.cell.clone();
+        match seed {
+            Some(s) => params.set("sensors.seed", s as f64 + 1.0).unwrap(),
+            None => {
+                for p in [
+                    "sensors.torque_engine.noise",
+                    "sensors.p_cyl.noise",
+                    "sensors.temperature.noise",
+                    "sensors.speed.noise",
+                ] {
+                    params.set(p, 0.0).unwrap();
+                }
+            }
+        }
+        let rec = simulate(
+            scenario,
+            &RunOptions {
+                params,
+                basis: OutputBasis::Crank(td.step_deg),
+                ..RunOptions::default()
+            },
+            |_| {},
+        )
+        .unwrap();
+        let fit = torque_fit(&rec, &cfg).unwrap();
+        at.iter()
+            .map(|&t| {
+                let k = fit.t.iter().rposition(|&x| x <= t + 1e-9).unwrap();
+                names
+                    .iter()
+                    .map(|n| fit.tracks.iter().find(|tr| &tr.param == n).unwrap().value[k])
+                    .collect::<Vec<f64>>()
+            })
+            .collect::<Vec<_>>()
+    };
+    per_seed(seeds, one)
+}
+
+/// The cyclic-torque design's prediction against the real fit (issue 45, "Prediction holds",
+/// for Application 3): the designed 5 s test simulated with noise over 40 seeds, the fit (UKF
+/// on 1° samples of M_rec, b, L and, alongside, the friction level c1, chosen beforehand —
+/// without c1 the cubic's 4 % error at the test's point moves L by 3 %, M_rec by 0.7 %) run on
+/// each; the spread of the four estimates about the noiseless run's every second within ×1.5
+/// of the predicted standard errors and the predicted ±1.96σ covering 90–99 % of them. And it
+/// beats the thesis's tests ("Beats the thesis's hand-made tests", 20 seeds each): smaller
+/// standard errors of M_rec, b and L than the ramp T2 in its own 5 s, and than the steady T1
+/// in half of its 10 s.
+#[test]
+fn torque_design_prediction_holds_and_beats_the_thesis_tests() {
+    let (td, design, r) = torque_design(5.0, Criterion::D);
+    let names = &design.names;
+    let c = &r.chosen.curve;
+    let at: Vec<f64> = (1..=5).map(|k| k as f64 - 0.01).collect();
+    let idx: Vec<usize> = at
+        .iter()
+        .map(|&t| c.t.iter().rposition(|&x| x <= t + 1e-9).unwrap())
+        .collect();
+    // The curve holds the designed-for parameters; c1's comes from the covariance at the end.
+    let cov = r.chosen.covariance.as_ref().unwrap();
+    let predicted: Vec<Vec<f64>> = (0..names.len())
+        .map(|p| match design.selected.iter().position(|&s| s == p) {
+            Some(c_at) => idx.iter().map(|&k| c.std_err[c_at][k]).collect(),
+            None => Vec::new(),
+        })
+        .collect();
+    let runs = torque_estimates(&td, &r.scenario, names, &at, &centre_and_seeds(40));
+    let (achieved, z) = spread(&runs, Some(&predicted));
+    let mut ratio: Vec<f64> = design
+        .selected
+        .iter()
+        .flat_map(|&p| (0..at.len()).map(move |k| (p, k)))
+        .map(|(p, k)| achieved[p][k] / predicted[p][k])
+        .collect();
+    // c1, estimated alongside: its predicted standard error at the end.
+    let end = at.len() - 1;
+    let c1 = achieved[3][end] / cov[(3, 3)].sqrt();
+    eprintln!("c1 alongside: achieved / predicted {c1:.3}");
+    assert!((1.0 / 1.5..=1.5).contains(&c1), "c1: {c1}");
+    eprintln!(
+        "torque: chosen {} ({:?}, throttle {:?}); predicted {predicted:?}, achieved {achieved:?}",
+        r.chosen.name, r.scenario.speed.segments, r.scenario.throttle.segments
+    );
+    check("torque M_rec, b, L", &z, &mut ratio);
+    let thesis = |name: &str, end: f64| {
+        let s = named(name).unwrap();
+        let runs = torque_estimates(&td, &s, names, &[end], &centre_and_seeds(20));
+        spread(&runs, None).0
+    };
+    let (t2, t1) = (thesis("torque-ramp", 4.99), thesis("torque-steady", 9.99));
+    for &p in &design.selected {
+        let ours = achieved[p][end];
+        eprintln!(
+            "{}: the designed 5 s test achieves {ours:.3e} (predicted {:.3e}); T2 in 5 s {:.3e}, T1 in 10 s {:.3e}",
+            names[p], predicted[p][end], t2[p][0], t1[p][0]
+        );
+        assert!(
+            ours < t2[p][0],
+            "{}: {ours} against T2's {}",
+            names[p],
+            t2[p][0]
+        );
+        assert!(
+            ours < t1[p][0],
+            "{}: {ours} against T1's {}",
+            names[p],
+            t1[p][0]
+        );
+    }
+}
+
+/// Eq. 8.2 is invariant under `r → λr, L → λL, b → b/√λ, M_rec → M_rec/λ²`: no test resolves
+/// all four, and a design for them says which is structurally unidentifiable instead of giving
+/// it a huge standard error (issue 45, "Structural zeros").
+#[test]
+fn torque_design_refuses_the_scaling_symmetry() {
+    let td = TorqueDesign::new(CellParams::default()).unwrap();
+    let design = Design {
+        names: ["M_rec", "b", "L", "r"].map(String::from).to_vec(),
+        selected: vec![0, 1, 2, 3],
+        criterion: Criterion::D,
+        target_rel_se: None,
+        limits: Limits::parse("speed=800:1400").unwrap(),
+        throttle: ThrottleDraw::Linear,
+        duration: 2.0,
+        candidates: 10,
+        seed: 1,
+        threads: 0,
+    };
+    let e = design_torque(&td, &design, &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("structurally unidentifiable"), "{e}");
 }

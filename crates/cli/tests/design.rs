@@ -105,7 +105,46 @@ fn design_errors_name_the_problem() {
         (vec!["--criterion", "time"], "needs --target-rel-se"),
         (vec!["--method", "rlsvf"], "vector forgetting"),
         (vec!["--set", "sensors.torque_shaft.noise=0"], "noise is 0"),
-        (vec!["--app", "torque"], "possible values: shaft, friction"),
+        (
+            vec!["--app", "engine"],
+            "possible values: shaft, friction, torque",
+        ),
+        (vec!["--app", "torque"], "needs --params"),
+        (
+            vec!["--app", "torque", "--params", "M_rec,X"],
+            "parameter 'X': expected one of M_rec",
+        ),
+        (
+            vec!["--app", "torque", "--params", "M_rec=0.9"],
+            "the cell engine's",
+        ),
+        (
+            vec!["--app", "torque", "--params", "delta"],
+            "'delta' has nominal value 0",
+        ),
+        (
+            vec!["--app", "torque", "--params", "M_rec", "--lambda", "0.99"],
+            "the cyclic-torque filter does not forget",
+        ),
+        (
+            vec!["--app", "torque", "--params", "M_rec", "--s0", "3"],
+            "--s0 is the friction fit's setting",
+        ),
+        (
+            vec!["--app", "friction", "--params", "c4", "--alongside", "c1"],
+            "--alongside is the cyclic-torque fit's setting",
+        ),
+        (
+            vec![
+                "--app",
+                "torque",
+                "--params",
+                "M_rec,b,L,r",
+                "--limits",
+                "speed=800:1400",
+            ],
+            "structurally unidentifiable",
+        ),
         (vec!["--app", "friction"], "needs --params"),
         (
             vec!["--app", "friction", "--params", "c4,c99"],
@@ -180,4 +219,71 @@ fn designed_friction_test_runs_and_fits() {
         "--json",
     ]);
     assert_eq!(f["estimable"], serde_json::json!(["c4", "c17"]), "{f}");
+}
+
+/// A cyclic-torque test designed (M_rec, b, L with the friction level c1 alongside), run on
+/// the cell one sample per crank degree and fitted with the parameters it was designed for
+/// (`physid torque fit --estimate`): the filter's own standard errors agree with the design's
+/// prediction (both the sandwich of the same sensitivities and noise: within 20 %).
+#[test]
+fn designed_torque_test_runs_and_fits() {
+    let d = physid_testkit::Scratch::new("design-torque-cli");
+    let out = d.file("torque-test");
+    let j = ok_json(&[
+        "design",
+        "--app",
+        "torque",
+        "--params",
+        "M_rec,b,L",
+        "--limits",
+        "speed=800:1400",
+        "--candidates",
+        "5",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(j["params"], serde_json::json!(["M_rec", "b", "L"]));
+    let base: Vec<&str> = j["baselines"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(base, ["torque-steady", "torque-ramp"]);
+    assert_eq!(j["scenario"]["duration"], 5.0);
+    assert!(out.join("report.html").exists());
+    let rec = d.file("run.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        out.join("scenario.toml").to_str().unwrap(),
+        "--basis",
+        "crank",
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let f = ok_json(&[
+        "torque",
+        "fit",
+        "--data",
+        rec.to_str().unwrap(),
+        "--estimate",
+        "M_rec,b,L,c1",
+        "--json",
+    ]);
+    assert_eq!(
+        f["estimable"],
+        serde_json::json!(["M_rec", "b", "L", "c1"]),
+        "{f}"
+    );
+    for p in ["M_rec", "b", "L"] {
+        let predicted = j["predicted_std_err"][p].as_f64().unwrap();
+        let filter = f["std_err"][p].as_f64().unwrap();
+        assert!(
+            (filter / predicted - 1.0).abs() < 0.2,
+            "{p}: the filter's σ {filter} against the design's {predicted}"
+        );
+    }
 }

@@ -113,6 +113,14 @@ fn fmep_of<T: Scalar>(c: &[T], phi: &[f64; 10]) -> T {
 }
 
 impl CyclicTorque {
+    /// `∂τ_eng/∂p_cyl = A_p·r·G(θ)` [N·m/Pa] at crank angle `theta` [rad] with the parameters
+    /// `p` (app. B.4: the indicated torque is linear in `p_cyl − p_crank`): how a cylinder
+    /// pressure's error enters the modelled torque.
+    pub fn pressure_arm(&self, theta: f64, p: &[f64]) -> f64 {
+        let u = [theta, 0.0, 0.0, 1.0, 0.0, 0.0];
+        self.split(&u, p).0
+    }
+
     /// The model split at the friction cubic: `τ = a − β·fmep` with `a = τ_ind − τ_rec` and
     /// `β = A_p·r·1e3/(2π)` (the torque of 1 kPa fmep). Reads only `M_rec, b, L, r, δ` of `p`.
     fn split<T: Scalar>(&self, u: &[f64], p: &[T]) -> (T, T) {

@@ -63,6 +63,13 @@ fn equals_the_virtual_work_torque() {
             (got - expect).abs() <= 1e-10 * expect.abs().max(1.0),
             "{got} vs {expect}"
         );
+        // The torque of a pascal of cylinder pressure: A_p·s'(θ).
+        let arm = ap * crank.ds(th);
+        let got = m.pressure_arm(th, &p);
+        assert!(
+            (got - arm).abs() <= 1e-12 * arm.abs().max(1e-6),
+            "{got} vs {arm}"
+        );
     }
 }
 

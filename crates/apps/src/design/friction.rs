@@ -18,6 +18,7 @@ use crate::stage::Stage;
 use physid_models::friction::{FrictionRegression, OperatingPoint, REGRESSION_PARAMS};
 use physid_sim::engine::Engine;
 use physid_sim::params::CellParams;
+use physid_sim::run::OutputBasis;
 use physid_sim::scenario::{named, Scenario};
 use std::f64::consts::PI;
 
@@ -126,7 +127,8 @@ impl FrictionDesign {
             "sensors.speed.noise",
         ];
         let mut out = Vec::new();
-        run_noiseless(&self.cell, &quiet, scenario, self.rate_hz, &keep, |chunk| {
+        let basis = OutputBasis::Time(self.rate_hz);
+        run_noiseless(&self.cell, &quiet, scenario, basis, &keep, |chunk| {
             stage.push(chunk, &mut out)?;
             out.clear();
             Ok(())
@@ -192,19 +194,10 @@ impl FrictionDesign {
 /// The coefficients `items` (`c1` … `c20`) a design is for; their nominal values are the
 /// engine's model's (they are not set here).
 pub fn select(items: &[String]) -> Result<Vec<String>, AppError> {
-    let mut names: Vec<String> = Vec::new();
-    for item in items {
-        let name = item.trim();
-        if name.contains('=') {
-            return Err(AppError::Invalid(format!(
-                "--params {name}: a friction coefficient's nominal value is the engine model's (set the engine with --set engine.…)"
-            )));
-        }
-        if !names.iter().any(|n| n == name) {
-            names.push(name.to_string());
-        }
-    }
-    Ok(names)
+    super::plain_names(
+        items,
+        "a friction coefficient's nominal value is the engine model's (set the engine with --set engine.…)",
+    )
 }
 
 /// Design a test for the friction characterisation of `design.names`: its candidates judged,

@@ -13,13 +13,14 @@
 //! every candidate tells the parameters no admissible profile reveals. Candidates run on every
 //! core. By concern: `information.rs` (the recursion, criteria, the ranking, structural
 //! zeros), `profile.rs` (limits and families), `run.rs` (a candidate on the cell, within its
-//! envelope), `shaft.rs` (Application 1), `friction.rs` (Application 2).
+//! envelope), `shaft.rs` (Application 1), `friction.rs` (Application 2), `torque.rs` (Application 3).
 
 pub mod friction;
 pub mod information;
 pub mod profile;
 pub mod run;
 pub mod shaft;
+pub mod torque;
 
 use crate::error::AppError;
 use information::{collinear_pairs, structural_zeros, Criterion, ForgettingInformation};
@@ -130,6 +131,22 @@ pub struct Estimator<'a> {
     pub noise: &'a [f64],
     /// Its start-up, left out of the criterion [s].
     pub settle_s: f64,
+}
+
+/// The parameters `items` a design is for, by name only (each once, in order): a value
+/// (`NAME=VALUE`) is refused with `why` — where the application's nominal values come from.
+pub fn plain_names(items: &[String], why: &str) -> Result<Vec<String>, AppError> {
+    let mut names: Vec<String> = Vec::new();
+    for item in items {
+        let name = item.trim();
+        if name.contains('=') {
+            return Err(AppError::Invalid(format!("--params {name}: {why}")));
+        }
+        if !names.iter().any(|n| n == name) {
+            names.push(name.to_string());
+        }
+    }
+    Ok(names)
 }
 
 /// A covariance in the estimator's coordinates `x` made the parameters' `units·x`.

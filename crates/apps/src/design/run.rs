@@ -9,14 +9,14 @@ use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::Scenario;
 
 /// Run `scenario` on `cell` with the sensor settings `quiet` (their noise) at 0 — the
-/// scenario's own noise settings too — recording `keep` (and `omega_en`, `speed_demand`) at
-/// `rate_hz`, each second's chunk handed to `take`; refused once the engine's speed leaves its
-/// demand ([`Envelope`]).
+/// scenario's own noise settings too — recording `keep` (and `omega_en`, `speed_demand`) on
+/// `basis` (a sample rate or a crank-angle step), each second's chunk handed to `take`; refused
+/// once the engine's speed leaves its demand ([`Envelope`]).
 pub fn run_noiseless(
     cell: &CellParams,
     quiet: &[&str],
     scenario: &Scenario,
-    rate_hz: f64,
+    basis: OutputBasis,
     keep: &[&str],
     mut take: impl FnMut(&Recording) -> Result<(), AppError>,
 ) -> Result<(), AppError> {
@@ -31,7 +31,7 @@ pub fn run_noiseless(
         .retain(|k, _| !k.ends_with(".noise") && !k.ends_with(".quantum"));
     let opts = RunOptions {
         params,
-        basis: OutputBasis::Time(rate_hz),
+        basis,
         stream: true,
         ..RunOptions::default()
     };

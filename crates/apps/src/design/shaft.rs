@@ -10,6 +10,7 @@ use crate::shaft_monitor::{
 };
 use physid_signal::filter::Sos;
 use physid_sim::params::CellParams;
+use physid_sim::run::OutputBasis;
 use physid_sim::scenario::{named, Scenario};
 
 /// The shaft monitor's parameters, in its estimator's order.
@@ -119,7 +120,7 @@ impl ShaftDesign {
                 "sensors.speed.noise",
             ],
             scenario,
-            self.rate_hz,
+            OutputBasis::Time(self.rate_hz),
             &SHAFT_CHANNELS[1..],
             |chunk| stage.push_regressors(&ShaftInputs::of(chunk)?, &mut rows),
         )?;

@@ -76,6 +76,11 @@ pub struct TorqueFitConfig {
     /// How many ranked parameters to estimate.
     #[serde(with = "physid_ident::SelectionData")]
     pub selection: Selection,
+    /// The parameters to estimate, when chosen beforehand (a designed test's, `physid torque
+    /// fit --estimate`): the selection is then not used and the others are held at their
+    /// nominal values; the ranking is still reported.
+    #[serde(default)]
+    pub estimate: Option<Vec<String>>,
     /// EKF, UKF or SR-UKF (with the thesis's sigma points).
     pub method: MethodName,
     /// `P0 = p0·I` over the scaled coordinates x (relative deviations).
@@ -99,10 +104,49 @@ impl TorqueFitConfig {
             nominal,
             fixed: vec!["delta".into()],
             selection: Selection::Rule(Cutoff::Relative(TORQUE_CUTOFF)),
+            estimate: None,
             method: MethodName::Ukf,
             p0: 0.01,
             r2: None,
             track: Vec::new(),
         }
+    }
+
+    /// The parameters chosen beforehand ([`estimate`](Self::estimate)) as indices into
+    /// [`PARAMS`]: known names, each once, none held by `fixed`, each with a non-zero nominal
+    /// value (the filter works in deviations relative to it). `None` when not chosen.
+    pub fn chosen(&self) -> Result<Option<Vec<usize>>, AppError> {
+        let Some(names) = &self.estimate else {
+            return Ok(None);
+        };
+        if names.is_empty() {
+            return Err(AppError::Invalid("no parameter chosen to estimate".into()));
+        }
+        let mut idx = Vec::with_capacity(names.len());
+        for name in names {
+            let j = PARAMS.iter().position(|p| p == name).ok_or_else(|| {
+                AppError::Invalid(format!(
+                    "parameter '{name}': expected one of {}",
+                    PARAMS.join(", ")
+                ))
+            })?;
+            if idx.contains(&j) {
+                return Err(AppError::Invalid(format!(
+                    "parameter '{name}' is chosen twice"
+                )));
+            }
+            if self.nominal[j] == 0.0 {
+                return Err(AppError::Invalid(format!(
+                    "'{name}' has nominal value 0: scaled coordinates ϑ = ϑ0·(1 + x) cannot move it — give it a non-zero nominal value or leave it out"
+                )));
+            }
+            if self.fixed.contains(name) {
+                return Err(AppError::Invalid(format!(
+                    "parameter '{name}' is both fixed and chosen to estimate"
+                )));
+            }
+            idx.push(j);
+        }
+        Ok(Some(idx))
     }
 }

@@ -103,8 +103,10 @@ impl TorqueFilter {
         rows: &R,
         tracks: bool,
     ) -> Result<Self, AppError> {
-        let (analysis, estimable) =
+        let chosen = cfg.chosen()?;
+        let (analysis, ranked) =
             torque_identifiability(rows, &cfg.nominal, &cfg.fixed, &cfg.selection)?;
+        let estimable = chosen.unwrap_or(ranked);
         if estimable.is_empty() {
             return Err(AppError::Invalid(
                 "no parameter is estimable on this recording".into(),
@@ -197,6 +199,17 @@ impl TorqueFilter {
             ssy: 0.0,
             last: (f64::NAN, f64::NAN, f64::NAN),
         })
+    }
+
+    /// The analysis's ranking, each marked estimable when it is estimated (the top ones, or
+    /// those chosen beforehand wherever they rank).
+    fn ranking(&self) -> Vec<RankedParam> {
+        let names = self.names();
+        let mut ranking = self.analysis.ranked(self.estimable.len());
+        for r in &mut ranking {
+            r.estimable = names.contains(&r.param.as_str());
+        }
+        ranking
     }
 
     /// The estimable parameters' names, in rank order.
@@ -297,7 +310,7 @@ impl TorqueFilter {
         })?;
         Ok(TorqueFit {
             method: cfg.method.as_str(),
-            ranking: self.analysis.ranked(self.estimable.len()),
+            ranking: self.ranking(),
             estimable: self.names().iter().map(|s| s.to_string()).collect(),
             nominal: cfg.nominal.to_vec(),
             params: final_full,

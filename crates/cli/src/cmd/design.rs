@@ -12,6 +12,7 @@ use physid_apps::design::friction::{design_friction, select as friction_select, 
 use physid_apps::design::information::Criterion;
 use physid_apps::design::profile::{Limits, ThrottleDraw};
 use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
+use physid_apps::design::torque::{design_torque, select as torque_select, TorqueDesign};
 use physid_apps::design::{Design, Designed};
 use physid_apps::friction_fit::TorqueSource;
 use physid_apps::shaft_monitor::{MonitorConfig, MonitorMethod};
@@ -21,17 +22,26 @@ use std::sync::Mutex;
 /// Arguments of `physid design`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The application: shaft (Application 1, K, B and the offset τ0 of Eq. 6.1) or friction
-    /// (Application 2, the friction model's coefficients c1 … c20 from motored cycles, §7.3).
-    /// The cyclic-torque application is not designed for yet.
-    #[arg(long, value_parser = ["shaft", "friction"], default_value = "shaft")]
+    /// The application: shaft (Application 1, K, B and the offset τ0 of Eq. 6.1), friction
+    /// (Application 2, the friction model's coefficients c1 … c20 from motored cycles, §7.3) or
+    /// torque (Application 3, the cyclic-torque model's M_rec, b, L, r, c1 … c10 from 1°
+    /// samples, ch. 8).
+    #[arg(long, value_parser = ["shaft", "friction", "torque"], default_value = "shaft")]
     app: String,
     /// The parameters to design for. Shaft: K, B, tau0 (the others are estimated alongside;
     /// default K,B), with a value the nominal value the test is designed at (K=1340 sets the
     /// cell's shaft.k). Friction: the coefficients the fit will estimate, e.g. c4,c17 (the others
-    /// held at the engine model's values; `physid friction fit --estimate` the same).
+    /// held at the engine model's values; `physid friction fit --estimate` the same). Torque:
+    /// the cyclic-torque parameters, e.g. M_rec,b,L (at most three of M_rec, b, L, r: the
+    /// model's scaling symmetry), estimated with --alongside (the others held at the cell
+    /// engine's values; `physid torque fit --estimate` the same).
     #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
     params: Vec<String>,
+    /// Torque: parameters the fit estimates alongside those designed for, not designed for
+    /// themselves, or none [default: c1, the friction level — held at its nominal value the
+    /// friction cubic's error biases the geometry by percent].
+    #[arg(long, value_name = "NAME,…", value_delimiter = ',')]
+    alongside: Vec<String>,
     /// How candidates are ranked: d (the confidence ellipsoid's volume), a (the mean
     /// variance), e (the worst direction) — each the mean over the test after the estimator's
     /// start-up, relative to the nominal values — or time (the shortest time until every
@@ -47,9 +57,10 @@ pub struct Args {
     /// [default: speed=800:3000,throttle=0:90,dspeed=500].
     #[arg(long, value_name = "NAME=LOW:HIGH", value_delimiter = ',')]
     limits: Vec<String>,
-    /// Each candidate test's duration [s].
-    #[arg(long, visible_alias = "max-duration", value_name = "S", default_value_t = 120.0, value_parser = super::range::positive)]
-    duration: f64,
+    /// Each candidate test's duration [s] [default: 120 for the shaft monitor and the friction
+    /// fit, 5 (the thesis's ramp T2) for the cyclic torque].
+    #[arg(long, visible_alias = "max-duration", value_name = "S", value_parser = super::range::positive)]
+    duration: Option<f64>,
     /// How many candidate profiles (drawn from the families steps, ramps, APRBS, multisine
     /// and constant in turn).
     #[arg(long, value_name = "N", default_value_t = 200)]
@@ -60,9 +71,10 @@ pub struct Args {
     /// Worker threads (0: every core).
     #[arg(long, default_value_t = 0)]
     threads: usize,
-    /// The recording's sample rate the monitor will read [Hz].
-    #[arg(long, value_name = "HZ", default_value_t = 10_000.0, value_parser = super::range::positive)]
-    sample_rate: f64,
+    /// Shaft, friction: the recording's sample rate the estimator will read [Hz] [default:
+    /// 10000]. (The cyclic-torque fit reads one sample per crank degree.)
+    #[arg(long, value_name = "HZ", value_parser = super::range::positive)]
+    sample_rate: Option<f64>,
     /// Shaft: the monitor's estimator, rlsf (RLS with forgetting λ) or dsfc (its square-root
     /// form, the same estimates) [default: rlsf]. (The friction fit's is DSFC.)
     #[arg(long)]
@@ -108,6 +120,7 @@ pub fn run(a: &Args) -> Result<()> {
     };
     let (r, title, subtitle, method) = match a.app.as_str() {
         "friction" => friction(a, limits, &progress)?,
+        "torque" => torque(a, limits, &progress)?,
         _ => shaft(a, limits, &progress)?,
     };
     drop(bar);
@@ -125,7 +138,7 @@ pub fn run(a: &Args) -> Result<()> {
         outln!("{}", serde_json::to_string(&r).into_diagnostic()?);
         return Ok(());
     }
-    print(&r, a);
+    print(&r, a, duration(a));
     Ok(())
 }
 
@@ -137,6 +150,12 @@ fn refuse(app: &str, given: bool, flag: &str, of: &str) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// The candidates' duration [s]: the application's default unless given.
+fn duration(a: &Args) -> f64 {
+    a.duration
+        .unwrap_or(if a.app == "torque" { 5.0 } else { 120.0 })
 }
 
 /// The design's common part: `names` (`selected` of them designed for), the limits, the
@@ -155,7 +174,7 @@ fn design(
         target_rel_se: a.target_rel_se,
         limits,
         throttle,
-        duration: a.duration,
+        duration: duration(a),
         candidates: a.candidates,
         seed: a.seed,
         threads: a.threads,
@@ -170,6 +189,12 @@ fn shaft(
 ) -> Result<(Designed, String, String, &'static str)> {
     refuse("shaft", a.s0.is_some(), "--s0", "the friction fit")?;
     refuse("shaft", a.source.is_some(), "--source", "the friction fit")?;
+    refuse(
+        "shaft",
+        !a.alongside.is_empty(),
+        "--alongside",
+        "the cyclic-torque fit",
+    )?;
     let method = a
         .method
         .as_deref()
@@ -194,7 +219,7 @@ fn shaft(
             ..MonitorConfig::default()
         },
         cell,
-        rate_hz: a.sample_rate,
+        rate_hz: a.sample_rate.unwrap_or(10_000.0),
     };
     let names = PARAMS.iter().map(|s| s.to_string()).collect();
     let design = design(a, limits, names, chosen.selected, ThrottleDraw::Linear);
@@ -228,13 +253,19 @@ fn friction(
     ] {
         refuse("friction", given, flag, "the shaft monitor")?;
     }
+    refuse(
+        "friction",
+        !a.alongside.is_empty(),
+        "--alongside",
+        "the cyclic-torque fit",
+    )?;
     if a.params.is_empty() {
         return Err(miette!(
             "--app friction needs --params: the coefficients the fit will estimate, e.g. c4,c17 (`physid friction rank` ranks them on a recording)"
         ));
     }
     let names = friction_select(&a.params).map_err(|e| miette!("{e}"))?;
-    let mut fd = FrictionDesign::new(a.set.params()?, a.sample_rate);
+    let mut fd = FrictionDesign::new(a.set.params()?, a.sample_rate.unwrap_or(10_000.0));
     if let Some(l) = a.lambda {
         fd.fit.lambda = l;
     }
@@ -265,6 +296,74 @@ fn friction(
         "Experiment design: the friction characterisation".into(),
         subtitle,
         "the fit's own stage kept each run's steady cycles, and the information its estimator gathers from them (without forgetting, λ = 1), with the load cell's noise averaged over each cycle, gives the covariance of its estimates after every cycle — where the data do not yet resolve a coefficient the curve does not start; candidates are ranked by their errors at the test's end",
+    ))
+}
+
+/// The cyclic-torque fit's design: the result, the report's title and subtitle.
+fn torque(
+    a: &Args,
+    limits: Limits,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<(Designed, String, String, &'static str)> {
+    for (given, flag, of) in [
+        (a.method.is_some(), "--method", "the shaft monitor"),
+        (a.lowpass.is_some(), "--lowpass", "the shaft monitor"),
+        (
+            a.update_rate.is_some(),
+            "--update-rate",
+            "the shaft monitor",
+        ),
+        (a.s0.is_some(), "--s0", "the friction fit"),
+        (a.source.is_some(), "--source", "the friction fit"),
+    ] {
+        refuse("torque", given, flag, of)?;
+    }
+    if a.lambda.is_some() {
+        return Err(miette!(
+            "--lambda: the cyclic-torque filter does not forget (a drifting parameter is tracked with `physid torque fit --track`); --app torque does not take it"
+        ));
+    }
+    if a.sample_rate.is_some() {
+        return Err(miette!(
+            "--sample-rate: the cyclic-torque fit reads one sample per crank degree; --app torque does not take it"
+        ));
+    }
+    if a.params.is_empty() {
+        return Err(miette!(
+            "--app torque needs --params: the parameters the fit will estimate, e.g. M_rec,b,L (`physid torque identify` ranks them on a recording)"
+        ));
+    }
+    let designed = torque_select(&a.params).map_err(|e| miette!("{e}"))?;
+    let along: Vec<String> = match a.alongside.as_slice() {
+        [] => vec!["c1".to_string()],
+        [none] if none == "none" => Vec::new(),
+        v => torque_select(v).map_err(|e| miette!("--alongside: {e}"))?,
+    };
+    let mut names = designed.clone();
+    names.extend(along.into_iter().filter(|n| !designed.contains(n)));
+    let td = TorqueDesign::new(a.set.params()?).map_err(|e| miette!("{e}"))?;
+    let selected = (0..designed.len()).collect();
+    let design = design(a, limits, names, selected, ThrottleDraw::Linear);
+    let mut r = design_torque(&td, &design, progress).map_err(|e| miette!("{e}"))?;
+    r.scenario.set.extend(a.set.pairs()?);
+    let alongside = &design.names[designed.len()..];
+    let subtitle = format!(
+        "{} on {}° samples of Eq. 8.2 of {}{} (the others at the cell engine's values), P0 = {}·I in scaled coordinates",
+        td.fit.method.as_str().to_uppercase(),
+        td.step_deg,
+        designed.join(", "),
+        if alongside.is_empty() {
+            String::new()
+        } else {
+            format!(" with {} alongside", alongside.join(", "))
+        },
+        td.fit.p0
+    );
+    Ok((
+        r,
+        "Experiment design: the cyclic engine torque".into(),
+        subtitle,
+        "each run was sampled every crank degree, and the model's exact sensitivities there, with the load cell's noise and the cylinder-pressure transducer's through the indicated torque's arm, give the covariance of the filter's estimates (no forgetting) along the test; candidates are ranked by their errors at the test's end",
     ))
 }
 
@@ -492,7 +591,7 @@ fn listed(v: &[f64], names: &[String]) -> String {
         .join(", ")
 }
 
-fn print(r: &Designed, a: &Args) {
+fn print(r: &Designed, a: &Args, duration: f64) {
     outln!(
         "designed {} ({}) from {} candidates in {:.1} s",
         r.chosen.name,
@@ -525,7 +624,7 @@ fn print(r: &Designed, a: &Args) {
         outln!(
             "thesis test {} ({} s{}): relative std err at the end {}; median {}",
             b.name,
-            a.duration,
+            duration,
             if b.within_limits {
                 ""
             } else {

@@ -61,6 +61,16 @@ struct FitArgs {
     /// an absolute residual.
     #[arg(long, default_value = "rel:1e-6")]
     cutoff: Selection,
+    /// Estimate these parameters, chosen beforehand (a test designed by `physid design --app
+    /// torque`: its --params and --alongside), instead of those the cut-off selects; the others
+    /// are held at their nominal values and the ranking is still reported.
+    #[arg(
+        long,
+        value_name = "NAME,…",
+        value_delimiter = ',',
+        conflicts_with = "cutoff"
+    )]
+    estimate: Vec<String>,
     /// The parameters' nominal (initial) values NAME=VALUE (SI: kg, m; c in kPa units) over
     /// the built-in test cell's engine, e.g. --params M_rec=0.82,b=0.0541.
     #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
@@ -136,6 +146,8 @@ fn config(a: &FitArgs) -> Result<TorqueFitConfig> {
         .map(|s| s.split('=').next().unwrap_or_default().trim().to_string())
         .collect();
     cfg.selection = a.cutoff;
+    cfg.estimate = (!a.estimate.is_empty()).then(|| a.estimate.clone());
+    cfg.chosen().map_err(|e| miette!("--estimate: {e}"))?;
     cfg.p0 = a.p0;
     if let Some(r2) = a.r2 {
         if !(r2.is_finite() && r2 > 0.0) {
