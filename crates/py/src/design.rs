@@ -1,11 +1,12 @@
 //! `physid.design`: experiment design (issue 45, docs/design.md) for the shaft monitor and the
-//! friction characterisation.
+//! friction characterisation and the cyclic-torque fit.
 
 use crate::{arrays, err};
 use physid_apps::design::friction::{design_friction, select as friction_select, FrictionDesign};
 use physid_apps::design::information::Criterion;
 use physid_apps::design::profile::{Limits, ThrottleDraw};
 use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
+use physid_apps::design::torque::{design_torque, select as torque_select, TorqueDesign};
 use physid_apps::design::{Design, Designed};
 use physid_apps::friction_fit::TorqueSource;
 use physid_apps::shaft_monitor::{MonitorConfig, MonitorMethod};
@@ -14,14 +15,15 @@ use pyo3::types::PyDict;
 use std::collections::BTreeMap;
 
 /// Experiment design for `app` (`shaft`: the shaft monitor with `method`, `lam` (0.98),
-/// `cutoff_hz`, `rate_hz`; `friction`: the friction fit with `lam` (1), `s0`, `source`):
+/// `cutoff_hz`, `rate_hz`; `friction`: the friction fit with `lam` (1), `s0`, `source`;
+/// `torque`: the cyclic-torque fit's UKF, `alongside` estimated with `params`):
 /// `candidates` profiles of `duration` s within `limits`
 /// (`speed=LOW:HIGH,throttle=LOW:HIGH,dspeed=RATE`), judged for `params` by `criterion` on a
 /// recording at `sample_rate`, the cell with `set`. Returns the result (JSON text) and arrays:
 /// the chosen profile (`t`, `speed_demand_rpm`, `throttle_deg`, every 50 ms) and its predicted
 /// standard errors (`curve_t` and one per parameter).
 #[pyfunction]
-#[pyo3(signature = (app, params, criterion, target_rel_se, limits, duration, candidates, seed, threads, method, lam, cutoff_hz, rate_hz, s0, source, sample_rate, set))]
+#[pyo3(signature = (app, params, criterion, target_rel_se, limits, duration, candidates, seed, threads, method, lam, cutoff_hz, rate_hz, s0, source, sample_rate, set, alongside))]
 #[allow(clippy::too_many_arguments)]
 pub fn design<'py>(
     py: Python<'py>,
@@ -42,6 +44,7 @@ pub fn design<'py>(
     source: &str,
     sample_rate: f64,
     set: BTreeMap<String, f64>,
+    alongside: Vec<String>,
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     let mut cell = physid_sim::params::CellParams::default();
     for (k, v) in &set {
@@ -101,7 +104,26 @@ pub fn design<'py>(
             r.scenario.set.extend(settings);
             r
         }
-        other => return Err(err(format!("app '{other}': expected shaft or friction"))),
+        "torque" => {
+            let designed = torque_select(&params).map_err(err)?;
+            let mut names = designed.clone();
+            for a in torque_select(&alongside).map_err(err)? {
+                if !names.contains(&a) {
+                    names.push(a);
+                }
+            }
+            let td = TorqueDesign::new(cell).map_err(err)?;
+            let selected = (0..designed.len()).collect();
+            let d = design(names, selected, ThrottleDraw::Linear)?;
+            let mut r = py.detach(|| design_torque(&td, &d, &|_| {})).map_err(err)?;
+            r.scenario.set.extend(settings);
+            r
+        }
+        other => {
+            return Err(err(format!(
+                "app '{other}': expected shaft, friction or torque"
+            )))
+        }
     };
     let mut json = serde_json::to_value(&r).map_err(err)?;
     if let Some(o) = json.as_object_mut() {

@@ -421,7 +421,7 @@ fn cycles<'py>(
 /// fit's residual variance if `None`), random walks `track`. Returns the summary (JSON text)
 /// and the tracks.
 #[pyfunction]
-#[pyo3(signature = (rec, method, nominal, fixed, cutoff, p0, r2, track))]
+#[pyo3(signature = (rec, method, nominal, fixed, cutoff, estimate, p0, r2, track))]
 #[allow(clippy::too_many_arguments)]
 fn torque_fit<'py>(
     py: Python<'py>,
@@ -430,6 +430,7 @@ fn torque_fit<'py>(
     nominal: BTreeMap<String, f64>,
     fixed: Vec<String>,
     cutoff: Option<&str>,
+    estimate: Option<Vec<String>>,
     p0: f64,
     r2: Option<f64>,
     track: BTreeMap<String, f64>,
@@ -452,6 +453,8 @@ fn torque_fit<'py>(
     if let Some(c) = cutoff {
         cfg.selection = physid_ident::Selection::parse(c).map_err(err)?;
     }
+    cfg.estimate = estimate;
+    cfg.chosen().map_err(|e| err(format!("estimate: {e}")))?;
     cfg.p0 = p0;
     cfg.r2 = r2;
     cfg.track = track.into_iter().collect();

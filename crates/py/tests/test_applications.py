@@ -251,3 +251,26 @@ def test_design_for_the_friction_fit_runs_and_is_fitted(tmp_path):
     assert f.estimable == ["c4", "c17"]
     with pytest.raises(physid.Error, match="needs params"):
         physid.design(app="friction")
+
+
+def test_design_for_the_cyclic_torque_fit_runs_and_is_fitted(tmp_path):
+    """physid.design(app="torque"): M_rec, b, L with c1 alongside; the designed test simulated
+    one sample per crank degree and fitted with those parameters (torque_fit(estimate=…)); the
+    filter's own standard errors within 20 % of the design's prediction."""
+    r = physid.design(app="torque", params=("M_rec", "b", "L"),
+                      limits={"speed": (800, 1400)}, candidates=5)
+    t = r.tracks
+    assert len(t["curve_t"]) == len(t["M_rec"]) == len(t["L"]) > 0
+    assert r.scenario["duration"] == 5.0
+    assert t["b"][-1] == pytest.approx(r.predicted_std_err["b"])
+    path = tmp_path / "torque.toml"
+    path.write_text(r.scenario_toml)
+    rec = physid.simulate(str(path), basis="crank")
+    f = physid.torque_fit(rec, estimate=["M_rec", "b", "L", "c1"])
+    assert f.estimable == ["M_rec", "b", "L", "c1"]
+    for p in ("M_rec", "b", "L"):
+        assert f.std_err[p] == pytest.approx(r.predicted_std_err[p], rel=0.2), p
+    with pytest.raises(physid.Error, match="needs params"):
+        physid.design(app="torque")
+    with pytest.raises(physid.Error, match="does not forget"):
+        physid.design(app="torque", params=("M_rec",), lam=0.99)

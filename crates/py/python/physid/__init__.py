@@ -718,7 +718,7 @@ def design(
     criterion: str = "d",
     target_rel_se: float | None = None,
     limits: str | Mapping[str, Any] = "",
-    duration: float = 120.0,
+    duration: float | None = None,
     candidates: int = 200,
     seed: int = 1,
     threads: int = 0,
@@ -728,8 +728,9 @@ def design(
     rate_hz: float = 2000.0,
     s0: float = 10.0,
     source: str = "engine",
-    sample_rate: float = 10_000.0,
+    sample_rate: float | None = None,
     set: Mapping[str, float] | None = None,
+    alongside: Iterable[str] | None = None,
 ) -> DesignResult:
     """Experiment design (``physid design``, docs/design.md): which profile of the cell's speed
     demand and throttle, within ``limits`` (``"speed=800:3000,throttle=0:60,dspeed=500"`` or
@@ -738,16 +739,34 @@ def design(
     shaft monitor (``method``, ``lam`` 0.98, its low-pass ``cutoff_hz`` and update rate
     ``rate_hz``; ``params`` K, B, tau0, default K, B); ``friction``: the friction fit's DSFC
     (``lam`` 1, ``s0``, the motoring torque from ``source``; ``params`` the coefficients it will
-    estimate, e.g. ``("c4", "c17")``) — ranked by ``criterion`` (``d``, ``a``, ``e`` or ``time``
-    with ``target_rel_se``) over ``candidates`` profiles of ``duration`` s drawn from ``seed``;
-    the cell with ``set``."""
-    if app not in ("shaft", "friction"):
-        raise Error(f"app '{app}': expected shaft or friction")
+    estimate, e.g. ``("c4", "c17")``); ``torque``: the cyclic-torque fit's UKF on 1° samples
+    (``params`` e.g. ``("M_rec", "b", "L")``, estimated with ``alongside``, default ``("c1",)``,
+    the friction level; ``()`` for none) — ranked by ``criterion`` (``d``, ``a``, ``e`` or
+    ``time`` with ``target_rel_se``) over ``candidates`` profiles of ``duration`` s (120; 5 for
+    ``torque``, the thesis's ramp T2) drawn from ``seed``; the cell with ``set``. The recording's
+    ``sample_rate`` (10 kHz) is the shaft's and the friction fit's."""
+    if app not in ("shaft", "friction", "torque"):
+        raise Error(f"app '{app}': expected shaft, friction or torque")
     if params is None:
         if app == "friction":
             raise Error("app 'friction' needs params: the coefficients the fit will estimate, "
                         "e.g. ('c4', 'c17')")
+        if app == "torque":
+            raise Error("app 'torque' needs params: the parameters the fit will estimate, "
+                        "e.g. ('M_rec', 'b', 'L')")
         params = ("K", "B")
+    if app == "torque":
+        if sample_rate is not None:
+            raise Error("sample_rate: the cyclic-torque fit reads one sample per crank degree")
+        if lam is not None:
+            raise Error("lam: the cyclic-torque filter does not forget")
+        alongside = ("c1",) if alongside is None else tuple(alongside)
+    elif alongside is not None:
+        raise Error("alongside is the cyclic-torque fit's setting")
+    if duration is None:
+        duration = 5.0 if app == "torque" else 120.0
+    if sample_rate is None:
+        sample_rate = 10_000.0
     if isinstance(limits, Mapping):
         items = []
         for k, v in limits.items():
@@ -763,7 +782,8 @@ def design(
                                int(threads), str(method), None if lam is None else float(lam),
                                float(cutoff_hz), float(rate_hz), float(s0), str(source),
                                float(sample_rate),
-                               {str(k): float(v) for k, v in (set or {}).items()})
+                               {str(k): float(v) for k, v in (set or {}).items()},
+                               [str(a) for a in (alongside or ())])
     return DesignResult(_json.loads(s), dict(tracks))
 
 
@@ -802,15 +822,20 @@ def torque_fit(
     p0: float = 0.01,
     r2: float | None = None,
     track: Mapping[str, float] | None = None,
+    estimate: Iterable[str] | None = None,
 ) -> TorqueFitResult:
     """Application 3 (thesis ch. 8): the cyclic engine torque model (Eq. 8.2, 15 parameters:
     M_rec, b, L, r, delta, c1 … c10) on a motored recording — the ranking at ``nominal`` (the
     test cell's engine, overridden by name), the estimable ones (``cutoff``: ``rel:1e-6`` by
-    default, as ``physid torque fit``; ``fixed`` held)
+    default, as ``physid torque fit``; ``fixed`` held; or ``estimate``, the parameters chosen
+    beforehand, e.g. those a test was designed for, the others held at ``nominal``)
     estimated by ``method`` (ekf, ukf, srukf) in scaled coordinates with ``P0 = p0·I``, ``r2``
     (the batch fit's residual variance if ``None``) and random walks ``track``
     (``{name: variance per sample}``) for parameters that change."""
+    if cutoff is not None and estimate is not None:
+        raise Error("give cutoff or estimate, not both")
     s, tracks = _physid.torque_fit(rec, method, dict(nominal or {}), list(fixed), cutoff,
+                                   None if estimate is None else [str(e) for e in estimate],
                                    float(p0), r2, dict(track or {}))
     return TorqueFitResult(_json.loads(s), dict(tracks))
 
