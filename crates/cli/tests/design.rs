@@ -110,6 +110,11 @@ fn design_errors_name_the_problem() {
             "possible values: shaft, friction, torque",
         ),
         (vec!["--app", "torque"], "needs --params"),
+        (vec!["--band", "2:1"], "expected LOW:HIGH in Hz"),
+        (
+            vec!["--limits", "dtorque=0"],
+            "dtorque 0: expected > 0 N·m/s",
+        ),
         (
             vec!["--app", "torque", "--params", "M_rec,X"],
             "parameter 'X': expected one of M_rec",
@@ -286,4 +291,43 @@ fn designed_torque_test_runs_and_fits() {
             "{p}: the filter's σ {filter} against the design's {predicted}"
         );
     }
+}
+
+/// Candidates as the dynamometer's torque demands (`--limits torque=…`): the designed test is a
+/// torque-mode scenario with the engine's speed range, which `simulate` runs (and stops where
+/// the engine would leave it); its multisines within `--band`.
+#[test]
+fn a_torque_demand_test_is_designed_and_runs() {
+    let d = physid_testkit::Scratch::new("design-torque-mode-cli");
+    let out = d.file("tm");
+    let j = ok_json(&[
+        "design",
+        "--params",
+        "K,B",
+        "--limits",
+        "speed=800:1600,torque=-2:3,dtorque=20",
+        "--band",
+        "0.2:5",
+        "--duration",
+        "3",
+        "--candidates",
+        "10",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(j["scenario"]["torque_mode"], true, "{}", j["scenario"]);
+    assert_eq!(
+        j["scenario"]["speed_range"],
+        serde_json::json!([800.0, 1600.0])
+    );
+    let rec = d.file("tm.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        out.join("scenario.toml").to_str().unwrap(),
+        "--recording",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

@@ -20,10 +20,11 @@ use std::collections::BTreeMap;
 /// `candidates` profiles of `duration` s within `limits`
 /// (`speed=LOW:HIGH,throttle=LOW:HIGH,dspeed=RATE`), judged for `params` by `criterion` on a
 /// recording at `sample_rate`, the cell with `set`. Returns the result (JSON text) and arrays:
-/// the chosen profile (`t`, `speed_demand_rpm`, `throttle_deg`, every 50 ms) and its predicted
+/// the chosen profile (`t`, `speed_demand_rpm` — `torque_demand_nm` in torque mode —
+/// `throttle_deg`, every 50 ms; multisines drawn in `band` [Hz]) and its predicted
 /// standard errors (`curve_t` and one per parameter).
 #[pyfunction]
-#[pyo3(signature = (app, params, criterion, target_rel_se, limits, duration, candidates, seed, threads, method, lam, cutoff_hz, rate_hz, s0, source, sample_rate, set, alongside))]
+#[pyo3(signature = (app, params, criterion, target_rel_se, limits, duration, candidates, seed, threads, method, lam, cutoff_hz, rate_hz, s0, source, sample_rate, set, alongside, band))]
 #[allow(clippy::too_many_arguments)]
 pub fn design<'py>(
     py: Python<'py>,
@@ -45,6 +46,7 @@ pub fn design<'py>(
     sample_rate: f64,
     set: BTreeMap<String, f64>,
     alongside: Vec<String>,
+    band: (f64, f64),
 ) -> PyResult<(String, Bound<'py, PyDict>)> {
     let mut cell = physid_sim::params::CellParams::default();
     for (k, v) in &set {
@@ -61,6 +63,7 @@ pub fn design<'py>(
             target_rel_se,
             limits: Limits::parse(limits).map_err(|e| err(format!("limits {e}")))?,
             throttle,
+            band,
             duration,
             candidates,
             seed,
@@ -135,7 +138,12 @@ pub fn design<'py>(
     let t: Vec<f64> = (0..=n).map(|k| k as f64 * 0.05).collect();
     let mut cols = vec![
         (
-            "speed_demand_rpm".to_string(),
+            if r.scenario.torque_mode {
+                "torque_demand_nm"
+            } else {
+                "speed_demand_rpm"
+            }
+            .to_string(),
             t.iter().map(|&x| r.scenario.speed.value(x)).collect(),
         ),
         (

@@ -7,7 +7,8 @@
 //! duration = 20.0          # s, recorded
 //! settle = 1.0             # s, simulated before recording starts
 //! faults = ["shaft.k=1200@5", "shaft.b=1.2@5+2"]
-//! [[speed]]                # rpm (or N·m with torque_mode = true)
+//! [[speed]]                # rpm (or N·m with torque_mode = true, and then
+//!                          # speed_range = [800.0, 1400.0]: start in the middle, stop outside)
 //! t0 = 0.0
 //! t1 = 10.0
 //! kind = "sine"            # constant | ramp | sine | steps | chirp | recorded
@@ -344,6 +345,11 @@ pub struct Scenario {
     /// The drive in torque mode.
     #[serde(default)]
     pub torque_mode: bool,
+    /// Torque mode: the engine's speed range [rpm] — the run starts at its middle and stops
+    /// with an error once the engine leaves it (a cell's speed trips; the torque demand alone
+    /// does not hold a speed). `None`: it starts at 1000 rpm, unguarded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_range: Option<[f64; 2]>,
     /// Parameter settings.
     #[serde(default)]
     pub set: std::collections::BTreeMap<String, f64>,
@@ -392,6 +398,7 @@ pub fn named(name: &str) -> Option<Scenario> {
         speed,
         throttle,
         torque_mode: false,
+        speed_range: None,
         set: Default::default(),
         faults: Vec::new(),
     };
@@ -569,6 +576,13 @@ impl Scenario {
                         s.t0, s.t1
                     )));
                 }
+            }
+        }
+        if let Some([lo, hi]) = self.speed_range {
+            if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo < hi) {
+                return Err(SimError::Invalid(format!(
+                    "speed_range [{lo}, {hi}] rpm: expected 0 < low < high"
+                )));
             }
         }
         let mut p = CellParams::default();

@@ -308,3 +308,39 @@ fn sensor_faults_change_the_readings_from_their_time() {
         "{lost} of {since}"
     );
 }
+
+/// A torque demand holds no speed: a torque-mode scenario's `speed_range` starts the engine in
+/// its middle and stops the run, with the time and the speed, once the engine leaves it (a
+/// cell's speed trips); a bad range is refused.
+#[test]
+fn torque_mode_keeps_to_its_speed_range() {
+    let text = |torque: f64, range: &str| {
+        format!(
+            "name = \"tq\"\nduration = 4.0\nsettle = 0.0\ntorque_mode = true\nspeed_range = {range}\n[[speed]]\nt0 = 0.0\nt1 = 4.0\nkind = \"constant\"\nvalue = {torque}\n[[throttle]]\nt0 = 0.0\nt1 = 4.0\nkind = \"constant\"\nvalue = 90.0\n"
+        )
+    };
+    let opts = RunOptions {
+        basis: OutputBasis::Time(1000.0),
+        ..Default::default()
+    };
+    // 1 N·m against the motored engine's drag: the speed stays near its start, 1200 rpm.
+    let s: Scenario = toml::from_str(&text(1.0, "[800.0, 1600.0]")).unwrap();
+    s.validate().unwrap();
+    let rec = simulate(&s, &opts, |_| {}).unwrap();
+    let w = rec.values("omega_en").unwrap();
+    let rpm = |v: f64| v * 30.0 / PI;
+    assert!((rpm(w[0]) - 1200.0).abs() < 30.0, "{}", rpm(w[0]));
+    assert!(w.iter().all(|&v| (800.0..=1600.0).contains(&rpm(v))));
+    // Braking at 5 N·m: the engine leaves 800 rpm and the run says when.
+    let s: Scenario = toml::from_str(&text(-5.0, "[800.0, 1600.0]")).unwrap();
+    let e = simulate(&s, &opts, |_| {}).unwrap_err().to_string();
+    assert!(
+        e.contains("left the scenario's speed range 800–1600 rpm at t = "),
+        "{e}"
+    );
+    for bad in ["[1600.0, 800.0]", "[0.0, 800.0]"] {
+        let s: Scenario = toml::from_str(&text(1.0, bad)).unwrap();
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("expected 0 < low < high"), "{bad}: {e}");
+    }
+}

@@ -59,6 +59,9 @@ pub struct Design {
     pub limits: Limits,
     /// How the candidates' throttle is drawn (the application's).
     pub throttle: ThrottleDraw,
+    /// The band a multisine candidate's frequencies are drawn in [Hz]
+    /// ([`profile::MULTISINE_BAND`] by default).
+    pub band: (f64, f64),
     /// Each candidate's duration [s].
     pub duration: f64,
     /// How many candidates.
@@ -221,6 +224,12 @@ impl Design {
             return Err(AppError::Invalid(format!(
                 "design: duration {} s: expected ≥ 1 s",
                 self.duration
+            )));
+        }
+        let (lo, hi) = self.band;
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) {
+            return Err(AppError::Invalid(format!(
+                "design: multisine band {lo}:{hi} Hz: expected 0 < low ≤ high"
             )));
         }
         if self.candidates == 0 {
@@ -464,6 +473,7 @@ impl Design {
                     self.duration,
                     &format!("design-{}-{k}", fam.name()),
                     self.throttle,
+                    self.band,
                 )
             })
             .collect()

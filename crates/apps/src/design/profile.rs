@@ -1,6 +1,7 @@
-//! The profiles a design chooses among: families of speed-demand and throttle profiles within
-//! the cell's limits (ranges, the speed's rate, the test's duration), drawn at random from a
-//! seed, each a [`Scenario`] the cell runs (`physid simulate --scenario FILE`).
+//! The profiles a design chooses among: families of speed-demand — or, with torque limits,
+//! the dynamometer's torque-demand — and throttle profiles within the cell's limits (ranges,
+//! the demand's rate, the test's duration), drawn at random from a seed, each a [`Scenario`]
+//! the cell runs (`physid simulate --scenario FILE`).
 
 use physid_sim::scenario::{Profile, Scenario, Segment, Shape};
 use rand::Rng;
@@ -16,21 +17,29 @@ pub struct Limits {
     pub throttle: (f64, f64),
     /// The speed demand's largest rate [rpm/s].
     pub dspeed: f64,
+    /// The dynamometer's torque-demand range [N·m]: given, the candidates drive the cell in
+    /// torque mode, the speed range then the one the engine must stay in.
+    pub torque: Option<(f64, f64)>,
+    /// The torque demand's largest rate [N·m/s].
+    pub dtorque: f64,
 }
 
 impl Default for Limits {
-    /// 800–3000 rpm, throttle 0–90°, 500 rpm/s.
+    /// 800–3000 rpm, throttle 0–90°, 500 rpm/s; speed demand (no torque range), 50 N·m/s.
     fn default() -> Self {
         Self {
             speed: (800.0, 3000.0),
             throttle: (0.0, 90.0),
             dspeed: 500.0,
+            torque: None,
+            dtorque: 50.0,
         }
     }
 }
 
 impl Limits {
-    /// Parse `speed=LO:HI,throttle=LO:HI,dspeed=RATE` (any of them; the rest default).
+    /// Parse `speed=LO:HI,throttle=LO:HI,dspeed=RATE,torque=LO:HI,dtorque=RATE` (any of them;
+    /// the rest default; a torque range makes the candidates torque demands).
     pub fn parse(s: &str) -> Result<Self, String> {
         let mut l = Self::default();
         for item in s.split(',').map(str::trim).filter(|x| !x.is_empty()) {
@@ -58,9 +67,11 @@ impl Limits {
                 "speed" => l.speed = range(v)?,
                 "throttle" => l.throttle = range(v)?,
                 "dspeed" => l.dspeed = num(v)?,
+                "torque" => l.torque = Some(range(v)?),
+                "dtorque" => l.dtorque = num(v)?,
                 other => {
                     return Err(format!(
-                        "limit '{other}': expected speed (rpm), throttle (deg) or dspeed (rpm/s)"
+                        "limit '{other}': expected speed (rpm), throttle (deg), dspeed (rpm/s), torque (N·m) or dtorque (N·m/s)"
                     ))
                 }
             }
@@ -92,28 +103,56 @@ impl Limits {
         if self.dspeed.is_nan() || self.dspeed <= 0.0 {
             return Err(format!("dspeed {}: expected > 0 rpm/s", self.dspeed));
         }
+        if self.dtorque.is_nan() || self.dtorque <= 0.0 {
+            return Err(format!("dtorque {}: expected > 0 N·m/s", self.dtorque));
+        }
+        if self.torque.is_some() && self.speed.0 >= self.speed.1 {
+            return Err(format!(
+                "speed limits {}:{} rpm with a torque demand: the engine's speed range must be wider than a point",
+                self.speed.0, self.speed.1
+            ));
+        }
         Ok(())
     }
 
-    /// Whether a scenario keeps to the limits (its profiles sampled every 10 ms, the rate
-    /// over each 10 ms with 1 % allowance).
-    pub fn admit(&self, s: &Scenario) -> bool {
-        if s.torque_mode {
-            return false;
+    /// The demand the candidates draw: its range and largest rate (speed [rpm], or torque
+    /// [N·m] with a torque range).
+    pub fn demand(&self) -> ((f64, f64), f64) {
+        match self.torque {
+            Some(t) => (t, self.dtorque),
+            None => (self.speed, self.dspeed),
         }
+    }
+
+    /// Whether a scenario keeps to the limits (its profiles sampled every 10 ms, the rate
+    /// over each 10 ms with 1 % allowance). A speed demand keeps to the speed's; a torque
+    /// demand to the torque's, its speed range within the speed's (the run keeps the engine
+    /// in that range or stops).
+    pub fn admit(&self, s: &Scenario) -> bool {
+        let ((lo, hi), rate) = if s.torque_mode {
+            let (Some(t), Some([a, b])) = (self.torque, s.speed_range) else {
+                return false;
+            };
+            if a < self.speed.0 || b > self.speed.1 {
+                return false;
+            }
+            (t, self.dtorque)
+        } else {
+            (self.speed, self.dspeed)
+        };
         let n = (s.duration / 0.01).ceil() as usize;
         let mut last = s.speed.value(0.0);
+        let tol = 1e-9 * lo.abs().max(hi.abs()).max(1.0);
         for k in 0..=n {
             let t = k as f64 * 0.01;
             let (v, th) = (s.speed.value(t), s.throttle.value(t));
-            let tol = 1e-9 * self.speed.1;
-            if v < self.speed.0 - tol || v > self.speed.1 + tol {
+            if v < lo - tol || v > hi + tol {
                 return false;
             }
             if th < self.throttle.0 - 1e-9 || th > self.throttle.1 + 1e-9 {
                 return false;
             }
-            if k > 0 && (v - last).abs() > self.dspeed * 0.01 * 1.01 + tol {
+            if k > 0 && (v - last).abs() > rate * 0.01 * 1.01 + tol {
                 return false;
             }
             last = v;
@@ -134,7 +173,7 @@ pub enum Family {
     Ramps,
     /// An amplitude-modulated pseudo-random sequence: levels held 0.2–2 s.
     Aprbs,
-    /// A sum of sines of the speed demand in a band, at the rate limit.
+    /// A sum of sines of the demand in a band, at the rate limit.
     Multisine,
 }
 
@@ -266,7 +305,11 @@ fn throttle<R: Rng>(rng: &mut R, l: &Limits, duration: f64, how: ThrottleDraw) -
     }
 }
 
-/// A candidate of `family` drawn within `l`, `duration` seconds long, named `name`.
+/// The band a multisine's frequencies are drawn in by default [Hz].
+pub const MULTISINE_BAND: (f64, f64) = (0.05, 2.0);
+
+/// A candidate of `family` drawn within `l`, `duration` seconds long, named `name`; a
+/// multisine's frequencies within `band` [Hz].
 pub fn draw<R: Rng>(
     rng: &mut R,
     family: Family,
@@ -274,8 +317,9 @@ pub fn draw<R: Rng>(
     duration: f64,
     name: &str,
     how: ThrottleDraw,
+    band: (f64, f64),
 ) -> Scenario {
-    let (lo, hi) = l.speed;
+    let ((lo, hi), rate_limit) = l.demand();
     let level = |rng: &mut R| {
         if hi > lo {
             rng.random_range(lo..=hi)
@@ -289,11 +333,11 @@ pub fn draw<R: Rng>(
             let n = rng.random_range(2..=8);
             let hold = duration / n as f64;
             let levels: Vec<(f64, f64)> = (0..n).map(|_| (level(rng), hold)).collect();
-            held_levels(&levels, l.dspeed, duration)
+            held_levels(&levels, rate_limit, duration)
         }
         Family::Ramps => {
             let (a, b) = (level(rng), level(rng));
-            let rate = rng.random_range(0.2..=1.0) * l.dspeed;
+            let rate = rng.random_range(0.2..=1.0) * rate_limit;
             let leg = ((a - b).abs() / rate).max(0.5);
             let mut p = Profile::default();
             let mut t = 0.0;
@@ -321,18 +365,22 @@ pub fn draw<R: Rng>(
                 levels.push((level(rng), hold));
                 t += hold;
             }
-            held_levels(&levels, l.dspeed, duration)
+            held_levels(&levels, rate_limit, duration)
         }
-        Family::Multisine => multisine(rng, l, duration),
+        Family::Multisine => multisine(rng, (lo, hi), rate_limit, duration, band),
+    };
+    let demand = match l.torque {
+        Some(_) => format!(
+            "torque-demand profile within {lo}–{hi} N·m, ≤ {rate_limit} N·m/s, the engine within {}–{} rpm",
+            l.speed.0, l.speed.1
+        ),
+        None => format!("speed profile within {lo}–{hi} rpm, ≤ {rate_limit} rpm/s"),
     };
     Scenario {
         name: name.into(),
         description: format!(
-            "designed by physid design: {} speed profile within {}–{} rpm, ≤ {} rpm/s; throttle within {}–{}°",
+            "designed by physid design: {} {demand}; throttle within {}–{}°",
             family.name(),
-            lo,
-            hi,
-            l.dspeed,
             l.throttle.0,
             l.throttle.1
         ),
@@ -340,22 +388,31 @@ pub fn draw<R: Rng>(
         settle: 1.0,
         speed,
         throttle: throttle(rng, l, duration, how),
-        torque_mode: false,
+        torque_mode: l.torque.is_some(),
+        speed_range: l.torque.map(|_| [l.speed.0, l.speed.1]),
         set: Default::default(),
         faults: Vec::new(),
     }
 }
 
-/// `mean + Σ a·sin(2π·f_k·t + φ_k)`: 3–8 sines of random frequencies in 0.05–2 Hz and random
-/// phases, scaled to the speed range and the rate limit; as points every 20 ms.
-fn multisine<R: Rng>(rng: &mut R, l: &Limits, duration: f64) -> Profile {
-    let (lo, hi) = l.speed;
+/// `mean + Σ a·sin(2π·f_k·t + φ_k)`: 3–8 sines of random frequencies in `band` [Hz] and
+/// random phases, scaled to the demand's range `(lo, hi)` and the rate limit `rate`; as points
+/// every 20 ms (a band reaching 25 Hz, half their rate, is cut there).
+fn multisine<R: Rng>(
+    rng: &mut R,
+    (lo, hi): (f64, f64),
+    rate: f64,
+    duration: f64,
+    band: (f64, f64),
+) -> Profile {
     let mean = 0.5 * (lo + hi);
     let n = rng.random_range(3..=8);
+    let top = band.1.min(25.0);
+    let bottom = band.0.min(top);
     let sines: Vec<(f64, f64)> = (0..n)
         .map(|_| {
             (
-                rng.random_range(0.05..=2.0),
+                rng.random_range(bottom..=top),
                 rng.random_range(0.0..2.0 * PI),
             )
         })
@@ -376,7 +433,7 @@ fn multisine<R: Rng>(rng: &mut R, l: &Limits, duration: f64) -> Profile {
     // The largest rate of the unit sum: Σ 2π·f_k bounds it.
     let max_rate: f64 = sines.iter().map(|&(f, _)| 2.0 * PI * f).sum();
     let amp = (0.5 * (hi - lo) / peak)
-        .min(l.dspeed * 0.99 / max_rate.max(1e-12))
+        .min(rate * 0.99 / max_rate.max(1e-12))
         .max(0.0);
     let v: Vec<f64> = raw.iter().map(|x| (mean + amp * x).clamp(lo, hi)).collect();
     Profile {
@@ -407,12 +464,46 @@ mod tests {
         for fam in FAMILIES {
             for k in 0..40 {
                 let how = [ThrottleDraw::Linear, ThrottleDraw::Pressure][k % 2];
-                let s = draw(&mut rng, fam, &l, 30.0, &format!("c{k}"), how);
+                let s = draw(
+                    &mut rng,
+                    fam,
+                    &l,
+                    30.0,
+                    &format!("c{k}"),
+                    how,
+                    MULTISINE_BAND,
+                );
                 assert!(l.admit(&s), "{fam:?} {k}: {s:?}");
                 s.validate().unwrap();
                 let text = toml::to_string(&s).unwrap();
                 let back: Scenario = toml::from_str(&text).unwrap();
                 assert_eq!(back, s);
+            }
+        }
+        // With a torque range: torque demands within it, the engine's speed range the limits'.
+        let l = Limits::parse("speed=800:1600,torque=-2:3,dtorque=20").unwrap();
+        for fam in FAMILIES {
+            for k in 0..20 {
+                let s = draw(
+                    &mut rng,
+                    fam,
+                    &l,
+                    10.0,
+                    &format!("t{k}"),
+                    ThrottleDraw::Linear,
+                    (0.1, 5.0),
+                );
+                assert!(
+                    s.torque_mode && s.speed_range == Some([800.0, 1600.0]),
+                    "{s:?}"
+                );
+                assert!(l.admit(&s), "{fam:?} {k}: {s:?}");
+                s.validate().unwrap();
+                let back: Scenario = toml::from_str(&toml::to_string(&s).unwrap()).unwrap();
+                assert_eq!(back, s);
+                // A speed limit's test judged against these limits is not admitted, nor this
+                // one against speed limits only.
+                assert!(!Limits::default().admit(&s));
             }
         }
         // A thesis test outside these limits is seen to be.
@@ -429,7 +520,9 @@ mod tests {
             ("speed=100:800", "≥ 300"),
             ("throttle=0:120", "0–90"),
             ("dspeed=0", "> 0"),
-            ("torque=1:2", "expected speed"),
+            ("force=1:2", "expected speed"),
+            ("dtorque=0", "> 0 N·m/s"),
+            ("speed=900:900,torque=0:2", "wider than a point"),
             ("speed", "NAME=VALUE"),
             ("speed=a:9", "not a number"),
         ] {

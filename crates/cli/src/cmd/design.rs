@@ -54,13 +54,18 @@ pub struct Args {
     target_rel_se: Option<f64>,
     /// The cell's limits, comma-separated or repeated: speed=LOW:HIGH [rpm],
     /// throttle=LOW:HIGH [deg], dspeed=RATE (the speed demand's largest rate) [rpm/s]
-    /// [default: speed=800:3000,throttle=0:90,dspeed=500].
+    /// [default: speed=800:3000,throttle=0:90,dspeed=500]; torque=LOW:HIGH [N·m] makes the
+    /// candidates the dynamometer's torque demands (torque mode; the engine must then stay in
+    /// the speed range, the run stops where it leaves it), dtorque=RATE [N·m/s] (default 50).
     #[arg(long, value_name = "NAME=LOW:HIGH", value_delimiter = ',')]
     limits: Vec<String>,
     /// Each candidate test's duration [s] [default: 120 for the shaft monitor and the friction
     /// fit, 5 (the thesis's ramp T2) for the cyclic torque].
     #[arg(long, visible_alias = "max-duration", value_name = "S", value_parser = super::range::positive)]
     duration: Option<f64>,
+    /// The band a multisine candidate's frequencies are drawn in, LOW:HIGH [Hz].
+    #[arg(long, value_name = "LOW:HIGH", value_parser = band, default_value = "0.05:2")]
+    band: (f64, f64),
     /// How many candidate profiles (drawn from the families steps, ramps, APRBS, multisine
     /// and constant in turn).
     #[arg(long, value_name = "N", default_value_t = 200)]
@@ -152,6 +157,20 @@ fn refuse(app: &str, given: bool, flag: &str, of: &str) -> Result<()> {
     Ok(())
 }
 
+/// `LOW:HIGH` in Hz, 0 < LOW ≤ HIGH.
+fn band(s: &str) -> std::result::Result<(f64, f64), String> {
+    let bad = || format!("'{s}': expected LOW:HIGH in Hz, 0 < LOW ≤ HIGH, e.g. 0.05:2");
+    let (a, b) = s.split_once(':').ok_or_else(bad)?;
+    let (a, b): (f64, f64) = (
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    );
+    if !(a.is_finite() && b.is_finite() && 0.0 < a && a <= b) {
+        return Err(bad());
+    }
+    Ok((a, b))
+}
+
 /// The candidates' duration [s]: the application's default unless given.
 fn duration(a: &Args) -> f64 {
     a.duration
@@ -174,6 +193,7 @@ fn design(
         target_rel_se: a.target_rel_se,
         limits,
         throttle,
+        band: a.band,
         duration: duration(a),
         candidates: a.candidates,
         seed: a.seed,
@@ -484,7 +504,11 @@ fn report_body(rep: &mut Report, r: &Designed, dir: &std::path::Path, method: &s
         .collect();
     let mut panels = vec![
         Panel {
-            ylabel: "speed demand [rpm]".into(),
+            ylabel: if r.scenario.torque_mode {
+                "torque demand [N·m]".into()
+            } else {
+                "speed demand [rpm]".into()
+            },
             series: vec![Series {
                 name: "designed".into(),
                 x: &t,

@@ -706,9 +706,9 @@ class DesignResult(Result):
     a scenario file holds it; ``scenario_toml``, the file's text, which :func:`simulate`
     and ``physid simulate --scenario`` run), ``predicted_std_err`` (``{"K": σ, …}`` at the test's end),
     ``chosen`` (its evaluation: ``median_rel_std_err``, ``time_to_target_s``, …),
-    ``baselines`` (the thesis's T01 and T02 judged alike), ``ranking``, ``failed``,
-    ``unidentifiable``, ``collinear``; ``tracks``: the profile ``t``, ``speed_demand_rpm``,
-    ``throttle_deg`` and the predicted standard errors ``curve_t`` and one array per
+    ``baselines`` (the application's thesis tests judged alike), ``ranking``, ``failed``,
+    ``unidentifiable``, ``collinear``; ``tracks``: the profile ``t``, ``speed_demand_rpm``
+    (``torque_demand_nm`` in torque mode), ``throttle_deg`` and the predicted standard errors ``curve_t`` and one array per
     parameter."""
 
 
@@ -731,6 +731,7 @@ def design(
     sample_rate: float | None = None,
     set: Mapping[str, float] | None = None,
     alongside: Iterable[str] | None = None,
+    band: tuple[float, float] = (0.05, 2.0),
 ) -> DesignResult:
     """Experiment design (``physid design``, docs/design.md): which profile of the cell's speed
     demand and throttle, within ``limits`` (``"speed=800:3000,throttle=0:60,dspeed=500"`` or
@@ -744,7 +745,9 @@ def design(
     the friction level; ``()`` for none) — ranked by ``criterion`` (``d``, ``a``, ``e`` or
     ``time`` with ``target_rel_se``) over ``candidates`` profiles of ``duration`` s (120; 5 for
     ``torque``, the thesis's ramp T2) drawn from ``seed``; the cell with ``set``. The recording's
-    ``sample_rate`` (10 kHz) is the shaft's and the friction fit's."""
+    ``sample_rate`` (10 kHz) is the shaft's and the friction fit's. With ``"torque": (lo, hi)``
+    [N·m] in ``limits`` the candidates are the dynamometer's torque demands (torque mode, the
+    engine kept within the speed range); multisines are drawn in ``band`` [Hz]."""
     if app not in ("shaft", "friction", "torque"):
         raise Error(f"app '{app}': expected shaft, friction or torque")
     if params is None:
@@ -783,7 +786,8 @@ def design(
                                float(cutoff_hz), float(rate_hz), float(s0), str(source),
                                float(sample_rate),
                                {str(k): float(v) for k, v in (set or {}).items()},
-                               [str(a) for a in (alongside or ())])
+                               [str(a) for a in (alongside or ())],
+                               _pair(band, 2, "band"))
     return DesignResult(_json.loads(s), dict(tracks))
 
 

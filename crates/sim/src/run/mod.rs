@@ -192,7 +192,11 @@ impl Run {
             )));
         }
         let w0 = if torque_mode {
-            1000.0 * PI / 30.0
+            scenario
+                .speed_range
+                .map_or(1000.0, |[lo, hi]| 0.5 * (lo + hi))
+                * PI
+                / 30.0
         } else {
             scenario.speed.value(0.0) * PI / 30.0
         };
@@ -336,6 +340,17 @@ impl Run {
         let t_before = cell.time();
         let mut s = cell.step_with(&inputs, w_meas);
         check(&s, self.base.engine.active != 0.0)?;
+        if self.torque_mode {
+            if let Some([lo, hi]) = self.scenario.speed_range {
+                let rpm = s.omega_en * 30.0 / PI;
+                if !(lo..=hi).contains(&rpm) {
+                    return Err(SimError::Invalid(format!(
+                        "the engine left the scenario's speed range {lo}–{hi} rpm at t = {:.2} s ({rpm:.0} rpm): its torque demand does not keep it there",
+                        s.t - settle
+                    )));
+                }
+            }
+        }
         let dt = cell.time() - t_before;
         self.average_torque(s.torque_dy, dt, s.theta_en);
         let cell = &mut self.cell;
