@@ -481,13 +481,13 @@ mod tests {
             }
         }
         // With a torque range: torque demands within it, the engine's speed range the limits'.
-        let l = Limits::parse("speed=800:1600,torque=-2:3,dtorque=20").unwrap();
+        let lt = Limits::parse("speed=800:1600,torque=-2:3,dtorque=20").unwrap();
         for fam in FAMILIES {
             for k in 0..20 {
                 let s = draw(
                     &mut rng,
                     fam,
-                    &l,
+                    &lt,
                     10.0,
                     &format!("t{k}"),
                     ThrottleDraw::Linear,
@@ -497,12 +497,11 @@ mod tests {
                     s.torque_mode && s.speed_range == Some([800.0, 1600.0]),
                     "{s:?}"
                 );
-                assert!(l.admit(&s), "{fam:?} {k}: {s:?}");
+                assert!(lt.admit(&s), "{fam:?} {k}: {s:?}");
                 s.validate().unwrap();
                 let back: Scenario = toml::from_str(&toml::to_string(&s).unwrap()).unwrap();
                 assert_eq!(back, s);
-                // A speed limit's test judged against these limits is not admitted, nor this
-                // one against speed limits only.
+                // Against speed limits only (no torque range) a torque demand is not admitted.
                 assert!(!Limits::default().admit(&s));
             }
         }
