@@ -274,3 +274,21 @@ def test_design_for_the_cyclic_torque_fit_runs_and_is_fitted(tmp_path):
         physid.design(app="torque")
     with pytest.raises(physid.Error, match="does not forget"):
         physid.design(app="torque", params=("M_rec",), lam=0.99)
+
+
+def test_design_with_torque_demands_and_a_band(tmp_path):
+    """A torque range in the limits: the candidates are the dynamometer's torque demands (the
+    profile as ``torque_demand_nm``), the designed scenario keeps the engine's speed range and
+    runs on the cell; a bad band is refused."""
+    r = physid.design(params=["K", "B"], limits={"speed": (800, 1600), "torque": (-2, 3)},
+                      duration=3.0, candidates=5, band=(0.2, 5.0))
+    assert r.scenario["torque_mode"] is True
+    assert r.scenario["speed_range"] == [800.0, 1600.0]
+    q = r.tracks["torque_demand_nm"]
+    assert -2.0 <= q.min() and q.max() <= 3.0
+    path = tmp_path / "tm.toml"
+    path.write_text(r.scenario_toml)
+    rec = physid.simulate(str(path))
+    assert len(rec) > 0
+    with pytest.raises(physid.Error, match="band"):
+        physid.design(params=["K", "B"], duration=2.0, candidates=2, band=(2.0, 1.0))
