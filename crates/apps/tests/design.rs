@@ -289,30 +289,14 @@ fn friction_estimates(
     let mut cfg = fd.fit.clone();
     cfg.estimate = Some(names.to_vec());
     let one = |seed: Option<u64>| {
-        let mut params = fd.cell.clone();
-        match seed {
-            Some(s) => params.set("sensors.seed", s as f64 + 1.0).unwrap(),
-            None => {
-                for p in [
-                    "sensors.torque_engine.noise",
-                    "sensors.p_manifold.noise",
-                    "sensors.temperature.noise",
-                    "sensors.speed.noise",
-                ] {
-                    params.set(p, 0.0).unwrap();
-                }
-            }
-        }
-        let rec = simulate(
+        let quiet = ["sensors.torque_engine.noise", "sensors.p_manifold.noise"];
+        let rec = seeded(
+            &fd.cell,
+            seed,
+            &quiet,
             scenario,
-            &RunOptions {
-                params,
-                basis: OutputBasis::Time(fd.rate_hz),
-                ..RunOptions::default()
-            },
-            |_| {},
-        )
-        .unwrap();
+            OutputBasis::Time(fd.rate_hz),
+        );
         let fit = friction_fit(&rec, &cfg).unwrap();
         at.iter()
             .map(|&t| {
@@ -322,6 +306,35 @@ fn friction_estimates(
             .collect::<Vec<_>>()
     };
     per_seed(seeds, one)
+}
+
+/// `scenario` recorded on `cell` with the sensors' noise of seed `seed`, or — `None` — without
+/// the noise of `quiet`, the temperature's and the speed's.
+fn seeded(
+    cell: &CellParams,
+    seed: Option<u64>,
+    quiet: &[&str],
+    scenario: &Scenario,
+    basis: OutputBasis,
+) -> physid_core::Recording {
+    let mut params = cell.clone();
+    match seed {
+        Some(s) => params.set("sensors.seed", s as f64 + 1.0).unwrap(),
+        None => {
+            for p in quiet
+                .iter()
+                .chain(&["sensors.temperature.noise", "sensors.speed.noise"])
+            {
+                params.set(p, 0.0).unwrap();
+            }
+        }
+    }
+    let opts = RunOptions {
+        params,
+        basis,
+        ..RunOptions::default()
+    };
+    simulate(scenario, &opts, |_| {}).unwrap()
 }
 
 /// `one` for each of `seeds` on two threads, in order.
@@ -505,30 +518,14 @@ fn torque_estimates(
     let mut cfg = td.fit.clone();
     cfg.estimate = Some(names.to_vec());
     let one = |seed: Option<u64>| {
-        let mut params = td.cell.clone();
-        match seed {
-            Some(s) => params.set("sensors.seed", s as f64 + 1.0).unwrap(),
-            None => {
-                for p in [
-                    "sensors.torque_engine.noise",
-                    "sensors.p_cyl.noise",
-                    "sensors.temperature.noise",
-                    "sensors.speed.noise",
-                ] {
-                    params.set(p, 0.0).unwrap();
-                }
-            }
-        }
-        let rec = simulate(
+        let quiet = ["sensors.torque_engine.noise", "sensors.p_cyl.noise"];
+        let rec = seeded(
+            &td.cell,
+            seed,
+            &quiet,
             scenario,
-            &RunOptions {
-                params,
-                basis: OutputBasis::Crank(td.step_deg),
-                ..RunOptions::default()
-            },
-            |_| {},
-        )
-        .unwrap();
+            OutputBasis::Crank(td.step_deg),
+        );
         let fit = torque_fit(&rec, &cfg).unwrap();
         at.iter()
             .map(|&t| {
