@@ -216,9 +216,12 @@ impl Profile {
         }
     }
 
-    /// The value at time t (holding the nearest end outside the segments).
+    /// The value at time t (holding the nearest end outside the segments). The segments are in
+    /// time order ([`Scenario::validate`] checks a scenario's): the one containing `t` is found
+    /// by bisection, so that a staircase of many segments costs no more per step than one.
     pub fn value(&self, t: f64) -> f64 {
-        match self.segments.iter().find(|s| t >= s.t0 && t <= s.t1) {
+        let j = self.segments.partition_point(|s| s.t1 < t);
+        match self.segments.get(j).filter(|s| t >= s.t0) {
             Some(s) => s.value(t),
             None => match self.segments.first() {
                 Some(first) if t < first.t0 => first.value(first.t0),
@@ -560,6 +563,14 @@ impl Scenario {
                 return Err(SimError::Invalid(format!(
                     "the {what} profile has no segments"
                 )));
+            }
+            for (s, next) in p.segments.iter().zip(&p.segments[1..]) {
+                if next.t0 < s.t1 {
+                    return Err(SimError::Invalid(format!(
+                        "{what} segment {}–{} s starts before the previous one ({}–{} s) ends: expected the segments in time order, not overlapping",
+                        next.t0, next.t1, s.t0, s.t1
+                    )));
+                }
             }
             for s in &p.segments {
                 if let Shape::Recorded { t, v, .. } = &s.shape {

@@ -5,7 +5,7 @@
 use physid_core::standard_unit;
 use physid_sim::params::CellParams;
 use physid_sim::run::{parameter_truth, simulate, OutputBasis, RunOptions};
-use physid_sim::scenario::{named, Fault, Profile, Scenario, Shape, NAMED};
+use physid_sim::scenario::{named, Fault, Profile, Scenario, Segment, Shape, NAMED};
 use std::f64::consts::PI;
 
 #[test]
@@ -64,6 +64,40 @@ fn profile_shapes_in_closed_form() {
     assert!((p.value(7.25) - want).abs() < 1e-12);
     assert_eq!(p.value(-1.0), 1.0);
     assert!((p.value(100.0) - p.value(9.0)).abs() < 1e-12);
+}
+
+/// A staircase of many segments (as a designed test has) with gaps between them: inside a
+/// segment its own value, at a shared end the earlier segment's, in a gap the last end's held,
+/// before the first its start — segment `k` spans `[2k, 2k + 1.5]` s at value `k`.
+#[test]
+fn many_segments_with_gaps() {
+    let p = Profile {
+        segments: (0..500)
+            .map(|k| Segment {
+                t0: 2.0 * k as f64,
+                t1: 2.0 * k as f64 + 1.5,
+                shape: Shape::Constant { value: k as f64 },
+            })
+            .collect(),
+    };
+    for i in 0..4000 {
+        let t = -1.0 + 0.25 * i as f64;
+        let k = (t / 2.0).floor().clamp(0.0, 499.0);
+        // Within [2k, 2k + 1.5]: k; in the gap after it (and past the end): k held.
+        assert_eq!(p.value(t), k, "t = {t}");
+    }
+    // Adjacent segments share their end: the earlier one's value there.
+    let q = Profile::constant(1.0, 1.0).then(1.0, Shape::Constant { value: 2.0 });
+    assert_eq!((q.value(1.0), q.value(1.0 + 1e-9)), (1.0, 2.0));
+    // Overlapping segments are refused by name.
+    let mut s = named("shaft-steady").unwrap();
+    s.speed = Profile::constant(900.0, 2.0).then(1.0, Shape::Constant { value: 1000.0 });
+    s.speed.segments[1].t0 = 1.5;
+    let e = s.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("speed segment 1.5–3 s starts before the previous one (0–2 s) ends"),
+        "{e}"
+    );
 }
 
 #[test]
