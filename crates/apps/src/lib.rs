@@ -37,6 +37,8 @@
 //!   pegging, CoV of IMEP (`physid cycles`).
 //! * [`stage`] — the one shape of the data path's stages ([`stage::Stage`], [`stage::Sink`]).
 //! * [`shaft_monitor`] — Application 1: coupling-shaft health monitoring (ch. 6).
+//! * [`twin`] — the self-calibrated test cell: the virtual cell calibrated from a recording and
+//!   checked against it (thesis §9.2).
 //! * [`time_order`] — whether a recording's time only goes forward, as its chunks come.
 //! * [`torque_fit`] — Application 3: identifiability and EKF/UKF estimation of the cyclic
 //!   engine torque model (ch. 8).
@@ -68,6 +70,7 @@ pub mod shaft_monitor;
 pub mod stage;
 pub mod time_order;
 pub mod torque_fit;
+pub mod twin;
 pub mod wall_heat;
 
 /// Drop every other element of a track (the first kept): what a track bounded in length does

@@ -107,6 +107,12 @@ enum Command {
     /// Example: physid design --app shaft --params K,B --limits
     /// speed=800:3000,throttle=0:60,dspeed=500 --duration 120 --out shaft-test.toml
     Design(cmd::design::Args),
+    /// The self-calibrated test cell (thesis §9.2): which of the virtual cell's physical
+    /// parameters a recording resolves, their values and intervals, and the calibrated cell
+    /// checked against a recording channel by channel (docs/twin.md).
+    ///
+    /// Example: physid twin calibrate --data run.parquet --out cell.toml
+    Twin(cmd::twin::Args),
     /// Application 1: coupling-shaft health monitoring (thesis ch. 6).
     ///
     /// Example: physid monitor shaft --data t01.parquet --out shaft-report
@@ -162,6 +168,7 @@ fn main() -> miette::Result<()> {
         Command::Live(a) => cmd::live::run(&a),
         Command::Worker(a) => cmd::worker::run(&a),
         Command::Design(a) => cmd::design::run(&a),
+        Command::Twin(a) => cmd::twin::run(&a),
         Command::Monitor(a) => cmd::monitor::run(&a),
         Command::Run(a) => cmd::run::run(&a),
         Command::Convert(a) => cmd::convert::run(&a),

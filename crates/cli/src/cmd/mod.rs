@@ -24,6 +24,7 @@ pub mod recover;
 pub mod run;
 pub mod simulate;
 pub mod torque;
+pub mod twin;
 pub mod worker;
 
 use miette::{miette, IntoDiagnostic, Result};

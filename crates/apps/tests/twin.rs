@@ -1,0 +1,316 @@
+//! The self-calibrated test cell (issue 44): recordings from a perturbed virtual cell, the
+//! truth hidden from the calibration, which starts from the nominal cell.
+// Test helpers panic on failure by design.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use physid_apps::twin::{calibrate, check, CalibrateConfig, Replay};
+use physid_sim::params::CellParams;
+use physid_sim::run::{simulate, OutputBasis, RunOptions};
+use physid_sim::scenario::{Profile, Scenario, Shape};
+
+/// The perturbed cell (the issue's list, on this engine): friction ×1.15, K −10 %, the
+/// engine's inertia +5 %, compression ratio 9.0 instead of 9.5, manifold volume +20 %.
+const TRUTH: &[(&str, f64)] = &[
+    ("engine.friction_scale", 1.15),
+    ("shaft.k", 1125.0),
+    ("engine.inertia", 0.03675),
+    ("engine.kappa", 9.0),
+    ("engine.v_int", 0.00054),
+];
+
+/// Speed ramps 900 → 1400 → 1100 rpm and a throttle closing and opening again, `duration`
+/// seconds.
+fn excited(duration: f64) -> Scenario {
+    let d = duration / 4.0;
+    Scenario {
+        name: "twin-test".into(),
+        description: String::new(),
+        duration,
+        settle: 1.0,
+        speed: Profile::constant(900.0, d)
+            .then(
+                d,
+                Shape::Ramp {
+                    v0: 900.0,
+                    v1: 1400.0,
+                },
+            )
+            .then(
+                d,
+                Shape::Ramp {
+                    v0: 1400.0,
+                    v1: 1100.0,
+                },
+            )
+            .then(d, Shape::Constant { value: 1100.0 }),
+        throttle: Profile::constant(90.0, 1.5 * d)
+            .then(d, Shape::Ramp { v0: 90.0, v1: 20.0 })
+            .then(0.5 * d, Shape::Ramp { v0: 20.0, v1: 90.0 })
+            .then(d, Shape::Constant { value: 90.0 }),
+        torque_mode: false,
+        speed_range: None,
+        set: Default::default(),
+        faults: Vec::new(),
+    }
+}
+
+/// A recording of the perturbed cell on `scenario`, noise seed `seed`.
+fn record(scenario: &Scenario, seed: u64) -> physid_core::Recording {
+    let mut params = CellParams::default();
+    for (p, v) in TRUTH {
+        params.set(p, *v).unwrap();
+    }
+    params.set("sensors.seed", seed as f64).unwrap();
+    params.set("sensors.speed.noise", 0.01).unwrap();
+    let opts = RunOptions {
+        params,
+        basis: OutputBasis::Crank(1.0),
+        ..RunOptions::default()
+    };
+    simulate(scenario, &opts, |_| {}).unwrap()
+}
+
+/// z = (estimate − truth)/σ of every estimable parameter of a calibration.
+fn z_scores(cal: &physid_apps::twin::Calibration) -> Vec<(String, f64)> {
+    cal.params
+        .iter()
+        .filter(|p| p.estimable)
+        .map(|p| {
+            let truth = TRUTH
+                .iter()
+                .find(|t| t.0 == p.path)
+                .map_or(p.nominal, |t| t.1);
+            (p.path.clone(), (p.value - truth) / p.std_err)
+        })
+        .collect()
+}
+
+/// From the nominal cell, on 20 noise seeds of a 4 s recording with speed ramps and a
+/// throttle closing and opening: every perturbed parameter and the three others are declared
+/// estimable, and their 95 % intervals cover the truth 90–99 % of the time (the covariance
+/// from the sensitivities predicts the fit's spread: the evidence that the sensitivities and
+/// the noise model are right). On seed 1, the calibrated cell's NRMSE on the speeds and the
+/// shaft torque is ≥ 10× below the nominal cell's.
+#[test]
+fn calibration_recovers_the_perturbed_cell_within_its_intervals() {
+    let scenario = excited(4.0);
+    let (mut inside, mut all, mut z2) = (0, 0, 0.0);
+    for seed in 1..=20 {
+        let rec = record(&scenario, seed);
+        let replay = Replay::new(&rec, None).unwrap();
+        let cal = calibrate(&replay, &CalibrateConfig::default()).unwrap();
+        for (p, _) in TRUTH {
+            assert!(
+                cal.params.iter().any(|q| q.path == *p && q.estimable),
+                "seed {seed}: {p} not estimable: {:?}",
+                cal.params
+            );
+        }
+        for (p, z) in z_scores(&cal) {
+            all += 1;
+            z2 += z * z;
+            if z.abs() <= 1.96 {
+                inside += 1;
+            } else {
+                println!("seed {seed}: {p} z = {z:.2}");
+            }
+        }
+        if seed == 1 {
+            let nominal = CellParams::default();
+            let checks = check(&replay, &nominal, &cal.cell(&nominal).unwrap()).unwrap();
+            for c in &checks {
+                println!(
+                    "{}: NRMSE {:.3e} → {:.3e} ({:.0}×)",
+                    c.name,
+                    c.nrmse_before,
+                    c.nrmse_after,
+                    c.nrmse_before / c.nrmse_after
+                );
+                if ["omega_en", "omega_dy", "torque_shaft"].contains(&c.name.as_str()) {
+                    assert!(c.nrmse_before >= 10.0 * c.nrmse_after, "{c:?}");
+                }
+            }
+        }
+    }
+    let coverage = inside as f64 / all as f64;
+    let rms_z = (z2 / all as f64).sqrt();
+    println!("coverage {coverage:.3} of {all}, RMS z {rms_z:.3}");
+    assert!(all >= 160, "{all}");
+    assert!((0.90..=0.99).contains(&coverage), "coverage {coverage}");
+    assert!((0.8..=1.25).contains(&rms_z), "RMS z {rms_z}");
+}
+
+/// A steady run at wide-open throttle matched on the dynamometer's speed and the shaft torque:
+/// the manifold volume (the manifold sits at ambient pressure, its volume changes nothing)
+/// and a sensor's lag on a channel not matched (a structural zero) are declared not
+/// estimable and held, the others recovered within their intervals — the manifold volume's
+/// wrong nominal value biases nothing.
+#[test]
+fn a_steady_run_holds_what_it_cannot_resolve() {
+    let mut scenario = physid_sim::scenario::named("shaft-steady").unwrap();
+    scenario.duration = 3.0;
+    let rec = record(&scenario, 3);
+    let chans = ["omega_dy".to_string(), "torque_shaft".to_string()];
+    let replay = Replay::new(&rec, Some(&chans)).unwrap();
+    let mut cfg = CalibrateConfig::default();
+    cfg.params.push("sensors.temperature.lag".into());
+    let cal = calibrate(&replay, &cfg).unwrap();
+    for p in &cal.params {
+        println!("{p:?}");
+    }
+    let held: Vec<&str> = cal
+        .params
+        .iter()
+        .filter(|p| !p.estimable)
+        .map(|p| p.path.as_str())
+        .collect();
+    assert_eq!(held, ["engine.v_int", "sensors.temperature.lag"]);
+    let lag = cal
+        .params
+        .iter()
+        .find(|p| p.path == "sensors.temperature.lag")
+        .unwrap();
+    assert!(
+        lag.held.as_deref().unwrap().contains("no information"),
+        "{lag:?}"
+    );
+    assert_eq!(lag.value, lag.nominal);
+    for (p, z) in z_scores(&cal) {
+        assert!(z.abs() < 3.0, "{p}: z = {z}");
+    }
+}
+
+/// Calibrated on one test, checked on another (a speed sinusoid and a throttle tip-out and
+/// tip-in, another noise seed): the NRMSE gain on the speeds and the shaft torque holds
+/// (≥ 10×) — the calibration is the cell's, not the test's.
+#[test]
+fn a_calibration_carries_to_another_test() {
+    let rec = record(&excited(4.0), 5);
+    let cal = calibrate(
+        &Replay::new(&rec, None).unwrap(),
+        &CalibrateConfig::default(),
+    )
+    .unwrap();
+    let other = Scenario {
+        name: "other".into(),
+        speed: Profile::constant(1000.0, 0.5).then(
+            3.5,
+            Shape::Sine {
+                mean: 1100.0,
+                amplitude: 200.0,
+                frequency: 0.5,
+                phase: 0.0,
+            },
+        ),
+        throttle: Profile::constant(60.0, 1.0)
+            .then(0.5, Shape::Ramp { v0: 60.0, v1: 10.0 })
+            .then(1.0, Shape::Constant { value: 10.0 })
+            .then(0.5, Shape::Ramp { v0: 10.0, v1: 90.0 })
+            .then(1.0, Shape::Constant { value: 90.0 }),
+        ..excited(4.0)
+    };
+    let rec2 = record(&other, 6);
+    let replay2 = Replay::new(&rec2, None).unwrap();
+    let nominal = CellParams::default();
+    for c in check(&replay2, &nominal, &cal.cell(&nominal).unwrap()).unwrap() {
+        println!(
+            "{}: NRMSE {:.3e} → {:.3e} ({:.0}×)",
+            c.name,
+            c.nrmse_before,
+            c.nrmse_after,
+            c.nrmse_before / c.nrmse_after
+        );
+        if ["omega_en", "omega_dy", "torque_shaft"].contains(&c.name.as_str()) {
+            assert!(c.nrmse_before >= 10.0 * c.nrmse_after, "{c:?}");
+        }
+    }
+}
+
+/// The standard errors the sensitivities give, by central differences of whole replays, at
+/// the default step and at a quarter of it, with the recording's own sensor noise (speeds
+/// 0.01 rad/s, shaft torque 0.05 N·m, manifold 50 Pa, cylinder 200 Pa): within 0.2 % of each
+/// other for each of the eight parameters. (The cell is piecewise smooth in its parameters:
+/// where a perturbed run crosses a switch of the orifice flow's regime, the linearly implicit
+/// solver's Jacobian jumps and some samples of a column carry the jump over 2·step; the
+/// information, summed over every sample, hardly moves.)
+#[test]
+fn sensitivities_converge_with_the_step() {
+    let rec = record(&excited(2.0), 1);
+    let replay = Replay::new(&rec, None).unwrap();
+    let params: Vec<String> = physid_apps::twin::calibrate::DEFAULT_PARAMS
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let cell = CellParams::default();
+    let sigma = |name: &str| -> f64 {
+        match name {
+            "omega_en" | "omega_dy" => 0.01,
+            "torque_shaft" => 0.05,
+            "p_int" => 50.0,
+            _ => 200.0,
+        }
+    };
+    let std_errs = |step: f64| {
+        let s = physid_apps::twin::calibrate::sensitivities(&replay, &cell, &params, step).unwrap();
+        let p = params.len();
+        let fim = nalgebra::DMatrix::from_fn(p, p, |i, j| {
+            replay
+                .channels
+                .iter()
+                .enumerate()
+                .map(|(c, name)| {
+                    s[i][c]
+                        .iter()
+                        .zip(&s[j][c])
+                        .map(|(a, b)| a * b)
+                        .sum::<f64>()
+                        / sigma(name).powi(2)
+                })
+                .sum::<f64>()
+        });
+        let cov = fim.cholesky().unwrap().inverse();
+        (0..p).map(|i| cov[(i, i)].sqrt()).collect::<Vec<f64>>()
+    };
+    let step = physid_apps::twin::calibrate::REL_STEP;
+    let (a, b) = (std_errs(step), std_errs(step / 4.0));
+    for ((p, x), y) in params.iter().zip(&a).zip(&b) {
+        println!("{p}: relative σ {x:.4e} at the step, {y:.4e} at a quarter");
+        assert!((x / y - 1.0).abs() < 2e-3, "{p}: {x} vs {y}");
+    }
+}
+
+/// What the twin cannot use is refused by name: a time-basis recording, a missing input, a
+/// bad sample, an unknown parameter.
+#[test]
+fn bad_input_is_named() {
+    let rec = record(&excited(1.0), 1);
+    let mut time = rec.clone();
+    time.basis = physid_core::Basis::Time;
+    let e = Replay::new(&time, None).unwrap_err().to_string();
+    assert!(
+        e.contains("time basis") && e.contains("--crank-angle"),
+        "{e}"
+    );
+    let mut bad = rec.clone();
+    let mut v = bad.values("torque_shaft").unwrap().to_vec();
+    v[17] = f64::NAN;
+    bad.replace_values("torque_shaft", v).unwrap();
+    let e = Replay::new(&bad, None).unwrap_err().to_string();
+    assert!(e.contains("'torque_shaft', sample 17"), "{e}");
+    let mut no_input = physid_core::Recording::new(physid_core::Basis::CrankAngle);
+    for c in rec.channels().iter().filter(|c| c.name != "throttle") {
+        no_input.push(c.clone()).unwrap();
+    }
+    let e = Replay::new(&no_input, None).unwrap_err().to_string();
+    assert!(e.contains("throttle"), "{e}");
+    let replay = Replay::new(&rec, None).unwrap();
+    let cfg = CalibrateConfig {
+        params: vec!["shaft.q".into()],
+        ..CalibrateConfig::default()
+    };
+    let e = calibrate(&replay, &cfg).unwrap_err().to_string();
+    assert!(e.contains("shaft.q") && e.contains("list-params"), "{e}");
+    let chans = ["T_oil".to_string()];
+    let e = Replay::new(&rec, Some(&chans)).unwrap_err().to_string();
+    assert!(e.contains("'T_oil'") && e.contains("torque_shaft"), "{e}");
+}

@@ -1,0 +1,318 @@
+//! `physid twin`: the self-calibrated test cell (issue 44; thesis §9.2; docs/twin.md) — the
+//! virtual cell calibrated from a recording (`calibrate`) and checked against one (`check`).
+
+use super::simulate::SetArgs;
+use crate::out::outln;
+use miette::{miette, IntoDiagnostic, Result};
+use physid_apps::twin::calibrate::DEFAULT_PARAMS;
+use physid_apps::twin::{calibrate, check, CalibrateConfig, Calibration, Replay};
+use physid_sim::params::CellParams;
+use physid_sim::scenario::Scenario;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `physid twin`.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    what: What,
+}
+
+#[derive(clap::Subcommand)]
+enum What {
+    /// Which of the cell's physical parameters a recording resolves, their values and 95 %
+    /// intervals: the cell driven by the recording's speed demand and throttle, its outputs
+    /// matched degree by degree; the rest held at nominal, and said so.
+    ///
+    /// Example: physid twin calibrate --data run.parquet --out cell.toml
+    Calibrate(CalibrateArgs),
+    /// The calibrated cell driven by a recording's inputs against the recording, channel by
+    /// channel: NRMSE with the nominal cell and with the calibrated one.
+    ///
+    /// Example: physid twin check --data run.parquet --cell cell.toml
+    Check(CheckArgs),
+}
+
+/// What both verbs read.
+#[derive(clap::Args)]
+struct DataArgs {
+    /// The recording, on a crank-angle basis (one sample per degree; `physid convert
+    /// --crank-angle` converts a time-basis one): t, theta, speed_demand, throttle and the
+    /// channels matched.
+    #[arg(long, value_name = "FILE")]
+    data: PathBuf,
+    #[command(flatten)]
+    input: super::InputArgs,
+    /// The channels matched [default: those of omega_en, omega_dy, torque_shaft, p_int, p_cyl
+    /// the recording has].
+    #[arg(long, value_name = "NAME,…", value_delimiter = ',')]
+    channels: Vec<String>,
+    /// The nominal cell: the built-in one with these settings.
+    #[command(flatten)]
+    set: SetArgs,
+    /// Print the result as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl DataArgs {
+    /// The recording's replay and the nominal cell.
+    fn replay(&self) -> Result<(Replay, CellParams)> {
+        let rec = super::InputArgs::read(&self.input, &self.data, None)?;
+        let channels = (!self.channels.is_empty()).then_some(&self.channels[..]);
+        let replay = Replay::new(&rec, channels)
+            .map_err(|e| miette!("--data {}: {e}", self.data.display()))?;
+        Ok((replay, self.set.params()?))
+    }
+}
+
+#[derive(clap::Args)]
+struct CalibrateArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// The cell parameters tried (their --list-params paths) [default: shaft.k, shaft.b,
+    /// engine.inertia, dyno.inertia, engine.friction_scale, engine.kappa, engine.v_int,
+    /// engine.m_rec].
+    #[arg(long, value_name = "PATH,…", value_delimiter = ',')]
+    params: Vec<String>,
+    /// A parameter is estimable while its relative standard error stays at or below this.
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.05, value_parser = super::range::positive)]
+    max_rel_se: f64,
+    /// The calibrated cell as a scenario file: the recording's inputs replayed, the calibrated
+    /// values in its `set` (what `physid simulate --scenario` and `physid twin check --cell`
+    /// take), the intervals in its header.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Worker threads for the replays (0: every core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+}
+
+#[derive(clap::Args)]
+struct CheckArgs {
+    #[command(flatten)]
+    data: DataArgs,
+    /// The calibrated cell: a scenario file whose `set` holds the calibrated values (`physid
+    /// twin calibrate --out`).
+    #[arg(long, value_name = "FILE")]
+    cell: PathBuf,
+}
+
+/// Run `physid twin`.
+pub fn run(a: &Args) -> Result<()> {
+    match &a.what {
+        What::Calibrate(c) => run_calibrate(c),
+        What::Check(c) => run_check(c),
+    }
+}
+
+fn run_calibrate(a: &CalibrateArgs) -> Result<()> {
+    let (replay, cell) = a.data.replay()?;
+    let cfg = CalibrateConfig {
+        cell: cell.clone(),
+        params: if a.params.is_empty() {
+            DEFAULT_PARAMS.iter().map(|s| s.to_string()).collect()
+        } else {
+            a.params.clone()
+        },
+        max_rel_se: a.max_rel_se,
+        threads: a.threads,
+        ..CalibrateConfig::default()
+    };
+    let started = std::time::Instant::now();
+    let cal = calibrate(&replay, &cfg).map_err(|e| miette!("{e}"))?;
+    let seconds = started.elapsed().as_secs_f64();
+    if let Some(path) = &a.out {
+        write_cell(path, &replay, &cell, &a.data.set, &cal)?;
+    }
+    if a.data.json {
+        outln!(
+            "{}",
+            serde_json::to_string(&calibration_json(&cal, seconds)).into_diagnostic()?
+        );
+        return Ok(());
+    }
+    outln!(
+        "{} samples per channel of {}; {} replays of the cell, {} Gauss–Newton iterations, {seconds:.1} s",
+        cal.samples,
+        cal.channels
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", "),
+        cal.replays,
+        cal.iterations
+    );
+    outln!(
+        "{:<24} {:>5} {:>13} {:>13} {:>28}  ",
+        "parameter",
+        "rank",
+        "nominal",
+        "calibrated",
+        "95 % interval"
+    );
+    for p in &cal.params {
+        match p.ci95 {
+            Some([lo, hi]) => outln!(
+                "{:<24} {:>5} {:>13.6} {:>13.6} {:>13.6} … {:<13.6}",
+                p.path,
+                p.rank,
+                p.nominal,
+                p.value,
+                lo,
+                hi
+            ),
+            None => outln!(
+                "{:<24} {:>5} {:>13.6} {:>13} {:>28}  held: {}",
+                p.path,
+                p.rank,
+                p.nominal,
+                "(nominal)",
+                "",
+                p.held.as_deref().unwrap_or("not estimable")
+            ),
+        }
+    }
+    outln!(
+        "{:<16} {:>12} {:>14} {:>14}",
+        "channel",
+        "σ (fit)",
+        "RMS nominal",
+        "RMS calibrated"
+    );
+    for c in &cal.channels {
+        outln!(
+            "{:<16} {:>12.4e} {:>14.4e} {:>14.4e}",
+            c.name,
+            c.sigma,
+            c.rms_nominal,
+            c.rms_calibrated
+        );
+    }
+    for (x, y, rho) in &cal.collinear {
+        outln!("nearly collinear: {x} and {y} (correlation {rho:+.3})");
+    }
+    if let Some(path) = &a.out {
+        outln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// The calibration as JSON: each parameter under its path.
+fn calibration_json(cal: &Calibration, seconds: f64) -> serde_json::Value {
+    let params: serde_json::Map<String, serde_json::Value> = cal
+        .params
+        .iter()
+        .map(|p| {
+            (
+                p.path.clone(),
+                json!({"value": p.value, "nominal": p.nominal, "std_err": p.std_err,
+                       "ci95": p.ci95, "estimable": p.estimable, "rank": p.rank, "held": p.held}),
+            )
+        })
+        .collect();
+    json!({
+        "params": params,
+        "channels": cal.channels,
+        "collinear": cal.collinear.iter().map(|(a, b, r)| json!({"a": a, "b": b, "correlation": r})).collect::<Vec<_>>(),
+        "iterations": cal.iterations,
+        "samples": cal.samples,
+        "replays": cal.replays,
+        "seconds": seconds,
+    })
+}
+
+/// The calibrated cell as a scenario file: the replayed inputs, `set` the nominal settings and
+/// the calibrated values, the calibration in its header. Written whole to a temporary file
+/// first, then renamed: an interrupted write leaves the old file.
+fn write_cell(
+    path: &Path,
+    replay: &Replay,
+    cell: &CellParams,
+    set: &SetArgs,
+    cal: &Calibration,
+) -> Result<()> {
+    let mut scenario = replay.scenario.clone();
+    scenario.name = "twin".into();
+    for (k, v) in set.pairs()? {
+        scenario.set.insert(k, v);
+    }
+    for p in cal.params.iter().filter(|p| p.estimable) {
+        scenario.set.insert(p.path.clone(), p.value);
+    }
+    // The file is read back as it will be: a wrong value is found here, not by its reader.
+    scenario.validate().map_err(|e| miette!("{e}"))?;
+    cal.cell(cell).map_err(|e| miette!("{e}"))?;
+    let mut head = String::from(
+        "# physid twin calibrate: the virtual cell calibrated from a recording (docs/twin.md).\n\
+         # The recording's inputs are replayed below; `set` holds the calibrated values.\n",
+    );
+    for p in &cal.params {
+        head.push_str(&match p.ci95 {
+            Some([lo, hi]) => format!(
+                "# {} = {} (95 %: {lo} … {hi}; nominal {})\n",
+                p.path, p.value, p.nominal
+            ),
+            None => format!(
+                "# {} held at nominal {}: {}\n",
+                p.path,
+                p.nominal,
+                p.held.as_deref().unwrap_or("not estimable")
+            ),
+        });
+    }
+    let text = scenario.to_toml().map_err(|e| miette!("{e}"))?;
+    let tmp = path.with_extension("toml.partial");
+    std::fs::write(&tmp, format!("{head}{text}"))
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| miette!("--out {}: {e}", path.display()))
+}
+
+fn run_check(a: &CheckArgs) -> Result<()> {
+    let (replay, nominal) = a.data.replay()?;
+    let twin = Scenario::load(&a.cell.to_string_lossy())
+        .map_err(|e| miette!("--cell {}: {e}", a.cell.display()))?;
+    let mut calibrated = nominal.clone();
+    for (k, v) in &twin.set {
+        calibrated
+            .set(k, *v)
+            .map_err(|e| miette!("--cell {}: {e}", a.cell.display()))?;
+    }
+    let checks = check(&replay, &nominal, &calibrated).map_err(|e| miette!("{e}"))?;
+    if a.data.json {
+        let channels: serde_json::Map<String, serde_json::Value> = checks
+            .iter()
+            .map(|c| (c.name.clone(), serde_json::to_value(c).unwrap_or_default()))
+            .collect();
+        outln!(
+            "{}",
+            serde_json::to_string(&json!({"channels": channels, "samples": replay.n}))
+                .into_diagnostic()?
+        );
+        return Ok(());
+    }
+    outln!(
+        "{:<16} {:>14} {:>14} {:>8} {:>16}",
+        "channel",
+        "NRMSE nominal",
+        "NRMSE twin",
+        "gain",
+        "RMS twin"
+    );
+    for c in &checks {
+        outln!(
+            "{:<16} {:>14.3e} {:>14.3e} {:>7.1}× {:>12.4e} {}",
+            c.name,
+            c.nrmse_before,
+            c.nrmse_after,
+            c.nrmse_before / c.nrmse_after,
+            c.rms_after,
+            c.unit
+        );
+    }
+    outln!(
+        "(NRMSE: the residual's RMS over the measured channel's range, {} samples)",
+        replay.n
+    );
+    Ok(())
+}
