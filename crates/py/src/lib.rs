@@ -23,6 +23,7 @@ mod design;
 mod estimator;
 mod live;
 mod recording;
+mod twin;
 
 pub use estimator::Estimator;
 pub use live::LiveStream;
@@ -498,6 +499,8 @@ fn _physid(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(design::design, m)?)?;
     m.add_function(wrap_pyfunction!(friction_fit, m)?)?;
     m.add_function(wrap_pyfunction!(torque_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(twin::twin_calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(twin::twin_check, m)?)?;
     m.add_function(wrap_pyfunction!(cycles, m)?)?;
     m.add_function(wrap_pyfunction!(live::live, m)?)?;
     m.add_class::<LiveStream>()?;

@@ -5,9 +5,11 @@
 //! * [`replay`] — a recording's inputs as a scenario, and the cell's outputs on its grid.
 //! * [`calibrate`] — ranking, bounded Gauss–Newton, covariance.
 //! * [`check`] — the calibrated cell against a recording: NRMSE before and after.
+//! * [`live`] — the twin beside the stream: stepped in lock-step, adapting, alarming.
 
 pub mod calibrate;
 pub mod check;
+pub mod live;
 pub mod replay;
 
 pub use calibrate::{calibrate, CalibrateConfig, Calibration};

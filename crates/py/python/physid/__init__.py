@@ -941,9 +941,54 @@ def cycles(
     return CyclesResult(_json.loads(s), dict(tracks))
 
 
+def twin_calibrate(
+    rec: Recording,
+    params: Iterable[str] | None = None,
+    channels: Iterable[str] | None = None,
+    set: Mapping[str, float] | None = None,
+    max_rel_se: float = 0.05,
+    threads: int = 0,
+) -> dict:
+    """The self-calibrated test cell (``physid twin calibrate``, docs/twin.md): which of the
+    virtual cell's physical parameters ``rec`` resolves (a crank-angle recording with ``t``,
+    ``theta``, ``speed_demand``, ``throttle`` and the ``channels`` matched, by default those of
+    omega_en, omega_dy, torque_shaft, p_int, p_cyl it has), their values and 95 % intervals,
+    from the cell with ``set`` (the nominal values). ``params`` are ``--list-params`` paths
+    (default the eight of ``physid twin calibrate``); one is estimable while its relative
+    standard error stays at or below ``max_rel_se``. Returns ``{"params": {path: {"value",
+    "nominal", "std_err", "ci95", "estimable", "rank", "held"}}, "channels": [...],
+    "collinear": [...], ..., "scenario_toml": the calibrated cell as a scenario file}``."""
+    s, toml = _physid.twin_calibrate(
+        rec, None if params is None else [str(p) for p in params],
+        None if channels is None else [str(c) for c in channels],
+        {str(k): float(v) for k, v in (set or {}).items()}, float(max_rel_se), int(threads))
+    out = _json.loads(s)
+    out["scenario_toml"] = toml
+    return out
+
+
+def twin_check(
+    rec: Recording,
+    calibrated: Mapping[str, Any],
+    channels: Iterable[str] | None = None,
+    set: Mapping[str, float] | None = None,
+) -> dict:
+    """The calibrated cell against ``rec`` (``physid twin check``): per channel ``nrmse_before``
+    (the cell with ``set``), ``nrmse_after`` (with the calibrated values too) and
+    ``rms_after``. ``calibrated`` is :func:`twin_calibrate`'s result (its estimable values are
+    taken) or ``{path: value}``."""
+    if "params" in calibrated and isinstance(calibrated["params"], Mapping):
+        values = {p: float(e["value"]) for p, e in calibrated["params"].items() if e["estimable"]}
+    else:
+        values = {str(k): float(v) for k, v in calibrated.items()}
+    s = _physid.twin_check(rec, values, None if channels is None else [str(c) for c in channels],
+                           {str(k): float(v) for k, v in (set or {}).items()})
+    return _json.loads(s)
+
+
 __all__ += ["Result", "ShaftMonitorResult", "FrictionFitResult", "TorqueFitResult",
             "CyclesResult", "monitor_shaft", "friction_fit", "torque_fit", "cycles",
-            "DesignResult", "design"]
+            "DesignResult", "design", "twin_calibrate", "twin_check"]
 
 
 class LiveStream:

@@ -132,6 +132,17 @@ pub struct Run {
     torque_whole: bool,
 }
 
+/// The cell's parameters a run can change as it goes ([`Run::set_live_parameter`]): the
+/// shaft's stiffness and damping, the reciprocating mass, the friction's scale and the oil
+/// temperature (the others fix the engine's geometry and the machine when the cell is built).
+pub const LIVE_PARAMS: &[&str] = &[
+    "shaft.k",
+    "shaft.b",
+    "engine.m_rec",
+    "engine.friction_scale",
+    "engine.t_oil",
+];
+
 /// The most samples a streaming run takes: its output grid counts them exactly below 2^53.
 const MAX_STREAM_SAMPLES: f64 = 9_007_199_254_740_992.0;
 
@@ -299,6 +310,22 @@ impl Run {
     /// Whether the dynamometer follows a torque demand (else a speed demand).
     pub fn torque_mode(&self) -> bool {
         self.torque_mode
+    }
+
+    /// Set one of the cell's live parameters ([`LIVE_PARAMS`]) to `value` from now on, as
+    /// its base value (a fault on it still applies over it): what a twin adapting its cell
+    /// does at every update, without a fault's record.
+    pub fn set_live_parameter(&mut self, path: &str, value: f64) -> Result<(), SimError> {
+        if !LIVE_PARAMS.contains(&path) {
+            return Err(SimError::Invalid(format!(
+                "'{path}' cannot change during a run; those that can: {}",
+                LIVE_PARAMS.join(", ")
+            )));
+        }
+        self.base.set(path, value)?;
+        self.cell.params.set(path, value)?;
+        self.cell.refresh_live_parameters();
+        Ok(())
     }
 
     /// A fault from its time on (relative to the recording's start, as every fault).

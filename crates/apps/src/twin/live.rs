@@ -1,0 +1,674 @@
+//! The twin beside the stream (issue 44; thesis §9.2): the calibrated cell stepped in lock-step
+//! with the incoming samples — driven by their speed demand and throttle, started at their
+//! crank angle — its outputs compared with the measured ones, its live parameters adapted, and
+//! an alarm that names the physical parameter that moved.
+//!
+//! Each window of [`TwinConfig::window_s`] the stage runs the twin and, beside it, one copy per
+//! adapted parameter with that parameter `1 + rel_step` times larger, all from the twin's state
+//! at the window's start: their differences are the outputs' sensitivities to a change of the
+//! parameters at that moment, over the window. With the residual `r = y − ŷ` weighted by each
+//! channel's noise, the window's Gauss–Newton step `δ = (ZᵀZ)⁻¹Zᵀr` (`Z = W·S`, relative
+//! units) is the parameters' change that explains the window; it is applied, and the copies
+//! start again from the twin. A parameter whose window standard error exceeds
+//! [`TwinConfig::max_window_rel_se`] is frozen for that window (no excitation: no wind-up), the
+//! least resolved first. A parameter whose value stays more than [`TwinConfig::alarm_change`]
+//! and [`TwinConfig::alarm_sigmas`] of its window standard error away from its calibrated value
+//! for [`TwinConfig::dwell`] windows raises an alarm naming it.
+//!
+//! The noise of each channel is the twin's residual RMS over the windows after its warm-up
+//! ([`TwinConfig::sigma_windows`]; the twin is taken as calibrated then).
+//!
+//! Only the cell's live parameters ([`LIVE_PARAMS`]: the shaft's K and B, the reciprocating
+//! mass, the friction scale) can be adapted: the others fix the engine's geometry and the
+//! machine when the cell is built, and stay at their calibrated values.
+
+use crate::error::AppError;
+use nalgebra::{DMatrix, DVector};
+use physid_core::Recording;
+use physid_sim::params::CellParams;
+use physid_sim::run::{OutputBasis, Run, RunOptions, LIVE_PARAMS};
+use physid_sim::scenario::{Profile, Scenario};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// The channels a live twin compares by default (those the stream has): the speeds, the shaft
+/// torque and the manifold pressure — the cylinder pressure's steep flanks make a time-basis
+/// comparison a comparison of the crank angle's alignment.
+pub const LIVE_CHANNELS: &[&str] = &["omega_en", "omega_dy", "torque_shaft", "p_int"];
+
+/// How the live twin runs.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TwinConfig {
+    /// The calibrated cell, as `(path, value)` settings over the built-in cell.
+    pub set: Vec<(String, f64)>,
+    /// The parameters adapted (of [`LIVE_PARAMS`]).
+    pub adapt: Vec<String>,
+    /// The channels compared (default [`LIVE_CHANNELS`], those the stream has).
+    pub channels: Vec<String>,
+    /// The firing TDC's angle on the stream's `theta_en` [rad] (the twin starts there).
+    pub theta_tdc: f64,
+    /// Time from the stream's start before the twin is compared [s] (its own transients).
+    pub warmup_s: f64,
+    /// One adaptation per this much time [s].
+    pub window_s: f64,
+    /// Windows after the warm-up whose residual gives each channel's noise.
+    pub sigma_windows: usize,
+    /// The copies' relative parameter step.
+    pub rel_step: f64,
+    /// After the twin takes new values, this long before it is compared again [s] (the
+    /// switch's transient).
+    pub settle_s: f64,
+    /// Forgetting per window of the epoch's information.
+    pub forgetting: f64,
+    /// The twin takes the estimate when a parameter has moved beyond this fraction (and 4 of
+    /// its standard errors).
+    pub rebase_change: f64,
+    /// A parameter is frozen for a window whose relative standard error exceeds this.
+    pub max_window_rel_se: f64,
+    /// An alarm needs a change from the calibrated value beyond this fraction …
+    pub alarm_change: f64,
+    /// … and beyond this many window standard errors …
+    pub alarm_sigmas: f64,
+    /// … for this many windows in a row.
+    pub dwell: usize,
+}
+
+impl TwinConfig {
+    /// The twin of the cell `set`, adapting `adapt`, with the defaults: 1 s warm-up, windows of
+    /// 0.25 s, the noise from 4 windows, copies 1e-3 apart, frozen above 5 % per window, alarms
+    /// beyond 5 % and 4σ for 3 windows.
+    pub fn new(set: Vec<(String, f64)>, adapt: Vec<String>) -> Self {
+        Self {
+            set,
+            adapt,
+            channels: LIVE_CHANNELS.iter().map(|s| s.to_string()).collect(),
+            theta_tdc: 0.0,
+            warmup_s: 1.0,
+            window_s: 0.05,
+            sigma_windows: 4,
+            rel_step: 1e-3,
+            settle_s: 0.05,
+            forgetting: 0.7,
+            rebase_change: 0.01,
+            max_window_rel_se: 0.05,
+            alarm_change: 0.1,
+            alarm_sigmas: 4.0,
+            dwell: 3,
+        }
+    }
+
+    /// The calibrated cell.
+    fn cell(&self) -> Result<CellParams, AppError> {
+        let mut c = CellParams::default();
+        for (k, v) in &self.set {
+            c.set(k, *v)?;
+        }
+        Ok(c)
+    }
+
+    /// Check the settings.
+    pub fn validate(&self) -> Result<(), AppError> {
+        self.cell()?;
+        for p in &self.adapt {
+            if !LIVE_PARAMS.contains(&p.as_str()) || p == "engine.t_oil" {
+                return Err(AppError::Invalid(format!(
+                    "twin: '{p}' cannot be adapted on the stream; the twin adapts shaft.k, shaft.b, engine.m_rec, engine.friction_scale (the others fix the cell when it is built)"
+                )));
+            }
+        }
+        for (what, v) in [
+            ("window", self.window_s),
+            ("warm-up", self.warmup_s),
+            ("step", self.rel_step),
+            ("frozen above", self.max_window_rel_se),
+            ("alarm change", self.alarm_change),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(AppError::Invalid(format!("twin: {what} {v}: expected > 0")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the twin reports each window.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TwinWindow {
+    /// The window's end [s] (stream time).
+    pub t_s: f64,
+    /// The adapted parameters' values after the window, by path.
+    pub params: Vec<(String, f64)>,
+    /// Their window standard errors (NaN: frozen, or before the noise is known).
+    pub std_err: Vec<f64>,
+    /// Those frozen in this window.
+    pub frozen: Vec<String>,
+    /// Each channel's residual RMS over the window, in units of its noise (NaN before the noise
+    /// is known): `(channel, value)`.
+    pub residual: Vec<(String, f64)>,
+}
+
+/// An alarm: a parameter left its calibrated value.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TwinAlarm {
+    /// The parameter (its path).
+    pub param: String,
+    /// When raised [s].
+    pub t_s: f64,
+    /// When it left its band [s].
+    pub t_start_s: f64,
+    /// Its change from the calibrated value (−0.2: fell 20 %).
+    pub change: f64,
+}
+
+/// The live twin's outputs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum TwinOut {
+    /// A window.
+    Window(TwinWindow),
+    /// An alarm.
+    Alarm(TwinAlarm),
+}
+
+/// One adapted parameter's alarm state.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+struct Watch {
+    /// Windows in a row out of the band, and when the first began.
+    out: usize,
+    since: f64,
+    /// The last changes out of the band (at most the dwell's).
+    recent: Vec<f64>,
+    raised: bool,
+}
+
+/// The twin and its copies, stepped together (rebuilt from the stream after a restore: a run
+/// of the cell is not checkpointed).
+#[derive(Clone)]
+struct Runs {
+    /// The twin, then one copy per adapted parameter.
+    runs: Vec<Run>,
+    /// The outputs not yet compared: `[run][channel]`.
+    out: Vec<Vec<Vec<f64>>>,
+}
+
+/// The live twin as a stream stage (see the module docs).
+#[derive(Serialize, Deserialize)]
+pub struct TwinStage {
+    cfg: TwinConfig,
+    rate_hz: f64,
+    /// The adapted parameters' values now and as calibrated.
+    values: Vec<f64>,
+    calibrated: Vec<f64>,
+    /// The stream's start [s] (NaN before its first sample).
+    t0: f64,
+    /// The channels compared (those of the configuration the stream has).
+    channels: Vec<String>,
+    /// The measured samples not yet compared, per channel.
+    measured: Vec<Vec<f64>>,
+    /// Samples compared so far (the next window starts there).
+    compared: usize,
+    /// Sum of squared residuals and count per channel over the noise windows; then σ.
+    sigma_acc: Vec<(f64, usize)>,
+    sigma: Vec<f64>,
+    noise_windows: usize,
+    watch: Vec<Watch>,
+    /// The sample the present epoch (the twin's values since the last update) began at, and
+    /// its information and score `Σ λ^i·SᵀWS`, `Σ λ^i·SᵀWr` (row-major).
+    epoch_start: usize,
+    info: Vec<f64>,
+    score: Vec<f64>,
+    #[serde(skip)]
+    runs: Option<Runs>,
+}
+
+impl TwinStage {
+    /// The twin of `cfg` on a stream at `rate_hz` [Hz].
+    pub fn new(cfg: TwinConfig, rate_hz: f64) -> Result<Self, AppError> {
+        cfg.validate()?;
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(AppError::Invalid(format!(
+                "twin: a stream at {rate_hz} Hz: expected a time basis at a rate > 0"
+            )));
+        }
+        let cell = cfg.cell()?;
+        let values: Vec<f64> = cfg
+            .adapt
+            .iter()
+            .map(|p| cell.get(p).unwrap_or(f64::NAN))
+            .collect();
+        Ok(Self {
+            rate_hz,
+            calibrated: values.clone(),
+            watch: vec![Watch::default(); values.len()],
+            values,
+            t0: f64::NAN,
+            channels: Vec::new(),
+            measured: Vec::new(),
+            compared: 0,
+            sigma_acc: Vec::new(),
+            sigma: Vec::new(),
+            noise_windows: 0,
+            epoch_start: 0,
+            info: Vec::new(),
+            score: Vec::new(),
+            runs: None,
+            cfg,
+        })
+    }
+
+    /// The adapted parameters' values now, by path.
+    pub fn values(&self) -> Vec<(String, f64)> {
+        self.cfg
+            .adapt
+            .iter()
+            .cloned()
+            .zip(self.values.iter().copied())
+            .collect()
+    }
+
+    /// Samples per window.
+    fn window_samples(&self) -> usize {
+        ((self.cfg.window_s * self.rate_hz).round() as usize).max(10)
+    }
+
+    /// The twin's run from the stream's first sample: settled for 1 s (and as much more as
+    /// brings its crank angle to the stream's) at the first sample's inputs, its sensors quiet.
+    fn start_runs(&self, theta: f64, rpm: f64, throttle: f64) -> Result<Runs, AppError> {
+        let mut cell = self.cfg.cell()?;
+        for (p, _, _) in CellParams::TABLE {
+            if p.ends_with(".noise") || p.ends_with(".quantum") {
+                cell.set(p, 0.0)?;
+            }
+        }
+        for (p, v) in self.cfg.adapt.iter().zip(&self.values) {
+            cell.set(p, *v)?;
+        }
+        let opts = RunOptions {
+            params: cell,
+            basis: OutputBasis::Time(self.rate_hz),
+            stream: true,
+            ..RunOptions::default()
+        };
+        let build = |settle: f64| -> Result<Run, AppError> {
+            let scenario = Scenario {
+                name: "twin".into(),
+                description: String::new(),
+                duration: 1e9,
+                settle,
+                speed: Profile::constant(rpm, 1e9),
+                throttle: Profile::constant(throttle, 1e9),
+                torque_mode: false,
+                speed_range: None,
+                set: Default::default(),
+                faults: Vec::new(),
+            };
+            let mut run = Run::new(&scenario, &opts)?;
+            let mut keep: Vec<&str> = self.channels.iter().map(String::as_str).collect();
+            keep.push("theta_en");
+            run.keep_channels(&keep)?;
+            Ok(run)
+        };
+        // The crank angle the twin reaches at the stream's start, brought to the stream's
+        // (modulo a cycle) by settling longer: three passes correct the settling's transient.
+        let w = (rpm * PI / 30.0).max(1.0);
+        let target = theta - self.cfg.theta_tdc;
+        let mut settle = 1.0;
+        for _ in 0..3 {
+            let mut probe = build(settle)?;
+            // A few samples on: the first grid point is placed once the steps around it are.
+            probe.step_until(0.002)?;
+            let rec = probe.drain()?;
+            let at = rec.values("theta_en")?.first().copied().unwrap_or(0.0);
+            let gap = (target - at).rem_euclid(4.0 * PI);
+            let gap = if gap > 2.0 * PI { gap - 4.0 * PI } else { gap };
+            if gap.abs() < 1e-6 {
+                break;
+            }
+            settle = if settle + gap / w < 1.0 {
+                settle + (gap + 4.0 * PI) / w
+            } else {
+                settle + gap / w
+            };
+        }
+        let twin = build(settle)?;
+        let mut runs = vec![twin];
+        for j in 0..self.cfg.adapt.len() {
+            runs.push(self.copy(&runs[0], j)?);
+        }
+        let out = vec![vec![Vec::new(); self.channels.len()]; runs.len()];
+        Ok(Runs { runs, out })
+    }
+
+    /// The twin with parameter `j` `1 + rel_step` times its value.
+    fn copy(&self, twin: &Run, j: usize) -> Result<Run, AppError> {
+        let mut c = twin.clone();
+        c.set_live_parameter(
+            &self.cfg.adapt[j],
+            self.values[j] * (1.0 + self.cfg.rel_step),
+        )?;
+        Ok(c)
+    }
+
+    /// The window of `n` samples from the buffers: the noise, the estimate, the alarms; a new
+    /// epoch when the estimate has moved.
+    fn window(
+        &mut self,
+        n: usize,
+        t_end: f64,
+        out: &mut dyn physid_core::Sink<TwinOut>,
+    ) -> Result<(), AppError> {
+        let runs = self
+            .runs
+            .as_mut()
+            .ok_or_else(|| AppError::Invalid("twin: no run".into()))?;
+        let nc = self.channels.len();
+        let p = self.cfg.adapt.len();
+        let r: Vec<Vec<f64>> = (0..nc)
+            .map(|c| {
+                self.measured[c][..n]
+                    .iter()
+                    .zip(&runs.out[0][c][..n])
+                    .map(|(a, b)| a - b)
+                    .collect()
+            })
+            .collect();
+        let t_rel = self.compared as f64 / self.rate_hz;
+        let settled = (self.compared - self.epoch_start) as f64 / self.rate_hz >= self.cfg.settle_s;
+        let mut estimate = self.values.clone();
+        let mut std_err = vec![f64::NAN; p];
+        let mut frozen: Vec<String> = Vec::new();
+        let mut rebase = false;
+        if t_rel < self.cfg.warmup_s {
+            // The twin's own start.
+        } else if self.noise_windows < self.cfg.sigma_windows {
+            if self.sigma_acc.len() != nc {
+                self.sigma_acc = vec![(0.0, 0); nc];
+            }
+            for (acc, rc) in self.sigma_acc.iter_mut().zip(&r) {
+                acc.0 += rc.iter().map(|x| x * x).sum::<f64>();
+                acc.1 += rc.len();
+            }
+            self.noise_windows += 1;
+            if self.noise_windows == self.cfg.sigma_windows {
+                self.sigma = self
+                    .sigma_acc
+                    .iter()
+                    .zip(&self.measured)
+                    .map(|(a, m)| {
+                        let big = m.iter().fold(0.0f64, |x, v| x.max(v.abs()));
+                        (a.0 / a.1.max(1) as f64).sqrt().max(1e-9 * big)
+                    })
+                    .collect();
+            }
+        } else if settled {
+            // The window's information, added to the epoch's with forgetting.
+            let lambda = self.cfg.forgetting;
+            for v in self.info.iter_mut().chain(self.score.iter_mut()) {
+                *v *= lambda;
+            }
+            if self.info.len() != p * p {
+                self.info = vec![0.0; p * p];
+                self.score = vec![0.0; p];
+            }
+            for (c, rc) in r.iter().enumerate() {
+                let w2 = 1.0 / (self.sigma[c] * self.sigma[c]);
+                for (k, rk) in rc.iter().enumerate() {
+                    // At most the four live parameters: no allocation per sample.
+                    let mut s = [0.0; 4];
+                    for (j, sj) in s.iter_mut().enumerate().take(p) {
+                        *sj = (runs.out[j + 1][c][k] - runs.out[0][c][k]) / self.cfg.rel_step;
+                    }
+                    for a in 0..p {
+                        self.score[a] += w2 * s[a] * rk;
+                        for b in 0..p {
+                            self.info[a * p + b] += w2 * s[a] * s[b];
+                        }
+                    }
+                }
+            }
+            let f = DMatrix::from_row_slice(p, p, &self.info);
+            let g = DVector::from_column_slice(&self.score);
+            // The excitation supervisor: the least resolved frozen while any is above its limit.
+            let mut active: Vec<usize> = (0..p).collect();
+            let solved = loop {
+                if active.is_empty() {
+                    break None;
+                }
+                let fa = f.select_rows(&active).select_columns(&active);
+                let Some(cov) = fa.cholesky().map(|c| c.inverse()) else {
+                    frozen.push(self.cfg.adapt[active.remove(active.len() - 1)].clone());
+                    continue;
+                };
+                let se: Vec<f64> = (0..active.len()).map(|i| cov[(i, i)].sqrt()).collect();
+                let (worst, &s) = se
+                    .iter()
+                    .enumerate()
+                    .max_by(|a, b| a.1.total_cmp(b.1))
+                    .unwrap_or((0, &0.0));
+                if s > self.cfg.max_window_rel_se {
+                    frozen.push(self.cfg.adapt[active.remove(worst)].clone());
+                    continue;
+                }
+                let ga = DVector::from_iterator(active.len(), active.iter().map(|&j| g[j]));
+                break Some((&cov * ga, se));
+            };
+            if let Some((delta, se)) = solved {
+                for (i, &j) in active.iter().enumerate() {
+                    let d = delta[i].clamp(-0.5, 0.5);
+                    estimate[j] = self.values[j] * (1.0 + d);
+                    std_err[j] = se[i] * self.values[j];
+                    rebase |= d.abs() > self.cfg.rebase_change.max(4.0 * se[i]);
+                }
+            }
+            // Alarms: an estimate away from its calibrated value, beyond the band, for a dwell of
+            // estimates that agree with one another within half the band — a value the twin has
+            // settled at. (While a large residual is being explained, the other parameters take
+            // a share of it for a window or two, each time another.)
+            for j in 0..p {
+                if !std_err[j].is_finite() {
+                    continue;
+                }
+                let change = estimate[j] / self.calibrated[j] - 1.0;
+                let band = self
+                    .cfg
+                    .alarm_change
+                    .max(self.cfg.alarm_sigmas * std_err[j] / estimate[j]);
+                let dwell = self.cfg.dwell.max(1);
+                let wch = &mut self.watch[j];
+                if change.abs() > band {
+                    if wch.out == 0 {
+                        wch.since = t_end;
+                    }
+                    wch.out += 1;
+                    if wch.recent.len() == dwell {
+                        wch.recent.remove(0);
+                    }
+                    wch.recent.push(change);
+                    let (lo, hi) = wch
+                        .recent
+                        .iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &c| {
+                            (l.min(c), h.max(c))
+                        });
+                    let settled =
+                        wch.recent.len() == dwell && hi - lo < 0.5 * self.cfg.alarm_change;
+                    if settled && !wch.raised {
+                        wch.raised = true;
+                        out.put(TwinOut::Alarm(TwinAlarm {
+                            param: self.cfg.adapt[j].clone(),
+                            t_s: t_end,
+                            t_start_s: wch.since,
+                            change,
+                        }));
+                    }
+                } else {
+                    wch.out = 0;
+                    wch.recent.clear();
+                    wch.raised = false;
+                }
+            }
+        }
+        if t_rel >= self.cfg.warmup_s {
+            let residual = self
+                .channels
+                .iter()
+                .enumerate()
+                .map(|(c, name)| {
+                    let rms = (r[c].iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+                    (
+                        name.clone(),
+                        rms / self.sigma.get(c).copied().unwrap_or(f64::NAN),
+                    )
+                })
+                .collect();
+            out.put(TwinOut::Window(TwinWindow {
+                t_s: t_end,
+                params: self
+                    .cfg
+                    .adapt
+                    .iter()
+                    .cloned()
+                    .zip(estimate.iter().copied())
+                    .collect(),
+                std_err,
+                frozen,
+                residual,
+            }));
+        }
+        // The buffers move on.
+        for m in &mut self.measured {
+            m.drain(..n);
+        }
+        for o in runs.out.iter_mut().flat_map(|r| r.iter_mut()) {
+            o.drain(..n);
+        }
+        self.compared += n;
+        if rebase {
+            // A new epoch: the twin takes the estimate, the copies start again from it, and
+            // the switch's transient settles before the next estimate.
+            self.values = estimate;
+            for (p, v) in self.cfg.adapt.iter().zip(&self.values) {
+                runs.runs[0].set_live_parameter(p, *v)?;
+            }
+            let lead = runs.out[0].clone();
+            for j in 0..p {
+                let mut c = runs.runs[0].clone();
+                c.set_live_parameter(
+                    &self.cfg.adapt[j],
+                    self.values[j] * (1.0 + self.cfg.rel_step),
+                )?;
+                runs.runs[j + 1] = c;
+                runs.out[j + 1].clone_from(&lead);
+            }
+            self.epoch_start = self.compared;
+            self.info.clear();
+            self.score.clear();
+        }
+        Ok(())
+    }
+}
+
+/// The stream's value of `name` (every sample finite, else the sample named).
+fn column<'a>(chunk: &'a Recording, name: &str) -> Result<&'a [f64], AppError> {
+    let v = chunk.values(name)?;
+    if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+        return Err(AppError::Invalid(format!(
+            "twin: channel '{name}', sample {k} of the chunk: {} — the twin is driven and compared sample by sample",
+            v[k]
+        )));
+    }
+    Ok(v)
+}
+
+impl crate::stage::Stage for TwinStage {
+    type Out = TwinOut;
+
+    fn push(
+        &mut self,
+        chunk: &Recording,
+        out: &mut dyn physid_core::Sink<TwinOut>,
+    ) -> Result<(), AppError> {
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        let t = column(chunk, "t")?;
+        let demand = chunk.values_in("speed_demand", "rad/s")?;
+        let throttle = column(chunk, "throttle")?;
+        if self.runs.is_none() {
+            // The first chunk (or the first after a restore): the channels, the twin's start.
+            self.channels = self
+                .cfg
+                .channels
+                .iter()
+                .filter(|c| chunk.channel(c).is_ok())
+                .cloned()
+                .collect();
+            if self.channels.is_empty() {
+                return Err(AppError::Invalid(format!(
+                    "twin: the stream has none of the channels compared ({})",
+                    self.cfg.channels.join(", ")
+                )));
+            }
+            let theta = column(chunk, "theta_en")?;
+            self.t0 = t[0];
+            self.compared = 0;
+            self.epoch_start = 0;
+            self.info.clear();
+            self.score.clear();
+            self.measured = vec![Vec::new(); self.channels.len()];
+            self.runs = Some(self.start_runs(theta[0], demand[0] * 30.0 / PI, throttle[0])?);
+        }
+        let cols: Vec<&[f64]> = self
+            .channels
+            .iter()
+            .map(|c| column(chunk, c))
+            .collect::<Result<_, _>>()?;
+        for (m, c) in self.measured.iter_mut().zip(&cols) {
+            m.extend_from_slice(c);
+        }
+        // The twin and its copies stepped sample by sample; at each window's end (once the
+        // twin has placed its last sample) the window, and the copies start again from there.
+        let n = self.window_samples();
+        for k in 0..t.len() {
+            let tau = t[k] - self.t0;
+            let rpm = demand[k] * 30.0 / PI;
+            if !rpm.is_finite() {
+                return Err(AppError::Invalid(format!(
+                    "twin: channel 'speed_demand', sample {k} of the chunk: not a number"
+                )));
+            }
+            let runs = self
+                .runs
+                .as_mut()
+                .ok_or_else(|| AppError::Invalid("twin: no run".into()))?;
+            for run in &mut runs.runs {
+                run.hold_inputs(rpm, throttle[k]);
+                run.step_until(tau)?;
+            }
+            let window_end = (self.compared + n) as f64 / self.rate_hz;
+            if tau >= window_end || k + 1 == t.len() {
+                for (run, o) in runs.runs.iter_mut().zip(&mut runs.out) {
+                    let rec = run.drain()?;
+                    for (buf, c) in o.iter_mut().zip(&self.channels) {
+                        buf.extend_from_slice(rec.values(c)?);
+                    }
+                }
+                let have = runs
+                    .out
+                    .iter()
+                    .map(|o| o.first().map_or(0, Vec::len))
+                    .min()
+                    .unwrap_or(0);
+                // (The chunk's measured samples are all in the buffer already.)
+                if have.min(self.measured[0].len()) >= n {
+                    let t_end = self.t0 + (self.compared + n - 1) as f64 / self.rate_hz;
+                    self.window(n, t_end, out)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _out: &mut dyn physid_core::Sink<TwinOut>) -> Result<(), AppError> {
+        Ok(())
+    }
+}
