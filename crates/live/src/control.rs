@@ -52,7 +52,14 @@ pub enum Control {
 pub const SPEED_ENVELOPE_RPM: (f64, f64) = (500.0, 6000.0);
 
 /// The stages a `restart` control can start afresh.
-pub const STAGES: [&str; 5] = ["shaft", "cycles", "friction", "torque", "combustion"];
+pub const STAGES: [&str; 6] = [
+    "shaft",
+    "cycles",
+    "friction",
+    "torque",
+    "combustion",
+    "twin",
+];
 
 /// A control message on its way to the running loop, with where to send the answer (the
 /// command's name, or what was wrong) when someone waits for it.

@@ -25,6 +25,8 @@ pub enum App {
     Friction,
     /// The cyclic-torque estimation (Application 3).
     Torque,
+    /// The self-calibrated twin (`--twin`, docs/twin.md).
+    Twin,
 }
 
 /// Where a refused input came from.
@@ -157,6 +159,28 @@ pub enum Event {
         /// RMS of the measured torque over the cycle [N·m].
         #[serde(deserialize_with = "nan_null::f64")]
         rms_measured: f64,
+    },
+    /// A window of the twin beside the stream (`--twin`, docs/twin.md): `{"type": "twin",
+    /// "t_s": …, "params": {"shaft.k": …, …}, "std_err": {…}, "frozen": [...], "residual":
+    /// {"omega_en": …, …}}` — its live parameters' estimates (SI units; standard errors null
+    /// while frozen or settling) and each channel's residual RMS over the window in units of
+    /// its noise (null before the noise is known). A twin's alarm is an `alarm` event with
+    /// `"app": "twin"` and the parameter's path.
+    Twin {
+        /// The window's end [s].
+        #[serde(deserialize_with = "nan_null::f64")]
+        t_s: f64,
+        /// The estimates.
+        #[serde(deserialize_with = "nan_null::map")]
+        params: BTreeMap<String, f64>,
+        /// Their standard errors.
+        #[serde(deserialize_with = "nan_null::map")]
+        std_err: BTreeMap<String, f64>,
+        /// The parameters frozen in the window.
+        frozen: Vec<String>,
+        /// Each channel's residual RMS over its noise.
+        #[serde(deserialize_with = "nan_null::map")]
+        residual: BTreeMap<String, f64>,
     },
     /// A frame from outside or a control message was refused (the run goes on; a refused frame
     /// is counted as dropped): `{"type": "error", "t_s": …, "input": "frames", "line": n,
@@ -447,6 +471,13 @@ mod tests {
                 std_err: map([("r".to_string(), 1e-4)]),
                 rms_error: 1.5,
                 rms_measured: 30.0,
+            },
+            Event::Twin {
+                t_s: 30.35,
+                params: map([("shaft.k".to_string(), 1000.0)]),
+                std_err: map([("shaft.k".to_string(), nan)]),
+                frozen: vec!["engine.m_rec".into()],
+                residual: map([("omega_en".to_string(), 1.1)]),
             },
             Event::Error {
                 t_s: nan,

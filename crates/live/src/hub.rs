@@ -58,6 +58,7 @@ impl Kind {
             Event::Estimate { .. }
             | Event::Friction { .. }
             | Event::Torque { .. }
+            | Event::Twin { .. }
             | Event::Identifiability { .. } => Kind::Estimate,
             Event::Alarm { .. } => Kind::Alarm,
             Event::Cycle { .. } => Kind::Cycle,

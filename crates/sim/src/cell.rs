@@ -275,6 +275,13 @@ impl TestCell {
         self.x[TH_DY] += delta;
     }
 
+    /// Turn the whole driveline by `delta` [rad] (engine and dynamometer together: the twist,
+    /// the speeds and the gas stay): a twin's crank angle brought to a measured one.
+    pub fn turn(&mut self, delta: f64) {
+        self.x[TH_DY] += delta;
+        self.x[TH_EN] += delta;
+    }
+
     /// Re-read the parameters that may change during a run (faults): shaft, reciprocating
     /// mass, friction scale, oil temperature.
     pub fn refresh_live_parameters(&mut self) {

@@ -3,17 +3,24 @@
 //! crank angle — its outputs compared with the measured ones, its live parameters adapted, and
 //! an alarm that names the physical parameter that moved.
 //!
-//! Each window of [`TwinConfig::window_s`] the stage runs the twin and, beside it, one copy per
-//! adapted parameter with that parameter `1 + rel_step` times larger, all from the twin's state
-//! at the window's start: their differences are the outputs' sensitivities to a change of the
-//! parameters at that moment, over the window. With the residual `r = y − ŷ` weighted by each
-//! channel's noise, the window's Gauss–Newton step `δ = (ZᵀZ)⁻¹Zᵀr` (`Z = W·S`, relative
-//! units) is the parameters' change that explains the window; it is applied, and the copies
-//! start again from the twin. A parameter whose window standard error exceeds
-//! [`TwinConfig::max_window_rel_se`] is frozen for that window (no excitation: no wind-up), the
-//! least resolved first. A parameter whose value stays more than [`TwinConfig::alarm_change`]
-//! and [`TwinConfig::alarm_sigmas`] of its window standard error away from its calibrated value
-//! for [`TwinConfig::dwell`] windows raises an alarm naming it.
+//! Beside the twin run copies of it, one per adapted parameter, each with that parameter
+//! `1 + rel_step` times larger — from the start of an *epoch* (the twin's values since its last
+//! update) on, so that a copy's difference from the twin is the outputs' sensitivity to that
+//! parameter as the cell runs with it, not to a change made a moment ago. Each window of
+//! [`TwinConfig::window_s`] (after [`TwinConfig::settle_s`] from the epoch's start: the switch
+//! to new values has a transient of its own) adds its information `SᵀWS` and score `SᵀWr`
+//! (`r = y − ŷ`, `W` each channel's 1/σ², relative units) to the epoch's with forgetting
+//! [`TwinConfig::forgetting`]; the estimate is `u·(1 + (SᵀWS)⁻¹SᵀWr)`. A parameter whose
+//! standard error exceeds [`TwinConfig::max_window_rel_se`] is frozen (no excitation: no
+//! wind-up), the least resolved first. When an estimate has moved by more than
+//! [`TwinConfig::rebase_change`] and 4 of its standard errors, a new epoch begins: the twin takes
+//! the estimates and the copies start again from it — a Gauss–Newton iteration per epoch.
+//!
+//! An alarm names a parameter whose estimate stays more than [`TwinConfig::alarm_change`] (and
+//! [`TwinConfig::alarm_sigmas`] standard errors) from its calibrated value for
+//! [`TwinConfig::dwell`] windows in which it agrees with itself within half that band: a value
+//! the twin has settled at. While a large residual is being explained the other parameters
+//! take a share of it for a window or two, each time another; they do not alarm.
 //!
 //! The noise of each channel is the twin's residual RMS over the windows after its warm-up
 //! ([`TwinConfig::sigma_windows`]; the twin is taken as calibrated then).
@@ -36,6 +43,10 @@ use std::f64::consts::PI;
 /// comparison a comparison of the crank angle's alignment.
 pub const LIVE_CHANNELS: &[&str] = &["omega_en", "omega_dy", "torque_shaft", "p_int"];
 
+/// A channel's noise is taken as at least this fraction of its own spread over the noise
+/// windows (the twin's model error: a noiseless channel is not trusted to the last digit).
+pub const MODEL_FLOOR: f64 = 1e-2;
+
 /// How the live twin runs.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct TwinConfig {
@@ -55,6 +66,12 @@ pub struct TwinConfig {
     pub sigma_windows: usize,
     /// The copies' relative parameter step.
     pub rel_step: f64,
+    /// While a channel's residual RMS exceeds this many of its noise, only the parameter that
+    /// alone explains most of the residual moves.
+    pub isolate_above: f64,
+    /// The twin and its copies are turned to the stream's crank angle when they are further
+    /// apart than this at a window's end [rad].
+    pub phase_tolerance: f64,
     /// After the twin takes new values, this long before it is compared again [s] (the
     /// switch's transient).
     pub settle_s: f64,
@@ -74,9 +91,11 @@ pub struct TwinConfig {
 }
 
 impl TwinConfig {
-    /// The twin of the cell `set`, adapting `adapt`, with the defaults: 1 s warm-up, windows of
-    /// 0.25 s, the noise from 4 windows, copies 1e-3 apart, frozen above 5 % per window, alarms
-    /// beyond 5 % and 4σ for 3 windows.
+    /// The twin of the cell `set`, adapting `adapt`, with the defaults: a 1 s warm-up, windows
+    /// of 0.05 s, the noise from the 4 after the warm-up, copies 1e-3 apart, 0.05 s of settling
+    /// after each update, forgetting 0.7 per window, an update when an estimate moved 1 %,
+    /// frozen above 5 %; alarms beyond 10 % (the shaft monitor's bound) and 4σ, settled for 3
+    /// windows.
     pub fn new(set: Vec<(String, f64)>, adapt: Vec<String>) -> Self {
         Self {
             set,
@@ -87,13 +106,15 @@ impl TwinConfig {
             window_s: 0.05,
             sigma_windows: 4,
             rel_step: 1e-3,
+            phase_tolerance: 1e-3,
+            isolate_above: 5.0,
             settle_s: 0.05,
             forgetting: 0.7,
             rebase_change: 0.01,
             max_window_rel_se: 0.05,
             alarm_change: 0.1,
             alarm_sigmas: 4.0,
-            dwell: 3,
+            dwell: 2,
         }
     }
 
@@ -188,6 +209,8 @@ struct Runs {
     runs: Vec<Run>,
     /// The outputs not yet compared: `[run][channel]`.
     out: Vec<Vec<Vec<f64>>>,
+    /// The twin's engine angle over the same samples [rad].
+    theta: Vec<f64>,
 }
 
 /// The live twin as a stream stage (see the module docs).
@@ -204,10 +227,13 @@ pub struct TwinStage {
     channels: Vec<String>,
     /// The measured samples not yet compared, per channel.
     measured: Vec<Vec<f64>>,
+    /// The stream's engine angle over the same samples (less the firing TDC's) [rad].
+    theta: Vec<f64>,
     /// Samples compared so far (the next window starts there).
     compared: usize,
-    /// Sum of squared residuals and count per channel over the noise windows; then σ.
-    sigma_acc: Vec<(f64, usize)>,
+    /// Per channel over the noise windows: the residual's sum of squares, the measured sum and
+    /// sum of squares, the count; then σ.
+    sigma_acc: Vec<[f64; 4]>,
     sigma: Vec<f64>,
     noise_windows: usize,
     watch: Vec<Watch>,
@@ -243,6 +269,7 @@ impl TwinStage {
             t0: f64::NAN,
             channels: Vec::new(),
             measured: Vec::new(),
+            theta: Vec::new(),
             compared: 0,
             sigma_acc: Vec::new(),
             sigma: Vec::new(),
@@ -335,7 +362,11 @@ impl TwinStage {
             runs.push(self.copy(&runs[0], j)?);
         }
         let out = vec![vec![Vec::new(); self.channels.len()]; runs.len()];
-        Ok(Runs { runs, out })
+        Ok(Runs {
+            runs,
+            out,
+            theta: Vec::new(),
+        })
     }
 
     /// The twin with parameter `j` `1 + rel_step` times its value.
@@ -380,22 +411,31 @@ impl TwinStage {
         if t_rel < self.cfg.warmup_s {
             // The twin's own start.
         } else if self.noise_windows < self.cfg.sigma_windows {
+            // Per channel: the residual's sum of squares, the measured values' sum and sum of
+            // squares, the count.
             if self.sigma_acc.len() != nc {
-                self.sigma_acc = vec![(0.0, 0); nc];
+                self.sigma_acc = vec![[0.0; 4]; nc];
             }
-            for (acc, rc) in self.sigma_acc.iter_mut().zip(&r) {
-                acc.0 += rc.iter().map(|x| x * x).sum::<f64>();
-                acc.1 += rc.len();
+            for ((acc, rc), m) in self.sigma_acc.iter_mut().zip(&r).zip(&self.measured) {
+                acc[0] += rc.iter().map(|x| x * x).sum::<f64>();
+                acc[1] += m[..n].iter().sum::<f64>();
+                acc[2] += m[..n].iter().map(|x| x * x).sum::<f64>();
+                acc[3] += n as f64;
             }
             self.noise_windows += 1;
             if self.noise_windows == self.cfg.sigma_windows {
+                // The residual's RMS, at least 1 % of the channel's own spread: a channel the
+                // twin matches closer than that (a noiseless one) counts as matched to it.
                 self.sigma = self
                     .sigma_acc
                     .iter()
-                    .zip(&self.measured)
-                    .map(|(a, m)| {
-                        let big = m.iter().fold(0.0f64, |x, v| x.max(v.abs()));
-                        (a.0 / a.1.max(1) as f64).sqrt().max(1e-9 * big)
+                    .map(|a| {
+                        let mean = a[1] / a[3];
+                        let spread = (a[2] / a[3] - mean * mean).max(0.0).sqrt();
+                        (a[0] / a[3])
+                            .sqrt()
+                            .max(MODEL_FLOOR * spread)
+                            .max(f64::MIN_POSITIVE)
                     })
                     .collect();
             }
@@ -409,8 +449,14 @@ impl TwinStage {
                 self.info = vec![0.0; p * p];
                 self.score = vec![0.0; p];
             }
+            // This window's own score, information diagonal and residual (isolation, below).
+            let (mut g_w, mut f_w, mut rr_w) = ([0.0; 4], [0.0; 4], 0.0);
+            let mut worst_residual = 0.0f64;
             for (c, rc) in r.iter().enumerate() {
                 let w2 = 1.0 / (self.sigma[c] * self.sigma[c]);
+                let rr = rc.iter().map(|x| x * x).sum::<f64>();
+                rr_w += w2 * rr;
+                worst_residual = worst_residual.max((w2 * rr / n as f64).sqrt());
                 for (k, rk) in rc.iter().enumerate() {
                     // At most the four live parameters: no allocation per sample.
                     let mut s = [0.0; 4];
@@ -418,6 +464,8 @@ impl TwinStage {
                         *sj = (runs.out[j + 1][c][k] - runs.out[0][c][k]) / self.cfg.rel_step;
                     }
                     for a in 0..p {
+                        g_w[a] += w2 * s[a] * rk;
+                        f_w[a] += w2 * s[a] * s[a];
                         self.score[a] += w2 * s[a] * rk;
                         for b in 0..p {
                             self.info[a * p + b] += w2 * s[a] * s[b];
@@ -429,6 +477,19 @@ impl TwinStage {
             let g = DVector::from_column_slice(&self.score);
             // The excitation supervisor: the least resolved frozen while any is above its limit.
             let mut active: Vec<usize> = (0..p).collect();
+            // Isolation: while the twin is far from the stream (a residual beyond
+            // `isolate_above` of its noise), only the one parameter whose change alone explains
+            // most of the window's residual moves (the others, linearised that far away, would
+            // take shares of it and leave the twin's state wrong for seconds).
+            if worst_residual > self.cfg.isolate_above {
+                let explained = |j: usize| g_w[j] * g_w[j] / (f_w[j] * rr_w).max(f64::MIN_POSITIVE);
+                if let Some(best) = (0..p).max_by(|&a, &b| explained(a).total_cmp(&explained(b))) {
+                    for j in (0..p).filter(|&j| j != best) {
+                        frozen.push(self.cfg.adapt[j].clone());
+                    }
+                    active = vec![best];
+                }
+            }
             let solved = loop {
                 if active.is_empty() {
                     break None;
@@ -534,10 +595,26 @@ impl TwinStage {
                 residual,
             }));
         }
+        // The twin's crank angle against the stream's at the window's last sample (modulo a
+        // cycle): a parameter's change leaves the two apart by what the speeds' transients
+        // integrate to, which no parameter explains — the twin and its copies are turned
+        // alike (their differences, the sensitivities, stay).
+        let gap = (self.theta[n - 1] - runs.theta[n - 1]).rem_euclid(4.0 * PI);
+        let gap = if gap > 2.0 * PI { gap - 4.0 * PI } else { gap };
+        if t_rel >= self.cfg.warmup_s && gap.abs() > self.cfg.phase_tolerance {
+            for run in &mut runs.runs {
+                run.turn(gap);
+            }
+            for x in &mut runs.theta {
+                *x += gap;
+            }
+        }
         // The buffers move on.
         for m in &mut self.measured {
             m.drain(..n);
         }
+        self.theta.drain(..n);
+        runs.theta.drain(..n);
         for o in runs.out.iter_mut().flat_map(|r| r.iter_mut()) {
             o.drain(..n);
         }
@@ -549,6 +626,7 @@ impl TwinStage {
             for (p, v) in self.cfg.adapt.iter().zip(&self.values) {
                 runs.runs[0].set_live_parameter(p, *v)?;
             }
+
             let lead = runs.out[0].clone();
             for j in 0..p {
                 let mut c = runs.runs[0].clone();
@@ -615,6 +693,7 @@ impl crate::stage::Stage for TwinStage {
             self.info.clear();
             self.score.clear();
             self.measured = vec![Vec::new(); self.channels.len()];
+            self.theta.clear();
             self.runs = Some(self.start_runs(theta[0], demand[0] * 30.0 / PI, throttle[0])?);
         }
         let cols: Vec<&[f64]> = self
@@ -625,6 +704,9 @@ impl crate::stage::Stage for TwinStage {
         for (m, c) in self.measured.iter_mut().zip(&cols) {
             m.extend_from_slice(c);
         }
+        let tdc = self.cfg.theta_tdc;
+        self.theta
+            .extend(column(chunk, "theta_en")?.iter().map(|x| x - tdc));
         // The twin and its copies stepped sample by sample; at each window's end (once the
         // twin has placed its last sample) the window, and the copies start again from there.
         let n = self.window_samples();
@@ -646,10 +728,13 @@ impl crate::stage::Stage for TwinStage {
             }
             let window_end = (self.compared + n) as f64 / self.rate_hz;
             if tau >= window_end || k + 1 == t.len() {
-                for (run, o) in runs.runs.iter_mut().zip(&mut runs.out) {
+                for (i, (run, o)) in runs.runs.iter_mut().zip(&mut runs.out).enumerate() {
                     let rec = run.drain()?;
                     for (buf, c) in o.iter_mut().zip(&self.channels) {
                         buf.extend_from_slice(rec.values(c)?);
+                    }
+                    if i == 0 {
+                        runs.theta.extend_from_slice(rec.values("theta_en")?);
                     }
                 }
                 let have = runs

@@ -540,6 +540,7 @@ pub fn run(args: &Args) -> Result<()> {
             "steps_per_s": steps_per_s, "substeps_per_step": substeps, "solver_order": order}));
     }
     super::bench_combustion::combustion(budget, args.json, &mut results, |n, b, f| rate(n, b, f))?;
+    super::bench_twin::twin(args.json, &mut results)?;
     if args.json {
         let out = json!({"machine": machine(), "results": results});
         outln!("{}", serde_json::to_string_pretty(&out).into_diagnostic()?);

@@ -127,7 +127,7 @@ pub struct Args {
     /// Publish this cell's samples to a NATS JetStream fleet instead of running the stages
     /// here (docs/fleet.md): nats://HOST:PORT, credentials as nats://USER:PASSWORD@HOST:PORT
     /// or nats://TOKEN@HOST:PORT or --nats-credentials.
-    #[arg(long, value_name = "URL", requires = "cell", conflicts_with_all = ["friction", "torque", "controls"])]
+    #[arg(long, value_name = "URL", requires = "cell", conflicts_with_all = ["friction", "torque", "twin", "controls"])]
     nats: Option<String>,
     /// The cell id on the fleet (1–64 of A–Z a–z 0–9 - _).
     #[arg(long, value_name = "ID", requires = "nats")]
@@ -143,7 +143,7 @@ pub struct Args {
     /// Serve the fleet view of a NATS JetStream fleet instead of running a cell: every cell,
     /// its state, latest estimates and alarms; a cell's name opens its live view (controls go
     /// to the cell). nats://HOST:PORT as --nats.
-    #[arg(long, value_name = "URL", conflicts_with_all = ["nats", "headless", "replay", "frames", "frames_socket", "controls", "friction", "torque"])]
+    #[arg(long, value_name = "URL", conflicts_with_all = ["nats", "headless", "replay", "frames", "frames_socket", "controls", "friction", "torque", "twin"])]
     fleet: Option<String>,
 }
 

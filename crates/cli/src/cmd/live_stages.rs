@@ -8,6 +8,7 @@ use physid_apps::friction_fit::{
     friction_preset, FrictionFitConfig, TorqueSource, FRICTION_PRESETS, MIN_CYCLES,
 };
 use physid_apps::torque_fit::{cyclic_torque_nominal, TorqueFitConfig};
+use physid_apps::twin::live::TwinConfig;
 use physid_live::{CombustionLive, FrictionLive, LiveConfig, TorqueLive};
 use physid_sim::params::CellParams;
 
@@ -67,6 +68,24 @@ pub struct StageFlags {
     /// The crank-angle step [deg] the pressure is taken onto for --combustion.
     #[arg(long, default_value_t = 0.1)]
     step_deg: f64,
+    /// Run the self-calibrated twin beside the stream: the cell of this scenario file's `set`
+    /// (`physid twin calibrate --out`), stepped with the stream's speed demand and throttle,
+    /// adapting its live parameters, `twin` events and alarms naming the parameter that moved
+    /// (docs/twin.md). The stream needs t, theta_en, speed_demand, throttle on a time basis.
+    #[arg(long, value_name = "FILE")]
+    twin: Option<std::path::PathBuf>,
+    /// The twin's adapted parameters (of shaft.k, shaft.b, engine.m_rec, engine.friction_scale).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "shaft.k,shaft.b,engine.m_rec,engine.friction_scale",
+        requires = "twin"
+    )]
+    twin_adapt: Vec<String>,
+    /// The channels the twin compares [default: those of omega_en, omega_dy, torque_shaft,
+    /// p_int the stream has].
+    #[arg(long, value_delimiter = ',', requires = "twin")]
+    twin_channels: Vec<String>,
 }
 
 impl StageFlags {
@@ -123,6 +142,23 @@ impl StageFlags {
                 fit,
                 select_after_cycles: self.torque_after,
             });
+        }
+        if let Some(path) = &self.twin {
+            let scenario = physid_sim::scenario::Scenario::load(&path.to_string_lossy())
+                .map_err(|e| miette!("--twin {}: {e}", path.display()))?;
+            let mut twin = TwinConfig::new(
+                scenario.set.into_iter().collect(),
+                self.twin_adapt
+                    .iter()
+                    .map(|s| s.trim().to_string())
+                    .collect(),
+            );
+            if !self.twin_channels.is_empty() {
+                twin.channels = self.twin_channels.clone();
+            }
+            twin.validate()
+                .map_err(|e| miette!("--twin {}: {e}", path.display()))?;
+            cfg.twin = Some(twin);
         }
         match &self.combustion {
             Some(channel) => {

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod bench_combustion;
+pub mod bench_twin;
 pub mod combustion_args;
 pub mod compression;
 pub mod convert;

@@ -26,6 +26,8 @@ pub struct LiveConfig {
     pub torque: Option<TorqueLive>,
     /// The combustion analysis on the stream, when asked for.
     pub combustion: Option<CombustionLive>,
+    /// The self-calibrated twin beside the stream, when asked for (`theta_tdc` is the run's).
+    pub twin: Option<TwinConfig>,
     /// Set (by a SIGINT or SIGTERM handler) to end the run after the current chunk, as a
     /// `stop` control does: the stages finish and a log being written is closed.
     pub stop: Option<Arc<AtomicBool>>,
@@ -98,6 +100,7 @@ impl Default for LiveConfig {
             friction: None,
             torque: None,
             combustion: None,
+            twin: None,
             stop: None,
         }
     }

@@ -20,6 +20,7 @@ use physid_apps::per_cycle::PerCycleSettings;
 use physid_apps::shaft_monitor::{MonitorConfig, ShaftOutput, ShaftParams, ShaftStage};
 use physid_apps::stage::Stage;
 use physid_apps::torque_fit::{TorqueFitConfig, TorqueOutput, TorqueStage};
+use physid_apps::twin::live::{TwinConfig, TwinOut, TwinStage};
 use physid_core::{Basis, Recording, RecordingError};
 use physid_io::IoError;
 use physid_models::friction::REGRESSION_PARAMS;
@@ -193,6 +194,8 @@ struct StageSlots {
     torque: Slot<TorqueStage>,
     /// The combustion analysis (`--combustion`).
     combustion: Slot<CombustionStage>,
+    /// The self-calibrated twin beside the stream (`--twin`).
+    twin: Slot<TwinStage>,
 }
 
 impl StageSlots {
@@ -205,11 +208,12 @@ impl StageSlots {
             friction: Slot::start(cfg, rate_hz)?,
             torque: Slot::start(cfg, rate_hz)?,
             combustion: Slot::start(cfg, rate_hz)?,
+            twin: Slot::start(cfg, rate_hz)?,
         })
     }
 
     /// The stages in the order a chunk goes through them.
-    fn in_chunk_order(&mut self) -> [&mut dyn Run; 6] {
+    fn in_chunk_order(&mut self) -> [&mut dyn Run; 7] {
         [
             &mut self.integrity,
             &mut self.shaft,
@@ -217,12 +221,13 @@ impl StageSlots {
             &mut self.friction,
             &mut self.torque,
             &mut self.combustion,
+            &mut self.twin,
         ]
     }
 
     /// The stages in the order their last outputs are told at the end of the stream (the
     /// order the events have always come in: the event stream is part of the output).
-    fn in_finish_order(&mut self) -> [&mut dyn Run; 6] {
+    fn in_finish_order(&mut self) -> [&mut dyn Run; 7] {
         [
             &mut self.torque,
             &mut self.integrity,
@@ -230,12 +235,13 @@ impl StageSlots {
             &mut self.shaft,
             &mut self.cycles,
             &mut self.combustion,
+            &mut self.twin,
         ]
     }
 }
 
 /// The version of a [`Stages`] checkpoint's layout (a checkpoint of another is refused).
-pub const CHECKPOINT_VERSION: u32 = 7;
+pub const CHECKPOINT_VERSION: u32 = 8;
 
 #[cfg(test)]
 mod tests {

@@ -312,3 +312,45 @@ impl Tell for CombustionStage {
         });
     }
 }
+
+impl Tell for TwinStage {
+    const NAME: &'static str = "twin";
+    const STOPPED: &'static str = r#"the twin stopped (restart: {"cmd":"restart","stage":"twin"})"#;
+    const FLAG: &'static str = "--twin";
+    type Told = ();
+
+    fn start(cfg: &LiveConfig, rate_hz: f64) -> Result<Option<Self>, LiveError> {
+        let Some(t) = &cfg.twin else {
+            return Ok(None);
+        };
+        let mut t = t.clone();
+        t.theta_tdc = cfg.theta_tdc;
+        Ok(Some(TwinStage::new(t, rate_hz)?))
+    }
+
+    /// Each window's estimates and residuals; an alarm naming the parameter that moved.
+    fn tell(&self, _: &mut (), o: &TwinOut, _at: At, events: &mut dyn Sink<Event>) {
+        events.put(match o {
+            TwinOut::Window(w) => Event::Twin {
+                t_s: w.t_s,
+                params: w.params.iter().cloned().collect(),
+                std_err: w
+                    .params
+                    .iter()
+                    .zip(&w.std_err)
+                    .map(|((p, _), s)| (p.clone(), *s))
+                    .collect(),
+                frozen: w.frozen.clone(),
+                residual: w.residual.iter().cloned().collect(),
+            },
+            TwinOut::Alarm(a) => Event::Alarm {
+                app: App::Twin,
+                param: a.param.clone(),
+                t_s: a.t_s,
+                t_start_s: a.t_start_s,
+                relative_error: -a.change,
+                change: a.change,
+            },
+        });
+    }
+}

@@ -328,6 +328,12 @@ impl Run {
         Ok(())
     }
 
+    /// Turn the driveline by `delta` [rad] (engine and dynamometer together, from now on): a
+    /// twin's crank angle kept on a measured one ([`TestCell::turn`]).
+    pub fn turn(&mut self, delta: f64) {
+        self.cell.turn(delta);
+    }
+
     /// A fault from its time on (relative to the recording's start, as every fault).
     pub fn add_fault(&mut self, fault: Fault) {
         self.acquisition.add_fault(fault.clone());
