@@ -674,6 +674,36 @@ fn the_panel_in_a_real_browser() {
             js("document.querySelectorAll('#torque-table tr').length").await,
             json!(1 + chosen["estimable"].as_array().unwrap().len())
         );
+        // The twin beside the cell (docs/twin.md): the reciprocating mass grows 12.5 % at
+        // 2.5 s; the twin's card shows each channel's residual and each parameter against its
+        // calibrated value, and the alarm names engine.m_rec.
+        let dir = physid_testkit::Scratch::new("physid-panel-twin");
+        let cell = dir.file("cell.toml");
+        std::fs::write(&cell, "name = \"twin\"\nduration = 1.0\n[[speed]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 1000.0\n[[throttle]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 90.0\n").unwrap();
+        let twin = Live::start(&[
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "5",
+            "--pace",
+            "max",
+            "--fault",
+            "engine.m_rec=0.9@2.5",
+            "--twin",
+            cell.to_str().unwrap(),
+        ]);
+        c.goto(&twin.url).await.unwrap();
+        wait("window.physid.state === 'ended' && window.physid.twinWindows > 50", 40).await;
+        assert_eq!(js("document.getElementById('twin-card').hidden").await, json!(false));
+        assert_eq!(js("document.querySelectorAll('#twin-residual tbody tr').length").await, json!(4));
+        assert_eq!(js("document.querySelectorAll('#twin-params tbody tr').length").await, json!(4));
+        let row = js("Array.from(document.querySelectorAll('#twin-params tbody tr')).map((r) => r.textContent).join(' | ')").await;
+        assert!(row.as_str().unwrap().contains("engine.m_rec0.9"), "{row}");
+        let alarm = js("Array.from(document.querySelectorAll('#alarms tbody tr')).map((r) => r.cells[1].textContent)").await;
+        assert_eq!(alarm, json!(["engine.m_rec"]), "{alarm}");
+        js("document.getElementById('twin-card').scrollIntoView() || true").await;
+        let png = c.screenshot().await.unwrap();
+        std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-twin.png"), &png).unwrap();
         c.close().await.unwrap();
     });
 }

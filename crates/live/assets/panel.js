@@ -25,6 +25,7 @@
     state: "connecting", t: NaN, samples: 0, estimates: 0, traces: 0, tracePoints: 0,
     cycles: 0, alarms: 0, lost: 0, hellos: 0, hello: null, last: {}, first: {},
     frictionCycles: 0, torqueCycles: 0, combustionCycles: 0, covImep: null, identifiability: {},
+    twinWindows: 0, twinCalibrated: null,
     feeds: {}, stale: {}, layout: null, exported: 0,
   };
   window.physid = st;
@@ -54,6 +55,7 @@
     comb = { cycle: [], imep: [], mfb50: [] };
     combCurve = null;
     st.frictionCycles = 0; st.torqueCycles = 0; st.combustionCycles = 0; st.covImep = null;
+    st.twinWindows = 0; st.twinCalibrated = null;
     st.identifiability = {};
     $("torque-table").tBodies[0].replaceChildren();
     $("ident").replaceChildren();
@@ -468,6 +470,33 @@
       } else {
         st.covImep = null;
         $("cov-imep").textContent = fired.length ? "" : "no fired cycle";
+      }
+      touch();
+    },
+    // The twin's window: each channel's residual in units of its noise, each adapted
+    // parameter now against its value when the twin started (the calibrated one).
+    twin(e) {
+      st.twinWindows++; st.last.twin = e; fed("twin", e.t_s);
+      show("twin-card");
+      if (!st.twinCalibrated) st.twinCalibrated = Object.assign({}, e.params);
+      const res = $("twin-residual").tBodies[0];
+      res.replaceChildren();
+      for (const [ch, v] of Object.entries(e.residual)) {
+        const r = res.insertRow();
+        r.insertCell().textContent = ch;
+        const c = r.insertCell();
+        c.textContent = v === null ? "–" : fmt(v, 2);
+        if (v !== null && v > 3) c.className = "bad";
+      }
+      const par = $("twin-params").tBodies[0];
+      par.replaceChildren();
+      for (const [p, v] of Object.entries(e.params)) {
+        const r = par.insertRow();
+        const cal = st.twinCalibrated[p];
+        r.insertCell().textContent = p + ((e.frozen || []).includes(p) ? " (frozen)" : "");
+        r.insertCell().textContent = Number(v).toPrecision(5);
+        r.insertCell().textContent = Number(cal).toPrecision(5);
+        r.insertCell().textContent = `${v >= cal ? "+" : ""}${fmt(100 * (v / cal - 1), 1)} %`;
       }
       touch();
     },
