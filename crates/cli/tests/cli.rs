@@ -342,8 +342,14 @@ fn bench_json_has_the_documented_shape() {
     let r = v["results"].as_array().unwrap();
     // 15 linear, 2 × 2 RLS over arrays (tracks, p = 2 and 20), 3 filters and the EKF and UKF
     // over a formula, 4 model evaluations, 1 gradient, 3 identifiability, 2 + 2 test cell, 3
-    // combustion.
-    assert_eq!(r.len(), 15 + 4 + 3 + 2 + 4 + 1 + 3 + 2 + 2 + 3);
+    // combustion, the live twin.
+    assert_eq!(r.len(), 15 + 4 + 3 + 2 + 4 + 1 + 3 + 2 + 2 + 3 + 1);
+    // The live twin: simulated seconds per second with its four copies at 10 kHz.
+    let tw = r.iter().find(|e| e["name"] == "twin_live").unwrap();
+    assert!(
+        tw["realtime_factor"].as_f64().unwrap() > 0.0 && tw["copies"] == 4,
+        "{tw}"
+    );
     for name in ["ekf_expr", "ukf_expr"] {
         let e = r.iter().find(|e| e["name"] == name).unwrap();
         assert!(
