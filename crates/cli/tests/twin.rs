@@ -39,17 +39,19 @@ fn calibrate_then_check() {
         "{}",
         String::from_utf8_lossy(&sim.stderr)
     );
-    let cell = d.file("cell.toml");
+    let out = d.file("twin");
+    let cell = out.join("cell.toml");
     let cell_s = cell.to_str().unwrap();
+    // engine.inertia with its nominal value given (the cell's own: 0.035).
     let j = ok_json(&[
         "twin",
         "calibrate",
         "--data",
         rec_s,
         "--params",
-        "shaft.k,engine.friction_scale,engine.kappa,engine.inertia",
+        "shaft.k,engine.friction_scale,engine.kappa,engine.inertia=0.035",
         "--out",
-        cell_s,
+        out.to_str().unwrap(),
         "--json",
     ]);
     for (p, truth) in [
@@ -74,7 +76,7 @@ fn calibrate_then_check() {
         "{text}"
     );
     // The cell file is a scenario: the calibrated cell replays the recording's inputs.
-    let out = d.file("twin.parquet");
+    let replayed = d.file("twin.parquet");
     let sim = physid(&[
         "simulate",
         "--scenario",
@@ -82,14 +84,24 @@ fn calibrate_then_check() {
         "--basis",
         "crank",
         "--recording",
-        out.to_str().unwrap(),
+        replayed.to_str().unwrap(),
     ]);
     assert!(
         sim.status.success(),
         "{}",
         String::from_utf8_lossy(&sim.stderr)
     );
-    let c = ok_json(&["twin", "check", "--data", rec_s, "--cell", cell_s, "--json"]);
+    // The report directory: the cell file, the report, the JSON.
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("engine.friction_scale"), "{report}");
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("calibration.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        saved["params"]["shaft.k"]["value"],
+        j["params"]["shaft.k"]["value"]
+    );
+    let c = ok_json(&["twin", "check", "--data", rec_s, "--twin", cell_s, "--json"]);
     for ch in ["omega_en", "omega_dy", "torque_shaft"] {
         let e = &c["channels"][ch];
         let (b, a) = (
@@ -172,7 +184,7 @@ fn twin_errors_name_the_problem() {
         "check",
         "--data",
         crank.to_str().unwrap(),
-        "--cell",
+        "--twin",
         "/nonexistent.toml",
     ]);
     let e = String::from_utf8_lossy(&o.stderr);

@@ -69,7 +69,7 @@ pub struct StageFlags {
     #[arg(long, default_value_t = 0.1)]
     step_deg: f64,
     /// Run the self-calibrated twin beside the stream: the cell of this scenario file's `set`
-    /// (`physid twin calibrate --out`), stepped with the stream's speed demand and throttle,
+    /// (DIR/cell.toml of `physid twin calibrate --out DIR`), stepped with the stream's speed demand and throttle,
     /// adapting its live parameters, `twin` events and alarms naming the parameter that moved
     /// (docs/twin.md). The stream needs t, theta_en, speed_demand, throttle on a time basis.
     #[arg(long, value_name = "FILE")]

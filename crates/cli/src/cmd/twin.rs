@@ -3,6 +3,7 @@
 
 use super::simulate::SetArgs;
 use crate::out::outln;
+use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::twin::calibrate::DEFAULT_PARAMS;
 use physid_apps::twin::{calibrate, check, CalibrateConfig, Calibration, Replay};
@@ -24,12 +25,12 @@ enum What {
     /// intervals: the cell driven by the recording's speed demand and throttle, its outputs
     /// matched degree by degree; the rest held at nominal, and said so.
     ///
-    /// Example: physid twin calibrate --data run.parquet --out cell.toml
+    /// Example: physid twin calibrate --data run.parquet --out twin
     Calibrate(CalibrateArgs),
     /// The calibrated cell driven by a recording's inputs against the recording, channel by
     /// channel: NRMSE with the nominal cell and with the calibrated one.
     ///
-    /// Example: physid twin check --data run.parquet --cell cell.toml
+    /// Example: physid twin check --data run.parquet --twin twin/cell.toml
     Check(CheckArgs),
 }
 
@@ -45,7 +46,7 @@ struct DataArgs {
     input: super::InputArgs,
     /// The channels matched [default: those of omega_en, omega_dy, torque_shaft, p_int, p_cyl
     /// the recording has].
-    #[arg(long, value_name = "NAME,…", value_delimiter = ',')]
+    #[arg(long, value_name = "CHANNELS", value_delimiter = ',')]
     channels: Vec<String>,
     /// The nominal cell: the built-in one with these settings.
     #[command(flatten)]
@@ -70,18 +71,19 @@ impl DataArgs {
 struct CalibrateArgs {
     #[command(flatten)]
     data: DataArgs,
-    /// The cell parameters tried (their --list-params paths) [default: shaft.k, shaft.b,
-    /// engine.inertia, dyno.inertia, engine.friction_scale, engine.kappa, engine.v_int,
-    /// engine.m_rec].
-    #[arg(long, value_name = "PATH,…", value_delimiter = ',')]
+    /// The cell parameters tried, by their --list-params paths, each with an optional nominal
+    /// (starting) value PATH=VALUE [default: shaft.k, shaft.b, engine.inertia, dyno.inertia,
+    /// engine.friction_scale, engine.kappa, engine.v_int, engine.m_rec at the cell's values].
+    #[arg(long, value_name = "NAME=VALUE,…", value_delimiter = ',')]
     params: Vec<String>,
     /// A parameter is estimable while its relative standard error stays at or below this.
     #[arg(long, value_name = "FRACTION", default_value_t = 0.05, value_parser = super::range::positive)]
     max_rel_se: f64,
-    /// The calibrated cell as a scenario file: the recording's inputs replayed, the calibrated
-    /// values in its `set` (what `physid simulate --scenario` and `physid twin check --cell`
-    /// take), the intervals in its header.
-    #[arg(long, value_name = "FILE")]
+    /// The report directory: `cell.toml` — the calibrated cell as a scenario file, the
+    /// recording's inputs replayed and the calibrated values in its `set` (what `physid simulate
+    /// --scenario`, `physid twin check --twin` and `physid live --twin` take), the intervals in
+    /// its header —, `report.html` and `calibration.json`.
+    #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Worker threads for the replays (0: every core).
     #[arg(long, default_value_t = 0)]
@@ -93,9 +95,9 @@ struct CheckArgs {
     #[command(flatten)]
     data: DataArgs,
     /// The calibrated cell: a scenario file whose `set` holds the calibrated values (`physid
-    /// twin calibrate --out`).
+    /// twin calibrate --out DIR` writes DIR/cell.toml).
     #[arg(long, value_name = "FILE")]
-    cell: PathBuf,
+    twin: PathBuf,
 }
 
 /// Run `physid twin`.
@@ -107,13 +109,31 @@ pub fn run(a: &Args) -> Result<()> {
 }
 
 fn run_calibrate(a: &CalibrateArgs) -> Result<()> {
-    let (replay, cell) = a.data.replay()?;
+    let (replay, mut cell) = a.data.replay()?;
+    // PATH=VALUE: the nominal value set on the cell.
+    let mut params = Vec::new();
+    let mut nominal = Vec::new();
+    for item in &a.params {
+        match item.split_once('=') {
+            Some((path, v)) => {
+                let v: f64 = v
+                    .trim()
+                    .parse()
+                    .map_err(|_| miette!("--params {item}: '{v}' is not a number"))?;
+                cell.set(path.trim(), v)
+                    .map_err(|e| miette!("--params {item}: {e}"))?;
+                nominal.push((path.trim().to_string(), v));
+                params.push(path.trim().to_string());
+            }
+            None => params.push(item.trim().to_string()),
+        }
+    }
     let cfg = CalibrateConfig {
         cell: cell.clone(),
-        params: if a.params.is_empty() {
+        params: if params.is_empty() {
             DEFAULT_PARAMS.iter().map(|s| s.to_string()).collect()
         } else {
-            a.params.clone()
+            params
         },
         max_rel_se: a.max_rel_se,
         threads: a.threads,
@@ -122,14 +142,26 @@ fn run_calibrate(a: &CalibrateArgs) -> Result<()> {
     let started = std::time::Instant::now();
     let cal = calibrate(&replay, &cfg).map_err(|e| miette!("{e}"))?;
     let seconds = started.elapsed().as_secs_f64();
-    if let Some(path) = &a.out {
-        write_cell(path, &replay, &cell, &a.data.set, &cal)?;
+    let json = calibration_json(&cal, seconds);
+    if let Some(dir) = &a.out {
+        report::create_dir(dir)?;
+        write_cell(
+            &dir.join("cell.toml"),
+            &replay,
+            &cell,
+            &a.data.set,
+            &nominal,
+            &cal,
+        )?;
+        let mut rep = Report::new(
+            "The self-calibrated cell: calibration",
+            &a.data.data.display().to_string(),
+        );
+        report_body(&mut rep, &cal);
+        report::finish(dir, rep, "calibration.json", &json)?;
     }
     if a.data.json {
-        outln!(
-            "{}",
-            serde_json::to_string(&calibration_json(&cal, seconds)).into_diagnostic()?
-        );
+        outln!("{}", serde_json::to_string(&json).into_diagnostic()?);
         return Ok(());
     }
     outln!(
@@ -192,10 +224,72 @@ fn run_calibrate(a: &CalibrateArgs) -> Result<()> {
     for (x, y, rho) in &cal.collinear {
         outln!("nearly collinear: {x} and {y} (correlation {rho:+.3})");
     }
-    if let Some(path) = &a.out {
-        outln!("wrote {}", path.display());
+    if let Some(dir) = &a.out {
+        outln!("wrote {}", dir.join("cell.toml").display());
     }
     Ok(())
+}
+
+/// The report: the parameters (estimable with their intervals, held with the reason), the
+/// channels' noise and residuals, the collinear pairs.
+fn report_body(rep: &mut Report, cal: &Calibration) {
+    rep.para(
+        &format!(
+            "{} samples per channel; {} replays of the cell, {} Gauss–Newton iterations (docs/twin.md).",
+            cal.samples, cal.replays, cal.iterations
+        ),
+        None,
+    );
+    rep.section("Parameters");
+    let rows: Vec<Vec<String>> = cal
+        .params
+        .iter()
+        .map(|p| {
+            vec![
+                p.path.clone(),
+                p.rank.to_string(),
+                format!("{}", p.nominal),
+                match p.ci95 {
+                    Some([lo, hi]) => format!("{:.6} ({lo:.6} … {hi:.6})", p.value),
+                    None => "held".into(),
+                },
+                p.held.clone().unwrap_or_default(),
+            ]
+        })
+        .collect();
+    rep.table(
+        &[
+            "parameter",
+            "rank",
+            "nominal",
+            "calibrated (95 %)",
+            "held because",
+        ],
+        &rows,
+    );
+    rep.section("Channels");
+    let rows: Vec<Vec<String>> = cal
+        .channels
+        .iter()
+        .map(|c| {
+            vec![
+                c.name.clone(),
+                format!("{:.4e}", c.sigma),
+                format!("{:.4e}", c.rms_nominal),
+                format!("{:.4e}", c.rms_calibrated),
+            ]
+        })
+        .collect();
+    rep.table(
+        &["channel", "σ (fit)", "RMS nominal", "RMS calibrated"],
+        &rows,
+    );
+    for (x, y, rho) in &cal.collinear {
+        rep.para(
+            &format!("nearly collinear: {x} and {y} (correlation {rho:+.3})"),
+            None,
+        );
+    }
 }
 
 /// The calibration as JSON: each parameter under its path.
@@ -230,11 +324,12 @@ fn write_cell(
     replay: &Replay,
     cell: &CellParams,
     set: &SetArgs,
+    nominal: &[(String, f64)],
     cal: &Calibration,
 ) -> Result<()> {
     let mut scenario = replay.scenario.clone();
     scenario.name = "twin".into();
-    for (k, v) in set.pairs()? {
+    for (k, v) in set.pairs()?.into_iter().chain(nominal.iter().cloned()) {
         scenario.set.insert(k, v);
     }
     for p in cal.params.iter().filter(|p| p.estimable) {
@@ -265,18 +360,18 @@ fn write_cell(
     let tmp = path.with_extension("toml.partial");
     std::fs::write(&tmp, format!("{head}{text}"))
         .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|e| miette!("--out {}: {e}", path.display()))
+        .map_err(|e| miette!("writing {}: {e}", path.display()))
 }
 
 fn run_check(a: &CheckArgs) -> Result<()> {
     let (replay, nominal) = a.data.replay()?;
-    let twin = Scenario::load(&a.cell.to_string_lossy())
-        .map_err(|e| miette!("--cell {}: {e}", a.cell.display()))?;
+    let twin = Scenario::load(&a.twin.to_string_lossy())
+        .map_err(|e| miette!("--twin {}: {e}", a.twin.display()))?;
     let mut calibrated = nominal.clone();
     for (k, v) in &twin.set {
         calibrated
             .set(k, *v)
-            .map_err(|e| miette!("--cell {}: {e}", a.cell.display()))?;
+            .map_err(|e| miette!("--twin {}: {e}", a.twin.display()))?;
     }
     let checks = check(&replay, &nominal, &calibrated).map_err(|e| miette!("{e}"))?;
     if a.data.json {
