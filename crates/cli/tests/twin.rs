@@ -101,7 +101,19 @@ fn calibrate_then_check() {
         saved["params"]["shaft.k"]["value"],
         j["params"]["shaft.k"]["value"]
     );
-    let c = ok_json(&["twin", "check", "--data", rec_s, "--twin", cell_s, "--json"]);
+    let checked = d.file("check");
+    let c = ok_json(&[
+        "twin",
+        "check",
+        "--data",
+        rec_s,
+        "--twin",
+        cell_s,
+        "--json",
+        "--out",
+        checked.to_str().unwrap(),
+    ]);
+    assert!(c["no_band"].is_null(), "{c}");
     for ch in ["omega_en", "omega_dy", "torque_shaft"] {
         let e = &c["channels"][ch];
         let (b, a) = (
@@ -109,7 +121,42 @@ fn calibrate_then_check() {
             e["nrmse_after"].as_f64().unwrap(),
         );
         assert!(b >= 10.0 * a, "{ch}: {b} → {a}");
+        // The band from calibration.json beside the cell: on the recording calibrated on,
+        // about 5 % of the samples outside it, and nowhere a cycle out of it.
+        let band = &e["band"];
+        let outside = band["outside"].as_f64().unwrap();
+        assert!((0.02..0.1).contains(&outside), "{ch}: {band}");
+        assert_eq!(
+            band["excursions"].as_array().unwrap().len(),
+            0,
+            "{ch}: {band}"
+        );
+        assert!(band["param_sd"].as_f64().unwrap() > 0.0, "{ch}: {band}");
     }
+    let report = std::fs::read_to_string(checked.join("report.html")).unwrap();
+    assert!(
+        report.contains("95 % band")
+            && report.contains("calibrated cell")
+            && report.matches("<svg").count() >= 3,
+        "the check's report"
+    );
+    assert!(checked.join("check.json").exists());
+    // A cell file without its calibration beside it: the NRMSE, and why there is no band.
+    let alone = d.file("alone.toml");
+    std::fs::copy(&cell, &alone).unwrap();
+    let t = physid(&[
+        "twin",
+        "check",
+        "--data",
+        rec_s,
+        "--twin",
+        alone.to_str().unwrap(),
+    ]);
+    let s = String::from_utf8_lossy(&t.stdout);
+    assert!(
+        t.status.success() && s.contains("no band:") && s.contains("calibration.json not found"),
+        "{s}"
+    );
     // The text output names the held parameters and the reason.
     let t = physid(&[
         "twin",

@@ -3,7 +3,7 @@
 use crate::err;
 use crate::recording::Recording;
 use physid_apps::twin::calibrate::DEFAULT_PARAMS;
-use physid_apps::twin::{calibrate, check, CalibrateConfig, Replay};
+use physid_apps::twin::{calibrate, check, CalibrateConfig, Replay, Uncertainty};
 use pyo3::prelude::*;
 use std::collections::BTreeMap;
 
@@ -52,6 +52,7 @@ pub fn twin_calibrate(
         .collect::<PyResult<_>>()?;
     let json = serde_json::json!({
         "params": params,
+        "covariance": cal.covariance,
         "channels": cal.channels,
         "collinear": cal.collinear,
         "iterations": cal.iterations,
@@ -62,23 +63,34 @@ pub fn twin_calibrate(
 }
 
 /// Each channel's NRMSE on `rec` with the cell (`set` over the defaults) and with it
-/// calibrated (`calibrated` over that), as JSON.
+/// calibrated (`calibrated` over that), and with `calibration` (a calibration's JSON: its
+/// covariance and channel noise) the residual's band, as JSON.
 #[pyfunction]
-#[pyo3(signature = (rec, calibrated, channels, set))]
+#[pyo3(signature = (rec, calibrated, channels, set, calibration))]
 pub fn twin_check(
     py: Python<'_>,
     rec: &Recording,
     calibrated: BTreeMap<String, f64>,
     channels: Option<Vec<String>>,
     set: BTreeMap<String, f64>,
+    calibration: Option<String>,
 ) -> PyResult<String> {
+    let uncertainty = match calibration {
+        Some(s) => {
+            let v: serde_json::Value = serde_json::from_str(&s).map_err(err)?;
+            Some(Uncertainty::from_json(&v).map_err(err)?)
+        }
+        None => None,
+    };
     let nominal = cell_of(&set)?;
     let mut cal = nominal.clone();
     for (k, v) in &calibrated {
         cal.set(k, *v).map_err(err)?;
     }
     let replay = Replay::new(&rec.inner, channels.as_deref()).map_err(err)?;
-    let checks = py.detach(|| check(&replay, &nominal, &cal)).map_err(err)?;
+    let checks = py
+        .detach(|| check(&replay, &nominal, &cal, uncertainty.as_ref()))
+        .map_err(err)?;
     let map: serde_json::Map<String, serde_json::Value> = checks
         .iter()
         .map(|c| Ok((c.name.clone(), serde_json::to_value(c).map_err(err)?)))

@@ -317,5 +317,9 @@ def test_twin_calibrates_a_perturbed_cell_and_checks_it(tmp_path):
     for ch in ("omega_en", "omega_dy", "torque_shaft"):
         c = chk["channels"][ch]
         assert c["nrmse_before"] >= 10 * c["nrmse_after"], (ch, c)
+        # The band from the calibration's covariance and noise: about 5 % of the samples
+        # outside it on the recording calibrated on.
+        assert 0.02 < c["band"]["outside"] < 0.1 and c["band"]["excursions"] == [], (ch, c)
+    assert physid.twin_check(rec, {"shaft.k": 1125.0})["channels"]["omega_en"]["band"] is None
     with pytest.raises(physid.Error, match="list-params"):
         physid.twin_calibrate(rec, params=["shaft.q"])

@@ -121,6 +121,18 @@ pub struct Calibration {
     pub samples: usize,
     /// Replays of the cell run.
     pub replays: usize,
+    /// The estimable parameters' covariance (what `check` propagates into each channel's
+    /// residual band).
+    pub covariance: Covariance,
+}
+
+/// The covariance of the estimable parameters, `(ZᵀZ)⁻¹` at the fit in their own units.
+#[derive(Debug, Clone, Default, Serialize, serde::Deserialize, PartialEq)]
+pub struct Covariance {
+    /// The parameters (paths), in the matrix's order.
+    pub params: Vec<String>,
+    /// Row by row [unit_i·unit_j].
+    pub matrix: Vec<Vec<f64>>,
 }
 
 impl Calibration {
@@ -570,6 +582,16 @@ pub fn calibrate(replay: &Replay, config: &CalibrateConfig) -> Result<Calibratio
             }
         }
     }
+    let covariance = Covariance {
+        params: active.iter().map(|&j| pb.paths[j].clone()).collect(),
+        matrix: (0..active.len())
+            .map(|a| {
+                (0..active.len())
+                    .map(|b| cov[(a, b)] * pb.nominal[active[a]] * pb.nominal[active[b]])
+                    .collect()
+            })
+            .collect(),
+    };
     let channels = replay
         .channels
         .iter()
@@ -588,5 +610,6 @@ pub fn calibrate(replay: &Replay, config: &CalibrateConfig) -> Result<Calibratio
         iterations,
         samples: replay.n,
         replays: pb.replays.into_inner(),
+        covariance,
     })
 }

@@ -4,7 +4,8 @@
 //!
 //! * [`replay`] — a recording's inputs as a scenario, and the cell's outputs on its grid.
 //! * [`calibrate`] — ranking, bounded Gauss–Newton, covariance.
-//! * [`check`] — the calibrated cell against a recording: NRMSE before and after.
+//! * [`check`] — the calibrated cell against a recording: NRMSE before and after, the
+//!   residual's band predicted from the calibration's covariance and where it leaves it.
 //! * [`live`] — the twin beside the stream: stepped in lock-step, adapting, alarming.
 
 pub mod calibrate;
@@ -13,5 +14,5 @@ pub mod live;
 pub mod replay;
 
 pub use calibrate::{calibrate, CalibrateConfig, Calibration};
-pub use check::{check, ChannelCheck};
+pub use check::{check, ChannelCheck, Uncertainty};
 pub use replay::Replay;

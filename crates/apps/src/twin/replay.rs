@@ -33,6 +33,8 @@ pub struct Replay {
     pub measured: Vec<Vec<f64>>,
     /// Samples compared per channel.
     pub n: usize,
+    /// The recording's time at each of them [s].
+    pub t: Vec<f64>,
 }
 
 /// `(t, v)` with the points inside runs of equal values left out: the same profile under
@@ -183,6 +185,7 @@ impl Replay {
             channels: names,
             measured,
             n,
+            t: t[..n].to_vec(),
         })
     }
 

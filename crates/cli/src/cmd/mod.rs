@@ -26,6 +26,7 @@ pub mod run;
 pub mod simulate;
 pub mod torque;
 pub mod twin;
+pub mod twin_check;
 pub mod worker;
 
 use miette::{miette, IntoDiagnostic, Result};

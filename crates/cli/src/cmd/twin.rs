@@ -6,9 +6,8 @@ use crate::out::outln;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::twin::calibrate::DEFAULT_PARAMS;
-use physid_apps::twin::{calibrate, check, CalibrateConfig, Calibration, Replay};
+use physid_apps::twin::{calibrate, CalibrateConfig, Calibration, Replay};
 use physid_sim::params::CellParams;
-use physid_sim::scenario::Scenario;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -28,37 +27,39 @@ enum What {
     /// Example: physid twin calibrate --data run.parquet --out twin
     Calibrate(CalibrateArgs),
     /// The calibrated cell driven by a recording's inputs against the recording, channel by
-    /// channel: NRMSE with the nominal cell and with the calibrated one.
+    /// channel: NRMSE with the nominal cell and with the calibrated one, the band the residual
+    /// is predicted to stay in (the noise and the calibration's covariance, from
+    /// calibration.json beside the cell file) and where it leaves it.
     ///
     /// Example: physid twin check --data run.parquet --twin twin/cell.toml
-    Check(CheckArgs),
+    Check(super::twin_check::CheckArgs),
 }
 
 /// What both verbs read.
 #[derive(clap::Args)]
-struct DataArgs {
+pub(super) struct DataArgs {
     /// The recording, on a crank-angle basis (one sample per degree; `physid convert
     /// --crank-angle` converts a time-basis one): t, theta, speed_demand, throttle and the
     /// channels matched.
     #[arg(long, value_name = "FILE")]
-    data: PathBuf,
+    pub(super) data: PathBuf,
     #[command(flatten)]
-    input: super::InputArgs,
+    pub(super) input: super::InputArgs,
     /// The channels matched [default: those of omega_en, omega_dy, torque_shaft, p_int, p_cyl
     /// the recording has].
     #[arg(long, value_name = "CHANNELS", value_delimiter = ',')]
-    channels: Vec<String>,
+    pub(super) channels: Vec<String>,
     /// The nominal cell: the built-in one with these settings.
     #[command(flatten)]
-    set: SetArgs,
+    pub(super) set: SetArgs,
     /// Print the result as JSON.
     #[arg(long)]
-    json: bool,
+    pub(super) json: bool,
 }
 
 impl DataArgs {
     /// The recording's replay and the nominal cell.
-    fn replay(&self) -> Result<(Replay, CellParams)> {
+    pub(super) fn replay(&self) -> Result<(Replay, CellParams)> {
         let rec = super::InputArgs::read(&self.input, &self.data, None)?;
         let channels = (!self.channels.is_empty()).then_some(&self.channels[..]);
         let replay = Replay::new(&rec, channels)
@@ -90,21 +91,11 @@ struct CalibrateArgs {
     threads: usize,
 }
 
-#[derive(clap::Args)]
-struct CheckArgs {
-    #[command(flatten)]
-    data: DataArgs,
-    /// The calibrated cell: a scenario file whose `set` holds the calibrated values (`physid
-    /// twin calibrate --out DIR` writes DIR/cell.toml).
-    #[arg(long, value_name = "FILE")]
-    twin: PathBuf,
-}
-
 /// Run `physid twin`.
 pub fn run(a: &Args) -> Result<()> {
     match &a.what {
         What::Calibrate(c) => run_calibrate(c),
-        What::Check(c) => run_check(c),
+        What::Check(c) => super::twin_check::run(c),
     }
 }
 
@@ -307,6 +298,7 @@ fn calibration_json(cal: &Calibration, seconds: f64) -> serde_json::Value {
         .collect();
     json!({
         "params": params,
+        "covariance": cal.covariance,
         "channels": cal.channels,
         "collinear": cal.collinear.iter().map(|(a, b, r)| json!({"a": a, "b": b, "correlation": r})).collect::<Vec<_>>(),
         "iterations": cal.iterations,
@@ -361,53 +353,4 @@ fn write_cell(
     std::fs::write(&tmp, format!("{head}{text}"))
         .and_then(|_| std::fs::rename(&tmp, path))
         .map_err(|e| miette!("writing {}: {e}", path.display()))
-}
-
-fn run_check(a: &CheckArgs) -> Result<()> {
-    let (replay, nominal) = a.data.replay()?;
-    let twin = Scenario::load(&a.twin.to_string_lossy())
-        .map_err(|e| miette!("--twin {}: {e}", a.twin.display()))?;
-    let mut calibrated = nominal.clone();
-    for (k, v) in &twin.set {
-        calibrated
-            .set(k, *v)
-            .map_err(|e| miette!("--twin {}: {e}", a.twin.display()))?;
-    }
-    let checks = check(&replay, &nominal, &calibrated).map_err(|e| miette!("{e}"))?;
-    if a.data.json {
-        let channels: serde_json::Map<String, serde_json::Value> = checks
-            .iter()
-            .map(|c| (c.name.clone(), serde_json::to_value(c).unwrap_or_default()))
-            .collect();
-        outln!(
-            "{}",
-            serde_json::to_string(&json!({"channels": channels, "samples": replay.n}))
-                .into_diagnostic()?
-        );
-        return Ok(());
-    }
-    outln!(
-        "{:<16} {:>14} {:>14} {:>8} {:>16}",
-        "channel",
-        "NRMSE nominal",
-        "NRMSE twin",
-        "gain",
-        "RMS twin"
-    );
-    for c in &checks {
-        outln!(
-            "{:<16} {:>14.3e} {:>14.3e} {:>7.1}× {:>12.4e} {}",
-            c.name,
-            c.nrmse_before,
-            c.nrmse_after,
-            c.nrmse_before / c.nrmse_after,
-            c.rms_after,
-            c.unit
-        );
-    }
-    outln!(
-        "(NRMSE: the residual's RMS over the measured channel's range, {} samples)",
-        replay.n
-    );
-    Ok(())
 }

@@ -976,13 +976,19 @@ def twin_check(
     """The calibrated cell against ``rec`` (``physid twin check``): per channel ``nrmse_before``
     (the cell with ``set``), ``nrmse_after`` (with the calibrated values too) and
     ``rms_after``. ``calibrated`` is :func:`twin_calibrate`'s result (its estimable values are
-    taken) or ``{path: value}``."""
+    taken, and its covariance and channel noise give each channel's ``band``: ``sigma``,
+    ``param_sd``, ``outside`` — the fraction of samples outside the 95 % band — and
+    ``excursions``, where the residual leaves it) or ``{path: value}`` (no band)."""
+    calibration = None
     if "params" in calibrated and isinstance(calibrated["params"], Mapping):
         values = {p: float(e["value"]) for p, e in calibrated["params"].items() if e["estimable"]}
+        if "covariance" in calibrated:
+            calibration = _json.dumps({"covariance": calibrated["covariance"],
+                                       "channels": calibrated["channels"]})
     else:
         values = {str(k): float(v) for k, v in calibrated.items()}
     s = _physid.twin_check(rec, values, None if channels is None else [str(c) for c in channels],
-                           {str(k): float(v) for k, v in (set or {}).items()})
+                           {str(k): float(v) for k, v in (set or {}).items()}, calibration)
     return _json.loads(s)
 
 
