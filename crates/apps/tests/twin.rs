@@ -423,84 +423,90 @@ fn bad_input_is_named() {
 }
 
 /// The live twin beside a stream (10 kHz, time basis) of the cell it was calibrated on, whose
-/// shaft stiffness falls 20 % at 30 s: the twin tracks K to within 2 % of its new value, raises
-/// a K alarm within 0.6 s of the step (the shaft monitor's own test allows 0.5 s, and raises
-/// it in 0.125 s on this stream), and no other parameter alarms; before the step every
-/// residual stays within 3 of its noise.
+/// shaft stiffness falls 20 % at 30 s (and, in a second run, at 30.02 s: a change inside a
+/// window): the twin tracks K to within 2 % of its new value, raises a K alarm within the
+/// shaft monitor's delay (0.125 s on this stream; crates/cli/tests/twin.rs compares the two on
+/// `physid live`'s), naming its change within 0.1 of the truth, and no other
+/// parameter alarms; before the step every residual stays within 3 of its noise.
 #[test]
 fn live_twin_names_the_parameter_that_moved() {
     use physid_apps::stage::Stage;
     use physid_apps::twin::live::{TwinConfig, TwinOut, TwinStage};
-    let mut scenario = physid_sim::scenario::named("shaft-steady").unwrap();
-    scenario.duration = 32.0;
-    let mut params = CellParams::default();
-    params.set("sensors.speed.noise", 0.01).unwrap();
-    let opts = RunOptions {
-        params,
-        basis: OutputBasis::Time(10_000.0),
-        faults: vec![physid_sim::scenario::Fault::parse("shaft.k=1000@30").unwrap()],
-        ..RunOptions::default()
-    };
-    let rec = simulate(&scenario, &opts, |_| {}).unwrap();
-    let adapt: Vec<String> = [
-        "shaft.k",
-        "shaft.b",
-        "engine.m_rec",
-        "engine.friction_scale",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    let cfg = TwinConfig::new(Vec::new(), adapt);
-    let mut stage = TwinStage::new(cfg, 10_000.0).unwrap();
-    let mut out: Vec<TwinOut> = Vec::new();
-    let t0 = std::time::Instant::now();
-    let chunk = 1000;
-    for s in (0..rec.len()).step_by(chunk) {
-        let c = rec.slice(s..(s + chunk).min(rec.len()));
-        stage.push(&c, &mut out).unwrap();
-    }
-    stage.finish(&mut out).unwrap();
-    println!(
-        "{:.1} s for {:.0} s of stream",
-        t0.elapsed().as_secs_f64(),
-        scenario.duration
-    );
-    let mut worst_before = 0.0f64;
-    for o in &out {
-        match o {
-            TwinOut::Alarm(a) => println!("{a:?}"),
-            TwinOut::Window(w) => {
-                if w.t_s < 30.0 {
-                    for (_, r) in &w.residual {
-                        worst_before = worst_before.max(*r);
+    for at in [30.0, 30.02] {
+        let mut scenario = physid_sim::scenario::named("shaft-steady").unwrap();
+        scenario.duration = 32.0;
+        let mut params = CellParams::default();
+        params.set("sensors.speed.noise", 0.01).unwrap();
+        let opts = RunOptions {
+            params,
+            basis: OutputBasis::Time(10_000.0),
+            faults: vec![
+                physid_sim::scenario::Fault::parse(&format!("shaft.k=1000@{at}")).unwrap(),
+            ],
+            ..RunOptions::default()
+        };
+        let rec = simulate(&scenario, &opts, |_| {}).unwrap();
+        let adapt: Vec<String> = [
+            "shaft.k",
+            "shaft.b",
+            "engine.m_rec",
+            "engine.friction_scale",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let cfg = TwinConfig::new(Vec::new(), adapt);
+        let mut stage = TwinStage::new(cfg, 10_000.0).unwrap();
+        let mut out: Vec<TwinOut> = Vec::new();
+        let t0 = std::time::Instant::now();
+        let chunk = 1000;
+        for s in (0..rec.len()).step_by(chunk) {
+            let c = rec.slice(s..(s + chunk).min(rec.len()));
+            stage.push(&c, &mut out).unwrap();
+        }
+        stage.finish(&mut out).unwrap();
+        println!(
+            "step at {at} s: {:.1} s for {:.0} s of stream",
+            t0.elapsed().as_secs_f64(),
+            scenario.duration
+        );
+        let mut worst_before = 0.0f64;
+        for o in &out {
+            match o {
+                TwinOut::Alarm(a) => println!("{a:?}"),
+                TwinOut::Window(w) => {
+                    if w.t_s < at {
+                        for (_, r) in &w.residual {
+                            worst_before = worst_before.max(*r);
+                        }
                     }
-                }
-                if w.t_s > 29.9 && w.t_s < 30.6 {
-                    println!(
-                        "{:.2} {:?} frozen {:?} residual {:?}",
-                        w.t_s, w.params, w.frozen, w.residual
-                    );
+                    if w.t_s > at - 0.1 && w.t_s < at + 0.3 {
+                        println!(
+                            "{:.2} {:?} frozen {:?} residual {:?}",
+                            w.t_s, w.params, w.frozen, w.residual
+                        );
+                    }
                 }
             }
         }
+        println!("worst residual before the step {worst_before:.2}");
+        let alarms: Vec<_> = out
+            .iter()
+            .filter_map(|o| match o {
+                TwinOut::Alarm(a) => Some(a),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(alarms.len(), 1, "{alarms:?}");
+        assert_eq!(alarms[0].param, "shaft.k");
+        assert!(
+            alarms[0].t_s > at && alarms[0].t_s <= at + 0.125,
+            "{:?}",
+            alarms[0]
+        );
+        assert!((alarms[0].change + 0.2).abs() < 0.1, "{:?}", alarms[0]);
+        let k = stage.values()[0].1;
+        assert!((k / 1000.0 - 1.0).abs() < 0.02, "K {k}");
+        assert!(worst_before < 3.0, "{worst_before}");
     }
-    println!("worst residual before the step {worst_before:.2}");
-    let alarms: Vec<_> = out
-        .iter()
-        .filter_map(|o| match o {
-            TwinOut::Alarm(a) => Some(a),
-            _ => None,
-        })
-        .collect();
-    assert_eq!(alarms.len(), 1, "{alarms:?}");
-    assert_eq!(alarms[0].param, "shaft.k");
-    assert!(
-        alarms[0].t_s > 30.0 && alarms[0].t_s <= 30.6,
-        "{:?}",
-        alarms[0]
-    );
-    let k = stage.values()[0].1;
-    assert!((k / 1000.0 - 1.0).abs() < 0.02, "K {k}");
-    assert!(worst_before < 3.0, "{worst_before}");
 }

@@ -297,3 +297,65 @@ fn live_twin_names_what_the_shaft_monitor_cannot_see() {
         }
     }
 }
+
+/// `physid live --twin cell.toml` on the paced virtual cell, the shaft's K falling 20 % and,
+/// in another run, B rising 20 %, each inside a twin window (5.02 s, 5.045 s): the twin names
+/// the parameter — and no other — no later than the shaft monitor raises its alarm on the same
+/// stream (K: 0.08 s against 0.107 s after the change; B: 0.105 s against 0.13 s).
+#[test]
+fn the_twin_names_a_shaft_change_no_later_than_the_shaft_monitor() {
+    let d = physid_testkit::Scratch::new("twin-shaft");
+    let cell = d.file("cell.toml");
+    std::fs::write(&cell, "name = \"twin\"\nduration = 1.0\n[[speed]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 1000.0\n[[throttle]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 90.0\n").unwrap();
+    for (fault, param, shaft_param, at) in [
+        ("shaft.k=1000@5.02", "shaft.k", "K", 5.02),
+        ("shaft.b=1.14@5.045", "shaft.b", "B", 5.045),
+    ] {
+        let o = physid(&[
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--fault",
+            fault,
+            "--duration",
+            "6",
+            "--pace",
+            "max",
+            "--twin",
+            cell.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let ev: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        let alarms = |app: &str| -> Vec<&serde_json::Value> {
+            ev.iter()
+                .filter(|e| e["type"] == "alarm" && e["app"] == app)
+                .collect()
+        };
+        let twin = alarms("twin");
+        let shaft = alarms("shaft");
+        assert_eq!(twin.len(), 1, "{fault}: {twin:?}");
+        assert_eq!(twin[0]["param"], param, "{fault}");
+        let shaft = shaft
+            .iter()
+            .find(|e| e["param"] == shaft_param)
+            .unwrap_or_else(|| panic!("{fault}: no shaft alarm: {shaft:?}"));
+        let (t_twin, t_shaft) = (
+            twin[0]["t_s"].as_f64().unwrap(),
+            shaft["t_s"].as_f64().unwrap(),
+        );
+        println!(
+            "{fault}: twin {:.3} s, shaft monitor {:.3} s after the change",
+            t_twin - at,
+            t_shaft - at
+        );
+        assert!(
+            t_twin > at && t_twin <= t_shaft,
+            "{fault}: twin {t_twin}, shaft {t_shaft}"
+        );
+    }
+}

@@ -16,11 +16,33 @@
 //! [`TwinConfig::rebase_change`] and 4 of its standard errors, a new epoch begins: the twin takes
 //! the estimates and the copies start again from it — a Gauss–Newton iteration per epoch.
 //!
-//! An alarm names a parameter whose estimate stays more than [`TwinConfig::alarm_change`] (and
-//! [`TwinConfig::alarm_sigmas`] standard errors) from its calibrated value for
-//! [`TwinConfig::dwell`] windows in which it agrees with itself within half that band: a value
-//! the twin has settled at. While a large residual is being explained the other parameters
-//! take a share of it for a window or two, each time another; they do not alarm.
+//! An alarm names the physical parameter that moved, raised by whichever comes first:
+//!
+//! * **the residual**: a channel's residual beyond [`TwinConfig::isolate_above`] of its noise
+//!   for [`TwinConfig::dwell`] windows in a row, and in the first of them a single parameter
+//!   whose *jump* alone explains at least half of the window's residual (weighted sum of
+//!   squares, `(gⱼ²/Fⱼⱼ)/rᵀWr`) by a change beyond [`TwinConfig::alarm_change`]. The jump's
+//!   sensitivities are replayed: the twin is kept as it was at the start and each quarter of
+//!   the last two windows, with the stream's inputs since and what was done to it at the
+//!   windows' end (turned, given new values); in an excursion's first window a copy of each
+//!   snapshot with one parameter `1 + rel_step` times larger is stepped through them again — a
+//!   jump at that instant — and the instant and parameter that explain the residual of both
+//!   windows best win (a jump placed too early is charged with the response it predicts where
+//!   there was none). The twin then takes that jump, and only it. A
+//!   sudden change drives a transient (the shaft's torsion rings after K falls) that the
+//!   epoch's copies — a change made long ago — do not have. One such alarm per excursion
+//!   of the residual, and only after [`TwinConfig::sigma_windows`] windows in a row within its
+//!   band (a twin that has not matched the stream is not a residual *leaving* its band). This
+//!   is the fast path: a jump is named after `dwell` windows.
+//! * **the estimate**: a parameter's estimate more than [`TwinConfig::alarm_change`] (and
+//!   [`TwinConfig::alarm_sigmas`] standard errors) from its calibrated value for
+//!   [`TwinConfig::dwell`] windows in which it agrees with itself within half that band: a
+//!   value the twin has settled at — a drift too slow to leave a residual. While a large
+//!   residual is being explained the other parameters take a share of it for a window or two,
+//!   each time another; they do not alarm.
+//!
+//! A parameter alarms again only after its estimate has come back within the band while the
+//! residuals are within theirs.
 //!
 //! The noise of each channel is the twin's residual RMS over the windows after its warm-up
 //! ([`TwinConfig::sigma_windows`]; the twin is taken as calibrated then).
@@ -66,8 +88,8 @@ pub struct TwinConfig {
     pub sigma_windows: usize,
     /// The copies' relative parameter step.
     pub rel_step: f64,
-    /// While a channel's residual RMS exceeds this many of its noise, only the parameter that
-    /// alone explains most of the residual moves.
+    /// A channel's residual band, in its noise's units: beyond it, only the parameter that
+    /// alone explains most of the residual moves, and the residual's alarm watches.
     pub isolate_above: f64,
     /// The twin and its copies are turned to the stream's crank angle when they are further
     /// apart than this at a window's end [rad].
@@ -86,7 +108,7 @@ pub struct TwinConfig {
     pub alarm_change: f64,
     /// … and beyond this many window standard errors …
     pub alarm_sigmas: f64,
-    /// … for this many windows in a row.
+    /// … for this many windows in a row (also the residual's: this many beyond its band).
     pub dwell: usize,
 }
 
@@ -94,8 +116,8 @@ impl TwinConfig {
     /// The twin of the cell `set`, adapting `adapt`, with the defaults: a 1 s warm-up, windows
     /// of 0.05 s, the noise from the 4 after the warm-up, copies 1e-3 apart, 0.05 s of settling
     /// after each update, forgetting 0.7 per window, an update when an estimate moved 1 %,
-    /// frozen above 5 %; alarms beyond 10 % (the shaft monitor's bound) and 4σ, settled for 3
-    /// windows.
+    /// frozen above 5 %; a residual band of 5σ; alarms beyond 10 % (the shaft monitor's bound)
+    /// and 4σ settled for 2 windows, or on a residual beyond its band for 2 windows.
     pub fn new(set: Vec<(String, f64)>, adapt: Vec<String>) -> Self {
         Self {
             set,
@@ -177,7 +199,9 @@ pub struct TwinAlarm {
     pub t_s: f64,
     /// When it left its band [s].
     pub t_start_s: f64,
-    /// Its change from the calibrated value (−0.2: fell 20 %).
+    /// Its change from the calibrated value (−0.2: fell 20 %) as estimated when raised — on the
+    /// residual's alarm the jump's linearised size from its first window (K −20 %: −18 % at a
+    /// window's start, −29 % inside one); the `twin` windows track it on.
     pub change: f64,
 }
 
@@ -201,6 +225,22 @@ struct Watch {
     raised: bool,
 }
 
+/// The residual's watch: windows in a row with a channel's residual beyond
+/// [`TwinConfig::isolate_above`] of its noise, when the first ended, the parameter whose jump
+/// alone explains most of it (its index and relative change); whether this excursion has
+/// raised its alarm; and the windows in a row the residual was within its band before it (the
+/// excursion can alarm after at least [`TwinConfig::sigma_windows`] of them: a twin that has
+/// not matched the stream for as long as its noise took to learn has no residual *leaving* its
+/// band — its mismatch is named by the estimate's alarm).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+struct Excursion {
+    out: usize,
+    since: f64,
+    pick: Option<(usize, f64)>,
+    raised: bool,
+    matched: usize,
+}
+
 /// The twin and its copies, stepped together (rebuilt from the stream after a restore: a run
 /// of the cell is not checkpointed).
 #[derive(Clone)]
@@ -211,6 +251,50 @@ struct Runs {
     out: Vec<Vec<Vec<f64>>>,
     /// The twin's engine angle over the same samples [rad].
     theta: Vec<f64>,
+    /// Stream samples the runs have been stepped through, and the twin's outputs placed in
+    /// `out` (both counted from the stream's start).
+    stepped: usize,
+    placed: usize,
+    /// The twin as it was at the start of the previous window and of this one and at each
+    /// quarter of them: where a jump of a parameter is replayed from ([`jump_pick`]).
+    snaps: Vec<Snap>,
+    /// What was done to the twin at the windows' ends since the oldest snapshot.
+    boundaries: Vec<Boundary>,
+    /// The stream's inputs since the oldest snapshot, `(τ, rpm, throttle)` per sample, and
+    /// the samples stepped before the first of them.
+    inputs: Vec<(f64, f64, f64)>,
+    inputs_from: usize,
+    /// Samples stepped at the present window's start.
+    window_start: usize,
+    /// The previous window's residual and twin outputs (a jump's replay is fitted over both).
+    prev: Option<PrevWindow>,
+}
+
+/// A window's first sample's index, its residual and the twin's outputs: `[channel][sample]`.
+#[derive(Clone)]
+struct PrevWindow {
+    first: usize,
+    r: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+}
+
+/// The twin at one instant: the stream samples it had been stepped through (`stepped`), the
+/// index its next output would have (`placed`) and its adapted parameters' values then.
+#[derive(Clone)]
+struct Snap {
+    stepped: usize,
+    placed: usize,
+    values: Vec<f64>,
+    run: Run,
+}
+
+/// A window's end: the samples stepped, the turn onto the stream's crank angle [rad] and the
+/// adapted parameters' values after it.
+#[derive(Clone)]
+struct Boundary {
+    stepped: usize,
+    turn: f64,
+    values: Vec<f64>,
 }
 
 /// The live twin as a stream stage (see the module docs).
@@ -244,6 +328,9 @@ pub struct TwinStage {
     score: Vec<f64>,
     #[serde(skip)]
     runs: Option<Runs>,
+    /// The residual's watch (the fast alarm).
+    #[serde(default)]
+    excursion: Excursion,
 }
 
 impl TwinStage {
@@ -278,6 +365,7 @@ impl TwinStage {
             info: Vec::new(),
             score: Vec::new(),
             runs: None,
+            excursion: Excursion::default(),
             cfg,
         })
     }
@@ -357,26 +445,28 @@ impl TwinStage {
             };
         }
         let twin = build(settle)?;
-        let mut runs = vec![twin];
-        for j in 0..self.cfg.adapt.len() {
-            runs.push(self.copy(&runs[0], j)?);
-        }
-        let out = vec![vec![Vec::new(); self.channels.len()]; runs.len()];
-        Ok(Runs {
-            runs,
-            out,
+        let snaps = vec![Snap {
+            stepped: 0,
+            placed: 0,
+            values: self.values.clone(),
+            run: twin.clone(),
+        }];
+        let p = self.cfg.adapt.len();
+        let mut runs = Runs {
+            runs: vec![twin; 1 + p],
+            out: vec![vec![Vec::new(); self.channels.len()]; 1 + p],
             theta: Vec::new(),
-        })
-    }
-
-    /// The twin with parameter `j` `1 + rel_step` times its value.
-    fn copy(&self, twin: &Run, j: usize) -> Result<Run, AppError> {
-        let mut c = twin.clone();
-        c.set_live_parameter(
-            &self.cfg.adapt[j],
-            self.values[j] * (1.0 + self.cfg.rel_step),
-        )?;
-        Ok(c)
+            stepped: 0,
+            placed: 0,
+            snaps,
+            boundaries: Vec::new(),
+            inputs: Vec::new(),
+            inputs_from: 0,
+            window_start: 0,
+            prev: None,
+        };
+        fork(&mut runs, &self.cfg.adapt, &self.values, self.cfg.rel_step)?;
+        Ok(runs)
     }
 
     /// The window of `n` samples from the buffers: the noise, the estimate, the alarms; a new
@@ -404,6 +494,19 @@ impl TwinStage {
             .collect();
         let t_rel = self.compared as f64 / self.rate_hz;
         let settled = (self.compared - self.epoch_start) as f64 / self.rate_hz >= self.cfg.settle_s;
+        // Each channel's residual RMS over the window in units of its noise (NaN before the
+        // noise is known), and the largest.
+        let residual: Vec<f64> = r
+            .iter()
+            .enumerate()
+            .map(|(c, rc)| {
+                let rms = (rc.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+                rms / self.sigma.get(c).copied().unwrap_or(f64::NAN)
+            })
+            .collect();
+        let worst = residual.iter().fold(0.0f64, |a, &x| a.max(x));
+        let noise_known =
+            t_rel >= self.cfg.warmup_s && self.noise_windows >= self.cfg.sigma_windows;
         let mut estimate = self.values.clone();
         let mut std_err = vec![f64::NAN; p];
         let mut frozen: Vec<String> = Vec::new();
@@ -451,12 +554,9 @@ impl TwinStage {
             }
             // This window's own score, information diagonal and residual (isolation, below).
             let (mut g_w, mut f_w, mut rr_w) = ([0.0; 4], [0.0; 4], 0.0);
-            let mut worst_residual = 0.0f64;
             for (c, rc) in r.iter().enumerate() {
                 let w2 = 1.0 / (self.sigma[c] * self.sigma[c]);
-                let rr = rc.iter().map(|x| x * x).sum::<f64>();
-                rr_w += w2 * rr;
-                worst_residual = worst_residual.max((w2 * rr / n as f64).sqrt());
+                rr_w += w2 * rc.iter().map(|x| x * x).sum::<f64>();
                 for (k, rk) in rc.iter().enumerate() {
                     // At most the four live parameters: no allocation per sample.
                     let mut s = [0.0; 4];
@@ -481,7 +581,7 @@ impl TwinStage {
             // `isolate_above` of its noise), only the one parameter whose change alone explains
             // most of the window's residual moves (the others, linearised that far away, would
             // take shares of it and leave the twin's state wrong for seconds).
-            if worst_residual > self.cfg.isolate_above {
+            if worst > self.cfg.isolate_above {
                 let explained = |j: usize| g_w[j] * g_w[j] / (f_w[j] * rr_w).max(f64::MIN_POSITIVE);
                 if let Some(best) = (0..p).max_by(|&a, &b| explained(a).total_cmp(&explained(b))) {
                     for j in (0..p).filter(|&j| j != best) {
@@ -564,23 +664,75 @@ impl TwinStage {
                 } else {
                     wch.out = 0;
                     wch.recent.clear();
-                    wch.raised = false;
+                    // Re-armed once back within the band with the residuals within theirs.
+                    if worst <= self.cfg.isolate_above {
+                        wch.raised = false;
+                    }
                 }
             }
         }
+        // The residual's alarm: beyond its band for a dwell of windows, a parameter named.
+        if noise_known {
+            let ex = &mut self.excursion;
+            let armed = ex.matched >= self.cfg.sigma_windows.max(1);
+            if worst > self.cfg.isolate_above {
+                if ex.out == 0 {
+                    ex.since = t_end;
+                }
+                ex.out += 1;
+                if ex.out == 1 && armed {
+                    // The excursion's first window: which parameter's jump, at which quarter
+                    // of the window, explains it.
+                    ex.pick = jump_pick(
+                        runs,
+                        &self.channels,
+                        &r,
+                        &self.sigma,
+                        self.compared,
+                        &self.cfg.adapt,
+                        self.cfg.rel_step,
+                    )?;
+                    // The twin takes that jump, and only it: the epoch's copies, linearised
+                    // about a change made long ago, would spread the jump's transient over the
+                    // other parameters (a K jump inside a window taken as friction).
+                    if let Some((j, d)) = ex.pick {
+                        estimate.clone_from(&self.values);
+                        estimate[j] = self.values[j] * (1.0 + d.clamp(-0.5, 0.5));
+                        for (i, s) in std_err.iter_mut().enumerate() {
+                            if i != j {
+                                *s = f64::NAN;
+                            }
+                        }
+                        frozen = (0..p)
+                            .filter(|&i| i != j)
+                            .map(|i| self.cfg.adapt[i].clone())
+                            .collect();
+                        rebase = d.abs() > self.cfg.rebase_change;
+                    }
+                }
+                if let (false, true, true, Some((j, change))) =
+                    (ex.raised, armed, ex.out >= self.cfg.dwell.max(1), ex.pick)
+                {
+                    if change.abs() >= self.cfg.alarm_change {
+                        ex.raised = true;
+                        self.watch[j].raised = true;
+                        out.put(TwinOut::Alarm(TwinAlarm {
+                            param: self.cfg.adapt[j].clone(),
+                            t_s: t_end,
+                            t_start_s: ex.since,
+                            change,
+                        }));
+                    }
+                }
+            } else {
+                *ex = Excursion {
+                    matched: if ex.out == 0 { ex.matched + 1 } else { 1 },
+                    ..Excursion::default()
+                };
+            }
+        }
         if t_rel >= self.cfg.warmup_s {
-            let residual = self
-                .channels
-                .iter()
-                .enumerate()
-                .map(|(c, name)| {
-                    let rms = (r[c].iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
-                    (
-                        name.clone(),
-                        rms / self.sigma.get(c).copied().unwrap_or(f64::NAN),
-                    )
-                })
-                .collect();
+            let residual = self.channels.iter().cloned().zip(residual).collect();
             out.put(TwinOut::Window(TwinWindow {
                 t_s: t_end,
                 params: self
@@ -601,14 +753,23 @@ impl TwinStage {
         // alike (their differences, the sensitivities, stay).
         let gap = (self.theta[n - 1] - runs.theta[n - 1]).rem_euclid(4.0 * PI);
         let gap = if gap > 2.0 * PI { gap - 4.0 * PI } else { gap };
-        if t_rel >= self.cfg.warmup_s && gap.abs() > self.cfg.phase_tolerance {
+        let turn = if t_rel >= self.cfg.warmup_s && gap.abs() > self.cfg.phase_tolerance {
             for run in &mut runs.runs {
                 run.turn(gap);
             }
             for x in &mut runs.theta {
                 *x += gap;
             }
-        }
+            gap
+        } else {
+            0.0
+        };
+        // This window, for the replays of the next one.
+        runs.prev = Some(PrevWindow {
+            first: self.compared,
+            y: runs.out[0].iter().map(|o| o[..n].to_vec()).collect(),
+            r,
+        });
         // The buffers move on.
         for m in &mut self.measured {
             m.drain(..n);
@@ -627,22 +788,128 @@ impl TwinStage {
                 runs.runs[0].set_live_parameter(p, *v)?;
             }
 
-            let lead = runs.out[0].clone();
-            for j in 0..p {
-                let mut c = runs.runs[0].clone();
-                c.set_live_parameter(
-                    &self.cfg.adapt[j],
-                    self.values[j] * (1.0 + self.cfg.rel_step),
-                )?;
-                runs.runs[j + 1] = c;
-                runs.out[j + 1].clone_from(&lead);
-            }
+            fork(runs, &self.cfg.adapt, &self.values, self.cfg.rel_step)?;
             self.epoch_start = self.compared;
             self.info.clear();
             self.score.clear();
         }
+        // The snapshots and inputs of the window before this one go; what was done to the
+        // twin now is kept for the replays through it; the next window starts from the twin
+        // as it is now (turned, updated).
+        let cut = runs.window_start;
+        runs.snaps.retain(|s| s.stepped >= cut);
+        runs.boundaries.retain(|b| b.stepped > cut);
+        runs.inputs.drain(..cut.saturating_sub(runs.inputs_from));
+        runs.inputs_from = runs.inputs_from.max(cut);
+        runs.boundaries.push(Boundary {
+            stepped: runs.stepped,
+            turn,
+            values: self.values.clone(),
+        });
+        runs.window_start = runs.stepped;
+        runs.snaps.push(Snap {
+            stepped: runs.stepped,
+            placed: runs.placed,
+            values: self.values.clone(),
+            run: runs.runs[0].clone(),
+        });
         Ok(())
     }
+}
+
+/// The epoch's copies of the twin `runs.runs[0]` in `runs.runs[1..]`, the `j`-th with parameter
+/// `adapt[j]` at `values[j]·(1 + step)`, their output buffers the twin's (the few samples it has
+/// placed beyond the window).
+fn fork(runs: &mut Runs, adapt: &[String], values: &[f64], step: f64) -> Result<(), AppError> {
+    let (twin, copies) = runs.runs.split_at_mut(1);
+    let (lead, out) = runs.out.split_at_mut(1);
+    for (j, (path, v)) in adapt.iter().zip(values).enumerate() {
+        let mut c = twin[0].clone();
+        c.set_live_parameter(path, v * (1.0 + step))?;
+        copies[j] = c;
+        out[j].clone_from(&lead[0]);
+    }
+    Ok(())
+}
+
+/// The parameter whose jump alone explains most — at least half — of the window's residual
+/// `r` (each channel weighted by `1/σ²`, `rr = rᵀWr`), at the best of the instants the twin was
+/// snapshotted at in the window: its index and relative change `gⱼ/Fⱼⱼ`, `gⱼ = Σ sⱼ·W·r`,
+/// `Fⱼⱼ = Σ sⱼ·W·sⱼ`, `sⱼ` the difference between the twin's outputs `twin_out` and a copy's
+/// replayed from the snapshot with parameter `j` `1 + step` times larger (the samples before
+/// the snapshot: nil). `first` is the window's first sample's index. Run only in an
+/// excursion's first windows: the replays (quarter windows × parameters) allocate.
+#[allow(clippy::too_many_arguments)]
+fn jump_pick(
+    runs: &Runs,
+    channels: &[String],
+    r: &[Vec<f64>],
+    sigma: &[f64],
+    first: usize,
+    adapt: &[String],
+    step: f64,
+) -> Result<Option<(usize, f64)>, AppError> {
+    // Over the previous window and this one: a jump placed too early is charged with the
+    // response it predicts where the residual had none.
+    let weighted = |rs: &[Vec<f64>]| -> f64 {
+        rs.iter()
+            .zip(sigma)
+            .map(|(rc, s)| rc.iter().map(|x| x * x).sum::<f64>() / (s * s))
+            .sum()
+    };
+    let rr = runs.prev.as_ref().map_or(0.0, |p| weighted(&p.r)) + weighted(r);
+    let mut best: Option<(f64, usize, f64)> = None;
+    for snap in &runs.snaps {
+        let from = snap.stepped - runs.inputs_from;
+        for (j, path) in adapt.iter().enumerate() {
+            let mut copy = snap.run.clone();
+            copy.set_live_parameter(path, snap.values[j] * (1.0 + step))?;
+            let mut at = runs
+                .boundaries
+                .iter()
+                .filter(|b| b.stepped > snap.stepped)
+                .peekable();
+            for (i, &(tau, rpm, throttle)) in runs.inputs[from..].iter().enumerate() {
+                copy.hold_inputs(rpm, throttle);
+                copy.step_until(tau)?;
+                // What was done to the twin at a window's end, done to the copy (its jump kept).
+                if let Some(b) = at.next_if(|b| b.stepped == snap.stepped + i + 1) {
+                    if b.turn != 0.0 {
+                        copy.turn(b.turn);
+                    }
+                    for (q, (p, v)) in adapt.iter().zip(&b.values).enumerate() {
+                        let v = if q == j { v * (1.0 + step) } else { *v };
+                        copy.set_live_parameter(p, v)?;
+                    }
+                }
+            }
+            let rec = copy.drain()?;
+            let (mut g, mut f) = (0.0, 0.0);
+            for (c, name) in channels.iter().enumerate() {
+                let y = rec.values(name)?;
+                let w2 = 1.0 / (sigma[c] * sigma[c]);
+                // The previous window's samples, then this one's: (index, residual, twin).
+                let prev = runs.prev.iter().flat_map(|p| {
+                    (0..p.r[c].len()).map(move |k| (p.first + k, p.r[c][k], p.y[c][k]))
+                });
+                let this = (0..r[c].len()).map(|k| (first + k, r[c][k], runs.out[0][c][k]));
+                for (at, rk, yk0) in prev.chain(this) {
+                    let Some(i) = at.checked_sub(snap.placed) else {
+                        continue;
+                    };
+                    let Some(yk) = y.get(i) else { break };
+                    let s = (yk - yk0) / step;
+                    g += w2 * s * rk;
+                    f += w2 * s * s;
+                }
+            }
+            let explained = g * g / (f * rr).max(f64::MIN_POSITIVE);
+            if best.is_none_or(|b| explained > b.0) {
+                best = Some((explained, j, g / f.max(f64::MIN_POSITIVE)));
+            }
+        }
+    }
+    Ok(best.filter(|b| b.0 >= 0.5).map(|b| (b.1, b.2)))
 }
 
 /// The stream's value of `name` (every sample finite, else the sample named).
@@ -692,6 +959,7 @@ impl crate::stage::Stage for TwinStage {
             self.epoch_start = 0;
             self.info.clear();
             self.score.clear();
+            self.excursion = Excursion::default();
             self.measured = vec![Vec::new(); self.channels.len()];
             self.theta.clear();
             self.runs = Some(self.start_runs(theta[0], demand[0] * 30.0 / PI, throttle[0])?);
@@ -726,6 +994,18 @@ impl crate::stage::Stage for TwinStage {
                 run.hold_inputs(rpm, throttle[k]);
                 run.step_until(tau)?;
             }
+            runs.stepped += 1;
+            runs.inputs.push((tau, rpm, throttle[k]));
+            // The twin at each quarter of the window (the window's start is taken after it).
+            let into = runs.stepped - runs.window_start;
+            if into % (n / 4).max(1) == 0 && into < n {
+                runs.snaps.push(Snap {
+                    stepped: runs.stepped,
+                    placed: runs.placed,
+                    values: self.values.clone(),
+                    run: runs.runs[0].clone(),
+                });
+            }
             let window_end = (self.compared + n) as f64 / self.rate_hz;
             if tau >= window_end || k + 1 == t.len() {
                 for (i, (run, o)) in runs.runs.iter_mut().zip(&mut runs.out).enumerate() {
@@ -735,6 +1015,7 @@ impl crate::stage::Stage for TwinStage {
                     }
                     if i == 0 {
                         runs.theta.extend_from_slice(rec.values("theta_en")?);
+                        runs.placed += rec.len();
                     }
                 }
                 let have = runs
