@@ -245,33 +245,12 @@ fn twin_errors_name_the_problem() {
 #[test]
 fn live_twin_names_what_the_shaft_monitor_cannot_see() {
     let d = physid_testkit::Scratch::new("twin-live");
-    let cell = d.file("cell.toml");
-    // A cell file without calibrated values: the built-in cell.
-    std::fs::write(&cell, "name = \"twin\"\nduration = 1.0\n[[speed]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 1000.0\n[[throttle]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 90.0\n").unwrap();
+    let cell = built_in_cell(&d);
     for (fault, param, change) in [
         ("engine.friction_scale=1.2@3", "engine.friction_scale", 0.2),
         ("engine.m_rec=0.9@3", "engine.m_rec", 0.125),
     ] {
-        let o = physid(&[
-            "live",
-            "--headless",
-            "--json",
-            "--scenario",
-            "shaft-steady",
-            "--fault",
-            fault,
-            "--duration",
-            "6",
-            "--pace",
-            "max",
-            "--twin",
-            cell.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let ev: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
+        let ev = live_twin(&cell, fault);
         let twin_alarms: Vec<&serde_json::Value> = ev
             .iter()
             .filter(|e| e["type"] == "alarm" && e["app"] == "twin")
@@ -305,32 +284,12 @@ fn live_twin_names_what_the_shaft_monitor_cannot_see() {
 #[test]
 fn the_twin_names_a_shaft_change_no_later_than_the_shaft_monitor() {
     let d = physid_testkit::Scratch::new("twin-shaft");
-    let cell = d.file("cell.toml");
-    std::fs::write(&cell, "name = \"twin\"\nduration = 1.0\n[[speed]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 1000.0\n[[throttle]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 90.0\n").unwrap();
+    let cell = built_in_cell(&d);
     for (fault, param, shaft_param, at) in [
         ("shaft.k=1000@5.02", "shaft.k", "K", 5.02),
         ("shaft.b=1.14@5.045", "shaft.b", "B", 5.045),
     ] {
-        let o = physid(&[
-            "live",
-            "--headless",
-            "--json",
-            "--scenario",
-            "shaft-steady",
-            "--fault",
-            fault,
-            "--duration",
-            "6",
-            "--pace",
-            "max",
-            "--twin",
-            cell.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let ev: Vec<serde_json::Value> = String::from_utf8_lossy(&o.stdout)
-            .lines()
-            .map(|l| serde_json::from_str(l).unwrap())
-            .collect();
+        let ev = live_twin(&cell, fault);
         let alarms = |app: &str| -> Vec<&serde_json::Value> {
             ev.iter()
                 .filter(|e| e["type"] == "alarm" && e["app"] == app)
@@ -358,4 +317,36 @@ fn the_twin_names_a_shaft_change_no_later_than_the_shaft_monitor() {
             "{fault}: twin {t_twin}, shaft {t_shaft}"
         );
     }
+}
+
+/// A cell file without calibrated values in `d`: the built-in cell.
+fn built_in_cell(d: &physid_testkit::Scratch) -> std::path::PathBuf {
+    let cell = d.file("cell.toml");
+    std::fs::write(&cell, "name = \"twin\"\nduration = 1.0\n[[speed]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 1000.0\n[[throttle]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 90.0\n").unwrap();
+    cell
+}
+
+/// The events of `physid live` on the paced virtual cell (shaft-steady, 6 s) with `fault` and
+/// the twin of `cell` beside it.
+fn live_twin(cell: &std::path::Path, fault: &str) -> Vec<serde_json::Value> {
+    let o = physid(&[
+        "live",
+        "--headless",
+        "--json",
+        "--scenario",
+        "shaft-steady",
+        "--fault",
+        fault,
+        "--duration",
+        "6",
+        "--pace",
+        "max",
+        "--twin",
+        cell.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
 }

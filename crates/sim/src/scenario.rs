@@ -539,6 +539,12 @@ impl Scenario {
         Ok(s)
     }
 
+    /// The engine's speed a torque-demand run starts (and settles) from [rpm]: the middle of
+    /// [`speed_range`](Self::speed_range), else 1000 rpm.
+    pub fn torque_start_rpm(&self) -> f64 {
+        self.speed_range.map_or(1000.0, |[lo, hi]| 0.5 * (lo + hi))
+    }
+
     /// The scenario as a file [`load`](Self::load) reads back to the same scenario.
     pub fn to_toml(&self) -> Result<String, SimError> {
         toml::to_string(self).map_err(|e| SimError::Invalid(format!("scenario {}: {e}", self.name)))

@@ -111,22 +111,56 @@ impl Replay {
                 t[k]
             )));
         }
-        if rec
+        // The dynamometer's demand: a speed [rad/s → rpm], or on a torque demand the torque
+        // [N·m] (the cell records it in the same channel), replayed open loop from where the
+        // recording's run started — its settling time and start speed from its metadata
+        // (`physid simulate` writes them), else 1 s from the first measured engine speed.
+        let torque_mode = rec
             .meta
             .get("param.dyno.torque_mode")
-            .is_some_and(|v| v != "0")
-        {
-            return Err(AppError::Invalid(
-                "the recording's dynamometer ran on a torque demand: the twin replays a speed demand only (so far)".into(),
-            ));
-        }
-        let demand = rec.values_in("speed_demand", "rad/s")?;
-        if let Some(k) = demand.iter().position(|x| !x.is_finite()) {
-            return Err(AppError::Invalid(format!(
-                "channel 'speed_demand', sample {k}: not a number"
-            )));
-        }
-        let rpm: Vec<f64> = demand.iter().map(|w| w * 30.0 / PI).collect();
+            .is_some_and(|v| v != "0");
+        let meta = |key: &str| -> Result<Option<f64>, AppError> {
+            rec.meta
+                .get(key)
+                .map(|v| {
+                    v.parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite() && *x >= 0.0)
+                        .ok_or_else(|| {
+                            AppError::Invalid(format!(
+                                "the recording's metadata '{key}' = '{v}': expected a number ≥ 0"
+                            ))
+                        })
+                })
+                .transpose()
+        };
+        let settle = meta("scenario.settle")?.unwrap_or(1.0);
+        let (demand, speed_range) = if torque_mode {
+            let start = match meta("scenario.start_rpm")? {
+                Some(rpm) if rpm > 0.0 => rpm,
+                _ => match rec.values_in("omega_en", "rad/s")?.first() {
+                    Some(w) if w.is_finite() && *w > 0.0 => w * 30.0 / PI,
+                    _ => {
+                        return Err(AppError::Invalid(
+                            "the recording's dynamometer ran on a torque demand and neither its metadata ('scenario.start_rpm') nor its first 'omega_en' sample gives the speed it started from".into(),
+                        ))
+                    }
+                },
+            };
+            // Wide: a guard against a replay that runs away, not a limit of the test.
+            (
+                finite(rec, "speed_demand")?.to_vec(),
+                Some([0.05 * start, 1.95 * start]),
+            )
+        } else {
+            let demand = rec.values_in("speed_demand", "rad/s")?;
+            if let Some(k) = demand.iter().position(|x| !x.is_finite()) {
+                return Err(AppError::Invalid(format!(
+                    "channel 'speed_demand', sample {k}: not a number"
+                )));
+            }
+            (demand.iter().map(|w| w * 30.0 / PI).collect(), None)
+        };
         let throttle = finite(rec, "throttle")?;
         // Times from the recording's start (its grid starts at the first firing TDC).
         let t0 = t[0].min(0.0);
@@ -135,15 +169,16 @@ impl Replay {
         let scenario = Scenario {
             name: "twin-replay".into(),
             description: format!(
-                "the inputs of {} replayed: speed demand and throttle as recorded",
-                rec.meta.get("source").map_or("a recording", String::as_str)
+                "the inputs of {} replayed: {} demand and throttle as recorded",
+                rec.meta.get("source").map_or("a recording", String::as_str),
+                if torque_mode { "torque" } else { "speed" }
             ),
             duration,
-            settle: 1.0,
-            speed: recorded(&tr, &rpm, duration),
+            settle,
+            speed: recorded(&tr, &demand, duration),
             throttle: recorded(&tr, throttle, duration),
-            torque_mode: false,
-            speed_range: None,
+            torque_mode,
+            speed_range,
             set: Default::default(),
             faults: Vec::new(),
         };

@@ -502,6 +502,18 @@ impl Acquisition {
                 rec.meta.insert(format!("param.{path}"), format!("{v}"));
             }
         }
+        // How the run started: its settling time and, on a torque demand (a scenario's sets the
+        // switch as `dyno.torque_mode` does), the speed it settled from — what a replay of the
+        // recording needs to start where it started (physid twin).
+        rec.meta
+            .insert("scenario.settle".into(), format!("{}", scenario.settle));
+        if scenario.torque_mode || self.base.dyno.torque_mode != 0.0 {
+            rec.meta.insert("param.dyno.torque_mode".into(), "1".into());
+            rec.meta.insert(
+                "scenario.start_rpm".into(),
+                format!("{}", scenario.torque_start_rpm()),
+            );
+        }
     }
 }
 

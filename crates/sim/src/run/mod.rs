@@ -203,11 +203,7 @@ impl Run {
             )));
         }
         let w0 = if torque_mode {
-            scenario
-                .speed_range
-                .map_or(1000.0, |[lo, hi]| 0.5 * (lo + hi))
-                * PI
-                / 30.0
+            scenario.torque_start_rpm() * PI / 30.0
         } else {
             scenario.speed.value(0.0) * PI / 30.0
         };
