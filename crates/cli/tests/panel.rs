@@ -676,7 +676,8 @@ fn the_panel_in_a_real_browser() {
         );
         // The twin beside the cell (docs/twin.md): the reciprocating mass grows 12.5 % at
         // 2.5 s; the twin's card shows each channel's residual and each parameter against its
-        // calibrated value, and the alarm names engine.m_rec.
+        // calibrated value, the chosen channel measured against the twin (window means, within
+        // 1 % of each other), and the alarm names engine.m_rec.
         let dir = physid_testkit::Scratch::new("physid-panel-twin");
         let cell = dir.file("cell.toml");
         std::fs::write(&cell, "name = \"twin\"\nduration = 1.0\n[[speed]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 1000.0\n[[throttle]]\nt0 = 0.0\nt1 = 1.0\nkind = \"constant\"\nvalue = 90.0\n").unwrap();
@@ -701,6 +702,17 @@ fn the_panel_in_a_real_browser() {
         assert!(row.as_str().unwrap().contains("engine.m_rec0.9"), "{row}");
         let alarm = js("Array.from(document.querySelectorAll('#alarms tbody tr')).map((r) => r.cells[1].textContent)").await;
         assert_eq!(alarm, json!(["engine.m_rec"]), "{alarm}");
+        assert_eq!(
+            js("Array.from(document.querySelectorAll('#twin-channel option')).map((o) => o.textContent)").await,
+            json!(["omega_dy", "omega_en", "p_int", "torque_shaft"])
+        );
+        // The engine's speed, measured and the twin's: drawn, and close.
+        let close = "(() => { const d = window.physid.uplot('plot-twin').data; if (d.length !== 3 || d[0].length < 50) return false; \
+            return d[1].every((m, i) => Math.abs(m - d[2][i]) < 0.01 * Math.abs(m)); })()";
+        wait(close, 10).await;
+        // Another channel chosen: its trend.
+        js("(() => { const s = document.getElementById('twin-channel'); s.value = 'p_int'; s.dispatchEvent(new Event('change')); return true; })()").await;
+        wait("(() => { const d = window.physid.uplot('plot-twin').data; return d[1].length > 50 && d[1][0] > 5e4; })()", 10).await;
         js("document.getElementById('twin-card').scrollIntoView() || true").await;
         let png = c.screenshot().await.unwrap();
         std::fs::write(PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("live-panel-twin.png"), &png).unwrap();

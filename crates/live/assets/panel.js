@@ -25,7 +25,7 @@
     state: "connecting", t: NaN, samples: 0, estimates: 0, traces: 0, tracePoints: 0,
     cycles: 0, alarms: 0, lost: 0, hellos: 0, hello: null, last: {}, first: {},
     frictionCycles: 0, torqueCycles: 0, combustionCycles: 0, covImep: null, identifiability: {},
-    twinWindows: 0, twinCalibrated: null,
+    twinWindows: 0, twinCalibrated: null, twinChannel: null,
     feeds: {}, stale: {}, layout: null, exported: 0,
   };
   window.physid = st;
@@ -47,7 +47,7 @@
   st.marks = () => alarmMarks;
   st.uplot = (id) => plots[id];
 
-  let est, tr, cyc, means, fric, comb, combCurve;
+  let est, tr, cyc, means, fric, comb, combCurve, twinTrend;
   // The cycles the combustion trend and its CoV of IMEP cover.
   const COMBUSTION_SHOWN = 200;
   function reset() {
@@ -55,7 +55,9 @@
     comb = { cycle: [], imep: [], mfb50: [] };
     combCurve = null;
     st.frictionCycles = 0; st.torqueCycles = 0; st.combustionCycles = 0; st.covImep = null;
-    st.twinWindows = 0; st.twinCalibrated = null;
+    st.twinWindows = 0; st.twinCalibrated = null; st.twinChannel = null;
+    twinTrend = { t: [], measured: {}, twin: {} };
+    $("twin-channel").replaceChildren();
     st.identifiability = {};
     $("torque-table").tBodies[0].replaceChildren();
     $("ident").replaceChildren();
@@ -162,6 +164,12 @@
   const crankX = { xLabel: "crank angle from firing TDC [deg]", uplot: { scales: { x: { time: false, range: [-360, 360] } } } };
   makePlot("plot-pcyl", cycSeries(), crankX);
   makePlot("plot-tcyc", cycSeries(), crankX);
+  // The twin: each window's mean of the chosen channel, measured and the twin's (the last
+  // TWIN_WINDOWS windows: 30 s).
+  const TWIN_WINDOWS = 600;
+  makePlot("plot-twin", [line("measured", colors[0]), line("twin", colors[1], { dash: [6, 4] })],
+    { uplot: { axes: [{ label: "t [s]" }, { size: 80 }] } });
+  $("twin-channel").addEventListener("change", (ev) => { st.twinChannel = ev.target.value; touch(); });
   makePlot("plot-friction", [line("measured", colors[0]), line("predicted (before the cycle)", colors[1]),
     line("nominal model", colors[4], { dash: [6, 4] }), line("simulated truth", colors[2], { width: 1 })], { xLabel: "cycle" });
   // A scale at least `floor` wide about its data (a steady engine's IMEP varies by less than the
@@ -222,6 +230,8 @@
     for (const plot in TRACES) plots["plot-" + plot].setData(envelopes(TRACES[plot].map(([ch]) => ch)));
     plots["plot-cycles"].setData([means.cycle, means.torque_engine, means.torque_shaft]);
     plots["plot-friction"].setData([fric.cycle, fric.measured, fric.predicted, fric.nominal, fric.truth]);
+    const tc = st.twinChannel;
+    plots["plot-twin"].setData([twinTrend.t, tc ? twinTrend.measured[tc] || [] : [], tc ? twinTrend.twin[tc] || [] : []]);
     plots["plot-combustion"].setData([comb.cycle, comb.imep, comb.mfb50]);
     if (combCurve) {
       // The grid runs from −360° ATDC; JSON's null (no heat release outside its window) stays a gap.
@@ -487,6 +497,27 @@
         const c = r.insertCell();
         c.textContent = v === null ? "–" : fmt(v, 2);
         if (v !== null && v > 3) c.className = "bad";
+      }
+      // The trend of each channel's window means, the last TWIN_WINDOWS windows.
+      const chans = Object.keys(e.measured || {});
+      if (chans.length && !st.twinChannel) {
+        st.twinChannel = chans.includes("omega_en") ? "omega_en" : chans[0];
+        for (const ch of chans) {
+          const o = document.createElement("option");
+          o.textContent = ch; o.selected = ch === st.twinChannel;
+          $("twin-channel").appendChild(o);
+        }
+      }
+      if (chans.length) {
+        twinTrend.t.push(e.t_s);
+        for (const ch of chans) {
+          (twinTrend.measured[ch] ||= []).push(e.measured[ch]);
+          (twinTrend.twin[ch] ||= []).push(e.twin[ch]);
+        }
+        if (twinTrend.t.length > TWIN_WINDOWS) {
+          twinTrend.t.shift();
+          for (const ch of chans) { twinTrend.measured[ch].shift(); twinTrend.twin[ch].shift(); }
+        }
       }
       const par = $("twin-params").tBodies[0];
       par.replaceChildren();

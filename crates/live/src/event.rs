@@ -162,10 +162,11 @@ pub enum Event {
     },
     /// A window of the twin beside the stream (`--twin`, docs/twin.md): `{"type": "twin",
     /// "t_s": …, "params": {"shaft.k": …, …}, "std_err": {…}, "frozen": [...], "residual":
-    /// {"omega_en": …, …}}` — its live parameters' estimates (SI units; standard errors null
-    /// while frozen or settling) and each channel's residual RMS over the window in units of
-    /// its noise (null before the noise is known). A twin's alarm is an `alarm` event with
-    /// `"app": "twin"` and the parameter's path.
+    /// {"omega_en": …, …}, "measured": {"omega_en": …, …}, "twin": {…}}` — its live
+    /// parameters' estimates (SI units; standard errors null while frozen or settling), each
+    /// channel's residual RMS over the window in units of its noise (null before the noise is
+    /// known) and each channel's mean over the window, measured and the twin's (SI units). A
+    /// twin's alarm is an `alarm` event with `"app": "twin"` and the parameter's path.
     Twin {
         /// The window's end [s].
         #[serde(deserialize_with = "nan_null::f64")]
@@ -181,6 +182,12 @@ pub enum Event {
         /// Each channel's residual RMS over its noise.
         #[serde(deserialize_with = "nan_null::map")]
         residual: BTreeMap<String, f64>,
+        /// Each channel's mean over the window, measured.
+        #[serde(default, deserialize_with = "nan_null::map")]
+        measured: BTreeMap<String, f64>,
+        /// The same of the twin.
+        #[serde(default, deserialize_with = "nan_null::map")]
+        twin: BTreeMap<String, f64>,
     },
     /// A frame from outside or a control message was refused (the run goes on; a refused frame
     /// is counted as dropped): `{"type": "error", "t_s": …, "input": "frames", "line": n,
@@ -478,6 +485,8 @@ mod tests {
                 std_err: map([("shaft.k".to_string(), nan)]),
                 frozen: vec!["engine.m_rec".into()],
                 residual: map([("omega_en".to_string(), 1.1)]),
+                measured: map([("omega_en".to_string(), 104.7)]),
+                twin: map([("omega_en".to_string(), nan)]),
             },
             Event::Error {
                 t_s: nan,

@@ -188,6 +188,10 @@ pub struct TwinWindow {
     /// Each channel's residual RMS over the window, in units of its noise (NaN before the noise
     /// is known): `(channel, value)`.
     pub residual: Vec<(String, f64)>,
+    /// Each channel's mean over the window, measured [its unit] …
+    pub measured: Vec<(String, f64)>,
+    /// … and the twin's: measured against the twin, channel by channel.
+    pub twin: Vec<(String, f64)>,
 }
 
 /// An alarm: a parameter left its calibrated value.
@@ -733,6 +737,19 @@ impl TwinStage {
         }
         if t_rel >= self.cfg.warmup_s {
             let residual = self.channels.iter().cloned().zip(residual).collect();
+            let mean = |v: &[f64]| v[..n].iter().sum::<f64>() / n as f64;
+            let measured = self
+                .channels
+                .iter()
+                .cloned()
+                .zip(self.measured.iter().map(|m| mean(m)))
+                .collect();
+            let twin = self
+                .channels
+                .iter()
+                .cloned()
+                .zip(runs.out[0].iter().map(|o| mean(o)))
+                .collect();
             out.put(TwinOut::Window(TwinWindow {
                 t_s: t_end,
                 params: self
@@ -745,6 +762,8 @@ impl TwinStage {
                 std_err,
                 frozen,
                 residual,
+                measured,
+                twin,
             }));
         }
         // The twin's crank angle against the stream's at the window's last sample (modulo a

@@ -342,6 +342,8 @@ impl Tell for TwinStage {
                     .collect(),
                 frozen: w.frozen.clone(),
                 residual: w.residual.iter().cloned().collect(),
+                measured: w.measured.iter().cloned().collect(),
+                twin: w.twin.iter().cloned().collect(),
             },
             TwinOut::Alarm(a) => Event::Alarm {
                 app: App::Twin,
