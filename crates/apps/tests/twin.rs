@@ -570,4 +570,30 @@ fn a_torque_demand_recording_is_replayed() {
         }
     }
     coverage.assert("torque demand", 80, 0.75..=1.3);
+    // The live twin follows a speed demand only: a torque-demand stream is refused by name.
+    use physid_apps::stage::Stage;
+    use physid_apps::twin::live::{TwinConfig, TwinStage};
+    let stream = simulate(
+        &scenario,
+        &RunOptions {
+            basis: OutputBasis::Time(10_000.0),
+            ..RunOptions::default()
+        },
+        |_| {},
+    )
+    .unwrap();
+    let mut stage = TwinStage::new(
+        TwinConfig::new(Vec::new(), vec!["shaft.k".to_string()]),
+        10_000.0,
+    )
+    .unwrap();
+    let mut out = Vec::new();
+    let e = stage
+        .push(&stream.slice(0..1000), &mut out)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("torque demand") && e.contains("speed_demand"),
+        "{e}"
+    );
 }
