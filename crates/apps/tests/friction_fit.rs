@@ -82,11 +82,13 @@ fn friction_sweep_is_characterised_within_5_percent() {
     // 160 s at 750–1500 rpm: ≈ 1500 cycles, a few skipped at the speed and throttle steps.
     assert!(r.data.len() > 1400, "{} cycles", r.data.len());
     // The cycles skipped as unsteady are exactly the complete cycles of the recording the fit
-    // did not use (22 of ≈ 1500), and each starts within 0.5 s of one of the scenario's steps —
+    // did not use (22 of ≈ 1500), and each starts within 0.7 s of one of the scenario's steps —
     // speed and wide-open throttle at 0, 40, 80, 120 s, the throttle to the ramp's 15° at 5, 45,
     // 85, 125 s: after it while speed and manifold settle, before it where the throttle ramp
     // ends nearly closed and the manifold pressure falls fastest (and a cycle is judged against
-    // its neighbours' pressure too). No steady cycle far from a step is lost.
+    // its neighbours' pressure too). No steady cycle far from a step is lost. (The reference
+    // solver, RK4, skips the cycle at 39.36 s, 0.64 s before the step at 40 s, as does ROS2
+    // since its crank-angle column; ROS2 without it kept that cycle.)
     let (t, cycle) = (rec.values("t").unwrap(), rec.values("cycle").unwrap());
     let mut starts = std::collections::BTreeMap::<i64, f64>::new();
     for k in 0..t.len() {
@@ -105,7 +107,7 @@ fn friction_sweep_is_characterised_within_5_percent() {
     let steps = [0.0, 5.0, 40.0, 45.0, 80.0, 85.0, 120.0, 125.0];
     for (c, t0) in &skipped {
         assert!(
-            steps.iter().any(|s| (t0 - s).abs() < 0.5),
+            steps.iter().any(|s| (t0 - s).abs() < 0.7),
             "cycle {c} at {t0:.2} s skipped, away from every step"
         );
     }

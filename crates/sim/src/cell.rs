@@ -15,9 +15,10 @@
 //! slow against one degree) is evaluated once per step. Two solvers (`solver.order`):
 //!
 //! - **2** (default): the linearly implicit Rosenbrock-W method ROS2 with the gas network's
-//!   Jacobian — two evaluations per degree and no sub-steps, ≈ 2× faster than RK4. The
-//!   pressures are within 2e-3 of the peak of the converged solution at one degree (halving
-//!   with the step); on the driveline it is Heun's rule, whose energy *grows* by 7e-5 per
+//!   Jacobian and its crank-angle column — two evaluations per degree and no sub-steps, ≈ 2×
+//!   faster than RK4. The cylinder pressure is within 1.5e-4 of its peak of the converged
+//!   solution at one degree, motored (4e-4 fired), within 4.2e-4 at two; on the driveline it is
+//!   Heun's rule, whose energy *grows* by 7e-5 per
 //!   period of the ≈ 34 Hz shaft mode (the shaft's own damping removes ≈ 40 % per period).
 //!   The thesis's own model took forward Euler at one degree (its §3.5).
 //! - **4**: classical RK4, with sub-steps in the degrees where the gas flows are stiff (1.3 per
@@ -116,11 +117,16 @@ fn gas_of(x: &[f64; N]) -> GasState {
     g
 }
 
-/// `W⁻¹ = (I − a·U·Vᵀ)⁻¹` on the gas block, by the Woodbury identity:
-/// `W⁻¹·v = v + a·U·(I − a·Vᵀ·U)⁻¹·Vᵀ·v`, a 3×3 inverse.
+/// `W⁻¹ = (I − a·J)⁻¹` for the gas block's `J = U·Vᵀ + c·e_θᵀ` (`Vᵀ` with the crank angle's
+/// entry `∂p_cyl/∂θ`, `c` the rates' direct θ-column; the θ row of `J` is zero, so `W`'s θ
+/// component is the right-hand side's own, `r_θ`): with `r′ = r + a·c·r_θ` on the gas, by the
+/// Woodbury identity `W⁻¹·r = r′ + a·U·(I − a·Vᵀ·U)⁻¹·(Vᵀ·r′ + ∂p_cyl/∂θ·r_θ)`, a 3×3 inverse.
 struct GasW {
     u: [[f64; 3]; 8],
     v: [[f64; 2]; 3],
+    p_theta: f64,
+    /// `a·c`.
+    a_theta: [f64; 8],
     /// `a·(I − a·Vᵀ·U)⁻¹`.
     a_minv: nalgebra::Matrix3<f64>,
 }
@@ -137,13 +143,22 @@ impl GasW {
         Some(Self {
             u: *u,
             v: *v,
+            p_theta: j.p_theta,
+            a_theta: j.theta.map(|c| a * c),
             a_minv: m.try_inverse()? * a,
         })
     }
 
     /// `v ← W⁻¹·v`.
+    #[inline(always)]
     fn apply(&self, x: &mut [f64; N]) {
-        let vt = nalgebra::Vector3::from_fn(|i, _| self.v[i][0] * x[i] + self.v[i][1] * x[3 + i]);
+        let r_theta = x[TH_EN];
+        for (xr, c) in x.iter_mut().zip(&self.a_theta) {
+            *xr += c * r_theta;
+        }
+        let mut vt =
+            nalgebra::Vector3::from_fn(|i, _| self.v[i][0] * x[i] + self.v[i][1] * x[3 + i]);
+        vt[CYL] += self.p_theta * r_theta;
         let z = self.a_minv * vt;
         for (xr, ur) in x.iter_mut().zip(&self.u) {
             *xr += ur[0] * z[0] + ur[1] * z[1] + ur[2] * z[2];
@@ -474,10 +489,14 @@ impl TestCell {
     ///
     /// Second order for any `J` (a W-method), L-stable where `J` is the Jacobian. `J` is the
     /// gas network's ([`Engine::network_jacobian`]: the stiff pressure modes; rank 3, so `W⁻¹`
-    /// by the Woodbury identity with a 3×3 inverse) and zero elsewhere: on the driveline and
-    /// the machine the method is Heun's (explicit trapezoidal) rule. Two evaluations per step,
-    /// none extra where the gas is stiff; mass is conserved as the flows conserve it (every
-    /// column of `U` does).
+    /// by the Woodbury identity with a 3×3 inverse) with its crank-angle column
+    /// ([`Engine::theta_column`]: the piston and the valves moving under a stiff gas — without
+    /// it the method's order falls to one where the gas is stiff, the cylinder's pressure
+    /// error halving with the step instead of quartering, 4–12× larger at one degree), and
+    /// zero elsewhere: on the driveline and the machine the method is Heun's (explicit
+    /// trapezoidal) rule. Two evaluations per step, none extra where the gas is stiff; mass is
+    /// conserved as the flows conserve it (every column of `U` does, and the θ-column's
+    /// masses move by the valves' flows).
     fn ros2(
         &self,
         x0: &[f64; N],
@@ -489,8 +508,11 @@ impl TestCell {
     ) -> [f64; N] {
         const GAMMA: f64 = 1.0 + std::f64::consts::FRAC_1_SQRT_2;
         let w = if self.params.engine.active != 0.0 {
+            let k = self.engine.crank_point_sin_cos(x0[TH_EN], held.sc0);
             GasW::new(
-                &self.engine.network_jacobian(&gas_of(x0), &sample.gas, lin),
+                &self
+                    .engine
+                    .theta_column(&k, x0[W_EN], &gas_of(x0), &sample.gas, lin, &held.burn),
                 GAMMA * dt,
             )
         } else {

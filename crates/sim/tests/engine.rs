@@ -6,7 +6,7 @@
 use physid_models::air;
 use physid_sim::cell::{Inputs, TestCell};
 use physid_sim::control::Demand;
-use physid_sim::engine::{flow_and_slopes, psi, Engine, Motored, OrificeGas, CYL};
+use physid_sim::engine::{flow_and_slopes, psi, Engine, Motored, OrificeGas, Wiebe, CYL};
 use physid_sim::params::CellParams;
 use physid_sim::studies::{compression, motored_cycle};
 use std::f64::consts::PI;
@@ -121,6 +121,9 @@ fn errors_against_converged(
     let fine = pressures_by_degree(4.0, 0.05, throttle, window);
     let peak = fine.values().map(|v| v.0).fold(0.0, f64::max);
     let degrees = (360.0 * 1000.0 / 60.0 * (window.1 - window.0)) as usize;
+    // Steps longer than a degree land on every `step`-th, and where the engine accelerates
+    // hardest a step's aim (½·α·dt²) can miss a degree by more than the 2e-3° compared: of
+    // 2° steps, ≈ 80 % are compared.
     solvers
         .iter()
         .map(|&(order, step)| {
@@ -133,9 +136,14 @@ fn errors_against_converged(
                     n += 1;
                 }
             }
+            let expected = if step > 1.0 {
+                (0.75 * degrees as f64 / step) as usize
+            } else {
+                degrees
+            };
             assert!(
-                n + 10 >= degrees,
-                "{label}: {n} common degrees of {degrees}"
+                n + 10 >= expected,
+                "{label}: {n} common degrees of {expected}"
             );
             println!(
                 "{label}, order {order}, {step}°: max |Δp_cyl| {e_cyl:.1} Pa ({:.1e} of the \
@@ -150,7 +158,10 @@ fn errors_against_converged(
 /// The cylinder and manifold pressures over a steady cycle at 1000 rpm, open and shut
 /// throttle, at one-degree steps against the converged solution: RK4 within 1e-4 of the peak
 /// cylinder pressure, the linearly implicit second-order solver (`solver.order = 2`, the
-/// default) within 3e-3, and closer at half the step.
+/// default) within 3e-3, and closer at half the step (by 0.31 and 0.62 of its error at 1°,
+/// full and shut: shut, the largest error at 1° is near the overlap's TDC, where 1° is not
+/// yet in the asymptotic range; `the_theta_column_keeps_the_second_order` holds the order
+/// with much tighter bounds).
 #[test]
 fn solvers_converge_to_the_fine_step_solution() {
     for throttle in [90.0, 0.0] {
@@ -162,7 +173,97 @@ fn solvers_converge_to_the_fine_step_solution() {
         );
         assert!(e[0][0] < 1e-4, "RK4: {e:?}");
         assert!(e[1][0] < 3e-3, "order 2: {e:?}");
-        assert!(e[2][0] < 0.6 * e[1][0], "order 2 at 0.5°: {e:?}");
+        assert!(e[2][0] < 0.7 * e[1][0], "order 2 at 0.5°: {e:?}");
+    }
+}
+
+/// The Rosenbrock step with the crank angle's column in its `J` ([`Engine::theta_column`]) is
+/// second order where the gas is stiff: at full throttle the error quarters (within 0.4) from
+/// one degree to half a degree; at one degree it is within 2.5e-4 of the peak, and at two
+/// degrees (over the ≈ 80 % of the degrees its steps land on within 2e-3°) within 5e-4 — below what the step without that column gave at one degree (5.8e-4
+/// full, 1.9e-3 closed: its order fell to one, the error halving with the step).
+#[test]
+fn the_theta_column_keeps_the_second_order() {
+    for throttle in [90.0, 0.0] {
+        let e = errors_against_converged(
+            &format!("throttle {throttle}°"),
+            move |_| throttle,
+            (0.48, 0.6),
+            &[(2.0, 2.0), (2.0, 1.0), (2.0, 0.5)],
+        );
+        assert!(e[1][0] < 2.5e-4, "1°: {e:?}");
+        assert!(e[0][0] < 5e-4, "2°: {e:?}");
+        if throttle == 90.0 {
+            assert!(e[2][0] < 0.4 * e[1][0], "0.5°: {e:?}");
+        }
+    }
+}
+
+/// The crank angle's column against central differences of the gas equations in θ at a fixed
+/// state, at every degree of a cycle at 1000 rpm, full and shut throttle, motored and fired:
+/// `U·∂p_cyl/∂θ + c` within 1e-4 of the largest rate's movement (masses and temperatures
+/// apart), away from the valves' events, where the rates have kinks.
+#[test]
+fn theta_column_is_the_rates_movement_with_the_angle() {
+    for (throttle, burn_q) in [(90.0, 0.0), (0.0, 0.0), (90.0, 150.0)] {
+        let w = 1000.0 * PI / 30.0;
+        let mut params = CellParams::default();
+        params.engine.burn_q = burn_q;
+        let burn = Wiebe::of(&params.engine);
+        let events = [
+            params.engine.ivo,
+            params.engine.ivc,
+            params.engine.evo,
+            params.engine.evc,
+        ];
+        let mut cell = TestCell::new(params, w, 0.0).unwrap();
+        let inputs = Inputs {
+            demand: Demand::Speed(w),
+            throttle_deg: throttle,
+        };
+        while cell.time() < 0.3 {
+            cell.step(&inputs);
+        }
+        let mut checked = 0;
+        for _ in 0..720 {
+            cell.step(&inputs);
+            let e = cell.engine();
+            let x = *cell.state();
+            let (th, om) = (x[10], x[11]);
+            let deg = th.to_degrees().rem_euclid(720.0);
+            if events
+                .iter()
+                .any(|&ev| ((deg - ev + 360.0).rem_euclid(720.0) - 360.0).abs() < 0.5)
+            {
+                continue;
+            }
+            let a_th = e.throttle_cd_area(throttle);
+            let mut g = [0.0; 8];
+            g.copy_from_slice(&x[..8]);
+            let k = e.crank_point(th);
+            let (_, out, lin) = e.gas_derivatives_at(&k, om, a_th, &g, &burn);
+            let j = e.theta_column(&k, om, &g, &out, &lin, &burn);
+            let h = 1e-6;
+            let fp = e.gas_derivatives(th + h, om, a_th, &g, &burn).0;
+            let fm = e.gas_derivatives(th - h, om, a_th, &g, &burn).0;
+            let fd: Vec<f64> = (0..8).map(|r| (fp[r] - fm[r]) / (2.0 * h)).collect();
+            let col: Vec<f64> = (0..8)
+                .map(|r| j.u[r][CYL] * j.p_theta + j.theta[r])
+                .collect();
+            for rows in [&[0, 1, 2, 6, 7][..], &[3, 4, 5][..]] {
+                let scale = rows.iter().map(|&r| fd[r].abs()).fold(0.0, f64::max);
+                for &r in rows {
+                    assert!(
+                        (col[r] - fd[r]).abs() <= 1e-4 * scale + 1e-12,
+                        "throttle {throttle}, burn {burn_q} J, {deg:.1}°, row {r}: {} vs {}",
+                        col[r],
+                        fd[r]
+                    );
+                }
+            }
+            checked += 1;
+        }
+        assert!(checked > 700, "{checked}");
     }
 }
 

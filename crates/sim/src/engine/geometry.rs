@@ -35,6 +35,21 @@ impl ValveGeometry {
         }
     }
 
+    /// The port's area `π·di²/4` [m²], the largest flow area.
+    pub fn port_area(&self) -> f64 {
+        self.port
+    }
+
+    /// `dA/dlift` [m] at `lift`: the curtain's slope while the curtain is the smaller area, 0
+    /// shut or on the port area.
+    pub fn area_slope(&self, lift: f64) -> f64 {
+        if lift > 0.0 && lift <= self.lv {
+            self.half_perimeter * self.cos_seat
+        } else {
+            0.0
+        }
+    }
+
     /// Flow area at `lift` [m].
     pub fn area(&self, lift: f64) -> f64 {
         if lift <= 0.0 {
@@ -104,5 +119,23 @@ impl Cam {
             let s = (PI * (r * self.inv_dur)).sin();
             self.l_max * powi(s, self.n)
         }
+    }
+
+    /// Lift [m] and its slope `dl/dθ` [m/deg] at `deg` within the cycle: `n·l_max·sinⁿ⁻¹(π·x)·
+    /// cos(π·x)·π/Δ`, the cosine as `±√(1 − sin²)` (negative past the peak).
+    pub fn lift_and_slope(&self, deg: f64) -> (f64, f64) {
+        let r = wrap720(deg - self.open);
+        if self.dur <= 0.0 || r >= self.dur || self.n == 0 {
+            return (self.lift(deg), 0.0);
+        }
+        let x = r * self.inv_dur;
+        let s = (PI * x).sin();
+        let c = (1.0 - s * s).max(0.0).sqrt();
+        let c = if x > 0.5 { -c } else { c };
+        let sn1 = powi(s, self.n - 1);
+        (
+            self.l_max * sn1 * s,
+            self.l_max * f64::from(self.n) * sn1 * c * PI * self.inv_dur,
+        )
     }
 }

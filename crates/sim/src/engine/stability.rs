@@ -8,6 +8,12 @@ pub struct NetworkJacobian {
     pub u: [[f64; 3]; 8],
     /// `Vᵀ`: each volume's pressure per unit of its mass and its temperature, `[p/m, p/T]`.
     pub v: [[f64; 2]; 3],
+    /// `Vᵀ`'s entry for the crank angle: the cylinder's pressure per radian at a fixed state,
+    /// `∂p_cyl/∂θ` [Pa/rad] (0 without the θ-column).
+    pub p_theta: f64,
+    /// The rates' direct movement with the crank angle at a fixed state, beside the pressure's
+    /// [per rad] ([`Engine::theta_column`]; 0 without it).
+    pub theta: [f64; 8],
 }
 
 /// The largest eigenvalue of the symmetric tridiagonal 3×3 matrix with diagonal `a` and
