@@ -341,9 +341,9 @@ fn bench_json_has_the_documented_shape() {
     assert!(v["machine"].as_str().unwrap().contains("cores"));
     let r = v["results"].as_array().unwrap();
     // 15 linear, 2 × 2 RLS over arrays (tracks, p = 2 and 20), 3 filters and the EKF and UKF
-    // over a formula, 4 model evaluations, 1 gradient, 3 identifiability, 2 + 2 test cell, 3
+    // over a formula, 4 model evaluations, 1 gradient, 3 identifiability, 3 + 2 test cell, 3
     // combustion, the live twin.
-    assert_eq!(r.len(), 15 + 4 + 3 + 2 + 4 + 1 + 3 + 2 + 2 + 3 + 1);
+    assert_eq!(r.len(), 15 + 4 + 3 + 2 + 4 + 1 + 3 + 3 + 2 + 3 + 1);
     // The live twin: simulated seconds per second with its four copies at 10 kHz.
     let tw = r.iter().find(|e| e["name"] == "twin_live").unwrap();
     assert!(
@@ -390,6 +390,7 @@ fn bench_json_has_the_documented_shape() {
     for (name, order) in [
         ("testcell", 2.0),
         ("testcell_rk4", 4.0),
+        ("testcell_step2", 2.0),
         ("testcell_dynamics", 2.0),
         ("testcell_dynamics_rk4", 4.0),
     ] {

@@ -53,6 +53,7 @@ pub fn design<'py>(
         cell.set(k, *v).map_err(err)?;
     }
     let mut settings: Vec<(String, f64)> = set.into_iter().collect();
+    let mut cell = physid_apps::design::run::candidate_cell(cell, &settings);
     let design = |names: Vec<String>, selected: Vec<usize>, throttle| -> PyResult<Design> {
         Ok(Design {
             names,

@@ -5,6 +5,23 @@
 use crate::error::AppError;
 use physid_core::Recording;
 use physid_sim::params::CellParams;
+
+/// The solver's step [deg] a design's candidates run at unless `solver.step_deg` is set: 2°,
+/// half the steps of `physid simulate`'s 1°. With the crank angle's column in its Jacobian the
+/// cell's pressures are within 2.2e-4 / 4.2e-4 of the converged solution's peak at 2° (full /
+/// shut throttle), closer than the 1° step's 5.8e-4 / 1.9e-3 before that column
+/// (docs/simulate.md); a design's predicted standard errors move by under 0.2 % and it chooses
+/// the same candidate (`tests/design.rs`, BENCHMARKS.md).
+pub const CANDIDATE_STEP_DEG: f64 = 2.0;
+
+/// The cell a design runs its candidates on: `cell` with the `settings` given for it (the
+/// `--set` pairs), at [`CANDIDATE_STEP_DEG`] unless they set `solver.step_deg`.
+pub fn candidate_cell(mut cell: CellParams, settings: &[(String, f64)]) -> CellParams {
+    if !settings.iter().any(|(k, _)| k == "solver.step_deg") {
+        cell.step_deg = CANDIDATE_STEP_DEG;
+    }
+    cell
+}
 use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::Scenario;
 

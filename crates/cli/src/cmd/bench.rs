@@ -472,10 +472,17 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let recorded: f64 = 0.5;
     let simulated_ms = (1000.0 * recorded).round() as usize;
-    for (name, order) in [("testcell", 2.0), ("testcell_rk4", 4.0)] {
+    // `testcell_step2`: the same at the solver's 2° step (a design's candidates' step), the
+    // samples at each degree from the acquisition's interpolation between steps.
+    for (name, order, step_deg) in [
+        ("testcell", 2.0, 1.0),
+        ("testcell_rk4", 4.0, 1.0),
+        ("testcell_step2", 2.0, 2.0),
+    ] {
         let opts = physid_sim::run::RunOptions {
             params: physid_sim::params::CellParams {
                 order,
+                step_deg,
                 ..Default::default()
             },
             duration: Some(recorded),
@@ -492,13 +499,13 @@ pub fn run(args: &Args) -> Result<()> {
         let steps_per_s = realtime * 6000.0;
         if !args.json {
             outln!(
-                "{name:<21} {steps_per_s:>10.0} steps/s: {realtime:.0}× real time — the whole \
-                 test cell with sensors and acquisition, 1000 rpm, one sample per degree \
-                 (solver.order {order})"
+                "{name:<21} {steps_per_s:>10.0} samples/s: {realtime:.0}× real time — the \
+                 whole test cell with sensors and acquisition, 1000 rpm, one sample per degree \
+                 (solver.order {order}, solver.step_deg {step_deg})"
             );
         }
         results.push(json!({"name": name, "realtime_factor": realtime,
-            "steps_per_s": steps_per_s, "solver_order": order}));
+            "steps_per_s": steps_per_s, "solver_order": order, "solver_step_deg": step_deg}));
     }
     // `testcell_dynamics`: the cell's dynamics alone (engine, machine, drive, driveline; no
     // sensors, no acquisition), stepped after 0.5 s of settling.

@@ -11,6 +11,7 @@ use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::design::friction::{design_friction, select as friction_select, FrictionDesign};
 use physid_apps::design::information::Criterion;
 use physid_apps::design::profile::{Limits, ThrottleDraw};
+use physid_apps::design::run::candidate_cell;
 use physid_apps::design::shaft::{design_shaft, select, ShaftDesign, PARAMS};
 use physid_apps::design::torque::{design_torque, select as torque_select, TorqueDesign};
 use physid_apps::design::{Design, Designed};
@@ -221,8 +222,8 @@ fn shaft(
         .unwrap_or("rlsf")
         .parse::<MonitorMethod>()
         .map_err(|e| miette!("--method {e}"))?;
-    let mut cell = a.set.params()?;
     let mut set = a.set.pairs()?;
+    let mut cell = candidate_cell(a.set.params()?, &set);
     let params = if a.params.is_empty() {
         vec!["K".to_string(), "B".to_string()]
     } else {
@@ -285,7 +286,8 @@ fn friction(
         ));
     }
     let names = friction_select(&a.params).map_err(|e| miette!("{e}"))?;
-    let mut fd = FrictionDesign::new(a.set.params()?, a.sample_rate.unwrap_or(10_000.0));
+    let cell = candidate_cell(a.set.params()?, &a.set.pairs()?);
+    let mut fd = FrictionDesign::new(cell, a.sample_rate.unwrap_or(10_000.0));
     if let Some(l) = a.lambda {
         fd.fit.lambda = l;
     }
@@ -361,7 +363,8 @@ fn torque(
     };
     let mut names = designed.clone();
     names.extend(along.into_iter().filter(|n| !designed.contains(n)));
-    let td = TorqueDesign::new(a.set.params()?).map_err(|e| miette!("{e}"))?;
+    let cell = candidate_cell(a.set.params()?, &a.set.pairs()?);
+    let td = TorqueDesign::new(cell).map_err(|e| miette!("{e}"))?;
     let selected = (0..designed.len()).collect();
     let design = design(a, limits, names, selected, ThrottleDraw::Linear);
     let mut r = design_torque(&td, &design, progress).map_err(|e| miette!("{e}"))?;
