@@ -3,7 +3,7 @@
 // Test helpers panic on failure by design.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_apps::twin::{calibrate, check, CalibrateConfig, Replay, Uncertainty};
+use physid_apps::twin::{calibrate, check, CalibrateConfig, Demand, Replay, Uncertainty};
 use physid_sim::params::CellParams;
 use physid_sim::run::{simulate, OutputBasis, RunOptions};
 use physid_sim::scenario::{Profile, Scenario, Shape};
@@ -181,7 +181,8 @@ fn calibration_recovers_the_perturbed_cell_within_its_intervals() {
     let scenario = excited(4.0);
     let mut coverage = Coverage::default();
     let nominal = CellParams::default();
-    let truth_replay = Replay::new(&record(&other(), 100), None).unwrap();
+    let truth_replay =
+        Replay::new(&record(&other(), 100), None, None, &CellParams::default()).unwrap();
     let true_y = truth_replay.simulate(&truth()).unwrap();
     let nc = true_y.len();
     // Per channel over the seeds: the calibrated outputs' squared distance from the true
@@ -189,9 +190,15 @@ fn calibration_recovers_the_perturbed_cell_within_its_intervals() {
     let mut spread = vec![[0.0; 4]; nc];
     for seed in 1..=20 {
         let rec = record(&scenario, seed);
-        let replay = Replay::new(&rec, None).unwrap();
+        let replay = Replay::new(&rec, None, None, &CellParams::default()).unwrap();
         let cal = calibrate(&replay, &CalibrateConfig::default()).unwrap();
-        let replay2 = Replay::new(&record(&other(), 100 + seed), None).unwrap();
+        let replay2 = Replay::new(
+            &record(&other(), 100 + seed),
+            None,
+            None,
+            &CellParams::default(),
+        )
+        .unwrap();
         let checks = check(
             &replay2,
             &nominal,
@@ -255,7 +262,7 @@ fn a_steady_run_holds_what_it_cannot_resolve() {
     scenario.duration = 3.0;
     let rec = record(&scenario, 3);
     let chans = ["omega_dy".to_string(), "torque_shaft".to_string()];
-    let replay = Replay::new(&rec, Some(&chans)).unwrap();
+    let replay = Replay::new(&rec, Some(&chans), None, &CellParams::default()).unwrap();
     let mut cfg = CalibrateConfig::default();
     cfg.params.push("sensors.temperature.lag".into());
     let cal = calibrate(&replay, &cfg).unwrap();
@@ -294,12 +301,12 @@ fn a_steady_run_holds_what_it_cannot_resolve() {
 fn a_calibration_carries_to_another_test() {
     let rec = record(&excited(4.0), 5);
     let cal = calibrate(
-        &Replay::new(&rec, None).unwrap(),
+        &Replay::new(&rec, None, None, &CellParams::default()).unwrap(),
         &CalibrateConfig::default(),
     )
     .unwrap();
     let rec2 = record(&other(), 6);
-    let replay2 = Replay::new(&rec2, None).unwrap();
+    let replay2 = Replay::new(&rec2, None, None, &CellParams::default()).unwrap();
     let nominal = CellParams::default();
     let band = Uncertainty::of(&cal);
     for c in check(
@@ -334,7 +341,13 @@ fn a_calibration_carries_to_another_test() {
         faults: vec![physid_sim::scenario::Fault::parse("engine.friction_scale=1.4375@2").unwrap()],
         ..RunOptions::default()
     };
-    let faulty = Replay::new(&simulate(&other(), &opts, |_| {}).unwrap(), None).unwrap();
+    let faulty = Replay::new(
+        &simulate(&other(), &opts, |_| {}).unwrap(),
+        None,
+        None,
+        &CellParams::default(),
+    )
+    .unwrap();
     for c in check(&faulty, &nominal, &cal.cell(&nominal).unwrap(), Some(&band)).unwrap() {
         let b = c.band.unwrap();
         println!("{}: outside {:.3}, {:?}", c.name, b.outside, b.excursions);
@@ -369,7 +382,7 @@ fn a_calibration_carries_to_another_test() {
 #[test]
 fn sensitivities_converge_with_the_step() {
     let rec = record(&excited(2.0), 1);
-    let replay = Replay::new(&rec, None).unwrap();
+    let replay = Replay::new(&rec, None, None, &CellParams::default()).unwrap();
     let params: Vec<String> = physid_apps::twin::calibrate::DEFAULT_PARAMS
         .iter()
         .map(|s| s.to_string())
@@ -419,7 +432,9 @@ fn bad_input_is_named() {
     let rec = record(&excited(1.0), 1);
     let mut time = rec.clone();
     time.basis = physid_core::Basis::Time;
-    let e = Replay::new(&time, None).unwrap_err().to_string();
+    let e = Replay::new(&time, None, None, &CellParams::default())
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("time basis") && e.contains("--crank-angle"),
         "{e}"
@@ -428,15 +443,19 @@ fn bad_input_is_named() {
     let mut v = bad.values("torque_shaft").unwrap().to_vec();
     v[17] = f64::NAN;
     bad.replace_values("torque_shaft", v).unwrap();
-    let e = Replay::new(&bad, None).unwrap_err().to_string();
+    let e = Replay::new(&bad, None, None, &CellParams::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("'torque_shaft', sample 17"), "{e}");
     let mut no_input = physid_core::Recording::new(physid_core::Basis::CrankAngle);
     for c in rec.channels().iter().filter(|c| c.name != "throttle") {
         no_input.push(c.clone()).unwrap();
     }
-    let e = Replay::new(&no_input, None).unwrap_err().to_string();
+    let e = Replay::new(&no_input, None, None, &CellParams::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("throttle"), "{e}");
-    let replay = Replay::new(&rec, None).unwrap();
+    let replay = Replay::new(&rec, None, None, &CellParams::default()).unwrap();
     let cfg = CalibrateConfig {
         params: vec!["shaft.q".into()],
         ..CalibrateConfig::default()
@@ -444,7 +463,9 @@ fn bad_input_is_named() {
     let e = calibrate(&replay, &cfg).unwrap_err().to_string();
     assert!(e.contains("shaft.q") && e.contains("list-params"), "{e}");
     let chans = ["T_oil".to_string()];
-    let e = Replay::new(&rec, Some(&chans)).unwrap_err().to_string();
+    let e = Replay::new(&rec, Some(&chans), None, &CellParams::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("'T_oil'") && e.contains("torque_shaft"), "{e}");
 }
 
@@ -561,7 +582,7 @@ fn a_torque_demand_recording_is_replayed() {
     let mut coverage = Coverage::default();
     for seed in 1..=10 {
         let rec = record(&scenario, seed);
-        let replay = Replay::new(&rec, None).unwrap();
+        let replay = Replay::new(&rec, None, None, &CellParams::default()).unwrap();
         assert!(replay.scenario.torque_mode && replay.scenario.description.contains("torque"));
         let cal = calibrate(&replay, &CalibrateConfig::default()).unwrap();
         coverage.add(&cal, seed);
@@ -570,6 +591,27 @@ fn a_torque_demand_recording_is_replayed() {
         }
     }
     coverage.assert("torque demand", 80, 0.75..=1.3);
+    // A real cell's recording has no such metadata: its speed_demand, a torque, is refused as a
+    // speed by name; said to be a torque (`--demand torque`), it is replayed from its first
+    // engine speed after the default settling second, and the calibration still matches it.
+    let mut bare = record(&scenario, 1);
+    bare.meta
+        .retain(|k, _| !k.starts_with("scenario.") && k != "param.dyno.torque_mode");
+    let e = Replay::new(&bare, None, None, &CellParams::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("'speed_demand', sample 0") && e.contains("--demand torque"),
+        "{e}"
+    );
+    let replay = Replay::new(&bare, None, Some(Demand::Torque), &CellParams::default()).unwrap();
+    assert!(replay.scenario.torque_mode);
+    assert_gain(
+        &replay,
+        &calibrate(&replay, &CalibrateConfig::default()).unwrap(),
+    );
+    // Said to be a speed, it is read as one (and the cell cannot follow it).
+    assert!(Replay::new(&bare, None, Some(Demand::Speed), &CellParams::default()).is_ok());
     // The live twin follows a speed demand only: a torque-demand stream is refused by name.
     use physid_apps::stage::Stage;
     use physid_apps::twin::live::{TwinConfig, TwinStage};

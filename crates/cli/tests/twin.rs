@@ -228,6 +228,19 @@ fn twin_errors_name_the_problem() {
     assert!(!o.status.success() && e.contains("'T_oil'"), "{e}");
     let o = physid(&[
         "twin",
+        "calibrate",
+        "--data",
+        crank.to_str().unwrap(),
+        "--demand",
+        "power",
+    ]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("--demand") && e.contains("speed or torque"),
+        "{e}"
+    );
+    let o = physid(&[
+        "twin",
         "check",
         "--data",
         crank.to_str().unwrap(),

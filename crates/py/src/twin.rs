@@ -3,7 +3,7 @@
 use crate::err;
 use crate::recording::Recording;
 use physid_apps::twin::calibrate::DEFAULT_PARAMS;
-use physid_apps::twin::{calibrate, check, CalibrateConfig, Replay, Uncertainty};
+use physid_apps::twin::{calibrate, check, CalibrateConfig, Demand, Replay, Uncertainty};
 use pyo3::prelude::*;
 use std::collections::BTreeMap;
 
@@ -16,10 +16,17 @@ fn cell_of(set: &BTreeMap<String, f64>) -> PyResult<physid_sim::params::CellPara
     Ok(cell)
 }
 
+/// What the recording's `speed_demand` holds, by name (`"speed"`, `"torque"`; `None`: its
+/// metadata's).
+fn demand_of(demand: Option<String>) -> PyResult<Option<Demand>> {
+    demand.map(|d| d.parse::<Demand>().map_err(err)).transpose()
+}
+
 /// Calibrate the cell (`set` over the defaults) on `rec`: the calibration as JSON, each
 /// parameter under its path, and the calibrated cell's scenario file (TOML).
 #[pyfunction]
-#[pyo3(signature = (rec, params, channels, set, max_rel_se, threads))]
+#[pyo3(signature = (rec, params, channels, set, max_rel_se, threads, demand))]
+#[allow(clippy::too_many_arguments)]
 pub fn twin_calibrate(
     py: Python<'_>,
     rec: &Recording,
@@ -28,9 +35,11 @@ pub fn twin_calibrate(
     set: BTreeMap<String, f64>,
     max_rel_se: f64,
     threads: usize,
+    demand: Option<String>,
 ) -> PyResult<(String, String)> {
     let cell = cell_of(&set)?;
-    let replay = Replay::new(&rec.inner, channels.as_deref()).map_err(err)?;
+    let replay =
+        Replay::new(&rec.inner, channels.as_deref(), demand_of(demand)?, &cell).map_err(err)?;
     let cfg = CalibrateConfig {
         cell: cell.clone(),
         params: params.unwrap_or_else(|| DEFAULT_PARAMS.iter().map(|s| s.to_string()).collect()),
@@ -66,7 +75,7 @@ pub fn twin_calibrate(
 /// calibrated (`calibrated` over that), and with `calibration` (a calibration's JSON: its
 /// covariance and channel noise) the residual's band, as JSON.
 #[pyfunction]
-#[pyo3(signature = (rec, calibrated, channels, set, calibration))]
+#[pyo3(signature = (rec, calibrated, channels, set, calibration, demand))]
 pub fn twin_check(
     py: Python<'_>,
     rec: &Recording,
@@ -74,6 +83,7 @@ pub fn twin_check(
     channels: Option<Vec<String>>,
     set: BTreeMap<String, f64>,
     calibration: Option<String>,
+    demand: Option<String>,
 ) -> PyResult<String> {
     let uncertainty = match calibration {
         Some(s) => {
@@ -87,7 +97,13 @@ pub fn twin_check(
     for (k, v) in &calibrated {
         cal.set(k, *v).map_err(err)?;
     }
-    let replay = Replay::new(&rec.inner, channels.as_deref()).map_err(err)?;
+    let replay = Replay::new(
+        &rec.inner,
+        channels.as_deref(),
+        demand_of(demand)?,
+        &nominal,
+    )
+    .map_err(err)?;
     let checks = py
         .detach(|| check(&replay, &nominal, &cal, uncertainty.as_ref()))
         .map_err(err)?;

@@ -977,7 +977,7 @@ impl crate::stage::Stage for TwinStage {
             // speed demand only (an open-loop twin's speed would drift from the stream's).
             if let Ok(w) = chunk.values_in("omega_dy", "rad/s") {
                 let (d, w) = (demand[0], w[0]);
-                if (d - w).abs() > 0.5 * w.abs().max(1.0) {
+                if !super::replay::near_the_speed(d, w) {
                     return Err(AppError::Invalid(format!(
                         "twin: the stream's speed_demand ({d:.3}) is far from the dynamometer's speed ({w:.3} rad/s) at its first sample — a dynamometer on a torque demand, whose torque the cell records there? The live twin follows a speed demand only (physid twin calibrate and check replay torque-demand recordings)"
                     )));

@@ -15,4 +15,4 @@ pub mod replay;
 
 pub use calibrate::{calibrate, CalibrateConfig, Calibration};
 pub use check::{check, ChannelCheck, Uncertainty};
-pub use replay::Replay;
+pub use replay::{Demand, Replay};

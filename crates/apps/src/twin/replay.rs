@@ -7,7 +7,7 @@ use crate::design::run::run_noiseless;
 use crate::error::AppError;
 use physid_core::{Basis, Recording};
 use physid_sim::params::CellParams;
-use physid_sim::run::OutputBasis;
+use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::{Profile, Scenario, Segment, Shape};
 use std::f64::consts::PI;
 
@@ -18,6 +18,117 @@ pub const OUTPUTS: &[&str] = &["omega_en", "omega_dy", "torque_shaft", "p_int", 
 /// How much of the recording's end is left out of the comparison: the replay's crank-angle
 /// grid ends where its time does, within a few degrees of the recording's.
 const END_MARGIN: f64 = 0.02;
+
+/// What a recording's `speed_demand` channel holds: the dynamometer's demand.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Demand {
+    /// A speed [rad/s]: the drive held the speed (the thesis's tests).
+    Speed,
+    /// A torque [N·m]: the drive applied the torque, the speed followed.
+    Torque,
+}
+
+impl std::str::FromStr for Demand {
+    type Err = AppError;
+    fn from_str(s: &str) -> Result<Self, AppError> {
+        match s {
+            "speed" => Ok(Self::Speed),
+            "torque" => Ok(Self::Torque),
+            other => Err(AppError::Invalid(format!(
+                "demand '{other}': expected speed or torque"
+            ))),
+        }
+    }
+}
+
+/// Whether a demand's first sample `demand` can be a speed demand for a dynamometer turning at
+/// `omega_dy` [rad/s]: within half of it (a step at the very start aside, a speed demand is near
+/// the speed; a torque demand in N·m is far from it at any useful speed).
+pub(crate) fn near_the_speed(demand: f64, omega_dy: f64) -> bool {
+    (demand - omega_dy).abs() <= 0.5 * omega_dy.abs().max(1.0)
+}
+
+/// The speed [rpm] a torque-demand replay starts from so that, settling on its first torque and
+/// throttle for the scenario's `settle`, the `cell`'s engine turns at the mean speed `w0`
+/// [rad/s] over the first `window` [s] from t = 0 (the recording's first engine cycle: the
+/// speed within a cycle ripples with the compression, its mean is smooth in the start): the
+/// secant method on that mean, which rises with the start, from `guess` [rpm] (one settle per
+/// iterate, to 1e-10 of `w0` — a replay's sensitivities are differences of such starts —, at
+/// most 16).
+pub fn start_reaching(
+    scenario: &Scenario,
+    cell: &CellParams,
+    w0: f64,
+    window: f64,
+    guess: f64,
+) -> Result<f64, AppError> {
+    let settled = |rpm: f64| -> Result<f64, AppError> {
+        let s = Scenario {
+            speed_range: Some([0.05 * rpm, 1.95 * rpm]),
+            duration: window,
+            ..scenario.clone()
+        };
+        let opts = RunOptions {
+            params: cell.clone(),
+            basis: OutputBasis::Time(10_000.0),
+            stream: true,
+            ..RunOptions::default()
+        };
+        let mut run = Run::new(&s, &opts)?;
+        run.keep_channels(&["omega_en"])?;
+        run.step_until(f64::INFINITY)?;
+        let rec = run.drain()?;
+        let (t, w) = (rec.values("t")?, rec.values("omega_en")?);
+        let n = t
+            .iter()
+            .take_while(|&&x| x < window)
+            .count()
+            .clamp(1, w.len().max(1));
+        match w.get(..n) {
+            Some(w) if !w.is_empty() => Ok(w.iter().sum::<f64>() / n as f64),
+            _ => Err(AppError::Invalid(
+                "the replay's settling gave no sample after t = 0".into(),
+            )),
+        }
+    };
+    let mut a = guess;
+    let mut fa = settled(a)? - w0;
+    if fa.abs() <= 1e-10 * w0 {
+        return Ok(a);
+    }
+    // The settled speed moves about one for one with the start: the second iterate by that.
+    let mut b = a - fa * 30.0 / PI;
+    for _ in 0..16 {
+        let fb = settled(b)? - w0;
+        if fb.abs() <= 1e-10 * w0 {
+            return Ok(b);
+        }
+        let slope = (fb - fa) / (b - a);
+        if !(slope.is_finite() && slope > 0.0) {
+            break;
+        }
+        (a, fa) = (b, fb);
+        b -= fb / slope;
+    }
+    Err(AppError::Invalid(format!(
+        "the replay found no start speed from which the cell, settling on the recording's first torque, turns at its first cycle's mean engine speed ({:.1} rpm) after t = 0",
+        w0 * 30.0 / PI
+    )))
+}
+
+/// The mean engine speed [rad/s] over the recording's first engine cycle and that cycle's
+/// duration [s] (`None`: no positive, finite speed there).
+fn first_cycle(rec: &Recording, t: &[f64], step_deg: f64) -> Result<Option<(f64, f64)>, AppError> {
+    let w = rec.values_in("omega_en", "rad/s")?;
+    let n = ((720.0 / step_deg).round() as usize)
+        .min(w.len())
+        .min(t.len());
+    if n < 2 {
+        return Ok(None);
+    }
+    let mean = w[..n].iter().sum::<f64>() / n as f64;
+    Ok((mean.is_finite() && mean > 0.0).then_some((mean, t[n - 1] - t[0])))
+}
 
 /// A recording as the twin replays it.
 #[derive(Debug, Clone)]
@@ -35,6 +146,22 @@ pub struct Replay {
     pub n: usize,
     /// The recording's time at each of them [s].
     pub t: Vec<f64>,
+    /// On a torque demand whose start the metadata does not give: the start each replayed cell
+    /// is given ([`start_reaching`]).
+    pub start: Option<Start>,
+}
+
+/// The start of a torque-demand replay found per cell: the recording's first cycle's mean
+/// engine speed `w0` [rad/s] over `window` [s], which each replayed cell reaches from its own
+/// start speed; `rpm`, the nominal cell's (each search's first guess).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Start {
+    /// The mean engine speed over the recording's first cycle [rad/s].
+    pub w0: f64,
+    /// That cycle's duration [s].
+    pub window: f64,
+    /// The nominal cell's start [rpm].
+    pub rpm: f64,
 }
 
 /// `(t, v)` with the points inside runs of equal values left out: the same profile under
@@ -81,9 +208,23 @@ fn finite<'a>(rec: &'a Recording, name: &str) -> Result<&'a [f64], AppError> {
 
 impl Replay {
     /// The replay of `rec`, matching `channels` (by default every one of [`OUTPUTS`] it has).
-    /// The recording must be on a crank-angle basis with `t`, `theta`, `speed_demand` [rad/s]
-    /// and `throttle` [deg]: the replayed cell's samples are compared with it degree by degree.
-    pub fn new(rec: &Recording, channels: Option<&[String]>) -> Result<Self, AppError> {
+    /// The recording must be on a crank-angle basis with `t`, `theta`, `speed_demand` and
+    /// `throttle` [deg]: the replayed cell's samples are compared with it degree by degree.
+    /// On a torque demand the replay starts where the recording's run started: its metadata's
+    /// `scenario.settle` and `scenario.start_rpm` (`physid simulate` writes them), else after
+    /// a settling second each replayed cell from the speed at which it turns at the recording's
+    /// first cycle's mean engine speed over that cycle ([`start_reaching`]; the `nominal`
+    /// cell's is each search's first guess).
+    /// `demand` says what `speed_demand` holds; by default the recording's metadata
+    /// (`param.dyno.torque_mode`, which `physid simulate` writes), else a speed — refused, with
+    /// the reason, where its first sample is far from the dynamometer's speed (unless `demand`
+    /// says it is a speed).
+    pub fn new(
+        rec: &Recording,
+        channels: Option<&[String]>,
+        demand: Option<Demand>,
+        nominal: &CellParams,
+    ) -> Result<Self, AppError> {
         if rec.basis != Basis::CrankAngle {
             return Err(AppError::Invalid(
                 "the twin compares the cell with a recording degree by degree: the recording is on a time basis — convert it first (physid convert IN OUT --crank-angle)".into(),
@@ -114,11 +255,16 @@ impl Replay {
         // The dynamometer's demand: a speed [rad/s → rpm], or on a torque demand the torque
         // [N·m] (the cell records it in the same channel), replayed open loop from where the
         // recording's run started — its settling time and start speed from its metadata
-        // (`physid simulate` writes them), else 1 s from the first measured engine speed.
-        let torque_mode = rec
-            .meta
-            .get("param.dyno.torque_mode")
-            .is_some_and(|v| v != "0");
+        // (`physid simulate` writes them), else 1 s from the speed that reaches the first
+        // cycle's mean engine speed ([`Start`]).
+        let demand_said = demand;
+        let torque_mode = match demand {
+            Some(d) => d == Demand::Torque,
+            None => rec
+                .meta
+                .get("param.dyno.torque_mode")
+                .is_some_and(|v| v != "0"),
+        };
         let meta = |key: &str| -> Result<Option<f64>, AppError> {
             rec.meta
                 .get(key)
@@ -135,14 +281,20 @@ impl Replay {
                 .transpose()
         };
         let settle = meta("scenario.settle")?.unwrap_or(1.0);
+        // On a torque demand without the start in the metadata: the first cycle's mean engine
+        // speed, to be reached after the settling.
+        let mut reach = None;
         let (demand, speed_range) = if torque_mode {
             let start = match meta("scenario.start_rpm")? {
                 Some(rpm) if rpm > 0.0 => rpm,
-                _ => match rec.values_in("omega_en", "rad/s")?.first() {
-                    Some(w) if w.is_finite() && *w > 0.0 => w * 30.0 / PI,
+                _ => match first_cycle(rec, t, step_deg)? {
+                    Some((w, window)) => {
+                        reach = Some((w, window));
+                        w * 30.0 / PI
+                    }
                     _ => {
                         return Err(AppError::Invalid(
-                            "the recording's dynamometer ran on a torque demand and neither its metadata ('scenario.start_rpm') nor its first 'omega_en' sample gives the speed it started from".into(),
+                            "the recording's dynamometer ran on a torque demand and neither its metadata ('scenario.start_rpm') nor its first cycle's 'omega_en' gives the speed it started from".into(),
                         ))
                     }
                 },
@@ -159,6 +311,15 @@ impl Replay {
                     "channel 'speed_demand', sample {k}: not a number"
                 )));
             }
+            if let (None, Ok(w)) = (demand_said, rec.values_in("omega_dy", "rad/s")) {
+                if let (Some(&d), Some(&w)) = (demand.first(), w.first()) {
+                    if !near_the_speed(d, w) {
+                        return Err(AppError::Invalid(format!(
+                            "channel 'speed_demand', sample 0: {d:.3} is far from the dynamometer's speed ({w:.3} rad/s) — not a speed demand: a dynamometer on a torque demand records the torque [N·m] there; say so (physid twin --demand torque, Python demand=\"torque\")"
+                        )));
+                    }
+                }
+            }
             (demand.iter().map(|w| w * 30.0 / PI).collect(), None)
         };
         let throttle = finite(rec, "throttle")?;
@@ -166,7 +327,7 @@ impl Replay {
         let t0 = t[0].min(0.0);
         let tr: Vec<f64> = t.iter().map(|x| x - t0).collect();
         let duration = tr[tr.len() - 1];
-        let scenario = Scenario {
+        let mut scenario = Scenario {
             name: "twin-replay".into(),
             description: format!(
                 "the inputs of {} replayed: {} demand and throttle as recorded",
@@ -181,6 +342,14 @@ impl Replay {
             speed_range,
             set: Default::default(),
             faults: Vec::new(),
+        };
+        let start = match reach {
+            Some((w0, window)) => {
+                let rpm = start_reaching(&scenario, nominal, w0, window, w0 * 30.0 / PI)?;
+                scenario.speed_range = Some([0.05 * rpm, 1.95 * rpm]);
+                Some(Start { w0, window, rpm })
+            }
+            None => None,
         };
         let names: Vec<String> = match channels {
             Some(c) => c.to_vec(),
@@ -221,6 +390,7 @@ impl Replay {
             measured,
             n,
             t: t[..n].to_vec(),
+            start,
         })
     }
 
@@ -234,10 +404,23 @@ impl Replay {
             .collect();
         let keep: Vec<&str> = self.channels.iter().map(String::as_str).collect();
         let mut out: Vec<Vec<f64>> = vec![Vec::with_capacity(self.n + 64); keep.len()];
+        // Each cell from its own start: the one that reaches the recording's first cycle.
+        let started;
+        let scenario = match &self.start {
+            Some(s) => {
+                let rpm = start_reaching(&self.scenario, cell, s.w0, s.window, s.rpm)?;
+                started = Scenario {
+                    speed_range: Some([0.05 * rpm, 1.95 * rpm]),
+                    ..self.scenario.clone()
+                };
+                &started
+            }
+            None => &self.scenario,
+        };
         run_noiseless(
             cell,
             &quiet,
-            &self.scenario,
+            scenario,
             OutputBasis::Crank(self.step_deg),
             &keep,
             |chunk| {

@@ -6,7 +6,7 @@ use crate::out::outln;
 use crate::report::{self, Report};
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::twin::calibrate::DEFAULT_PARAMS;
-use physid_apps::twin::{calibrate, CalibrateConfig, Calibration, Replay};
+use physid_apps::twin::{calibrate, CalibrateConfig, Calibration, Demand, Replay};
 use physid_sim::params::CellParams;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -49,6 +49,12 @@ pub(super) struct DataArgs {
     /// the recording has].
     #[arg(long, value_name = "CHANNELS", value_delimiter = ',')]
     pub(super) channels: Vec<String>,
+    /// What the recording's speed_demand holds: the dynamometer's speed demand [rad/s] (speed)
+    /// or, on a torque demand, its torque [N·m] (torque), replayed open loop from the
+    /// recording's start [default: its metadata param.dyno.torque_mode, which physid simulate
+    /// writes, else speed].
+    #[arg(long, value_name = "speed|torque")]
+    pub(super) demand: Option<String>,
     /// The nominal cell: the built-in one with these settings.
     #[command(flatten)]
     pub(super) set: SetArgs,
@@ -62,9 +68,14 @@ impl DataArgs {
     pub(super) fn replay(&self) -> Result<(Replay, CellParams)> {
         let rec = super::InputArgs::read(&self.input, &self.data, None)?;
         let channels = (!self.channels.is_empty()).then_some(&self.channels[..]);
-        let replay = Replay::new(&rec, channels)
+        let demand = match &self.demand {
+            Some(d) => Some(d.parse::<Demand>().map_err(|e| miette!("--demand: {e}"))?),
+            None => None,
+        };
+        let cell = self.set.params()?;
+        let replay = Replay::new(&rec, channels, demand, &cell)
             .map_err(|e| miette!("--data {}: {e}", self.data.display()))?;
-        Ok((replay, self.set.params()?))
+        Ok((replay, cell))
     }
 }
 

@@ -948,6 +948,7 @@ def twin_calibrate(
     set: Mapping[str, float] | None = None,
     max_rel_se: float = 0.05,
     threads: int = 0,
+    demand: str | None = None,
 ) -> dict:
     """The self-calibrated test cell (``physid twin calibrate``, docs/twin.md): which of the
     virtual cell's physical parameters ``rec`` resolves (a crank-angle recording with ``t``,
@@ -955,13 +956,17 @@ def twin_calibrate(
     omega_en, omega_dy, torque_shaft, p_int, p_cyl it has), their values and 95 % intervals,
     from the cell with ``set`` (the nominal values). ``params`` are ``--list-params`` paths
     (default the eight of ``physid twin calibrate``); one is estimable while its relative
-    standard error stays at or below ``max_rel_se``. Returns ``{"params": {path: {"value",
+    standard error stays at or below ``max_rel_se``. ``demand`` says what ``speed_demand``
+    holds: ``"speed"`` [rad/s] or ``"torque"`` [N·m] (a dynamometer on a torque demand,
+    replayed open loop); by default the recording's metadata ``param.dyno.torque_mode``, else a
+    speed — refused where its first sample is far from the dynamometer's speed. Returns ``{"params": {path: {"value",
     "nominal", "std_err", "ci95", "estimable", "rank", "held"}}, "channels": [...],
     "collinear": [...], ..., "scenario_toml": the calibrated cell as a scenario file}``."""
     s, toml = _physid.twin_calibrate(
         rec, None if params is None else [str(p) for p in params],
         None if channels is None else [str(c) for c in channels],
-        {str(k): float(v) for k, v in (set or {}).items()}, float(max_rel_se), int(threads))
+        {str(k): float(v) for k, v in (set or {}).items()}, float(max_rel_se), int(threads),
+        None if demand is None else str(demand))
     out = _json.loads(s)
     out["scenario_toml"] = toml
     return out
@@ -972,13 +977,15 @@ def twin_check(
     calibrated: Mapping[str, Any],
     channels: Iterable[str] | None = None,
     set: Mapping[str, float] | None = None,
+    demand: str | None = None,
 ) -> dict:
     """The calibrated cell against ``rec`` (``physid twin check``): per channel ``nrmse_before``
     (the cell with ``set``), ``nrmse_after`` (with the calibrated values too) and
     ``rms_after``. ``calibrated`` is :func:`twin_calibrate`'s result (its estimable values are
     taken, and its covariance and channel noise give each channel's ``band``: ``sigma``,
     ``param_sd``, ``outside`` — the fraction of samples outside the 95 % band — and
-    ``excursions``, where the residual leaves it) or ``{path: value}`` (no band)."""
+    ``excursions``, where the residual leaves it) or ``{path: value}`` (no band). ``demand``
+    as :func:`twin_calibrate`'s."""
     calibration = None
     if "params" in calibrated and isinstance(calibrated["params"], Mapping):
         values = {p: float(e["value"]) for p, e in calibrated["params"].items() if e["estimable"]}
@@ -988,7 +995,8 @@ def twin_check(
     else:
         values = {str(k): float(v) for k, v in calibrated.items()}
     s = _physid.twin_check(rec, values, None if channels is None else [str(c) for c in channels],
-                           {str(k): float(v) for k, v in (set or {}).items()}, calibration)
+                           {str(k): float(v) for k, v in (set or {}).items()}, calibration,
+                           None if demand is None else str(demand))
     return _json.loads(s)
 
 
