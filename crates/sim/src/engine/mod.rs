@@ -96,12 +96,12 @@ impl Wiebe {
         let z = ((atdc - self.start) / self.duration).max(0.0);
         -(-self.a * z.powf(self.m + 1.0)).exp_m1()
     }
-}
 
-impl Combustion for Wiebe {
-    fn heat_release(&self, theta_cycle_deg: f64, omega: f64, _: f64, _: f64) -> f64 {
+    /// The burn's progress `z = (θ − θ₀)/Δθ` at the crank angle in the cycle [deg, 0 … 720
+    /// from firing TDC], where heat is released (`None`: no burn, or not burning yet).
+    fn burning(&self, theta_cycle_deg: f64) -> Option<f64> {
         if self.q == 0.0 {
-            return 0.0;
+            return None;
         }
         let atdc = if theta_cycle_deg >= 360.0 {
             theta_cycle_deg - 720.0
@@ -109,9 +109,15 @@ impl Combustion for Wiebe {
             theta_cycle_deg
         };
         let z = (atdc - self.start) / self.duration;
-        if z <= 0.0 {
+        (z > 0.0).then_some(z)
+    }
+}
+
+impl Combustion for Wiebe {
+    fn heat_release(&self, theta_cycle_deg: f64, omega: f64, _: f64, _: f64) -> f64 {
+        let Some(z) = self.burning(theta_cycle_deg) else {
             return 0.0;
-        }
+        };
         let zm = z.powf(self.m);
         let dx_deg = self.a * (self.m + 1.0) / self.duration * zm * (-self.a * zm * z).exp();
         self.q * dx_deg * omega.to_degrees()
@@ -120,18 +126,9 @@ impl Combustion for Wiebe {
     /// `Q·ω·d²x_b/dθ²` with `d²x_b/dθ² = a·(m+1)/Δθ²·e^(−a·z^(m+1))·(m·z^(m−1) −
     /// a·(m+1)·z^(2m))` per degree², times 180/π for per radian.
     fn heat_release_slope(&self, theta_cycle_deg: f64, omega: f64) -> f64 {
-        if self.q == 0.0 {
+        let Some(z) = self.burning(theta_cycle_deg) else {
             return 0.0;
-        }
-        let atdc = if theta_cycle_deg >= 360.0 {
-            theta_cycle_deg - 720.0
-        } else {
-            theta_cycle_deg
         };
-        let z = (atdc - self.start) / self.duration;
-        if z <= 0.0 {
-            return 0.0;
-        }
         let (a, m) = (self.a, self.m);
         let zm1 = z.powf(m - 1.0);
         let zm = zm1 * z;
