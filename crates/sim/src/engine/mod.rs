@@ -21,7 +21,8 @@
 //!
 //! Here: the engine and its outputs. `orifice.rs`: the compressible flow between the volumes;
 //! `geometry.rs`: the valve, throttle and cam areas and lifts; `stability.rs`: the network's
-//! largest eigenvalue.
+//! largest eigenvalue; `jacobian.rs`: the gas equations' Jacobian for the Rosenbrock step;
+//! `combustion.rs`: the burn.
 
 use crate::numeric::{expm1_small, powi, wrap720};
 use crate::params::{AmbientParams, EngineParams};
@@ -30,11 +31,15 @@ use physid_models::friction::{self, Design, Settings, SpeedForm};
 use physid_models::kinematics::Crank;
 use std::f64::consts::PI;
 
+mod combustion;
 mod geometry;
+mod jacobian;
 mod orifice;
 mod stability;
 
+pub use combustion::*;
 pub use geometry::*;
+pub use jacobian::*;
 pub use orifice::*;
 pub use stability::*;
 
@@ -48,110 +53,6 @@ pub const EXH: usize = 2;
 /// Gas state: masses `[m_int, m_cyl, m_exh]` [kg], temperatures `[T_int, T_cyl, T_exh]` [K],
 /// cumulative mass in from and out to the ambient [kg].
 pub type GasState = [f64; 8];
-
-/// Heat released into the cylinder by combustion [W] at an angle and state — the seam for a
-/// fired engine. The motored engine has none.
-pub trait Combustion {
-    /// Heat release rate [W] at the crank angle in the cycle [deg, 0 … 720 from firing TDC],
-    /// the speed ω [rad/s], the cylinder's pressure [Pa] and temperature [K].
-    fn heat_release(&self, theta_cycle_deg: f64, omega: f64, p_cyl: f64, t_cyl: f64) -> f64;
-
-    /// `∂Q̇/∂θ` [W/rad] at the same point, the state (pressure, temperature) and speed held:
-    /// the burn's movement with the crank angle, for the solver's θ-column
-    /// ([`Engine::theta_column`]).
-    fn heat_release_slope(&self, theta_cycle_deg: f64, omega: f64) -> f64;
-}
-
-/// A Wiebe burn (Heywood 1988, Eq. 9.32): the fraction burned
-/// `x_b(θ) = 1 − exp(−a·((θ − θ₀)/Δθ)^(m+1))` from `θ₀` on, so the heat release rate is
-/// `Q̇ = Q·dx_b/dθ·ω` with `dx_b/dθ = a·(m+1)/Δθ·z^m·exp(−a·z^(m+1))`, `z = (θ − θ₀)/Δθ`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Wiebe {
-    /// Heat released per cycle [J].
-    pub q: f64,
-    /// Start [deg after firing TDC].
-    pub start: f64,
-    /// Duration [deg].
-    pub duration: f64,
-    /// Efficiency parameter `a`.
-    pub a: f64,
-    /// Shape parameter `m`.
-    pub m: f64,
-}
-
-impl Wiebe {
-    /// The burn of `p`'s `engine.burn_*` parameters.
-    pub fn of(p: &EngineParams) -> Self {
-        Self {
-            q: p.burn_q,
-            start: p.burn_start,
-            duration: p.burn_duration,
-            a: p.burn_a,
-            m: p.burn_m,
-        }
-    }
-
-    /// The fraction burned at `atdc` [deg after firing TDC, −360 … 360].
-    pub fn burned(&self, atdc: f64) -> f64 {
-        let z = ((atdc - self.start) / self.duration).max(0.0);
-        -(-self.a * z.powf(self.m + 1.0)).exp_m1()
-    }
-
-    /// The burn's progress `z = (θ − θ₀)/Δθ` at the crank angle in the cycle [deg, 0 … 720
-    /// from firing TDC], where heat is released (`None`: no burn, or not burning yet).
-    fn burning(&self, theta_cycle_deg: f64) -> Option<f64> {
-        if self.q == 0.0 {
-            return None;
-        }
-        let atdc = if theta_cycle_deg >= 360.0 {
-            theta_cycle_deg - 720.0
-        } else {
-            theta_cycle_deg
-        };
-        let z = (atdc - self.start) / self.duration;
-        (z > 0.0).then_some(z)
-    }
-}
-
-impl Combustion for Wiebe {
-    fn heat_release(&self, theta_cycle_deg: f64, omega: f64, _: f64, _: f64) -> f64 {
-        let Some(z) = self.burning(theta_cycle_deg) else {
-            return 0.0;
-        };
-        let zm = z.powf(self.m);
-        let dx_deg = self.a * (self.m + 1.0) / self.duration * zm * (-self.a * zm * z).exp();
-        self.q * dx_deg * omega.to_degrees()
-    }
-
-    /// `Q·ω·d²x_b/dθ²` with `d²x_b/dθ² = a·(m+1)/Δθ²·e^(−a·z^(m+1))·(m·z^(m−1) −
-    /// a·(m+1)·z^(2m))` per degree², times 180/π for per radian.
-    fn heat_release_slope(&self, theta_cycle_deg: f64, omega: f64) -> f64 {
-        let Some(z) = self.burning(theta_cycle_deg) else {
-            return 0.0;
-        };
-        let (a, m) = (self.a, self.m);
-        let zm1 = z.powf(m - 1.0);
-        let zm = zm1 * z;
-        let ddx_deg = a * (m + 1.0) / (self.duration * self.duration)
-            * (-a * zm * z).exp()
-            * (m * zm1 - a * (m + 1.0) * zm * zm);
-        self.q * ddx_deg * omega.to_degrees() * (180.0 / PI)
-    }
-}
-
-/// No combustion.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Motored;
-
-impl Combustion for Motored {
-    fn heat_release(&self, _: f64, _: f64, _: f64, _: f64) -> f64 {
-        0.0
-    }
-
-    fn heat_release_slope(&self, _: f64, _: f64) -> f64 {
-        0.0
-    }
-}
 
 /// The torques at one instant (SPEC §2.3), and what the driveline needs to solve for α.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -582,124 +483,6 @@ impl Engine {
         ]
     }
 
-    /// The gas equations' Jacobian through the pressure network, `J ≈ U·Vᵀ` (rank 3): the
-    /// flows respond to the pressures by their slopes ([`flow_and_slopes`]: `δṁ =
-    /// ∂ṁ/∂p_from·δp_from + ∂ṁ/∂p_to·δp_to`, the upstream temperature held); the pressures to
-    /// the state through `p = m·R·T/V` (`∂p/∂m = p/m`, `∂p/∂T = p/T`, the cylinder's volume
-    /// held); and the state's derivatives to the flows through the balances of Eq. 3.20–3.27
-    /// ([`Balances`]). `U` is 8 × 3 (state × volume), `Vᵀ` has two entries per volume. Every
-    /// column of `U` sums to zero over the masses and the exchange counters, as every flow
-    /// conserves mass: a step built on it conserves mass exactly as the flows do. `out` and
-    /// `lin` are from [`gas_derivatives_at`](Self::gas_derivatives_at) at the state `x`.
-    /// Without the crank angle's column ([`theta_column`](Self::theta_column)).
-    #[inline(always)]
-    pub fn network_jacobian(
-        &self,
-        x: &GasState,
-        out: &EngineOutputs,
-        lin: &GasLinearisation,
-    ) -> NetworkJacobian {
-        self.jacobian_with(&Balances::new(x, lin), x, out, lin)
-    }
-
-    /// [`network_jacobian`](Self::network_jacobian) with the balances computed.
-    #[inline(always)]
-    fn jacobian_with(
-        &self,
-        b: &Balances,
-        x: &GasState,
-        out: &EngineOutputs,
-        lin: &GasLinearisation,
-    ) -> NetworkJacobian {
-        let f = out.flows;
-        // U = F·Q, flow by flow: the outer product of the rows a flow moves (F's column) and
-        // the pressures that move it (Q's row).
-        let mut u = [[0.0; 3]; 8];
-        let mut outer = |rows: &[(usize, f64)], cols: &[(usize, f64)]| {
-            for &(r, fr) in rows {
-                for &(c, qc) in cols {
-                    u[r][c] += fr * qc;
-                }
-            }
-        };
-        let [s_th, s_iv, s_ev, s_or] = lin.flow_slopes;
-        // Throttle, ambient → int (its slope in the ambient pressure is not a state's).
-        outer(&b.throttle(f[0], self.h_amb), &[(INT, s_th[1])]);
-        // The valves, each from volume `a` to volume `b`: int → cyl, cyl → exh.
-        outer(&b.valve(INT, CYL, f[1]), &[(INT, s_iv[0]), (CYL, s_iv[1])]);
-        outer(&b.valve(CYL, EXH, f[2]), &[(CYL, s_ev[0]), (EXH, s_ev[1])]);
-        // Exhaust orifice, exh → ambient.
-        outer(&b.orifice(f[3], self.h_amb), &[(EXH, s_or[0])]);
-        let p = out.p;
-        NetworkJacobian {
-            u,
-            v: per_volume(|i| [p[i] / x[i], p[i] / x[3 + i]]),
-            p_theta: 0.0,
-            theta: [0.0; 8],
-        }
-    }
-
-    /// [`network_jacobian`](Self::network_jacobian) with the crank angle's column: how the gas
-    /// equations' rates move with θ at a fixed state, `∂f/∂θ` [per rad] — the moving piston
-    /// and valves, the non-autonomous term a Rosenbrock step needs to keep its order where the
-    /// gas is stiff (without it, the cylinder's pressure, tied to a manifold's through an open
-    /// valve, follows a moving volume a step late: the error halves with the step instead of
-    /// quartering). Through the cylinder's pressure `∂p/∂θ = −p·V′/V` (`V′ = A_p·s′`) it
-    /// acts on the flows as `U`'s column does (`p_theta`, a third entry of `Vᵀ`); directly
-    /// (`theta`), on the cylinder's temperature through the work `−p·dV/dt` (`∂/∂θ =
-    /// −A_p·ω·(∂p/∂θ·s′ + p·s″)`), the wall heat (its area `π·b·s′` and `h_c ∝ V^−0.8`) and
-    /// the burn ([`Combustion::heat_release_slope`]), and on the valves' flows through their
-    /// areas (`∂ṁ/∂θ = ṁ·A′/A`, each flow's column of the balances). `k` is the crank point of
-    /// `x`'s evaluation, `omega` its speed.
-    pub fn theta_column(
-        &self,
-        k: &CrankPoint,
-        omega: f64,
-        x: &GasState,
-        out: &EngineOutputs,
-        lin: &GasLinearisation,
-        comb: &impl Combustion,
-    ) -> NetworkJacobian {
-        let b = Balances::new(x, lin);
-        let mut j = self.jacobian_with(&b, x, out, lin);
-        let (p, v) = (out.p[CYL], out.v_cyl);
-        let dv = self.area_p * k.ds;
-        let p_theta = -p * dv / v;
-        let inv_mcv = b.inv_mcv[CYL];
-        let mut theta = [0.0; 8];
-        // The work term, the wall heat and the burn, on the cylinder's temperature.
-        let work = -self.area_p * omega * (p_theta * k.ds + p * k.dds);
-        let wall = if out.q_wall != 0.0 {
-            let b = self.p.bore;
-            let area = PI * b * (b / 2.0 + self.clearance_height + k.s);
-            out.q_wall * (PI * b * k.ds / area - 0.8 * dv / v)
-        } else {
-            0.0
-        };
-        let deg = wrap720(k.theta.to_degrees());
-        let burn = comb.heat_release_slope(deg, omega);
-        theta[3 + CYL] = (work - wall + burn) * inv_mcv;
-        // The valves' areas, where they move: on the curtain (open, below the port's area).
-        let cd = self.p.cd_valve;
-        for (n, (cam, geometry), (from, to)) in [
-            (1, (&self.iv_cam, &self.iv), (INT, CYL)),
-            (2, (&self.ev_cam, &self.ev), (CYL, EXH)),
-        ] {
-            let area = out.areas[n];
-            if area > 0.0 && area < cd * geometry.port_area() {
-                let (lift, dlift_deg) = cam.lift_and_slope(deg);
-                let darea = cd * geometry.area_slope(lift) * dlift_deg * (180.0 / PI);
-                let dflow = out.flows[n] * darea / area;
-                for (r, c) in b.valve(from, to, out.flows[n]) {
-                    theta[r] += c * dflow;
-                }
-            }
-        }
-        j.p_theta = p_theta;
-        j.theta = theta;
-        j
-    }
-
     /// Total internal energy of the gas in the three volumes [J] (for conservation checks).
     pub fn internal_energy(&self, x: &GasState) -> f64 {
         (0..3).map(|i| x[i] * air::internal_energy(x[3 + i])).sum()
@@ -708,74 +491,6 @@ impl Engine {
     /// Enthalpy of ambient air [J/kg].
     pub fn ambient_enthalpy(&self) -> f64 {
         self.h_amb
-    }
-}
-
-/// The balances of Eq. 3.20–3.27 per unit of each flow: the gas state's rates per kg/s of a
-/// flow, as `(state index, rate)` — mass ±1; temperature `(h_up − u)/(m·c_v)` for gas coming
-/// in, `−R·T/(m·c_v)` for gas leaving; the ambient exchange counters ±1. Each flow's column of
-/// the Jacobian's `U` and of the crank angle's column.
-struct Balances {
-    t: [f64; 3],
-    h: [f64; 3],
-    u: [f64; 3],
-    inv_mcv: [f64; 3],
-}
-
-impl Balances {
-    #[inline(always)]
-    fn new(x: &GasState, lin: &GasLinearisation) -> Self {
-        let r = air::gas_constant();
-        let t = [x[3], x[4], x[5]];
-        let h = lin.enthalpy;
-        Self {
-            t,
-            h,
-            u: per_volume(|i| h[i] - r * t[i]),
-            inv_mcv: per_volume(|i| 1.0 / (x[i] * lin.cv[i])),
-        }
-    }
-
-    /// `∂(dT_i/dt)/∂ṁ` for a flow `q` entering volume `i` with sign `s` (+1: positive flow
-    /// enters), whose upstream enthalpy is `h_up` when it enters.
-    #[inline(always)]
-    fn dt_dq(&self, i: usize, s: f64, q: f64, h_up: f64) -> f64 {
-        if s * q >= 0.0 {
-            s * (h_up - self.u[i]) * self.inv_mcv[i]
-        } else {
-            s * air::gas_constant() * self.t[i] * self.inv_mcv[i]
-        }
-    }
-
-    /// The throttle's column (ambient → int, flow `q`).
-    #[inline(always)]
-    fn throttle(&self, q: f64, h_amb: f64) -> [(usize, f64); 3] {
-        [
-            (INT, 1.0),
-            (3 + INT, self.dt_dq(INT, 1.0, q, h_amb)),
-            (6, 1.0),
-        ]
-    }
-
-    /// A valve's column, from volume `a` to volume `b` (flow `q`).
-    #[inline(always)]
-    fn valve(&self, a: usize, b: usize, q: f64) -> [(usize, f64); 4] {
-        [
-            (a, -1.0),
-            (b, 1.0),
-            (3 + a, self.dt_dq(a, -1.0, q, self.h[b])),
-            (3 + b, self.dt_dq(b, 1.0, q, self.h[a])),
-        ]
-    }
-
-    /// The exhaust orifice's column (exh → ambient, flow `q`).
-    #[inline(always)]
-    fn orifice(&self, q: f64, h_amb: f64) -> [(usize, f64); 3] {
-        [
-            (EXH, -1.0),
-            (3 + EXH, self.dt_dq(EXH, -1.0, q, h_amb)),
-            (7, 1.0),
-        ]
     }
 }
 

@@ -1,21 +1,6 @@
 //! The gas network's stiffness: its Jacobian's largest eigenvalue (the explicit solver's
 //! step bound).
 
-/// The gas equations' Jacobian in factored form, `J = U·Vᵀ` ([`Engine::network_jacobian`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NetworkJacobian {
-    /// `U`: each gas state's derivative per unit pressure of each volume [per Pa].
-    pub u: [[f64; 3]; 8],
-    /// `Vᵀ`: each volume's pressure per unit of its mass and its temperature, `[p/m, p/T]`.
-    pub v: [[f64; 2]; 3],
-    /// `Vᵀ`'s entry for the crank angle: the cylinder's pressure per radian at a fixed state,
-    /// `∂p_cyl/∂θ` [Pa/rad] (0 without the θ-column).
-    pub p_theta: f64,
-    /// The rates' direct movement with the crank angle at a fixed state, beside the pressure's
-    /// [per rad] ([`Engine::theta_column`]; 0 without it).
-    pub theta: [f64; 8],
-}
-
 /// The largest eigenvalue of the symmetric tridiagonal 3×3 matrix with diagonal `a` and
 /// off-diagonal `b` (`b[0]` couples 0–1, `b[1]` couples 1–2), approached from above: Newton's
 /// method on the characteristic cubic, started at the Gershgorin bound. Right of its largest
