@@ -13,7 +13,7 @@ pub trait Combustion {
 
     /// `∂Q̇/∂θ` [W/rad] at the same point, the state (pressure, temperature) and speed held:
     /// the burn's movement with the crank angle, for the solver's θ-column
-    /// ([`Engine::theta_column`]).
+    /// ([`Engine::theta_column`](super::Engine::theta_column)).
     fn heat_release_slope(&self, theta_cycle_deg: f64, omega: f64) -> f64;
 }
 

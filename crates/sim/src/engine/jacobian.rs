@@ -27,8 +27,9 @@ pub struct NetworkJacobian {
 
 impl Engine {
     /// The gas equations' Jacobian through the pressure network, `J ≈ U·Vᵀ` (rank 3): the
-    /// flows respond to the pressures by their slopes ([`flow_and_slopes`]: `δṁ =
-    /// ∂ṁ/∂p_from·δp_from + ∂ṁ/∂p_to·δp_to`, the upstream temperature held); the pressures to
+    /// flows respond to the pressures by their slopes
+    /// ([`flow_and_slopes`](super::flow_and_slopes): `δṁ = ∂ṁ/∂p_from·δp_from +
+    /// ∂ṁ/∂p_to·δp_to`, the upstream temperature held); the pressures to
     /// the state through `p = m·R·T/V` (`∂p/∂m = p/m`, `∂p/∂T = p/T`, the cylinder's volume
     /// held); and the state's derivatives to the flows through the balances of Eq. 3.20–3.27
     /// ([`Balances`]). `U` is 8 × 3 (state × volume), `Vᵀ` has two entries per volume. Every

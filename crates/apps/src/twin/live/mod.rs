@@ -47,176 +47,30 @@
 //! The noise of each channel is the twin's residual RMS over the windows after its warm-up
 //! ([`TwinConfig::sigma_windows`]; the twin is taken as calibrated then).
 //!
-//! Only the cell's live parameters ([`LIVE_PARAMS`]: the shaft's K and B, the reciprocating
-//! mass, the friction scale) can be adapted: the others fix the engine's geometry and the
-//! machine when the cell is built, and stay at their calibrated values.
+//! Only the cell's live parameters ([`LIVE_PARAMS`](physid_sim::run::LIVE_PARAMS): the
+//! shaft's K and B, the reciprocating mass, the friction scale) can be adapted: the others fix
+//! the engine's geometry and the machine when the cell is built, and stay at their calibrated
+//! values.
+//!
+//! Here: the stage and its windows. `config.rs`: how it runs; `report.rs`: what it reports;
+//! `runs.rs`: the twin and its copies, and the jump's replay.
 
 use crate::error::AppError;
 use nalgebra::{DMatrix, DVector};
 use physid_core::Recording;
 use physid_sim::params::CellParams;
-use physid_sim::run::{OutputBasis, Run, RunOptions, LIVE_PARAMS};
+use physid_sim::run::{OutputBasis, Run, RunOptions};
 use physid_sim::scenario::{Profile, Scenario};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-/// The channels a live twin compares by default (those the stream has): the speeds, the shaft
-/// torque and the manifold pressure — the cylinder pressure's steep flanks make a time-basis
-/// comparison a comparison of the crank angle's alignment.
-pub const LIVE_CHANNELS: &[&str] = &["omega_en", "omega_dy", "torque_shaft", "p_int"];
+mod config;
+mod report;
+mod runs;
 
-/// A channel's noise is taken as at least this fraction of its own spread over the noise
-/// windows (the twin's model error: a noiseless channel is not trusted to the last digit).
-pub const MODEL_FLOOR: f64 = 1e-2;
-
-/// How the live twin runs.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct TwinConfig {
-    /// The calibrated cell, as `(path, value)` settings over the built-in cell.
-    pub set: Vec<(String, f64)>,
-    /// The parameters adapted (of [`LIVE_PARAMS`]).
-    pub adapt: Vec<String>,
-    /// The channels compared (default [`LIVE_CHANNELS`], those the stream has).
-    pub channels: Vec<String>,
-    /// The firing TDC's angle on the stream's `theta_en` [rad] (the twin starts there).
-    pub theta_tdc: f64,
-    /// Time from the stream's start before the twin is compared [s] (its own transients).
-    pub warmup_s: f64,
-    /// One adaptation per this much time [s].
-    pub window_s: f64,
-    /// Windows after the warm-up whose residual gives each channel's noise.
-    pub sigma_windows: usize,
-    /// The copies' relative parameter step.
-    pub rel_step: f64,
-    /// A channel's residual band, in its noise's units: beyond it, only the parameter that
-    /// alone explains most of the residual moves, and the residual's alarm watches.
-    pub isolate_above: f64,
-    /// The twin and its copies are turned to the stream's crank angle when they are further
-    /// apart than this at a window's end [rad].
-    pub phase_tolerance: f64,
-    /// After the twin takes new values, this long before it is compared again [s] (the
-    /// switch's transient).
-    pub settle_s: f64,
-    /// Forgetting per window of the epoch's information.
-    pub forgetting: f64,
-    /// The twin takes the estimate when a parameter has moved beyond this fraction (and 4 of
-    /// its standard errors).
-    pub rebase_change: f64,
-    /// A parameter is frozen for a window whose relative standard error exceeds this.
-    pub max_window_rel_se: f64,
-    /// An alarm needs a change from the calibrated value beyond this fraction …
-    pub alarm_change: f64,
-    /// … and beyond this many window standard errors …
-    pub alarm_sigmas: f64,
-    /// … for this many windows in a row (also the residual's: this many beyond its band).
-    pub dwell: usize,
-}
-
-impl TwinConfig {
-    /// The twin of the cell `set`, adapting `adapt`, with the defaults: a 1 s warm-up, windows
-    /// of 0.05 s, the noise from the 4 after the warm-up, copies 1e-3 apart, 0.05 s of settling
-    /// after each update, forgetting 0.7 per window, an update when an estimate moved 1 %,
-    /// frozen above 5 %; a residual band of 5σ; alarms beyond 10 % (the shaft monitor's bound)
-    /// and 4σ settled for 2 windows, or on a residual beyond its band for 2 windows.
-    pub fn new(set: Vec<(String, f64)>, adapt: Vec<String>) -> Self {
-        Self {
-            set,
-            adapt,
-            channels: LIVE_CHANNELS.iter().map(|s| s.to_string()).collect(),
-            theta_tdc: 0.0,
-            warmup_s: 1.0,
-            window_s: 0.05,
-            sigma_windows: 4,
-            rel_step: 1e-3,
-            phase_tolerance: 1e-3,
-            isolate_above: 5.0,
-            settle_s: 0.05,
-            forgetting: 0.7,
-            rebase_change: 0.01,
-            max_window_rel_se: 0.05,
-            alarm_change: 0.1,
-            alarm_sigmas: 4.0,
-            dwell: 2,
-        }
-    }
-
-    /// The calibrated cell.
-    fn cell(&self) -> Result<CellParams, AppError> {
-        let mut c = CellParams::default();
-        for (k, v) in &self.set {
-            c.set(k, *v)?;
-        }
-        Ok(c)
-    }
-
-    /// Check the settings.
-    pub fn validate(&self) -> Result<(), AppError> {
-        self.cell()?;
-        for p in &self.adapt {
-            if !LIVE_PARAMS.contains(&p.as_str()) || p == "engine.t_oil" {
-                return Err(AppError::Invalid(format!(
-                    "twin: '{p}' cannot be adapted on the stream; the twin adapts shaft.k, shaft.b, engine.m_rec, engine.friction_scale (the others fix the cell when it is built)"
-                )));
-            }
-        }
-        for (what, v) in [
-            ("window", self.window_s),
-            ("warm-up", self.warmup_s),
-            ("step", self.rel_step),
-            ("frozen above", self.max_window_rel_se),
-            ("alarm change", self.alarm_change),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(AppError::Invalid(format!("twin: {what} {v}: expected > 0")));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// What the twin reports each window.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TwinWindow {
-    /// The window's end [s] (stream time).
-    pub t_s: f64,
-    /// The adapted parameters' values after the window, by path.
-    pub params: Vec<(String, f64)>,
-    /// Their window standard errors (NaN: frozen, or before the noise is known).
-    pub std_err: Vec<f64>,
-    /// Those frozen in this window.
-    pub frozen: Vec<String>,
-    /// Each channel's residual RMS over the window, in units of its noise (NaN before the noise
-    /// is known): `(channel, value)`.
-    pub residual: Vec<(String, f64)>,
-    /// Each channel's mean over the window, measured [its unit] …
-    pub measured: Vec<(String, f64)>,
-    /// … and the twin's: measured against the twin, channel by channel.
-    pub twin: Vec<(String, f64)>,
-}
-
-/// An alarm: a parameter left its calibrated value.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TwinAlarm {
-    /// The parameter (its path).
-    pub param: String,
-    /// When raised [s].
-    pub t_s: f64,
-    /// When it left its band [s].
-    pub t_start_s: f64,
-    /// Its change from the calibrated value (−0.2: fell 20 %) as estimated when raised — on the
-    /// residual's alarm the jump's linearised size from its first window (K −20 %: −18 % at a
-    /// window's start, −29 % inside one); the `twin` windows track it on.
-    pub change: f64,
-}
-
-/// The live twin's outputs.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub enum TwinOut {
-    /// A window.
-    Window(TwinWindow),
-    /// An alarm.
-    Alarm(TwinAlarm),
-}
+pub use config::*;
+pub use report::*;
+use runs::*;
 
 /// One adapted parameter's alarm state.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -243,62 +97,6 @@ struct Excursion {
     pick: Option<(usize, f64)>,
     raised: bool,
     matched: usize,
-}
-
-/// The twin and its copies, stepped together (rebuilt from the stream after a restore: a run
-/// of the cell is not checkpointed).
-#[derive(Clone)]
-struct Runs {
-    /// The twin, then one copy per adapted parameter.
-    runs: Vec<Run>,
-    /// The outputs not yet compared: `[run][channel]`.
-    out: Vec<Vec<Vec<f64>>>,
-    /// The twin's engine angle over the same samples [rad].
-    theta: Vec<f64>,
-    /// Stream samples the runs have been stepped through, and the twin's outputs placed in
-    /// `out` (both counted from the stream's start).
-    stepped: usize,
-    placed: usize,
-    /// The twin as it was at the start of the previous window and of this one and at each
-    /// quarter of them: where a jump of a parameter is replayed from ([`jump_pick`]).
-    snaps: Vec<Snap>,
-    /// What was done to the twin at the windows' ends since the oldest snapshot.
-    boundaries: Vec<Boundary>,
-    /// The stream's inputs since the oldest snapshot, `(τ, rpm, throttle)` per sample, and
-    /// the samples stepped before the first of them.
-    inputs: Vec<(f64, f64, f64)>,
-    inputs_from: usize,
-    /// Samples stepped at the present window's start.
-    window_start: usize,
-    /// The previous window's residual and twin outputs (a jump's replay is fitted over both).
-    prev: Option<PrevWindow>,
-}
-
-/// A window's first sample's index, its residual and the twin's outputs: `[channel][sample]`.
-#[derive(Clone)]
-struct PrevWindow {
-    first: usize,
-    r: Vec<Vec<f64>>,
-    y: Vec<Vec<f64>>,
-}
-
-/// The twin at one instant: the stream samples it had been stepped through (`stepped`), the
-/// index its next output would have (`placed`) and its adapted parameters' values then.
-#[derive(Clone)]
-struct Snap {
-    stepped: usize,
-    placed: usize,
-    values: Vec<f64>,
-    run: Run,
-}
-
-/// A window's end: the samples stepped, the turn onto the stream's crank angle [rad] and the
-/// adapted parameters' values after it.
-#[derive(Clone)]
-struct Boundary {
-    stepped: usize,
-    turn: f64,
-    values: Vec<f64>,
 }
 
 /// The live twin as a stream stage (see the module docs).
@@ -834,101 +632,6 @@ impl TwinStage {
         });
         Ok(())
     }
-}
-
-/// The epoch's copies of the twin `runs.runs[0]` in `runs.runs[1..]`, the `j`-th with parameter
-/// `adapt[j]` at `values[j]·(1 + step)`, their output buffers the twin's (the few samples it has
-/// placed beyond the window).
-fn fork(runs: &mut Runs, adapt: &[String], values: &[f64], step: f64) -> Result<(), AppError> {
-    let (twin, copies) = runs.runs.split_at_mut(1);
-    let (lead, out) = runs.out.split_at_mut(1);
-    for (j, (path, v)) in adapt.iter().zip(values).enumerate() {
-        let mut c = twin[0].clone();
-        c.set_live_parameter(path, v * (1.0 + step))?;
-        copies[j] = c;
-        out[j].clone_from(&lead[0]);
-    }
-    Ok(())
-}
-
-/// The parameter whose jump alone explains most — at least half — of the window's residual
-/// `r` (each channel weighted by `1/σ²`, `rr = rᵀWr`), at the best of the instants the twin was
-/// snapshotted at in the window: its index and relative change `gⱼ/Fⱼⱼ`, `gⱼ = Σ sⱼ·W·r`,
-/// `Fⱼⱼ = Σ sⱼ·W·sⱼ`, `sⱼ` the difference between the twin's outputs `twin_out` and a copy's
-/// replayed from the snapshot with parameter `j` `1 + step` times larger (the samples before
-/// the snapshot: nil). `first` is the window's first sample's index. Run only in an
-/// excursion's first windows: the replays (quarter windows × parameters) allocate.
-#[allow(clippy::too_many_arguments)]
-fn jump_pick(
-    runs: &Runs,
-    channels: &[String],
-    r: &[Vec<f64>],
-    sigma: &[f64],
-    first: usize,
-    adapt: &[String],
-    step: f64,
-) -> Result<Option<(usize, f64)>, AppError> {
-    // Over the previous window and this one: a jump placed too early is charged with the
-    // response it predicts where the residual had none.
-    let weighted = |rs: &[Vec<f64>]| -> f64 {
-        rs.iter()
-            .zip(sigma)
-            .map(|(rc, s)| rc.iter().map(|x| x * x).sum::<f64>() / (s * s))
-            .sum()
-    };
-    let rr = runs.prev.as_ref().map_or(0.0, |p| weighted(&p.r)) + weighted(r);
-    let mut best: Option<(f64, usize, f64)> = None;
-    for snap in &runs.snaps {
-        let from = snap.stepped - runs.inputs_from;
-        for (j, path) in adapt.iter().enumerate() {
-            let mut copy = snap.run.clone();
-            copy.set_live_parameter(path, snap.values[j] * (1.0 + step))?;
-            let mut at = runs
-                .boundaries
-                .iter()
-                .filter(|b| b.stepped > snap.stepped)
-                .peekable();
-            for (i, &(tau, rpm, throttle)) in runs.inputs[from..].iter().enumerate() {
-                copy.hold_inputs(rpm, throttle);
-                copy.step_until(tau)?;
-                // What was done to the twin at a window's end, done to the copy (its jump kept).
-                if let Some(b) = at.next_if(|b| b.stepped == snap.stepped + i + 1) {
-                    if b.turn != 0.0 {
-                        copy.turn(b.turn);
-                    }
-                    for (q, (p, v)) in adapt.iter().zip(&b.values).enumerate() {
-                        let v = if q == j { v * (1.0 + step) } else { *v };
-                        copy.set_live_parameter(p, v)?;
-                    }
-                }
-            }
-            let rec = copy.drain()?;
-            let (mut g, mut f) = (0.0, 0.0);
-            for (c, name) in channels.iter().enumerate() {
-                let y = rec.values(name)?;
-                let w2 = 1.0 / (sigma[c] * sigma[c]);
-                // The previous window's samples, then this one's: (index, residual, twin).
-                let prev = runs.prev.iter().flat_map(|p| {
-                    (0..p.r[c].len()).map(move |k| (p.first + k, p.r[c][k], p.y[c][k]))
-                });
-                let this = (0..r[c].len()).map(|k| (first + k, r[c][k], runs.out[0][c][k]));
-                for (at, rk, yk0) in prev.chain(this) {
-                    let Some(i) = at.checked_sub(snap.placed) else {
-                        continue;
-                    };
-                    let Some(yk) = y.get(i) else { break };
-                    let s = (yk - yk0) / step;
-                    g += w2 * s * rk;
-                    f += w2 * s * s;
-                }
-            }
-            let explained = g * g / (f * rr).max(f64::MIN_POSITIVE);
-            if best.is_none_or(|b| explained > b.0) {
-                best = Some((explained, j, g / f.max(f64::MIN_POSITIVE)));
-            }
-        }
-    }
-    Ok(best.filter(|b| b.0 >= 0.5).map(|b| (b.1, b.2)))
 }
 
 /// The stream's value of `name` (every sample finite, else the sample named).
