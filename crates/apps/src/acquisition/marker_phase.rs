@@ -6,7 +6,7 @@
 //! the first [`PHASE_REVOLUTIONS`] revolutions after the first marker, so that a stream knows it
 //! after a bounded stretch and a whole recording gives the same answer.
 
-use super::sensor::PhaseWindows;
+use super::phase::PhaseWindows;
 use super::AcquisitionError;
 use std::f64::consts::{PI, TAU};
 

@@ -7,6 +7,7 @@
 //! * `inspect.rs` — what is in a recording, its integrity, a wheel recognised;
 //! * `angle.rs` — the engine angle from an encoder's counts and marker, the first TDC;
 //! * [`sensor`] — the angle decoded from a raw trigger wheel or quadrature encoder, in passes;
+//! * `phase.rs` — which of two revolutions fires, from a channel's level around each TDC;
 //! * `crank.rs` — a time basis resampled to the crank angle, whole and in chunks;
 //! * `time.rs` — a crank basis back to a uniform time basis, and the uniform-step check;
 //! * `filter.rs` — zero-phase filtering of chosen channels, whole and on the stream.
@@ -32,6 +33,7 @@ mod crank;
 mod filter;
 mod inspect;
 mod marker_phase;
+mod phase;
 pub mod sensor;
 mod time;
 
@@ -40,7 +42,13 @@ pub use crank::*;
 pub use filter::*;
 pub use inspect::*;
 pub use marker_phase::*;
+pub use phase::*;
 pub use time::*;
+
+/// An invalid input to the acquisition chain, as the error every verb reports.
+fn invalid(e: String) -> AppError {
+    AppError::Acquisition(AcquisitionError::Invalid(e))
+}
 
 /// Errors of the acquisition functions.
 #[derive(Debug, Error)]

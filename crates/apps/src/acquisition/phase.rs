@@ -1,0 +1,107 @@
+//! Which of two revolutions fires: the firing TDC told from a channel's level over the
+//! revolution around each TDC (`--phase-from`), and the firing TDC's angle once it is known.
+
+use super::invalid;
+use crate::error::AppError;
+use std::f64::consts::{PI, TAU};
+
+/// Which of two revolutions fires, a sample at a time: the mean of a channel over the
+/// revolution centred on each TDC a revolution apart (`offset + 2πk`: the samples whose angle
+/// is in `[offset + 2πk − π, offset + 2πk + π)`, from the first whole one), the median over the
+/// TDCs of each parity; the higher (lower with `:low`) fires. Holds two means per revolution.
+#[derive(Debug, Clone)]
+pub struct PhaseWindows {
+    offset: f64,
+    /// The first revolution not yet closed (from the first sample's angle), and the sum and
+    /// count of the samples in it and in the next (they may share a sample at the border).
+    k: Option<i64>,
+    open: [(f64, usize); 2],
+    /// The means of the closed revolutions, by the parity of `k`.
+    means: [Vec<f64>; 2],
+}
+
+impl PhaseWindows {
+    /// The TDCs `offset` [rad] after the sensor's reference, a revolution apart.
+    pub fn new(offset: f64) -> Self {
+        Self {
+            offset,
+            k: None,
+            open: [(-0.0, 0); 2],
+            means: [Vec::new(), Vec::new()],
+        }
+    }
+
+    fn centre(&self, k: i64) -> f64 {
+        self.offset + TAU * k as f64
+    }
+
+    /// The next sample: its angle `theta` [rad] (not decreasing) and the channel's value `p`.
+    pub fn push(&mut self, theta: f64, p: f64) {
+        let offset = self.offset;
+        let mut k = *self
+            .k
+            .get_or_insert_with(|| ((theta + PI - offset) / TAU).ceil() as i64);
+        // The revolutions this sample is past: their means (the samples in them, not NaN).
+        while self.centre(k) + PI <= theta {
+            let (sum, n) = self.open[0];
+            if n > 0 {
+                let mean = sum / n as f64;
+                if mean.is_finite() {
+                    self.means[k.rem_euclid(2) as usize].push(mean);
+                }
+            }
+            self.open = [self.open[1], (-0.0, 0)];
+            k += 1;
+        }
+        self.k = Some(k);
+        for j in 0..2 {
+            let angle = self.centre(k + j);
+            if angle - PI <= theta && theta < angle + PI {
+                let o = &mut self.open[j as usize];
+                *o = (o.0 + p, o.1 + 1);
+            }
+        }
+    }
+
+    /// The firing parity (0: the TDCs `offset + 4πk`; 1: a revolution on) and how it was
+    /// told, for a person; `from` is the channel as given (`NAME` or `NAME:low`).
+    pub fn finish(mut self, from: &str, tdc_offset_deg: f64) -> Result<(i64, String), AppError> {
+        let (name, low) = match from.strip_suffix(":low") {
+            Some(n) => (n, true),
+            None => (from, false),
+        };
+        if self.means[0].is_empty() || self.means[1].is_empty() {
+            return Err(invalid(format!(
+                "--phase-from {from}: the recording spans fewer than two whole revolutions around TDCs (with finite '{name}'), so which one fires cannot be told"
+            )));
+        }
+        let level = |v: &mut Vec<f64>| {
+            v.sort_unstable_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (l0, l1) = (level(&mut self.means[0]), level(&mut self.means[1]));
+        let parity = usize::from((l1 > l0) != low);
+        let (fire, other) = if parity == 1 { (l1, l0) } else { (l0, l1) };
+        Ok((
+            parity as i64,
+            format!(
+                "the firing TDC {tdc_offset_deg:.3}° after the reference of {} revolutions ('{name}' {} there: mean {fire:.4e} over the revolution around it against {other:.4e} a revolution away, medians over the TDCs)",
+                if parity == 1 { "odd" } else { "even" },
+                if low { "lower" } else { "higher" }
+            ),
+        ))
+    }
+}
+
+/// How the firing revolution is told without `--phase-from`, for a person.
+pub fn no_phase(tdc_offset_deg: f64) -> String {
+    format!("the TDC {tdc_offset_deg}° after the first reference taken as firing (no --phase-from)")
+}
+
+/// The firing TDC's angle [rad]: the first of parity `parity` (see [`PhaseWindows::finish`])
+/// at or after the first sample's angle `theta0`.
+pub fn firing_tdc(offset: f64, parity: i64, theta0: f64) -> f64 {
+    let mut tdc = offset + TAU * parity as f64;
+    tdc += 4.0 * PI * ((theta0 - tdc) / (4.0 * PI)).ceil();
+    tdc
+}
