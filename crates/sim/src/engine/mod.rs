@@ -97,6 +97,9 @@ pub struct EngineOutputs {
     pub areas: [f64; 4],
     /// Ratios of specific heats `γ = c_p/c_v` of the three volumes' gas.
     pub gamma: [f64; 3],
+    /// The cylinder's `d(p·V)/dt = R·(ṁ·T + m·dT/dt)` [W] (`p·V = m·R·T`, Eq. 3.20–3.27):
+    /// the slope a dense output between steps interpolates `p·V` with.
+    pub pv_rate: f64,
 }
 
 /// What the gas network's Jacobian ([`Engine::network_jacobian`]) needs beyond the outputs,
@@ -229,6 +232,11 @@ impl Engine {
         self.v_clear + self.area_p * self.crank.motion(theta).0
     }
 
+    /// Cylinder volume [m³] at a crank point.
+    pub fn volume_at(&self, k: &CrankPoint) -> f64 {
+        self.v_clear + self.area_p * k.s
+    }
+
     /// All volumes at ambient pressure and temperature, the cylinder at angle θ.
     pub fn ambient_state(&self, theta: f64) -> GasState {
         let r = air::gas_constant();
@@ -341,7 +349,7 @@ impl Engine {
     ) -> (GasState, EngineOutputs, GasLinearisation) {
         let e = &self.p;
         let r = air::gas_constant();
-        let v_cyl = self.v_clear + self.area_p * k.s;
+        let v_cyl = self.volume_at(k);
         let dv_cyl = self.area_p * k.ds * omega;
         let inv_v = [self.inv_v_int, 1.0 / v_cyl, self.inv_v_exh];
         let t = [x[3], x[4], x[5]];
@@ -423,6 +431,7 @@ impl Engine {
                 q_wall,
                 areas: [a_th, a_in, a_ex, a_or],
                 gamma: [cp[0] / cv[0], cp[1] / cv[1], cp[2] / cv[2]],
+                pv_rate: r * (dm[CYL] * t[CYL] + x[CYL] * dt[CYL]),
             },
             GasLinearisation {
                 flow_slopes: [s_th, s_iv, s_ev, s_or],

@@ -3,6 +3,7 @@
 //! counts and the TDC marker; the recording and its metadata at the end.
 
 use super::channels::{raw_index, Between, Row, Source, OUTPUT, RAW, T, THETA_DY, THETA_EN};
+use super::dense::Cylinder;
 use super::sensors::{Prepared, SensorKind, SensorState};
 use super::{OutputBasis, SimError};
 use crate::numeric::{floor, wrap720};
@@ -32,16 +33,16 @@ struct Output {
 const CHUNK: usize = 256;
 
 /// A column's length in the chunk: [`CHUNK`] padded by a cache line, so that the columns are
-/// not a power of two apart (a step's 30 values would otherwise fall in the same few sets of
+/// not a power of two apart (a step's 33 values would otherwise fall in the same few sets of
 /// the cache and evict each other).
-const COLUMN: usize = CHUNK + 8;
+pub(super) const COLUMN: usize = CHUNK + 8;
 
 /// A chunk's output grid points: for each, the step `j` it follows, its fraction `f` of the
 /// way to step `j + 1`, its abscissa `g` (time or engine angle).
 #[derive(Clone, Default)]
-struct Points {
-    j: Vec<usize>,
-    f: Vec<f64>,
+pub(super) struct Points {
+    pub(super) j: Vec<usize>,
+    pub(super) f: Vec<f64>,
     g: Vec<f64>,
 }
 
@@ -66,7 +67,9 @@ impl Points {
         let each = self.j.iter().map(|&j| j.min(COLUMN - 2)).zip(&self.f);
         // One loop for each way of carrying, so that the choice is not made per point.
         match how {
-            Linear => out.extend(each.map(|(j, &f)| Linear.carry(col[j], col[j + 1], f))),
+            Linear | Between::Dense(_) => {
+                out.extend(each.map(|(j, &f)| Linear.carry(col[j], col[j + 1], f)))
+            }
             Hold => out.extend(each.map(|(j, &f)| Hold.carry(col[j], col[j + 1], f))),
         }
     }
@@ -86,6 +89,8 @@ pub(super) struct Acquisition {
     basis: OutputBasis,
     duration: f64,
     outputs: Vec<Output>,
+    /// The cylinder's dense output, while a channel acquired needs it.
+    cylinder: Option<Cylinder>,
     /// The chunk's truth, column by column (so that a channel is taken from contiguous
     /// memory): `cols[c][j]` is raw column `c` at the chunk's step `j`, step 0 being the
     /// previous chunk's last; the steps in it; its grid points.
@@ -215,6 +220,7 @@ impl Acquisition {
             basis,
             duration,
             outputs,
+            cylinder: Some(Cylinder::new(base)),
             cols: vec![[0.0; COLUMN]; RAW.len()],
             steps: 0,
             points: Points::default(),
@@ -313,6 +319,13 @@ impl Acquisition {
         }
         self.outputs
             .retain(|o| o.name == "t" || names.contains(&o.name));
+        if !self
+            .outputs
+            .iter()
+            .any(|o| matches!(o.source, Source::Raw(Between::Dense(_), _)))
+        {
+            self.cylinder = None;
+        }
         Ok(())
     }
 
@@ -375,6 +388,7 @@ impl Acquisition {
             sensor_faulted,
             basis,
             outputs,
+            cylinder,
             cols,
             points,
             first,
@@ -396,6 +410,9 @@ impl Acquisition {
         }
         theta_en.clear();
         points.carry_into(&cols[THETA_EN], Linear, theta_en);
+        if let Some(c) = cylinder.as_mut() {
+            c.prepare(cols, points, theta_en);
+        }
         dt.clear();
         let mut before = last.map(|l| l.0);
         for &ti in t.iter() {
@@ -422,10 +439,14 @@ impl Acquisition {
         for out in outputs.iter_mut() {
             let v = &mut out.values;
             let start = v.len();
+            let carry = |v: &mut Vec<f64>, how| match (how, &*cylinder) {
+                (Between::Dense(d), Some(c)) => c.carry_into(d, &cols[out.col], points, v),
+                _ => points.carry_into(&cols[out.col], how, v),
+            };
             match (out.source, &mut out.sensor) {
-                (Source::Raw(how, _), None) => points.carry_into(&cols[out.col], how, v),
+                (Source::Raw(how, _), None) => carry(v, how),
                 (Source::Raw(how, _), Some((kind, state))) => {
-                    points.carry_into(&cols[out.col], how, v);
+                    carry(v, how);
                     let sensor = |k: usize| kind.params(params(k));
                     measure_in_runs(state, &mut v[start..], sensor, *sensor_faulted, decays, dt);
                 }

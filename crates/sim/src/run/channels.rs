@@ -1,16 +1,20 @@
 //! The run's channels: the truth the cell gives at each solver step ([`RAW`], one [`Row`]),
-//! how each is carried to the output grid ([`Between`]), and the recording's 38 channels with
-//! their units and sources ([`OUTPUT`], DESIGN.md's table).
+//! how each is carried to the output grid ([`Between`]; the cylinder's by its dense output,
+//! [`super::dense`]), and the recording's 38 channels with their units and sources
+//! ([`OUTPUT`], DESIGN.md's table).
 
 use super::sensors::SensorKind;
 use crate::cell::Sample;
 use crate::control::inverse_park;
 use crate::params::CellParams;
 use Between::{Hold, Linear};
+use Dense::{Alpha, Engine, Indicated, Pressure, Reciprocating, Temperature};
 
 /// The truth the cell gives at each solver step, in the order of a [`raw_row`] (each is
-/// recorded under its name, [`OUTPUT`]).
-pub(super) const RAW: [&str; 30] = [
+/// recorded under its name, [`OUTPUT`], but the last three — the cylinder's volume [m³] and
+/// `d(p·V)/dt` [W], the reciprocating mass in force [kg] — which the cylinder's dense output
+/// needs).
+pub(super) const RAW: [&str; 33] = [
     "t",
     "theta_en",
     "theta_dy",
@@ -41,6 +45,9 @@ pub(super) const RAW: [&str; 30] = [
     "true_T_cyl",
     "true_shaft_k",
     "true_shaft_b",
+    "v_cyl",
+    "pv_rate",
+    "m_rec",
 ];
 
 /// The columns the acquisition reads itself: time and the two angles.
@@ -95,6 +102,9 @@ pub(super) fn raw_row(s: &Sample, p: &CellParams, sc: (f64, f64)) -> Row {
         s.temperatures[1],
         p.shaft.k,
         p.shaft.b,
+        s.gas.v_cyl,
+        s.gas.pv_rate,
+        p.engine.m_rec,
     ]
 }
 
@@ -108,13 +118,31 @@ pub(super) enum Between {
     /// fault never shows a value between its two levels. A point within 1 % of a step's length
     /// before the next step counts as on it (the crank-angle grid's steps land within 0.1 %).
     Hold,
+    /// The cylinder's gas and what follows from it through the indicated torque, from the dense
+    /// output ([`super::dense::Cylinder`]); [`Linear`] where there is none (a point on a step,
+    /// the engine off).
+    Dense(Dense),
+}
+
+/// The channels the cylinder's dense output gives between the steps (in the order it keeps
+/// them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Dense {
+    /// `p_cyl`, `true_T_cyl`, `true_torque_indicated`, `true_torque_reciprocating`,
+    /// `torque_engine`, `alpha_en`.
+    Pressure,
+    Temperature,
+    Indicated,
+    Reciprocating,
+    Engine,
+    Alpha,
 }
 
 impl Between {
     /// The value at fraction `f` ∈ [0, 1] of the way from `y0` to `y1`.
     pub(super) fn carry(self, y0: f64, y1: f64, f: f64) -> f64 {
         match self {
-            Between::Linear => y0 + f * (y1 - y0),
+            Between::Linear | Between::Dense(_) => y0 + f * (y1 - y0),
             Between::Hold if f >= 0.99 => y1,
             Between::Hold => y0,
         }
@@ -171,7 +199,11 @@ pub(super) const OUTPUT: [(&str, &str, Source); 38] = [
         "rad/s",
         Source::Raw(Linear, Some(SensorKind::Speed)),
     ),
-    ("alpha_en", "rad/s^2", Source::Raw(Linear, None)),
+    (
+        "alpha_en",
+        "rad/s^2",
+        Source::Raw(Between::Dense(Alpha), None),
+    ),
     ("alpha_dy", "rad/s^2", Source::Raw(Linear, None)),
     (
         "torque_shaft",
@@ -181,10 +213,14 @@ pub(super) const OUTPUT: [(&str, &str, Source); 38] = [
     (
         "torque_engine",
         "N*m",
-        Source::Raw(Linear, Some(SensorKind::TorqueEngine)),
+        Source::Raw(Between::Dense(Engine), Some(SensorKind::TorqueEngine)),
     ),
     ("torque_dy", "N*m", Source::Raw(Linear, None)),
-    ("p_cyl", "Pa", Source::Raw(Linear, Some(SensorKind::PCyl))),
+    (
+        "p_cyl",
+        "Pa",
+        Source::Raw(Between::Dense(Pressure), Some(SensorKind::PCyl)),
+    ),
     (
         "p_int",
         "Pa",
@@ -224,14 +260,22 @@ pub(super) const OUTPUT: [(&str, &str, Source); 38] = [
     ("count_dy", "-", Source::CountDy),
     ("tdc", "-", Source::Tdc),
     // The true torques and T_cyl are states'; the shaft's parameters are held over a step.
-    ("true_torque_indicated", "N*m", Source::Raw(Linear, None)),
+    (
+        "true_torque_indicated",
+        "N*m",
+        Source::Raw(Between::Dense(Indicated), None),
+    ),
     (
         "true_torque_reciprocating",
         "N*m",
-        Source::Raw(Linear, None),
+        Source::Raw(Between::Dense(Reciprocating), None),
     ),
     ("true_torque_friction", "N*m", Source::Raw(Linear, None)),
-    ("true_T_cyl", "K", Source::Raw(Linear, None)),
+    (
+        "true_T_cyl",
+        "K",
+        Source::Raw(Between::Dense(Temperature), None),
+    ),
     ("true_shaft_k", "N*m/rad", Source::Raw(Hold, None)),
     ("true_shaft_b", "N*m*s/rad", Source::Raw(Hold, None)),
 ];
@@ -252,7 +296,8 @@ mod tests {
             .collect();
         let mut sorted = raw.clone();
         sorted.sort_unstable();
-        let mut want = RAW.to_vec();
+        // The last three are the dense output's.
+        let mut want = RAW[..RAW.len() - 3].to_vec();
         want.sort_unstable();
         assert_eq!(sorted, want);
         assert_eq!(

@@ -61,6 +61,7 @@ impl Default for RunOptions {
 
 mod acquisition;
 mod channels;
+mod dense;
 mod sensors;
 mod truth;
 
