@@ -40,11 +40,22 @@ impl Pi {
         let candidate = self.integral + self.ki * e * dt;
         let u = self.kp * e + candidate;
         if (u > hi && e > 0.0) || (u < lo && e < 0.0) {
-            (self.kp * e + self.integral).clamp(lo, hi)
+            limit(self.kp * e + self.integral, lo, hi)
         } else {
             self.integral = candidate;
-            u.clamp(lo, hi)
+            limit(u, lo, hi)
         }
+    }
+}
+
+/// `u` within `[lo, hi]`; NaN when the limits are not numbers (a state that left the physical
+/// domain: the run's check names it, where `f64::clamp` would panic).
+#[inline]
+fn limit(u: f64, lo: f64, hi: f64) -> f64 {
+    if lo <= hi {
+        u.clamp(lo, hi)
+    } else {
+        f64::NAN
     }
 }
 

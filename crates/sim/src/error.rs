@@ -11,9 +11,12 @@ pub enum SimError {
     Invalid(String),
     /// The solution left the physical domain (a volume emptied, a temperature went
     /// negative): the step, time and what.
-    #[error("the simulation diverged at t = {t:.6} s: {what}; try a smaller solver.step_deg")]
+    #[error(
+        "the simulation diverged at t = {t:.6} s{}: {what}; try a smaller solver.step_deg",
+        if *.t < 0.0 { " (in the settling, before the recording starts)" } else { "" }
+    )]
     Diverged {
-        /// Time [s].
+        /// Time [s] on the recording's clock (negative: in the settling before it).
         t: f64,
         /// What went wrong.
         what: String,

@@ -28,6 +28,7 @@
 use super::acquisition::{Points, COLUMN};
 use super::channels::{raw_index, Between, Dense, T};
 use crate::engine::Engine;
+use crate::numeric::SinCosTrack;
 use crate::params::CellParams;
 
 /// A point with `f·(1 − f)` below this counts as on its step (carried linearly: within 1e-6 of
@@ -43,6 +44,8 @@ pub(super) struct Cylinder {
     /// The raw columns read: p_cyl, T_cyl, V, d(p·V)/dt, m_rec, the shaft torque, the
     /// friction torque, ω_en.
     cols: [usize; 8],
+    /// The crank angle's sine and cosine from point to point.
+    sin_cos: SinCosTrack,
     /// Per point of the chunk: whether it has dense values, and they: `[p_cyl, T_cyl,
     /// τ_ind, τ_rec, τ_engine, α_en]`.
     on: Vec<bool>,
@@ -76,6 +79,7 @@ impl Cylinder {
                 "omega_en",
             ]
             .map(raw_index),
+            sin_cos: SinCosTrack::default(),
             on: Vec::new(),
             values: Vec::new(),
         }
@@ -100,7 +104,10 @@ impl Cylinder {
             let dt = time[j + 1] - time[j];
             let (y0, y1) = (c_p[j] * v0, c_p[j + 1] * v1);
             let y = hermite(y0, dt * c_rate[j], y1, dt * c_rate[j + 1], f);
-            let at = self.engine.crank_point(theta_en[k]);
+            let theta = theta_en[k];
+            let at = self
+                .engine
+                .crank_point_sin_cos(theta, self.sin_cos.at(theta));
             let p = y / self.engine.volume_at(&at);
             let mr = Between::Linear.carry(y0 / c_t[j], y1 / c_t[j + 1], f);
             let indicated = self.engine.torque_at(&at, 0.0, p, 0.0).indicated;

@@ -369,7 +369,10 @@ impl Run {
         self.measured_at = cell.time();
         let t_before = cell.time();
         let mut s = cell.step_with(&inputs, w_meas);
-        check(&s, self.base.engine.active != 0.0)?;
+        check(&s, self.base.engine.active != 0.0).map_err(|e| match e {
+            SimError::Diverged { what, .. } => SimError::Diverged { t: t_rel, what },
+            e => e,
+        })?;
         if self.torque_mode {
             if let Some([lo, hi]) = self.scenario.speed_range {
                 let rpm = s.omega_en * 30.0 / PI;
