@@ -3,6 +3,7 @@
 //! slopes ([`flow_and_slopes`]).
 
 use super::*;
+use crate::numeric::expm1;
 
 /// Below this pressure ratio deficit (1 − p_dn/p_up) the orifice flow is linearised in the
 /// pressure difference: the isentropic form has an infinite slope at equal pressures, which
@@ -79,8 +80,10 @@ impl OrificeGas {
     /// Ψ at the band's edge pe = 1 − band, with y = ln pe: pe^(1/γ) = e^(y/γ) and
     /// 1 − pe^((γ−1)/γ) = −expm1(y·(1 − 1/γ)), both of small arguments (no cancellation).
     pub(super) fn band_edge(&self) -> f64 {
-        let a = 1.0 + expm1_small(LN_BAND_EDGE * self.inv_gamma);
-        a * (-self.k * expm1_small(LN_BAND_EDGE * (1.0 - self.inv_gamma))).sqrt()
+        // `expm1`: its series where the argument is small (every γ > 1.01), the library's for a
+        // gas whose state has left the physical domain (the run's check names it).
+        let a = 1.0 + expm1(LN_BAND_EDGE * self.inv_gamma);
+        a * (-self.k * expm1(LN_BAND_EDGE * (1.0 - self.inv_gamma))).sqrt()
     }
 
     /// `ln(2/(γ+1)) = ln(2·(1/γ)/(1 + 1/γ))`.
