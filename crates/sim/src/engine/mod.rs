@@ -24,7 +24,7 @@
 //! largest eigenvalue; `jacobian.rs`: the gas equations' Jacobian for the Rosenbrock step;
 //! `combustion.rs`: the burn.
 
-use crate::numeric::{expm1_small, powi, wrap720};
+use crate::numeric::{powi, wrap720};
 use crate::params::{AmbientParams, EngineParams};
 use physid_models::air;
 use physid_models::friction::{self, Design, Settings, SpeedForm};
