@@ -484,6 +484,17 @@ paths! {
 }
 
 impl CellParams {
+    /// Set `path` to `value` only if the parameters stay within their ranges ([`validate`]
+    /// (Self::validate)); else they are unchanged and the error names the range. How a value
+    /// arriving during a run (a fault, a twin's estimate) is taken.
+    pub fn set_checked(&mut self, path: &str, value: f64) -> Result<(), SimError> {
+        let mut p = self.clone();
+        p.set(path, value)?;
+        p.validate()?;
+        *self = p;
+        Ok(())
+    }
+
     /// Check ranges that would make the model meaningless; the error names the parameter and
     /// the range.
     pub fn validate(&self) -> Result<(), SimError> {

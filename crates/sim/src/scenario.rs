@@ -296,6 +296,12 @@ impl Fault {
                 FAULT_PATHS.join(", ")
             )));
         }
+        // The value within the parameter's range, as `--set` has it (the ranges of the paths
+        // a fault moves are each the parameter's own, whatever the others are; a ramp stays
+        // between two values within it).
+        CellParams::default()
+            .set_checked(&path, value)
+            .map_err(|e| SimError::Invalid(format!("fault '{spec}': {e}")))?;
         Ok(Self {
             path,
             value,

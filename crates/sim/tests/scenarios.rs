@@ -163,6 +163,17 @@ fn fault_syntax_and_schedule() {
         ("shaft.k=x@5", "expected PATH=VALUE@T"),
         ("engine.bore=0.05@1", "cannot change during a run"),
         ("shaft.x=1@1", "no parameter 'shaft.x'"),
+        // The value within the parameter's range, as `--set` has it.
+        ("shaft.k=-1@0.5", "shaft.k = -1: expected > 0"),
+        ("shaft.k=0@0.5", "shaft.k = 0: expected > 0"),
+        (
+            "engine.friction_scale=-5@1",
+            "engine.friction_scale = -5: expected ≥ 0",
+        ),
+        (
+            "sensors.lost_pulses_en=2@1",
+            "a probability per pulse is in [0, 1]",
+        ),
     ] {
         let e = Fault::parse(spec).unwrap_err().to_string();
         assert!(e.contains(want), "{spec}: {e}");

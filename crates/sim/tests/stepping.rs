@@ -206,3 +206,27 @@ fn torque_demand_holds_the_cycle_mean_torque_wherever_in_the_cycle() {
         }
     }
 }
+
+/// A live parameter's value out of its range (a twin's estimate gone astray) is refused, named,
+/// and changes nothing: the run goes on to the very recording of one never asked.
+#[test]
+fn a_live_parameter_out_of_range_is_refused_and_changes_nothing() {
+    let scenario = named("shaft-steady").unwrap();
+    let opts = options(0.3);
+    let whole = simulate(&scenario, &opts, |_| {}).unwrap();
+    let mut run = Run::new(&scenario, &opts).unwrap();
+    run.step_until(0.1).unwrap();
+    for (path, value, want) in [
+        ("shaft.k", -1.0, "shaft.k = -1: expected > 0"),
+        ("shaft.k", f64::NAN, "expected a finite number"),
+        ("engine.friction_scale", -0.5, "expected ≥ 0"),
+        ("engine.bore", 0.05, "cannot change during a run"),
+    ] {
+        let e = run.set_live_parameter(path, value).unwrap_err().to_string();
+        assert!(e.contains(want), "{path} = {value}: {e}");
+    }
+    while !run.is_done() {
+        run.step_until(run.time() + 0.05).unwrap();
+    }
+    assert_same(&run.finish().unwrap(), &whole);
+}

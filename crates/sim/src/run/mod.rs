@@ -319,7 +319,7 @@ impl Run {
                 LIVE_PARAMS.join(", ")
             )));
         }
-        self.base.set(path, value)?;
+        self.base.set_checked(path, value)?;
         self.cell.params.set(path, value)?;
         self.cell.refresh_live_parameters();
         Ok(())
