@@ -14,7 +14,11 @@
 //! | `{"cmd": "restart", "stage": "shaft"}` (or `cycles`, `friction`, `torque`, `combustion`) | start a stage afresh (one that stopped on an error comes back) |
 //! | `{"cmd": "stop"}` | end the run after the current chunk |
 //!
-//! A malformed message is refused with an error naming the field; the run goes on.
+//! A malformed message is refused with an error naming the field; the run goes on. A message
+//! that changes the cell is first tried on a copy of it for [`TRY_AHEAD_S`] (a fault at its
+//! full value from now): one under which the cell's solution would diverge (a shaft too stiff
+//! or too damped for the solver's step, a reciprocating mass of a tonne) is refused with the
+//! reason, and the cell runs on as it was.
 
 use physid_sim::run::Run;
 use physid_sim::scenario::{named, Fault, Profile, Scenario, NAMED};
@@ -45,6 +49,16 @@ pub enum Control {
     /// End the run.
     Stop,
 }
+
+/// The messages' `cmd`s.
+const CMDS: &[&str] = &[
+    "speed", "throttle", "fault", "scenario", "mode", "pause", "resume", "record", "restart",
+    "stop",
+];
+
+/// How far ahead a message that changes the cell is tried on a copy of it [s of the
+/// recording's time]: two engine cycles at 1000 rpm, about 1–3 ms of computing.
+pub const TRY_AHEAD_S: f64 = 0.25;
 
 /// The virtual cell's operating envelope for a speed demand [rpm]: below the minimum the
 /// dynamometer would stall the engine (a stopped engine teaches the shaft monitor nothing and
@@ -172,7 +186,41 @@ impl Control {
                 )),
             }
         };
-        match obj.get("cmd").and_then(Value::as_str) {
+        // A field the message does not take is refused, not ignored (a misspelt one would
+        // otherwise do nothing, unseen).
+        let cmd = obj.get("cmd").and_then(Value::as_str);
+        let takes: &[&str] = match cmd {
+            Some("speed") => &["rpm"],
+            Some("throttle") => &["deg"],
+            Some("fault") => &["spec"],
+            Some("record") => &["file", "stop"],
+            Some("scenario") => &["name"],
+            Some("mode") => &["demand"],
+            Some("restart") => &["stage"],
+            _ => &[],
+        };
+        if let Some(extra) = obj
+            .keys()
+            .find(|k| k.as_str() != "cmd" && !takes.contains(&k.as_str()))
+        {
+            if cmd.is_some_and(|c| CMDS.contains(&c)) {
+                return Err(format!(
+                    "field '{}': '{}' takes {}",
+                    crate::event::quote(extra, 40),
+                    cmd.unwrap_or(""),
+                    if takes.is_empty() {
+                        "no other field".to_string()
+                    } else {
+                        takes
+                            .iter()
+                            .map(|t| format!("'{t}'"))
+                            .collect::<Vec<_>>()
+                            .join(" or ")
+                    }
+                ));
+            }
+        }
+        match cmd {
             Some("speed") => Ok(Control::Speed(number("rpm", 0.0, 10_000.0)?)),
             Some("throttle") => Ok(Control::Throttle(number("deg", 0.0, 90.0)?)),
             Some("fault") => {
@@ -229,16 +277,54 @@ impl Control {
             }
             Some("stop") => Ok(Control::Stop),
             other => Err(format!(
-                "field 'cmd' is {}: expected speed, throttle, fault, scenario, mode, pause, resume, record, restart or stop",
-                other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'"))
+                "field 'cmd' is {}: expected {}",
+                other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'")),
+                CMDS.join(", ")
             )),
         }
     }
 
     /// Apply it to a running cell (stop, pause, resume, record and restart are the caller's
     /// to act on); a speed demand outside [`SPEED_ENVELOPE_RPM`] is refused, naming the
-    /// envelope (in torque mode the number is a torque, taken as it is).
+    /// envelope (in torque mode the number is a torque, taken as it is). A message that
+    /// changes the cell is tried first ([`try_ahead`](Self::try_ahead)).
     pub fn apply(&self, run: &mut Run) -> Result<(), String> {
+        self.check(run)?;
+        if !matches!(
+            self,
+            Control::Stop
+                | Control::Pause
+                | Control::Resume
+                | Control::Record(_)
+                | Control::Restart(_)
+        ) {
+            self.try_ahead(run)?;
+        }
+        self.act(run);
+        Ok(())
+    }
+
+    /// Try it on a copy of `run` for [`TRY_AHEAD_S`] of the recording's time — a fault at its
+    /// full value from now, wherever it is scheduled or however it is ramped — and refuse it,
+    /// with the reason, where the copy's solution diverges.
+    fn try_ahead(&self, run: &Run) -> Result<(), String> {
+        let mut copy = run.clone();
+        let now = copy.time();
+        let tried = match self {
+            Control::Fault(f) => Control::Fault(Fault {
+                at: now.max(0.0),
+                ramp: 0.0,
+                ..f.clone()
+            }),
+            c => c.clone(),
+        };
+        tried.act(&mut copy);
+        copy.step_until(now.max(0.0) + TRY_AHEAD_S)
+            .map_err(|e| format!("refused: tried on a copy of the cell, {e}"))
+    }
+
+    /// What makes a message invalid for the run as it is: a speed demand outside the envelope.
+    fn check(&self, run: &Run) -> Result<(), String> {
         if let Control::Speed(rpm) = self {
             let (lo, hi) = SPEED_ENVELOPE_RPM;
             if !run.torque_mode() && !(lo..=hi).contains(rpm) {
@@ -248,6 +334,11 @@ impl Control {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// Make the change to `run`.
+    fn act(&self, run: &mut Run) {
         // A constant from now on: the run only evaluates its inputs ahead.
         let forever = |v: f64| Profile::constant(v, f64::MAX);
         match self {
@@ -262,7 +353,6 @@ impl Control {
             | Control::Record(_)
             | Control::Restart(_) => {}
         }
-        Ok(())
     }
 
     /// Its name (`speed`, `throttle`, `fault`, `stop`).
@@ -305,9 +395,76 @@ mod tests {
             (r#"{"cmd":"warp"}"#, "field 'cmd' is 'warp'"),
             (r#"{"rpm":1}"#, "field 'cmd' is missing"),
             ("speed 1200", "not a JSON object"),
+            // A field the message does not take (a misspelling would do nothing, unseen).
+            (
+                r#"{"cmd":"speed","rmp":1200,"rpm":1200}"#,
+                "field 'rmp': 'speed' takes 'rpm'",
+            ),
+            (
+                r#"{"cmd":"record","file":"a.parquet","channels":["p_cyl"]}"#,
+                "field 'channels': 'record' takes 'file' or 'stop'",
+            ),
+            (
+                r#"{"cmd":"pause","for":5}"#,
+                "field 'for': 'pause' takes no other field",
+            ),
         ] {
             let e = Control::parse(msg).unwrap_err();
             assert!(e.contains(want), "{msg}: {e}");
         }
+    }
+
+    /// A message under which the cell would diverge is refused, naming the divergence, and
+    /// leaves the cell untouched: the run goes on to the very recording of one never sent. A
+    /// fault that would diverge only later (scheduled, or ramped) is tried at its full value
+    /// now; a sound fault is taken.
+    #[test]
+    fn a_message_that_would_diverge_the_cell_is_refused_and_changes_nothing() {
+        use physid_sim::run::{OutputBasis, RunOptions};
+        let opts = RunOptions {
+            duration: Some(0.6),
+            basis: OutputBasis::Time(2000.0),
+            stream: true,
+            ..Default::default()
+        };
+        let scenario = named("shaft-steady").unwrap();
+        let sound = Control::parse(r#"{"cmd":"fault","spec":"shaft.k=1100@0.2"}"#).unwrap();
+        let drive = |messages: &[&str]| {
+            let mut run = Run::new(&scenario, &opts).unwrap();
+            let mut chunks = Vec::new();
+            run.step_until(0.15).unwrap();
+            chunks.push(run.drain().unwrap());
+            let refusals: Vec<String> = messages
+                .iter()
+                .map(|m| Control::parse(m).unwrap().apply(&mut run).unwrap_err())
+                .collect();
+            sound.apply(&mut run).unwrap();
+            while !run.is_done() {
+                run.step_until(run.time() + 0.1).unwrap();
+                chunks.push(run.drain().unwrap());
+            }
+            (chunks, refusals)
+        };
+        let (quiet, _) = drive(&[]);
+        let (tried, refusals) = drive(&[
+            r#"{"cmd":"fault","spec":"shaft.b=1e6@0.15"}"#,
+            r#"{"cmd":"fault","spec":"shaft.k=1e7@0.3"}"#,
+            r#"{"cmd":"fault","spec":"engine.m_rec=1e6@0.15+5"}"#,
+        ]);
+        for e in &refusals {
+            assert!(
+                e.contains("refused: tried on a copy of the cell, the simulation diverged"),
+                "{e}"
+            );
+        }
+        assert_eq!(quiet.len(), tried.len());
+        for (a, b) in quiet.iter().zip(&tried) {
+            for name in a.names() {
+                assert_eq!(a.values(name).unwrap(), b.values(name).unwrap(), "{name}");
+            }
+        }
+        // The sound fault acted: the truth's K moved to 1100 N·m/rad.
+        let k = quiet.last().unwrap().values("true_shaft_k").unwrap();
+        assert_eq!(k.last(), Some(&1100.0));
     }
 }
