@@ -54,17 +54,30 @@ impl ScenarioSource {
                 "the live cell runs on a time basis".into(),
             ));
         };
-        if !(chunk_s.is_finite() && chunk_s > 0.0) {
+        // At least a sample a chunk (a shorter one hands on empty chunks, a trillion of them a
+        // second at 1e-12 s).
+        if !(chunk_s.is_finite() && chunk_s * rate_hz >= 1.0) {
             return Err(LiveError::Invalid(format!(
-                "chunk of {chunk_s} s: expected > 0"
+                "chunk of {chunk_s} s: expected at least one sample's time at {rate_hz} Hz ({} s)",
+                1.0 / rate_hz
             )));
         }
         let opts = RunOptions {
             stream: true,
             ..opts.clone()
         };
+        let run = Run::new(scenario, &opts)?;
+        // A chunk is held whole (and a copy of it goes through the stages): it must fit.
+        let chunk_bytes = 2.0 * chunk_s * run.size_bytes() / run.duration();
+        physid_core::memory::check_fits(
+            chunk_bytes,
+            &format!("a chunk of {chunk_s} s at {rate_hz} Hz"),
+        )
+        .map_err(|e| {
+            LiveError::Invalid(format!("{e}: a lower --sample-rate or a shorter --chunk"))
+        })?;
         Ok(Self {
-            run: Some(Run::new(scenario, &opts)?),
+            run: Some(run),
             rate_hz,
             chunk_s,
             t: 0.0,
@@ -404,5 +417,39 @@ mod tests {
         assert_eq!("max".parse::<Pace>(), Ok(Pace::Max));
         assert_eq!("10".parse::<Pace>(), Ok(Pace::Factor(10.0)));
         assert!("0".parse::<Pace>().is_err() && "fast".parse::<Pace>().is_err());
+    }
+
+    /// The virtual cell's chunk holds a sample at least (a chunk of 1e-12 s handed on empty
+    /// chunks for ever), and fits in memory (1e12 Hz used to end in the allocator's abort).
+    #[test]
+    fn a_cell_chunk_shorter_than_a_sample_or_too_large_to_hold_is_refused() {
+        use physid_sim::run::{OutputBasis, RunOptions};
+        use physid_sim::scenario::named;
+        let scenario = named("shaft-steady").unwrap();
+        let at = |rate: f64| RunOptions {
+            duration: Some(1.0),
+            basis: OutputBasis::Time(rate),
+            ..Default::default()
+        };
+        let e = ScenarioSource::new(&scenario, &at(10_000.0), 1e-12)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("expected at least one sample's time at 10000 Hz (0.0001 s)"),
+            "{e}"
+        );
+        if physid_core::memory::available().is_some() {
+            let e = ScenarioSource::new(&scenario, &at(1e12), 0.01)
+                .err()
+                .unwrap()
+                .to_string();
+            assert!(
+                e.starts_with("a chunk of 0.01 s at 1000000000000 Hz would take about")
+                    && e.ends_with("a lower --sample-rate or a shorter --chunk"),
+                "{e}"
+            );
+        }
+        assert!(ScenarioSource::new(&scenario, &at(10_000.0), 1e-4).is_ok());
     }
 }

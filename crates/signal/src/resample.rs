@@ -45,6 +45,26 @@ impl StreamInterp {
         self.pending.push_back(a);
     }
 
+    /// Refuse asking for `count` more points when they, their answers (every channel) and the
+    /// `extra` values kept for each would not fit in the memory available — a grid finer than
+    /// the data by a factor of millions (a step of 1e-9°) — instead of growing until the
+    /// allocator aborts. `grid` says what the points are.
+    pub fn room_for(&self, count: f64, extra: usize, grid: &str) -> Result<(), CrankError> {
+        let per_point = (self.tail[0].1.len() + 2 + extra) * std::mem::size_of::<f64>();
+        let bytes = count * per_point as f64;
+        // Below 64 MB a chunk's grid is not worth asking the machine about (every chunk of a
+        // stream would read /proc/meminfo).
+        if bytes < 64e6 {
+            return Ok(());
+        }
+        let what = format!(
+            "{count:.0} points of {grid} in the data from sample {} on",
+            self.seen
+        );
+        physid_core::memory::check_fits(bytes, &what)
+            .map_err(|e| CrankError::Invalid(format!("{e}: make the grid coarser")))
+    }
+
     /// The points asked for and not answered yet.
     pub fn waiting(&self) -> usize {
         self.pending.len()
@@ -249,7 +269,15 @@ impl CrankResampler {
         // Ask for the grid angles at or before the chunk's last (they are in the whole grid).
         if let (Some(k), Some(&last)) = (self.next.as_mut(), theta.last()) {
             if last.is_finite() {
-                let n = ((last - self.theta_tdc) / self.step).floor().max(-1.0) as i64 + 1;
+                let n = ((last - self.theta_tdc) / self.step).floor().max(-1.0);
+                // The angle's interpolator holds the points and their times, the channels'
+                // their times and values; the chunk out their θ, cycle and crank angle.
+                self.channels.room_for(
+                    n + 1.0 - *k as f64,
+                    4,
+                    &format!("the {}° crank-angle grid", self.step.to_degrees()),
+                )?;
+                let n = n as i64 + 1;
                 while *k < n {
                     self.angle.ask(self.theta_tdc + *k as f64 * self.step);
                     *k += 1;
@@ -357,7 +385,13 @@ impl TimeResampler {
         }
         if let (Some(t0), Some(&last)) = (self.t0, t.last()) {
             if last.is_finite() && t0.is_finite() {
-                let n = ((last - t0) * self.rate).floor() as i64 + 1;
+                let n = ((last - t0) * self.rate).floor();
+                self.channels.room_for(
+                    n + 1.0 - self.next as f64,
+                    0,
+                    &format!("the {} Hz time basis", self.rate),
+                )?;
+                let n = n as i64 + 1;
                 while self.next < n {
                     self.channels.ask(t0 + self.next as f64 / self.rate);
                     self.next += 1;

@@ -167,3 +167,38 @@ fn errors_name_the_sample_across_chunks() {
     assert!(CrankResampler::new(0.0, 0.0, 1).is_err());
     assert!(TimeResampler::new(-1.0, 1).is_err());
 }
+
+/// A grid whose points from one chunk cannot fit in memory (a step of 1e-9°; a MHz over a
+/// year) is refused with the points and the memory they would take, not grown until the
+/// allocator aborts the process.
+#[test]
+fn a_grid_that_cannot_fit_in_memory_is_refused() {
+    if physid_core::memory::available().is_none() {
+        return; // no /proc/meminfo here: nothing to refuse against
+    }
+    let mut r = CrankResampler::new(0.0, 1e-9, 3).unwrap();
+    let e = r
+        .push_angle(&[0.0, 1.0], &[0.0, 100.0])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("5729577951309 points of the 0.000000001° crank-angle grid in the data from sample 0 on would take about")
+            && e.ends_with("GB free: make the grid coarser"),
+        "{e}"
+    );
+    let mut r = TimeResampler::new(1e6, 1).unwrap();
+    let (mut tt, mut out) = (Vec::new(), vec![Vec::new()]);
+    r.push(&[0.0, 0.5], &[&[1.0, 2.0]], &mut tt, &mut out)
+        .unwrap();
+    assert_eq!(tt.len(), 500_000);
+    // A year of data at a MHz in one chunk.
+    let e = r
+        .push(&[1.0, 3.2e7], &[&[1.0, 2.0]], &mut tt, &mut out)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("points of the 1000000 Hz time basis in the data from sample 2 on")
+            && e.ends_with("make the grid coarser"),
+        "{e}"
+    );
+}
