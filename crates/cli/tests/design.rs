@@ -164,8 +164,22 @@ fn design_errors_name_the_problem() {
             "--lowpass is the shaft monitor's setting",
         ),
         (vec!["--s0", "3"], "--s0 is the friction fit's setting"),
+        // A typo of an exponent does not take the machine's memory (it did: killed by the
+        // kernel at 23 GB).
+        (
+            vec!["--duration", "1e9"],
+            "duration 1000000000 s: expected 1–3600 s",
+        ),
+        (
+            vec!["--params", "K=1000,B,K=1200"],
+            "K is already given the value 1000",
+        ),
+        (vec!["--params", "K=-5"], "shaft.k = -5: expected > 0"),
     ] {
-        let mut a = vec!["design", "--duration", "2", "--candidates", "2"];
+        let mut a = vec!["design", "--candidates", "2"];
+        if !args.contains(&"--duration") {
+            a.extend(["--duration", "2"]);
+        }
         a.extend(args.iter().copied());
         let o = physid(&a);
         assert!(!o.status.success(), "{a:?}");

@@ -63,6 +63,51 @@ fn runs_that_cannot_fit_are_refused_before_they_start() {
     );
 }
 
+/// Numbers a typo makes huge do not take the machine's memory (each used to end in the
+/// allocator's abort or the kernel's OOM kill): a resampling grid whose points cannot fit is
+/// refused naming them; a dwell of 10¹² samples is only a long dwell; a design of 10⁹ seconds
+/// is refused by its range.
+#[test]
+fn a_typo_of_an_exponent_does_not_take_the_memory() {
+    let s = Scratch::new("physid-rel");
+    let rec = s.file("r.parquet");
+    let rec = rec.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "0.3",
+        "--quiet",
+        "--recording",
+        rec,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = s.file("c.parquet");
+    let out = out.to_str().unwrap();
+    fails_with(
+        &["convert", rec, out, "--crank-angle", "--step-deg", "1e-9"],
+        "points of the 0.000000001° crank-angle grid in the data from sample 0 on would take about",
+    );
+    fails_with(
+        &["convert", rec, out, "--time-basis", "1e12"],
+        "points of the 1000000000000 Hz time basis in the data from sample 0 on would take about",
+    );
+    let o = physid(&[
+        "monitor",
+        "shaft",
+        "--data",
+        rec,
+        "--dwell",
+        "1000000000000",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    fails_with(
+        &["design", "--duration", "1e9"],
+        "duration 1000000000 s: expected 1–3600 s",
+    );
+}
+
 #[test]
 fn a_formula_of_forty_thousand_terms_is_refused_not_a_stack_overflow() {
     let s = Scratch::new("physid-rel");

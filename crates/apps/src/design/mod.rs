@@ -43,6 +43,11 @@ pub const COLLINEAR: f64 = 0.95;
 /// informative one's over every candidate is structurally unidentifiable (Alg. 5.1's cut-off).
 pub const STRUCTURAL_CUT: f64 = 1e-10;
 
+/// The longest candidate test [s]: an hour, six times the thesis's longest test (its 10-minute
+/// transient). Each candidate's regressors are held while it is judged, one worker's at a
+/// time on each core; BENCHMARKS.md gives the memory this takes.
+pub const MAX_DURATION_S: f64 = 3600.0;
+
 /// What to design for.
 #[derive(Debug, Clone)]
 pub struct Design {
@@ -220,11 +225,19 @@ impl Design {
         if self.selected.is_empty() {
             return Err(AppError::Invalid("design: no parameters chosen".into()));
         }
-        if !(self.duration.is_finite() && self.duration >= 1.0) {
+        if !(self.duration.is_finite() && (1.0..=MAX_DURATION_S).contains(&self.duration)) {
             return Err(AppError::Invalid(format!(
-                "design: duration {} s: expected ≥ 1 s",
+                "design: duration {} s: expected 1–{MAX_DURATION_S} s (a candidate's regressors are held while it is judged)",
                 self.duration
             )));
+        }
+        for (k, i) in self.selected.iter().enumerate() {
+            if self.selected[..k].contains(i) {
+                return Err(AppError::Invalid(format!(
+                    "design: parameter '{}' chosen twice",
+                    self.names.get(*i).map_or("?", String::as_str)
+                )));
+            }
         }
         let (lo, hi) = self.band;
         if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) {

@@ -196,7 +196,12 @@ pub fn select(items: &[String], cell: &mut CellParams) -> Result<Selection, AppE
                     )))
                 }
             };
-            cell.set(path, v)?;
+            if let Some((_, before)) = set.iter().find(|(p, _)| p == path) {
+                return Err(AppError::Invalid(format!(
+                    "--params {item}: {name} is already given the value {before}"
+                )));
+            }
+            cell.set_checked(path, v)?;
             set.push((path.to_string(), v));
         }
         if !selected.contains(&i) {

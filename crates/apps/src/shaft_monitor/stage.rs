@@ -191,7 +191,9 @@ impl ShaftStage {
             est,
             steering,
             det,
-            det_times: VecDeque::with_capacity(dwell as usize + 1),
+            // Room for a usual dwell (the default's 200 samples); a longer one grows with the
+            // data (a dwell of 1e12 samples must not ask for 8 TB up front).
+            det_times: VecDeque::with_capacity(dwell.min(4096) as usize + 1),
             held: [false; 3],
             differs_since: [None; 3],
             model: Shaft::new(true),

@@ -442,7 +442,13 @@ fn shaft(a: &ShaftArgs) -> Result<()> {
             r.unresolved.join(", ")
         );
     }
-    if let Some(n) = r.nmse {
+    if r.nmse.is_some_and(|n| n.k.is_nan() && n.b.is_nan()) {
+        outln!(
+            "  NMSE against the recording's truth: none — the recording ends within the monitor's \
+             {} s start-up",
+            cfg.settle_s
+        );
+    } else if let Some(n) = r.nmse {
         outln!(
             "  NMSE against the recording's truth: K {:.2e}, B {:.2e}",
             n.k,
