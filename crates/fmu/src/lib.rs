@@ -67,8 +67,11 @@ impl Cell {
     /// faults, the rate).
     pub fn new(scenario: Scenario, sample_rate: f64) -> Result<Self, String> {
         scenario.validate().map_err(|e| e.to_string())?;
-        if !(sample_rate.is_finite() && sample_rate > 0.0) {
-            return Err(format!("sample rate {sample_rate} Hz: expected > 0"));
+        let max = instance::MAX_SAMPLE_RATE;
+        if !(sample_rate > 0.0 && sample_rate <= max) {
+            return Err(format!(
+                "sample rate {sample_rate} Hz: expected > 0 and at most {max} Hz"
+            ));
         }
         let cell = Self {
             scenario,

@@ -7,7 +7,7 @@ use physid_fmu::instance::Instance;
 use physid_fmu::variables::{table, Type};
 use physid_fmu::Cell;
 use physid_sim::scenario::Scenario;
-use physid_testkit::{allocations, Counting};
+use physid_testkit::{allocations, largest_allocation, reset_largest, Counting};
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -54,4 +54,42 @@ fn a_step_does_not_allocate() {
             "inputs from the importer: {inputs}"
         );
     }
+}
+
+/// A long communication step holds a bounded number of samples (the ones before the sample
+/// it ends on are dropped as they come): one step of 40 s at 10 kHz asks for no block larger
+/// than a 65 536-sample column's growth, 1 MB (a column held its 400 000 samples before, in a
+/// block of 6.4 MB), and its outputs are those of the same 40 s in 1 s steps, bit for bit. A
+/// sample rate whose one solver step's samples would not fit is refused.
+#[test]
+fn a_long_step_holds_a_bounded_number_of_samples() {
+    let mut s = Scenario::load("shaft-steady").unwrap();
+    s.duration = 41.0;
+    let cell = Cell::new(s, 10_000.0).unwrap();
+    let started = || {
+        let mut fmu = Instance::of(cell.clone());
+        fmu.setup(0.0, Some(41.0)).unwrap();
+        fmu.enter_initialization().unwrap();
+        fmu.exit_initialization().unwrap();
+        fmu
+    };
+    let outputs = |fmu: &mut Instance| -> Vec<f64> {
+        table(&cell)
+            .iter()
+            .filter(|v| v.ty == Type::Real)
+            .map(|v| fmu.get(v.vr, Type::Real).unwrap())
+            .collect()
+    };
+    let mut long = started();
+    reset_largest();
+    long.do_step(0.0, 40.0).unwrap();
+    let largest = largest_allocation();
+    assert!(largest <= 1 << 20, "{largest} bytes");
+    let mut short = started();
+    for n in 0..40 {
+        short.do_step(f64::from(n), 1.0).unwrap();
+    }
+    assert_eq!(outputs(&mut long), outputs(&mut short));
+    let e = Cell::new(Scenario::load("shaft-steady").unwrap(), 1e12).unwrap_err();
+    assert!(e.contains("expected > 0 and at most 10000000 Hz"), "{e}");
 }

@@ -27,11 +27,25 @@ thread_local! {
     /// Allocations made by *this* thread: the test harness's own threads (output capture,
     /// progress) allocate concurrently and must not count.
     static ALLOCS: Cell<usize> = const { Cell::new(0) };
+    /// The largest block this thread has asked for since [`reset_largest`] [bytes].
+    static LARGEST: Cell<usize> = const { Cell::new(0) };
 }
 
-fn bump() {
+fn bump(size: usize) {
     // `try_with`: no panic while thread-locals are being torn down.
     let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+    let _ = LARGEST.try_with(|c| c.set(c.get().max(size)));
+}
+
+/// The largest block (allocation or reallocation) this thread has asked for since the last
+/// [`reset_largest`] [bytes]: what a bound on the memory a call holds is checked against.
+pub fn largest_allocation() -> usize {
+    LARGEST.with(Cell::get)
+}
+
+/// Start [`largest_allocation`] again.
+pub fn reset_largest() {
+    LARGEST.with(|c| c.set(0));
 }
 
 /// Allocations (and reallocations) this thread has made so far.
@@ -42,14 +56,14 @@ pub fn allocations() -> usize {
 // SAFETY: forwards every call unchanged to `System`, only counting.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        bump();
+        bump(l.size());
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        bump();
+        bump(n);
         unsafe { System.realloc(p, l, n) }
     }
 }
