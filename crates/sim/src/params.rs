@@ -633,9 +633,11 @@ impl CellParams {
                 self.order
             )));
         }
-        if self.step_deg > 5.0 {
+        // Below 0.01° (a hundred times the thesis's step; the references run at 0.05°) a run
+        // is too long to wait for: 1e-9° would take 1e9 times 1°'s.
+        if !(0.01..=5.0).contains(&self.step_deg) {
             return Err(SimError::Invalid(format!(
-                "solver.step_deg = {}: at most 5° (the thesis uses 0.5–1°)",
+                "solver.step_deg = {}: expected 0.01–5° (the thesis uses 0.5–1°)",
                 self.step_deg
             )));
         }

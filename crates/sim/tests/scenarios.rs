@@ -389,3 +389,27 @@ fn torque_mode_keeps_to_its_speed_range() {
         assert!(e.contains("expected 0 < low < high"), "{bad}: {e}");
     }
 }
+
+/// The solver's step is held to 0.01–5°: a step of 1e-9° (a typo) would make a run last for
+/// ever, one of 6° would leave the valve events unresolved; the error names the range.
+#[test]
+fn the_solver_step_is_held_to_its_range() {
+    for (step, ok) in [
+        (1e-9, false),
+        (0.001, false),
+        (0.01, true),
+        (1.0, true),
+        (5.0, true),
+        (6.0, false),
+    ] {
+        let mut p = CellParams::default();
+        p.set("solver.step_deg", step).unwrap();
+        match p.validate() {
+            Ok(()) => assert!(ok, "{step}"),
+            Err(e) => {
+                assert!(!ok, "{step}: {e}");
+                assert!(e.to_string().contains("expected 0.01–5°"), "{e}");
+            }
+        }
+    }
+}
