@@ -190,6 +190,20 @@ fn twin_errors_name_the_problem() {
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && e.contains(want), "{args:?}: {e}");
     }
+    // Converted without --phase-from, the recording's θ = 0 is the first TDC marker's, here
+    // the gas-exchange TDC: refused by the cylinder pressure, with the conversion that fixes
+    // it (it failed later, as a crank angle that "fell behind").
+    let off = d.file("off.parquet");
+    let o = physid(&["convert", rec_s, off.to_str().unwrap(), "--crank-angle"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = physid(&["twin", "calibrate", "--data", off.to_str().unwrap()]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && e.contains("the recording's cycle is 360° off")
+            && e.contains("--phase-from p_cyl"),
+        "{e}"
+    );
     let crank = d.file("crank.parquet");
     let sim = physid(&[
         "simulate",

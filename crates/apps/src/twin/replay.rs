@@ -194,6 +194,42 @@ fn recorded(t: &[f64], v: &[f64], duration: f64) -> Profile {
     }
 }
 
+/// Refuse a recording whose cycle is 360° off (its θ = 0 at the gas-exchange TDC, not the
+/// firing one: what a conversion to the crank angle gives without `--phase-from` half the
+/// time), told by the cylinder pressure where it has one: the compression's peak, tens of
+/// bar, against the gas exchange's ambient, so the mean within ±30° of 360° is far above the
+/// mean within ±30° of 0° only when the phase is off. The replay starts at a firing TDC: on
+/// such a recording it would compare every sample with the cell a revolution away.
+fn firing_phase(rec: &Recording, theta: &[f64]) -> Result<(), AppError> {
+    let Ok(p) = rec.values("p_cyl") else {
+        return Ok(());
+    };
+    let (mut at_0, mut at_360) = ((0.0, 0usize), (0.0, 0usize));
+    for (&th, &pc) in theta.iter().zip(p) {
+        if !pc.is_finite() {
+            continue;
+        }
+        let deg = th.to_degrees().rem_euclid(720.0);
+        if !(30.0..690.0).contains(&deg) {
+            at_0 = (at_0.0 + pc, at_0.1 + 1);
+        } else if (330.0..390.0).contains(&deg) {
+            at_360 = (at_360.0 + pc, at_360.1 + 1);
+        }
+    }
+    if at_0.1 == 0 || at_360.1 == 0 {
+        return Ok(());
+    }
+    let (m0, m360) = (at_0.0 / at_0.1 as f64, at_360.0 / at_360.1 as f64);
+    if m360 > 2.0 * m0 {
+        return Err(AppError::Invalid(format!(
+            "the recording's cycle is 360° off: its cylinder pressure averages {:.0} kPa within ±30° of 360° and {:.0} kPa within ±30° of 0°, where the firing TDC should be — the twin replays from a firing TDC; convert the time-basis recording again with the phase taken from the pressure (physid convert IN OUT --crank-angle --phase-from p_cyl)",
+            m360 / 1e3,
+            m0 / 1e3
+        )));
+    }
+    Ok(())
+}
+
 /// The values of `name`, every one finite (else the sample named).
 fn finite<'a>(rec: &'a Recording, name: &str) -> Result<&'a [f64], AppError> {
     let v = rec.values(name)?;
@@ -323,6 +359,7 @@ impl Replay {
             (demand.iter().map(|w| w * 30.0 / PI).collect(), None)
         };
         let throttle = finite(rec, "throttle")?;
+        firing_phase(rec, theta)?;
         // Times from the recording's start (its grid starts at the first firing TDC).
         let t0 = t[0].min(0.0);
         let tr: Vec<f64> = t.iter().map(|x| x - t0).collect();
