@@ -228,6 +228,15 @@ fn settings_without_a_valid_value_or_a_use_are_refused_naming_the_key() {
     let p = Pipeline::parse(&fixed, base).unwrap();
     let e = error_of(&p);
     assert!(e.contains("model.fixed fixes every parameter (K)"), "{e}");
+    // An objective judged after the data's end is said to have nothing to judge (it was "not
+    // met, nrmse NaN %").
+    let late = format!("{model}[data]\nscenario = \"shaft-steady\"\nduration = 1.0\nrate_hz = 2000.0\n[estimator]\nmethod = \"rls\"\n[objective]\nafter_s = 100.0\n");
+    let p = Pipeline::parse(&late, base).unwrap();
+    let e = error_of(&p);
+    assert!(
+        e.contains("objective.after_s = 100 s: no prediction to judge after it — the data span 1"),
+        "{e}"
+    );
     // A recording that cannot fit is refused before the run.
     let huge = format!("{model}[data]\nscenario = \"shaft-steady\"\nduration = 1e308\n");
     let p = Pipeline::parse(&huge, base).unwrap();

@@ -555,7 +555,7 @@ fn run_with(
     // 3. The run, a chunk at a time; the objective on the one-step-ahead predictions after
     // the transient, summed as they come.
     let mut objective = metrics::Prediction::default();
-    let (mut offset, mut t0, mut after) = (0, None, false);
+    let (mut offset, mut t0, mut after, mut t_last) = (0, None, false, f64::NAN);
     rows.chunks(&mut |chunk: &Recording| -> Result<(), AppError> {
         let (cols, y) = rows.columns(chunk)?;
         let y = y.ok_or_else(|| AppError::Invalid("the output column is missing".into()))?;
@@ -564,6 +564,7 @@ fn run_with(
         let columns: Vec<&[f64]> = cols.iter().map(|c| c.as_ref()).collect();
         feed(est.as_mut(), &columns, &y, OnBad::Error, |i, step, est| {
             let ti = t.map_or((offset + i) as f64, |t| t[i]);
+            t_last = ti;
             let predicted = y[i] - step.prediction_error;
             after = after || ti - *t0.get_or_insert(ti) >= p.objective.after_s;
             if after {
@@ -604,6 +605,13 @@ fn run_with(
         .map(|&k| names[order[k]].clone())
         .collect();
     out.params = final_full;
+    if objective.is_empty() {
+        return Err(AppError::Invalid(format!(
+            "objective.after_s = {} s: no prediction to judge after it — the data span {} s",
+            p.objective.after_s,
+            t0.map_or(0.0, |t0| t_last - t0)
+        )));
+    }
     let value = p.objective.metric.of(&objective);
     out.objective.value_pct = value;
     out.objective.samples = objective.len();
