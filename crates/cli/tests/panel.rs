@@ -513,6 +513,18 @@ fn the_host_rule_refuses_dns_rebinding() {
         let _ = child.kill();
         let _ = child.wait();
     }
+    // A token file that never ends (a wrong path: /dev/zero) is refused at 64 KiB, not read
+    // until the memory is gone.
+    let o = Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args(["live", "--duration", "1", "--port", "0"])
+        .args(["--token-file", "/dev/zero"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.code() == Some(1) && e.contains("--token-file /dev/zero: longer than 65536 bytes"),
+        "{e}"
+    );
 }
 
 // ---- the real browser ----

@@ -42,6 +42,24 @@ pub fn check_fits(bytes: f64, what: &str) -> Result<(), TooLarge> {
     }
 }
 
+/// A small text file (a token, a layout) read whole, but never more than `max` bytes of it: a
+/// path to a large file by mistake, or to `/dev/zero`, is refused at `max` instead of read
+/// until the memory is gone.
+pub fn read_small(path: &std::path::Path, max: u64) -> std::io::Result<String> {
+    use std::io::Read;
+    let mut text = String::new();
+    std::fs::File::open(path)?
+        .take(max + 1)
+        .read_to_string(&mut text)?;
+    if text.len() as u64 > max {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("longer than {max} bytes: not the small text file expected"),
+        ));
+    }
+    Ok(text)
+}
+
 /// Space available to this user on the file system that holds `path` (an existing directory
 /// or file) [bytes], if known.
 pub fn disk_available(path: &std::path::Path) -> Option<u64> {
@@ -104,6 +122,24 @@ mod tests {
             .to_string()
             .contains("would not fit in any memory"));
         assert!(check_fits(f64::NAN, "x").is_err());
+    }
+
+    /// A small file is read whole; one past the bound (`/dev/zero`, which never ends) is
+    /// refused at it.
+    #[cfg(unix)]
+    #[test]
+    fn a_small_file_is_read_and_an_endless_one_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("token");
+        std::fs::write(&f, "secret-token\n").unwrap();
+        assert_eq!(read_small(&f, 64).unwrap(), "secret-token\n");
+        let e = read_small(&f, 5).unwrap_err().to_string();
+        assert_eq!(e, "longer than 5 bytes: not the small text file expected");
+        // /dev/zero's zeros are valid UTF-8 (NUL): refused by length, not by a decoding error.
+        let e = read_small(std::path::Path::new("/dev/zero"), 1 << 16)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("longer than 65536 bytes"), "{e}");
     }
 
     /// The free space of the current directory's file system is known (on Unix), a petabyte

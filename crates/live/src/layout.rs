@@ -42,7 +42,7 @@ impl Layout {
     /// Read and check a layout file (JSON).
     pub fn read(path: &std::path::Path) -> Result<Self, LiveError> {
         let p = path.display();
-        let text = std::fs::read_to_string(path)
+        let text = physid_core::memory::read_small(path, 1 << 20)
             .map_err(|e| LiveError::Invalid(format!("--layout {p}: {e}")))?;
         let layout: Layout = serde_json::from_str(&text).map_err(|e| {
             LiveError::Invalid(format!(

@@ -429,7 +429,7 @@ fn panel_access(a: &Args) -> Result<(SocketAddr, Access)> {
     }
     let token = match &a.token_file {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
+            let text = physid_core::memory::read_small(path, 64 << 10)
                 .map_err(|e| miette!("--token-file {}: {e}", path.display()))?;
             let t = text.lines().next().unwrap_or("").trim().to_string();
             if t.is_empty() {
