@@ -48,8 +48,13 @@ impl StreamInterp {
     /// Refuse asking for `count` more points when they, their answers (every channel) and the
     /// `extra` values kept for each would not fit in the memory available — a grid finer than
     /// the data by a factor of millions (a step of 1e-9°) — instead of growing until the
-    /// allocator aborts. `grid` says what the points are.
-    pub fn room_for(&self, count: f64, extra: usize, grid: &str) -> Result<(), CrankError> {
+    /// allocator aborts. `grid` says what the points are (called only for the error).
+    pub fn room_for(
+        &self,
+        count: f64,
+        extra: usize,
+        grid: impl FnOnce() -> String,
+    ) -> Result<(), CrankError> {
         let per_point = (self.tail[0].1.len() + 2 + extra) * std::mem::size_of::<f64>();
         let bytes = count * per_point as f64;
         // Below 64 MB a chunk's grid is not worth asking the machine about (every chunk of a
@@ -58,7 +63,8 @@ impl StreamInterp {
             return Ok(());
         }
         let what = format!(
-            "{count:.0} points of {grid} in the data from sample {} on",
+            "{count:.0} points of {} in the data from sample {} on",
+            grid(),
             self.seen
         );
         physid_core::memory::check_fits(bytes, &what)
@@ -272,11 +278,9 @@ impl CrankResampler {
                 let n = ((last - self.theta_tdc) / self.step).floor().max(-1.0);
                 // The angle's interpolator holds the points and their times, the channels'
                 // their times and values; the chunk out their θ, cycle and crank angle.
-                self.channels.room_for(
-                    n + 1.0 - *k as f64,
-                    4,
-                    &format!("the {}° crank-angle grid", self.step.to_degrees()),
-                )?;
+                self.channels.room_for(n + 1.0 - *k as f64, 4, || {
+                    format!("the {}° crank-angle grid", self.step.to_degrees())
+                })?;
                 let n = n as i64 + 1;
                 while *k < n {
                     self.angle.ask(self.theta_tdc + *k as f64 * self.step);
@@ -386,11 +390,9 @@ impl TimeResampler {
         if let (Some(t0), Some(&last)) = (self.t0, t.last()) {
             if last.is_finite() && t0.is_finite() {
                 let n = ((last - t0) * self.rate).floor();
-                self.channels.room_for(
-                    n + 1.0 - self.next as f64,
-                    0,
-                    &format!("the {} Hz time basis", self.rate),
-                )?;
+                self.channels.room_for(n + 1.0 - self.next as f64, 0, || {
+                    format!("the {} Hz time basis", self.rate)
+                })?;
                 let n = n as i64 + 1;
                 while self.next < n {
                     self.channels.ask(t0 + self.next as f64 / self.rate);

@@ -484,9 +484,9 @@ paths! {
 }
 
 impl CellParams {
-    /// Set `path` to `value` only if the parameters stay within their ranges ([`validate`]
-    /// (Self::validate)); else they are unchanged and the error names the range. How a value
-    /// arriving during a run (a fault, a twin's estimate) is taken.
+    /// Set `path` to `value` only if the parameters stay within their ranges
+    /// ([`validate`](Self::validate)); else they are unchanged and the error names the range.
+    /// How a value arriving during a run (a fault, a twin's estimate) is taken.
     pub fn set_checked(&mut self, path: &str, value: f64) -> Result<(), SimError> {
         let mut p = self.clone();
         p.set(path, value)?;
@@ -633,8 +633,8 @@ impl CellParams {
                 self.order
             )));
         }
-        // Below 0.01° (a hundred times the thesis's step; the references run at 0.05°) a run
-        // is too long to wait for: 1e-9° would take 1e9 times 1°'s.
+        // Below 0.01° (a hundred times finer than the thesis's 1°; the references run at 0.05°)
+        // a run is too long to wait for: 1e-9° would take 1e9 times as long as 1°.
         if !(0.01..=5.0).contains(&self.step_deg) {
             return Err(SimError::Invalid(format!(
                 "solver.step_deg = {}: expected 0.01–5° (the thesis uses 0.5–1°)",

@@ -45,7 +45,7 @@ pub const STRUCTURAL_CUT: f64 = 1e-10;
 
 /// The longest candidate test [s]: an hour, six times the thesis's longest test (its 10-minute
 /// transient). Each candidate's regressors are held while it is judged, one worker's at a
-/// time on each core; BENCHMARKS.md gives the memory this takes.
+/// time on each core; docs/design.md gives the memory this takes.
 pub const MAX_DURATION_S: f64 = 3600.0;
 
 /// What to design for.
