@@ -11,7 +11,9 @@
 //!
 //! A sample whose angle does not advance (an engine at rest) adds nothing; the partial cycle
 //! before the first boundary is not reported, and the first cycle that starts in the stream is
-//! cycle 0.
+//! cycle 0. A sample whose angle lies more than a cycle past the previous one's is an error
+//! naming it ([`MAX_ADVANCE`]): no cycle can be summed up across it, and an angle of 10⁹ rad
+//! written by a bad sensor or a bad frame would otherwise close 10⁸ empty cycles.
 
 use crate::crank::CrankError;
 use std::f64::consts::PI;
@@ -218,7 +220,8 @@ impl CycleStream {
 
     /// Take a chunk: `t` [s], the continuous crank angle `theta` [rad], and the channels
     /// (`x[j]` as long as `t`); each cycle completed is pushed onto `out`. A value that is not
-    /// finite is an error naming its sample (counted from the stream's start).
+    /// finite, or an angle more than [`MAX_ADVANCE`] past the previous sample's, is an error
+    /// naming its sample (counted from the stream's start); the samples before it are taken.
     pub fn push(
         &mut self,
         t: &[f64],
@@ -243,7 +246,7 @@ impl CycleStream {
         if !self.stats {
             while let Some((th0, _)) = self.prev.filter(|_| from < n) {
                 let block = from..(from + CHECK_BLOCK).min(n);
-                if !(increasing(th0, &theta[block.clone()])
+                if !(advancing(th0, &theta[block.clone()])
                     && finite(&t[block.clone()])
                     && finite(&theta[block.clone()])
                     && x.iter().all(|c| finite(&c[block.clone()])))
@@ -269,6 +272,16 @@ impl CycleStream {
             }
             if let Some(j) = x.iter().position(|c| !c[i].is_finite()) {
                 return Err(bad(&format!("channel {j}"), x[j][i]));
+            }
+            if let Some((th0, _)) = self.prev.filter(|&(th0, _)| theta[i] - th0 > MAX_ADVANCE) {
+                return Err(CrankError::Invalid(format!(
+                    "the crank angle advances by {:.4e} rad ({:.4e} cycles) at sample {index}, \
+                     from {th0:.6e} to {:.6e} rad: expected at most a cycle (4π rad) between \
+                     two samples — a gap in the data or an angle that is not the crank's",
+                    theta[i] - th0,
+                    (theta[i] - th0) / (4.0 * PI),
+                    theta[i]
+                )));
             }
             self.sample(t[i], theta[i], |j| x[j][i], out);
         }
@@ -516,14 +529,18 @@ fn fraction(g: f64, th0: f64, th1: f64) -> f64 {
     (g - th0) / (th1 - th0)
 }
 
-/// Whether the angles increase strictly from `th0` on (a NaN fails; one pass over the pairs,
-/// which the compiler vectorises).
-fn increasing(th0: f64, theta: &[f64]) -> bool {
+/// The largest advance of the crank angle between two samples [rad]: a cycle.
+pub const MAX_ADVANCE: f64 = 4.0 * PI;
+
+/// Whether the angles increase from `th0`, each by at most [`MAX_ADVANCE`] (one pass, no
+/// early exit).
+fn advancing(th0: f64, theta: &[f64]) -> bool {
     let Some((&first, rest)) = theta.split_first() else {
         return true;
     };
     let pairs = theta[..rest.len()].iter().zip(rest);
-    (first > th0) & pairs.fold(true, |ok, (a, b)| ok & (b > a))
+    let step = |a: f64, b: f64| (b > a) & (b - a <= MAX_ADVANCE);
+    step(th0, first) & pairs.fold(true, |ok, (&a, &b)| ok & step(a, b))
 }
 
 /// Whether every value is finite (one pass, which the compiler vectorises: no early exit).

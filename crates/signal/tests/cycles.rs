@@ -268,3 +268,50 @@ fn times_at_grid_points_are_the_times_curve() {
     let s = CycleStream::new(1, 0.0, Some(1.0)).unwrap();
     assert!(s.with_times_at(&[720]).is_err());
 }
+
+/// A crank angle that jumps by more than a cycle between two samples (a bad sensor's 10⁹ rad,
+/// a frame's 9.2·10¹⁸) is an error naming the sample, on the path with statistics and on the
+/// curves alone, whatever the chunking — not 10⁸ empty cycles closed, each with its curves,
+/// until the memory runs out. The cycles before it are reported; a jump of just under a cycle
+/// (a gap of 700°) is taken.
+#[test]
+fn an_angle_that_jumps_more_than_a_cycle_is_refused_naming_its_sample() {
+    let (t, th) = engine();
+    let x: Vec<f64> = th.iter().map(|&a| a.cos()).collect();
+    for jump in [1e9, 9.2e18, 4.0 * PI + 0.01] {
+        let mut bad = th[..3000].to_vec();
+        bad[2500] += jump;
+        for curves_only in [false, true] {
+            for chunk in [1, 64, 3000] {
+                let mut s = CycleStream::new(1, 0.0, Some(1.0)).unwrap();
+                if curves_only {
+                    s = s.curves_only();
+                }
+                let mut out = Vec::new();
+                let mut err = None;
+                for i in (0..3000).step_by(chunk) {
+                    let e = (i + chunk).min(3000);
+                    if let Err(m) = s.push(&t[i..e], &bad[i..e], &[&x[i..e]], &mut out) {
+                        err = Some(m.to_string());
+                        break;
+                    }
+                }
+                let err = err.unwrap_or_else(|| panic!("jump {jump} taken"));
+                assert!(
+                    err.contains("sample 2500") && err.contains("at most a cycle"),
+                    "{err}"
+                );
+                let before = t[2499] * 1000.0 * PI / 30.0 / (4.0 * PI);
+                assert!(out.len() + 2 >= before as usize, "{} cycles", out.len());
+            }
+        }
+    }
+    // 700° of angle lost between two samples: taken.
+    let mut gap = th[..3000].to_vec();
+    for a in &mut gap[2500..] {
+        *a += 700f64.to_radians();
+    }
+    let mut s = CycleStream::new(1, 0.0, Some(1.0)).unwrap();
+    s.push(&t[..3000], &gap, &[&x[..3000]], &mut Vec::new())
+        .unwrap();
+}
