@@ -1302,6 +1302,73 @@ fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
     assert!(of_type(&ev, "cycle").len() >= 2, "cycles before the NaN");
 }
 
+/// A crank angle that jumps by 10⁹ rad for 50 samples of a replayed file, half a second in (a bad sensor or a
+/// bad frame; 9.2·10¹⁸ from a frame did the same) stops the stages that count cycles — cycles,
+/// friction, torque, combustion — each with a finding naming the sample; the run goes on to the
+/// end. It used to close 10⁸ empty cycles until the allocator aborted the service; the run is
+/// held to 4 GiB of address space here, so that a return of it fails fast.
+#[test]
+fn an_angle_that_jumps_stops_the_cycle_stages_not_the_run() {
+    let s = Scratch::new("physid-live-jump");
+    let file = s.file("run.csv");
+    let f = file.to_str().unwrap();
+    common::simulated(&file, "torque-steady", "1");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let col = lines[0].split(',').position(|c| c == "theta_en").unwrap();
+    // Samples 5000–5049 (the header and the units row come first).
+    for line in &mut lines[5002..5052] {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        cells[col] = "1e9".into();
+        *line = cells.join(",");
+    }
+    std::fs::write(&file, lines.join("\n") + "\n").unwrap();
+    let args = [
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        f,
+        "--pace",
+        "max",
+        "--torque",
+        "--combustion",
+        "--friction",
+        "cell",
+    ];
+    let r = physid_testkit::fuzz::run_within(
+        std::path::Path::new(env!("CARGO_BIN_EXE_physid")),
+        &args,
+        std::time::Duration::from_secs(120),
+        Some(4),
+    );
+    assert!(
+        matches!(r.outcome, physid_testkit::fuzz::Outcome::Done),
+        "{:?}: {}",
+        r.outcome,
+        String::from_utf8_lossy(&r.stderr)
+    );
+    let ev: Vec<Value> = String::from_utf8(r.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let findings = of_type(&ev, "finding");
+    for stage in ["cycles", "friction", "torque", "combustion"] {
+        assert!(
+            findings
+                .iter()
+                .any(|e| says(e, &format!("{stage}: the crank angle advances"))
+                    && says(e, "at sample 5000")
+                    && says(e, "at most a cycle")),
+            "{stage}: {findings:?}"
+        );
+    }
+    let end = of_type(&ev, "end")[0];
+    assert_eq!(end["samples"], 10001, "{end}");
+    assert!(of_type(&ev, "cycle").len() >= 2, "cycles before the jump");
+}
+
 /// `--combustion` on a replayed recording is `physid cycles` on the file: the virtual cell's
 /// motored engine for 2 s on a crank-angle basis (its cycles as the cell knows them), replayed
 /// in chunks of two sizes; each cycle's figures in a `combustion` event are the file verb's
