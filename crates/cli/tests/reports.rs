@@ -298,4 +298,20 @@ fn the_combustion_report_draws_the_mean_and_a_chosen_cycle() {
         e.contains("--report-cycle 999: no such complete cycle"),
         "{e}"
     );
+    // Without the geometry there is no heat release: the report draws the pressure alone
+    // (it used to panic slicing the empty heat release).
+    let bare = s.file("bare");
+    let o = physid(&[
+        "cycles",
+        rec.to_str().unwrap(),
+        "--out",
+        bare.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(bare.join("report.html")).unwrap();
+    assert!(html.contains("mean of"), "the mean cycle is drawn");
+    assert!(
+        !html.contains("mass fraction burned"),
+        "no heat release drawn"
+    );
 }

@@ -113,6 +113,10 @@ fn curves(rep: &mut Report, c: &CycleCurves, unit: &str, dir: &Path) -> Result<(
     let rate_and_fraction = |q: &[f64]| -> (Vec<f64>, Vec<f64>) {
         let a = &c.heat_deg;
         let n = q.len().min(a.len());
+        if n == 0 {
+            // No heat release (no geometry given): nothing to draw.
+            return (Vec::new(), Vec::new());
+        }
         let rate = (0..n)
             .map(|k| {
                 let (i, j) = (k.saturating_sub(1), (k + 1).min(n - 1));
@@ -189,17 +193,15 @@ fn curves(rep: &mut Report, c: &CycleCurves, unit: &str, dir: &Path) -> Result<(
             .push(Mark::value(format!("{:.0} %", v * 100.0), v, PALETTE[4]));
     }
     let mut panels = vec![pressure];
-    if !rate.series.is_empty() {
+    let title = if rate.series.is_empty() {
+        "Pressure (no heat release without the engine's geometry)"
+    } else {
         panels.extend([rate, burned]);
-    }
+        "Pressure, heat release rate and mass fraction burned"
+    };
     rep.section("The mean cycle and a chosen one");
     let svg = dir.join("cycles_crank_angle.svg");
-    plot::panels(
-        &svg,
-        "Pressure, heat release rate and mass fraction burned",
-        "crank angle [deg ATDC]",
-        &panels,
-    )?;
+    plot::panels(&svg, title, "crank angle [deg ATDC]", &panels)?;
     rep.svg(&svg)?;
     if c.volume.len() == c.atdc.len() {
         let v_cm3: Vec<f64> = c.volume.iter().map(|v| v * 1e6).collect();
