@@ -112,6 +112,21 @@ fn design_errors_name_the_problem() {
         (vec!["--app", "torque"], "needs --params"),
         (vec!["--band", "2:1"], "expected LOW:HIGH in Hz"),
         (
+            vec!["--sample-rate", "1e300"],
+            "recording rate 1e300 Hz: expected > 0 and at most 1.08e6 Hz",
+        ),
+        (
+            vec![
+                "--app",
+                "friction",
+                "--params",
+                "c4",
+                "--sample-rate",
+                "2e6",
+            ],
+            "recording rate 2e6 Hz",
+        ),
+        (
             vec!["--limits", "dtorque=0"],
             "dtorque 0: expected > 0 N·m/s",
         ),

@@ -118,7 +118,7 @@ impl CycleStream {
         let points = 720.0 / step_deg;
         if !(step_deg > 0.0 && points >= 2.0 && (points - points.round()).abs() < 1e-9) {
             return Err(CrankError::Invalid(format!(
-                "curve step {step_deg}°: expected a divisor of 720° giving at least 2 points"
+                "curve step {step_deg:?}°: expected a divisor of 720° giving at least 2 points"
             )));
         }
         let points = points.round() as usize;

@@ -69,12 +69,7 @@ impl FrictionDesign {
     /// Refuse what the design does not describe.
     pub fn check(&self, coefficients: &[String]) -> Result<(), AppError> {
         check_estimate(coefficients, &self.nominal())?;
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(AppError::Invalid(format!(
-                "recording rate {} Hz: expected > 0",
-                self.rate_hz
-            )));
-        }
+        super::check_rate(self.rate_hz)?;
         if !(self.fit.s0.is_finite() && self.fit.s0 > 0.0) {
             return Err(AppError::Invalid(format!(
                 "S0 scale {}: expected > 0",

@@ -48,6 +48,22 @@ pub const STRUCTURAL_CUT: f64 = 1e-10;
 /// time on each core; docs/design.md gives the memory this takes.
 pub const MAX_DURATION_S: f64 = 3600.0;
 
+/// The highest sample rate a design's recordings are simulated at [Hz]: ten times the thesis's
+/// 108 kHz.
+pub const MAX_RATE_HZ: f64 = 1.08e6;
+
+/// A design's recording rate: 0 < rate ≤ [`MAX_RATE_HZ`].
+pub(crate) fn check_rate(rate_hz: f64) -> Result<(), AppError> {
+    if rate_hz.is_finite() && rate_hz > 0.0 && rate_hz <= MAX_RATE_HZ {
+        Ok(())
+    } else {
+        Err(AppError::Invalid(format!(
+            "recording rate {rate_hz:e} Hz: expected > 0 and at most {MAX_RATE_HZ:e} Hz (ten \
+             times the thesis's 108 kHz)"
+        )))
+    }
+}
+
 /// What to design for.
 #[derive(Debug, Clone)]
 pub struct Design {

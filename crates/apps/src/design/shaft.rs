@@ -41,12 +41,7 @@ impl ShaftDesign {
                 "design: the excitation supervisor freezes parameters the data stop resolving, which a design is made to avoid; design without --supervise".into(),
             ));
         }
-        if !(self.rate_hz.is_finite() && self.rate_hz > 0.0) {
-            return Err(AppError::Invalid(format!(
-                "recording rate {} Hz: expected > 0",
-                self.rate_hz
-            )));
-        }
+        super::check_rate(self.rate_hz)?;
         Ok(())
     }
 

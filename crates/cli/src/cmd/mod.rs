@@ -279,7 +279,7 @@ pub mod range {
         if v > 0.0 {
             Ok(v)
         } else {
-            Err(format!("expected a number > 0, got {v}"))
+            Err(format!("expected a number > 0, got {}", s.trim()))
         }
     }
 
@@ -289,7 +289,7 @@ pub mod range {
         if v >= 0.0 {
             Ok(v)
         } else {
-            Err(format!("expected a number ≥ 0, got {v}"))
+            Err(format!("expected a number ≥ 0, got {}", s.trim()))
         }
     }
 
@@ -299,7 +299,10 @@ pub mod range {
         if v > 0.0 && v <= 1.0 {
             Ok(v)
         } else {
-            Err(format!("a forgetting factor is in (0, 1], got {v}"))
+            Err(format!(
+                "a forgetting factor is in (0, 1], got {}",
+                s.trim()
+            ))
         }
     }
 
@@ -309,7 +312,10 @@ pub mod range {
         if v > 0.0 && v <= 20_000.0 {
             Ok(v)
         } else {
-            Err(format!("an engine speed in rpm is in (0, 20000], got {v}"))
+            Err(format!(
+                "an engine speed in rpm is in (0, 20000], got {}",
+                s.trim()
+            ))
         }
     }
 
@@ -324,7 +330,10 @@ pub mod range {
                 v / 1e3
             ))
         } else {
-            Err(format!("a pressure in kPa is in (0, 500], got {v}"))
+            Err(format!(
+                "a pressure in kPa is in (0, 500], got {}",
+                s.trim()
+            ))
         }
     }
 
@@ -339,7 +348,10 @@ pub mod range {
                 v - 273.15
             ))
         } else {
-            Err(format!("a temperature in °C is in [−50, 250], got {v}"))
+            Err(format!(
+                "a temperature in °C is in [−50, 250], got {}",
+                s.trim()
+            ))
         }
     }
 }
