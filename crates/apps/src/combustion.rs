@@ -135,7 +135,7 @@ impl HeatRelease {
         let (lo, hi) = self.window;
         if !(self.gamma > 1.0 && self.gamma < 2.0) {
             return Err(AppError::Invalid(format!(
-                "heat release: γ = {}: expected a ratio of specific heats between 1 and 2 (1.35 for a single-zone analysis)",
+                "heat release: γ = {:?}: expected a ratio of specific heats between 1 and 2 (1.35 for a single-zone analysis)",
                 self.gamma
             )));
         }
@@ -174,13 +174,13 @@ impl HeatRelease {
         if let BurnMethod::RassweilerWithrow { exponent: Some(n) } = self.method {
             if !(n > 1.0 && n < 2.0) {
                 return Err(AppError::Invalid(format!(
-                    "--rw-exponent {n}: expected a polytropic exponent between 1 and 2 (1.3 ± 0.05 is usual; without it the cycle's compression exponent)"
+                    "--rw-exponent {n:?}: expected a polytropic exponent between 1 and 2 (1.3 ± 0.05 is usual; without it the cycle's compression exponent)"
                 )));
             }
         }
         if let Some(bad) = self.mfb.iter().find(|k| !(**k > 0.0 && **k < 100.0)) {
             return Err(AppError::Invalid(format!(
-                "--mfb {bad}: expected burn fractions in per cent, between 0 and 100 (e.g. 5,10,50,90,95)"
+                "--mfb {bad:?}: expected burn fractions in per cent, between 0 and 100 (e.g. 5,10,50,90,95)"
             )));
         }
         Ok(())

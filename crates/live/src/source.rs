@@ -71,7 +71,7 @@ impl ScenarioSource {
         let chunk_bytes = 2.0 * chunk_s * run.size_bytes() / run.duration();
         physid_core::memory::check_fits(
             chunk_bytes,
-            &format!("a chunk of {chunk_s} s at {rate_hz} Hz"),
+            &format!("a chunk of {chunk_s:?} s at {rate_hz:?} Hz"),
         )
         .map_err(|e| {
             LiveError::Invalid(format!("{e}: a lower --sample-rate or a shorter --chunk"))
@@ -445,7 +445,7 @@ mod tests {
                 .unwrap()
                 .to_string();
             assert!(
-                e.starts_with("a chunk of 0.01 s at 1000000000000 Hz would take about")
+                e.starts_with("a chunk of 0.01 s at 1000000000000.0 Hz would take about")
                     && e.ends_with("a lower --sample-rate or a shorter --chunk"),
                 "{e}"
             );

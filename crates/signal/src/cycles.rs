@@ -116,9 +116,14 @@ impl CycleStream {
         }
         let step_deg = curve_step_deg.unwrap_or(1.0);
         let points = 720.0 / step_deg;
-        if !(step_deg > 0.0 && points >= 2.0 && (points - points.round()).abs() < 1e-9) {
+        if !(step_deg >= MIN_CURVE_STEP_DEG
+            && points >= 2.0
+            && (points - points.round()).abs() < 1e-9)
+        {
             return Err(CrankError::Invalid(format!(
-                "curve step {step_deg:?}°: expected a divisor of 720° giving at least 2 points"
+                "curve step {step_deg:?}°: expected a divisor of 720° giving at least 2 points, \
+                 at least {MIN_CURVE_STEP_DEG}° (a cycle's curves are held while it is in \
+                 progress: 72 000 points per channel at the finest)"
             )));
         }
         let points = points.round() as usize;
@@ -528,6 +533,10 @@ const CHECK_BLOCK: usize = 2048;
 fn fraction(g: f64, th0: f64, th1: f64) -> f64 {
     (g - th0) / (th1 - th0)
 }
+
+/// The finest curve step [deg]: a hundredth of a degree, finer than any indicating system
+/// resolves (0.1° is usual). A step of 10⁻⁹° asked for 5.8 TB for one cycle's curve.
+pub const MIN_CURVE_STEP_DEG: f64 = 0.01;
 
 /// The largest advance of the crank angle between two samples [rad]: a cycle.
 pub const MAX_ADVANCE: f64 = 4.0 * PI;

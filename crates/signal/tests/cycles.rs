@@ -183,6 +183,15 @@ fn rest_partial_cycles_and_nan() {
         .unwrap_err();
     assert!(e.to_string().contains("sample 70"), "{e}");
     assert!(CycleStream::new(1, 0.0, Some(7.0)).is_err());
+    // Finer than a hundredth of a degree: refused, not 5.8 TB asked for one cycle's curve.
+    assert!(CycleStream::new(1, 0.0, Some(0.01)).is_ok());
+    let e = CycleStream::new(1, 0.0, Some(1e-9))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("curve step 1e-9°") && e.contains("at least 0.01°"),
+        "{e}"
+    );
 }
 
 /// The curves alone (`curves_only`, its inline path for finite chunks) are the full stream's
