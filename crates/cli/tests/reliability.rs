@@ -66,7 +66,7 @@ fn runs_that_cannot_fit_are_refused_before_they_start() {
 /// Numbers a typo makes huge do not take the machine's memory (each used to end in the
 /// allocator's abort or the kernel's OOM kill): a resampling grid whose points cannot fit is
 /// refused naming them; a dwell of 10¹² samples is only a long dwell; a design of 10⁹ seconds
-/// is refused by its range.
+/// is refused by its range; so is a live curve step of 10⁻⁹°.
 #[test]
 fn a_typo_of_an_exponent_does_not_take_the_memory() {
     let s = Scratch::new("physid-rel");
@@ -105,6 +105,23 @@ fn a_typo_of_an_exponent_does_not_take_the_memory() {
     fails_with(
         &["design", "--duration", "1e9"],
         "duration 1000000000 s: expected 1–3600 s",
+    );
+    // The live combustion stage's curve of 7·10¹¹ points per cycle (5.8 TB): refused at the
+    // start, not the allocator's abort of the service.
+    fails_with(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            rec,
+            "--pace",
+            "max",
+            "--combustion",
+            "--step-deg",
+            "1e-9",
+        ],
+        "curve step 1e-9°: expected a divisor of 720° giving at least 2 points, at least 0.01°",
     );
 }
 
