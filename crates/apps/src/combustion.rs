@@ -87,7 +87,7 @@ impl BurnMethod {
         match (name, exponent) {
             ("heat", None) => Ok(Self::HeatRelease),
             ("heat", Some(n)) => Err(AppError::Invalid(format!(
-                "--rw-exponent {n} is Rassweiler–Withrow's: give it with --mfb-method rw"
+                "--rw-exponent {n:?} is Rassweiler–Withrow's: give it with --mfb-method rw"
             ))),
             ("rw", exponent) => Ok(Self::RassweilerWithrow { exponent }),
             (other, _) => Err(AppError::Invalid(format!(

@@ -67,7 +67,7 @@ impl Geometry {
             Ok(())
         } else {
             Err(AppError::Invalid(format!(
-                "geometry: bore {} m, stroke {} m, rod {} m, compression ratio {}: expected lengths > 0 in metres, a rod longer than half the stroke, a ratio > 1",
+                "geometry: bore {:?} m, stroke {:?} m, rod {:?} m, compression ratio {:?}: expected lengths > 0 in metres, a rod longer than half the stroke, a ratio > 1",
                 self.bore, self.stroke, self.rod, self.compression_ratio
             )))
         }

@@ -324,6 +324,11 @@ fn on_engine_angle(c: &Recording) -> Result<Recording, AppError> {
     Ok(out)
 }
 
+/// The slowest pace: a thousandth of real time (a second of the cell in 17 minutes).
+pub const MIN_PACE: f64 = 1e-3;
+/// The fastest pace as a factor (beyond it, `max`).
+pub const MAX_PACE: f64 = 1e6;
+
 /// How fast a source runs against the wall clock.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Pace {
@@ -340,9 +345,9 @@ impl std::str::FromStr for Pace {
             return Ok(Pace::Max);
         }
         match s.parse::<f64>() {
-            Ok(f) if f.is_finite() && f > 0.0 => Ok(Pace::Factor(f)),
+            Ok(f) if (MIN_PACE..=MAX_PACE).contains(&f) => Ok(Pace::Factor(f)),
             _ => Err(format!(
-                "'{s}': expected max or a factor > 0 (1 = real time)"
+                "'{s}': expected max or a factor from {MIN_PACE} to {MAX_PACE:e} (1 = real time)"
             )),
         }
     }
@@ -386,7 +391,8 @@ impl Pacer {
             return None;
         };
         let (wall0, t0) = *self.start.get_or_insert((Instant::now(), t_s));
-        let due = Duration::from_secs_f64(((t_s - t0) / f).max(0.0));
+        // Saturated: a time of 10³⁰⁰ s (a replayed file's bad clock) is never due, not a panic.
+        let due = Duration::try_from_secs_f64(((t_s - t0) / f).max(0.0)).unwrap_or(Duration::MAX);
         due.checked_sub(wall0.elapsed())
     }
 
@@ -417,6 +423,20 @@ mod tests {
         assert_eq!("max".parse::<Pace>(), Ok(Pace::Max));
         assert_eq!("10".parse::<Pace>(), Ok(Pace::Factor(10.0)));
         assert!("0".parse::<Pace>().is_err() && "fast".parse::<Pace>().is_err());
+        // 1e-300 panicked converting a chunk's due time into a Duration.
+        for bad in ["1e-300", "1e-4", "1e7", "inf", "nan"] {
+            let e = bad.parse::<Pace>().unwrap_err();
+            assert!(e.contains("a factor from 0.001 to 1e6"), "{bad}: {e}");
+        }
+        assert_eq!("0.001".parse::<Pace>(), Ok(Pace::Factor(1e-3)));
+        // A due time past what a Duration holds is never due (not a panic).
+        let mut p = Pacer::new(Pace::Factor(1e-3));
+        assert_eq!(p.left_until(0.0), None);
+        let far = p.left_until(1e300);
+        assert!(
+            far.is_some_and(|d| d > Duration::from_secs(1 << 60)),
+            "{far:?}"
+        );
     }
 
     /// The virtual cell's chunk holds a sample at least (a chunk of 1e-12 s handed on empty

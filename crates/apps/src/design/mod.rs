@@ -48,6 +48,10 @@ pub const STRUCTURAL_CUT: f64 = 1e-10;
 /// time on each core; docs/design.md gives the memory this takes.
 pub const MAX_DURATION_S: f64 = 3600.0;
 
+/// The most candidate profiles a design judges: 200 take about 40 s on this 2-core machine, so
+/// 100 000 take most of a day; more is a typo.
+pub const MAX_CANDIDATES: usize = 100_000;
+
 /// The highest sample rate a design's recordings are simulated at [Hz]: ten times the thesis's
 /// 108 kHz.
 pub const MAX_RATE_HZ: f64 = 1.08e6;
@@ -261,8 +265,11 @@ impl Design {
                 "design: multisine band {lo}:{hi} Hz: expected 0 < low ≤ high"
             )));
         }
-        if self.candidates == 0 {
-            return Err(AppError::Invalid("design: --candidates 0".into()));
+        if !(1..=MAX_CANDIDATES).contains(&self.candidates) {
+            return Err(AppError::Invalid(format!(
+                "design: --candidates {}: expected 1–{MAX_CANDIDATES} (200 take about 40 s here)",
+                self.candidates
+            )));
         }
         if self.criterion == Criterion::Time && self.target_rel_se.is_none() {
             return Err(AppError::Invalid(

@@ -244,7 +244,11 @@ pub fn run_load(
                             seen.first_ms = seen.first_ms.max(1e3 * (now - start).as_secs_f64());
                         }
                         if t >= SETTLE_S {
-                            let due = start + Duration::from_secs_f64(t);
+                            // An event's time from the server: saturated, never a panic.
+                            let due = Duration::try_from_secs_f64(t)
+                                .ok()
+                                .and_then(|d| start.checked_add(d))
+                                .unwrap_or(start);
                             seen.latency
                                 .add(now.saturating_duration_since(due).as_secs_f64());
                         }
