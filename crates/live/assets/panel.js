@@ -586,7 +586,9 @@
     log(e) {
       st.last.log = e;
       const mb = (e.bytes / 1048576).toFixed(2);
-      $("log-status").textContent = `${e.state === "recording" ? "recording" : "closed"}: ${e.file} — ${e.samples} samples, ${mb} MB`;
+      $("log-status").textContent = e.state === "empty"
+        ? `not written: ${e.file} — no sample came before the stop`
+        : `${e.state === "recording" ? "recording" : "closed"}: ${e.file} — ${e.samples} samples, ${mb} MB`;
     },
     status(e) { $("clients").textContent = String(e.clients); $("lagged").textContent = `${st.lost} / ${e.lagged}`; },
     lagged(e) { st.lost += e.dropped; $("lagged").textContent = String(st.lost); log(`this page fell behind: ${e.dropped} events lost`, "error"); },

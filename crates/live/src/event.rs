@@ -51,6 +51,9 @@ pub enum LogState {
     Recording,
     /// Closed (readable in full).
     Closed,
+    /// Stopped before any sample came: no file kept (the name claimed at the start is freed —
+    /// an empty file would be readable by no reader).
+    Empty,
 }
 
 /// An event.

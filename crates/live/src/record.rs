@@ -115,31 +115,114 @@ impl Recorder {
         }))
     }
 
-    /// Finish the log, if one is open: its last `log` event.
+    /// Finish the log, if one is open: its last `log` event. A log that no chunk reached is
+    /// not kept: its claimed, empty file is removed ([`LogState::Empty`]).
     pub fn stop(&mut self, t_s: f64) -> Result<Option<Event>, LiveError> {
         let Some((path, writer)) = self.file.take() else {
             return Ok(None);
         };
-        let samples = writer.as_ref().map_or(0, ChunkWriter::rows);
-        if let Some(w) = writer {
-            w.close()?;
-        }
+        let (samples, state) = match writer {
+            Some(w) => {
+                let rows = w.rows();
+                w.close()?;
+                (rows, LogState::Closed)
+            }
+            None => {
+                free_claim(&path);
+                (0, LogState::Empty)
+            }
+        };
         let bytes = std::fs::metadata(&path).map_or(0, |m| m.len() as usize);
         Ok(Some(Event::Log {
             t_s,
             file: path.display().to_string(),
             samples,
             bytes,
-            state: LogState::Closed,
+            state,
         }))
     }
 }
 
+/// Remove the empty file [`Recorder::start`] created to claim a log's name — only while it is
+/// still empty (nothing else's file is removed).
+fn free_claim(path: &Path) {
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.len() == 0) {
+        let _ = std::fs::remove_file(path);
+    }
+}
+
 impl Drop for Recorder {
-    /// A run that ends on an error (or a panic) still closes its log.
+    /// A run that ends on an error (or a panic) still closes its log (and frees a name no chunk
+    /// reached).
     fn drop(&mut self) {
-        if let Some((_, Some(w))) = self.file.take() {
-            let _ = w.close();
+        match self.file.take() {
+            Some((_, Some(w))) => {
+                let _ = w.close();
+            }
+            Some((path, None)) => free_claim(&path),
+            None => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use physid_core::{Basis, Channel};
+
+    fn chunk() -> Recording {
+        let mut r = Recording::new(Basis::Time);
+        for (name, unit, v) in [("t", "s", [0.0, 0.1]), ("throttle", "deg", [10.0, 11.0])] {
+            r.push(Channel {
+                name: name.into(),
+                unit: unit.into(),
+                values: v.to_vec(),
+            })
+            .unwrap();
+        }
+        r
+    }
+
+    /// A log stopped before any chunk came (a record and a stop in the same breath, or a
+    /// paused run) leaves no file: it used to leave an empty one that no reader could open
+    /// ("the extension says Parquet but the file is text"); the name is free again. A log
+    /// that got a chunk is closed and readable; an existing file is never touched.
+    #[test]
+    fn a_log_no_sample_reached_leaves_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["a.parquet", "b.mf4"] {
+            let mut r = Recorder::new(dir.path());
+            let path = r.start(name).unwrap();
+            assert!(path.exists(), "the name is claimed at the start");
+            match r.stop(1.0).unwrap() {
+                Some(Event::Log { samples, state, .. }) => {
+                    assert_eq!((samples, state), (0, LogState::Empty));
+                }
+                e => panic!("{e:?}"),
+            }
+            assert!(!path.exists(), "{name}: no empty file left");
+            // Dropped (a run ending on an error) before any chunk: the same.
+            let mut r = Recorder::new(dir.path());
+            r.start(name).unwrap();
+            drop(r);
+            assert!(!path.exists(), "{name}: no empty file left on drop");
+            // With a chunk: closed and readable.
+            let mut r = Recorder::new(dir.path());
+            r.start(name).unwrap();
+            r.push(&chunk(), 0.1).unwrap();
+            match r.stop(0.1).unwrap() {
+                Some(Event::Log { samples, state, .. }) => {
+                    assert_eq!((samples, state), (2, LogState::Closed));
+                }
+                e => panic!("{e:?}"),
+            }
+            let back = physid_io::read(&path, &Default::default()).unwrap();
+            assert_eq!(back.values("throttle").unwrap(), &[10.0, 11.0]);
+            // Its name is taken now: refused, the file untouched.
+            let mut r = Recorder::new(dir.path());
+            assert!(r.start(name).unwrap_err().contains("File exists"));
+            drop(r);
+            assert!(physid_io::read(&path, &Default::default()).is_ok());
         }
     }
 }
