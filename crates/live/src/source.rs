@@ -58,7 +58,7 @@ impl ScenarioSource {
         // second at 1e-12 s).
         if !(chunk_s.is_finite() && chunk_s * rate_hz >= 1.0) {
             return Err(LiveError::Invalid(format!(
-                "chunk of {chunk_s} s: expected at least one sample's time at {rate_hz} Hz ({} s)",
+                "chunk of {chunk_s:?} s: expected at least one sample's time at {rate_hz} Hz ({} s)",
                 1.0 / rate_hz
             )));
         }
@@ -239,7 +239,7 @@ impl ReplaySource {
     ) -> Result<Self, LiveError> {
         if !(chunk_s.is_finite() && chunk_s > 0.0) {
             return Err(LiveError::Invalid(format!(
-                "chunk of {chunk_s} s: expected > 0"
+                "chunk of {chunk_s:?} s: expected > 0"
             )));
         }
         let (theta_tdc, _, chunks) = from_first_marker_phased(chunks, acq)?;
