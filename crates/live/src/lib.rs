@@ -28,6 +28,7 @@ pub mod layout;
 pub mod message;
 pub mod panel;
 pub mod record;
+pub mod serve;
 pub mod service;
 pub mod source;
 pub mod trace;

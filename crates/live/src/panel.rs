@@ -295,7 +295,7 @@ impl Panel {
             .with_state(app);
         rt.spawn(async move {
             // Serving ends with the runtime.
-            let _ = axum::serve(listener, router).await;
+            crate::serve::serve(listener, router).await;
         });
         rt.spawn(status_ticker(hub));
         Ok(Self { addr, rt })
