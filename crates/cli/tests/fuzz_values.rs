@@ -18,17 +18,10 @@
 //! ```
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_testkit::fuzz::{run_within, Outcome, Rng};
+use physid_testkit::fuzz::{env_u64, run_within, Outcome, Rng};
 use physid_testkit::Scratch;
 use std::path::Path;
 use std::time::Duration;
-
-fn env_u64(name: &str, default: u64) -> u64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(default)
-}
 
 fn physid() -> &'static Path {
     Path::new(env!("CARGO_BIN_EXE_physid"))

@@ -19,19 +19,12 @@
 //! `PHYSID_FUZZ_ONLY=N` runs case N alone; `PHYSID_FUZZ_SAVE=DIR` keeps each failing input.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_testkit::fuzz::{mutate, run_within, wide_csv, Outcome};
+use physid_testkit::fuzz::{env_u64, mutate, run_within, wide_csv, Outcome};
 use physid_testkit::Scratch;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-fn env_u64(name: &str, default: u64) -> u64 {
-    std::env::var(name)
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(default)
-}
 
 fn physid() -> &'static Path {
     Path::new(env!("CARGO_BIN_EXE_physid"))

@@ -1254,6 +1254,20 @@ fn a_stop_control_ends_a_replay() {
     assert!(end["t_s"].as_f64().unwrap() < 5.0, "{end}");
 }
 
+/// Write `value` into `column` of `samples` of a CSV recording written by physid (a header,
+/// a units row, then the samples).
+fn set_cells(file: &std::path::Path, column: &str, samples: std::ops::Range<usize>, value: &str) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let col = lines[0].split(',').position(|c| c == column).unwrap();
+    for line in &mut lines[samples.start + 2..samples.end + 2] {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        cells[col] = value.into();
+        *line = cells.join(",");
+    }
+    std::fs::write(file, lines.join("\n") + "\n").unwrap();
+}
+
 /// A NaN in a replayed file (a sensor's dropout) stops the stages that read the channel, each
 /// with a finding naming the sample; the run goes on to the file's end — it used to end the
 /// whole run ("channel 0 is NaN at sample 5000").
@@ -1263,14 +1277,7 @@ fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
     let file = s.file("run.csv");
     let f = file.to_str().unwrap();
     common::simulated(&file, "shaft-steady", "3");
-    // omega_en of sample 5000 (line 5003: the header, the units row, then the samples).
-    let text = std::fs::read_to_string(&file).unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let col = lines[0].split(',').position(|c| c == "omega_en").unwrap();
-    let mut cells: Vec<String> = lines[5002].split(',').map(String::from).collect();
-    cells[col] = "nan".into();
-    lines[5002] = cells.join(",");
-    std::fs::write(&file, lines.join("\n") + "\n").unwrap();
+    set_cells(&file, "omega_en", 5000..5001, "nan");
     let ev = events_from_stdin(
         &[
             "live",
@@ -1313,16 +1320,7 @@ fn an_angle_that_jumps_stops_the_cycle_stages_not_the_run() {
     let file = s.file("run.csv");
     let f = file.to_str().unwrap();
     common::simulated(&file, "torque-steady", "1");
-    let text = std::fs::read_to_string(&file).unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let col = lines[0].split(',').position(|c| c == "theta_en").unwrap();
-    // Samples 5000–5049 (the header and the units row come first).
-    for line in &mut lines[5002..5052] {
-        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
-        cells[col] = "1e9".into();
-        *line = cells.join(",");
-    }
-    std::fs::write(&file, lines.join("\n") + "\n").unwrap();
+    set_cells(&file, "theta_en", 5000..5050, "1e9");
     let args = [
         "live",
         "--headless",

@@ -10,6 +10,14 @@ use std::path::Path;
 use std::process::{Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
+/// A campaign's setting from the environment (`PHYSID_FUZZ_CASES` …), or `default`.
+pub fn env_u64(name: &str, default: u64) -> u64 {
+    std::env::var(name)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
+}
+
 /// SplitMix64: a small fixed-seed generator, so a case is reproducible by its number.
 #[derive(Debug, Clone)]
 pub struct Rng(pub u64);
