@@ -254,7 +254,11 @@ impl AngleInput {
         if streams {
             let names = match header.basis {
                 Basis::CrankAngle => wanted(&["t", "cycle", "crank_deg"]),
-                Basis::Time => wanted(&["t", "theta_en", opts.marker.as_str()]),
+                Basis::Time => {
+                    let mut basis = vec!["t", "theta_en", opts.marker.as_str()];
+                    basis.extend(opts.phase_from.reads());
+                    wanted(&basis)
+                }
             };
             let mut reader = self.open(names)?;
             let file_header = reader.header().clone();
@@ -364,9 +368,7 @@ impl AngleInput {
         angle_channels.extend(opts.encoders.iter().map(|e| e.0.as_str()));
         if let Some(spec) = &opts.sensor {
             angle_channels.extend(spec.sensor.channels());
-            if let Some(p) = &spec.phase_from {
-                angle_channels.push(p.strip_suffix(":low").unwrap_or(p));
-            }
+            angle_channels.extend(spec.phase_from.reads());
         }
         if let Some(c) = &self.tdc_from {
             angle_channels.push(c);
@@ -407,7 +409,7 @@ impl AngleInput {
             }
             if let Some(spec) = opts.sensor.as_mut() {
                 spec.tdc_offset_deg = found.tdc_offset_deg;
-                spec.phase_from.get_or_insert_with(|| channel.clone());
+                spec.phase_from = spec.phase_from.or_channel(channel);
             }
         }
         Ok(to_crank_angle_decoded(rec, &opts, self.step_deg)?)
@@ -440,10 +442,14 @@ impl AngleInput {
             },
         )?;
         let mut angle = self.open_names(sensor)?;
+        // The phase's channel when the file has it (the default's pressure may be absent).
+        let header = self.header()?;
         let mut names = vec!["t"];
-        if let Some(p) = &spec.phase_from {
-            names.push(p.strip_suffix(":low").unwrap_or(p));
-        }
+        names.extend(
+            spec.phase_from
+                .reads()
+                .filter(|p| header.channel(p).is_ok()),
+        );
         let mut samples = self.open_names(&names)?;
         let decoded = sensor_decoded(
             spec,
@@ -473,7 +479,7 @@ impl AngleInput {
             ))
         })?;
         spec.tdc_offset_deg = found.tdc_offset_deg;
-        spec.phase_from.get_or_insert_with(|| channel.to_string());
+        spec.phase_from = spec.phase_from.or_channel(channel);
         Ok(spec)
     }
 }

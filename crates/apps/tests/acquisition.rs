@@ -7,7 +7,7 @@
 
 use physid_apps::acquisition::{
     filter_channels, inspect, to_crank_angle, to_time_basis, AcquisitionOptions, FilterSpec,
-    FilterStream,
+    FilterStream, PhaseFrom,
 };
 use physid_apps::error::AppError;
 use physid_core::{Basis, Channel, Recording, Recordings, Reopen};
@@ -425,7 +425,7 @@ fn a_wheel_resampled_as_it_comes_equals_the_whole() {
             edges: Default::default(),
         },
         tdc_offset_deg: 100.0,
-        phase_from: Some("p_cyl".into()),
+        phase_from: PhaseFrom::channel("p_cyl"),
     };
     let opts = AcquisitionOptions {
         sensor: Some(spec.clone()),
@@ -555,7 +555,7 @@ fn a_quadrature_encoder_resampled_as_it_comes_equals_the_whole() {
             lines: 500,
         },
         tdc_offset_deg: 30.0,
-        phase_from: None,
+        phase_from: PhaseFrom::First,
     };
     let opts = AcquisitionOptions {
         sensor: Some(spec.clone()),

@@ -4,7 +4,9 @@
 //! textbook curve peaks.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use physid_apps::acquisition::{to_crank_angle, AcquisitionOptions, AngleSensor, AngleSpec};
+use physid_apps::acquisition::{
+    to_crank_angle, AcquisitionOptions, AngleSensor, AngleSpec, PhaseFrom,
+};
 use physid_apps::compression::{
     compression_fit, tdc_from_pressure, CompressionConfig, CompressionFit,
 };
@@ -275,7 +277,7 @@ fn raw() -> Recording {
     physid_io::read(golden("motored_wheel.parquet"), &opts).unwrap()
 }
 
-fn wheel_options(offset: f64, phase_from: Option<&str>) -> AcquisitionOptions {
+fn wheel_options(offset: f64, phase_from: PhaseFrom) -> AcquisitionOptions {
     AcquisitionOptions {
         encoders: vec![],
         marker: "tdc".into(),
@@ -286,9 +288,9 @@ fn wheel_options(offset: f64, phase_from: Option<&str>) -> AcquisitionOptions {
                 edges: EdgeOptions::default(),
             },
             tdc_offset_deg: offset,
-            phase_from: phase_from.map(String::from),
+            phase_from,
         }),
-        phase_from: None,
+        phase_from: PhaseFrom::First,
     }
 }
 
@@ -322,14 +324,20 @@ fn a_cam_signal_or_the_pressure_tells_which_revolution_fires() {
     let rec = raw();
     let (tdc, t) = wheel_tdc();
     let offset = t["tdc_offset_deg"].as_f64().unwrap();
-    for from in ["cam", "p_cyl"] {
-        let deg = to_crank_angle(&rec, &wheel_options(offset, Some(from)), 1.0).unwrap();
+    // Told from the cam, from the pressure, or by default (from `p_cyl`, which the file has).
+    for from in [
+        PhaseFrom::channel("cam"),
+        PhaseFrom::channel("p_cyl"),
+        PhaseFrom::Pressure,
+    ] {
+        let deg = to_crank_angle(&rec, &wheel_options(offset, from.clone()), 1.0).unwrap();
         let e = worst_tdc_error(&deg, tdc);
-        assert!(e < 0.1, "--phase-from {from}: {e}°");
+        assert!(e < 0.1, "--phase-from {from:?}: {e}°");
     }
-    // The cam read the other way round, and no phase at all here: a revolution off.
-    for from in [Some("cam:low"), None] {
-        let deg = to_crank_angle(&rec, &wheel_options(offset, from), 1.0).unwrap();
+    // The cam read the other way round, and the first reference's TDC taken as firing
+    // (`--phase-from none`): a revolution off.
+    for from in [PhaseFrom::channel("cam:low"), PhaseFrom::First] {
+        let deg = to_crank_angle(&rec, &wheel_options(offset, from.clone()), 1.0).unwrap();
         let e = worst_tdc_error(&deg, tdc);
         assert!((e - 360.0).abs() < 0.1, "--phase-from {from:?}: {e}°");
     }
@@ -340,7 +348,13 @@ fn the_tdc_found_on_a_motored_trace_is_within_a_tenth_of_a_degree() {
     let rec = raw();
     let (tdc, t) = wheel_tdc();
     let truth = t["tdc_offset_deg"].as_f64().unwrap();
-    let found = tdc_from_pressure(&rec, &wheel_options(0.0, Some("cam")), &config(), 1.0).unwrap();
+    let found = tdc_from_pressure(
+        &rec,
+        &wheel_options(0.0, PhaseFrom::channel("cam")),
+        &config(),
+        1.0,
+    )
+    .unwrap();
     let (lo, hi) = found.ci95;
     assert!(
         (found.tdc_offset_deg - truth).abs() < 0.1,
@@ -352,7 +366,12 @@ fn the_tdc_found_on_a_motored_trace_is_within_a_tenth_of_a_degree() {
     let loss = found.peak_deg.unwrap();
     assert!(loss < -0.1, "{loss}");
     // Converted with the offset found, every cycle starts at the true TDC.
-    let deg = to_crank_angle(&rec, &wheel_options(found.tdc_offset_deg, Some("cam")), 1.0).unwrap();
+    let deg = to_crank_angle(
+        &rec,
+        &wheel_options(found.tdc_offset_deg, PhaseFrom::channel("cam")),
+        1.0,
+    )
+    .unwrap();
     assert!(worst_tdc_error(&deg, tdc) < 0.1);
     // The whole truth of the raw file comes out too.
     let fit = &found.fit;
@@ -366,7 +385,7 @@ fn the_tdc_found_on_a_motored_trace_is_within_a_tenth_of_a_degree() {
         );
     }
     // Without a sensor there is no reference to place the TDC on.
-    let mut none = wheel_options(0.0, None);
+    let mut none = wheel_options(0.0, PhaseFrom::First);
     none.sensor = None;
     let e = tdc_from_pressure(&rec, &none, &config(), 1.0)
         .unwrap_err()
@@ -392,9 +411,14 @@ fn a_fit_that_is_not_physical_is_flagged_and_places_no_tdc() {
         "{w}"
     );
     assert!(f.notes.iter().any(|n| n == &format!("not physical: {w}")));
-    let e = tdc_from_pressure(&raw(), &wheel_options(0.0, Some("cam")), &narrow, 1.0)
-        .unwrap_err()
-        .to_string();
+    let e = tdc_from_pressure(
+        &raw(),
+        &wheel_options(0.0, PhaseFrom::channel("cam")),
+        &narrow,
+        1.0,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("--tdc-from p_cyl: the motored fit that places the TDC is not physical"),
         "{e}"

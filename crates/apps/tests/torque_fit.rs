@@ -175,7 +175,8 @@ fn bad_recordings_are_explained() {
 /// cell's true geometry.
 #[test]
 fn the_stage_on_a_stream_is_the_file_verb() {
-    use physid_apps::acquisition::{marker_tdc_angle, to_crank_angle, AcquisitionOptions};
+    use physid_apps::acquisition::{from_first_marker_phased, to_crank_angle, AcquisitionOptions};
+    use physid_apps::error::AppError;
     use physid_apps::stage::Stage;
     use physid_apps::torque_fit::{TorqueOutput, TorqueStage, TRACK_POINTS};
     let rec = run_basis(OutputBasis::Time(10_000.0));
@@ -187,7 +188,10 @@ fn the_stage_on_a_stream_is_the_file_verb() {
         file.samples
     );
     assert_eq!(file.cycles.len(), file.samples / 720);
-    let tdc = marker_tdc_angle(&rec, &AcquisitionOptions::default()).unwrap();
+    // The firing TDC as a stream tells it: the first marker's or a revolution on, from p_cyl.
+    let whole = std::iter::once(Ok::<_, AppError>(rec.clone()));
+    let (tdc, _, _) = from_first_marker_phased(whole, &AcquisitionOptions::default()).unwrap();
+    let tdc = tdc.unwrap();
     // The tracks are bounded: thinned to between TRACK_POINTS and twice that.
     assert!(
         file.t.len() <= 2 * TRACK_POINTS && file.t.len() >= TRACK_POINTS.min(file.samples),

@@ -1513,12 +1513,14 @@ fn combustion_on_the_stream_is_the_file_verbs_cycles() {
 }
 
 /// A time-basis recording of the virtual cell, whose TDC marker comes once per revolution: the
-/// first marker here is the gas-exchange TDC. Without `--phase-from` the firing TDC is the
+/// first marker here is the gas-exchange TDC. With `--phase-from none` the firing TDC is the
 /// first marker's — said, and every cycle's pressure then peaks a revolution from it, so no
-/// heat release is given and the note says why. With `--phase-from p_cyl` the compression
-/// peaks just before TDC, and `live --replay … --combustion --phase-from p_cyl` gives the file
-/// verb's figures cycle by cycle (the stream has one cycle more at its start: the compression
-/// before the first TDC is in it, where the file's blocks begin at that TDC).
+/// heat release is given and the note says why. With `--phase-from p_cyl`, and by default (the
+/// recording has `p_cyl`), the compression peaks just before TDC, and `live --replay …
+/// --combustion` gives the file verb's figures cycle by cycle (the stream has one cycle more at
+/// its start: the compression before the first TDC is in it, where the file's blocks begin at
+/// that TDC). A recording too short to tell the phase from is taken from its first marker by
+/// default, and says why; told `--phase-from p_cyl`, it is refused.
 #[test]
 fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
     let s = Scratch::new("physid-live-phase");
@@ -1555,7 +1557,7 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         serde_json::from_slice::<Value>(&o.stdout).unwrap()
     };
-    let guess = cycles(&[]);
+    let guess = cycles(&["--phase-from", "none"]);
     let notes: Vec<&str> = guess["notes"]
         .as_array()
         .unwrap()
@@ -1576,8 +1578,9 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         "{notes:?}"
     );
     // The same recording with the encoder's counts as its only engine angle (no theta_en):
-    // said to be a guess without --phase-from, the pressure's peak a revolution off; with it,
-    // the firing TDC told from the pressure at the count steps, the peak just before TDC.
+    // said to be a guess with --phase-from none, the pressure's peak a revolution off; with
+    // p_cyl, told or by default, the firing TDC told from the pressure at the count steps, the
+    // peak just before TDC.
     let counts = s.file("counts.parquet");
     let o = physid(&[
         "convert",
@@ -1600,7 +1603,7 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         serde_json::from_slice::<Value>(&o.stdout).unwrap()
     };
-    let guessed = by_counts(&[]);
+    let guessed = by_counts(&["--phase-from", "none"]);
     assert!(
         guessed["notes"][0]
             .as_str()
@@ -1611,7 +1614,15 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
     );
     let off = guessed["cycles"][1]["p_max_deg"].as_f64().unwrap();
     assert!(off.abs() > 300.0, "{off}");
+    let by_default = by_counts(&[]);
+    let note = by_default["notes"][0].as_str().unwrap();
+    assert!(
+        note.starts_with("phase: the firing TDC at the second TDC marker ('p_cyl' higher")
+            && note.ends_with("'p_cyl' by default (--phase-from none takes the first TDC)"),
+        "{note}"
+    );
     let told = by_counts(&["--phase-from", "p_cyl"]);
+    assert_eq!(by_default["cycles"], told["cycles"]);
     assert!(
         told["notes"][0]
             .as_str()
@@ -1627,6 +1638,7 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         assert!((-3.0..1.0).contains(&at), "{c}");
     }
     let phased = cycles(&["--phase-from", "p_cyl"]);
+    assert_eq!(cycles(&[])["cycles"], phased["cycles"]);
     let by_file = phased["cycles"].as_array().unwrap();
     assert!(by_file.len() >= 10);
     assert!(
@@ -1655,8 +1667,6 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         "--combustion",
         "--step-deg",
         "0.5",
-        "--phase-from",
-        "p_cyl",
     ]);
     let live = of_type(&ev, "combustion");
     assert_eq!(live.len(), by_file.len() + 1);
@@ -1687,4 +1697,41 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
         }
     }
     eprintln!("largest relative difference, stream against file: {worst:e}");
+    // 60 ms at 1000 rpm: one revolution, too few to tell the phase from.
+    let short = s.file("short.parquet");
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "0.06",
+        "--recording",
+        short.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let to = s.file("short-deg.parquet");
+    let convert = |extra: &[&str]| {
+        let mut args = vec![
+            "convert",
+            short.to_str().unwrap(),
+            to.to_str().unwrap(),
+            "--crank-angle",
+        ];
+        args.extend(extra);
+        physid(&args)
+    };
+    let o = convert(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = physid_io::read(&to, &Default::default()).unwrap();
+    let phase = &read.meta["phase"];
+    assert!(
+        phase.starts_with("the first TDC marker taken as firing")
+            && phase.contains("'p_cyl' could not tell")
+            && phase.contains("fewer than two whole revolutions"),
+        "{phase}"
+    );
+    let o = convert(&["--phase-from", "p_cyl"]);
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("fewer than two whole revolutions"), "{e}");
 }

@@ -1270,7 +1270,7 @@ fn identify_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
 /// and MDF4; with `--tdc-from`, the TDC is placed from the pressure as the library places it.
 #[test]
 fn a_raw_sensor_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
-    use physid_apps::acquisition::{AngleSensor, AngleSpec};
+    use physid_apps::acquisition::{AngleSensor, AngleSpec, PhaseFrom};
     use physid_core::Channel;
     use physid_sim::run::{simulate, OutputBasis, RunOptions};
     use std::f64::consts::TAU;
@@ -1306,7 +1306,7 @@ fn a_raw_sensor_file_is_read_as_it_goes_and_answers_as_on_the_whole() {
     let spec = |sensor| AngleSpec {
         sensor,
         tdc_offset_deg: 0.0,
-        phase_from: Some("p_cyl".into()),
+        phase_from: PhaseFrom::channel("p_cyl"),
     };
     sensor_file_answers_as_the_whole(
         &sim,

@@ -190,11 +190,19 @@ fn twin_errors_name_the_problem() {
         let e = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success() && e.contains(want), "{args:?}: {e}");
     }
-    // Converted without --phase-from, the recording's θ = 0 is the first TDC marker's, here
+    // Converted with --phase-from none, the recording's θ = 0 is the first TDC marker's, here
     // the gas-exchange TDC: refused by the cylinder pressure, with the conversion that fixes
-    // it (it failed later, as a crank angle that "fell behind").
+    // it (it failed later, as a crank angle that "fell behind"). By default the conversion
+    // tells the phase from p_cyl.
     let off = d.file("off.parquet");
-    let o = physid(&["convert", rec_s, off.to_str().unwrap(), "--crank-angle"]);
+    let o = physid(&[
+        "convert",
+        rec_s,
+        off.to_str().unwrap(),
+        "--crank-angle",
+        "--phase-from",
+        "none",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = physid(&["twin", "calibrate", "--data", off.to_str().unwrap()]);
     let e = String::from_utf8_lossy(&o.stderr);

@@ -4,7 +4,7 @@ use crate::control::Control;
 use crate::service::LiveError;
 use physid_apps::acquisition::{
     file_time_basis_chunks, from_first_marker_phased, mean_rate, on_time_basis, time_basis_chunks,
-    uniform_step, AcquisitionOptions, StepCheck,
+    uniform_step, AcquisitionOptions, PhaseFrom, StepCheck,
 };
 use physid_apps::angle_input::AngleInput;
 use physid_apps::error::AppError;
@@ -153,20 +153,20 @@ impl ReplaySource {
 
     /// The file `path`, read as it comes with `opts`, in chunks of `chunk_s` seconds.
     pub fn open(path: &Path, opts: &ReadOptions, chunk_s: f64) -> Result<Self, LiveError> {
-        Self::open_phased(path, opts, chunk_s, None)
+        Self::open_phased(path, opts, chunk_s, PhaseFrom::Pressure)
     }
 
-    /// [`open`](Self::open), the firing revolution told from `phase_from` (`NAME` or
-    /// `NAME:low`, [`MarkerPhase`](physid_apps::acquisition::MarkerPhase)) when the TDC comes
-    /// from a marker once per revolution.
+    /// [`open`](Self::open), the firing revolution told from `phase_from` (by default `p_cyl`
+    /// when the file has it, [`MarkerPhase`](physid_apps::acquisition::MarkerPhase)) when the
+    /// TDC comes from a marker once per revolution.
     pub fn open_phased(
         path: &Path,
         opts: &ReadOptions,
         chunk_s: f64,
-        phase_from: Option<&str>,
+        phase_from: PhaseFrom,
     ) -> Result<Self, LiveError> {
         let acq = AcquisitionOptions {
-            phase_from: phase_from.map(str::to_string),
+            phase_from,
             ..AcquisitionOptions::default()
         };
         let reader = ChunkReader::open(path, opts)?;

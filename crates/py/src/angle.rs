@@ -4,7 +4,7 @@
 
 use crate::err;
 use physid_apps::acquisition::{
-    parse_threshold, AcquisitionOptions, AngleSensor, AngleSpec, DecodedAngle,
+    parse_threshold, AcquisitionOptions, AngleSensor, AngleSpec, DecodedAngle, PhaseFrom,
 };
 use physid_apps::angle_input::{AngleInput, InputObserver};
 use physid_apps::compression::TdcFromPressure;
@@ -89,7 +89,7 @@ impl AngleArgs {
         };
         o.sensor = match sensor {
             Some(s) => Some(
-                AngleSpec::new(s, self.tdc_offset, self.phase_from.clone())
+                AngleSpec::new(s, self.tdc_offset, PhaseFrom::parse(self.phase_from.as_deref()))
                     .map_err(|e| err(format!("tdc_offset {e}")))?,
             ),
             None if self.tdc_from.is_some() || self.phase_from.is_some() => {

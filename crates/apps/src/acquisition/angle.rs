@@ -20,7 +20,7 @@ pub(super) fn engine_angle(
             None => first_tdc(theta.first().copied().unwrap_or(0.0)),
         };
         let mut told = None;
-        if let Some(from) = &opts.phase_from {
+        if let Some((from, implied)) = opts.phase_from.resolve(|n| rec.channel(n).is_ok()) {
             // Which revolution fires (as `from_first_marker_phased` tells it on a stream).
             let mut phase = MarkerPhase::new(from);
             let p = rec.values(phase.channel())?;
@@ -31,7 +31,8 @@ pub(super) fn engine_angle(
                     break;
                 }
             }
-            let (at, how) = phase.finish()?;
+            let first = (tdc, first_guess(marker.is_some()));
+            let (at, how) = told_or_first(phase.finish(), implied, || first)?;
             (tdc, told) = (at, Some(how));
         }
         return Ok(EngineAngle {
@@ -82,16 +83,19 @@ pub struct CountsScan {
     /// The last chunk's count steps: times [s] and angles [rad].
     t: Vec<f64>,
     theta: Vec<f64>,
-    /// Which revolution fires, with `--phase-from`.
-    phase: Option<MarkerPhase>,
+    /// Which revolution fires, with `--phase-from` (and whether it was only implied).
+    phase: Option<(MarkerPhase, bool)>,
 }
 
 impl CountsScan {
     /// The scan of the first of `opts.encoders` that `header` has — or the error that the
     /// recording has no engine angle at all.
     pub fn new(header: &Recording, opts: &AcquisitionOptions) -> Result<Self, AcquisitionError> {
-        let phase = opts.phase_from.as_deref().map(MarkerPhase::new);
-        if let Some(p) = &phase {
+        let phase = opts
+            .phase_from
+            .resolve(|n| header.channel(n).is_ok())
+            .map(|(from, implied)| (MarkerPhase::new(from), implied));
+        if let Some((p, _)) = &phase {
             header.channel(p.channel())?;
         }
         let (name, ppr) = opts
@@ -124,7 +128,7 @@ impl CountsScan {
 
     /// The channel `--phase-from` reads, when given (the first pass reads it too).
     pub fn phase_channel(&self) -> Option<&str> {
-        self.phase.as_ref().map(MarkerPhase::channel)
+        self.phase.as_ref().map(|(p, _)| p.channel())
     }
 
     /// The count channel and its pulses per revolution.
@@ -151,7 +155,7 @@ impl CountsScan {
         for (&x, &y) in self.t.iter().zip(&self.theta) {
             self.at.point(x, y);
         }
-        if let Some(phase) = self.phase.as_mut().filter(|p| !p.done()) {
+        if let Some((phase, _)) = self.phase.as_mut().filter(|(p, _)| !p.done()) {
             // The channel at each count step (a step is at a sample's time).
             let p = chunk.values(phase.channel())?;
             let mut j = 0;
@@ -199,9 +203,10 @@ impl CountsScan {
         let phase = self.phase.take();
         let tdc = self.finish()?;
         match phase {
-            Some(mut p) => {
+            Some((mut p, implied)) => {
                 p.marker_at(tdc);
-                let (at, told) = p.finish()?;
+                let first = (tdc, first_guess(marker));
+                let (at, told) = told_or_first(p.finish(), implied, || first)?;
                 Ok((at, Some(told)))
             }
             None => Ok((tdc, phase_note(marker, None))),
@@ -441,7 +446,12 @@ where
 {
     let (tdc, chunks) = from_first_marker(chunks, opts)?;
     let mut chunks = chunks.peekable();
-    let Some(from) = &opts.phase_from else {
+    // The channels are the first chunk's (an error there is the stream's to give).
+    let resolved = match chunks.peek() {
+        Some(Ok(first)) => opts.phase_from.resolve(|n| first.channel(n).is_ok()),
+        _ => None,
+    };
+    let Some((from, implied)) = resolved else {
         let note = phase_note(tdc.is_some(), None);
         return Ok((tdc, note, Vec::new().into_iter().chain(chunks)));
     };
@@ -460,8 +470,10 @@ where
         }
         held.push(Ok(chunk));
     }
-    let (at, told) = phase.finish()?;
-    Ok((Some(at), Some(told), held.into_iter().chain(chunks)))
+    let first = (phase.first_marker().or(tdc), first_guess(tdc.is_some()));
+    let told = phase.finish().map(|(at, how)| (Some(at), how));
+    let (at, told) = told_or_first(told, implied, || first)?;
+    Ok((at, Some(told), held.into_iter().chain(chunks)))
 }
 
 /// The firing TDC's angle on `theta_en` at a stream's first TDC marker, a chunk at a time: the

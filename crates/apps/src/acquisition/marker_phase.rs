@@ -17,11 +17,17 @@ pub const PHASE_REVOLUTIONS: f64 = 8.0;
 /// (`marker`), `told` by [`MarkerPhase::finish`] when `--phase-from` was given: what the
 /// recording's `phase` metadata says, and `cycles` repeats in its notes.
 pub fn phase_note(marker: bool, told: Option<String>) -> Option<String> {
-    told.or_else(|| {
-        marker.then(|| {
-            "the first TDC marker taken as firing: a marker once per revolution cannot tell which revolution fires (--phase-from p_cyl tells it from the pressure)".to_string()
-        })
-    })
+    told.or_else(|| marker.then(|| first_guess(true)))
+}
+
+/// The first TDC taken as firing, for a person: the first marker's (`marker`) or the first
+/// multiple of 4π on `theta_en` (the simulator's convention).
+pub fn first_guess(marker: bool) -> String {
+    if marker {
+        "the first TDC marker taken as firing: a marker once per revolution cannot tell which revolution fires (--phase-from p_cyl tells it from the pressure)".to_string()
+    } else {
+        "the first multiple of 720° on 'theta_en' taken as the firing TDC".to_string()
+    }
 }
 
 /// The phase of a marker's TDC, a sample `(θ, channel)` at a time.
@@ -65,6 +71,11 @@ impl MarkerPhase {
             w.push(th, p);
         }
         self.windows = Some(w);
+    }
+
+    /// The first marker's angle [rad], once known.
+    pub fn first_marker(&self) -> Option<f64> {
+        self.marker
     }
 
     /// Whether the first marker's angle is known.

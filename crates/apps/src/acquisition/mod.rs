@@ -82,9 +82,10 @@ pub struct AcquisitionOptions {
     /// `--quadrature A,B[,Z]=LINES`).
     pub sensor: Option<AngleSpec>,
     /// Without a sensor: which revolution of two fires when the marker comes once per
-    /// revolution ([`MarkerPhase`]; `NAME` or `NAME:low`); `None`: the first marker's TDC is
-    /// taken as firing (without a marker, the first multiple of 4π on `theta_en`).
-    pub phase_from: Option<String>,
+    /// revolution ([`MarkerPhase`]): by default from `p_cyl` when the recording has it;
+    /// [`PhaseFrom::First`]: the first marker's TDC is taken as firing (without a marker, the
+    /// first multiple of 4π on `theta_en`).
+    pub phase_from: PhaseFrom,
 }
 
 /// A raw angle sensor on the crankshaft.
@@ -217,9 +218,10 @@ pub struct AngleSpec {
     /// Which revolution of two fires: the one whose TDC has the higher mean of this channel
     /// over the revolution centred on it — the cylinder pressure (compression and expansion
     /// against exhaust and intake), a cam sensor high or pulsing in that revolution; with the
-    /// suffix `:low` the lower (a cam that marks the other revolution). `None`: the TDC
-    /// `tdc_offset_deg` after the first reference edge is taken as the firing one.
-    pub phase_from: Option<String>,
+    /// suffix `:low` the lower (a cam that marks the other revolution); by default `p_cyl` when
+    /// the recording has it. [`PhaseFrom::First`]: the TDC `tdc_offset_deg` after the first
+    /// reference edge is taken as the firing one.
+    pub phase_from: PhaseFrom,
 }
 
 impl AngleSpec {
@@ -228,7 +230,7 @@ impl AngleSpec {
     pub fn new(
         sensor: AngleSensor,
         tdc_offset_deg: f64,
-        phase_from: Option<String>,
+        phase_from: PhaseFrom,
     ) -> Result<Self, String> {
         if !(tdc_offset_deg.is_finite() && (0.0..360.0).contains(&tdc_offset_deg)) {
             return Err(format!(
@@ -253,7 +255,7 @@ impl Default for AcquisitionOptions {
             encoders: vec![("count_en".into(), 360), ("count_dy".into(), 1024)],
             marker: TDC_MARKER.into(),
             sensor: None,
-            phase_from: None,
+            phase_from: PhaseFrom::Pressure,
         }
     }
 }

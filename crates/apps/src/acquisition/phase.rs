@@ -1,9 +1,103 @@
 //! Which of two revolutions fires: the firing TDC told from a channel's level over the
-//! revolution around each TDC (`--phase-from`), and the firing TDC's angle once it is known.
+//! revolution around each TDC (`--phase-from`, by default the cylinder pressure when the
+//! recording has one), and the firing TDC's angle once it is known.
 
 use super::invalid;
 use crate::error::AppError;
 use std::f64::consts::{PI, TAU};
+
+/// The channel the firing revolution is told from when nothing is said: the cylinder
+/// pressure (DESIGN.md's name) — the compression and expansion around the firing TDC against
+/// the exhaust and intake around the other, fired or motored.
+pub const DEFAULT_PHASE_FROM: &str = "p_cyl";
+
+/// Where which revolution of two fires is told from (`--phase-from`).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum PhaseFrom {
+    /// Nothing said: from [`DEFAULT_PHASE_FROM`] when the recording has it — and when it
+    /// cannot tell (fewer than two revolutions with a finite pressure), the first TDC taken
+    /// as firing, saying why; without it, the first TDC taken as firing, said to be a guess.
+    #[default]
+    Pressure,
+    /// `--phase-from none`: the first TDC (the first marker's, or `--tdc-offset` after the
+    /// sensor's first reference) taken as firing.
+    First,
+    /// `--phase-from NAME` (the higher mean fires) or `NAME:low` (the lower).
+    Channel(String),
+}
+
+impl PhaseFrom {
+    /// From the command line's `--phase-from`: absent, `none`, or a channel.
+    pub fn parse(given: Option<&str>) -> Self {
+        match given {
+            None => Self::Pressure,
+            Some("none") => Self::First,
+            Some(c) => Self::Channel(c.to_string()),
+        }
+    }
+
+    /// A channel told (`NAME` or `NAME:low`).
+    pub fn channel(name: &str) -> Self {
+        Self::Channel(name.to_string())
+    }
+
+    /// The channel to read (`NAME` or `NAME:low`) on a recording that `has` the channels it
+    /// says yes to, and whether it was only implied (the default: a caller falls back to the
+    /// first TDC when it cannot tell); `None`: the first TDC is taken as firing.
+    pub fn resolve(&self, has: impl Fn(&str) -> bool) -> Option<(&str, bool)> {
+        match self {
+            Self::Pressure => has(DEFAULT_PHASE_FROM).then_some((DEFAULT_PHASE_FROM, true)),
+            Self::First => None,
+            Self::Channel(c) => Some((c.as_str(), false)),
+        }
+    }
+
+    /// The channel it may read, without `:low` (for a reader's projection: the default's
+    /// pressure, which a projection leaves out when the file does not have it).
+    pub fn reads(&self) -> Option<&str> {
+        match self {
+            Self::Pressure => Some(DEFAULT_PHASE_FROM),
+            Self::First => None,
+            Self::Channel(c) => Some(c.strip_suffix(":low").unwrap_or(c)),
+        }
+    }
+
+    /// The channel to read when told or already resolved (`tdc_from` defaults it to its own
+    /// channel): itself if told, `channel` if nothing was said.
+    pub fn or_channel(&self, channel: &str) -> Self {
+        match self {
+            Self::Pressure => Self::channel(channel),
+            other => other.clone(),
+        }
+    }
+}
+
+/// The phase told from an implied channel, or — when it could not tell (`told` failed) — the
+/// first TDC `first` taken as firing, the note saying why: what every phase-telling path
+/// does with [`PhaseFrom::Pressure`]. A channel told explicitly keeps its error.
+pub fn told_or_first<T, E: std::fmt::Display>(
+    told: Result<(T, String), E>,
+    implied: bool,
+    first: impl FnOnce() -> (T, String),
+) -> Result<(T, String), E> {
+    match told {
+        Ok((at, how)) if implied => Ok((
+            at,
+            format!(
+                "{how}; '{DEFAULT_PHASE_FROM}' by default (--phase-from none takes the first TDC)"
+            ),
+        )),
+        Ok(t) => Ok(t),
+        Err(e) if implied => {
+            let (at, how) = first();
+            Ok((
+                at,
+                format!("{how} — '{DEFAULT_PHASE_FROM}' could not tell: {e}"),
+            ))
+        }
+        Err(e) => Err(e),
+    }
+}
 
 /// Which of two revolutions fires, a sample at a time: the mean of a channel over the
 /// revolution centred on each TDC a revolution apart (`offset + 2πk`: the samples whose angle
@@ -93,9 +187,9 @@ impl PhaseWindows {
     }
 }
 
-/// How the firing revolution is told without `--phase-from`, for a person.
+/// The first TDC after a sensor's reference taken as firing, for a person.
 pub fn no_phase(tdc_offset_deg: f64) -> String {
-    format!("the TDC {tdc_offset_deg}° after the first reference taken as firing (no --phase-from)")
+    format!("the TDC {tdc_offset_deg}° after the first reference taken as firing (--phase-from p_cyl tells it from the pressure)")
 }
 
 /// The firing TDC's angle [rad]: the first of parity `parity` (see [`PhaseWindows::finish`])

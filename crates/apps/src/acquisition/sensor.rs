@@ -16,7 +16,7 @@
 //! 3. [`sensor_crank_angle_chunks`]: the channels resampled to the crank angle, the sensor read
 //!    ahead of them: a standstill holds nothing.
 
-use super::phase::{firing_tdc, no_phase, PhaseWindows};
+use super::phase::{firing_tdc, no_phase, told_or_first, PhaseWindows};
 use super::{
     invalid, resampled, AcquisitionOptions, AngleSensor, AngleSpec, CrankAngleStream, DecodedAngle,
     EncoderSummary,
@@ -575,18 +575,19 @@ where
     let mut ahead = SensorAhead::new(spec, cal, angle.into_iter())?;
     let (first, last) = cal.span();
     let offset = spec.tdc_offset_deg.to_radians();
-    let phase_name = spec
-        .phase_from
-        .as_deref()
-        .map(|p| p.strip_suffix(":low").unwrap_or(p));
+    // The channel the phase is told from, and whether only implied: from the first chunk's
+    // channels.
+    let mut phase_from: Option<Option<(&str, bool)>> = None;
     let mut windows = PhaseWindows::new(offset);
     let (mut theta0, mut inside) = (None, 0usize);
     for chunk in samples {
         let chunk = chunk?;
         let c = chunk.borrow();
         let t = c.values("t")?;
-        let p = match phase_name {
-            Some(name) => Some(c.values(name)?),
+        let from =
+            *phase_from.get_or_insert_with(|| spec.phase_from.resolve(|n| c.channel(n).is_ok()));
+        let p = match from {
+            Some((from, _)) => Some(c.values(from.strip_suffix(":low").unwrap_or(from))?),
             None => None,
         };
         for (i, &x) in t.iter().enumerate() {
@@ -614,9 +615,12 @@ where
             )))
         }
     };
-    let (parity, phase) = match &spec.phase_from {
-        None => (0, no_phase(spec.tdc_offset_deg)),
-        Some(from) => windows.finish(from, spec.tdc_offset_deg)?,
+    let first = || (0, no_phase(spec.tdc_offset_deg));
+    let (parity, phase) = match phase_from.flatten() {
+        None => first(),
+        Some((from, implied)) => {
+            told_or_first(windows.finish(from, spec.tdc_offset_deg), implied, first)?
+        }
     };
     let tdc = firing_tdc(offset, parity, theta0);
     Ok(match (report, cal) {

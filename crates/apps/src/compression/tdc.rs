@@ -104,7 +104,7 @@ pub fn tdc_from_pressure_in(
     let mut opts = opts.clone();
     let mut spec = spec.clone();
     spec.tdc_offset_deg = 0.0;
-    spec.phase_from.get_or_insert_with(|| cfg.channel.clone());
+    spec.phase_from = spec.phase_from.or_channel(&cfg.channel);
     opts.sensor = Some(spec.clone());
     // 1. The peak's angle after the reference, the median over the complete cycles.
     let mut peaks = PeakAngles::new(&cfg.channel, step_deg);

@@ -202,22 +202,48 @@ impl<'a> Degrees<'a> {
         Ok(self.len()? == 0)
     }
 
-    /// The firing TDC's angle on `theta_en` at the first marker (0 without one), found by a
-    /// pass the first time — the rule of
-    /// [`from_first_marker`](crate::acquisition::from_first_marker).
+    /// The firing TDC's angle on `theta_en` at the first marker (0 without one) — or a
+    /// revolution on, as the cylinder pressure tells when the recording has `p_cyl`
+    /// ([`PhaseFrom::Pressure`], what a stream and `convert --crank-angle` do by default) —
+    /// found by a pass the first time: the rule of
+    /// [`from_first_marker_phased`](crate::acquisition::from_first_marker_phased).
     pub(super) fn tdc(&self) -> Result<f64, AppError> {
         if let Some(t) = self.tdc.get() {
             return Ok(t);
         }
         let mut scan = FirstMarker::default();
         let mut found = None;
+        // Which revolution fires, resolved on the first chunk's channels.
+        let mut phase: Option<Option<(MarkerPhase, bool)>> = None;
         self.rows.chunks::<AppError>(&mut |chunk| {
             if found.is_none() {
                 found = scan.scan(chunk, TDC_MARKER);
             }
+            let told = phase.get_or_insert_with(|| {
+                PhaseFrom::Pressure
+                    .resolve(|n| chunk.channel(n).is_ok())
+                    .map(|(from, implied)| (MarkerPhase::new(from), implied))
+            });
+            if let Some((p, _)) = told.as_mut().filter(|(p, _)| !p.done()) {
+                let channel = chunk.values(p.channel())?;
+                for (&th, &v) in chunk.values("theta_en")?.iter().zip(channel) {
+                    p.push(th, v);
+                }
+                if let Some(Some(a)) = found {
+                    p.marker_at(a);
+                }
+            }
             Ok(())
         })?;
-        let t = found.flatten().unwrap_or(0.0);
+        let first = found.flatten().unwrap_or(0.0);
+        let t = match phase.flatten() {
+            Some((mut p, implied)) => {
+                p.marker_at(first);
+                let guess = (first, first_guess(found.flatten().is_some()));
+                told_or_first(p.finish(), implied, || guess)?.0
+            }
+            None => first,
+        };
         self.tdc.set(Some(t));
         Ok(t)
     }

@@ -22,7 +22,10 @@
 //! identifiability; `degrees.rs`: the 1° samples made in passes; `stage.rs`: the filter and the
 //! live stage; `file.rs`: the file verb; `result.rs`: the result and its JSON.
 
-use crate::acquisition::{to_crank_angle, AcquisitionOptions, FirstMarker, TDC_MARKER};
+use crate::acquisition::{
+    first_guess, to_crank_angle, told_or_first, AcquisitionOptions, FirstMarker, MarkerPhase,
+    PhaseFrom, TDC_MARKER,
+};
 pub use crate::cell::cyclic_torque_nominal;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};

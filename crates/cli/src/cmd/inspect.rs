@@ -8,6 +8,7 @@ use crate::report::Report;
 use miette::{miette, IntoDiagnostic, Result};
 use physid_apps::acquisition::{
     inspect_wheel, parse_threshold, AcquisitionOptions, AngleSensor, AngleSpec, Inspector,
+    PhaseFrom,
 };
 use physid_apps::compression::TdcFromPressure;
 use physid_core::Recording;
@@ -70,7 +71,7 @@ impl AngleArgs {
         let mut o = acquisition_options(&self.encoders, &self.marker)?;
         o.sensor = self.wheel.spec()?;
         if o.sensor.is_none() {
-            o.phase_from = self.wheel.phase_from.clone();
+            o.phase_from = self.wheel.phase();
         }
         Ok(o)
     }
@@ -137,8 +138,9 @@ pub struct WheelArgs {
     /// there; CHANNEL:low for a cam that marks the other revolution. With --wheel,
     /// --quadrature or --encoder-raw, over the whole recording; with a TDC marker once per
     /// revolution (with `theta_en` or an encoder's counts), over the first 8 revolutions after
-    /// it.
-    #[arg(long, value_name = "CHANNEL[:low]")]
+    /// it. By default `p_cyl` when the recording has it (the first TDC taken as firing when it
+    /// cannot tell, and said); `none`: the first TDC taken as firing.
+    #[arg(long, value_name = "CHANNEL[:low]|none")]
     pub phase_from: Option<String>,
     /// With --wheel or --quadrature: place the TDC from this motored cylinder-pressure channel
     /// instead of --tdc-offset — the motored model's TDC (with the thermodynamic loss angle,
@@ -179,9 +181,14 @@ impl WheelArgs {
             .map_err(|e| miette!("--{e}"))?,
             (None, None, None) => return Ok(None),
         };
-        AngleSpec::new(sensor, self.tdc_offset, self.phase_from.clone())
+        AngleSpec::new(sensor, self.tdc_offset, self.phase())
             .map(Some)
             .map_err(|e| miette!("--tdc-offset {e}"))
+    }
+
+    /// Where which revolution fires is told from (`--phase-from`, `none`, or the default).
+    pub fn phase(&self) -> PhaseFrom {
+        PhaseFrom::parse(self.phase_from.as_deref())
     }
 
     fn wheel_sensor(&self, w: &str) -> Result<AngleSensor> {

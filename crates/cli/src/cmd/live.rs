@@ -331,7 +331,7 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
                     path,
                     &a.input.options(None)?,
                     a.chunk,
-                    a.angle.wheel.phase_from.as_deref(),
+                    a.angle.wheel.phase(),
                 )
             }
             .map_err(|e| match e {

@@ -120,7 +120,8 @@ def read(
     ``tdc_offset`` degrees after the sensor's reference, or is placed from the motored
     cylinder pressure ``tdc_from`` (with ``stroke`` and ``rod`` [m]); ``phase_from`` (a
     pressure or cam channel, ``":low"`` for a cam marking the other revolution) says which
-    revolution fires. What the decoding found is in ``meta["angle"]`` (and
+    revolution fires — by default ``p_cyl`` when the file has it; ``"none"`` takes the first
+    TDC. What the decoding found is in ``meta["angle"]`` (and
     ``meta["tdc_from"]``).
     """
     import os
