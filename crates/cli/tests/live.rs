@@ -1362,6 +1362,15 @@ fn an_angle_that_jumps_stops_the_cycle_stages_not_the_run() {
             "{stage}: {findings:?}"
         );
     }
+    // The shaft monitor takes the jump out of the twist as a sensor's glitch and says so.
+    assert!(
+        findings
+            .iter()
+            .any(|e| says(e, "shaft: the twist stepped by")
+                && says(e, "at sample 5000")
+                && says(e, "taken out as a sensor's glitch")),
+        "{findings:?}"
+    );
     let end = of_type(&ev, "end")[0];
     assert_eq!(end["samples"], 10001, "{end}");
     assert!(of_type(&ev, "cycle").len() >= 2, "cycles before the jump");

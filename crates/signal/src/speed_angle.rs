@@ -8,7 +8,9 @@
 //!
 //! A step whose angle jumps by more than π is an angle that wraps (at 2π or 4π): it counts as
 //! the step less the nearest multiple of 2π, or is left out of both sums when no multiple
-//! brings it within π. The check decides only after two revolutions' worth of `Δθ` or
+//! brings it within π. A step whose speed changes by more than half the sum of its two
+//! samples' sizes (a factor of 3 between them: a glitch — a spike, a dropout to 0 — where a
+//! mislabelled unit scales every sample alike) is left out of both sums too. The check decides only after two revolutions' worth of `Δθ` or
 //! `∫ω dt` over at least [`MIN_STEPS`] steps. Allocation-free per chunk.
 
 use physid_core::{Basis, Recording};
@@ -137,7 +139,8 @@ impl SpeedAngle {
                 if d.abs() > PI {
                     d -= TAU * (d / TAU).round();
                 }
-                if dt > 0.0 && d.abs() <= PI {
+                let glitch = (w - w0).abs() > 0.5 * (w.abs() + w0.abs());
+                if dt > 0.0 && d.abs() <= PI && !glitch {
                     self.travelled += d;
                     self.integrated += 0.5 * (w + w0) * dt;
                     self.steps += 1;
@@ -277,6 +280,19 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A speed sensor's spike of 10⁹ rad/s and its dropout to 0, one sample each, are left
+    /// out: the pair still agrees (the spike alone made it a factor 0.006, "check the units").
+    #[test]
+    fn a_speed_glitch_is_no_mislabel() {
+        let mut r = run(1.0);
+        let mut w = r.values("omega_en").unwrap_or_default().to_vec();
+        w[5000] = 1e9;
+        w[9000] = 0.0;
+        r.replace_values("omega_en", w)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(check(&r), None);
     }
 
     #[test]

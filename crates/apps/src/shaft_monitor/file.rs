@@ -320,6 +320,7 @@ impl Accumulated {
             .iter()
             .flatten()
             .filter_map(SpeedAngle::finding)
+            .chain(self.stage.glitch_findings())
             .collect();
         if self.cfg.supervise {
             let step = 1.0 / self.cfg.rate_hz;

@@ -8,8 +8,9 @@
 //! bound for a dwell — and names the parameter that moved (isolation).
 //!
 //! Here: the configuration, the estimator's choice and the results. By concern: `stage.rs`
-//! (the stream stage), `file.rs` (the file verb over it), `summary.rs` (the JSON); every public
-//! item is re-exported here.
+//! (the stream stage), `glitch.rs` (the steps no shaft makes, taken out before the low-pass),
+//! `file.rs` (the file verb over it), `summary.rs` (the JSON); every public item is
+//! re-exported here.
 
 use crate::acquisition::{on_time_basis, uniform_step, StepCheck};
 use crate::error::AppError;
@@ -29,10 +30,12 @@ use serde::Serialize;
 use std::collections::VecDeque;
 
 mod file;
+mod glitch;
 mod stage;
 mod summary;
 
 pub use file::*;
+pub use glitch::*;
 pub use stage::*;
 pub use summary::*;
 

@@ -58,7 +58,8 @@ pub struct ShaftSample {
     /// Standard errors of K and B (NaN before they can be estimated).
     pub std_err: PerParam,
     /// Whether K, B and τ0 are frozen by the excitation supervisor: reported once the estimator
-    /// has held one frozen (or free) for [`FREEZE_HOLD_S`] without a break.
+    /// has held one frozen (or free) for [`FREEZE_HOLD_S`] without a break; all three while
+    /// the estimator is held (standstill, a sensor's glitch: [`StepGate`]).
     pub frozen: [bool; 3],
 }
 
@@ -96,8 +97,26 @@ pub struct ShaftStage {
     held: [bool; 3],
     differs_since: [Option<f64>; 3],
     model: Shaft,
+    /// The steps no shaft makes, taken out of the twist, the relative speed and the torque.
+    #[serde(default = "default_gates")]
+    gates: [StepGate; 3],
+    /// Whether each input not yet out of the filters is held for a glitch: the samples the
+    /// gates held and `guard` on either side (the low-pass's lookahead, which spreads them).
+    #[serde(default)]
+    suspect: VecDeque<bool>,
+    #[serde(default)]
+    guard: usize,
+    /// Inputs still to be held after the last one the gates held.
+    #[serde(default)]
+    quarantine: usize,
+    /// The samples of the chunk the gates held.
+    #[serde(skip)]
+    held_raw: Vec<bool>,
     raw: [Vec<f64>; 3],
     filtered: [Vec<f64>; 3],
+    /// The glitches taken out of the last chunk.
+    #[serde(skip)]
+    glitches: Vec<ShaftGlitch>,
     /// What a chunk completes, before it goes to a [`Sink`] ([`Stage::push`]).
     #[serde(skip)]
     made: (Vec<ShaftSample>, Vec<ShaftAlarm>),
@@ -133,15 +152,16 @@ impl ShaftStage {
                 "sample rate {rate_hz} Hz: expected > 0"
             )));
         }
-        let filters = if let Some(sos) = lowpass(cfg, rate_hz)? {
+        // The filters, and how far they spread a sample (their lookahead).
+        let (filters, guard) = if let Some(sos) = lowpass(cfg, rate_hz)? {
             // Blocks of a quarter of the lookahead: the latency is 1.25 lookaheads (34 ms for
             // the default 500 Hz at 10 kHz) for 5 backward passes per sample instead of 2.
             let lookahead = settling_length(&sos);
             let block = (lookahead / per_lookahead).max(1);
             let f = ZeroPhaseStream::new(&sos, Some(lookahead), Some(block));
-            Some(Box::new([f.clone(), f.clone(), f]))
+            (Some(Box::new([f.clone(), f.clone(), f])), lookahead)
         } else {
-            None
+            (None, 0)
         };
         let t0 = cfg.theta0;
         let params = ParamSet::new(["K", "B", "tau0"], vec![t0.k, t0.b, t0.tau0])
@@ -197,6 +217,19 @@ impl ShaftStage {
             held: [false; 3],
             differs_since: [None; 3],
             model: Shaft::new(true),
+            gates: {
+                let hold = (MAX_HOLD_S * rate_hz).round().max(1.0) as usize;
+                [
+                    StepGate::twist(hold),
+                    StepGate::slip(hold),
+                    StepGate::torque(cfg.healthy.k, cfg.healthy.b, hold),
+                ]
+            },
+            suspect: VecDeque::with_capacity(latency + FILE_CHUNK),
+            guard,
+            quarantine: 0,
+            held_raw: Vec::new(),
+            glitches: Vec::new(),
             raw: Default::default(),
             filtered: Default::default(),
             made: Default::default(),
@@ -290,6 +323,15 @@ impl ShaftStage {
         }
     }
 
+    /// What was taken out of the twist and the relative speed so far as a sensor's glitch
+    /// ([`StepGate`]), for a person.
+    pub fn glitch_findings(&self) -> impl Iterator<Item = String> + '_ {
+        self.gates
+            .iter()
+            .zip(GATED)
+            .filter_map(|(g, (what, unit))| g.finding(what, unit))
+    }
+
     /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
     /// columns of different lengths or a non-finite sample is refused, naming the sample.
     pub fn push_inputs(
@@ -304,7 +346,7 @@ impl ShaftStage {
 
     /// Take a chunk and append the estimator's regressors `φ = [Δθ, Δω, 1]` it completes,
     /// with their times — what [`push_inputs`](Self::push_inputs) would update the estimator
-    /// with, the samples at standstill left out; no estimator runs (an experiment design's
+    /// with, the samples held (standstill, a sensor's glitch) left out; no estimator runs (an experiment design's
     /// information, `crate::design`). On a stage built by [`for_regressors`](Self::for_regressors),
     /// whose push_inputs would not have the torque.
     pub fn push_regressors(
@@ -328,10 +370,10 @@ impl ShaftStage {
     fn regressors(&mut self, rows: &mut Vec<RegressorRow>) {
         let mut phi = [0.0; 3];
         for k in 0..self.filtered[0].len() {
-            let Some((_, t, standstill)) = self.on_grid() else {
+            let Some((_, t, hold)) = self.on_grid() else {
                 continue;
             };
-            if !standstill {
+            if !hold {
                 let [dth, dw, _] = &self.filtered;
                 self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
                 rows.push(RegressorRow { t_s: t, phi });
@@ -339,17 +381,20 @@ impl ShaftStage {
         }
     }
 
-    /// The next filtered sample's index, time and standstill, when it is on the estimator's
+    /// The next filtered sample's index, time and whether it is held (standstill, a sensor's
+    /// glitch), when it is on the estimator's
     /// grid (one input sample in `every`).
     fn on_grid(&mut self) -> Option<(usize, f64, bool)> {
         let i = self.next;
         self.next += 1;
         let t = self.times.pop_front().unwrap_or(f64::NAN);
         let speed = self.speeds.pop_front().unwrap_or(f64::NAN);
+        let suspect = self.suspect.pop_front().unwrap_or(false);
         // A shaft that does not turn resolves no damping and drifts the estimator's
-        // memory: the estimates and the alarm detector are held until it turns again.
+        // memory, and a sensor's glitch tells nothing of the shaft: the estimates and the
+        // alarm detector are held until it turns again, until the glitch has passed.
         i.is_multiple_of(self.every)
-            .then_some((i, t, speed.abs() < STANDSTILL_RAD_S))
+            .then_some((i, t, speed.abs() < STANDSTILL_RAD_S || suspect))
     }
 
     /// A chunk's Δθ, Δω and τ_sh through the low-pass into `filtered`.
@@ -389,8 +434,38 @@ impl ShaftStage {
                 first + i
             )));
         }
+        // The steps no shaft makes out, before the low-pass spreads them.
+        self.glitches.clear();
+        self.held_raw.clear();
+        self.held_raw.resize(n, false);
+        for ((gate, r), what) in self.gates.iter_mut().zip(&mut self.raw).zip(GATED) {
+            if let Some((i, step, count)) = gate.apply(r, &mut self.held_raw, first) {
+                self.glitches.push(ShaftGlitch {
+                    t_s: x.t[i],
+                    message: format!(
+                        "the {} stepped by {step:.4e} {} between two samples at sample {} (more than {} {}): taken out as a sensor's glitch, not the shaft ({count} in this chunk)",
+                        what.0, what.1, first + i, gate.limit(), what.1
+                    ),
+                });
+            }
+        }
         self.times.extend(x.t);
         self.speeds.extend(x.omega_en);
+        // Held: the samples the gates held and `guard` on either side (those before are still
+        // in the filters: the guard is within their latency).
+        for &h in &self.held_raw {
+            if h {
+                let back = self.suspect.len().saturating_sub(self.guard);
+                if self.quarantine == 0 {
+                    for s in self.suspect.range_mut(back..) {
+                        *s = true;
+                    }
+                }
+                self.quarantine = self.guard + 1;
+            }
+            self.suspect.push_back(self.quarantine > 0);
+            self.quarantine = self.quarantine.saturating_sub(1);
+        }
         for f in &mut self.filtered {
             f.clear();
         }
@@ -449,10 +524,10 @@ impl ShaftStage {
         let mut phi = [0.0; 3];
         let t0 = self.t0.unwrap_or(0.0);
         for k in 0..self.filtered[0].len() {
-            let Some((i, t, standstill)) = self.on_grid() else {
+            let Some((i, t, hold)) = self.on_grid() else {
                 continue;
             };
-            if !standstill {
+            if !hold {
                 let [dth, dw, tq] = &self.filtered;
                 self.model.regressor(&[dth[k], 0.0, dw[k], 0.0], &mut phi);
                 self.update(&phi, tq[k], i)?;
@@ -463,12 +538,12 @@ impl ShaftStage {
                 t_s: t,
                 estimate,
                 std_err: PerParam { k: se.k, b: se.b },
-                frozen: if standstill { [true; 3] } else { self.held(t) },
+                frozen: if hold { [true; 3] } else { self.held(t) },
             });
             // The detector waits for data that resolve K and B (an unresolved estimate is its
             // starting value, not the shaft's).
             let [rk, rb, _] = self.resolved();
-            if !standstill && t - t0 >= self.cfg.settle_s && rk && rb {
+            if !hold && t - t0 >= self.cfg.settle_s && rk && rb {
                 if self.det_times.len() > self.cfg.dwell.max(1) as usize {
                     self.det_times.pop_front();
                 }
@@ -495,6 +570,33 @@ impl ShaftStage {
         }
         Ok(())
     }
+}
+
+/// The gated signals: what they are and their unit.
+const GATED: [(&str, &str); 3] = [
+    ("twist", "rad"),
+    ("relative speed", "rad/s"),
+    ("shaft torque", "N·m"),
+];
+
+/// The gates of a checkpoint from before they were: held 10⁴ samples at most, the torque not
+/// gated.
+fn default_gates() -> [StepGate; 3] {
+    [
+        StepGate::twist(10_000),
+        StepGate::slip(10_000),
+        StepGate::new(f64::MAX, 10_000),
+    ]
+}
+
+/// A glitch taken out of a chunk's twist or relative speed ([`StepGate`]): the time of the
+/// first and what it was.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShaftGlitch {
+    /// The time of the chunk's first step taken out [s].
+    pub t_s: f64,
+    /// What was taken out, for a person.
+    pub message: String,
 }
 
 /// One estimator update's data ([`ShaftStage::push_regressors`]).
@@ -527,11 +629,17 @@ pub enum ShaftOutput {
     Sample(ShaftSample),
     /// An alarm raised.
     Alarm(ShaftAlarm),
+    /// A sensor's glitch taken out of the twist or the relative speed.
+    Glitch(ShaftGlitch),
 }
 
 impl ShaftStage {
-    /// The samples, then the alarms, made since the last call, to `out`.
+    /// The glitches of the last chunk, the samples, then the alarms, made since the last
+    /// call, to `out`.
     fn hand_on(&mut self, out: &mut dyn Sink<ShaftOutput>) {
+        for g in self.glitches.drain(..) {
+            out.put(ShaftOutput::Glitch(g));
+        }
         for s in self.made.0.drain(..) {
             out.put(ShaftOutput::Sample(s));
         }
@@ -545,7 +653,7 @@ impl Stage for ShaftStage {
     type Out = ShaftOutput;
 
     /// A chunk with `t`, `theta_dy`, `theta_en`, `omega_dy`, `omega_en`, `torque_shaft`: the
-    /// estimator samples it completes, then the alarms.
+    /// glitches taken out of it, the estimator samples it completes, then the alarms.
     fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<ShaftOutput>) -> Result<(), AppError> {
         let mut made = std::mem::take(&mut self.made);
         let pushed =

@@ -93,6 +93,9 @@ impl Tell for ShaftStage {
     fn tell(&self, told: &mut ShaftTold, o: &ShaftOutput, at: At, events: &mut dyn Sink<Event>) {
         let s = match o {
             ShaftOutput::Alarm(a) => return events.put(Event::shaft_alarm(a)),
+            ShaftOutput::Glitch(g) => {
+                return events.put(Event::finding(g.t_s, format!("shaft: {}", g.message)))
+            }
             ShaftOutput::Sample(s) if at.end => {
                 told.pending = Some(*s);
                 return;

@@ -1,0 +1,254 @@
+//! Steps no shaft makes: an angle sensor's glitch in the twist `Δθ = θ_dy − θ_en`, a speed
+//! sensor's in the relative speed `Δω = ω_dy − ω_en` (Eq. 6.1's regressors), a torque
+//! sensor's in `τ_sh`, taken out before the low-pass ([`StepGate`]), the estimator held while
+//! they last, and reported — one glitch used to pass through the estimator as a stiffness that
+//! fell to nothing and raise a K alarm (a sample of `theta_dy` dropped to 0, a spike of 10⁹
+//! rad, a revolution slipped by 2π, a torque of 10⁹ N·m).
+
+use serde::{Deserialize, Serialize};
+
+/// Between two samples the shaft's twist moves by `Δω·Δt`: at the monitor's rates (≥ 1 kHz)
+/// hundredths of a radian even in a torsional resonance (0.05 rad of twist at 100 Hz moves
+/// 0.03 rad per millisecond), and a coarse encoder's count is 0.017 rad (360 per revolution). A
+/// step larger than this [rad] is an angle sensor's glitch — a sample dropped to 0, a spike, a
+/// revolution slipped or counted twice, a counter re-indexed — not the shaft.
+pub const MAX_TWIST_STEP: f64 = 0.5;
+
+/// The longest a glitch holds the signal [s] before its step is taken as lasting.
+pub const MAX_HOLD_S: f64 = 1.0;
+
+/// Between two samples the relative speed moves by the relative acceleration times `Δt`: a
+/// step of this much [rad/s] (955 rpm) in one sample would take 10⁵ rad/s² at 1 kHz — a speed
+/// sensor's glitch, not the shaft.
+pub const MAX_SLIP_STEP: f64 = 100.0;
+
+/// A signal with the steps larger than its limit taken out. At such a step the signal is held
+/// at its last sample, and the samples are marked held, until a raw sample comes back within
+/// the limit of where the signal was before the step (a spike, a run of glitches: the samples
+/// after it pass as they came) or for `max_hold` samples at most — then the step is taken as
+/// lasting (a counter re-indexed, a revolution slipped) and the signal goes on from it less the
+/// offset the step left (the step replaced by the last plausible one), which the estimator's
+/// τ0 never sees. A signal without such a step passes bit for bit. What it cannot see: a
+/// sensor that freezes at its last value (its steps stay small; the twist drifts at the
+/// rotation's speed). Allocation-free.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepGate {
+    limit: f64,
+    max_hold: usize,
+    /// The last raw sample, the last sample out, the last plausible step.
+    last_raw: Option<f64>,
+    last: f64,
+    step: f64,
+    /// What is taken off the raw samples.
+    offset: f64,
+    /// Since a step was taken out, until the signal is back or the step is taken as lasting.
+    episode: Option<Episode>,
+    /// Steps taken out (those that began a hold), and the first: its sample (0 = the stream's
+    /// first) and size.
+    count: u64,
+    first: Option<(usize, f64)>,
+}
+
+/// A step taken out and the signal held since.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+struct Episode {
+    /// The offset before the step, and the last sample out before it.
+    offset: f64,
+    level: f64,
+    /// The offset the step leaves should it last.
+    lasting: f64,
+    /// Samples held so far.
+    held: usize,
+}
+
+impl StepGate {
+    /// A gate taking out steps larger than `limit` (in the signal's unit), holding the signal
+    /// for `max_hold` samples at most.
+    pub fn new(limit: f64, max_hold: usize) -> Self {
+        Self {
+            limit,
+            max_hold,
+            last_raw: None,
+            last: 0.0,
+            step: 0.0,
+            offset: 0.0,
+            episode: None,
+            count: 0,
+            first: None,
+        }
+    }
+
+    /// For the twist [rad]: [`MAX_TWIST_STEP`].
+    pub fn twist(max_hold: usize) -> Self {
+        Self::new(MAX_TWIST_STEP, max_hold)
+    }
+
+    /// For the relative speed [rad/s]: [`MAX_SLIP_STEP`].
+    pub fn slip(max_hold: usize) -> Self {
+        Self::new(MAX_SLIP_STEP, max_hold)
+    }
+
+    /// For the shaft torque [N·m]: what a shaft of stiffness `k` [N·m/rad] and damping `b`
+    /// [N·m·s/rad] (the healthy ones) carries across the largest twist and slip steps,
+    /// `|k|·MAX_TWIST_STEP + |b|·MAX_SLIP_STEP` (Eq. 6.1) — 720 N·m for Table 6.1's shaft.
+    pub fn torque(k: f64, b: f64, max_hold: usize) -> Self {
+        let limit = k.abs() * MAX_TWIST_STEP + b.abs() * MAX_SLIP_STEP;
+        let limit = if limit.is_finite() && limit > 0.0 {
+            limit
+        } else {
+            f64::MAX
+        };
+        Self::new(limit, max_hold)
+    }
+
+    /// The limit, rounded to 10⁻⁶ for a person.
+    pub fn limit(&self) -> f64 {
+        (self.limit * 1e6).round() / 1e6
+    }
+
+    /// Take the steps out of a chunk `x` (finite samples) in place, setting `held[i]` for
+    /// each sample held (`held` as long as `x`; others left as they are); `at` is the sample
+    /// number of the chunk's first. Returns the first step taken out in the chunk (its index
+    /// in the chunk and its size) and how many were.
+    pub fn apply(
+        &mut self,
+        x: &mut [f64],
+        held: &mut [bool],
+        at: usize,
+    ) -> Option<(usize, f64, u64)> {
+        let before = self.count;
+        let mut chunk_first = None;
+        for (i, (v, h)) in x.iter_mut().zip(held).enumerate() {
+            let raw = *v;
+            let Some(prev) = self.last_raw.replace(raw) else {
+                self.last = raw;
+                continue;
+            };
+            let d = raw - prev;
+            match &mut self.episode {
+                // Back within the limit of where it was: the step's offset is dropped.
+                Some(e) if (raw - e.offset - e.level).abs() <= self.limit => {
+                    self.offset = e.offset;
+                    self.episode = None;
+                    *v = raw - self.offset;
+                }
+                // Held long enough: the step lasts.
+                Some(e) if e.held >= self.max_hold => {
+                    self.offset = e.lasting;
+                    self.episode = None;
+                    *v = raw - self.offset;
+                }
+                Some(e) => {
+                    e.held += 1;
+                    *v = self.last;
+                    *h = true;
+                }
+                None if d.abs() > self.limit => {
+                    self.count += 1;
+                    self.first.get_or_insert((at + i, d));
+                    chunk_first.get_or_insert((i, d));
+                    self.episode = Some(Episode {
+                        offset: self.offset,
+                        level: self.last,
+                        lasting: raw - (self.last + self.step),
+                        held: 1,
+                    });
+                    *v = self.last;
+                    *h = true;
+                }
+                None => {
+                    self.step = d;
+                    if self.offset != 0.0 {
+                        *v = raw - self.offset;
+                    }
+                }
+            }
+            self.last = *v;
+        }
+        chunk_first.map(|(i, d)| (i, d, self.count - before))
+    }
+
+    /// Steps taken out so far.
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+
+    /// What was taken out, for a person (`None` when nothing was): `what` names the signal,
+    /// `unit` its unit.
+    pub fn finding(&self, what: &str, unit: &str) -> Option<String> {
+        let (at, size) = self.first?;
+        Some(format!(
+            "{} step(s) of the {what} larger than {} {unit} between two samples taken out as a sensor's glitch, not the shaft, the estimator held meanwhile (the first at sample {at}: {size:.6e} {unit})",
+            self.count,
+            self.limit()
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spike_and_a_lasting_jump_are_taken_out() {
+        // A ramp of 0.01 per sample with a spike at 3 and a jump of 2π from 7 on.
+        let truth: Vec<f64> = (0..10).map(|k| 0.01 * k as f64).collect();
+        let mut x = truth.clone();
+        x[3] = 1e9;
+        for v in &mut x[7..] {
+            *v += std::f64::consts::TAU;
+        }
+        // Held at most 2 samples; in two chunks: the gate carries its state across.
+        let mut g = StepGate::twist(2);
+        let mut held = [false; 10];
+        let (a, b) = x.split_at_mut(5);
+        let (ha, hb) = held.split_at_mut(5);
+        assert_eq!(g.apply(a, ha, 0), Some((3, 1e9 - 0.02, 1)));
+        assert!(
+            matches!(g.apply(b, hb, 5), Some((2, d, 1)) if (d - 0.01 - std::f64::consts::TAU).abs() < 1e-9)
+        );
+        // The spike held at the sample before it, the samples after it as they came; the
+        // jump held for 2 samples, then the ramp less 2π.
+        let want = [0.0, 0.01, 0.02, 0.02, 0.04, 0.05, 0.06, 0.06, 0.06, 0.09];
+        for (k, (v, t)) in x.iter().zip(want).enumerate() {
+            assert!((v - t).abs() < 1e-9, "sample {k}: {v} against {t}");
+        }
+        assert_eq!(x[4], truth[4]);
+        let marked: Vec<usize> = (0..10).filter(|&k| held[k]).collect();
+        assert_eq!(marked, [3, 7, 8]);
+        assert_eq!(g.count(), 2);
+        let f = g.finding("twist", "rad").unwrap();
+        assert!(
+            f.starts_with("2 step(s) of the twist larger than 0.5 rad"),
+            "{f}"
+        );
+        assert!(f.contains("the first at sample 3: 1.000000e9 rad"), "{f}");
+    }
+
+    /// A spike just over the limit whose way back is just under it: the way back is the return
+    /// to where the signal was, not a step kept (a twist left 0.5 rad off raised a K alarm).
+    #[test]
+    fn a_spike_at_the_limit_is_taken_out_whole() {
+        let truth: Vec<f64> = (0..10).map(|k| 0.001 * k as f64).collect();
+        let mut x = truth.clone();
+        x[5] -= 0.5015;
+        let mut g = StepGate::twist(100);
+        g.apply(&mut x, &mut [false; 10], 0);
+        assert_eq!(g.count(), 1);
+        assert_eq!(x[5], truth[4]);
+        assert_eq!(&x[6..], &truth[6..]);
+    }
+
+    #[test]
+    fn a_plausible_signal_passes_bit_for_bit() {
+        let x: Vec<f64> = (0..1000).map(|k| 0.3 * (k as f64 * 0.1).sin()).collect();
+        let mut y = x.clone();
+        let mut g = StepGate::twist(100);
+        let mut held = vec![false; 1000];
+        assert_eq!(g.apply(&mut y, &mut held, 0), None);
+        assert_eq!(x, y);
+        assert!(held.iter().all(|h| !h));
+        assert_eq!(g.count(), 0);
+        assert!(g.finding("twist", "rad").is_none());
+    }
+}
