@@ -252,11 +252,35 @@ pub struct SocketFrames {
     heard: bool,
 }
 
+/// A Unix socket listening at `path` that is never open to others, not even for an instant:
+/// bound in a directory of its own (mode 0700) beside `path`, given mode 0600 there, then
+/// linked to `path` (which fails if `path` has come meanwhile) — binding at `path` and then
+/// changing its mode left it, between the two, as the umask made it (a group-writable socket
+/// under umask 002).
+#[cfg(unix)]
+fn bind_private(path: &std::path::Path) -> std::io::Result<std::os::unix::net::UnixListener> {
+    use std::os::unix::fs::{DirBuilderExt, PermissionsExt};
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    let dir = parent.join(format!(".physid-{}", std::process::id()));
+    std::fs::DirBuilder::new().mode(0o700).create(&dir)?;
+    let tmp = dir.join("s");
+    let bound = std::os::unix::net::UnixListener::bind(&tmp).and_then(|l| {
+        std::fs::set_permissions(&tmp, std::fs::Permissions::from_mode(0o600))?;
+        std::fs::hard_link(&tmp, path)?;
+        Ok(l)
+    });
+    let _ = std::fs::remove_file(&tmp);
+    let _ = std::fs::remove_dir(&dir);
+    bound
+}
+
 #[cfg(unix)]
 impl SocketFrames {
     /// Listen at `path` (which must not exist).
     pub fn bind(path: &std::path::Path) -> Result<Self, LiveError> {
-        use std::os::unix::fs::PermissionsExt;
         // A socket left by a run that was killed: nobody answers on it, so it is replaced.
         if std::os::unix::net::UnixStream::connect(path)
             .is_err_and(|e| e.kind() == std::io::ErrorKind::ConnectionRefused)
@@ -272,17 +296,14 @@ impl SocketFrames {
                 path.display()
             )));
         }
-        let listener = std::os::unix::net::UnixListener::bind(path)
+        let listener = bind_private(path)
             .map_err(|e| LiveError::Invalid(format!("{}: {e}", path.display())))?;
-        let me = Self {
+        Ok(Self {
             path: path.to_path_buf(),
             listener,
             stream: None,
             heard: false,
-        };
-        std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600))
-            .map_err(|e| LiveError::Invalid(format!("{}: {e}", path.display())))?;
-        Ok(me)
+        })
     }
 
     /// The client's stream with data buffered (or at its end), accepted on first use.
