@@ -323,8 +323,8 @@ impl ShaftStage {
         }
     }
 
-    /// What was taken out of the twist and the relative speed so far as a sensor's glitch
-    /// ([`StepGate`]), for a person.
+    /// What was taken out of the twist, the relative speed and the torque so far as a
+    /// sensor's glitch ([`StepGate`]), for a person.
     pub fn glitch_findings(&self) -> impl Iterator<Item = String> + '_ {
         self.gates
             .iter()
@@ -346,9 +346,9 @@ impl ShaftStage {
 
     /// Take a chunk and append the estimator's regressors `φ = [Δθ, Δω, 1]` it completes,
     /// with their times — what [`push_inputs`](Self::push_inputs) would update the estimator
-    /// with, the samples held (standstill, a sensor's glitch) left out; no estimator runs (an experiment design's
-    /// information, `crate::design`). On a stage built by [`for_regressors`](Self::for_regressors),
-    /// whose push_inputs would not have the torque.
+    /// with, the samples held (standstill, a sensor's glitch) left out; no estimator runs (an
+    /// experiment design's information, `crate::design`). On a stage built by
+    /// [`for_regressors`](Self::for_regressors), whose push_inputs would not have the torque.
     pub fn push_regressors(
         &mut self,
         x: &ShaftInputs,
@@ -382,8 +382,7 @@ impl ShaftStage {
     }
 
     /// The next filtered sample's index, time and whether it is held (standstill, a sensor's
-    /// glitch), when it is on the estimator's
-    /// grid (one input sample in `every`).
+    /// glitch), when it is on the estimator's grid (one input sample in `every`).
     fn on_grid(&mut self) -> Option<(usize, f64, bool)> {
         let i = self.next;
         self.next += 1;

@@ -229,8 +229,9 @@ impl<'a> Degrees<'a> {
                 for (&th, &v) in chunk.values("theta_en")?.iter().zip(channel) {
                     p.push(th, v);
                 }
-                if let Some(Some(a)) = found {
-                    p.marker_at(a);
+                // Without a marker, from 0 (as below): nothing is held for one to come.
+                if let Some(a) = found {
+                    p.marker_at(a.unwrap_or(0.0));
                 }
             }
             Ok(())
