@@ -35,6 +35,7 @@ use crate::combustion::{burn, mfb_name, peak, Burn, BurnHistory, Cylinder, HeatR
 use crate::fmep_model::FrictionModel;
 use crate::knock::{Knock, KnockFigures};
 use crate::pressure::{Geometry, Pegging, COMPRESSION_WINDOW, EXPANSION_WINDOW, PEG_ANGLES};
+use physid_core::Num;
 use physid_signal::filter::{butter, Band};
 
 /// A cycle whose pressure peaks further than this from its TDC [deg] is taken to be a
@@ -284,8 +285,9 @@ impl PressureLowpass {
         let fs = 6.0 * rpm / step;
         if !(fs.is_finite() && self.cutoff_hz < 0.5 * fs) {
             return Err(format!(
-                "pressure low-pass left out: {step}° steps at {rpm:.0} rpm sample at {fs:.0} Hz, whose Nyquist frequency is below the {} Hz cut-off",
-                self.cutoff_hz
+                "pressure low-pass left out: {}° steps at {rpm:.0} rpm sample at {fs:.0} Hz, whose Nyquist frequency is below the {} Hz cut-off",
+                Num(step),
+                Num(self.cutoff_hz)
             ));
         }
         let sos = butter(self.order, &[self.cutoff_hz], Band::Lowpass, fs)

@@ -1020,6 +1020,22 @@ fn inspect_convert_filter_chain() {
         "torque_shaft",
     ]);
     assert!(!o.status.success() && stderr(&o).contains("choose a filter"));
+    // A cut-off of 1e300 Hz is refused as 1e300, not as its 301 digits.
+    let o = physid(&[
+        "filter",
+        c,
+        mf.to_str().unwrap(),
+        "--units-row",
+        "--lowpass",
+        "1e300",
+        "--channels",
+        "torque_shaft",
+    ]);
+    let e = stderr(&o);
+    assert!(
+        !o.status.success() && e.contains("cut-off 1e300 Hz") && e.len() < 400,
+        "{e}"
+    );
     let o = physid(&[
         "filter",
         c,

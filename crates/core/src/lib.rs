@@ -15,6 +15,7 @@
 pub mod memory;
 pub mod model;
 pub mod nan_null;
+pub mod num;
 pub mod params;
 pub mod passes;
 pub mod recording;
@@ -22,6 +23,7 @@ pub mod sink;
 pub mod units;
 
 pub use model::{DynModel, Grad, GradientEngine, ParamModel, Scalar, GRADIENT_CHUNK};
+pub use num::Num;
 pub use params::{FreeSet, ParamError, ParamSet};
 pub use passes::{ChunkKind, Recordings, Reopen};
 pub use recording::{standard_unit, Basis, Channel, Recording, RecordingError, CHANNEL_TABLE};

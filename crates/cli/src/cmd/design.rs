@@ -643,8 +643,14 @@ fn print(r: &Designed, a: &Args, duration: f64) {
     }
     if let Some(t) = a.target_rel_se {
         match r.chosen.time_to_target_s {
-            Some(s) => outln!("every relative standard error ≤ {t} from {s:.1} s on"),
-            None => outln!("the target {t} is not held to the end of the test"),
+            Some(s) => outln!(
+                "every relative standard error ≤ {} from {s:.1} s on",
+                physid_core::Num(t)
+            ),
+            None => outln!(
+                "the target {} is not held to the end of the test",
+                physid_core::Num(t)
+            ),
         }
     }
     for b in &r.baselines {

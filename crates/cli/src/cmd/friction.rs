@@ -290,7 +290,7 @@ fn fit(a: &FitArgs) -> Result<()> {
     outln!(
         "  prediction error: final {:+.2} %, max after the {} s transient {:.2} %{}",
         r.final_error_pct,
-        a.transient,
+        physid_core::Num(a.transient),
         r.max_error_after_transient_pct,
         r.max_truth_error_after_transient_pct
             .map_or(String::new(), |t| format!(

@@ -21,6 +21,7 @@ pub mod parallel;
 pub use parallel::Parallel;
 
 use nalgebra::{Complex, DMatrix, DVector};
+use physid_core::Num;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -98,7 +99,9 @@ pub fn butter(order: usize, wn: &[f64], band: Band, fs: f64) -> Result<Zpk, Filt
     for &w in wn {
         if !(w.is_finite() && w > 0.0 && w < nyq) {
             return Err(FilterError::Design(format!(
-                "cut-off {w} Hz: expected between 0 and the Nyquist frequency {nyq} Hz"
+                "cut-off {} Hz: expected between 0 and the Nyquist frequency {} Hz",
+                Num(w),
+                Num(nyq)
             )));
         }
     }

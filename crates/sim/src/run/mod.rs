@@ -16,7 +16,7 @@ use crate::control::Demand;
 use crate::numeric::SinCosTrack;
 use crate::params::CellParams;
 use crate::scenario::{Fault, Profile, Scenario};
-use physid_core::Recording;
+use physid_core::{Num, Recording};
 use std::f64::consts::PI;
 
 pub use crate::error::SimError;
@@ -187,11 +187,7 @@ impl Run {
                 rpm / 60.0 * 360.0 / step
             }
         };
-        let what = if duration < 1e5 {
-            format!("a recording of {duration} s")
-        } else {
-            format!("a recording of {duration:e} s")
-        };
+        let what = format!("a recording of {} s", Num(duration));
         let samples = duration * per_second;
         let bytes = samples * OUTPUT.len() as f64 * 8.0;
         if !opts.stream {
@@ -200,7 +196,8 @@ impl Run {
         } else if samples >= MAX_STREAM_SAMPLES {
             // A stream holds nothing, but counts its samples exactly.
             return Err(SimError::Invalid(format!(
-                "{what} at {per_second} samples/s is {samples:e} samples, more than a stream counts exactly (2^53): record less (duration)"
+                "{what} at {} samples/s is {samples:e} samples, more than a stream counts exactly (2^53): record less (duration)",
+                Num(per_second)
             )));
         }
         let w0 = if torque_mode {
