@@ -89,6 +89,18 @@ fn a_typo_of_an_exponent_does_not_take_the_memory() {
         &["convert", rec, out, "--crank-angle", "--step-deg", "1e-9"],
         "points of the 0.000000001° crank-angle grid in the data from sample 0 on would take about",
     );
+    // A step of 1e-300°: the count of points in exponent form, not 303 digits.
+    let o = physid(&["convert", rec, out, "--crank-angle", "--step-deg", "1e-300"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    let longest = e
+        .split(|c: char| !c.is_ascii_digit())
+        .map(str::len)
+        .max()
+        .unwrap_or(0);
+    assert!(
+        o.status.code() == Some(1) && e.contains("e302 points of the") && longest < 20,
+        "{e}"
+    );
     fails_with(
         &["convert", rec, out, "--time-basis", "1e12"],
         "points of the 1000000000000 Hz time basis in the data from sample 0 on would take about",

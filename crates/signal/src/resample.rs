@@ -63,7 +63,8 @@ impl StreamInterp {
             return Ok(());
         }
         let what = format!(
-            "{count:.0} points of {} in the data from sample {} on",
+            "{} points of {} in the data from sample {} on",
+            physid_core::Num(count.round()),
             grid(),
             self.seen
         );
