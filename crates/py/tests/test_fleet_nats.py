@@ -63,10 +63,20 @@ def test_a_python_daq_publishes_and_physid_processes():
         physid.simulate("shaft-steady", duration=3.0, faults=["shaft.k=1100@1.5"]).write(path)
         table = pq.read_table(path)  # every channel the DAQ records
         rate = 10_000.0
-        # Where the cycles start: theta_en at the TDC marker's first rising edge (docs/fleet.md).
+        # Where the cycles start: theta_en at a firing TDC (docs/fleet.md) — the TDC marker's
+        # first rising edge, or the one a revolution on: the revolution around a firing TDC has
+        # the higher mean cylinder pressure (compression and expansion against the gas exchange).
         tdc = table["tdc"].to_numpy()
+        theta, p = table["theta_en"].to_numpy(), table["p_cyl"].to_numpy()
         k = int(np.flatnonzero((tdc != 0) & (np.r_[0.0, tdc[:-1]] == 0))[0])
-        theta_tdc = float(table["theta_en"].to_numpy()[k])
+
+        def level(first):
+            around = [(theta >= c - np.pi) & (theta < c + np.pi)
+                      for c in first + 4 * np.pi * np.arange(1, 4)]
+            return np.mean([p[m].mean() for m in around])
+
+        marker = float(theta[k])
+        theta_tdc = marker if level(marker) > level(marker + 2 * np.pi) else marker + 2 * np.pi
         reference = [json.loads(line) for line in subprocess.run(
             [binary, "live", "--headless", "--json", "--pace", "max", "--replay", path],
             check=True, capture_output=True, text=True).stdout.splitlines()]
