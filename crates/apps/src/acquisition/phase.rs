@@ -99,6 +99,10 @@ pub fn told_or_first<T, E: std::fmt::Display>(
     }
 }
 
+/// The revolutions from the TDC an angle may be at to be placed in one: beyond, `f64` no
+/// longer tells one revolution from the next.
+const MAX_REVOLUTIONS: f64 = 4_503_599_627_370_496.0; // 2^52
+
 /// Which of two revolutions fires, a sample at a time: the mean of a channel over the
 /// revolution centred on each TDC a revolution apart (`offset + 2πk`: the samples whose angle
 /// is in `[offset + 2πk − π, offset + 2πk + π)`, from the first whole one), the median over the
@@ -130,8 +134,15 @@ impl PhaseWindows {
     }
 
     /// The next sample: its angle `theta` [rad] (not decreasing) and the channel's value `p`.
+    /// An angle beyond 2⁵² revolutions (a glitch's 10²⁴ rad) has no place in one: it is passed
+    /// over; one that jumps ahead by many revolutions is placed at once, not a revolution at a
+    /// time (10²³ steps: a hang).
     pub fn push(&mut self, theta: f64, p: f64) {
         let offset = self.offset;
+        let revolutions = (theta - offset) / TAU;
+        if !(revolutions.abs() < MAX_REVOLUTIONS) {
+            return;
+        }
         let mut k = *self
             .k
             .get_or_insert_with(|| ((theta + PI - offset) / TAU).ceil() as i64);
@@ -146,6 +157,10 @@ impl PhaseWindows {
             }
             self.open = [self.open[1], (-0.0, 0)];
             k += 1;
+            if self.open[0].1 == 0 {
+                // Nothing open: on to the first revolution not behind this sample at once.
+                k = k.max(((theta - PI - offset) / TAU).floor() as i64 + 1);
+            }
         }
         self.k = Some(k);
         for j in 0..2 {
@@ -198,4 +213,32 @@ pub fn firing_tdc(offset: f64, parity: i64, theta0: f64) -> f64 {
     let mut tdc = offset + TAU * parity as f64;
     tdc += 4.0 * PI * ((theta0 - tdc) / (4.0 * PI)).ceil();
     tdc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 20 revolutions of a pressure high around the odd TDCs, at 1°; then `jump`.
+    fn told(jump: &[f64]) -> i64 {
+        let mut w = PhaseWindows::new(0.0);
+        for i in 0..20 * 360 {
+            let theta = (i as f64).to_radians();
+            let odd = ((theta + PI) / TAU).floor() as i64 % 2 == 1;
+            w.push(theta, if odd { 10.0 } else { 1.0 });
+        }
+        for &theta in jump {
+            w.push(theta, 5.0);
+        }
+        w.finish("p_cyl", 0.0).map(|(parity, _)| parity).unwrap()
+    }
+
+    /// An angle that jumps 10¹⁴ revolutions ahead is placed at once (a revolution at a time it
+    /// took 10¹⁴ steps), one at 10²⁴ rad is passed over; neither changes what the 20
+    /// revolutions tell.
+    #[test]
+    fn an_angle_that_jumps_far_ahead_is_placed_at_once() {
+        assert_eq!(told(&[]), 1);
+        assert_eq!(told(&[1e15, 1e15 + 1.0, 1e24, f64::INFINITY, f64::NAN]), 1);
+    }
 }
