@@ -140,7 +140,7 @@ impl PhaseWindows {
     pub fn push(&mut self, theta: f64, p: f64) {
         let offset = self.offset;
         let revolutions = (theta - offset) / TAU;
-        if !(revolutions.abs() < MAX_REVOLUTIONS) {
+        if revolutions.is_nan() || revolutions.abs() >= MAX_REVOLUTIONS {
             return;
         }
         let mut k = *self
