@@ -280,7 +280,10 @@ impl CrankResampler {
                 // The angle's interpolator holds the points and their times, the channels'
                 // their times and values; the chunk out their θ, cycle and crank angle.
                 self.channels.room_for(n + 1.0 - *k as f64, 4, || {
-                    format!("the {}° crank-angle grid", self.step.to_degrees())
+                    format!(
+                        "the {}° crank-angle grid",
+                        physid_core::Num(self.step.to_degrees())
+                    )
                 })?;
                 let n = n as i64 + 1;
                 while *k < n {
@@ -392,7 +395,7 @@ impl TimeResampler {
             if last.is_finite() && t0.is_finite() {
                 let n = ((last - t0) * self.rate).floor();
                 self.channels.room_for(n + 1.0 - self.next as f64, 0, || {
-                    format!("the {} Hz time basis", self.rate)
+                    format!("the {} Hz time basis", physid_core::Num(self.rate))
                 })?;
                 let n = n as i64 + 1;
                 while self.next < n {

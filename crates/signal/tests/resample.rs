@@ -182,7 +182,7 @@ fn a_grid_that_cannot_fit_in_memory_is_refused() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.starts_with("5729577951309 points of the 0.000000001° crank-angle grid in the data from sample 0 on would take about")
+        e.starts_with("5729577951309 points of the 1e-9° crank-angle grid in the data from sample 0 on would take about")
             && e.ends_with("GB free: make the grid coarser"),
         "{e}"
     );
