@@ -1735,8 +1735,9 @@ fn a_marker_once_per_revolution_is_phased_from_the_pressure() {
     let phase = &read.meta["phase"];
     assert!(
         phase.starts_with("the first TDC marker taken as firing")
-            && phase.contains("'p_cyl' could not tell")
-            && phase.contains("fewer than two whole revolutions"),
+            && phase.contains(
+                "'p_cyl' could not tell: the recording spans fewer than two whole revolutions"
+            ),
         "{phase}"
     );
     let o = convert(&["--phase-from", "p_cyl"]);

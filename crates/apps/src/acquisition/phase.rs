@@ -90,9 +90,13 @@ pub fn told_or_first<T, E: std::fmt::Display>(
         Ok(t) => Ok(t),
         Err(e) if implied => {
             let (at, how) = first();
+            // Not "--phase-from p_cyl: …": nobody gave it.
+            let why = e.to_string();
+            let prefix = format!("--phase-from {DEFAULT_PHASE_FROM}: ");
+            let why = why.strip_prefix(&prefix).unwrap_or(&why);
             Ok((
                 at,
-                format!("{how} — '{DEFAULT_PHASE_FROM}' could not tell: {e}"),
+                format!("{how} — '{DEFAULT_PHASE_FROM}' could not tell: {why}"),
             ))
         }
         Err(e) => Err(e),
