@@ -146,7 +146,8 @@ fn process_faults_are_isolated_and_sensor_faults_ignored() {
 
 /// Glitches no shaft makes — a twist spike of 10⁹ rad for one sample and for a run of 400 (a
 /// frozen counter's garbage), `theta_dy` dropped to 0, a revolution slipped for good (2π), the
-/// engine speed at 10⁹ rad/s, the torque at 10⁹ N·m — raise no alarm and leave the estimates
+/// engine speed at 10⁹ rad/s, the torque at 10⁹ N·m, the engine's encoder stopped for 0.2 s —
+/// raise no alarm and leave the estimates
 /// within 0.5 % of the clean recording's; each is named in the warnings with its first sample. Each
 /// used to raise a K (or B) alarm. A real stiffness drop among them still raises its alarm.
 #[test]
@@ -154,6 +155,7 @@ fn sensor_glitches_raise_no_alarm_and_hide_no_fault() {
     let cfg = healthy_start();
     let glitch = |rec: &mut Recording| {
         let n = rec.len();
+        let stopped = rec.values("theta_en").unwrap()[39_999];
         let mut set = |name: &str, at: std::ops::Range<usize>, f: &dyn Fn(f64) -> f64| {
             let mut v = rec.values(name).unwrap().to_vec();
             for x in &mut v[at] {
@@ -167,6 +169,9 @@ fn sensor_glitches_raise_no_alarm_and_hide_no_fault() {
         set("theta_dy", 24_000..n, &|x| x + std::f64::consts::TAU);
         set("omega_en", 27_000..27_001, &|_| 1e9);
         set("torque_shaft", 28_000..28_001, &|_| 1e9);
+        // The engine's encoder stops for 0.2 s (its counter halted), then goes on (the run of
+        // 10⁹ above stood still too).
+        set("theta_en", 40_000..42_000, &|_| stopped);
     };
     let clean = run("shaft-steady", &[], &[], 6.0);
     let mut bad = clean.clone();
@@ -201,6 +206,13 @@ fn sensor_glitches_raise_no_alarm_and_hide_no_fault() {
         r.warnings
             .iter()
             .any(|w| w.starts_with("4 step(s) of the twist")),
+        "{:?}",
+        r.warnings
+    );
+    assert!(
+        r.warnings.iter().any(|w| w.starts_with(
+            "'theta_en' stood still while 'omega_en' turned it more than 0.25 rad, 2 time(s), from sample 18025 first"
+        )),
         "{:?}",
         r.warnings
     );

@@ -1,7 +1,8 @@
 //! Steps no shaft makes: an angle sensor's glitch in the twist `Δθ = θ_dy − θ_en`, a speed
 //! sensor's in the relative speed `Δω = ω_dy − ω_en` (Eq. 6.1's regressors), a torque
-//! sensor's in `τ_sh`, taken out before the low-pass ([`StepGate`]), the estimator held while
-//! they last, and reported — one glitch used to pass through the estimator as a stiffness that
+//! sensor's in `τ_sh`, taken out before the low-pass ([`StepGate`]), and an angle sensor that
+//! stopped while its shaft turns ([`StillAngle`]) — the estimator held while they last, and
+//! reported — one glitch used to pass through the estimator as a stiffness that
 //! fell to nothing and raise a K alarm (a sample of `theta_dy` dropped to 0, a spike of 10⁹
 //! rad, a revolution slipped by 2π, a torque of 10⁹ N·m).
 
@@ -28,9 +29,10 @@ pub const MAX_SLIP_STEP: f64 = 100.0;
 /// after it pass as they came) or for `max_hold` samples at most — then the step is taken as
 /// lasting (a counter re-indexed, a revolution slipped) and the signal goes on from it less the
 /// offset the step left (the step replaced by the last plausible one), which the estimator's
-/// τ0 never sees. A signal without such a step passes bit for bit. What it cannot see: a
-/// sensor that freezes at its last value (its steps stay small; the twist drifts at the
-/// rotation's speed). Allocation-free.
+/// τ0 never sees. A signal without such a step passes bit for bit. What it cannot see — a
+/// sensor that freezes at its last value: its steps stay small, the twist drifts at the
+/// rotation's speed — [`StillAngle`] finds, and the twist's gate holds those samples too.
+/// Allocation-free.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StepGate {
     limit: f64,
@@ -107,12 +109,15 @@ impl StepGate {
     }
 
     /// Take the steps out of a chunk `x` (finite samples) in place, setting `held[i]` for
-    /// each sample held (`held` as long as `x`; others left as they are); `at` is the sample
-    /// number of the chunk's first. Returns the first step taken out in the chunk (its index
-    /// in the chunk and its size) and how many were.
+    /// each sample held (`held` as long as `x`); `at` is the sample number of the chunk's
+    /// first. A sample `untrusted` (a check before found it wrong: an angle that stood still,
+    /// [`StillAngle`]) is held at the last sample and its raw value not taken as the
+    /// signal's. Returns the first step taken out in the chunk (its index in the chunk and its
+    /// size) and how many were.
     pub fn apply(
         &mut self,
         x: &mut [f64],
+        untrusted: Option<&[bool]>,
         held: &mut [bool],
         at: usize,
     ) -> Option<(usize, f64, u64)> {
@@ -120,6 +125,14 @@ impl StepGate {
         let mut chunk_first = None;
         for (i, (v, h)) in x.iter_mut().zip(held).enumerate() {
             let raw = *v;
+            if untrusted.is_some_and(|u| u[i]) && self.last_raw.is_some() {
+                *h = true;
+                *v = self.last;
+                if let Some(e) = &mut self.episode {
+                    e.held += 1;
+                }
+                continue;
+            }
             let Some(prev) = self.last_raw.replace(raw) else {
                 self.last = raw;
                 continue;
@@ -185,6 +198,74 @@ impl StepGate {
     }
 }
 
+/// An angle that stands still while its shaft's speed turns it this far [rad] (14°: more than
+/// a count of any encoder of 26 counts a revolution or finer) is a sensor that stopped (a
+/// counter halted, a cable off), not a shaft at rest.
+pub const MAX_STILL_TURN: f64 = 0.25;
+
+/// Below this speed [rad/s] an angle standing still is a shaft at rest (the monitor's
+/// standstill, 300 rpm): nothing is counted.
+const STILL_MIN_SPEED: f64 = super::STANDSTILL_RAD_S;
+
+/// An angle sensor that stopped while its shaft turns: the angle unchanged while its speed,
+/// integrated since the angle last moved, passes [`MAX_STILL_TURN`] — the twist then drifts at
+/// the rotation's speed, which no step shows. Allocation-free.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StillAngle {
+    /// The angle's last value, and `∫|ω| dt` since it last moved [rad].
+    last: Option<f64>,
+    turned: f64,
+    /// Whether it stands still now, the stretches found, the first's sample.
+    still: bool,
+    count: u64,
+    first: Option<usize>,
+}
+
+impl StillAngle {
+    /// Mark in `held` the samples of a chunk of the angle `theta` [rad] that stand still while
+    /// `omega` [rad/s] turns it (samples `dt` [s] apart; `at` the sample number of the chunk's
+    /// first). Returns the index in the chunk of the first stretch begun in it.
+    pub fn apply(
+        &mut self,
+        theta: &[f64],
+        omega: &[f64],
+        dt: f64,
+        held: &mut [bool],
+        at: usize,
+    ) -> Option<usize> {
+        let mut begun = None;
+        for (i, ((&th, &w), h)) in theta.iter().zip(omega).zip(held).enumerate() {
+            if self.last != Some(th) || w.abs() < STILL_MIN_SPEED {
+                self.last = Some(th);
+                self.turned = 0.0;
+                self.still = false;
+                continue;
+            }
+            self.turned += w.abs() * dt;
+            if self.turned > MAX_STILL_TURN {
+                if !self.still {
+                    self.still = true;
+                    self.count += 1;
+                    self.first.get_or_insert(at + i);
+                    begun.get_or_insert(i);
+                }
+                *h = true;
+            }
+        }
+        begun
+    }
+
+    /// What was found, for a person (`None` when nothing was): `angle` and `speed` name the
+    /// channels.
+    pub fn finding(&self, angle: &str, speed: &str) -> Option<String> {
+        let at = self.first?;
+        Some(format!(
+            "'{angle}' stood still while '{speed}' turned it more than {MAX_STILL_TURN} rad, {} time(s), from sample {at} first: a stopped sensor, not the shaft — the estimator held meanwhile",
+            self.count
+        ))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -203,9 +284,9 @@ mod tests {
         let mut held = [false; 10];
         let (a, b) = x.split_at_mut(5);
         let (ha, hb) = held.split_at_mut(5);
-        assert_eq!(g.apply(a, ha, 0), Some((3, 1e9 - 0.02, 1)));
+        assert_eq!(g.apply(a, None, ha, 0), Some((3, 1e9 - 0.02, 1)));
         assert!(
-            matches!(g.apply(b, hb, 5), Some((2, d, 1)) if (d - 0.01 - std::f64::consts::TAU).abs() < 1e-9)
+            matches!(g.apply(b, None, hb, 5), Some((2, d, 1)) if (d - 0.01 - std::f64::consts::TAU).abs() < 1e-9)
         );
         // The spike held at the sample before it, the samples after it as they came; the
         // jump held for 2 samples, then the ramp less 2π.
@@ -233,10 +314,36 @@ mod tests {
         let mut x = truth.clone();
         x[5] -= 0.5015;
         let mut g = StepGate::twist(100);
-        g.apply(&mut x, &mut [false; 10], 0);
+        g.apply(&mut x, None, &mut [false; 10], 0);
         assert_eq!(g.count(), 1);
         assert_eq!(x[5], truth[4]);
         assert_eq!(&x[6..], &truth[6..]);
+    }
+
+    /// An angle that stops for 50 samples while its speed says 250 rad/s (0.025 rad a sample):
+    /// held once it has missed 0.25 rad, until it moves again; a shaft at rest (speed 0) is not.
+    #[test]
+    fn an_angle_that_stops_while_its_shaft_turns_is_held() {
+        let theta: Vec<f64> = (0..100)
+            .map(|k| 0.01 * (if (20..70).contains(&k) { 19 } else { k }) as f64)
+            .collect();
+        let omega = [250.0; 100];
+        let mut s = StillAngle::default();
+        let mut held = [false; 100];
+        let (a, b) = held.split_at_mut(50);
+        assert_eq!(s.apply(&theta[..50], &omega[..50], 1e-4, a, 0), Some(30));
+        assert_eq!(s.apply(&theta[50..], &omega[50..], 1e-4, b, 50), None);
+        let marked: Vec<usize> = (0..100).filter(|&k| held[k]).collect();
+        assert_eq!(marked, (30..70).collect::<Vec<_>>());
+        let f = s.finding("theta_en", "omega_en").unwrap();
+        assert!(f.contains("1 time(s), from sample 30 first"), "{f}");
+        let mut rest = StillAngle::default();
+        let mut held = vec![false; 100];
+        assert_eq!(
+            rest.apply(&[1.0; 100], &[0.0; 100], 1e-4, &mut held, 0),
+            None
+        );
+        assert!(held.iter().all(|h| !h));
     }
 
     #[test]
@@ -245,7 +352,7 @@ mod tests {
         let mut y = x.clone();
         let mut g = StepGate::twist(100);
         let mut held = vec![false; 1000];
-        assert_eq!(g.apply(&mut y, &mut held, 0), None);
+        assert_eq!(g.apply(&mut y, None, &mut held, 0), None);
         assert_eq!(x, y);
         assert!(held.iter().all(|h| !h));
         assert_eq!(g.count(), 0);

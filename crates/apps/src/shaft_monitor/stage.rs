@@ -100,6 +100,12 @@ pub struct ShaftStage {
     /// The steps no shaft makes, taken out of the twist, the relative speed and the torque.
     #[serde(default = "default_gates")]
     gates: [StepGate; 3],
+    /// The engine's and the dynamometer's angle sensors, checked for a stop while they turn.
+    #[serde(default)]
+    still: [StillAngle; 2],
+    /// The inputs' step [s] (0 in a checkpoint from before: no stop is found).
+    #[serde(default)]
+    dt: f64,
     /// Whether each input not yet out of the filters is held for a glitch: the samples the
     /// gates held and `guard` on either side (the low-pass's lookahead, which spreads them).
     #[serde(default)]
@@ -109,9 +115,11 @@ pub struct ShaftStage {
     /// Inputs still to be held after the last one the gates held.
     #[serde(default)]
     quarantine: usize,
-    /// The samples of the chunk the gates held.
+    /// The samples of the chunk the gates held, and those where an angle stood still.
     #[serde(skip)]
     held_raw: Vec<bool>,
+    #[serde(skip)]
+    still_raw: Vec<bool>,
     raw: [Vec<f64>; 3],
     filtered: [Vec<f64>; 3],
     /// The glitches taken out of the last chunk.
@@ -225,10 +233,13 @@ impl ShaftStage {
                     StepGate::torque(cfg.healthy.k, cfg.healthy.b, hold),
                 ]
             },
+            still: Default::default(),
+            dt: 1.0 / rate_hz,
             suspect: VecDeque::with_capacity(latency + FILE_CHUNK),
             guard,
             quarantine: 0,
             held_raw: Vec::new(),
+            still_raw: Vec::new(),
             glitches: Vec::new(),
             raw: Default::default(),
             filtered: Default::default(),
@@ -323,13 +334,20 @@ impl ShaftStage {
         }
     }
 
-    /// What was taken out of the twist, the relative speed and the torque so far as a
-    /// sensor's glitch ([`StepGate`]), for a person.
+    /// The angle sensors found stopped ([`StillAngle`]) and what was taken out of the twist,
+    /// the relative speed and the torque as a sensor's glitch ([`StepGate`]), for a person.
     pub fn glitch_findings(&self) -> impl Iterator<Item = String> + '_ {
-        self.gates
+        let still = self
+            .still
+            .iter()
+            .zip(STILL)
+            .filter_map(|(s, (angle, speed))| s.finding(angle, speed));
+        let steps = self
+            .gates
             .iter()
             .zip(GATED)
-            .filter_map(|(g, (what, unit))| g.finding(what, unit))
+            .filter_map(|(g, (what, unit))| g.finding(what, unit));
+        still.chain(steps)
     }
 
     /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
@@ -437,8 +455,32 @@ impl ShaftStage {
         self.glitches.clear();
         self.held_raw.clear();
         self.held_raw.resize(n, false);
-        for ((gate, r), what) in self.gates.iter_mut().zip(&mut self.raw).zip(GATED) {
-            if let Some((i, step, count)) = gate.apply(r, &mut self.held_raw, first) {
+        self.still_raw.clear();
+        self.still_raw.resize(n, false);
+        // An angle that stopped while its shaft turns: held first, so that the twist's gate
+        // holds the twist there instead of taking its drift.
+        let pairs = [(x.theta_en, x.omega_en), (x.theta_dy, x.omega_dy)];
+        for ((still, (theta, omega)), (angle, speed)) in self.still.iter_mut().zip(pairs).zip(STILL)
+        {
+            if let Some(i) = still.apply(theta, omega, self.dt, &mut self.still_raw, first) {
+                self.glitches.push(ShaftGlitch {
+                    t_s: x.t[i],
+                    message: format!(
+                        "'{angle}' stood still while '{speed}' turned it more than {MAX_STILL_TURN} rad, from sample {}: held as a stopped sensor, not the shaft",
+                        first + i
+                    ),
+                });
+            }
+        }
+        for (k, ((gate, r), what)) in self
+            .gates
+            .iter_mut()
+            .zip(&mut self.raw)
+            .zip(GATED)
+            .enumerate()
+        {
+            let untrusted = (k == 0).then_some(&self.still_raw[..]);
+            if let Some((i, step, count)) = gate.apply(r, untrusted, &mut self.held_raw, first) {
                 self.glitches.push(ShaftGlitch {
                     t_s: x.t[i],
                     message: format!(
@@ -577,6 +619,9 @@ const GATED: [(&str, &str); 3] = [
     ("relative speed", "rad/s"),
     ("shaft torque", "N·m"),
 ];
+
+/// The angle sensors checked for a stop, with their speeds.
+const STILL: [(&str, &str); 2] = [("theta_en", "omega_en"), ("theta_dy", "omega_dy")];
 
 /// The gates of a checkpoint from before they were: held 10⁴ samples at most, the torque not
 /// gated.
