@@ -8,6 +8,44 @@
 use crate::crank::{cycle_position, CrankError};
 use std::collections::VecDeque;
 
+/// Where a refused grid comes from an angle that jumps more than two revolutions
+/// ([`MAX_ADVANCE`](crate::cycles::MAX_ADVANCE)) between two samples — a channel in degrees or
+/// counts read as radians, or scaled by mistake — the largest such jump, named by its samples
+/// (`seen` is the index of `theta[0]`, `before` the angle of the sample before it): when the
+/// grid would fit with no sample advancing more than that (`fits` of its points), the jumps
+/// are what asks for it.
+fn largest_advance(
+    before: Option<f64>,
+    theta: &[f64],
+    seen: usize,
+    step: f64,
+    fits: impl FnOnce(f64) -> bool,
+) -> Option<String> {
+    use crate::cycles::MAX_ADVANCE;
+    // Pair `i` ends at `theta[i]` after the sample before, at `theta[i + 1]` without it.
+    let prev = before.into_iter().chain(theta.iter().copied());
+    let advances = prev
+        .zip(theta.iter().copied().skip(usize::from(before.is_none())))
+        .map(|(a, b)| b - a);
+    let capped: f64 = advances.clone().map(|d| d.min(MAX_ADVANCE)).sum();
+    let (i, d) =
+        advances.enumerate().fold(
+            (0, f64::NEG_INFINITY),
+            |m, (i, d)| if d > m.1 { (i, d) } else { m },
+        );
+    let index = seen + i + usize::from(before.is_none());
+    (d > MAX_ADVANCE && fits(capped / step + 1.0)).then(|| {
+        format!(
+            "the crank angle advances {} rad ({} revolutions) from sample {} to sample {}: is it \
+             in radians, and of the right scale?",
+            physid_core::Num(d),
+            physid_core::Num((d / std::f64::consts::TAU).round()),
+            index - 1,
+            index
+        )
+    })
+}
+
 /// Linear interpolation of `y(x)` at increasing points, the data coming a chunk at a time:
 /// what [`interp`](crate::crank::interp) gives on the whole data — `y[0]` at or before the
 /// first `x`, `y[n−1]` at or after the last, between them `y[j] + f·(y[j+1] − y[j])` on the
@@ -48,12 +86,16 @@ impl StreamInterp {
     /// Refuse asking for `count` more points when they, their answers (every channel) and the
     /// `extra` values kept for each would not fit in the memory available — a grid finer than
     /// the data by a factor of millions (a step of 1e-9°) — instead of growing until the
-    /// allocator aborts. `grid` says what the points are (called only for the error).
+    /// allocator aborts. `grid` says what the points are, `from` the chunk's first sample, `cause` what in the data asks for so
+    /// many if it knows, given whether a count of points would fit (else the error advises a
+    /// coarser grid); both are called only for the error.
     pub fn room_for(
         &self,
         count: f64,
         extra: usize,
         grid: impl FnOnce() -> String,
+        from: usize,
+        cause: impl FnOnce(&dyn Fn(f64) -> bool) -> Option<String>,
     ) -> Result<(), CrankError> {
         let per_point = (self.tail[0].1.len() + 2 + extra) * std::mem::size_of::<f64>();
         let bytes = count * per_point as f64;
@@ -66,10 +108,14 @@ impl StreamInterp {
             "{} points of {} in the data from sample {} on",
             physid_core::Num(count.round()),
             grid(),
-            self.seen
+            from
         );
-        physid_core::memory::check_fits(bytes, &what)
-            .map_err(|e| CrankError::Invalid(format!("{e}: make the grid coarser")))
+        physid_core::memory::check_fits(bytes, &what).map_err(|e| {
+            let fits =
+                |count: f64| physid_core::memory::check_fits(count * per_point as f64, "").is_ok();
+            let advice = cause(&fits).unwrap_or_else(|| "make the grid coarser".into());
+            CrankError::Invalid(format!("{e}: {advice}"))
+        })
     }
 
     /// The points asked for and not answered yet.
@@ -279,12 +325,16 @@ impl CrankResampler {
                 let n = ((last - self.theta_tdc) / self.step).floor().max(-1.0);
                 // The angle's interpolator holds the points and their times, the channels'
                 // their times and values; the chunk out their θ, cycle and crank angle.
-                self.channels.room_for(n + 1.0 - *k as f64, 4, || {
-                    format!(
-                        "the {}° crank-angle grid",
-                        physid_core::Num(self.step.to_degrees())
-                    )
-                })?;
+                let (step, step_deg) = (self.step, self.step.to_degrees());
+                let before = self.angle.last_x();
+                let seen = self.angle.seen;
+                self.channels.room_for(
+                    n + 1.0 - *k as f64,
+                    4,
+                    || format!("the {}° crank-angle grid", physid_core::Num(step_deg)),
+                    seen,
+                    |fits| largest_advance(before, theta, seen, step, fits),
+                )?;
                 let n = n as i64 + 1;
                 while *k < n {
                     self.angle.ask(self.theta_tdc + *k as f64 * self.step);
@@ -394,9 +444,13 @@ impl TimeResampler {
         if let (Some(t0), Some(&last)) = (self.t0, t.last()) {
             if last.is_finite() && t0.is_finite() {
                 let n = ((last - t0) * self.rate).floor();
-                self.channels.room_for(n + 1.0 - self.next as f64, 0, || {
-                    format!("the {} Hz time basis", physid_core::Num(self.rate))
-                })?;
+                self.channels.room_for(
+                    n + 1.0 - self.next as f64,
+                    0,
+                    || format!("the {} Hz time basis", physid_core::Num(self.rate)),
+                    self.channels.seen,
+                    |_| None,
+                )?;
                 let n = n as i64 + 1;
                 while self.next < n {
                     self.channels.ask(t0 + self.next as f64 / self.rate);

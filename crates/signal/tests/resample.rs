@@ -186,6 +186,27 @@ fn a_grid_that_cannot_fit_in_memory_is_refused() {
             && e.ends_with("GB free: make the grid coarser"),
         "{e}"
     );
+    // An angle scaled by 10¹² (its first chunk fine): the refusal names the jump that asks
+    // for the points, from the previous chunk's last sample or within the chunk.
+    let mut r = CrankResampler::new(0.0, 1.0, 3).unwrap();
+    r.push_angle(&[0.0, 1e-4], &[0.0, 0.1]).unwrap();
+    let e = r
+        .push_angle(&[2e-4, 3e-4, 4e-4], &[0.2, 0.3, 4e11])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with(
+            "22918311805227 points of the 1° crank-angle grid in the data from sample 2 on"
+        ) && e.ends_with(
+            "GB free: the crank angle advances 399999999999.7 rad (63661977237 revolutions) \
+                 from sample 3 to sample 4: is it in radians, and of the right scale?"
+        ),
+        "{e}"
+    );
+    let mut r = CrankResampler::new(0.0, 1.0, 3).unwrap();
+    r.push_angle(&[0.0, 1e-4], &[0.0, 0.1]).unwrap();
+    let e = r.push_angle(&[2e-4], &[4e11]).unwrap_err().to_string();
+    assert!(e.contains("from sample 1 to sample 2:"), "{e}");
     let mut r = TimeResampler::new(1e6, 1).unwrap();
     let (mut tt, mut out) = (Vec::new(), vec![Vec::new()]);
     r.push(&[0.0, 0.5], &[&[1.0, 2.0]], &mut tt, &mut out)
