@@ -146,8 +146,8 @@ fn process_faults_are_isolated_and_sensor_faults_ignored() {
 
 /// Glitches no shaft makes — a twist spike of 10⁹ rad for one sample and for a run of 400 (a
 /// frozen counter's garbage), `theta_dy` dropped to 0, a revolution slipped for good (2π), the
-/// engine speed at 10⁹ rad/s, the torque at 10⁹ N·m, the engine's encoder stopped for 0.2 s —
-/// raise no alarm and leave the estimates
+/// engine speed at 10⁹ rad/s, the torque at 10⁹ N·m, the engine's encoder stopped for 0.2 s,
+/// its speed frozen for 1 s — raise no alarm and leave the estimates
 /// within 0.5 % of the clean recording's; each is named in the warnings with its first sample. Each
 /// used to raise a K (or B) alarm. A real stiffness drop among them still raises its alarm.
 #[test]
@@ -156,6 +156,7 @@ fn sensor_glitches_raise_no_alarm_and_hide_no_fault() {
     let glitch = |rec: &mut Recording| {
         let n = rec.len();
         let stopped = rec.values("theta_en").unwrap()[39_999];
+        let frozen = rec.values("omega_en").unwrap()[44_999];
         let mut set = |name: &str, at: std::ops::Range<usize>, f: &dyn Fn(f64) -> f64| {
             let mut v = rec.values(name).unwrap().to_vec();
             for x in &mut v[at] {
@@ -172,6 +173,9 @@ fn sensor_glitches_raise_no_alarm_and_hide_no_fault() {
         // The engine's encoder stops for 0.2 s (its counter halted), then goes on (the run of
         // 10⁹ above stood still too).
         set("theta_en", 40_000..42_000, &|_| stopped);
+        // The engine's speed freezes for 1 s (a frozen CAN signal): the relative speed loses
+        // the shaft's vibration (B read 2.8 for 0.95 over 3 s of it).
+        set("omega_en", 45_000..55_000, &|_| frozen);
     };
     let clean = run("shaft-steady", &[], &[], 6.0);
     let mut bad = clean.clone();
@@ -212,6 +216,14 @@ fn sensor_glitches_raise_no_alarm_and_hide_no_fault() {
     assert!(
         r.warnings.iter().any(|w| w.starts_with(
             "'theta_en' stood still while 'omega_en' turned it more than 0.25 rad, 2 time(s), from sample 18025 first"
+        )),
+        "{:?}",
+        r.warnings
+    );
+    // Found 0.02 s after the value it froze at (sample 44 999).
+    assert!(
+        r.warnings.iter().any(|w| w.starts_with(
+            "'omega_en' stood at one value for 0.02 s or more while 'theta_en' turned away from it, 1 time(s), from sample 45199 first"
         )),
         "{:?}",
         r.warnings

@@ -1,7 +1,8 @@
 //! Steps no shaft makes: an angle sensor's glitch in the twist `Δθ = θ_dy − θ_en`, a speed
 //! sensor's in the relative speed `Δω = ω_dy − ω_en` (Eq. 6.1's regressors), a torque
-//! sensor's in `τ_sh`, taken out before the low-pass ([`StepGate`]), and an angle sensor that
-//! stopped while its shaft turns ([`StillAngle`]) — the estimator held while they last, and
+//! sensor's in `τ_sh`, taken out before the low-pass ([`StepGate`]), an angle sensor that
+//! stopped while its shaft turns ([`StillAngle`]) and a speed sensor that froze while its shaft
+//! moves ([`StuckSpeed`]) — the estimator held while they last, and
 //! reported — one glitch used to pass through the estimator as a stiffness that
 //! fell to nothing and raise a K alarm (a sample of `theta_dy` dropped to 0, a spike of 10⁹
 //! rad, a revolution slipped by 2π, a torque of 10⁹ N·m).
@@ -266,6 +267,109 @@ impl StillAngle {
     }
 }
 
+/// A speed that stands bit for bit at one value for this long [s] (a live speed sensor updates
+/// at 50 Hz or faster: a CAN signal's usual period is 10–20 ms)…
+pub const STUCK_MIN_S: f64 = 0.02;
+
+/// …while its angle's rate leaves it: the angle turns more or less than the speed says by more
+/// than this fraction of what it turned (a speed in whole rpm at 1000 rpm misses by 5·10⁻⁴ of
+/// it at most)…
+pub const STUCK_RELATIVE_MISS: f64 = 1e-3;
+
+/// …and by more than this many times the largest step by which one sample of the angle left
+/// the speed's (an encoder's count, its noise): the miss is the angle's drift, not its
+/// resolution.
+pub const STUCK_MISS_STEPS: f64 = 2.0;
+
+/// A speed sensor that froze while its shaft moves: its speed bit for bit unchanged for
+/// [`STUCK_MIN_S`] while its angle's rate leaves it ([`STUCK_RELATIVE_MISS`],
+/// [`STUCK_MISS_STEPS`]) — the dual of [`StillAngle`], found within tens of milliseconds
+/// while the shaft vibrates. The engine speed frozen on a steady run loses the shaft's
+/// vibration from the relative speed (Eq. 6.1's regressor): B read three times its value and
+/// raised an alarm 0.24 s after the freeze, for a fault that was the sensor's. A speed held for a
+/// revolution or updated more slowly than 50 Hz cannot follow that vibration either, and is
+/// found the same. The angle's own glitches (a step off the speed's by more than
+/// [`MAX_TWIST_STEP`]) do not count. Allocation-free.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StuckSpeed {
+    /// The speed it stands at [rad/s] and the last angle [rad].
+    value: Option<f64>,
+    last_angle: f64,
+    /// Since the speed last changed: the angle turned (its glitches left out) [rad], the
+    /// samples, the largest step by which a sample of the angle left the speed's [rad].
+    turned: f64,
+    samples: u64,
+    largest_step_miss: f64,
+    /// Whether it is found frozen now, the stretches found, the first's sample.
+    stuck: bool,
+    count: u64,
+    first: Option<usize>,
+}
+
+impl StuckSpeed {
+    /// Mark in `held` the samples of a chunk of the speed `omega` [rad/s] that stand while its
+    /// angle `theta` [rad] leaves it (samples `dt` [s] apart; `at` the sample number of the
+    /// chunk's first). Returns the index in the chunk of the first stretch begun in it.
+    pub fn apply(
+        &mut self,
+        theta: &[f64],
+        omega: &[f64],
+        dt: f64,
+        held: &mut [bool],
+        at: usize,
+    ) -> Option<usize> {
+        let mut begun = None;
+        for (i, ((&th, &w), h)) in theta.iter().zip(omega).zip(held).enumerate() {
+            let d = th - std::mem::replace(&mut self.last_angle, th);
+            if self.value != Some(w) {
+                *self = Self {
+                    value: Some(w),
+                    last_angle: th,
+                    first: self.first,
+                    count: self.count,
+                    ..Self::default()
+                };
+                continue;
+            }
+            // A step of the angle off the speed's by more than a glitch's: the speed's share.
+            let said = w * dt;
+            let step_miss = (d - said).abs();
+            if step_miss > MAX_TWIST_STEP {
+                self.turned += said;
+            } else {
+                self.turned += d;
+                self.largest_step_miss = self.largest_step_miss.max(step_miss);
+            }
+            self.samples += 1;
+            let miss = (self.turned - said * self.samples as f64).abs();
+            if self.stuck
+                || (self.samples as f64 * dt >= STUCK_MIN_S
+                    && miss > STUCK_RELATIVE_MISS * self.turned.abs()
+                    && miss > STUCK_MISS_STEPS * self.largest_step_miss)
+            {
+                if !self.stuck {
+                    self.stuck = true;
+                    self.count += 1;
+                    self.first.get_or_insert(at + i);
+                    begun.get_or_insert(i);
+                }
+                *h = true;
+            }
+        }
+        begun
+    }
+
+    /// What was found, for a person (`None` when nothing was): `speed` and `angle` name the
+    /// channels.
+    pub fn finding(&self, speed: &str, angle: &str) -> Option<String> {
+        let at = self.first?;
+        Some(format!(
+            "'{speed}' stood at one value for {STUCK_MIN_S} s or more while '{angle}' turned away from it, {} time(s), from sample {at} first: a frozen sensor (or one updated too rarely for the shaft's vibration), not the shaft — the estimator held meanwhile",
+            self.count
+        ))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -344,6 +448,106 @@ mod tests {
             None
         );
         assert!(held.iter().all(|h| !h));
+    }
+
+    /// At 10 kHz for `n` samples, a shaft at `w(t)` [rad/s] whose angle [rad] is `angle(t)`,
+    /// its speed as `read` gives it from the true one and the time.
+    fn shaft(
+        n: usize,
+        angle: impl Fn(f64) -> f64,
+        w: impl Fn(f64) -> f64,
+        read: &dyn Fn(f64, f64) -> f64,
+    ) -> (Vec<f64>, Vec<f64>) {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * 1e-4;
+                (angle(t), read(w(t), t))
+            })
+            .unzip()
+    }
+
+    /// A shaft at 104.7 rad/s vibrating by ±2 rad/s at 17 Hz, the angle's integral.
+    const W0: f64 = 104.7;
+    fn vibrating(t: f64) -> f64 {
+        W0 + 2.0 * (2.0 * std::f64::consts::PI * 17.0 * t).cos()
+    }
+    fn vibrating_angle(t: f64) -> f64 {
+        let w = 2.0 * std::f64::consts::PI * 17.0;
+        W0 * t + 2.0 / w * (w * t).sin()
+    }
+
+    /// A CAN speed (updated every 10 ms) that freezes at 1 s on a vibrating shaft: found
+    /// within 0.03 s of the freeze, held until it moves again at 1.5 s; a spike of the angle
+    /// meanwhile changes nothing. The same speed that speeds up at 10 rad/s² without
+    /// vibration: found once the angle's drift (5·t²) passes 10⁻³ of its turn (0.11·t), at
+    /// 22 ms.
+    #[test]
+    fn a_speed_that_freezes_while_its_shaft_moves_is_held() {
+        let can = |w: f64, t: f64| w + 1e-9 * (t / 0.01).floor();
+        let frozen = |w: f64, t: f64| can(w, if (1.0..1.5).contains(&t) { 1.0 } else { t });
+        let (mut theta, omega) = shaft(20_000, vibrating_angle, vibrating, &|_, t| {
+            frozen(vibrating(t.min(1.0)), t)
+        });
+        theta[12_000] += 1e9;
+        let mut s = StuckSpeed::default();
+        let mut held = vec![false; 20_000];
+        let (a, b) = held.split_at_mut(10_000);
+        assert_eq!(
+            s.apply(&theta[..10_000], &omega[..10_000], 1e-4, a, 0),
+            None
+        );
+        let start = 10_000
+            + s.apply(&theta[10_000..], &omega[10_000..], 1e-4, b, 10_000)
+                .unwrap();
+        assert!((10_200..10_300).contains(&start), "{start}");
+        let marked: Vec<usize> = (0..20_000).filter(|&k| held[k]).collect();
+        assert_eq!(marked, (start..15_000).collect::<Vec<_>>());
+        let f = s.finding("omega_en", "theta_en").unwrap();
+        assert!(
+            f.contains(&format!("1 time(s), from sample {start} first")),
+            "{f}"
+        );
+        let (theta, omega) = shaft(
+            20_000,
+            |t| 100.0 * t + 5.0 * t * t,
+            |t| 100.0 + 10.0 * t,
+            &|_, t| 100.0 + 10.0 * if (1.0..1.5).contains(&t) { 1.0 } else { t },
+        );
+        let mut held = vec![false; 20_000];
+        let start = StuckSpeed::default().apply(&theta, &omega, 1e-4, &mut held, 0);
+        assert!(matches!(start, Some(10_220..=10_225)), "{start:?}");
+    }
+
+    /// Not frozen, each with a spike of the angle: the vibrating shaft's speed updated every
+    /// 10 ms; a speed in whole rpm at a steady 1000.4 rpm over an encoder of 360 counts for
+    /// 60 s; a shaft at rest.
+    #[test]
+    fn a_live_speed_is_not_frozen() {
+        let rpm = std::f64::consts::PI / 30.0;
+        let whole_rpm = |w: f64, _| (w / rpm).round() * rpm;
+        let count = std::f64::consts::TAU / 360.0;
+        for (n, angle, w, read) in [
+            (
+                20_000,
+                &vibrating_angle as &dyn Fn(f64) -> f64,
+                &vibrating as &dyn Fn(f64) -> f64,
+                &(|_, t| vibrating(t - t % 0.01)) as &dyn Fn(f64, f64) -> f64,
+            ),
+            (
+                600_000,
+                &|t| (1000.4 * rpm * t / count).floor() * count,
+                &|_| 1000.4 * rpm,
+                &whole_rpm as &dyn Fn(f64, f64) -> f64,
+            ),
+            (10_000, &|_| 1.0, &|_| 0.0, &|_, _| 0.0),
+        ] {
+            let (mut theta, omega) = shaft(n, angle, w, read);
+            theta[n / 2] += 1e9;
+            let mut s = StuckSpeed::default();
+            let mut held = vec![false; n];
+            assert_eq!(s.apply(&theta, &omega, 1e-4, &mut held, 0), None, "{n}");
+            assert!(s.finding("w", "a").is_none());
+        }
     }
 
     #[test]

@@ -103,6 +103,10 @@ pub struct ShaftStage {
     /// The engine's and the dynamometer's angle sensors, checked for a stop while they turn.
     #[serde(default)]
     still: [StillAngle; 2],
+    /// The engine's and the dynamometer's speed sensors, checked for a freeze while the speed
+    /// changes.
+    #[serde(default)]
+    stuck: [StuckSpeed; 2],
     /// The inputs' step [s] (0 in a checkpoint from before: no stop is found).
     #[serde(default)]
     dt: f64,
@@ -120,6 +124,9 @@ pub struct ShaftStage {
     held_raw: Vec<bool>,
     #[serde(skip)]
     still_raw: Vec<bool>,
+    /// The samples of the chunk where a speed stood frozen.
+    #[serde(skip)]
+    stuck_raw: Vec<bool>,
     raw: [Vec<f64>; 3],
     filtered: [Vec<f64>; 3],
     /// The glitches taken out of the last chunk.
@@ -234,12 +241,14 @@ impl ShaftStage {
                 ]
             },
             still: Default::default(),
+            stuck: Default::default(),
             dt: 1.0 / rate_hz,
             suspect: VecDeque::with_capacity(latency + FILE_CHUNK),
             guard,
             quarantine: 0,
             held_raw: Vec::new(),
             still_raw: Vec::new(),
+            stuck_raw: Vec::new(),
             glitches: Vec::new(),
             raw: Default::default(),
             filtered: Default::default(),
@@ -334,7 +343,8 @@ impl ShaftStage {
         }
     }
 
-    /// The angle sensors found stopped ([`StillAngle`]) and what was taken out of the twist,
+    /// The angle sensors found stopped ([`StillAngle`]), the speed sensors frozen
+    /// ([`StuckSpeed`]) and what was taken out of the twist,
     /// the relative speed and the torque as a sensor's glitch ([`StepGate`]), for a person.
     pub fn glitch_findings(&self) -> impl Iterator<Item = String> + '_ {
         let still = self
@@ -347,7 +357,12 @@ impl ShaftStage {
             .iter()
             .zip(GATED)
             .filter_map(|(g, (what, unit))| g.finding(what, unit));
-        still.chain(steps)
+        let stuck = self
+            .stuck
+            .iter()
+            .zip(STILL)
+            .filter_map(|(s, (angle, speed))| s.finding(speed, angle));
+        still.chain(stuck).chain(steps)
     }
 
     /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
@@ -457,6 +472,8 @@ impl ShaftStage {
         self.held_raw.resize(n, false);
         self.still_raw.clear();
         self.still_raw.resize(n, false);
+        self.stuck_raw.clear();
+        self.stuck_raw.resize(n, false);
         // An angle that stopped while its shaft turns: held first, so that the twist's gate
         // holds the twist there instead of taking its drift.
         let pairs = [(x.theta_en, x.omega_en), (x.theta_dy, x.omega_dy)];
@@ -472,6 +489,20 @@ impl ShaftStage {
                 });
             }
         }
+        // A speed that froze while its shaft's speed changes: its samples held by the relative
+        // speed's gate.
+        for ((stuck, (theta, omega)), (angle, speed)) in self.stuck.iter_mut().zip(pairs).zip(STILL)
+        {
+            if let Some(i) = stuck.apply(theta, omega, self.dt, &mut self.stuck_raw, first) {
+                self.glitches.push(ShaftGlitch {
+                    t_s: x.t[i],
+                    message: format!(
+                        "'{speed}' stood at one value for {STUCK_MIN_S} s or more while '{angle}' turned away from it, from sample {}: held as a frozen sensor, not the shaft",
+                        first + i
+                    ),
+                });
+            }
+        }
         for (k, ((gate, r), what)) in self
             .gates
             .iter_mut()
@@ -479,7 +510,11 @@ impl ShaftStage {
             .zip(GATED)
             .enumerate()
         {
-            let untrusted = (k == 0).then_some(&self.still_raw[..]);
+            let untrusted = match k {
+                0 => Some(&self.still_raw[..]),
+                1 => Some(&self.stuck_raw[..]),
+                _ => None,
+            };
             if let Some((i, step, count)) = gate.apply(r, untrusted, &mut self.held_raw, first) {
                 self.glitches.push(ShaftGlitch {
                     t_s: x.t[i],
