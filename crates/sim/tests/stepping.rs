@@ -230,3 +230,14 @@ fn a_live_parameter_out_of_range_is_refused_and_changes_nothing() {
     }
     assert_same(&run.finish().unwrap(), &whole);
 }
+
+/// A duration too short for its hundredth to move the time (1e-300 s, through Python's
+/// `simulate`) ends: the recording of the one step past the end, as the stream's writer would
+/// give it. It used to loop for ever.
+#[test]
+fn a_vanishing_duration_ends() {
+    let scenario = named("shaft-steady").unwrap();
+    let r = simulate(&scenario, &options(1e-300), |_| {}).unwrap();
+    assert!(r.len() <= 2, "{}", r.len());
+    assert_eq!(r.values("t").unwrap()[0], 0.0);
+}

@@ -90,7 +90,9 @@ pub fn simulate(
     let duration = run.duration();
     let mut t = 0.0;
     while !run.is_done() {
-        t += duration / 100.0;
+        // At least one step each time: a duration too short for its hundredth to move the
+        // time (1e-300 s) would otherwise never end.
+        t = (t + duration / 100.0).max(run.time());
         run.step_until(t)?;
         progress((run.time() / duration).clamp(0.0, 1.0));
     }
@@ -167,7 +169,8 @@ impl Run {
         let duration = opts.duration.unwrap_or(scenario.duration);
         if !(duration.is_finite() && duration > 0.0) {
             return Err(SimError::Invalid(format!(
-                "duration {duration}: expected > 0 s"
+                "duration {}: expected > 0 s",
+                physid_core::Num(duration)
             )));
         }
         let torque_mode = scenario.torque_mode || base.dyno.torque_mode != 0.0;
