@@ -57,8 +57,10 @@ impl ParamSet {
                 values: nominal.len(),
             });
         }
+        // A set, not a scan of the names before: 10⁶ names took hours.
+        let mut seen = std::collections::HashSet::with_capacity(names.len());
         for (i, n) in names.iter().enumerate() {
-            if names[..i].contains(n) {
+            if !seen.insert(n.as_str()) {
                 return Err(ParamError::Duplicate(n.clone()));
             }
             if !nominal[i].is_finite() {

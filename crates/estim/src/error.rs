@@ -133,5 +133,21 @@ pub(crate) fn check_view(
             got: free.full_len(),
         });
     }
+    // Nothing to estimate: an empty covariance has no decomposition (nalgebra panics on one).
+    let p = free.free().len();
+    if p == 0 {
+        return Err(EstimError::InvalidConfig(
+            "no free parameter: nothing to estimate".into(),
+        ));
+    }
+    // The covariance and the copies its updates work on (P, its factor, P0, a work matrix):
+    // 10⁵ parameters asked for 80 GB at once and the allocator aborted the process (Python's
+    // with it). Below 64 MB the machine is not asked.
+    let bytes = 4.0 * (p as f64).powi(2) * std::mem::size_of::<f64>() as f64;
+    if bytes > 64e6 {
+        let what = format!("the covariance of {p} free parameters ({p}×{p}, and its copies)");
+        physid_core::memory::check_fits(bytes, &what)
+            .map_err(|e| EstimError::InvalidConfig(e.to_string()))?;
+    }
     Ok(())
 }

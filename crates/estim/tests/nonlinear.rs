@@ -342,6 +342,20 @@ fn bad_input_is_refused_and_configuration_checked() {
     .unwrap();
     let e = est.update(&[1.0], 1.0).unwrap_err().to_string();
     assert!(e.contains("model output h(φ, ϑ̂) is not finite"), "{e}");
+    // No parameter (a formula of inputs only, Python's `EKF("sin(x)", {})`): refused, where the
+    // filters' covariance decomposition used to panic on the empty matrix.
+    for method in [
+        NlMethod::Ekf,
+        NlMethod::Ukf(SigmaPoints::default()),
+        NlMethod::Srukf(SigmaPoints::default()),
+    ] {
+        let m = physid_expr::ExprModel::parse("sin(x)", &[] as &[&str]).unwrap();
+        let none = ParamSet::new([] as [&str; 0], vec![]).unwrap();
+        let e = NonlinearEstimator::new(m, &none, &none.all_free(), &NlConfig::new(method))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no free parameter: nothing to estimate"), "{e}");
+    }
     // Scaled coordinates need non-zero nominal values; bounds must name free parameters.
     let params = ParamSet::zeros(["t0", "t1"]).unwrap();
     let scaled = NlConfig {

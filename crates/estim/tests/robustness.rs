@@ -56,6 +56,24 @@ fn bad_samples_are_refused_and_leave_the_state_untouched() {
 
 #[test]
 fn invalid_configuration_is_an_error_at_construction() {
+    // 10⁶ parameters: a covariance of 8 TB is refused with its size, not allocated until the
+    // allocator aborts the process.
+    if physid_core::memory::available().is_some() {
+        let names: Vec<String> = (0..1_000_000).map(|i| format!("t{i}")).collect();
+        let many = ParamSet::zeros(names).unwrap();
+        let cfg = EstimatorConfig {
+            method: Method::Rls,
+            p0: CovSpec::Scaled(1000.0),
+            guard: None,
+        };
+        let e = LinearEstimator::new(&cfg, &many, &many.all_free())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the covariance of 1000000 free parameters (1000000×1000000, and its copies) would take about 32000.000 GB"),
+            "{e}"
+        );
+    }
     let params = ParamSet::zeros(["a", "b"]).unwrap();
     let build = |method, p0| {
         let cfg = EstimatorConfig {
