@@ -155,7 +155,7 @@ pub(crate) fn read_crank_angle(
     if !(args.step_deg.is_finite() && args.step_deg > 0.0) {
         return Err(err(format!(
             "step_deg {}: expected a crank-angle step > 0 degrees",
-            args.step_deg
+            physid_core::Num(args.step_deg)
         )));
     }
     let channels = read.channels.clone();

@@ -147,6 +147,35 @@ def test_errors_name_what_is_wrong():
     assert r.estimable == ["K"] and r.values["K"] == pytest.approx(k_ls, rel=1e-9)
 
 
+def test_arguments_out_of_reason_are_refused_not_a_crash():
+    """Found by driving every function with extreme and mistyped arguments: each was a panic,
+    an abort of the interpreter, a hang, a MemoryError after seconds, an AttributeError or a
+    message of 300 digits."""
+    # A formula with no parameter: nalgebra's decomposition of the empty covariance panicked.
+    for cls in (physid.EKF, physid.UKF, physid.SRUKF):
+        with pytest.raises(physid.Error, match="no free parameter: nothing to estimate"):
+            cls("sin(x)", {})
+    # 2⁶³ parameters: a list of 2⁶³ names until the memory ran out.
+    with pytest.raises(physid.Error, match="at most 100000 parameters"):
+        physid.RLS(2**63)
+    # 10⁵ named parameters: an 80 GB covariance aborted the interpreter.
+    with pytest.raises(physid.Error, match="would take about 320.000 GB"):
+        physid.RLS([f"k{i}" for i in range(100_000)])
+    # A list where a mapping goes.
+    for call in (lambda: physid.simulate("shaft-steady", duration=0.1, set=[1, 2]),
+                 lambda: physid.identify("A*x", [1, 2], {"x": np.ones(3)}),
+                 lambda: physid.identify("A*x", {"A": 1.0}, [1, 2]),
+                 lambda: physid.EKF("A*x", [1, 2])):
+        with pytest.raises(TypeError, match="expected a mapping such as"):
+            call()
+    # λ = 10³⁰⁰ is said as 1e300.
+    with pytest.raises(physid.Error, match=r"λ = 1e300 is outside \(0, 1\]"):
+        physid.RLSF(2, lam=1e300)
+    # A duration of 10⁻³⁰⁰ s: its hundredths never moved the run's time, which looped for ever.
+    r = physid.simulate("shaft-steady", duration=1e-300)
+    assert len(r) <= 2 and r.t[0] == 0.0
+
+
 def test_an_estimator_used_by_two_threads_at_once_says_so():
     rng = np.random.default_rng(0)
     X, y = rng.normal(size=(400_000, 20)), rng.normal(size=400_000)

@@ -55,6 +55,19 @@ __all__ = [
 ]
 
 
+def _mapping(name: str, x: Any) -> Mapping:
+    """``x`` as a mapping (``None``: an empty one); anything else is refused with a
+    :class:`TypeError` naming the argument (a list used to end in an ``AttributeError`` on
+    ``.items``)."""
+    if x is None:
+        return {}
+    if isinstance(x, Mapping):
+        return x
+    shown = " ".join(repr(x).split())[:80]
+    raise TypeError(f"{name}: expected a mapping such as {{'name': value}}, got "
+                    f"{type(x).__name__} {shown}")
+
+
 def _array(name: str, x: Any, ndim: int) -> np.ndarray:
     """``x`` as a C-contiguous float64 array of ``ndim`` dimensions, or :class:`Error` saying
     what was wrong (numbers are converted, non-contiguous arrays copied, pandas' nullable
@@ -131,7 +144,7 @@ def read(
         list(channels) if channels is not None else None,
         dict(map) if map is not None else None,
         list(columns) if columns is not None else None,
-        {k: (float(g), float(o)) for k, (g, o) in scale.items()} if scale else None,
+        {k: (float(g), float(o)) for k, (g, o) in _mapping("scale", scale).items()} if scale else None,
         crank_angle=bool(crank_angle),
         step_deg=float(step_deg),
         wheel=wheel,
@@ -360,6 +373,11 @@ class _Estimator:
         return f"<physid.{type(self).__name__} of {', '.join(self.names)}: {self.samples} samples>"
 
 
+#: The most parameters an estimator is built for from a count (a covariance of 80 GB; the
+#: estimator itself refuses one the machine's memory cannot hold).
+_MAX_PARAMS = 100_000
+
+
 def _names(p: int | Sequence[str], names: Sequence[str] | None) -> list[str]:
     """The parameters' names from ``p`` (their number, or their names) or ``names``."""
     if names is not None:
@@ -369,6 +387,9 @@ def _names(p: int | Sequence[str], names: Sequence[str] | None) -> list[str]:
     if isinstance(p, (int, np.integer)) and not isinstance(p, bool):
         if p < 1:
             raise Error(f"p = {p}: expected at least one parameter")
+        if p > _MAX_PARAMS:
+            raise Error(f"p = {p}: at most {_MAX_PARAMS} parameters (their covariance holds p² "
+                        f"numbers: {_MAX_PARAMS}² take 80 GB)")
         return [f"theta{i}" for i in range(int(p))]
     if isinstance(p, str):
         raise Error(f"p={p!r}: expected the number of parameters or a list of their names, "
@@ -466,6 +487,7 @@ class EKF(_Estimator):
     def __init__(self, expr: str, params: Mapping[str, float], free: Sequence[str] | None = None,
                  p0: Any = 100.0, r1: Any = 0.0, r2: float = 1.0, scaled: bool = False,
                  alpha: float = 1.0, beta: float = 2.0, kappa: float | None = None):
+        params = _mapping("params", params)
         names = list(params.keys())
         theta0 = [float(v) for v in params.values()]
         self._e = _physid.Estimator.model(self._method, expr, names, theta0,
@@ -552,9 +574,12 @@ def identify(
     ``repeat`` (the thesis's code), ``wu`` (Wu et al.), ``rel:F`` or an absolute residual;
     ``free``: the parameters analysed (all if ``None``).
     """
+    params = _mapping("params", params)
     names = list(params.keys())
     nominal = [float(v) for v in params.values()]
 
+    if not isinstance(data, Recording):
+        data = _mapping("data", data)
     keys = list(data.channels if isinstance(data, Recording) else data.keys())
     have = ", ".join(map(str, keys)) or "no channels"
     y_name = y if isinstance(y, str) else None
@@ -609,7 +634,7 @@ def simulate(
     (``"PATH=VALUE@T[+RAMP]"``, e.g. ``"shaft.k=1100@5+0.5"``) and parameter settings ``set``
     (``{"shaft.k": 1340}``), on a time basis at ``rate`` Hz (10 kHz) or one sample per
     ``step_deg`` crank degrees (``basis="crank_angle"``)."""
-    return _physid.simulate(scenario, duration, list(faults), dict(set) if set else None, basis,
+    return _physid.simulate(scenario, duration, list(faults), dict(_mapping("set", set)) if set else None, basis,
                             rate, float(step_deg))
 
 
@@ -786,7 +811,7 @@ def design(
                                int(threads), str(method), None if lam is None else float(lam),
                                float(cutoff_hz), float(rate_hz), float(s0), str(source),
                                float(sample_rate),
-                               {str(k): float(v) for k, v in (set or {}).items()},
+                               {str(k): float(v) for k, v in _mapping("set", set).items()},
                                [str(a) for a in (alongside or ())],
                                _pair(band, 2, "band"))
     return DesignResult(_json.loads(s), dict(tracks))
@@ -811,7 +836,7 @@ def friction_fit(
     ``cutoff`` (or the coefficients in ``estimate``, e.g. those a test was designed for with
     ``design(app="friction")``), DSFC (λ = ``lam``, S0 = ``s0``·I) on the estimable ones, the prediction error
     after ``transient_s``."""
-    s, tracks = _physid.friction_fit(rec, preset, {k: str(v) for k, v in (set or {}).items()},
+    s, tracks = _physid.friction_fit(rec, preset, {k: str(v) for k, v in _mapping("set", set).items()},
                                      source, cutoff, float(s0), float(lam), float(transient_s),
                                      p_atm_kpa,
                                      None if estimate is None else [str(c) for c in estimate])
@@ -924,7 +949,7 @@ def cycles(
                                               float(gas_temperature[1]))
     friction = None
     if friction_model is not None:
-        sets = [f"{name}={value}" for name, value in (friction_set or {}).items()]
+        sets = [f"{name}={value}" for name, value in _mapping("friction_set", friction_set).items()]
         p_int = friction_p_atm if friction_p_int is None else friction_p_int
         friction = (str(friction_model), sets, float(p_int), float(friction_p_atm),
                     float(friction_oil_temp))
@@ -966,7 +991,7 @@ def twin_calibrate(
     s, toml = _physid.twin_calibrate(
         rec, None if params is None else [str(p) for p in params],
         None if channels is None else [str(c) for c in channels],
-        {str(k): float(v) for k, v in (set or {}).items()}, float(max_rel_se), int(threads),
+        {str(k): float(v) for k, v in _mapping("set", set).items()}, float(max_rel_se), int(threads),
         None if demand is None else str(demand))
     out = _json.loads(s)
     out["scenario_toml"] = toml
@@ -988,6 +1013,7 @@ def twin_check(
     ``excursions``, where the residual leaves it) or ``{path: value}`` (no band). ``demand``
     as :func:`twin_calibrate`'s."""
     calibration = None
+    calibrated = _mapping("calibrated", calibrated)
     if "params" in calibrated and isinstance(calibrated["params"], Mapping):
         values = {p: float(e["value"]) for p, e in calibrated["params"].items() if e["estimable"]}
         if "covariance" in calibrated:
@@ -996,7 +1022,7 @@ def twin_check(
     else:
         values = {str(k): float(v) for k, v in calibrated.items()}
     s = _physid.twin_check(rec, values, None if channels is None else [str(c) for c in channels],
-                           {str(k): float(v) for k, v in (set or {}).items()}, calibration,
+                           {str(k): float(v) for k, v in _mapping("set", set).items()}, calibration,
                            None if demand is None else str(demand))
     return _json.loads(s)
 
@@ -1058,7 +1084,7 @@ def live(
 
     return LiveStream(_physid.live(
         scenario, os.fspath(replay) if replay is not None else None, duration, list(faults),
-        {k: float(v) for k, v in (set or {}).items()}, str(pace), float(rate), float(chunk_s),
+        {k: float(v) for k, v in _mapping("set", set).items()}, str(pace), float(rate), float(chunk_s),
         float(estimate_every_s)))
 
 
