@@ -148,7 +148,8 @@ impl HeatRelease {
             if !(g.t_ivc_k > 0.0 && g.t_ivc_k.is_finite() && (-360.0..=0.0).contains(&g.ivc_deg)) {
                 return Err(AppError::Invalid(format!(
                     "--gas-temperature {},{}: expected the intake valve's closing in −360 … 0° ATDC and the gas temperature then in K (> 0), e.g. -140,320",
-                    g.ivc_deg, g.t_ivc_k
+                    physid_core::Num(g.ivc_deg),
+                    physid_core::Num(g.t_ivc_k)
                 )));
             }
         }
@@ -161,13 +162,13 @@ impl HeatRelease {
             if !(w.t_wall_k > 0.0 && w.t_wall_k.is_finite() && w.c1 >= 0.0) {
                 return Err(AppError::Invalid(format!(
                     "--wall-heat {}: expected the wall temperature in K (> 0), e.g. 400",
-                    w.t_wall_k
+                    physid_core::Num(w.t_wall_k)
                 )));
             }
             if !(w.c2 >= 0.0 && w.c2 < 0.1) {
                 return Err(AppError::Invalid(format!(
                     "--woschni-c2 {}: expected Woschni's combustion term in m/(s·K), ≥ 0 and small (3.24e-3 is his; 0 the motored form)",
-                    w.c2
+                    physid_core::Num(w.c2)
                 )));
             }
         }

@@ -86,19 +86,23 @@ impl Knock {
         let (lo, hi) = self.band_hz;
         if !(lo > 0.0 && hi > lo && hi.is_finite()) {
             return Err(format!(
-                "knock band {lo} … {hi} Hz: expected 0 < low < high (e.g. 5000,20000)"
+                "knock band {} … {} Hz: expected 0 < low < high (e.g. 5000,20000)",
+                physid_core::Num(lo),
+                physid_core::Num(hi)
             ));
         }
         let (a, b) = self.window;
         if !(a < b && a >= -360.0 && b <= 360.0) {
             return Err(format!(
-                "knock window {a}° … {b}° ATDC: expected a start before the end, within −360° … 360°"
+                "knock window {}° … {}° ATDC: expected a start before the end, within −360° … 360°",
+                physid_core::Num(a),
+                physid_core::Num(b)
             ));
         }
         if !(self.threshold_pa > 0.0 && self.threshold_pa.is_finite()) {
             return Err(format!(
                 "knock threshold {} Pa: expected a pressure > 0",
-                self.threshold_pa
+                physid_core::Num(self.threshold_pa)
             ));
         }
         Ok(())

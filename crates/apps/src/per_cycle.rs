@@ -271,7 +271,8 @@ impl PressureLowpass {
         if !(self.cutoff_hz > 0.0 && self.cutoff_hz.is_finite() && (1..=10).contains(&self.order)) {
             return Err(format!(
                 "--pressure-lowpass {} Hz, order {}: expected a cut-off > 0 Hz and an order of 1 to 10",
-                self.cutoff_hz, self.order
+                physid_core::Num(self.cutoff_hz),
+                self.order
             ));
         }
         Ok(())

@@ -63,6 +63,74 @@ fn runs_that_cannot_fit_are_refused_before_they_start() {
     );
 }
 
+/// A number out of its range is said as it was given — `1e300`, not its 301 digits (each of
+/// these printed every digit, found by driving the Python package's functions with ±10³⁰⁰).
+#[test]
+fn a_number_out_of_range_is_said_in_exponent_form() {
+    let s = Scratch::new("physid-num");
+    let time = s.file("t.csv");
+    let crank = s.file("c.csv");
+    for (file, basis) in [(&time, "time"), (&crank, "crank")] {
+        let o = physid(&[
+            "simulate",
+            "--scenario",
+            "fired-steady",
+            "--duration",
+            "0.3",
+            "--basis",
+            basis,
+            "--recording",
+            file.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (t, c) = (time.to_str().unwrap(), crank.to_str().unwrap());
+    let cases: [&[&str]; 14] = [
+        &["monitor", "shaft", "--data", t, "--lambda", "1e300"],
+        &["monitor", "shaft", "--data", t, "--bound=-1e300"],
+        &["friction", "fit", "--data", t, "--s0=-1e300"],
+        &["friction", "fit", "--data", t, "--lambda=-1e300"],
+        &["torque", "fit", "--data", c, "--r2=-1e300"],
+        &["torque", "fit", "--data", c, "--p0=-1e300"],
+        &["cycles", c, "--knock", "--knock-threshold=-1e300"],
+        &["cycles", c, "--knock", "--knock-band", "1e300,-1e300"],
+        &["cycles", c, "--pressure-lowpass=-1e300"],
+        &[
+            "simulate",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "-1e300",
+            "--recording",
+            t,
+        ],
+        &[
+            "simulate",
+            "--scenario",
+            "shaft-steady",
+            "--sample-rate",
+            "-1e300",
+            "--recording",
+            t,
+        ],
+        &["design", "--target-rel-se=-1e300"],
+        &["design", "--duration", "1e-300"],
+        &["design", "--band", "1e300:-1e300"],
+    ];
+    for args in cases {
+        let o = physid(args);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?}: accepted");
+        assert!(e.contains("e300") || e.contains("e-300"), "{args:?}: {e}");
+        let longest = e
+            .split(|c: char| !c.is_ascii_digit())
+            .map(str::len)
+            .max()
+            .unwrap_or(0);
+        assert!(longest < 20, "{args:?}: a run of {longest} digits: {e}");
+    }
+}
+
 /// Numbers a typo makes huge do not take the machine's memory (each used to end in the
 /// allocator's abort or the kernel's OOM kill): a resampling grid whose points cannot fit is
 /// refused naming them; a dwell of 10¹² samples is only a long dwell; a design of 10⁹ seconds

@@ -67,8 +67,9 @@ impl RelativeErrorDetector {
             }
             if !(b.is_finite() && b > 0.0) {
                 return Err(EstimError::InvalidConfig(format!(
-                    "bound of '{}' must be positive, got {b}",
-                    names[i]
+                    "bound of '{}' must be positive, got {}",
+                    names[i],
+                    physid_core::Num(b)
                 )));
             }
         }

@@ -217,14 +217,17 @@ impl Instance {
         self.expect("setting up the experiment", &[Mode::Instantiated])?;
         if !(start.is_finite() && start >= 0.0) {
             return Err(format!(
-                "start time {start} s: expected ≥ 0 (the recording's time; the cell settles for {} s before 0)",
+                "start time {} s: expected ≥ 0 (the recording's time; the cell settles for {} s before 0)",
+                physid_core::Num(start),
                 self.cell.scenario.settle
             ));
         }
         if let Some(stop) = stop {
             if !(stop.is_finite() && stop > start) {
                 return Err(format!(
-                    "stop time {stop} s: expected after the start time {start} s"
+                    "stop time {stop} s: expected after the start time {start} s",
+                    stop = physid_core::Num(stop),
+                    start = physid_core::Num(start)
                 ));
             }
         }
@@ -376,7 +379,10 @@ impl Instance {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), Refusal> {
         self.expect("a step", &[Mode::Step])?;
         if !(h.is_finite() && h > 0.0) {
-            return Err(format!("step size {h} s: expected > 0"));
+            return Err(format!(
+                "step size {h} s: expected > 0",
+                h = physid_core::Num(h)
+            ));
         }
         if !t.is_finite() || (t - self.time).abs() > 1e-9 * self.time.abs().max(1.0) {
             return Err(format!(
@@ -508,7 +514,8 @@ impl Instance {
                     }
                     Role::SampleRate if !(value > 0.0 && value <= MAX_SAMPLE_RATE) => {
                         return Err(format!(
-                            "sample_rate {value} Hz: expected > 0 and at most {MAX_SAMPLE_RATE} Hz"
+                            "sample_rate {value} Hz: expected > 0 and at most {MAX_SAMPLE_RATE} Hz",
+                            value = physid_core::Num(value)
                         ))
                     }
                     Role::SampleRate => self.run = None,

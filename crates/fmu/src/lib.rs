@@ -70,7 +70,8 @@ impl Cell {
         let max = instance::MAX_SAMPLE_RATE;
         if !(sample_rate > 0.0 && sample_rate <= max) {
             return Err(format!(
-                "sample rate {sample_rate} Hz: expected > 0 and at most {max} Hz"
+                "sample rate {sample_rate} Hz: expected > 0 and at most {max} Hz",
+                sample_rate = physid_core::Num(sample_rate)
             ));
         }
         let cell = Self {

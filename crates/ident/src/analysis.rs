@@ -103,7 +103,7 @@ pub fn analyse<M: ParamModel, R: Rows + ?Sized>(
     if !(config.guard.is_finite() && config.guard > 0.0) {
         return Err(IdentError::Invalid(format!(
             "guard {}: expected a finite value > 0",
-            config.guard
+            physid_core::Num(config.guard)
         )));
     }
     let p = free.len();

@@ -37,7 +37,8 @@ pub fn quantify(
     let k = gram.ncols();
     if !(sigma2.is_finite() && sigma2 > 0.0) {
         return Err(IdentError::Invalid(format!(
-            "noise variance {sigma2}: expected a finite value > 0"
+            "noise variance {sigma2}: expected a finite value > 0",
+            sigma2 = physid_core::Num(sigma2)
         )));
     }
     let fim = gram / sigma2;

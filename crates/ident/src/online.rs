@@ -42,7 +42,8 @@ impl OnlineIdent {
             Memory::Forgetting(l) if l > 0.0 && l <= 1.0 => (l.sqrt(), Vec::new()),
             Memory::Forgetting(l) => {
                 return Err(IdentError::Invalid(format!(
-                    "forgetting factor {l}: expected 0 < λ ≤ 1"
+                    "forgetting factor {l}: expected 0 < λ ≤ 1",
+                    l = physid_core::Num(l)
                 )))
             }
             Memory::Window(0) => {

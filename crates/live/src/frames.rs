@@ -45,7 +45,8 @@ impl<R: BufRead> FrameSource<R> {
     pub fn new(reader: R, rate_hz: f64) -> Result<Self, LiveError> {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(LiveError::Invalid(format!(
-                "sample rate {rate_hz} Hz: expected > 0"
+                "sample rate {rate_hz} Hz: expected > 0",
+                rate_hz = physid_core::Num(rate_hz)
             )));
         }
         Ok(Self {

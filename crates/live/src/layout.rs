@@ -60,7 +60,8 @@ impl Layout {
         if let Some(w) = self.window_s {
             if !(w > 0.0 && w <= MAX_WINDOW_S) {
                 return Err(format!(
-                    "window_s {w}: expected a number of seconds in (0, {MAX_WINDOW_S}]"
+                    "window_s {w}: expected a number of seconds in (0, {MAX_WINDOW_S}]",
+                    w = physid_core::Num(w)
                 ));
             }
         }

@@ -58,8 +58,10 @@ impl ScenarioSource {
         // second at 1e-12 s).
         if !(chunk_s.is_finite() && chunk_s * rate_hz >= 1.0) {
             return Err(LiveError::Invalid(format!(
-                "chunk of {chunk_s:?} s: expected at least one sample's time at {rate_hz} Hz ({} s)",
-                1.0 / rate_hz
+                "chunk of {} s: expected at least one sample's time at {} Hz ({} s)",
+                physid_core::Num(chunk_s),
+                physid_core::Num(rate_hz),
+                physid_core::Num(1.0 / rate_hz)
             )));
         }
         let opts = RunOptions {

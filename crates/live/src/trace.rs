@@ -45,8 +45,10 @@ impl TraceStage {
     pub fn new(first: &Recording, feed: &PanelFeed, rate_hz: f64) -> Result<Self, LiveError> {
         if !(feed.trace_hz > 0.0 && feed.trace_every_s > 0.0 && rate_hz > 0.0) {
             return Err(LiveError::Invalid(format!(
-                "trace rate {} Hz every {} s at {rate_hz} Hz: expected all > 0",
-                feed.trace_hz, feed.trace_every_s
+                "trace rate {} Hz every {} s at {} Hz: expected all > 0",
+                physid_core::Num(feed.trace_hz),
+                physid_core::Num(feed.trace_every_s),
+                physid_core::Num(rate_hz)
             )));
         }
         let names: Vec<String> = TRACE_CHANNELS

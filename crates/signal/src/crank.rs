@@ -98,7 +98,8 @@ pub fn crank_grid(
 ) -> Result<CrankGrid, CrankError> {
     if !(step_deg.is_finite() && step_deg > 0.0) {
         return Err(CrankError::Invalid(format!(
-            "crank-angle step {step_deg}°: expected > 0"
+            "crank-angle step {step_deg}°: expected > 0",
+            step_deg = physid_core::Num(step_deg)
         )));
     }
     if t.len() != theta.len() || t.len() < 2 {

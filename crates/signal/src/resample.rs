@@ -291,7 +291,8 @@ impl CrankResampler {
     pub fn new(theta_tdc: f64, step_deg: f64, width: usize) -> Result<Self, CrankError> {
         if !(step_deg.is_finite() && step_deg > 0.0) {
             return Err(CrankError::Invalid(format!(
-                "crank-angle step {step_deg}°: expected > 0"
+                "crank-angle step {step_deg}°: expected > 0",
+                step_deg = physid_core::Num(step_deg)
             )));
         }
         Ok(Self {
@@ -416,7 +417,8 @@ impl TimeResampler {
     pub fn new(rate_hz: f64, width: usize) -> Result<Self, CrankError> {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(CrankError::Invalid(format!(
-                "sample rate {rate_hz} Hz: expected > 0"
+                "sample rate {rate_hz} Hz: expected > 0",
+                rate_hz = physid_core::Num(rate_hz)
             )));
         }
         Ok(Self {

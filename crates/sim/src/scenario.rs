@@ -561,13 +561,13 @@ impl Scenario {
         if !(self.duration.is_finite() && self.duration > 0.0) {
             return Err(SimError::Invalid(format!(
                 "duration {}: expected > 0 s",
-                self.duration
+                physid_core::Num(self.duration)
             )));
         }
         if !(self.settle.is_finite() && self.settle >= 0.0) {
             return Err(SimError::Invalid(format!(
                 "settle {}: expected ≥ 0 s",
-                self.settle
+                physid_core::Num(self.settle)
             )));
         }
         for (what, p) in [("speed", &self.speed), ("throttle", &self.throttle)] {

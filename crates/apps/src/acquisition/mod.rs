@@ -234,7 +234,8 @@ impl AngleSpec {
     ) -> Result<Self, String> {
         if !(tdc_offset_deg.is_finite() && (0.0..360.0).contains(&tdc_offset_deg)) {
             return Err(format!(
-                "{tdc_offset_deg}: expected an angle in [0, 360) degrees"
+                "{}: expected an angle in [0, 360) degrees",
+                physid_core::Num(tdc_offset_deg)
             ));
         }
         Ok(Self {

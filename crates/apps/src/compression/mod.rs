@@ -105,18 +105,23 @@ impl CompressionConfig {
         {
             return Err(AppError::Invalid(format!(
                 "stroke {} m, rod {} m: expected lengths > 0 in metres and a rod longer than half the stroke",
-                self.stroke, self.rod
+                physid_core::Num(self.stroke),
+                physid_core::Num(self.rod)
             )));
         }
         if !((-180.0..-10.0).contains(&a) && b > 10.0 && b <= 180.0) {
             return Err(AppError::Invalid(format!(
-                "window {a}° … {b}° ATDC: expected from −180° … −10° to 10° … 180° (the valves closed, TDC inside)"
+                "window {}° … {}° ATDC: expected from −180° … −10° to 10° … 180° (the valves closed, TDC inside)",
+                physid_core::Num(a),
+                physid_core::Num(b)
             )));
         }
         for (name, lo, hi) in &self.plausible {
             if !PARAMS.contains(&name.as_str()) || lo.is_nan() || hi.is_nan() || lo >= hi {
                 return Err(AppError::Invalid(format!(
-                    "--plausible {name}={lo},{hi}: expected one of {} and a low below a high",
+                    "--plausible {name}={},{}: expected one of {} and a low below a high",
+                    physid_core::Num(*lo),
+                    physid_core::Num(*hi),
                     PARAMS.join(", ")
                 )));
             }

@@ -73,7 +73,7 @@ impl FrictionDesign {
         if !(self.fit.s0.is_finite() && self.fit.s0 > 0.0) {
             return Err(AppError::Invalid(format!(
                 "S0 scale {}: expected > 0",
-                self.fit.s0
+                physid_core::Num(self.fit.s0)
             )));
         }
         Ok(())

@@ -77,10 +77,16 @@ impl ForgettingInformation {
             return Err("no parameters".into());
         }
         if !(lambda > 0.0 && lambda <= 1.0) {
-            return Err(format!("forgetting factor {lambda}: expected in (0, 1]"));
+            return Err(format!(
+                "forgetting factor {}: expected in (0, 1]",
+                physid_core::Num(lambda)
+            ));
         }
         if !(p0.is_finite() && p0 > 0.0) {
-            return Err(format!("P0 = {p0}·I: expected a positive scale"));
+            return Err(format!(
+                "P0 = {}·I: expected a positive scale",
+                physid_core::Num(p0)
+            ));
         }
         match r.first() {
             Some(&r0) if r0.is_finite() && r0 > 0.0 => {}

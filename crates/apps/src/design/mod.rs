@@ -248,7 +248,7 @@ impl Design {
         if !(self.duration.is_finite() && (1.0..=MAX_DURATION_S).contains(&self.duration)) {
             return Err(AppError::Invalid(format!(
                 "design: duration {} s: expected 1–{MAX_DURATION_S} s (a candidate's regressors are held while it is judged)",
-                self.duration
+                physid_core::Num(self.duration)
             )));
         }
         for (k, i) in self.selected.iter().enumerate() {
@@ -262,7 +262,9 @@ impl Design {
         let (lo, hi) = self.band;
         if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi) {
             return Err(AppError::Invalid(format!(
-                "design: multisine band {lo}:{hi} Hz: expected 0 < low ≤ high"
+                "design: multisine band {}:{} Hz: expected 0 < low ≤ high",
+                physid_core::Num(lo),
+                physid_core::Num(hi)
             )));
         }
         if !(1..=MAX_CANDIDATES).contains(&self.candidates) {
@@ -279,7 +281,8 @@ impl Design {
         if let Some(t) = self.target_rel_se {
             if !(t.is_finite() && t > 0.0) {
                 return Err(AppError::Invalid(format!(
-                    "design: target relative standard error {t}: expected > 0"
+                    "design: target relative standard error {}: expected > 0",
+                    physid_core::Num(t)
                 )));
             }
         }

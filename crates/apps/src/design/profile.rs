@@ -85,31 +85,39 @@ impl Limits {
         if self.speed.0.is_nan() || self.speed.0 < 300.0 {
             return Err(format!(
                 "speed limit {} rpm: expected ≥ 300 rpm (the monitors hold below it)",
-                self.speed.0
+                physid_core::Num(self.speed.0)
             ));
         }
         if self.speed.1 > 9000.0 {
             return Err(format!(
                 "speed limit {} rpm: expected ≤ 9000 rpm (the thesis's engine's range)",
-                self.speed.1
+                physid_core::Num(self.speed.1)
             ));
         }
         if !(self.throttle.0 >= 0.0 && self.throttle.1 <= 90.0) {
             return Err(format!(
                 "throttle limits {}:{}°: expected within 0–90°",
-                self.throttle.0, self.throttle.1
+                physid_core::Num(self.throttle.0),
+                physid_core::Num(self.throttle.1)
             ));
         }
         if self.dspeed.is_nan() || self.dspeed <= 0.0 {
-            return Err(format!("dspeed {}: expected > 0 rpm/s", self.dspeed));
+            return Err(format!(
+                "dspeed {}: expected > 0 rpm/s",
+                physid_core::Num(self.dspeed)
+            ));
         }
         if self.dtorque.is_nan() || self.dtorque <= 0.0 {
-            return Err(format!("dtorque {}: expected > 0 N·m/s", self.dtorque));
+            return Err(format!(
+                "dtorque {}: expected > 0 N·m/s",
+                physid_core::Num(self.dtorque)
+            ));
         }
         if self.torque.is_some() && self.speed.0 >= self.speed.1 {
             return Err(format!(
                 "speed limits {}:{} rpm with a torque demand: the engine's speed range must be wider than a point",
-                self.speed.0, self.speed.1
+                physid_core::Num(self.speed.0),
+                physid_core::Num(self.speed.1)
             ));
         }
         Ok(())

@@ -82,13 +82,13 @@ impl TorqueDesign {
         if !(self.step_deg.is_finite() && self.step_deg > 0.0 && self.step_deg <= 10.0) {
             return Err(AppError::Invalid(format!(
                 "crank-angle step {}°: expected within (0, 10]",
-                self.step_deg
+                physid_core::Num(self.step_deg)
             )));
         }
         if !(self.fit.p0.is_finite() && self.fit.p0 > 0.0) {
             return Err(AppError::Invalid(format!(
                 "P0 scale {}: expected > 0",
-                self.fit.p0
+                physid_core::Num(self.fit.p0)
             )));
         }
         Ok(idx)

@@ -109,7 +109,7 @@ impl FrictionStage {
         if !(cfg.s0.is_finite() && cfg.s0 > 0.0) {
             return Err(AppError::Invalid(format!(
                 "S0 scale {} must be a positive number",
-                cfg.s0
+                physid_core::Num(cfg.s0)
             )));
         }
         if let Some(n) = select_after.filter(|&n| n < MIN_CYCLES) {

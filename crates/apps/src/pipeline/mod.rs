@@ -114,7 +114,8 @@ impl Pipeline {
         if let Some(r) = d.rate_hz {
             if !(r.is_finite() && r > 0.0) {
                 return Err(AppError::Invalid(format!(
-                    "data.rate_hz = {r}: expected a rate > 0 Hz"
+                    "data.rate_hz = {}: expected a rate > 0 Hz",
+                    physid_core::Num(r)
                 )));
             }
             if d.basis == Some(DataBasis::Crank) {
@@ -124,7 +125,8 @@ impl Pipeline {
         if let Some(t) = d.duration {
             if !(t.is_finite() && t > 0.0) {
                 return Err(AppError::Invalid(format!(
-                    "data.duration = {t}: expected a duration > 0 s"
+                    "data.duration = {}: expected a duration > 0 s",
+                    physid_core::Num(t)
                 )));
             }
         }
@@ -164,21 +166,24 @@ impl Pipeline {
             }
             if !(r2.is_finite() && r2 > 0.0) {
                 return Err(AppError::Invalid(format!(
-                    "estimator.r2 = {r2}: expected a variance > 0"
+                    "estimator.r2 = {}: expected a variance > 0",
+                    physid_core::Num(r2)
                 )));
             }
         }
         if let Some(p0) = e.p0 {
             if !(p0.is_finite() && p0 > 0.0) {
                 return Err(AppError::Invalid(format!(
-                    "estimator.p0 = {p0}: expected > 0"
+                    "estimator.p0 = {}: expected > 0",
+                    physid_core::Num(p0)
                 )));
             }
         }
         if let Some(l) = e.lambda {
             if !(l > 0.0 && l <= 1.0) {
                 return Err(AppError::Invalid(format!(
-                    "estimator.lambda = {l}: a forgetting factor is in (0, 1]"
+                    "estimator.lambda = {}: a forgetting factor is in (0, 1]",
+                    physid_core::Num(l)
                 )));
             }
             if !matches!(
@@ -195,13 +200,13 @@ impl Pipeline {
         if !(o.after_s.is_finite() && o.after_s >= 0.0) {
             return Err(AppError::Invalid(format!(
                 "objective.after_s = {}: expected ≥ 0 s",
-                o.after_s
+                physid_core::Num(o.after_s)
             )));
         }
         if !(o.prediction_within_pct.is_finite() && o.prediction_within_pct > 0.0) {
             return Err(AppError::Invalid(format!(
                 "objective.prediction_within_pct = {}: expected > 0",
-                o.prediction_within_pct
+                physid_core::Num(o.prediction_within_pct)
             )));
         }
         Ok(())

@@ -398,7 +398,7 @@ impl TorqueStage {
         if !(cfg.p0.is_finite() && cfg.p0 > 0.0) {
             return Err(AppError::Invalid(format!(
                 "P0 scale {} must be a positive number",
-                cfg.p0
+                physid_core::Num(cfg.p0)
             )));
         }
         if select_after < PER_CYCLE {

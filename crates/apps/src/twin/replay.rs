@@ -277,7 +277,8 @@ impl Replay {
         let step_deg = (theta[1] - theta[0]).to_degrees();
         if !(step_deg > 0.0 && step_deg <= 10.0) {
             return Err(AppError::Invalid(format!(
-                "channel 'theta': a crank-angle step of {step_deg}° between samples 0 and 1 (expected 0–10°)"
+                "channel 'theta': a crank-angle step of {}° between samples 0 and 1 (expected 0–10°)",
+                physid_core::Num(step_deg)
             )));
         }
         if let Some(k) = t.windows(2).position(|w| w[1] <= w[0]) {

@@ -87,7 +87,10 @@ fn build(args: &Args) -> Result<(ModelChoice, Vec<f64>)> {
 fn cutoff(args: &Args) -> Result<Selection> {
     if let Some(r) = args.cutoff_rel {
         if !(r.is_finite() && r >= 0.0) {
-            return Err(miette!("--cutoff-rel {r}: expected a fraction ≥ 0"));
+            return Err(miette!(
+                "--cutoff-rel {r}: expected a fraction ≥ 0",
+                r = physid_core::Num(r)
+            ));
         }
         return Ok(Selection::Rule(Cutoff::Relative(r)));
     }

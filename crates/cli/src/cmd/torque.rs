@@ -151,7 +151,10 @@ fn config(a: &FitArgs) -> Result<TorqueFitConfig> {
     cfg.p0 = a.p0;
     if let Some(r2) = a.r2 {
         if !(r2.is_finite() && r2 > 0.0) {
-            return Err(miette!("--r2 {r2}: expected a variance > 0"));
+            return Err(miette!(
+                "--r2 {r2}: expected a variance > 0",
+                r2 = physid_core::Num(r2)
+            ));
         }
         cfg.r2 = Some(r2);
     }

@@ -236,7 +236,8 @@ pub(crate) fn kalman_noise(
 ) -> Result<(DMatrix<f64>, f64), EstimError> {
     if !(r2.is_finite() && r2 > 0.0) {
         return Err(EstimError::InvalidConfig(format!(
-            "R2 = {r2} must be a positive variance"
+            "R2 = {} must be a positive variance",
+            physid_core::Num(r2)
         )));
     }
     let r1 = r1.to_matrix(n, "R1")?;

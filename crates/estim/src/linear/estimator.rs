@@ -84,7 +84,7 @@ impl LinearEstimator {
             if !(g.max_trace.is_finite() && g.max_trace > 0.0) {
                 return Err(EstimError::InvalidConfig(format!(
                     "wind-up guard bound {} must be positive",
-                    g.max_trace
+                    physid_core::Num(g.max_trace)
                 )));
             }
             let tr0 = cov0.trace();

@@ -192,7 +192,8 @@ fn check_lambda(name: &str, l: f64) -> Result<f64, EstimError> {
         Ok(l)
     } else {
         Err(EstimError::InvalidConfig(format!(
-            "{name} = {l} is outside (0, 1]"
+            "{name} = {} is outside (0, 1]",
+            physid_core::Num(l)
         )))
     }
 }

@@ -301,7 +301,10 @@ async fn registered(
                     if i.cell != key {
                         Err(format!("its 'cell' is '{}', its key '{key}'", i.cell))
                     } else if !(i.rate_hz.is_finite() && i.rate_hz > 0.0) {
-                        Err(format!("'rate_hz' is {}: expected > 0", i.rate_hz))
+                        Err(format!(
+                            "'rate_hz' is {}: expected > 0",
+                            physid_core::Num(i.rate_hz)
+                        ))
                     } else if !i.theta_tdc.is_finite() {
                         Err(format!("'theta_tdc' is {}: expected a number", i.theta_tdc))
                     } else {

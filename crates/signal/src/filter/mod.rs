@@ -84,7 +84,8 @@ pub fn butter(order: usize, wn: &[f64], band: Band, fs: f64) -> Result<Zpk, Filt
     }
     if !(fs.is_finite() && fs > 0.0) {
         return Err(FilterError::Design(format!(
-            "sampling frequency {fs} Hz: expected > 0"
+            "sampling frequency {fs} Hz: expected > 0",
+            fs = physid_core::Num(fs)
         )));
     }
     let need = if band == Band::Bandpass { 2 } else { 1 };

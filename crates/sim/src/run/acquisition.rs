@@ -171,7 +171,8 @@ impl Acquisition {
             OutputBasis::Time(rate) if rate.is_finite() && rate > 0.0 => duration * rate,
             OutputBasis::Time(rate) => {
                 return Err(SimError::Invalid(format!(
-                    "output rate {rate} Hz: expected > 0"
+                    "output rate {} Hz: expected > 0",
+                    physid_core::Num(rate)
                 )))
             }
             OutputBasis::Crank(step) if step.is_finite() && step > 0.0 => {
@@ -179,7 +180,8 @@ impl Acquisition {
             }
             OutputBasis::Crank(step) => {
                 return Err(SimError::Invalid(format!(
-                    "crank step {step}°: expected > 0"
+                    "crank step {}°: expected > 0",
+                    physid_core::Num(step)
                 )))
             }
         };

@@ -112,7 +112,10 @@ impl TwinConfig {
             ("alarm change", self.alarm_change),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(AppError::Invalid(format!("twin: {what} {v}: expected > 0")));
+                return Err(AppError::Invalid(format!(
+                    "twin: {what} {}: expected > 0",
+                    physid_core::Num(v)
+                )));
             }
         }
         Ok(())

@@ -141,7 +141,8 @@ impl TwinStage {
         cfg.validate()?;
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(AppError::Invalid(format!(
-                "twin: a stream at {rate_hz} Hz: expected a time basis at a rate > 0"
+                "twin: a stream at {} Hz: expected a time basis at a rate > 0",
+                physid_core::Num(rate_hz)
             )));
         }
         let cell = cfg.cell()?;
