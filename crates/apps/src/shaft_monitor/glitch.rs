@@ -289,7 +289,9 @@ pub const STUCK_MISS_STEPS: f64 = 2.0;
 /// raised an alarm 0.24 s after the freeze, for a fault that was the sensor's. A speed held for a
 /// revolution or updated more slowly than 50 Hz cannot follow that vibration either, and is
 /// found the same. The angle's own glitches (a step off the speed's by more than
-/// [`MAX_TWIST_STEP`]) do not count. Allocation-free.
+/// [`MAX_TWIST_STEP`]) do not count, and below the standstill's 300 rpm (by the speed and by
+/// the angle) nothing is: a shaft at rest whose speed reads 0 (a tooth period's least) while
+/// its angle's noise wanders is not a frozen sensor. Allocation-free.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct StuckSpeed {
     /// The speed it stands at [rad/s] and the last angle [rad].
@@ -341,9 +343,14 @@ impl StuckSpeed {
                 self.largest_step_miss = self.largest_step_miss.max(step_miss);
             }
             self.samples += 1;
+            let elapsed = self.samples as f64 * dt;
             let miss = (self.turned - said * self.samples as f64).abs();
+            // Below the standstill's speed, by the angle and by the speed, a speed that stands
+            // is a shaft at rest (a speed from a tooth's period reads 0 below its least).
+            let turning = (self.turned / elapsed).abs().max(w.abs()) >= STILL_MIN_SPEED;
             if self.stuck
-                || (self.samples as f64 * dt >= STUCK_MIN_S
+                || (elapsed >= STUCK_MIN_S
+                    && turning
                     && miss > STUCK_RELATIVE_MISS * self.turned.abs()
                     && miss > STUCK_MISS_STEPS * self.largest_step_miss)
             {
@@ -520,7 +527,7 @@ mod tests {
 
     /// Not frozen, each with a spike of the angle: the vibrating shaft's speed updated every
     /// 10 ms; a speed in whole rpm at a steady 1000.4 rpm over an encoder of 360 counts for
-    /// 60 s; a shaft at rest.
+    /// 60 s; a shaft at rest; one creeping at 20 rpm with a noisy angle, its speed read 0.
     #[test]
     fn a_live_speed_is_not_frozen() {
         let rpm = std::f64::consts::PI / 30.0;
@@ -540,6 +547,12 @@ mod tests {
                 &whole_rpm as &dyn Fn(f64, f64) -> f64,
             ),
             (10_000, &|_| 1.0, &|_| 0.0, &|_, _| 0.0),
+            (
+                10_000,
+                &|t| 2.1 * t + 1e-4 * (t * 7.3e4).sin(),
+                &|_| 2.1,
+                &|_, _| 0.0,
+            ),
         ] {
             let (mut theta, omega) = shaft(n, angle, w, read);
             theta[n / 2] += 1e9;
