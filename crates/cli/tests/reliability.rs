@@ -131,6 +131,40 @@ fn a_number_out_of_range_is_said_in_exponent_form() {
     }
 }
 
+/// An engine angle scaled by 10³⁰⁰ by mistake (`--scale theta_en=1e300,0`): telling the
+/// firing revolution from `p_cyl` hung (its TDCs at 10²⁹⁸ rad, where a revolution added
+/// changes nothing), and the resampler's refusal advised a coarser grid; it now names the jump.
+#[test]
+fn an_angle_scaled_by_1e300_is_refused_naming_its_jump() {
+    let s = Scratch::new("physid-jump");
+    let time = s.file("t.parquet");
+    let t = time.to_str().unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "fired-steady",
+        "--duration",
+        "0.3",
+        "--recording",
+        t,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = s.file("c.parquet");
+    for scale in ["1e300", "1e12"] {
+        fails_with(
+            &[
+                "convert",
+                "--crank-angle",
+                "--scale",
+                &format!("theta_en={scale},0"),
+                t,
+                out.to_str().unwrap(),
+            ],
+            "is it in radians, and of the right scale?",
+        );
+    }
+}
+
 /// Numbers a typo makes huge do not take the machine's memory (each used to end in the
 /// allocator's abort or the kernel's OOM kill): a resampling grid whose points cannot fit is
 /// refused naming them; a dwell of 10¹² samples is only a long dwell; a design of 10⁹ seconds

@@ -133,8 +133,11 @@ impl PhaseWindows {
         }
     }
 
-    fn centre(&self, k: i64) -> f64 {
-        self.offset + TAU * k as f64
+    /// The TDC `k` revolutions on, from the offset (where an angle's distance from the offset
+    /// is measured: an offset of 10²⁹⁸ rad, a marker's angle scaled so, absorbs `2πk`, and the
+    /// revolutions never passed — a hang).
+    fn centre(k: i64) -> f64 {
+        TAU * k as f64
     }
 
     /// The next sample: its angle `theta` [rad] (not decreasing) and the channel's value `p`.
@@ -142,16 +145,17 @@ impl PhaseWindows {
     /// over; one that jumps ahead by many revolutions is placed at once, not a revolution at a
     /// time (10²³ steps: a hang).
     pub fn push(&mut self, theta: f64, p: f64) {
-        let offset = self.offset;
-        let revolutions = (theta - offset) / TAU;
+        // From the offset on.
+        let theta = theta - self.offset;
+        let revolutions = theta / TAU;
         if revolutions.is_nan() || revolutions.abs() >= MAX_REVOLUTIONS {
             return;
         }
         let mut k = *self
             .k
-            .get_or_insert_with(|| ((theta + PI - offset) / TAU).ceil() as i64);
+            .get_or_insert_with(|| ((theta + PI) / TAU).ceil() as i64);
         // The revolutions this sample is past: their means (the samples in them, not NaN).
-        while self.centre(k) + PI <= theta {
+        while Self::centre(k) + PI <= theta {
             let (sum, n) = self.open[0];
             if n > 0 {
                 let mean = sum / n as f64;
@@ -163,12 +167,12 @@ impl PhaseWindows {
             k += 1;
             if self.open[0].1 == 0 {
                 // Nothing open: on to the first revolution not behind this sample at once.
-                k = k.max(((theta - PI - offset) / TAU).floor() as i64 + 1);
+                k = k.max(((theta - PI) / TAU).floor() as i64 + 1);
             }
         }
         self.k = Some(k);
         for j in 0..2 {
-            let angle = self.centre(k + j);
+            let angle = Self::centre(k + j);
             if angle - PI <= theta && theta < angle + PI {
                 let o = &mut self.open[j as usize];
                 *o = (o.0 + p, o.1 + 1);
@@ -244,5 +248,18 @@ mod tests {
     fn an_angle_that_jumps_far_ahead_is_placed_at_once() {
         assert_eq!(told(&[]), 1);
         assert_eq!(told(&[1e15, 1e15 + 1.0, 1e24, f64::INFINITY, f64::NAN]), 1);
+    }
+
+    /// A marker's angle scaled by 10³⁰⁰ (`--scale theta_en=1e300,0`) puts the TDCs at
+    /// 10²⁹⁸ rad, where `2πk` added to it changes nothing: the revolutions were never passed
+    /// (a hang of `convert --crank-angle`). From the offset on, the samples at the offset are
+    /// placed and those beyond 2⁵² revolutions passed over.
+    #[test]
+    fn a_marker_at_an_angle_beyond_f64s_revolutions_does_not_hang() {
+        let mut w = PhaseWindows::new(1.7e298);
+        for theta in [1.7e298, 1.7e298, 3.4e298, 5.1e298] {
+            w.push(theta, 1.0);
+        }
+        assert!(w.finish("p_cyl", 0.0).is_err());
     }
 }
