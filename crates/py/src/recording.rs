@@ -37,9 +37,18 @@ fn values_of(name: &str, values: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
     } else {
         values.clone()
     };
-    let a = py
-        .import("numpy")?
-        .call_method1("asarray", (values, "float64"))
+    let numpy = py.import("numpy")?;
+    // Complex numbers would lose their imaginary parts to the cast, with a warning only.
+    let raw = numpy
+        .call_method1("asarray", (values,))
+        .map_err(|e| bad(e.to_string()))?;
+    if raw.getattr("dtype")?.getattr("kind")?.extract::<String>()? == "c" {
+        return Err(bad(
+            "complex numbers: their imaginary parts would be dropped".into(),
+        ));
+    }
+    let a = numpy
+        .call_method1("asarray", (raw, "float64"))
         .map_err(|e| bad(e.to_string()))?;
     let a: PyReadonlyArray1<'_, f64> = a.extract().map_err(|_| {
         bad(format!(

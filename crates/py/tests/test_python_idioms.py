@@ -168,6 +168,9 @@ def test_arguments_out_of_reason_are_refused_not_a_crash():
                  lambda: physid.EKF("A*x", [1, 2])):
         with pytest.raises(TypeError, match="expected a mapping such as"):
             call()
+    # A complex channel lost its imaginary part, with a warning only.
+    with pytest.raises(physid.Error, match="complex numbers: their imaginary parts would be"):
+        physid.Recording({"t": np.arange(3.0), "a": np.array([1 + 1j, 2, 3])})
     # λ = 10³⁰⁰ is said as 1e300.
     with pytest.raises(physid.Error, match=r"λ = 1e300 is outside \(0, 1\]"):
         physid.RLSF(2, lam=1e300)
