@@ -199,6 +199,29 @@ impl StepGate {
     }
 }
 
+/// The stretches a sensor check ([`StillAngle`], [`StuckSpeed`]) found: whether one lasts now,
+/// how many began, and the first's sample (0 = the stream's first).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+struct Stretches {
+    #[serde(default)]
+    on: bool,
+    count: u64,
+    first: Option<usize>,
+}
+
+impl Stretches {
+    /// Sample `i` of a chunk whose first is sample `at` is in a stretch: one begun here is
+    /// counted, and its index noted in `begun` if the chunk's first.
+    fn hold(&mut self, at: usize, i: usize, begun: &mut Option<usize>) {
+        if !self.on {
+            self.on = true;
+            self.count += 1;
+            self.first.get_or_insert(at + i);
+            begun.get_or_insert(i);
+        }
+    }
+}
+
 /// An angle that stands still while its shaft's speed turns it this far [rad] (14°: more than
 /// a count of any encoder of 26 counts a revolution or finer) is a sensor that stopped (a
 /// counter halted, a cable off), not a shaft at rest.
@@ -216,10 +239,9 @@ pub struct StillAngle {
     /// The angle's last value, and `∫|ω| dt` since it last moved [rad].
     last: Option<f64>,
     turned: f64,
-    /// Whether it stands still now, the stretches found, the first's sample.
-    still: bool,
-    count: u64,
-    first: Option<usize>,
+    /// The stretches it stood still.
+    #[serde(flatten)]
+    found: Stretches,
 }
 
 impl StillAngle {
@@ -239,17 +261,12 @@ impl StillAngle {
             if self.last != Some(th) || w.abs() < STILL_MIN_SPEED {
                 self.last = Some(th);
                 self.turned = 0.0;
-                self.still = false;
+                self.found.on = false;
                 continue;
             }
             self.turned += w.abs() * dt;
             if self.turned > MAX_STILL_TURN {
-                if !self.still {
-                    self.still = true;
-                    self.count += 1;
-                    self.first.get_or_insert(at + i);
-                    begun.get_or_insert(i);
-                }
+                self.found.hold(at, i, &mut begun);
                 *h = true;
             }
         }
@@ -259,10 +276,10 @@ impl StillAngle {
     /// What was found, for a person (`None` when nothing was): `angle` and `speed` name the
     /// channels.
     pub fn finding(&self, angle: &str, speed: &str) -> Option<String> {
-        let at = self.first?;
+        let at = self.found.first?;
         Some(format!(
             "'{angle}' stood still while '{speed}' turned it more than {MAX_STILL_TURN} rad, {} time(s), from sample {at} first: a stopped sensor, not the shaft — the estimator held meanwhile",
-            self.count
+            self.found.count
         ))
     }
 }
@@ -302,10 +319,9 @@ pub struct StuckSpeed {
     turned: f64,
     samples: u64,
     largest_step_miss: f64,
-    /// Whether it is found frozen now, the stretches found, the first's sample.
-    stuck: bool,
-    count: u64,
-    first: Option<usize>,
+    /// The stretches it stood frozen.
+    #[serde(flatten)]
+    found: Stretches,
 }
 
 impl StuckSpeed {
@@ -327,8 +343,10 @@ impl StuckSpeed {
                 *self = Self {
                     value: Some(w),
                     last_angle: th,
-                    first: self.first,
-                    count: self.count,
+                    found: Stretches {
+                        on: false,
+                        ..self.found
+                    },
                     ..Self::default()
                 };
                 continue;
@@ -348,18 +366,13 @@ impl StuckSpeed {
             // Below the standstill's speed, by the angle and by the speed, a speed that stands
             // is a shaft at rest (a speed from a tooth's period reads 0 below its least).
             let turning = (self.turned / elapsed).abs().max(w.abs()) >= STILL_MIN_SPEED;
-            if self.stuck
+            if self.found.on
                 || (elapsed >= STUCK_MIN_S
                     && turning
                     && miss > STUCK_RELATIVE_MISS * self.turned.abs()
                     && miss > STUCK_MISS_STEPS * self.largest_step_miss)
             {
-                if !self.stuck {
-                    self.stuck = true;
-                    self.count += 1;
-                    self.first.get_or_insert(at + i);
-                    begun.get_or_insert(i);
-                }
+                self.found.hold(at, i, &mut begun);
                 *h = true;
             }
         }
@@ -369,10 +382,10 @@ impl StuckSpeed {
     /// What was found, for a person (`None` when nothing was): `speed` and `angle` name the
     /// channels.
     pub fn finding(&self, speed: &str, angle: &str) -> Option<String> {
-        let at = self.first?;
+        let at = self.found.first?;
         Some(format!(
             "'{speed}' stood at one value for {STUCK_MIN_S} s or more while '{angle}' turned away from it, {} time(s), from sample {at} first: a frozen sensor (or one updated too rarely for the shaft's vibration), not the shaft — the estimator held meanwhile",
-            self.count
+            self.found.count
         ))
     }
 }
