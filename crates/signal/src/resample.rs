@@ -86,9 +86,10 @@ impl StreamInterp {
     /// Refuse asking for `count` more points when they, their answers (every channel) and the
     /// `extra` values kept for each would not fit in the memory available — a grid finer than
     /// the data by a factor of millions (a step of 1e-9°) — instead of growing until the
-    /// allocator aborts. `grid` says what the points are, `from` the chunk's first sample, `cause` what in the data asks for so
-    /// many if it knows, given whether a count of points would fit (else the error advises a
-    /// coarser grid); both are called only for the error.
+    /// allocator aborts. `grid` says what the points are, `from` is the chunk's first sample,
+    /// `cause` says what in the data asks for so many if it knows, given whether a count of
+    /// points would fit (else the error advises a coarser grid); both are called only for the
+    /// error.
     pub fn room_for(
         &self,
         count: f64,

@@ -103,8 +103,8 @@ pub struct ShaftStage {
     /// The engine's and the dynamometer's angle sensors, checked for a stop while they turn.
     #[serde(default)]
     still: [StillAngle; 2],
-    /// The engine's and the dynamometer's speed sensors, checked for a freeze while the speed
-    /// changes.
+    /// The engine's and the dynamometer's speed sensors, checked for a freeze while their
+    /// shafts move.
     #[serde(default)]
     stuck: [StuckSpeed; 2],
     /// The inputs' step [s] (0 in a checkpoint from before: no stop is found).
@@ -343,9 +343,9 @@ impl ShaftStage {
         }
     }
 
-    /// The angle sensors found stopped ([`StillAngle`]), the speed sensors frozen
-    /// ([`StuckSpeed`]) and what was taken out of the twist,
-    /// the relative speed and the torque as a sensor's glitch ([`StepGate`]), for a person.
+    /// The angle sensors found stopped ([`StillAngle`]), the speed sensors found frozen
+    /// ([`StuckSpeed`]) and what was taken out of the twist, the relative speed and the torque
+    /// as a sensor's glitch ([`StepGate`]), for a person.
     pub fn glitch_findings(&self) -> impl Iterator<Item = String> + '_ {
         let still = self
             .still
@@ -489,8 +489,8 @@ impl ShaftStage {
                 });
             }
         }
-        // A speed that froze while its shaft's speed changes: its samples held by the relative
-        // speed's gate.
+        // A speed that froze while its shaft moves away from it: its samples held by the
+        // relative speed's gate.
         for ((stuck, (theta, omega)), (angle, speed)) in self.stuck.iter_mut().zip(pairs).zip(STILL)
         {
             if let Some(i) = stuck.apply(theta, omega, self.dt, &mut self.stuck_raw, first) {
