@@ -145,13 +145,32 @@ enum Command {
     Bench(cmd::bench::Args),
 }
 
+/// The command line, every option's value allowed to be a negative number: `--knock-threshold
+/// -1e5` is that value (which its range check then refuses, saying why), not an unknown flag
+/// `-1` — as most options already took it.
+fn parse_args() -> Cli {
+    use clap::{CommandFactory, FromArgMatches};
+    fn negative_numbers(cmd: clap::Command) -> clap::Command {
+        cmd.mut_args(|a| {
+            if a.get_action().takes_values() {
+                a.allow_negative_numbers(true)
+            } else {
+                a
+            }
+        })
+        .mut_subcommands(negative_numbers)
+    }
+    let mut matches = negative_numbers(Cli::command()).get_matches();
+    Cli::from_arg_matches_mut(&mut matches).unwrap_or_else(|e| e.exit())
+}
+
 fn main() -> miette::Result<()> {
     // Unwrapped messages: file paths and column lists stay on one line, copyable and greppable.
     miette::set_hook(Box::new(|_| {
         Box::new(miette::MietteHandlerOpts::new().wrap_lines(false).build())
     }))?;
     physid_io::quiet_contained_panics();
-    let cli = Cli::parse();
+    let cli = parse_args();
     progress::set_quiet(cli.quiet);
     match cli.command {
         Command::Demo(a) => cmd::demo::run(&a),

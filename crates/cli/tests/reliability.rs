@@ -65,6 +65,8 @@ fn runs_that_cannot_fit_are_refused_before_they_start() {
 
 /// A number out of its range is said as it was given — `1e300`, not its 301 digits (each of
 /// these printed every digit, found by driving the Python package's functions with ±10³⁰⁰).
+/// A negative value is taken after a space as after `=` (`--knock-threshold -1e300` was an
+/// unknown flag `-1`).
 #[test]
 fn a_number_out_of_range_is_said_in_exponent_form() {
     let s = Scratch::new("physid-num");
@@ -92,7 +94,7 @@ fn a_number_out_of_range_is_said_in_exponent_form() {
         &["friction", "fit", "--data", t, "--lambda=-1e300"],
         &["torque", "fit", "--data", c, "--r2=-1e300"],
         &["torque", "fit", "--data", c, "--p0=-1e300"],
-        &["cycles", c, "--knock", "--knock-threshold=-1e300"],
+        &["cycles", c, "--knock", "--knock-threshold", "-1e300"],
         &["cycles", c, "--knock", "--knock-band", "1e300,-1e300"],
         &["cycles", c, "--pressure-lowpass=-1e300"],
         &[
