@@ -278,7 +278,12 @@ impl Control {
             Some("stop") => Ok(Control::Stop),
             other => Err(format!(
                 "field 'cmd' is {}: expected {}",
-                other.map_or_else(|| "missing".to_string(), |c| format!("'{c}'")),
+                match (other, obj.get("cmd")) {
+                    (Some(c), _) => format!("'{c}'"),
+                    // Present, but not a text.
+                    (None, Some(v)) => crate::event::quote(&v.to_string(), 40).into_owned(),
+                    (None, None) => "missing".to_string(),
+                },
                 CMDS.join(", ")
             )),
         }
@@ -329,8 +334,9 @@ impl Control {
             let (lo, hi) = SPEED_ENVELOPE_RPM;
             if !run.torque_mode() && !(lo..=hi).contains(rpm) {
                 return Err(format!(
-                    "field 'rpm' is {rpm}: outside the cell's operating envelope, {lo}–{hi} rpm \
-                     (below it the dynamometer stalls the engine)"
+                    "field 'rpm' is {}: outside the cell's operating envelope, {lo}–{hi} rpm \
+                     (below it the dynamometer stalls the engine)",
+                    physid_core::Num(*rpm)
                 ));
             }
         }
@@ -394,6 +400,7 @@ mod tests {
             (r#"{"cmd":"fault","spec":"shaft.x=1@1"}"#, "field 'spec'"),
             (r#"{"cmd":"warp"}"#, "field 'cmd' is 'warp'"),
             (r#"{"rpm":1}"#, "field 'cmd' is missing"),
+            (r#"{"cmd":5}"#, "field 'cmd' is 5: expected speed"),
             ("speed 1200", "not a JSON object"),
             // A field the message does not take (a misspelling would do nothing, unseen).
             (
@@ -445,7 +452,13 @@ mod tests {
             }
             (chunks, refusals)
         };
-        let (quiet, _) = drive(&[]);
+        let (quiet, refused) = drive(&[r#"{"cmd":"speed","rpm":1e-300}"#]);
+        // Outside the envelope, said as given (it printed 300 digits).
+        assert!(
+            refused[0].starts_with("field 'rpm' is 1e-300: outside the cell's operating envelope"),
+            "{}",
+            refused[0]
+        );
         let (tried, refusals) = drive(&[
             r#"{"cmd":"fault","spec":"shaft.b=1e6@0.15"}"#,
             r#"{"cmd":"fault","spec":"shaft.k=1e7@0.3"}"#,
