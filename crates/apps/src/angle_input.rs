@@ -173,8 +173,8 @@ impl AngleInput {
     pub fn require(&self, needed: &[&str]) -> Result<(), AppError> {
         let header = self.header()?;
         if header.basis == Basis::Time
+            && raw_sensor(&header, &self.angle)?.is_none()
             && header.channel("theta_en").is_err()
-            && !sensor_present(&self.angle, &header)
         {
             CountsScan::new(&header, &self.angle)?;
         }
@@ -249,8 +249,12 @@ impl AngleInput {
             })
         };
         let opts = &self.angle;
+        let sensor = match header.basis {
+            Basis::Time => raw_sensor(&header, opts)?,
+            Basis::CrankAngle => None,
+        };
         let streams = header.basis == Basis::CrankAngle
-            || (header.channel("theta_en").is_ok() && self.tdc_from.is_none());
+            || (header.channel("theta_en").is_ok() && sensor.is_none() && self.tdc_from.is_none());
         if streams {
             let names = match header.basis {
                 Basis::CrankAngle => wanted(&["t", "cycle", "crank_deg"]),
@@ -281,11 +285,7 @@ impl AngleInput {
         }
         // An encoder's counts: read three times over — the counts and the marker first, then
         // the channels with the counts read ahead of them.
-        if let (Basis::Time, false, None) = (
-            header.basis,
-            sensor_present(opts, &header),
-            self.tdc_from.as_ref(),
-        ) {
+        if let (Basis::Time, None, None) = (header.basis, sensor, self.tdc_from.as_ref()) {
             // No encoder either: the error names every channel of the file.
             let scan = CountsScan::new(&header, opts)?;
             // The first pass, unless an earlier pass over the file made it.
@@ -326,7 +326,7 @@ impl AngleInput {
         // level, then its angle 0 and span), then with the samples' times (what the decoding
         // found, where the TDC is), then ahead of the channels; with `tdc_from`, the TDC
         // placed from the pressure first (the same reads, in passes).
-        if let Some(spec) = raw_sensor(&header, opts) {
+        if let Some(spec) = sensor {
             let mut sensor = vec!["t"];
             sensor.extend(spec.sensor.channels());
             let known = pass.scanned.and_then(|s| s.borrow().clone());
@@ -534,17 +534,6 @@ fn feed<S>(
         push(&mut s, &chunk?)?;
     }
     Ok(s)
-}
-
-/// Whether the engine angle is a raw sensor's (a wheel, a quadrature encoder) whose channels
-/// the file has.
-fn sensor_present(opts: &AcquisitionOptions, header: &Recording) -> bool {
-    opts.sensor.as_ref().is_some_and(|s| {
-        s.sensor
-            .channels()
-            .iter()
-            .any(|c| header.channel(c).is_ok())
-    })
 }
 
 /// An [`AngleInput`] gone over in passes (`compression fit`'s windows, when they are not held;

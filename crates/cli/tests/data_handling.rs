@@ -632,7 +632,7 @@ fn a_trigger_wheel_s_raw_signal_gives_the_crank_angle() {
         ("enc", "expected CHANNEL=N-M"),
         (
             "pickup=60-3",
-            "trigger wheel's signal (--wheel CHANNEL=N-M)",
+            "the engine angle is to be decoded from 'pickup' (a trigger wheel's), which the recording does not have; its channels are t, enc, p_cyl, theta_true",
         ),
     ] {
         let mut a = args.clone();

@@ -1895,3 +1895,79 @@ fn a_speed_whose_units_row_lies_is_found_against_its_angle() {
         );
     }
 }
+
+/// A flag that only shapes a reading on a crank-angle basis is refused where none is made,
+/// naming the flag — `convert --step-deg 2` without `--crank-angle` wrote a time-basis file
+/// and said nothing, `live --marker` without `--replay` was ignored, and `live --replay
+/// --encoder-raw` replayed the file undecoded. A raw sensor whose channel the file lacks is
+/// named: `convert --crank-angle --wheel enc=60-2` of a file with `theta_en` and no `enc`
+/// took `theta_en` without a word.
+#[test]
+fn a_crank_angle_flag_without_a_crank_angle_reading_is_refused() {
+    let s = Scratch::new("physid-rel");
+    let rec = s.file("r.parquet");
+    let rec = rec.to_str().unwrap();
+    common::simulated(std::path::Path::new(rec), "shaft-steady", "0.05");
+    let out = s.file("o.csv");
+    let out = out.to_str().unwrap();
+    for (flag, value) in [
+        ("--step-deg", "2"),
+        ("--phase-from", "p_cyl"),
+        ("--marker", "tdc"),
+        ("--encoder", "count_en=360"),
+        ("--stroke", "0.09"),
+    ] {
+        fails_with(
+            &["convert", rec, out, flag, value],
+            &format!("{flag} is for a reading on a crank-angle basis: add --crank-angle"),
+        );
+        assert!(!std::path::Path::new(out).exists(), "{flag}: {out} written");
+    }
+    // With --crank-angle the same flags are taken.
+    let o = physid(&["convert", rec, out, "--crank-angle", "--step-deg", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (flag, value) in [("--marker", "tdc"), ("--phase-from", "p_cyl")] {
+        fails_with(
+            &[
+                "live",
+                "--headless",
+                "--json",
+                "--duration",
+                "0.1",
+                flag,
+                value,
+            ],
+            &format!("{flag} is for the engine angle of a --replay file"),
+        );
+    }
+    // A raw sensor named is decoded (here its channel is missing, and said), on a replay and
+    // in a conversion, not passed over for the file's `theta_en`.
+    let missing = "the engine angle is to be decoded from 'enc' (a pulse encoder's), which the recording does not have; its channels are t, theta_en,";
+    fails_with(
+        &[
+            "convert",
+            rec,
+            out,
+            "--crank-angle",
+            "--encoder-raw",
+            "enc=360",
+            "--index-raw",
+            "idx",
+        ],
+        missing,
+    );
+    fails_with(
+        &[
+            "live",
+            "--headless",
+            "--json",
+            "--replay",
+            rec,
+            "--encoder-raw",
+            "enc=360",
+            "--index-raw",
+            "idx",
+        ],
+        missing,
+    );
+}

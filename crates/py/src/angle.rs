@@ -92,12 +92,16 @@ impl AngleArgs {
                 AngleSpec::new(s, self.tdc_offset, PhaseFrom::parse(self.phase_from.as_deref()))
                     .map_err(|e| err(format!("tdc_offset {e}")))?,
             ),
-            None if self.tdc_from.is_some() || self.phase_from.is_some() => {
+            None if self.tdc_from.is_some() => {
                 return Err(err(
-                    "tdc_from and phase_from place the TDC on a raw angle sensor: give wheel, quadrature or encoder_raw",
+                    "tdc_from places the TDC on a raw angle sensor: give wheel, quadrature or encoder_raw",
                 ))
             }
-            None => None,
+            None => {
+                // With `theta_en` or an encoder's counts and marker, as `convert --phase-from`.
+                o.phase_from = PhaseFrom::parse(self.phase_from.as_deref());
+                None
+            }
         };
         Ok(o)
     }

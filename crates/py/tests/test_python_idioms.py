@@ -179,6 +179,38 @@ def test_arguments_out_of_reason_are_refused_not_a_crash():
     assert len(r) <= 2 and r.t[0] == 0.0
 
 
+def test_whole_numbers_and_crank_angle_options_are_checked(tmp_path):
+    """A count beyond its native type was PyO3's OverflowError naming no argument; a float was
+    cut (``cylinders=4.7`` taken as 4). A crank-angle option given to a time-basis reading was
+    ignored, and ``phase_from`` with ``theta_en`` (as ``physid convert --phase-from``) was
+    refused as needing a raw sensor."""
+    f = tmp_path / "r.parquet"
+    physid.simulate("shaft-steady", duration=0.5).write(f)
+    crank = physid.read(f, crank_angle=True)
+    with pytest.raises(physid.Error, match=r"cylinders = 1099511627776: expected a whole number "
+                                           r"from 0 to 4294967295"):
+        physid.cycles(crank, cylinders=2**40)
+    with pytest.raises(physid.Error, match="cylinders = 4.7: expected a whole number"):
+        physid.cycles(crank, cylinders=4.7)
+    with pytest.raises(TypeError, match="cylinders: expected a whole number, got the bool"):
+        physid.cycles(crank, cylinders=True)
+    with pytest.raises(physid.Error, match="seed = -1: expected a whole number"):
+        physid.design("shaft", ["K"], seed=-1)
+    with pytest.raises(physid.Error, match=r"dwell = 1.84e\+19: expected a whole number"):
+        physid.monitor_shaft(physid.read(f), dwell=2**64)
+    for given in ({"phase_from": "p_cyl"}, {"step_deg": 2.0}, {"marker": "tdc"},
+                  {"tdc_offset": 5.0}, {"stroke": 0.09}):
+        name = next(iter(given))
+        with pytest.raises(physid.Error, match=f"{name}: for a crank-angle reading — add "
+                                               f"crank_angle=True"):
+            physid.read(f, **given)
+    # With theta_en: which revolution fires, told from p_cyl, or the first TDC taken.
+    told = physid.read(f, crank_angle=True, phase_from="p_cyl")
+    first = physid.read(f, crank_angle=True, phase_from="none")
+    assert np.array_equal(told["p_cyl"], crank["p_cyl"])
+    assert len(first) > 0
+
+
 def test_an_estimator_used_by_two_threads_at_once_says_so():
     rng = np.random.default_rng(0)
     X, y = rng.normal(size=(400_000, 20)), rng.normal(size=400_000)

@@ -365,16 +365,25 @@ pub struct EncoderSummary {
 }
 
 /// The raw angle sensor (a trigger wheel, a quadrature encoder) whose signal is the engine
-/// angle of a time-basis recording without `theta_en`, when the options name one whose
-/// channels the recording has (any of them: a missing one is named when it is read).
-pub fn raw_sensor<'a>(header: &Recording, opts: &'a AcquisitionOptions) -> Option<&'a AngleSpec> {
-    opts.sensor.as_ref().filter(|s| {
-        header.channel("theta_en").is_err()
-            && s.sensor
-                .channels()
-                .iter()
-                .any(|c| header.channel(c).is_ok())
-    })
+/// angle of a time-basis recording, when the options name one — also where the recording has a
+/// `theta_en`: the sensor was asked for. A channel of it the recording lacks is an error naming
+/// it and the recording's channels (the angle used to come from `theta_en` or the encoder's
+/// counts instead, without a word).
+pub fn raw_sensor<'a>(
+    header: &Recording,
+    opts: &'a AcquisitionOptions,
+) -> Result<Option<&'a AngleSpec>, AcquisitionError> {
+    let Some(spec) = &opts.sensor else {
+        return Ok(None);
+    };
+    match spec.sensor.channels().into_iter().find(|c| header.channel(c).is_err()) {
+        Some(c) => Err(AcquisitionError::Invalid(format!(
+            "the engine angle is to be decoded from '{c}' ({}'s), which the recording does not have; its channels are {}",
+            spec.sensor.kind(),
+            header.names().join(", ")
+        ))),
+        None => Ok(Some(spec)),
+    }
 }
 
 /// An application error as one of the acquisition chain's (the wheel's passes on a recording

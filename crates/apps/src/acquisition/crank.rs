@@ -25,7 +25,7 @@ pub fn to_crank_angle_decoded(
             "the recording is already on a crank-angle basis".into(),
         ));
     }
-    if let Some(spec) = raw_sensor(rec, opts) {
+    if let Some(spec) = raw_sensor(rec, opts)? {
         // The sensor's passes, over the recording as one chunk.
         let one = || std::iter::once(Ok::<&Recording, AppError>(rec));
         let run = || -> Result<_, AppError> {

@@ -78,7 +78,7 @@ pub struct AcquisitionOptions {
     /// The TDC marker channel.
     pub marker: String,
     /// A raw angle sensor (a trigger wheel or a quadrature encoder), decoded into the engine
-    /// angle when the recording has no `theta_en` (`--wheel CHANNEL=N-M`,
+    /// angle, also where the recording has a `theta_en` ([`raw_sensor`]; `--wheel CHANNEL=N-M`,
     /// `--quadrature A,B[,Z]=LINES`).
     pub sensor: Option<AngleSpec>,
     /// Without a sensor: which revolution of two fires when the marker comes once per
@@ -191,6 +191,15 @@ impl AngleSensor {
             z: names.get(2).cloned(),
             lines,
         })
+    }
+
+    /// What it is, in words: "a trigger wheel", "a pulse encoder" or "a quadrature encoder".
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::Wheel { .. } => "a trigger wheel",
+            Self::Pulses { .. } => "a pulse encoder",
+            Self::Quadrature { .. } => "a quadrature encoder",
+        }
     }
 
     /// The raw channels it reads.

@@ -28,9 +28,9 @@ pub struct Args {
     /// --wheel).
     #[arg(long, conflicts_with = "time_basis")]
     pub crank_angle: bool,
-    /// Crank-angle step [deg].
-    #[arg(long, default_value_t = 1.0)]
-    pub step_deg: f64,
+    /// Crank-angle step [deg] of --crank-angle [default: 1].
+    #[arg(long)]
+    pub step_deg: Option<f64>,
     /// Resample a crank-angle recording to a uniform time basis at this rate [Hz].
     #[arg(long, value_name = "HZ")]
     pub time_basis: Option<f64>,
@@ -55,10 +55,19 @@ pub fn run(args: &Args) -> Result<()> {
             ))
         }
     };
-    let opts = args.angle.options()?;
-    if opts.sensor.is_some() && !args.crank_angle {
+    let crank_only = (args.step_deg.is_some().then_some("--step-deg"))
+        .or_else(|| args.angle.crank_angle_flag())
+        .or_else(|| args.crank.stroke.is_some().then_some("--stroke"))
+        .or_else(|| args.crank.rod.is_some().then_some("--rod"))
+        .or_else(|| {
+            args.crank
+                .compression_ratio
+                .is_some()
+                .then_some("--compression-ratio")
+        });
+    if let (false, Some(flag)) = (args.crank_angle, crank_only) {
         return Err(miette!(
-            "--wheel and --quadrature decode the engine angle for --crank-angle: add --crank-angle"
+            "{flag} is for a reading on a crank-angle basis: add --crank-angle (without it, convert changes the format only, or the basis to time with --time-basis)"
         ));
     }
     let write = WriteOptions {
@@ -76,7 +85,7 @@ pub fn run(args: &Args) -> Result<()> {
             ));
         }
         let mut input = crank_input(&args.read, &args.input, &args.angle, &args.crank)?;
-        input.step_deg = args.step_deg;
+        input.step_deg = args.step_deg.unwrap_or(1.0);
         input
             .read(
                 chosen,

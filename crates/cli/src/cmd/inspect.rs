@@ -46,9 +46,9 @@ pub struct AngleArgs {
     /// to the first [default: count_en=360, count_dy=1024].
     #[arg(long = "encoder", value_name = "CHANNEL=PPR")]
     pub encoders: Vec<String>,
-    /// TDC marker channel.
-    #[arg(long, default_value = "tdc")]
-    pub marker: String,
+    /// TDC marker channel [default: tdc].
+    #[arg(long)]
+    pub marker: Option<String>,
     #[command(flatten)]
     pub wheel: WheelArgs,
 }
@@ -59,7 +59,7 @@ impl Default for AngleArgs {
     fn default() -> Self {
         Self {
             encoders: Vec::new(),
-            marker: physid_apps::acquisition::TDC_MARKER.into(),
+            marker: None,
             wheel: WheelArgs::default(),
         }
     }
@@ -68,12 +68,33 @@ impl Default for AngleArgs {
 impl AngleArgs {
     /// The acquisition options these flags give.
     pub fn options(&self) -> Result<AcquisitionOptions> {
-        let mut o = acquisition_options(&self.encoders, &self.marker)?;
+        let marker = self
+            .marker
+            .as_deref()
+            .unwrap_or(physid_apps::acquisition::TDC_MARKER);
+        let mut o = acquisition_options(&self.encoders, marker)?;
         o.sensor = self.wheel.spec()?;
         if o.sensor.is_none() {
             o.phase_from = self.wheel.phase();
         }
         Ok(o)
+    }
+
+    /// The first of these flags given that only a reading on a crank-angle basis uses (the
+    /// engine angle's source and its TDC), to refuse where none is made rather than ignore:
+    /// those that decode an angle first, `--phase-from` (which `theta_en` takes too) last.
+    pub fn crank_angle_flag(&self) -> Option<&'static str> {
+        let w = &self.wheel;
+        [
+            (w.wheel.is_some(), "--wheel"),
+            (w.quadrature.is_some(), "--quadrature"),
+            (w.encoder_raw.is_some(), "--encoder-raw"),
+            (!self.encoders.is_empty(), "--encoder"),
+            (self.marker.is_some(), "--marker"),
+            (w.phase_from.is_some(), "--phase-from"),
+        ]
+        .into_iter()
+        .find_map(|(given, flag)| given.then_some(flag))
     }
 }
 

@@ -287,14 +287,16 @@ fn publish(
 /// The source `a` asks for, a line saying what it is, and the angle of a firing TDC on its
 /// `theta_en` (a replay's first TDC marker, as the file verbs take it; else 0).
 fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
-    let decode = a.angle.wheel.wheel.is_some()
-        || a.angle.wheel.quadrature.is_some()
-        || !a.angle.encoders.is_empty();
-    if decode && a.replay.is_none() {
+    if let (Some(flag), None) = (a.angle.crank_angle_flag(), &a.replay) {
         return Err(miette!(
-            "--wheel, --quadrature and --encoder decode the engine angle of a --replay file"
+            "{flag} is for the engine angle of a --replay file (the virtual cell and frames give their own)"
         ));
     }
+    // Everything but --phase-from (which the replay of `theta_en` takes too) needs decoding.
+    let decode = a
+        .angle
+        .crank_angle_flag()
+        .is_some_and(|f| f != "--phase-from");
     #[cfg(unix)]
     if let Some(path) = &a.frames_socket {
         let socket =

@@ -68,6 +68,32 @@ def _mapping(name: str, x: Any) -> Mapping:
                     f"{type(x).__name__} {shown}")
 
 
+_U32 = 2**32 - 1
+_U64 = 2**64 - 1
+
+
+def _count(name: str, x: Any, hi: int = _U64) -> int:
+    """``x`` as a whole number from 0 to ``hi`` (the native side's integer type), naming ``name``
+    when it is not: a float is taken only when it is whole (``4.0``, not ``4.7``), a bool not at
+    all; beyond the range a :class:`physid.Error` (PyO3's own ``OverflowError`` names no
+    argument)."""
+    if isinstance(x, bool):
+        raise TypeError(f"{name}: expected a whole number, got the bool {x}")
+    if isinstance(x, (float, np.floating)):
+        if not float(x).is_integer():
+            raise Error(f"{name} = {x}: expected a whole number")
+        x = int(x)
+    try:
+        n = int(x.__index__())
+    except (AttributeError, TypeError):
+        shown = " ".join(repr(x).split())[:80]
+        raise TypeError(f"{name}: expected a whole number, got {type(x).__name__} {shown}") from None
+    if not 0 <= n <= hi:
+        shown = f"{n}" if abs(n) < 10**15 else f"{float(n):.3g}"
+        raise Error(f"{name} = {shown}: expected a whole number from 0 to {hi}")
+    return n
+
+
 def _array(name: str, x: Any, ndim: int) -> np.ndarray:
     """``x`` as a C-contiguous float64 array of ``ndim`` dimensions, or :class:`Error` saying
     what was wrong (numbers are converted, non-contiguous arrays copied, pandas' nullable
@@ -139,6 +165,18 @@ def read(
     """
     import os
 
+    if not (crank_angle or wheel or quadrature or encoder_raw or encoders or tdc_from):
+        # Each of these shapes a crank-angle reading only: given without one, it would be
+        # ignored without a word.
+        unused = [name for name, value, default in (
+            ("step_deg", step_deg, 1.0), ("marker", marker, None), ("tdc_offset", tdc_offset, 0.0),
+            ("phase_from", phase_from, None), ("stroke", stroke, None), ("rod", rod, None),
+            ("edge", edge, "rising"), ("threshold", threshold, None), ("index_raw", index_raw, None),
+        ) if (value is not None if default is None
+              else not (isinstance(value, (int, float, str)) and value == default))]
+        if unused:
+            raise Error(f"{', '.join(unused)}: for a crank-angle reading — add crank_angle=True "
+                        f"(or give wheel, quadrature, encoder_raw or encoders)")
     return _physid.read(
         os.fspath(path),
         list(channels) if channels is not None else None,
@@ -722,7 +760,8 @@ def monitor_shaft(
                       stacklevel=2)
     s, tracks = _physid.monitor_shaft(rec, method, float(lam), float(p0),
                                       _pair(healthy, 2, "healthy"), _pair(theta0, 3, "theta0"),
-                                      float(bound), int(dwell), float(cutoff_hz), float(rate_hz),
+                                      float(bound), _count("dwell", dwell), float(cutoff_hz),
+                                      float(rate_hz),
                                       float(settle_s), bool(supervise))
     return ShaftMonitorResult(_json.loads(s), dict(tracks))
 
@@ -807,8 +846,9 @@ def design(
         limits = ",".join(items)
     s, tracks = _physid.design(str(app), [str(p) for p in params], str(criterion),
                                None if target_rel_se is None else float(target_rel_se),
-                               str(limits), float(duration), int(candidates), int(seed),
-                               int(threads), str(method), None if lam is None else float(lam),
+                               str(limits), float(duration), _count("candidates", candidates),
+                               _count("seed", seed), _count("threads", threads), str(method),
+                               None if lam is None else float(lam),
                                float(cutoff_hz), float(rate_hz), float(s0), str(source),
                                float(sample_rate),
                                {str(k): float(v) for k, v in _mapping("set", set).items()},
@@ -961,7 +1001,7 @@ def cycles(
                                                                float(woschni_c2)),
                                str(mfb_method),
                                None if rw_exponent is None else float(rw_exponent),
-                               brake_torque, int(cylinders),
+                               brake_torque, _count("cylinders", cylinders, _U32),
                                None if pressure_lowpass is None else float(pressure_lowpass),
                                friction)
     return CyclesResult(_json.loads(s), dict(tracks))
@@ -991,7 +1031,8 @@ def twin_calibrate(
     s, toml = _physid.twin_calibrate(
         rec, None if params is None else [str(p) for p in params],
         None if channels is None else [str(c) for c in channels],
-        {str(k): float(v) for k, v in _mapping("set", set).items()}, float(max_rel_se), int(threads),
+        {str(k): float(v) for k, v in _mapping("set", set).items()}, float(max_rel_se),
+        _count("threads", threads),
         None if demand is None else str(demand))
     out = _json.loads(s)
     out["scenario_toml"] = toml
