@@ -287,3 +287,214 @@ fn recover_says_what_it_did() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a Parquet file"));
 }
+
+/// `physid live` recording into `dir` through `sh -c script` (the script's `$1` is `physid`,
+/// `$2` the directory): its events, once it has ended.
+fn live_through_shell(script: &str, dir: &std::path::Path, ext: &str, pace: &str) -> Vec<Value> {
+    let run = format!(
+        r#"{script} "$1" live --headless --json --scenario shaft-steady --duration 6 --pace {pace} --controls - --log-dir "$2""#
+    );
+    let mut child = Command::new("sh")
+        .args(["-c", &run, "sh", env!("CARGO_BIN_EXE_physid")])
+        .arg(dir)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    writeln!(stdin, r#"{{"cmd":"record","file":"run.{ext}"}}"#).unwrap();
+    drop(stdin);
+    let o = child.wait_with_output().unwrap();
+    assert!(
+        o.status.success(),
+        "{script}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect()
+}
+
+/// The log's stopping told: the `error` event's message (which must contain `says`) and the
+/// last `log` event's samples (closed); the run went on to its end.
+fn log_stopped(events: &[Value], says: &str, what: &str) -> usize {
+    let error = events
+        .iter()
+        .find(|e| e["type"] == "error")
+        .unwrap_or_else(|| panic!("{what}: no error event"));
+    let message = error["message"].as_str().unwrap();
+    assert!(message.contains(says), "{what}: {message}");
+    let last = events.iter().rev().find(|e| e["type"] == "log").unwrap();
+    assert_eq!(last["state"], "closed", "{what}: {last}");
+    let end = events.last().unwrap();
+    assert_eq!(end["type"], "end", "{what}: the run did not go on");
+    assert_eq!(end["samples"], 60_001, "{what}: {end}");
+    last["samples"].as_u64().unwrap() as usize
+}
+
+/// A live log on a full disk loses nothing it can keep. On a small file system (a 4 MB tmpfs
+/// in a mount namespace of its own) the log is closed before the disk fills — every sample so
+/// far, readable — where it used to write until the disk refused and leave a Parquet file no
+/// reader opens (its footer unwritten) or an MDF4 file holding only its first commit. A write
+/// refused anyway (here by the process's file-size limit, `ulimit -f`) leaves the file
+/// readable up to its last commit. Either way the run goes on, and the log holds a stretch of
+/// `physid simulate`'s samples, bit for bit.
+#[test]
+fn a_live_log_on_a_full_disk_keeps_what_it_can() {
+    let s = physid_testkit::Scratch::new("physid-full-disk");
+    let sim_path = s.file("sim.parquet");
+    common::simulated(&sim_path, "shaft-steady", "6");
+    let sim = physid_io::read_parquet(&sim_path, None).unwrap();
+    for ext in ["parquet", "mf4"] {
+        // The file-size limit: 6 MB (the shell's `ulimit -f` counts 1024-byte blocks), SIGXFSZ
+        // ignored so that the write fails instead of killing the process; paced, so that
+        // commits come each second.
+        let dir = s.file(&format!("limit-{ext}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let events = live_through_shell("trap '' XFSZ; ulimit -f 6000;", &dir, ext, "2");
+        let what = format!("{ext}, file-size limit");
+        let kept = log_stopped(&events, "File too large (os error 27)", &what);
+        let logged = physid_io::read(dir.join(format!("run.{ext}")), &Default::default())
+            .unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert_eq!(logged.len(), kept, "{what}");
+        assert!(kept >= 100, "{what}: {kept}");
+        a_stretch_of(&logged, &sim, &what);
+        // The small disk: mounted in a namespace of its own, the log copied out after.
+        let out = s.file(&format!("small-{ext}"));
+        std::fs::create_dir_all(&out).unwrap();
+        let small = s.file(&format!("mnt-{ext}"));
+        std::fs::create_dir_all(&small).unwrap();
+        let probe = Command::new("unshare")
+            .args(["--mount", "--map-root-user", "sh", "-c"])
+            .arg("mount -t tmpfs -o size=4m tmpfs \"$0\"")
+            .arg(&small)
+            .output();
+        if !probe.is_ok_and(|o| o.status.success()) {
+            eprintln!(
+                "a_live_log_on_a_full_disk_keeps_what_it_can: no mount namespace here (unshare --mount --map-root-user): the small-disk half is not run"
+            );
+            continue;
+        }
+        // The inner shell: `$0` is physid, `$@` its arguments (the paths are the scratch's,
+        // without spaces or quotes).
+        let script = format!(
+            r#"exec unshare --mount --map-root-user sh -c 'mount -t tmpfs -o size=4m tmpfs {} && "$0" "$@"; cp {}/run.{ext} {}/' "#,
+            small.display(),
+            small.display(),
+            out.display()
+        );
+        let events = live_through_shell(&script, &small, ext, "max");
+        let what = format!("{ext}, a 4 MB disk");
+        let kept = log_stopped(&events, "less than the log needs to go on and close", &what);
+        let logged = physid_io::read(out.join(format!("run.{ext}")), &Default::default())
+            .unwrap_or_else(|e| panic!("{what}: {e}"));
+        assert_eq!(logged.len(), kept, "{what}");
+        // The disk took at least a quarter of its size in samples (35 channels of 8 bytes).
+        assert!(kept * 35 * 8 > 1_000_000, "{what}: {kept}");
+        a_stretch_of(&logged, &sim, &what);
+    }
+}
+
+/// A file verb whose output's disk refuses a write (here the file-size limit, 3 MB) leaves
+/// the output readable with what reached the disk and says how much: MDF4 and CSV the samples
+/// wholly written, the first of the input's; a Parquet file before its first row group (65 536
+/// rows) can keep nothing and is removed. They used to be left torn: "Corrupt footer", or an
+/// MDF4 file of 0 samples.
+#[test]
+fn a_conversion_on_a_full_disk_keeps_what_it_wrote() {
+    let s = physid_testkit::Scratch::new("physid-full-convert");
+    let input = s.file("sim.parquet");
+    common::simulated(&input, "shaft-steady", "3");
+    let sim = physid_io::read_parquet(&input, None).unwrap();
+    for ext in ["mf4", "csv", "parquet"] {
+        let out = s.file(&format!("out.{ext}"));
+        let o = Command::new("sh")
+            .args([
+                "-c",
+                r#"trap '' XFSZ; ulimit -f 3000; exec "$0" convert "$1" "$2""#,
+                env!("CARGO_BIN_EXE_physid"),
+            ])
+            .arg(&input)
+            .arg(&out)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{ext}: {e}");
+        assert!(e.contains("File too large (os error 27)"), "{ext}: {e}");
+        if ext == "parquet" {
+            assert!(e.contains("had no complete row group yet"), "{e}");
+            assert!(!out.exists(), "a Parquet file no reader opens is left");
+            continue;
+        }
+        let logged = physid_io::read(&out, &Default::default()).unwrap();
+        if ext == "mf4" {
+            assert!(
+                e.contains(&format!(
+                    "keeps its first {} samples, readable",
+                    logged.len()
+                )),
+                "{e}"
+            );
+        }
+        // 3 MB of 35 float64 (MDF4) or text (CSV) columns.
+        assert!(logged.len() > 2000, "{ext}: {}", logged.len());
+        if ext == "mf4" {
+            a_stretch_of(&logged, &sim, ext);
+        }
+        assert_eq!(logged.values("t").unwrap()[0], 0.0, "{ext}");
+    }
+}
+
+/// A whole write (`filter --ba`, Python's `Recording.write`) that the disk refuses leaves the
+/// file already at its path as it was and nothing beside it: it writes a staging file and
+/// renames it. It used to truncate the old file first and leave a torn one.
+#[test]
+fn a_whole_write_refused_leaves_the_old_file() {
+    let s = physid_testkit::Scratch::new("physid-whole-write");
+    let input = s.file("sim.parquet");
+    common::simulated(&input, "shaft-steady", "3");
+    let out = s.file("out.parquet");
+    let small = s.file("small.parquet");
+    common::simulated(&small, "shaft-steady", "0.2");
+    std::fs::copy(&small, &out).unwrap();
+    let before = std::fs::read(&out).unwrap();
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            r#"trap '' XFSZ; ulimit -f 2000; exec "$0" filter "$1" "$2" --ba --lowpass 500 --channels torque_shaft"#,
+            env!("CARGO_BIN_EXE_physid"),
+        ])
+        .arg(&input)
+        .arg(&out)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains(&format!("{}: File too large (os error 27)", out.display())),
+        "the error names the file asked for: {e}"
+    );
+    assert!(std::fs::read(&out).unwrap() == before, "the old file changed");
+    let left: Vec<_> = std::fs::read_dir(s.file(""))
+        .unwrap()
+        .filter_map(|d| d.ok())
+        .map(|d| d.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "staging files left: {left:?}");
+    // Within the limit the same command replaces it.
+    let o = physid(&[
+        "filter",
+        small.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--ba",
+        "--lowpass",
+        "500",
+        "--channels",
+        "torque_shaft",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::read(&out).unwrap() != before);
+}

@@ -22,14 +22,16 @@ mod writer;
 
 pub use csv_file::{read_csv, recover_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
 pub use format::{basis_by_channels, detect, Format, MapItem, ReadOptions, CHUNK_ROWS};
-pub use mdf::{read_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLOCK_BYTES};
+pub use mdf::{
+    read_mdf, settle_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLOCK_BYTES,
+};
 pub use parquet_file::{
     read_parquet, recover_parquet, write_parquet, ParquetChunks, ParquetWriter, Recovered,
 };
 pub use reader::{read, ChunkReader};
 pub use reopen::FileChunks;
 pub use source::ChunkSource;
-pub use writer::{write, ChunkWriter, WriteOptions, STREAM_ROWS_PER_GROUP};
+pub use writer::{salvage, write, ChunkWriter, WriteOptions, STREAM_ROWS_PER_GROUP};
 
 /// Errors reading or writing recording files.
 #[derive(Debug, thiserror::Error)]
@@ -84,6 +86,17 @@ pub enum IoError {
         /// The parser's message.
         detail: String,
     },
+    /// A write the operating system refused (a full disk, an I/O error): the file was made
+    /// readable with what reached the disk ([`salvage`]).
+    #[error("{source}; {kept}")]
+    WriteFailed {
+        /// The refusal.
+        source: Box<IoError>,
+        /// What the file keeps, in words.
+        kept: String,
+        /// The samples it keeps, where the format says.
+        rows: Option<u64>,
+    },
     /// The columns do not make a valid recording (duplicate names …).
     #[error("{path}: {source}")]
     Recording {
@@ -92,6 +105,36 @@ pub enum IoError {
         /// What is wrong.
         source: physid_core::RecordingError,
     },
+}
+
+impl IoError {
+    /// The same error, naming the file `path` where it named `staged` (a whole write's staging
+    /// file, [`write`]).
+    fn named(self, staged: &str, path: &str) -> Self {
+        let mut e = self;
+        let p = match &mut e {
+            Self::Os { path, .. }
+            | Self::Empty { path, .. }
+            | Self::NotNumeric { path, .. }
+            | Self::Ragged { path, .. }
+            | Self::Malformed { path, .. }
+            | Self::Recording { path, .. } => path,
+            Self::WriteFailed { .. } => return e,
+        };
+        if p == staged {
+            *p = path.to_string();
+        }
+        e
+    }
+
+    /// The samples a file keeps after a write that failed ([`IoError::WriteFailed`]), where
+    /// its format says.
+    pub fn kept(&self) -> Option<u64> {
+        match self {
+            Self::WriteFailed { rows, .. } => *rows,
+            _ => None,
+        }
+    }
 }
 
 /// The most channels a file may give at once (all its columns, or those selected): a reader

@@ -38,6 +38,23 @@ fn pq_err(path: &str, e: impl std::fmt::Display) -> IoError {
     }
 }
 
+/// A writer's error: the operating system's own where it is one (a full disk, an I/O error —
+/// what [`crate::ChunkWriter`] makes the file readable after), else [`pq_err`].
+fn write_err(path: &str, e: parquet::errors::ParquetError) -> IoError {
+    match e {
+        parquet::errors::ParquetError::External(b) if b.is::<std::io::Error>() => {
+            match b.downcast::<std::io::Error>() {
+                Ok(source) => IoError::Os {
+                    path: path.into(),
+                    source: *source,
+                },
+                Err(b) => pq_err(path, b),
+            }
+        }
+        e => pq_err(path, e),
+    }
+}
+
 /// The Arrow fields of `rec`'s channels as physid writes them (Parquet files, the fleet's
 /// frames): non-null float64, the unit in the field's metadata under `unit`.
 pub fn arrow_fields(rec: &Recording) -> Vec<Field> {
@@ -368,7 +385,7 @@ impl ParquetWriter {
                 .collect();
             let batch = RecordBatch::try_new(self.schema.clone(), cols)
                 .map_err(|e| pq_err(&self.path, e))?;
-            self.w.write(&batch).map_err(|e| pq_err(&self.path, e))?;
+            self.w.write(&batch).map_err(|e| write_err(&self.path, e))?;
             self.rows += end - start;
             if self.w.in_progress_rows() >= self.rows_per_group {
                 self.group()?;
@@ -397,7 +414,7 @@ impl ParquetWriter {
         if self.w.in_progress_rows() == 0 {
             return Ok(());
         }
-        self.w.flush().map_err(|e| pq_err(&self.path, e))?;
+        self.w.flush().map_err(|e| write_err(&self.path, e))?;
         let group = self
             .w
             .flushed_row_groups()
@@ -420,6 +437,11 @@ impl ParquetWriter {
         self.rows
     }
 
+    /// Row groups handed to the file so far, each with its journal entry.
+    pub(crate) fn groups(&self) -> usize {
+        self.w.flushed_row_groups().len()
+    }
+
     /// Bytes in the file so far, and buffered for the next row group.
     pub fn bytes(&self) -> usize {
         self.w.bytes_written() + self.w.in_progress_size()
@@ -428,7 +450,7 @@ impl ParquetWriter {
     /// Finish the file (the last row group, and the footer naming every row group).
     pub fn close(mut self) -> Result<(), IoError> {
         self.group()?;
-        self.w.close().map_err(|e| pq_err(&self.path, e))?;
+        self.w.close().map_err(|e| write_err(&self.path, e))?;
         Ok(())
     }
 }

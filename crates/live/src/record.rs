@@ -12,11 +12,18 @@
 //! a power loss) loses at most the samples since the last commit; a run stopped by SIGINT or
 //! SIGTERM closes the log.
 //!
+//! **A full disk.** Before each chunk the log's file system is asked for its free space: when it
+//! has less than the chunk, what the writer holds and its closing footer need ([`room_needed`]),
+//! the log is closed there — every sample so far kept, the file readable — and the run goes on
+//! ([`LogStopped`]). A write that fails anyway (another writer filled the disk, an I/O error)
+//! leaves the file readable with what reached the disk ([`physid_io::salvage`]).
+//!
 //! Only a plain file name is taken (no directory part, no overwriting): a panel that may be
 //! reached by others must not write where it likes.
 
 use crate::event::{Event, LogState};
 use crate::service::LiveError;
+use physid_core::memory::disk_available;
 use physid_core::Recording;
 use physid_io::{ChunkWriter, WriteOptions};
 use std::path::{Path, PathBuf};
@@ -33,6 +40,30 @@ pub struct Recorder {
     last_report: f64,
     /// When the log was last committed (`None`: not yet).
     last_commit: Option<Instant>,
+    /// The samples at the last commit: what a failed write keeps at least.
+    committed: usize,
+    /// Commits so far (each a Parquet row group, whose footer entry closing the file needs).
+    commits: usize,
+}
+
+/// A log that stopped by itself (its disk nearly full, a write that failed): what to tell the
+/// operator, and its last `log` event (closed, with the samples kept; or empty).
+#[derive(Debug)]
+pub struct LogStopped {
+    /// Why, and what was kept.
+    pub message: String,
+    /// The log's last `log` event.
+    pub last: Box<Event>,
+}
+
+/// The space [bytes] a log needs to take a chunk of `rows` × `channels` samples and still
+/// close: the chunk twice over as float64 (Parquet and MDF4 store float64; Snappy does not
+/// grow them beyond a few bytes a page), `held` bytes the writer holds unwritten (a Parquet row
+/// group in progress), and for the closing footer 1 MiB plus 256 bytes a channel for each row
+/// group (measured: 100–150).
+pub fn room_needed(rows: usize, channels: usize, held: u64, groups: usize) -> u64 {
+    let sample = 8 * channels as u64;
+    2 * sample * rows as u64 + held + (1 << 20) + 256 * (channels * groups) as u64
 }
 
 impl Recorder {
@@ -43,6 +74,8 @@ impl Recorder {
             file: None,
             last_report: f64::NEG_INFINITY,
             last_commit: None,
+            committed: 0,
+            commits: 0,
         }
     }
 
@@ -78,30 +111,36 @@ impl Recorder {
         self.last_report = f64::NEG_INFINITY;
         // The first chunk is committed at once: the file is a readable log from its start.
         self.last_commit = None;
+        self.committed = 0;
+        self.commits = 0;
         Ok(path)
     }
 
-    /// Write a chunk when a log is open; a `log` event each second of recording.
-    pub fn push(&mut self, chunk: &Recording, t_s: f64) -> Result<Option<Event>, LiveError> {
-        let Some((path, writer)) = self.file.as_mut() else {
+    /// Write a chunk when a log is open; a `log` event each second of recording. A log whose
+    /// disk is too full to take the chunk and close is closed first; one whose write fails is
+    /// left readable with what reached the disk: either stops it ([`LogStopped`]).
+    pub fn push(&mut self, chunk: &Recording, t_s: f64) -> Result<Option<Event>, LogStopped> {
+        let Some((path, writer)) = &self.file else {
             return Ok(None);
         };
-        let w = match writer {
-            Some(w) => w,
-            None => writer.insert(ChunkWriter::create(
-                &*path,
-                chunk,
-                &WriteOptions::default(),
-            )?),
+        let held = match writer {
+            Some(w) => {
+                let on_disk = std::fs::metadata(path).map_or(0, |m| m.len());
+                (w.bytes() as u64).saturating_sub(on_disk)
+            }
+            None => 0,
         };
-        w.append(chunk)?;
-        if self
-            .last_commit
-            .is_none_or(|at| at.elapsed() >= COMMIT_EVERY)
-        {
-            w.commit()?;
-            self.last_commit = Some(Instant::now());
+        let channels = chunk.channels().len();
+        let need = room_needed(chunk.len(), channels, held, self.commits + 1);
+        if let Some(free) = disk_available(&self.dir).filter(|&free| free < need) {
+            return Err(self.closed_for_room(free, need, t_s));
         }
+        if let Err(e) = self.write(chunk) {
+            return Err(self.ended(&format!("the log stopped: {e}"), Some(&e), t_s));
+        }
+        let Some((path, Some(w))) = &self.file else {
+            return Ok(None);
+        };
         if t_s - self.last_report < 1.0 {
             return Ok(None);
         }
@@ -140,6 +179,104 @@ impl Recorder {
             bytes,
             state,
         }))
+    }
+
+    /// Append `chunk` to the open log (its writer made at the first), committed each
+    /// [`COMMIT_EVERY`].
+    fn write(&mut self, chunk: &Recording) -> Result<(), physid_io::IoError> {
+        let Some((path, writer)) = self.file.as_mut() else {
+            return Ok(());
+        };
+        let w = match writer {
+            Some(w) => w,
+            None => writer.insert(ChunkWriter::create(
+                &*path,
+                chunk,
+                &WriteOptions::default(),
+            )?),
+        };
+        w.append(chunk)?;
+        if self
+            .last_commit
+            .is_none_or(|at| at.elapsed() >= COMMIT_EVERY)
+        {
+            w.commit()?;
+            self.last_commit = Some(Instant::now());
+            self.commits += 1;
+            self.committed = w.rows();
+        }
+        Ok(())
+    }
+
+    /// The log closed before its disk fills: `free` bytes left where it needs `need`.
+    fn closed_for_room(&mut self, free: u64, need: u64, t_s: f64) -> LogStopped {
+        let mb = |b: u64| b as f64 / 1e6;
+        let why = format!(
+            "the log was closed: {} has {:.2} MB free, less than the log needs to go on and close ({:.2} MB)",
+            self.dir.display(),
+            mb(free),
+            mb(need)
+        );
+        self.ended(&why, None, t_s)
+    }
+
+    /// The log ended by itself, `why`: closed (every sample kept) unless the write `failed`
+    /// with the disk's refusal — then its writer has made the file readable with what reached
+    /// the disk, the samples it says (else the last commit's, at least those). A log no sample
+    /// reached leaves no file.
+    fn ended(&mut self, why: &str, failed: Option<&physid_io::IoError>, t_s: f64) -> LogStopped {
+        let Some((path, writer)) = self.file.take() else {
+            return LogStopped {
+                message: why.to_string(),
+                last: Box::new(empty_log(t_s, Path::new(""))),
+            };
+        };
+        let Some(w) = writer else {
+            free_claim(&path);
+            return LogStopped {
+                message: format!("{why}; the log had no sample yet: no file is kept"),
+                last: Box::new(empty_log(t_s, &path)),
+            };
+        };
+        let rows = w.rows();
+        let (samples, message) = match failed {
+            Some(e @ physid_io::IoError::WriteFailed { .. }) => (
+                e.kept().map_or(self.committed, |k| k as usize),
+                why.to_string(),
+            ),
+            // Closed here: a full disk ahead, or a write refused before the file was touched.
+            _ => match w.close() {
+                Ok(()) => (
+                    rows,
+                    format!("{why}; {} keeps all its {rows} samples, readable. Free space and start a new log", path.display()),
+                ),
+                Err(e) => (
+                    e.kept().map_or(self.committed, |k| k as usize),
+                    format!("{why}; closing it: {e}"),
+                ),
+            },
+        };
+        LogStopped {
+            message,
+            last: Box::new(Event::Log {
+                t_s,
+                file: path.display().to_string(),
+                samples,
+                bytes: std::fs::metadata(&path).map_or(0, |m| m.len() as usize),
+                state: LogState::Closed,
+            }),
+        }
+    }
+}
+
+/// The `log` event of a log at `path` that keeps no sample (no file).
+fn empty_log(t_s: f64, path: &Path) -> Event {
+    Event::Log {
+        t_s,
+        file: path.display().to_string(),
+        samples: 0,
+        bytes: 0,
+        state: LogState::Empty,
     }
 }
 

@@ -190,7 +190,8 @@ impl Recording {
         )
     }
 
-    /// Write to `path`; the extension picks the format (`.csv`, `.parquet`, `.mf4`).
+    /// Write to `path`; the extension picks the format (`.csv`, `.parquet`, `.mf4`). Whole or
+    /// not at all: a write the disk refuses leaves a file already at `path` as it was.
     fn write(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
         let rec = &self.inner;
         py.detach(|| physid_io::write(&path, rec, &Default::default()))

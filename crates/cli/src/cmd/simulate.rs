@@ -268,7 +268,8 @@ pub fn run(args: &Args) -> Result<()> {
 /// Run `scenario` as a stream and write its recording to `out` as it comes (one second of
 /// recording at a time); `progress` gets the fraction done. The number of channels and samples
 /// written, `None` (and no file) when the recording holds fewer than two samples; on an error
-/// the partial file is removed.
+/// the partial file is removed — but for a write the disk refused, which leaves it readable
+/// with what reached the disk, and says so.
 fn write_as_it_goes(
     scenario: &Scenario,
     opts: &RunOptions,
@@ -280,6 +281,7 @@ fn write_as_it_goes(
     // SIGINT or SIGTERM: the file written so far is closed (readable) and kept.
     let stop = super::stop_on_signal()?;
     let mut interrupted = false;
+    let mut salvaged = false;
     let result = (|| -> Result<()> {
         let mut run = Run::new(scenario, opts).map_err(|e| miette!("{e}"))?;
         // Refused when even its uncompressed float64 size cannot fit on the disk.
@@ -309,7 +311,10 @@ fn write_as_it_goes(
                     );
                 }
                 if let Some(w) = writer.as_mut() {
-                    w.append(&chunk).map_err(|e| miette!("{e}"))?;
+                    w.append(&chunk).map_err(|e| {
+                        salvaged = matches!(e, physid_io::IoError::WriteFailed { .. });
+                        miette!("{e}")
+                    })?;
                 }
                 rows += chunk.len();
             }
@@ -337,7 +342,9 @@ fn write_as_it_goes(
         }
         (Err(e), w) => {
             drop(w);
-            let _ = std::fs::remove_file(out);
+            if !salvaged {
+                let _ = std::fs::remove_file(out);
+            }
             Err(e)
         }
     }

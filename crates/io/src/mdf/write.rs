@@ -104,10 +104,88 @@ pub(super) struct Zip {
     last_len: u64,
 }
 
-/// A little-endian u64 at `at` of `b`.
-pub(super) fn u64_at(b: &[u8], at: u64) -> Option<u64> {
-    let at = usize::try_from(at).ok()?;
-    Some(u64::from_le_bytes(b.get(at..at + 8)?.try_into().ok()?))
+/// Where the streaming writer patches its header: found from HD (at 64) → its first DG → the
+/// DG's first CG and its data block.
+struct Layout {
+    /// The data block (a `##DT`, the file's last block, while uncompressed).
+    dt_off: u64,
+    /// The DG's link to its data.
+    dg_data_link_off: u64,
+    /// The CG's record count.
+    cycle_count_off: u64,
+    /// Bytes a record.
+    record_len: usize,
+}
+
+impl Layout {
+    /// From `at(offset, len)`, the file's bytes there (`None` past its end); the error says
+    /// which block is not where it should be.
+    fn find(at: impl Fn(u64, usize) -> Option<Vec<u8>>) -> Result<Self, &'static str> {
+        let u64_at = |o: u64| at(o, 8).map(|b| u64::from_le_bytes(b.try_into().unwrap_or([0; 8])));
+        // Saturating: a link read from a damaged file points past its end, not into a panic.
+        let dg = u64_at(64 + 24).ok_or("no HD")?;
+        let cg = u64_at(dg.saturating_add(32)).ok_or("no DG")?;
+        let dt_off = u64_at(dg.saturating_add(40)).ok_or("no DG data link")?;
+        let links = u64_at(cg.saturating_add(16)).ok_or("no CG")?;
+        let cycle_count_off = cg
+            .saturating_add(links.saturating_mul(8))
+            .saturating_add(32);
+        let record_len = at(cycle_count_off.saturating_add(16), 4)
+            .map(|b| u32::from_le_bytes(b.try_into().unwrap_or([0; 4])) as usize)
+            .ok_or("CG record size")?;
+        if at(dg, 4).as_deref() != Some(b"##DG") || at(cg, 4).as_deref() != Some(b"##CG") {
+            return Err("no DG and CG where the header links them");
+        }
+        Ok(Self {
+            dt_off,
+            dg_data_link_off: dg.saturating_add(40),
+            cycle_count_off,
+            record_len,
+        })
+    }
+}
+
+/// An uncompressed MDF4 file whose [`MdfWriter`] failed (a full disk, an I/O error) and was
+/// dropped: its data block's length and record count set, in place (not a byte added), to the
+/// records wholly on the disk — each sample that reached the disk readable, those after its
+/// last commit too. The records are synced before the count that claims them. The records kept;
+/// `None` for a compressed file (its blocks are listed only when it is closed).
+pub fn settle_mdf(path: impl AsRef<Path>) -> Result<Option<u64>, IoError> {
+    use std::io::{Read, Seek, SeekFrom, Write};
+    let p = path.as_ref().display().to_string();
+    let os = |source| IoError::Os {
+        path: p.clone(),
+        source,
+    };
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path.as_ref())
+        .map_err(os)?;
+    let read_at = |at: u64, n: usize| {
+        let mut f = &file;
+        f.seek(SeekFrom::Start(at)).ok()?;
+        let mut b = vec![0; n];
+        f.read_exact(&mut b).ok()?;
+        Some(b)
+    };
+    let layout = Layout::find(read_at)
+        .map_err(|what| mdf_err(&p, format!("not a file physid's MDF4 writer left: {what}")))?;
+    if read_at(layout.dt_off, 4).as_deref() != Some(b"##DT") || layout.record_len == 0 {
+        return Ok(None);
+    }
+    let len = file.metadata().map_err(os)?.len();
+    let records = len.saturating_sub(layout.dt_off + 24) / layout.record_len as u64;
+    file.sync_data().map_err(os)?;
+    let mut f = &file;
+    let dt_len = 24 + records * layout.record_len as u64;
+    f.seek(SeekFrom::Start(layout.dt_off + 8)).map_err(os)?;
+    f.write_all(&dt_len.to_le_bytes()).map_err(os)?;
+    f.seek(SeekFrom::Start(layout.cycle_count_off))
+        .map_err(os)?;
+    f.write_all(&records.to_le_bytes()).map_err(os)?;
+    file.sync_data().map_err(os)?;
+    Ok(Some(records))
 }
 
 impl MdfWriter {
@@ -155,39 +233,32 @@ impl MdfWriter {
         }
         let mut header = Vec::new();
         w.write(&mut header).map_err(|e| mdf_err(&p, e))?;
-        // Find the data block and the record count: HD (at 64) → its first DG → the DG's first
-        // CG and its data block, which must be the file's last block, still empty.
-        let bad = |what: &str| {
+        let Layout {
+            dt_off,
+            dg_data_link_off,
+            cycle_count_off,
+            record_len,
+        } = Layout::find(|at, n| {
+            let at = usize::try_from(at).ok()?;
+            header.get(at..at.checked_add(n)?).map(<[u8]>::to_vec)
+        })
+        .map_err(|what| {
             mdf_err(
                 &p,
                 format!("unexpected block layout from falcon_mdf: {what}"),
             )
-        };
-        let id = |at: u64| {
-            usize::try_from(at)
-                .ok()
-                .and_then(|a| header.get(a..a + 4))
-                .map(|s| s.to_vec())
-        };
-        let dg = u64_at(&header, 64 + 24).ok_or_else(|| bad("no HD"))?;
-        let cg = u64_at(&header, dg + 32).ok_or_else(|| bad("no DG"))?;
-        let dt_off = u64_at(&header, dg + 40).ok_or_else(|| bad("no DG data link"))?;
-        let links = u64_at(&header, cg + 16).ok_or_else(|| bad("no CG"))?;
-        let cycle_count_off = cg + 24 + 8 * links + 8;
-        let data_bytes_off = usize::try_from(cycle_count_off + 16).map_err(|_| bad("CG"))?;
-        let data_bytes = header
-            .get(data_bytes_off..data_bytes_off + 4)
-            .and_then(|b| b.try_into().ok())
-            .map(u32::from_le_bytes)
-            .ok_or_else(|| bad("CG record size"))?;
-        let record_len = 8 * (names.len() + 1);
-        if id(dg).as_deref() != Some(b"##DG")
-            || id(cg).as_deref() != Some(b"##CG")
-            || id(dt_off).as_deref() != Some(b"##DT")
+        })?;
+        let dt = usize::try_from(dt_off)
+            .ok()
+            .and_then(|d| header.get(d..d + 4));
+        if dt != Some(b"##DT")
             || dt_off + 24 != header.len() as u64
-            || data_bytes as usize != record_len
+            || record_len != 8 * (names.len() + 1)
         {
-            return Err(bad("not one empty DT block of float64 records at the end"));
+            return Err(mdf_err(
+                &p,
+                "unexpected block layout from falcon_mdf: not one empty DT block of float64 records at the end",
+            ));
         }
         let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
             path: p.clone(),
@@ -219,7 +290,7 @@ impl MdfWriter {
             out,
             header_len: header.len() as u64,
             dt_off,
-            dg_data_link_off: dg + 40,
+            dg_data_link_off,
             cycle_count_off,
             record: Vec::with_capacity(record_len),
             rows: 0,

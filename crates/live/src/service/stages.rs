@@ -232,16 +232,15 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
         match self.recorder.push(chunk, self.st.last_t) {
             Ok(Some(e)) => self.send(&e)?,
             Ok(None) => {}
-            // A log that cannot be written stops; the run goes on.
-            Err(e) => {
-                let t_s = self.st.last_t;
-                let _ = self.recorder.stop(t_s);
+            // A log that cannot go on stops, keeping what it can; the run goes on.
+            Err(stopped) => {
                 self.send(&Event::Error {
-                    t_s,
+                    t_s: self.st.last_t,
                     input: Input::Record,
                     line: self.st.control_line,
-                    message: format!("the log stopped: {e}"),
+                    message: stopped.message,
                 })?;
+                self.send(&stopped.last)?;
             }
         }
         if self.traces.is_none() {
@@ -298,8 +297,17 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
                 None => Ok(()),
             }
         })?;
-        if let Some(e) = self.recorder.stop(self.st.last_t)? {
-            self.send(&e)?;
+        match self.recorder.stop(self.st.last_t) {
+            Ok(Some(e)) => self.send(&e)?,
+            Ok(None) => {}
+            // A log that cannot be closed (its disk full) is said, with what its file keeps;
+            // the run still ends as it should.
+            Err(e) => self.send(&Event::Error {
+                t_s: self.st.last_t,
+                input: Input::Record,
+                line: self.st.control_line,
+                message: format!("closing the log: {e}"),
+            })?,
         }
         let latency_ms =
             self.latency
