@@ -476,7 +476,10 @@ fn a_whole_write_refused_leaves_the_old_file() {
         e.contains(&format!("{}: File too large (os error 27)", out.display())),
         "the error names the file asked for: {e}"
     );
-    assert!(std::fs::read(&out).unwrap() == before, "the old file changed");
+    assert!(
+        std::fs::read(&out).unwrap() == before,
+        "the old file changed"
+    );
     let left: Vec<_> = std::fs::read_dir(s.file(""))
         .unwrap()
         .filter_map(|d| d.ok())

@@ -1901,13 +1901,13 @@ fn a_speed_whose_units_row_lies_is_found_against_its_angle() {
 /// and said nothing, `live --marker` without `--replay` was ignored, and `live --replay
 /// --encoder-raw` replayed the file undecoded. A raw sensor whose channel the file lacks is
 /// named: `convert --crank-angle --wheel enc=60-2` of a file with `theta_en` and no `enc`
-/// took `theta_en` without a word.
+/// took `theta_en` without a word. A conversion that gives no sample is an error.
 #[test]
 fn a_crank_angle_flag_without_a_crank_angle_reading_is_refused() {
     let s = Scratch::new("physid-rel");
     let rec = s.file("r.parquet");
     let rec = rec.to_str().unwrap();
-    common::simulated(std::path::Path::new(rec), "shaft-steady", "0.05");
+    common::simulated(std::path::Path::new(rec), "shaft-steady", "0.5");
     let out = s.file("o.csv");
     let out = out.to_str().unwrap();
     for (flag, value) in [
@@ -1926,6 +1926,21 @@ fn a_crank_angle_flag_without_a_crank_angle_reading_is_refused() {
     // With --crank-angle the same flags are taken.
     let o = physid(&["convert", rec, out, "--crank-angle", "--step-deg", "2"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A recording shorter than its first cycle gave an empty file and exit 0: now an error,
+    // and no file.
+    let short = s.file("short.parquet");
+    common::simulated(&short, "shaft-steady", "0.05");
+    let empty = s.file("empty.csv");
+    fails_with(
+        &[
+            "convert",
+            short.to_str().unwrap(),
+            empty.to_str().unwrap(),
+            "--crank-angle",
+        ],
+        "no sample on a crank-angle basis, so",
+    );
+    assert!(!empty.exists());
     for (flag, value) in [("--marker", "tdc"), ("--phase-from", "p_cyl")] {
         fails_with(
             &[

@@ -12,9 +12,10 @@
 //! a power loss) loses at most the samples since the last commit; a run stopped by SIGINT or
 //! SIGTERM closes the log.
 //!
-//! **A full disk.** Before each chunk the log's file system is asked for its free space: when it
-//! has less than the chunk, what the writer holds and its closing footer need ([`room_needed`]),
-//! the log is closed there — every sample so far kept, the file readable — and the run goes on
+//! **A full disk.** The log knows how large its file may grow: its size on the disk plus the
+//! file system's free space, asked for each [`LOOK_EVERY`] and again before the log would
+//! outgrow it. When the log with the next chunk and its closing footer ([`size_after`]) would,
+//! it is closed there — every sample so far kept, the file readable — and the run goes on
 //! ([`LogStopped`]). A write that fails anyway (another writer filled the disk, an I/O error)
 //! leaves the file readable with what reached the disk ([`physid_io::salvage`]).
 //!
@@ -32,6 +33,10 @@ use std::time::{Duration, Instant};
 /// How often a log being written is committed (wall-clock time): the most a crash loses.
 pub const COMMIT_EVERY: Duration = Duration::from_secs(1);
 
+/// How often the log asks its file system for the free space (wall-clock time; other
+/// programs write there too), besides before it would outgrow what it last heard.
+pub const LOOK_EVERY: Duration = Duration::from_millis(250);
+
 /// The log being written, if any.
 pub struct Recorder {
     dir: PathBuf,
@@ -44,6 +49,9 @@ pub struct Recorder {
     committed: usize,
     /// Commits so far (each a Parquet row group, whose footer entry closing the file needs).
     commits: usize,
+    /// The size [bytes] the log's file may reach — its size on the disk and the free space —
+    /// and when it was asked for.
+    room: Option<(u64, Instant)>,
 }
 
 /// A log that stopped by itself (its disk nearly full, a write that failed): what to tell the
@@ -56,14 +64,14 @@ pub struct LogStopped {
     pub last: Box<Event>,
 }
 
-/// The space [bytes] a log needs to take a chunk of `rows` × `channels` samples and still
-/// close: the chunk twice over as float64 (Parquet and MDF4 store float64; Snappy does not
-/// grow them beyond a few bytes a page), `held` bytes the writer holds unwritten (a Parquet row
-/// group in progress), and for the closing footer 1 MiB plus 256 bytes a channel for each row
-/// group (measured: 100–150).
-pub fn room_needed(rows: usize, channels: usize, held: u64, groups: usize) -> u64 {
+/// The size [bytes] a log of `bytes` (written and held by its writer: a Parquet row group in
+/// progress) may reach once it has taken a chunk of `rows` × `channels` samples and is closed,
+/// at most: the chunk twice over as float64 (Parquet and MDF4 store float64; Snappy does not
+/// grow them beyond a few bytes a page), and for the closing footer 1 MiB plus 256 bytes a
+/// channel for each row group (measured: 100–150).
+pub fn size_after(bytes: u64, rows: usize, channels: usize, groups: usize) -> u64 {
     let sample = 8 * channels as u64;
-    2 * sample * rows as u64 + held + (1 << 20) + 256 * (channels * groups) as u64
+    bytes + 2 * sample * rows as u64 + (1 << 20) + 256 * (channels * groups) as u64
 }
 
 impl Recorder {
@@ -76,6 +84,7 @@ impl Recorder {
             last_commit: None,
             committed: 0,
             commits: 0,
+            room: None,
         }
     }
 
@@ -113,6 +122,7 @@ impl Recorder {
         self.last_commit = None;
         self.committed = 0;
         self.commits = 0;
+        self.room = None;
         Ok(path)
     }
 
@@ -123,17 +133,17 @@ impl Recorder {
         let Some((path, writer)) = &self.file else {
             return Ok(None);
         };
-        let held = match writer {
-            Some(w) => {
-                let on_disk = std::fs::metadata(path).map_or(0, |m| m.len());
-                (w.bytes() as u64).saturating_sub(on_disk)
+        let bytes = writer.as_ref().map_or(0, |w| w.bytes() as u64);
+        let grown = size_after(bytes, chunk.len(), chunk.channels().len(), self.commits + 1);
+        let look = self
+            .room
+            .is_none_or(|(room, at)| grown > room || at.elapsed() >= LOOK_EVERY);
+        if let (true, Some(free)) = (look, disk_available(&self.dir)) {
+            let on_disk = std::fs::metadata(path).map_or(0, |m| m.len());
+            self.room = Some((free + on_disk, Instant::now()));
+            if grown > free + on_disk {
+                return Err(self.closed_for_room(free, grown - on_disk, t_s));
             }
-            None => 0,
-        };
-        let channels = chunk.channels().len();
-        let need = room_needed(chunk.len(), channels, held, self.commits + 1);
-        if let Some(free) = disk_available(&self.dir).filter(|&free| free < need) {
-            return Err(self.closed_for_room(free, need, t_s));
         }
         if let Err(e) = self.write(chunk) {
             return Err(self.ended(&format!("the log stopped: {e}"), Some(&e), t_s));

@@ -200,6 +200,14 @@ impl Sink {
             Some(w) => w.close()?,
             None => return Err(self.interrupted()),
         }
+        if self.samples == 0 && self.header.basis == physid_core::Basis::CrankAngle {
+            // An empty crank-angle file would only fail later, less clearly.
+            let _ = std::fs::remove_file(&self.path);
+            return Err(AppError::Invalid(format!(
+                "no sample on a crank-angle basis, so {} is not written: the recording ends before its first firing TDC, or its engine angle does not turn",
+                self.path.display()
+            )));
+        }
         wrote(&self.path, &self.header, self.samples);
         Ok(())
     }
