@@ -80,7 +80,7 @@ pub fn disk_available(path: &std::path::Path) -> Option<u64> {
 
 /// A file that would not fit on its disk.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{what} would take at least {:.3} GB, and {} has {:.1} GB free", *.bytes / 1e9, .place, *.available as f64 / 1e9)]
+#[error("{what} would take at least {:.3} GB, and {} has {:.3} GB free", *.bytes / 1e9, .place, *.available as f64 / 1e9)]
 pub struct DiskFull {
     /// What would take it.
     pub what: String,

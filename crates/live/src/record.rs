@@ -12,10 +12,11 @@
 //! a power loss) loses at most the samples since the last commit; a run stopped by SIGINT or
 //! SIGTERM closes the log.
 //!
-//! **A full disk.** The log knows how large its file may grow: its size on the disk plus the
-//! file system's free space, asked for each [`LOOK_EVERY`] and again before the log would
-//! outgrow it. When the log with the next chunk and its closing footer ([`size_after`]) would,
-//! it is closed there — every sample so far kept, the file readable — and the run goes on
+//! **A full disk.** The log knows how much it may still add to its file: the file system's free
+//! space less what its writer holds (a Parquet row group in progress), asked for each
+//! [`LOOK_EVERY`] and again before the log would outgrow it, less the samples appended since.
+//! When the next chunk and the closing footer ([`closing_room`]) would not fit, the log is
+//! closed there — every sample so far kept, the file readable — and the run goes on
 //! ([`LogStopped`]). A write that fails anyway (another writer filled the disk, an I/O error)
 //! leaves the file readable with what reached the disk ([`physid_io::salvage`]).
 //!
@@ -49,9 +50,11 @@ pub struct Recorder {
     committed: usize,
     /// Commits so far (each a Parquet row group, whose footer entry closing the file needs).
     commits: usize,
-    /// The size [bytes] the log's file may reach — its size on the disk and the free space —
-    /// and when it was asked for.
-    room: Option<(u64, Instant)>,
+    /// Bytes of samples appended (8 a value).
+    appended: u64,
+    /// At the last look at the disk: the bytes the log may add (the free space less what its
+    /// writer held), [`Self::appended`] then, and when.
+    room: Option<(u64, u64, Instant)>,
 }
 
 /// A log that stopped by itself (its disk nearly full, a write that failed): what to tell the
@@ -64,14 +67,12 @@ pub struct LogStopped {
     pub last: Box<Event>,
 }
 
-/// The size [bytes] a log of `bytes` (written and held by its writer: a Parquet row group in
-/// progress) may reach once it has taken a chunk of `rows` × `channels` samples and is closed,
-/// at most: the chunk twice over as float64 (Parquet and MDF4 store float64; Snappy does not
-/// grow them beyond a few bytes a page), and for the closing footer 1 MiB plus 256 bytes a
-/// channel for each row group (measured: 100–150).
-pub fn size_after(bytes: u64, rows: usize, channels: usize, groups: usize) -> u64 {
-    let sample = 8 * channels as u64;
-    bytes + 2 * sample * rows as u64 + (1 << 20) + 256 * (channels * groups) as u64
+/// The room [bytes] a log must keep to take a chunk of `rows` × `channels` samples and still
+/// close, at most: the chunk twice over as float64 (Parquet and MDF4 store float64; Snappy
+/// does not grow them beyond a few bytes a page), and for the closing footer 1 MiB plus 256
+/// bytes a channel for each row group (measured: 100–150).
+pub fn closing_room(rows: usize, channels: usize, groups: usize) -> u64 {
+    2 * 8 * (rows * channels) as u64 + (1 << 20) + 256 * (channels * groups) as u64
 }
 
 impl Recorder {
@@ -84,6 +85,7 @@ impl Recorder {
             last_commit: None,
             committed: 0,
             commits: 0,
+            appended: 0,
             room: None,
         }
     }
@@ -122,6 +124,7 @@ impl Recorder {
         self.last_commit = None;
         self.committed = 0;
         self.commits = 0;
+        self.appended = 0;
         self.room = None;
         Ok(path)
     }
@@ -133,16 +136,20 @@ impl Recorder {
         let Some((path, writer)) = &self.file else {
             return Ok(None);
         };
-        let bytes = writer.as_ref().map_or(0, |w| w.bytes() as u64);
-        let grown = size_after(bytes, chunk.len(), chunk.channels().len(), self.commits + 1);
-        let look = self
-            .room
-            .is_none_or(|(room, at)| grown > room || at.elapsed() >= LOOK_EVERY);
+        let need = closing_room(chunk.len(), chunk.channels().len(), self.commits + 1);
+        let look = self.room.is_none_or(|(room, then, at)| {
+            self.appended - then + need > room || at.elapsed() >= LOOK_EVERY
+        });
         if let (true, Some(free)) = (look, disk_available(&self.dir)) {
+            // What the writer holds is asked here only (a Parquet writer sums its buffers).
             let on_disk = std::fs::metadata(path).map_or(0, |m| m.len());
-            self.room = Some((free + on_disk, Instant::now()));
-            if grown > free + on_disk {
-                return Err(self.closed_for_room(free, grown - on_disk, t_s));
+            let held = writer
+                .as_ref()
+                .map_or(0, |w| (w.bytes() as u64).saturating_sub(on_disk));
+            let room = free.saturating_sub(held);
+            self.room = Some((room, self.appended, Instant::now()));
+            if need > room {
+                return Err(self.closed_for_room(free, need + held, t_s));
             }
         }
         if let Err(e) = self.write(chunk) {
@@ -206,6 +213,7 @@ impl Recorder {
             )?),
         };
         w.append(chunk)?;
+        self.appended += 8 * (chunk.len() * chunk.channels().len()) as u64;
         if self
             .last_commit
             .is_none_or(|at| at.elapsed() >= COMMIT_EVERY)
