@@ -317,6 +317,20 @@ fn live_through_shell(script: &str, dir: &std::path::Path, ext: &str, pace: &str
         .collect()
 }
 
+/// `physid args` under a file-size limit of `kib` KiB (the shell's `ulimit -f`), SIGXFSZ
+/// ignored so that a write past it fails (EFBIG) instead of killing the process.
+fn physid_limited(kib: u32, args: &[&std::ffi::OsStr]) -> std::process::Output {
+    Command::new("sh")
+        .args([
+            "-c",
+            &format!(r#"trap '' XFSZ; ulimit -f {kib}; exec "$0" "$@""#),
+            env!("CARGO_BIN_EXE_physid"),
+        ])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 /// The log's stopping told: the `error` event's message (which must contain `says`) and the
 /// last `log` event's samples (closed); the run went on to its end.
 fn log_stopped(events: &[Value], says: &str, what: &str) -> usize {
@@ -410,16 +424,10 @@ fn a_conversion_on_a_full_disk_keeps_what_it_wrote() {
     let sim = physid_io::read_parquet(&input, None).unwrap();
     for ext in ["mf4", "csv", "parquet"] {
         let out = s.file(&format!("out.{ext}"));
-        let o = Command::new("sh")
-            .args([
-                "-c",
-                r#"trap '' XFSZ; ulimit -f 3000; exec "$0" convert "$1" "$2""#,
-                env!("CARGO_BIN_EXE_physid"),
-            ])
-            .arg(&input)
-            .arg(&out)
-            .output()
-            .unwrap();
+        let o = physid_limited(
+            3000,
+            &["convert".as_ref(), input.as_os_str(), out.as_os_str()],
+        );
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{ext}: {e}");
         assert!(e.contains("File too large (os error 27)"), "{ext}: {e}");
@@ -460,16 +468,10 @@ fn a_whole_write_refused_leaves_the_old_file() {
     common::simulated(&small, "shaft-steady", "0.2");
     std::fs::copy(&small, &out).unwrap();
     let before = std::fs::read(&out).unwrap();
-    let o = Command::new("sh")
-        .args([
-            "-c",
-            r#"trap '' XFSZ; ulimit -f 2000; exec "$0" filter "$1" "$2" --ba --lowpass 500 --channels torque_shaft"#,
-            env!("CARGO_BIN_EXE_physid"),
-        ])
-        .arg(&input)
-        .arg(&out)
-        .output()
-        .unwrap();
+    let filter = ["--ba", "--lowpass", "500", "--channels", "torque_shaft"];
+    let mut args = vec!["filter".as_ref(), input.as_os_str(), out.as_os_str()];
+    args.extend(filter.iter().map(std::ffi::OsStr::new));
+    let o = physid_limited(2000, &args);
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{e}");
     assert!(
@@ -488,16 +490,9 @@ fn a_whole_write_refused_leaves_the_old_file() {
         .collect();
     assert!(left.is_empty(), "staging files left: {left:?}");
     // Within the limit the same command replaces it.
-    let o = physid(&[
-        "filter",
-        small.to_str().unwrap(),
-        out.to_str().unwrap(),
-        "--ba",
-        "--lowpass",
-        "500",
-        "--channels",
-        "torque_shaft",
-    ]);
+    let mut args = vec!["filter", small.to_str().unwrap(), out.to_str().unwrap()];
+    args.extend(filter);
+    let o = physid(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::read(&out).unwrap() != before);
 }

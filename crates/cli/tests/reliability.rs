@@ -1958,31 +1958,11 @@ fn a_crank_angle_flag_without_a_crank_angle_reading_is_refused() {
     // A raw sensor named is decoded (here its channel is missing, and said), on a replay and
     // in a conversion, not passed over for the file's `theta_en`.
     let missing = "the engine angle is to be decoded from 'enc' (a pulse encoder's), which the recording does not have; its channels are t, theta_en,";
-    fails_with(
-        &[
-            "convert",
-            rec,
-            out,
-            "--crank-angle",
-            "--encoder-raw",
-            "enc=360",
-            "--index-raw",
-            "idx",
-        ],
-        missing,
-    );
-    fails_with(
-        &[
-            "live",
-            "--headless",
-            "--json",
-            "--replay",
-            rec,
-            "--encoder-raw",
-            "enc=360",
-            "--index-raw",
-            "idx",
-        ],
-        missing,
-    );
+    let raw = ["--encoder-raw", "enc=360", "--index-raw", "idx"];
+    for verb in [
+        &["convert", rec, out, "--crank-angle"][..],
+        &["live", "--headless", "--json", "--replay", rec][..],
+    ] {
+        fails_with(&[verb, &raw[..]].concat(), missing);
+    }
 }
