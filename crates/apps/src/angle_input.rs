@@ -63,6 +63,11 @@ pub struct Unobserved;
 
 impl InputObserver for Unobserved {}
 
+/// Why a reading on a crank-angle basis that gives no sample gives none: what a verb says
+/// instead of writing or returning an empty recording.
+pub const NO_CRANK_SAMPLE: &str =
+    "the recording ends before its first firing TDC, or its engine angle does not turn";
+
 /// A file read on a crank-angle basis: where its engine angle comes from and how finely it is
 /// sampled.
 #[derive(Clone)]

@@ -1923,9 +1923,13 @@ fn a_crank_angle_flag_without_a_crank_angle_reading_is_refused() {
         );
         assert!(!std::path::Path::new(out).exists(), "{flag}: {out} written");
     }
-    // With --crank-angle the same flags are taken.
+    // With --crank-angle the same flags are taken; the crank's lengths only with --tdc-from.
     let o = physid(&["convert", rec, out, "--crank-angle", "--step-deg", "2"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    fails_with(
+        &["convert", rec, out, "--crank-angle", "--rod", "0.15"],
+        "--rod is for placing the TDC from a motored pressure (--tdc-from CHANNEL)",
+    );
     // A recording shorter than its first cycle gave an empty file and exit 0: now an error,
     // and no file.
     let short = s.file("short.parquet");

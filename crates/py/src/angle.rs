@@ -166,14 +166,22 @@ pub(crate) fn read_crank_angle(
     let kept = Arc::new(Kept::default());
     let mut plan = AngleInput::new(path, read, args.options()?, kept.clone());
     plan.step_deg = args.step_deg;
-    if let Some(c) = &args.tdc_from {
-        let (Some(stroke), Some(rod)) = (args.stroke, args.rod) else {
+    match (&args.tdc_from, args.stroke, args.rod) {
+        (Some(c), Some(stroke), Some(rod)) => {
+            plan.tdc_from = Some(c.clone());
+            plan.crank = Some((stroke, rod));
+        }
+        (Some(c), ..) => {
             return Err(err(format!(
                 "tdc_from '{c}' needs the crank's lengths: stroke and rod [m]"
-            )));
-        };
-        plan.tdc_from = Some(c.clone());
-        plan.crank = Some((stroke, rod));
+            )))
+        }
+        (None, None, None) => {}
+        (None, ..) => {
+            return Err(err(
+                "stroke and rod are for placing the TDC from a motored pressure (tdc_from=CHANNEL): without it, they would be ignored",
+            ))
+        }
     }
     let names: Option<Vec<&str>> = channels
         .as_ref()
@@ -181,6 +189,13 @@ pub(crate) fn read_crank_angle(
     let (mut rec, _) = plan
         .read_all(names.as_deref())
         .map_err(|e| err(format!("{}: {e}", path.display())))?;
+    if rec.is_empty() {
+        return Err(err(format!(
+            "{}: no sample on a crank-angle basis: {}",
+            path.display(),
+            physid_apps::angle_input::NO_CRANK_SAMPLE
+        )));
+    }
     let notes = kept.notes.lock().map(|n| n.clone()).unwrap_or_default();
     for (k, v) in notes {
         rec.meta.insert(k, v);

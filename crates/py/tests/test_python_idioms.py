@@ -209,6 +209,15 @@ def test_whole_numbers_and_crank_angle_options_are_checked(tmp_path):
     first = physid.read(f, crank_angle=True, phase_from="none")
     assert np.array_equal(told["p_cyl"], crank["p_cyl"])
     assert len(first) > 0
+    # The crank's lengths without tdc_from were ignored; a recording shorter than its first
+    # cycle gave an empty recording.
+    with pytest.raises(physid.Error, match="stroke and rod are for placing the TDC"):
+        physid.read(f, crank_angle=True, stroke=0.09, rod=0.15)
+    short = tmp_path / "short.parquet"
+    physid.simulate("shaft-steady", duration=0.05).write(short)
+    with pytest.raises(physid.Error, match="no sample on a crank-angle basis: the recording "
+                                           "ends before its first firing TDC"):
+        physid.read(short, crank_angle=True)
 
 
 def test_an_estimator_used_by_two_threads_at_once_says_so():

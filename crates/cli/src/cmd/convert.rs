@@ -70,6 +70,22 @@ pub fn run(args: &Args) -> Result<()> {
             "{flag} is for a reading on a crank-angle basis: add --crank-angle (without it, convert changes the format only, or the basis to time with --time-basis)"
         ));
     }
+    let lengths = [
+        (args.crank.stroke.is_some(), "--stroke"),
+        (args.crank.rod.is_some(), "--rod"),
+        (
+            args.crank.compression_ratio.is_some(),
+            "--compression-ratio",
+        ),
+    ];
+    if let (None, Some((_, flag))) = (
+        &args.angle.wheel.tdc_from,
+        lengths.iter().find(|(given, _)| *given),
+    ) {
+        return Err(miette!(
+            "{flag} is for placing the TDC from a motored pressure (--tdc-from CHANNEL): without it, it would be ignored"
+        ));
+    }
     let write = WriteOptions {
         mdf_compression: compression,
     };
@@ -204,8 +220,9 @@ impl Sink {
             // An empty crank-angle file would only fail later, less clearly.
             let _ = std::fs::remove_file(&self.path);
             return Err(AppError::Invalid(format!(
-                "no sample on a crank-angle basis, so {} is not written: the recording ends before its first firing TDC, or its engine angle does not turn",
-                self.path.display()
+                "no sample on a crank-angle basis, so {} is not written: {}",
+                self.path.display(),
+                physid_apps::angle_input::NO_CRANK_SAMPLE
             )));
         }
         wrote(&self.path, &self.header, self.samples);
