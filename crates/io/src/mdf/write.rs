@@ -175,11 +175,12 @@ pub fn settle_mdf(path: impl AsRef<Path>) -> Result<Option<u64>, IoError> {
         return Ok(None);
     }
     let len = file.metadata().map_err(os)?.len();
-    let records = len.saturating_sub(layout.dt_off + 24) / layout.record_len as u64;
+    let records = len.saturating_sub(layout.dt_off.saturating_add(24)) / layout.record_len as u64;
     file.sync_data().map_err(os)?;
     let mut f = &file;
     let dt_len = 24 + records * layout.record_len as u64;
-    f.seek(SeekFrom::Start(layout.dt_off + 8)).map_err(os)?;
+    f.seek(SeekFrom::Start(layout.dt_off.saturating_add(8)))
+        .map_err(os)?;
     f.write_all(&dt_len.to_le_bytes()).map_err(os)?;
     f.seek(SeekFrom::Start(layout.cycle_count_off))
         .map_err(os)?;
