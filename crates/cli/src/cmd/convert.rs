@@ -55,33 +55,26 @@ pub fn run(args: &Args) -> Result<()> {
             ))
         }
     };
-    let crank_only = (args.step_deg.is_some().then_some("--step-deg"))
-        .or_else(|| args.angle.crank_angle_flag())
-        .or_else(|| args.crank.stroke.is_some().then_some("--stroke"))
-        .or_else(|| args.crank.rod.is_some().then_some("--rod"))
-        .or_else(|| {
-            args.crank
-                .compression_ratio
-                .is_some()
-                .then_some("--compression-ratio")
-        });
-    if let (false, Some(flag)) = (args.crank_angle, crank_only) {
-        return Err(miette!(
-            "{flag} is for a reading on a crank-angle basis: add --crank-angle (without it, convert changes the format only, or the basis to time with --time-basis)"
-        ));
-    }
-    let lengths = [
+    // The crank's lengths serve --tdc-from alone.
+    let length = [
         (args.crank.stroke.is_some(), "--stroke"),
         (args.crank.rod.is_some(), "--rod"),
         (
             args.crank.compression_ratio.is_some(),
             "--compression-ratio",
         ),
-    ];
-    if let (None, Some((_, flag))) = (
-        &args.angle.wheel.tdc_from,
-        lengths.iter().find(|(given, _)| *given),
-    ) {
+    ]
+    .into_iter()
+    .find_map(|(given, flag)| given.then_some(flag));
+    let crank_only = (args.step_deg.is_some().then_some("--step-deg"))
+        .or_else(|| args.angle.crank_angle_flag())
+        .or(length);
+    if let (false, Some(flag)) = (args.crank_angle, crank_only) {
+        return Err(miette!(
+            "{flag} is for a reading on a crank-angle basis: add --crank-angle (without it, convert changes the format only, or the basis to time with --time-basis)"
+        ));
+    }
+    if let (None, Some(flag)) = (&args.angle.wheel.tdc_from, length) {
         return Err(miette!(
             "{flag} is for placing the TDC from a motored pressure (--tdc-from CHANNEL): without it, it would be ignored"
         ));
