@@ -19,6 +19,21 @@ pub fn write(args: std::fmt::Arguments, newline: bool) {
     }
 }
 
+/// Write one line to stdout, returning the failure instead of exiting: for a verb that must
+/// finish its own work (close a log) when its reader goes away.
+pub fn try_line(line: &str) -> std::io::Result<()> {
+    let mut h = std::io::stdout().lock();
+    h.write_all(line.as_bytes())
+        .and_then(|_| h.write_all(b"\n"))
+        .and_then(|_| h.flush())
+}
+
+/// `eprintln!` that never panics: stderr may be gone too (a terminal that hung up).
+pub fn write_note(args: std::fmt::Arguments) {
+    let mut h = std::io::stderr().lock();
+    let _ = h.write_fmt(args).and_then(|_| h.write_all(b"\n"));
+}
+
 /// `println!` that survives a closed pipe.
 macro_rules! outln {
     () => { $crate::out::write(format_args!(""), true) };
@@ -30,4 +45,9 @@ macro_rules! out {
     ($($t:tt)*) => { $crate::out::write(format_args!($($t)*), false) };
 }
 
-pub(crate) use {out, outln};
+/// `eprintln!` that never panics ([`write_note`]).
+macro_rules! note {
+    ($($t:tt)*) => { $crate::out::write_note(format_args!($($t)*)) };
+}
+
+pub(crate) use {note, out, outln};

@@ -1,5 +1,5 @@
-//! No data lost (docs/live.md): a live log being written survives SIGTERM and SIGINT (closed,
-//! readable as it is) and `kill -9` (readable as it is for MDF4, after `physid recover` for
+//! No data lost (docs/live.md): a live log being written survives SIGTERM, SIGINT and SIGHUP
+//! (closed, readable as it is), its events' reader going away, and `kill -9` (readable as it is for MDF4, after `physid recover` for
 //! Parquet), at seeded random moments; what it holds is a stretch of `physid simulate`'s
 //! samples for the same scenario, bit for bit, missing at most the last second of wall-clock
 //! time before the kill. `simulate` and `convert` stopped by SIGTERM leave their output
@@ -86,6 +86,8 @@ fn a_live_log_survives_every_stop() {
         ("TERM", "mf4"),
         ("INT", "parquet"),
         ("KILL", "parquet"),
+        ("HUP", "mf4"),
+        ("HUP", "parquet"),
     ];
     for (i, (sig, ext)) in cases.into_iter().enumerate() {
         let dir = s.file(&format!("logs-{i}"));
@@ -505,4 +507,129 @@ fn a_whole_write_refused_leaves_the_old_file() {
     let o = physid(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(std::fs::read(&out).unwrap() != before);
+}
+
+/// `physid live --headless` whose events' reader goes away (`| head`, a consumer that died)
+/// ends as at a stop control: its log closed and readable as it is, with at least every sample
+/// its last `log` event counted, the run's exit 0, and stderr saying what the log kept.
+#[test]
+fn a_live_log_outlives_its_events_reader() {
+    let s = physid_testkit::Scratch::new("physid-reader-gone");
+    for ext in ["parquet", "mf4"] {
+        let dir = s.file(&format!("logs-{ext}"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+            .args([
+                "live",
+                "--headless",
+                "--json",
+                "--scenario",
+                "shaft-steady",
+                "--duration",
+                "30",
+                "--pace",
+                "4",
+                "--controls",
+                "-",
+                "--log-dir",
+                dir.to_str().unwrap(),
+            ])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let name = format!("run.{ext}");
+        let mut stdin = child.stdin.take().unwrap();
+        writeln!(stdin, r#"{{"cmd":"record","file":"{name}"}}"#).unwrap();
+        // Read until the log has reported twice, then close the events' pipe.
+        let mut out = BufReader::new(child.stdout.take().unwrap());
+        let mut counted = 0;
+        let mut reports = 0;
+        let mut line = String::new();
+        while reports < 2 {
+            line.clear();
+            assert!(
+                out.read_line(&mut line).unwrap() > 0,
+                "{ext}: the run ended early"
+            );
+            let e: Value = serde_json::from_str(&line).unwrap();
+            if e["type"] == "log" {
+                counted = e["samples"].as_u64().unwrap() as usize;
+                reports += 1;
+            }
+        }
+        drop(out);
+        let deadline = Instant::now() + Duration::from_secs(20);
+        let status = loop {
+            if let Some(st) = child.try_wait().unwrap() {
+                break st;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "{ext}: still running without its reader"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        drop(stdin);
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        assert!(status.success(), "{ext}: {status}; {err}");
+        let file = dir.join(&name);
+        let logged = physid_io::read(&file, &Default::default())
+            .unwrap_or_else(|e| panic!("{ext}: the log is not readable as it is: {e}; {err}"));
+        assert!(
+            logged.len() >= counted,
+            "{ext}: {} < {counted}",
+            logged.len()
+        );
+        assert!(
+            err.contains(&format!(
+                "the log {} was closed: {} samples, readable",
+                file.display(),
+                logged.len()
+            )) && err.contains("the events' reader has gone"),
+            "{ext}: {err}"
+        );
+    }
+}
+
+/// A run started by `nohup` (SIGHUP ignored) goes on through a hangup to its end.
+#[test]
+fn a_nohup_run_goes_on_through_a_hangup() {
+    if Command::new("nohup").arg("true").status().is_err() {
+        eprintln!("skipped: no nohup here");
+        return;
+    }
+    let mut child = Command::new("nohup")
+        .args([
+            env!("CARGO_BIN_EXE_physid"),
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "6",
+            "--pace",
+            "2",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    signal(child.id(), "HUP");
+    let events: Vec<Value> = out
+        .lines()
+        .map_while(Result::ok)
+        .filter_map(|l| serde_json::from_str(&l).ok())
+        .collect();
+    assert!(child.wait().unwrap().success());
+    let end = events
+        .iter()
+        .find(|e| e["type"] == "end")
+        .expect("an end event");
+    assert!(end["t_s"].as_f64().unwrap() > 5.9, "{end}");
 }

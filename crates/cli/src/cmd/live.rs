@@ -4,12 +4,12 @@
 
 use super::live_stages::StageFlags;
 use super::monitor::{config, MonitorFlags};
-use crate::out::outln;
+use crate::out::{note, outln};
 use miette::{miette, Result};
 use physid_live::fleet::{publish::PublishConfig, NatsTarget};
 use physid_live::{
-    run_live, Access, ControlRequest, Event, FrameSource, Hub, LiveConfig, LiveError, Pace, Panel,
-    PanelFeed, ReplaySource, ScenarioSource, Source,
+    run_live, Access, ControlRequest, Event, FrameSource, Hub, LiveConfig, LiveError, LogState,
+    Pace, Panel, PanelFeed, ReplaySource, ScenarioSource, Source,
 };
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
@@ -189,13 +189,38 @@ pub fn run(a: &Args) -> Result<()> {
                 Some(rx)
             }
         };
-        run_live(source.as_mut(), &cfg, controls.as_ref(), |e| {
-            let line = serde_json::to_string(e).map_err(|e| e.to_string())?;
-            outln!("{line}");
+        // The events go to stdout. When it closes (its reader has gone: `| head`, a consumer
+        // that died, a terminal that hung up) the run ends as at a stop control — the stages
+        // finish, a log is closed — and what it would have said of its logs goes to stderr.
+        let mut closed: Option<std::io::Error> = None;
+        let result = run_live(source.as_mut(), &cfg, controls.as_ref(), |e| {
+            if closed.is_none() {
+                let line = serde_json::to_string(e).map_err(|e| e.to_string())?;
+                if let Err(err) = crate::out::try_line(&line) {
+                    stop.store(true, Ordering::Relaxed);
+                    closed = Some(err);
+                }
+            } else {
+                after_stdout_closed(e);
+            }
             Ok(())
-        })
-        .map_err(|e| miette!("{e}"))?;
-        return Ok(());
+        });
+        return match closed {
+            None => result.map(|_| ()).map_err(|e| miette!("{e}")),
+            Some(err) => {
+                if let Err(e) = &result {
+                    note!("physid live: the run stopped: {e}");
+                }
+                if err.kind() == std::io::ErrorKind::BrokenPipe {
+                    note!("physid live: the events' reader has gone (standard output closed): the run ended as at a stop control");
+                    Ok(())
+                } else {
+                    Err(miette!(
+                        "writing the events to standard output: {err}; the run ended as at a stop control"
+                    ))
+                }
+            }
+        };
     }
     cfg.panel = Some(PanelFeed::default());
     let hub = Hub::new(physid_live::Hello::run(
@@ -221,13 +246,36 @@ pub fn run(a: &Args) -> Result<()> {
     drop(rx);
     if let Err(e) = &result {
         let _ = hub.publish(&Event::finding(f64::NAN, format!("the run stopped: {e}")));
-        eprintln!("physid live: the run stopped: {e}");
+        note!("physid live: the run stopped: {e}");
     }
     if !stop.load(Ordering::Relaxed) {
-        eprintln!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
-        panel.wait_for_shutdown();
+        note!("physid live: the run has ended; the panel stays at {url} until Ctrl-C");
+        // Until SIGINT, SIGTERM or SIGHUP: the signals the run's stop flag is set by.
+        while !stop.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(100));
+        }
     }
     result.map(|_| ()).map_err(|e| miette!("{e}"))
+}
+
+/// What a headless run tells once its standard output has closed, on stderr: how its logs
+/// ended and the errors.
+fn after_stdout_closed(e: &Event) {
+    match e {
+        Event::Log {
+            file,
+            samples,
+            state: LogState::Closed,
+            ..
+        } => note!("physid live: the log {file} was closed: {samples} samples, readable"),
+        Event::Log {
+            file,
+            state: LogState::Empty,
+            ..
+        } => note!("physid live: the log {file} was stopped before any sample: no file kept"),
+        Event::Error { message, .. } => note!("physid live: {message}"),
+        _ => {}
+    }
 }
 
 /// `physid live --fleet URL`: the fleet view until SIGINT/SIGTERM.
@@ -276,7 +324,7 @@ fn publish(
     if a.json {
         outln!("{line}");
     } else {
-        eprintln!(
+        note!(
             "physid live: cell {cell}: {} samples in {} frames published ({} resent after a lost acknowledgement)",
             s.samples, s.frames, s.retries
         );
@@ -383,10 +431,10 @@ fn give_up_after_signal(stop: Arc<AtomicBool>) {
             std::thread::sleep(Duration::from_millis(50));
         }
         std::thread::sleep(SIGNAL_GRACE);
-        eprintln!(
-            "physid live: the run did not end within {} s of the signal (its source waits for \
-             input): exiting; a log being written holds every sample committed up to a second \
-             before (docs/live.md, No data lost)",
+        note!(
+            "physid live: the run did not end within {} s of the signal or of its standard \
+             output closing (its source waits for input): exiting; a log being written holds \
+             every sample committed up to a second before (docs/live.md, No data lost)",
             SIGNAL_GRACE.as_secs()
         );
         std::process::exit(130);

@@ -356,12 +356,30 @@ pub mod range {
     }
 }
 
-/// A flag set at SIGTERM or SIGINT (Ctrl-C): a long-running verb checks it and ends cleanly.
+/// A flag set at SIGTERM, SIGINT (Ctrl-C) or SIGHUP (the terminal or the SSH session the verb
+/// runs in has closed): a long-running verb checks it and ends cleanly — its outputs and logs
+/// closed, readable — where the signal's default would kill it. A SIGHUP the process was
+/// started ignoring (`nohup physid …`) stays ignored.
 pub fn stop_on_signal() -> miette::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+    let hangup = (ignored(SIGHUP) == Some(false)).then_some(SIGHUP);
+    for sig in [SIGTERM, SIGINT].into_iter().chain(hangup) {
         signal_hook::flag::register(sig, stop.clone())
             .map_err(|e| miette::miette!("installing the signal handler: {e}"))?;
     }
     Ok(stop)
+}
+
+/// Whether the process ignores signal `sig` (1–64), from the kernel's `SigIgn` mask in
+/// `/proc/self/status`; `None` where that cannot be read (not Linux): the signal's
+/// disposition is then left as it is.
+fn ignored(sig: i32) -> Option<bool> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let mask = status
+        .lines()
+        .find_map(|l| l.strip_prefix("SigIgn:"))
+        .and_then(|m| u64::from_str_radix(m.trim(), 16).ok())?;
+    let bit = u32::try_from(sig - 1).ok().filter(|b| *b < 64)?;
+    Some(mask >> bit & 1 == 1)
 }

@@ -67,7 +67,7 @@ pub fn run(a: &Args) -> Result<()> {
     let stats = Arc::new(WorkerStats::default());
     eprintln!("physid worker {}: on {}", cfg.name, target.address);
     run_worker(&target, &cfg, stop, stats.clone()).map_err(|e| miette!("{e}"))?;
-    eprintln!(
+    crate::out::note!(
         "physid worker {}: stopped; {} frames processed, {} refused, {} events, {} cells taken",
         cfg.name,
         stats.frames.load(Ordering::Relaxed),
