@@ -38,6 +38,40 @@ fn signal(pid: u32, sig: &str) {
     assert!(ok, "kill -s {sig} {pid}");
 }
 
+/// `physid live --headless` on the shaft-steady cell for `duration` s at 4× real time, its
+/// controls on its stdin (returned, open) and a log `name` in `dir` started at once.
+fn live_logging(
+    dir: &std::path::Path,
+    name: &str,
+    duration: &str,
+    stderr: Stdio,
+) -> (std::process::Child, std::process::ChildStdin) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args([
+            "live",
+            "--headless",
+            "--json",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            duration,
+            "--pace",
+            "4",
+            "--controls",
+            "-",
+            "--log-dir",
+            dir.to_str().unwrap(),
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(stderr)
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    writeln!(stdin, r#"{{"cmd":"record","file":"{name}"}}"#).unwrap();
+    (child, stdin)
+}
+
 /// The first logged time's place in `sim`, and every channel of `logged` equal to `sim`'s
 /// from there, bit for bit, with its unit.
 fn a_stretch_of(logged: &Recording, sim: &Recording, what: &str) {
@@ -91,30 +125,8 @@ fn a_live_log_survives_every_stop() {
     ];
     for (i, (sig, ext)) in cases.into_iter().enumerate() {
         let dir = s.file(&format!("logs-{i}"));
-        let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
-            .args([
-                "live",
-                "--headless",
-                "--json",
-                "--scenario",
-                "shaft-steady",
-                "--duration",
-                "14",
-                "--pace",
-                "4",
-                "--controls",
-                "-",
-                "--log-dir",
-                dir.to_str().unwrap(),
-            ])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
         let name = format!("run.{ext}");
-        let mut stdin = child.stdin.take().unwrap();
-        writeln!(stdin, r#"{{"cmd":"record","file":"{name}"}}"#).unwrap();
+        let (mut child, stdin) = live_logging(&dir, &name, "14", Stdio::null());
         // The events as they come, each with the wall-clock moment it was read.
         let (tx, rx) = mpsc::channel::<(Instant, Value)>();
         let out = BufReader::new(child.stdout.take().unwrap());
@@ -517,30 +529,8 @@ fn a_live_log_outlives_its_events_reader() {
     let s = physid_testkit::Scratch::new("physid-reader-gone");
     for ext in ["parquet", "mf4"] {
         let dir = s.file(&format!("logs-{ext}"));
-        let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
-            .args([
-                "live",
-                "--headless",
-                "--json",
-                "--scenario",
-                "shaft-steady",
-                "--duration",
-                "30",
-                "--pace",
-                "4",
-                "--controls",
-                "-",
-                "--log-dir",
-                dir.to_str().unwrap(),
-            ])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
         let name = format!("run.{ext}");
-        let mut stdin = child.stdin.take().unwrap();
-        writeln!(stdin, r#"{{"cmd":"record","file":"{name}"}}"#).unwrap();
+        let (mut child, stdin) = live_logging(&dir, &name, "30", Stdio::piped());
         // Read until the log has reported twice, then close the events' pipe.
         let mut out = BufReader::new(child.stdout.take().unwrap());
         let mut counted = 0;
