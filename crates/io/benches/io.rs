@@ -40,6 +40,19 @@ fn parquet(c: &mut Criterion) {
         b.iter(|| black_box(read_parquet(&path, Some(&two)).map(|r| r.len())))
     });
     g.finish();
+    // Writing: a tenth of the recording read above, to a file of its own.
+    let tenth = match read_parquet(&path, None) {
+        Ok(r) => r.slice(0..n / 10),
+        Err(e) => panic!("{e}"),
+    };
+    let out = std::env::temp_dir().join("physid-bench-write-10x1e6.parquet");
+    let mut g = c.benchmark_group("parquet_write");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(n as u64));
+    g.bench_function("10ch_1e6", |b| {
+        b.iter(|| black_box(write_parquet(&out, &tenth).is_ok()))
+    });
+    g.finish();
 }
 
 criterion_group!(benches, parquet);

@@ -13,6 +13,7 @@ pub mod csv_file;
 pub mod format;
 pub mod mdf;
 mod parquet_check;
+mod parquet_crc;
 pub mod parquet_file;
 mod reader;
 mod reopen;

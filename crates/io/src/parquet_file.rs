@@ -7,6 +7,7 @@
 //! numeric type to f64; nulls are refused with their row. Writing uses float64 columns,
 //! Snappy compression.
 
+use crate::parquet_crc::{self, Checks, ChunkCrcs};
 use crate::IoError;
 use arrow_array::cast::AsArray;
 use arrow_array::types::{
@@ -16,6 +17,7 @@ use arrow_array::types::{
 use arrow_array::{Array, ArrayRef, Float64Array, RecordBatch};
 use arrow_schema::{DataType, Field, Schema};
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::arrow::arrow_writer::ArrowWriterOptions;
 use parquet::arrow::{ArrowWriter, ProjectionMask};
 use parquet::basic::Compression;
 use parquet::file::metadata::{
@@ -132,6 +134,8 @@ pub struct ParquetChunks {
     meta: Vec<(String, String)>,
     claimed: i64,
     row0: usize,
+    /// The column chunks' checksums, read before their rows.
+    checks: Checks,
 }
 
 impl ParquetChunks {
@@ -174,6 +178,11 @@ impl ParquetChunks {
             })
             .collect();
         crate::parquet_check::pages(&mut file, &p, builder.metadata(), &leaves)?;
+        let checks =
+            Checks::new(builder.metadata(), &leaves, path).map_err(|source| IoError::Os {
+                path: p.clone(),
+                source,
+            })?;
         let mask = ProjectionMask::roots(builder.parquet_schema(), wanted.iter().copied());
         let claimed = builder.metadata().file_metadata().num_rows();
         let reader = builder
@@ -221,6 +230,7 @@ impl ParquetChunks {
             claimed,
             row0: 0,
             p,
+            checks,
         })
     }
 
@@ -243,10 +253,29 @@ impl ParquetChunks {
     pub fn next_columns(&mut self) -> Result<Option<Vec<Vec<f64>>>, IoError> {
         let p = self.p.clone();
         crate::contained(&p, "Parquet", || {
+            // The row groups the next batch can reach are checked against their sums first.
+            let end = (self.row0 + crate::format::CHUNK_ROWS) as u64;
+            self.checks.before(end, &self.p)?;
             let Some(batch) = self.reader.next() else {
                 return Ok(None);
             };
-            let batch = batch.map_err(|e| pq_err(&self.p, e))?;
+            let batch = batch.map_err(|e| {
+                let e = e.to_string();
+                if e.contains("CRC checksum mismatch") {
+                    // A page whose writer stored its CRC-32 (pyarrow's `write_page_checksum`).
+                    IoError::Malformed {
+                        path: self.p.clone(),
+                        detail: format!(
+                            "corrupt Parquet: a page of the rows from {} on does not match the \
+                             CRC-32 its writer stored ({e}); the file was damaged or changed \
+                             after it was written",
+                            self.row0
+                        ),
+                    }
+                } else {
+                    pq_err(&self.p, e)
+                }
+            })?;
             let mut out = Vec::with_capacity(self.names.len());
             for (name, &k) in self.names.iter().zip(&self.place) {
                 let mut v = Vec::with_capacity(batch.num_rows());
@@ -308,6 +337,10 @@ pub struct ParquetWriter {
     /// The file's metadata as its footer will carry it (schema, key-value metadata): what
     /// each journal entry names beside its row group.
     template: FileMetaData,
+    /// The column chunks' CRC-32 as the writer splices them into the file.
+    crcs: ChunkCrcs,
+    /// Each row group's entry of the sums ([`parquet_crc::KEY`]), in order.
+    sums: Vec<String>,
 }
 
 impl ParquetWriter {
@@ -349,8 +382,12 @@ impl ParquetWriter {
             path: p.clone(),
             source,
         })?;
-        let w =
-            ArrowWriter::try_new(file, schema.clone(), Some(props)).map_err(|e| pq_err(&p, e))?;
+        let crcs = ChunkCrcs::default();
+        let options = ArrowWriterOptions::new()
+            .with_properties(props)
+            .with_page_store_factory(Arc::new(crcs.clone()));
+        let w = ArrowWriter::try_new_with_options(file, schema.clone(), options)
+            .map_err(|e| pq_err(&p, e))?;
         Ok(Self {
             names: like.channels().iter().map(|c| c.name.clone()).collect(),
             path: p,
@@ -359,6 +396,8 @@ impl ParquetWriter {
             rows: 0,
             rows_per_group: rows_per_group.max(1),
             template,
+            crcs,
+            sums: Vec::new(),
         })
     }
 
@@ -421,8 +460,18 @@ impl ParquetWriter {
             .last()
             .cloned()
             .ok_or_else(|| pq_err(&self.path, "no row group after a flush"))?;
-        let entry = footer(&self.template, vec![group], JOURNAL_MAGIC)
-            .map_err(|e| pq_err(&self.path, e))?;
+        let sums = parquet_crc::entry(
+            parquet_crc::group_start(&group).unwrap_or(0),
+            &self.crcs.take(group.num_columns()),
+        );
+        let entry = footer(
+            &self.template,
+            vec![group],
+            JOURNAL_MAGIC,
+            Some(sums.clone()),
+        )
+        .map_err(|e| pq_err(&self.path, e))?;
+        self.sums.push(sums);
         self.w
             .write_all(&entry)
             .and_then(|()| self.w.sync())
@@ -450,17 +499,26 @@ impl ParquetWriter {
     /// Finish the file (the last row group, and the footer naming every row group).
     pub fn close(mut self) -> Result<(), IoError> {
         self.group()?;
+        if !self.sums.is_empty() {
+            self.w
+                .append_key_value_metadata(parquet::file::metadata::KeyValue::new(
+                    parquet_crc::KEY.to_string(),
+                    self.sums.join(";"),
+                ));
+        }
         self.w.close().map_err(|e| write_err(&self.path, e))?;
         Ok(())
     }
 }
 
 /// A Parquet footer for `groups` with `template`'s schema and key-value metadata, ending in
-/// `magic` (`PAR1` for a file's footer, [`JOURNAL_MAGIC`] for a journal entry).
+/// `magic` (`PAR1` for a file's footer, [`JOURNAL_MAGIC`] for a journal entry); `sums`: the
+/// groups' column chunk checksums ([`parquet_crc`]), in place of any the template has.
 fn footer(
     template: &FileMetaData,
     groups: Vec<RowGroupMetaData>,
     magic: &[u8; 4],
+    sums: Option<String>,
 ) -> Result<Vec<u8>, parquet::errors::ParquetError> {
     let rows = groups.iter().map(RowGroupMetaData::num_rows).sum();
     let meta = ParquetMetaData::new(
@@ -468,7 +526,7 @@ fn footer(
             template.version(),
             rows,
             template.created_by().map(str::to_string),
-            template.key_value_metadata().cloned(),
+            parquet_crc::with_entry(template.key_value_metadata(), sums),
             template.schema_descr_ptr(),
             template.column_orders().cloned(),
         ),
@@ -603,6 +661,8 @@ pub fn recover_parquet(path: impl AsRef<Path>) -> Result<Recovered, IoError> {
     // Back along the chain: each entry ends where the next row group starts, the first row
     // group starts after the leading PAR1.
     let mut groups = vec![group];
+    // Each entry's checksums of its row group; all of them, or none (an older physid's file).
+    let mut sums = vec![parquet_crc::find(template.key_value_metadata()).map(str::to_string)];
     loop {
         let Some((lo, hi)) = group_span(&groups[groups.len() - 1]) else {
             return Err(pq_err(
@@ -622,7 +682,7 @@ pub fn recover_parquet(path: impl AsRef<Path>) -> Result<Recovered, IoError> {
         if lo == 4 {
             break;
         }
-        let Some((s, g, _)) = journal_entry(&f, lo) else {
+        let Some((s, g, meta)) = journal_entry(&f, lo) else {
             return Err(pq_err(
                 &p,
                 format!("no journal entry ends at byte {lo}, where a row group starts"),
@@ -630,11 +690,15 @@ pub fn recover_parquet(path: impl AsRef<Path>) -> Result<Recovered, IoError> {
         };
         start = s;
         groups.push(g);
+        sums.push(parquet_crc::find(meta.key_value_metadata()).map(str::to_string));
     }
     groups.reverse();
+    sums.reverse();
+    let sums: Option<Vec<String>> = sums.into_iter().collect();
     let rows = groups.iter().map(|g| g.num_rows() as u64).sum();
     let n = groups.len();
-    let foot = footer(&template, groups, b"PAR1").map_err(|e| pq_err(&p, e))?;
+    let foot =
+        footer(&template, groups, b"PAR1", sums.map(|s| s.join(";"))).map_err(|e| pq_err(&p, e))?;
     use std::io::{Seek, Write};
     f.set_len(keep).map_err(&os)?;
     f.seek(std::io::SeekFrom::Start(keep)).map_err(&os)?;

@@ -2,6 +2,8 @@
 reads the file physid-io writes.
 
   python3 gen_pyarrow.py           -> pyarrow_written.parquet and expected.json
+  python3 gen_pyarrow.py --checksummed -> pyarrow_checksummed.parquet: the same table, every
+                                      page with its CRC-32 (write_page_checksum=True)
   python3 gen_pyarrow.py --check   -> reads physid_written.parquet (committed, written by
                                       physid-io's writer test) and compares with
                                       expected_physid.json: values, units (field metadata
@@ -17,7 +19,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 
-def generate():
+def table():
     n = 5000
     t = np.arange(n) / 1000.0
     omega = 100.0 + 5.0 * np.sin(7.0 * t)
@@ -29,14 +31,24 @@ def generate():
         pa.field("count_en", pa.int64(), metadata={"unit": "-"}),
         pa.field("torque_shaft", pa.float32(), metadata={"unit": "N*m"}),
     ])
-    table = pa.table([t, omega, count, tq], schema=schema)
+    return t, omega, count, tq, pa.table([t, omega, count, tq], schema=schema)
+
+
+def generate():
+    t, omega, count, tq, tab = table()
     # Several row groups, as large loggers write them.
-    pq.write_table(table, "pyarrow_written.parquet", row_group_size=1500)
+    pq.write_table(tab, "pyarrow_written.parquet", row_group_size=1500)
     json.dump({"pyarrow": pa.__version__, "t": t.tolist(), "omega_en": omega.tolist(),
                "count_en": count.astype(float).tolist(),
                "torque_shaft": tq.astype(float).tolist(),
                "units": {"t": "s", "omega_en": "rad/s", "count_en": "-", "torque_shaft": "N*m"}},
               open("expected.json", "w"))
+
+
+def checksummed():
+    # Small pages, so a chunk holds several, each with its checksum.
+    pq.write_table(table()[-1], "pyarrow_checksummed.parquet", row_group_size=1500,
+                   write_page_checksum=True, data_page_size=4096)
 
 
 def check():
@@ -53,4 +65,9 @@ def check():
 
 
 if __name__ == "__main__":
-    check() if "--check" in sys.argv else generate()
+    if "--check" in sys.argv:
+        check()
+    elif "--checksummed" in sys.argv:
+        checksummed()
+    else:
+        generate()
