@@ -21,12 +21,13 @@
 //! [`ParquetWriter`]: crate::parquet_file::ParquetWriter
 //! [`recover_parquet`]: crate::parquet_file::recover_parquet
 
+use crate::parquet_file::group_span;
 use crate::IoError;
 use bytes::Bytes;
 use parquet::arrow::arrow_writer::{
     InMemoryPageStore, PageKey, PageStore, PageStoreArgs, PageStoreFactory,
 };
-use parquet::file::metadata::{KeyValue, ParquetMetaData, RowGroupMetaData};
+use parquet::file::metadata::{KeyValue, ParquetMetaData};
 use std::fs::File;
 use std::io::{Read, Seek, SeekFrom};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -86,15 +87,6 @@ impl PageStore for HashingStore {
     fn memory_size(&self) -> usize {
         self.pages.memory_size()
     }
-}
-
-/// Where a row group's bytes start in the file: its first column chunk's first byte.
-pub(crate) fn group_start(g: &RowGroupMetaData) -> Option<u64> {
-    g.columns()
-        .iter()
-        .map(|c| c.dictionary_page_offset().unwrap_or(c.data_page_offset()))
-        .min()
-        .and_then(|s| u64::try_from(s).ok())
 }
 
 /// One row group's entry under [`KEY`]: `START:crc,crc,…`.
@@ -189,7 +181,7 @@ impl Checks {
             let (Some(crcs), Ok(start)) = (crcs, start.parse::<u64>()) else {
                 return Self::default();
             };
-            if crcs.len() != g.num_columns() || group_start(g) != Some(start) {
+            if crcs.len() != g.num_columns() || group_span(g).map(|s| s.0) != Some(start) {
                 return Self::default();
             }
             let rows = u64::try_from(g.num_rows()).unwrap_or(0);

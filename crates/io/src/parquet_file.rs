@@ -461,7 +461,7 @@ impl ParquetWriter {
             .cloned()
             .ok_or_else(|| pq_err(&self.path, "no row group after a flush"))?;
         let sums = parquet_crc::entry(
-            parquet_crc::group_start(&group).unwrap_or(0),
+            group_span(&group).map_or(0, |s| s.0),
             &self.crcs.take(group.num_columns()),
         );
         let entry = footer(
@@ -612,7 +612,7 @@ fn last_entry(
 
 /// Where a row group's bytes start and end in the file (`None` when its metadata says
 /// nothing sensible).
-fn group_span(g: &RowGroupMetaData) -> Option<(u64, u64)> {
+pub(crate) fn group_span(g: &RowGroupMetaData) -> Option<(u64, u64)> {
     let mut span: Option<(u64, u64)> = None;
     for c in g.columns() {
         let start = c.dictionary_page_offset().unwrap_or(c.data_page_offset());
