@@ -554,10 +554,7 @@ impl CsvWriter {
     /// Create `path` for recordings with `like`'s channels and units.
     pub fn create(path: impl AsRef<Path>, like: &Recording) -> Result<Self, IoError> {
         let p = path.as_ref().display().to_string();
-        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
-            path: p.clone(),
-            source,
-        })?;
+        let file = crate::lock::create(path.as_ref())?;
         let mut w = csv::Writer::from_writer(Lines {
             file,
             pending: Vec::new(),

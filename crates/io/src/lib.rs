@@ -11,6 +11,7 @@
 
 pub mod csv_file;
 pub mod format;
+mod lock;
 pub mod mdf;
 mod parquet_check;
 mod parquet_crc;
@@ -23,6 +24,7 @@ mod writer;
 
 pub use csv_file::{read_csv, recover_csv, write_csv, CsvChunks, CsvOptions, CsvWriter};
 pub use format::{basis_by_channels, detect, Format, MapItem, ReadOptions, CHUNK_ROWS};
+pub use lock::refuse_to_recover_while_written;
 pub use mdf::{
     read_mdf, settle_mdf, write_mdf, MdfChunks, MdfCompression, MdfWriter, MDF_BLOCK_BYTES,
 };
@@ -98,6 +100,16 @@ pub enum IoError {
         /// The samples it keeps, where the format says.
         rows: Option<u64>,
     },
+    /// The file is in use: locked by a writer that has not closed it (a live log being
+    /// recorded, a `simulate` or `convert` still running), or read by this process; what was
+    /// asked of it would lose what it holds, or it cannot be read yet ([`lock`]).
+    #[error("{path} {detail}")]
+    InUse {
+        /// The file.
+        path: String,
+        /// What was not done, and what to do.
+        detail: String,
+    },
     /// The columns do not make a valid recording (duplicate names …).
     #[error("{path}: {source}")]
     Recording {
@@ -119,6 +131,7 @@ impl IoError {
             | Self::NotNumeric { path, .. }
             | Self::Ragged { path, .. }
             | Self::Malformed { path, .. }
+            | Self::InUse { path, .. }
             | Self::Recording { path, .. } => path,
             Self::WriteFailed { .. } => return e,
         };
@@ -231,11 +244,7 @@ pub(crate) fn open_torn(
         path: p.clone(),
         source,
     };
-    let f = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(path)
-        .map_err(&os)?;
+    let f = crate::lock::open_to_mend(path)?;
     let size = f.metadata().map_err(&os)?.len();
     Ok((f, size, os))
 }

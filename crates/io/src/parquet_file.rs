@@ -378,10 +378,7 @@ impl ParquetWriter {
             .map_err(|e| pq_err(&p, e))?
             .file_metadata()
             .clone();
-        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
-            path: p.clone(),
-            source,
-        })?;
+        let file = crate::lock::create(path.as_ref())?;
         let crcs = ChunkCrcs::default();
         let options = ArrowWriterOptions::new()
             .with_properties(props)

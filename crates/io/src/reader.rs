@@ -29,6 +29,8 @@ pub struct ChunkReader {
     source: Box<dyn ChunkSource>,
     claimed: Option<i64>,
     rows: usize,
+    /// The file is not written over by this process while it is read.
+    _reading: crate::lock::Reading,
 }
 
 impl ChunkReader {
@@ -44,10 +46,12 @@ impl ChunkReader {
                 detail: "--columns names the columns of a text file without a header row; Parquet and MDF4 files name their own".into(),
             });
         }
-        let source = open_source(path, format, opts).map_err(|e| match format {
-            Format::Csv => e,
-            _ => with_file_size(e, size),
-        })?;
+        let source = open_source(path, format, opts)
+            .map_err(|e| match format {
+                Format::Csv => e,
+                _ => with_file_size(e, size),
+            })
+            .map_err(|e| crate::lock::while_written(path, e))?;
         let header = source.header()?;
         if header.channels().len() > crate::MAX_CHANNELS {
             return Err(IoError::Malformed {
@@ -72,6 +76,7 @@ impl ChunkReader {
             convert,
             source,
             rows: 0,
+            _reading: crate::lock::Reading::new(path),
         })
     }
 

@@ -12,6 +12,8 @@ use std::path::{Path, PathBuf};
 pub struct FileChunks {
     path: PathBuf,
     opts: ReadOptions,
+    /// The file is not written over by this process between the passes either.
+    _reading: crate::lock::Reading,
 }
 
 impl FileChunks {
@@ -20,6 +22,7 @@ impl FileChunks {
         Self {
             path: path.as_ref().to_path_buf(),
             opts,
+            _reading: crate::lock::Reading::new(path.as_ref()),
         }
     }
 }

@@ -26,6 +26,8 @@ pub fn write(path: impl AsRef<Path>, rec: &Recording, opts: &WriteOptions) -> Re
             detail: "unknown extension: expected .csv, .parquet or .mf4".into(),
         });
     };
+    // Refused before any work, and again at the rename (a writer may have started since).
+    crate::lock::refuse_if_in_use(path)?;
     // The process and a count: two writes at once (threads) stage apart.
     static STAGED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let n = STAGED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -36,6 +38,7 @@ pub fn write(path: impl AsRef<Path>, rec: &Recording, opts: &WriteOptions) -> Re
         Format::Parquet => write_parquet(&staged, rec),
         Format::Mdf4 => write_mdf(&staged, rec, opts.mdf_compression, None),
     }
+    .and_then(|()| crate::lock::refuse_if_in_use(path))
     .and_then(|()| {
         std::fs::rename(&staged, path).map_err(|source| IoError::Os {
             path: shown.clone(),
@@ -198,6 +201,14 @@ impl ChunkWriter {
     /// row group (the footer needs one).
     fn holds_nothing(&self) -> bool {
         matches!(&self.inner, Some(Inner::Parquet(w)) if w.groups() == 0)
+    }
+
+    /// Give the file up: the file this writer created is removed (while its lock is still
+    /// held), not a file of the same name that another writer holds or that it never created
+    /// — a command that fails removes its own partial output and nothing else.
+    pub fn discard(mut self) {
+        let _ = std::fs::remove_file(&self.path);
+        self.inner = None;
     }
 
     /// Finish the file.

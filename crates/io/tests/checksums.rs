@@ -196,13 +196,16 @@ fn a_stream_hands_out_the_rows_before_a_damaged_row_group_then_stops() {
 fn a_recovered_file_keeps_its_sums() {
     let s = Scratch::new("physid-io-crc");
     let rec = recording(5000);
-    let path = s.file("killed.parquet");
-    let mut w = ParquetWriter::create(&path, &rec, 1000).unwrap();
+    let writing = s.file("writing.parquet");
+    let mut w = ParquetWriter::create(&writing, &rec, 1000).unwrap();
     w.append(&rec).unwrap();
     w.commit().unwrap();
-    // Killed: never closed, what it buffered after the commit lost.
+    // Killed: never closed, what it buffered after the commit lost — the file as the disk
+    // has it, its writer gone (the writer here still holds its own, locked).
     w.append(&recording(300)).unwrap();
-    std::mem::forget(w);
+    let path = s.file("killed.parquet");
+    std::fs::copy(&writing, &path).unwrap();
+    drop(w);
     assert_eq!(
         recover_parquet(&path).unwrap(),
         Recovered::Restored {

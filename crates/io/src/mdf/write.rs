@@ -157,11 +157,7 @@ pub fn settle_mdf(path: impl AsRef<Path>) -> Result<Option<u64>, IoError> {
         path: p.clone(),
         source,
     };
-    let file = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .open(path.as_ref())
-        .map_err(os)?;
+    let file = crate::lock::open_to_mend(path.as_ref())?;
     let read_at = |at: u64, n: usize| {
         let mut f = &file;
         f.seek(SeekFrom::Start(at)).ok()?;
@@ -261,10 +257,7 @@ impl MdfWriter {
                 "unexpected block layout from falcon_mdf: not one empty DT block of float64 records at the end",
             ));
         }
-        let file = std::fs::File::create(path.as_ref()).map_err(|source| IoError::Os {
-            path: p.clone(),
-            source,
-        })?;
+        let file = crate::lock::create(path.as_ref())?;
         let mut out = std::io::BufWriter::new(file);
         // Compressed, the empty data block is left out: the blocks go in its place.
         let zip = (compression != MdfCompression::None).then(|| Zip {
