@@ -131,7 +131,8 @@ enum Command {
     /// Example: physid cycles deg.parquet --bore 0.084 --stroke 0.09 --rod 0.15 --compression-ratio 10 --json
     Cycles(cmd::cycles::Args),
     /// Make a recording whose writer was killed (kill -9, a power loss) readable up to its
-    /// last commit: a live log, simulate's or convert's output (changed in place).
+    /// last commit: a live log, simulate's or convert's output (changed in place). A file whose
+    /// writer still writes it is refused (nothing to recover: its writer closes it).
     ///
     /// Example: physid recover physid-logs/run.parquet
     Recover(cmd::recover::Args),

@@ -623,3 +623,162 @@ fn a_nohup_run_goes_on_through_a_hangup() {
         .expect("an end event");
     assert!(end["t_s"].as_f64().unwrap() > 5.9, "{end}");
 }
+
+/// A live log being recorded is its writer's alone: while `physid live` writes it, `physid
+/// inspect` says it is being written (not that its footer is corrupt), `physid recover` does
+/// not cut it, and `simulate` and `convert` do not write over it — and the log the run closes
+/// holds every sample its last `log` event counts, a stretch of the cell's own run. Before,
+/// `recover` cut the log under its writer and `simulate --recording` replaced it, the writer
+/// going on into a file no longer in the directory.
+#[test]
+fn a_log_being_recorded_is_left_to_its_writer() {
+    let s = physid_testkit::Scratch::new("physid-left-to-its-writer");
+    let sim_path = s.file("sim.parquet");
+    common::simulated(&sim_path, "shaft-steady", "14");
+    let sim = physid_io::read_parquet(&sim_path, None).unwrap();
+    let small = s.file("small.parquet");
+    common::simulated(&small, "shaft-steady", "0.1");
+    for ext in ["parquet", "mf4"] {
+        let dir = s.file(&format!("logs-{ext}"));
+        let file = dir.join(format!("run.{ext}"));
+        let f = file.to_str().unwrap();
+        // Long enough to outlast the probes (14 s at 4× real time); stopped after them.
+        let (mut child, mut stdin) = live_logging(&dir, &format!("run.{ext}"), "14", Stdio::null());
+        let mut events = BufReader::new(child.stdout.take().unwrap()).lines();
+        // The log has been committed once: its first `log` event.
+        let first = events
+            .by_ref()
+            .map_while(Result::ok)
+            .filter_map(|l| serde_json::from_str::<Value>(&l).ok())
+            .find(|e| e["type"] == "log")
+            .expect("a log event");
+        assert_eq!(first["state"], "recording", "{ext}: {first}");
+
+        let o = physid(&["inspect", f]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        if ext == "parquet" {
+            assert!(
+                !o.status.success(),
+                "{ext}: inspect read a log with no footer"
+            );
+            assert!(
+                said.contains("is being written") && said.contains("not damaged"),
+                "{ext}: {said}"
+            );
+        } else {
+            // MDF4 is readable as it is committed.
+            assert!(o.status.success(), "{ext}: {said}");
+        }
+        let o = physid(&["recover", f]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success(),
+            "{ext}: recover mended a log being written"
+        );
+        assert!(said.contains("nothing to recover"), "{ext}: {said}");
+        let o = physid(&[
+            "simulate",
+            "--scenario",
+            "shaft-steady",
+            "--duration",
+            "0.2",
+            "--recording",
+            f,
+        ]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{ext}: simulate wrote over a log");
+        assert!(said.contains("not written over"), "{ext}: {said}");
+        let o = physid(&["convert", small.to_str().unwrap(), f]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{ext}: convert wrote over a log");
+        assert!(said.contains("being written"), "{ext}: {said}");
+
+        // The run is stopped and closes the log: all of it is there.
+        writeln!(stdin, r#"{{"cmd":"stop"}}"#).unwrap();
+        let rest: Vec<Value> = events
+            .map_while(Result::ok)
+            .filter_map(|l| serde_json::from_str(&l).ok())
+            .collect();
+        assert!(child.wait().unwrap().success(), "{ext}");
+        drop(stdin);
+        let closed = rest
+            .iter()
+            .rev()
+            .find(|e| e["type"] == "log" && e["state"] == "closed")
+            .unwrap_or_else(|| panic!("{ext}: no closing log event"));
+        // Closed by the stop: the probes ran while it was written.
+        assert!(
+            closed["t_s"].as_f64().unwrap() < 14.0,
+            "{ext}: the run ended before the probes did: {closed}"
+        );
+        let logged = physid_io::read(&file, &Default::default()).unwrap();
+        assert_eq!(
+            closed["samples"].as_u64().unwrap() as usize,
+            logged.len(),
+            "{ext}"
+        );
+        assert!(logged.len() > 1000, "{ext}: {} samples", logged.len());
+        a_stretch_of(&logged, &sim, ext);
+    }
+}
+
+/// A command whose output is its own input is refused before it writes a byte, the recording
+/// kept bit for bit — by the same name, another (`./`) or a link. Before, `convert a.parquet
+/// a.parquet` and `monitor shaft --data a.parquet --tracks a.parquet` emptied the recording (4
+/// bytes left) and then blamed it ("the file was damaged or changed after it was written"), and
+/// `filter a.csv a.csv` deleted it (its cleanup removed "its" partial output).
+#[test]
+fn an_output_that_is_the_input_is_refused() {
+    let s = physid_testkit::Scratch::new("physid-output-is-input");
+    let pq = s.file("run.parquet");
+    common::simulated(&pq, "shaft-steady", "2");
+    let csv = s.file("run.csv");
+    let o = physid(&["convert", pq.to_str().unwrap(), csv.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let link = s.file("link.parquet");
+    std::os::unix::fs::symlink(&pq, &link).unwrap();
+    let (p, c, l) = (
+        pq.to_str().unwrap(),
+        csv.to_str().unwrap(),
+        link.to_str().unwrap(),
+    );
+    let dotted = format!("{}/./run.csv", s.file("").display());
+    let cases: [&[&str]; 5] = [
+        &["convert", p, p],
+        &["convert", p, l],
+        &[
+            "filter",
+            c,
+            &dotted,
+            "--lowpass",
+            "500",
+            "--channels",
+            "torque_shaft",
+        ],
+        &["monitor", "shaft", "--data", p, "--tracks", p],
+        &["convert", l, c, "--channels", "t"],
+    ];
+    for args in cases {
+        let (before_p, before_c) = (std::fs::read(&pq).unwrap(), std::fs::read(&csv).unwrap());
+        let o = physid(args);
+        let said = String::from_utf8_lossy(&o.stderr);
+        if args[1] == l && args[2] == c {
+            // A link read, another file written: as any conversion.
+            assert!(o.status.success(), "{args:?}: {said}");
+            continue;
+        }
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {said}");
+        assert!(
+            said.contains("is also what this command reads"),
+            "{args:?}: {said}"
+        );
+        assert!(
+            std::fs::read(&pq).unwrap() == before_p,
+            "{args:?}: run.parquet changed"
+        );
+        assert!(
+            std::fs::read(&csv).unwrap() == before_c,
+            "{args:?}: run.csv changed"
+        );
+    }
+}

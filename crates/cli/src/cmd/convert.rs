@@ -205,19 +205,19 @@ impl Sink {
     }
 
     fn close(mut self) -> Result<(), AppError> {
-        match self.writer.take() {
-            Some(w) => w.close()?,
-            None => return Err(self.interrupted()),
-        }
+        let Some(w) = self.writer.take() else {
+            return Err(self.interrupted());
+        };
         if self.samples == 0 && self.header.basis == physid_core::Basis::CrankAngle {
             // An empty crank-angle file would only fail later, less clearly.
-            let _ = std::fs::remove_file(&self.path);
+            w.discard();
             return Err(AppError::Invalid(format!(
                 "no sample on a crank-angle basis, so {} is not written: {}",
                 self.path.display(),
                 physid_apps::angle_input::NO_CRANK_SAMPLE
             )));
         }
+        w.close()?;
         wrote(&self.path, &self.header, self.samples);
         Ok(())
     }

@@ -65,12 +65,7 @@ pub fn run(args: &Args) -> Result<()> {
             .map_err(|e| miette!("{}: {e}", args.input.display()))?;
         physid_io::write(&args.output, &rec, &Default::default()).into_diagnostic()?;
     } else {
-        let written = stream_filter(args, &spec);
-        if written.is_err() {
-            // No partial file left behind.
-            let _ = std::fs::remove_file(&args.output);
-        }
-        written?;
+        stream_filter(args, &spec)?;
     }
     outln!(
         "wrote {} ({} filtered: {:?} Butterworth, order {}, zero phase)",
@@ -98,13 +93,21 @@ fn stream_filter(args: &Args, spec: &FilterSpec) -> Result<()> {
     let mut writer =
         physid_io::ChunkWriter::create(&args.output, reader.header(), &Default::default())
             .into_diagnostic()?;
-    for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
-        if let Some(out) = stream.push(&chunk.into_diagnostic()?).map_err(at)? {
+    let written = (|| -> Result<()> {
+        for chunk in crate::progress::Reading::new(&mut reader, &args.input) {
+            if let Some(out) = stream.push(&chunk.into_diagnostic()?).map_err(at)? {
+                writer.append(&out).into_diagnostic()?;
+            }
+        }
+        if let Some(out) = stream.finish().map_err(at)? {
             writer.append(&out).into_diagnostic()?;
         }
-    }
-    if let Some(out) = stream.finish().map_err(at)? {
-        writer.append(&out).into_diagnostic()?;
+        Ok(())
+    })();
+    if let Err(e) = written {
+        // No partial file left behind: the one this command created.
+        writer.discard();
+        return Err(e);
     }
     writer.close().into_diagnostic()?;
     super::warn_read(&reader, &args.input);

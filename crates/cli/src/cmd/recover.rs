@@ -43,6 +43,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
         }
         Some(Format::Mdf4) => {
+            physid_io::refuse_to_recover_while_written(path).map_err(|e| miette!("{e}"))?;
             // Read through, a chunk at a time: what a reader finds.
             let mut reader = physid_io::ChunkReader::open(path, &Default::default())
                 .map_err(|e| miette!("{e}"))?;

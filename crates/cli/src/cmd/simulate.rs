@@ -336,14 +336,15 @@ fn write_as_it_goes(
             Ok(Some((channels, rows)))
         }
         (Ok(()), w) => {
-            drop(w);
-            let _ = std::fs::remove_file(out);
+            if let Some(w) = w {
+                w.discard();
+            }
             Ok(None)
         }
         (Err(e), w) => {
-            drop(w);
-            if !salvaged {
-                let _ = std::fs::remove_file(out);
+            // Only a file it created (a refused creation leaves a file of that name alone).
+            if let (false, Some(w)) = (salvaged, w) {
+                w.discard();
             }
             Err(e)
         }
