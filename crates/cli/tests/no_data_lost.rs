@@ -782,3 +782,30 @@ fn an_output_that_is_the_input_is_refused() {
         );
     }
 }
+
+/// A `simulate` refused before it writes (a recording too large for the disk) leaves the file
+/// already at its output as it was. Before, its cleanup removed "its" output: the earlier
+/// recording of that name was deleted.
+#[test]
+fn a_refused_simulation_leaves_the_file_at_its_output() {
+    let s = physid_testkit::Scratch::new("physid-refused-simulation");
+    let f = s.file("keep.parquet");
+    common::simulated(&f, "shaft-steady", "0.5");
+    let before = std::fs::read(&f).unwrap();
+    let o = physid(&[
+        "simulate",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "1e9",
+        "--recording",
+        f.to_str().unwrap(),
+    ]);
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(said.contains("record less"), "{said}");
+    assert!(
+        std::fs::read(&f).ok().is_some_and(|b| b == before),
+        "the recording at --recording was changed or removed"
+    );
+}
