@@ -628,8 +628,9 @@ fn a_nohup_run_goes_on_through_a_hangup() {
 /// inspect` says it is being written (not that its footer is corrupt), `physid recover` does
 /// not cut it, and `simulate` and `convert` do not write over it — and the log the run closes
 /// holds every sample its last `log` event counts, a stretch of the cell's own run. Before,
-/// `recover` cut the log under its writer and `simulate --recording` replaced it, the writer
-/// going on into a file no longer in the directory.
+/// `inspect` called the log's footer corrupt, `recover` cut the log under its writer, and
+/// `simulate --recording` emptied it and wrote into it beside the run: the closed log was
+/// unreadable either way.
 #[test]
 fn a_log_being_recorded_is_left_to_its_writer() {
     let s = physid_testkit::Scratch::new("physid-left-to-its-writer");
