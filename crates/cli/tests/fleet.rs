@@ -11,6 +11,7 @@ use futures_util::StreamExt;
 use physid_core::{Basis, Channel, Recording};
 use physid_live::fleet::local::{nats_server_bin, LocalServer};
 use physid_live::fleet::{CellInfo, CELLS_BUCKET};
+use physid_live::service::CHECKPOINT_VERSION;
 use physid_live::wire::{self, Frame};
 use physid_testkit::Scratch;
 use serde_json::{json, Value};
@@ -468,6 +469,98 @@ fn a_server_restart_loses_nothing() {
     assert_eq!(end["samples"], published["samples"]);
     assert_eq!(got.len(), expected.len());
     same_events(&got, &expected);
+}
+
+/// A checkpoint this physid cannot take up — one of another layout (a physid of another
+/// version wrote it, as during a fleet's rolling upgrade), or a record that is no checkpoint —
+/// is told on the cell's events subject, once, with the reason, and the cell is processed from
+/// its run's first frame: the fleet's events are then an uninterrupted run's. Before, the first
+/// kind failed the cell's task at every take, for ever (the cell was never processed), and the
+/// second started the cell afresh without a word.
+#[test]
+fn a_checkpoint_this_physid_cannot_take_up_is_told_and_the_cell_starts_afresh() {
+    let Some(server) = nats_server(&[]) else {
+        return;
+    };
+    let url = server.url("");
+    let expected = reference(&SOURCE);
+    let cells = ["c8", "c9"];
+    let publishers: Vec<Proc> = cells
+        .iter()
+        .map(|cell| {
+            let mut args = vec!["live", "--nats", &url, "--cell", cell, "--json"];
+            args.extend_from_slice(&SOURCE);
+            Proc::start(&args)
+        })
+        .collect();
+    for p in publishers {
+        let done = p.wait(60);
+        assert!(done.status.success(), "{}", done.stderr);
+    }
+    // Each cell's run, from the registry; a checkpoint of that run that this physid cannot
+    // take up: c8's state of the layout before this physid's, c9's record no checkpoint.
+    let older = CHECKPOINT_VERSION - 1;
+    let older_layout =
+        rmp_serde::to_vec_named(&(older, "the stages of an older physid")).expect("an older state");
+    let record = |run: u64| {
+        rmp_serde::to_vec(&(
+            run,
+            40u64,
+            40u64,
+            false,
+            serde_bytes::ByteBuf::from(older_layout.clone()),
+        ))
+        .expect("a record")
+    };
+    rt().block_on(async {
+        let js = async_nats::jetstream::new(client(&url).await);
+        let registry = js.get_key_value(CELLS_BUCKET).await.expect("registry");
+        let checkpoints = js
+            .get_key_value("physid_checkpoints")
+            .await
+            .expect("the checkpoints' bucket");
+        let info = registry
+            .get("c8")
+            .await
+            .expect("read")
+            .expect("c8 registered");
+        let info: CellInfo = serde_json::from_slice(&info).expect("an entry");
+        checkpoints
+            .put("c8", record(info.run).into())
+            .await
+            .expect("put c8's checkpoint");
+        checkpoints
+            .put("c9", b"not a checkpoint".to_vec().into())
+            .await
+            .expect("put c9's checkpoint");
+    });
+    let w = Proc::start(&["worker", "--nats", &url, "--name", "w"]);
+    let layout =
+        format!("a checkpoint of layout {older}: this physid reads layout {CHECKPOINT_VERSION}");
+    for (cell, why) in [("c8", layout.as_str()), ("c9", "not a checkpoint")] {
+        let got = wait_events(&url, cell, 60, has_end);
+        let (told, rest): (Vec<Value>, Vec<Value>) = got
+            .into_iter()
+            .partition(|e| e["type"] == "error" && e["input"] == "checkpoint");
+        assert_eq!(told.len(), 1, "{cell}: told once: {told:?}");
+        let message = told[0]["message"].as_str().expect("a message");
+        assert!(
+            message.contains(why) && message.contains("from its run's first frame"),
+            "{cell}: {message}"
+        );
+        assert_eq!(rest.len(), expected.len(), "{cell}: every event once");
+        same_events(&rest, &expected);
+    }
+    let stderr = w.stderr();
+    for cell in cells {
+        assert_eq!(
+            stderr.matches(&format!("took cell {cell} ")).count(),
+            1,
+            "{cell} taken once: {stderr}"
+        );
+    }
+    w.sigterm();
+    assert!(w.wait(20).status.success(), "the worker ends cleanly");
 }
 
 fn chunk(t0: usize, n: usize) -> Recording {

@@ -41,6 +41,8 @@ pub enum Input {
     Record,
     /// The fleet's registry of cells.
     Registry,
+    /// A cell's checkpoint in the fleet's store.
+    Checkpoint,
 }
 
 /// A live log's state.

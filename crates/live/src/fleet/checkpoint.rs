@@ -1,4 +1,4 @@
-//! A cell's checkpoint in the fleet's store: the record in [`CHECKPOINTS_BUCKET`] under the
+//! A cell's checkpoint in the fleet's store: the record in [`CHECKPOINTS_BUCKET`](super::CHECKPOINTS_BUCKET) under the
 //! cell's key — the run, the last frame and its stream sequence, whether the run is done, and
 //! the stages' state ([`Stages::checkpoint`](crate::service::Stages::checkpoint)) — written
 //! only over the revision this worker wrote (compare and set).
@@ -11,17 +11,21 @@
 //! length and SHA-256) instead of holding the state. Two slots take turns, so the parts the
 //! record names are never the ones being written; a cell id has no `.`, so no other cell's key
 //! is touched. Parts that do not add up to the record's length and digest (a writer that lost
-//! the cell wrote over them) are refused on reading, and the cell starts from its run's first
-//! frame, as without a checkpoint.
+//! the cell wrote over them) are refused on reading.
+//!
+//! **A checkpoint that cannot be taken up** — parts that do not add up, a record that is no
+//! checkpoint, a state of another layout (a physid of another version wrote it, as in a
+//! fleet's rolling upgrade) — is told on the cell's events subject, and the cell is processed
+//! from its run's first frame, as without a checkpoint (`worker::process_cell`).
 
-use super::{nats, Fleet, FleetError, CHECKPOINTS_BUCKET};
+use super::{nats, Fleet, FleetError};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 /// What a part leaves of the server's `max_payload` for the message's subject and headers.
 pub const HEADROOM: usize = 4096;
 
-/// A cell's checkpoint (MessagePack in [`CHECKPOINTS_BUCKET`]).
+/// A cell's checkpoint (MessagePack in [`CHECKPOINTS_BUCKET`](super::CHECKPOINTS_BUCKET)).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub(super) struct Checkpoint {
     /// The run it belongs to.
@@ -139,12 +143,12 @@ impl CheckpointWriter {
     }
 }
 
-/// The checkpoint of `cell` and a writer that writes over it; `None` when there is none, or
-/// when it cannot be read (then said on stderr, and the cell starts from its run's first frame).
+/// The checkpoint of `cell` (`Ok(None)`: there is none; `Err`: there is a record this physid
+/// cannot read, and why) and a writer that writes over it.
 pub(super) async fn read(
     fleet: &Fleet,
     cell: &str,
-) -> Result<(Option<Checkpoint>, CheckpointWriter), FleetError> {
+) -> Result<(Result<Option<Checkpoint>, String>, CheckpointWriter), FleetError> {
     let entry = fleet
         .checkpoints
         .entry(cell)
@@ -154,22 +158,21 @@ pub(super) async fn read(
         revision: entry.as_ref().map(|e| e.revision),
         slot: None,
     };
-    let Some(mut c) = entry.and_then(|e| rmp_serde::from_slice::<Checkpoint>(&e.value).ok()) else {
-        return Ok((None, writer));
+    let Some(entry) = entry else {
+        return Ok((Ok(None), writer));
+    };
+    let mut c = match rmp_serde::from_slice::<Checkpoint>(&entry.value) {
+        Ok(c) => c,
+        Err(e) => return Ok((Err(format!("not a checkpoint ({e})")), writer)),
     };
     if let Some(p) = c.parts.take() {
         writer.slot = Some(p.slot);
         match assemble(fleet, cell, &p).await {
             Ok(state) => c.state = state,
-            Err(why) => {
-                eprintln!(
-                    "physid: the checkpoint of {cell} in {CHECKPOINTS_BUCKET} cannot be read ({why}): the cell starts from its run's first frame"
-                );
-                return Ok((None, writer));
-            }
+            Err(why) => return Ok((Err(why), writer)),
         }
     }
-    Ok((Some(c), writer))
+    Ok((Ok(Some(c)), writer))
 }
 
 /// The state the parts `p` hold, checked against its length and digest.

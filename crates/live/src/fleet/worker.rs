@@ -16,7 +16,10 @@
 //!   (`<cell>/<run>/<stream sequence>/<k>`) make the stream store each once. The checkpoint is
 //!   written only over the revision this worker wrote (compare and set): a worker that lost its
 //!   cell cannot overwrite its successor's. A state larger than the server's message limit is
-//!   stored in parts ([`checkpoint`](super::checkpoint)).
+//!   stored in parts ([`checkpoint`](super::checkpoint)). A checkpoint this worker cannot take
+//!   up (of another layout, or no checkpoint) is told as an `error` event (`"input":
+//!   "checkpoint"`) and the cell is processed from its run's first frame — failing the cell's
+//!   task instead would fail it again at every take, for ever.
 //! * **Bad input** — a frame that is not a frame, another cell's frame, a wrong schema, frames on
 //!   the subject of a cell nobody registered — is counted and reported as an `error` event with
 //!   the reason, never absorbed into an estimate, and the worker goes on.
@@ -24,7 +27,7 @@
 use super::checkpoint::{self, Checkpoint};
 use super::{
     nats, send_until_acked, subject, CellInfo, Fleet, FleetError, NatsTarget, CELLS_BUCKET,
-    LEASE_TTL,
+    CHECKPOINTS_BUCKET, LEASE_TTL,
 };
 use crate::event::{Event, Input};
 use crate::service::{LiveConfig, Stages};
@@ -330,21 +333,37 @@ async fn process_cell(
 ) -> Result<(), FleetError> {
     let cell = info.cell.clone();
     let (tx, rx) = std::sync::mpsc::channel::<Event>();
-    let emit: Emit = Box::new(move |e: &Event| tx.send(e.clone()).map_err(|e| e.to_string()));
+    let emit = || -> Emit {
+        let tx = tx.clone();
+        Box::new(move |e: &Event| tx.send(e.clone()).map_err(|e| e.to_string()))
+    };
     let mut live = cfg.live.clone();
     live.theta_tdc = info.theta_tdc;
     live.panel = None;
     live.pace = crate::source::Pace::Max;
     let (previous, mut writer) = checkpoint::read(&fleet, &cell).await?;
-    let previous = previous.filter(|c| c.run == info.run);
-    let (stages, mut seq, start) = match &previous {
-        Some(c) if c.done => return Ok(()),
-        Some(c) => (
-            Stages::restore(live, &c.state, emit)?,
-            c.seq,
-            c.stream_seq + 1,
-        ),
-        None => (Stages::new(live, info.rate_hz, emit)?, 0, 1),
+    // The checkpoint of this run taken up: the stages, the last frame, the next stream
+    // sequence (`Ok(None)`: there is none; `Err`: it cannot be taken up, and why).
+    let taken_up = match previous {
+        Ok(Some(c)) if c.run == info.run => {
+            if c.done {
+                return Ok(());
+            }
+            Stages::restore(live.clone(), &c.state, emit())
+                .map(|st| Some((st, c.seq, c.stream_seq + 1)))
+                .map_err(|e| e.to_string())
+        }
+        Ok(_) => Ok(None),
+        Err(why) => Err(why),
+    };
+    let (stages, mut seq, start) = match taken_up {
+        Ok(Some(s)) => s,
+        Ok(None) => (Stages::new(live, info.rate_hz, emit())?, 0, 1),
+        Err(why) => {
+            // Failing the cell's task here would fail it again at every take, for ever.
+            tell_unusable_checkpoint(&fleet, &info, &cfg, &why).await;
+            (Stages::new(live, info.rate_hz, emit())?, 0, 1)
+        }
     };
     let mut stages = Some(stages);
     eprintln!(
@@ -448,6 +467,37 @@ async fn process_cell(
     };
     writer.put(&fleet, &cell, c).await?;
     Ok(())
+}
+
+/// Tell, on `info`'s events subject (once per run: the message id) and on stderr, that the cell's
+/// checkpoint cannot be taken up (`why`) and that the cell is processed from its run's first
+/// frame.
+async fn tell_unusable_checkpoint(fleet: &Fleet, info: &CellInfo, cfg: &WorkerConfig, why: &str) {
+    let cell = &info.cell;
+    let message = format!(
+        "the checkpoint of {cell} in {CHECKPOINTS_BUCKET} cannot be taken up: {why}; the cell \
+         is processed from its run's first frame the stream holds, as without a checkpoint"
+    );
+    eprintln!("physid worker {}: {message}", cfg.name);
+    let e = Event::Error {
+        t_s: f64::NAN,
+        input: Input::Checkpoint,
+        line: 0,
+        message,
+    };
+    let json = serde_json::to_vec(&e).unwrap_or_default();
+    let id = format!("{cell}/{}/checkpoint", info.run);
+    if let Err(e) = send_until_acked(
+        &fleet.js,
+        subject(cell, "events"),
+        json.into(),
+        id,
+        cfg.give_up,
+    )
+    .await
+    {
+        eprintln!("physid worker {}: cell {cell}: {e}", cfg.name);
+    }
 }
 
 /// An ordered consumer of `cell`'s frames from stream sequence `start` on.

@@ -329,12 +329,16 @@ mod tests {
         let cfg = LiveConfig::default();
         let whole = restored_runs_equal_the_whole(&cfg, &chunks, rate);
         assert!(whole.iter().any(|e| matches!(e, Event::Alarm { .. })));
-        // Another layout is refused with a reason, not misread.
-        let bad = rmp_serde::to_vec(&(CHECKPOINT_VERSION + 1, 0u8)).unwrap();
+        // Another layout is refused with a reason, not misread — named as such even when its
+        // state does not read as this layout's (it used to be "invalid type: integer …").
+        let v = CHECKPOINT_VERSION + 1;
+        let bad = rmp_serde::to_vec(&(v, 0u8)).unwrap();
         let e = Stages::restore(cfg, &bad, |_: &Event| Ok(()))
             .err()
             .unwrap();
-        assert!(e.to_string().contains("checkpoint"), "{e}");
+        let layout =
+            format!("a checkpoint of layout {v}: this physid reads layout {CHECKPOINT_VERSION}");
+        assert!(e.to_string().contains(&layout), "{e}");
     }
 
     /// The friction characterisation and the cyclic-torque estimation checkpoint too: cut before

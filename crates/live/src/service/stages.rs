@@ -68,13 +68,17 @@ impl<E: FnMut(&Event) -> Result<(), String>> Stages<E> {
     /// Stages of `cfg` taken up from a [`checkpoint`](Self::checkpoint)'s bytes: the next chunk
     /// goes on where the checkpointed run stopped.
     pub fn restore(cfg: LiveConfig, bytes: &[u8], emit: E) -> Result<Self, LiveError> {
-        let (version, st): (u32, State) = rmp_serde::from_slice(bytes)
-            .map_err(|e| LiveError::Invalid(format!("reading a checkpoint: {e}")))?;
+        let read =
+            |e: rmp_serde::decode::Error| LiveError::Invalid(format!("reading a checkpoint: {e}"));
+        // The layout first: a state of another layout would not read as this one's `State`.
+        let (version, _): (u32, serde::de::IgnoredAny) =
+            rmp_serde::from_slice(bytes).map_err(read)?;
         if version != CHECKPOINT_VERSION {
             return Err(LiveError::Invalid(format!(
                 "a checkpoint of layout {version}: this physid reads layout {CHECKPOINT_VERSION}"
             )));
         }
+        let (_, st): (u32, State) = rmp_serde::from_slice(bytes).map_err(read)?;
         Self::with_state(cfg, st, emit)
     }
 
