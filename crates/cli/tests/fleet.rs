@@ -563,6 +563,68 @@ fn a_checkpoint_this_physid_cannot_take_up_is_told_and_the_cell_starts_afresh() 
     assert!(w.wait(20).status.success(), "the worker ends cleanly");
 }
 
+/// A publisher whose replayed file is damaged part-way (64 bytes changed in its third row
+/// group of four) publishes what it read, tells the error on the cell's events (`"input":
+/// "source"`) and sends the end frame: the worker ends the cell — its `end` counts every sample
+/// published — and the publisher exits 1 with the error. Before, it exited without the end
+/// frame, and the cell went quiet for ever, its worker waiting.
+#[test]
+fn a_damaged_replay_ends_its_cell() {
+    let Some(server) = nats_server(&[]) else {
+        return;
+    };
+    let url = server.url("");
+    let s = Scratch::new("physid-fleet-damaged");
+    let file = s.file("run.parquet");
+    let o = Command::new(PHYSID)
+        .args(["simulate", "--scenario", "shaft-steady", "--duration", "20"])
+        .args(["--recording", file.to_str().expect("utf-8")])
+        .output()
+        .expect("simulate");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut bytes = std::fs::read(&file).expect("read");
+    let at = bytes.len() * 5 / 6;
+    for b in &mut bytes[at..at + 64] {
+        *b ^= 0xff;
+    }
+    std::fs::write(&file, &bytes).expect("write");
+    let _w = Proc::start(&["worker", "--nats", &url, "--name", "w"]);
+    let publisher = Proc::start(&[
+        "live",
+        "--nats",
+        &url,
+        "--cell",
+        "c10",
+        "--pace",
+        "max",
+        "--replay",
+        file.to_str().expect("utf-8"),
+    ]);
+    let done = publisher.wait(60);
+    assert_eq!(done.status.code(), Some(1), "{}", done.stderr);
+    assert!(done.stderr.contains("corrupt Parquet"), "{}", done.stderr);
+    let got = wait_events(&url, "c10", 60, has_end);
+    let end = got.iter().find(|e| e["type"] == "end").expect("end");
+    let error = got
+        .iter()
+        .find(|e| e["type"] == "error")
+        .expect("the error told");
+    assert_eq!(error["input"], "source", "{error}");
+    let message = error["message"].as_str().expect("a message");
+    assert!(
+        message.contains("run.parquet: corrupt Parquet: column '")
+            && message.contains("of row group 2 (rows 131072 to 196607"),
+        "{message}"
+    );
+    assert_eq!(
+        end["samples"], error["line"],
+        "every sample published, once"
+    );
+    let samples = end["samples"].as_u64().expect("samples");
+    assert!((131_072 - 1000..131_072).contains(&samples), "{samples}");
+    assert_eq!(end["dropped"], 0);
+}
+
 fn chunk(t0: usize, n: usize) -> Recording {
     let mut r = Recording::new(Basis::Time);
     let t: Vec<f64> = (t0..t0 + n).map(|k| k as f64 * 1e-3).collect();

@@ -1254,6 +1254,102 @@ fn a_stop_control_ends_a_replay() {
     assert!(end["t_s"].as_f64().unwrap() < 5.0, "{end}");
 }
 
+/// A replayed file damaged part-way (64 bytes changed in its third row group of four: found by
+/// the column chunks' CRC-32) ends the run as its end would: an `error` event (`"input":
+/// "source"`) naming the file, the column and the rows, the stages' last estimate, the log
+/// being recorded closed and readable with every sample it took, then `end`; exit 1 with
+/// the error on stderr. Before, the events stopped mid-run: no error on the stream, no `end`.
+#[test]
+fn a_damaged_replay_ends_the_run_as_its_end_would() {
+    let s = Scratch::new("physid-live-damaged");
+    let file = s.file("run.parquet");
+    common::simulated(&file, "shaft-steady", "20");
+    let mut bytes = std::fs::read(&file).unwrap();
+    let at = bytes.len() * 5 / 6;
+    for b in &mut bytes[at..at + 64] {
+        *b ^= 0xff;
+    }
+    std::fs::write(&file, &bytes).unwrap();
+    let controls = s.file("controls.ndjson");
+    std::fs::write(&controls, "{\"cmd\":\"record\",\"file\":\"log.parquet\"}\n").unwrap();
+    let logs = s.file("logs");
+    let o = physid(&[
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        file.to_str().unwrap(),
+        "--pace",
+        "max",
+        "--controls",
+        controls.to_str().unwrap(),
+        "--log-dir",
+        logs.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("corrupt Parquet"), "{stderr}");
+    let ev: Vec<Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    let error = errors[0];
+    assert_eq!(error["input"], "source");
+    assert!(
+        says(error, "run.parquet: corrupt Parquet: column '")
+            && says(error, "of row group 2 (rows 131072 to 196607")
+            && says(
+                error,
+                "the file was damaged or changed after it was written"
+            ),
+        "{error}"
+    );
+    let end = ev.last().unwrap();
+    assert_eq!(end["type"], "end", "the run ends with `end`");
+    let samples = end["samples"].as_u64().unwrap();
+    // Every chunk before the damaged row group went through (the chunk that reaches into it
+    // is the one refused).
+    assert!(
+        (131_072 - 1000..131_072).contains(&samples),
+        "{samples} samples"
+    );
+    assert_eq!(error["line"], samples, "the error names the samples taken");
+    let after: Vec<&str> = ev
+        .iter()
+        .skip_while(|e| e["type"] != "error")
+        .map(|e| e["type"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        after,
+        ["error", "estimate", "log", "end"],
+        "after the error"
+    );
+    let log = of_type(&ev, "log");
+    let last = log.last().unwrap();
+    assert_eq!(last["state"], "closed", "{last}");
+    assert_eq!(last["t_s"], end["t_s"], "closed at the end: {last}");
+    // The control is read on its own thread: the log starts at some chunk of the run.
+    let logged = last["samples"].as_u64().unwrap();
+    assert!(logged > 0 && logged <= samples, "{logged} of {samples}");
+    let inspect = physid(&[
+        "inspect",
+        logs.join("log.parquet").to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        inspect.status.success(),
+        "{}",
+        String::from_utf8_lossy(&inspect.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&inspect.stdout).unwrap();
+    for c in summary["channels"].as_array().unwrap() {
+        assert_eq!(c["samples"], logged, "{c}");
+    }
+}
+
 /// Write `value` into `column` of `samples` of a CSV recording written by physid (a header,
 /// a units row, then the samples).
 fn set_cells(file: &std::path::Path, column: &str, samples: std::ops::Range<usize>, value: &str) {

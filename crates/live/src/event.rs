@@ -43,6 +43,9 @@ pub enum Input {
     Registry,
     /// A cell's checkpoint in the fleet's store.
     Checkpoint,
+    /// The run's source (a replayed file, the virtual cell), failed: `line` is the samples
+    /// taken before it.
+    Source,
 }
 
 /// A live log's state.

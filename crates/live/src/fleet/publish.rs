@@ -171,7 +171,24 @@ pub fn publish(
                 })?;
                 continue;
             }
-            Err(e) => return Err(e.into()),
+            Err(e) => {
+                // The source failed (a damaged file): what was gathered published, the error
+                // told on the cell's events and the end frame sent — the cell ends for its
+                // worker and the fleet view, instead of going quiet for ever — then the error
+                // returned.
+                let _ = p
+                    .flush()
+                    .and_then(|()| {
+                        p.event(&Event::Error {
+                            t_s: p.last_t,
+                            input: Input::Source,
+                            line: usize::try_from(p.samples).unwrap_or(usize::MAX),
+                            message: e.to_string(),
+                        })
+                    })
+                    .and_then(|()| p.frame(Recording::new(Basis::Time), true));
+                return Err(e.into());
+            }
         };
         if chunk.is_empty() {
             continue;

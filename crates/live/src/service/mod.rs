@@ -124,7 +124,19 @@ pub fn run_live(
                 live.refuse(Input::Frames, line, what)?;
                 continue;
             }
-            Err(e) => return Err(e),
+            Err(e) => {
+                // The source failed (a damaged file, the cell's simulation diverged): told as
+                // an event, then the run ends as at its end — the stages' last outputs, a log
+                // closed, `end` — and the error is returned. Before, the events just stopped.
+                let told = live.send(&Event::Error {
+                    t_s: live.st.last_t,
+                    input: Input::Source,
+                    line: live.samples(),
+                    message: e.to_string(),
+                });
+                let _ = told.and_then(|()| live.finish());
+                return Err(e);
+            }
         };
         // Control messages that have arrived, applied between chunks; while paused, wait for
         // them (the pacer does not count the pause).
