@@ -228,6 +228,88 @@ fn events_from_stdin_bytes(args: &[&str], input: &[u8]) -> Vec<Value> {
         .collect()
 }
 
+/// The frames of 1000 samples (the last shorter) of a recording's frame channels, as JSON
+/// lines, and its samples.
+fn frames_of(file: &std::path::Path) -> (Vec<String>, usize) {
+    let rec = physid_io::read(file, &Default::default()).unwrap();
+    let cols: Vec<&[f64]> = physid_live::FRAME_CHANNELS
+        .iter()
+        .map(|c| rec.values(c).unwrap())
+        .collect();
+    let frame = |seq: usize, r: std::ops::Range<usize>| -> String {
+        let mut obj = serde_json::Map::new();
+        obj.insert("seq".into(), seq.into());
+        for (name, col) in physid_live::FRAME_CHANNELS.iter().zip(&cols) {
+            obj.insert((*name).into(), col[r.clone()].into());
+        }
+        Value::Object(obj).to_string()
+    };
+    let n = rec.len();
+    let frames = (0..n.div_ceil(1000))
+        .map(|k| frame(k, k * 1000..((k + 1) * 1000).min(n)))
+        .collect();
+    (frames, n)
+}
+
+/// A second of frames lost (a DAQ's dropout: 8 engine cycles at 1000 rpm) is reported as a gap,
+/// and the cycle statistics go on after it: each cycle wholly before or after the gap is the
+/// uninterrupted run's, JSON for JSON, under the same number; none the gap cuts is reported.
+/// Before, the crank angle's advance across the gap stopped the cycle stages for the rest of
+/// the run ("the crank angle advances by 1.0472e2 rad … — the cycle statistics stopped").
+#[test]
+fn a_gap_in_the_frames_is_resumed_after_by_the_cycle_stages() {
+    let s = Scratch::new("physid-live-frame-gap");
+    let file = s.file("run.csv");
+    common::simulated(&file, "shaft-steady", "4");
+    let (frames, _) = frames_of(&file);
+    let run = |lines: &[&String]| {
+        let input: String = lines.iter().map(|f| format!("{f}\n")).collect();
+        events_from_stdin(
+            &[
+                "live",
+                "--headless",
+                "--json",
+                "--frames",
+                "-",
+                "--pace",
+                "max",
+            ],
+            &input,
+        )
+    };
+    let whole = run(&frames.iter().collect::<Vec<_>>());
+    let gappy = run(&frames
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| !(15..25).contains(k))
+        .map(|(_, f)| f)
+        .collect::<Vec<_>>());
+    let findings = of_type(&gappy, "finding");
+    assert!(
+        findings.iter().any(|f| says(f, "a gap of 10000 samples")),
+        "{findings:?}"
+    );
+    assert!(!findings.iter().any(|f| says(f, "stopped")), "{findings:?}");
+    let (gap_start, gap_end) = (1.4999, 2.5);
+    let outside: Vec<&Value> = of_type(&whole, "cycle")
+        .into_iter()
+        .filter(|c| {
+            c["t_s"].as_f64().unwrap() < gap_start || c["t_start_s"].as_f64().unwrap() > gap_end
+        })
+        .collect();
+    let got = of_type(&gappy, "cycle");
+    assert_eq!(
+        got, outside,
+        "the cycles outside the gap, as the whole run's"
+    );
+    let after = got
+        .iter()
+        .filter(|c| c["t_start_s"].as_f64().unwrap() > gap_end)
+        .count();
+    assert!(after >= 10, "{after} cycles after the gap");
+    assert!(of_type(&whole, "cycle").len() > got.len() + 7);
+}
+
 /// Frames from outside on stdin: bad frames are refused one by one, named by line, and the
 /// run goes on — the good frames give `monitor shaft`'s very estimate; a missing frame is
 /// reported as a gap.
@@ -248,23 +330,7 @@ fn frames_from_stdin_survive_bad_frames() {
     assert!(o.status.success());
     let o = physid(&["monitor", "shaft", "--data", f, "--json"]);
     let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
-    let rec = physid_io::read(&file, &Default::default()).unwrap();
-    let cols: Vec<&[f64]> = physid_live::FRAME_CHANNELS
-        .iter()
-        .map(|c| rec.values(c).unwrap())
-        .collect();
-    let frame = |seq: usize, r: std::ops::Range<usize>| -> String {
-        let mut obj = serde_json::Map::new();
-        obj.insert("seq".into(), seq.into());
-        for (name, col) in physid_live::FRAME_CHANNELS.iter().zip(&cols) {
-            obj.insert((*name).into(), col[r.clone()].into());
-        }
-        Value::Object(obj).to_string()
-    };
-    let n = rec.len();
-    let frames: Vec<String> = (0..n.div_ceil(1000))
-        .map(|k| frame(k, k * 1000..((k + 1) * 1000).min(n)))
-        .collect();
+    let (frames, n) = frames_of(&file);
     // Bad lines after frames 2, 5 and 9: not JSON, a channel too short, a repeated frame.
     let mut input = String::new();
     for (k, fr) in frames.iter().enumerate() {

@@ -11,9 +11,13 @@
 //!
 //! A sample whose angle does not advance (an engine at rest) adds nothing; the partial cycle
 //! before the first boundary is not reported, and the first cycle that starts in the stream is
-//! cycle 0. A sample whose angle lies more than a cycle past the previous one's is an error
-//! naming it ([`MAX_ADVANCE`]): no cycle can be summed up across it, and an angle of 10⁹ rad
-//! written by a bad sensor or a bad frame would otherwise close 10⁸ empty cycles.
+//! cycle 0. A sample whose angle lies more than a cycle past the previous one's
+//! ([`MAX_ADVANCE`]) ends a gap in the data when the time has advanced with it at a crank's
+//! speed (at most [`MAX_CRANK_SPEED`]: a DAQ's dropout, frames lost): the cycle in progress is
+//! left out, the sample taken as a stream's first again, and the cycles after the gap keep their
+//! numbers (the cycles lost are missing from the count). Otherwise it is an error naming the
+//! sample: no cycle can be summed up across it, and an angle of 10⁹ rad written by a bad sensor
+//! or a bad frame one sample after another would otherwise close 10⁸ empty cycles.
 
 use crate::crank::CrankError;
 use std::f64::consts::PI;
@@ -90,6 +94,12 @@ pub struct CycleStream {
     marks: Vec<usize>,
     #[serde(default)]
     mark_times: Vec<f64>,
+    /// The next sample comes after a gap in the data ([`resume_after_gap`](Self::resume_after_gap)).
+    #[serde(default)]
+    resumed: bool,
+    /// Gaps resumed after so far.
+    #[serde(default)]
+    gaps: u64,
 }
 
 /// The grid points a run of samples passes: for each, the first sample at or past it (`to[q]`,
@@ -154,6 +164,8 @@ impl CycleStream {
             spare: None,
             marks: Vec::new(),
             mark_times: Vec::new(),
+            resumed: false,
+            gaps: 0,
         })
     }
 
@@ -278,15 +290,20 @@ impl CycleStream {
             if let Some(j) = x.iter().position(|c| !c[i].is_finite()) {
                 return Err(bad(&format!("channel {j}"), x[j][i]));
             }
-            if let Some((th0, _)) = self.prev.filter(|&(th0, _)| theta[i] - th0 > MAX_ADVANCE) {
-                return Err(CrankError::Invalid(format!(
-                    "the crank angle advances by {:.4e} rad ({:.4e} cycles) at sample {index}, \
-                     from {th0:.6e} to {:.6e} rad: expected at most a cycle (4π rad) between \
-                     two samples — a gap in the data or an angle that is not the crank's",
-                    theta[i] - th0,
-                    (theta[i] - th0) / (4.0 * PI),
-                    theta[i]
-                )));
+            if let Some((th0, t0)) = self.prev.filter(|&(th0, _)| theta[i] - th0 > MAX_ADVANCE) {
+                let advance = theta[i] - th0;
+                if !(t[i] > t0 && advance / (t[i] - t0) <= MAX_CRANK_SPEED) {
+                    return Err(CrankError::Invalid(format!(
+                        "the crank angle advances by {advance:.4e} rad ({:.4e} cycles) at sample \
+                         {index}, from {th0:.6e} to {:.6e} rad in {:.4e} s: expected at most a \
+                         cycle (4π rad) between two samples, or across a gap in time at most \
+                         {MAX_CRANK_SPEED:.0} rad/s (25 000 rpm) — an angle that is not the crank's",
+                        advance / (4.0 * PI),
+                        theta[i],
+                        t[i] - t0
+                    )));
+                }
+                self.resume_after_gap();
             }
             self.sample(t[i], theta[i], |j| x[j][i], out);
         }
@@ -387,7 +404,10 @@ impl CycleStream {
             self.cycle = ((th - self.theta_tdc) / (4.0 * PI)).floor() as i64;
             let into = th - self.start(self.cycle);
             self.complete = into == 0.0;
-            self.first = self.cycle + i64::from(!self.complete);
+            // After a gap the numbering goes on from the stream's first cycle.
+            if !std::mem::take(&mut self.resumed) {
+                self.first = self.cycle + i64::from(!self.complete);
+            }
             self.t_start = t;
             self.next_grid = (into / self.step).ceil() as usize;
             self.accept(t, th, &x, true);
@@ -437,6 +457,22 @@ impl CycleStream {
             }
         }
         self.accept(t, th, &x, false);
+    }
+
+    /// A gap in the data: the cycle in progress left out (it cannot be summed up across the
+    /// gap), and the next sample taken as a stream's first — the cycle numbers go on from the
+    /// stream's first cycle, so the cycles lost in the gap are missing from the count.
+    fn resume_after_gap(&mut self) {
+        self.complete = false;
+        self.close(f64::NAN, &mut Vec::new());
+        self.prev = None;
+        self.resumed = true;
+        self.gaps += 1;
+    }
+
+    /// The gaps in the data the stream has resumed after (see the module docs).
+    pub fn gaps(&self) -> u64 {
+        self.gaps
     }
 
     /// Make `(t, th, x)` the previous sample and count it in the extremes.
@@ -540,6 +576,11 @@ pub const MIN_CURVE_STEP_DEG: f64 = 0.01;
 
 /// The largest advance of the crank angle between two samples [rad]: a cycle.
 pub const MAX_ADVANCE: f64 = 4.0 * PI;
+
+/// The fastest a crank can have turned across a gap in the data [rad/s]: 25 000 rpm (racing
+/// engines turn to 20 000). An angle that advances more than a cycle faster than this is not
+/// the crank's.
+pub const MAX_CRANK_SPEED: f64 = 25_000.0 * 2.0 * PI / 60.0;
 
 /// Whether the angles increase from `th0`, each by at most [`MAX_ADVANCE`] (one pass, no
 /// early exit).

@@ -278,6 +278,66 @@ fn times_at_grid_points_are_the_times_curve() {
     assert!(s.with_times_at(&[720]).is_err());
 }
 
+/// A gap in the data — 0.1 s of samples missing, time and angle (≈ 1.7 cycles at 1000 rpm: a
+/// DAQ's dropout, frames lost) — is resumed after: the cycles wholly before and wholly after it
+/// are the uninterrupted stream's, bit for bit, with the same numbers, and none that the gap
+/// cuts is reported — whatever the chunking, with statistics and on the curves alone. Before,
+/// it was an error and the stream (the live service's cycle stages) stopped for good. An angle
+/// that jumps as far with the time not advancing at a crank's speed is still refused.
+#[test]
+fn a_gap_in_the_data_is_resumed_after_with_the_cycles_numbered_on() {
+    let (t, th) = engine();
+    let x: Vec<f64> = th
+        .iter()
+        .map(|&a| 1.0 + a.sin() + 0.1 * (3.0 * a).cos())
+        .collect();
+    let (lost_from, lost_to) = (8_000, 9_000);
+    let keep = |v: &[f64]| -> Vec<f64> { [&v[..lost_from], &v[lost_to..]].concat() };
+    let (tg, thg, xg) = (keep(&t), keep(&th), keep(&x));
+    let (gap_start, gap_end) = (t[lost_from - 1], t[lost_to]);
+    for curves_only in [false, true] {
+        let make = || {
+            let s = CycleStream::new(1, 0.3, Some(2.0)).unwrap();
+            if curves_only {
+                s.curves_only()
+            } else {
+                s
+            }
+        };
+        let whole = push_all(&mut make(), &t, &th, std::slice::from_ref(&x), 20_000);
+        let outside: Vec<&CycleSummary> = whole
+            .iter()
+            .filter(|c| c.t_end_s < gap_start || c.t_start_s > gap_end)
+            .collect();
+        assert!(outside.len() >= 20, "{} cycles", outside.len());
+        assert!(outside.len() < whole.len(), "the gap cuts a cycle");
+        for chunk in [1, 64, 999, 20_000] {
+            let mut s = make();
+            let got = push_all(&mut s, &tg, &thg, std::slice::from_ref(&xg), chunk);
+            assert_eq!(s.gaps(), 1, "chunk {chunk}");
+            assert_eq!(got.len(), outside.len(), "chunk {chunk}");
+            for (g, w) in got.iter().zip(&outside) {
+                assert_eq!(g, *w, "chunk {chunk}, cycle {}", w.cycle);
+            }
+        }
+    }
+    // The same advance with the time stepping as before (a sensor's jump, not a gap): refused.
+    let mut jump = th.clone();
+    let d = th[lost_to] - th[lost_from - 1];
+    for a in &mut jump[lost_from..] {
+        *a += d;
+    }
+    let mut s = CycleStream::new(1, 0.3, None).unwrap();
+    let err = s
+        .push(&t, &jump, &[&x], &mut Vec::new())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&format!("sample {lost_from}")) && err.contains("not the crank's"),
+        "{err}"
+    );
+}
+
 /// A crank angle that jumps by more than a cycle between two samples (a bad sensor's 10⁹ rad,
 /// a frame's 9.2·10¹⁸) is an error naming the sample, on the path with statistics and on the
 /// curves alone, whatever the chunking — not 10⁸ empty cycles closed, each with its curves,

@@ -393,6 +393,79 @@ mod tests {
         assert!(n > 5, "{n} torque cycles");
     }
 
+    /// Chunks lost mid-run (a DAQ's dropout, frames lost on a fleet: ≈ 0.5 s, several engine
+    /// cycles) do not stop the stages that count cycles: the friction characterisation and the
+    /// cyclic-torque estimation go on after the gap, as the cycle statistics do (their cycle
+    /// in progress left out: `physid_signal::cycles`). Before, the crank angle's advance across
+    /// the gap stopped each of them for the rest of the run.
+    #[test]
+    fn the_cycle_stages_go_on_after_a_gap() {
+        use physid_apps::friction_fit::friction_preset;
+        let (d, st) = friction_preset("cell").unwrap();
+        let nominal =
+            physid_apps::cell::cyclic_torque_nominal(&physid_sim::params::CellParams::default())
+                .unwrap();
+        let friction = LiveConfig {
+            friction: Some(config::FrictionLive {
+                fit: FrictionFitConfig::new(d, st),
+                select_after: 20,
+            }),
+            ..LiveConfig::default()
+        };
+        let torque = LiveConfig {
+            torque: Some(config::TorqueLive {
+                fit: TorqueFitConfig::new(nominal),
+                select_after_cycles: 2,
+            }),
+            ..LiveConfig::default()
+        };
+        for (cfg, scenario, seconds, gap) in [
+            (friction, "friction-sweep", 8.0, 4.0..4.5),
+            (torque, "torque-ramp", 3.0, 1.5..2.0),
+        ] {
+            let (chunks, rate) = run_chunks(scenario, seconds, &[]);
+            let mut events = Vec::new();
+            let mut s = Stages::new(cfg, rate, |e: &Event| {
+                events.push(e.clone());
+                Ok(())
+            })
+            .unwrap();
+            for c in &chunks {
+                let t = c.values("t").unwrap();
+                if !(gap.contains(&t[0]) || gap.contains(&t[t.len() - 1])) {
+                    s.chunk(c).unwrap();
+                }
+            }
+            s.finish().unwrap();
+            let stopped: Vec<&Event> = events
+                .iter()
+                .filter(
+                    |e| matches!(e, Event::Finding { message, .. } if message.contains("stopped")),
+                )
+                .collect();
+            assert!(stopped.is_empty(), "{scenario}: {stopped:?}");
+            let after = |kind: fn(&Event) -> Option<f64>| {
+                events
+                    .iter()
+                    .filter_map(kind)
+                    .filter(|&t| t > gap.end)
+                    .count()
+            };
+            let cycles = after(|e| match e {
+                Event::Cycle { t_s, .. } => Some(*t_s),
+                _ => None,
+            });
+            let fits = after(|e| match e {
+                Event::Friction { t_s, .. } | Event::Torque { t_s, .. } => Some(*t_s),
+                _ => None,
+            });
+            assert!(
+                cycles >= 5 && fits >= 5,
+                "{scenario}: {cycles} cycles, {fits} fits after the gap"
+            );
+        }
+    }
+
     /// Quantiles of 1 … 1000 ms: the median's bin ends at 500 ms, the 99th percentile's at
     /// 990 ms (0.1 ms bins); beyond 2 s within 10 ms (the `bench fleet` run whose p99 stuck at
     /// 2000 ms while its max was 2729 ms); beyond 2 min the largest seen.
