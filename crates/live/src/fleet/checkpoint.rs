@@ -1,6 +1,6 @@
-//! A cell's checkpoint in the fleet's store: the record in [`CHECKPOINTS_BUCKET`](super::CHECKPOINTS_BUCKET) under the
-//! cell's key — the run, the last frame and its stream sequence, whether the run is done, and
-//! the stages' state ([`Stages::checkpoint`](crate::service::Stages::checkpoint)) — written
+//! A cell's checkpoint in the fleet's store: the record in
+//! [`CHECKPOINTS_BUCKET`](super::CHECKPOINTS_BUCKET) under the cell's key — the run, the last
+//! frame and its stream sequence, whether the run is done, and the stages' state ([`Stages::checkpoint`](crate::service::Stages::checkpoint)) — written
 //! only over the revision this worker wrote (compare and set).
 //!
 //! **A state larger than a message.** The server refuses a message over its `max_payload` (1 MiB
