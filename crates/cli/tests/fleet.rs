@@ -625,6 +625,69 @@ fn a_damaged_replay_ends_its_cell() {
     assert_eq!(end["dropped"], 0);
 }
 
+/// A publisher killed mid-run (`kill -9`: no end frame) and started again on the same cell —
+/// a new run in the registry: the worker ends the old run where its frames stopped (a finding,
+/// the stages' last outputs, `end`) and processes the new run, whose events equal a
+/// one-process run's. Before, the worker kept the old run and refused every frame of the new
+/// one, for ever ("a frame of run … while the registry's run is …").
+#[test]
+fn a_publisher_started_again_starts_a_new_run() {
+    let Some(server) = nats_server(&[]) else {
+        return;
+    };
+    let url = server.url("");
+    let expected = reference(&SOURCE);
+    let _w = Proc::start(&["worker", "--nats", &url, "--name", "w"]);
+    let mut first = Proc::start(&[
+        "live",
+        "--nats",
+        &url,
+        "--cell",
+        "c11",
+        "--pace",
+        "1",
+        "--json",
+        "--scenario",
+        "shaft-steady",
+        "--duration",
+        "60",
+    ]);
+    wait_events(&url, "c11", 30, |e| {
+        e.iter().filter(|e| e["type"] == "estimate").count() >= 5
+    });
+    first.child.kill().expect("kill -9 the first publisher");
+    let _ = first.child.wait();
+    let mut args = vec!["live", "--nats", &url, "--cell", "c11", "--json"];
+    args.extend_from_slice(&SOURCE);
+    let again = Proc::start(&args).wait(60);
+    assert!(again.status.success(), "{}", again.stderr);
+    let published: Value = serde_json::from_str(again.stdout.trim()).expect("summary");
+    let got = wait_events(&url, "c11", 60, |e| {
+        e.iter().filter(|e| e["type"] == "end").count() == 2
+    });
+    let first_end = got.iter().position(|e| e["type"] == "end").expect("end");
+    let told = got[..first_end]
+        .iter()
+        .rev()
+        .find(|e| e["type"] == "finding");
+    assert!(
+        told.and_then(|e| e["message"].as_str())
+            .is_some_and(|m| m.contains("started run") && m.contains("ends here")),
+        "{told:?}"
+    );
+    assert!(got[first_end]["samples"].as_u64().expect("samples") > 0);
+    let second = &got[first_end + 1..];
+    assert!(
+        !got.iter().any(|e| e["type"] == "error"),
+        "no frame refused"
+    );
+    assert_eq!(
+        second.last().expect("events")["samples"],
+        published["samples"]
+    );
+    same_events(second, &expected);
+}
+
 fn chunk(t0: usize, n: usize) -> Recording {
     let mut r = Recording::new(Basis::Time);
     let t: Vec<f64> = (t0..t0 + n).map(|k| k as f64 * 1e-3).collect();

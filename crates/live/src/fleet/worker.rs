@@ -414,6 +414,35 @@ async fn process_cell(
                     stats.refused.fetch_add(1, Ordering::Relaxed);
                 }
                 Outcome::OldRun => {}
+                Outcome::NewerRun(run) if registered_run(&fleet, &cell).await == Some(run) => {
+                    // The publisher started a new run without ending this one (it was killed,
+                    // its machine restarted): this run ends here, and the cell's next take
+                    // processes the new one. Refusing its frames would refuse them for ever.
+                    st.send(&Event::finding(
+                        f64::NAN,
+                        format!(
+                            "the cell's publisher started run {run} without ending run {}: run \
+                             {} ends here, after frame {seq}; run {run} is processed next",
+                            info.run, info.run
+                        ),
+                    ))?;
+                    done = true;
+                    if let Some(st) = stages.take() {
+                        st.finish()?;
+                    }
+                }
+                Outcome::NewerRun(run) => {
+                    stats.refused.fetch_add(1, Ordering::Relaxed);
+                    st.refuse(
+                        Input::Frames,
+                        stream_seq as usize,
+                        format!(
+                            "frame at stream sequence {stream_seq}: a frame of run {run} while \
+                             the registry's run is {}",
+                            info.run
+                        ),
+                    )?;
+                }
                 Outcome::End => {
                     stats.frames.fetch_add(1, Ordering::Relaxed);
                     done = true;
@@ -500,6 +529,12 @@ async fn tell_unusable_checkpoint(fleet: &Fleet, info: &CellInfo, cfg: &WorkerCo
     }
 }
 
+/// The run the registry has for `cell` now (`None`: no entry, or not one that reads).
+async fn registered_run(fleet: &Fleet, cell: &str) -> Option<u64> {
+    let v = fleet.cells.get(cell).await.ok()??;
+    serde_json::from_slice::<CellInfo>(&v).ok().map(|i| i.run)
+}
+
 /// An ordered consumer of `cell`'s frames from stream sequence `start` on.
 async fn open_frames(
     fleet: &Fleet,
@@ -529,6 +564,9 @@ enum Outcome {
     Refused,
     /// A frame of an earlier run of the cell (before its current run started): passed over.
     OldRun,
+    /// A frame of a later run than the one being processed: the publisher started it (when
+    /// the registry says so), else refused.
+    NewerRun(u64),
     End,
 }
 
@@ -565,13 +603,7 @@ fn take_frame(
         return Ok(Outcome::OldRun);
     }
     if frame.run > info.run {
-        return refuse(
-            stages,
-            format!(
-                "a frame of run {} while the registry's run is {}",
-                frame.run, info.run
-            ),
-        );
+        return Ok(Outcome::NewerRun(frame.run));
     }
     if frame.seq <= *seq {
         return refuse(
