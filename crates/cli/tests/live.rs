@@ -228,6 +228,17 @@ fn events_from_stdin_bytes(args: &[&str], input: &[u8]) -> Vec<Value> {
         .collect()
 }
 
+/// `physid live` on frames from stdin, as fast as they come.
+const FRAMES_ON_STDIN: [&str; 7] = [
+    "live",
+    "--headless",
+    "--json",
+    "--frames",
+    "-",
+    "--pace",
+    "max",
+];
+
 /// The frames of 1000 samples (the last shorter) of a recording's frame channels, as JSON
 /// lines, and its samples.
 fn frames_of(file: &std::path::Path) -> (Vec<String>, usize) {
@@ -264,18 +275,7 @@ fn a_gap_in_the_frames_is_resumed_after_by_the_cycle_stages() {
     let (frames, _) = frames_of(&file);
     let run = |lines: &[&String]| {
         let input: String = lines.iter().map(|f| format!("{f}\n")).collect();
-        events_from_stdin(
-            &[
-                "live",
-                "--headless",
-                "--json",
-                "--frames",
-                "-",
-                "--pace",
-                "max",
-            ],
-            &input,
-        )
+        events_from_stdin(&FRAMES_ON_STDIN, &input)
     };
     let whole = run(&frames.iter().collect::<Vec<_>>());
     let gappy = run(&frames
@@ -346,18 +346,7 @@ fn frames_from_stdin_survive_bad_frames() {
             input.push('\n');
         }
     }
-    let ev = events_from_stdin(
-        &[
-            "live",
-            "--headless",
-            "--json",
-            "--frames",
-            "-",
-            "--pace",
-            "max",
-        ],
-        &input,
-    );
+    let ev = events_from_stdin(&FRAMES_ON_STDIN, &input);
     let errors = of_type(&ev, "error");
     assert_eq!(errors.len(), 3, "{errors:?}");
     assert_eq!(errors[0]["line"], 4);
@@ -384,18 +373,7 @@ fn frames_from_stdin_survive_bad_frames() {
         .filter(|(k, _)| *k != 4)
         .map(|(_, f)| format!("{f}\n"))
         .collect();
-    let ev = events_from_stdin(
-        &[
-            "live",
-            "--headless",
-            "--json",
-            "--frames",
-            "-",
-            "--pace",
-            "max",
-        ],
-        &gappy,
-    );
+    let ev = events_from_stdin(&FRAMES_ON_STDIN, &gappy);
     let findings = of_type(&ev, "finding");
     assert!(
         findings.iter().any(|f| f["message"]
