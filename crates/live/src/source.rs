@@ -137,6 +137,9 @@ pub struct ReplaySource {
     theta_tdc: f64,
     /// The step of the samples handed out, held to the first chunk's.
     steps: StepCheck,
+    /// The reading failed (a damaged file): the error, returned once the samples read before
+    /// it are handed out.
+    failed: Option<LiveError>,
 }
 
 impl ReplaySource {
@@ -260,6 +263,7 @@ impl ReplaySource {
             rate_hz,
             theta_tdc,
             steps: StepCheck::new(1.0 / rate_hz),
+            failed: None,
         })
     }
 
@@ -276,10 +280,15 @@ impl Source for ReplaySource {
     }
 
     fn next_chunk(&mut self) -> Result<Option<Recording>, LiveError> {
-        // Enough samples held for a chunk, or the end of the recording.
-        while self.held.len() - self.at < self.chunk {
-            let Some(next) = self.chunks.next().transpose()? else {
-                break;
+        // Enough samples held for a chunk, or the end of the recording (or of what reads).
+        while self.held.len() - self.at < self.chunk && self.failed.is_none() {
+            let next = match self.chunks.next().transpose() {
+                Ok(Some(next)) => next,
+                Ok(None) => break,
+                Err(e) => {
+                    self.failed = Some(e.into());
+                    break;
+                }
             };
             let mut joined = Recording::new(self.held.basis);
             for ch in self.held.channels() {
@@ -296,7 +305,7 @@ impl Source for ReplaySource {
         }
         let n = self.held.len();
         if self.at >= n {
-            return Ok(None);
+            return self.failed.take().map_or(Ok(None), Err);
         }
         let end = (self.at + self.chunk).min(n);
         let c = self.held.slice(self.at..end);
