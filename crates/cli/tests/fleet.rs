@@ -1072,6 +1072,19 @@ fn the_fleet_view_in_a_real_browser() {
             let docs = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/fleet-view.png");
             std::fs::write(docs, &png).expect("write");
         }
+        // The table is updated in place: the row under the operator's pointer is the same
+        // element two polls later (rebuilt each second, a click could land on a row gone).
+        browser
+            .js("(window.heldRow = document.querySelector(\"#cells tr[data-cell='cell-2'] a\"), window.heldPolls = window.physidFleet.polls, true)")
+            .await;
+        browser.wait("window.physidFleet.polls >= window.heldPolls + 2", 10).await;
+        assert_eq!(
+            browser
+                .js("window.heldRow.isConnected && window.heldRow === document.querySelector(\"#cells tr[data-cell='cell-2'] a\")")
+                .await,
+            json!(true),
+            "the fleet table's rows are replaced on every poll"
+        );
         // A click on cell-2 opens its live view, fed from NATS: its K alarm is there.
         c.find(fantoccini::Locator::Css("#cells tr[data-cell='cell-2'] a"))
             .await

@@ -22,24 +22,43 @@
       a ? `${a.param} ${(100 * a.change).toFixed(1)} % at ${a.t_s.toFixed(2)} s` : "–", String(c.errors),
     ];
   };
-  const render = (cells) => {
-    const body = document.querySelector("#cells tbody");
-    body.replaceChildren(...cells.map((c) => {
-      const tr = document.createElement("tr");
+  // Rows are kept and updated in place, keyed by cell: a row the operator is pointing at,
+  // selecting text in or clicking is never swapped under them by the next poll.
+  const rows = new Map();
+  const row = (c) => {
+    let tr = rows.get(c.cell);
+    if (!tr) {
+      tr = document.createElement("tr");
       tr.dataset.cell = c.cell;
-      tr.className = c.alarms > 0 ? "alarm" : "";
       const link = document.createElement("a");
       link.href = "?" + withToken(new URLSearchParams({ cell: c.cell }));
       link.textContent = c.cell;
       const first = document.createElement("td");
       first.append(link);
-      tr.append(first, ...cellText(c).map((t) => {
-        const td = document.createElement("td");
-        td.textContent = t;
-        return td;
-      }));
-      return tr;
-    }));
+      tr.append(first, ...cellText(c).map(() => document.createElement("td")));
+      rows.set(c.cell, tr);
+    }
+    tr.className = c.alarms > 0 ? "alarm" : "";
+    cellText(c).forEach((t, i) => {
+      const td = tr.cells[i + 1];
+      if (td.textContent !== t) td.textContent = t;
+    });
+    return tr;
+  };
+  const render = (cells) => {
+    const body = document.querySelector("#cells tbody");
+    const shown = cells.map(row);
+    const now = new Set(cells.map((c) => c.cell));
+    for (const [cell, tr] of rows) {
+      if (!now.has(cell)) {
+        tr.remove();
+        rows.delete(cell);
+      }
+    }
+    // A row is moved only when it is out of order.
+    shown.forEach((tr, i) => {
+      if (body.rows[i] !== tr) body.insertBefore(tr, body.rows[i] || null);
+    });
     $("n").textContent = cells.length;
     $("running").textContent = cells.filter((c) => c.state === "running").length;
     $("alarms").textContent = cells.reduce((n, c) => n + c.alarms, 0);
