@@ -310,6 +310,116 @@ fn a_gap_in_the_frames_is_resumed_after_by_the_cycle_stages() {
     assert!(of_type(&whole, "cycle").len() > got.len() + 7);
 }
 
+/// A DAQ whose software restarts mid-run — its `seq` back at 0, its clock at 0, its encoders'
+/// angles counted from where they stand in their cycle and turn — goes on after a gap: no
+/// frame is refused, the restart is told once, every cycle before it is the uninterrupted
+/// run's, JSON for JSON, each cycle after it has the uninterrupted run's statistics, and the
+/// shaft monitor goes on to the uninterrupted run's estimate. Before, every frame after the
+/// restart was refused ("t starts at 0 s, not after the previous frame's 1.9999 s").
+#[test]
+fn a_daq_that_starts_again_goes_on_after_a_gap() {
+    use std::f64::consts::{PI, TAU};
+    let s = Scratch::new("physid-live-frame-restart");
+    let file = s.file("run.csv");
+    common::simulated(&file, "shaft-steady", "4");
+    let (frames, n) = frames_of(&file);
+    let whole: String = frames.iter().map(|f| format!("{f}\n")).collect();
+    let whole = events_from_stdin(&FRAMES_ON_STDIN, &whole);
+    // The DAQ restarts at frame 20 (t = 2 s).
+    let first: Value = serde_json::from_str(&frames[20]).unwrap();
+    let at = |name: &str| first[name][0].as_f64().unwrap();
+    let (t0, en0, dy0) = (at("t"), at("theta_en"), at("theta_dy"));
+    let (en0, dy0) = (en0 - en0.rem_euclid(4.0 * PI), dy0 - dy0.rem_euclid(TAU));
+    let mut input = String::new();
+    for (k, f) in frames.iter().enumerate() {
+        let mut v: Value = serde_json::from_str(f).unwrap();
+        if k >= 20 {
+            v["seq"] = (k - 20).into();
+            for (name, by) in [("t", t0), ("theta_en", en0), ("theta_dy", dy0)] {
+                let sent: Vec<f64> = v[name]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_f64().unwrap() - by)
+                    .collect();
+                v[name] = sent.into();
+            }
+        }
+        input.push_str(&format!("{v}\n"));
+    }
+    let restarted = events_from_stdin(&FRAMES_ON_STDIN, &input);
+    assert!(
+        of_type(&restarted, "error").is_empty(),
+        "{:?}",
+        of_type(&restarted, "error")
+    );
+    let told: Vec<_> = of_type(&restarted, "finding")
+        .into_iter()
+        .filter(|f| says(f, "the sender started again (seq 0 after 19)"))
+        .collect();
+    assert_eq!(told.len(), 1, "{:?}", of_type(&restarted, "finding"));
+    let end = of_type(&restarted, "end")[0];
+    assert_eq!(
+        (end["samples"].as_u64(), end["dropped"].as_u64()),
+        (Some(n as u64), Some(0))
+    );
+    // The cycles: before the restart, the uninterrupted run's; the one it cuts left out;
+    // after it, the same statistics in the same order, numbered on.
+    let before = |c: &&Value| c["t_s"].as_f64().unwrap() < t0;
+    let (w_before, w_after): (Vec<&Value>, Vec<&Value>) =
+        of_type(&whole, "cycle").into_iter().partition(before);
+    let (r_before, r_after): (Vec<&Value>, Vec<&Value>) =
+        of_type(&restarted, "cycle").into_iter().partition(before);
+    assert_eq!(r_before, w_before);
+    let w_after: Vec<&Value> = w_after
+        .into_iter()
+        .filter(|c| c["t_start_s"].as_f64().unwrap() >= t0)
+        .collect();
+    assert!(
+        r_after.len() >= 10,
+        "{} cycles after the restart",
+        r_after.len()
+    );
+    assert_eq!(r_after.len(), w_after.len());
+    for (r, w) in r_after.iter().zip(&w_after) {
+        for key in ["mean", "max", "max_deg"] {
+            for (name, x) in w[key].as_object().unwrap() {
+                let (x, y) = (x.as_f64().unwrap(), r[key][name].as_f64().unwrap());
+                assert!(
+                    (x - y).abs() <= 1e-9 * x.abs().max(1.0),
+                    "{key}.{name}: {y} vs {x}"
+                );
+            }
+        }
+    }
+    for pair in r_after.windows(2) {
+        assert_eq!(
+            pair[1]["cycle"].as_i64().unwrap(),
+            pair[0]["cycle"].as_i64().unwrap() + 1
+        );
+    }
+    assert!(
+        r_after[0]["cycle"].as_i64().unwrap() > r_before.last().unwrap()["cycle"].as_i64().unwrap()
+    );
+    // The shaft monitor goes on: estimates after the restart, ending on the uninterrupted
+    // run's to 0.1 %.
+    let estimates = of_type(&restarted, "estimate");
+    assert!(estimates
+        .iter()
+        .any(|e| e["t_s"].as_f64().unwrap() > t0 + 1.0));
+    let (r, w) = (
+        estimates.last().unwrap(),
+        of_type(&whole, "estimate").last().copied().unwrap(),
+    );
+    for p in ["K", "B"] {
+        let (x, y) = (
+            w["params"][p].as_f64().unwrap(),
+            r["params"][p].as_f64().unwrap(),
+        );
+        assert!((y / x - 1.0).abs() < 1e-3, "{p}: {y} vs {x}");
+    }
+}
+
 /// Frames from outside on stdin: bad frames are refused one by one, named by line, and the
 /// run goes on — the good frames give `monitor shaft`'s very estimate; a missing frame is
 /// reported as a gap.

@@ -9,7 +9,7 @@
 //! ```
 //!
 //! * `seq` (optional): the frame's number, counting from 0; a gap is reported, a repeat or a
-//!   step back refuses the frame.
+//!   step back refuses the frame — except back to 0: the sender started again.
 //! * `t` [s]: uniformly spaced at the stream's sample rate (`--sample-rate`), continuing from
 //!   the previous frame; other keys are channels in SI units (DESIGN.md's names), each as long
 //!   as `t`. Keys the stages do not use are ignored.
@@ -18,15 +18,29 @@
 //! not a finite number, time not advancing by the sample step — is refused with a
 //! [`LiveError::BadFrame`] naming its line and what was wrong; the stream goes on with the next
 //! frame (the service counts it as dropped). A gap in time or `seq` is accepted and reported.
+//!
+//! A sender that starts again — `seq` back at 0, or, without `seq`, `t` back at or before the
+//! time its frames started at — is told with the next chunk and its frames go on after a gap
+//! in the data, their time and crank angles shifted to continue the stream ([`seam`]).
+
+mod seam;
+pub use seam::{Sample, Shift};
 
 use crate::service::LiveError;
 use crate::source::Source;
 use physid_core::{Basis, Channel, Recording};
 use serde_json::Value;
 use std::io::{BufRead, Read};
+use std::time::Instant;
 
 /// The channels a frame must carry (the shaft monitor's).
 pub const FRAME_CHANNELS: [&str; 6] = physid_apps::shaft_monitor::SHAFT_CHANNELS;
+
+/// Where the channels the seam shifts stand in [`FRAME_CHANNELS`].
+const T: usize = 0;
+const THETA_DY: usize = 1;
+const THETA_EN: usize = 2;
+const OMEGA_EN: usize = 4;
 
 /// Frames read line by line from `R`.
 pub struct FrameSource<R: BufRead> {
@@ -35,8 +49,13 @@ pub struct FrameSource<R: BufRead> {
     line: usize,
     buf: String,
     next_seq: Option<u64>,
-    last_t: Option<f64>,
-    /// A gap reported with the next chunk.
+    /// The last sample taken (shifted, as the stages took it), and when its frame was taken.
+    last: Option<(Sample, Instant)>,
+    /// The time the sender's frames started at, as sent (since it last started again).
+    started_t: f64,
+    /// What is added to the sender's time and angles since it last started again.
+    shift: Shift,
+    /// A gap or a restart reported with the next chunk.
     notice: Option<String>,
 }
 
@@ -55,7 +74,9 @@ impl<R: BufRead> FrameSource<R> {
             line: 0,
             buf: String::new(),
             next_seq: None,
-            last_t: None,
+            last: None,
+            started_t: 0.0,
+            shift: Shift::default(),
             notice: None,
         })
     }
@@ -85,18 +106,18 @@ impl<R: BufRead> FrameSource<R> {
                     .ok_or_else(|| self.bad(format!("seq {s}: expected a whole number ≥ 0")))?,
             ),
         };
-        let mut rec = Recording::new(Basis::Time);
-        let mut n = None;
+        // The channels in `FRAME_CHANNELS`' order, each as long as `t`.
+        let mut cols: Vec<Vec<f64>> = Vec::with_capacity(FRAME_CHANNELS.len());
         for name in FRAME_CHANNELS {
             let col = obj
                 .get(name)
                 .and_then(Value::as_array)
                 .ok_or_else(|| self.bad(format!("channel '{name}' missing or not an array")))?;
-            if *n.get_or_insert(col.len()) != col.len() {
+            if let Some(t) = cols.first().filter(|t| t.len() != col.len()) {
                 return Err(self.bad(format!(
                     "channel '{name}' has {} values, 't' has {}",
                     col.len(),
-                    n.unwrap_or(0)
+                    t.len()
                 )));
             }
             let mut values = Vec::with_capacity(col.len());
@@ -110,15 +131,31 @@ impl<R: BufRead> FrameSource<R> {
                     }
                 }
             }
-            rec.push(Channel {
-                name: name.into(),
-                unit: String::new(),
-                values,
-            })
-            .map_err(|e| self.bad(e.to_string()))?;
+            cols.push(values);
         }
+        let dt = 1.0 / self.rate_hz;
+        let tol = 1e-3 * dt;
+        let t = &cols[T];
+        if let Some(i) = t.windows(2).position(|w| (w[1] - w[0] - dt).abs() > tol) {
+            return Err(self.bad(format!(
+                "t[{}] − t[{i}] = {} s: expected the sample step {dt} s",
+                i + 1,
+                t[i + 1] - t[i]
+            )));
+        }
+        // The sender started again: `seq` back at 0, or, without `seq`, its time back at or
+        // before where its frames started.
+        let sent_t0 = t.first().copied();
+        let restart = match (&self.last, sent_t0, seq, self.next_seq) {
+            (Some(_), Some(_), Some(0), Some(want)) => Some(format!("seq 0 after {}", want - 1)),
+            (Some(_), Some(t0), None, _) if t0 <= self.started_t => Some(format!(
+                "t back at {t0} s, where its frames started at {} s",
+                self.started_t
+            )),
+            _ => None,
+        };
         let mut notice = None;
-        if let (Some(s), Some(want)) = (seq, self.next_seq) {
+        if let (None, Some(s), Some(want)) = (&restart, seq, self.next_seq) {
             if s < want {
                 return Err(self.bad(format!(
                     "seq {s} after {}: repeated or out of order",
@@ -134,24 +171,56 @@ impl<R: BufRead> FrameSource<R> {
                 ));
             }
         }
-        let t = rec.values("t")?;
-        let dt = 1.0 / self.rate_hz;
-        let tol = 1e-3 * dt;
-        if let Some(i) = t.windows(2).position(|w| (w[1] - w[0] - dt).abs() > tol) {
-            return Err(self.bad(format!(
-                "t[{}] − t[{i}] = {} s: expected the sample step {dt} s",
-                i + 1,
-                t[i + 1] - t[i]
-            )));
+        let shift = match (&restart, &self.last) {
+            (Some(_), Some((last, at))) => {
+                let first = Sample {
+                    t: cols[T][0],
+                    theta_en: cols[THETA_EN][0],
+                    theta_dy: cols[THETA_DY][0],
+                    omega_en: cols[OMEGA_EN][0],
+                };
+                self.shift
+                    .join(last, &first, at.elapsed().as_secs_f64(), dt)
+            }
+            _ => self.shift,
+        };
+        if !shift.is_none() {
+            for (k, by) in [
+                (T, shift.t),
+                (THETA_EN, shift.theta_en),
+                (THETA_DY, shift.theta_dy),
+            ] {
+                for v in &mut cols[k] {
+                    *v += by;
+                }
+            }
         }
-        if let (Some(last), Some(&first)) = (self.last_t, t.first()) {
-            let step = first - last;
+        if let (Some((last, _)), Some(&first)) = (&self.last, cols[T].first()) {
+            let step = first - last.t;
             if step < dt - tol {
+                let sent = if shift.t == 0.0 {
+                    String::new()
+                } else {
+                    format!(" ({} s as sent)", first - shift.t)
+                };
                 return Err(self.bad(format!(
-                    "t starts at {first} s, not after the previous frame's {last} s"
+                    "t starts at {first} s{sent}, not after the previous frame's {} s",
+                    last.t
                 )));
             }
-            if step > dt + tol {
+            if let Some(why) = &restart {
+                notice = Some(format!(
+                    "line {}: the sender started again ({why}): its frames go on {:.4} s \
+                     after its last sample — from here on the stream's t is the sender's {:+.6} s, \
+                     'theta_en' the sender's shifted by {} cycles (4π rad) and 'theta_dy' by \
+                     {} turns (2π rad); the cycle the gap cuts is left out",
+                    self.line,
+                    step,
+                    shift.t,
+                    (shift.theta_en / (4.0 * std::f64::consts::PI)).round(),
+                    (shift.theta_dy / std::f64::consts::TAU).round(),
+                ));
+            } else if step > dt + tol {
                 notice = Some(format!(
                     "line {}: a gap of {:.0} samples in time before t = {first} s",
                     self.line,
@@ -159,12 +228,34 @@ impl<R: BufRead> FrameSource<R> {
                 ));
             }
         }
+        let mut rec = Recording::new(Basis::Time);
+        for (name, values) in FRAME_CHANNELS.into_iter().zip(cols) {
+            rec.push(Channel {
+                name: name.into(),
+                unit: String::new(),
+                values,
+            })
+            .map_err(|e| self.bad(e.to_string()))?;
+        }
         // Taken: the stream's state moves on.
         if let Some(s) = seq {
             self.next_seq = Some(s + 1);
         }
-        if let Some(&l) = t.last() {
-            self.last_t = Some(l);
+        if let Some(t0) = sent_t0.filter(|_| self.last.is_none() || restart.is_some()) {
+            self.started_t = t0;
+        }
+        self.shift = shift;
+        let col = |name| rec.values(name).ok().and_then(|v| v.last().copied());
+        if let (Some(t), Some(theta_en), Some(theta_dy), Some(omega_en)) =
+            (col("t"), col("theta_en"), col("theta_dy"), col("omega_en"))
+        {
+            let last = Sample {
+                t,
+                theta_en,
+                theta_dy,
+                omega_en,
+            };
+            self.last = Some((last, Instant::now()));
         }
         self.notice = notice;
         Ok(rec)
@@ -372,6 +463,140 @@ mod tests {
             obj.insert(name.into(), t.clone().into());
         }
         Value::Object(obj).to_string()
+    }
+
+    /// The channels the seam shifts are where [`T`], [`THETA_EN`], … say.
+    #[test]
+    fn the_shifted_channels_are_named() {
+        assert_eq!(
+            [T, THETA_DY, THETA_EN, OMEGA_EN].map(|k| FRAME_CHANNELS[k]),
+            ["t", "theta_dy", "theta_en", "omega_en"]
+        );
+    }
+
+    /// A crank at 1000 rpm, 10 kHz, frames of 100 samples; the shaft twisted by 0.02 rad.
+    fn crank_frame(k: usize, seq: Option<usize>, restarted_at: Option<usize>) -> String {
+        use std::f64::consts::{PI, TAU};
+        let w = 1000.0 * TAU / 60.0;
+        let mut obj = serde_json::Map::new();
+        if let Some(s) = seq {
+            obj.insert("seq".into(), s.into());
+        }
+        let n = k * 100..(k + 1) * 100;
+        // A DAQ started again at frame `r` counts its time from 0 and its absolute encoders'
+        // angles from where they stood: the engine's within the cycle, the dynamometer's within
+        // its turn.
+        let t0 = restarted_at.map_or(0.0, |r| r as f64 * 100.0 * 1e-4);
+        let from = |x0: f64, unit: f64| x0 - x0.rem_euclid(unit);
+        let (en0, dy0) = (w * t0 + 0.3, w * t0 + 0.28);
+        let (en0, dy0) = match restarted_at {
+            Some(_) => (from(en0, 4.0 * PI), from(dy0, TAU)),
+            None => (0.0, 0.0),
+        };
+        let t: Vec<f64> = n.clone().map(|i| i as f64 * 1e-4 - t0).collect();
+        let en: Vec<f64> = n.clone().map(|i| w * i as f64 * 1e-4 + 0.3 - en0).collect();
+        let dy: Vec<f64> = n
+            .clone()
+            .map(|i| w * i as f64 * 1e-4 + 0.28 - dy0)
+            .collect();
+        for (name, v) in [("t", t), ("theta_en", en), ("theta_dy", dy)] {
+            obj.insert(name.into(), v.into());
+        }
+        for name in ["omega_en", "omega_dy"] {
+            obj.insert(name.into(), vec![w; 100].into());
+        }
+        obj.insert("torque_shaft".into(), vec![25.0; 100].into());
+        Value::Object(obj).to_string()
+    }
+
+    /// A DAQ that starts again (its `seq` back at 0, its clock at 0, its angles within their
+    /// cycle and turn) goes on after a gap: its frames are taken, the restart told once, the
+    /// time goes on after the last sample, the crank angle keeps its place in the cycle and
+    /// advances at the crank's speed, the twist is the same; a frame repeated after the restart
+    /// is still refused. Without `seq`, its time back at its start is a restart, and a time
+    /// back within what was taken is refused.
+    #[test]
+    fn a_sender_that_starts_again_goes_on_after_a_gap() {
+        use std::f64::consts::PI;
+        for with_seq in [true, false] {
+            let mut lines = Vec::new();
+            for k in 0..10 {
+                lines.push(crank_frame(k, with_seq.then_some(k), None));
+            }
+            for k in 10..20 {
+                lines.push(crank_frame(k, with_seq.then_some(k - 10), Some(10)));
+            }
+            lines.push(crank_frame(13, with_seq.then_some(3), Some(10)));
+            let input = lines.join("\n") + "\n";
+            let mut src = FrameSource::new(std::io::Cursor::new(input), 10_000.0).unwrap();
+            let mut taken: Vec<Recording> = Vec::new();
+            let mut notices = Vec::new();
+            for k in 0..20 {
+                taken.push(src.next_chunk().unwrap().unwrap());
+                notices.extend(src.take_notice().map(|n| (k, n)));
+            }
+            assert_eq!(notices.len(), 1, "{notices:?}");
+            assert_eq!(notices[0].0, 10);
+            let why = if with_seq {
+                "seq 0 after 9"
+            } else {
+                "t back at 0 s"
+            };
+            assert!(
+                notices[0]
+                    .1
+                    .contains(&format!("the sender started again ({why}")),
+                "{}",
+                notices[0].1
+            );
+            match src.next_chunk() {
+                Err(LiveError::BadFrame { line: 21, what }) => assert!(
+                    what.contains(if with_seq {
+                        "repeated or out of order"
+                    } else {
+                        "not after the previous"
+                    }),
+                    "{what}"
+                ),
+                other => panic!("{:?}", other.map(|r| r.map(|r| r.len()))),
+            }
+            let col = |name| {
+                taken
+                    .iter()
+                    .flat_map(|r| r.values(name).unwrap().to_vec())
+                    .collect::<Vec<f64>>()
+            };
+            let (t, en, dy) = (col("t"), col("theta_en"), col("theta_dy"));
+            let seam = 1000;
+            for i in 1..t.len() {
+                let step = t[i] - t[i - 1];
+                if i == seam {
+                    let speed = (en[i] - en[i - 1]) / step;
+                    assert!(
+                        (speed / (1000.0 * std::f64::consts::TAU / 60.0) - 1.0).abs() < 0.5,
+                        "{speed}"
+                    );
+                    assert!(en[i] - en[i - 1] > 4.0 * PI);
+                } else {
+                    assert!((step - 1e-4).abs() < 1e-9, "{i}: {step}");
+                    assert!(
+                        (en[i] - en[i - 1] - 1000.0 * std::f64::consts::TAU / 60.0 * 1e-4).abs()
+                            < 1e-9,
+                        "{i}"
+                    );
+                }
+                // The crank angle's place in the cycle and the twist are the sender's.
+                let place = |x: f64| (x - 0.3).rem_euclid(4.0 * PI);
+                let want = place(1000.0 * std::f64::consts::TAU / 60.0 * i as f64 * 1e-4 + 0.3);
+                let d = (place(en[i]) - want).abs();
+                assert!(d.min(4.0 * PI - d) < 1e-9, "{i}: {} {}", en[i], want);
+                assert!(
+                    (dy[i] - en[i] + 0.02).abs() < 1e-9,
+                    "{i}: twist {}",
+                    dy[i] - en[i]
+                );
+            }
+        }
     }
 
     /// A line that is not UTF-8, and one longer than [`MAX_FRAME_BYTES`], are refused by line;
