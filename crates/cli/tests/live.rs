@@ -718,16 +718,48 @@ fn friction_on_the_stream_ends_on_the_file_verbs_fit() {
     }
 }
 
+/// `physid live --headless --json --pace max --frames-socket SOCK EXTRA…`, its stdout and
+/// stderr piped.
+#[cfg(unix)]
+fn live_on_socket(sock: &std::path::Path, extra: &[&str]) -> std::process::Child {
+    use std::process::{Command, Stdio};
+    Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args(["live", "--headless", "--json", "--pace", "max"])
+        .args(extra)
+        .arg("--frames-socket")
+        .arg(sock)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// The events a run prints to its end, which must be a success.
+fn events_at_end(mut child: std::process::Child) -> Vec<Value> {
+    use std::io::Read;
+    let mut out = String::new();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    out.lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
 /// Frames over a local socket: physid listens on a Unix socket only its user can open, a
 /// client's frames give `monitor shaft`'s very estimate, the run ends when the client closes,
 /// the socket is removed; a path in use is refused.
 #[cfg(unix)]
 #[test]
 fn frames_over_a_local_socket() {
-    use std::io::{Read, Write};
+    use std::io::Write;
     use std::os::unix::fs::{FileTypeExt, PermissionsExt};
     use std::os::unix::net::UnixStream;
-    use std::process::{Command, Stdio};
     use std::time::{Duration, Instant};
     let s = Scratch::new("physid-live-socket");
     let file = s.file("t01.parquet");
@@ -746,20 +778,7 @@ fn frames_over_a_local_socket() {
     let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
     let rec = physid_io::read(&file, &Default::default()).unwrap();
     let sock = s.file("daq.sock");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
-        .args([
-            "live",
-            "--headless",
-            "--json",
-            "--pace",
-            "max",
-            "--frames-socket",
-        ])
-        .arg(&sock)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = live_on_socket(&sock, &[]);
     let deadline = Instant::now() + Duration::from_secs(20);
     while !sock.exists() {
         assert!(Instant::now() < deadline, "the socket never appeared");
@@ -794,24 +813,100 @@ fn frames_over_a_local_socket() {
         }
     }
     client.shutdown(std::net::Shutdown::Write).unwrap();
-    let mut out = String::new();
-    child
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut out)
-        .unwrap();
-    let status = child.wait().unwrap();
-    assert!(status.success());
-    let ev: Vec<Value> = out
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let ev = events_at_end(child);
     let end = of_type(&ev, "end")[0];
     assert_eq!(
         (end["samples"].as_u64(), end["dropped"].as_u64()),
         (Some(n as u64), Some(1))
     );
+    let last = of_type(&ev, "estimate").last().copied().unwrap().clone();
+    for p in ["K", "B"] {
+        assert_eq!(last["params"][p], verb["final"][p], "{p}");
+    }
+    assert!(!sock.exists(), "the socket is removed at the end");
+}
+
+/// A DAQ that connects again: with `--frames-reconnect`, a client that closes in the middle of
+/// a frame is followed by the next client — the unfinished frame refused alone, the next
+/// client's frames taken from its first line, its connection told as a finding, each close
+/// told on stderr — and SIGTERM while waiting for a client ends the run as its end does (exit
+/// 0, `end`, the socket removed): the estimate is `monitor shaft`'s on the file, exactly.
+/// Before, the run ended when the first client closed.
+#[cfg(unix)]
+#[test]
+fn a_daq_that_connects_again_goes_on() {
+    use std::io::{BufRead, BufReader, Write};
+    use std::os::unix::net::UnixStream;
+    use std::process::Command;
+    use std::time::{Duration, Instant};
+    let s = Scratch::new("physid-live-reconnect");
+    let file = s.file("t01.parquet");
+    let f = file.to_str().unwrap();
+    common::simulated(&file, "shaft-steady", "2");
+    let o = physid(&["monitor", "shaft", "--data", f, "--json"]);
+    let verb: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (frames, n) = frames_of(&file);
+    let sock = s.file("daq.sock");
+    let mut child = live_on_socket(&sock, &["--frames-reconnect"]);
+    // stderr's lines, as they come.
+    let (tx, rx) = std::sync::mpsc::channel::<String>();
+    let stderr = BufReader::new(child.stderr.take().unwrap());
+    std::thread::spawn(move || {
+        for line in stderr.lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let mut told = Vec::new();
+    let mut wait_for = |what: &str| loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(line) => {
+                let found = line.contains(what);
+                told.push(line);
+                if found {
+                    return;
+                }
+            }
+            Err(e) => panic!("{e}: no '{what}' on stderr: {told:?}"),
+        }
+    };
+    wait_for("waiting for frames on");
+    let half = frames.len() / 2;
+    let mut a = UnixStream::connect(&sock).unwrap();
+    for f in &frames[..half] {
+        writeln!(a, "{f}").unwrap();
+    }
+    // The DAQ dies in the middle of a frame.
+    a.write_all(&frames[half].as_bytes()[..frames[half].len() / 2])
+        .unwrap();
+    drop(a);
+    wait_for(
+        "(the 1st) closed its connection in the middle of a line (refused): waiting for the next",
+    );
+    // It starts again and sends from the frame it was sending.
+    let mut b = UnixStream::connect(&sock).unwrap();
+    for f in &frames[half..] {
+        writeln!(b, "{f}").unwrap();
+    }
+    drop(b);
+    wait_for("(the 2nd) closed its connection: waiting for the next");
+    let _ = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status();
+    let ev = events_at_end(child);
+    let end = of_type(&ev, "end")[0];
+    assert_eq!(
+        (end["samples"].as_u64(), end["dropped"].as_u64()),
+        (Some(n as u64), Some(1))
+    );
+    let errors = of_type(&ev, "error");
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    let connected: Vec<_> = of_type(&ev, "finding")
+        .into_iter()
+        .filter(|e| says(e, "the 2nd client connected on"))
+        .collect();
+    assert_eq!(connected.len(), 1, "{ev:?}");
     let last = of_type(&ev, "estimate").last().copied().unwrap().clone();
     for p in ["K", "B"] {
         assert_eq!(last["params"][p], verb["final"][p], "{p}");

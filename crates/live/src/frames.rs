@@ -24,7 +24,11 @@
 //! in the data, their time and crank angles shifted to continue the stream ([`seam`]).
 
 mod seam;
+#[cfg(unix)]
+mod socket;
 pub use seam::{Sample, Shift};
+#[cfg(unix)]
+pub use socket::SocketFrames;
 
 use crate::service::LiveError;
 use crate::source::Source;
@@ -42,8 +46,20 @@ const THETA_DY: usize = 1;
 const THETA_EN: usize = 2;
 const OMEGA_EN: usize = 4;
 
+/// Where frame lines come from: a reader of lines that may have something to tell of its
+/// connection (a client that connected again, [`SocketFrames`]).
+pub trait FrameLines: BufRead {
+    /// What happened to the connection since last asked, once.
+    fn notice(&mut self) -> Option<String> {
+        None
+    }
+}
+
+impl FrameLines for Box<dyn BufRead + Send> {}
+impl<T: AsRef<[u8]>> FrameLines for std::io::Cursor<T> {}
+
 /// Frames read line by line from `R`.
-pub struct FrameSource<R: BufRead> {
+pub struct FrameSource<R: FrameLines> {
     reader: R,
     rate_hz: f64,
     line: usize,
@@ -59,7 +75,7 @@ pub struct FrameSource<R: BufRead> {
     notice: Option<String>,
 }
 
-impl<R: BufRead> FrameSource<R> {
+impl<R: FrameLines> FrameSource<R> {
     /// Frames at `rate_hz` [Hz] from `reader`.
     pub fn new(reader: R, rate_hz: f64) -> Result<Self, LiveError> {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
@@ -262,7 +278,7 @@ impl<R: BufRead> FrameSource<R> {
     }
 }
 
-impl<R: BufRead> Source for FrameSource<R> {
+impl<R: FrameLines> Source for FrameSource<R> {
     fn rate_hz(&self) -> f64 {
         self.rate_hz
     }
@@ -321,135 +337,16 @@ impl<R: BufRead> Source for FrameSource<R> {
     }
 
     fn notice(&mut self) -> Option<String> {
-        self.take_notice()
+        match (self.reader.notice(), self.take_notice()) {
+            (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+            (a, b) => a.or(b),
+        }
     }
 }
 
 /// The longest frame line taken [bytes]: a longer one is refused (and skipped to its end), so
 /// that a client cannot make the service hold an endless line.
 pub const MAX_FRAME_BYTES: usize = 64 << 20;
-
-/// Frames over a local socket: `physid live --frames-socket PATH` listens on a Unix socket at
-/// `PATH` (created with mode 0600 — only its owner can connect — and removed when dropped; a
-/// socket left by a killed run, on which nobody answers, is replaced; any other file is not),
-/// takes the first client that sends something and reads its frames as lines, like stdin: the
-/// run ends when that client closes its connection.
-#[cfg(unix)]
-pub struct SocketFrames {
-    path: std::path::PathBuf,
-    listener: std::os::unix::net::UnixListener,
-    stream: Option<std::io::BufReader<std::os::unix::net::UnixStream>>,
-    /// Whether the client has sent anything (one that closes without a byte — a probe — is
-    /// not the client: the next one is accepted).
-    heard: bool,
-}
-
-/// A Unix socket listening at `path` that is never open to others, not even for an instant:
-/// bound in a directory of its own (mode 0700) beside `path`, given mode 0600 there, then
-/// linked to `path` (which fails if `path` has come meanwhile) — binding at `path` and then
-/// changing its mode left it, between the two, as the umask made it (a group-writable socket
-/// under umask 002).
-#[cfg(unix)]
-fn bind_private(path: &std::path::Path) -> std::io::Result<std::os::unix::net::UnixListener> {
-    use std::os::unix::fs::{DirBuilderExt, PermissionsExt};
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => std::path::Path::new("."),
-    };
-    let dir = parent.join(format!(".physid-{}", std::process::id()));
-    std::fs::DirBuilder::new().mode(0o700).create(&dir)?;
-    let tmp = dir.join("s");
-    let bound = std::os::unix::net::UnixListener::bind(&tmp).and_then(|l| {
-        std::fs::set_permissions(&tmp, std::fs::Permissions::from_mode(0o600))?;
-        std::fs::hard_link(&tmp, path)?;
-        Ok(l)
-    });
-    let _ = std::fs::remove_file(&tmp);
-    let _ = std::fs::remove_dir(&dir);
-    bound
-}
-
-#[cfg(unix)]
-impl SocketFrames {
-    /// Listen at `path` (which must not exist).
-    pub fn bind(path: &std::path::Path) -> Result<Self, LiveError> {
-        // A socket left by a run that was killed: nobody answers on it, so it is replaced.
-        if std::os::unix::net::UnixStream::connect(path)
-            .is_err_and(|e| e.kind() == std::io::ErrorKind::ConnectionRefused)
-        {
-            use std::os::unix::fs::FileTypeExt;
-            if std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_socket()) {
-                let _ = std::fs::remove_file(path);
-            }
-        }
-        if path.exists() {
-            return Err(LiveError::Invalid(format!(
-                "{}: already exists; remove it or choose another path for the socket",
-                path.display()
-            )));
-        }
-        let listener = bind_private(path)
-            .map_err(|e| LiveError::Invalid(format!("{}: {e}", path.display())))?;
-        Ok(Self {
-            path: path.to_path_buf(),
-            listener,
-            stream: None,
-            heard: false,
-        })
-    }
-
-    /// The client's stream with data buffered (or at its end), accepted on first use.
-    fn stream(
-        &mut self,
-    ) -> std::io::Result<&mut std::io::BufReader<std::os::unix::net::UnixStream>> {
-        loop {
-            if self.stream.is_none() {
-                let (s, _) = self.listener.accept()?;
-                self.stream = Some(std::io::BufReader::new(s));
-            }
-            let Some(s) = self.stream.as_mut() else {
-                continue;
-            };
-            let empty = s.fill_buf()?.is_empty();
-            if empty && !self.heard {
-                self.stream = None;
-                continue;
-            }
-            self.heard = true;
-            return self
-                .stream
-                .as_mut()
-                .ok_or_else(|| std::io::Error::other("no client"));
-        }
-    }
-}
-
-#[cfg(unix)]
-impl std::io::Read for SocketFrames {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        self.stream()?.read(buf)
-    }
-}
-
-#[cfg(unix)]
-impl BufRead for SocketFrames {
-    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
-        self.stream()?.fill_buf()
-    }
-
-    fn consume(&mut self, amt: usize) {
-        if let Some(s) = self.stream.as_mut() {
-            s.consume(amt);
-        }
-    }
-}
-
-#[cfg(unix)]
-impl Drop for SocketFrames {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.path);
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -86,6 +86,10 @@ pub struct Args {
     /// client that sends any, until it closes its connection.
     #[arg(long, value_name = "PATH", conflicts_with_all = ["scenario", "faults", "duration", "replay", "frames"])]
     frames_socket: Option<PathBuf>,
+    /// With --frames-socket: when the client closes its connection, wait for the next (a DAQ
+    /// started again goes on after a gap) rather than end; the run ends at SIGINT or SIGTERM.
+    #[arg(long, requires = "frames_socket")]
+    frames_reconnect: bool,
     /// Control messages, one JSON object per line, from a file or `-` for stdin: for the
     /// virtual cell {"cmd": "speed", "rpm": 1200}, {"cmd": "throttle", "deg": 30},
     /// {"cmd": "fault", "spec": "shaft.k=1000@12"}, {"cmd": "stop"}; for any source
@@ -170,14 +174,14 @@ pub fn run(a: &Args) -> Result<()> {
         ..LiveConfig::default()
     };
     a.stages.apply(&mut cfg)?;
-    let (mut source, what, theta_tdc) = source(a)?;
+    // SIGINT and SIGTERM end the run as a stop control does: the stages finish, a log being
+    // written is closed (a source waiting for a client ends as at its end).
+    let stop = super::stop_on_signal()?;
+    let (mut source, what, theta_tdc) = source(a, &stop)?;
     cfg.theta_tdc = theta_tdc;
     if let (Some(url), Some(cell)) = (&a.nats, &a.cell) {
-        return publish(a, url, cell, source.as_mut(), what, theta_tdc);
+        return publish(a, url, cell, source.as_mut(), what, theta_tdc, stop);
     }
-    // SIGINT and SIGTERM end the run as a stop control does: the stages finish, a log being
-    // written is closed.
-    let stop = super::stop_on_signal()?;
     give_up_after_signal(stop.clone());
     cfg.stop = Some(stop.clone());
     if a.headless {
@@ -303,6 +307,7 @@ fn publish(
     source: &mut dyn Source,
     what: String,
     theta_tdc: f64,
+    stop: Arc<AtomicBool>,
 ) -> Result<()> {
     let target = NatsTarget::new(url, a.nats_credentials.as_deref()).map_err(|e| miette!("{e}"))?;
     let cfg = PublishConfig {
@@ -313,7 +318,6 @@ fn publish(
         give_up: std::time::Duration::from_secs(60),
         frame_s: a.frame,
     };
-    let stop = super::stop_on_signal()?;
     eprintln!("physid live: cell {cell} publishing to {}", target.address);
     let s = physid_live::fleet::publish::publish(source, &target, &cfg, stop)
         .map_err(|e| miette!("{e}"))?;
@@ -334,7 +338,7 @@ fn publish(
 
 /// The source `a` asks for, a line saying what it is, and the angle of a firing TDC on its
 /// `theta_en` (a replay's first TDC marker, as the file verbs take it; else 0).
-fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
+fn source(a: &Args, stop: &Arc<AtomicBool>) -> Result<(Box<dyn Source>, String, f64)> {
     if let (Some(flag), None) = (a.angle.crank_angle_flag(), &a.replay) {
         return Err(miette!(
             "{flag} is for the engine angle of a --replay file (the virtual cell and frames give their own)"
@@ -347,8 +351,12 @@ fn source(a: &Args) -> Result<(Box<dyn Source>, String, f64)> {
         .is_some_and(|f| f != "--phase-from");
     #[cfg(unix)]
     if let Some(path) = &a.frames_socket {
-        let socket =
-            physid_live::SocketFrames::bind(path).map_err(|e| miette!("--frames-socket {e}"))?;
+        let mut socket = physid_live::SocketFrames::bind(path)
+            .map_err(|e| miette!("--frames-socket {e}"))?
+            .until(stop.clone());
+        if a.frames_reconnect {
+            socket = socket.reconnecting(|what| note!("physid live: {what}"));
+        }
         eprintln!("physid live: waiting for frames on {}", path.display());
         return Ok((
             Box::new(FrameSource::new(socket, a.sample_rate).map_err(|e| miette!("{e}"))?),
