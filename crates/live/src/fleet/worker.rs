@@ -131,7 +131,7 @@ async fn supervise(
                 if let Ok(Err(e)) = o.task.await {
                     eprintln!("physid worker {}: cell {cell}: {e}", cfg.name);
                 }
-                let _ = fleet.leases.delete(&cell).await;
+                free_lease(&fleet, &cell, o.revision).await;
             }
         }
         // Renew the leases (a third of their life); one not renewed is lost: stop its task.
@@ -280,9 +280,20 @@ async fn supervise(
         if let Ok(Err(e)) = o.task.await {
             eprintln!("physid worker {}: cell {cell}: {e}", cfg.name);
         }
-        let _ = fleet.leases.delete(&cell).await;
+        free_lease(&fleet, &cell, o.revision).await;
     }
     Ok(())
+}
+
+/// Free this worker's lease on `cell` if it still holds it — the lease it last wrote, at
+/// `revision`. A lease lost meanwhile (it expired while this worker stalled, and another worker
+/// took the cell) is the other's: deleting it, as before, let a third worker take the cell
+/// while the other still worked on it — the cell's events twice.
+async fn free_lease(fleet: &Fleet, cell: &str, revision: u64) {
+    let _ = fleet
+        .leases
+        .delete_expect_revision(cell, Some(revision))
+        .await;
 }
 
 /// The registry: every entry, read and checked (an entry that is not a valid cell's: the
@@ -649,4 +660,46 @@ fn take_frame(
         return Ok(Outcome::End);
     }
     Ok(Outcome::Taken)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::fleet::local::{nats_server_bin, LocalServer};
+
+    /// A worker frees its own lease, and not one it has lost to another worker: the other's
+    /// stays. On a real nats-server started here.
+    #[test]
+    fn a_worker_frees_only_the_lease_it_holds() {
+        if nats_server_bin().is_none() {
+            eprintln!("skipped: nats-server is not installed (apt-get install nats-server)");
+            return;
+        }
+        let server = LocalServer::start(&[]).unwrap();
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            let client = async_nats::connect(server.url("")).await.unwrap();
+            let fleet = Fleet::open(client).await.unwrap();
+            let held = fleet.leases.create("c1", "a".into()).await.unwrap();
+            // Lost: expired (here deleted) and taken by worker b.
+            fleet.leases.delete("c1").await.unwrap();
+            fleet.leases.create("c1", "b".into()).await.unwrap();
+            free_lease(&fleet, "c1", held).await;
+            let holder = fleet.leases.get("c1").await.unwrap();
+            assert_eq!(
+                holder.as_deref(),
+                Some(&b"b"[..]),
+                "b's lease was freed by a"
+            );
+            // Renewed and held: freed.
+            let r = fleet.leases.create("c2", "a".into()).await.unwrap();
+            let r = fleet.leases.update("c2", "a".into(), r).await.unwrap();
+            free_lease(&fleet, "c2", r).await;
+            assert!(fleet.leases.get("c2").await.unwrap().is_none());
+        });
+    }
 }
