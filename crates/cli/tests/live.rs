@@ -1609,15 +1609,20 @@ fn set_cells(file: &std::path::Path, column: &str, samples: std::ops::Range<usiz
     std::fs::write(file, lines.join("\n") + "\n").unwrap();
 }
 
-/// A NaN in a replayed file (a sensor's dropout) stops the stages that read the channel, each
-/// with a finding naming the sample; the run goes on to the file's end — it used to end the
-/// whole run ("channel 0 is NaN at sample 5000").
+/// A NaN in a replayed file (a sensor's dropout): the shaft monitor holds it at the signal's
+/// last value, tells it and goes on — its estimates go on past it and end on `monitor shaft`'s
+/// on the clean file (before, it stopped for the rest of the run: "shaft: sample 5000: a shaft
+/// signal is not finite"); the cycle statistics stop with a finding naming the sample; the run
+/// goes on to the file's end — it used to end the whole run ("channel 0 is NaN at sample
+/// 5000").
 #[test]
 fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
     let s = Scratch::new("physid-live-nan");
     let file = s.file("run.csv");
     let f = file.to_str().unwrap();
     common::simulated(&file, "shaft-steady", "3");
+    let o = physid(&["monitor", "shaft", "--data", f, "--json"]);
+    let clean: Value = serde_json::from_slice(&o.stdout).unwrap();
     set_cells(&file, "omega_en", 5000..5001, "nan");
     let ev = events_from_stdin(
         &[
@@ -1633,11 +1638,22 @@ fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
     );
     let findings = of_type(&ev, "finding");
     assert!(
-        findings
-            .iter()
-            .any(|e| says(e, "shaft: sample 5000: a shaft signal is not finite")),
+        findings.iter().any(|e| says(
+            e,
+            "shaft: 'omega_en' is not a number from sample 5000: held at its last value"
+        )),
         "{findings:?}"
     );
+    let estimates = of_type(&ev, "estimate");
+    let last = estimates.last().unwrap();
+    assert!(last["t_s"].as_f64().unwrap() > 2.5, "{last}");
+    for p in ["K", "B"] {
+        let (got, want) = (
+            last["params"][p].as_f64().unwrap(),
+            clean["final"][p].as_f64().unwrap(),
+        );
+        assert!((got / want - 1.0).abs() < 1e-9, "{p}: {got} vs {want}");
+    }
     assert!(
         findings
             .iter()

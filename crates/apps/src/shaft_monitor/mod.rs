@@ -9,7 +9,7 @@
 //!
 //! Here: the configuration, the estimator's choice and the results. By concern: `stage.rs`
 //! (the stream stage), `glitch.rs` (the steps no shaft makes, taken out before the low-pass),
-//! `file.rs` (the file verb over it), `summary.rs` (the JSON); every public item is
+//! `dropout.rs` (samples that are not numbers, held and taken out likewise), `file.rs` (the file verb over it), `summary.rs` (the JSON); every public item is
 //! re-exported here.
 
 use crate::acquisition::{on_time_basis, uniform_step, StepCheck};
@@ -29,6 +29,7 @@ use physid_signal::stream::{settling_length, ZeroPhaseStream};
 use serde::Serialize;
 use std::collections::VecDeque;
 
+mod dropout;
 mod file;
 mod glitch;
 mod stage;

@@ -1,6 +1,7 @@
 //! The shaft monitor as a stream stage ([`ShaftStage`]): chunks of samples in, the estimator's
 //! samples and the alarms out — what the file verb and the live service both run.
 
+use super::dropout::{Dropouts, SIGNALS};
 use super::*;
 
 /// A chunk of the monitor's input channels, all the same length.
@@ -132,6 +133,9 @@ pub struct ShaftStage {
     /// The glitches taken out of the last chunk.
     #[serde(skip)]
     glitches: Vec<ShaftGlitch>,
+    /// The signals' dropouts (samples not finite), held at their last values.
+    #[serde(default)]
+    dropouts: Dropouts,
     /// What a chunk completes, before it goes to a [`Sink`] ([`Stage::push`]).
     #[serde(skip)]
     made: (Vec<ShaftSample>, Vec<ShaftAlarm>),
@@ -250,6 +254,7 @@ impl ShaftStage {
             still_raw: Vec::new(),
             stuck_raw: Vec::new(),
             glitches: Vec::new(),
+            dropouts: Dropouts::default(),
             raw: Default::default(),
             filtered: Default::default(),
             made: Default::default(),
@@ -362,11 +367,15 @@ impl ShaftStage {
             .iter()
             .zip(STILL)
             .filter_map(|(s, (angle, speed))| s.finding(speed, angle));
-        still.chain(stuck).chain(steps)
+        still
+            .chain(stuck)
+            .chain(steps)
+            .chain(self.dropouts.findings())
     }
 
     /// Take a chunk; append the estimator samples and alarms it completes. A chunk with
-    /// columns of different lengths or a non-finite sample is refused, naming the sample.
+    /// columns of different lengths or a time that is not finite is refused, naming the
+    /// sample; a signal's sample that is not a number is held as a dropout ([`Dropouts`]).
     pub fn push_inputs(
         &mut self,
         x: &ShaftInputs,
@@ -447,22 +456,45 @@ impl ShaftStage {
         if self.t0.is_none() {
             self.t0 = x.t.first().copied();
         }
+        let first = self.next + self.times.len();
+        // Samples that are not numbers: held at their signals' last values, the columns
+        // filled into buffers of the stage's (taken out here, put back at the end).
+        let found = self.dropouts.fill(
+            [
+                x.theta_dy,
+                x.theta_en,
+                x.omega_dy,
+                x.omega_en,
+                x.torque_shaft,
+            ],
+            first,
+        );
+        let filled = std::mem::take(&mut self.dropouts.filled);
+        let dropped = std::mem::take(&mut self.dropouts.held);
+        let with_filled;
+        let x = match &found {
+            None => x,
+            Some(_) => {
+                with_filled = ShaftInputs {
+                    t: x.t,
+                    theta_dy: &filled[0],
+                    theta_en: &filled[1],
+                    omega_dy: &filled[2],
+                    omega_en: &filled[3],
+                    torque_shaft: &filled[4],
+                };
+                &with_filled
+            }
+        };
         for r in &mut self.raw {
             r.clear();
         }
         self.raw[0].extend(x.theta_dy.iter().zip(x.theta_en).map(|(a, b)| a - b));
         self.raw[1].extend(x.omega_dy.iter().zip(x.omega_en).map(|(a, b)| a - b));
         self.raw[2].extend_from_slice(x.torque_shaft);
-        let first = self.next + self.times.len();
-        if let Some(i) = self
-            .raw
-            .iter()
-            .flat_map(|r| r.iter().enumerate())
-            .find(|(_, v)| !v.is_finite())
-            .map(|(i, _)| i)
-        {
+        if let Some(i) = x.t.iter().position(|v| !v.is_finite()) {
             return Err(AppError::Invalid(format!(
-                "sample {}: a shaft signal is not finite",
+                "sample {}: the time is not finite",
                 first + i
             )));
         }
@@ -470,6 +502,22 @@ impl ShaftStage {
         self.glitches.clear();
         self.held_raw.clear();
         self.held_raw.resize(n, false);
+        if let Some(started) = &found {
+            for (h, d) in self.held_raw.iter_mut().zip(&dropped) {
+                *h |= *d;
+            }
+            for d in started {
+                self.glitches.push(ShaftGlitch {
+                    t_s: x.t[d.at],
+                    message: format!(
+                        "'{}' is not a number from sample {}: held at its last value and taken out as a sensor's dropout, not the shaft ({} in this chunk)",
+                        SIGNALS[d.signal],
+                        first + d.at,
+                        d.count
+                    ),
+                });
+            }
+        }
         self.still_raw.clear();
         self.still_raw.resize(n, false);
         self.stuck_raw.clear();
@@ -564,6 +612,7 @@ impl ShaftStage {
                 }
             }
         }
+        (self.dropouts.filled, self.dropouts.held) = (filled, dropped);
         Ok(())
     }
 
