@@ -2,12 +2,31 @@
 //! cycle's crank-angle mean, extremes, the angle of the peak and (optionally) its curve on a
 //! crank-angle grid ([`CycleStream`], cycles from a TDC angle on `theta_en`) — what the live
 //! service sends as `cycle` events.
+//!
+//! A sample whose crank angle or one of whose channels is not a number (a sensor's dropout) is
+//! left out with the samples after it up to the next whole one, as a gap in the data: the cycle
+//! it cuts is not reported, the statistics go on after it, and the dropout is told once
+//! ([`CycleOutput::Dropout`]). Before, it stopped the cycle statistics for the rest of the run.
 
 use crate::error::AppError;
 use crate::stage::{Sink, Stage};
 use physid_core::Recording;
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use serde::{Deserialize, Serialize};
+
+/// What the cycle statistics give: a complete cycle, or a dropout they left out.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CycleOutput {
+    /// A complete cycle.
+    Cycle(CycleSummary),
+    /// A dropout started.
+    Dropout {
+        /// Its first sample's time [s].
+        t_s: f64,
+        /// What it was and what was done.
+        message: String,
+    },
+}
 
 /// The cycle statistics of the channels of `wanted` a stream has (set up on the first chunk
 /// that has `theta_en` and at least one of them; until then a chunk passes untouched).
@@ -21,6 +40,13 @@ pub struct CycleStage {
     /// The cycles a chunk completed (scratch, empty between chunks).
     #[serde(skip)]
     done: Vec<CycleSummary>,
+    /// Whether the last sample was in a dropout (one told, not yet over).
+    #[serde(default)]
+    in_dropout: bool,
+    /// The samples of the chunks before the stream was set up (a sample's index in the stage's
+    /// input is this plus its index in the stream).
+    #[serde(default)]
+    before: usize,
 }
 
 impl CycleStage {
@@ -33,6 +59,8 @@ impl CycleStage {
             curve_step_deg,
             stream: None,
             done: Vec::new(),
+            in_dropout: false,
+            before: 0,
         }
     }
 
@@ -51,14 +79,11 @@ impl CycleStage {
 }
 
 impl Stage for CycleStage {
-    type Out = CycleSummary;
+    type Out = CycleOutput;
 
-    /// A value that is not finite is an error naming its sample and the channels.
-    fn push(
-        &mut self,
-        chunk: &Recording,
-        out: &mut dyn Sink<CycleSummary>,
-    ) -> Result<(), AppError> {
+    /// A time that is not finite is an error naming its sample; an angle or a channel that is
+    /// not a number, a dropout (module docs).
+    fn push(&mut self, chunk: &Recording, out: &mut dyn Sink<CycleOutput>) -> Result<(), AppError> {
         if self.stream.is_none() {
             let names: Vec<String> = self
                 .wanted
@@ -67,6 +92,7 @@ impl Stage for CycleStage {
                 .cloned()
                 .collect();
             if names.is_empty() || chunk.channel("theta_en").is_err() {
+                self.before += chunk.len();
                 return Ok(());
             }
             let stream = CycleStream::new(names.len(), self.theta_tdc, self.curve_step_deg)
@@ -80,26 +106,59 @@ impl Stage for CycleStage {
             .iter()
             .map(|n| chunk.values(n))
             .collect::<Result<Vec<_>, _>>()?;
-        self.done.clear();
-        stream
-            .push(
-                chunk.values("t")?,
-                chunk.values("theta_en")?,
-                &cols,
-                &mut self.done,
-            )
-            // The stream numbers its channels: name them.
-            .map_err(|e| {
-                AppError::Invalid(format!("{e} (channels 0, 1, …: {})", names.join(", ")))
-            })?;
-        for c in self.done.drain(..) {
-            out.put(c);
+        let (t, theta) = (chunk.values("t")?, chunk.values("theta_en")?);
+        let whole = |i: usize| theta[i].is_finite() && cols.iter().all(|c| c[i].is_finite());
+        let n = t.len();
+        let mut from = 0;
+        while from < n {
+            // The whole samples from `from`, then the dropout after them.
+            let end = (from..n).find(|&i| !whole(i)).unwrap_or(n);
+            if end > from {
+                self.in_dropout = false;
+                let part: Vec<&[f64]>;
+                let x: &[&[f64]] = if from == 0 && end == n {
+                    &cols
+                } else {
+                    part = cols.iter().map(|c| &c[from..end]).collect();
+                    &part
+                };
+                self.done.clear();
+                stream
+                    .push(&t[from..end], &theta[from..end], x, &mut self.done)
+                    // The stream numbers its channels: name them.
+                    .map_err(|e| {
+                        AppError::Invalid(format!("{e} (channels 0, 1, …: {})", names.join(", ")))
+                    })?;
+                for c in self.done.drain(..) {
+                    out.put(CycleOutput::Cycle(c));
+                }
+            }
+            if end == n {
+                break;
+            }
+            let resume = (end..n).find(|&i| whole(i)).unwrap_or(n);
+            if !self.in_dropout {
+                self.in_dropout = true;
+                let (what, v) = std::iter::once(("theta_en", theta[end]))
+                    .chain(names.iter().zip(&cols).map(|(n, c)| (n.as_str(), c[end])))
+                    .find(|(_, v)| !v.is_finite())
+                    .unwrap_or(("theta_en", theta[end]));
+                out.put(CycleOutput::Dropout {
+                    t_s: t[end],
+                    message: format!(
+                        "'{what}' is {v} at sample {}: the cycle it cuts is left out, the statistics go on after the dropout",
+                        self.before + stream.seen()
+                    ),
+                });
+            }
+            stream.leave_out(resume - end);
+            from = resume;
         }
         Ok(())
     }
 
     /// The cycle in progress at the end is not complete: nothing.
-    fn finish(&mut self, _out: &mut dyn Sink<CycleSummary>) -> Result<(), AppError> {
+    fn finish(&mut self, _out: &mut dyn Sink<CycleOutput>) -> Result<(), AppError> {
         Ok(())
     }
 }

@@ -1,9 +1,10 @@
 //! The cycle statistics as a stage: set up on the first chunk with `theta_en` and a wanted
-//! channel, the crank-angle means against a closed form, a value not finite named with its
-//! channel.
+//! channel, the crank-angle means against a closed form, a value that is not a number left out
+//! as a dropout — named with its channel and sample, the cycle it cuts left out, the cycles
+//! after it numbered on.
 #![allow(clippy::unwrap_used)]
 
-use physid_apps::cycle_stage::CycleStage;
+use physid_apps::cycle_stage::{CycleOutput, CycleStage};
 use physid_apps::stage::Stage;
 use physid_core::{Basis, Channel, Recording};
 use std::f64::consts::PI;
@@ -46,8 +47,17 @@ fn cycles_of_the_channels_a_stream_has() {
     }
     s.finish(&mut out).unwrap();
     assert_eq!(s.channels(), ["p_int".to_string()]);
-    assert_eq!(out.len(), 11, "{} cycles", out.len());
-    for c in &out {
+    let cycles = |out: &[CycleOutput]| -> Vec<_> {
+        out.iter()
+            .filter_map(|o| match o {
+                CycleOutput::Cycle(c) => Some(c.clone()),
+                CycleOutput::Dropout { .. } => None,
+            })
+            .collect()
+    };
+    assert_eq!(cycles(&out).len(), 11, "{} outputs", out.len());
+    assert_eq!(cycles(&out)[10].cycle, 10);
+    for c in &cycles(&out) {
         // The trapezoidal mean over ≈0.9° steps: within 1e-4 of 5.
         assert!(
             (c.mean[0] - 5.0).abs() < 1e-4,
@@ -76,6 +86,30 @@ fn cycles_of_the_channels_a_stream_has() {
         .unwrap();
     }
     bad = r;
-    let e = s.push(&bad, &mut out).unwrap_err().to_string();
-    assert!(e.contains("p_int"), "{e}");
+    // A value that is not a number (at sample 11 040, θ = 173.4 rad, in cycle 11 from 4π·13):
+    // a dropout, told once; cycle 11 left out, cycles 12 and 13 (to 4π·16 = 201.1 rad, sample
+    // 12 800) reported as the uninterrupted stream's.
+    out.clear();
+    s.push(&bad, &mut out).unwrap();
+    s.push(&chunk(11_100, 1900, true), &mut out).unwrap();
+    let told: Vec<_> = out
+        .iter()
+        .filter_map(|o| match o {
+            CycleOutput::Dropout { t_s, message } => Some((*t_s, message.clone())),
+            CycleOutput::Cycle(_) => None,
+        })
+        .collect();
+    assert_eq!(told.len(), 1, "{told:?}");
+    assert!((told[0].0 - 1.104).abs() < 1e-9, "{told:?}");
+    assert!(
+        told[0]
+            .1
+            .starts_with("'p_int' is NaN at sample 11040: the cycle it cuts is left out"),
+        "{told:?}"
+    );
+    let after = cycles(&out);
+    assert_eq!(after.iter().map(|c| c.cycle).collect::<Vec<_>>(), [12, 13]);
+    for c in &after {
+        assert!((c.mean[0] - 5.0).abs() < 1e-4 && (c.max[0] - 7.0).abs() < 1e-3);
+    }
 }

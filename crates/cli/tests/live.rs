@@ -1612,30 +1612,30 @@ fn set_cells(file: &std::path::Path, column: &str, samples: std::ops::Range<usiz
 /// A NaN in a replayed file (a sensor's dropout): the shaft monitor holds it at the signal's
 /// last value, tells it and goes on — its estimates go on past it and end on `monitor shaft`'s
 /// on the clean file (before, it stopped for the rest of the run: "shaft: sample 5000: a shaft
-/// signal is not finite"); the cycle statistics stop with a finding naming the sample; the run
-/// goes on to the file's end — it used to end the whole run ("channel 0 is NaN at sample
-/// 5000").
+/// signal is not finite"); the cycle statistics leave out the cycle it cuts, tell it, and go on
+/// — every other cycle is the clean file's, JSON for JSON, under the same number (before, they
+/// stopped: "cycles: channel 0 is NaN at sample 5000"); the run goes on to the file's end — it
+/// used to end the whole run.
 #[test]
-fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
+fn a_nan_in_a_replayed_file_is_a_dropout_not_a_stop() {
     let s = Scratch::new("physid-live-nan");
     let file = s.file("run.csv");
     let f = file.to_str().unwrap();
     common::simulated(&file, "shaft-steady", "3");
     let o = physid(&["monitor", "shaft", "--data", f, "--json"]);
     let clean: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let args = [
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        f,
+        "--pace",
+        "max",
+    ];
+    let clean_ev = events_from_stdin(&args, "");
     set_cells(&file, "omega_en", 5000..5001, "nan");
-    let ev = events_from_stdin(
-        &[
-            "live",
-            "--headless",
-            "--json",
-            "--replay",
-            f,
-            "--pace",
-            "max",
-        ],
-        "",
-    );
+    let ev = events_from_stdin(&args, "");
     let findings = of_type(&ev, "finding");
     assert!(
         findings.iter().any(|e| says(
@@ -1655,15 +1655,25 @@ fn a_nan_in_a_replayed_file_stops_the_stages_not_the_run() {
         assert!((got / want - 1.0).abs() < 1e-9, "{p}: {got} vs {want}");
     }
     assert!(
-        findings
-            .iter()
-            .any(|e| says(e, "cycles: channel 0 is NaN at sample 5000") && says(e, "omega_en")),
+        findings.iter().any(|e| says(
+            e,
+            "cycles: 'omega_en' is NaN at sample 5000: the cycle it cuts is left out"
+        )),
         "{findings:?}"
     );
     let end = of_type(&ev, "end")[0];
     assert_eq!(end["samples"], 30001, "{end}");
-    // 0.5 s at 1000 rpm: the cycles completed before the NaN (≈ 4).
-    assert!(of_type(&ev, "cycle").len() >= 2, "cycles before the NaN");
+    // Every cycle but the one the NaN (at 0.5 s) cuts is the clean file's.
+    let cut =
+        |c: &&Value| c["t_start_s"].as_f64().unwrap() <= 0.5 && c["t_s"].as_f64().unwrap() >= 0.5;
+    let want: Vec<&Value> = of_type(&clean_ev, "cycle")
+        .into_iter()
+        .filter(|c| !cut(c))
+        .collect();
+    let got = of_type(&ev, "cycle");
+    assert_eq!(want.len() + 1, of_type(&clean_ev, "cycle").len());
+    assert!(want.len() > 15, "{} cycles", want.len());
+    assert_eq!(got, want);
 }
 
 /// A crank angle that jumps by 10⁹ rad for 50 samples of a replayed file, half a second in (a bad sensor or a

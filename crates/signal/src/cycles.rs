@@ -475,6 +475,21 @@ impl CycleStream {
         self.gaps
     }
 
+    /// `n` samples left out of the stream (a dropout: values that are not numbers), as a gap
+    /// in the data: the cycle in progress left out, the next sample taken as a stream's first,
+    /// the cycles after it numbered on; the samples counted in the stream's sample index.
+    pub fn leave_out(&mut self, n: usize) {
+        if self.prev.is_some() {
+            self.resume_after_gap();
+        }
+        self.seen += n;
+    }
+
+    /// The samples taken or left out so far: the next sample's index in the stream.
+    pub fn seen(&self) -> usize {
+        self.seen
+    }
+
     /// Make `(t, th, x)` the previous sample and count it in the extremes.
     fn accept(&mut self, t: f64, th: f64, x: &impl Fn(usize) -> f64, first: bool) {
         if self.stats {

@@ -159,10 +159,17 @@ impl Tell for CycleStage {
         Ok(Some(CycleStage::new(&CYCLE_CHANNELS, cfg.theta_tdc, step)))
     }
 
-    fn tell(&self, told: &mut usize, c: &CycleSummary, _at: At, events: &mut dyn Sink<Event>) {
-        let step = self.curve_step_deg().unwrap_or(0.0);
-        *told += 1;
-        events.put(Event::cycle(c, self.channels(), step));
+    fn tell(&self, told: &mut usize, c: &CycleOutput, _at: At, events: &mut dyn Sink<Event>) {
+        match c {
+            CycleOutput::Cycle(c) => {
+                let step = self.curve_step_deg().unwrap_or(0.0);
+                *told += 1;
+                events.put(Event::cycle(c, self.channels(), step));
+            }
+            CycleOutput::Dropout { t_s, message } => {
+                events.put(Event::finding(*t_s, format!("cycles: {message}")))
+            }
+        }
     }
 }
 
