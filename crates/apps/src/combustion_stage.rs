@@ -11,6 +11,10 @@
 //! grid go with its figures (the live panel's view), at most one cycle's every
 //! [`CURVE_INTERVAL_S`] of the stream's time.
 //!
+//! A sample whose crank angle or pressure (or brake torque) is not a number — a sensor's
+//! dropout — is left out with the cycle it cuts, told once ([`CombustionOutput::Dropout`]);
+//! the cycles after it are analysed and keep their numbers. Before, it stopped the analysis.
+//!
 //! Cycles are numbered as the cycle statistics number theirs ([`crate::cycle_stage`]): the
 //! block of 720° that starts at the cycle's firing TDC, 0 for the first block that starts in
 //! the stream — so a file converted from the same stream (`convert --crank-angle`) and
@@ -19,7 +23,7 @@
 use crate::error::AppError;
 use crate::per_cycle::{CycleFigures, CycleTimes, PerCycle, PerCycleSettings};
 use crate::pressure::UnitCheck;
-use crate::stage::{Sink, Stage};
+use crate::stage::{Dropout, Sink, Stage};
 use physid_core::Recording;
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use serde::{Deserialize, Serialize};
@@ -28,6 +32,15 @@ use std::f64::consts::PI;
 /// The shortest time between two cycles whose curves are given [s] (five a second: what a
 /// person can follow, whatever the engine's speed).
 pub const CURVE_INTERVAL_S: f64 = 0.2;
+
+/// What the combustion analysis gives: a cycle's figures, or a dropout it left out.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CombustionOutput {
+    /// A complete cycle's figures.
+    Cycle(CombustionCycle),
+    /// A dropout left out with the cycle it cuts (module docs).
+    Dropout(Dropout),
+}
 
 /// A cycle's figures, with its curves when they are due ([`CombustionStage::with_curves`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -131,14 +144,15 @@ impl CombustionStage {
 }
 
 impl Stage for CombustionStage {
-    type Out = CombustionCycle;
+    type Out = CombustionOutput;
 
-    /// A value that is not finite is an error naming its sample; a pressure channel in a unit
-    /// of another quantity is refused.
+    /// A time that is not finite is an error naming its sample, an angle or a value that is
+    /// not a number a dropout (module docs); a pressure channel in a unit of another quantity
+    /// is refused.
     fn push(
         &mut self,
         chunk: &Recording,
-        out: &mut dyn Sink<CombustionCycle>,
+        out: &mut dyn Sink<CombustionOutput>,
     ) -> Result<(), AppError> {
         if self.stream.is_none() {
             if chunk.channel(&self.channel).is_err() || chunk.channel("theta_en").is_err() {
@@ -177,13 +191,24 @@ impl Stage for CombustionStage {
         let p = chunk.values(&self.channel)?;
         let pushed = match &self.per_cycle.settings().brake {
             Some(b) => stream
-                .push(t, theta, &[p, chunk.values(&b.channel)?], &mut self.done)
+                .push_past_dropouts(t, theta, &[p, chunk.values(&b.channel)?], &mut self.done)
                 .map_err(|e| format!("{e} (channels 0, 1: {}, {})", self.channel, b.channel)),
             None => stream
-                .push(t, theta, &[p], &mut self.done)
+                .push_past_dropouts(t, theta, &[p], &mut self.done)
                 .map_err(|e| format!("{e} (channel 0: {})", self.channel)),
         };
         pushed.map_err(AppError::Invalid)?;
+        if !stream.dropouts().is_empty() {
+            let brake = self.per_cycle.settings().brake.as_ref();
+            let names = [
+                Some(self.channel.as_str()),
+                brake.map(|b| b.channel.as_str()),
+            ];
+            let names: Vec<&str> = names.into_iter().flatten().collect();
+            for d in stream.dropouts() {
+                out.put(CombustionOutput::Dropout(Dropout::of_cycles(d, &names, 0)));
+            }
+        }
         for c in self.done.drain(..) {
             let Some(curve) = c.curve else { continue };
             let p = &curve[0];
@@ -226,13 +251,13 @@ impl Stage for CombustionStage {
                     figures.rpm,
                 )
             });
-            out.put(CombustionCycle { figures, curve });
+            out.put(CombustionOutput::Cycle(CombustionCycle { figures, curve }));
         }
         Ok(())
     }
 
     /// The cycle in progress at the end is not complete: nothing.
-    fn finish(&mut self, _out: &mut dyn Sink<CombustionCycle>) -> Result<(), AppError> {
+    fn finish(&mut self, _out: &mut dyn Sink<CombustionOutput>) -> Result<(), AppError> {
         Ok(())
     }
 }

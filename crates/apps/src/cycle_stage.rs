@@ -9,7 +9,7 @@
 //! ([`CycleOutput::Dropout`]). Before, it stopped the cycle statistics for the rest of the run.
 
 use crate::error::AppError;
-use crate::stage::{Sink, Stage};
+use crate::stage::{Dropout, Sink, Stage};
 use physid_core::Recording;
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use serde::{Deserialize, Serialize};
@@ -19,13 +19,8 @@ use serde::{Deserialize, Serialize};
 pub enum CycleOutput {
     /// A complete cycle.
     Cycle(CycleSummary),
-    /// A dropout started.
-    Dropout {
-        /// Its first sample's time [s].
-        t_s: f64,
-        /// What it was and what was done.
-        message: String,
-    },
+    /// A dropout started (module docs).
+    Dropout(Dropout),
 }
 
 /// The cycle statistics of the channels of `wanted` a stream has (set up on the first chunk
@@ -40,9 +35,6 @@ pub struct CycleStage {
     /// The cycles a chunk completed (scratch, empty between chunks).
     #[serde(skip)]
     done: Vec<CycleSummary>,
-    /// Whether the last sample was in a dropout (one told, not yet over).
-    #[serde(default)]
-    in_dropout: bool,
     /// The samples of the chunks before the stream was set up (a sample's index in the stage's
     /// input is this plus its index in the stream).
     #[serde(default)]
@@ -59,7 +51,6 @@ impl CycleStage {
             curve_step_deg,
             stream: None,
             done: Vec::new(),
-            in_dropout: false,
             before: 0,
         }
     }
@@ -107,52 +98,22 @@ impl Stage for CycleStage {
             .map(|n| chunk.values(n))
             .collect::<Result<Vec<_>, _>>()?;
         let (t, theta) = (chunk.values("t")?, chunk.values("theta_en")?);
-        let whole = |i: usize| theta[i].is_finite() && cols.iter().all(|c| c[i].is_finite());
-        let n = t.len();
-        let mut from = 0;
-        while from < n {
-            // The whole samples from `from`, then the dropout after them.
-            let end = (from..n).find(|&i| !whole(i)).unwrap_or(n);
-            if end > from {
-                self.in_dropout = false;
-                let part: Vec<&[f64]>;
-                let x: &[&[f64]] = if from == 0 && end == n {
-                    &cols
-                } else {
-                    part = cols.iter().map(|c| &c[from..end]).collect();
-                    &part
-                };
-                self.done.clear();
-                stream
-                    .push(&t[from..end], &theta[from..end], x, &mut self.done)
-                    // The stream numbers its channels: name them.
-                    .map_err(|e| {
-                        AppError::Invalid(format!("{e} (channels 0, 1, …: {})", names.join(", ")))
-                    })?;
-                for c in self.done.drain(..) {
-                    out.put(CycleOutput::Cycle(c));
-                }
-            }
-            if end == n {
-                break;
-            }
-            let resume = (end..n).find(|&i| whole(i)).unwrap_or(n);
-            if !self.in_dropout {
-                self.in_dropout = true;
-                let (what, v) = std::iter::once(("theta_en", theta[end]))
-                    .chain(names.iter().zip(&cols).map(|(n, c)| (n.as_str(), c[end])))
-                    .find(|(_, v)| !v.is_finite())
-                    .unwrap_or(("theta_en", theta[end]));
-                out.put(CycleOutput::Dropout {
-                    t_s: t[end],
-                    message: format!(
-                        "'{what}' is {v} at sample {}: the cycle it cuts is left out, the statistics go on after the dropout",
-                        self.before + stream.seen()
-                    ),
-                });
-            }
-            stream.leave_out(resume - end);
-            from = resume;
+        self.done.clear();
+        stream
+            .push_past_dropouts(t, theta, &cols, &mut self.done)
+            // The stream numbers its channels: name them.
+            .map_err(|e| {
+                AppError::Invalid(format!("{e} (channels 0, 1, …: {})", names.join(", ")))
+            })?;
+        for c in self.done.drain(..) {
+            out.put(CycleOutput::Cycle(c));
+        }
+        for d in stream.dropouts() {
+            out.put(CycleOutput::Dropout(Dropout::of_cycles(
+                d,
+                names,
+                self.before,
+            )));
         }
         Ok(())
     }

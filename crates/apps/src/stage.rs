@@ -33,6 +33,60 @@ pub trait Stage: serde::Serialize + serde::de::DeserializeOwned {
     fn finish(&mut self, out: &mut dyn Sink<Self::Out>) -> Result<(), AppError>;
 }
 
+/// A dropout a stage left out — samples whose crank angle or a channel it reads is not a number
+/// (a sensor's NaN), the cycle they cut left out ([`CycleStream::push_past_dropouts`]): told
+/// once, at its first sample.
+///
+/// [`CycleStream::push_past_dropouts`]: physid_signal::cycles::CycleStream::push_past_dropouts
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Dropout {
+    /// Its first sample's time [s].
+    pub t_s: f64,
+    /// The channel that is not a number there (`theta_en`: the crank angle).
+    pub channel: String,
+    /// Its first sample's index in the stage's input.
+    pub sample: usize,
+    /// The value there.
+    pub value: f64,
+}
+
+impl Dropout {
+    /// `d` of a cycle stream over `names` (its channels, in order) whose sample 0 is the
+    /// stage's `before`-th.
+    pub fn of_cycles<N: AsRef<str>>(
+        d: &physid_signal::cycles::Dropout,
+        names: &[N],
+        before: usize,
+    ) -> Self {
+        Self {
+            t_s: d.t,
+            channel: d
+                .channel
+                .and_then(|j| names.get(j))
+                .map_or("theta_en", |n| n.as_ref())
+                .to_string(),
+            sample: before + d.sample,
+            value: d.value,
+        }
+    }
+
+    /// What the live service tells: what it was and what the stage did.
+    pub fn message(&self) -> String {
+        format!(
+            "'{}' is {} at sample {}: the cycle it cuts is left out, the stage goes on after the dropout",
+            self.channel, self.value, self.sample
+        )
+    }
+
+    /// The error a file verb that needs every sample makes of it: `needs`, why.
+    pub fn refused(&self, needs: &str) -> AppError {
+        AppError::Invalid(format!(
+            "channel '{}' sample {} is {}: {needs}",
+            self.channel, self.sample, self.value
+        ))
+    }
+}
+
 /// The post-run integrity check on the stream (`physid inspect`'s, as the chunks come): the
 /// findings each chunk makes certain, and at the end those still waiting and the per-kind
 /// summaries. It never fails.

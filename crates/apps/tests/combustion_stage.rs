@@ -10,7 +10,7 @@ mod common;
 
 use common::{wiebe, wiebe_csv, wiebe_geometry};
 use physid_apps::combustion::HeatRelease;
-use physid_apps::combustion_stage::CombustionStage;
+use physid_apps::combustion_stage::{CombustionCycle, CombustionOutput, CombustionStage};
 use physid_apps::per_cycle::{figure_columns, CycleFigures, PerCycleSettings};
 use physid_apps::pressure::{CycleAnalyser, Pegging};
 use physid_apps::stage::Stage;
@@ -60,6 +60,16 @@ fn settings(truth: &Value) -> PerCycleSettings {
     }
 }
 
+/// The cycles of a clean stream's outputs (a dropout there is a failure).
+fn cycles(out: Vec<CombustionOutput>) -> Vec<CombustionCycle> {
+    out.into_iter()
+        .map(|o| match o {
+            CombustionOutput::Cycle(c) => c,
+            CombustionOutput::Dropout(d) => panic!("a dropout in a clean stream: {d:?}"),
+        })
+        .collect()
+}
+
 /// The stream in chunks of 1, 2, … 997 samples (cycling), a checkpoint through MessagePack
 /// after chunk `checkpoint_at`.
 fn streamed(stage: CombustionStage, stream: &Recording, checkpoint_at: usize) -> Vec<CycleFigures> {
@@ -77,7 +87,7 @@ fn streamed(stage: CombustionStage, stream: &Recording, checkpoint_at: usize) ->
         k += 1;
     }
     stage.finish(&mut out).unwrap();
-    out.into_iter().map(|c| c.figures).collect()
+    cycles(out).into_iter().map(|c| c.figures).collect()
 }
 
 fn same(file: &[CycleFigures], live: &[CycleFigures]) {
@@ -146,14 +156,69 @@ fn a_stream_without_the_pressure_passes_and_a_bad_one_is_named() {
     // A step that does not divide 720°.
     let e = CombustionStage::new("p_cyl", settings(&truth), 0.0, 0.7).unwrap_err();
     assert!(e.to_string().contains("divisor of 720"), "{e}");
-    // A value not finite: named with its sample and the channel.
+    // A time that is not finite: named with its sample.
     let mut bad = stream.slice(0..2000);
-    let mut p = bad.values("p_cyl").unwrap().to_vec();
-    p[1500] = f64::NAN;
-    bad.replace_values("p_cyl", p).unwrap();
+    let mut t = bad.values("t").unwrap().to_vec();
+    t[1500] = f64::NAN;
+    bad.replace_values("t", t).unwrap();
     let mut stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0).unwrap();
     let e = stage.push(&bad, &mut out).unwrap_err().to_string();
-    assert!(e.contains("sample 1500") && e.contains("p_cyl"), "{e}");
+    assert!(e.contains("sample 1500") && e.contains("time"), "{e}");
+}
+
+/// A pressure that is not a number for a while (a sensor's dropout, at samples 1500–1519: 1°
+/// samples, in cycle 2, from 1080° to 1800°) and an angle that is not one (sample 5000, cycle
+/// 7): each told once with its channel and sample, the cycles they cut left out, every other
+/// cycle's figures `physid cycles`' on the clean file, with their numbers — in chunks of every
+/// size with a checkpoint. Before, the first stopped the analysis for the rest of the run.
+#[test]
+fn a_dropout_leaves_out_the_cycle_it_cuts_and_the_analysis_goes_on() {
+    let truth = wiebe();
+    let (file, stream) = file_and_stream("wiebe_flags.csv");
+    let mut a =
+        CycleAnalyser::new(&file, "p_cyl", Some(&wiebe_geometry(&truth)), Pegging::None).unwrap();
+    a.push(&file).unwrap();
+    let by_file: Vec<CycleFigures> = a
+        .finish()
+        .unwrap()
+        .cycles
+        .into_iter()
+        .filter(|c| c.cycle != 2 && c.cycle != 7)
+        .collect();
+    let mut bad = stream.clone();
+    let mut p = bad.values("p_cyl").unwrap().to_vec();
+    p[1500..1520].fill(f64::NAN);
+    bad.replace_values("p_cyl", p).unwrap();
+    let mut theta = bad.values("theta_en").unwrap().to_vec();
+    theta[5000] = f64::NAN;
+    bad.replace_values("theta_en", theta).unwrap();
+    let mut stage = CombustionStage::new("p_cyl", settings(&truth), 0.0, 1.0).unwrap();
+    let mut out = Vec::new();
+    let (mut from, mut k) = (0, 0);
+    while from < bad.len() {
+        let n = (k % 997 + 1).min(bad.len() - from);
+        stage.push(&bad.slice(from..from + n), &mut out).unwrap();
+        if k == 3 {
+            let bytes = rmp_serde::to_vec_named(&stage).unwrap();
+            stage = rmp_serde::from_slice(&bytes).unwrap();
+        }
+        from += n;
+        k += 1;
+    }
+    let (mut live, mut told) = (Vec::new(), Vec::new());
+    for o in out {
+        match o {
+            CombustionOutput::Cycle(c) => live.push(c.figures),
+            CombustionOutput::Dropout(d) => told.push(d),
+        }
+    }
+    let told: Vec<(String, usize)> = told.into_iter().map(|d| (d.channel, d.sample)).collect();
+    assert_eq!(
+        told,
+        [("p_cyl".to_string(), 1500), ("theta_en".to_string(), 5000)]
+    );
+    assert_eq!(live.len(), 8);
+    same(&by_file, &live);
 }
 
 /// With curves (the live panel's view): one cycle's every 0.2 s of stream time, its pressure on
@@ -179,6 +244,7 @@ fn the_curves_heat_release_rate_adds_up_to_the_heat_released() {
             )
             .unwrap();
     }
+    let out = cycles(out);
     assert_eq!(out.len(), 10);
     let with: Vec<_> = out.iter().filter(|c| c.curve.is_some()).collect();
     let times: Vec<f64> = with.iter().map(|c| c.figures.t_start_s).collect();

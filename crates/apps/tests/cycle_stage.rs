@@ -51,7 +51,7 @@ fn cycles_of_the_channels_a_stream_has() {
         out.iter()
             .filter_map(|o| match o {
                 CycleOutput::Cycle(c) => Some(c.clone()),
-                CycleOutput::Dropout { .. } => None,
+                CycleOutput::Dropout(_) => None,
             })
             .collect()
     };
@@ -95,7 +95,7 @@ fn cycles_of_the_channels_a_stream_has() {
     let told: Vec<_> = out
         .iter()
         .filter_map(|o| match o {
-            CycleOutput::Dropout { t_s, message } => Some((*t_s, message.clone())),
+            CycleOutput::Dropout(d) => Some((d.t_s, d.message())),
             CycleOutput::Cycle(_) => None,
         })
         .collect();

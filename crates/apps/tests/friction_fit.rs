@@ -275,7 +275,7 @@ fn the_stage_on_a_stream_is_the_file_verb() {
             .iter()
             .filter_map(|o| match o {
                 FrictionOutput::Cycle(s) => Some(s.predicted_nm),
-                FrictionOutput::Selected { .. } => None,
+                FrictionOutput::Selected { .. } | FrictionOutput::Dropout(_) => None,
             })
             .collect();
         assert_eq!(predicted, file.predicted);

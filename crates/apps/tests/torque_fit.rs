@@ -218,7 +218,7 @@ fn the_stage_on_a_stream_is_the_file_verb() {
             .iter()
             .filter_map(|o| match o {
                 TorqueOutput::Cycle(c) => Some(c.clone()),
-                TorqueOutput::Selected { .. } => None,
+                TorqueOutput::Selected { .. } | TorqueOutput::Dropout(_) => None,
             })
             .collect();
         assert_eq!(cycles, file.cycles, "chunk {chunk}");
@@ -429,7 +429,7 @@ fn sympy_stream(
         .into_iter()
         .filter_map(|o| match o {
             TorqueOutput::Cycle(c) => Some(c),
-            TorqueOutput::Selected { .. } => None,
+            TorqueOutput::Selected { .. } | TorqueOutput::Dropout(_) => None,
         })
         .collect();
     (stage.estimable().unwrap(), cycles, params, rms)

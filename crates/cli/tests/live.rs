@@ -1676,6 +1676,106 @@ fn a_nan_in_a_replayed_file_is_a_dropout_not_a_stop() {
     assert_eq!(got, want);
 }
 
+/// NaNs in the channels the cycle stages read (a cylinder pressure's dropout of 10 samples at
+/// 1 s, a manifold pressure's single NaN at 2.5 s): the combustion analysis, the cyclic-torque
+/// estimation and the friction characterisation each leave out the cycle it cuts, tell it once
+/// with the channel and sample, and go on to the file's end — before, each stopped for the rest
+/// of the run at the first. The combustion figures of every other cycle are the clean file's,
+/// JSON for JSON with the same numbers; the torque and friction events before the first dropout
+/// are the clean file's, and they go on after the last.
+#[test]
+fn a_nan_in_a_channel_a_cycle_stage_reads_leaves_out_its_cycle() {
+    let s = Scratch::new("physid-live-nan-cycles");
+    let file = s.file("run.csv");
+    let f = file.to_str().unwrap();
+    common::simulated(&file, "torque-steady", "4");
+    let args = [
+        "live",
+        "--headless",
+        "--json",
+        "--replay",
+        f,
+        "--pace",
+        "max",
+        "--torque",
+        "--combustion",
+        "--friction",
+        "cell",
+    ];
+    let clean = events_from_stdin(&args, "");
+    set_cells(&file, "p_cyl", 10_000..10_010, "nan");
+    set_cells(&file, "p_int", 25_000..25_001, "nan");
+    let ev = events_from_stdin(&args, "");
+    let findings = of_type(&ev, "finding");
+    for (stage, what) in [
+        ("combustion", "'p_cyl' is NaN at sample 10000"),
+        ("torque", "'p_cyl' is NaN at sample 10000"),
+        ("friction", "'p_int' is NaN at sample 25000"),
+    ] {
+        let told: Vec<_> = findings
+            .iter()
+            .filter(|e| says(e, &format!("{stage}: ")))
+            .collect();
+        assert_eq!(told.len(), 1, "{stage}: {findings:?}");
+        assert!(
+            says(
+                told[0],
+                &format!("{stage}: {what}: the cycle it cuts is left out")
+            ),
+            "{told:?}"
+        );
+    }
+    assert!(!findings.iter().any(|e| says(e, "stopped")), "{findings:?}");
+    assert_eq!(of_type(&ev, "end")[0]["samples"], 40001);
+    // The combustion figures: every cycle but the one cut the clean's (at 1000 rpm a cycle is
+    // 0.12 s: the one that starts in the 0.12 s before 1 s holds it).
+    let cut = |c: &&Value| (0.88..=1.0).contains(&c["t_s"].as_f64().unwrap());
+    let want: Vec<&Value> = of_type(&clean, "combustion")
+        .into_iter()
+        .filter(|c| !cut(c))
+        .collect();
+    assert!(want.len() >= 25, "{}", want.len());
+    assert_eq!(want.len() + 1, of_type(&clean, "combustion").len());
+    assert_eq!(of_type(&ev, "combustion"), want);
+    // Torque and friction go on to the end, a cycle short of the clean run, and end on its
+    // estimates within their standard errors (the parameters are chosen on the samples before
+    // the choice, one cycle fewer: the estimates before the dropout differ in their 6th digit).
+    for kind in ["torque", "friction"] {
+        let (got, want) = (of_type(&ev, kind), of_type(&clean, kind));
+        assert!(want.len() >= 25 && got.len() + 1 == want.len(), "{kind}");
+        let (last, clean_last) = (got[got.len() - 1], want[want.len() - 1]);
+        assert!(last["t_s"].as_f64().unwrap() > 3.5, "{kind}: {last}");
+        let params = last["params"].as_object().unwrap();
+        assert_eq!(
+            params.len(),
+            clean_last["params"].as_object().unwrap().len()
+        );
+        for (p, v) in params {
+            let (v, w) = (
+                v.as_f64().unwrap(),
+                clean_last["params"][p].as_f64().unwrap(),
+            );
+            let se = clean_last["std_err"][p].as_f64().unwrap();
+            assert!((v - w).abs() <= se, "{kind} {p}: {v} against {w} ± {se}");
+        }
+    }
+    // The file verbs take every sample: they refuse the file, naming the channel and sample.
+    for (verb, what) in [
+        (
+            "friction",
+            "channel 'p_int' sample 25000 is NaN: the cycle means need finite data",
+        ),
+        (
+            "torque",
+            "channel 'p_cyl' sample 10000 is NaN: the model needs finite data",
+        ),
+    ] {
+        let o = physid(&[verb, "fit", "--data", f]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(what), "{verb}: {err}");
+    }
+}
+
 /// A crank angle that jumps by 10⁹ rad for 50 samples of a replayed file, half a second in (a bad sensor or a
 /// bad frame; 9.2·10¹⁸ from a frame did the same) stops the stages that count cycles — cycles,
 /// friction, torque, combustion — each with a finding naming the sample; the run goes on to the

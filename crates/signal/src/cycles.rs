@@ -54,6 +54,20 @@ pub struct CycleSummary {
     pub times: Vec<f64>,
 }
 
+/// Where a dropout starts ([`CycleStream::push_past_dropouts`]): a run of samples whose angle
+/// or one of whose channels is not a number.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dropout {
+    /// Its first sample's index in the stream.
+    pub sample: usize,
+    /// Its first sample's time [s].
+    pub t: f64,
+    /// What is not a number there: `None` the angle, `Some(j)` channel `j`.
+    pub channel: Option<usize>,
+    /// The value it has there.
+    pub value: f64,
+}
+
 /// The stream's state between chunks (see the module docs).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CycleStream {
@@ -100,6 +114,12 @@ pub struct CycleStream {
     /// Gaps resumed after so far.
     #[serde(default)]
     gaps: u64,
+    /// The last sample taken was in a dropout ([`push_past_dropouts`](Self::push_past_dropouts)).
+    #[serde(default)]
+    in_dropout: bool,
+    /// The dropouts the last chunk began (scratch, [`dropouts`](Self::dropouts)).
+    #[serde(skip)]
+    dropouts: Vec<Dropout>,
 }
 
 /// The grid points a run of samples passes: for each, the first sample at or past it (`to[q]`,
@@ -166,6 +186,8 @@ impl CycleStream {
             mark_times: Vec::new(),
             resumed: false,
             gaps: 0,
+            in_dropout: false,
+            dropouts: Vec::new(),
         })
     }
 
@@ -483,6 +505,74 @@ impl CycleStream {
             self.resume_after_gap();
         }
         self.seen += n;
+    }
+
+    /// [`push`](Self::push) for a stream with dropouts — a sensor's values that are not numbers:
+    /// a sample whose angle or one of whose channels is not a number is left out with the
+    /// samples after it up to the next whole one ([`leave_out`](Self::leave_out), a gap in the
+    /// data: the cycle it cuts is not reported, the cycles after it keep their numbers). The
+    /// dropouts the chunk began are [`dropouts`](Self::dropouts) until the next chunk (one
+    /// that goes on from the chunk before is not begun again). A time that is not finite is
+    /// still an error naming its sample. Without a dropout, exactly [`push`](Self::push).
+    pub fn push_past_dropouts(
+        &mut self,
+        t: &[f64],
+        theta: &[f64],
+        x: &[&[f64]],
+        out: &mut Vec<CycleSummary>,
+    ) -> Result<(), CrankError> {
+        self.dropouts.clear();
+        let n = t.len();
+        let whole = |i: usize| theta[i].is_finite() && x.iter().all(|c| c[i].is_finite());
+        if theta.len() != n || x.iter().any(|c| c.len() != n) || (0..n).all(whole) {
+            if n > 0 && theta.len() == n {
+                self.in_dropout = false;
+            }
+            return self.push(t, theta, x, out);
+        }
+        let mut from = 0;
+        while from < n {
+            // The whole samples from `from`, then the dropout after them.
+            let end = (from..n).find(|&i| !whole(i)).unwrap_or(n);
+            if end > from {
+                self.in_dropout = false;
+                let part: Vec<&[f64]> = x.iter().map(|c| &c[from..end]).collect();
+                self.push(&t[from..end], &theta[from..end], &part, out)?;
+            }
+            if end == n {
+                break;
+            }
+            let resume = (end..n).find(|&i| whole(i)).unwrap_or(n);
+            if let Some(i) = (end..resume).find(|&i| !t[i].is_finite()) {
+                return Err(CrankError::Invalid(format!(
+                    "the time is {} at sample {}: expected a finite number",
+                    t[i],
+                    self.seen + i - end
+                )));
+            }
+            if !self.in_dropout {
+                self.in_dropout = true;
+                let (channel, value) = std::iter::once((None, theta[end]))
+                    .chain(x.iter().enumerate().map(|(j, c)| (Some(j), c[end])))
+                    .find(|(_, v)| !v.is_finite())
+                    .unwrap_or((None, theta[end]));
+                self.dropouts.push(Dropout {
+                    sample: self.seen,
+                    t: t[end],
+                    channel,
+                    value,
+                });
+            }
+            self.leave_out(resume - end);
+            from = resume;
+        }
+        Ok(())
+    }
+
+    /// The dropouts the last chunk given to [`push_past_dropouts`](Self::push_past_dropouts)
+    /// began, in order.
+    pub fn dropouts(&self) -> &[Dropout] {
+        &self.dropouts
     }
 
     /// The samples taken or left out so far: the next sample's index in the stream.

@@ -3,7 +3,7 @@
 #![allow(clippy::unwrap_used)]
 
 use physid_signal::crank::{crank_grid, cycle_stats, interp};
-use physid_signal::cycles::{CycleStream, CycleSummary};
+use physid_signal::cycles::{CycleStream, CycleSummary, Dropout};
 use std::f64::consts::PI;
 
 /// An accelerating engine from 1000 rpm (α = 400 rad/s²), 10 kHz, 2 s; θ from 0.
@@ -336,6 +336,87 @@ fn a_gap_in_the_data_is_resumed_after_with_the_cycles_numbered_on() {
         err.contains(&format!("sample {lost_from}")) && err.contains("not the crank's"),
         "{err}"
     );
+}
+
+/// A dropout — a run of samples whose channel or angle is not a number (a sensor's NaN) — is
+/// left out as a gap: every cycle it does not touch is the clean stream's, bit for bit and with
+/// its number, the cycles it touches are not reported, and each dropout is told once, at its
+/// first sample, whatever the chunking (a dropout across a chunk's end is not told again) —
+/// with statistics and on the curves alone. Without a dropout it is exactly `push`. A time that
+/// is not a number inside a dropout is still an error naming its sample.
+#[test]
+fn a_dropout_is_left_out_as_a_gap_and_told_once() {
+    let (t, th) = engine();
+    let x: Vec<f64> = th.iter().map(|&a| 2.0 + a.cos()).collect();
+    let y: Vec<f64> = th.iter().map(|&a| (0.5 * a).sin()).collect();
+    // A channel's dropout of 30 samples, a single NaN angle, an infinite value.
+    let (mut xd, mut thd, mut yd) = (x.clone(), th.clone(), y.clone());
+    xd[5_000..5_030].fill(f64::NAN);
+    thd[12_000] = f64::NAN;
+    yd[16_000] = f64::INFINITY;
+    let bad = [5_000..5_030, 12_000..12_001, 16_000..16_001];
+    let touched = |c: &CycleSummary| {
+        bad.iter()
+            .any(|r| c.t_start_s <= t[r.end] && c.t_end_s >= t[r.start - 1])
+    };
+    for curves_only in [false, true] {
+        let make = || {
+            let s = CycleStream::new(2, 0.3, Some(1.0)).unwrap();
+            if curves_only {
+                s.curves_only()
+            } else {
+                s
+            }
+        };
+        let clean = push_all(&mut make(), &t, &th, &[x.clone(), y.clone()], 20_000);
+        let kept: Vec<&CycleSummary> = clean.iter().filter(|c| !touched(c)).collect();
+        assert!(
+            kept.len() >= 15 && kept.len() + 3 <= clean.len(),
+            "{}",
+            kept.len()
+        );
+        for chunk in [1, 7, 1000, 20_000] {
+            let mut s = make();
+            let (mut got, mut told) = (Vec::new(), Vec::<Dropout>::new());
+            let mut i = 0;
+            while i < t.len() {
+                let e = (i + chunk).min(t.len());
+                s.push_past_dropouts(&t[i..e], &thd[i..e], &[&xd[i..e], &yd[i..e]], &mut got)
+                    .unwrap();
+                told.extend_from_slice(s.dropouts());
+                i = e;
+            }
+            assert_eq!(got.len(), kept.len(), "chunk {chunk}");
+            for (g, w) in got.iter().zip(&kept) {
+                assert_eq!(g, *w, "chunk {chunk}, cycle {}", w.cycle);
+            }
+            let at: Vec<(usize, Option<usize>)> =
+                told.iter().map(|d| (d.sample, d.channel)).collect();
+            assert_eq!(
+                at,
+                [(5_000, Some(0)), (12_000, None), (16_000, Some(1))],
+                "chunk {chunk}"
+            );
+            assert_eq!(told[0].t, t[5_000]);
+            assert!(told[0].value.is_nan() && told[2].value == f64::INFINITY);
+            assert_eq!(s.seen(), t.len());
+        }
+        // Without a dropout, `push`'s cycles.
+        let mut s = make();
+        let mut got = Vec::new();
+        s.push_past_dropouts(&t, &th, &[&x, &y], &mut got).unwrap();
+        assert!(s.dropouts().is_empty());
+        assert_eq!(got, clean);
+    }
+    // A time that is not a number in a dropout: an error naming the sample.
+    let mut tb = t.clone();
+    tb[5_010] = f64::NAN;
+    let mut s = CycleStream::new(2, 0.3, None).unwrap();
+    let err = s
+        .push_past_dropouts(&tb, &thd, &[&xd, &yd], &mut Vec::new())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("sample 5010"), "{err}");
 }
 
 /// A crank angle that jumps by more than a cycle between two samples (a bad sensor's 10⁹ rad,

@@ -107,12 +107,18 @@ pub fn cycle_channels(cfg: &FrictionFitConfig) -> (Vec<&'static str>, Vec<&'stat
 
 /// The file verb's end: the result, with every cycle the stage put out.
 fn finish(mut stage: FrictionStage, mut out: Vec<FrictionOutput>) -> Result<FrictionFit, AppError> {
+    // The file verb takes every sample: a dropout the stage left out is refused.
+    if let Some(FrictionOutput::Dropout(d)) =
+        out.iter().find(|o| matches!(o, FrictionOutput::Dropout(_)))
+    {
+        return Err(d.refused("the cycle means need finite data"));
+    }
     let mut fit = stage.fit(&mut out)?;
     fit.cycles = out
         .into_iter()
         .filter_map(|o| match o {
             FrictionOutput::Cycle(c) => Some(c),
-            FrictionOutput::Selected { .. } => None,
+            FrictionOutput::Selected { .. } | FrictionOutput::Dropout(_) => None,
         })
         .collect();
     Ok(fit)

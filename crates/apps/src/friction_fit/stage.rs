@@ -18,6 +18,8 @@ pub enum FrictionOutput {
     },
     /// A steady cycle through the estimator.
     Cycle(FrictionSample),
+    /// A dropout left out (the cycle it cuts, the next judged without a neighbour before it).
+    Dropout(Dropout),
 }
 
 /// One steady cycle through the estimator.
@@ -51,8 +53,6 @@ struct SampleMeans {
     channels: Vec<(String, String)>,
     has_p_atm: bool,
     has_truth: bool,
-    /// Samples taken so far.
-    seen: usize,
     /// The cycles a chunk completed (scratch, empty between chunks).
     #[serde(skip)]
     done: Vec<CycleSummary>,
@@ -200,31 +200,34 @@ impl FrictionStage {
             .iter()
             .map(|(name, unit)| chunk.values_in(name, unit))
             .collect::<Result<Vec<_>, _>>()?;
-        for ((name, _), v) in m.channels.iter().zip(&cols) {
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(AppError::Invalid(format!(
-                    "channel '{name}' sample {} is {} — the cycle means need finite data",
-                    m.seen + i,
-                    v[i]
-                )));
-            }
-        }
         let views: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
         m.done.clear();
         m.cycles
-            .push(
+            .push_past_dropouts(
                 chunk.values("t")?,
                 chunk.values("theta_en")?,
                 &views,
                 &mut m.done,
             )
             .map_err(|e| AppError::Invalid(e.to_string()))?;
-        m.seen += chunk.len();
+        let names: Vec<&str> = m.channels.iter().map(|(n, _)| n.as_str()).collect();
+        for d in m.cycles.dropouts() {
+            out.put(FrictionOutput::Dropout(Dropout::of_cycles(d, &names, 0)));
+        }
         let sign = self.cfg.source.channel().1;
         let p_atm_default = self.cfg.p_atm_kpa.map(|kpa| kpa * 1e3);
         let done = std::mem::take(&mut m.done);
         let (has_p_atm, has_truth) = (m.has_p_atm, m.has_truth);
         for c in &done {
+            // A cycle left out before this one (a dropout): the one before judged without a
+            // neighbour after it, this one without one before.
+            if self
+                .pending
+                .as_ref()
+                .is_some_and(|p| p.cycle + 1 != c.cycle)
+            {
+                self.push_gap(out)?;
+            }
             let w = c.mean[0];
             let mut k = 4;
             let p_atm = if has_p_atm {
@@ -287,7 +290,6 @@ impl FrictionStage {
                 .collect(),
             has_p_atm,
             has_truth,
-            seen: 0,
             done: Vec::new(),
         })
     }

@@ -11,8 +11,6 @@ pub(super) struct DegreeCurves {
     pub(super) theta_tdc: f64,
     pub(super) curves: Option<CycleStream>,
     done: Vec<CycleSummary>,
-    /// Time-basis samples taken so far.
-    seen: usize,
 }
 
 impl DegreeCurves {
@@ -21,14 +19,14 @@ impl DegreeCurves {
             theta_tdc,
             curves: None,
             done: Vec::new(),
-            seen: 0,
         }
     }
 
     /// A chunk of time-basis samples with `t`, `theta_en` and [`CURVE_CHANNELS`]: every cycle
     /// it completes resampled, `each(u, y, t)` for each degree — the inputs in [`CyclicTorque`]'s
     /// order (θ [rad from the first TDC], ω, α, p_cyl, p_crank, T_oil [°C]), the measured torque
-    /// [N·m], the time [s].
+    /// [N·m], the time [s]. A dropout (a channel or the angle not a number) is left out with
+    /// the cycle it cuts ([`CycleStream::push_past_dropouts`]; the chunk's: [`dropouts`](Self::dropouts)).
     pub(super) fn push<E: From<AppError>>(
         &mut self,
         chunk: &Recording,
@@ -53,24 +51,14 @@ impl DegreeCurves {
             .map(|(name, unit)| chunk.values_in(name, unit))
             .collect::<Result<Vec<_>, _>>()
             .map_err(AppError::from)?;
-        for ((name, _), v) in CURVE_CHANNELS.iter().zip(&cols) {
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(invalid(format!(
-                    "channel '{name}' sample {} is {}: the model needs finite data",
-                    self.seen + i,
-                    v[i]
-                )));
-            }
-        }
         let views: Vec<&[f64]> = cols.iter().map(|c| c.as_slice()).collect();
         let theta = chunk.values_in("theta_en", "rad").map_err(AppError::from)?;
         let t = chunk.values("t").map_err(AppError::from)?;
         self.done.clear();
         if let Some(c) = self.curves.as_mut() {
-            c.push(t, &theta, &views, &mut self.done)
+            c.push_past_dropouts(t, &theta, &views, &mut self.done)
                 .map_err(|e| invalid(e.to_string()))?;
         }
-        self.seen += chunk.len();
         let step = (1.0f64).to_radians();
         let mut u = [0.0; 6];
         for c in &self.done {
@@ -86,6 +74,17 @@ impl DegreeCurves {
             }
         }
         Ok(())
+    }
+}
+
+impl DegreeCurves {
+    /// The dropouts the last chunk began.
+    pub(super) fn dropouts(&self) -> impl Iterator<Item = Dropout> + '_ {
+        let names = CURVE_CHANNELS.map(|(name, _)| name);
+        self.curves
+            .iter()
+            .flat_map(|c| c.dropouts())
+            .map(move |d| Dropout::of_cycles(d, &names, 0))
     }
 }
 
@@ -279,7 +278,12 @@ impl<'a> Degrees<'a> {
                                 buf.clear();
                             }
                             Ok(())
-                        })
+                        })?;
+                        // The file verb takes every sample: a dropout is refused.
+                        match curves.dropouts().next() {
+                            Some(d) => Err(E::from(d.refused("the model needs finite data"))),
+                            None => Ok(()),
+                        }
                     })
                 })?;
                 if !buf.y.is_empty() {

@@ -59,7 +59,7 @@ pub fn torque_fit_degrees(src: &Degrees, cfg: &TorqueFitConfig) -> Result<Torque
         .into_iter()
         .filter_map(|o| match o {
             TorqueOutput::Cycle(c) => Some(c),
-            TorqueOutput::Selected { .. } => None,
+            TorqueOutput::Selected { .. } | TorqueOutput::Dropout(_) => None,
         })
         .collect();
     Ok(fit)

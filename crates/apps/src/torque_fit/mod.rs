@@ -29,7 +29,7 @@ use crate::acquisition::{
 pub use crate::cell::cyclic_torque_nominal;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
-use crate::stage::{Sink, Stage};
+use crate::stage::{Dropout, Sink, Stage};
 use physid_core::{Basis, ParamModel, ParamSet, Recording, Recordings, Reopen};
 use physid_estim::metrics::Prediction;
 use physid_estim::{CovSpec, EstimatorSpec, MethodName, NonlinearEstimator};

@@ -18,6 +18,8 @@ pub enum TorqueOutput {
     },
     /// Another 720 samples (a cycle's worth) through the filter.
     Cycle(TorqueCycle),
+    /// A dropout left out with the cycle it cuts (the live stage).
+    Dropout(Dropout),
 }
 
 /// A cycle's worth of samples through the filter.
@@ -447,7 +449,11 @@ impl Stage for TorqueStage {
     ) -> Result<(), AppError> {
         let choosing = &mut self.choosing;
         self.curves
-            .push::<AppError>(chunk, &mut |u, y, t| choosing.take(u, y, t, out))
+            .push::<AppError>(chunk, &mut |u, y, t| choosing.take(u, y, t, out))?;
+        for d in self.curves.dropouts() {
+            out.put(TorqueOutput::Dropout(d));
+        }
+        Ok(())
     }
 
     /// The end of the stream: the parameters chosen on all of it if they were not yet.

@@ -4,8 +4,9 @@
 
 use super::slot::{At, Tell};
 use super::*;
-use physid_apps::combustion_stage::CombustionCycle;
+use physid_apps::combustion_stage::CombustionOutput;
 use physid_apps::shaft_monitor::ShaftSample;
+use physid_apps::stage::Dropout;
 use physid_core::Sink;
 
 /// The integrity checks on the stream (`physid inspect`'s, as the chunks come), set up on its
@@ -166,11 +167,17 @@ impl Tell for CycleStage {
                 *told += 1;
                 events.put(Event::cycle(c, self.channels(), step));
             }
-            CycleOutput::Dropout { t_s, message } => {
-                events.put(Event::finding(*t_s, format!("cycles: {message}")))
-            }
+            CycleOutput::Dropout(d) => dropout::<Self>(d, events),
         }
     }
+}
+
+/// A dropout stage `S` left out, as a finding.
+fn dropout<S: Tell>(d: &Dropout, events: &mut dyn Sink<Event>) {
+    events.put(Event::finding(
+        d.t_s,
+        format!("{}: {}", S::NAME, d.message()),
+    ));
 }
 
 /// `estimable` and the rest of `all` as an identifiability event of `app`.
@@ -215,6 +222,7 @@ impl Tell for FrictionStage {
     /// true, with the estimates.
     fn tell(&self, _: &mut (), o: &FrictionOutput, _at: At, events: &mut dyn Sink<Event>) {
         events.put(match o {
+            FrictionOutput::Dropout(d) => return dropout::<Self>(d, events),
             FrictionOutput::Selected { t_s, estimable, .. } => {
                 identifiability(App::Friction, *t_s, estimable, &REGRESSION_PARAMS)
             }
@@ -253,6 +261,7 @@ impl Tell for TorqueStage {
     /// The choice of parameters; then each cycle's estimates and torque errors.
     fn tell(&self, _: &mut (), o: &TorqueOutput, _at: At, events: &mut dyn Sink<Event>) {
         events.put(match o {
+            TorqueOutput::Dropout(d) => return dropout::<Self>(d, events),
             TorqueOutput::Selected { t_s, estimable, .. } => identifiability(
                 App::Torque,
                 *t_s,
@@ -294,7 +303,11 @@ impl Tell for CombustionStage {
     }
 
     /// Each cycle's figures by their `cycles --tracks` names, with its curves when due.
-    fn tell(&self, _: &mut (), cc: &CombustionCycle, _at: At, events: &mut dyn Sink<Event>) {
+    fn tell(&self, _: &mut (), o: &CombustionOutput, _at: At, events: &mut dyn Sink<Event>) {
+        let cc = match o {
+            CombustionOutput::Cycle(cc) => cc,
+            CombustionOutput::Dropout(d) => return dropout::<Self>(d, events),
+        };
         let c = &cc.figures;
         let s = self.settings();
         let figures = physid_apps::per_cycle::figure_columns(
