@@ -33,7 +33,9 @@ use std::f64::consts::PI;
 /// person can follow, whatever the engine's speed).
 pub const CURVE_INTERVAL_S: f64 = 0.2;
 
-/// What the combustion analysis gives: a cycle's figures, or a dropout it left out.
+/// What the combustion analysis gives: a cycle's figures, or a dropout it left out. (Nearly
+/// every output is a cycle, put once per cycle: not boxed.)
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum CombustionOutput {
     /// A complete cycle's figures.
