@@ -826,6 +826,82 @@ fn frames_over_a_local_socket() {
     assert!(!sock.exists(), "the socket is removed at the end");
 }
 
+/// Frames on stdin from a sender that goes silent with its pipe open (a DAQ that hangs): SIGTERM
+/// ends the run as its end does — exit 0, the `end` event with every sample taken before it —
+/// instead of the run sitting in its read until the signal's 5 s grace ran out and exiting 130
+/// without its `end` (the pipe is read on a thread of its own, `PipedFrames`).
+#[cfg(unix)]
+#[test]
+fn a_signal_ends_a_run_waiting_for_frames_on_stdin() {
+    use std::io::{BufRead, BufReader, Write};
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let s = Scratch::new("physid-live-stdin-signal");
+    let file = s.file("t01.csv");
+    common::simulated(&file, "shaft-steady", "2");
+    let (frames, n) = frames_of(&file);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+        .args([
+            "live",
+            "--headless",
+            "--json",
+            "--pace",
+            "max",
+            "--frames",
+            "-",
+        ])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    for f in &frames {
+        writeln!(stdin, "{f}").unwrap();
+    }
+    stdin.flush().unwrap();
+    // The events as they come, until an estimate from the last tenth of a second's samples.
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let (mut ev, mut line) = (Vec::<Value>::new(), String::new());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        line.clear();
+        assert!(
+            out.read_line(&mut line).unwrap() > 0,
+            "the run ended: {ev:?}"
+        );
+        let e: Value = serde_json::from_str(&line).unwrap();
+        let late = e["type"] == "estimate" && e["t_s"].as_f64().unwrap() >= 1.9;
+        ev.push(e);
+        if late {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no estimate from 1.9 s on: {ev:?}"
+        );
+    }
+    // The sender is silent, its pipe open (`stdin` is held to the end).
+    let _ = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status();
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut out, &mut rest).unwrap();
+    let status = child.wait().unwrap();
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(status.success(), "{status:?}: {err}");
+    ev.extend(
+        rest.lines()
+            .map(|l| serde_json::from_str::<Value>(l).unwrap()),
+    );
+    let end = of_type(&ev, "end");
+    assert_eq!(end.len(), 1, "{err}");
+    let samples = end[0]["samples"].as_u64().unwrap();
+    assert!((19_000..=n as u64).contains(&samples), "{}", end[0]);
+    drop(stdin);
+}
+
 /// A DAQ that connects again: with `--frames-reconnect`, a client that closes in the middle of
 /// a frame is followed by the next client — the unfinished frame refused alone, the next
 /// client's frames taken from its first line, its connection told as a finding, each close

@@ -23,9 +23,11 @@
 //! time its frames started at — is told with the next chunk and its frames go on after a gap
 //! in the data, their time and crank angles shifted to continue the stream ([`seam`]).
 
+mod piped;
 mod seam;
 #[cfg(unix)]
 mod socket;
+pub use piped::PipedFrames;
 pub use seam::{Sample, Shift};
 #[cfg(unix)]
 pub use socket::SocketFrames;

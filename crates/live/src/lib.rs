@@ -38,7 +38,7 @@ pub use control::{forward_control_lines, Control, ControlRequest, MAX_CONTROL_BY
 pub use event::{App, Event, Input, LogState};
 #[cfg(unix)]
 pub use frames::SocketFrames;
-pub use frames::{FrameLines, FrameSource, FRAME_CHANNELS, MAX_FRAME_BYTES};
+pub use frames::{FrameLines, FrameSource, PipedFrames, FRAME_CHANNELS, MAX_FRAME_BYTES};
 pub use hub::Hub;
 pub use layout::Layout;
 pub use message::{Hello, PanelMessage, Reply};

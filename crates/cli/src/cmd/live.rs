@@ -9,7 +9,7 @@ use miette::{miette, Result};
 use physid_live::fleet::{publish::PublishConfig, NatsTarget};
 use physid_live::{
     run_live, Access, ControlRequest, Event, FrameSource, Hub, LiveConfig, LiveError, LogState,
-    Pace, Panel, PanelFeed, ReplaySource, ScenarioSource, Source,
+    Pace, Panel, PanelFeed, PipedFrames, ReplaySource, ScenarioSource, Source,
 };
 use physid_sim::run::{OutputBasis, RunOptions};
 use physid_sim::scenario::{Fault, Scenario};
@@ -373,7 +373,7 @@ fn source(a: &Args, stop: &Arc<AtomicBool>) -> Result<(Box<dyn Source>, String, 
     Ok(match (&a.replay, &a.frames) {
         (_, Some(path)) => (
             Box::new(
-                FrameSource::new(lines(path, "--frames")?, a.sample_rate)
+                FrameSource::new(frames_input(path)?.until(stop.clone()), a.sample_rate)
                     .map_err(|e| miette!("{e}"))?,
             ),
             format!("frames from {} at {} Hz", path.display(), a.sample_rate),
@@ -569,6 +569,18 @@ fn open_browser(url: &str) {
     if let Err(e) = std::process::Command::new(opener).arg(url).spawn() {
         eprintln!("physid live: could not open a browser ({opener}: {e}); open {url} yourself");
     }
+}
+
+/// `--frames PATH`: the file (a FIFO too), or standard input for `-`, read on a thread of its
+/// own so that a signal ends a wait for a silent sender ([`PipedFrames`]).
+fn frames_input(path: &Path) -> Result<PipedFrames> {
+    let input: Box<dyn std::io::Read + Send> = if path.as_os_str() == "-" {
+        Box::new(std::io::stdin())
+    } else {
+        Box::new(File::open(path).map_err(|e| miette!("--frames {}: {e}", path.display()))?)
+    };
+    PipedFrames::new(input, &path.display().to_string())
+        .map_err(|e| miette!("--frames {}: starting its reader: {e}", path.display()))
 }
 
 /// A file's lines, or standard input's for `-` (`flag` names the option in an error).
