@@ -902,6 +902,64 @@ fn a_signal_ends_a_run_waiting_for_frames_on_stdin() {
     drop(stdin);
 }
 
+/// A `stop` control while the sender is silent — frames on stdin with the pipe open, a socket
+/// no client has connected to — ends the run: the control is answered (`control` event), the
+/// stages finish, `end`, exit 0. Before, controls were applied only when a frame came: the run
+/// sat waiting for the sender, and the panel's controls timed out ("no answer from the run
+/// within 5 s"); and `--controls FILE` could not go with `--frames -` at all.
+#[cfg(unix)]
+#[test]
+fn a_stop_control_ends_a_run_whose_sender_is_silent() {
+    use std::process::{Command, Stdio};
+    use std::time::{Duration, Instant};
+    let s = Scratch::new("physid-live-silent-stop");
+    let controls = s.file("controls.ndjson");
+    std::fs::write(&controls, "{\"cmd\":\"stop\"}\n").unwrap();
+    let sock = s.file("daq.sock");
+    let sock = sock.to_str().unwrap();
+    for source in [["--frames", "-"], ["--frames-socket", sock]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_physid"))
+            .args(["live", "--headless", "--json", "--pace", "max"])
+            .args(source)
+            .arg("--controls")
+            .arg(&controls)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The sender: stdin held open, silent.
+        let stdin = child.stdin.take();
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while child.try_wait().unwrap().is_none() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        if child.try_wait().unwrap().is_none() {
+            let _ = child.kill();
+            panic!("{source:?}: the run did not end at the stop control within 60 s");
+        }
+        drop(stdin);
+        let ev = events_at_end(child);
+        let stop: Vec<_> = of_type(&ev, "control")
+            .into_iter()
+            .filter(|e| e["cmd"] == "stop")
+            .collect();
+        assert_eq!(stop.len(), 1, "{source:?}: {ev:?}");
+        let end = of_type(&ev, "end");
+        assert_eq!(end.len(), 1, "{source:?}: {ev:?}");
+        assert_eq!(end[0]["samples"], 0, "{source:?}");
+        // No sample, nothing wrong: no stage says it stopped.
+        assert!(of_type(&ev, "finding").is_empty(), "{source:?}: {ev:?}");
+    }
+    // Frames and controls cannot both be stdin.
+    let o = physid(&["live", "--headless", "--frames", "-", "--controls", "-"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("both read standard input"),
+        "{err}"
+    );
+}
+
 /// A DAQ that connects again: with `--frames-reconnect`, a client that closes in the middle of
 /// a frame is followed by the next client — the unfinished frame refused alone, the next
 /// client's frames taken from its first line, its connection told as a finding, each close

@@ -36,11 +36,15 @@ use crate::service::LiveError;
 use crate::source::Source;
 use physid_core::{Basis, Channel, Recording};
 use serde_json::Value;
-use std::io::{BufRead, Read};
+use std::io::BufRead;
 use std::time::Instant;
 
 /// The channels a frame must carry (the shaft monitor's).
 pub const FRAME_CHANNELS: [&str; 6] = physid_apps::shaft_monitor::SHAFT_CHANNELS;
+
+/// How often a frame reader with a stop flag ([`PipedFrames::until`]) looks at it while it
+/// waits for its sender, and hands its caller an empty chunk: the run applies its controls.
+pub const POLL: std::time::Duration = std::time::Duration::from_millis(100);
 
 /// Where the channels the seam shifts stand in [`FRAME_CHANNELS`].
 const T: usize = 0;
@@ -65,6 +69,11 @@ pub struct FrameSource<R: FrameLines> {
     reader: R,
     rate_hz: f64,
     line: usize,
+    /// The line being read, as it comes (a wait for the sender may fall in the middle of it).
+    pending: Vec<u8>,
+    /// The bytes of a line past [`MAX_FRAME_BYTES`] so far, skipped to its end.
+    skipped: Option<usize>,
+    /// The line being parsed.
     buf: String,
     next_seq: Option<u64>,
     /// The last sample taken (shifted, as the stages took it), and when its frame was taken.
@@ -90,6 +99,8 @@ impl<R: FrameLines> FrameSource<R> {
             reader,
             rate_hz,
             line: 0,
+            pending: Vec::new(),
+            skipped: None,
             buf: String::new(),
             next_seq: None,
             last: None,
@@ -285,56 +296,74 @@ impl<R: FrameLines> Source for FrameSource<R> {
         self.rate_hz
     }
 
+    /// The next frame; an empty chunk when the reader has nothing yet and says so
+    /// ([`std::io::ErrorKind::WouldBlock`]: a reader with a stop flag, every [`POLL`]) — the
+    /// run applies its controls and asks again, the line in
+    /// progress kept.
     fn next_chunk(&mut self) -> Result<Option<Recording>, LiveError> {
         loop {
-            self.buf.clear();
-            let read = match (&mut self.reader)
-                .take(MAX_FRAME_BYTES as u64)
-                .read_line(&mut self.buf)
-            {
-                Ok(n) => n,
-                // The line was read (and is dropped): refused, the stream goes on.
-                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
-                    self.line += 1;
-                    return Err(self.bad("not UTF-8 text".into()));
+            let avail = match self.reader.fill_buf() {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    return Ok(Some(Recording::new(Basis::Time)))
                 }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
                 Err(e) => return Err(LiveError::Invalid(format!("reading frames: {e}"))),
             };
-            if read == 0 {
-                return Ok(None);
+            if avail.is_empty() {
+                // The end; a last line without its line end is still a line.
+                if self.pending.is_empty() && self.skipped.is_none() {
+                    return Ok(None);
+                }
+            } else {
+                let (n, end) = match avail.iter().position(|&b| b == b'\n') {
+                    Some(i) => (i + 1, true),
+                    None => (avail.len(), false),
+                };
+                match self.skipped.as_mut() {
+                    Some(k) => *k += n,
+                    // Past the longest frame: the rest of the line is skipped, holding
+                    // nothing of it.
+                    None if self.pending.len() + n > MAX_FRAME_BYTES => {
+                        self.skipped = Some(self.pending.len() + n);
+                        self.pending.clear();
+                    }
+                    None => self.pending.extend_from_slice(&avail[..n]),
+                }
+                self.reader.consume(n);
+                if !end {
+                    continue;
+                }
             }
             self.line += 1;
-            if read == MAX_FRAME_BYTES && !self.buf.ends_with('\n') {
-                // Skip the rest of the line, holding nothing of it.
-                self.buf.clear();
-                let mut skipped = 0usize;
-                loop {
-                    let chunk = self
-                        .reader
-                        .fill_buf()
-                        .map_err(|e| LiveError::Invalid(format!("reading frames: {e}")))?;
-                    if chunk.is_empty() {
-                        break;
-                    }
-                    let (n, end) = match chunk.iter().position(|&b| b == b'\n') {
-                        Some(i) => (i + 1, true),
-                        None => (chunk.len(), false),
-                    };
-                    self.reader.consume(n);
-                    skipped += n;
-                    if end {
-                        break;
-                    }
-                }
+            if let Some(k) = self.skipped.take() {
                 return Err(self.bad(format!(
-                    "longer than {MAX_FRAME_BYTES} bytes ({} read): refused",
-                    read + skipped
+                    "longer than {MAX_FRAME_BYTES} bytes ({k} read): refused"
                 )));
             }
-            if self.buf.trim().is_empty() {
-                continue;
+            // The line as text, its buffer kept for the next (no allocation per line).
+            let bytes = std::mem::take(&mut self.pending);
+            let parsed = match String::from_utf8(bytes) {
+                Ok(text) => {
+                    self.buf = text;
+                    let parsed = if self.buf.trim().is_empty() {
+                        None
+                    } else {
+                        Some(self.parse())
+                    };
+                    self.pending = std::mem::take(&mut self.buf).into_bytes();
+                    parsed
+                }
+                Err(e) => {
+                    self.pending = e.into_bytes();
+                    Some(Err(self.bad("not UTF-8 text".into())))
+                }
+            };
+            self.pending.clear();
+            match parsed {
+                Some(r) => return r.map(Some),
+                None => continue,
             }
-            return self.parse().map(Some);
         }
     }
 
@@ -524,5 +553,85 @@ mod tests {
         let last = src.next_chunk().unwrap().unwrap();
         assert!((last.values("t").unwrap()[0] - 3e-4).abs() < 1e-12);
         assert!(src.next_chunk().unwrap().is_none());
+    }
+
+    /// A reader that gives its pieces one read at a time, `None` as a wait (`WouldBlock`).
+    struct Pieces(std::collections::VecDeque<Option<Vec<u8>>>, Vec<u8>);
+
+    impl std::io::Read for Pieces {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let avail = self.fill_buf()?;
+            let n = avail.len().min(buf.len());
+            buf[..n].copy_from_slice(&avail[..n]);
+            self.consume(n);
+            Ok(n)
+        }
+    }
+
+    impl BufRead for Pieces {
+        fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+            if self.1.is_empty() {
+                match self.0.pop_front() {
+                    Some(Some(b)) => self.1 = b,
+                    Some(None) => return Err(std::io::ErrorKind::WouldBlock.into()),
+                    None => {}
+                }
+            }
+            Ok(&self.1)
+        }
+
+        fn consume(&mut self, amt: usize) {
+            self.1.drain(..amt);
+        }
+    }
+
+    impl FrameLines for Pieces {}
+
+    /// A wait for the sender (`WouldBlock`) — before a frame, in the middle of one, in the
+    /// middle of a line too long — is an empty chunk (the run applies its controls), and the
+    /// line in progress is kept: the frame is taken whole, the long line refused whole.
+    #[test]
+    fn a_wait_for_the_sender_is_an_empty_chunk_and_keeps_the_line() {
+        let f = frame(0);
+        let (a, b) = f.as_bytes().split_at(f.len() / 2);
+        let long = vec![b' '; MAX_FRAME_BYTES];
+        let pieces = [
+            None,
+            Some(a.to_vec()),
+            None,
+            None,
+            Some([b, b"\n"].concat()),
+            Some(long.clone()),
+            None,
+            Some([&long[..], b"\n"].concat()),
+            Some(format!("{}\n", frame(3)).into_bytes()),
+        ];
+        let mut src =
+            FrameSource::new(Pieces(pieces.into_iter().collect(), Vec::new()), 10_000.0).unwrap();
+        let mut got = Vec::new();
+        for _ in 0..20 {
+            match src.next_chunk() {
+                Ok(Some(c)) => got.push(Ok(c.len())),
+                Ok(None) => break,
+                Err(LiveError::BadFrame { line, what }) => got.push(Err((line, what))),
+                Err(e) => panic!("{e}"),
+            }
+        }
+        let long_read = format!(
+            "longer than {MAX_FRAME_BYTES} bytes ({} read): refused",
+            2 * MAX_FRAME_BYTES + 1
+        );
+        assert_eq!(
+            got,
+            [
+                Ok(0),
+                Ok(0),
+                Ok(0),
+                Ok(3),
+                Ok(0),
+                Err((2, long_read)),
+                Ok(3)
+            ]
+        );
     }
 }

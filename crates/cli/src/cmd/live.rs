@@ -94,7 +94,7 @@ pub struct Args {
     /// virtual cell {"cmd": "speed", "rpm": 1200}, {"cmd": "throttle", "deg": 30},
     /// {"cmd": "fault", "spec": "shaft.k=1000@12"}, {"cmd": "stop"}; for any source
     /// {"cmd": "restart", "stage": "shaft"}, {"cmd": "record", …} (docs/live.md).
-    #[arg(long, value_name = "FILE|-", conflicts_with = "frames")]
+    #[arg(long, value_name = "FILE|-")]
     controls: Option<PathBuf>,
     #[command(flatten)]
     input: super::InputArgs,
@@ -153,6 +153,12 @@ pub struct Args {
 
 /// Run `physid live`.
 pub fn run(a: &Args) -> Result<()> {
+    let stdin = |p: &Option<PathBuf>| p.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    if stdin(&a.frames) && stdin(&a.controls) {
+        return Err(miette!(
+            "--frames - and --controls - both read standard input: give one of them a file (a FIFO, for messages as they come)"
+        ));
+    }
     if a.nats_credentials.is_some() && a.nats.is_none() && a.fleet.is_none() {
         return Err(miette!(
             "--nats-credentials: for --nats (publishing a cell) or --fleet (the fleet view)"

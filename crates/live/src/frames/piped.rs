@@ -5,14 +5,15 @@
 //! `end`. Here the pipe is read on a thread of its own, which hands blocks on through a bounded
 //! channel ([`DEPTH`] blocks of [`BLOCK`] bytes: the memory stays bounded whatever the sender
 //! does), and a wait for the next block looks at the stop flag every [`POLL`]: once it is set,
-//! the frames end — the run finishes as at the end of its input. The blocks' buffers go back to
+//! the frames end — the run finishes as at the end of its input; until then the wait hands
+//! its caller a `WouldBlock` every [`POLL`], so that the run applies its controls (a `stop`
+//! from the panel ends a run whose sender is silent). The blocks' buffers go back to
 //! the thread to be filled again (no allocation per block once running).
 //!
 //! The thread stays in its read until the sender writes or closes; it holds nothing the run
 //! needs, and the process ends without waiting for it.
 
-use super::socket::POLL;
-use super::FrameLines;
+use super::{FrameLines, POLL};
 use std::io::{BufRead, Read};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender};
@@ -97,8 +98,10 @@ impl Read for PipedFrames {
 }
 
 impl BufRead for PipedFrames {
-    /// The block's bytes not yet consumed; the next block when there are none (waiting for it,
-    /// the stop flag looked at every [`POLL`]); empty at the end of the frames.
+    /// The block's bytes not yet consumed; the next block when there are none; empty at the end
+    /// of the frames. With a stop flag, a wait ends every [`POLL`]: at the end of the frames
+    /// once the flag is set, else with [`WouldBlock`](std::io::ErrorKind::WouldBlock) (nothing
+    /// yet: ask again) — the run applies its controls meanwhile.
     fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
         while self.at == self.block.len() && !self.ended {
             let wait = if self.stop.is_some() {
@@ -118,7 +121,13 @@ impl BufRead for PipedFrames {
                     self.ended = true;
                     return Err(e);
                 }
-                Err(RecvTimeoutError::Timeout) => self.ended = self.stopped(),
+                Err(RecvTimeoutError::Timeout) => {
+                    self.ended = self.stopped();
+                    if !self.ended {
+                        // Nothing yet: the caller applies its controls and asks again.
+                        return Err(std::io::ErrorKind::WouldBlock.into());
+                    }
+                }
                 Err(RecvTimeoutError::Disconnected) => self.ended = true,
             }
         }
@@ -151,8 +160,8 @@ mod tests {
         assert!(p.fill_buf().unwrap().is_empty());
     }
 
-    /// A silent sender: the lines written are read, then a wait for more ends within the
-    /// poll of the stop flag being set (the pipe still open); without the flag it would wait.
+    /// A silent sender: the lines written are read, then a wait for more says so (`WouldBlock`)
+    /// every poll and ends at the stop flag (the pipe still open).
     #[test]
     fn a_wait_for_a_silent_sender_ends_at_the_stop_flag() {
         let (reader, mut writer) = std::io::pipe().unwrap();
@@ -171,7 +180,16 @@ mod tests {
             Instant::now()
         });
         line.clear();
-        assert_eq!(p.read_line(&mut line).unwrap(), 0, "{line:?}");
+        // Nothing yet, every poll, until the flag: then the end.
+        let mut waits = 0;
+        let read = loop {
+            match p.read_line(&mut line) {
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => waits += 1,
+                r => break r.unwrap(),
+            }
+        };
+        assert_eq!(read, 0, "{line:?}");
+        assert!(waits >= 1, "the wait told its caller nothing");
         let ended = Instant::now();
         let set_at = set_at.join().unwrap();
         assert!(ended >= set_at, "ended before the flag was set");

@@ -11,19 +11,17 @@
 //!
 //! With a stop flag ([`SocketFrames::until`]) nothing waits past it: waiting for a client, or
 //! for a silent client's next bytes, ends the frames within [`POLL`] of the flag being set, so
-//! that SIGINT or SIGTERM ends the run as its end does.
+//! that SIGINT or SIGTERM ends the run as its end does; until then such a wait hands its
+//! caller a `WouldBlock` every [`POLL`], so that the run applies its controls meanwhile.
 
-use super::FrameLines;
+use super::{FrameLines, POLL};
 use crate::service::LiveError;
 use std::io::{BufRead, BufReader, ErrorKind, Read};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
-
-/// How often a wait looks at the stop flag.
-pub const POLL: Duration = Duration::from_millis(100);
+use std::time::Instant;
 
 /// What a client's closing is told to (a line for the operator's terminal).
 type Tell = Box<dyn FnMut(&str) + Send>;
@@ -134,7 +132,8 @@ impl SocketFrames {
             .is_some_and(|s| s.load(Ordering::Relaxed))
     }
 
-    /// The next client, or `None` when the stop flag was set while waiting for it.
+    /// The next client, or `None` when the stop flag was set while waiting for it; with a stop
+    /// flag, `WouldBlock` when none came within [`POLL`].
     fn accept(&mut self) -> std::io::Result<Option<UnixStream>> {
         loop {
             if self.stopped() {
@@ -148,7 +147,13 @@ impl SocketFrames {
                     }
                     return Ok(Some(s));
                 }
-                Err(e) if e.kind() == ErrorKind::WouldBlock => std::thread::sleep(POLL),
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                    std::thread::sleep(POLL);
+                    // Nothing yet: the caller applies its controls and asks again.
+                    if self.stop.is_some() && !self.stopped() {
+                        return Err(ErrorKind::WouldBlock.into());
+                    }
+                }
                 Err(e) if e.kind() == ErrorKind::Interrupted => {}
                 Err(e) => return Err(e),
             }
@@ -178,7 +183,9 @@ impl SocketFrames {
                     if self.stopped() {
                         return Ok(&[]);
                     }
-                    continue;
+                    // Nothing yet (a read timeout is set only with a stop flag): the caller
+                    // applies its controls and asks again.
+                    return Err(ErrorKind::WouldBlock.into());
                 }
                 Err(e) if e.kind() == ErrorKind::Interrupted => continue,
                 Err(e) => return Err(e),
@@ -296,6 +303,7 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
     use std::io::Write;
+    use std::time::Duration;
 
     #[test]
     fn ordinals() {
@@ -346,7 +354,15 @@ mod tests {
         loop {
             assert!(Instant::now() < deadline);
             let mut line = String::new();
-            if src.read_line(&mut line).unwrap() == 0 {
+            let read = loop {
+                match src.read_line(&mut line) {
+                    Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                        assert!(Instant::now() < deadline)
+                    }
+                    r => break r.unwrap(),
+                }
+            };
+            if read == 0 {
                 break;
             }
             notices.extend(src.notice());

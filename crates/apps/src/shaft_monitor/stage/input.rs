@@ -292,6 +292,10 @@ impl ShaftStage {
         for f in &mut self.filtered {
             f.clear();
         }
+        // No sample at all (a run stopped before its first): nothing to flush, nothing wrong.
+        if self.t0.is_none() {
+            return Ok(());
+        }
         let channels = if self.regressors_only { 2 } else { 3 };
         if let Some(filters) = &mut self.filters {
             for (f, o) in filters.iter_mut().zip(&mut self.filtered).take(channels) {
