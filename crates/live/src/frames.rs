@@ -62,6 +62,16 @@ pub trait FrameLines: BufRead {
 }
 
 impl FrameLines for Box<dyn BufRead + Send> {}
+
+/// `Read::read` of a frame reader that is a `BufRead` at heart: what its buffer holds, copied
+/// and consumed.
+fn read_buffered<R: BufRead + ?Sized>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
+    let avail = r.fill_buf()?;
+    let n = avail.len().min(buf.len());
+    buf[..n].copy_from_slice(&avail[..n]);
+    r.consume(n);
+    Ok(n)
+}
 impl<T: AsRef<[u8]>> FrameLines for std::io::Cursor<T> {}
 
 /// Frames read line by line from `R`.
@@ -560,11 +570,7 @@ mod tests {
 
     impl std::io::Read for Pieces {
         fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-            let avail = self.fill_buf()?;
-            let n = avail.len().min(buf.len());
-            buf[..n].copy_from_slice(&avail[..n]);
-            self.consume(n);
-            Ok(n)
+            read_buffered(self, buf)
         }
     }
 
