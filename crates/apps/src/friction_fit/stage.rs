@@ -210,8 +210,8 @@ impl FrictionStage {
                 &mut m.done,
             )
             .map_err(|e| AppError::Invalid(e.to_string()))?;
-        let names: Vec<&str> = m.channels.iter().map(|(n, _)| n.as_str()).collect();
         for d in m.cycles.dropouts() {
+            let names: Vec<&str> = m.channels.iter().map(|(n, _)| n.as_str()).collect();
             out.put(FrictionOutput::Dropout(Dropout::of_cycles(d, &names, 0)));
         }
         let sign = self.cfg.source.channel().1;
