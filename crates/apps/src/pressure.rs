@@ -29,6 +29,7 @@ pub use crate::per_cycle::CycleFigures;
 use crate::per_cycle::{figure_columns, CycleTimes, PerCycle, PerCycleSettings};
 pub use crate::per_cycle::{Brake, PressureLowpass};
 pub use crate::pressure_unit::{check_unit, UnitCheck, PA_PLAUSIBLE};
+use crate::stage::{Dropout, DropoutLog};
 
 /// The cylinder's geometry (SI).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -143,6 +144,9 @@ pub struct CycleAnalysis {
     pub lnv_imep: Option<f64>,
     /// What was left out and why (partial cycles, IMEP without Pa …), for a person.
     pub notes: Vec<String>,
+    /// The samples that were not a number (a sensor's dropout), each left out with the cycles
+    /// it cuts.
+    pub dropouts: Vec<Dropout>,
     /// The burn fractions whose angles were asked for [%].
     #[serde(skip)]
     pub mfb: Vec<f64>,
@@ -279,9 +283,11 @@ pub struct CycleAnalyser {
     run_p: Vec<f64>,
     /// The brake torque's samples (with [`Self::with_brake`]).
     run_torque: Vec<f64>,
-    seen: usize,
     cycles: Vec<CycleFigures>,
     partial: usize,
+    /// The dropouts, and the cycles they cut (left out).
+    dropouts: DropoutLog,
+    cut: usize,
     /// Complete blocks whose TDC had no complete compression before it (the first).
     no_compression: usize,
     /// The last complete block's second half: the next cycle's compression.
@@ -356,9 +362,10 @@ impl CycleAnalyser {
             run_deg: Vec::new(),
             run_p: Vec::new(),
             run_torque: Vec::new(),
-            seen: 0,
             cycles: Vec::new(),
             partial: 0,
+            dropouts: DropoutLog::default(),
+            cut: 0,
             no_compression: 0,
             tail: None,
             notes,
@@ -434,7 +441,8 @@ impl CycleAnalyser {
         Ok(self)
     }
 
-    /// The next chunk of the recording.
+    /// The next chunk of the recording. A pressure or brake torque that is not a number (a
+    /// sensor's dropout) is told once and left out with the cycles it cuts.
     pub fn push(&mut self, chunk: &Recording) -> Result<(), AppError> {
         let (cycle, deg, t, p) = (
             chunk.values("cycle")?,
@@ -442,30 +450,15 @@ impl CycleAnalyser {
             chunk.values("t")?,
             chunk.values(&self.channel)?,
         );
-        if let Some(i) = p.iter().position(|v| !v.is_finite()) {
-            return Err(AppError::Invalid(format!(
-                "'{}' is {} at sample {}: the pressure must be finite",
-                self.channel,
-                p[i],
-                self.seen + i
-            )));
-        }
         self.unit_check.push(p);
         let torque = match &self.per_cycle.settings().brake {
-            Some(b) => {
-                let q = chunk.values(&b.channel)?;
-                if let Some(i) = q.iter().position(|v| !v.is_finite()) {
-                    return Err(AppError::Invalid(format!(
-                        "'{}' is {} at sample {}: the brake torque must be finite",
-                        b.channel,
-                        q[i],
-                        self.seen + i
-                    )));
-                }
-                Some(q)
-            }
+            Some(b) => Some((b.channel.as_str(), chunk.values(&b.channel)?)),
             None => None,
         };
+        let mut channels = vec![(self.channel.as_str(), p)];
+        channels.extend(torque);
+        self.dropouts.see(&channels, t);
+        let torque = torque.map(|(_, q)| q);
         for i in 0..cycle.len() {
             self.step.see(deg[i]);
             if self.run.is_some_and(|c| c != cycle[i]) {
@@ -483,7 +476,6 @@ impl CycleAnalyser {
                 }
             }
         }
-        self.seen += cycle.len();
         Ok(())
     }
 
@@ -525,6 +517,14 @@ impl CycleAnalyser {
                 "{} partial cycle(s) left out (fewer than {} samples)",
                 self.partial,
                 self.per_cycle().unwrap_or(0)
+            ));
+        }
+        let dropouts = std::mem::take(&mut self.dropouts.found);
+        if self.cut > 0 {
+            notes.push(format!(
+                "{} cycle(s) cut by {} dropout(s) left out (a sample that is not a number)",
+                self.cut,
+                dropouts.len()
             ));
         }
         // The ensemble mean, analysed as one cycle (on the last cycle's angles: all alike).
@@ -618,6 +618,7 @@ impl CycleAnalyser {
             cov_imep,
             lnv_imep,
             notes,
+            dropouts,
         })
     }
 
@@ -674,31 +675,37 @@ impl CycleAnalyser {
                 p.extend_from_slice(&self.run_p[..head]);
                 let mut torque = tail.torque;
                 torque.extend_from_slice(self.run_torque.get(..head).unwrap_or_default());
-                let torque = (torque.len() == p.len()).then_some(torque.as_slice());
-                let times = CycleTimes::of(&t, &self.atdc);
-                let f = self
-                    .per_cycle
-                    .figures(c as i64, times, &self.atdc, &p, torque);
-                let rpm = f.rpm;
-                self.cycles.push(f);
-                if self.chosen.is_none_or(|k| k == c as i64) {
-                    self.kept = Some(self.curve(c as i64, rpm));
-                }
-                // The ensemble: cycles of the first one's length (the same angles).
-                match &mut self.ensemble {
-                    None => {
-                        self.ensemble = Some((p.clone(), t.iter().map(|x| x - t[0]).collect(), 1))
+                // A dropout cuts it: left out.
+                if !p.iter().chain(&torque).all(|v| v.is_finite()) {
+                    self.cut += 1;
+                } else {
+                    let torque = (torque.len() == p.len()).then_some(torque.as_slice());
+                    let times = CycleTimes::of(&t, &self.atdc);
+                    let f = self
+                        .per_cycle
+                        .figures(c as i64, times, &self.atdc, &p, torque);
+                    let rpm = f.rpm;
+                    self.cycles.push(f);
+                    if self.chosen.is_none_or(|k| k == c as i64) {
+                        self.kept = Some(self.curve(c as i64, rpm));
                     }
-                    Some((sum_p, sum_t, n)) if sum_p.len() == p.len() => {
-                        for (s, x) in sum_p.iter_mut().zip(&p) {
-                            *s += x;
+                    // The ensemble: cycles of the first one's length (the same angles).
+                    match &mut self.ensemble {
+                        None => {
+                            self.ensemble =
+                                Some((p.clone(), t.iter().map(|x| x - t[0]).collect(), 1))
                         }
-                        for (s, x) in sum_t.iter_mut().zip(&t) {
-                            *s += x - t[0];
+                        Some((sum_p, sum_t, n)) if sum_p.len() == p.len() => {
+                            for (s, x) in sum_p.iter_mut().zip(&p) {
+                                *s += x;
+                            }
+                            for (s, x) in sum_t.iter_mut().zip(&t) {
+                                *s += x - t[0];
+                            }
+                            *n += 1;
                         }
-                        *n += 1;
+                        Some(_) => {}
                     }
-                    Some(_) => {}
                 }
             }
             (Some(_), _) => self.no_compression += 1,

@@ -46,8 +46,14 @@ pub struct Dropout {
     pub channel: String,
     /// Its first sample's index in the stage's input.
     pub sample: usize,
-    /// The value there.
+    /// The value there: in JSON `"NaN"`, `"inf"` or `"-inf"` (JSON has no such numbers).
+    #[serde(serialize_with = "as_text")]
     pub value: f64,
+}
+
+/// A value that is not a number as Rust writes it (`NaN`, `inf`, `-inf`).
+fn as_text<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(v)
 }
 
 impl Dropout {
@@ -70,20 +76,52 @@ impl Dropout {
         }
     }
 
-    /// What the live service tells: what it was and what the stage did.
+    /// What the live service and the file verbs tell: what it was and what was done.
     pub fn message(&self) -> String {
         format!(
-            "'{}' is {} at sample {}: the cycle it cuts is left out, the stage goes on after the dropout",
+            "'{}' is {} at sample {}: the cycle it cuts is left out, the analysis goes on after it",
             self.channel, self.value, self.sample
         )
     }
+}
 
-    /// The error a file verb that needs every sample makes of it: `needs`, why.
-    pub fn refused(&self, needs: &str) -> AppError {
-        AppError::Invalid(format!(
-            "channel '{}' sample {} is {}: {needs}",
-            self.channel, self.sample, self.value
-        ))
+/// The dropouts of a crank-angle recording's channels as its chunks come (the file verbs that
+/// take its cycles as blocks: each dropout's first sample, told once however many samples and
+/// chunks it lasts). A stage on a time-basis stream finds them with its cycles
+/// ([`CycleStream::push_past_dropouts`](physid_signal::cycles::CycleStream::push_past_dropouts)).
+#[derive(Debug, Clone, Default)]
+pub struct DropoutLog {
+    /// Each dropout, at its first sample.
+    pub found: Vec<Dropout>,
+    /// Whether each channel's last sample was not a number.
+    within: Vec<bool>,
+    /// Samples seen before the next chunk.
+    samples: usize,
+}
+
+impl DropoutLog {
+    /// The next chunk: its `channels` (name, values), of one length with its time `t`.
+    /// Whether the chunk holds a sample that is not a number.
+    pub fn see(&mut self, channels: &[(&str, &[f64])], t: &[f64]) -> bool {
+        self.within.resize(channels.len(), false);
+        let mut any = false;
+        for ((name, v), within) in channels.iter().zip(&mut self.within) {
+            for (i, x) in v.iter().enumerate() {
+                let not = !x.is_finite();
+                if not && !*within {
+                    self.found.push(Dropout {
+                        t_s: t.get(i).copied().unwrap_or(f64::NAN),
+                        channel: name.to_string(),
+                        sample: self.samples + i,
+                        value: *x,
+                    });
+                }
+                *within = not;
+                any |= not;
+            }
+        }
+        self.samples += t.len();
+        any
     }
 }
 

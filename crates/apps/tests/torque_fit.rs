@@ -157,14 +157,18 @@ fn bad_recordings_are_explained() {
     let rec = run("torque-steady", &[], &[], 0.3);
     let e = torque_fit(&rec, &cfg).unwrap_err().to_string();
     assert!(e.contains("fixed parameter 'Q'"), "{e}");
+    // A value that is not finite: the cycle it cuts (the first 720 samples) left out, told.
+    let clean = torque_fit(&rec, &TorqueFitConfig::new(nominal())).unwrap();
     let mut rec2 = rec.clone();
     let mut v = rec2.values("p_cyl").unwrap().to_vec();
     v[100] = f64::INFINITY;
     rec2.replace_values("p_cyl", v).unwrap();
-    let e = torque_fit(&rec2, &TorqueFitConfig::new(nominal()))
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("'p_cyl' sample 100"), "{e}");
+    let got = torque_fit(&rec2, &TorqueFitConfig::new(nominal())).unwrap();
+    assert_eq!(got.samples + 720, clean.samples);
+    let d = &got.dropouts[..];
+    assert_eq!(d.len(), 1, "{d:?}");
+    assert_eq!((d[0].channel.as_str(), d[0].sample), ("p_cyl", 100));
+    assert_eq!(d[0].value, f64::INFINITY);
 }
 
 /// The file verb and the live stage are one code path: a time-basis recording streamed through
@@ -318,7 +322,9 @@ fn the_fit_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
             }
         }
     }
-    // A value that is not finite in the second reader chunk, named by its sample.
+    // A value that is not finite in the second reader chunk: its cycle left out, the dropout
+    // named by its sample, the same on every pass whether the channels are held or read again.
+    let whole = torque_fit(&time, &cfg).unwrap();
     let mut bad = time.clone();
     let k = physid_io::CHUNK_ROWS + 123;
     let mut v = bad.values("p_cyl").unwrap().to_vec();
@@ -326,11 +332,18 @@ fn the_fit_goes_over_its_file_in_passes_and_answers_as_on_the_whole() {
     bad.replace_values("p_cyl", v).unwrap();
     let path = s.file("bad.parquet");
     physid_io::write(&path, &bad, &Default::default()).unwrap();
+    let mut fits = Vec::new();
     for hold in [usize::MAX, 0] {
         let src = Degrees::file(&path, &Default::default(), hold).unwrap();
-        let e = torque_fit_degrees(&src, &cfg).unwrap_err().to_string();
-        assert!(e.contains(&format!("'p_cyl' sample {k} is NaN")), "{e}");
+        let got = torque_fit_degrees(&src, &cfg).unwrap();
+        assert_eq!(got.samples + 720, whole.samples, "hold {hold}");
+        assert_eq!(got.dropouts.len(), 1, "{:?}", got.dropouts);
+        let d = &got.dropouts[0];
+        assert_eq!((d.channel.as_str(), d.sample), ("p_cyl", k));
+        assert!(d.value.is_nan());
+        fits.push((got.params, got.std_err, got.cycles));
     }
+    assert_eq!(fits[0], fits[1]);
     // A time basis without the engine angle is decoded whole, not in passes.
     let mut no_angle = Recording::new(time.basis);
     for c in time.channels().iter().filter(|c| c.name != "theta_en") {

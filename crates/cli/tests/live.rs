@@ -1729,20 +1729,6 @@ fn a_damaged_replay_ends_the_run_as_its_end_would() {
     }
 }
 
-/// Write `value` into `column` of `samples` of a CSV recording written by physid (a header,
-/// a units row, then the samples).
-fn set_cells(file: &std::path::Path, column: &str, samples: std::ops::Range<usize>, value: &str) {
-    let text = std::fs::read_to_string(file).unwrap();
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let col = lines[0].split(',').position(|c| c == column).unwrap();
-    for line in &mut lines[samples.start + 2..samples.end + 2] {
-        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
-        cells[col] = value.into();
-        *line = cells.join(",");
-    }
-    std::fs::write(file, lines.join("\n") + "\n").unwrap();
-}
-
 /// A NaN in a replayed file (a sensor's dropout): the shaft monitor holds it at the signal's
 /// last value, tells it and goes on — its estimates go on past it and end on `monitor shaft`'s
 /// on the clean file (before, it stopped for the rest of the run: "shaft: sample 5000: a shaft
@@ -1768,7 +1754,7 @@ fn a_nan_in_a_replayed_file_is_a_dropout_not_a_stop() {
         "max",
     ];
     let clean_ev = events_from_stdin(&args, "");
-    set_cells(&file, "omega_en", 5000..5001, "nan");
+    common::set_cells(&file, "omega_en", 5000..5001, "nan");
     let ev = events_from_stdin(&args, "");
     let findings = of_type(&ev, "finding");
     assert!(
@@ -1837,8 +1823,8 @@ fn a_nan_in_a_channel_a_cycle_stage_reads_leaves_out_its_cycle() {
         "cell",
     ];
     let clean = events_from_stdin(&args, "");
-    set_cells(&file, "p_cyl", 10_000..10_010, "nan");
-    set_cells(&file, "p_int", 25_000..25_001, "nan");
+    common::set_cells(&file, "p_cyl", 10_000..10_010, "nan");
+    common::set_cells(&file, "p_int", 25_000..25_001, "nan");
     let ev = events_from_stdin(&args, "");
     let findings = of_type(&ev, "finding");
     for (stage, what) in [
@@ -1893,21 +1879,7 @@ fn a_nan_in_a_channel_a_cycle_stage_reads_leaves_out_its_cycle() {
             assert!((v - w).abs() <= se, "{kind} {p}: {v} against {w} ± {se}");
         }
     }
-    // The file verbs take every sample: they refuse the file, naming the channel and sample.
-    for (verb, what) in [
-        (
-            "friction",
-            "channel 'p_int' sample 25000 is NaN: the cycle means need finite data",
-        ),
-        (
-            "torque",
-            "channel 'p_cyl' sample 10000 is NaN: the model needs finite data",
-        ),
-    ] {
-        let o = physid(&[verb, "fit", "--data", f]);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success() && err.contains(what), "{verb}: {err}");
-    }
+    // The file verbs on the same file: `tests/dropouts.rs`.
 }
 
 /// A crank angle that jumps by 10⁹ rad for 50 samples of a replayed file, half a second in (a bad sensor or a
@@ -1921,7 +1893,7 @@ fn an_angle_that_jumps_stops_the_cycle_stages_not_the_run() {
     let file = s.file("run.csv");
     let f = file.to_str().unwrap();
     common::simulated(&file, "torque-steady", "1");
-    set_cells(&file, "theta_en", 5000..5050, "1e9");
+    common::set_cells(&file, "theta_en", 5000..5050, "1e9");
     let args = [
         "live",
         "--headless",

@@ -112,19 +112,20 @@ where
 
 /// Feed a whole recording to a stage: a time-basis recording with `theta_en` as a stream of
 /// chunks (cycles from its first TDC marker), any other one as the cycles of its crank-angle
-/// form.
+/// form. The dropouts the cycle means left out (the stage's own go to `out`).
 pub(super) fn feed(
     stage: &mut FrictionStage,
     rec: &Recording,
     cfg: &FrictionFitConfig,
     out: &mut dyn Sink<FrictionOutput>,
-) -> Result<(), AppError> {
+) -> Result<Vec<Dropout>, AppError> {
     if streams(rec) {
         let n = rec.len();
         let chunks = (0..n)
             .step_by(FILE_CHUNK)
             .map(|start| Ok::<_, AppError>(rec.slice(start..start + FILE_CHUNK)));
-        return feed_stream(stage, chunks, out);
+        feed_stream(stage, chunks, out)?;
+        return Ok(Vec::new());
     }
     let converted;
     let rec = if rec.basis == Basis::Time && rec.values("cycle").is_err() {
@@ -133,30 +134,33 @@ pub(super) fn feed(
     } else {
         rec
     };
-    for c in crank_angle_cycles(rec, cfg)? {
+    let (cycles, dropouts) = crank_angle_cycles(rec, cfg)?;
+    for c in cycles {
         match c {
             Some(c) => stage.push_cycle(c, out)?,
             None => stage.push_gap(out)?,
         }
     }
-    Ok(())
+    Ok(dropouts)
 }
 
 /// The cycles of a crank-angle recording (sample means over each complete cycle); `None`
-/// where incomplete cycles interrupt the run of complete ones.
-fn crank_angle_cycles(
-    rec: &Recording,
-    cfg: &FrictionFitConfig,
-) -> Result<Vec<Option<FrictionCycle>>, AppError> {
+/// where incomplete cycles, or cycles cut by a dropout, interrupt the run of complete ones;
+/// the dropouts.
+fn crank_angle_cycles(rec: &Recording, cfg: &FrictionFitConfig) -> Result<CycleRuns, AppError> {
     let mut runs = CrankRuns::default();
     runs.push(rec, cfg)?;
     runs.finish(cfg.source.channel().1)
 }
 
+/// A crank-angle recording's cycles (`None`: a gap) and its dropouts.
+pub(super) type CycleRuns = (Vec<Option<FrictionCycle>>, Vec<Dropout>);
+
 /// Sums over each run of equal `cycle` values of a crank-angle recording, taken a chunk at a
 /// time ([`crank_angle_cycles`] is one chunk): a few numbers per cycle, whatever the
 /// recording's length. The sums run in sample order, so the means are those of the whole
-/// recording bit for bit.
+/// recording bit for bit. A sample that is not a number (a sensor's dropout) makes its run's
+/// sums not a number: that cycle is left out, as a gap, and the dropout told once.
 #[derive(Default)]
 pub(super) struct CrankRuns {
     /// Finished runs and the one still open (the last).
@@ -166,6 +170,7 @@ pub(super) struct CrankRuns {
     counts: Vec<(i64, usize)>,
     samples: usize,
     truth: Option<bool>,
+    dropouts: DropoutLog,
 }
 
 /// One run: its cycle value, its first time and speed, sums and its last speed.
@@ -219,21 +224,16 @@ impl CrankRuns {
                 "the simulated truth's channels come and go between chunks".into(),
             ));
         }
-        for (name, v) in [
-            ("omega_en", &omega),
-            ("p_int", &p_int),
-            ("T_oil", &t_oil),
-            (tq_name, &tau),
-            ("p_atm", &p_atm),
-        ] {
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(AppError::Invalid(format!(
-                    "channel '{name}' sample {} is {} — the cycle means need finite data",
-                    self.samples + i,
-                    v[i]
-                )));
-            }
-        }
+        self.dropouts.see(
+            &[
+                ("omega_en", &omega),
+                ("p_int", &p_int),
+                ("T_oil", &t_oil),
+                (tq_name, &tau),
+                ("p_atm", &p_atm),
+            ],
+            t,
+        );
         for i in 0..cycle.len() {
             let c = cycle[i];
             if c >= 0.0 && c.is_finite() {
@@ -278,7 +278,7 @@ impl CrankRuns {
     /// samples.
     /// `sign`: the torque source's sign (the motoring torque from the engine's load cell is
     /// its negative).
-    pub(super) fn finish(self, sign: f64) -> Result<Vec<Option<FrictionCycle>>, AppError> {
+    pub(super) fn finish(self, sign: f64) -> Result<CycleRuns, AppError> {
         let mut counts: Vec<usize> = self.counts.iter().map(|(_, k)| *k).collect();
         counts.sort_unstable();
         let per_cycle = counts.get(counts.len() / 2).copied().unwrap_or(0);
@@ -289,11 +289,15 @@ impl CrankRuns {
                 counts.len()
             )));
         }
-        Ok(self
+        let cycles = self
             .runs
             .iter()
             .map(|r| {
-                (r.cycle >= 0.0 && r.n == per_cycle).then(|| {
+                // A dropout's run: its sums are not numbers.
+                let finite = [r.omega.1, r.p_int, r.p_atm, r.t_oil, r.tau]
+                    .iter()
+                    .all(|s| s.is_finite());
+                (r.cycle >= 0.0 && r.n == per_cycle && finite).then(|| {
                     let n = r.n as f64;
                     let w = r.omega.1 / n;
                     FrictionCycle {
@@ -310,6 +314,7 @@ impl CrankRuns {
                     }
                 })
             })
-            .collect())
+            .collect();
+        Ok((cycles, self.dropouts.found))
     }
 }

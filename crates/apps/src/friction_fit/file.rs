@@ -9,8 +9,8 @@ use super::*;
 pub fn friction_fit(rec: &Recording, cfg: &FrictionFitConfig) -> Result<FrictionFit, AppError> {
     let mut stage = FrictionStage::new(cfg.clone(), None)?;
     let mut out = Vec::new();
-    feed(&mut stage, rec, cfg, &mut out)?;
-    finish(stage, out)
+    let before = feed(&mut stage, rec, cfg, &mut out)?;
+    finish(stage, out, before)
 }
 
 /// [`friction_fit`] on a time-basis recording read a chunk at a time (a file, as it comes):
@@ -26,7 +26,7 @@ where
     let mut stage = FrictionStage::new(cfg.clone(), None)?;
     let mut out = Vec::new();
     feed_stream(&mut stage, chunks, &mut out)?;
-    finish(stage, out)
+    finish(stage, out, Vec::new())
 }
 
 /// [`friction_fit`] on a crank-angle recording (with `cycle`) read a chunk at a time: the
@@ -73,13 +73,14 @@ impl FrictionCycles {
     pub fn fit(self) -> Result<FrictionFit, AppError> {
         let mut stage = FrictionStage::new(self.cfg.clone(), None)?;
         let mut out = Vec::new();
-        for c in self.runs.finish(self.cfg.source.channel().1)? {
+        let (cycles, dropouts) = self.runs.finish(self.cfg.source.channel().1)?;
+        for c in cycles {
             match c {
                 Some(c) => stage.push_cycle(c, &mut out)?,
                 None => stage.push_gap(&mut out)?,
             }
         }
-        finish(stage, out)
+        finish(stage, out, dropouts)
     }
 }
 
@@ -105,22 +106,22 @@ pub fn cycle_channels(cfg: &FrictionFitConfig) -> (Vec<&'static str>, Vec<&'stat
     (needed, optional)
 }
 
-/// The file verb's end: the result, with every cycle the stage put out.
-fn finish(mut stage: FrictionStage, mut out: Vec<FrictionOutput>) -> Result<FrictionFit, AppError> {
-    // The file verb takes every sample: a dropout the stage left out is refused.
-    if let Some(FrictionOutput::Dropout(d)) =
-        out.iter().find(|o| matches!(o, FrictionOutput::Dropout(_)))
-    {
-        return Err(d.refused("the cycle means need finite data"));
-    }
+/// The file verb's end: the result, with every cycle the stage put out and the dropouts it
+/// left out (`before`: those of the cycle means, which the stage did not see).
+fn finish(
+    mut stage: FrictionStage,
+    mut out: Vec<FrictionOutput>,
+    before: Vec<Dropout>,
+) -> Result<FrictionFit, AppError> {
     let mut fit = stage.fit(&mut out)?;
-    fit.cycles = out
-        .into_iter()
-        .filter_map(|o| match o {
-            FrictionOutput::Cycle(c) => Some(c),
-            FrictionOutput::Selected { .. } | FrictionOutput::Dropout(_) => None,
-        })
-        .collect();
+    fit.dropouts = before;
+    for o in out {
+        match o {
+            FrictionOutput::Cycle(c) => fit.cycles.push(c),
+            FrictionOutput::Dropout(d) => fit.dropouts.push(d),
+            FrictionOutput::Selected { .. } => {}
+        }
+    }
     Ok(fit)
 }
 

@@ -27,7 +27,7 @@
 
 use crate::acquisition::{from_first_marker, to_crank_angle, AcquisitionOptions, TDC_MARKER};
 use crate::error::AppError;
-use crate::stage::{Dropout, Sink, Stage};
+use crate::stage::{Dropout, DropoutLog, Sink, Stage};
 use physid_core::{Basis, FreeSet, ParamSet, Recording};
 use physid_estim::metrics::nmse;
 use physid_estim::{build_linear, CovSpec, EstimatorSpec, LinearEstimator, MethodName};

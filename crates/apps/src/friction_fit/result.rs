@@ -42,6 +42,9 @@ pub struct FrictionFit {
     /// verb's `--tracks`).
     #[serde(skip)]
     pub cycles: Vec<FrictionSample>,
+    /// The samples that were not a number (a sensor's dropout), each left out with the cycle
+    /// it cuts.
+    pub dropouts: Vec<Dropout>,
 }
 
 /// The model presets by name: the thesis's and the original model's
@@ -80,6 +83,8 @@ pub struct FrictionSummary<'a> {
     pub nmse: NmseBeforeAfter,
     /// The cycles.
     pub cycles: CycleCount,
+    /// The dropouts left out, each with the cycle it cuts.
+    pub dropouts: &'a [Dropout],
 }
 
 /// Prediction errors of a friction fit [%].
@@ -148,6 +153,7 @@ impl FrictionFit {
                 used: self.data.len(),
                 skipped_unsteady: self.data.skipped_unsteady,
             },
+            dropouts: &self.dropouts,
         }
     }
 

@@ -556,6 +556,7 @@ impl FrictionStage {
             max_truth_error_after_transient_pct: truth_error_pct.as_deref().map(max_abs),
             nmse_nominal: nmse(&data.tau_nm, &predicted_nominal).unwrap_or(f64::NAN),
             nmse_final: nmse(&data.tau_nm, &predicted_final).unwrap_or(f64::NAN),
+            dropouts: Vec::new(),
             params,
             predicted_nominal,
             predicted,

@@ -13,6 +13,14 @@ pub struct TorqueData {
     pub y: Vec<f64>,
     /// Time [s].
     pub t: Vec<f64>,
+    /// The crank angle's channel (`theta`, `theta_en`), for what a sample that is not a
+    /// number is named by.
+    #[serde(skip, default = "theta_en")]
+    theta: &'static str,
+}
+
+fn theta_en() -> &'static str {
+    "theta_en"
 }
 
 impl TorqueData {
@@ -34,11 +42,33 @@ impl TorqueData {
     /// The columns of a crank-angle recording, or of a chunk of one whose first sample is the
     /// recording's `offset`-th (an error names the sample in the recording).
     pub fn from_crank_angle(rec: &Recording, offset: usize) -> Result<Self, AppError> {
-        let theta = if rec.values("theta").is_ok() {
+        let data = Self::columns(rec)?;
+        for (name, col) in data.named() {
+            if let Some(i) = col.iter().position(|v| !v.is_finite()) {
+                return Err(AppError::Invalid(format!(
+                    "channel '{name}' sample {} is {}: the model needs finite data",
+                    offset + i,
+                    col[i]
+                )));
+            }
+        }
+        Ok(data)
+    }
+
+    /// The channel name of the crank angle a crank-angle recording carries: `theta`, else
+    /// `theta_en`.
+    fn theta_name(rec: &Recording) -> &'static str {
+        if rec.values("theta").is_ok() {
             "theta"
         } else {
             "theta_en"
-        };
+        }
+    }
+
+    /// The columns of a crank-angle recording as they are, a sample that is not a number
+    /// included ([`Degrees`] leaves out the cycle it cuts).
+    pub(super) fn columns(rec: &Recording) -> Result<Self, AppError> {
+        let theta = Self::theta_name(rec);
         let t_oil_c: Vec<f64> = rec
             .values_in("T_oil", "K")?
             .iter()
@@ -54,17 +84,49 @@ impl TorqueData {
         ];
         let y = rec.values_in("torque_engine", "N*m")?;
         let t = rec.values("t")?.to_vec();
-        let names = [theta, "omega_en", "alpha_en", "p_cyl", "p_crank", "T_oil"];
-        for (name, col) in names.iter().zip(&inputs).chain([(&"torque_engine", &y)]) {
-            if let Some(i) = col.iter().position(|v| !v.is_finite()) {
-                return Err(AppError::Invalid(format!(
-                    "channel '{name}' sample {} is {}: the model needs finite data",
-                    offset + i,
-                    col[i]
-                )));
-            }
+        Ok(Self {
+            inputs,
+            y,
+            t,
+            theta,
+        })
+    }
+
+    /// The model's channels (the inputs, then the measured torque) by name.
+    pub(super) fn named(&self) -> [(&'static str, &[f64]); 7] {
+        let c = |k: usize| self.inputs[k].as_slice();
+        [
+            (self.theta, c(0)),
+            ("omega_en", c(1)),
+            ("alpha_en", c(2)),
+            ("p_cyl", c(3)),
+            ("p_crank", c(4)),
+            ("T_oil", c(5)),
+            ("torque_engine", &self.y),
+        ]
+    }
+
+    /// Whether sample `i`'s inputs and torque are all numbers.
+    pub(super) fn finite(&self, i: usize) -> bool {
+        self.y[i].is_finite() && self.inputs.iter().all(|c| c[i].is_finite())
+    }
+
+    /// The samples from `n` on dropped.
+    pub(super) fn truncate(&mut self, n: usize) {
+        for col in &mut self.inputs {
+            col.truncate(n);
         }
-        Ok(Self { inputs, y, t })
+        self.y.truncate(n);
+        self.t.truncate(n);
+    }
+
+    /// Sample `i` of `other` appended.
+    pub(super) fn push_from(&mut self, other: &TorqueData, i: usize) {
+        for (col, from) in self.inputs.iter_mut().zip(&other.inputs) {
+            col.push(from[i]);
+        }
+        self.y.push(other.y[i]);
+        self.t.push(other.t[i]);
     }
 
     /// The identifiability data view.
@@ -87,6 +149,7 @@ impl TorqueData {
             inputs: (0..6).map(|_| Vec::with_capacity(n)).collect(),
             y: Vec::with_capacity(n),
             t: Vec::with_capacity(n),
+            theta: "theta_en",
         }
     }
 

@@ -111,6 +111,8 @@ pub struct Degrees<'a> {
     tdc: Cell<Option<f64>>,
     /// Samples in a pass, once one has been made.
     len: Cell<Option<usize>>,
+    /// The dropouts the first pass left out, each with the cycle it cuts.
+    dropouts: RefCell<Vec<Dropout>>,
 }
 
 impl<'a> Degrees<'a> {
@@ -149,6 +151,7 @@ impl<'a> Degrees<'a> {
             angle: Angle::Crank,
             tdc: Cell::new(None),
             len: Cell::new(None),
+            dropouts: RefCell::default(),
         }
     }
 
@@ -173,6 +176,7 @@ impl<'a> Degrees<'a> {
             angle,
             tdc: Cell::new(None),
             len: Cell::new(None),
+            dropouts: RefCell::default(),
         }
     }
 
@@ -194,6 +198,13 @@ impl<'a> Degrees<'a> {
         }
         self.samples::<AppError>(&mut |_| Ok(()))?;
         Ok(self.len.get().unwrap_or(0))
+    }
+
+    /// The samples that are not a number (a sensor's dropout), each left out with the cycle it
+    /// cuts (a pass, the first time).
+    pub fn dropouts(&self) -> Result<Vec<Dropout>, AppError> {
+        self.len()?;
+        Ok(self.dropouts.borrow().clone())
     }
 
     /// Whether there are no 1° samples.
@@ -257,14 +268,46 @@ impl<'a> Degrees<'a> {
         E: From<AppError> + From<IdentError>,
     {
         let mut n = 0;
+        let mut log = DropoutLog::default();
         match self.angle {
-            Angle::Crank => self.rows.chunks::<E>(&mut |chunk| {
-                in_pieces(chunk, &mut |piece| {
-                    let data = TorqueData::from_crank_angle(piece, n)?;
-                    n += data.y.len();
-                    visit(&data)
-                })
-            })?,
+            Angle::Crank => {
+                // Whole cycles (720 rows from the first, as the filter counts them) go to
+                // `visit`: one with a sample that is not a number is left out.
+                let mut buf = TorqueData::with_capacity(FILE_CHUNK + PER_CYCLE);
+                let (mut start, mut whole) = (0, true);
+                self.rows.chunks::<E>(&mut |chunk| {
+                    in_pieces(chunk, &mut |piece| {
+                        let data = TorqueData::columns(piece)?;
+                        log.see(&data.named(), &data.t);
+                        for i in 0..data.y.len() {
+                            buf.push_from(&data, i);
+                            whole &= data.finite(i);
+                            if buf.y.len() - start < PER_CYCLE {
+                                continue;
+                            }
+                            if !whole {
+                                buf.truncate(start);
+                            }
+                            (start, whole) = (buf.y.len(), true);
+                            if start >= FILE_CHUNK {
+                                n += start;
+                                visit(&buf)?;
+                                buf.clear();
+                                start = 0;
+                            }
+                        }
+                        Ok(())
+                    })
+                })?;
+                // The last cycle, cut short by the recording's end.
+                if !whole {
+                    buf.truncate(start);
+                }
+                if !buf.y.is_empty() {
+                    n += buf.y.len();
+                    visit(&buf)?;
+                }
+            }
             Angle::Time => {
                 let mut curves = DegreeCurves::new(self.tdc()?);
                 let mut buf = TorqueData::with_capacity(FILE_CHUNK);
@@ -279,11 +322,8 @@ impl<'a> Degrees<'a> {
                             }
                             Ok(())
                         })?;
-                        // The file verb takes every sample: a dropout is refused.
-                        match curves.dropouts().next() {
-                            Some(d) => Err(E::from(d.refused("the model needs finite data"))),
-                            None => Ok(()),
-                        }
+                        log.found.extend(curves.dropouts());
+                        Ok(())
                     })
                 })?;
                 if !buf.y.is_empty() {
@@ -293,7 +333,10 @@ impl<'a> Degrees<'a> {
             }
         }
         match self.len.get() {
-            None => self.len.set(Some(n)),
+            None => {
+                self.len.set(Some(n));
+                self.dropouts.replace(log.found);
+            }
             Some(m) if m != n => {
                 return Err(E::from(AppError::Invalid(format!(
                     "the recording gave {n} samples at one per crank degree on a later pass, {m} on the first: was the file changed while it was read?"

@@ -55,6 +55,7 @@ pub fn torque_fit_degrees(src: &Degrees, cfg: &TorqueFitConfig) -> Result<Torque
         Ok(())
     })?;
     let mut fit = filter.result(cfg, src, n)?;
+    fit.dropouts = src.dropouts()?;
     fit.cycles = out
         .into_iter()
         .filter_map(|o| match o {

@@ -29,7 +29,7 @@ use crate::acquisition::{
 pub use crate::cell::cyclic_torque_nominal;
 use crate::error::AppError;
 use crate::recording_rows::{Column, RecordingRows};
-use crate::stage::{Dropout, Sink, Stage};
+use crate::stage::{Dropout, DropoutLog, Sink, Stage};
 use physid_core::{Basis, ParamModel, ParamSet, Recording, Recordings, Reopen};
 use physid_estim::metrics::Prediction;
 use physid_estim::{CovSpec, EstimatorSpec, MethodName, NonlinearEstimator};
@@ -41,7 +41,7 @@ use physid_io::{ChunkReader, ReadOptions, CHUNK_ROWS};
 use physid_models::cyclic_torque::{CyclicTorque, PARAMS};
 use physid_signal::cycles::{CycleStream, CycleSummary};
 use serde::Serialize;
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::path::Path;

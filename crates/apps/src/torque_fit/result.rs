@@ -66,6 +66,9 @@ pub struct TorqueFit {
     /// Every cycle's worth (720 samples) through the filter, in order: the estimates' track
     /// (the file verb's `--tracks`).
     pub cycles: Vec<TorqueCycle>,
+    /// The samples that were not a number (a sensor's dropout), each left out with the cycle
+    /// it cuts.
+    pub dropouts: Vec<Dropout>,
 }
 
 /// What `physid torque fit --json` prints (and the demo's summary holds).
@@ -95,6 +98,8 @@ pub struct TorqueSummary<'a> {
     pub repairs: u64,
     /// Samples.
     pub samples: usize,
+    /// The dropouts left out, each with the cycle it cuts.
+    pub dropouts: &'a [Dropout],
 }
 
 impl TorqueFit {
@@ -121,6 +126,7 @@ impl TorqueFit {
             r2: self.r2,
             repairs: self.repairs,
             samples: self.samples,
+            dropouts: &self.dropouts,
         }
     }
 

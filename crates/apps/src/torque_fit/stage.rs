@@ -330,6 +330,7 @@ impl TorqueFilter {
             last_cycles,
             samples: n,
             cycles: Vec::new(),
+            dropouts: Vec::new(),
         })
     }
 }

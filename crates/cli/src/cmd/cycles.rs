@@ -108,6 +108,7 @@ pub fn run(args: &Args) -> Result<()> {
         )
         .map_err(read_error(&args.file))?;
     let a = analyser.finish().map_err(super::app_error(&args.file))?;
+    super::warn_dropouts(&a.dropouts, &args.file);
     if let Some(path) = &args.tracks {
         write_tracks(path, &a)?;
     }

@@ -84,6 +84,9 @@ pub fn report(
     for n in &a.notes {
         rep.para(n, Some("note"));
     }
+    for d in &a.dropouts {
+        rep.para(&d.message(), Some("note"));
+    }
     if let Some(c) = &a.curves {
         curves(rep, c, &a.unit, dir)?;
     }

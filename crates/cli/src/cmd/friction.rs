@@ -254,6 +254,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         friction_fit(&a.input.read(&a.data, None)?, &cfg)
     }
     .map_err(super::app_error(&a.data))?;
+    super::warn_dropouts(&r.dropouts, &a.data);
     if let Some(path) = &a.tracks {
         write_tracks(path, &r)?;
     }
@@ -357,6 +358,9 @@ pub fn fit_report_section(
         ),
         None,
     );
+    for d in &r.dropouts {
+        rep.para(&d.message(), Some("note"));
+    }
     let glossary = report::Glossary {
         names: &REGRESSION_PARAMS,
         units: &REGRESSION_UNITS,

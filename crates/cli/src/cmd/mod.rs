@@ -198,6 +198,14 @@ pub fn warn_read(reader: &physid_io::ChunkReader, path: &Path) {
     }
 }
 
+/// Each dropout a file verb left out with the cycle it cuts, as a warning on stderr (the
+/// `--json` result lists them too).
+pub fn warn_dropouts(dropouts: &[physid_apps::stage::Dropout], path: &Path) {
+    for d in dropouts {
+        eprintln!("warning: {}: {}", path.display(), d.message());
+    }
+}
+
 /// How much of a recording's columns a verb that goes over them in passes (`identify`, `run`,
 /// `torque fit`) holds after the first: `PHYSID_HOLD_MB` (default 256); beyond it, each pass
 /// reads the file again — slower, in memory independent of the recording's length.

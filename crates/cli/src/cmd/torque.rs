@@ -186,6 +186,9 @@ pub fn report_section(
         ),
         None,
     );
+    for d in &r.dropouts {
+        rep.para(&d.message(), Some("note"));
+    }
     let glossary = report::Glossary {
         names: &PARAMS,
         units: &physid_models::cyclic_torque::UNITS,
@@ -381,6 +384,7 @@ fn fit(a: &FitArgs) -> Result<()> {
         r
     }
     .map_err(super::app_error(&a.data))?;
+    super::warn_dropouts(&r.dropouts, &a.data);
     if let Some(path) = &a.tracks {
         let mut columns: Vec<(String, String)> = vec![
             ("t".into(), "s".into()),

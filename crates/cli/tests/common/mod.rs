@@ -18,6 +18,25 @@ pub fn simulated(path: &std::path::Path, scenario: &str, seconds: &str) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
+/// Write `value` into `column` of `samples` of a CSV recording written by physid (a header,
+/// a units row, then the samples).
+pub fn set_cells(
+    file: &std::path::Path,
+    column: &str,
+    samples: std::ops::Range<usize>,
+    value: &str,
+) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let col = lines[0].split(',').position(|c| c == column).unwrap();
+    for line in &mut lines[samples.start + 2..samples.end + 2] {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        cells[col] = value.into();
+        *line = cells.join(",");
+    }
+    std::fs::write(file, lines.join("\n") + "\n").unwrap();
+}
+
 /// Run the `physid` binary built for these tests with `args`.
 pub fn physid(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_physid"))

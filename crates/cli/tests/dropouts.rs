@@ -1,0 +1,219 @@
+//! A sensor's dropout in a file — samples that are not a number — and the file verbs that take
+//! a recording's cycles (`cycles`, `friction fit`, `torque fit`): each leaves out the cycle the
+//! dropout cuts, tells it once (a warning on stderr naming the file, channel and sample; the
+//! `--json` result's `dropouts`: channel, sample, time, value) and goes on. Before, each refused
+//! the whole file at the first such sample.
+//!
+//! The evidence that only the cut cycles are left out is not the code's: on a crank-angle file,
+//! the fits equal, to the last digit, those on the same file with the cut cycles' rows deleted
+//! by the test, and every other cycle's combustion figures are the clean file's.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+
+use common::{physid, set_cells};
+use physid_testkit::Scratch;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// `physid ARGS --json`, which must succeed: the result without its provenance, and stderr.
+fn run(args: &[&str]) -> (Value, String) {
+    let mut all = args.to_vec();
+    all.push("--json");
+    let o = physid(&all);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{args:?}: {err}");
+    let mut v: Value = serde_json::from_slice(&o.stdout).expect("JSON on stdout");
+    if let Some(o) = v.as_object_mut() {
+        o.remove("provenance");
+    }
+    (v, err)
+}
+
+/// Each estimated parameter of `got` within one of `clean`'s standard errors of `clean`'s.
+fn within_a_std_err(got: &Value, clean: &Value) {
+    assert_eq!(got["estimable"], clean["estimable"]);
+    for p in clean["estimable"].as_array().unwrap() {
+        let p = p.as_str().unwrap();
+        let (v, w) = (got["params"][p].as_f64(), clean["params"][p].as_f64());
+        let se = clean["std_err"][p].as_f64().unwrap();
+        assert!(
+            (v.unwrap() - w.unwrap()).abs() <= se,
+            "{p}: {v:?} against {w:?} ± {se}"
+        );
+    }
+}
+
+/// The warning each dropout gives on stderr.
+fn warned(err: &str, file: &Path, what: &str) {
+    let line = format!(
+        "warning: {}: {what}: the cycle it cuts is left out, the analysis goes on after it",
+        file.display()
+    );
+    assert_eq!(err.matches(&line).count(), 1, "{err}");
+}
+
+/// A time-basis file with a cylinder pressure's dropout of 10 samples at 1 s and a manifold
+/// pressure's NaN at 2.5 s: `friction fit` (which reads p_int, not p_cyl) and `torque fit`
+/// (p_cyl, not p_int) each leave out the one cycle their channel's dropout cuts and end within
+/// one standard error of the clean file's estimates.
+#[test]
+fn a_dropout_in_a_time_basis_file_leaves_out_its_cycle_and_the_fits_go_on() {
+    let s = Scratch::new("physid-dropouts-time");
+    let (clean, file) = (s.file("clean.csv"), s.file("run.csv"));
+    common::simulated(&clean, "torque-steady", "4");
+    std::fs::copy(&clean, &file).unwrap();
+    set_cells(&file, "p_cyl", 10_000..10_010, "nan");
+    set_cells(&file, "p_int", 25_000..25_001, "nan");
+    let (c, f) = (clean.to_str().unwrap(), file.to_str().unwrap());
+
+    let (want, _) = run(&["friction", "fit", "--data", c]);
+    let (got, err) = run(&["friction", "fit", "--data", f]);
+    assert_eq!(want["dropouts"], json!([]));
+    assert_eq!(
+        got["dropouts"],
+        json!([{"channel": "p_int", "sample": 25000, "t_s": 2.5, "value": "NaN"}])
+    );
+    warned(&err, &file, "'p_int' is NaN at sample 25000");
+    assert_eq!(
+        got["cycles"]["used"].as_u64().unwrap() + 1,
+        want["cycles"]["used"].as_u64().unwrap()
+    );
+    within_a_std_err(&got, &want);
+
+    let (want, _) = run(&["torque", "fit", "--data", c]);
+    let (got, err) = run(&["torque", "fit", "--data", f]);
+    assert_eq!(
+        got["dropouts"],
+        json!([{"channel": "p_cyl", "sample": 10000, "t_s": 1.0, "value": "NaN"}])
+    );
+    warned(&err, &file, "'p_cyl' is NaN at sample 10000");
+    assert_eq!(
+        got["samples"].as_u64().unwrap() + 720,
+        want["samples"].as_u64().unwrap()
+    );
+    within_a_std_err(&got, &want);
+}
+
+/// The rows of a CSV recording written by physid (after its header and units row), and the
+/// index of `column`.
+fn rows(file: &Path, column: &str) -> (Vec<String>, usize) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let lines: Vec<String> = text.lines().map(String::from).collect();
+    let col = lines[0].split(',').position(|c| c == column).unwrap();
+    (lines, col)
+}
+
+/// The first row (sample index) of block `cycle` at `deg` or later on its `crank_deg`.
+fn row_at(file: &Path, cycle: i64, deg: f64) -> usize {
+    let (lines, c) = rows(file, "cycle");
+    let (_, d) = rows(file, "crank_deg");
+    lines[2..]
+        .iter()
+        .position(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            cells[c].parse::<f64>().unwrap() == cycle as f64
+                && cells[d].parse::<f64>().unwrap() >= deg
+        })
+        .unwrap()
+}
+
+/// `from` with the rows (sample indices) `cut` says deleted, written to `to`.
+fn without_rows(from: &Path, to: &Path, cut: impl Fn(usize, &[&str]) -> bool) {
+    let (lines, _) = rows(from, "t");
+    let mut out: Vec<&str> = lines[..2].iter().map(String::as_str).collect();
+    for (i, l) in lines[2..].iter().enumerate() {
+        if !cut(i, &l.split(',').collect::<Vec<_>>()) {
+            out.push(l);
+        }
+    }
+    std::fs::write(to, out.join("\n") + "\n").unwrap();
+}
+
+/// A crank-angle file (`convert --crank-angle`, one sample per degree) with three dropouts:
+/// p_cyl NaN for 3 samples 100° into block 10 (its expansion: cycle 10's), p_cyl infinite 500°
+/// into block 20 (its second half: cycle 21's compression), p_int NaN 100° into block 15.
+/// `cycles` leaves out cycles 10 and 21, and every other cycle's figures are the clean file's;
+/// `torque fit` (720-sample cycles from the first) gives exactly the fit on the file without
+/// the two cycles' rows, `friction fit` exactly the fit on the file without block 15.
+#[test]
+fn a_dropout_in_a_crank_angle_file_leaves_out_the_cycles_it_cuts() {
+    let s = Scratch::new("physid-dropouts-crank");
+    let (time, clean, file) = (s.file("t.csv"), s.file("clean.csv"), s.file("run.csv"));
+    common::simulated(&time, "torque-steady", "4");
+    let o = physid(&[
+        "convert",
+        time.to_str().unwrap(),
+        clean.to_str().unwrap(),
+        "--crank-angle",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::copy(&clean, &file).unwrap();
+    let (a, b, q) = (
+        row_at(&clean, 10, 100.0),
+        row_at(&clean, 20, 500.0),
+        row_at(&clean, 15, 100.0),
+    );
+    set_cells(&file, "p_cyl", a..a + 3, "nan");
+    set_cells(&file, "p_cyl", b..b + 1, "inf");
+    set_cells(&file, "p_int", q..q + 1, "nan");
+    let (c, f) = (clean.to_str().unwrap(), file.to_str().unwrap());
+
+    // The combustion figures: all but the two cut cycles, each the clean file's.
+    let (want, _) = run(&["cycles", c]);
+    let (got, err) = run(&["cycles", f]);
+    let by_number = |v: &Value| -> Vec<(i64, Value)> {
+        v["cycles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| (c["cycle"].as_i64().unwrap(), c.clone()))
+            .collect()
+    };
+    let (want_cycles, got_cycles) = (by_number(&want), by_number(&got));
+    assert!(want_cycles.len() >= 30, "{}", want_cycles.len());
+    let kept: Vec<(i64, Value)> = want_cycles
+        .iter()
+        .filter(|(n, _)| *n != 10 && *n != 21)
+        .cloned()
+        .collect();
+    assert_eq!(kept.len() + 2, want_cycles.len());
+    assert_eq!(got_cycles, kept);
+    assert_eq!(got["dropouts"].as_array().unwrap().len(), 2);
+    assert_eq!(got["dropouts"][0]["sample"], a);
+    assert_eq!(got["dropouts"][1]["value"], "inf");
+    assert!(got["notes"].as_array().unwrap().contains(&json!(
+        "2 cycle(s) cut by 2 dropout(s) left out (a sample that is not a number)"
+    )));
+    warned(&err, &file, &format!("'p_cyl' is NaN at sample {a}"));
+    warned(&err, &file, &format!("'p_cyl' is inf at sample {b}"));
+
+    // The cyclic torque: the fit on the file without the 720-sample cycles the dropouts cut.
+    let cut = s.file("torque-cut.csv");
+    without_rows(&clean, &cut, |i, _| {
+        i / 720 == a / 720 || i / 720 == b / 720
+    });
+    let (mut got, err) = run(&["torque", "fit", "--data", f]);
+    let (mut want, _) = run(&["torque", "fit", "--data", cut.to_str().unwrap()]);
+    let told = got.as_object_mut().unwrap().remove("dropouts").unwrap();
+    assert_eq!(
+        want.as_object_mut().unwrap().remove("dropouts"),
+        Some(json!([]))
+    );
+    assert_eq!(got, want);
+    assert_eq!(told.as_array().unwrap().len(), 2, "{told}");
+    warned(&err, &file, &format!("'p_cyl' is inf at sample {b}"));
+
+    // The friction characterisation: the fit on the file without block 15.
+    let cut = s.file("friction-cut.csv");
+    let (_, col) = rows(&clean, "cycle");
+    without_rows(&clean, &cut, |_, cells| cells[col] == "15");
+    let (mut got, err) = run(&["friction", "fit", "--data", f]);
+    let (mut want, _) = run(&["friction", "fit", "--data", cut.to_str().unwrap()]);
+    let told = got.as_object_mut().unwrap().remove("dropouts").unwrap();
+    want.as_object_mut().unwrap().remove("dropouts");
+    assert_eq!(got, want);
+    assert_eq!(told[0]["channel"], "p_int");
+    assert_eq!(told[0]["sample"], q);
+    warned(&err, &file, &format!("'p_int' is NaN at sample {q}"));
+}
