@@ -38,12 +38,14 @@ mod index;
 mod index_pulse;
 mod pchip;
 mod recognise;
+mod teeth;
 
 pub use edges::*;
 pub use index::*;
 pub use index_pulse::*;
 pub use pchip::*;
 pub use recognise::*;
+use teeth::*;
 
 /// A toothed wheel: `teeth` pitches per revolution, `missing` of them left out (60−2, 36−1,
 /// 60−3 …).
