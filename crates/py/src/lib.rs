@@ -314,7 +314,7 @@ fn friction_fit<'py>(
 /// recording: with `geometry` (bore, stroke, rod, compression ratio) IMEP, the polytropic
 /// exponents and the combustion (heat release with `gamma`, MFB10/50/90, fired or motored);
 /// `peg` as `--peg` takes it. Returns the summary (JSON text: channel, unit, cov_imep, lnv_imep,
-/// notes) and the per-cycle columns.
+/// notes, dropouts) and the per-cycle columns.
 #[pyfunction]
 #[pyo3(signature = (rec, channel, geometry, peg, gamma, mfb, knock, gas_temperature, wall_heat, mfb_method, rw_exponent, torque, cylinders, pressure_lowpass, friction))]
 #[allow(clippy::too_many_arguments)]
@@ -411,6 +411,7 @@ fn cycles<'py>(
         "cov_imep": a.cov_imep,
         "lnv_imep": a.lnv_imep,
         "notes": a.notes,
+        "dropouts": a.dropouts,
     });
     let columns = a.columns().into_iter().map(|(n, _, v)| (n, v)).collect();
     Ok((summary.to_string(), arrays(py, columns)?))

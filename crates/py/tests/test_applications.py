@@ -77,6 +77,27 @@ def test_the_cyclic_torque_fit_estimates_the_supported_parameters():
         physid.torque_fit(rec, nominal={"bogus": 1.0})
 
 
+def test_a_dropout_leaves_out_the_cycle_it_cuts():
+    """A NaN in the cylinder pressure (a sensor's dropout) leaves out the cycle it cuts in
+    cycles() and torque_fit(), listed in ``dropouts``; every other cycle is the clean one's."""
+    rec = physid.simulate("torque-steady", basis="crank_angle", duration=2.0)
+    df = rec.to_pandas()
+    row = int(np.flatnonzero((df["cycle"] == 5) & (df["crank_deg"] >= 100.0))[0])
+    p = df["p_cyl"].to_numpy().copy()
+    p[row] = np.nan
+    df["p_cyl"] = p
+    bad = physid.Recording.from_pandas(df, units=rec.units, basis="crank_angle")
+    clean, got = physid.cycles(rec).to_pandas(), physid.cycles(bad)
+    assert got.dropouts == [{"channel": "p_cyl", "sample": row, "t_s": df.index[row],
+                             "value": "NaN"}]
+    assert list(got.to_pandas()["cycle"]) == [c for c in clean["cycle"] if c != 5]
+    kept = clean[clean["cycle"] != 5].reset_index(drop=True)
+    assert got.to_pandas().equals(kept)
+    fit = physid.torque_fit(bad)
+    assert fit.samples + 720 == physid.torque_fit(rec).samples
+    assert [d["sample"] for d in fit.dropouts] == [row]
+
+
 def _wiebe(golden, name):
     """One of gen_wiebe.py's crank-angle CSV files (a units row under the names), by pandas."""
     import pandas as pd

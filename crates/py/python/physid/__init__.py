@@ -712,7 +712,9 @@ class ShaftMonitorResult(Result):
 
 class FrictionFitResult(Result):
     """:func:`friction_fit`'s result: ``estimable``, ``ranking``, ``params``, ``nominal``,
-    ``std_err`` (by coefficient c1 … c20), ``prediction_error_pct``, ``nmse``, ``cycles``;
+    ``std_err`` (by coefficient c1 … c20), ``prediction_error_pct``, ``nmse``, ``cycles``,
+    ``dropouts`` (each sample that was not a number, left out with the cycle it cuts:
+    ``channel``, ``sample``, ``t_s``, ``value`` as text);
     ``tracks`` per steady cycle: ``t``, ``cycle``, ``n_rpm``, ``p_int_kpa``, ``t_oil_c``,
     ``measured``, ``predicted``, ``nominal``, ``error_pct`` (and ``truth``)."""
 
@@ -720,7 +722,8 @@ class FrictionFitResult(Result):
 class TorqueFitResult(Result):
     """:func:`torque_fit`'s result: ``method``, ``estimable``, ``ranking``, ``params``,
     ``std_err``, ``nmse_before``/``after``, ``nrmse_before``/``after``, ``r2``, ``repairs``,
-    ``samples``; ``tracks``: ``t``, ``measured``, ``predicted`` torque and each estimated
+    ``samples``, ``dropouts`` (as :class:`FrictionFitResult`'s); ``tracks``: ``t``,
+    ``measured``, ``predicted`` torque and each estimated
     parameter with its ``_std_err``."""
 
 
@@ -912,7 +915,9 @@ def torque_fit(
 
 class CyclesResult(Result):
     """:func:`cycles`' result: ``channel``, ``unit``, ``cov_imep``, ``lnv_imep`` (over the fired
-    cycles when some fired), ``notes``; ``tracks`` per cycle: ``t`` (its firing TDC), ``cycle``,
+    cycles when some fired), ``notes``, ``dropouts`` (each pressure or brake torque sample that
+    was not a number, left out with the cycles it cuts: ``channel``, ``sample``, ``t_s``,
+    ``value`` as text); ``tracks`` per cycle: ``t`` (its firing TDC), ``cycle``,
     ``rpm``, ``p_max``, ``p_max_deg``, ``peg_offset``, ``imep``, ``imep_gross``, ``pmep``,
     ``n_compression``, ``n_expansion``, ``heat_release`` [J], ``fired``, ``misfire``,
     ``partial_burn`` (1/0), ``mfbK_deg`` for each fraction K of ``mfb``, ``dp_max`` [Pa/deg],
