@@ -101,10 +101,8 @@ pub struct DropoutLog {
 
 impl DropoutLog {
     /// The next chunk: its `channels` (name, values), of one length with its time `t`.
-    /// Whether the chunk holds a sample that is not a number.
-    pub fn see(&mut self, channels: &[(&str, &[f64])], t: &[f64]) -> bool {
+    pub fn see(&mut self, channels: &[(&str, &[f64])], t: &[f64]) {
         self.within.resize(channels.len(), false);
-        let mut any = false;
         for ((name, v), within) in channels.iter().zip(&mut self.within) {
             for (i, x) in v.iter().enumerate() {
                 let not = !x.is_finite();
@@ -117,11 +115,9 @@ impl DropoutLog {
                     });
                 }
                 *within = not;
-                any |= not;
             }
         }
         self.samples += t.len();
-        any
     }
 }
 

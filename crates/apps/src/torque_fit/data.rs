@@ -55,20 +55,14 @@ impl TorqueData {
         Ok(data)
     }
 
-    /// The channel name of the crank angle a crank-angle recording carries: `theta`, else
-    /// `theta_en`.
-    fn theta_name(rec: &Recording) -> &'static str {
-        if rec.values("theta").is_ok() {
-            "theta"
-        } else {
-            "theta_en"
-        }
-    }
-
     /// The columns of a crank-angle recording as they are, a sample that is not a number
     /// included ([`Degrees`] leaves out the cycle it cuts).
     pub(super) fn columns(rec: &Recording) -> Result<Self, AppError> {
-        let theta = Self::theta_name(rec);
+        let theta = if rec.values("theta").is_ok() {
+            "theta"
+        } else {
+            "theta_en"
+        };
         let t_oil_c: Vec<f64> = rec
             .values_in("T_oil", "K")?
             .iter()
