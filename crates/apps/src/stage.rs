@@ -76,11 +76,14 @@ impl Dropout {
         }
     }
 
-    /// What the live service and the file verbs tell: what it was and what was done.
+    /// What the live service and the file verbs tell: what it was, where, and what was done.
     pub fn message(&self) -> String {
         format!(
-            "'{}' is {} at sample {}: the cycle it cuts is left out, the analysis goes on after it",
-            self.channel, self.value, self.sample
+            "'{}' is {} at sample {} (t = {} s): the cycle it cuts is left out, the analysis goes on after it",
+            self.channel,
+            self.value,
+            self.sample,
+            physid_core::Num(self.t_s)
         )
     }
 }

@@ -104,7 +104,8 @@ fn cycles_of_the_channels_a_stream_has() {
     assert!(
         told[0]
             .1
-            .starts_with("'p_int' is NaN at sample 11040: the cycle it cuts is left out"),
+            .starts_with("'p_int' is NaN at sample 11040 (t = 1.10")
+            && told[0].1.contains(" s): the cycle it cuts is left out"),
         "{told:?}"
     );
     let after = cycles(&out);

@@ -44,13 +44,18 @@ fn within_a_std_err(got: &Value, clean: &Value) {
     }
 }
 
-/// The warning each dropout gives on stderr.
+/// The warning each dropout gives on stderr, once: the file, `what` (the channel, value and
+/// sample), the time, what was done.
 fn warned(err: &str, file: &Path, what: &str) {
-    let line = format!(
-        "warning: {}: {what}: the cycle it cuts is left out, the analysis goes on after it",
-        file.display()
-    );
-    assert_eq!(err.matches(&line).count(), 1, "{err}");
+    let head = format!("warning: {}: {what} (t = ", file.display());
+    let told = err
+        .lines()
+        .filter(|l| {
+            l.starts_with(&head)
+                && l.ends_with(" s): the cycle it cuts is left out, the analysis goes on after it")
+        })
+        .count();
+    assert_eq!(told, 1, "{err}");
 }
 
 /// A time-basis file with a cylinder pressure's dropout of 10 samples at 1 s and a manifold
@@ -93,6 +98,34 @@ fn a_dropout_in_a_time_basis_file_leaves_out_its_cycle_and_the_fits_go_on() {
         want["samples"].as_u64().unwrap()
     );
     within_a_std_err(&got, &want);
+
+    // The combustion figures, its crank-angle samples made as it is read: every cycle but the
+    // one the pressure's dropout cuts is the clean file's; the sample counts the samples made
+    // (one per 0.1°), the time is the dropout's.
+    let (want, _) = run(&["cycles", c]);
+    let (got, err) = run(&["cycles", f]);
+    let (want, got) = (
+        want["cycles"].as_array().unwrap(),
+        got["cycles"].as_array().unwrap(),
+    );
+    assert!(want.len() >= 30, "{}", want.len());
+    let cut = |c: &&Value| {
+        let t = c["t_start_s"].as_f64().unwrap();
+        (0.88..1.0).contains(&t)
+    };
+    let kept: Vec<&Value> = want.iter().filter(|c| !cut(c)).collect();
+    assert_eq!(kept.len() + 1, want.len());
+    assert_eq!(got.iter().collect::<Vec<_>>(), kept);
+    let told: Vec<&str> = err.lines().filter(|l| l.starts_with("warning:")).collect();
+    assert_eq!(told.len(), 1, "{err}");
+    let head = format!(
+        "warning: {} (its samples at each step of crank angle): 'p_cyl' is NaN at sample ",
+        file.display()
+    );
+    assert!(
+        told[0].starts_with(&head) && told[0].contains("(t = 0.99"),
+        "{err}"
+    );
 }
 
 /// The rows of a CSV recording written by physid (after its header and units row), and the

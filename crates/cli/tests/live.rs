@@ -1775,10 +1775,10 @@ fn a_nan_in_a_replayed_file_is_a_dropout_not_a_stop() {
         assert!((got / want - 1.0).abs() < 1e-9, "{p}: {got} vs {want}");
     }
     assert!(
-        findings.iter().any(|e| says(
-            e,
-            "cycles: 'omega_en' is NaN at sample 5000: the cycle it cuts is left out"
-        )),
+        findings.iter().any(
+            |e| says(e, "cycles: 'omega_en' is NaN at sample 5000 (t = 0.5")
+                && says(e, "s): the cycle it cuts is left out")
+        ),
         "{findings:?}"
     );
     let end = of_type(&ev, "end")[0];
@@ -1838,10 +1838,8 @@ fn a_nan_in_a_channel_a_cycle_stage_reads_leaves_out_its_cycle() {
             .collect();
         assert_eq!(told.len(), 1, "{stage}: {findings:?}");
         assert!(
-            says(
-                told[0],
-                &format!("{stage}: {what}: the cycle it cuts is left out")
-            ),
+            says(told[0], &format!("{stage}: {what} (t = "))
+                && says(told[0], " s): the cycle it cuts is left out"),
             "{told:?}"
         );
     }

@@ -108,7 +108,20 @@ pub fn run(args: &Args) -> Result<()> {
         )
         .map_err(read_error(&args.file))?;
     let a = analyser.finish().map_err(super::app_error(&args.file))?;
-    super::warn_dropouts(&a.dropouts, &args.file);
+    if !a.dropouts.is_empty() {
+        if args.input.open_all(&args.file)?.header().basis == physid_core::Basis::Time {
+            // Its crank-angle samples were made as it was read: a dropout's sample counts those.
+            for d in &a.dropouts {
+                eprintln!(
+                    "warning: {} (its samples at each step of crank angle): {}",
+                    args.file.display(),
+                    d.message()
+                );
+            }
+        } else {
+            super::warn_dropouts(&a.dropouts, &args.file);
+        }
+    }
     if let Some(path) = &args.tracks {
         write_tracks(path, &a)?;
     }
