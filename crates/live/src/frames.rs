@@ -326,7 +326,7 @@ impl<R: FrameLines> Source for FrameSource<R> {
                     return Ok(None);
                 }
             } else {
-                let (n, end) = match avail.iter().position(|&b| b == b'\n') {
+                let (n, end) = match memchr::memchr(b'\n', avail) {
                     Some(i) => (i + 1, true),
                     None => (avail.len(), false),
                 };
