@@ -100,9 +100,10 @@ impl TorqueData {
         ]
     }
 
-    /// Whether sample `i`'s inputs and torque are all numbers.
-    pub(super) fn finite(&self, i: usize) -> bool {
-        self.y[i].is_finite() && self.inputs.iter().all(|c| c[i].is_finite())
+    /// Whether the samples `r` are all numbers, inputs and torque.
+    pub(super) fn finite(&self, r: std::ops::Range<usize>) -> bool {
+        let all = |c: &[f64]| c.iter().all(|v| v.is_finite());
+        all(&self.y[r.clone()]) && self.inputs.iter().all(|c| all(&c[r.clone()]))
     }
 
     /// The samples from `n` on dropped.
@@ -114,13 +115,13 @@ impl TorqueData {
         self.t.truncate(n);
     }
 
-    /// Sample `i` of `other` appended.
-    pub(super) fn push_from(&mut self, other: &TorqueData, i: usize) {
+    /// The samples `r` of `other` appended.
+    pub(super) fn extend_from(&mut self, other: &TorqueData, r: std::ops::Range<usize>) {
         for (col, from) in self.inputs.iter_mut().zip(&other.inputs) {
-            col.push(from[i]);
+            col.extend_from_slice(&from[r.clone()]);
         }
-        self.y.push(other.y[i]);
-        self.t.push(other.t[i]);
+        self.y.extend_from_slice(&other.y[r.clone()]);
+        self.t.extend_from_slice(&other.t[r]);
     }
 
     /// The identifiability data view.

@@ -279,9 +279,13 @@ impl<'a> Degrees<'a> {
                     in_pieces(chunk, &mut |piece| {
                         let data = TorqueData::columns(piece)?;
                         log.see(&data.named(), &data.t);
-                        for i in 0..data.y.len() {
-                            buf.push_from(&data, i);
-                            whole &= data.finite(i);
+                        // The piece in runs that end where a cycle does, or at its end.
+                        let mut i = 0;
+                        while i < data.y.len() {
+                            let j = (i + PER_CYCLE - (buf.y.len() - start)).min(data.y.len());
+                            whole &= data.finite(i..j);
+                            buf.extend_from(&data, i..j);
+                            i = j;
                             if buf.y.len() - start < PER_CYCLE {
                                 continue;
                             }
