@@ -114,8 +114,8 @@ impl QuadratureAngles {
     }
 }
 
-/// The smallest and largest sample of an index channel, a chunk at a time: its comparator's
-/// level ([`QuadratureDecoder`]'s first pass).
+/// The smallest and largest finite sample of an index channel, a chunk at a time: its
+/// comparator's level ([`QuadratureDecoder`]'s first pass, and a pulse encoder's index).
 #[derive(Debug, Clone, Copy)]
 pub struct IndexRange {
     /// Smallest and largest so far.
@@ -133,7 +133,10 @@ impl Default for IndexRange {
 impl IndexRange {
     /// The next samples.
     pub fn push(&mut self, z: &[f64]) {
-        self.range = z.iter().fold(self.range, |(a, b), &x| (a.min(x), b.max(x)));
+        self.range = z
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold(self.range, |(a, b), &x| (a.min(x), b.max(x)));
     }
 }
 

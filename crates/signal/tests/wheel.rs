@@ -7,7 +7,7 @@
 
 use physid_signal::integrity::FindingKind;
 use physid_signal::wheel::{
-    edges, index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelError,
+    edges, index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelError, DROPOUT_RUNS_KEPT,
 };
 use serde_json::Value;
 use std::path::PathBuf;
@@ -107,6 +107,127 @@ fn the_edges_of_a_stream_are_those_of_the_whole_signal() {
     }
 }
 
+/// Samples not finite (a dropout in the acquisition) are skipped, never guessed over: a run
+/// between two edges changes no edge; a run over an edge loses that edge, which the indexing
+/// counts as a missing tooth — and the angle everywhere stays within a tenth of a degree of the
+/// generator's truth. Each run is a finding at its first sample; in chunks of any size the
+/// same.
+#[test]
+fn a_dropout_in_the_signal_is_skipped_and_an_edge_it_hides_counted_missing() {
+    let (t, v, truth) = load("wheel_vr_60m3");
+    let clean = edges(&t, &v, &EdgeOptions::default()).unwrap();
+    // Between two edges (well clear of both), over an edge (a few samples either side of it),
+    // and inside the first samples the automatic level starts from (+∞ there).
+    let k = clean.t.len() / 2;
+    let between = (clean.index[k] + clean.index[k + 1]) / 2 - 3;
+    let over = clean.index[k + 200] - 3;
+    let early = 100;
+    let mut bad = v.clone();
+    bad[between..between + 6].fill(f64::NAN);
+    bad[over..over + 6].fill(f64::NAN);
+    bad[early] = f64::INFINITY;
+    let e = edges(&t, &bad, &EdgeOptions::default()).unwrap();
+    assert_eq!(e.dropouts.samples, 13);
+    assert_eq!(e.dropouts.runs, 3);
+    let runs: Vec<(usize, usize)> = e
+        .dropouts
+        .first
+        .iter()
+        .map(|r| (r.index, r.samples))
+        .collect();
+    assert_eq!(runs, [(early, 1), (between, 6), (over, 6)]);
+    // Every edge but the hidden one: exactly up to it; after it within a twentieth of a sample
+    // (the automatic level follows each tooth's swing, and the hidden tooth's is not seen).
+    let kept: Vec<(f64, usize)> = clean
+        .t
+        .iter()
+        .zip(&clean.index)
+        .filter(|(_, &i)| i != clean.index[k + 200])
+        .map(|(&t, &i)| (t, i))
+        .collect();
+    let got: Vec<(f64, usize)> = e.t.iter().copied().zip(e.index.iter().copied()).collect();
+    let dt = t[1] - t[0];
+    let differ = got.iter().zip(&kept).position(|(a, b)| {
+        a.1 != b.1 || (a.0 != b.0 && (b.1 < over || (a.0 - b.0).abs() > 0.05 * dt))
+    });
+    assert!(
+        got.len() == kept.len() && differ.is_none(),
+        "{} edges against {}; the first that differs: {:?}",
+        got.len(),
+        kept.len(),
+        differ.map(|i| (got[i], kept[i]))
+    );
+    let a = index_teeth(&e, "60-3".parse().unwrap(), "enc").unwrap();
+    let at = |kind| {
+        a.findings
+            .iter()
+            .filter(|f| f.kind == kind)
+            .map(|f| f.index)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(at(FindingKind::NonFinite), [early, between, over]);
+    assert_eq!(
+        at(FindingKind::PulseLoss),
+        [clean.index[k + 201]],
+        "{:?}",
+        a.findings
+    );
+    let detail = &a.findings.iter().find(|f| f.index == over).unwrap().detail;
+    assert!(
+        detail.contains("'enc': 6 sample(s) from sample"),
+        "{detail}"
+    );
+    assert!(detail.contains("NaN"), "{detail}");
+    let (worst, _, _) = error_deg(&a.angle_at(&t), &truth);
+    assert!(worst < 0.1, "{worst}° off the truth");
+    for size in [1, 333, 4096] {
+        let mut d = EdgeDetector::new(&EdgeOptions::default());
+        for (tc, vc) in t.chunks(size).zip(bad.chunks(size)) {
+            d.push(tc, vc);
+        }
+        let c = d.finish().unwrap();
+        assert!(c == e, "chunks of {size}: {} edges", c.t.len());
+    }
+}
+
+/// Many dropouts: the first [`DROPOUT_RUNS_KEPT`] are findings one by one, the rest a note
+/// that counts them; what the detector holds does not grow with them.
+#[test]
+fn many_dropouts_are_counted_past_those_told_one_by_one() {
+    let (t, v, _) = load("wheel_vr_60m3");
+    let clean = edges(&t, &v, &EdgeOptions::default()).unwrap();
+    let mut bad = v.clone();
+    let at: Vec<usize> = (100..130)
+        .map(|j| (clean.index[j] + clean.index[j + 1]) / 2)
+        .collect();
+    for &i in &at {
+        bad[i] = f64::NAN;
+    }
+    let e = edges(&t, &bad, &EdgeOptions::default()).unwrap();
+    assert_eq!((e.dropouts.samples, e.dropouts.runs), (30, 30));
+    assert_eq!(e.dropouts.first.len(), DROPOUT_RUNS_KEPT);
+    assert_eq!(e.t, clean.t, "no edge is near a dropout");
+    let a = index_teeth(&e, "60-3".parse().unwrap(), "enc").unwrap();
+    let told: Vec<usize> = a
+        .findings
+        .iter()
+        .filter(|f| f.kind == FindingKind::NonFinite)
+        .map(|f| f.index)
+        .collect();
+    assert_eq!(told, at[..DROPOUT_RUNS_KEPT]);
+    let note = a
+        .findings
+        .iter()
+        .find(|f| f.detail.contains("more run(s)"))
+        .expect("the note of the rest");
+    assert!(note.detail.contains("10 more run(s)"), "{}", note.detail);
+    assert!(
+        note.detail.contains("30 sample(s) in all"),
+        "{}",
+        note.detail
+    );
+}
+
 #[test]
 fn a_hall_sensor_over_a_36_1_wheel_with_a_missing_and_an_extra_edge() {
     let exp = expected("wheel_hall_36m1");
@@ -166,17 +287,28 @@ fn bad_signals_are_refused_with_the_sample() {
     let e = edges(&t, &even, &EdgeOptions::default()).unwrap();
     let err = index_teeth(&e, "60-2".parse().unwrap(), "enc").unwrap_err();
     assert!(err.to_string().contains("no gap"), "{err}");
-    let mut nan = even.clone();
-    nan[4321] = f64::NAN;
+    // Nothing but dropouts: said, not a panic.
+    let err = edges(&t, &vec![f64::NAN; t.len()], &EdgeOptions::default()).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("none of its 10000 samples is finite"),
+        "{err}"
+    );
+    // Time not increasing: the sample named, a dropout's time checked too.
+    let mut back = t.clone();
+    back[5000] = back[4998];
+    let mut v = even.clone();
+    v[5000] = f64::NAN;
     assert!(matches!(
-        edges(&t, &nan, &EdgeOptions::default()),
-        Err(WheelError::NonFinite { index: 4321, .. })
+        edges(&back, &v, &EdgeOptions::default()),
+        Err(WheelError::Time { index: 5000, .. })
     ));
     // Too few edges (none at all included) for two revolutions: an error, not a panic.
     let none = physid_signal::wheel::Edges {
         t: vec![],
         index: vec![],
         glitches: vec![],
+        dropouts: Default::default(),
         samples: 0,
     };
     assert!(index_teeth(&none, "60-2".parse().unwrap(), "enc").is_err());

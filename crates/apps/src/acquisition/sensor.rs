@@ -26,8 +26,8 @@ use physid_core::{Recording, Recordings, Reopen};
 use physid_signal::integrity::Finding;
 use physid_signal::quadrature::{IndexRange, IndexZero, QuadratureDecoder};
 use physid_signal::wheel::{
-    in_time_order, EdgeDetector, EdgeOptions, Gap, GapSurvey, IndexSurvey, Pchip, ToothIndex,
-    ToothReport,
+    in_time_order, Dropouts, EdgeDetector, EdgeOptions, Gap, GapSurvey, IndexSurvey, Pchip,
+    ToothIndex, ToothReport,
 };
 use std::borrow::Borrow;
 use std::f64::consts::TAU;
@@ -130,9 +130,8 @@ impl PulseEdges {
         );
     }
 
-    /// The end: the last edges and pulses; the encoder's glitches (how many, the first's
-    /// sample).
-    fn finish(self, out: &mut impl FnMut(PulsePoint)) -> Result<(usize, usize), AppError> {
+    /// The end: the last edges and pulses; what the edge detectors skipped.
+    fn finish(self, out: &mut impl FnMut(PulsePoint)) -> Result<PulsesEnd, AppError> {
         let (channel, index) = (self.channel, self.index);
         let e = self
             .edges
@@ -144,8 +143,20 @@ impl PulseEdges {
             .map_err(|e| invalid(format!("'{index}': {e}")))?;
         let pairs: Vec<(f64, usize)> = e.t.iter().copied().zip(e.index.iter().copied()).collect();
         Self::hand_on(&pairs, &z.t, out);
-        Ok((e.glitches.len(), e.glitches.first().copied().unwrap_or(0)))
+        Ok(PulsesEnd {
+            glitches: e.glitches.len(),
+            first_glitch: e.glitches.first().copied().unwrap_or(0),
+            dropouts: [(channel, e.dropouts), (index, z.dropouts)],
+        })
     }
+}
+
+/// What [`PulseEdges`] skipped: the encoder's glitches (how many, the first's sample), and the
+/// samples not finite on each channel.
+struct PulsesEnd {
+    glitches: usize,
+    first_glitch: usize,
+    dropouts: [(String, Dropouts); 2],
 }
 
 /// The channels of a quadrature encoder spec — A, B, Z — and its lines; the error without Z.
@@ -455,6 +466,7 @@ impl PointDecoder {
                         rest.glitches.len(),
                         rest.glitches.first().copied().unwrap_or(0),
                     );
+                    index.dropouts(channel, &rest.dropouts);
                 }
                 *report = Some(index.finish().map_err(|e| invalid(e.to_string()))?);
             }
@@ -474,8 +486,11 @@ impl PointDecoder {
                         *found = Some(f);
                     }
                     (None, Some(f)) => {
-                        let (glitches, first) = f.finish(&mut take)?;
-                        index.glitches(glitches, first);
+                        let end = f.finish(&mut take)?;
+                        index.glitches(end.glitches, end.first_glitch);
+                        for (channel, d) in &end.dropouts {
+                            index.dropouts(channel, d);
+                        }
                         *report = Some(index.finish().map_err(|e| invalid(e.to_string()))?);
                     }
                 }

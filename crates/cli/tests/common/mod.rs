@@ -37,6 +37,37 @@ pub fn set_cells(
     std::fs::write(file, lines.join("\n") + "\n").unwrap();
 }
 
+/// `physid-signal`'s golden 60−3 inductive-pickup recording written to `dat` as a lab's text
+/// file: tab-separated, no header, volts and seconds in scientific notation; columns t, enc,
+/// p_cyl and the true angle [rad]; `enc` is `nan` at the samples `dropouts`. Returns `dat`.
+pub fn raw_wheel_dat(
+    dat: &std::path::Path,
+    dropouts: &[std::ops::Range<usize>],
+) -> std::path::PathBuf {
+    let golden = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../signal/tests/golden/wheel_vr_60m3.parquet");
+    let rec = physid_io::read(&golden, &physid_io::ReadOptions::default()).unwrap();
+    let mut text = String::new();
+    let col = |n: &str| rec.values(n).unwrap();
+    let (t, enc, p, truth) = (col("t"), col("enc"), col("p_cyl"), col("theta_true"));
+    for i in 0..rec.len() {
+        // Counts to volts (0.2 mV and 1 mV), the true angle from µrad to rad.
+        let enc = if dropouts.iter().any(|r| r.contains(&i)) {
+            "nan".to_string()
+        } else {
+            format!("{:.6e}", enc[i] * 2e-4)
+        };
+        text.push_str(&format!(
+            "{:.6e}\t{enc}\t{:.6e}\t{:.9e}\n",
+            t[i],
+            p[i] * 1e-3,
+            truth[i] * 1e-6
+        ));
+    }
+    std::fs::write(dat, text).unwrap();
+    dat.to_path_buf()
+}
+
 /// Run the `physid` binary built for these tests with `args`.
 pub fn physid(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_physid"))

@@ -37,10 +37,16 @@ pub struct EdgeDetector {
     /// The level and hysteresis in use (on the signal times `sign`).
     level: f64,
     band: f64,
-    /// The first samples, held until the automatic level can start from them.
-    start: Vec<(f64, f64)>,
+    /// The first samples, held until the automatic level can start from them: time, value (NaN
+    /// marks a dropout), sample; the finite ones among them.
+    start: Vec<(f64, f64, usize)>,
+    start_finite: usize,
     state: State,
+    /// The last sample, `None` after a dropout (no edge is interpolated across one).
     prev: Option<(f64, f64)>,
+    /// The last sample's time, a dropout's included (time must increase through them).
+    last_t: Option<f64>,
+    dropouts: Dropouts,
     /// The current pulse's peak and the trough before it.
     peak: f64,
     trough: f64,
@@ -77,8 +83,11 @@ impl EdgeDetector {
             level,
             band,
             start: Vec::new(),
+            start_finite: 0,
             state: State::Unarmed,
             prev: None,
+            last_t: None,
+            dropouts: Dropouts::default(),
             peak: f64::NEG_INFINITY,
             trough: f64::INFINITY,
             quiet: (f64::INFINITY, f64::NEG_INFINITY),
@@ -95,7 +104,8 @@ impl EdgeDetector {
         }
     }
 
-    /// Take the next samples: times `t` [s] and the signal `v` (same length).
+    /// Take the next samples: times `t` [s] and the signal `v` (same length). A sample not
+    /// finite is a dropout ([`Dropouts`]): skipped, and no edge is found across it.
     pub fn push(&mut self, t: &[f64], v: &[f64]) {
         for (&ti, &vi) in t.iter().zip(v) {
             if self.error.is_some() {
@@ -103,24 +113,28 @@ impl EdgeDetector {
             }
             let index = self.seen;
             self.seen += 1;
-            if !vi.is_finite() {
-                self.error = Some(WheelError::NonFinite { index, value: vi });
-                return;
-            }
-            if !ti.is_finite() || self.prev.is_some_and(|(tp, _)| ti <= tp) {
-                let prev = self.prev.map_or(f64::NAN, |p| p.0);
+            if !ti.is_finite() || self.last_t.is_some_and(|tp| ti <= tp) {
                 self.error = Some(WheelError::Time {
                     index,
-                    prev,
+                    prev: self.last_t.unwrap_or(f64::NAN),
                     next: ti,
                 });
                 return;
             }
-            let u = self.sign * vi;
+            self.last_t = Some(ti);
+            let dropout = !vi.is_finite();
+            if dropout {
+                self.dropouts.add(index, ti, vi);
+            }
+            let u = if dropout { f64::NAN } else { self.sign * vi };
             if self.level.is_nan() {
-                self.start.push((ti, u));
-                self.prev = Some((ti, u));
-                if self.start.len() == START_SAMPLES {
+                // A dropout's run is held as one mark: what is held grows with the finite
+                // samples only.
+                if !(dropout && self.start.last().is_some_and(|s| s.1.is_nan())) {
+                    self.start.push((ti, u, index));
+                }
+                self.start_finite += usize::from(!dropout);
+                if self.start_finite == START_SAMPLES {
                     self.begin();
                 }
                 continue;
@@ -132,7 +146,16 @@ impl EdgeDetector {
     /// The automatic level's start from the first samples, then those samples through the
     /// comparator.
     fn begin(&mut self) {
-        let mut u: Vec<f64> = self.start.iter().map(|s| s.1).collect();
+        let mut u: Vec<f64> = self
+            .start
+            .iter()
+            .map(|s| s.1)
+            .filter(|u| u.is_finite())
+            .collect();
+        if u.is_empty() {
+            // Nothing but dropouts so far: no level yet.
+            return;
+        }
         let q = |u: &mut Vec<f64>, p: f64| {
             let k = ((u.len() - 1) as f64 * p).round() as usize;
             *u.select_nth_unstable_by(k, f64::total_cmp).1
@@ -142,12 +165,17 @@ impl EdgeDetector {
         self.band = HYSTERESIS * (hi - lo);
         let start = std::mem::take(&mut self.start);
         self.prev = None;
-        for (i, (t, u)) in start.into_iter().enumerate() {
+        for (t, u, i) in start {
             self.step(t, u, i);
         }
     }
 
+    /// The comparator's next sample `u` (the signal times `sign`; NaN: a dropout).
     fn step(&mut self, t: f64, u: f64, index: usize) {
+        if u.is_nan() {
+            self.prev = None;
+            return;
+        }
         let (level, band) = (self.level, self.band);
         let crossing = |prev: Option<(f64, f64)>| {
             let (tp, up) = prev.unwrap_or((t, u));
@@ -281,7 +309,12 @@ impl EdgeDetector {
             return Err(e);
         }
         if self.found == 0 {
-            return Err(WheelError::Invalid(if self.band <= 0.0 {
+            return Err(WheelError::Invalid(if self.dropouts.samples == self.seen {
+                format!(
+                    "none of its {} samples is finite (NaN or ±inf): no tooth passes",
+                    self.seen
+                )
+            } else if self.band <= 0.0 {
                 format!(
                     "the signal is flat over its first {} samples: no tooth passes",
                     self.seen.min(START_SAMPLES)
@@ -299,6 +332,7 @@ impl EdgeDetector {
             t: self.edges_t,
             index: self.edges_index,
             glitches: self.glitches,
+            dropouts: self.dropouts,
             samples: self.seen,
         })
     }
@@ -313,8 +347,78 @@ pub struct Edges {
     pub index: Vec<usize>,
     /// The glitch pulses rejected: their samples.
     pub glitches: Vec<usize>,
+    /// The samples not finite, skipped.
+    pub dropouts: Dropouts,
     /// Samples seen.
     pub samples: usize,
+}
+
+/// The samples of a sensor's signal that are not finite (NaN, ±inf — a dropout), which the
+/// edge detector skips: no edge is interpolated across them, so an edge they hide is lost and
+/// the indexing counts it as a missing tooth ([`ToothIndex::dropouts`] tells them as findings).
+/// Holds the first [`DROPOUT_RUNS_KEPT`] runs and counts the rest.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Dropouts {
+    /// Samples not finite, in all.
+    pub samples: usize,
+    /// Runs of consecutive ones, in all.
+    pub runs: usize,
+    /// The first runs.
+    pub first: Vec<DropoutRun>,
+    /// The last one's sample.
+    last: Option<usize>,
+}
+
+/// A run of consecutive samples not finite (equal to another with the same value, NaN too).
+#[derive(Debug, Clone, Copy)]
+pub struct DropoutRun {
+    /// Its first sample.
+    pub index: usize,
+    /// Its first sample's time [s].
+    pub t: f64,
+    /// Samples in it.
+    pub samples: usize,
+    /// Its first sample's value.
+    pub value: f64,
+}
+
+impl PartialEq for DropoutRun {
+    fn eq(&self, o: &Self) -> bool {
+        (self.index, self.samples, self.value.to_bits()) == (o.index, o.samples, o.value.to_bits())
+            && self.t == o.t
+    }
+}
+
+/// The dropout runs [`Dropouts`] holds one by one.
+pub const DROPOUT_RUNS_KEPT: usize = 20;
+
+impl Dropouts {
+    /// Sample `index` at `t` [s] is `value`, not finite.
+    fn add(&mut self, index: usize, t: f64, value: f64) {
+        self.samples += 1;
+        let joined = self.last.is_some_and(|l| l + 1 == index);
+        self.last = Some(index);
+        if joined {
+            // The run goes on: its length, if it is one of those kept.
+            if let Some(r) = self
+                .first
+                .last_mut()
+                .filter(|r| r.index + r.samples == index)
+            {
+                r.samples += 1;
+            }
+            return;
+        }
+        self.runs += 1;
+        if self.first.len() < DROPOUT_RUNS_KEPT {
+            self.first.push(DropoutRun {
+                index,
+                t,
+                samples: 1,
+                value,
+            });
+        }
+    }
 }
 
 /// Edges of a whole signal: [`EdgeDetector`] over it in one chunk.

@@ -289,6 +289,35 @@ impl ToothIndex {
         }
     }
 
+    /// The samples not finite the edge detector skipped on `channel` (the wheel's, or an
+    /// encoder's index): a finding at each run kept, a note for the rest. An edge they hid is
+    /// counted as a missing tooth, as any edge the sensor lost.
+    pub fn dropouts(&mut self, channel: &str, d: &Dropouts) {
+        let extras = &mut self.counting.extras;
+        for r in &d.first {
+            extras.push(Finding {
+                kind: FindingKind::NonFinite,
+                index: r.index,
+                detail: format!(
+                    "'{channel}': {} sample(s) from sample {} (t = {} s) are {}: skipped, no edge is found across them",
+                    r.samples, r.index, r.t, r.value
+                ),
+            });
+        }
+        if let Some(last) = d.first.last().filter(|_| d.runs > d.first.len()) {
+            extras.push(Finding {
+                kind: FindingKind::Note,
+                index: last.index,
+                detail: format!(
+                    "'{channel}': {} more run(s) of samples not finite after sample {} ({} sample(s) in all), skipped as these",
+                    d.runs - d.first.len(),
+                    last.index,
+                    d.samples
+                ),
+            });
+        }
+    }
+
     /// The next edge whose angle is known: time [s], angle [rad], sample.
     pub fn pop(&mut self) -> Option<(f64, f64, usize)> {
         self.counting.ready.pop_front()
@@ -508,6 +537,7 @@ pub fn index_teeth(edges: &Edges, wheel: Wheel, channel: &str) -> Result<WheelAn
         edges.glitches.len(),
         edges.glitches.first().copied().unwrap_or(0),
     );
+    index.dropouts(channel, &edges.dropouts);
     let (mut t, mut angle, mut at) = (Vec::new(), Vec::new(), Vec::new());
     let mut take = |index: &mut ToothIndex| {
         while let Some((x, a, i)) = index.pop() {

@@ -9,7 +9,9 @@
 //!    hysteresis whose level follows the signal's envelope tooth by tooth (an inductive
 //!    pickup's amplitude grows with speed), or a level given. The edge time is interpolated
 //!    linearly between the two samples either side of the level. A pulse narrower than
-//!    [`GLITCH_WIDTH`] of the teeth before it is a glitch: rejected, counted, never a tooth.
+//!    [`GLITCH_WIDTH`] of the teeth before it is a glitch: rejected, counted, never a tooth. A
+//!    sample that is NaN or ±∞ is a dropout ([`Dropouts`]): skipped, no edge interpolated
+//!    across it — an edge it hides is lost, and step 2 counts it as a missing tooth.
 //! 2. [`index_teeth`] — each edge's angle on the wheel: a tooth period against the median of
 //!    its neighbours counts its pitches (1 for a tooth, M + 1 across the gap, more where edges
 //!    are missing; a period much shorter than a pitch is an extra edge and dropped); the gap is
@@ -153,14 +155,6 @@ pub const SILENCE: f64 = 8.0;
 /// Errors of the decoding.
 #[derive(Debug, Clone, Error, PartialEq)]
 pub enum WheelError {
-    /// A sample that is not a number (the decoder never guesses over it).
-    #[error("sample {index} is {value}: the wheel's signal must be finite (cut the recording or repair the sample)")]
-    NonFinite {
-        /// Sample index.
-        index: usize,
-        /// The value.
-        value: f64,
-    },
     /// Time not increasing.
     #[error("the time does not increase at sample {index} ({prev} → {next} s)")]
     Time {
