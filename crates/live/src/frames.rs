@@ -23,6 +23,7 @@
 //! time its frames started at — is told with the next chunk and its frames go on after a gap
 //! in the data, their time and crank angles shifted to continue the stream ([`seam`]).
 
+mod columns;
 mod piped;
 mod seam;
 #[cfg(unix)]
@@ -35,7 +36,6 @@ pub use socket::SocketFrames;
 use crate::service::LiveError;
 use crate::source::Source;
 use physid_core::{Basis, Channel, Recording};
-use serde_json::Value;
 use std::io::BufRead;
 use std::time::Instant;
 
@@ -133,45 +133,7 @@ impl<R: FrameLines> FrameSource<R> {
     }
 
     fn parse(&mut self) -> Result<Recording, LiveError> {
-        let v: Value = serde_json::from_str(self.buf.trim())
-            .map_err(|e| self.bad(format!("not a JSON object: {e}")))?;
-        let obj = v
-            .as_object()
-            .ok_or_else(|| self.bad("not a JSON object".into()))?;
-        let seq = match obj.get("seq") {
-            None => None,
-            Some(s) => Some(
-                s.as_u64()
-                    .ok_or_else(|| self.bad(format!("seq {s}: expected a whole number ≥ 0")))?,
-            ),
-        };
-        // The channels in `FRAME_CHANNELS`' order, each as long as `t`.
-        let mut cols: Vec<Vec<f64>> = Vec::with_capacity(FRAME_CHANNELS.len());
-        for name in FRAME_CHANNELS {
-            let col = obj
-                .get(name)
-                .and_then(Value::as_array)
-                .ok_or_else(|| self.bad(format!("channel '{name}' missing or not an array")))?;
-            if let Some(t) = cols.first().filter(|t| t.len() != col.len()) {
-                return Err(self.bad(format!(
-                    "channel '{name}' has {} values, 't' has {}",
-                    col.len(),
-                    t.len()
-                )));
-            }
-            let mut values = Vec::with_capacity(col.len());
-            for (i, x) in col.iter().enumerate() {
-                match x.as_f64() {
-                    Some(f) if f.is_finite() => values.push(f),
-                    _ => {
-                        return Err(self.bad(format!(
-                            "'{name}' value {i} is {x}: expected a finite number"
-                        )))
-                    }
-                }
-            }
-            cols.push(values);
-        }
+        let (seq, mut cols) = columns::columns(self.buf.trim()).map_err(|e| self.bad(e))?;
         let dt = 1.0 / self.rate_hz;
         let tol = 1e-3 * dt;
         let t = &cols[T];
@@ -393,6 +355,7 @@ pub const MAX_FRAME_BYTES: usize = 64 << 20;
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use serde_json::Value;
 
     fn frame(t0: usize) -> String {
         let t: Vec<f64> = (t0..t0 + 3).map(|k| k as f64 * 1e-4).collect();
