@@ -380,17 +380,5 @@ fn a_dropout_in_a_pulse_encoder_s_channels_is_decoded_past() {
     ] {
         assert!(err.contains(&said), "{said}\n{err}");
     }
-    let r = physid_io::read(&deg, &physid_io::ReadOptions::default()).unwrap();
-    let (crank, truth) = (
-        r.values("crank_deg").unwrap(),
-        r.values("theta_true").unwrap(),
-    );
-    let starts: Vec<f64> = (0..r.len())
-        .filter(|&i| crank[i] == 0.0 || crank[i] == 360.0)
-        .map(|i| (truth[i] * 1e-6).to_degrees().rem_euclid(360.0))
-        .collect();
-    assert!(starts.len() >= 14, "{starts:?}");
-    for a in &starts {
-        assert!((a - 31.0).abs() < 0.05, "{starts:?}");
-    }
+    common::revolutions_start_at(&deg, 31.0);
 }

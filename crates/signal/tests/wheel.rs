@@ -7,7 +7,8 @@
 
 use physid_signal::integrity::FindingKind;
 use physid_signal::wheel::{
-    edges, index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelError, DROPOUT_RUNS_KEPT,
+    edges, index_teeth, recognise, EdgeDetector, EdgeOptions, Wheel, WheelAngles, WheelError,
+    DROPOUT_RUNS_KEPT,
 };
 use serde_json::Value;
 use std::path::PathBuf;
@@ -41,6 +42,15 @@ fn load(file: &str) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         .map(|a| a * 1e-6)
         .collect();
     (t, v, truth)
+}
+
+/// The samples of `a`'s findings of `kind`.
+fn samples_of(a: &WheelAngles, kind: FindingKind) -> Vec<usize> {
+    a.findings
+        .iter()
+        .filter(|f| f.kind == kind)
+        .map(|f| f.index)
+        .collect()
 }
 
 /// The largest deviation [deg] of `angle` from `truth` once their mean difference (the
@@ -158,13 +168,7 @@ fn a_dropout_in_the_signal_is_skipped_and_an_edge_it_hides_counted_missing() {
         differ.map(|i| (got[i], kept[i]))
     );
     let a = index_teeth(&e, "60-3".parse().unwrap(), "enc").unwrap();
-    let at = |kind| {
-        a.findings
-            .iter()
-            .filter(|f| f.kind == kind)
-            .map(|f| f.index)
-            .collect::<Vec<_>>()
-    };
+    let at = |kind| samples_of(&a, kind);
     assert_eq!(at(FindingKind::NonFinite), [early, between, over]);
     assert_eq!(
         at(FindingKind::PulseLoss),
@@ -234,13 +238,7 @@ fn a_hall_sensor_over_a_36_1_wheel_with_a_missing_and_an_extra_edge() {
     let (t, v, truth) = load("wheel_hall_36m1");
     let e = edges(&t, &v, &EdgeOptions::default()).unwrap();
     let a = index_teeth(&e, "36-1".parse().unwrap(), "enc").unwrap();
-    let at = |kind| {
-        a.findings
-            .iter()
-            .filter(|f| f.kind == kind)
-            .map(|f| f.index)
-            .collect::<Vec<_>>()
-    };
+    let at = |kind| samples_of(&a, kind);
     assert_eq!(
         at(FindingKind::PulseLoss),
         [exp["missing_edge_sample"].as_u64().unwrap() as usize]
