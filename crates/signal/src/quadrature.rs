@@ -11,6 +11,15 @@
 //!   the Gray sequence (A, B) = 00 → 10 → 11 → 01 runs that way (A leads), back otherwise. Both
 //!   channels changing between two samples is a transition the samples could not resolve: an
 //!   integrity finding at its sample (the count may be off by two there).
+//! * A sample where A or B is not finite (NaN, ±∞) is a dropout ([`Dropouts`], a finding at
+//!   each run): skipped whole (Z with it), no transition interpolated across it. At the first
+//!   sample after it the state of (A, B) gives the count the dropout hid modulo 4; the speed
+//!   before it (the last four transitions, no faster than the time since the last) gives the
+//!   rest — the count nearest the expected one, ties the way the shaft last turned. Exact while
+//!   the shaft's mean speed over the dropout stays within the bounds the `pulse_loss` finding at
+//!   that sample states (±2 counts of the expected); an index pulse later out of place
+//!   (below) tells a count lost all the same. Z not finite alone: skipped, an index pulse it
+//!   hides is not seen.
 //! * Z: the count at each rising edge of the index while turning forward; the angle is 0 at the
 //!   first, and every later one must come a whole revolution (4·lines counts) from it — else a
 //!   finding at its sample with the counts found.
@@ -18,7 +27,7 @@
 //!   the shaft turns back, stay flat).
 
 use crate::integrity::{Finding, FindingKind};
-use crate::wheel::{pchip_at, Pchip, WheelError, HYSTERESIS, START_SAMPLES};
+use crate::wheel::{pchip_at, Dropouts, Pchip, WheelError, HYSTERESIS, START_SAMPLES};
 use std::f64::consts::TAU;
 
 /// A comparator with hysteresis on one channel, started from its first samples.
@@ -28,15 +37,25 @@ struct Comparator {
     band: f64,
     high: Option<bool>,
     prev: Option<(f64, f64)>,
+    /// After a dropout: the next sample outside the band gives the state, no transition.
+    resume: bool,
 }
 
 impl Comparator {
     /// From the 2nd and 98th percentiles of the first samples `v` (`range`: the smallest and
     /// largest of all the samples instead — an index is high a few samples a revolution).
     fn start(v: &[f64], range: Option<(f64, f64)>) -> Result<Self, String> {
-        let mut u: Vec<f64> = v.iter().take(START_SAMPLES).copied().collect();
-        if u.is_empty() {
-            return Err("no samples".into());
+        let mut u: Vec<f64> = v
+            .iter()
+            .filter(|x| x.is_finite())
+            .take(START_SAMPLES)
+            .copied()
+            .collect();
+        if range.is_some_and(|(lo, hi)| !(lo.is_finite() && hi.is_finite())) {
+            return Err("none of its samples is finite (NaN or ±inf)".into());
+        }
+        if u.is_empty() && range.is_none() {
+            return Err("no finite sample".into());
         }
         let q = |u: &mut Vec<f64>, p: f64| {
             let k = ((u.len() - 1) as f64 * p).round() as usize;
@@ -54,7 +73,15 @@ impl Comparator {
             band: HYSTERESIS * (hi - lo),
             high: None,
             prev: None,
+            resume: false,
         })
+    }
+
+    /// A dropout: no crossing is interpolated across it; the state after it is taken from
+    /// the next sample outside the band, without a transition.
+    fn forget(&mut self) {
+        self.prev = None;
+        self.resume = true;
     }
 
     /// The sample `(t, v)`: `Some((time, new state))` at a transition.
@@ -67,6 +94,10 @@ impl Comparator {
         } else {
             None
         };
+        if std::mem::take(&mut self.resume) {
+            self.high = state.or(self.high);
+            return None;
+        }
         match (self.high, state) {
             (None, s) => {
                 self.high = s;
@@ -168,7 +199,10 @@ pub struct IndexPulse {
 pub struct QuadratureDecoder {
     names: [String; 3],
     z_range: Option<(f64, f64)>,
-    start: Vec<[f64; 4]>,
+    /// The first samples, held until the comparators start: sample, `[t, A, B, Z]` (a
+    /// dropout's run held as its first sample); those with A and B finite.
+    start: Vec<(usize, [f64; 4])>,
+    start_finite: usize,
     comparators: Option<[Comparator; 2]>,
     cz: Option<Comparator>,
     sa: Option<bool>,
@@ -179,8 +213,16 @@ pub struct QuadratureDecoder {
     transitions: usize,
     last_t: Option<f64>,
     backward: usize,
-    /// The sample before, its time; samples seen.
+    /// The last transitions' times (a ring): the speed before a dropout.
+    recent: [f64; 5],
+    /// The samples not finite on A, B and Z; the dropout of A/B under way: its first sample
+    /// and the time of the finite sample before it.
+    dropouts: [Dropouts; 3],
+    gap: Option<(usize, Option<f64>)>,
+    /// The time of the last sample with A and B finite the comparators took, and of the last
+    /// sample (time must increase through dropouts too); samples seen.
     prev_t: Option<f64>,
+    t_seen: Option<f64>,
     seen: usize,
     out: std::collections::VecDeque<Transition>,
     pulses: std::collections::VecDeque<IndexPulse>,
@@ -196,6 +238,7 @@ impl QuadratureDecoder {
             names: names.map(str::to_string),
             z_range,
             start: Vec::new(),
+            start_finite: 0,
             comparators: None,
             cz: None,
             sa: None,
@@ -205,7 +248,11 @@ impl QuadratureDecoder {
             transitions: 0,
             last_t: None,
             backward: 0,
+            recent: [f64::NAN; 5],
+            dropouts: Default::default(),
+            gap: None,
             prev_t: None,
+            t_seen: None,
             seen: 0,
             out: std::collections::VecDeque::new(),
             pulses: std::collections::VecDeque::new(),
@@ -214,7 +261,8 @@ impl QuadratureDecoder {
         }
     }
 
-    /// The next samples: times `t` [s], A, B and Z (empty without Z).
+    /// The next samples: times `t` [s], A, B and Z (empty without Z). A sample not finite is
+    /// a dropout (see the module docs).
     pub fn push(&mut self, t: &[f64], a: &[f64], b: &[f64], z: &[f64]) {
         for i in 0..t.len() {
             if self.error.is_some() {
@@ -222,46 +270,54 @@ impl QuadratureDecoder {
             }
             let index = self.seen;
             self.seen += 1;
-            let zi = z.get(i).copied().unwrap_or(0.0);
-            for (k, x) in [a[i], b[i], zi].into_iter().enumerate() {
-                if !x.is_finite() {
-                    self.error = Some(WheelError::Invalid(format!(
-                        "'{}': sample {index} is {x}: the encoder's signal must be finite",
-                        self.names[k]
-                    )));
-                    return;
-                }
-            }
-            if let Some(prev) = self
-                .prev_t
-                .filter(|&p| t[i].partial_cmp(&p) != Some(std::cmp::Ordering::Greater))
-            {
+            if !t[i].is_finite() || self.t_seen.is_some_and(|p| t[i] <= p) {
                 self.error = Some(WheelError::Time {
                     index,
-                    prev,
+                    prev: self.t_seen.unwrap_or(f64::NAN),
                     next: t[i],
                 });
                 return;
             }
-            let sample = [t[i], a[i], b[i], zi];
+            self.t_seen = Some(t[i]);
+            let sample = [t[i], a[i], b[i], z.get(i).copied().unwrap_or(0.0)];
+            for (k, &x) in sample[1..].iter().enumerate() {
+                if !x.is_finite() {
+                    self.dropouts[k].add(index, t[i], x);
+                }
+            }
             if self.comparators.is_none() {
-                self.start.push(sample);
-                self.prev_t = Some(t[i]);
-                if self.start.len() == START_SAMPLES {
+                let finite = a[i].is_finite() && b[i].is_finite();
+                // A dropout's run is held as one mark: what is held grows with the finite
+                // samples only.
+                let marked = self
+                    .start
+                    .last()
+                    .is_some_and(|(_, s)| !(s[1].is_finite() && s[2].is_finite()));
+                if finite || !marked {
+                    self.start.push((index, sample));
+                }
+                self.start_finite += usize::from(finite);
+                if self.start_finite == START_SAMPLES {
                     self.begin();
                 }
                 continue;
             }
             self.step(sample, index);
-            self.prev_t = Some(t[i]);
         }
     }
 
     /// The comparators from the first samples, then those samples through them.
     fn begin(&mut self) {
         let start = std::mem::take(&mut self.start);
+        if self.start_finite == 0 {
+            self.error = Some(WheelError::Invalid(format!(
+                "'{}', '{}': none of their {} samples is finite in both (NaN or ±inf): no transition",
+                self.names[0], self.names[1], self.seen
+            )));
+            return;
+        }
         // The channel `k` (A, B, Z) of the samples held: after the time.
-        let column = |k: usize| start.iter().map(|s| s[k + 1]).collect::<Vec<f64>>();
+        let column = |k: usize| start.iter().map(|s| s.1[k + 1]).collect::<Vec<f64>>();
         let names = &self.names;
         let comparator = |k: usize, range| {
             Comparator::start(&column(k), range)
@@ -282,10 +338,8 @@ impl QuadratureDecoder {
                 return;
             }
         }
-        self.prev_t = None;
-        for (i, s) in start.into_iter().enumerate() {
+        for (i, s) in start {
             self.step(s, i);
-            self.prev_t = Some(s[0]);
         }
     }
 
@@ -293,15 +347,51 @@ impl QuadratureDecoder {
         let Some([ca, cb]) = self.comparators.as_mut() else {
             return;
         };
+        if !(a.is_finite() && b.is_finite()) {
+            // A dropout of A or B: the whole sample skipped.
+            ca.forget();
+            cb.forget();
+            if let Some(c) = self.cz.as_mut() {
+                c.forget();
+            }
+            self.gap.get_or_insert((i, self.prev_t));
+            return;
+        }
         let ea = ca.step(t, a);
         let eb = cb.step(t, b);
+        let high = (ca.high, cb.high);
+        if let Some((from, before)) = self.gap.take() {
+            self.across(from, before, high, t, i);
+        }
+        self.step_ab(ea, eb, high, t, i);
+        if let Some(c) = self.cz.as_mut() {
+            if !z.is_finite() {
+                c.forget();
+            } else if let Some((te, true)) = c.step(t, z) {
+                if self.last_dir > 0 {
+                    self.pulses.push_back(IndexPulse { t: te, index: i });
+                }
+            }
+        }
+        self.prev_t = Some(t);
+    }
+
+    /// The transitions of A and B at sample `i` at `t` (`ea`, `eb`: their comparators'
+    /// crossings; `high`: their states now).
+    fn step_ab(
+        &mut self,
+        ea: Option<(f64, bool)>,
+        eb: Option<(f64, bool)>,
+        (high_a, high_b): (Option<bool>, Option<bool>),
+        t: f64,
+        i: usize,
+    ) {
         if self.sa.is_none() {
-            self.sa = ca.high;
+            self.sa = high_a;
         }
         if self.sb.is_none() {
-            self.sb = cb.high;
+            self.sb = high_b;
         }
-        let (high_a, high_b) = (ca.high, cb.high);
         match (ea, eb) {
             (Some(_), Some(_)) => {
                 self.findings.push(Finding {
@@ -355,16 +445,99 @@ impl QuadratureDecoder {
             }
             (None, None) => {}
         }
-        if let Some(c) = self.cz.as_mut() {
-            if let Some((te, true)) = c.step(t, z) {
-                if self.last_dir > 0 {
-                    self.pulses.push_back(IndexPulse { t: te, index: i });
-                }
-            }
+    }
+
+    /// The first sample `i` at `t` after a dropout of A/B from sample `from` (the finite sample
+    /// before it at `before`; `high`: the states of A and B now): the count it hid, from the
+    /// states either side (modulo 4) and the speed before (see the module docs); a
+    /// `pulse_loss` finding where it may have hidden a transition.
+    fn across(
+        &mut self,
+        from: usize,
+        before: Option<f64>,
+        high: (Option<bool>, Option<bool>),
+        t: f64,
+        i: usize,
+    ) {
+        let (Some(pa), Some(pb), (Some(na), Some(nb)), Some(before)) =
+            (self.sa, self.sb, high, before)
+        else {
+            return;
+        };
+        // The Gray sequence forward: 00 → 10 → 11 → 01.
+        let place = |a: bool, b: bool| match (a, b) {
+            (false, false) => 0_i64,
+            (true, false) => 1,
+            (true, true) => 2,
+            (false, true) => 3,
+        };
+        let moved = (place(na, nb) - place(pa, pb)).rem_euclid(4);
+        let rate = self.rate(before);
+        let expected = rate.map_or(0.0, |r| r * (t - before));
+        let target = self.last_dir as f64 * expected;
+        // The count ≡ `moved` (mod 4) nearest the expected one, ties the way it last turned.
+        let low = moved + 4 * ((target - moved as f64) / 4.0).floor() as i64;
+        let (dl, dh) = (target - low as f64, (low + 4) as f64 - target);
+        let count = if dl < dh || (dl == dh && self.last_dir < 0) {
+            low
+        } else {
+            low + 4
+        };
+        self.count += count;
+        if count != 0 {
+            self.last_dir = count.signum();
         }
+        if count < 0 {
+            self.backward += count.unsigned_abs() as usize;
+        }
+        self.sa = Some(na);
+        self.sb = Some(nb);
+        if count == 0 && expected < 0.5 {
+            return;
+        }
+        let rest = match rate {
+            Some(_) if expected > 0.0 => {
+                // Right while the count the speed gives is within 2 of the one taken.
+                let m = count.abs() as f64;
+                let (lo, hi) = (((m - 2.0) / expected).max(0.0), (m + 2.0) / expected);
+                let digits = usize::from(hi - lo < 0.1);
+                format!(
+                    "the speed before{} {expected:.1}; exact while the mean speed across it stays within {:.digits$}–{:.digits$} % of the speed before",
+                    if self.last_dir < 0 { " (turning back)" } else { "" },
+                    100.0 * lo,
+                    100.0 * hi,
+                )
+            }
+            _ => "no speed known before it: the least turn that gives them".to_string(),
+        };
+        self.findings.push(Finding {
+            kind: FindingKind::PulseLoss,
+            index: i,
+            detail: format!(
+                "'{}', '{}': the dropout from sample {from} to {} hides its transitions: taken as {count} count(s) — the states either side give the count modulo 4, {rest}",
+                self.names[0],
+                self.names[1],
+                i - 1
+            ),
+        });
+    }
+
+    /// The speed before a dropout whose finite sample before is at `before` [s], in
+    /// transitions a second: over the last (up to) four transitions, no faster than one since
+    /// the last (a shaft at rest); `None` before two transitions.
+    fn rate(&self, before: f64) -> Option<f64> {
+        let n = self.transitions.min(self.recent.len());
+        if n < 2 {
+            return None;
+        }
+        let at = |k: usize| self.recent[(self.transitions - k) % self.recent.len()];
+        let (newest, oldest) = (at(1), at(n));
+        let period = (newest - oldest) / (n - 1) as f64;
+        Some(1.0 / period.max(before - newest))
     }
 
     fn transition(&mut self, t: f64, edge: i64) {
+        self.recent[self.transitions % self.recent.len()] = t;
         self.transitions += 1;
         self.last_t = Some(t);
         self.out.push_back(Transition { t, edge });
@@ -394,6 +567,18 @@ impl QuadratureDecoder {
         if let Some(e) = self.error.clone() {
             return Err(e);
         }
+        for (k, d) in self.dropouts.iter().enumerate() {
+            let skipped = match k {
+                2 => "skipped: an index pulse they hide is not seen".to_string(),
+                _ => format!(
+                    "skipped with '{}' at the same samples: no transition is found across them",
+                    self.names[1 - k]
+                ),
+            };
+            let found = d.findings(&self.names[k], &skipped);
+            self.findings.extend(found);
+        }
+        self.dropouts = Default::default();
         if self.transitions < 2 {
             return Err(WheelError::Invalid(format!(
                 "'{}', '{}': {} transitions — the shaft does not turn, or the channels do not cross their levels",
@@ -534,12 +719,6 @@ pub fn decode(
                 "'{name}' has {} samples, the time {}",
                 x.len(),
                 t.len()
-            )));
-        }
-        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-            return Err(WheelError::Invalid(format!(
-                "'{name}': sample {i} is {}: the encoder's signal must be finite",
-                x[i]
             )));
         }
     }

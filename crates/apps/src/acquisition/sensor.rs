@@ -177,8 +177,9 @@ fn encoder_of(spec: &AngleSpec) -> Result<([&str; 3], u32), AppError> {
 
 /// Pass 1: what must be known of the sensor `spec` names before any angle is given — passes
 /// over `source`, `t` and the sensor's channels (one for a wheel, two for an encoder: the
-/// index's level, then the decoding). The decoders' errors — a sample not finite, time not
-/// increasing, the wrong wheel — name the channel and the sample.
+/// index's level, then the decoding). The decoders' errors — time not increasing, a channel
+/// with no finite sample, the wrong wheel — name the channel and the sample; a dropout is a
+/// finding, not an error.
 pub fn sensor_calibration(
     spec: &AngleSpec,
     source: &dyn Reopen<Recordings, AppError>,
@@ -294,13 +295,13 @@ enum PointDecoder {
     Wheel {
         channel: String,
         /// `None` once the signal has ended.
-        detector: Option<EdgeDetector>,
+        detector: Option<Box<EdgeDetector>>,
         index: Box<ToothIndex>,
         report: Option<ToothReport>,
     },
     Quadrature {
         names: [String; 3],
-        decoder: QuadratureDecoder,
+        decoder: Box<QuadratureDecoder>,
         q: f64,
         zero: f64,
         ended: bool,
@@ -400,7 +401,7 @@ impl PointDecoder {
             (AngleSensor::Wheel { channel, edges, .. }, Calibration::Wheel(gap)) => {
                 PointDecoder::Wheel {
                     channel: channel.clone(),
-                    detector: Some(EdgeDetector::new(edges)),
+                    detector: Some(Box::new(EdgeDetector::new(edges))),
                     index: Box::new(ToothIndex::new(gap, channel)),
                     report: None,
                 }
@@ -422,7 +423,7 @@ impl PointDecoder {
                 let (names, lines) = encoder_of(spec)?;
                 PointDecoder::Quadrature {
                     names: names.map(str::to_string),
-                    decoder: QuadratureDecoder::new(names, Some(c.z_range)),
+                    decoder: Box::new(QuadratureDecoder::new(names, Some(c.z_range))),
                     q: TAU / (4.0 * lines as f64),
                     zero: c.zero,
                     ended: false,
@@ -455,7 +456,7 @@ impl PointDecoder {
                 }
                 let rest = detector
                     .take()
-                    .map(EdgeDetector::finish)
+                    .map(|d| d.finish())
                     .transpose()
                     .map_err(|e| invalid(format!("'{channel}': {e}")))?;
                 if let Some(rest) = rest {

@@ -394,7 +394,7 @@ pub const DROPOUT_RUNS_KEPT: usize = 20;
 
 impl Dropouts {
     /// Sample `index` at `t` [s] is `value`, not finite.
-    fn add(&mut self, index: usize, t: f64, value: f64) {
+    pub(crate) fn add(&mut self, index: usize, t: f64, value: f64) {
         self.samples += 1;
         let joined = self.last.is_some_and(|l| l + 1 == index);
         self.last = Some(index);
@@ -418,6 +418,37 @@ impl Dropouts {
                 value,
             });
         }
+    }
+
+    /// The runs on `channel` as findings: a `non_finite` at each run kept, saying what was
+    /// done with them (`skipped`, e.g. "skipped, no edge is found across them"), and a note
+    /// counting the rest.
+    pub fn findings(&self, channel: &str, skipped: &str) -> Vec<Finding> {
+        let mut out: Vec<Finding> = self
+            .first
+            .iter()
+            .map(|r| Finding {
+                kind: FindingKind::NonFinite,
+                index: r.index,
+                detail: format!(
+                    "'{channel}': {} sample(s) from sample {} (t = {} s) are {}: {skipped}",
+                    r.samples, r.index, r.t, r.value
+                ),
+            })
+            .collect();
+        if let Some(last) = self.first.last().filter(|_| self.runs > self.first.len()) {
+            out.push(Finding {
+                kind: FindingKind::Note,
+                index: last.index,
+                detail: format!(
+                    "'{channel}': {} more run(s) of samples not finite after sample {} ({} sample(s) in all), skipped as these",
+                    self.runs - self.first.len(),
+                    last.index,
+                    self.samples
+                ),
+            });
+        }
+        out
     }
 }
 

@@ -293,29 +293,8 @@ impl ToothIndex {
     /// encoder's index): a finding at each run kept, a note for the rest. An edge they hid is
     /// counted as a missing tooth, as any edge the sensor lost.
     pub fn dropouts(&mut self, channel: &str, d: &Dropouts) {
-        let extras = &mut self.counting.extras;
-        for r in &d.first {
-            extras.push(Finding {
-                kind: FindingKind::NonFinite,
-                index: r.index,
-                detail: format!(
-                    "'{channel}': {} sample(s) from sample {} (t = {} s) are {}: skipped, no edge is found across them",
-                    r.samples, r.index, r.t, r.value
-                ),
-            });
-        }
-        if let Some(last) = d.first.last().filter(|_| d.runs > d.first.len()) {
-            extras.push(Finding {
-                kind: FindingKind::Note,
-                index: last.index,
-                detail: format!(
-                    "'{channel}': {} more run(s) of samples not finite after sample {} ({} sample(s) in all), skipped as these",
-                    d.runs - d.first.len(),
-                    last.index,
-                    d.samples
-                ),
-            });
-        }
+        let found = d.findings(channel, "skipped, no edge is found across them");
+        self.counting.extras.extend(found);
     }
 
     /// The next edge whose angle is known: time [s], angle [rad], sample.
