@@ -333,6 +333,39 @@ fn a_dropout_in_a_trigger_wheel_s_signal_is_decoded_past() {
     }
 }
 
+/// `physid-signal`'s golden file `golden` with the runs `dropouts` gives from its recording (a
+/// channel, its samples) set to NaN, converted to one sample per degree (`convert
+/// --crank-angle` with `flags`), which must succeed: the file converted, and stderr.
+fn converted_with_dropouts(
+    s: &Scratch,
+    golden: &str,
+    dropouts: impl FnOnce(&physid_core::Recording) -> Vec<(&'static str, std::ops::Range<usize>)>,
+    flags: &[&str],
+) -> (std::path::PathBuf, String) {
+    let golden = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../signal/tests/golden")
+        .join(golden);
+    let mut rec = physid_io::read(&golden, &physid_io::ReadOptions::default()).unwrap();
+    for (name, at) in dropouts(&rec) {
+        let mut v = rec.values(name).unwrap().to_vec();
+        v[at].fill(f64::NAN);
+        rec.replace_values(name, v).unwrap();
+    }
+    let (file, deg) = (s.file("raw.parquet"), s.file("deg.parquet"));
+    physid_io::write(&file, &rec, &physid_io::WriteOptions::default()).unwrap();
+    let mut args = vec![
+        "convert",
+        file.to_str().unwrap(),
+        deg.to_str().unwrap(),
+        "--crank-angle",
+    ];
+    args.extend_from_slice(flags);
+    let o = physid(&args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    (deg, err)
+}
+
 /// A pulse encoder's raw channels with dropouts (`physid-signal`'s golden 360-pulse encoder and
 /// its index, numpy): the pulses NaN for 40 samples (over a pulse's edge) and the index for 200
 /// samples away from its pulses. `convert --crank-angle --encoder-raw --index-raw` decodes past
@@ -341,39 +374,30 @@ fn a_dropout_in_a_trigger_wheel_s_signal_is_decoded_past() {
 #[test]
 fn a_dropout_in_a_pulse_encoder_s_channels_is_decoded_past() {
     let s = Scratch::new("physid-dropouts-pulses");
-    let golden = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../signal/tests/golden/pulse_encoder_360.parquet");
-    let mut rec = physid_io::read(&golden, &physid_io::ReadOptions::default()).unwrap();
-    // The index is high a few samples a revolution: 200 samples just after one of its pulses
-    // are clear of the next.
-    let idx = rec.values("idx").unwrap().to_vec();
-    let (lo, hi) = idx
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
-    let high = (100_000..).find(|&i| idx[i] > 0.5 * (lo + hi)).unwrap();
-    let quiet = (high..).find(|&i| idx[i] < lo + 0.1 * (hi - lo)).unwrap() + 10;
-    for (name, at) in [("enc", 150_000..150_040), ("idx", quiet..quiet + 200)] {
-        let mut v = rec.values(name).unwrap().to_vec();
-        v[at].fill(f64::NAN);
-        rec.replace_values(name, v).unwrap();
-    }
-    let file = s.file("pulses.parquet");
-    physid_io::write(&file, &rec, &physid_io::WriteOptions::default()).unwrap();
-    let deg = s.file("deg.parquet");
-    let o = physid(&[
-        "convert",
-        file.to_str().unwrap(),
-        deg.to_str().unwrap(),
-        "--crank-angle",
-        "--encoder-raw",
-        "enc=360",
-        "--index-raw",
-        "idx",
-        "--tdc-offset",
-        "30",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
+    let mut quiet = 0;
+    let (deg, err) = converted_with_dropouts(
+        &s,
+        "pulse_encoder_360.parquet",
+        |rec| {
+            // The index is high a few samples a revolution: 200 samples just after one of its
+            // pulses are clear of the next.
+            let idx = rec.values("idx").unwrap();
+            let (lo, hi) = idx
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+            let high = (100_000..).find(|&i| idx[i] > 0.5 * (lo + hi)).unwrap();
+            quiet = (high..).find(|&i| idx[i] < lo + 0.1 * (hi - lo)).unwrap() + 10;
+            vec![("enc", 150_000..150_040), ("idx", quiet..quiet + 200)]
+        },
+        &[
+            "--encoder-raw",
+            "enc=360",
+            "--index-raw",
+            "idx",
+            "--tdc-offset",
+            "30",
+        ],
+    );
     for said in [
         "sample 150000: 'enc': 40 sample(s) from sample 150000 (t = ".to_string(),
         format!("sample {quiet}: 'idx': 200 sample(s) from sample {quiet} (t = "),
@@ -392,34 +416,24 @@ fn a_dropout_in_a_pulse_encoder_s_channels_is_decoded_past() {
 #[test]
 fn a_dropout_in_a_quadrature_encoder_s_channels_is_decoded_past() {
     let s = Scratch::new("physid-dropouts-quadrature");
-    let golden = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../signal/tests/golden/quadrature_500.parquet");
-    let mut rec = physid_io::read(&golden, &physid_io::ReadOptions::default()).unwrap();
-    for (name, at) in [
-        ("enc_b", 95_000..95_013),
-        ("enc_a", 105_000..105_040),
-        ("enc_b", 105_000..105_040),
-        ("enc_z", 100_440..100_500),
-    ] {
-        let mut v = rec.values(name).unwrap().to_vec();
-        v[at].fill(f64::NAN);
-        rec.replace_values(name, v).unwrap();
-    }
-    let file = s.file("quadrature.parquet");
-    physid_io::write(&file, &rec, &physid_io::WriteOptions::default()).unwrap();
-    let deg = s.file("deg.parquet");
-    let o = physid(&[
-        "convert",
-        file.to_str().unwrap(),
-        deg.to_str().unwrap(),
-        "--crank-angle",
-        "--quadrature",
-        "enc_a,enc_b,enc_z=500",
-        "--tdc-offset",
-        "90",
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
+    let (deg, err) = converted_with_dropouts(
+        &s,
+        "quadrature_500.parquet",
+        |_| {
+            vec![
+                ("enc_b", 95_000..95_013),
+                ("enc_a", 105_000..105_040),
+                ("enc_b", 105_000..105_040),
+                ("enc_z", 100_440..100_500),
+            ]
+        },
+        &[
+            "--quadrature",
+            "enc_a,enc_b,enc_z=500",
+            "--tdc-offset",
+            "90",
+        ],
+    );
     for said in [
         "sample 95000: 'enc_b': 13 sample(s) from sample 95000 (t = ",
         "sample 95013: 'enc_a', 'enc_b': the dropout from sample 95000 to 95012 hides its transitions: taken as 3 count(s)",
