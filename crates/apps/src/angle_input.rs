@@ -54,6 +54,9 @@ pub trait InputObserver {
     fn read_warning(&self, _path: &Path, _warning: &str) {}
     /// What decoding a raw angle sensor found.
     fn decoded(&self, _path: &Path, _decoded: &DecodedAngle) {}
+    /// What decoding a raw angle sensor found wrong with the data, when nothing else of it is
+    /// to be said ([`AngleInput::quiet`]).
+    fn findings(&self, _path: &Path, _findings: &[physid_signal::integrity::Finding]) {}
     /// Where the TDC was placed from the motored pressure `channel`.
     fn tdc_placed(&self, _path: &Path, _channel: &str, _found: &TdcFromPressure) {}
 }
@@ -89,7 +92,8 @@ pub struct AngleInput {
     pub step_deg: f64,
     /// How much of the windows `tdc_from` holds between its passes [bytes].
     pub hold_bytes: usize,
-    /// Nothing said about the decoded angle or the TDC placed.
+    /// Nothing said about the decoded angle or the TDC placed but what the decoding found
+    /// wrong with the data (its findings: a dropout, a tooth lost — told all the same).
     pub quiet: bool,
     observer: Arc<dyn InputObserver + Send + Sync>,
 }
@@ -230,6 +234,17 @@ impl AngleInput {
         quiet.read_pass(Pass::AGAIN, channels, start, push)
     }
 
+    /// What decoding the raw sensor found, told once (on the first read): all of it, or only
+    /// its findings when [`quiet`](Self::quiet).
+    fn tell_decoded(&self, again: bool, d: &DecodedAngle) {
+        if again {
+        } else if self.quiet {
+            self.observer.findings(&self.path, &d.findings);
+        } else {
+            self.observer.decoded(&self.path, d);
+        }
+    }
+
     fn read_pass<S>(
         &self,
         pass: Pass,
@@ -349,9 +364,7 @@ impl AngleInput {
                     found
                 }
             };
-            if !(self.quiet || pass.again) {
-                self.observer.decoded(&self.path, &found.decoded);
-            }
+            self.tell_decoded(pass.again, &found.decoded);
             let mut angle = self.open_names(&sensor)?;
             let mut reader = self.open(wanted(&["t"]))?;
             let file_header = reader.header().clone();
@@ -389,8 +402,8 @@ impl AngleInput {
         }
         let (deg, decoded) = self.to_crank_angle(&rec)?;
         drop(rec);
-        if let (Some(d), false) = (&decoded, self.quiet) {
-            self.observer.decoded(&self.path, d);
+        if let Some(d) = &decoded {
+            self.tell_decoded(pass.again, d);
         }
         let mut push = push;
         let header = deg.slice(0..0);

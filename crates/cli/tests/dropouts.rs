@@ -254,7 +254,8 @@ fn a_dropout_in_a_crank_angle_file_leaves_out_the_cycles_it_cuts() {
 /// A trigger wheel's raw signal with dropouts — the pickup's samples NaN for 5 samples at
 /// sample 30 000 and for 60 samples (0.6 ms, over a tooth's edge at the recording's 2400 rpm)
 /// at sample 100 000: `cycles` decodes the angle past them — before, it refused the file at the
-/// first — tells each run (its sample, on stderr and in the `--json` findings) and the edge the
+/// first — tells each run (its sample, on stderr and in the `--json` findings, on stderr with
+/// `--json` too, as the cycles a dropout cuts are) and the edge the
 /// longer one hid, counted as a missing tooth; and every cycle still passes the checks the
 /// clean recording's pass against the generator's truth (`data_handling.rs`,
 /// `cycles_of_a_raw_recording`): the pressure's peak within ±2.7° of TDC, the gross IMEP of the
@@ -287,7 +288,7 @@ fn a_dropout_in_a_trigger_wheel_s_signal_is_decoded_past() {
     let (c, d) = (clean.to_str().unwrap(), dat.to_str().unwrap());
     let args = |file| [&["cycles", file][..], &flags].concat();
     let (want, _) = run(&args(c));
-    let (got, _) = run(&args(d));
+    let (got, json_err) = run(&args(d));
     let found = |kind: &str| -> Vec<u64> {
         got["findings"]
             .as_array()
@@ -309,7 +310,8 @@ fn a_dropout_in_a_trigger_wheel_s_signal_is_decoded_past() {
         "{}",
         got["findings"]
     );
-    // Told on stderr without --json, each run at its sample.
+    // Told on stderr too, each run at its sample, with --json (the decoding's summary left
+    // out) as without.
     let o = physid(&args(d));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
@@ -319,7 +321,9 @@ fn a_dropout_in_a_trigger_wheel_s_signal_is_decoded_past() {
             dat.display()
         );
         assert!(err.contains(&said), "{said}\n{err}");
+        assert!(json_err.contains(&said), "{said}\n{json_err}");
     }
+    assert!(err.contains("decoded") && !json_err.contains("decoded"), "{json_err}");
     let (a, b) = (
         want["cycles"].as_array().unwrap(),
         got["cycles"].as_array().unwrap(),

@@ -240,7 +240,13 @@ fn pick(
 /// firing TDC was placed, and every finding with its sample.
 pub fn tell_wheel(input: &std::path::Path, d: &DecodedAngle) {
     eprintln!("{}: {}; {}", input.display(), d.summary, d.phase);
-    for f in &d.findings {
+    tell_findings(input, &d.findings);
+}
+
+/// What decoding a raw angle sensor found wrong with the data, on stderr: each finding with
+/// its sample.
+pub fn tell_findings(input: &std::path::Path, findings: &[physid_signal::integrity::Finding]) {
+    for f in findings {
         eprintln!("{}: sample {}: {}", input.display(), f.index, f.detail);
     }
 }

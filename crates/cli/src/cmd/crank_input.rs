@@ -4,7 +4,7 @@
 //! finds is told on stderr, with a progress bar over each read and the file in the provenance.
 
 use super::{CrankArgs, InputArgs};
-use crate::cmd::convert::tell_wheel;
+use crate::cmd::convert::{tell_findings, tell_wheel};
 use crate::cmd::inspect::{tell_tdc_from, AngleArgs};
 use crate::progress::Reading;
 use miette::Result;
@@ -45,6 +45,10 @@ impl InputObserver for Told {
 
     fn decoded(&self, path: &Path, decoded: &DecodedAngle) {
         tell_wheel(path, decoded);
+    }
+
+    fn findings(&self, path: &Path, findings: &[physid_signal::integrity::Finding]) {
+        tell_findings(path, findings);
     }
 
     fn tdc_placed(&self, path: &Path, channel: &str, found: &TdcFromPressure) {
