@@ -323,7 +323,10 @@ fn a_dropout_in_a_trigger_wheel_s_signal_is_decoded_past() {
         assert!(err.contains(&said), "{said}\n{err}");
         assert!(json_err.contains(&said), "{said}\n{json_err}");
     }
-    assert!(err.contains("decoded") && !json_err.contains("decoded"), "{json_err}");
+    assert!(
+        err.contains("decoded") && !json_err.contains("decoded"),
+        "{json_err}"
+    );
     let (a, b) = (
         want["cycles"].as_array().unwrap(),
         got["cycles"].as_array().unwrap(),
