@@ -6,7 +6,9 @@
 //! Here: the options (which channel is the angle, which sensor) and the error. By concern:
 //! * `inspect.rs` — what is in a recording, its integrity, a wheel recognised;
 //! * `angle.rs` — the engine angle from an encoder's counts and marker, the first TDC;
-//! * [`sensor`] — the angle decoded from a raw trigger wheel or quadrature encoder, in passes;
+//! * [`sensor`] — the angle decoded from a raw trigger wheel, pulse encoder or quadrature
+//!   encoder, in passes;
+//! * `pulse_edges.rs` — a raw pulse encoder's edges and its index's, in time order;
 //! * `phase.rs` — which of two revolutions fires, from a channel's level around each TDC;
 //! * `crank.rs` — a time basis resampled to the crank angle, whole and in chunks;
 //! * `time.rs` — a crank basis back to a uniform time basis, and the uniform-step check;
@@ -34,6 +36,7 @@ mod filter;
 mod inspect;
 mod marker_phase;
 mod phase;
+mod pulse_edges;
 pub mod sensor;
 mod time;
 
