@@ -5,6 +5,9 @@ use super::comparator::Comparator;
 use crate::integrity::{Finding, FindingKind};
 use crate::wheel::{Dropouts, WheelError, START_SAMPLES};
 
+/// The most counts a dropout is taken to hide, whatever the speed before expects.
+const MOST_HIDDEN: f64 = 1e12;
+
 /// A transition of A or B as [`QuadratureDecoder`] gives it: its time [s] and the edge crossed
 /// (between counts `c − 1` and `c`, called `c`, whichever the way).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -237,12 +240,12 @@ impl QuadratureDecoder {
                     ),
                 });
                 // Taken as two steps on in the direction of the last one.
-                self.count += 2 * self.last_dir;
+                self.count = self.count.saturating_add(2 * self.last_dir);
                 if let (Some((ta, _)), Some((tb, _))) = (ea, eb) {
                     let edge = if self.last_dir > 0 {
                         self.count
                     } else {
-                        self.count + 1
+                        self.count.saturating_add(1)
                     };
                     self.transition(0.5 * (ta + tb), edge);
                 }
@@ -264,12 +267,16 @@ impl QuadratureDecoder {
                 // A is high, falls when A is low.
                 let forward = if ea.is_some() { s != pb } else { s == pa };
                 let dir = if forward { 1 } else { -1 };
-                self.count += dir;
+                self.count = self.count.saturating_add(dir);
                 if dir < 0 {
                     self.backward += 1;
                 }
                 self.last_dir = dir;
-                let edge = if forward { self.count } else { self.count + 1 };
+                let edge = if forward {
+                    self.count
+                } else {
+                    self.count.saturating_add(1)
+                };
                 self.transition(te, edge);
                 if ea.is_some() {
                     self.sa = Some(s);
@@ -307,7 +314,8 @@ impl QuadratureDecoder {
         };
         let moved = (place(na, nb) - place(pa, pb)).rem_euclid(4);
         let rate = self.rate(before);
-        let expected = rate.map_or(0.0, |r| r * (t - before));
+        // Within what a count holds (a dropout of 1e12 counts is days at any speed).
+        let expected = rate.map_or(0.0, |r| (r * (t - before)).min(MOST_HIDDEN));
         let target = self.last_dir as f64 * expected;
         // The count ≡ `moved` (mod 4) nearest the expected one, ties the way it last turned.
         let low = moved + 4 * ((target - moved as f64) / 4.0).floor() as i64;
@@ -317,12 +325,12 @@ impl QuadratureDecoder {
         } else {
             low + 4
         };
-        self.count += count;
+        self.count = self.count.saturating_add(count);
         if count != 0 {
             self.last_dir = count.signum();
         }
         if count < 0 {
-            self.backward += count.unsigned_abs() as usize;
+            self.backward = self.backward.saturating_add(count.unsigned_abs() as usize);
         }
         self.sa = Some(na);
         self.sb = Some(nb);
