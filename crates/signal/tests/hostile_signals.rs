@@ -73,10 +73,10 @@ fn the_quadrature_decoder_takes_hostile_signals_without_panicking() {
         // Pushed in chunks: the same transitions, findings and error.
         let mut range = IndexRange::default();
         range.push(&z);
-        let mut d = QuadratureDecoder::new(["a", "b", "z"], Some(range.range));
+        let mut d = QuadratureDecoder::new(["a", "b", "z"], Some(range.range), 100);
         let (mut got, mut whole_d) = (
             Vec::new(),
-            QuadratureDecoder::new(["a", "b", "z"], Some(range.range)),
+            QuadratureDecoder::new(["a", "b", "z"], Some(range.range), 100),
         );
         for s in (0..t.len()).step_by(chunk) {
             let e = (s + chunk).min(t.len());

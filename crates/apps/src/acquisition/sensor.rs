@@ -147,7 +147,7 @@ pub fn sensor_calibration(
                 range.push(c.values(names[2])?);
                 Ok(())
             })?;
-            let mut decoder = QuadratureDecoder::new(names, Some(range.range));
+            let mut decoder = QuadratureDecoder::new(names, Some(range.range), lines);
             let mut zero = IndexZero::new(lines, names[2]);
             let (mut transitions, mut last, mut from) = (0usize, None, (0usize, f64::NAN));
             let mut last_t = f64::NAN;
@@ -329,7 +329,7 @@ impl PointDecoder {
                 let (names, lines) = encoder_of(spec)?;
                 PointDecoder::Quadrature {
                     names: names.map(str::to_string),
-                    decoder: Box::new(QuadratureDecoder::new(names, Some(c.z_range))),
+                    decoder: Box::new(QuadratureDecoder::new(names, Some(c.z_range), lines)),
                     q: TAU / (4.0 * lines as f64),
                     zero: c.zero,
                     ended: false,

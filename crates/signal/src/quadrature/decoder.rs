@@ -36,6 +36,12 @@ pub struct IndexPulse {
 pub struct QuadratureDecoder {
     names: [String; 3],
     z_range: Option<(f64, f64)>,
+    /// Counts a revolution (4 × lines).
+    revolution: i64,
+    /// The count at the first index pulse turning forward; the transitions after a dropout
+    /// whose count the speed gave, held until the next index pulse checks it ([`Held`]).
+    z_count: Option<i64>,
+    held: Option<Held>,
     /// The first samples, held until the comparators start: sample, `[t, A, B, Z]` (a
     /// dropout's run held as its first sample); those with A and B finite.
     start: Vec<(usize, [f64; 4])>,
@@ -67,13 +73,25 @@ pub struct QuadratureDecoder {
     error: Option<WheelError>,
 }
 
+/// The transitions held after a dropout whose count the speed before gave, until the next
+/// index pulse turning forward checks it: the dropout's first sample, and where in the
+/// transitions not yet taken the held ones start.
+#[derive(Debug, Clone, Copy)]
+struct Held {
+    from: usize,
+    at: usize,
+}
+
 impl QuadratureDecoder {
     /// A decoder for channels `names` (A, B, Z; Z's `z_range` from a first pass, `None`
-    /// without Z).
-    pub fn new(names: [&str; 3], z_range: Option<(f64, f64)>) -> Self {
+    /// without Z) of an encoder of `lines` lines.
+    pub fn new(names: [&str; 3], z_range: Option<(f64, f64)>, lines: u32) -> Self {
         Self {
             names: names.map(str::to_string),
             z_range,
+            revolution: 4 * i64::from(lines.max(1)),
+            z_count: None,
+            held: None,
             start: Vec::new(),
             start_finite: 0,
             comparators: None,
@@ -207,6 +225,7 @@ impl QuadratureDecoder {
             } else if let Some((te, true)) = c.step(t, z) {
                 if self.last_dir > 0 {
                     self.pulses.push_back(IndexPulse { t: te, index: i });
+                    self.index_pulse(i);
                 }
             }
         }
@@ -356,10 +375,60 @@ impl QuadratureDecoder {
             kind: FindingKind::PulseLoss,
             index: i,
             detail: format!(
-                "'{}', '{}': the dropout from sample {from} to {} hides its transitions: taken as {count} count(s) — the states either side give the count modulo 4, {rest}",
+                "'{}', '{}': the dropout from sample {from} to {} hides its transitions: taken as {count} count(s) — the states either side give the count modulo 4, {rest}{}",
                 self.names[0],
                 self.names[1],
-                i - 1
+                i - 1,
+                if self.z_count.is_some() { "; the next index pulse checks it" } else { "" }
+            ),
+        });
+        if self.z_count.is_some() && self.held.is_none() {
+            self.held = Some(Held {
+                from,
+                at: self.out.len(),
+            });
+        }
+    }
+
+    /// An index pulse turning forward at sample `i`: the first is the count's reference; a
+    /// later one checks the count a dropout's transitions were taken at ([`Held`]) — a whole
+    /// number of lines off a whole revolution (within a count), those lines were lost or
+    /// gained across the dropout: the count corrected from there, the held transitions with
+    /// it, and a finding. Anything else is left as it is (an index pulse out of place tells
+    /// it, [`super::IndexZero`]).
+    fn index_pulse(&mut self, i: usize) {
+        let Some(reference) = self.z_count else {
+            self.z_count = Some(self.count);
+            return;
+        };
+        let Some(held) = self.held.take() else {
+            return;
+        };
+        let rev = self.revolution;
+        let d = self.count.saturating_sub(reference);
+        let off = d - rev * (d as f64 / rev as f64).round() as i64;
+        let lost = 4 * (off as f64 / 4.0).round() as i64;
+        if lost == 0 || (off - lost).abs() > 1 {
+            return;
+        }
+        let (n, way) = if lost > 0 {
+            (lost, "many")
+        } else {
+            (-lost, "few")
+        };
+        for tr in self.out.iter_mut().skip(held.at) {
+            tr.edge = tr.edge.saturating_sub(lost);
+        }
+        self.count = self.count.saturating_sub(lost);
+        self.findings.push(Finding {
+            kind: FindingKind::PulseLoss,
+            index: i,
+            detail: format!(
+                "'{}', '{}': the index pulse at sample {i} comes {off} count(s) off a whole revolution: the count taken across the dropout from sample {} was {n} too {way} ({} line(s)), corrected from there",
+                self.names[0],
+                self.names[1],
+                held.from,
+                n / 4
             ),
         });
     }
@@ -383,10 +452,38 @@ impl QuadratureDecoder {
         self.transitions += 1;
         self.last_t = Some(t);
         self.out.push_back(Transition { t, edge });
+        // Held no longer than two revolutions without an index pulse turning forward.
+        if let Some(h) = self.held {
+            if (self.out.len() - h.at) as i64 > 2 * self.revolution {
+                self.unchecked("within two revolutions after it");
+            }
+        }
     }
 
-    /// The next transition found.
+    /// The transitions held after a dropout go on unchecked (no index pulse turning forward
+    /// came `when`): a note.
+    fn unchecked(&mut self, when: &str) {
+        if let Some(h) = self.held.take() {
+            self.findings.push(Finding {
+                kind: FindingKind::Note,
+                index: h.from,
+                detail: format!(
+                    "'{}', '{}': the count taken across the dropout from sample {} is not checked: no index pulse turning forward {when}",
+                    self.names[0], self.names[1], h.from
+                ),
+            });
+        }
+    }
+
+    /// The next transition found: none of those held after a dropout until the next index
+    /// pulse has checked its count.
     pub fn pop(&mut self) -> Option<Transition> {
+        if let Some(h) = self.held.as_mut() {
+            if h.at == 0 {
+                return None;
+            }
+            h.at -= 1;
+        }
         self.out.pop_front()
     }
 
@@ -398,6 +495,8 @@ impl QuadratureDecoder {
     /// No more samples: the comparators started if fewer than [`START_SAMPLES`] came, the
     /// error that stopped the decoding, or fewer than two transitions.
     pub fn finish(&mut self) -> Result<(), WheelError> {
+        // No index pulse left to check a dropout's count: the transitions held go on.
+        self.unchecked("before the signal ends");
         if self.comparators.is_none() && self.error.is_none() {
             if self.start.is_empty() {
                 let e = format!("'{}': no samples", self.names[0]);

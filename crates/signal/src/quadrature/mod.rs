@@ -17,9 +17,11 @@
 //!   before it (the last four transitions, no faster than the time since the last) gives the
 //!   rest — the count nearest the expected one, ties the way the shaft last turned. Exact while
 //!   the shaft's mean speed over the dropout stays within the bounds the `pulse_loss` finding at
-//!   that sample states (±2 counts of the expected); an index pulse later out of place
-//!   (below) tells a count lost all the same. Z not finite alone: skipped, an index pulse it
-//!   hides is not seen.
+//!   that sample states (±2 counts of the expected). With an index, the transitions after it
+//!   are held (two revolutions at most) until the next index pulse turning forward checks the
+//!   count: whole lines off a whole revolution (within a count) are corrected from the
+//!   dropout on, with a finding. An index pulse later out of place (below) tells a count wrong
+//!   all the same. Z not finite alone: skipped, an index pulse it hides is not seen.
 //! * Z: the count at each rising edge of the index while turning forward; the angle is 0 at the
 //!   first, and every later one must come a whole revolution (4·lines counts) from it — else a
 //!   finding at its sample with the counts found.
@@ -96,7 +98,7 @@ pub fn decode(
         r.push(z);
         r.range
     });
-    let mut d = QuadratureDecoder::new(names, z_range);
+    let mut d = QuadratureDecoder::new(names, z_range, lines);
     d.push(t, a, b, z.unwrap_or(&[]));
     d.finish()?;
     let mut zero = IndexZero::new(lines, names[2]);
