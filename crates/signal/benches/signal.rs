@@ -91,6 +91,37 @@ fn wheel(c: &mut Criterion) {
     g.finish();
 }
 
+/// The quadrature decoder on the golden 500-line encoder (200 kHz, 0.6 s; A, B, Z) with the
+/// angle at every sample — the dropout handling's cost on a clean signal.
+fn quadrature(c: &mut Criterion) {
+    use physid_signal::quadrature::decode;
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden/quadrature_500.parquet");
+    let rec = match physid_io::read(&path, &Default::default()) {
+        Ok(r) => r,
+        Err(e) => panic!("{e}"),
+    };
+    let column = |n: &str| match rec.values(n) {
+        Ok(v) => v.to_vec(),
+        Err(e) => panic!("{e}"),
+    };
+    let (t, a, b, z) = (
+        column("t"),
+        column("enc_a"),
+        column("enc_b"),
+        column("enc_z"),
+    );
+    let mut g = c.benchmark_group("quadrature");
+    g.throughput(Throughput::Elements(t.len() as u64));
+    g.bench_function("decode_500_200khz_0.6s", |bench| {
+        bench.iter(|| {
+            let q = decode(black_box(&t), &a, &b, Some(&z), 500, ["a", "b", "z"]);
+            black_box(q.map(|q| q.angle_at(&t)))
+        })
+    });
+    g.finish();
+}
+
 fn grid(c: &mut Criterion) {
     use physid_signal::cycles::CycleStream;
     let cycles = 20;
@@ -130,5 +161,5 @@ fn grid(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, filtfilt, encoder, wheel, grid);
+criterion_group!(benches, filtfilt, encoder, wheel, quadrature, grid);
 criterion_main!(benches);
